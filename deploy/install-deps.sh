@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package fovea needs to build, test, benchmark and run.
+# This file is the only place package names are listed. Idempotent: packages
+# already present are not reinstalled, and nothing happens when all are there.
+set -euo pipefail
+
+PACKAGES=(
+  # toolchain
+  build-essential g++ cmake ninja-build pkg-config git
+  clang libclang-rt-14-dev            # libFuzzer target and its sanitizer runtimes
+  # protocol, daemon and CLI
+  libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libtomlplusplus-dev
+  libsystemd-dev
+  # tracker hardware
+  libhidapi-dev libusb-1.0-0-dev libv4l-dev
+  # vision
+  libopencv-dev libopencv-contrib-dev
+  # renderer
+  libembree-dev libtbb-dev libglfw3-dev libgl-dev libgl1-mesa-dri libglm-dev
+  libassimp-dev libmeshoptimizer-dev libnanoflann-dev
+  xvfb xauth                          # headless OpenGL (Mesa llvmpipe) for tests
+  # tests, benchmarks, report plots
+  libgtest-dev libgmock-dev googletest libbenchmark-dev python3 python3-matplotlib
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1; then SUDO="sudo"; else
+    echo "install-deps: need root or sudo to install: ${missing[*]}" >&2; exit 1
+  fi
+fi
+
+echo "install-deps: installing ${#missing[@]} package(s): ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done"

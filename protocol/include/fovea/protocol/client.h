@@ -1,0 +1,127 @@
+#pragma once
+// GazeClient: subscribes to a fovea-trackerd stream, keeps the subscription alive, resubscribes by
+// itself when the daemon restarts, and measures what it receives.
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "fovea/protocol/codec.h"
+#include "fovea/protocol/messages.h"
+#include "fovea/protocol/sequence_tracker.h"
+#include "fovea/protocol/udp.h"
+
+namespace fovea::protocol {
+
+struct ClientOptions {
+  Endpoint server{0x7F000001, kDefaultPort};
+  std::uint32_t streams = kStreamSamples | kStreamEvents;
+  std::uint32_t requested_lease_ms = 5000;
+  std::uint32_t heartbeat_interval_ms = 500;  // also bounds how fast a daemon restart is noticed
+  std::uint32_t retry_interval_ms = 200;      // HELLO/SUBSCRIBE retransmission while not subscribed
+  std::string name = "fovea-client";
+  // Receive samples from this multicast group instead of unicast (events stay unicast).
+  std::optional<Endpoint> multicast_group;
+  std::uint32_t multicast_interface_ip = 0;
+  std::size_t queue_capacity = 4096;  // for poll(); the oldest are dropped when full
+};
+
+// What a callback receives besides the message itself.
+struct Arrival {
+  std::uint64_t sequence = 0;
+  std::int64_t receive_ns = 0;   // client clock
+  std::int64_t latency_ns = 0;   // receive time minus the server's send time mapped to our clock
+};
+
+struct ClientStats {
+  SequenceCounts samples;
+  SequenceCounts events;
+  std::uint64_t rejected = 0;          // datagrams that failed to decode or came from elsewhere
+  std::uint64_t queue_dropped = 0;
+  std::uint64_t subscriptions = 0;     // successful SUBSCRIBED, first one included
+  std::uint64_t errors_received = 0;
+  std::int64_t clock_offset_ns = 0;    // server clock minus client clock
+  std::int64_t clock_round_trip_ns = -1;
+  // Latency over the most recent samples (window of 65536): publish on the server to arrival here.
+  std::int64_t latency_p50_ns = 0, latency_p99_ns = 0, latency_max_ns = 0;
+  std::size_t latency_count = 0;
+};
+
+class GazeClient {
+ public:
+  using SampleCallback = std::function<void(const GazeSample&, const Arrival&)>;
+  using EventCallback = std::function<void(const GazeEvent&, const Arrival&)>;
+
+  explicit GazeClient(ClientOptions options);
+  ~GazeClient();  // unsubscribes and stops
+  GazeClient(const GazeClient&) = delete;
+  GazeClient& operator=(const GazeClient&) = delete;
+
+  // Callbacks run on the client's receive thread; set them before start().
+  void on_sample(SampleCallback cb) { on_sample_ = std::move(cb); }
+  void on_event(EventCallback cb) { on_event_ = std::move(cb); }
+  void start();
+  void stop();  // sends UNSUBSCRIBE when subscribed
+
+  bool wait_subscribed(int timeout_ms);
+  bool subscribed() const { return subscribed_.load(); }
+  std::optional<Subscribed> session() const;
+  std::optional<GazeSample> latest_sample() const;
+  // Moves up to `max` queued samples (oldest first) into `out`; returns how many.
+  std::size_t poll(std::vector<std::pair<GazeSample, Arrival>>& out, std::size_t max = SIZE_MAX);
+  ClientStats stats() const;
+  // Full latency record (nanoseconds) since start, for reports; bounded to 10^7 entries.
+  std::vector<std::int64_t> latencies() const;
+
+  // One-shot request/reply helpers (no subscription), used by `fovea-ctl status`.
+  static std::optional<StatusReply> query_status(const Endpoint& server, int timeout_ms);
+
+ private:
+  void loop();
+  void send(Payload p);
+  void handle(const Message& m, std::int64_t now);
+  void handle_gaze(const Message& m, std::int64_t now);
+  void begin_handshake(std::int64_t now);
+
+  ClientOptions options_;
+  UdpSocket socket_;
+  UdpSocket multicast_socket_;
+  SampleCallback on_sample_;
+  EventCallback on_event_;
+
+  enum class State { Hello, Subscribe, Subscribed };
+  State state_ = State::Hello;
+  std::uint64_t nonce_ = 0;
+  Cookie cookie_{};
+  std::uint64_t request_seq_ = 0;
+  std::int64_t last_sent_ns_ = 0;
+  std::int64_t last_heard_ns_ = 0;  // last HEARTBEAT reply or stream datagram from the server
+  std::int64_t next_time_sync_ns_ = 0;
+  std::uint32_t time_syncs_done_ = 0;
+
+  mutable std::mutex mutex_;
+  std::condition_variable subscribed_cv_;
+  std::optional<Subscribed> session_;
+  std::optional<GazeSample> latest_;
+  std::deque<std::pair<GazeSample, Arrival>> queue_;
+  SequenceTracker sample_seq_, event_seq_;
+  ClientStats stats_;
+  std::vector<std::int64_t> latency_ring_;
+  std::size_t latency_next_ = 0;
+  std::vector<std::int64_t> latency_all_;
+  struct SyncSample { std::int64_t offset, delay; };
+  std::deque<SyncSample> sync_samples_;
+
+  DecodeCounters rejected_;
+  std::atomic<bool> subscribed_{false};
+  std::atomic<bool> running_{false};
+  std::thread thread_;
+};
+
+}  // namespace fovea::protocol

@@ -1,0 +1,18 @@
+#pragma once
+// CSV import/export of gaze samples; columns documented in protocol/RECORDING.md.
+#include <iosfwd>
+#include <string>
+
+#include "fovea/protocol/recording.h"
+
+namespace fovea::protocol {
+
+// Writes the header comments, the column line and one line per sample. Events are not part of
+// the CSV form; returns how many records were events and therefore left out.
+std::size_t write_csv(std::ostream& out, const Recording& rec);
+
+// Parses the CSV form. Throws std::runtime_error naming `source_name`, the line, the column and
+// the allowed range on the first bad value; nothing partial is returned.
+Recording read_csv(std::istream& in, const std::string& source_name);
+
+}  // namespace fovea::protocol

@@ -1,0 +1,226 @@
+#pragma once
+// The gaze protocol v1: message types and their fields. The byte layout of each is defined in
+// codec.cpp and documented in protocol/PROTOCOL.md; the two must agree (tests check the golden
+// vectors in tests/data/golden against both).
+#include <array>
+#include <cstdint>
+#include <string>
+#include <variant>
+
+#include "fovea/protocol/display_geometry.h"
+
+namespace fovea::protocol {
+
+inline constexpr std::array<std::uint8_t, 4> kMagic = {'F', 'V', 'G', 'Z'};
+inline constexpr std::uint8_t kVersion = 1;
+inline constexpr std::size_t kHeaderSize = 32;
+inline constexpr std::uint16_t kDefaultPort = 47800;
+// Largest datagram a v1 peer sends or accepts.
+inline constexpr std::size_t kMaxDatagramSize = 512;
+
+enum class MessageType : std::uint8_t {
+  Hello = 1,
+  Challenge = 2,
+  Subscribe = 3,
+  Subscribed = 4,
+  Heartbeat = 5,
+  Unsubscribe = 6,
+  GazeSample = 7,
+  GazeEvent = 8,
+  StatusRequest = 9,
+  StatusReply = 10,
+  TimeSyncRequest = 11,
+  TimeSyncReply = 12,
+  Error = 13,
+};
+inline constexpr std::uint8_t kMaxMessageType = 13;
+const char* to_string(MessageType t);
+
+// Subscription stream bits.
+inline constexpr std::uint32_t kStreamSamples = 1u << 0;
+inline constexpr std::uint32_t kStreamEvents = 1u << 1;
+inline constexpr std::uint32_t kStreamMask = kStreamSamples | kStreamEvents;
+
+struct Header {
+  MessageType type = MessageType::Hello;
+  std::uint16_t payload_length = 0;
+  // GAZE_SAMPLE / GAZE_EVENT: the stream's sequence number (one counter per stream, shared by all
+  // subscribers). Requests: the sender's request counter. Replies: the request's sequence.
+  std::uint64_t sequence = 0;
+  // When the content came to be on the sender's clock (sample capture time for gaze samples).
+  std::int64_t origin_time_ns = 0;
+  // When the sender handed the datagram to the network, on the sender's clock.
+  std::int64_t send_time_ns = 0;
+  friend bool operator==(const Header&, const Header&) = default;
+};
+
+// Fixed-size NUL-padded UTF-8 text field.
+template <std::size_t N>
+struct FixedString {
+  static constexpr std::size_t capacity = N;
+  std::string value;  // at most N-1 bytes; the codec rejects longer text
+  friend bool operator==(const FixedString&, const FixedString&) = default;
+};
+
+using Cookie = std::array<std::uint8_t, 16>;
+
+struct Hello {
+  std::uint64_t client_nonce = 0;
+  FixedString<32> client_name;
+  friend bool operator==(const Hello&, const Hello&) = default;
+};
+
+struct Challenge {
+  std::uint64_t client_nonce = 0;  // echoed from HELLO
+  Cookie cookie{};
+  std::uint32_t cookie_lifetime_ms = 0;
+  friend bool operator==(const Challenge&, const Challenge&) = default;
+};
+
+struct Subscribe {
+  Cookie cookie{};
+  std::uint64_t client_nonce = 0;
+  std::uint32_t streams = kStreamSamples;
+  std::uint32_t requested_lease_ms = 0;  // 0: server default
+  friend bool operator==(const Subscribe&, const Subscribe&) = default;
+};
+
+struct MulticastInfo {
+  std::uint32_t group_ipv4 = 0;  // host byte order; 0 = no multicast
+  std::uint16_t port = 0;
+  std::uint8_t ttl = 0;
+  friend bool operator==(const MulticastInfo&, const MulticastInfo&) = default;
+};
+
+struct Subscribed {
+  std::uint64_t session_id = 0;
+  std::uint32_t streams = 0;
+  std::uint32_t lease_ms = 0;
+  double nominal_rate_hz = 0;
+  std::uint64_t next_sample_sequence = 0;
+  std::uint64_t next_event_sequence = 0;
+  DisplayGeometry display;
+  MulticastInfo multicast;
+  friend bool operator==(const Subscribed&, const Subscribed&) = default;
+};
+
+struct Heartbeat {
+  std::uint64_t session_id = 0;
+  std::uint32_t lease_ms = 0;  // server reply: lease granted from now
+  friend bool operator==(const Heartbeat&, const Heartbeat&) = default;
+};
+
+struct Unsubscribe {
+  std::uint64_t session_id = 0;
+  friend bool operator==(const Unsubscribe&, const Unsubscribe&) = default;
+};
+
+// Eye-movement classes, shared by GAZE_SAMPLE.state and GAZE_EVENT.kind.
+enum class EyeMovement : std::uint8_t { Unknown = 0, Fixation = 1, Saccade = 2, Pursuit = 3, Blink = 4 };
+inline constexpr std::uint8_t kMaxEyeMovement = 4;
+const char* to_string(EyeMovement m);
+
+inline constexpr std::uint8_t kEyePupilValid = 1u << 0;
+inline constexpr std::uint8_t kEyeGlintValid = 1u << 1;
+inline constexpr std::uint8_t kEyeFlagMask = kEyePupilValid | kEyeGlintValid;
+
+struct EyeData {
+  std::uint8_t flags = 0;  // kEyePupilValid | kEyeGlintValid
+  float pupil_x_px = 0, pupil_y_px = 0;  // pupil centre in eye-camera pixels
+  float pupil_diameter_mm = 0;
+  float pupil_glint_x_px = 0, pupil_glint_y_px = 0;  // pupil centre minus glint centroid
+  friend bool operator==(const EyeData&, const EyeData&) = default;
+};
+
+inline constexpr std::uint8_t kGazeValid = 1u << 0;
+inline constexpr std::uint8_t kGazeFlagMask = kGazeValid;
+
+struct GazeSample {
+  std::int64_t tracker_time_ns = 0;
+  float x = 0, y = 0;          // normalized screen coordinates, origin top-left, y down
+  float x_deg = 0, y_deg = 0;  // visual angle from screen centre, x right, y down
+  float angular_velocity_deg_s = 0;
+  float confidence = 0;  // [0, 1]
+  EyeMovement state = EyeMovement::Unknown;
+  std::uint8_t flags = 0;  // kGazeValid
+  EyeData left, right;
+  friend bool operator==(const GazeSample&, const GazeSample&) = default;
+};
+
+enum class EventPhase : std::uint8_t { Start = 1, End = 2 };
+
+struct GazeEvent {
+  EyeMovement kind = EyeMovement::Fixation;
+  EventPhase phase = EventPhase::Start;
+  std::int64_t start_time_ns = 0;
+  std::int64_t duration_ns = 0;  // 0 for Start
+  float centroid_x = 0, centroid_y = 0;  // normalized (Start: position at onset)
+  float centroid_x_deg = 0, centroid_y_deg = 0;
+  float amplitude_deg = 0;
+  float peak_velocity_deg_s = 0;
+  friend bool operator==(const GazeEvent&, const GazeEvent&) = default;
+};
+
+struct StatusRequest {
+  friend bool operator==(const StatusRequest&, const StatusRequest&) = default;
+};
+
+enum class SourceState : std::uint8_t { Running = 0, Ended = 1, Retrying = 2 };
+inline constexpr std::uint8_t kMaxSourceState = 2;
+
+struct StatusReply {
+  FixedString<48> source;
+  double nominal_rate_hz = 0;
+  std::int64_t uptime_ns = 0;
+  std::uint64_t samples_published = 0;
+  std::uint64_t events_published = 0;
+  std::uint64_t datagrams_rejected = 0;
+  std::uint32_t subscribers = 0;
+  SourceState source_state = SourceState::Running;
+  DisplayGeometry display;
+  friend bool operator==(const StatusReply&, const StatusReply&) = default;
+};
+
+// NTP-style exchange: t1 client send, t2 server receive, t3 server send (each on its own clock).
+struct TimeSyncRequest {
+  std::int64_t client_send_ns = 0;
+  friend bool operator==(const TimeSyncRequest&, const TimeSyncRequest&) = default;
+};
+struct TimeSyncReply {
+  std::int64_t client_send_ns = 0;
+  std::int64_t server_receive_ns = 0;
+  std::int64_t server_send_ns = 0;
+  friend bool operator==(const TimeSyncReply&, const TimeSyncReply&) = default;
+};
+
+enum class ErrorCode : std::uint16_t {
+  BadCookie = 1,
+  CookieExpired = 2,
+  UnknownSession = 3,
+  UnsupportedVersion = 4,
+  TooManySubscribers = 5,
+  BadRequest = 6,
+  AddressMismatch = 7,
+};
+inline constexpr std::uint16_t kMaxErrorCode = 7;
+const char* to_string(ErrorCode c);
+
+struct Error {
+  ErrorCode code = ErrorCode::BadRequest;
+  MessageType request_type = MessageType::Hello;
+  std::uint8_t supported_version = kVersion;
+  friend bool operator==(const Error&, const Error&) = default;
+};
+
+using Payload = std::variant<Hello, Challenge, Subscribe, Subscribed, Heartbeat, Unsubscribe, GazeSample,
+                             GazeEvent, StatusRequest, StatusReply, TimeSyncRequest, TimeSyncReply, Error>;
+
+MessageType type_of(const Payload& p);
+
+struct Message {
+  Header header;
+  Payload payload;
+  friend bool operator==(const Message&, const Message&) = default;
+};
+
+}  // namespace fovea::protocol

@@ -1,0 +1,87 @@
+#pragma once
+// Gaze recordings (.fgr): a header, then append-only length-prefixed records each guarded by a
+// CRC-32C. Byte layout in protocol/RECORDING.md. A reader recovers every intact record of a file
+// that was truncated or damaged anywhere, and reports what it skipped.
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "fovea/protocol/display_geometry.h"
+#include "fovea/protocol/messages.h"
+
+namespace fovea::protocol {
+
+inline constexpr std::size_t kRecordingHeaderSize = 160;
+inline constexpr std::uint16_t kRecordingVersion = 1;
+
+enum class RecordingClock : std::uint8_t { Monotonic = 0, Realtime = 1 };
+
+struct RecordingHeader {
+  std::string device;  // at most 63 bytes
+  DisplayGeometry display;
+  double nominal_rate_hz = 0;
+  RecordingClock clock = RecordingClock::Monotonic;
+  std::int64_t created_unix_ns = 0;   // wall clock when the file was created
+  std::int64_t created_clock_ns = 0;  // the record clock at that moment (maps record times to wall time)
+  friend bool operator==(const RecordingHeader&, const RecordingHeader&) = default;
+};
+
+struct Record {
+  std::uint64_t sequence = 0;
+  std::variant<GazeSample, GazeEvent> item;
+  friend bool operator==(const Record&, const Record&) = default;
+  std::int64_t time_ns() const;  // sample time, or event end time
+};
+
+std::vector<std::uint8_t> encode_recording_header(const RecordingHeader& h);
+std::vector<std::uint8_t> encode_record(const Record& r);
+
+class RecordingWriter {
+ public:
+  enum class Mode { CreateNew, Append };
+  // CreateNew refuses to replace an existing file. Append requires the existing header to be intact
+  // and to describe the same display; it creates the file if missing. Throws std::runtime_error
+  // naming the file and the reason.
+  RecordingWriter(const std::string& path, const RecordingHeader& header, Mode mode = Mode::CreateNew);
+  ~RecordingWriter();
+  RecordingWriter(const RecordingWriter&) = delete;
+  RecordingWriter& operator=(const RecordingWriter&) = delete;
+
+  // One write(2) per record, so a killed writer loses at most the record in flight.
+  void append(const Record& r);
+  void sync();  // fdatasync
+  std::uint64_t records_written() const { return written_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  std::uint64_t written_ = 0;
+};
+
+struct RecoveryReport {
+  bool header_valid = false;
+  std::uint64_t records = 0;
+  std::uint64_t damaged_regions = 0;   // runs of bytes that were not intact records
+  std::uint64_t bytes_skipped = 0;     // total bytes in those runs
+  bool truncated_tail = false;         // the file ends inside a record
+  std::string describe() const;
+};
+
+struct Recording {
+  RecordingHeader header;
+  std::vector<Record> records;
+  RecoveryReport report;
+};
+
+// Parses a recording held in memory. Never throws on damaged content: what is intact is returned,
+// the rest is counted in the report. Throws std::runtime_error only when `data` is not a recording
+// at all (no header magic and no recognisable record).
+Recording parse_recording(std::span<const std::uint8_t> data);
+// Reads a file; throws std::runtime_error naming the file if it cannot be opened or is not a recording.
+Recording read_recording(const std::string& path);
+
+}  // namespace fovea::protocol

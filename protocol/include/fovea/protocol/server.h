@@ -1,0 +1,118 @@
+#pragma once
+// GazeServer: the publishing side of the gaze protocol. It answers the handshake, keeps leases,
+// and sends every published sample/event to each subscriber by unicast and, optionally, to a
+// multicast group.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include "fovea/protocol/codec.h"
+#include "fovea/protocol/cookie.h"
+#include "fovea/protocol/messages.h"
+#include "fovea/protocol/udp.h"
+
+namespace fovea::protocol {
+
+struct MulticastTarget {
+  Endpoint group;               // e.g. 239.255.47.80:47801
+  std::uint8_t ttl = 1;
+  std::uint32_t interface_ip = 0;  // 0: kernel's choice
+};
+// "GROUP:PORT"; throws std::invalid_argument when GROUP is not in 224.0.0.0/4 or PORT is missing.
+MulticastTarget parse_multicast(const std::string& text);
+
+struct ServerOptions {
+  Endpoint listen{0x7F000001, kDefaultPort};  // 127.0.0.1:47800
+  std::uint32_t default_lease_ms = 5000;
+  std::uint32_t min_lease_ms = 200;
+  std::uint32_t max_lease_ms = 600'000;
+  std::uint32_t cookie_lifetime_ms = 10'000;
+  std::size_t max_subscribers = 256;
+  std::optional<MulticastTarget> multicast;
+  DisplayGeometry display;
+  double nominal_rate_hz = 0;
+  std::string source_name;
+};
+
+struct SubscriberInfo {
+  std::uint64_t session_id = 0;
+  Endpoint address;
+  std::uint32_t streams = 0;
+  std::uint32_t lease_ms = 0;
+  std::int64_t expires_ns = 0;
+};
+
+struct ServerStats {
+  std::uint64_t samples_published = 0;
+  std::uint64_t events_published = 0;
+  std::uint64_t datagrams_sent = 0;
+  std::uint64_t send_failures = 0;
+  std::uint64_t datagrams_rejected = 0;  // failed to decode
+  std::uint64_t requests_refused = 0;    // decoded, answered with ERROR
+  std::uint64_t leases_expired = 0;
+  std::size_t subscribers = 0;
+};
+
+class GazeServer {
+ public:
+  // Binds the socket (throws std::system_error naming the address) and starts the control thread.
+  explicit GazeServer(ServerOptions options);
+  ~GazeServer();
+  GazeServer(const GazeServer&) = delete;
+  GazeServer& operator=(const GazeServer&) = delete;
+
+  Endpoint local_endpoint() const { return socket_.local_endpoint(); }
+
+  // Assign the next sequence number of their stream and send to every subscriber of it.
+  // `sample.tracker_time_ns` becomes the header's origin time. Thread-safe. Returns the sequence
+  // number the item was sent with.
+  std::uint64_t publish(const GazeSample& sample);
+  std::uint64_t publish(const GazeEvent& event);
+
+  void set_source_state(SourceState s) { source_state_.store(s); }
+  void set_display(const DisplayGeometry& g);
+  void set_nominal_rate(double hz);
+  ServerStats stats() const;
+  std::vector<SubscriberInfo> subscribers() const;
+  const DecodeCounters& decode_counters() const { return rejected_; }
+  // Called (on the control thread) when subscribers come and go; for logging.
+  void on_subscriber_change(std::function<void(const SubscriberInfo&, const char* what)> cb);
+
+  void stop();
+
+ private:
+  void control_loop();
+  void handle(const Message& m, const Endpoint& from, std::int64_t received_ns);
+  void reply(const Endpoint& to, std::uint64_t sequence, Payload payload, std::int64_t origin_ns = 0);
+  void refuse(const Endpoint& to, std::uint64_t sequence, MessageType request, ErrorCode code);
+  void expire_leases(std::int64_t now_ns);
+  std::uint32_t clamp_lease(std::uint32_t requested) const;
+  std::uint64_t send_stream(std::uint32_t stream_bit, std::uint64_t& sequence, std::int64_t origin_ns, const Payload& p);
+
+  ServerOptions options_;
+  UdpSocket socket_;
+  UdpSocket multicast_socket_;
+  CookieJar cookies_;
+  std::int64_t started_ns_;
+  std::atomic<SourceState> source_state_{SourceState::Running};
+
+  mutable std::mutex mutex_;  // guards everything below
+  std::unordered_map<std::uint64_t, SubscriberInfo> sessions_;
+  std::uint64_t next_sample_seq_ = 0;
+  std::uint64_t next_event_seq_ = 0;
+  ServerStats stats_;
+  std::vector<Endpoint> targets_;  // scratch for publish
+  std::function<void(const SubscriberInfo&, const char*)> on_change_;
+
+  DecodeCounters rejected_;
+  std::atomic<bool> running_{true};
+  std::thread thread_;
+};
+
+}  // namespace fovea::protocol

@@ -1,0 +1,349 @@
+#include "fovea/protocol/client.h"
+
+#include <poll.h>
+#include <sys/random.h>
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "fovea/protocol/clock.h"
+
+namespace fovea::protocol {
+
+namespace {
+constexpr std::size_t kLatencyWindow = 65536;
+constexpr std::size_t kLatencyRecordLimit = 2'000'000;
+constexpr std::size_t kTimeSyncKeep = 8;
+constexpr std::int64_t kMs = 1'000'000;
+
+std::uint64_t random_nonce() {
+  std::uint64_t v = 0;
+  if (getrandom(&v, sizeof v, 0) != sizeof v) throw std::runtime_error("getrandom failed");
+  return v;
+}
+
+std::int64_t percentile(std::vector<std::int64_t> v, double q) {
+  if (v.empty()) return 0;
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+}  // namespace
+
+namespace {
+// With multicast, samples come from the group; the unicast subscription carries events only (a
+// subscription needs at least one stream, so it asks for events even when they will be ignored).
+std::uint32_t unicast_streams(const ClientOptions& o) {
+  if (!o.multicast_group) return o.streams;
+  return kStreamEvents;
+}
+}  // namespace
+
+GazeClient::GazeClient(ClientOptions options)
+    : options_(std::move(options)), socket_(UdpSocket::bind(Endpoint{0, 0})) {
+  socket_.set_receive_buffer(1 << 20);
+  if (options_.multicast_group) {
+    multicast_socket_ = UdpSocket::bind(Endpoint{0, options_.multicast_group->port}, true);
+    multicast_socket_.join_multicast(options_.multicast_group->ip, options_.multicast_interface_ip);
+    multicast_socket_.set_receive_buffer(1 << 20);
+  }
+  latency_ring_.reserve(kLatencyWindow);
+}
+
+GazeClient::~GazeClient() { stop(); }
+
+void GazeClient::start() {
+  if (running_.exchange(true)) return;
+  thread_ = std::thread([this] { loop(); });
+}
+
+void GazeClient::stop() {
+  if (!running_.exchange(false)) return;
+  if (thread_.joinable()) thread_.join();
+  std::optional<Subscribed> s = session();
+  if (s) send(Unsubscribe{s->session_id});
+  subscribed_ = false;
+}
+
+bool GazeClient::wait_subscribed(int timeout_ms) {
+  std::unique_lock lock(mutex_);
+  return subscribed_cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [this] { return subscribed_.load(); });
+}
+
+std::optional<Subscribed> GazeClient::session() const {
+  std::lock_guard lock(mutex_);
+  return session_;
+}
+
+std::optional<GazeSample> GazeClient::latest_sample() const {
+  std::lock_guard lock(mutex_);
+  return latest_;
+}
+
+std::size_t GazeClient::poll(std::vector<std::pair<GazeSample, Arrival>>& out, std::size_t max) {
+  std::lock_guard lock(mutex_);
+  std::size_t n = 0;
+  while (n < max && !queue_.empty()) {
+    out.push_back(queue_.front());
+    queue_.pop_front();
+    ++n;
+  }
+  return n;
+}
+
+ClientStats GazeClient::stats() const {
+  std::lock_guard lock(mutex_);
+  ClientStats s = stats_;
+  s.samples = sample_seq_.counts();
+  s.events = event_seq_.counts();
+  s.rejected += rejected_.rejected();
+  s.latency_count = latency_ring_.size();
+  s.latency_p50_ns = percentile(latency_ring_, 0.50);
+  s.latency_p99_ns = percentile(latency_ring_, 0.99);
+  s.latency_max_ns = latency_ring_.empty() ? 0 : *std::max_element(latency_ring_.begin(), latency_ring_.end());
+  return s;
+}
+
+std::vector<std::int64_t> GazeClient::latencies() const {
+  std::lock_guard lock(mutex_);
+  return latency_all_;
+}
+
+void GazeClient::send(Payload p) {
+  Message m{Header{}, std::move(p)};
+  m.header.sequence = request_seq_++;
+  m.header.send_time_ns = monotonic_ns();
+  m.header.origin_time_ns = m.header.send_time_ns;
+  std::array<std::uint8_t, kMaxDatagramSize> buf{};
+  const std::size_t n = encode_into(m, buf);
+  socket_.send_to(options_.server, std::span<const std::uint8_t>(buf.data(), n));
+  last_sent_ns_ = m.header.send_time_ns;
+}
+
+void GazeClient::begin_handshake(std::int64_t now) {
+  state_ = State::Hello;
+  subscribed_ = false;
+  nonce_ = random_nonce();
+  Hello h;
+  h.client_nonce = nonce_;
+  h.client_name.value = options_.name.substr(0, decltype(h.client_name)::capacity - 1);
+  send(h);
+  last_heard_ns_ = now;
+}
+
+void GazeClient::loop() {
+  std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+  begin_handshake(monotonic_ns());
+  std::uint32_t subscribe_attempts = 0;
+  while (running_.load()) {
+    pollfd fds[2] = {{socket_.fd(), POLLIN, 0}, {multicast_socket_.fd(), POLLIN, 0}};
+    ::poll(fds, multicast_socket_.valid() ? 2 : 1, 10);
+    for (int i = 0; i < 2; ++i) {
+      const UdpSocket& sock = i == 0 ? socket_ : multicast_socket_;
+      if (!sock.valid() || (fds[i].revents & POLLIN) == 0) continue;
+      for (int burst = 0; burst < 256; ++burst) {
+        Endpoint from;
+        const std::size_t n = sock.receive(buf, from, 0);
+        if (n == 0) break;
+        const std::int64_t now = monotonic_ns();
+        Message m;
+        const DecodeResult r = n > kMaxDatagramSize
+                                   ? DecodeResult{DecodeError::TooLong, kMaxDatagramSize}
+                                   : decode(std::span<const std::uint8_t>(buf.data(), n), m);
+        if (!r) {
+          rejected_.count(r.error);
+          continue;
+        }
+        const bool from_server = i == 0 && from == options_.server;
+        const bool from_group = i == 1 && m.header.type == MessageType::GazeSample;
+        if (!from_server && !from_group) {
+          std::lock_guard lock(mutex_);
+          ++stats_.rejected;  // not our server: never trusted
+          continue;
+        }
+        handle(m, now);
+      }
+    }
+
+    const std::int64_t now = monotonic_ns();
+    const std::int64_t retry = std::int64_t{options_.retry_interval_ms} * kMs;
+    switch (state_) {
+      case State::Hello:
+        if (now - last_sent_ns_ >= retry) begin_handshake(now);
+        break;
+      case State::Subscribe:
+        if (now - last_sent_ns_ >= retry) {
+          if (++subscribe_attempts > 10) {
+            begin_handshake(now);
+          } else {
+            send(Subscribe{cookie_, nonce_, unicast_streams(options_), options_.requested_lease_ms});
+          }
+        }
+        break;
+      case State::Subscribed: {
+        const std::int64_t hb = std::int64_t{options_.heartbeat_interval_ms} * kMs;
+        if (now - last_heard_ns_ > std::max<std::int64_t>(3 * hb, 1000 * kMs)) {
+          // The daemon went quiet (stopped, restarted, or the network failed): start over.
+          begin_handshake(now);
+          break;
+        }
+        const std::optional<Subscribed> s = session();
+        if (now - last_sent_ns_ >= hb && s) send(Heartbeat{s->session_id, options_.requested_lease_ms});
+        if (now >= next_time_sync_ns_) {
+          TimeSyncRequest t;
+          t.client_send_ns = monotonic_ns();
+          send(t);
+          next_time_sync_ns_ = now + (time_syncs_done_ < 4 ? 50 * kMs : 2000 * kMs);
+        }
+        break;
+      }
+    }
+    if (state_ != State::Subscribe) subscribe_attempts = 0;
+  }
+}
+
+void GazeClient::handle(const Message& m, std::int64_t now) {
+  switch (m.header.type) {
+    case MessageType::Challenge: {
+      const auto& c = std::get<Challenge>(m.payload);
+      if (state_ != State::Hello || c.client_nonce != nonce_) return;
+      cookie_ = c.cookie;
+      state_ = State::Subscribe;
+      send(Subscribe{cookie_, nonce_, unicast_streams(options_), options_.requested_lease_ms});
+      return;
+    }
+    case MessageType::Subscribed: {
+      const auto& s = std::get<Subscribed>(m.payload);
+      last_heard_ns_ = now;
+      {
+        std::lock_guard lock(mutex_);
+        const bool new_session = !session_ || session_->session_id != s.session_id;
+        if (new_session) {
+          sample_seq_.reset(s.next_sample_sequence);
+          event_seq_.reset(s.next_event_sequence);
+          ++stats_.subscriptions;
+          sync_samples_.clear();
+          time_syncs_done_ = 0;
+          next_time_sync_ns_ = now;
+        }
+        session_ = s;
+      }
+      state_ = State::Subscribed;
+      subscribed_ = true;
+      subscribed_cv_.notify_all();
+      return;
+    }
+    case MessageType::Heartbeat:
+      last_heard_ns_ = now;
+      return;
+    case MessageType::TimeSyncReply: {
+      const auto& t = std::get<TimeSyncReply>(m.payload);
+      // NTP: offset = ((t2 - t1) + (t3 - t4)) / 2, delay = (t4 - t1) - (t3 - t2).
+      const std::int64_t offset = ((t.server_receive_ns - t.client_send_ns) + (t.server_send_ns - now)) / 2;
+      const std::int64_t delay = (now - t.client_send_ns) - (t.server_send_ns - t.server_receive_ns);
+      if (delay < 0) return;
+      std::lock_guard lock(mutex_);
+      ++time_syncs_done_;
+      sync_samples_.push_back({offset, delay});
+      if (sync_samples_.size() > kTimeSyncKeep) sync_samples_.pop_front();
+      // The exchange with the smallest round trip has the least queueing error (NTP's clock filter).
+      const auto best = std::min_element(sync_samples_.begin(), sync_samples_.end(),
+                                         [](const SyncSample& a, const SyncSample& b) { return a.delay < b.delay; });
+      stats_.clock_offset_ns = best->offset;
+      stats_.clock_round_trip_ns = best->delay;
+      return;
+    }
+    case MessageType::Error: {
+      const auto& e = std::get<Error>(m.payload);
+      {
+        std::lock_guard lock(mutex_);
+        ++stats_.errors_received;
+      }
+      // Our session or cookie is no longer known (daemon restarted, lease lapsed): subscribe again.
+      if (e.code == ErrorCode::UnknownSession || e.code == ErrorCode::BadCookie || e.code == ErrorCode::CookieExpired ||
+          e.code == ErrorCode::AddressMismatch) {
+        begin_handshake(now);
+      }
+      return;
+    }
+    case MessageType::GazeSample:
+    case MessageType::GazeEvent:
+      handle_gaze(m, now);
+      return;
+    default: {
+      std::lock_guard lock(mutex_);
+      ++stats_.rejected;
+      return;
+    }
+  }
+}
+
+void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
+  if (state_ != State::Subscribed) return;
+  last_heard_ns_ = now;
+  Arrival a;
+  a.sequence = m.header.sequence;
+  a.receive_ns = now;
+  const bool is_sample = m.header.type == MessageType::GazeSample;
+  if ((options_.streams & (is_sample ? kStreamSamples : kStreamEvents)) == 0) return;
+  {
+    std::lock_guard lock(mutex_);
+    SequenceTracker& tracker = is_sample ? sample_seq_ : event_seq_;
+    const auto verdict = tracker.on_arrival(m.header.sequence);
+    if (verdict == SequenceTracker::Verdict::Duplicate || verdict == SequenceTracker::Verdict::TooOld) return;
+    // Map the server's send time to our clock; meaningful once a TIME_SYNC exchange has completed.
+    a.latency_ns = now - (m.header.send_time_ns - stats_.clock_offset_ns);
+    if (is_sample) {
+      const auto& s = std::get<GazeSample>(m.payload);
+      latest_ = s;
+      if (queue_.size() >= options_.queue_capacity) {
+        queue_.pop_front();
+        ++stats_.queue_dropped;
+      }
+      queue_.emplace_back(s, a);
+      if (stats_.clock_round_trip_ns >= 0) {
+        if (latency_ring_.size() < kLatencyWindow) {
+          latency_ring_.push_back(a.latency_ns);
+        } else {
+          latency_ring_[latency_next_] = a.latency_ns;
+        }
+        latency_next_ = (latency_next_ + 1) % kLatencyWindow;
+        if (latency_all_.size() < kLatencyRecordLimit) latency_all_.push_back(a.latency_ns);
+      }
+    }
+  }
+  if (is_sample) {
+    if (on_sample_) on_sample_(std::get<GazeSample>(m.payload), a);
+  } else if (on_event_) {
+    on_event_(std::get<GazeEvent>(m.payload), a);
+  }
+}
+
+std::optional<StatusReply> GazeClient::query_status(const Endpoint& server, int timeout_ms) {
+  UdpSocket sock = UdpSocket::bind(Endpoint{0, 0});
+  Message req{Header{}, StatusRequest{}};
+  req.header.sequence = random_nonce();
+  req.header.send_time_ns = req.header.origin_time_ns = monotonic_ns();
+  const std::vector<std::uint8_t> bytes = encode(req);
+  const std::int64_t deadline = monotonic_ns() + std::int64_t{timeout_ms} * kMs;
+  std::int64_t next_send = 0;
+  std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+  while (true) {
+    const std::int64_t now = monotonic_ns();
+    if (now >= deadline) return std::nullopt;
+    if (now >= next_send) {
+      sock.send_to(server, bytes);
+      next_send = now + 250 * kMs;
+    }
+    Endpoint from;
+    const std::size_t n = sock.receive(buf, from, 20);
+    if (n == 0 || n > kMaxDatagramSize || !(from == server)) continue;
+    Message m;
+    if (!decode(std::span<const std::uint8_t>(buf.data(), n), m)) continue;
+    if (m.header.type == MessageType::StatusReply && m.header.sequence == req.header.sequence) {
+      return std::get<StatusReply>(m.payload);
+    }
+  }
+}
+
+}  // namespace fovea::protocol

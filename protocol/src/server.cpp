@@ -1,0 +1,295 @@
+#include "fovea/protocol/server.h"
+
+#include <sys/random.h>
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "fovea/protocol/clock.h"
+
+namespace fovea::protocol {
+
+MulticastTarget parse_multicast(const std::string& text) {
+  if (text.find(':') == std::string::npos) {
+    throw std::invalid_argument("multicast \"" + text + "\": expected GROUP:PORT, e.g. 239.255.47.80:47801");
+  }
+  MulticastTarget t;
+  t.group = parse_endpoint(text, 0);
+  if (!t.group.is_multicast()) {
+    throw std::invalid_argument("multicast \"" + text + "\": " + Endpoint{t.group.ip, 0}.to_string() +
+                                " is not a multicast group (224.0.0.0 - 239.255.255.255)");
+  }
+  if (t.group.port == 0) throw std::invalid_argument("multicast \"" + text + "\": port must be 1..65535");
+  return t;
+}
+
+namespace {
+std::uint64_t random_u64() {
+  std::uint64_t v = 0;
+  while (v == 0) {
+    if (getrandom(&v, sizeof v, 0) != sizeof v) throw std::runtime_error("getrandom failed");
+  }
+  return v;
+}
+}  // namespace
+
+GazeServer::GazeServer(ServerOptions options)
+    : options_(std::move(options)),
+      socket_(UdpSocket::bind(options_.listen)),
+      cookies_(options_.cookie_lifetime_ms),
+      started_ns_(monotonic_ns()) {
+  socket_.set_receive_buffer(1 << 20);
+  if (options_.multicast) {
+    multicast_socket_ = UdpSocket::bind(Endpoint{0, 0});
+    multicast_socket_.set_multicast_output(options_.multicast->ttl, options_.multicast->interface_ip, true);
+  }
+  thread_ = std::thread([this] { control_loop(); });
+}
+
+GazeServer::~GazeServer() { stop(); }
+
+void GazeServer::stop() {
+  running_ = false;
+  if (thread_.joinable()) thread_.join();
+}
+
+void GazeServer::on_subscriber_change(std::function<void(const SubscriberInfo&, const char*)> cb) {
+  std::lock_guard lock(mutex_);
+  on_change_ = std::move(cb);
+}
+
+void GazeServer::set_display(const DisplayGeometry& g) {
+  std::lock_guard lock(mutex_);
+  options_.display = g;
+}
+
+void GazeServer::set_nominal_rate(double hz) {
+  std::lock_guard lock(mutex_);
+  options_.nominal_rate_hz = hz;
+}
+
+ServerStats GazeServer::stats() const {
+  std::lock_guard lock(mutex_);
+  ServerStats s = stats_;
+  s.subscribers = sessions_.size();
+  s.datagrams_rejected = rejected_.rejected();
+  return s;
+}
+
+std::vector<SubscriberInfo> GazeServer::subscribers() const {
+  std::lock_guard lock(mutex_);
+  std::vector<SubscriberInfo> out;
+  for (const auto& [id, s] : sessions_) out.push_back(s);
+  return out;
+}
+
+std::uint64_t GazeServer::send_stream(std::uint32_t stream_bit, std::uint64_t& sequence, std::int64_t origin_ns,
+                             const Payload& p) {
+  // Caller holds mutex_, so all subscribers see the same sequence numbers in the same order.
+  targets_.clear();
+  for (const auto& [id, s] : sessions_) {
+    if ((s.streams & stream_bit) != 0) targets_.push_back(s.address);
+  }
+  Message m{Header{}, p};
+  m.header.sequence = sequence++;
+  m.header.origin_time_ns = origin_ns;
+  m.header.send_time_ns = monotonic_ns();
+  std::array<std::uint8_t, kMaxDatagramSize> buf{};
+  const std::size_t n = encode_into(m, buf);
+  const std::span<const std::uint8_t> datagram(buf.data(), n);
+  const std::size_t sent = socket_.send_to_many(targets_, datagram);
+  stats_.datagrams_sent += sent;
+  stats_.send_failures += targets_.size() - sent;
+  if (multicast_socket_.valid()) {
+    if (multicast_socket_.send_to(options_.multicast->group, datagram)) {
+      ++stats_.datagrams_sent;
+    } else {
+      ++stats_.send_failures;
+    }
+  }
+  return m.header.sequence;
+}
+
+std::uint64_t GazeServer::publish(const GazeSample& sample) {
+  std::lock_guard lock(mutex_);
+  ++stats_.samples_published;
+  return send_stream(kStreamSamples, next_sample_seq_, sample.tracker_time_ns, sample);
+}
+
+std::uint64_t GazeServer::publish(const GazeEvent& event) {
+  std::lock_guard lock(mutex_);
+  ++stats_.events_published;
+  return send_stream(kStreamEvents, next_event_seq_, event.start_time_ns + event.duration_ns, event);
+}
+
+void GazeServer::control_loop() {
+  std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+  while (running_.load()) {
+    Endpoint from;
+    const std::size_t n = socket_.receive(buf, from, 20);
+    const std::int64_t now = monotonic_ns();
+    if (n > 0) {
+      Message m;
+      const std::span<const std::uint8_t> datagram(buf.data(), std::min(n, buf.size()));
+      const DecodeResult r = n > kMaxDatagramSize ? DecodeResult{DecodeError::TooLong, kMaxDatagramSize}
+                                                   : decode(datagram, m);
+      if (r) {
+        handle(m, from, now);
+      } else {
+        rejected_.count(r.error);
+        // A peer speaking another version learns which one we speak, if its datagram is at least as
+        // large as our answer (so we never amplify).
+        if (r.error == DecodeError::BadVersion && n >= kHeaderSize + payload_size(MessageType::Error)) {
+          std::lock_guard lock(mutex_);
+          refuse(from, 0, MessageType::Hello, ErrorCode::UnsupportedVersion);
+        }
+      }
+    }
+    expire_leases(now);
+  }
+}
+
+void GazeServer::reply(const Endpoint& to, std::uint64_t sequence, Payload payload, std::int64_t origin_ns) {
+  Message m{Header{}, std::move(payload)};
+  m.header.sequence = sequence;
+  m.header.send_time_ns = monotonic_ns();
+  m.header.origin_time_ns = origin_ns != 0 ? origin_ns : m.header.send_time_ns;
+  std::array<std::uint8_t, kMaxDatagramSize> buf{};
+  const std::size_t n = encode_into(m, buf);
+  if (socket_.send_to(to, std::span<const std::uint8_t>(buf.data(), n))) {
+    ++stats_.datagrams_sent;
+  } else {
+    ++stats_.send_failures;
+  }
+}
+
+void GazeServer::refuse(const Endpoint& to, std::uint64_t sequence, MessageType request, ErrorCode code) {
+  ++stats_.requests_refused;
+  reply(to, sequence, Error{code, request, kVersion});
+}
+
+std::uint32_t GazeServer::clamp_lease(std::uint32_t requested) const {
+  if (requested == 0) return options_.default_lease_ms;
+  return std::clamp(requested, options_.min_lease_ms, options_.max_lease_ms);
+}
+
+void GazeServer::handle(const Message& m, const Endpoint& from, std::int64_t received_ns) {
+  std::lock_guard lock(mutex_);
+  const std::uint64_t seq = m.header.sequence;
+  switch (m.header.type) {
+    case MessageType::Hello: {
+      const auto& hello = std::get<Hello>(m.payload);
+      reply(from, seq, Challenge{hello.client_nonce, cookies_.issue(from, hello.client_nonce, received_ns),
+                                 cookies_.lifetime_ms()});
+      return;
+    }
+    case MessageType::Subscribe: {
+      const auto& sub = std::get<Subscribe>(m.payload);
+      switch (cookies_.check(sub.cookie, from, sub.client_nonce, received_ns)) {
+        case CookieCheck::Forged: refuse(from, seq, m.header.type, ErrorCode::BadCookie); return;
+        case CookieCheck::Expired: refuse(from, seq, m.header.type, ErrorCode::CookieExpired); return;
+        case CookieCheck::Valid: break;
+      }
+      // One session per address: a repeated SUBSCRIBE (its SUBSCRIBED was lost) renews the same one.
+      SubscriberInfo* session = nullptr;
+      for (auto& [id, s] : sessions_) {
+        if (s.address == from) session = &s;
+      }
+      const char* what = "renewed";
+      if (session == nullptr) {
+        if (sessions_.size() >= options_.max_subscribers) {
+          refuse(from, seq, m.header.type, ErrorCode::TooManySubscribers);
+          return;
+        }
+        std::uint64_t id = random_u64();
+        while (sessions_.contains(id)) id = random_u64();
+        session = &sessions_[id];
+        session->session_id = id;
+        session->address = from;
+        what = "subscribed";
+      }
+      session->streams = sub.streams;
+      session->lease_ms = clamp_lease(sub.requested_lease_ms);
+      session->expires_ns = received_ns + std::int64_t{session->lease_ms} * 1'000'000;
+      Subscribed reply_msg;
+      reply_msg.session_id = session->session_id;
+      reply_msg.streams = session->streams;
+      reply_msg.lease_ms = session->lease_ms;
+      reply_msg.nominal_rate_hz = options_.nominal_rate_hz;
+      reply_msg.next_sample_sequence = next_sample_seq_;
+      reply_msg.next_event_sequence = next_event_seq_;
+      reply_msg.display = options_.display;
+      if (options_.multicast) {
+        reply_msg.multicast = {options_.multicast->group.ip, options_.multicast->group.port, options_.multicast->ttl};
+      }
+      reply(from, seq, reply_msg);
+      if (on_change_) on_change_(*session, what);
+      return;
+    }
+    case MessageType::Heartbeat: {
+      const auto& hb = std::get<Heartbeat>(m.payload);
+      const auto it = sessions_.find(hb.session_id);
+      if (it == sessions_.end()) {
+        refuse(from, seq, m.header.type, ErrorCode::UnknownSession);
+        return;
+      }
+      if (!(it->second.address == from)) {
+        refuse(from, seq, m.header.type, ErrorCode::AddressMismatch);
+        return;
+      }
+      if (hb.lease_ms != 0) it->second.lease_ms = clamp_lease(hb.lease_ms);
+      it->second.expires_ns = received_ns + std::int64_t{it->second.lease_ms} * 1'000'000;
+      reply(from, seq, Heartbeat{hb.session_id, it->second.lease_ms});
+      return;
+    }
+    case MessageType::Unsubscribe: {
+      const auto& un = std::get<Unsubscribe>(m.payload);
+      const auto it = sessions_.find(un.session_id);
+      if (it != sessions_.end() && it->second.address == from) {
+        const SubscriberInfo gone = it->second;
+        sessions_.erase(it);
+        if (on_change_) on_change_(gone, "unsubscribed");
+      }
+      return;
+    }
+    case MessageType::StatusRequest: {
+      StatusReply s;
+      s.source.value = options_.source_name.substr(0, decltype(s.source)::capacity - 1);
+      s.nominal_rate_hz = options_.nominal_rate_hz;
+      s.uptime_ns = received_ns - started_ns_;
+      s.samples_published = stats_.samples_published;
+      s.events_published = stats_.events_published;
+      s.datagrams_rejected = rejected_.rejected();
+      s.subscribers = static_cast<std::uint32_t>(sessions_.size());
+      s.source_state = source_state_.load();
+      s.display = options_.display;
+      reply(from, seq, s);
+      return;
+    }
+    case MessageType::TimeSyncRequest: {
+      const auto& req = std::get<TimeSyncRequest>(m.payload);
+      reply(from, seq, TimeSyncReply{req.client_send_ns, received_ns, monotonic_ns()});
+      return;
+    }
+    default:
+      // Server-to-client messages arriving here are well-formed but meaningless: count, do not answer.
+      rejected_.count(DecodeError::UnknownType);
+      return;
+  }
+}
+
+void GazeServer::expire_leases(std::int64_t now_ns) {
+  std::lock_guard lock(mutex_);
+  for (auto it = sessions_.begin(); it != sessions_.end();) {
+    if (it->second.expires_ns < now_ns) {
+      const SubscriberInfo gone = it->second;
+      it = sessions_.erase(it);
+      ++stats_.leases_expired;
+      if (on_change_) on_change_(gone, "lease expired");
+    } else {
+      ++it;
+    }
+  }
+}
+
+}  // namespace fovea::protocol

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# Whole-process test of fovea-trackerd and fovea-ctl as a user runs them.
+set -u
+TRACKERD=$1 CTL=$2 DATA=$3
+WORK=$(mktemp -d)
+PIDS=()
+cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null; done; rm -rf "$WORK"; }
+trap cleanup EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+PORT=$(( 47900 + RANDOM % 1000 ))
+SRV=127.0.0.1:$PORT
+REC=$DATA/recordings/synthetic-250hz-62s.fgr
+
+wait_status() {
+  for _ in $(seq 1 50); do "$CTL" --server "$SRV" status >/dev/null 2>&1 && return 0; sleep 0.1; done
+  return 1
+}
+
+echo "== bad invocations give clear errors and non-zero exit"
+out=$("$TRACKERD" --source bogus --port $PORT 2>&1) && fail "unknown source accepted"
+grep -q 'unknown source "bogus"' <<<"$out" || fail "unclear message: $out"
+out=$("$TRACKERD" --source replay:/nonexistent.fgr --port $PORT 2>&1) && fail "missing file accepted"
+grep -q '/nonexistent.fgr' <<<"$out" || fail "message does not name the file: $out"
+out=$("$TRACKERD" --display 0x0@1x1mm,1mm --port $PORT 2>&1) && fail "bad display accepted"
+grep -q 'width_px' <<<"$out" || fail "message does not name the field: $out"
+out=$("$CTL" --server 127.0.0.1:1 status 2>&1) && fail "status without daemon succeeded"
+grep -q 'no answer from 127.0.0.1:1' <<<"$out" || fail "unclear message: $out"
+
+echo "== daemon replays the bundled recording; watch and record run side by side"
+"$TRACKERD" --source "replay:$REC" --port $PORT --loop >"$WORK/daemon.log" 2>&1 &
+DPID=$!; PIDS+=($DPID)
+wait_status || fail "daemon did not answer status"
+"$CTL" --server "$SRV" status | grep -q "replay:" || fail "status does not name the source"
+out=$("$TRACKERD" --source synthetic --port $PORT 2>&1) && fail "second daemon on a busy port started"
+grep -q "cannot bind UDP 127.0.0.1:$PORT" <<<"$out" || fail "busy port message unclear: $out"
+"$CTL" --server "$SRV" watch --duration 2 --every 50 >"$WORK/watch.out" 2>"$WORK/watch.err" &
+W=$!
+"$CTL" --server "$SRV" record "$WORK/live.fgr" --duration 2 2>"$WORK/record.err" || fail "record failed: $(cat "$WORK/record.err")"
+wait $W || fail "watch failed: $(cat "$WORK/watch.err")"
+grep -q "summary received=" "$WORK/watch.err" || fail "watch printed no summary"
+grep -q "lost=0 " "$WORK/watch.err" || fail "watch lost samples: $(cat "$WORK/watch.err")"
+[ "$(grep -c 'x=' "$WORK/watch.out")" -ge 5 ] || fail "watch printed too few lines"
+"$CTL" info "$WORK/live.fgr" >"$WORK/info.out" || fail "info failed"
+grep -q "0 damaged\|intact records$" "$WORK/info.out" || grep -q "integrity   [0-9]* intact records$" "$WORK/info.out" || fail "live recording damaged: $(cat "$WORK/info.out")"
+out=$("$CTL" --server "$SRV" record "$WORK/live.fgr" --duration 1 2>&1) && fail "record overwrote an existing file"
+grep -q "already exists" <<<"$out" || fail "overwrite refusal unclear: $out"
+
+echo "== convert round trip fgr -> csv -> fgr keeps every sample"
+"$CTL" convert "$WORK/live.fgr" "$WORK/live.csv" 2>/dev/null || fail "convert to csv"
+"$CTL" convert "$WORK/live.csv" "$WORK/back.fgr" 2>/dev/null || fail "convert back"
+n1=$("$CTL" info "$WORK/live.fgr" | awk '/^samples/{print $2}')
+n2=$("$CTL" info "$WORK/back.fgr" | awk '/^samples/{print $2}')
+[ "$n1" = "$n2" ] && [ "$n1" -gt 400 ] || fail "sample counts differ: $n1 vs $n2"
+"$CTL" convert "$WORK/live.fgr" "$WORK/live.csv" 2>/dev/null && fail "convert overwrote without --force"
+
+echo "== kill -9 while recording loses at most the record in flight"
+"$CTL" --server "$SRV" record "$WORK/killed.fgr" 2>/dev/null &
+R=$!
+sleep 1.5
+kill -9 $R; wait $R 2>/dev/null
+"$CTL" info "$WORK/killed.fgr" >"$WORK/killed.info" || fail "killed recording unreadable"
+n=$(awk '/^samples/{print $2}' "$WORK/killed.info")
+[ "$n" -gt 200 ] || fail "killed recording holds only $n samples"
+grep -q "damaged region" "$WORK/killed.info" && ! grep -q "skipped [0-9]* bytes in 1 damaged" "$WORK/killed.info" \
+  && fail "more than one damaged region after kill -9: $(cat "$WORK/killed.info")"
+
+echo "== SIGTERM stops the daemon cleanly"
+kill -TERM $DPID
+for _ in $(seq 1 50); do kill -0 $DPID 2>/dev/null || break; sleep 0.1; done
+kill -0 $DPID 2>/dev/null && fail "daemon still running 5 s after SIGTERM"
+wait $DPID; rc=$?
+[ $rc -eq 0 ] || fail "daemon exit status $rc after SIGTERM"
+grep -q "shut down cleanly" "$WORK/daemon.log" || fail "no clean-shutdown log line"
+
+echo "== daemon --record writes what it publishes"
+"$TRACKERD" --source synthetic --rate 500 --port $PORT --duration 1 --record "$WORK/daemon.fgr" 2>/dev/null || fail "daemon --record"
+n=$("$CTL" info "$WORK/daemon.fgr" | awk '/^samples/{print $2}')
+[ "$n" -ge 490 ] && [ "$n" -le 510 ] || fail "daemon recorded $n samples in 1 s at 500 Hz"
+echo "PASS"

@@ -1,0 +1,382 @@
+// GazeServer and GazeClient on loopback: handshake, leases, fan-out, late joiners, restarts.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+#include "fovea/protocol/client.h"
+#include "fovea/protocol/clock.h"
+#include "fovea/protocol/server.h"
+
+using namespace fovea::protocol;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr std::uint32_t kLoopback = 0x7F000001;
+
+ServerOptions server_options(std::uint16_t port = 0) {
+  ServerOptions o;
+  o.listen = Endpoint{kLoopback, port};
+  o.nominal_rate_hz = 1000;
+  o.source_name = "test";
+  return o;
+}
+
+GazeSample sample_at(std::int64_t t) {
+  GazeSample s;
+  s.tracker_time_ns = t;
+  s.x = 0.5f;
+  s.y = 0.5f;
+  s.confidence = 1.0f;
+  s.flags = kGazeValid;
+  s.state = EyeMovement::Fixation;
+  return s;
+}
+
+// Publishes samples at a fixed rate on its own thread, like the daemon's source loop.
+class Publisher {
+ public:
+  Publisher(GazeServer& server, int rate_hz) : server_(server), period_(1'000'000'000 / rate_hz) {
+    thread_ = std::thread([this] {
+      std::int64_t next = monotonic_ns();
+      while (!stop_) {
+        server_.publish(sample_at(monotonic_ns()));
+        next += period_;
+        std::this_thread::sleep_for(std::chrono::nanoseconds(std::max<std::int64_t>(0, next - monotonic_ns())));
+      }
+    });
+  }
+  ~Publisher() {
+    stop_ = true;
+    thread_.join();
+  }
+
+ private:
+  GazeServer& server_;
+  std::int64_t period_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+// A hand-driven peer speaking raw datagrams, to test what a misbehaving client gets.
+class RawPeer {
+ public:
+  explicit RawPeer(Endpoint server) : server_(server), socket_(UdpSocket::bind(Endpoint{kLoopback, 0})) {}
+  void send(Payload p, std::uint64_t seq = 1) {
+    Message m{Header{}, std::move(p)};
+    m.header.sequence = seq;
+    m.header.send_time_ns = m.header.origin_time_ns = monotonic_ns();
+    socket_.send_to(server_, encode(m));
+  }
+  void send_raw(const std::vector<std::uint8_t>& bytes) { socket_.send_to(server_, bytes); }
+  // Next message of the given type within the timeout; others are skipped.
+  std::optional<Message> receive(MessageType type, int timeout_ms) {
+    const std::int64_t deadline = monotonic_ns() + std::int64_t{timeout_ms} * 1'000'000;
+    std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+    while (monotonic_ns() < deadline) {
+      Endpoint from;
+      const std::size_t n = socket_.receive(buf, from, 10);
+      if (n == 0) continue;
+      Message m;
+      if (decode(std::span<const std::uint8_t>(buf.data(), n), m) && m.header.type == type) return m;
+    }
+    return std::nullopt;
+  }
+  std::size_t count(MessageType type, int for_ms) {
+    std::size_t n = 0;
+    const std::int64_t deadline = monotonic_ns() + std::int64_t{for_ms} * 1'000'000;
+    while (monotonic_ns() < deadline) {
+      if (receive(type, 5)) ++n;
+    }
+    return n;
+  }
+  std::optional<Subscribed> handshake(std::uint32_t lease_ms) {
+    send(Hello{99, {"raw"}});
+    const auto challenge = receive(MessageType::Challenge, 1000);
+    if (!challenge) return std::nullopt;
+    send(Subscribe{std::get<Challenge>(challenge->payload).cookie, 99, kStreamSamples, lease_ms});
+    const auto sub = receive(MessageType::Subscribed, 1000);
+    if (!sub) return std::nullopt;
+    return std::get<Subscribed>(sub->payload);
+  }
+  Endpoint local() const { return socket_.local_endpoint(); }
+
+ private:
+  Endpoint server_;
+  UdpSocket socket_;
+};
+
+ClientOptions client_options(Endpoint server) {
+  ClientOptions o;
+  o.server = server;
+  o.streams = kStreamSamples;
+  return o;
+}
+
+}  // namespace
+
+TEST(Handshake, SubscribeWithForgedCookieGetsErrorAndNoStream) {
+  GazeServer server(server_options());
+  Publisher pub(server, 500);
+  RawPeer peer(server.local_endpoint());
+  Cookie forged{};
+  forged.fill(0x5A);
+  peer.send(Subscribe{forged, 1, kStreamSamples, 0});
+  const auto err = peer.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::BadCookie);
+  EXPECT_EQ(peer.count(MessageType::GazeSample, 300), 0u);
+  EXPECT_TRUE(server.subscribers().empty());
+}
+
+TEST(Handshake, CookieIsBoundToTheAddressItWasIssuedTo) {
+  GazeServer server(server_options());
+  RawPeer alice(server.local_endpoint()), mallory(server.local_endpoint());
+  alice.send(Hello{7, {"alice"}});
+  const auto challenge = alice.receive(MessageType::Challenge, 1000);
+  ASSERT_TRUE(challenge);
+  mallory.send(Subscribe{std::get<Challenge>(challenge->payload).cookie, 7, kStreamSamples, 0});
+  const auto err = mallory.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::BadCookie);
+  EXPECT_TRUE(server.subscribers().empty());
+}
+
+TEST(Handshake, ValidHandshakeStreamsFromTheAnnouncedSequence) {
+  GazeServer server(server_options());
+  Publisher pub(server, 500);
+  std::this_thread::sleep_for(50ms);
+  RawPeer peer(server.local_endpoint());
+  const auto sub = peer.handshake(0);
+  ASSERT_TRUE(sub);
+  EXPECT_EQ(sub->lease_ms, 5000u);
+  EXPECT_EQ(sub->display, DisplayGeometry{});
+  EXPECT_GT(sub->next_sample_sequence, 0u);
+  const auto first = peer.receive(MessageType::GazeSample, 1000);
+  ASSERT_TRUE(first);
+  EXPECT_EQ(first->header.sequence, sub->next_sample_sequence);
+  ASSERT_EQ(server.subscribers().size(), 1u);
+  EXPECT_EQ(server.subscribers()[0].address, peer.local());
+}
+
+TEST(Leases, SilentSubscriberIsDroppedAfterItsLease) {
+  GazeServer server(server_options());
+  Publisher pub(server, 500);
+  RawPeer peer(server.local_endpoint());
+  const auto sub = peer.handshake(300);
+  ASSERT_TRUE(sub);
+  EXPECT_EQ(sub->lease_ms, 300u);
+  EXPECT_GT(peer.count(MessageType::GazeSample, 150), 0u);
+  std::this_thread::sleep_for(400ms);
+  EXPECT_TRUE(server.subscribers().empty());
+  EXPECT_EQ(server.stats().leases_expired, 1u);
+  peer.count(MessageType::GazeSample, 50);  // drain what was in flight
+  EXPECT_EQ(peer.count(MessageType::GazeSample, 200), 0u) << "a dropped subscriber must get nothing more";
+  // Its old session is gone: a heartbeat now is refused.
+  peer.send(Heartbeat{sub->session_id, 0});
+  const auto err = peer.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::UnknownSession);
+}
+
+TEST(Leases, HeartbeatsKeepTheSubscriptionAndUnsubscribeEndsIt) {
+  GazeServer server(server_options());
+  RawPeer peer(server.local_endpoint());
+  const auto sub = peer.handshake(300);
+  ASSERT_TRUE(sub);
+  for (int i = 0; i < 8; ++i) {
+    std::this_thread::sleep_for(100ms);
+    peer.send(Heartbeat{sub->session_id, 0});
+    ASSERT_TRUE(peer.receive(MessageType::Heartbeat, 500)) << "heartbeat " << i << " unanswered";
+  }
+  EXPECT_EQ(server.subscribers().size(), 1u);
+  peer.send(Unsubscribe{sub->session_id});
+  std::this_thread::sleep_for(100ms);
+  EXPECT_TRUE(server.subscribers().empty());
+}
+
+TEST(Leases, HeartbeatFromAnotherAddressIsRefused) {
+  GazeServer server(server_options());
+  RawPeer peer(server.local_endpoint()), other(server.local_endpoint());
+  const auto sub = peer.handshake(0);
+  ASSERT_TRUE(sub);
+  other.send(Heartbeat{sub->session_id, 0});
+  const auto err = other.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::AddressMismatch);
+}
+
+TEST(Server, RefusesSubscribersBeyondItsLimit) {
+  ServerOptions o = server_options();
+  o.max_subscribers = 1;
+  GazeServer server(o);
+  RawPeer a(server.local_endpoint()), b(server.local_endpoint());
+  ASSERT_TRUE(a.handshake(0));
+  b.send(Hello{5, {"b"}});
+  const auto challenge = b.receive(MessageType::Challenge, 1000);
+  ASSERT_TRUE(challenge);
+  b.send(Subscribe{std::get<Challenge>(challenge->payload).cookie, 5, kStreamSamples, 0});
+  const auto err = b.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::TooManySubscribers);
+}
+
+TEST(Server, AnswersOtherVersionsWithItsOwnAndIgnoresGarbage) {
+  GazeServer server(server_options());
+  RawPeer peer(server.local_endpoint());
+  Message hello{Header{}, Hello{1, {"v2 client"}}};
+  auto bytes = encode(hello);
+  bytes[4] = 2;
+  peer.send_raw(bytes);
+  const auto err = peer.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::UnsupportedVersion);
+  EXPECT_EQ(std::get<Error>(err->payload).supported_version, kVersion);
+
+  peer.send_raw({1, 2, 3});
+  peer.send_raw(std::vector<std::uint8_t>(600, 0xAB));
+  auto sample = encode(Message{Header{}, sample_at(1)});
+  peer.send_raw(sample);  // well-formed but a server never accepts samples
+  EXPECT_EQ(peer.count(MessageType::Error, 200), 0u);
+  EXPECT_EQ(server.stats().datagrams_rejected, 4u);
+  EXPECT_EQ(server.decode_counters().get(DecodeError::TooShort), 1u);
+  EXPECT_EQ(server.decode_counters().get(DecodeError::TooLong), 1u);
+}
+
+TEST(Fanout, ThreeClientsReceiveTheIdenticalSequence) {
+  GazeServer server(server_options());
+  std::vector<std::unique_ptr<GazeClient>> clients;
+  std::vector<std::vector<std::pair<std::uint64_t, std::int64_t>>> got(3);
+  std::mutex mu;
+  for (int i = 0; i < 3; ++i) {
+    clients.push_back(std::make_unique<GazeClient>(client_options(server.local_endpoint())));
+    clients.back()->on_sample([&, i](const GazeSample& s, const Arrival& a) {
+      std::lock_guard lock(mu);
+      got[static_cast<std::size_t>(i)].emplace_back(a.sequence, s.tracker_time_ns);
+    });
+    clients.back()->start();
+  }
+  for (auto& c : clients) ASSERT_TRUE(c->wait_subscribed(2000));
+  {
+    Publisher pub(server, 1000);
+    std::this_thread::sleep_for(500ms);
+  }
+  std::this_thread::sleep_for(100ms);
+  std::lock_guard lock(mu);
+  ASSERT_GT(got[0].size(), 300u);
+  EXPECT_EQ(got[0], got[1]);
+  EXPECT_EQ(got[0], got[2]);
+  for (auto& c : clients) {
+    const auto st = c->stats();
+    EXPECT_EQ(st.samples.lost, 0u);
+    EXPECT_EQ(st.samples.duplicated, 0u);
+  }
+}
+
+TEST(Fanout, LateJoinerSeesConsecutiveSequenceNumbersFromItsJoin) {
+  GazeServer server(server_options());
+  Publisher pub(server, 1000);
+  std::this_thread::sleep_for(200ms);
+  GazeClient late(client_options(server.local_endpoint()));
+  std::vector<std::uint64_t> seqs;
+  std::mutex mu;
+  late.on_sample([&](const GazeSample&, const Arrival& a) {
+    std::lock_guard lock(mu);
+    seqs.push_back(a.sequence);
+  });
+  late.start();
+  ASSERT_TRUE(late.wait_subscribed(2000));
+  const std::uint64_t join = late.session()->next_sample_sequence;
+  EXPECT_GT(join, 100u);
+  std::this_thread::sleep_for(300ms);
+  std::lock_guard lock(mu);
+  ASSERT_GT(seqs.size(), 100u);
+  EXPECT_EQ(seqs.front(), join);
+  for (std::size_t i = 1; i < seqs.size(); ++i) ASSERT_EQ(seqs[i], seqs[i - 1] + 1) << "at " << i;
+}
+
+TEST(Restart, ClientsResubscribeWithinTwoSecondsAfterTheDaemonRestarts) {
+  auto server = std::make_unique<GazeServer>(server_options());
+  const Endpoint where = server->local_endpoint();
+  std::vector<std::unique_ptr<GazeClient>> clients;
+  for (int i = 0; i < 3; ++i) {
+    clients.push_back(std::make_unique<GazeClient>(client_options(where)));
+    clients.back()->start();
+  }
+  for (auto& c : clients) ASSERT_TRUE(c->wait_subscribed(2000));
+  std::optional<Publisher> pub;
+  pub.emplace(*server, 500);
+  std::this_thread::sleep_for(200ms);
+  pub.reset();
+  server.reset();  // the daemon goes away...
+  std::this_thread::sleep_for(300ms);
+  server = std::make_unique<GazeServer>(server_options(where.port));  // ...and comes back
+  pub.emplace(*server, 500);
+  const std::int64_t restarted = monotonic_ns();
+  for (auto& c : clients) {
+    while (c->stats().subscriptions < 2 && monotonic_ns() - restarted < 3'000'000'000) std::this_thread::sleep_for(5ms);
+    const double took_s = static_cast<double>(monotonic_ns() - restarted) / 1e9;
+    EXPECT_EQ(c->stats().subscriptions, 2u);
+    EXPECT_LT(took_s, 2.0) << "resubscription took " << took_s << " s";
+  }
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(server->subscribers().size(), 3u);
+  for (auto& c : clients) {
+    const auto st = c->stats();
+    EXPECT_GT(st.samples.received, 150u);
+    EXPECT_EQ(st.samples.duplicated, 0u);
+  }
+}
+
+TEST(Client, StatusQueryAndClockSyncOnLoopback) {
+  GazeServer server(server_options());
+  Publisher pub(server, 1000);
+  const auto status = GazeClient::query_status(server.local_endpoint(), 1000);
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->source.value, "test");
+  EXPECT_DOUBLE_EQ(status->nominal_rate_hz, 1000.0);
+  GazeClient c(client_options(server.local_endpoint()));
+  c.start();
+  ASSERT_TRUE(c.wait_subscribed(2000));
+  std::this_thread::sleep_for(400ms);
+  const auto st = c.stats();
+  EXPECT_GE(st.clock_round_trip_ns, 0);
+  EXPECT_LT(std::abs(st.clock_offset_ns), 1'000'000) << "same clock on loopback: offset should be ~0";
+  EXPECT_GT(st.latency_count, 100u);
+  EXPECT_GE(st.latency_p50_ns, 0);
+  std::vector<std::pair<GazeSample, Arrival>> polled;
+  EXPECT_GT(c.poll(polled), 100u);
+  EXPECT_TRUE(c.latest_sample().has_value());
+}
+
+TEST(Client, StatusQueryTimesOutWhenNobodyListens) {
+  UdpSocket placeholder = UdpSocket::bind(Endpoint{kLoopback, 0});  // a port with no daemon behind it
+  const Endpoint nobody = placeholder.local_endpoint();
+  EXPECT_FALSE(GazeClient::query_status(nobody, 300));
+}
+
+TEST(Multicast, ClientReceivesSamplesFromTheGroup) {
+  ServerOptions o = server_options();
+  const std::uint16_t group_port = static_cast<std::uint16_t>(40000 + (getpid() % 20000));
+  o.multicast = MulticastTarget{Endpoint{0xEFFF2F50, group_port}, 0, kLoopback};
+  GazeServer server(o);
+  ClientOptions co = client_options(server.local_endpoint());
+  co.multicast_group = Endpoint{0xEFFF2F50, group_port};
+  co.multicast_interface_ip = kLoopback;
+  std::unique_ptr<GazeClient> c;
+  try {
+    c = std::make_unique<GazeClient>(co);
+  } catch (const std::system_error& e) {
+    GTEST_SKIP() << "multicast not available here: " << e.what();
+  }
+  c->start();
+  ASSERT_TRUE(c->wait_subscribed(2000));
+  EXPECT_EQ(c->session()->multicast.group_ipv4, 0xEFFF2F50u);
+  Publisher pub(server, 500);
+  std::this_thread::sleep_for(400ms);
+  EXPECT_GT(c->stats().samples.received, 100u);
+  EXPECT_EQ(c->stats().samples.duplicated, 0u) << "samples must not arrive twice (unicast and group)";
+}

@@ -1,0 +1,87 @@
+#include <gtest/gtest.h>
+
+#include "sources/replay_source.h"
+#include "sources/synthetic_gaze.h"
+
+using namespace fovea;
+using namespace fovea::trackerd;
+
+namespace {
+protocol::Recording make_recording(int samples, double rate) {
+  protocol::Recording rec;
+  rec.header.device = "test";
+  rec.header.nominal_rate_hz = rate;
+  SyntheticGazeOptions o;
+  o.rate_hz = rate;
+  o.start_time_ns = 123'000'000'000;  // some other machine's clock
+  SyntheticGaze g(o);
+  std::uint64_t seq = 0;
+  int n = 0;
+  while (n < samples) {
+    const auto item = g.next();
+    if (std::holds_alternative<protocol::GazeSample>(*item)) ++n;
+    rec.records.push_back(protocol::Record{seq++, *item});
+  }
+  return rec;
+}
+}  // namespace
+
+TEST(ReplaySource, RebasesTimeAndKeepsSpacing) {
+  const auto rec = make_recording(100, 250);
+  ReplayOptions o;
+  o.start_time_ns = 5'000'000'000;
+  ReplaySource src(o, rec);
+  std::vector<std::int64_t> times;
+  while (auto item = src.next()) {
+    if (const auto* s = std::get_if<protocol::GazeSample>(&*item)) times.push_back(s->tracker_time_ns);
+  }
+  ASSERT_EQ(times.size(), 100u);
+  EXPECT_EQ(times.front(), 5'000'000'000);
+  for (std::size_t i = 1; i < times.size(); ++i) EXPECT_EQ(times[i] - times[i - 1], 4'000'000);
+}
+
+TEST(ReplaySource, SpeedFactorAndLoopKeepTimeMonotonic) {
+  const auto rec = make_recording(50, 100);
+  ReplayOptions o;
+  o.speed = 2.0;
+  o.loop = true;
+  ReplaySource src(o, rec);
+  std::int64_t last = INT64_MIN;
+  std::vector<std::int64_t> sample_times;
+  for (int i = 0; i < 400; ++i) {
+    const auto item = src.next();
+    ASSERT_TRUE(item);
+    const std::int64_t t = due_time_ns(*item);
+    EXPECT_GE(t, last);
+    last = t;
+    if (const auto* s = std::get_if<protocol::GazeSample>(&*item)) sample_times.push_back(s->tracker_time_ns);
+  }
+  EXPECT_GE(src.loops_completed(), 2u);
+  for (std::size_t i = 1; i < sample_times.size(); ++i) {
+    EXPECT_EQ(sample_times[i] - sample_times[i - 1], 5'000'000) << "10 ms at 2x is 5 ms, across loop seams too";
+  }
+  EXPECT_DOUBLE_EQ(src.nominal_rate_hz(), 200.0);
+}
+
+TEST(ReplaySource, RefusesBadSpeedAndEmptyRecordings) {
+  const auto rec = make_recording(10, 250);
+  ReplayOptions o;
+  o.speed = 0;
+  EXPECT_THROW(ReplaySource(o, rec), std::runtime_error);
+  o.speed = 1;
+  protocol::Recording empty;
+  o.path = "empty.fgr";
+  try {
+    ReplaySource s(o, empty);
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("empty.fgr"), std::string::npos);
+  }
+  o.path = "/nonexistent/gaze.fgr";
+  try {
+    ReplaySource s(o);
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/gaze.fgr"), std::string::npos);
+  }
+}

@@ -1,0 +1,28 @@
+#pragma once
+// A source of ready gaze samples and events (synthetic, replayed; later HID trackers and the eye
+// pipeline). Items carry times on the daemon's CLOCK_MONOTONIC; the daemon publishes each item when
+// its time comes.
+#include <optional>
+#include <string>
+
+#include "fovea/protocol/display_geometry.h"
+#include "fovea/protocol/recording.h"
+
+namespace fovea::trackerd {
+
+using GazeItem = std::variant<protocol::GazeSample, protocol::GazeEvent>;
+
+// The time at which an item is due: a sample's capture time, an event's start (Start) or end (End).
+std::int64_t due_time_ns(const GazeItem& item);
+
+class GazeSource {
+ public:
+  virtual ~GazeSource() = default;
+  virtual std::string description() const = 0;  // e.g. "replay:demo.fgr (x1.0, loop)"
+  virtual protocol::DisplayGeometry display() const = 0;
+  virtual double nominal_rate_hz() const = 0;
+  // The next item in time order; nullopt when the source has ended.
+  virtual std::optional<GazeItem> next() = 0;
+};
+
+}  // namespace fovea::trackerd

@@ -1,0 +1,74 @@
+#include "sources/replay_source.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace fovea::trackerd {
+
+using protocol::GazeEvent;
+using protocol::GazeSample;
+
+ReplaySource::ReplaySource(ReplayOptions options)
+    : ReplaySource(options, protocol::read_recording(options.path)) {}
+
+ReplaySource::ReplaySource(ReplayOptions options, protocol::Recording recording)
+    : options_(std::move(options)), recording_(std::move(recording)) {
+  if (!(options_.speed > 0) || !std::isfinite(options_.speed) || options_.speed > 1000) {
+    throw std::runtime_error("replay speed " + std::to_string(options_.speed) + " is outside (0, 1000]");
+  }
+  const bool has_sample = std::any_of(recording_.records.begin(), recording_.records.end(), [](const auto& r) {
+    return std::holds_alternative<GazeSample>(r.item);
+  });
+  if (!has_sample) throw std::runtime_error("recording " + options_.path + " holds no intact gaze samples");
+  std::int64_t first = INT64_MAX, last = INT64_MIN;
+  for (const auto& r : recording_.records) {
+    first = std::min(first, r.time_ns());
+    last = std::max(last, r.time_ns());
+  }
+  recorded_origin_ns_ = first;
+  const double rate = recording_.header.nominal_rate_hz > 0 ? recording_.header.nominal_rate_hz : 1000.0;
+  loop_span_ns_ = (last - first) + static_cast<std::int64_t>(1e9 / rate);
+  live_origin_ns_ = options_.start_time_ns;
+}
+
+std::string ReplaySource::description() const {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, " (x%.3g%s)", options_.speed, options_.loop ? ", loop" : "");
+  return "replay:" + options_.path + buf;
+}
+
+std::optional<GazeItem> ReplaySource::next() {
+  if (index_ >= recording_.records.size()) {
+    if (!options_.loop) return std::nullopt;
+    index_ = 0;
+    ++loops_;
+    live_origin_ns_ += static_cast<std::int64_t>(std::llround(static_cast<double>(loop_span_ns_) / options_.speed));
+  }
+  const protocol::Record& r = recording_.records[index_++];
+  const auto to_live = [&](std::int64_t recorded_ns) {
+    return live_origin_ns_ +
+           static_cast<std::int64_t>(std::llround(static_cast<double>(recorded_ns - recorded_origin_ns_) / options_.speed));
+  };
+  GazeItem item;
+  if (const auto* s = std::get_if<GazeSample>(&r.item)) {
+    GazeSample live = *s;
+    live.tracker_time_ns = to_live(s->tracker_time_ns);
+    item = live;
+  } else {
+    GazeEvent live = std::get<GazeEvent>(r.item);
+    live.start_time_ns = to_live(live.start_time_ns);
+    live.duration_ns = static_cast<std::int64_t>(std::llround(static_cast<double>(live.duration_ns) / options_.speed));
+    item = live;
+  }
+  // Damaged or hand-edited files may step back in time; never let published time run backwards.
+  const std::int64_t due = due_time_ns(item);
+  if (due < last_due_ns_) {
+    if (auto* s = std::get_if<GazeSample>(&item)) s->tracker_time_ns = last_due_ns_;
+  }
+  last_due_ns_ = std::max(last_due_ns_, due_time_ns(item));
+  return item;
+}
+
+}  // namespace fovea::trackerd

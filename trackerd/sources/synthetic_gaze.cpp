@@ -1,0 +1,302 @@
+#include "sources/synthetic_gaze.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+namespace fovea::trackerd {
+
+using protocol::Degrees;
+using protocol::EventPhase;
+using protocol::EyeMovement;
+using protocol::GazeEvent;
+using protocol::GazeSample;
+
+std::int64_t due_time_ns(const GazeItem& item) {
+  if (const auto* s = std::get_if<GazeSample>(&item)) return s->tracker_time_ns;
+  const auto& e = std::get<GazeEvent>(item);
+  return e.phase == EventPhase::Start ? e.start_time_ns : e.start_time_ns + e.duration_ns;
+}
+
+double saccade_duration_s(double amplitude_deg) { return (2.2 * amplitude_deg + 21.0) / 1000.0; }
+
+double saccade_peak_velocity(double amplitude_deg) { return 600.0 * (1.0 - std::exp(-amplitude_deg / 9.0)); }
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr std::size_t kProfileSteps = 256;
+
+// Peak-to-mean ratio of the velocity profile sin(pi s)^p over s in [0, 1]:
+// mean = Gamma((p+1)/2) / (sqrt(pi) Gamma(p/2 + 1)).
+double peak_factor(double p) {
+  return std::sqrt(kPi) * std::tgamma(p / 2.0 + 1.0) / std::tgamma((p + 1.0) / 2.0);
+}
+
+// Cumulative, normalized position profile whose velocity is sin(pi s)^p, with p chosen so the peak
+// velocity matches `peak_deg_s` for the given amplitude and duration. Real saccades have bell-shaped
+// velocity profiles whose peak-to-mean ratio lies between about 1.4 and 2.
+std::vector<double> saccade_profile(double amplitude_deg, double duration_s, double peak_deg_s) {
+  const double wanted = std::clamp(peak_deg_s * duration_s / amplitude_deg, 1.32, 1.99);
+  double lo = 0.5, hi = 2.0;  // peak_factor is increasing in p: 1.31 at 0.5, 2.0 at 2
+  for (int i = 0; i < 40; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (peak_factor(mid) < wanted ? lo : hi) = mid;
+  }
+  const double p = 0.5 * (lo + hi);
+  std::vector<double> cum(kProfileSteps + 1, 0.0);
+  // Integrate with the midpoint rule over fine sub-steps.
+  constexpr int kSub = 8;
+  for (std::size_t i = 0; i < kProfileSteps; ++i) {
+    double acc = 0;
+    for (int j = 0; j < kSub; ++j) {
+      const double s = (static_cast<double>(i) + (j + 0.5) / kSub) / kProfileSteps;
+      acc += std::pow(std::sin(kPi * s), p);
+    }
+    cum[i + 1] = cum[i] + acc;
+  }
+  for (double& c : cum) c /= cum.back();
+  return cum;
+}
+
+double angle_between_deg(double ax, double ay, double bx, double by) {
+  // Gaze directions as unit vectors through the screen points (degrees from centre per axis).
+  const double tax = std::tan(ax * kPi / 180), tay = std::tan(ay * kPi / 180);
+  const double tbx = std::tan(bx * kPi / 180), tby = std::tan(by * kPi / 180);
+  const double na = std::sqrt(tax * tax + tay * tay + 1), nb = std::sqrt(tbx * tbx + tby * tby + 1);
+  const double dot = std::clamp((tax * tbx + tay * tby + 1) / (na * nb), -1.0, 1.0);
+  return std::acos(dot) * 180 / kPi;
+}
+
+}  // namespace
+
+SyntheticGaze::SyntheticGaze(SyntheticGazeOptions options) : options_(options), rng_(options.seed) {
+  Segment first;
+  first.phase = Phase::Fixation;
+  first.duration_s = 0.3;
+  start_segment(first, options_.start_time_ns);
+}
+
+std::string SyntheticGaze::description() const {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "synthetic (seed %llu, %.0f Hz)", static_cast<unsigned long long>(options_.seed),
+                options_.rate_hz);
+  return buf;
+}
+
+bool SyntheticGaze::on_screen(const Vec2& deg, double margin) const {
+  const auto n = protocol::degrees_to_normalized(options_.display, Degrees{deg.x, deg.y});
+  return n.x >= margin && n.x <= 1 - margin && n.y >= margin && n.y <= 1 - margin;
+}
+
+SyntheticGaze::Vec2 SyntheticGaze::random_target(const Vec2& from) {
+  // Saccade amplitudes in free viewing are mostly small: gamma(2, 3.5 deg), at least 1 deg.
+  std::gamma_distribution<double> amplitude(2.0, 3.5);
+  for (int attempt = 0; attempt < 50; ++attempt) {
+    const double a = std::max(1.0, amplitude(rng_));
+    const double dir = uniform_(rng_) * 2 * kPi;
+    const Vec2 to{from.x + a * std::cos(dir), from.y + a * std::sin(dir)};
+    if (on_screen(to, 0.05)) return to;
+  }
+  // Near an edge: jump towards the middle of the screen instead.
+  return {from.x * 0.3, from.y * 0.3};
+}
+
+SyntheticGaze::Segment SyntheticGaze::plan_after(const Segment& finished) {
+  const Vec2 here = finished.to;
+  Segment s;
+  s.from = here;
+  s.to = here;
+  if (finished.phase != Phase::Fixation) {
+    // Every movement ends in a fixation: log-normal duration, median 250 ms, within 150-600 ms.
+    s.phase = Phase::Fixation;
+    s.duration_s = std::clamp(0.25 * std::exp(0.35 * gauss_(rng_)), 0.15, 0.6);
+    return s;
+  }
+  const double u = uniform_(rng_);
+  if (u < 0.07) {
+    s.phase = Phase::Blink;
+    s.duration_s = 0.1 + 0.2 * uniform_(rng_);  // 100-300 ms
+  } else if (u < 0.14) {
+    s.phase = Phase::Pursuit;
+    s.duration_s = 0.4 + 0.8 * uniform_(rng_);
+    const double speed = 5 + 15 * uniform_(rng_);  // deg/s
+    double dir = uniform_(rng_) * 2 * kPi;
+    for (int attempt = 0; attempt < 16; ++attempt, dir += kPi / 8) {
+      s.velocity = {speed * std::cos(dir), speed * std::sin(dir)};
+      s.to = {here.x + s.velocity.x * s.duration_s, here.y + s.velocity.y * s.duration_s};
+      if (on_screen(s.to, 0.05)) break;
+    }
+    if (!on_screen(s.to, 0.05)) {  // nowhere to go: make it a short fixation instead
+      s.phase = Phase::Fixation;
+      s.to = here;
+      s.duration_s = 0.2;
+    }
+  } else {
+    s.phase = Phase::Saccade;
+    s.to = random_target(here);
+    const double amplitude = angle_between_deg(here.x, here.y, s.to.x, s.to.y);
+    s.duration_s = saccade_duration_s(amplitude);
+    s.profile = saccade_profile(amplitude, s.duration_s, saccade_peak_velocity(amplitude));
+  }
+  return s;
+}
+
+SyntheticGaze::Vec2 SyntheticGaze::position_in_segment(double t) {
+  const Segment& s = segment_;
+  switch (s.phase) {
+    case Phase::Fixation:
+    case Phase::Blink:
+      return s.from;
+    case Phase::Pursuit:
+      return {s.from.x + s.velocity.x * t, s.from.y + s.velocity.y * t};
+    case Phase::Saccade: {
+      const double u = std::clamp(t / s.duration_s, 0.0, 1.0) * kProfileSteps;
+      const auto i = std::min(static_cast<std::size_t>(u), kProfileSteps - 1);
+      const double f = s.profile[i] + (s.profile[i + 1] - s.profile[i]) * (u - static_cast<double>(i));
+      return {s.from.x + (s.to.x - s.from.x) * f, s.from.y + (s.to.y - s.from.y) * f};
+    }
+  }
+  return s.from;
+}
+
+GazeEvent SyntheticGaze::make_event(EventPhase phase, std::int64_t t_ns) const {
+  GazeEvent e;
+  switch (segment_.phase) {
+    case Phase::Fixation: e.kind = EyeMovement::Fixation; break;
+    case Phase::Saccade: e.kind = EyeMovement::Saccade; break;
+    case Phase::Pursuit: e.kind = EyeMovement::Pursuit; break;
+    case Phase::Blink: e.kind = EyeMovement::Blink; break;
+  }
+  e.phase = phase;
+  e.start_time_ns = segment_start_ns_;
+  e.duration_ns = phase == EventPhase::Start ? 0 : std::max<std::int64_t>(0, t_ns - segment_start_ns_);
+  Vec2 c = segment_.from;
+  if (phase == EventPhase::End) {
+    if (segment_.phase == Phase::Saccade) {
+      c = segment_.to;  // landing point
+    } else if (sum_count_ > 0) {
+      c = {sum_pos_.x / static_cast<double>(sum_count_), sum_pos_.y / static_cast<double>(sum_count_)};
+    }
+    e.amplitude_deg = static_cast<float>(angle_between_deg(segment_.from.x, segment_.from.y, segment_.to.x,
+                                                           segment_.to.y));
+    e.peak_velocity_deg_s = static_cast<float>(peak_velocity_);
+  }
+  const auto n = protocol::degrees_to_normalized(options_.display, Degrees{c.x, c.y});
+  e.centroid_x = static_cast<float>(n.x);
+  e.centroid_y = static_cast<float>(n.y);
+  e.centroid_x_deg = static_cast<float>(c.x);
+  e.centroid_y_deg = static_cast<float>(c.y);
+  return e;
+}
+
+void SyntheticGaze::start_segment(Segment s, std::int64_t t_ns) {
+  segment_ = std::move(s);
+  segment_start_ns_ = t_ns;
+  drift_ = {};
+  sum_pos_ = {};
+  sum_count_ = 0;
+  peak_velocity_ = 0;
+  pending_.push_back(make_event(EventPhase::Start, t_ns));
+}
+
+void SyntheticGaze::end_segment(std::int64_t t_ns) {
+  segment_.to = segment_.phase == Phase::Fixation || segment_.phase == Phase::Blink
+                    ? Vec2{segment_.from.x + drift_.x, segment_.from.y + drift_.y}
+                    : segment_.to;
+  pending_.push_back(make_event(EventPhase::End, t_ns));
+}
+
+void SyntheticGaze::step() {
+  const double dt = 1.0 / options_.rate_hz;
+  const auto t_ns = options_.start_time_ns +
+                    static_cast<std::int64_t>(std::llround(static_cast<double>(sample_index_) * 1e9 * dt));
+  ++sample_index_;
+
+  double t = static_cast<double>(t_ns - segment_start_ns_) * 1e-9;
+  while (t >= segment_.duration_s) {
+    const std::int64_t end_ns = segment_start_ns_ + static_cast<std::int64_t>(std::llround(segment_.duration_s * 1e9));
+    end_segment(end_ns);
+    const Segment finished = segment_;
+    start_segment(plan_after(finished), end_ns);
+    t = static_cast<double>(t_ns - segment_start_ns_) * 1e-9;
+  }
+
+  // Fixational eye movements: slow drift (random walk, ~0.1 deg/s^0.5) and tremor (~90 Hz, a few
+  // arc seconds, far below tracker noise but present).
+  if (segment_.phase == Phase::Fixation) {
+    const double drift_sigma = 0.1 * std::sqrt(dt);
+    drift_.x += drift_sigma * gauss_(rng_);
+    drift_.y += drift_sigma * gauss_(rng_);
+  }
+  Vec2 eye = position_in_segment(t);
+  eye.x += drift_.x;
+  eye.y += drift_.y;
+  const double tremor = 0.003 * std::sin(2 * kPi * 90 * static_cast<double>(t_ns) * 1e-9);
+  eye.x += tremor;
+
+  double velocity = 0;
+  if (have_last_) velocity = angle_between_deg(last_true_.x, last_true_.y, eye.x, eye.y) / dt;
+  last_true_ = eye;
+  have_last_ = true;
+  peak_velocity_ = std::max(peak_velocity_, velocity);
+  sum_pos_.x += eye.x;
+  sum_pos_.y += eye.y;
+  ++sum_count_;
+
+  GazeSample s;
+  s.tracker_time_ns = t_ns;
+  const bool blinking = segment_.phase == Phase::Blink;
+  const double noise = segment_.phase == Phase::Saccade ? 2 * options_.noise_deg : options_.noise_deg;
+  const Vec2 measured{eye.x + noise * gauss_(rng_), eye.y + noise * gauss_(rng_)};
+  const auto n = protocol::degrees_to_normalized(options_.display, Degrees{measured.x, measured.y});
+  s.x = static_cast<float>(n.x);
+  s.y = static_cast<float>(n.y);
+  s.x_deg = static_cast<float>(measured.x);
+  s.y_deg = static_cast<float>(measured.y);
+  s.angular_velocity_deg_s = static_cast<float>(velocity);
+  switch (segment_.phase) {
+    case Phase::Fixation: s.state = EyeMovement::Fixation; break;
+    case Phase::Saccade: s.state = EyeMovement::Saccade; break;
+    case Phase::Pursuit: s.state = EyeMovement::Pursuit; break;
+    case Phase::Blink: s.state = EyeMovement::Blink; break;
+  }
+  // Pupil diameter wanders slowly between about 3 and 4.4 mm (hippus and luminance changes).
+  pupil_phase_ += dt * 2 * kPi * 0.1;
+  const double pupil_mm = 3.7 + 0.5 * std::sin(pupil_phase_) + 0.05 * gauss_(rng_);
+  const double confidence = std::clamp((segment_.phase == Phase::Saccade ? 0.8 : 0.97) + 0.02 * gauss_(rng_), 0.0, 1.0);
+  if (blinking) {
+    s.flags = 0;
+    s.confidence = 0;
+    s.left = {};
+    s.right = {};
+  } else {
+    s.flags = protocol::kGazeValid;
+    s.confidence = static_cast<float>(confidence);
+    // A 640x480 eye camera per eye; the pupil moves ~4 px per degree and the pupil-glint vector
+    // ~0.9 px per degree, roughly linear in gaze angle as in video trackers.
+    const auto eye_data = [&](double vergence_px) {
+      protocol::EyeData e;
+      e.flags = protocol::kEyePupilValid | protocol::kEyeGlintValid;
+      e.pupil_x_px = static_cast<float>(320 + 4.0 * eye.x + vergence_px + 0.3 * gauss_(rng_));
+      e.pupil_y_px = static_cast<float>(240 + 4.0 * eye.y + 0.3 * gauss_(rng_));
+      e.pupil_diameter_mm = static_cast<float>(std::max(0.5, pupil_mm));
+      e.pupil_glint_x_px = static_cast<float>(0.9 * eye.x + 0.05 * gauss_(rng_));
+      e.pupil_glint_y_px = static_cast<float>(0.9 * eye.y + 0.05 * gauss_(rng_));
+      return e;
+    };
+    s.left = eye_data(+3.0);
+    s.right = eye_data(-3.0);
+  }
+  pending_.push_back(s);
+}
+
+std::optional<GazeItem> SyntheticGaze::next() {
+  if (pending_.empty()) step();
+  GazeItem item = pending_.front();
+  pending_.pop_front();
+  return item;
+}
+
+}  // namespace fovea::trackerd
