@@ -1,6 +1,7 @@
 #include "daemon.h"
 
 #include <spdlog/spdlog.h>
+#include <sys/prctl.h>
 
 #include <cerrno>
 #include <ctime>
@@ -63,6 +64,9 @@ bool sleep_until(std::int64_t due_ns, const std::atomic<bool>& stop) {
 }  // namespace
 
 int run_daemon(const DaemonOptions& options, const std::atomic<bool>& stop) {
+  // Samples are due every 1-4 ms; the default 50 us timer slack would add that much jitter to
+  // every wake-up of the pacing loop.
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   // Give subscribers a moment to be accepted before the first sample is due.
   const std::int64_t start_ns = monotonic_ns() + 50'000'000;
   std::unique_ptr<GazeSource> source;

@@ -248,9 +248,10 @@ TEST(Server, AnswersOtherVersionsWithItsOwnAndIgnoresGarbage) {
 
 TEST(Fanout, ThreeClientsReceiveTheIdenticalSequence) {
   GazeServer server(server_options());
-  std::vector<std::unique_ptr<GazeClient>> clients;
+  // Declared before the clients so they outlive the callbacks that write to them.
   std::vector<std::vector<std::pair<std::uint64_t, std::int64_t>>> got(3);
   std::mutex mu;
+  std::vector<std::unique_ptr<GazeClient>> clients;
   for (int i = 0; i < 3; ++i) {
     clients.push_back(std::make_unique<GazeClient>(client_options(server.local_endpoint())));
     clients.back()->on_sample([&, i](const GazeSample& s, const Arrival& a) {
@@ -280,9 +281,9 @@ TEST(Fanout, LateJoinerSeesConsecutiveSequenceNumbersFromItsJoin) {
   GazeServer server(server_options());
   Publisher pub(server, 1000);
   std::this_thread::sleep_for(200ms);
-  GazeClient late(client_options(server.local_endpoint()));
   std::vector<std::uint64_t> seqs;
   std::mutex mu;
+  GazeClient late(client_options(server.local_endpoint()));
   late.on_sample([&](const GazeSample&, const Arrival& a) {
     std::lock_guard lock(mu);
     seqs.push_back(a.sequence);

@@ -125,3 +125,7 @@ class GazeClient {
 };
 
 }  // namespace fovea::protocol
+
+namespace fovea {
+using protocol::GazeClient;  // the client library's public name
+}  // namespace fovea
