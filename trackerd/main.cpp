@@ -51,7 +51,9 @@ int main(int argc, char** argv) {
   app.add_option("--duration", o.duration_s, "stop after this many seconds (0: run until signalled)")
       ->capture_default_str();
   app.add_flag("--exit-at-end", o.exit_when_source_ends, "exit when the source ends (default: keep serving status)");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  app.add_option("--log-level", log_level, "log verbosity")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   auto logger = spdlog::stderr_color_mt("fovea-trackerd");

@@ -15,6 +15,7 @@ constexpr std::size_t kLatencyWindow = 65536;
 constexpr std::size_t kLatencyRecordLimit = 2'000'000;
 constexpr std::size_t kTimeSyncKeep = 8;
 constexpr std::int64_t kMs = 1'000'000;
+constexpr std::int64_t kRefusedBackoffNs = 2000 * kMs;
 
 std::uint64_t random_nonce() {
   std::uint64_t v = 0;
@@ -120,10 +121,12 @@ void GazeClient::send(Payload p) {
   last_sent_ns_ = m.header.send_time_ns;
 }
 
-void GazeClient::begin_handshake(std::int64_t now) {
+void GazeClient::begin_handshake(std::int64_t now, bool fresh) {
   state_ = State::Hello;
   subscribed_ = false;
-  nonce_ = random_nonce();
+  // Retransmissions keep the nonce, so a CHALLENGE that arrives after the next retry (a round trip
+  // longer than the retry interval) still matches.
+  if (fresh || nonce_ == 0) nonce_ = random_nonce();
   Hello h;
   h.client_nonce = nonce_;
   h.client_name.value = options_.name.substr(0, decltype(h.client_name)::capacity - 1);
@@ -133,7 +136,7 @@ void GazeClient::begin_handshake(std::int64_t now) {
 
 void GazeClient::loop() {
   std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
-  begin_handshake(monotonic_ns());
+  begin_handshake(monotonic_ns(), true);
   std::uint32_t subscribe_attempts = 0;
   while (running_.load()) {
     pollfd fds[2] = {{socket_.fd(), POLLIN, 0}, {multicast_socket_.fd(), POLLIN, 0}};
@@ -155,7 +158,8 @@ void GazeClient::loop() {
           continue;
         }
         const bool from_server = i == 0 && from == options_.server;
-        const bool from_group = i == 1 && m.header.type == MessageType::GazeSample;
+        // Group traffic must still come from the daemon's host (any port: it sends from its own socket).
+        const bool from_group = i == 1 && m.header.type == MessageType::GazeSample && from.ip == options_.server.ip;
         if (!from_server && !from_group) {
           std::lock_guard lock(mutex_);
           ++stats_.rejected;  // not our server: never trusted
@@ -169,12 +173,12 @@ void GazeClient::loop() {
     const std::int64_t retry = std::int64_t{options_.retry_interval_ms} * kMs;
     switch (state_) {
       case State::Hello:
-        if (now - last_sent_ns_ >= retry) begin_handshake(now);
+        if (now - last_sent_ns_ >= retry && now >= retry_after_ns_) begin_handshake(now, false);
         break;
       case State::Subscribe:
         if (now - last_sent_ns_ >= retry) {
           if (++subscribe_attempts > 10) {
-            begin_handshake(now);
+            begin_handshake(now, true);
           } else {
             send(Subscribe{cookie_, nonce_, unicast_streams(options_), options_.requested_lease_ms});
           }
@@ -184,7 +188,7 @@ void GazeClient::loop() {
         const std::int64_t hb = std::int64_t{options_.heartbeat_interval_ms} * kMs;
         if (now - last_heard_ns_ > std::max<std::int64_t>(3 * hb, 1000 * kMs)) {
           // The daemon went quiet (stopped, restarted, or the network failed): start over.
-          begin_handshake(now);
+          begin_handshake(now, true);
           break;
         }
         const std::optional<Subscribed> s = session();
@@ -262,7 +266,11 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
       // Our session or cookie is no longer known (daemon restarted, lease lapsed): subscribe again.
       if (e.code == ErrorCode::UnknownSession || e.code == ErrorCode::BadCookie || e.code == ErrorCode::CookieExpired ||
           e.code == ErrorCode::AddressMismatch) {
-        begin_handshake(now);
+        begin_handshake(now, true);
+      } else if (e.code == ErrorCode::TooManySubscribers || e.code == ErrorCode::UnsupportedVersion) {
+        // Asking again at once will not help; try again in a while (the daemon may free a slot).
+        state_ = State::Hello;
+        retry_after_ns_ = now + kRefusedBackoffNs;
       }
       return;
     }

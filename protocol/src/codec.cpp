@@ -293,6 +293,7 @@ struct Reader {
     g.width_m = f64_positive(off + 8);
     g.height_m = f64_positive(off + 16);
     g.viewing_distance_m = f64_positive(off + 24);
+    if (result && !validate(g).empty()) fail(DecodeError::OutOfRange, off);  // the same limits everywhere
     return g;
   }
   EyeData eye(std::size_t off, std::uint8_t eye_flags) {

@@ -100,10 +100,14 @@ void write_eye(std::ostream& out, const EyeData& e) {
 
 std::size_t write_csv(std::ostream& out, const Recording& rec) {
   out << "# fovea gaze samples v1\n";
-  out << "# device: " << rec.header.device << "\n";
+  std::string device = rec.header.device;
+  for (char& ch : device) {
+    if (static_cast<unsigned char>(ch) < 0x20) ch = ' ';  // one line per header field
+  }
+  out << "# device: " << device << "\n";
   out << "# display: " << to_string(rec.header.display) << "\n";
   char rate[64];
-  std::snprintf(rate, sizeof rate, "%.6g", rec.header.nominal_rate_hz);
+  std::snprintf(rate, sizeof rate, "%.17g", rec.header.nominal_rate_hz);
   out << "# sample_rate_hz: " << rate << "\n";
   for (std::size_t i = 0; i < kColumnCount; ++i) out << (i ? "," : "") << kColumns[i];
   out << "\n";

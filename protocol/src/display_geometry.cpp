@@ -54,7 +54,7 @@ Normalized degrees_to_normalized(const DisplayGeometry& g, Degrees d) {
 
 std::string to_string(const DisplayGeometry& g) {
   char buf[128];
-  std::snprintf(buf, sizeof buf, "%ux%u@%.1fx%.1fmm,%.1fmm", g.width_px, g.height_px, g.width_m * 1000.0,
+  std::snprintf(buf, sizeof buf, "%ux%u@%.10gx%.10gmm,%.10gmm", g.width_px, g.height_px, g.width_m * 1000.0,
                 g.height_m * 1000.0, g.viewing_distance_m * 1000.0);
   return buf;
 }

@@ -30,6 +30,12 @@ std::string sys_error(const std::string& what, const std::string& path) {
   return what + " " + path + ": " + std::strerror(errno);
 }
 
+// Displays are the same when every size agrees to 1 micrometre (text forms round to that).
+bool same_display(const DisplayGeometry& a, const DisplayGeometry& b) {
+  return a.width_px == b.width_px && a.height_px == b.height_px && std::abs(a.width_m - b.width_m) < 1e-6 &&
+         std::abs(a.height_m - b.height_m) < 1e-6 && std::abs(a.viewing_distance_m - b.viewing_distance_m) < 1e-6;
+}
+
 void write_display(std::span<std::uint8_t> b, std::size_t off, const DisplayGeometry& g) {
   store_le<std::uint32_t>(b, off, g.width_px);
   store_le<std::uint32_t>(b, off + 4, g.height_px);
@@ -105,6 +111,16 @@ std::int64_t Record::time_ns() const {
 
 std::vector<std::uint8_t> encode_recording_header(const RecordingHeader& h) {
   if (h.device.size() > 63) throw std::invalid_argument("recording device name longer than 63 bytes: " + h.device);
+  for (const char ch : h.device) {
+    if (static_cast<unsigned char>(ch) < 0x20) {
+      throw std::invalid_argument("recording device name contains a control character: \"" + h.device + "\"");
+    }
+  }
+  if (!std::isfinite(h.nominal_rate_hz) || h.nominal_rate_hz < 0) {
+    throw std::invalid_argument("recording nominal_rate_hz = " + std::to_string(h.nominal_rate_hz) +
+                                " (allowed: finite, >= 0)");
+  }
+  if (static_cast<std::uint8_t>(h.clock) > 1) throw std::invalid_argument("recording clock must be 0 or 1");
   if (auto err = validate(h.display); !err.empty()) throw std::invalid_argument("recording display: " + err);
   std::vector<std::uint8_t> b(kRecordingHeaderSize, 0);
   std::memcpy(b.data(), kFileMagic, 8);
@@ -148,7 +164,11 @@ RecordingWriter::RecordingWriter(const std::string& path, const RecordingHeader&
     fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
     if (fd_ < 0) throw std::runtime_error(sys_error("cannot open recording", path));
     struct stat st {};
-    fstat(fd_, &st);
+    if (fstat(fd_, &st) != 0) {
+      const std::string msg = sys_error("cannot stat recording", path);
+      ::close(fd_);
+      throw std::runtime_error(msg);
+    }
     if (st.st_size > 0) {
       std::vector<std::uint8_t> existing(kRecordingHeaderSize);
       const ssize_t n = ::pread(fd_, existing.data(), existing.size(), 0);
@@ -157,7 +177,7 @@ RecordingWriter::RecordingWriter(const std::string& path, const RecordingHeader&
         ::close(fd_);
         throw std::runtime_error("cannot append to " + path + ": it does not start with an intact .fgr header");
       }
-      if (!(parsed->display == header.display)) {
+      if (!same_display(parsed->display, header.display)) {
         ::close(fd_);
         throw std::runtime_error("cannot append to " + path + ": it was recorded for display " +
                                  to_string(parsed->display) + ", not " + to_string(header.display));
@@ -179,7 +199,10 @@ RecordingWriter::~RecordingWriter() {
 void RecordingWriter::append(const Record& r) {
   const std::vector<std::uint8_t> bytes = encode_record(r);
   const ssize_t n = ::write(fd_, bytes.data(), bytes.size());
-  if (n != static_cast<ssize_t>(bytes.size())) throw std::runtime_error(sys_error("cannot append record to", path_));
+  if (n != static_cast<ssize_t>(bytes.size())) {
+    if (n >= 0) errno = ENOSPC;  // a short write sets no errno; the usual cause is a full disk
+    throw std::runtime_error(sys_error("cannot append record to", path_));
+  }
   ++written_;
 }
 

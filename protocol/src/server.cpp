@@ -273,7 +273,7 @@ void GazeServer::handle(const Message& m, const Endpoint& from, std::int64_t rec
     }
     default:
       // Server-to-client messages arriving here are well-formed but meaningless: count, do not answer.
-      rejected_.count(DecodeError::UnknownType);
+      ++stats_.unexpected_messages;
       return;
   }
 }

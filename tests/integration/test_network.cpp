@@ -241,7 +241,8 @@ TEST(Server, AnswersOtherVersionsWithItsOwnAndIgnoresGarbage) {
   auto sample = encode(Message{Header{}, sample_at(1)});
   peer.send_raw(sample);  // well-formed but a server never accepts samples
   EXPECT_EQ(peer.count(MessageType::Error, 200), 0u);
-  EXPECT_EQ(server.stats().datagrams_rejected, 4u);
+  EXPECT_EQ(server.stats().datagrams_rejected, 3u);
+  EXPECT_EQ(server.stats().unexpected_messages, 1u);
   EXPECT_EQ(server.decode_counters().get(DecodeError::TooShort), 1u);
   EXPECT_EQ(server.decode_counters().get(DecodeError::TooLong), 1u);
 }
@@ -380,4 +381,56 @@ TEST(Multicast, ClientReceivesSamplesFromTheGroup) {
   std::this_thread::sleep_for(400ms);
   EXPECT_GT(c->stats().samples.received, 100u);
   EXPECT_EQ(c->stats().samples.duplicated, 0u) << "samples must not arrive twice (unicast and group)";
+}
+
+TEST(Client, CompletesTheHandshakeWhenTheRoundTripExceedsTheRetryInterval) {
+  // A slow "daemon" that answers each request only after 500 ms (a retry interval is 200 ms).
+  UdpSocket fake = UdpSocket::bind(Endpoint{kLoopback, 0});
+  GazeClient c(client_options(fake.local_endpoint()));
+  c.start();
+  std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+  const auto next_request = [&](MessageType type, Endpoint& from) -> std::optional<Message> {
+    const std::int64_t deadline = monotonic_ns() + 3'000'000'000;
+    while (monotonic_ns() < deadline) {
+      const std::size_t n = fake.receive(buf, from, 20);
+      Message m;
+      if (n > 0 && decode(std::span<const std::uint8_t>(buf.data(), n), m) && m.header.type == type) return m;
+    }
+    return std::nullopt;
+  };
+  Endpoint client_addr;
+  const auto hello = next_request(MessageType::Hello, client_addr);
+  ASSERT_TRUE(hello);
+  std::this_thread::sleep_for(500ms);  // the client has retransmitted HELLO twice meanwhile
+  const CookieJar jar(10'000);
+  const std::uint64_t nonce = std::get<Hello>(hello->payload).client_nonce;
+  fake.send_to(client_addr, encode(Message{Header{}, Challenge{nonce, jar.issue(client_addr, nonce, monotonic_ns()),
+                                                               10'000}}));
+  const auto subscribe = next_request(MessageType::Subscribe, client_addr);
+  ASSERT_TRUE(subscribe) << "the late CHALLENGE was ignored";
+  EXPECT_EQ(std::get<Subscribe>(subscribe->payload).client_nonce, nonce);
+  std::this_thread::sleep_for(500ms);
+  Subscribed s;
+  s.session_id = 42;
+  s.streams = kStreamSamples;
+  s.lease_ms = 5000;
+  fake.send_to(client_addr, encode(Message{Header{}, s}));
+  EXPECT_TRUE(c.wait_subscribed(1000));
+}
+
+TEST(Client, BacksOffWhenTheDaemonIsFull) {
+  ServerOptions o = server_options();
+  o.max_subscribers = 1;
+  GazeServer server(o);
+  GazeClient first(client_options(server.local_endpoint()));
+  first.start();
+  ASSERT_TRUE(first.wait_subscribed(2000));
+  GazeClient second(client_options(server.local_endpoint()));
+  second.start();
+  std::this_thread::sleep_for(1500ms);
+  // Without back-off the second client would be refused every 200 ms (7 times in 1.5 s).
+  EXPECT_LE(server.stats().requests_refused, 2u);
+  EXPECT_FALSE(second.subscribed());
+  first.stop();  // a slot frees up: the second one gets in after its back-off
+  EXPECT_TRUE(second.wait_subscribed(3000));
 }

@@ -10,6 +10,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <unistd.h>
 
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
@@ -233,14 +234,14 @@ Recording load_any(const std::string& path) {
 }
 
 int cmd_convert(const std::string& in_path, const std::string& out_path, bool force) {
+  // A name of our own next to OUT, so rename() is atomic and nobody else's file is touched.
+  const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
   try {
     if (!force && std::filesystem::exists(out_path)) {
       throw std::runtime_error(out_path + " already exists (use --force to replace it)");
     }
     const Recording rec = load_any(in_path);
     std::fprintf(stderr, "fovea-ctl convert: %s: %s\n", in_path.c_str(), rec.report.describe().c_str());
-    const std::string tmp = out_path + ".partial";
-    std::filesystem::remove(tmp);
     if (ends_with(out_path, ".csv")) {
       std::ofstream out(tmp);
       const std::size_t events = write_csv(out, rec);
@@ -259,6 +260,8 @@ int cmd_convert(const std::string& in_path, const std::string& out_path, bool fo
     std::fprintf(stderr, "fovea-ctl convert: wrote %s\n", out_path.c_str());
     return 0;
   } catch (const std::exception& e) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
     std::fprintf(stderr, "fovea-ctl convert: %s\n", e.what());
     return 1;
   }
@@ -271,9 +274,9 @@ int cmd_info(const std::string& path) {
     std::map<std::string, std::size_t> ends;
     std::int64_t first = INT64_MAX, last = INT64_MIN;
     for (const Record& r : rec.records) {
-      first = std::min(first, r.time_ns());
-      last = std::max(last, r.time_ns());
       if (const auto* s = std::get_if<GazeSample>(&r.item)) {
+        first = std::min(first, s->tracker_time_ns);  // the span of samples: events may end later
+        last = std::max(last, s->tracker_time_ns);
         ++samples;
         if (s->flags & kGazeValid) ++valid;
       } else if (const auto& e = std::get<GazeEvent>(r.item); e.phase == EventPhase::End) {
@@ -286,8 +289,9 @@ int cmd_info(const std::string& path) {
     std::printf("rate        %.1f Hz (nominal)\n", rec.header.nominal_rate_hz);
     const double span = samples > 1 ? static_cast<double>(last - first) / 1e9 : 0;
     std::printf("span        %.3f s\n", span);
-    std::printf("samples     %zu (%zu with valid gaze)%s\n", samples, valid,
-                span > 0 ? (" = " + std::to_string(static_cast<int>(std::lround(static_cast<double>(samples - 1) / span))) + " Hz measured").c_str() : "");
+    std::printf("samples     %zu (%zu with valid gaze)", samples, valid);
+    if (span > 0) std::printf(", %.1f Hz measured", static_cast<double>(samples - 1) / span);
+    std::printf("\n");
     std::printf("events     ");
     for (const auto& [k, n] : ends) std::printf(" %zu %s", n, k.c_str());
     std::printf("\nintegrity   %s\n", rec.report.describe().c_str());
@@ -304,6 +308,7 @@ int main(int argc, char** argv) {
   CLI::App app{"fovea-ctl: talk to fovea-trackerd and work with gaze recordings (.fgr, .csv)"};
   app.set_version_flag("--version", "fovea-ctl 0.1.0");
   app.require_subcommand(1);
+  app.fallthrough();  // --server may also follow the subcommand
   Common c;
   app.add_option("--server", c.server, "fovea-trackerd address HOST:PORT")->capture_default_str();
 

@@ -36,7 +36,9 @@ ReplaySource::ReplaySource(ReplayOptions options, protocol::Recording recording)
 std::string ReplaySource::description() const {
   char buf[64];
   std::snprintf(buf, sizeof buf, " (x%.3g%s)", options_.speed, options_.loop ? ", loop" : "");
-  return "replay:" + options_.path + buf;
+  // The file name without its directory: status and recording headers have little room.
+  const auto slash = options_.path.find_last_of('/');
+  return "replay:" + (slash == std::string::npos ? options_.path : options_.path.substr(slash + 1)) + buf;
 }
 
 std::optional<GazeItem> ReplaySource::next() {

@@ -26,7 +26,8 @@ struct ClientOptions {
   std::uint32_t heartbeat_interval_ms = 500;  // also bounds how fast a daemon restart is noticed
   std::uint32_t retry_interval_ms = 200;      // HELLO/SUBSCRIBE retransmission while not subscribed
   std::string name = "fovea-client";
-  // Receive samples from this multicast group instead of unicast (events stay unicast).
+  // Receive samples from this multicast group instead of unicast (events stay unicast). Group
+  // datagrams are accepted only from the server's IP address.
   std::optional<Endpoint> multicast_group;
   std::uint32_t multicast_interface_ip = 0;
   std::size_t queue_capacity = 4096;  // for poll(); the oldest are dropped when full
@@ -87,7 +88,7 @@ class GazeClient {
   void send(Payload p);
   void handle(const Message& m, std::int64_t now);
   void handle_gaze(const Message& m, std::int64_t now);
-  void begin_handshake(std::int64_t now);
+  void begin_handshake(std::int64_t now, bool fresh);
 
   ClientOptions options_;
   UdpSocket socket_;
@@ -101,6 +102,7 @@ class GazeClient {
   Cookie cookie_{};
   std::uint64_t request_seq_ = 0;
   std::int64_t last_sent_ns_ = 0;
+  std::int64_t retry_after_ns_ = 0;  // after a refusal (TooManySubscribers, UnsupportedVersion)
   std::int64_t last_heard_ns_ = 0;  // last HEARTBEAT reply or stream datagram from the server
   std::int64_t next_time_sync_ns_ = 0;
   std::uint32_t time_syncs_done_ = 0;

@@ -38,7 +38,8 @@ struct Normalized {
 Degrees normalized_to_degrees(const DisplayGeometry& g, Normalized p);
 Normalized degrees_to_normalized(const DisplayGeometry& g, Degrees d);
 
-// "1920x1080@531x299mm,650mm" — the form used on command lines and in CSV headers.
+// "1920x1080@531.3x298.9mm,650mm" — the form used on command lines and in CSV headers
+// (millimetres with up to 10 significant digits).
 std::string to_string(const DisplayGeometry& g);
 // Parses the form above; throws std::invalid_argument naming the bad part.
 DisplayGeometry parse_display_geometry(const std::string& text);

@@ -55,6 +55,7 @@ struct ServerStats {
   std::uint64_t send_failures = 0;
   std::uint64_t datagrams_rejected = 0;  // failed to decode
   std::uint64_t requests_refused = 0;    // decoded, answered with ERROR
+  std::uint64_t unexpected_messages = 0; // decoded but not a request (e.g. a GAZE_SAMPLE sent to us)
   std::uint64_t leases_expired = 0;
   std::size_t subscribers = 0;
 };
