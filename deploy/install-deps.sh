@@ -17,7 +17,8 @@ PACKAGES=(
   libopencv-dev libopencv-contrib-dev
   # renderer
   libembree-dev libtbb-dev libglfw3-dev libgl-dev libgl1-mesa-dri libglm-dev
-  libassimp-dev libmeshoptimizer-dev libnanoflann-dev
+  libassimp-dev libmeshoptimizer-dev libnanoflann-dev libopenexr-dev
+  libepoxy-dev                        # OpenGL function loading for the core profile
   xvfb xauth                          # headless OpenGL (Mesa llvmpipe) for tests
   # tests, benchmarks, report plots
   libgtest-dev libgmock-dev googletest libbenchmark-dev python3 python3-matplotlib

@@ -1,0 +1,36 @@
+#pragma once
+// A G-buffer backend: Embree ray casting (backend/embree) or OpenGL raster (backend/gl). Both
+// produce the same G-buffer for the same scene and time, up to rasterization tolerance, and shade
+// with the same BRDF (scene/shading.h), so their images can be composited without a seam.
+#include <memory>
+#include <string>
+
+#include "backend/gbuffer.h"
+#include "scene/scene.h"
+
+namespace fovea::render {
+
+struct FrameTime {
+  double now_s = 0;       // scene time of this frame
+  double previous_s = 0;  // scene time of the previous frame (motion vectors); == now_s for the first
+};
+
+struct BackendSettings {
+  bool shadows = false;   // shadow rays for direct light (Embree); GL ignores this and says so
+};
+
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual std::string name() const = 0;
+  // Builds acceleration structures / uploads meshes. Called again when the scene changes.
+  virtual void set_scene(const Scene& scene) = 0;
+  // Renders the scene set last at the given time into `out` (resized to the camera's resolution).
+  virtual void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) = 0;
+};
+
+enum class BackendKind { Embree, OpenGL };
+// Throws std::runtime_error with the reason if the backend cannot start (e.g. no display for GL).
+std::unique_ptr<Backend> make_backend(BackendKind kind);
+
+}  // namespace fovea::render

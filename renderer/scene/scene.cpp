@@ -1,0 +1,106 @@
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
+
+namespace fovea::render {
+
+glm::mat4 Transform::matrix() const {
+  glm::mat4 m = glm::translate(glm::mat4(1.0f), translation);
+  m = glm::rotate(m, glm::radians(rotation_deg.z), glm::vec3(0, 0, 1));
+  m = glm::rotate(m, glm::radians(rotation_deg.y), glm::vec3(0, 1, 0));
+  m = glm::rotate(m, glm::radians(rotation_deg.x), glm::vec3(1, 0, 0));
+  return glm::scale(m, scale);
+}
+
+Transform Animation::apply(const Transform& base, double t) const {
+  if (keys.empty()) return base;
+  const double first = keys.front().time_s, last = keys.back().time_s;
+  if (loop && last > first) {
+    t = first + std::fmod(t - first, last - first);
+    if (t < first) t += last - first;
+  }
+  t = std::clamp(t, first, last);
+  const auto next = std::upper_bound(keys.begin(), keys.end(), t,
+                                     [](double v, const AnimationKey& k) { return v < k.time_s; });
+  Transform out = base;
+  if (next == keys.begin() || next == keys.end()) {
+    const AnimationKey& k = next == keys.begin() ? keys.front() : keys.back();
+    out.translation += k.translation;
+    out.rotation_deg += k.rotation_deg;
+    return out;
+  }
+  const AnimationKey& a = *(next - 1);
+  const AnimationKey& b = *next;
+  const auto f = static_cast<float>((t - a.time_s) / (b.time_s - a.time_s));
+  out.translation += glm::mix(a.translation, b.translation, f);
+  out.rotation_deg += glm::mix(a.rotation_deg, b.rotation_deg, f);
+  return out;
+}
+
+const char* to_string(MaterialType t) {
+  switch (t) {
+    case MaterialType::Lambertian: return "lambertian";
+    case MaterialType::BlinnPhong: return "blinn-phong";
+    case MaterialType::Mirror: return "mirror";
+    case MaterialType::Glass: return "glass";
+    case MaterialType::Emissive: return "emissive";
+  }
+  return "?";
+}
+
+const char* to_string(LightType t) {
+  switch (t) {
+    case LightType::Point: return "point";
+    case LightType::Spot: return "spot";
+    case LightType::Area: return "area";
+  }
+  return "?";
+}
+
+Lens Lens::human_eye(double focus_distance_m) {
+  Lens l;
+  l.focal_length_m = 0.0167;
+  l.aperture_m = 0.004;
+  l.image_distance_m = 0.024;
+  l.focus_distance_m = focus_distance_m;
+  return l;
+}
+
+glm::vec3 Camera::position_at(double t) const {
+  return animation ? animation->apply(Transform{position, {}, {1, 1, 1}}, t).translation : position;
+}
+
+glm::mat4 Camera::view_at(double t) const {
+  const glm::vec3 offset = position_at(t) - position;
+  return glm::lookAt(position + offset, target + offset, up);
+}
+
+glm::mat4 Camera::projection() const {
+  return glm::perspective(glm::radians(vertical_fov_deg), static_cast<float>(width) / static_cast<float>(height),
+                          near_m, far_m);
+}
+
+bool Scene::has_specular_or_refractive() const {
+  return std::any_of(objects.begin(), objects.end(),
+                     [&](const Object& o) { return materials.at(o.material).is_specular_or_refractive(); });
+}
+
+bool Scene::has_animation() const {
+  return camera.animation.has_value() ||
+         std::any_of(objects.begin(), objects.end(), [](const Object& o) { return o.animation.has_value(); });
+}
+
+bool Scene::has_lods() const {
+  return std::any_of(objects.begin(), objects.end(), [](const Object& o) { return !o.lods.empty(); });
+}
+
+const Object* Scene::object_by_id(std::uint32_t id) const {
+  for (const Object& o : objects) {
+    if (o.id == id) return &o;
+  }
+  return nullptr;
+}
+
+}  // namespace fovea::render

@@ -1,0 +1,136 @@
+#pragma once
+// The scene model shared by every backend and pass. Units: metres, seconds, watts; colours are
+// linear RGB. Loaded from JSON by scene_loader.h (format in renderer/SCENES.md).
+#include <cstdint>
+#include <filesystem>
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fovea/protocol/display_geometry.h"
+
+namespace fovea::render {
+
+// Indexed triangle mesh in object space. normals has one entry per position (smooth shading).
+struct Mesh {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;
+  std::vector<std::uint32_t> indices;  // 3 per triangle
+  std::size_t triangle_count() const { return indices.size() / 3; }
+};
+
+struct Transform {
+  glm::vec3 translation{0.0f};
+  glm::vec3 rotation_deg{0.0f};  // Euler angles in degrees: X first, then Y, then Z (R = Rz * Ry * Rx)
+  glm::vec3 scale{1.0f};
+  glm::mat4 matrix() const;      // T * R * S
+};
+
+// Piecewise-linear keyframes of translation and rotation; time in seconds. Scale is not animated.
+struct AnimationKey {
+  double time_s = 0;
+  glm::vec3 translation{0.0f};
+  glm::vec3 rotation_deg{0.0f};
+};
+struct Animation {
+  std::vector<AnimationKey> keys;  // strictly increasing time
+  bool loop = true;
+  // The transform at time t: keys interpolated, added to the object's base transform.
+  Transform apply(const Transform& base, double t) const;
+};
+
+enum class MaterialType { Lambertian, BlinnPhong, Mirror, Glass, Emissive };
+const char* to_string(MaterialType t);
+
+struct Material {
+  std::string name;
+  MaterialType type = MaterialType::Lambertian;
+  glm::vec3 kd{0.8f};          // diffuse coefficient (Jensen & Pedersen 2009, eq. 5.22)
+  glm::vec3 ks{0.0f};          // specular coefficient
+  float shininess = 1.0f;      // n in (n.h)^n
+  glm::vec3 reflectance{1.0f}; // mirror and glass: tint of reflected/transmitted light
+  float ior = 1.5f;            // glass
+  glm::vec3 emission{0.0f};    // emissive: radiance leaving the surface, W / (sr m^2)
+  bool is_specular_or_refractive() const { return type == MaterialType::Mirror || type == MaterialType::Glass; }
+};
+
+// A level of detail: the mesh to use when the object's projected size or importance calls for it.
+struct LodLevel {
+  std::shared_ptr<const Mesh> mesh;
+  float max_error_m = 0;  // geometric error of this level against the full mesh (metres, object space)
+};
+
+struct Object {
+  std::string name;
+  std::uint32_t id = 0;  // 1-based, unique; 0 in a G-buffer means "no object"
+  std::shared_ptr<const Mesh> mesh;
+  std::vector<LodLevel> lods;  // optional, coarser levels after the full mesh
+  std::uint32_t material = 0;  // index into Scene::materials
+  Transform transform;
+  std::optional<Animation> animation;
+  float task_importance = 0;   // T_i of Lee 2009, eq. 3.7, in [0, 1]
+  Transform transform_at(double t) const { return animation ? animation->apply(transform, t) : transform; }
+};
+
+enum class LightType { Point, Spot, Area };
+const char* to_string(LightType t);
+
+struct Light {
+  LightType type = LightType::Point;
+  glm::vec3 position{0.0f};
+  glm::vec3 power{100.0f};         // radiant power Phi_s per channel, W
+  glm::vec3 direction{0, -1, 0};   // spot axis, or area light normal (unit)
+  float spot_cutoff_deg = 30;      // half-angle of the spot cone
+  float spot_falloff_deg = 5;      // soft edge inside the cutoff
+  glm::vec2 area_size{0.5f};       // area light: extent along its two tangents (metres)
+  int area_samples = 4;            // area light: samples per side for local illumination (n x n)
+};
+
+struct Lens {
+  // Pinhole when aperture_m == 0. Otherwise a thin lens of focal length F and aperture diameter E
+  // focused at focus_distance_m (Lee 2009, eq. 4.2-4.3).
+  double focal_length_m = 0.05;
+  double aperture_m = 0;
+  double focus_distance_m = 2.0;
+  // Distance from lens to image plane (d_r of Lee eq. 4.4); 0 = derived from F and focus distance.
+  double image_distance_m = 0;
+  bool is_pinhole() const { return aperture_m <= 0; }
+  // The human eye: F = 16.7 mm, E = 4 mm, d_r = 24 mm (Lee 2009, §4.1.2 and §4.6).
+  static Lens human_eye(double focus_distance_m);
+};
+
+struct Camera {
+  glm::vec3 position{0, 1, 5};
+  glm::vec3 target{0, 1, 0};
+  glm::vec3 up{0, 1, 0};
+  float vertical_fov_deg = 45;
+  std::uint32_t width = 640, height = 480;
+  float near_m = 0.05f, far_m = 100.0f;
+  Lens lens;
+  std::optional<Animation> animation;  // moves position and target together (rotation ignored)
+  glm::mat4 view_at(double t) const;
+  glm::mat4 projection() const;  // OpenGL convention (clip z in [-1, 1]), y up
+  glm::vec3 position_at(double t) const;
+};
+
+struct Scene {
+  std::string name;
+  std::filesystem::path source;  // the JSON file, for messages
+  Camera camera;
+  std::vector<Material> materials;
+  std::vector<Object> objects;
+  std::vector<Light> lights;
+  glm::vec3 ambient{0.02f};      // ambient radiance for local illumination (times kd)
+  glm::vec3 background{0.0f};    // radiance where no object is hit
+  protocol::DisplayGeometry display;  // the screen the frames are shown on: pixels -> visual angle
+
+  bool has_specular_or_refractive() const;
+  bool has_animation() const;
+  bool has_lods() const;
+  const Object* object_by_id(std::uint32_t id) const;
+};
+
+}  // namespace fovea::render

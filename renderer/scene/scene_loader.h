@@ -1,0 +1,34 @@
+#pragma once
+// Loads JSON scene files (format: renderer/SCENES.md) into a validated Scene. Every error names the
+// file, the JSON path, the bad value and the allowed range, e.g.
+//   scenes/room.json: $.objects[2].transform.translation[1] = nan: must be a finite number
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace fovea::render {
+
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Overrides applied to the JSON document before validation: "camera.width=320" sets the value at
+// that dotted path (array elements by index: "lights.0.power=[10,10,10]"). The value is parsed as
+// JSON if it can be, else taken as a string. An override naming a path that does not exist in the
+// document and is not a known optional field is an error.
+struct SceneOverride {
+  std::string path;
+  std::string value;
+};
+
+// Throws SceneError. Mesh files are resolved relative to the scene file's directory.
+Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides = {});
+// The same from text; `source_name` is used in messages and `base_dir` to resolve mesh files.
+Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
+                  const std::vector<SceneOverride>& overrides = {});
+
+}  // namespace fovea::render
