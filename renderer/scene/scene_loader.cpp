@@ -1,0 +1,1195 @@
+#include "scene/scene_loader.h"
+
+#include <algorithm>
+#include <array>
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <map>
+#include <meshoptimizer.h>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string_view>
+#include <utility>
+
+#include "scene/geometry.h"
+
+namespace fovea::render {
+
+namespace {
+
+// ordered_json keeps the file's key order, so "the first error" is the first one in the file and
+// materials given as an object keep their order.
+using Json = nlohmann::ordered_json;
+using Keys = std::vector<std::string_view>;
+
+// ---------------------------------------------------------------------------------------------
+// Formatting
+
+std::string format_number(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  std::array<char, 64> buf{};
+  const auto res = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  return std::string(buf.data(), res.ptr);
+}
+
+// Floats print as the shortest text that reads back as the same float (0.6, not 0.6000000238...).
+std::string format_number(float v) {
+  if (!std::isfinite(v)) return format_number(static_cast<double>(v));
+  std::array<char, 32> buf{};
+  const auto res = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  return std::string(buf.data(), res.ptr);
+}
+
+// The offending value as it appears in messages: JSON text, shortened when long.
+std::string describe(const Json& v) {
+  if (v.is_number_float()) return format_number(v.get<double>());
+  std::string s = v.dump();
+  if (s.size() > 80) s = s.substr(0, 77) + "...";
+  return s;
+}
+
+bool is_identifier(std::string_view key) {
+  if (key.empty()) return false;
+  return std::all_of(key.begin(), key.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+  });
+}
+
+std::string key_suffix(std::string_view key) {
+  if (is_identifier(key)) return "." + std::string(key);
+  return "[" + Json(std::string(key)).dump() + "]";
+}
+
+std::string index_suffix(std::size_t i) { return "[" + std::to_string(i) + "]"; }
+
+std::string join(const Keys& keys) {
+  std::string out;
+  for (const std::string_view k : keys) {
+    if (!out.empty()) out += ", ";
+    out += k;
+  }
+  return out;
+}
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diag = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0u : 1u)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// "unknown field; allowed: a, b, c (did you mean 'b'?)"
+std::string unknown_field_message(std::string_view key, const Keys& allowed) {
+  std::string msg = "unknown field; allowed fields here: " + join(allowed);
+  std::string_view best;
+  std::size_t best_d = 3;  // suggest only close matches
+  for (const std::string_view k : allowed) {
+    const std::size_t d = edit_distance(key, k);
+    if (d < best_d) {
+      best_d = d;
+      best = k;
+    }
+  }
+  if (!best.empty()) msg += " (did you mean '" + std::string(best) + "'?)";
+  return msg;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The schema: which keys each kind of JSON object may hold. Validation and overrides share it.
+
+enum class Kind {
+  Scene, Camera, Lens, Animation, AnimationKeys, AnimationKey, Materials, Material, Objects, Object, Geometry,
+  Sphere, Cylinder, Transform, Lod, LodLevel, Lights, Light, Display, Value
+};
+
+const Keys kSceneKeys{"name",    "camera",     "materials", "objects", "lights",
+                      "ambient", "background", "display",   "comment"};
+const Keys kCameraKeys{"position", "target", "up", "vertical_fov_deg", "width", "height",
+                       "near", "far", "lens", "animation", "comment"};
+const Keys kLensKeys{"type", "focal_length_mm", "f_number", "aperture_mm", "focus_distance_m", "image_distance_mm",
+                     "comment"};
+const Keys kPinholeKeys{"type", "comment"};
+const Keys kThinLensKeys{"type", "focal_length_mm", "f_number", "aperture_mm", "focus_distance_m",
+                         "image_distance_mm", "comment"};
+const Keys kHumanEyeKeys{"type", "focus_distance_m", "comment"};
+const Keys kAnimationKeys{"loop", "keys", "comment"};
+const Keys kObjectKeyframeKeys{"t", "translation", "rotation_deg", "comment"};
+const Keys kCameraKeyframeKeys{"t", "translation", "comment"};
+const Keys kMaterialKeys{"name", "type", "kd", "ks", "shininess", "reflectance", "ior", "emission", "comment"};
+const Keys kObjectKeys{"name", "geometry", "material", "transform", "animation", "task_importance", "lod", "comment"};
+const Keys kGeometryKeys{"mesh", "box", "sphere", "plane", "cylinder", "comment"};
+const Keys kShapeKeys{"mesh", "box", "sphere", "plane", "cylinder"};
+const Keys kSphereKeys{"radius", "rings", "segments", "comment"};
+const Keys kCylinderKeys{"radius", "height", "segments", "comment"};
+const Keys kTransformKeys{"translation", "rotation_deg", "scale", "comment"};
+const Keys kLodSimplifyKeys{"simplify", "comment"};
+const Keys kLodLevelKeys{"mesh", "max_error_m", "comment"};
+const Keys kLightKeys{"type", "position", "power", "direction", "cutoff_deg", "falloff_deg", "normal", "size",
+                      "samples", "comment"};
+const Keys kPointLightKeys{"type", "position", "power", "comment"};
+const Keys kSpotLightKeys{"type", "position", "direction", "power", "cutoff_deg", "falloff_deg", "comment"};
+const Keys kAreaLightKeys{"type", "position", "normal", "size", "power", "samples", "comment"};
+const Keys kDisplayKeys{"width_px", "height_px", "width_mm", "height_mm", "viewing_distance_mm", "comment"};
+const Keys kNoKeys{};
+
+const Keys& keys_of(Kind k) {
+  switch (k) {
+    case Kind::Scene: return kSceneKeys;
+    case Kind::Camera: return kCameraKeys;
+    case Kind::Lens: return kLensKeys;
+    case Kind::Animation: return kAnimationKeys;
+    case Kind::AnimationKey: return kObjectKeyframeKeys;
+    case Kind::Material: return kMaterialKeys;
+    case Kind::Object: return kObjectKeys;
+    case Kind::Geometry: return kGeometryKeys;
+    case Kind::Sphere: return kSphereKeys;
+    case Kind::Cylinder: return kCylinderKeys;
+    case Kind::Transform: return kTransformKeys;
+    case Kind::Lod: return kLodSimplifyKeys;
+    case Kind::LodLevel: return kLodLevelKeys;
+    case Kind::Light: return kLightKeys;
+    case Kind::Display: return kDisplayKeys;
+    default: return kNoKeys;  // arrays, maps of user-chosen names, and plain values
+  }
+}
+
+Kind child_kind(Kind parent, std::string_view key) {
+  switch (parent) {
+    case Kind::Scene:
+      if (key == "camera") return Kind::Camera;
+      if (key == "materials") return Kind::Materials;
+      if (key == "objects") return Kind::Objects;
+      if (key == "lights") return Kind::Lights;
+      if (key == "display") return Kind::Display;
+      return Kind::Value;
+    case Kind::Camera:
+      if (key == "lens") return Kind::Lens;
+      if (key == "animation") return Kind::Animation;
+      return Kind::Value;
+    case Kind::Animation: return key == "keys" ? Kind::AnimationKeys : Kind::Value;
+    case Kind::Materials: return Kind::Material;  // materials given as {"name": {...}}
+    case Kind::Object:
+      if (key == "geometry") return Kind::Geometry;
+      if (key == "transform") return Kind::Transform;
+      if (key == "animation") return Kind::Animation;
+      if (key == "lod") return Kind::Lod;
+      return Kind::Value;
+    case Kind::Geometry:
+      if (key == "sphere") return Kind::Sphere;
+      if (key == "cylinder") return Kind::Cylinder;
+      return Kind::Value;
+    default: return Kind::Value;
+  }
+}
+
+Kind element_kind(Kind parent) {
+  switch (parent) {
+    case Kind::Objects: return Kind::Object;
+    case Kind::Lights: return Kind::Light;
+    case Kind::Materials: return Kind::Material;
+    case Kind::AnimationKeys: return Kind::AnimationKey;
+    case Kind::Lod: return Kind::LodLevel;
+    default: return Kind::Value;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Parsing: a SAX handler that builds the document while tracking the JSON path, so that duplicate
+// keys and numbers that overflow a double (1e999) are reported at their path. nlohmann's DOM
+// parser keeps the last of duplicate keys silently and reports overflow without a path.
+
+class DocumentBuilder final : public nlohmann::json_sax<Json> {
+ public:
+  explicit DocumentBuilder(std::string source) : source_(std::move(source)) {}
+
+  Json& document() { return root_; }
+  const std::string& error() const { return error_; }
+
+  bool null() override { return scalar(Json(nullptr)); }
+  bool boolean(bool v) override { return scalar(Json(v)); }
+  bool number_integer(number_integer_t v) override { return scalar(Json(v)); }
+  bool number_unsigned(number_unsigned_t v) override { return scalar(Json(v)); }
+  bool number_float(number_float_t v, const string_t& /*text*/) override { return scalar(Json(v)); }
+  bool string(string_t& v) override { return scalar(Json(v)); }
+  bool binary(binary_t& /*v*/) override { return scalar(Json(nullptr)); }  // not produced by the JSON parser
+
+  bool start_object(std::size_t /*elements*/) override {
+    stack_.push_back(Frame{put(Json::object()), false, 0, {}, {}});
+    return true;
+  }
+  bool key(string_t& k) override {
+    Frame& f = stack_.back();
+    if (!f.keys.insert(k).second) {
+      error_ = source_ + ": " + path(stack_.size() - 1) + key_suffix(k) +
+               ": duplicate key (each key may appear once in an object)";
+      return false;
+    }
+    f.key = k;
+    return true;
+  }
+  bool end_object() override { return end(); }
+  bool start_array(std::size_t /*elements*/) override {
+    stack_.push_back(Frame{put(Json::array()), true, 0, {}, {}});
+    return true;
+  }
+  bool end_array() override { return end(); }
+
+  bool parse_error(std::size_t position, const std::string& last_token,
+                   const nlohmann::detail::exception& ex) override {
+    if (ex.id == 406) {  // out_of_range.406: number overflow
+      error_ = source_ + ": " + path() + " = " + last_token +
+               ": number overflows a double; must be a finite number (JSON has no NaN or Infinity)";
+      return false;
+    }
+    std::string what = ex.what();
+    if (const auto close = what.find("] "); what.starts_with("[json.exception") && close != std::string::npos) {
+      what = what.substr(close + 2);
+    }
+    error_ = source_ + ": invalid JSON (byte " + std::to_string(position) + "): " + what;
+    return false;
+  }
+
+ private:
+  struct Frame {
+    Json* node;
+    bool is_array;
+    std::size_t index;
+    std::string key;
+    std::set<std::string> keys;
+  };
+
+  // The path of the value being parsed, through the first `depth` open containers (all by default).
+  std::string path(std::size_t depth = SIZE_MAX) const {
+    std::string p = "$";
+    for (std::size_t i = 0; i < std::min(depth, stack_.size()); ++i) {
+      const Frame& f = stack_[i];
+      p += f.is_array ? index_suffix(f.index) : key_suffix(f.key);
+    }
+    return p;
+  }
+  // Places a value at the current position. Pointers into the parent stay valid because the parent
+  // is not modified again until this child is complete.
+  Json* put(Json&& v) {
+    if (stack_.empty()) {
+      root_ = std::move(v);
+      return &root_;
+    }
+    Frame& f = stack_.back();
+    if (f.is_array) {
+      f.node->push_back(std::move(v));
+      return &f.node->back();
+    }
+    Json& slot = (*f.node)[f.key];
+    slot = std::move(v);
+    return &slot;
+  }
+  void element_done() {
+    if (!stack_.empty() && stack_.back().is_array) ++stack_.back().index;
+  }
+  bool scalar(Json&& v) {
+    put(std::move(v));
+    element_done();
+    return true;
+  }
+  bool end() {
+    stack_.pop_back();
+    element_done();
+    return true;
+  }
+
+  std::string source_;
+  Json root_;
+  std::vector<Frame> stack_;
+  std::string error_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Validation helpers
+
+struct Node {
+  const Json& v;
+  std::string path;
+};
+
+enum class Sign { Any, NonNegative, Positive };
+
+struct Range {
+  double lo, hi;
+  bool lo_open, hi_open;
+  const char* unit;
+  bool contains(double x) const {
+    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
+  }
+  std::string text() const {
+    std::string s = std::string(lo_open ? "(" : "[") + format_number(lo) + ", " + format_number(hi) +
+                    (hi_open ? ")" : "]");
+    if (unit != nullptr && *unit != '\0') s += std::string(" ") + unit;
+    return s;
+  }
+};
+
+constexpr double kMaxCoordinate = 1e6;  // metres; larger values lose float precision in the backends
+
+class Loader {
+ public:
+  Loader(std::string source, std::filesystem::path base_dir)
+      : source_(std::move(source)), base_dir_(std::move(base_dir)) {}
+
+  // ---- errors ----
+  [[noreturn]] void fail(const std::string& path, const Json* value, const std::string& what) const {
+    std::string msg = source_ + ": " + path;
+    if (value != nullptr) msg += " = " + describe(*value);
+    msg += ": " + what;
+    for (const auto& [p, text] : overridden_) {
+      if (path == p || path.starts_with(p + ".") || path.starts_with(p + "[")) {
+        msg += " (set by override '" + text + "')";
+        break;
+      }
+    }
+    throw SceneError(msg);
+  }
+  [[noreturn]] void fail(const Node& n, const std::string& what) const { fail(n.path, &n.v, what); }
+
+  // ---- overrides ----
+  void apply_override(Json& doc, const SceneOverride& o);
+
+  // ---- structure ----
+  void expect_object(const Node& n, const char* what) const {
+    if (!n.v.is_object()) fail(n, std::string("must be an object (") + what + ")");
+  }
+  void check_keys(const Node& n, const Keys& allowed, const char* what) const {
+    expect_object(n, what);
+    for (const auto& [k, v] : n.v.items()) {
+      if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
+        fail(n.path + key_suffix(k), &v, unknown_field_message(k, allowed));
+      }
+      if (k == "comment" && !v.is_string()) fail(n.path + key_suffix(k), &v, "must be a string (a free-form comment)");
+    }
+  }
+  static std::optional<Node> get(const Node& n, std::string_view key) {
+    const auto it = n.v.find(key);
+    if (it == n.v.end()) return std::nullopt;
+    return Node{*it, n.path + key_suffix(key)};
+  }
+  Node require(const Node& n, std::string_view key, const std::string& what) const {
+    auto c = get(n, key);
+    if (!c) fail(n.path + key_suffix(key), nullptr, "missing required field: " + what);
+    return *c;
+  }
+  static Node element(const Node& n, std::size_t i) { return Node{n.v[i], n.path + index_suffix(i)}; }
+
+  // ---- values ----
+  double number(const Node& n, const Range& r) const {
+    const std::string allowed = "must be a finite number in " + r.text();
+    if (n.v.is_string()) fail(n, allowed + " (a number, not a string; JSON has no NaN or Infinity)");
+    if (!n.v.is_number()) fail(n, allowed);
+    const double x = n.v.get<double>();
+    if (!std::isfinite(x) || !r.contains(x)) fail(n, allowed);
+    return x;
+  }
+  float number_f(const Node& n, const Range& r) const { return static_cast<float>(number(n, r)); }
+  std::int64_t integer(const Node& n, std::int64_t lo, std::int64_t hi) const {
+    const std::string allowed = "must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi);
+    std::int64_t x = 0;
+    if (n.v.is_number_unsigned()) {
+      const auto u = n.v.get<std::uint64_t>();
+      if (u > static_cast<std::uint64_t>(hi)) fail(n, allowed);
+      x = static_cast<std::int64_t>(u);
+    } else if (n.v.is_number_integer()) {
+      x = n.v.get<std::int64_t>();
+    } else {
+      fail(n, allowed);
+    }
+    if (x < lo || x > hi) fail(n, allowed);
+    return x;
+  }
+  std::string string(const Node& n, const char* what) const {
+    if (!n.v.is_string()) fail(n, std::string("must be a string (") + what + ")");
+    return n.v.get<std::string>();
+  }
+  bool boolean(const Node& n) const {
+    if (!n.v.is_boolean()) fail(n, "must be true or false");
+    return n.v.get<bool>();
+  }
+  static Range sign_range(Sign s) {
+    switch (s) {
+      case Sign::NonNegative: return {0, 1e30, false, false, ""};
+      case Sign::Positive: return {0, 1e30, true, false, ""};
+      case Sign::Any: break;
+    }
+    return {-1e30, 1e30, false, false, ""};
+  }
+  template <int N>
+  glm::vec<N, float> vec(const Node& n, const Range& r, const char* what) const {
+    if (!n.v.is_array() || n.v.size() != static_cast<std::size_t>(N)) {
+      fail(n, "must be an array of " + std::to_string(N) + " numbers (" + what + ")");
+    }
+    glm::vec<N, float> out{};
+    for (int i = 0; i < N; ++i) out[i] = number_f(element(n, static_cast<std::size_t>(i)), r);
+    return out;
+  }
+  glm::vec3 vec3(const Node& n, const Range& r, const char* what) const { return vec<3>(n, r, what); }
+  glm::vec3 colour(const Node& n, const char* what) const {
+    return vec3(n, Range{0, 1e9, false, false, ""}, what);
+  }
+  glm::vec3 position(const Node& n, const char* what) const {
+    return vec3(n, Range{-kMaxCoordinate, kMaxCoordinate, false, false, "m"}, what);
+  }
+  glm::vec3 direction(const Node& n, const char* what) const {
+    const glm::vec3 d = vec3(n, Range{-1e6, 1e6, false, false, ""}, what);
+    if (!(glm::length(d) > 1e-9f)) fail(n, std::string("must be a non-zero vector (") + what + ")");
+    return glm::normalize(d);
+  }
+
+  // ---- sections ----
+  Scene build(const Json& doc, const std::string& default_name);
+
+ private:
+  Camera camera(const Node& n);
+  Lens lens(const Node& n);
+  Animation animation(const Node& n, bool camera);
+  std::vector<Material> materials(const Node& n);
+  Material material(const Node& n, std::string name);
+  Transform transform(const Node& n);
+  std::shared_ptr<const Mesh> geometry(const Node& n);
+  std::shared_ptr<const Mesh> mesh_file(const Node& n);
+  std::vector<LodLevel> lods(const Node& n, const Mesh& full);
+  Light light(const Node& n);
+  protocol::DisplayGeometry display(const Node& n);
+  void check_finite(const Scene& s) const;
+
+  std::string source_;
+  std::filesystem::path base_dir_;
+  std::vector<std::pair<std::string, std::string>> overridden_;  // JSON path -> "path=value"
+  std::map<std::string, std::shared_ptr<const Mesh>> mesh_cache_;  // by resolved path
+};
+
+// ---------------------------------------------------------------------------------------------
+// Overrides
+
+void Loader::apply_override(Json& doc, const SceneOverride& o) {
+  const std::string text = o.path + "=" + o.value;
+  const auto bad = [&](const std::string& what) -> void {
+    throw SceneError(source_ + ": override '" + text + "': " + what);
+  };
+  std::vector<std::string> segments;
+  {
+    std::string seg;
+    std::istringstream in(o.path);
+    while (std::getline(in, seg, '.')) segments.push_back(seg);
+    if (!o.path.empty() && o.path.back() == '.') segments.emplace_back();
+  }
+  if (segments.empty()) bad("empty path; expected a dotted path such as camera.width or lights.0.power");
+  for (const std::string& s : segments) {
+    if (s.empty()) bad("empty path segment; expected a dotted path such as camera.width or lights.0.power");
+  }
+
+  Json value;
+  try {
+    value = Json::parse(o.value);
+  } catch (const nlohmann::json::exception&) {
+    value = Json(o.value);  // not JSON: taken as a string
+  }
+
+  Json* node = &doc;
+  Kind kind = Kind::Scene;
+  std::string path = "$";
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    const std::string& seg = segments[i];
+    const bool last = i + 1 == segments.size();
+    if (node->is_array()) {
+      const bool numeric = std::all_of(seg.begin(), seg.end(), [](char c) { return c >= '0' && c <= '9'; });
+      if (!numeric || seg.size() > 9) bad(path + " is an array; '" + seg + "' must be an element index");
+      const auto index = static_cast<std::size_t>(std::stoul(seg));
+      if (index >= node->size()) {
+        bad(path + index_suffix(index) + ": index out of range (the array has " + std::to_string(node->size()) +
+            " elements)");
+      }
+      node = &(*node)[index];
+      path += index_suffix(index);
+      kind = element_kind(kind);
+    } else if (node->is_object()) {
+      const Keys& known = keys_of(kind);
+      if (!node->contains(seg)) {
+        if (std::find(known.begin(), known.end(), seg) == known.end()) {
+          std::string what = path + key_suffix(seg) + ": no such field in the scene";
+          if (!known.empty()) what += "; " + unknown_field_message(seg, known);
+          bad(what);
+        }
+        (*node)[seg] = last ? Json(nullptr) : Json::object();  // a known optional field: create it
+      }
+      node = &(*node)[seg];
+      path += key_suffix(seg);
+      kind = child_kind(kind, seg);
+    } else {
+      bad(path + " = " + describe(*node) + " is not an object or array; cannot set '" + seg + "' inside it");
+    }
+  }
+  *node = std::move(value);
+  overridden_.emplace_back(path, text);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sections
+
+Scene Loader::build(const Json& doc, const std::string& default_name) {
+  const Node root{doc, "$"};
+  check_keys(root, kSceneKeys, "a scene");
+  Scene scene;
+  scene.name = default_name;
+  if (auto n = get(root, "name")) scene.name = string(*n, "the scene's name");
+
+  scene.camera = camera(require(root, "camera", "the camera (position, target, lens, ...)"));
+
+  scene.materials = materials(require(root, "materials", "the named materials the objects use"));
+
+  const Node objects = require(root, "objects", "an array of objects");
+  if (!objects.v.is_array() || objects.v.empty()) fail(objects, "must be a non-empty array of objects");
+  std::map<std::string, std::string> object_names;  // name -> path of its first use
+  for (std::size_t i = 0; i < objects.v.size(); ++i) {
+    const Node n = element(objects, i);
+    check_keys(n, kObjectKeys, "an object");
+    Object obj;
+    const Node name = require(n, "name", "a unique object name");
+    obj.name = string(name, "a unique object name");
+    if (obj.name.empty()) fail(name, "must be a non-empty string");
+    if (const auto [it, fresh] = object_names.emplace(obj.name, name.path); !fresh) {
+      fail(name, "duplicate object name (first used at " + it->second + "); object names must be unique");
+    }
+    obj.id = static_cast<std::uint32_t>(i + 1);
+
+    const Node mat = require(n, "material", "the name of a material in $.materials");
+    const std::string mat_name = string(mat, "the name of a material in $.materials");
+    const auto found = std::find_if(scene.materials.begin(), scene.materials.end(),
+                                    [&](const Material& m) { return m.name == mat_name; });
+    if (found == scene.materials.end()) {
+      std::string known;
+      for (const Material& m : scene.materials) known += (known.empty() ? "" : ", ") + m.name;
+      fail(mat, "unknown material; defined materials: " + known);
+    }
+    obj.material = static_cast<std::uint32_t>(found - scene.materials.begin());
+
+    obj.mesh = geometry(require(n, "geometry", "one of mesh, box, sphere, plane, cylinder"));
+    if (auto t = get(n, "transform")) obj.transform = transform(*t);
+    if (auto a = get(n, "animation")) obj.animation = animation(*a, false);
+    if (auto ti = get(n, "task_importance")) obj.task_importance = number_f(*ti, Range{0, 1, false, false, ""});
+    if (auto l = get(n, "lod")) obj.lods = lods(*l, *obj.mesh);
+    scene.objects.push_back(std::move(obj));
+  }
+
+  if (auto lights = get(root, "lights")) {
+    if (!lights->v.is_array()) fail(*lights, "must be an array of lights");
+    for (std::size_t i = 0; i < lights->v.size(); ++i) scene.lights.push_back(light(element(*lights, i)));
+  }
+  if (auto a = get(root, "ambient")) scene.ambient = colour(*a, "ambient radiance [r, g, b] >= 0");
+  if (auto b = get(root, "background")) scene.background = colour(*b, "background radiance [r, g, b] >= 0");
+  if (auto d = get(root, "display")) scene.display = display(*d);
+
+  check_finite(scene);
+  return scene;
+}
+
+Camera Loader::camera(const Node& n) {
+  check_keys(n, kCameraKeys, "the camera");
+  Camera c;
+  if (auto v = get(n, "position")) c.position = position(*v, "camera position [x, y, z] in metres");
+  if (auto v = get(n, "target")) c.target = position(*v, "point looked at [x, y, z] in metres");
+  if (auto v = get(n, "up")) c.up = direction(*v, "up vector [x, y, z]");
+  if (auto v = get(n, "vertical_fov_deg")) c.vertical_fov_deg = number_f(*v, Range{0, 180, true, true, "degrees"});
+  if (auto v = get(n, "width")) c.width = static_cast<std::uint32_t>(integer(*v, 1, 16384));
+  if (auto v = get(n, "height")) c.height = static_cast<std::uint32_t>(integer(*v, 1, 16384));
+  const auto near = get(n, "near");
+  const auto far = get(n, "far");
+  if (near) c.near_m = number_f(*near, Range{0, kMaxCoordinate, true, false, "m"});
+  if (far) c.far_m = number_f(*far, Range{0, kMaxCoordinate, true, false, "m"});
+  if (!(c.near_m < c.far_m)) {
+    const Node& at = far ? *far : *near;
+    fail(at, "camera near and far must satisfy 0 < near < far (near = " + format_number(c.near_m) +
+                 " m, far = " + format_number(c.far_m) + " m)");
+  }
+  const glm::vec3 view = c.target - c.position;
+  if (!(glm::length(view) > 1e-6f)) {
+    const auto t = get(n, "target");
+    fail(t ? t->path : n.path + ".target", t ? &t->v : nullptr, "camera target must differ from its position");
+  }
+  if (!(glm::length(glm::cross(glm::normalize(view), c.up)) > 1e-4f)) {
+    const auto u = get(n, "up");
+    fail(u ? u->path : n.path + ".up", u ? &u->v : nullptr,
+         "camera up must not be parallel to the view direction (target - position)");
+  }
+  if (auto v = get(n, "lens")) c.lens = lens(*v);
+  if (auto v = get(n, "animation")) c.animation = animation(*v, true);
+  return c;
+}
+
+Lens Loader::lens(const Node& n) {
+  expect_object(n, "a lens: {\"type\": \"pinhole\" | \"thin-lens\" | \"human-eye\", ...}");
+  const Node type_node = require(n, "type", "\"pinhole\", \"thin-lens\" or \"human-eye\"");
+  const std::string type = string(type_node, "\"pinhole\", \"thin-lens\" or \"human-eye\"");
+  Lens l;
+  if (type == "pinhole") {
+    check_keys(n, kPinholeKeys, "a pinhole lens");
+    l.aperture_m = 0;
+    return l;
+  }
+  if (type == "human-eye") {
+    check_keys(n, kHumanEyeKeys, "the human-eye lens");
+    // The eye's focal length is 16.7 mm; it can only focus beyond it (Lee 2009, §4.1.2).
+    const double focus = number(require(n, "focus_distance_m", "distance the eye is focused at, metres"),
+                                Range{0.0167, kMaxCoordinate, true, false, "m"});
+    return Lens::human_eye(focus);
+  }
+  if (type != "thin-lens") fail(type_node, "unknown lens type; allowed: pinhole, thin-lens, human-eye");
+  check_keys(n, kThinLensKeys, "a thin lens");
+  const double focal_mm =
+      number(require(n, "focal_length_mm", "focal length F in millimetres"), Range{0, 10000, true, false, "mm"});
+  l.focal_length_m = focal_mm / 1000.0;
+  const auto f_number = get(n, "f_number");
+  const auto aperture = get(n, "aperture_mm");
+  if (f_number && aperture) {
+    fail(*aperture, "give either f_number or aperture_mm, not both (aperture diameter E = F / N)");
+  }
+  if (f_number) {
+    l.aperture_m = l.focal_length_m / number(*f_number, Range{0.5, 1024, false, false, ""});
+  } else if (aperture) {
+    l.aperture_m = number(*aperture, Range{0, 10000, true, false, "mm"}) / 1000.0;
+  } else {
+    fail(n.path + ".f_number", nullptr, "missing required field: f_number or aperture_mm (the aperture)");
+  }
+  const Node focus = require(n, "focus_distance_m", "distance the lens is focused at, metres");
+  l.focus_distance_m = number(focus, Range{0, kMaxCoordinate, true, false, "m"});
+  // Lee 2009, eq. 4.2: a real image exists only for objects beyond the focal length.
+  if (!(l.focus_distance_m > l.focal_length_m)) {
+    fail(focus, "must be greater than the focal length (" + format_number(focal_mm) + " mm) for a real image");
+  }
+  if (auto d = get(n, "image_distance_mm")) {
+    const double di = number(*d, Range{0, 10000, true, false, "mm"});
+    if (!(di > focal_mm)) {
+      fail(*d, "must be greater than focal_length_mm (" + format_number(focal_mm) + ") for a real image");
+    }
+    l.image_distance_m = di / 1000.0;
+  }
+  return l;
+}
+
+Animation Loader::animation(const Node& n, bool camera) {
+  check_keys(n, kAnimationKeys, "an animation: {\"loop\": bool, \"keys\": [...]}");
+  Animation a;
+  if (auto l = get(n, "loop")) a.loop = boolean(*l);
+  const Node keys = require(n, "keys", "an array of keyframes {\"t\", \"translation\", \"rotation_deg\"}");
+  if (!keys.v.is_array() || keys.v.empty()) fail(keys, "must be a non-empty array of keyframes");
+  for (std::size_t i = 0; i < keys.v.size(); ++i) {
+    const Node k = element(keys, i);
+    check_keys(k, camera ? kCameraKeyframeKeys : kObjectKeyframeKeys,
+               camera ? "a camera keyframe (camera animation moves position and target; no rotation)" : "a keyframe");
+    AnimationKey key;
+    const Node t = require(k, "t", "keyframe time in seconds");
+    key.time_s = number(t, Range{0, 1e9, false, false, "s"});
+    if (!a.keys.empty() && !(key.time_s > a.keys.back().time_s)) {
+      fail(t, "keyframe times must be strictly increasing (previous t = " + format_number(a.keys.back().time_s) + ")");
+    }
+    if (auto v = get(k, "translation")) key.translation = position(*v, "offset [x, y, z] in metres");
+    if (auto v = get(k, "rotation_deg")) key.rotation_deg = vec3(*v, Range{-1e6, 1e6, false, false, "degrees"},
+                                                                 "Euler angles [x, y, z] in degrees");
+    a.keys.push_back(key);
+  }
+  return a;
+}
+
+std::vector<Material> Loader::materials(const Node& n) {
+  std::vector<Material> out;
+  if (n.v.is_object()) {
+    for (const auto& [name, m] : n.v.items()) {
+      const Node mn{m, n.path + key_suffix(name)};
+      if (mn.v.is_object() && mn.v.contains("name")) {
+        fail(mn.path + ".name", &mn.v["name"], "not allowed when materials is an object: the key is the name");
+      }
+      if (name.empty()) fail(mn, "material names must be non-empty");
+      out.push_back(material(mn, name));
+    }
+  } else if (n.v.is_array()) {
+    std::map<std::string, std::string> seen;
+    for (std::size_t i = 0; i < n.v.size(); ++i) {
+      const Node mn = element(n, i);
+      expect_object(mn, "a material");
+      const Node name = require(mn, "name", "a unique material name");
+      const std::string s = string(name, "a unique material name");
+      if (s.empty()) fail(name, "must be a non-empty string");
+      if (const auto [it, fresh] = seen.emplace(s, name.path); !fresh) {
+        fail(name, "duplicate material name (first used at " + it->second + ")");
+      }
+      out.push_back(material(mn, s));
+    }
+  } else {
+    fail(n, "must be an object {\"name\": {material}} or an array [{\"name\": ..., ...}]");
+  }
+  if (out.empty()) fail(n, "must define at least one material");
+  return out;
+}
+
+Material Loader::material(const Node& n, std::string name) {
+  expect_object(n, "a material");
+  Material m;
+  m.name = std::move(name);
+  const Node type_node = require(n, "type", "lambertian, blinn-phong, mirror, glass or emissive");
+  const std::string type = string(type_node, "lambertian, blinn-phong, mirror, glass or emissive");
+  const Range unit{0, 1, false, false, ""};
+  const auto rgb01 = [&](const Node& v, const char* what) { return vec3(v, unit, what); };
+  Keys allowed;
+  if (type == "lambertian") {
+    allowed = {"type", "kd"};
+    m.type = MaterialType::Lambertian;
+    m.kd = glm::vec3(0.8f);
+    m.ks = glm::vec3(0.0f);
+  } else if (type == "blinn-phong") {
+    allowed = {"type", "kd", "ks", "shininess"};
+    m.type = MaterialType::BlinnPhong;
+    m.kd = glm::vec3(0.6f);
+    m.ks = glm::vec3(0.3f);
+    m.shininess = 32;
+  } else if (type == "mirror" || type == "glass") {
+    allowed = type == "mirror" ? Keys{"type", "reflectance", "shininess"}
+                               : Keys{"type", "reflectance", "ior", "shininess"};
+    m.type = type == "mirror" ? MaterialType::Mirror : MaterialType::Glass;
+    m.kd = glm::vec3(0.0f);  // local illumination shows only the highlight; reflection is the GI pass's
+    m.shininess = 1000;
+  } else if (type == "emissive") {
+    allowed = {"type", "emission"};
+    m.type = MaterialType::Emissive;
+    m.kd = glm::vec3(0.0f);
+    m.ks = glm::vec3(0.0f);
+    m.emission = glm::vec3(1.0f);
+  } else {
+    fail(type_node, "unknown material type; allowed: lambertian, blinn-phong, mirror, glass, emissive");
+  }
+  allowed.push_back("comment");
+  if (n.v.contains("name")) allowed.push_back("name");  // array form
+  for (const auto& [k, v] : n.v.items()) {
+    if (std::find(allowed.begin(), allowed.end(), k) != allowed.end()) continue;
+    const bool known = std::find(kMaterialKeys.begin(), kMaterialKeys.end(), k) != kMaterialKeys.end();
+    fail(n.path + key_suffix(k), &v,
+         known ? "field does not apply to a " + type + " material; allowed here: " + join(allowed)
+               : unknown_field_message(k, allowed));
+  }
+  check_keys(n, allowed, "a material");
+  if (auto v = get(n, "kd")) m.kd = rgb01(*v, "diffuse coefficient [r, g, b] in [0, 1]");
+  if (auto v = get(n, "ks")) m.ks = rgb01(*v, "specular coefficient [r, g, b] in [0, 1]");
+  if (auto v = get(n, "shininess")) m.shininess = number_f(*v, Range{0, 1e5, false, false, ""});
+  if (auto v = get(n, "reflectance")) m.reflectance = rgb01(*v, "reflectance tint [r, g, b] in [0, 1]");
+  if (auto v = get(n, "ior")) m.ior = number_f(*v, Range{1, 10, false, false, ""});
+  if (auto v = get(n, "emission")) m.emission = colour(*v, "emitted radiance [r, g, b] >= 0, W/(sr m^2)");
+  if (m.type == MaterialType::Mirror || m.type == MaterialType::Glass) m.ks = m.reflectance;
+  // The modified Blinn-Phong BRDF f_r = k_s (n.h)^n + k_d (Jensen & Pedersen 2009, eq. 5.22) is not
+  // energy conserving; we at least ask that a surface reflect no more than it receives per channel.
+  for (int c = 0; c < 3; ++c) {
+    if (m.kd[c] + m.ks[c] > 1.0f + 1e-6f) {
+      const auto v = get(n, "ks");
+      const Node& at = v ? *v : *get(n, "kd");
+      fail(at, "kd + ks must be <= 1 in every channel (channel " + std::to_string(c) + ": kd = " +
+                   format_number(m.kd[c]) + ", ks = " + format_number(m.ks[c]) + ") so the surface conserves energy");
+    }
+  }
+  return m;
+}
+
+Transform Loader::transform(const Node& n) {
+  check_keys(n, kTransformKeys, "a transform {\"translation\", \"rotation_deg\", \"scale\"}");
+  Transform t;
+  if (auto v = get(n, "translation")) t.translation = position(*v, "translation [x, y, z] in metres");
+  if (auto v = get(n, "rotation_deg")) {
+    t.rotation_deg = vec3(*v, Range{-1e6, 1e6, false, false, "degrees"}, "Euler angles [x, y, z] in degrees");
+  }
+  if (auto v = get(n, "scale")) {
+    const Range r{0, 1e6, true, false, ""};
+    t.scale = v->v.is_number() || v->v.is_string() ? glm::vec3(number_f(*v, r))
+                                                   : vec3(*v, r, "a number or [x, y, z], each > 0");
+  }
+  return t;
+}
+
+std::shared_ptr<const Mesh> Loader::geometry(const Node& n) {
+  check_keys(n, kGeometryKeys, "geometry: one of mesh, box, sphere, plane, cylinder");
+  std::optional<Node> found;
+  std::string kind;
+  for (const std::string_view k : kShapeKeys) {
+    if (auto c = get(n, k)) {
+      if (found) {
+        fail(n, "must have exactly one of " + join(kShapeKeys) + " (found " + kind + " and " + std::string(k) + ")");
+      }
+      found.emplace(Node{c->v, c->path});
+      kind = k;
+    }
+  }
+  if (!found) fail(n, "must have exactly one of " + join(kShapeKeys));
+  const Node* shape = &*found;
+  const Range size{0, kMaxCoordinate, true, false, "m"};
+  if (kind == "mesh") return mesh_file(*shape);
+  if (kind == "box") return std::make_shared<const Mesh>(make_box(vec3(*shape, size, "box size [x, y, z] in metres")));
+  if (kind == "plane") {
+    return std::make_shared<const Mesh>(make_plane(vec<2>(*shape, size, "plane size [x, z] in metres")));
+  }
+  if (kind == "sphere") {
+    check_keys(*shape, kSphereKeys, "a sphere {\"radius\", \"rings\", \"segments\"}");
+    const float radius = number_f(require(*shape, "radius", "sphere radius in metres"), size);
+    int rings = 16, segments = 32;
+    if (auto v = get(*shape, "rings")) rings = static_cast<int>(integer(*v, 2, 1024));
+    if (auto v = get(*shape, "segments")) segments = static_cast<int>(integer(*v, 3, 2048));
+    return std::make_shared<const Mesh>(make_sphere(radius, rings, segments));
+  }
+  check_keys(*shape, kCylinderKeys, "a cylinder {\"radius\", \"height\", \"segments\"}");
+  const float radius = number_f(require(*shape, "radius", "cylinder radius in metres"), size);
+  const float height = number_f(require(*shape, "height", "cylinder height in metres"), size);
+  int segments = 32;
+  if (auto v = get(*shape, "segments")) segments = static_cast<int>(integer(*v, 3, 2048));
+  return std::make_shared<const Mesh>(make_cylinder(radius, height, segments));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Meshes from files (assimp)
+
+glm::mat4 to_glm(const aiMatrix4x4& m) {
+  // assimp is row-major (a1..a4 is the first row); glm is column-major.
+  return glm::mat4(m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2, m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4);
+}
+
+bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+// Normals that are missing, zero or non-finite (degenerate faces) are replaced by the area-weighted
+// average of the incident face normals, or +Y where even that is zero.
+void repair_normals(Mesh& m) {
+  if (m.normals.size() != m.positions.size()) m.normals.assign(m.positions.size(), glm::vec3(0.0f));
+  std::vector<glm::vec3> acc(m.positions.size(), glm::vec3(0.0f));
+  for (std::size_t i = 0; i + 2 < m.indices.size(); i += 3) {
+    const glm::vec3& a = m.positions[m.indices[i]];
+    const glm::vec3& b = m.positions[m.indices[i + 1]];
+    const glm::vec3& c = m.positions[m.indices[i + 2]];
+    const glm::vec3 n = glm::cross(b - a, c - a);  // length = twice the area
+    if (!finite(n)) continue;
+    for (std::size_t k = 0; k < 3; ++k) acc[m.indices[i + k]] += n;
+  }
+  for (std::size_t v = 0; v < m.normals.size(); ++v) {
+    glm::vec3& n = m.normals[v];
+    const float len = glm::length(n);
+    if (finite(n) && len > 1e-12f && std::isfinite(len)) {
+      n /= len;
+      continue;
+    }
+    const float alen = glm::length(acc[v]);
+    n = alen > 1e-20f && std::isfinite(alen) ? acc[v] / alen : glm::vec3(0, 1, 0);
+  }
+}
+
+void append_node(const aiScene& s, const aiNode& node, const glm::mat4& parent, Mesh& out) {
+  const glm::mat4 world = parent * to_glm(node.mTransformation);
+  const glm::mat3 normal_matrix = glm::transpose(glm::inverse(glm::mat3(world)));
+  for (unsigned k = 0; k < node.mNumMeshes; ++k) {
+    const aiMesh& m = *s.mMeshes[node.mMeshes[k]];
+    if ((m.mPrimitiveTypes & aiPrimitiveType_TRIANGLE) == 0) continue;
+    const auto base = static_cast<std::uint32_t>(out.positions.size());
+    for (unsigned v = 0; v < m.mNumVertices; ++v) {
+      const aiVector3D& p = m.mVertices[v];
+      out.positions.emplace_back(world * glm::vec4(p.x, p.y, p.z, 1.0f));
+      if (m.mNormals != nullptr) {
+        const aiVector3D& n = m.mNormals[v];
+        out.normals.push_back(normal_matrix * glm::vec3(n.x, n.y, n.z));
+      } else {
+        out.normals.emplace_back(0.0f);  // repaired below
+      }
+    }
+    for (unsigned f = 0; f < m.mNumFaces; ++f) {
+      const aiFace& face = m.mFaces[f];
+      if (face.mNumIndices != 3) continue;  // points and lines left after triangulation
+      for (unsigned i = 0; i < 3; ++i) out.indices.push_back(base + face.mIndices[i]);
+    }
+  }
+  for (unsigned c = 0; c < node.mNumChildren; ++c) append_node(s, *node.mChildren[c], world, out);
+}
+
+std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
+  const std::string rel = string(n, "a mesh file path relative to the scene file");
+  std::filesystem::path path = std::filesystem::path(rel);
+  if (path.is_relative()) path = base_dir_ / path;
+  path = path.lexically_normal();
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  static const Keys kSupported{".obj", ".ply", ".gltf", ".glb"};
+  if (std::find(kSupported.begin(), kSupported.end(), ext) == kSupported.end()) {
+    fail(n, "unsupported mesh format '" + (ext.empty() ? std::string("(no extension)") : ext) +
+                "'; supported: " + join(kSupported));
+  }
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) fail(n, "mesh file not found: " + path.string());
+  if (auto it = mesh_cache_.find(path.string()); it != mesh_cache_.end()) return it->second;
+
+  Assimp::Importer importer;
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const aiScene* s = importer.ReadFile(path.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                                          aiProcess_GenSmoothNormals | aiProcess_SortByPType |
+                                                          aiProcess_ValidateDataStructure);
+  if (s == nullptr || s->mRootNode == nullptr) {
+    const std::string why = importer.GetErrorString();
+    if (why.find("o meshes") != std::string::npos || why.find("empty") != std::string::npos) {
+      fail(n, "degenerate mesh: " + path.string() + " contains no triangles (" + why + ")");
+    }
+    fail(n, "cannot read mesh " + path.string() + ": " + why);
+  }
+  auto mesh = std::make_shared<Mesh>();
+  append_node(*s, *s->mRootNode, glm::mat4(1.0f), *mesh);
+  if (mesh->indices.empty()) fail(n, "degenerate mesh: " + path.string() + " contains no triangles");
+  for (const glm::vec3& p : mesh->positions) {
+    if (!finite(p)) fail(n, "mesh " + path.string() + " has a non-finite vertex position");
+  }
+  repair_normals(*mesh);
+  mesh_cache_.emplace(path.string(), mesh);
+  return mesh;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Levels of detail
+
+// Simplifies `full` to about ratio * its triangles with meshoptimizer's edge-collapse simplifier.
+// The count is the target; the error bound is left open (1.0 = the mesh's whole extent) and the
+// error reached is returned in metres (meshopt's relative error times meshopt_simplifyScale).
+Mesh simplify(const Mesh& full, double ratio, float& error_m) {
+  const std::size_t count = full.indices.size();
+  const float* xyz = &full.positions.front().x;
+  // Weld vertices that share a position (seams, split normals) so they do not lock the simplifier.
+  std::vector<unsigned> shadow(count);
+  meshopt_generateShadowIndexBuffer(shadow.data(), full.indices.data(), count, xyz, full.positions.size(),
+                                    sizeof(glm::vec3), sizeof(glm::vec3));
+  const auto target_tris = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(
+                                                        static_cast<double>(count / 3) * ratio)));
+  std::vector<unsigned> out(count);
+  float relative = 0;
+  const std::size_t n = meshopt_simplify(out.data(), shadow.data(), count, xyz, full.positions.size(),
+                                         sizeof(glm::vec3), target_tris * 3, 1.0f, 0, &relative);
+  out.resize(n);
+  Mesh m;
+  std::vector<std::uint32_t> remap(full.positions.size(), UINT32_MAX);
+  for (const unsigned old : out) {
+    if (remap[old] == UINT32_MAX) {
+      remap[old] = static_cast<std::uint32_t>(m.positions.size());
+      m.positions.push_back(full.positions[old]);
+      m.normals.push_back(full.normals[old]);
+    }
+    m.indices.push_back(remap[old]);
+  }
+  error_m = relative * meshopt_simplifyScale(xyz, full.positions.size(), sizeof(glm::vec3));
+  return m;
+}
+
+std::vector<LodLevel> Loader::lods(const Node& n, const Mesh& full) {
+  std::vector<LodLevel> out;
+  if (n.v.is_object()) {
+    check_keys(n, kLodSimplifyKeys, "{\"simplify\": [ratios]} or [{\"mesh\", \"max_error_m\"}]");
+    const Node ratios = require(n, "simplify", "an array of triangle-count ratios in (0, 1), decreasing");
+    if (!ratios.v.is_array() || ratios.v.empty()) fail(ratios, "must be a non-empty array of ratios in (0, 1)");
+    double prev_ratio = 1;
+    std::size_t prev_tris = full.triangle_count();
+    for (std::size_t i = 0; i < ratios.v.size(); ++i) {
+      const Node r = element(ratios, i);
+      const double ratio = number(r, Range{0, 1, true, true, ""});
+      if (!(ratio < prev_ratio)) {
+        fail(r, "ratios must be strictly decreasing (previous " + format_number(prev_ratio) + ")");
+      }
+      LodLevel level;
+      Mesh m = simplify(full, ratio, level.max_error_m);
+      if (m.triangle_count() == 0 || m.triangle_count() >= prev_tris) {
+        fail(r, "the simplifier reached " + std::to_string(m.triangle_count()) + " triangles, not fewer than the " +
+                    std::to_string(prev_tris) + " of the previous level; use a finer mesh or fewer levels");
+      }
+      prev_tris = m.triangle_count();
+      prev_ratio = ratio;
+      level.mesh = std::make_shared<const Mesh>(std::move(m));
+      out.push_back(std::move(level));
+    }
+    return out;
+  }
+  if (!n.v.is_array() || n.v.empty()) {
+    fail(n, "must be {\"simplify\": [ratios]} or a non-empty array [{\"mesh\": file, \"max_error_m\": x}]");
+  }
+  float prev_error = 0;
+  for (std::size_t i = 0; i < n.v.size(); ++i) {
+    const Node l = element(n, i);
+    check_keys(l, kLodLevelKeys, "a level of detail {\"mesh\", \"max_error_m\"}");
+    LodLevel level;
+    level.mesh = mesh_file(require(l, "mesh", "the mesh file of this level"));
+    const Node e = require(l, "max_error_m", "geometric error of this level in metres");
+    level.max_error_m = number_f(e, Range{0, kMaxCoordinate, false, false, "m"});
+    if (level.max_error_m < prev_error) {
+      fail(e, "levels must be ordered from fine to coarse: max_error_m must not decrease (previous " +
+                  format_number(prev_error) + ")");
+    }
+    prev_error = level.max_error_m;
+    out.push_back(std::move(level));
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Lights, display
+
+Light Loader::light(const Node& n) {
+  expect_object(n, "a light");
+  const Node type_node = require(n, "type", "point, spot or area");
+  const std::string type = string(type_node, "point, spot or area");
+  Light l;
+  if (type == "point") {
+    check_keys(n, kPointLightKeys, "a point light");
+    l.type = LightType::Point;
+  } else if (type == "spot") {
+    check_keys(n, kSpotLightKeys, "a spot light");
+    l.type = LightType::Spot;
+  } else if (type == "area") {
+    check_keys(n, kAreaLightKeys, "an area light");
+    l.type = LightType::Area;
+  } else {
+    fail(type_node, "unknown light type; allowed: point, spot, area");
+  }
+  l.position = position(require(n, "position", "light position [x, y, z] in metres"), "position [x, y, z] in metres");
+  l.power = colour(require(n, "power", "radiant power [r, g, b] in watts"), "radiant power [r, g, b] in watts, >= 0");
+  if (l.type == LightType::Spot) {
+    l.direction = direction(require(n, "direction", "spot axis [x, y, z]"), "spot axis [x, y, z]");
+    l.spot_cutoff_deg = number_f(require(n, "cutoff_deg", "half-angle of the cone in degrees"),
+                                 Range{0, 90, true, false, "degrees"});
+    l.spot_falloff_deg = std::min(5.0f, l.spot_cutoff_deg);
+    if (auto f = get(n, "falloff_deg")) {
+      l.spot_falloff_deg = number_f(*f, Range{0, static_cast<double>(l.spot_cutoff_deg), false, false,
+                                              "degrees (at most cutoff_deg)"});
+    }
+  } else if (l.type == LightType::Area) {
+    l.direction = direction(require(n, "normal", "emitting side's normal [x, y, z]"), "normal [x, y, z]");
+    if (auto s = get(n, "size")) {
+      l.area_size = vec<2>(*s, Range{0, kMaxCoordinate, true, false, "m"}, "extent [u, v] in metres");
+    }
+    if (auto s = get(n, "samples")) l.area_samples = static_cast<int>(integer(*s, 1, 16));
+  }
+  return l;
+}
+
+protocol::DisplayGeometry Loader::display(const Node& n) {
+  check_keys(n, kDisplayKeys, "display geometry");
+  protocol::DisplayGeometry g;
+  if (auto v = get(n, "width_px")) g.width_px = static_cast<std::uint32_t>(integer(*v, 1, 65536));
+  if (auto v = get(n, "height_px")) g.height_px = static_cast<std::uint32_t>(integer(*v, 1, 65536));
+  const Range mm{0, 100000, true, false, "mm (a display needs a non-zero area)"};
+  if (auto v = get(n, "width_mm")) g.width_m = number(*v, mm) / 1000.0;
+  if (auto v = get(n, "height_mm")) g.height_m = number(*v, mm) / 1000.0;
+  if (auto v = get(n, "viewing_distance_mm")) {
+    g.viewing_distance_m = number(*v, Range{0, 100000, true, false, "mm"}) / 1000.0;
+  }
+  if (const std::string err = protocol::validate(g); !err.empty()) fail(n, "invalid display geometry: " + err);
+  return g;
+}
+
+// The last line of defence of "no NaN or Inf crosses a module boundary": everything above
+// validated its inputs, so a failure here is a loader bug, reported rather than passed on.
+void Loader::check_finite(const Scene& s) const {
+  const auto bad = [&](const std::string& what) { throw SceneError(source_ + ": internal error: non-finite " + what); };
+  const auto v3 = [&](const glm::vec3& v, const std::string& what) {
+    if (!finite(v)) bad(what);
+  };
+  const auto tr = [&](const Transform& t, const std::string& what) {
+    v3(t.translation, what + " translation");
+    v3(t.rotation_deg, what + " rotation");
+    v3(t.scale, what + " scale");
+  };
+  const auto anim = [&](const std::optional<Animation>& a, const std::string& what) {
+    if (!a) return;
+    for (const AnimationKey& k : a->keys) {
+      if (!std::isfinite(k.time_s)) bad(what + " key time");
+      v3(k.translation, what + " key translation");
+      v3(k.rotation_deg, what + " key rotation");
+    }
+  };
+  const auto mesh = [&](const Mesh& m, const std::string& what) {
+    for (const glm::vec3& p : m.positions) v3(p, what + " vertex");
+    for (const glm::vec3& p : m.normals) v3(p, what + " normal");
+  };
+  const Camera& c = s.camera;
+  v3(c.position, "camera position");
+  v3(c.target, "camera target");
+  v3(c.up, "camera up");
+  anim(c.animation, "camera animation");
+  for (const double d : {c.lens.focal_length_m, c.lens.aperture_m, c.lens.focus_distance_m, c.lens.image_distance_m}) {
+    if (!std::isfinite(d)) bad("lens parameter");
+  }
+  for (const Material& m : s.materials) {
+    v3(m.kd, m.name + " kd");
+    v3(m.ks, m.name + " ks");
+    v3(m.reflectance, m.name + " reflectance");
+    v3(m.emission, m.name + " emission");
+    if (!std::isfinite(m.shininess) || !std::isfinite(m.ior)) bad(m.name + " shininess/ior");
+  }
+  for (const Object& o : s.objects) {
+    tr(o.transform, o.name);
+    anim(o.animation, o.name + " animation");
+    mesh(*o.mesh, o.name + " mesh");
+    for (const LodLevel& l : o.lods) {
+      mesh(*l.mesh, o.name + " lod");
+      if (!std::isfinite(l.max_error_m)) bad(o.name + " lod error");
+    }
+  }
+  for (const Light& l : s.lights) {
+    v3(l.position, "light position");
+    v3(l.power, "light power");
+    v3(l.direction, "light direction");
+  }
+  v3(s.ambient, "ambient");
+  v3(s.background, "background");
+}
+
+Json parse_document(const std::string& text, const std::string& source) {
+  DocumentBuilder builder(source);
+  const bool ok = Json::sax_parse(text, &builder);
+  if (!ok) {
+    throw SceneError(builder.error().empty() ? source + ": invalid JSON" : builder.error());
+  }
+  Json doc = std::move(builder.document());
+  if (!doc.is_object()) throw SceneError(source + ": $ = " + describe(doc) + ": a scene file must hold a JSON object");
+  return doc;
+}
+
+}  // namespace
+
+Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
+                  const std::vector<SceneOverride>& overrides) {
+  Json doc = parse_document(json_text, source_name);
+  Loader loader(source_name, base_dir);
+  for (const SceneOverride& o : overrides) loader.apply_override(doc, o);
+  std::string default_name = std::filesystem::path(source_name).stem().string();
+  if (default_name.empty()) default_name = source_name;
+  Scene scene = loader.build(doc, default_name);
+  scene.source = source_name;
+  return scene;
+}
+
+Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(path.string() + ": cannot open scene file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw SceneError(path.string() + ": read error");
+  Scene scene = parse_scene(text.str(), path.string(), path.parent_path(), overrides);
+  scene.source = path;
+  return scene;
+}
+
+}  // namespace fovea::render
