@@ -1,0 +1,395 @@
+#include "backend/gl/gl_backend.h"
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <glm/gtc/type_ptr.hpp>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+#include "backend/gl/gl_program.h"
+#include "backend/gl/shaders.h"
+
+namespace fovea::render {
+
+namespace {
+
+enum Attachment : std::size_t { kColor = 0, kDepth = 1, kId = 2, kNormal = 3, kMotion = 4, kZ = 5 };
+constexpr std::size_t kNoMesh = static_cast<std::size_t>(-1);  // DrawItem of an object without a mesh
+constexpr GLenum kDrawBuffers[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
+                                    GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
+
+// std140 layout of one LightSample in the LightSamples uniform block (shaders.h).
+struct LightSampleStd140 {
+  float position_kind[4];
+  float power_cutoff[4];
+  float direction_start[4];
+};
+static_assert(sizeof(LightSampleStd140) == 48);
+
+std::string hex(unsigned v) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%04X", v);
+  return buf;
+}
+
+void check_gl(const char* where) {
+  const GLenum error = glGetError();
+  if (error == GL_NO_ERROR) return;
+  while (glGetError() != GL_NO_ERROR) {
+  }
+  throw std::runtime_error(std::string("GlBackend: OpenGL error ") + hex(error) + " in " + where);
+}
+
+float finite_or(float v, float fallback) { return std::isfinite(v) ? v : fallback; }
+
+std::string object_label(const Scene& scene, const Object& o) {
+  return (scene.source.empty() ? scene.name : scene.source.string()) + ": object '" + o.name + "' (id " +
+         std::to_string(o.id) + ")";
+}
+
+}  // namespace
+
+GlBackend::GlBackend() : context_(GlContextOptions{.visible = false, .title = "fovea-gl-backend", .width = 16,
+                                                   .height = 16, .vsync = false}) {
+  context_.make_current();
+  program_ = gl::link_program(gl::kGBufferVertex, gl::kGBufferFragment, "GlBackend G-buffer program");
+  const auto loc = [this](const char* name) { return glGetUniformLocation(program_, name); };
+  loc_model_ = loc("u_model");
+  loc_model_prev_ = loc("u_model_prev");
+  loc_normal_matrix_ = loc("u_normal_matrix");
+  loc_view_ = loc("u_view");
+  loc_view_prev_ = loc("u_view_prev");
+  loc_proj_ = loc("u_proj");
+  loc_light_count_ = loc("u_light_count");
+  loc_eye_ = loc("u_eye");
+  loc_ambient_ = loc("u_ambient");
+  loc_viewport_ = loc("u_viewport");
+  loc_object_id_ = loc("u_object_id");
+  loc_emissive_ = loc("u_emissive");
+  loc_kd_ = loc("u_kd");
+  loc_ks_ = loc("u_ks");
+  loc_emission_ = loc("u_emission");
+  loc_shininess_ = loc("u_shininess");
+  loc_moved_ = loc("u_moved");
+
+  const GLuint block = glGetUniformBlockIndex(program_, "LightSamples");
+  if (block == GL_INVALID_INDEX) throw std::runtime_error("GlBackend: uniform block LightSamples not found");
+  glUniformBlockBinding(program_, block, 0);
+  GLint max_block = 0;
+  glGetIntegerv(GL_MAX_UNIFORM_BLOCK_SIZE, &max_block);
+  constexpr auto kBlockBytes = static_cast<GLsizeiptr>(sizeof(LightSampleStd140) * gl::kMaxLightSamples);
+  if (max_block < kBlockBytes) {
+    throw std::runtime_error("GlBackend: GL_MAX_UNIFORM_BLOCK_SIZE " + std::to_string(max_block) + " < " +
+                             std::to_string(kBlockBytes) + " bytes needed for the light samples");
+  }
+  glGenBuffers(1, &light_ubo_);
+  glBindBuffer(GL_UNIFORM_BUFFER, light_ubo_);
+  glBufferData(GL_UNIFORM_BUFFER, kBlockBytes, nullptr, GL_STATIC_DRAW);
+  glBindBuffer(GL_UNIFORM_BUFFER, 0);
+  check_gl("GlBackend()");
+}
+
+GlBackend::~GlBackend() {
+  context_.make_current();
+  release_meshes();
+  release_framebuffer();
+  if (light_ubo_ != 0) glDeleteBuffers(1, &light_ubo_);
+  if (program_ != 0) glDeleteProgram(program_);
+}
+
+void GlBackend::release_meshes() {
+  for (GpuMesh& m : meshes_) {
+    glDeleteVertexArrays(1, &m.vao);
+    glDeleteBuffers(1, &m.vbo);
+    glDeleteBuffers(1, &m.ibo);
+  }
+  meshes_.clear();
+  draws_.clear();
+}
+
+void GlBackend::release_framebuffer() {
+  if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
+  glDeleteRenderbuffers(6, renderbuffers_);
+  fbo_ = 0;
+  std::fill(std::begin(renderbuffers_), std::end(renderbuffers_), 0u);
+  fb_width_ = fb_height_ = 0;
+}
+
+void GlBackend::set_scene(const Scene& scene) {
+  // Validate everything before touching GL state, so a bad scene leaves the previous one usable.
+  for (const Object& o : scene.objects) {
+    if (!o.mesh) continue;  // nothing to draw (as in the Embree backend)
+    if (o.material >= scene.materials.size()) {
+      throw std::invalid_argument(object_label(scene, o) + ": material index " + std::to_string(o.material) +
+                                  " out of range [0, " + std::to_string(scene.materials.size()) + ")");
+    }
+    const Mesh& m = *o.mesh;
+    if (m.normals.size() != m.positions.size()) {
+      throw std::invalid_argument(object_label(scene, o) + ": mesh has " + std::to_string(m.normals.size()) +
+                                  " normals for " + std::to_string(m.positions.size()) +
+                                  " positions (must be one per position)");
+    }
+    if (m.indices.size() % 3 != 0) {
+      throw std::invalid_argument(object_label(scene, o) + ": mesh index count " + std::to_string(m.indices.size()) +
+                                  " is not a multiple of 3");
+    }
+    if (m.indices.size() > static_cast<std::size_t>(std::numeric_limits<GLsizei>::max())) {
+      throw std::invalid_argument(object_label(scene, o) + ": mesh has too many indices for OpenGL");
+    }
+    for (const std::uint32_t i : m.indices) {
+      if (i >= m.positions.size()) {
+        throw std::invalid_argument(object_label(scene, o) + ": mesh index " + std::to_string(i) +
+                                    " out of range [0, " + std::to_string(m.positions.size()) + ")");
+      }
+    }
+  }
+  std::vector<LightSampleStd140> packed;
+  std::vector<LightSample> samples;
+  for (const Light& light : scene.lights) {
+    light_samples(light, samples);
+    for (const LightSample& s : samples) {
+      packed.push_back({{s.position.x, s.position.y, s.position.z, static_cast<float>(s.kind)},
+                        {s.power.x, s.power.y, s.power.z, s.cos_cutoff},
+                        {s.direction.x, s.direction.y, s.direction.z, s.cos_falloff_start}});
+    }
+  }
+  if (packed.size() > static_cast<std::size_t>(gl::kMaxLightSamples)) {
+    throw std::runtime_error((scene.source.empty() ? scene.name : scene.source.string()) + ": the lights expand to " +
+                             std::to_string(packed.size()) + " light samples; the OpenGL backend supports at most " +
+                             std::to_string(gl::kMaxLightSamples) +
+                             " (an area light counts area_samples^2: lower area_samples or use fewer lights)");
+  }
+
+  context_.make_current();
+  release_meshes();
+  std::unordered_map<const Mesh*, std::size_t> uploaded;  // shared meshes are uploaded once
+  std::vector<float> interleaved;
+  for (const Object& o : scene.objects) {
+    const Mesh* mesh = o.mesh.get();
+    if (mesh == nullptr) {
+      draws_.push_back({kNoMesh});
+      continue;
+    }
+    const auto found = uploaded.find(mesh);
+    if (found != uploaded.end()) {
+      draws_.push_back({found->second});
+      continue;
+    }
+    GpuMesh gpu;
+    gpu.index_count = static_cast<std::int32_t>(mesh->indices.size());
+    interleaved.resize(mesh->positions.size() * 6);
+    for (std::size_t i = 0; i < mesh->positions.size(); ++i) {
+      std::memcpy(&interleaved[6 * i], &mesh->positions[i], 3 * sizeof(float));
+      std::memcpy(&interleaved[6 * i + 3], &mesh->normals[i], 3 * sizeof(float));
+    }
+    glGenVertexArrays(1, &gpu.vao);
+    glGenBuffers(1, &gpu.vbo);
+    glGenBuffers(1, &gpu.ibo);
+    glBindVertexArray(gpu.vao);
+    glBindBuffer(GL_ARRAY_BUFFER, gpu.vbo);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(interleaved.size() * sizeof(float)), interleaved.data(),
+                 GL_STATIC_DRAW);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, gpu.ibo);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh->indices.size() * sizeof(std::uint32_t)),
+                 mesh->indices.data(), GL_STATIC_DRAW);
+    constexpr GLsizei kStride = 6 * sizeof(float);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, kStride, nullptr);
+    glEnableVertexAttribArray(1);
+    // The classic buffer-offset idiom of glVertexAttribPointer.
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, kStride,
+                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(3 * sizeof(float))));
+    glBindVertexArray(0);
+    glBindBuffer(GL_ARRAY_BUFFER, 0);
+    uploaded.emplace(mesh, meshes_.size());
+    draws_.push_back({meshes_.size()});
+    meshes_.push_back(gpu);
+  }
+  glBindBuffer(GL_UNIFORM_BUFFER, light_ubo_);
+  if (!packed.empty()) {
+    glBufferSubData(GL_UNIFORM_BUFFER, 0, static_cast<GLsizeiptr>(packed.size() * sizeof(LightSampleStd140)),
+                    packed.data());
+  }
+  glBindBuffer(GL_UNIFORM_BUFFER, 0);
+  light_sample_count_ = static_cast<int>(packed.size());
+  scene_ = scene;
+  check_gl("GlBackend::set_scene");
+}
+
+void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
+  if (fbo_ != 0 && width == fb_width_ && height == fb_height_) return;
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
+  GLint max_viewport[2] = {0, 0};
+  glGetIntegerv(GL_MAX_VIEWPORT_DIMS, max_viewport);
+  const auto limit = static_cast<std::uint32_t>(std::min({max_size, max_viewport[0], max_viewport[1]}));
+  if (width > limit || height > limit) {
+    throw std::invalid_argument("GlBackend: camera resolution " + std::to_string(width) + "x" +
+                                std::to_string(height) + " exceeds the OpenGL limit of " + std::to_string(limit) +
+                                " pixels per side");
+  }
+  release_framebuffer();
+  glGenFramebuffers(1, &fbo_);
+  glGenRenderbuffers(6, renderbuffers_);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  const GLenum formats[6] = {GL_RGBA32F, GL_R32F, GL_R32UI, GL_RGBA32F, GL_RG32F, GL_DEPTH_COMPONENT32F};
+  for (std::size_t i = 0; i < 6; ++i) {
+    glBindRenderbuffer(GL_RENDERBUFFER, renderbuffers_[i]);
+    glRenderbufferStorage(GL_RENDERBUFFER, formats[i], static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+    const GLenum attachment = i == kZ ? GL_DEPTH_ATTACHMENT : kDrawBuffers[i];
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, attachment, GL_RENDERBUFFER, renderbuffers_[i]);
+  }
+  glBindRenderbuffer(GL_RENDERBUFFER, 0);
+  glDrawBuffers(5, kDrawBuffers);
+  const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+  if (status != GL_FRAMEBUFFER_COMPLETE) {
+    release_framebuffer();
+    throw std::runtime_error("GlBackend: G-buffer framebuffer incomplete (status " + hex(status) + ")");
+  }
+  fb_width_ = width;
+  fb_height_ = height;
+  check_gl("GlBackend::ensure_framebuffer");
+}
+
+void GlBackend::draw(const FrameTime& time) {
+  if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
+  const Scene& scene = *scene_;
+  const Camera& cam = scene.camera;
+  context_.make_current();
+  ensure_framebuffer(cam.width, cam.height);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glViewport(0, 0, static_cast<GLsizei>(cam.width), static_cast<GLsizei>(cam.height));
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);  // surfaces are seen from both sides, as by the ray caster
+  glDisable(GL_BLEND);
+
+  const GLfloat background[4] = {finite_or(scene.background.r, 0), finite_or(scene.background.g, 0),
+                                 finite_or(scene.background.b, 0), 1.0f};
+  const GLfloat far_depth[4] = {cam.far_m, 0, 0, 0};
+  const GLfloat zero[4] = {0, 0, 0, 0};
+  const GLuint zero_id[4] = {0, 0, 0, 0};
+  const GLfloat one = 1.0f;
+  glClearBufferfv(GL_COLOR, 0, background);
+  glClearBufferfv(GL_COLOR, 1, far_depth);
+  glClearBufferuiv(GL_COLOR, 2, zero_id);
+  glClearBufferfv(GL_COLOR, 3, zero);
+  glClearBufferfv(GL_COLOR, 4, zero);
+  glClearBufferfv(GL_DEPTH, 0, &one);
+
+  const glm::mat4 view = cam.view_at(time.now_s);
+  const glm::mat4 view_prev = cam.view_at(time.previous_s);
+  const glm::mat4 proj = cam.projection();
+  const glm::vec3 eye = cam.position_at(time.now_s);
+  const bool camera_moved = view != view_prev;
+
+  glUseProgram(program_);
+  glBindBufferBase(GL_UNIFORM_BUFFER, 0, light_ubo_);
+  glUniformMatrix4fv(loc_view_, 1, GL_FALSE, glm::value_ptr(view));
+  glUniformMatrix4fv(loc_view_prev_, 1, GL_FALSE, glm::value_ptr(view_prev));
+  glUniformMatrix4fv(loc_proj_, 1, GL_FALSE, glm::value_ptr(proj));
+  glUniform1i(loc_light_count_, light_sample_count_);
+  glUniform3fv(loc_eye_, 1, glm::value_ptr(eye));
+  glUniform3fv(loc_ambient_, 1, glm::value_ptr(scene.ambient));
+  glUniform2f(loc_viewport_, static_cast<float>(cam.width), static_cast<float>(cam.height));
+
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const Object& o = scene.objects[i];
+    if (draws_[i].mesh == kNoMesh) continue;
+    const GpuMesh& gpu = meshes_[draws_[i].mesh];
+    if (gpu.index_count == 0) continue;
+    const Material& m = scene.materials[o.material];
+    const glm::mat4 model = o.transform_at(time.now_s).matrix();
+    const glm::mat4 model_prev = o.transform_at(time.previous_s).matrix();
+    const glm::mat3 normal_matrix = glm::transpose(glm::inverse(glm::mat3(model)));
+    glUniformMatrix4fv(loc_model_, 1, GL_FALSE, glm::value_ptr(model));
+    glUniformMatrix4fv(loc_model_prev_, 1, GL_FALSE, glm::value_ptr(model_prev));
+    glUniformMatrix3fv(loc_normal_matrix_, 1, GL_FALSE, glm::value_ptr(normal_matrix));
+    // Exactly zero motion for what did not move (the shader's two projections would differ by
+    // rounding, ~1e-5 px).
+    glUniform1i(loc_moved_, camera_moved || model != model_prev ? 1 : 0);
+    glUniform1ui(loc_object_id_, o.id);
+    glUniform1i(loc_emissive_, m.type == MaterialType::Emissive ? 1 : 0);
+    glUniform3fv(loc_kd_, 1, glm::value_ptr(m.kd));
+    glUniform3fv(loc_ks_, 1, glm::value_ptr(m.ks));
+    glUniform3fv(loc_emission_, 1, glm::value_ptr(m.emission));
+    glUniform1f(loc_shininess_, m.shininess);
+    glBindVertexArray(gpu.vao);
+    glDrawElements(GL_TRIANGLES, gpu.index_count, GL_UNSIGNED_INT, nullptr);
+  }
+  glBindVertexArray(0);
+  glUseProgram(0);
+  check_gl("GlBackend::render (draw)");
+}
+
+void GlBackend::render_without_readback(const FrameTime& time) {
+  draw(time);
+  glFinish();
+}
+
+void GlBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+  // settings.shadows is not supported by the raster backend in this step (no shadow maps yet):
+  // shading is unshadowed local illumination regardless. The Embree backend honours it.
+  static_cast<void>(settings);
+  draw(time);
+  const std::uint32_t w = scene_->camera.width, h = scene_->camera.height;
+  out.resize(w, h);
+  if (w == 0 || h == 0) return;
+  const auto gw = static_cast<GLsizei>(w), gh = static_cast<GLsizei>(h);
+  const float far_m = scene_->camera.far_m;
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  const std::size_t n = out.size();
+
+  // Reads attachment `index` into scratch with `channels` floats per pixel.
+  const auto read_float = [&](std::size_t index, GLenum format, std::size_t channels) {
+    scratch_.resize(n * channels);
+    glReadBuffer(kDrawBuffers[index]);
+    glReadPixels(0, 0, gw, gh, format, GL_FLOAT, scratch_.data());
+  };
+  // GL rows start at the bottom; the G-buffer's row 0 is the top.
+  const auto src = [&](std::uint32_t x, std::uint32_t y) { return std::size_t{h - 1 - y} * w + x; };
+
+  read_float(kColor, GL_RGBA, 4);
+  for (std::uint32_t y = 0; y < h; ++y) {
+    for (std::uint32_t x = 0; x < w; ++x) {
+      const float* p = &scratch_[4 * src(x, y)];
+      out.color[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
+    }
+  }
+  read_float(kDepth, GL_RED, 1);
+  for (std::uint32_t y = 0; y < h; ++y) {
+    for (std::uint32_t x = 0; x < w; ++x) out.depth[out.index(x, y)] = finite_or(scratch_[src(x, y)], far_m);
+  }
+  read_float(kNormal, GL_RGBA, 4);
+  for (std::uint32_t y = 0; y < h; ++y) {
+    for (std::uint32_t x = 0; x < w; ++x) {
+      const float* p = &scratch_[4 * src(x, y)];
+      out.normal[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
+    }
+  }
+  read_float(kMotion, GL_RG, 2);
+  for (std::uint32_t y = 0; y < h; ++y) {
+    for (std::uint32_t x = 0; x < w; ++x) {
+      const float* p = &scratch_[2 * src(x, y)];
+      out.motion[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0)};
+    }
+  }
+  scratch_id_.resize(n);
+  glReadBuffer(kDrawBuffers[kId]);
+  glReadPixels(0, 0, gw, gh, GL_RED_INTEGER, GL_UNSIGNED_INT, scratch_id_.data());
+  for (std::uint32_t y = 0; y < h; ++y) {
+    std::memcpy(&out.object_id[out.index(0, y)], &scratch_id_[src(0, y)], std::size_t{w} * sizeof(std::uint32_t));
+  }
+  check_gl("GlBackend::render (read back)");
+}
+
+std::unique_ptr<Backend> make_gl_backend() { return std::make_unique<GlBackend>(); }
+
+}  // namespace fovea::render

@@ -1,0 +1,152 @@
+// The interactive viewer: a GLFW window showing the tone-mapped frame, camera navigation, effect
+// toggles, and gaze, latency and loss in the title bar.
+#include <GLFW/glfw3.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "app/render_options.h"
+#include "backend/gl/gl_context.h"
+#include "pipeline/frame_pipeline.h"
+
+namespace fovea::render {
+
+namespace {
+
+const char* kHelp =
+    "fovea-render viewer keys:\n"
+    "  W/S forward/back, A/D left/right, Q/E down/up, arrows turn; hold Shift to move faster\n"
+    "  G gaze overlay, M mouse gaze on/off (with --gaze mouse), O cycle map (none, depth, id, normal, motion)\n"
+    "  1 dof, 2 lod, 3 gi, 4 attention, 5 shadows (toggle the setting), X print the frame plan, Esc quit\n";
+
+void toggle(Settings& s, const std::string& key) {
+  s.set(key, s.flag(key) ? "false" : "true");
+  std::printf("%s=%s\n", key.c_str(), s.text(key).c_str());
+}
+
+// Moves the camera (position and target together) in its own frame.
+bool navigate(GLFWwindow* w, Camera& cam, double dt) {
+  const auto down = [&](int key) { return glfwGetKey(w, key) == GLFW_PRESS; };
+  const float speed = static_cast<float>((down(GLFW_KEY_LEFT_SHIFT) ? 4.0 : 1.0) * dt);
+  const glm::vec3 forward = glm::normalize(cam.target - cam.position);
+  const glm::vec3 right = glm::normalize(glm::cross(forward, cam.up));
+  glm::vec3 move(0.0f);
+  if (down(GLFW_KEY_W)) move += forward;
+  if (down(GLFW_KEY_S)) move -= forward;
+  if (down(GLFW_KEY_D)) move += right;
+  if (down(GLFW_KEY_A)) move -= right;
+  if (down(GLFW_KEY_E)) move += cam.up;
+  if (down(GLFW_KEY_Q)) move -= cam.up;
+  float yaw = 0, pitch = 0;
+  if (down(GLFW_KEY_LEFT)) yaw += 1;
+  if (down(GLFW_KEY_RIGHT)) yaw -= 1;
+  if (down(GLFW_KEY_UP)) pitch += 1;
+  if (down(GLFW_KEY_DOWN)) pitch -= 1;
+  if (move == glm::vec3(0.0f) && yaw == 0 && pitch == 0) return false;
+  cam.position += move * speed * 2.0f;
+  cam.target += move * speed * 2.0f;
+  const float dist = glm::length(cam.target - cam.position);
+  glm::mat4 r = glm::rotate(glm::mat4(1.0f), yaw * static_cast<float>(dt), cam.up);
+  r = glm::rotate(r, pitch * static_cast<float>(dt), right);
+  const glm::vec3 dir = glm::normalize(glm::vec3(r * glm::vec4(forward, 0.0f)));
+  cam.target = cam.position + dir * dist;
+  return true;
+}
+
+struct KeyState {
+  Settings* settings = nullptr;
+  FramePipeline* pipeline = nullptr;
+};
+
+void on_key(GLFWwindow* w, int key, int, int action, int) {
+  if (action != GLFW_PRESS) return;
+  auto* ks = static_cast<KeyState*>(glfwGetWindowUserPointer(w));
+  Settings& s = *ks->settings;
+  switch (key) {
+    case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(w, GLFW_TRUE); break;
+    case GLFW_KEY_G: toggle(s, "overlay.gaze"); break;
+    case GLFW_KEY_1: toggle(s, "dof.enabled"); break;
+    case GLFW_KEY_2: toggle(s, "lod.enabled"); break;
+    case GLFW_KEY_3: toggle(s, "gi.enabled"); break;
+    case GLFW_KEY_4: s.set("overlay.map", s.is("overlay.map", "attention") ? "none" : "attention"); break;
+    case GLFW_KEY_5: toggle(s, "shadows"); break;
+    case GLFW_KEY_O: {
+      static const char* maps[] = {"none", "depth", "id", "normal", "motion"};
+      std::size_t i = 0;
+      while (i < 5 && !s.is("overlay.map", maps[i])) ++i;
+      s.set("overlay.map", maps[(i + 1) % 5]);
+      std::printf("overlay.map=%s\n", s.text("overlay.map").c_str());
+      break;
+    }
+    case GLFW_KEY_X: std::printf("%s", ks->pipeline->plan().explain().c_str()); break;
+    default: break;
+  }
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int run_viewer(const RenderOptions& o) {
+  Scene scene = load_scene(o.scene_path, o.scene_overrides);
+  GlContextOptions co;
+  co.visible = true;
+  co.title = "fovea-render: " + scene.name;
+  co.width = static_cast<int>(scene.camera.width);
+  co.height = static_cast<int>(scene.camera.height);
+  GlContext window(co);
+  std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
+  FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
+  KeyState keys{&pipeline.settings(), &pipeline};
+  glfwSetWindowUserPointer(window.window(), &keys);
+  glfwSetKeyCallback(window.window(), on_key);
+  std::printf("%s", kHelp);
+  std::printf("%s", pipeline.plan().explain().c_str());
+  std::fflush(stdout);
+
+  PassTimer timer;
+  const auto start = std::chrono::steady_clock::now();
+  double previous = 0;
+  std::vector<std::uint8_t> rgba;
+  for (std::uint64_t i = 0; o.frames == 0 || i < o.frames; ++i) {
+    GlContext::poll_events();
+    if (window.should_close()) break;
+    const double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (navigate(window.window(), pipeline.mutable_scene().camera, i == 0 ? 0.0 : now - previous)) {
+      pipeline.scene_changed();
+    }
+    double cx = 0, cy = 0;
+    glfwGetCursorPos(window.window(), &cx, &cy);
+    int ww = 1, wh = 1;
+    glfwGetWindowSize(window.window(), &ww, &wh);
+    gaze->set_cursor(cx / std::max(1, ww), cy / std::max(1, wh));
+    const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer);
+    previous = now;
+    window.make_current();
+    if (f.image != nullptr) {
+      rgba.resize(std::size_t{f.image->width} * f.image->height * 4);
+      for (std::size_t p = 0; p < std::size_t{f.image->width} * f.image->height; ++p) {
+        rgba[4 * p + 0] = f.image->rgb[3 * p + 0];
+        rgba[4 * p + 1] = f.image->rgb[3 * p + 1];
+        rgba[4 * p + 2] = f.image->rgb[3 * p + 2];
+        rgba[4 * p + 3] = 255;
+      }
+      window.present(rgba, f.image->width, f.image->height);
+    }
+    window.swap_buffers();
+    if (i % 10 == 0) {
+      char title[256];
+      std::snprintf(title, sizeof title, "fovea-render %s | %.1f ms/frame | gaze %s (%.3f, %.3f) %s | age %.1f ms | "
+                    "lost %llu",
+                    pipeline.backend().name().c_str(), timer.last_ms("frame"), gaze->description().c_str(), f.gaze.x,
+                    f.gaze.y, f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
+                    static_cast<unsigned long long>(f.gaze.lost));
+      glfwSetWindowTitle(window.window(), title);
+    }
+  }
+  std::printf("%s", timer.summary_table().c_str());
+  return 0;
+}
+
+}  // namespace fovea::render

@@ -1,0 +1,89 @@
+#pragma once
+// OpenGL 3.3 raster G-buffer backend. Renders the scene into a framebuffer object at the camera's
+// resolution with one pass and multiple render targets:
+//   0 RGBA32F  HDR local illumination (the shared BRDF of scene/shading.h, ported to GLSL in shaders.h)
+//   1 R32F     linear view-space depth in metres (written by the shader, not a linearised z-buffer)
+//   2 R32UI    object id
+//   3 RGBA32F  world normal facing the camera
+//   4 RG32F    screen-space motion in pixels (now minus previous, y down)
+// plus a 32-bit float depth attachment for the z test, then reads everything back with
+// glReadPixels (rows flipped so row 0 is the top). Runs headless in an invisible GLFW window; needs
+// an X display (Xvfb is fine: Mesa llvmpipe).
+//
+// Not supported in this step: shadows (BackendSettings::shadows is ignored; the Embree backend
+// casts shadow rays), LOD levels (the full mesh is drawn, as by the Embree backend).
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "backend/backend.h"
+#include "backend/gl/gl_context.h"
+#include "scene/shading.h"
+
+namespace fovea::render {
+
+class GlBackend final : public Backend {
+ public:
+  // Creates its own invisible OpenGL 3.3 core context. Throws std::runtime_error with the reason
+  // (no X display, no GL 3.3 core context, shader compilation failure).
+  GlBackend();
+  ~GlBackend() override;
+  GlBackend(const GlBackend&) = delete;
+  GlBackend& operator=(const GlBackend&) = delete;
+
+  std::string name() const override { return "gl"; }
+  // Uploads every mesh once (shared meshes once) and the expanded light samples. Throws
+  // std::invalid_argument for an object the raster backend cannot draw (normals not one per
+  // position, index out of range, material index out of range; an object without a mesh is
+  // skipped, as by the Embree backend) and
+  // std::runtime_error when the lights expand to more than gl::kMaxLightSamples samples.
+  void set_scene(const Scene& scene) override;
+  // settings.shadows is ignored: the raster backend has no shadows in this step. Renders the
+  // background only (default camera) if no scene was set, like the Embree backend.
+  void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override;
+
+  // Renders without reading back: for benchmarks of the GPU side alone (ends with glFinish).
+  void render_without_readback(const FrameTime& time);
+
+  GlContext& context() { return context_; }
+
+ private:
+  struct GpuMesh {
+    unsigned vao = 0, vbo = 0, ibo = 0;
+    std::int32_t index_count = 0;
+  };
+  struct DrawItem {
+    std::size_t mesh;  // index into meshes_
+  };
+
+  void draw(const FrameTime& time);
+  void ensure_framebuffer(std::uint32_t width, std::uint32_t height);
+  void release_framebuffer();
+  void release_meshes();
+
+  GlContext context_;
+  unsigned program_ = 0;
+  unsigned light_ubo_ = 0;
+  // Uniform locations.
+  int loc_model_ = -1, loc_model_prev_ = -1, loc_normal_matrix_ = -1, loc_view_ = -1, loc_view_prev_ = -1,
+      loc_proj_ = -1, loc_light_count_ = -1, loc_eye_ = -1, loc_ambient_ = -1, loc_viewport_ = -1,
+      loc_object_id_ = -1, loc_emissive_ = -1, loc_kd_ = -1, loc_ks_ = -1, loc_emission_ = -1, loc_shininess_ = -1, loc_moved_ = -1;
+
+  unsigned fbo_ = 0;
+  unsigned renderbuffers_[6] = {};  // colour, depth, id, normal, motion, z
+  std::uint32_t fb_width_ = 0, fb_height_ = 0;
+
+  std::optional<Scene> scene_;
+  std::vector<GpuMesh> meshes_;
+  std::vector<DrawItem> draws_;  // one per scene object, same order
+  int light_sample_count_ = 0;
+
+  std::vector<float> scratch_;
+  std::vector<std::uint32_t> scratch_id_;
+};
+
+std::unique_ptr<Backend> make_gl_backend();
+
+}  // namespace fovea::render

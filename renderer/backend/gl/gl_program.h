@@ -1,0 +1,59 @@
+#pragma once
+// Small helpers for GLSL programs: compile, link, and turn a failure into an exception carrying
+// the driver's info log. Header-only; needs a current context.
+#include <epoxy/gl.h>
+
+#include <stdexcept>
+#include <string>
+
+namespace fovea::render::gl {
+
+inline GLuint compile_shader(GLenum stage, const char* source, const char* what) {
+  const GLuint shader = glCreateShader(stage);
+  glShaderSource(shader, 1, &source, nullptr);
+  glCompileShader(shader);
+  GLint ok = GL_FALSE;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint length = 0;
+    glGetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
+    std::string log(static_cast<std::size_t>(length > 0 ? length : 1), '\0');
+    glGetShaderInfoLog(shader, length, nullptr, log.data());
+    glDeleteShader(shader);
+    throw std::runtime_error(std::string(what) + ": shader compilation failed: " + log.c_str());
+  }
+  return shader;
+}
+
+// Compiles and links a vertex + fragment program; the shaders are deleted after linking.
+inline GLuint link_program(const char* vertex_source, const char* fragment_source, const char* what) {
+  const GLuint vs = compile_shader(GL_VERTEX_SHADER, vertex_source, what);
+  GLuint fs = 0;
+  try {
+    fs = compile_shader(GL_FRAGMENT_SHADER, fragment_source, what);
+  } catch (...) {
+    glDeleteShader(vs);
+    throw;
+  }
+  const GLuint program = glCreateProgram();
+  glAttachShader(program, vs);
+  glAttachShader(program, fs);
+  glLinkProgram(program);
+  glDetachShader(program, vs);
+  glDetachShader(program, fs);
+  glDeleteShader(vs);
+  glDeleteShader(fs);
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint length = 0;
+    glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
+    std::string log(static_cast<std::size_t>(length > 0 ? length : 1), '\0');
+    glGetProgramInfoLog(program, length, nullptr, log.data());
+    glDeleteProgram(program);
+    throw std::runtime_error(std::string(what) + ": program link failed: " + log.c_str());
+  }
+  return program;
+}
+
+}  // namespace fovea::render::gl

@@ -1,0 +1,36 @@
+#pragma once
+// Where the viewer looks, for the renderer: a live fovea-trackerd stream, a recording replayed on
+// the frame clock (deterministic headless runs), the mouse, or nothing (screen centre).
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "fovea/protocol/messages.h"
+
+namespace fovea::render {
+
+struct GazeState {
+  double x = 0.5, y = 0.5;       // normalized screen coordinates of the last valid gaze point
+  bool valid = false;            // the current sample has valid gaze (false during blinks)
+  protocol::EyeMovement movement = protocol::EyeMovement::Unknown;
+  double age_ms = 0;             // how old the sample is (live: now - sample time)
+  std::uint64_t received = 0, lost = 0;
+  double latency_p99_ms = 0;
+};
+
+class GazeInput {
+ public:
+  virtual ~GazeInput() = default;
+  virtual std::string description() const = 0;
+  virtual bool available() const { return true; }  // false only for "none"
+  // Gaze for the frame at `frame_time_s` seconds since the renderer started (its frame clock).
+  virtual GazeState at(double frame_time_s) = 0;
+  // The mouse source takes the cursor here; others ignore it.
+  virtual void set_cursor(double /*x*/, double /*y*/) {}
+};
+
+// "udp://HOST:PORT", "file:REC.fgr" (or .csv), "mouse", "none". Throws std::invalid_argument for a
+// bad spec and std::runtime_error when the source cannot start (unreadable recording).
+std::unique_ptr<GazeInput> make_gaze_input(const std::string& spec);
+
+}  // namespace fovea::render

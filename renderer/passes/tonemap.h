@@ -1,0 +1,18 @@
+#pragma once
+// HDR colour to the display image: exposure, an operator, the sRGB transfer function.
+#include <string>
+
+#include "backend/gbuffer.h"
+#include "image/image.h"
+
+namespace fovea::render {
+
+struct TonemapParams {
+  float exposure = 1.0f;
+  std::string op = "reinhard";  // reinhard: c / (1 + c) per channel; clamp: min(c, 1)
+};
+
+void tonemap(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height, const TonemapParams& p,
+             Image8& out);
+
+}  // namespace fovea::render

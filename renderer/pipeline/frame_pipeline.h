@@ -1,0 +1,48 @@
+#pragma once
+// Runs one frame: plan the passes, run those that are needed and implemented, time each through
+// the PassTimer. Owns the backend and the frame's buffers.
+#include <memory>
+
+#include "backend/backend.h"
+#include "gaze/gaze_input.h"
+#include "image/image.h"
+#include "passes/overlay.h"
+#include "pipeline/pass_timer.h"
+#include "pipeline/planner.h"
+#include "pipeline/settings.h"
+
+namespace fovea::render {
+
+class FramePipeline {
+ public:
+  FramePipeline(Scene scene, Settings settings, std::unique_ptr<Backend> backend, GazeInput& gaze);
+
+  struct Frame {
+    FramePlan plan;
+    GazeState gaze;
+    const GBuffer* gbuffer = nullptr;
+    const Image8* image = nullptr;  // null when output=gbuffer
+  };
+  // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
+  // with gaze sampled at `frame_clock_s` on the gaze input.
+  Frame render(std::uint64_t frame_index, double scene_time_s, double previous_time_s, double frame_clock_s,
+               PassTimer& timer);
+
+  FramePlan plan() const;
+  const Scene& scene() const { return scene_; }
+  Scene& mutable_scene() { return scene_; }
+  // Call after changing the scene (camera moves included) so the backend sees it.
+  void scene_changed() { backend_->set_scene(scene_); }
+  Settings& settings() { return settings_; }
+  const Backend& backend() const { return *backend_; }
+
+ private:
+  Scene scene_;
+  Settings settings_;
+  std::unique_ptr<Backend> backend_;
+  GazeInput& gaze_;
+  GBuffer gbuffer_;
+  Image8 image_;
+};
+
+}  // namespace fovea::render

@@ -1,0 +1,66 @@
+#include "pipeline/pass_timer.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <stdexcept>
+
+namespace fovea::render {
+
+PassTimer::PassTimer(const std::string& csv_path) : csv_(csv_path) {
+  if (!csv_) throw std::runtime_error("cannot write timing CSV " + csv_path);
+  csv_ << "frame,scene_time_s,pass,ms\n";
+}
+
+void PassTimer::begin_frame(std::uint64_t frame, double scene_time_s) {
+  frame_ = frame;
+  scene_time_s_ = scene_time_s;
+}
+
+void PassTimer::record(const std::string& pass, double ms) {
+  if (!samples_.contains(pass)) order_.push_back(pass);
+  samples_[pass].push_back(ms);
+  if (csv_.is_open()) {
+    char line[160];
+    std::snprintf(line, sizeof line, "%llu,%.6f,%s,%.4f\n", static_cast<unsigned long long>(frame_), scene_time_s_,
+                  pass.c_str(), ms);
+    csv_ << line;
+    csv_.flush();
+  }
+}
+
+double PassTimer::last_ms(const std::string& pass) const {
+  const auto it = samples_.find(pass);
+  return it == samples_.end() || it->second.empty() ? 0.0 : it->second.back();
+}
+
+std::map<std::string, PassTimer::Summary> PassTimer::summary() const {
+  std::map<std::string, Summary> out;
+  for (const auto& [pass, v] : samples_) {
+    std::vector<double> s = v;
+    std::sort(s.begin(), s.end());
+    Summary sum;
+    sum.count = s.size();
+    for (double x : s) sum.mean_ms += x;
+    sum.mean_ms /= static_cast<double>(s.size());
+    sum.p50_ms = s[s.size() / 2];
+    sum.p95_ms = s[std::min(s.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(s.size())))];
+    sum.max_ms = s.back();
+    out[pass] = sum;
+  }
+  return out;
+}
+
+std::string PassTimer::summary_table() const {
+  const auto sums = summary();
+  std::string out = "pass          frames   mean ms    p50 ms    p95 ms    max ms\n";
+  for (const std::string& pass : order_) {
+    const Summary& s = sums.at(pass);
+    char line[160];
+    std::snprintf(line, sizeof line, "%-12s %7zu %9.3f %9.3f %9.3f %9.3f\n", pass.c_str(), s.count, s.mean_ms, s.p50_ms,
+                  s.p95_ms, s.max_ms);
+    out += line;
+  }
+  return out;
+}
+
+}  // namespace fovea::render

@@ -1,0 +1,154 @@
+#include "pipeline/planner.h"
+
+#include <cstdio>
+#include <stdexcept>
+
+namespace fovea::render {
+
+const std::vector<PassDecl>& pass_declarations() {
+  static const std::vector<PassDecl> kPasses = {
+      {PassId::GBuffer, "gbuffer", "scene, camera, time", "colour, depth, id, normal, motion",
+       "always: every output starts from it", ""},
+      {PassId::Attention, "attention", "gbuffer (colour, depth, id, motion), task importance",
+       "per-object attention S_o, saliency maps", "focus, lod-select or an attention overlay consume it", "step 6"},
+      {PassId::Focus, "focus", "gaze, attention, depth, id", "focal depth", "dof runs and focus is not fixed",
+       "step 6"},
+      {PassId::LodSelect, "lod-select", "attention, gaze, camera", "LOD level per object",
+       "the scene has LOD chains and lod.enabled", "step 9"},
+      {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
+       "step 7"},
+      {PassId::Gi, "gi", "gbuffer, gaze", "colour (hybrid composite)", "gi.enabled and the scene has lights",
+       "step 8"},
+      {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image", ""},
+      {PassId::Overlay, "overlay", "display image, gaze, maps", "display image",
+       "overlay.gaze with a gaze source, or overlay.map", ""},
+  };
+  return kPasses;
+}
+
+const PassDecl& declaration(PassId id) { return pass_declarations().at(static_cast<std::size_t>(id)); }
+
+bool FramePlan::runs(PassId id) const { return at(id).runs; }
+bool FramePlan::needed(PassId id) const { return at(id).needed; }
+const PlannedPass& FramePlan::at(PassId id) const { return passes.at(static_cast<std::size_t>(id)); }
+
+std::string FramePlan::explain() const {
+  std::string out;
+  for (const PlannedPass& p : passes) {
+    const PassDecl& d = declaration(p.id);
+    const char* verdict = p.runs ? "run " : (p.needed ? "TODO" : "skip");
+    char line[512];
+    std::snprintf(line, sizeof line, "  %s %-10s %s%s%s\n", verdict, d.name, p.reason.c_str(),
+                  p.needed && !p.runs ? " — needed, but not implemented until " : "",
+                  p.needed && !p.runs ? d.implemented_in : "");
+    out += line;
+  }
+  return out;
+}
+
+FramePlan plan_frame(const PlanContext& c) {
+  const Scene& scene = c.scene;
+  const Settings& s = c.settings;
+  FramePlan plan;
+  for (const PassDecl& d : pass_declarations()) plan.passes.push_back({d.id, false, false, ""});
+  const auto decide = [&](PassId id, bool needed, std::string reason) {
+    PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
+    p.needed = needed;
+    p.runs = needed && declaration(id).implemented_in[0] == '\0';
+    p.reason = std::move(reason);
+  };
+
+  const bool image = s.is("output", "final");
+  // Backwards from the output: the display image needs tonemap; overlays go on top of it.
+  decide(PassId::Tonemap, image, image ? "output=final is a display image" : "output=gbuffer: no display image");
+  const bool map_overlay = image && !s.is("overlay.map", "none");
+  const bool gaze_overlay = image && s.flag("overlay.gaze") && c.gaze_available;
+  std::string overlay_reason;
+  if (!image) {
+    overlay_reason = "output=gbuffer: nothing to draw on";
+  } else if (map_overlay) {
+    overlay_reason = "overlay.map=" + s.text("overlay.map");
+  } else if (gaze_overlay) {
+    overlay_reason = "overlay.gaze=true and a gaze source is connected";
+  } else {
+    overlay_reason = !s.flag("overlay.gaze") ? "overlay.gaze=false and overlay.map=none"
+                                             : "no gaze source (--gaze none) and overlay.map=none";
+  }
+  decide(PassId::Overlay, map_overlay || gaze_overlay, overlay_reason);
+
+  // Global illumination: only with light to carry; the caustic map only with specular/refractive
+  // surfaces to focus it.
+  if (!image) {
+    decide(PassId::Gi, false, "output=gbuffer");
+  } else if (!s.flag("gi.enabled")) {
+    decide(PassId::Gi, false, "gi.enabled=false");
+  } else if (scene.lights.empty()) {
+    decide(PassId::Gi, false, "the scene has no lights: no light to bounce");
+  } else {
+    std::string why = "gi.enabled=true, " + std::to_string(scene.lights.size()) + " light(s); caustic map: ";
+    if (!s.flag("gi.caustics")) {
+      why += "off (gi.caustics=false)";
+    } else if (scene.has_specular_or_refractive()) {
+      why += "yes (specular or refractive surfaces)";
+    } else {
+      why += "no (no specular or refractive surface)";
+    }
+    decide(PassId::Gi, true, why);
+  }
+
+  // Depth of field: a pinhole lens keeps everything in focus.
+  const Lens& lens = scene.camera.lens;
+  if (!image) {
+    decide(PassId::Dof, false, "output=gbuffer");
+  } else if (!s.flag("dof.enabled")) {
+    decide(PassId::Dof, false, "dof.enabled=false");
+  } else if (lens.is_pinhole()) {
+    decide(PassId::Dof, false, "pinhole lens: nothing is out of focus");
+  } else {
+    char why[160];
+    std::snprintf(why, sizeof why, "thin lens F=%.1f mm, aperture %.2f mm, method %s", lens.focal_length_m * 1000,
+                  lens.aperture_m * 1000, s.text("dof.method").c_str());
+    decide(PassId::Dof, true, why);
+  }
+
+  // LOD selection: only objects with LOD chains can change detail.
+  if (!s.flag("lod.enabled")) {
+    decide(PassId::LodSelect, false, "lod.enabled=false");
+  } else if (!scene.has_lods()) {
+    decide(PassId::LodSelect, false, "no object has an LOD chain");
+  } else {
+    decide(PassId::LodSelect, true, "objects with LOD chains");
+  }
+
+  // Focus: consumed only by DOF.
+  const std::string& mode = s.text("focus.mode");
+  if (!plan.needed(PassId::Dof)) {
+    decide(PassId::Focus, false, "nothing consumes a focal depth (dof not planned)");
+  } else if (mode == "fixed") {
+    decide(PassId::Focus, false, "focus.mode=fixed: the lens focus distance is used");
+  } else {
+    std::string why = "dof needs a focal depth; focus.mode=" + mode;
+    if ((mode == "gaze") && !c.gaze_available) why += " without a gaze source: the screen centre is used";
+    decide(PassId::Focus, true, why);
+  }
+
+  // Attention: computed only when something consumes it.
+  std::vector<std::string> consumers;
+  if (plan.needed(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")) consumers.push_back("focus");
+  if (plan.needed(PassId::LodSelect)) consumers.push_back("lod-select");
+  if (s.is("overlay.map", "attention") && image) consumers.push_back("overlay");
+  if (consumers.empty()) {
+    decide(PassId::Attention, false, "nothing consumes attention");
+  } else if (!s.flag("attention.enabled")) {
+    decide(PassId::Attention, false, "attention.enabled=false (consumers fall back to gaze or defaults)");
+  } else {
+    std::string list;
+    for (const auto& k : consumers) list += (list.empty() ? "" : ", ") + k;
+    decide(PassId::Attention, true, "consumed by " + list);
+  }
+
+  decide(PassId::GBuffer, true, "every output starts from the G-buffer");
+  return plan;
+}
+
+}  // namespace fovea::render

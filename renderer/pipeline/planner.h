@@ -1,0 +1,51 @@
+#pragma once
+// The effect planner: builds each frame's pass list backwards from the requested output and leaves
+// out every pass whose effect the scene and settings cannot show, with the reason for each
+// decision (`fovea-render --explain`).
+#include <string>
+#include <vector>
+
+#include "pipeline/settings.h"
+#include "scene/scene.h"
+
+namespace fovea::render {
+
+enum class PassId { GBuffer, Attention, Focus, LodSelect, Dof, Gi, Tonemap, Overlay };
+inline constexpr int kPassCount = 8;
+
+struct PassDecl {
+  PassId id;
+  const char* name;
+  const char* reads;
+  const char* writes;
+  const char* needed_when;
+  const char* implemented_in;  // "" when this build runs it; else the step that brings it
+};
+// The passes in pipeline order.
+const std::vector<PassDecl>& pass_declarations();
+const PassDecl& declaration(PassId id);
+
+struct PlannedPass {
+  PassId id;
+  bool needed = false;       // the requested output needs this pass's effect
+  bool runs = false;         // needed and implemented in this build
+  std::string reason;
+};
+
+struct PlanContext {
+  const Scene& scene;
+  const Settings& settings;
+  bool gaze_available = false;  // a gaze source other than "none"
+};
+
+struct FramePlan {
+  std::vector<PlannedPass> passes;  // pipeline order
+  bool runs(PassId id) const;
+  bool needed(PassId id) const;
+  const PlannedPass& at(PassId id) const;
+  std::string explain() const;  // one line per pass: run / skip / needed-but-not-implemented, and why
+};
+
+FramePlan plan_frame(const PlanContext& context);
+
+}  // namespace fovea::render

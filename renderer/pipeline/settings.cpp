@@ -1,0 +1,114 @@
+#include "pipeline/settings.h"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+namespace fovea::render {
+
+const std::vector<SettingSpec>& Settings::specs() {
+  static const std::vector<SettingSpec> kSpecs = {
+      {"output", "final", "final|gbuffer", "what the frame is built for: the tone-mapped image, or the G-buffer alone"},
+      {"shadows", "false", "bool", "shadow rays for direct light in local illumination (Embree backend only)"},
+      {"attention.enabled", "true", "bool", "allow the visual attention pass (Lee 2009 ch. 3) when something consumes it"},
+      {"focus.mode", "gaze+attention", "fixed|gaze|attention|gaze+attention",
+       "where the lens focuses: the scene's focus distance, the gazed object, the most attended object, or gaze with "
+       "attention breaking ties"},
+      {"dof.enabled", "true", "bool", "depth of field for thin-lens cameras"},
+      {"dof.method", "lee-mipmap", "reference|lee-mipmap|lee-splat|schedl-layered", "depth-of-field algorithm"},
+      {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
+      {"gi.enabled", "false", "bool", "gaze-directed global illumination (photon mapping, hybrid composite)"},
+      {"gi.caustics", "true", "bool", "caustic photon map when the scene has specular or refractive surfaces"},
+      {"gi.gaze_area_deg", "20", "number in [1, 180]", "diameter of the high-quality gaze area in degrees of visual angle"},
+      {"tonemap.operator", "reinhard", "reinhard|clamp", "HDR to display mapping"},
+      {"tonemap.exposure", "1", "number in [0.0001, 10000]", "linear scale applied before tone mapping"},
+      {"overlay.gaze", "true", "bool", "draw the gaze point (and the gaze area when GI is on)"},
+      {"overlay.map", "none", "none|depth|id|normal|motion|attention|coc|gaze-area|photons",
+       "show a map instead of the image (maps of later passes appear when those passes exist)"},
+  };
+  return kSpecs;
+}
+
+namespace {
+const SettingSpec* find_spec(const std::string& key) {
+  for (const auto& s : Settings::specs()) {
+    if (s.key == key) return &s;
+  }
+  return nullptr;
+}
+
+std::string all_keys() {
+  std::string out;
+  for (const auto& s : Settings::specs()) out += (out.empty() ? "" : ", ") + s.key;
+  return out;
+}
+
+void check_value(const SettingSpec& spec, const std::string& value) {
+  const auto bad = [&]() {
+    throw std::invalid_argument("setting " + spec.key + "=" + value + ": allowed " + spec.allowed);
+  };
+  if (spec.allowed == "bool") {
+    if (value != "true" && value != "false") bad();
+    return;
+  }
+  if (spec.allowed.rfind("number in [", 0) == 0) {
+    double lo = 0, hi = 0;
+    std::sscanf(spec.allowed.c_str(), "number in [%lf, %lf]", &lo, &hi);
+    std::size_t used = 0;
+    double v = 0;
+    try {
+      v = std::stod(value, &used);
+    } catch (const std::exception&) {
+      bad();
+    }
+    if (used != value.size() || !std::isfinite(v) || v < lo || v > hi) bad();
+    return;
+  }
+  std::stringstream options(spec.allowed);
+  std::string option;
+  while (std::getline(options, option, '|')) {
+    if (option == value) return;
+  }
+  bad();
+}
+}  // namespace
+
+Settings::Settings() {
+  for (const auto& s : specs()) values_[s.key] = s.default_value;
+}
+
+void Settings::set(const std::string& key, const std::string& value) {
+  const SettingSpec* spec = find_spec(key);
+  if (spec == nullptr) throw std::invalid_argument("unknown setting \"" + key + "\"; known: " + all_keys());
+  check_value(*spec, value);
+  values_[key] = value;
+}
+
+void Settings::set_assignment(const std::string& assignment) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw std::invalid_argument("--set \"" + assignment + "\": expected key=value");
+  }
+  set(assignment.substr(0, eq), assignment.substr(eq + 1));
+}
+
+const std::string& Settings::text(const std::string& key) const {
+  const auto it = values_.find(key);
+  if (it == values_.end()) throw std::invalid_argument("unknown setting \"" + key + "\"");
+  return it->second;
+}
+
+bool Settings::flag(const std::string& key) const { return text(key) == "true"; }
+
+double Settings::number(const std::string& key) const { return std::stod(text(key)); }
+
+std::map<std::string, std::string> Settings::changed() const {
+  std::map<std::string, std::string> out;
+  for (const auto& s : specs()) {
+    if (values_.at(s.key) != s.default_value) out[s.key] = values_.at(s.key);
+  }
+  return out;
+}
+
+}  // namespace fovea::render

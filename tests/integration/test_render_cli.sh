@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# Whole-process test of fovea-render as a user runs it: explain, headless frames with each backend,
+# deterministic replays, clear errors, the viewer under Xvfb, and two render clients on one daemon.
+set -u
+RENDER=$1 TRACKERD=$2 CTL=$3 SOURCE_DIR=$4
+SCENES=$SOURCE_DIR/renderer/scenes
+REC=$SOURCE_DIR/tests/data/recordings/synthetic-250hz-62s.fgr
+WORK=$(mktemp -d)
+PIDS=()
+cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null; done; rm -rf "$WORK"; }
+trap cleanup EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+XVFB=(xvfb-run -a -s "-screen 0 1024x768x24")
+SMALL=(--scene-set camera.width=160 --scene-set camera.height=120)
+
+echo "== --explain on every bundled scene"
+for s in "$SCENES"/*.json; do
+  out=$("$RENDER" --scene "$s" --explain --gaze none 2>&1) || fail "explain $s: $out"
+  grep -q "run  gbuffer" <<<"$out" || fail "plan of $s lacks the gbuffer pass: $out"
+done
+out=$("$RENDER" --scene "$SCENES/cornell.json" --explain --gaze none)
+grep -q "skip dof .*pinhole" <<<"$out" || fail "cornell (pinhole) should skip dof: $out"
+
+echo "== clear errors"
+out=$("$RENDER" --scene /nonexistent.json --explain 2>&1) && fail "missing scene accepted"
+grep -q "/nonexistent.json" <<<"$out" || fail "missing scene message: $out"
+out=$("$RENDER" --scene "$SCENES/cornell.json" --set gi.enable=true --explain 2>&1) && fail "bad setting accepted"
+grep -q 'unknown setting "gi.enable"' <<<"$out" || fail "bad setting message: $out"
+out=$("$RENDER" --scene "$SCENES/cornell.json" --gaze bogus --explain 2>&1) && fail "bad gaze accepted"
+grep -q 'expected udp://' <<<"$out" || fail "bad gaze message: $out"
+mkdir -p "$WORK/full" && touch "$WORK/full/keep.png"
+out=$("$RENDER" --scene "$SCENES/cornell.json" --headless --frames 1 --out "$WORK/full" --gaze none 2>&1) \
+  && fail "non-empty output directory accepted"
+grep -q "not empty" <<<"$out" || fail "non-empty dir message: $out"
+[ -f "$WORK/full/keep.png" ] || fail "existing file was removed"
+
+echo "== headless embree, gaze from a recording on the frame clock, twice: identical frames"
+for run in a b; do
+  "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --headless --frames 4 --fps 10 --exr \
+    --gaze "file:$REC" --out "$WORK/embree-$run" >/dev/null 2>"$WORK/embree-$run.err" \
+    || fail "headless embree: $(cat "$WORK/embree-$run.err")"
+done
+[ "$(ls "$WORK/embree-a"/frame-*.png | wc -l)" -eq 4 ] || fail "expected 4 PNG frames"
+[ "$(ls "$WORK/embree-a"/frame-*.exr | wc -l)" -eq 4 ] || fail "expected 4 EXR frames"
+for f in "$WORK/embree-a"/frame-*.png; do
+  cmp -s "$f" "$WORK/embree-b/$(basename "$f")" || fail "frame $(basename "$f") differs between identical runs"
+done
+head -1 "$WORK/embree-a/timings.csv" | grep -q "^frame,scene_time_s,pass,ms$" || fail "timings.csv header"
+for pass in gbuffer tonemap overlay write frame; do
+  [ "$(grep -c ",$pass," "$WORK/embree-a/timings.csv")" -eq 4 ] || fail "timings.csv lacks 4 rows of $pass"
+done
+grep -q "run  gbuffer" "$WORK/embree-a/plan.txt" || fail "plan.txt"
+
+echo "== headless gl under Xvfb"
+"${XVFB[@]}" "$RENDER" --scene "$SCENES/cornell.json" "${SMALL[@]}" --backend gl --headless --frames 3 --gaze none \
+  --out "$WORK/gl" >/dev/null 2>"$WORK/gl.err" || fail "headless gl: $(cat "$WORK/gl.err")"
+[ "$(ls "$WORK/gl"/frame-*.png | wc -l)" -eq 3 ] || fail "expected 3 GL frames"
+out=$(env -u DISPLAY "$RENDER" --scene "$SCENES/cornell.json" --backend gl --headless --frames 1 --gaze none \
+  --out "$WORK/gl-nodisplay" 2>&1) && fail "gl without a display succeeded"
+grep -qi "display" <<<"$out" || fail "no-display message: $out"
+
+echo "== viewer under Xvfb, mouse gaze, 5 frames"
+"${XVFB[@]}" "$RENDER" --scene "$SCENES/cornell.json" "${SMALL[@]}" --backend gl --gaze mouse --frames 5 \
+  >"$WORK/viewer.out" 2>&1 || fail "viewer: $(cat "$WORK/viewer.out")"
+grep -q "^frame " "$WORK/viewer.out" || fail "viewer printed no timing summary"
+
+echo "== two render clients against one daemon"
+PORT=$(( 48100 + RANDOM % 800 ))
+"$TRACKERD" --source "replay:$REC" --loop --port $PORT >"$WORK/daemon.log" 2>&1 &
+PIDS+=($!)
+for _ in $(seq 1 50); do "$CTL" --server 127.0.0.1:$PORT status >/dev/null 2>&1 && break; sleep 0.1; done
+"$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --headless --frames 10 --fps 10 \
+  --gaze udp://127.0.0.1:$PORT --out "$WORK/live-embree" >/dev/null 2>&1 &
+R1=$!
+"${XVFB[@]}" "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --backend gl --headless --frames 10 --fps 10 \
+  --gaze udp://127.0.0.1:$PORT --out "$WORK/live-gl" >/dev/null 2>&1 &
+R2=$!
+wait $R1 || fail "live embree client failed"
+wait $R2 || fail "live gl client failed"
+for d in live-embree live-gl; do
+  last=$(tail -1 "$WORK/$d/gaze.csv")
+  received=$(cut -d, -f8 <<<"$last")
+  [ "$received" -gt 100 ] || fail "$d received only $received gaze samples: $last"
+done
+echo "PASS"

@@ -1,0 +1,140 @@
+// The effect planner's decisions, table-driven: each row is a scene feature set plus settings, and
+// the passes that must (not) be planned.
+#include <gtest/gtest.h>
+
+#include "pipeline/planner.h"
+#include "scene/geometry.h"
+
+using namespace fovea::render;
+
+namespace {
+
+struct SceneFeatures {
+  bool thin_lens = false;
+  bool mirror = false;
+  bool lights = true;
+  bool lods = false;
+};
+
+Scene make_scene(const SceneFeatures& f) {
+  Scene s;
+  s.materials.push_back(Material{});
+  Material mirror;
+  mirror.type = MaterialType::Mirror;
+  s.materials.push_back(mirror);
+  Object o;
+  o.id = 1;
+  o.mesh = std::make_shared<Mesh>(make_box({1, 1, 1}));
+  o.material = f.mirror ? 1 : 0;
+  if (f.lods) o.lods.push_back(LodLevel{o.mesh, 0.01f});
+  s.objects.push_back(o);
+  if (f.lights) s.lights.push_back(Light{});
+  if (f.thin_lens) {
+    s.camera.lens.aperture_m = 0.01;
+    s.camera.lens.focal_length_m = 0.05;
+  }
+  return s;
+}
+
+struct Row {
+  const char* name;
+  SceneFeatures scene;
+  std::vector<std::string> settings;
+  bool gaze;
+  std::vector<PassId> needed;
+  std::vector<PassId> not_needed;
+  const char* reason_contains;  // in the reason of the first not_needed pass (or first needed)
+};
+
+const std::vector<Row> kRows = {
+    {"pinhole: no dof, hence no focus, hence no attention", {}, {}, true,
+     {PassId::GBuffer, PassId::Tonemap, PassId::Overlay}, {PassId::Dof, PassId::Focus, PassId::Attention}, "pinhole"},
+    {"thin lens: dof needs focus, focus (gaze+attention) needs attention", {.thin_lens = true}, {}, true,
+     {PassId::Dof, PassId::Focus, PassId::Attention}, {PassId::Gi, PassId::LodSelect}, "gi.enabled=false"},
+    {"fixed focus: dof without focus or attention", {.thin_lens = true}, {"focus.mode=fixed"}, true, {PassId::Dof},
+     {PassId::Focus, PassId::Attention}, "focus.mode=fixed"},
+    {"gaze-only focus: no attention needed", {.thin_lens = true}, {"focus.mode=gaze"}, true,
+     {PassId::Dof, PassId::Focus}, {PassId::Attention}, "nothing consumes attention"},
+    {"dof switched off", {.thin_lens = true}, {"dof.enabled=false"}, true, {}, {PassId::Dof, PassId::Focus},
+     "dof.enabled=false"},
+    {"gi on, diffuse scene: gi without caustics", {}, {"gi.enabled=true"}, true, {PassId::Gi}, {}, "caustic map: no"},
+    {"gi on, mirror: caustic map", {.mirror = true}, {"gi.enabled=true"}, true, {PassId::Gi}, {}, "caustic map: yes"},
+    {"gi on but no lights", {.lights = false}, {"gi.enabled=true"}, true, {}, {PassId::Gi}, "no lights"},
+    {"LOD chains: lod-select, which consumes attention", {.lods = true}, {}, true,
+     {PassId::LodSelect, PassId::Attention}, {PassId::Dof}, "pinhole"},
+    {"LOD chains but lod off", {.lods = true}, {"lod.enabled=false"}, true, {}, {PassId::LodSelect, PassId::Attention},
+     "lod.enabled=false"},
+    {"no LOD chains", {}, {}, true, {}, {PassId::LodSelect}, "no object has an LOD chain"},
+    {"no gaze source: no gaze overlay", {}, {}, false, {PassId::Tonemap}, {PassId::Overlay}, "no gaze source"},
+    {"attention overlay requested", {}, {"overlay.map=attention"}, false, {PassId::Overlay, PassId::Attention}, {},
+     "overlay.map=attention"},
+    {"attention switched off", {.thin_lens = true}, {"attention.enabled=false"}, true, {PassId::Focus},
+     {PassId::Attention}, "attention.enabled=false"},
+    {"output=gbuffer: only the G-buffer", {.thin_lens = true, .mirror = true}, {"output=gbuffer", "gi.enabled=true"},
+     true, {PassId::GBuffer}, {PassId::Tonemap, PassId::Overlay, PassId::Dof, PassId::Gi, PassId::Focus}, "output=gbuffer"},
+};
+
+}  // namespace
+
+TEST(Planner, DecisionTable) {
+  for (const Row& row : kRows) {
+    SCOPED_TRACE(row.name);
+    const Scene scene = make_scene(row.scene);
+    Settings settings;
+    for (const auto& a : row.settings) settings.set_assignment(a);
+    const FramePlan plan = plan_frame(PlanContext{scene, settings, row.gaze});
+    for (PassId id : row.needed) EXPECT_TRUE(plan.needed(id)) << declaration(id).name << ": " << plan.at(id).reason;
+    for (PassId id : row.not_needed) EXPECT_FALSE(plan.needed(id)) << declaration(id).name << ": " << plan.at(id).reason;
+    const PassId probe = !row.not_needed.empty() ? row.not_needed.front() : row.needed.front();
+    EXPECT_NE(plan.at(probe).reason.find(row.reason_contains), std::string::npos)
+        << declaration(probe).name << " reason was: " << plan.at(probe).reason;
+    EXPECT_TRUE(plan.runs(PassId::GBuffer));
+  }
+}
+
+TEST(Planner, NeededButUnimplementedPassesAreSaidSoNotRun) {
+  const Scene scene = make_scene({.thin_lens = true});
+  const Settings settings;
+  const FramePlan plan = plan_frame(PlanContext{scene, settings, true});
+  ASSERT_TRUE(plan.needed(PassId::Dof));
+  EXPECT_FALSE(plan.runs(PassId::Dof)) << "dof arrives with step 7";
+  const std::string text = plan.explain();
+  EXPECT_NE(text.find("TODO dof"), std::string::npos) << text;
+  EXPECT_NE(text.find("not implemented until step 7"), std::string::npos) << text;
+  EXPECT_NE(text.find("run  gbuffer"), std::string::npos) << text;
+}
+
+TEST(Planner, EveryPassHasADeclaration) {
+  ASSERT_EQ(pass_declarations().size(), static_cast<std::size_t>(kPassCount));
+  for (std::size_t i = 0; i < pass_declarations().size(); ++i) {
+    const PassDecl& d = pass_declarations()[i];
+    EXPECT_EQ(static_cast<std::size_t>(d.id), i) << d.name << " out of pipeline order";
+    EXPECT_NE(std::string(d.reads), "");
+    EXPECT_NE(std::string(d.writes), "");
+  }
+}
+
+TEST(Settings, RejectUnknownKeysAndBadValuesNamingWhatIsAllowed) {
+  Settings s;
+  EXPECT_FALSE(s.flag("gi.enabled"));
+  s.set_assignment("gi.enabled=true");
+  EXPECT_TRUE(s.flag("gi.enabled"));
+  s.set("tonemap.exposure", "2.5");
+  EXPECT_DOUBLE_EQ(s.number("tonemap.exposure"), 2.5);
+  EXPECT_EQ(s.changed().size(), 2u);
+  const auto message = [&](const std::string& a) {
+    try {
+      s.set_assignment(a);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message("gi.enable=true").find("known: output"), std::string::npos);
+  EXPECT_NE(message("gi.enabled=yes").find("allowed bool"), std::string::npos);
+  EXPECT_NE(message("tonemap.exposure=nan").find("number in"), std::string::npos);
+  EXPECT_NE(message("tonemap.exposure=-1").find("number in"), std::string::npos);
+  EXPECT_NE(message("dof.method=magic").find("reference|lee-mipmap"), std::string::npos);
+  EXPECT_NE(message("novalue").find("expected key=value"), std::string::npos);
+  EXPECT_TRUE(s.flag("gi.enabled")) << "a refused assignment changes nothing";
+}
