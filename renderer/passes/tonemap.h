@@ -10,6 +10,7 @@ namespace fovea::render {
 struct TonemapParams {
   float exposure = 1.0f;
   std::string op = "reinhard";  // reinhard: c / (1 + c) per channel; clamp: min(c, 1)
+  bool exact = false;            // true: pow() per channel (the reference); false: 16K-entry table
 };
 
 void tonemap(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height, const TonemapParams& p,

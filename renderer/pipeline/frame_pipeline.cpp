@@ -34,6 +34,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     TonemapParams p;
     p.exposure = static_cast<float>(settings_.number("tonemap.exposure"));
     p.op = settings_.text("tonemap.operator");
+    p.exact = settings_.flag("tonemap.exact");
     tonemap(gbuffer_.color, gbuffer_.width, gbuffer_.height, p, image_);
     f.image = &image_;
   }

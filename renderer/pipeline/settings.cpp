@@ -23,6 +23,7 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"gi.gaze_area_deg", "20", "number in [1, 180]", "diameter of the high-quality gaze area in degrees of visual angle"},
       {"tonemap.operator", "reinhard", "reinhard|clamp", "HDR to display mapping"},
       {"tonemap.exposure", "1", "number in [0.0001, 10000]", "linear scale applied before tone mapping"},
+      {"tonemap.exact", "false", "bool", "sRGB-encode with pow() per channel (reference) instead of a table (<= 1/255 off)"},
       {"overlay.gaze", "true", "bool", "draw the gaze point (and the gaze area when GI is on)"},
       {"overlay.map", "none", "none|depth|id|normal|motion|attention|coc|gaze-area|photons",
        "show a map instead of the image (maps of later passes appear when those passes exist)"},
