@@ -49,7 +49,7 @@ RENDER_ARGS=(--scene "$SCENE" --headless --frames "$FRAMES" --fps "$FPS" --gaze 
 "$RENDER" "${RENDER_ARGS[@]}" --backend embree --out "$OUT/render-embree" >"$OUT/render-embree.log" 2>&1 &
 RENDER_EMBREE=$!
 PIDS+=("$RENDER_EMBREE")
-xvfb-run -a -s "-screen 0 1024x768x24" "$RENDER" "${RENDER_ARGS[@]}" --backend gl --out "$OUT/render-gl" \
+deploy/with-xvfb.sh "$RENDER" "${RENDER_ARGS[@]}" --backend gl --out "$OUT/render-gl" \
   >"$OUT/render-gl.log" 2>&1 &
 RENDER_GL=$!
 PIDS+=("$RENDER_GL")

@@ -36,9 +36,9 @@ std::string FramePlan::explain() const {
   std::string out;
   for (const PlannedPass& p : passes) {
     const PassDecl& d = declaration(p.id);
-    const char* verdict = p.runs ? "run " : (p.needed ? "TODO" : "skip");
+    const char* verdict = p.runs ? "run " : (p.needed ? "later" : "skip");
     char line[512];
-    std::snprintf(line, sizeof line, "  %s %-10s %s%s%s\n", verdict, d.name, p.reason.c_str(),
+    std::snprintf(line, sizeof line, "  %-5s %-10s %s%s%s\n", verdict, d.name, p.reason.c_str(),
                   p.needed && !p.runs ? " — needed, but not implemented until " : "",
                   p.needed && !p.runs ? d.implemented_in : "");
     out += line;

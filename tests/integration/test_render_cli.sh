@@ -10,16 +10,16 @@ PIDS=()
 cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null; done; rm -rf "$WORK"; }
 trap cleanup EXIT
 fail() { echo "FAIL: $*"; exit 1; }
-XVFB=(xvfb-run -a -s "-screen 0 1024x768x24")
+XVFB=("$SOURCE_DIR/deploy/with-xvfb.sh")
 SMALL=(--scene-set camera.width=160 --scene-set camera.height=120)
 
 echo "== --explain on every bundled scene"
 for s in "$SCENES"/*.json; do
   out=$("$RENDER" --scene "$s" --explain --gaze none 2>&1) || fail "explain $s: $out"
-  grep -q "run  gbuffer" <<<"$out" || fail "plan of $s lacks the gbuffer pass: $out"
+  grep -qE "run +gbuffer" <<<"$out" || fail "plan of $s lacks the gbuffer pass: $out"
 done
 out=$("$RENDER" --scene "$SCENES/cornell.json" --explain --gaze none)
-grep -q "skip dof .*pinhole" <<<"$out" || fail "cornell (pinhole) should skip dof: $out"
+grep -qE "skip +dof .*pinhole" <<<"$out" || fail "cornell (pinhole) should skip dof: $out"
 
 echo "== clear errors"
 out=$("$RENDER" --scene /nonexistent.json --explain 2>&1) && fail "missing scene accepted"
@@ -49,7 +49,7 @@ head -1 "$WORK/embree-a/timings.csv" | grep -q "^frame,scene_time_s,pass,ms$" ||
 for pass in gbuffer tonemap overlay write frame; do
   [ "$(grep -c ",$pass," "$WORK/embree-a/timings.csv")" -eq 4 ] || fail "timings.csv lacks 4 rows of $pass"
 done
-grep -q "run  gbuffer" "$WORK/embree-a/plan.txt" || fail "plan.txt"
+grep -qE "run +gbuffer" "$WORK/embree-a/plan.txt" || fail "plan.txt"
 
 echo "== headless gl under Xvfb"
 "${XVFB[@]}" "$RENDER" --scene "$SCENES/cornell.json" "${SMALL[@]}" --backend gl --headless --frames 3 --gaze none \
@@ -70,13 +70,13 @@ PORT=$(( 48100 + RANDOM % 800 ))
 PIDS+=($!)
 for _ in $(seq 1 50); do "$CTL" --server 127.0.0.1:$PORT status >/dev/null 2>&1 && break; sleep 0.1; done
 "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --headless --frames 10 --fps 10 \
-  --gaze udp://127.0.0.1:$PORT --out "$WORK/live-embree" >/dev/null 2>&1 &
+  --gaze udp://127.0.0.1:$PORT --out "$WORK/live-embree" >"$WORK/live-embree.log" 2>&1 &
 R1=$!
 "${XVFB[@]}" "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --backend gl --headless --frames 10 --fps 10 \
-  --gaze udp://127.0.0.1:$PORT --out "$WORK/live-gl" >/dev/null 2>&1 &
+  --gaze udp://127.0.0.1:$PORT --out "$WORK/live-gl" >"$WORK/live-gl.log" 2>&1 &
 R2=$!
-wait $R1 || fail "live embree client failed"
-wait $R2 || fail "live gl client failed"
+wait $R1 || fail "live embree client failed: $(tail -20 "$WORK/live-embree.log")"
+wait $R2 || fail "live gl client failed: $(tail -20 "$WORK/live-gl.log")"
 for d in live-embree live-gl; do
   last=$(tail -1 "$WORK/$d/gaze.csv")
   received=$(cut -d, -f8 <<<"$last")
