@@ -1,0 +1,55 @@
+#pragma once
+// Eye-movement classification of a gaze stream, online (sample by sample, as the daemon runs) and
+// offline (`fovea-ctl classify`). Input positions are degrees of visual angle from the screen centre
+// (display geometry and viewing distance convert pixels to degrees beforehand); output is one label
+// per input sample, in order.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fovea::trackerd::classify {
+
+enum class Label : std::uint8_t { Fixation, Saccade, Pso, Pursuit, Blink, Lost, Unknown };
+const char* to_string(Label l);  // "fixation", "saccade", "pso", "pursuit", "blink", "lost", "unknown"
+
+struct Sample {
+  double t_s = 0;              // sample time, seconds (monotonic, not necessarily evenly spaced)
+  double x_deg = 0, y_deg = 0; // gaze in degrees of visual angle from the screen centre; ignored when !valid
+  bool valid = true;           // false: tracker lost the eye (NaN in the input, blink, off-screen)
+  // Optional: pupil ellipse aspect ratio (minor/major) when the tracker reports it; 0 = unknown.
+  // Lee 2009 §3.5.2 calls a blink when it drops below 0.7.
+  double pupil_aspect = 0;
+};
+
+struct Labeled {
+  std::uint64_t index = 0;  // position of the sample in the input (0-based)
+  Label label = Label::Unknown;
+};
+
+// Online classification: push samples as they arrive; labels come out once final, in order, after
+// a bounded delay (latency_s(): how far behind the newest sample a label may trail). flush() at the
+// end of the stream finalises the rest.
+class OnlineClassifier {
+ public:
+  virtual ~OnlineClassifier() = default;
+  virtual std::string name() const = 0;
+  virtual double latency_s() const = 0;
+  virtual void push(const Sample& s, std::vector<Labeled>& out) = 0;
+  virtual void flush(std::vector<Labeled>& out) = 0;
+};
+
+struct ClassifierInfo {
+  std::string name;
+  std::string summary;  // one line: method, source, what it does
+};
+// Every method this build knows; the first is the default (the best one, by the benchmark).
+const std::vector<ClassifierInfo>& classifiers();
+
+// Throws std::invalid_argument naming the method and listing the known ones.
+std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, double nominal_rate_hz);
+
+// Runs an online classifier over a whole recording: one label per sample, in order.
+std::vector<Label> classify_all(const std::string& name, double nominal_rate_hz, const std::vector<Sample>& samples);
+
+}  // namespace fovea::trackerd::classify
