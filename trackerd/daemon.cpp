@@ -4,10 +4,14 @@
 #include <sys/prctl.h>
 
 #include <cerrno>
+#include <chrono>
 #include <ctime>
 #include <stdexcept>
 
 #include "fovea/protocol/clock.h"
+#include "service/calibration_stage.h"
+#include "service/command_mailbox.h"
+#include "service/systemd_notify.h"
 #include "sources/replay_source.h"
 #include "sources/synthetic_gaze.h"
 
@@ -15,149 +19,420 @@ namespace fovea::trackerd {
 
 using protocol::monotonic_ns;
 
-std::unique_ptr<GazeSource> make_source(const DaemonOptions& o, std::int64_t start_time_ns) {
-  const std::string& spec = o.source_spec;
+// ---- sources ---------------------------------------------------------------------------------
+// Seam for the hardware sources (hid, camera:, video:): add the kind to check_source_spec() and
+// build it in make_source().
+
+std::string check_source_spec(const std::string& spec) {
+  if (spec == "synthetic") return {};
+  if (spec.rfind("replay:", 0) == 0) {
+    return spec.size() > 7 ? std::string() : "--source replay:FILE needs a file name";
+  }
+  return "unknown source \"" + spec +
+         "\"; this build supports: synthetic, replay:FILE (camera:, hid and video: come with the hardware sources)";
+}
+
+std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int64_t start_time_ns) {
+  const std::string& spec = c.source.spec;
+  if (const std::string problem = check_source_spec(spec); !problem.empty()) throw std::invalid_argument(problem);
   if (spec == "synthetic") {
-    if (!(o.synthetic_rate_hz >= 1 && o.synthetic_rate_hz <= 10000)) {
-      throw std::invalid_argument("--rate " + std::to_string(o.synthetic_rate_hz) + " is outside 1..10000 Hz");
+    if (!(c.source.rate_hz >= 1 && c.source.rate_hz <= 10000)) {
+      throw std::invalid_argument("--rate " + std::to_string(c.source.rate_hz) + " is outside 1..10000 Hz");
     }
     SyntheticGazeOptions so;
-    so.rate_hz = o.synthetic_rate_hz;
-    so.seed = o.seed;
-    so.display = o.display.value_or(protocol::DisplayGeometry{});
+    so.rate_hz = c.source.rate_hz;
+    so.seed = c.source.seed;
+    so.display = c.display.value_or(protocol::DisplayGeometry{});
     so.start_time_ns = start_time_ns;
     return std::make_unique<SyntheticGaze>(so);
   }
-  if (spec.rfind("replay:", 0) == 0) {
-    ReplayOptions ro;
-    ro.path = spec.substr(7);
-    if (ro.path.empty()) throw std::invalid_argument("--source replay:FILE needs a file name");
-    ro.speed = o.replay_speed;
-    ro.loop = o.replay_loop;
-    ro.start_time_ns = start_time_ns;
-    auto src = std::make_unique<ReplaySource>(ro);
-    const auto& rep = src->recovery();
-    if (!rep.header_valid || rep.damaged_regions > 0 || rep.truncated_tail) {
-      spdlog::warn("{}: {}", ro.path, rep.describe());
-    }
-    return src;
+  // replay:FILE
+  ReplayOptions ro;
+  ro.path = spec.substr(7);
+  ro.speed = c.source.speed;
+  ro.loop = c.source.loop;
+  ro.start_time_ns = start_time_ns;
+  auto src = std::make_unique<ReplaySource>(ro);
+  const auto& rep = src->recovery();
+  if (!rep.header_valid || rep.damaged_regions > 0 || rep.truncated_tail) {
+    spdlog::warn("{}: {}", ro.path, rep.describe());
   }
-  throw std::invalid_argument("unknown source \"" + spec +
-                              "\"; this build supports: synthetic, replay:FILE (camera:, hid and video: come with "
-                              "the hardware sources)");
+  return src;
 }
 
 namespace {
 
-// Sleeps until `due_ns` on CLOCK_MONOTONIC, waking at least every 100 ms to check `stop`.
-bool sleep_until(std::int64_t due_ns, const std::atomic<bool>& stop) {
-  while (!stop.load()) {
+constexpr std::int64_t kMs = 1'000'000;
+
+std::string networks(const std::vector<protocol::Ipv4Cidr>& list) {
+  if (list.empty()) return "nowhere";
+  std::string s;
+  for (const auto& n : list) s += (s.empty() ? "" : ", ") + n.to_string();
+  return s;
+}
+
+// ---- the daemon ------------------------------------------------------------------------------
+
+class Daemon {
+ public:
+  Daemon(service::DaemonConfig config, RunOptions run, DaemonSignals signals, ConfigLoader loader)
+      : config_(std::move(config)), run_(run), signals_(signals), loader_(std::move(loader)) {}
+
+  int run();
+
+ private:
+  enum class Wake { Due, Stop, Attention };
+
+  bool start(std::int64_t start_ns);
+  void publish(GazeItem item);
+  Wake wait_until(std::int64_t due_ns);
+  bool attention() const { return (signals_.reload != nullptr && signals_.reload->load()) || mailbox_.pending(); }
+  void attend();
+  void service_tick();
+  protocol::ControlReply execute(const protocol::ControlRequest& request);
+  protocol::ControlReply reload(const std::string& why);
+  std::string start_recording(const std::string& path, bool append);  // empty or what went wrong
+  std::string stop_recording();
+  void apply_display(const std::optional<protocol::DisplayGeometry>& configured);
+  std::string status_line() const;
+  bool stopping() const { return signals_.stop != nullptr && signals_.stop->load(); }
+
+  service::DaemonConfig config_;  // the running configuration
+  RunOptions run_;
+  DaemonSignals signals_;
+  ConfigLoader loader_;
+
+  service::SystemdNotifier notifier_;
+  service::CommandMailbox mailbox_;
+  std::unique_ptr<GazeSource> source_;
+  std::unique_ptr<service::CalibrationStage> calibration_;
+  // Seam for the online classifier (trackerd/classify): built from config_.classifier.method,
+  // fed in publish(), rebuilt on reload when the method changes.
+  std::unique_ptr<protocol::GazeServer> server_;
+  std::unique_ptr<protocol::RecordingWriter> recorder_;
+  std::string recording_path_;
+  protocol::DisplayGeometry display_;  // what clients are told
+  std::uint64_t control_refused_logged_ = 0;
+  std::int64_t next_refusal_check_ns_ = 0;
+  int status_ = 0;
+};
+
+bool Daemon::start(std::int64_t start_ns) {
+  try {
+    source_ = make_source(config_, start_ns);
+  } catch (const std::exception& e) {
+    spdlog::error("cannot start source: {}", e.what());
+    return false;
+  }
+  try {
+    calibration_ = service::load_calibration_stage(config_.calibration.file);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return false;
+  }
+  protocol::ServerOptions so;
+  try {
+    so = service::server_options(config_);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return false;
+  }
+  display_ = config_.display.value_or(source_->display());
+  so.display = display_;
+  so.nominal_rate_hz = source_->nominal_rate_hz();
+  so.source_name = source_->description();
+  if (so.source_name.size() > 47) so.source_name = so.source_name.substr(0, 44) + "...";
+  try {
+    server_ = std::make_unique<protocol::GazeServer>(so);
+  } catch (const std::exception& e) {
+    spdlog::error("{} (is another fovea-trackerd running? choose another --port)", e.what());
+    return false;
+  }
+  server_->on_subscriber_change([](const protocol::SubscriberInfo& s, const char* what) {
+    spdlog::info("subscriber {} session {:016x}: {} (lease {} ms)", s.address.to_string(), s.session_id, what,
+                 s.lease_ms);
+  });
+  // Runs on the server's control thread; the publishing loop executes the command between samples.
+  server_->on_control([this](const protocol::ControlRequest& r, const protocol::Endpoint& from) {
+    spdlog::info("control {} from {}{}", protocol::to_string(r.command), from.to_string(),
+                 r.argument.value.empty() ? std::string() : " (" + r.argument.value + ")");
+    protocol::ControlReply reply = mailbox_.submit(r, std::chrono::milliseconds(3000));
+    spdlog::log(reply.result == protocol::ControlResult::Ok ? spdlog::level::info : spdlog::level::warn,
+                "control {}: {}: {}", protocol::to_string(r.command), protocol::to_string(reply.result),
+                reply.message.value);
+    return reply;
+  });
+
+  if (!config_.record.path.empty()) {
+    if (const std::string err = start_recording(config_.record.path, config_.record.append); !err.empty()) {
+      spdlog::error("{}", err);
+      return false;
+    }
+  }
+  spdlog::info("serving {} on {} ({} Hz, display {})", source_->description(), server_->local_endpoint().to_string(),
+               so.nominal_rate_hz, protocol::to_string(display_));
+  if (so.multicast) spdlog::info("also publishing to multicast group {}", so.multicast->group.to_string());
+  spdlog::info("control commands accepted from {}; calibration: {}{}", networks(config_.network.control_allow),
+               calibration_->description(),
+               config_.classifier.method.empty() ? std::string()
+                                                 : "; classifier method " + config_.classifier.method +
+                                                       " (applied once the online classifier is built in)");
+  if (notifier_.watchdog_interval_ns() > 0) {
+    spdlog::info("systemd watchdog: pinging every {} ms", notifier_.watchdog_interval_ns() / kMs);
+  }
+  return true;
+}
+
+// calibration -> (online classifier: step 3 seam) -> publisher -> recorder
+void Daemon::publish(GazeItem item) {
+  calibration_->apply(item);
+  const std::uint64_t seq = std::visit([&](const auto& v) { return server_->publish(v); }, item);
+  if (recorder_) {
+    try {
+      recorder_->append(protocol::Record{seq, item});
+    } catch (const std::exception& e) {
+      spdlog::error("{}; recording stopped, streaming continues", e.what());
+      recorder_.reset();
+      recording_path_.clear();
+      status_ = 1;
+    }
+  }
+}
+
+// Sleeps until `due_ns` on CLOCK_MONOTONIC in short steps, so a signal, a reload or a control
+// command is seen within 50 ms and the watchdog keeps being fed during long waits.
+Daemon::Wake Daemon::wait_until(std::int64_t due_ns) {
+  while (true) {
+    if (stopping()) return Wake::Stop;
+    if (attention()) return Wake::Attention;
+    service_tick();
     const std::int64_t now = monotonic_ns();
-    if (now >= due_ns) return true;
-    const std::int64_t target = std::min(due_ns, now + 100'000'000);
+    if (now >= due_ns) return Wake::Due;
+    const std::int64_t target = std::min(due_ns, now + 50 * kMs);
     timespec ts{static_cast<time_t>(target / 1'000'000'000), static_cast<long>(target % 1'000'000'000)};
     clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
   }
-  return false;
 }
 
-}  // namespace
+void Daemon::attend() {
+  if (signals_.reload != nullptr && signals_.reload->exchange(false)) reload("SIGHUP");
+  if (mailbox_.pending()) mailbox_.drain([this](const protocol::ControlRequest& r) { return execute(r); });
+}
 
-int run_daemon(const DaemonOptions& options, const std::atomic<bool>& stop) {
+void Daemon::service_tick() {
+  const std::int64_t now = monotonic_ns();
+  notifier_.watchdog_tick(now);
+  notifier_.status_tick(now, [&] { return status_line(); });
+  if (now >= next_refusal_check_ns_) {
+    next_refusal_check_ns_ = now + 1000 * kMs;
+    const auto st = server_->stats();
+    if (st.control_refused > control_refused_logged_) {
+      spdlog::warn("refused {} control request(s) from outside control_allow ({} refused so far)",
+                   st.control_refused - control_refused_logged_, st.control_refused);
+      control_refused_logged_ = st.control_refused;
+    }
+  }
+}
+
+std::string Daemon::status_line() const {
+  const auto st = server_->stats();
+  std::string s = source_->description() + ", " + std::to_string(static_cast<long>(source_->nominal_rate_hz())) +
+                  " Hz, " + std::to_string(st.subscribers) + " subscribers, " + std::to_string(st.samples_published) +
+                  " samples";
+  if (recorder_) s += ", recording " + recording_path_;
+  return s;
+}
+
+protocol::ControlReply Daemon::execute(const protocol::ControlRequest& r) {
+  protocol::ControlReply out{r.command, protocol::ControlResult::Ok, {}};
+  const auto fail = [&](const std::string& why) {
+    out.result = protocol::ControlResult::Failed;
+    out.message.value = why;
+    return out;
+  };
+  switch (r.command) {
+    case protocol::ControlCommand::Reload:
+      return reload("control request");
+    case protocol::ControlCommand::StartRecording: {
+      if (r.argument.value.empty()) return fail("record-start needs a file path");
+      if (recorder_) return fail("already recording to " + recording_path_);
+      if (const std::string err = start_recording(r.argument.value, false); !err.empty()) return fail(err);
+      out.message.value = "recording to " + recording_path_;
+      return out;
+    }
+    case protocol::ControlCommand::StopRecording: {
+      if (!recorder_) return fail("not recording");
+      out.message.value = stop_recording();
+      return out;
+    }
+  }
+  return fail("unknown command");
+}
+
+std::string Daemon::start_recording(const std::string& path, bool append) {
+  protocol::RecordingHeader h;
+  h.device = source_->description().substr(0, 63);
+  h.display = display_;
+  h.nominal_rate_hz = source_->nominal_rate_hz();
+  h.clock = protocol::RecordingClock::Monotonic;
+  h.created_unix_ns = protocol::realtime_ns();
+  h.created_clock_ns = monotonic_ns();
+  try {
+    recorder_ = std::make_unique<protocol::RecordingWriter>(
+        path, h, append ? protocol::RecordingWriter::Mode::Append : protocol::RecordingWriter::Mode::CreateNew);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  recording_path_ = path;
+  spdlog::info("recording published gaze to {}", path);
+  return {};
+}
+
+std::string Daemon::stop_recording() {
+  if (!recorder_) return "not recording";
+  const std::string what =
+      "stopped recording to " + recording_path_ + " (" + std::to_string(recorder_->records_written()) + " records)";
+  recorder_.reset();  // closes the file
+  recording_path_.clear();
+  spdlog::info("{}", what);
+  return what;
+}
+
+void Daemon::apply_display(const std::optional<protocol::DisplayGeometry>& configured) {
+  const protocol::DisplayGeometry g = configured.value_or(source_->display());
+  if (g == display_) return;
+  display_ = g;
+  server_->set_display(g);
+  if (!(g == source_->display())) {
+    spdlog::info(
+        "display {} is what clients are told from now on; the source computes visual angles on its own "
+        "geometry {} until a restart",
+        protocol::to_string(g), protocol::to_string(source_->display()));
+  }
+  if (recorder_)
+    spdlog::warn("{} keeps the display geometry of its header; record-stop/record-start to record the new one",
+                 recording_path_);
+}
+
+// Adopts a new configuration without closing the socket or dropping a session. Settings that need
+// a restart (source, listen address, port, multicast, devices) are logged and kept.
+protocol::ControlReply Daemon::reload(const std::string& why) {
+  protocol::ControlReply out{protocol::ControlCommand::Reload, protocol::ControlResult::Ok, {}};
+  notifier_.reloading();
+  spdlog::info("reloading configuration from {} ({})", config_.origin, why);
+  service::DaemonConfig next;
+  try {
+    next = loader_ ? loader_() : config_;
+  } catch (const std::exception& e) {
+    spdlog::error("reload failed; keeping the running configuration:\n{}", e.what());
+    notifier_.reloaded(status_line());
+    out.result = protocol::ControlResult::Failed;
+    out.message.value = std::string("configuration invalid: ") + e.what();
+    return out;
+  }
+  const service::ConfigChanges changes = service::diff(config_, next);
+  for (const auto& c : changes.needs_restart) spdlog::warn("{}: needs a restart; keeping the running value", c);
+  next = service::adopt_live(config_, next);
+
+  // Calibration: read again even when the name is unchanged (the file may have been refitted).
+  std::string problems;
+  try {
+    calibration_ = service::load_calibration_stage(next.calibration.file);
+    spdlog::info("calibration: {}", calibration_->description());
+  } catch (const std::exception& e) {
+    spdlog::error("{}; keeping the previous calibration", e.what());
+    next.calibration = config_.calibration;
+    problems = e.what();
+  }
+  apply_display(next.display);
+  server_->set_limits(next.network.lease_ms, next.network.max_subscribers);
+  server_->set_control_allow(next.network.control_allow);
+  if (!(next.record == config_.record)) {
+    if (recorder_) stop_recording();
+    if (!next.record.path.empty()) {
+      if (const std::string err = start_recording(next.record.path, next.record.append); !err.empty()) {
+        spdlog::error("{}", err);
+        problems = err;
+      }
+    }
+  }
+  if (next.classifier.method != config_.classifier.method) {
+    spdlog::info("classifier method {} (applied once the online classifier is built in)", next.classifier.method);
+  }
+  spdlog::set_level(spdlog::level::from_str(next.log_level));
+  for (const auto& c : changes.live) spdlog::info("applied: {}", c);
+  config_ = next;
+  notifier_.reloaded(status_line());
+
+  if (!problems.empty()) {
+    out.result = protocol::ControlResult::Failed;
+    out.message.value = problems;
+  } else {
+    out.message.value = "reloaded: " + std::to_string(changes.live.size()) + " applied, " +
+                        std::to_string(changes.needs_restart.size()) + " need a restart";
+  }
+  spdlog::info("{}", problems.empty() ? out.message.value : "reload finished with problems");
+  return out;
+}
+
+int Daemon::run() {
   // Samples are due every 1-4 ms; the default 50 us timer slack would add that much jitter to
   // every wake-up of the pacing loop.
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   // Give subscribers a moment to be accepted before the first sample is due.
-  const std::int64_t start_ns = monotonic_ns() + 50'000'000;
-  std::unique_ptr<GazeSource> source;
-  try {
-    source = make_source(options, start_ns);
-  } catch (const std::exception& e) {
-    spdlog::error("cannot start source: {}", e.what());
-    return 2;
-  }
-  protocol::ServerOptions so = options.server;
-  so.display = options.display.value_or(source->display());
-  so.nominal_rate_hz = source->nominal_rate_hz();
-  so.source_name = source->description();
-  if (so.source_name.size() > 47) so.source_name = so.source_name.substr(0, 44) + "...";
-
-  std::unique_ptr<protocol::GazeServer> server;
-  try {
-    server = std::make_unique<protocol::GazeServer>(so);
-  } catch (const std::exception& e) {
-    spdlog::error("{} (is another fovea-trackerd running? choose another --port)", e.what());
-    return 2;
-  }
-  server->on_subscriber_change([](const protocol::SubscriberInfo& s, const char* what) {
-    spdlog::info("subscriber {} session {:016x}: {} (lease {} ms)", s.address.to_string(), s.session_id, what,
-                 s.lease_ms);
-  });
-
-  std::unique_ptr<protocol::RecordingWriter> recorder;
-  if (!options.record_path.empty()) {
-    protocol::RecordingHeader h;
-    h.device = source->description().substr(0, 63);
-    h.display = so.display;
-    h.nominal_rate_hz = so.nominal_rate_hz;
-    h.clock = protocol::RecordingClock::Monotonic;
-    h.created_unix_ns = protocol::realtime_ns();
-    h.created_clock_ns = monotonic_ns();
-    try {
-      recorder = std::make_unique<protocol::RecordingWriter>(
-          options.record_path, h,
-          options.record_append ? protocol::RecordingWriter::Mode::Append : protocol::RecordingWriter::Mode::CreateNew);
-    } catch (const std::exception& e) {
-      spdlog::error("{}", e.what());
-      return 2;
-    }
-    spdlog::info("recording published gaze to {}", options.record_path);
-  }
-
-  spdlog::info("serving {} on {} ({} Hz, display {})", source->description(), server->local_endpoint().to_string(),
-               so.nominal_rate_hz, protocol::to_string(so.display));
-  if (so.multicast) spdlog::info("also publishing to multicast group {}", so.multicast->group.to_string());
+  const std::int64_t start_ns = monotonic_ns() + 50 * kMs;
+  if (!start(start_ns)) return 2;
+  notifier_.ready(status_line());
 
   const std::int64_t end_ns =
-      options.duration_s > 0 ? start_ns + static_cast<std::int64_t>(options.duration_s * 1e9) : INT64_MAX;
+      run_.duration_s > 0 ? start_ns + static_cast<std::int64_t>(run_.duration_s * 1e9) : INT64_MAX;
   bool source_ended = false;
-  int status = 0;
-  while (!stop.load()) {
+  std::optional<GazeItem> item;  // the next item, waiting for its time
+  while (!stopping()) {
+    attend();
     if (source_ended) {
-      if (options.exit_when_source_ends) break;
-      if (!sleep_until(std::min(end_ns, monotonic_ns() + 100'000'000), stop) || monotonic_ns() >= end_ns) break;
+      if (run_.exit_when_source_ends) break;
+      const Wake w = wait_until(std::min(end_ns, monotonic_ns() + 100 * kMs));
+      if (w == Wake::Stop || monotonic_ns() >= end_ns) break;
       continue;
     }
-    std::optional<GazeItem> item = source->next();
     if (!item) {
-      source_ended = true;
-      server->set_source_state(protocol::SourceState::Ended);
-      spdlog::info("source ended after {} samples", server->stats().samples_published);
-      continue;
+      item = source_->next();
+      if (!item) {
+        source_ended = true;
+        server_->set_source_state(protocol::SourceState::Ended);
+        spdlog::info("source ended after {} samples", server_->stats().samples_published);
+        continue;
+      }
     }
     const std::int64_t due = due_time_ns(*item);
     if (due >= end_ns) break;
-    if (!sleep_until(due, stop)) break;
-    const std::uint64_t seq = std::visit([&](const auto& v) { return server->publish(v); }, *item);
-    if (recorder) {
-      try {
-        recorder->append(protocol::Record{seq, *item});
-      } catch (const std::exception& e) {
-        spdlog::error("{}; recording stopped, streaming continues", e.what());
-        recorder.reset();
-        status = 1;
-      }
-    }
+    const Wake w = wait_until(due);
+    if (w == Wake::Stop) break;
+    if (w == Wake::Attention) continue;  // attend, then wait for the same item again
+    publish(std::move(*item));
+    item.reset();
   }
 
-  const auto st = server->stats();
-  server->stop();
-  spdlog::info("stopped: {} samples and {} events published, {} datagrams sent, {} send failures, {} rejected, "
-               "{} leases expired{}",
-               st.samples_published, st.events_published, st.datagrams_sent, st.send_failures, st.datagrams_rejected,
-               st.leases_expired,
-               recorder ? ", " + std::to_string(recorder->records_written()) + " records written" : std::string());
-  return status;
+  notifier_.stopping();
+  mailbox_.close();
+  const auto st = server_->stats();
+  server_->stop();
+  spdlog::info(
+      "stopped: {} samples and {} events published, {} datagrams sent, {} send failures, {} rejected, "
+      "{} leases expired, {} control requests, {} control requests refused{}",
+      st.samples_published, st.events_published, st.datagrams_sent, st.send_failures, st.datagrams_rejected,
+      st.leases_expired, st.control_requests, st.control_refused,
+      recorder_ ? ", " + std::to_string(recorder_->records_written()) + " records written" : std::string());
+  return status_;
+}
+
+}  // namespace
+
+int run_daemon(const service::DaemonConfig& config, const RunOptions& run, const DaemonSignals& signals,
+               ConfigLoader reload_config) {
+  Daemon d(config, run, signals, std::move(reload_config));
+  return d.run();
 }
 
 }  // namespace fovea::trackerd

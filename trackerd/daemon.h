@@ -1,36 +1,46 @@
 #pragma once
-// The fovea-trackerd main loop: paces a GazeSource in real time, publishes through GazeServer and
-// optionally records what it publishes.
+// The fovea-trackerd main loop: paces a GazeSource in real time, passes each item through the
+// calibration stage (and, with step 3's classifier, the online classifier), publishes it through
+// GazeServer and optionally records it. Between two items it attends to SIGHUP reloads and control
+// commands, and reports to systemd (READY, STATUS, WATCHDOG).
 #include <atomic>
+#include <functional>
 #include <memory>
-#include <optional>
 #include <string>
 
 #include "fovea/protocol/server.h"
+#include "service/config.h"
 #include "sources/gaze_source.h"
 
 namespace fovea::trackerd {
 
-struct DaemonOptions {
-  std::string source_spec = "synthetic";  // synthetic | replay:FILE
-  double synthetic_rate_hz = 250;
-  std::uint64_t seed = 1;
-  double replay_speed = 1.0;
-  bool replay_loop = false;
-  std::optional<protocol::DisplayGeometry> display;  // overrides the source's (synthetic default)
-  protocol::ServerOptions server;
-  std::string record_path;
-  bool record_append = false;
-  double duration_s = 0;   // 0: until signalled
+// Settings of one run that are not configuration (tests and demos use them).
+struct RunOptions {
+  double duration_s = 0;  // 0: until signalled
   bool exit_when_source_ends = false;
 };
 
-// Builds the source named by `spec`; throws std::invalid_argument / std::runtime_error with a
-// message naming the spec and what is wrong.
-std::unique_ptr<GazeSource> make_source(const DaemonOptions& options, std::int64_t start_time_ns);
+// Produces the configuration to adopt on a reload (SIGHUP or the control command): the file read
+// again with the same command-line overrides applied. Throws service::ConfigError.
+using ConfigLoader = std::function<service::DaemonConfig()>;
 
-// Runs until `stop` becomes true, the duration elapses, or (if asked) the source ends.
-// Returns the process exit status.
-int run_daemon(const DaemonOptions& options, const std::atomic<bool>& stop);
+// Flags set by signal handlers (never any work there); the loop polls them.
+struct DaemonSignals {
+  const std::atomic<bool>* stop = nullptr;  // SIGINT / SIGTERM
+  std::atomic<bool>* reload = nullptr;      // SIGHUP; the loop clears it when it starts the reload
+};
+
+// Empty when this build has a source of the kind `spec` names; otherwise a message naming the
+// spec and the kinds it supports. (--check-config uses it without opening anything.)
+std::string check_source_spec(const std::string& spec);
+
+// Builds the source named by `config.source.spec`; throws std::invalid_argument /
+// std::runtime_error with a message naming the spec and what is wrong.
+std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& config, std::int64_t start_time_ns);
+
+// Runs until `signals.stop` becomes true, the duration elapses, or (if asked) the source ends.
+// Returns the process exit status (0 clean, 1 recording failed on the way, 2 could not start).
+int run_daemon(const service::DaemonConfig& config, const RunOptions& run, const DaemonSignals& signals,
+               ConfigLoader reload_config = {});
 
 }  // namespace fovea::trackerd

@@ -5,83 +5,185 @@
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
+#include <cstdio>
+#include <cstdlib>
 
 #include "daemon.h"
+#include "service/config.h"
 
 namespace {
 std::atomic<bool> g_stop{false};
-void on_signal(int) { g_stop.store(true); }
+std::atomic<bool> g_reload{false};
+// Signal handlers only set flags; the publishing loop does the work.
+void on_stop(int) { g_stop.store(true); }
+void on_hangup(int) { g_reload.store(true); }
+
+// Exit status for an unusable configuration file (sysexits.h EX_CONFIG); the service unit does not
+// restart on it (RestartPreventExitStatus=78): a restart would fail the same way.
+constexpr int kExitConfig = 78;
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace fovea;
+  namespace svc = trackerd::service;
   CLI::App app{
       "fovea-trackerd: reads an eye tracker (or a synthetic or recorded gaze stream) and streams gaze samples and\n"
-      "events over UDP to subscribed clients (protocol: protocol/PROTOCOL.md). Stops cleanly on SIGINT/SIGTERM."};
+      "events over UDP to subscribed clients (protocol: protocol/PROTOCOL.md). Settings come from --config FILE\n"
+      "(TOML, documented in deploy/trackerd.toml) and the flags below, which override the file.\n"
+      "SIGINT/SIGTERM stop it cleanly; SIGHUP reloads the configuration and calibration without dropping subscribers."};
   app.set_version_flag("--version", "fovea-trackerd 0.1.0");
 
-  trackerd::DaemonOptions o;
-  std::string listen = "127.0.0.1";
-  std::uint16_t port = protocol::kDefaultPort;
-  std::string multicast, display, log_level = "info";
-  int multicast_ttl = 1;
-  app.add_option("--source", o.source_spec,
-                 "where gaze comes from: 'synthetic' (seeded model viewer) or 'replay:FILE' (a .fgr recording)")
+  const svc::DaemonConfig defaults;
+  svc::DaemonConfig d = defaults;  // receives the flag values; only flags given on the command line count
+  std::string config_path, display, multicast, log_level = defaults.log_level, record_path, calibration, classifier;
+  std::vector<std::string> control_allow;
+  bool check_config = false, loop = false, append = false;
+  trackerd::RunOptions run;
+
+  app.add_option("--config", config_path,
+                 std::string("TOML configuration file (the service uses ") + svc::kDefaultConfigPath +
+                     "); flags override its values");
+  app.add_flag(
+      "--check-config", check_config,
+      std::string("validate the configuration (--config FILE, default ") + svc::kDefaultConfigPath +
+          ") with the flags applied, print the effective configuration and exit 0, or the problems and exit 1");
+  auto* o_source =
+      app.add_option("--source", d.source.spec,
+                     "where gaze comes from: 'synthetic' (seeded model viewer) or 'replay:FILE' (a .fgr recording)")
+          ->capture_default_str();
+  auto* o_port = app.add_option("--port", d.network.port, "UDP port to serve on")->capture_default_str();
+  auto* o_listen =
+      app.add_option("--listen", d.network.listen, "local IPv4 address to bind (0.0.0.0 to serve other machines)")
+          ->capture_default_str();
+  auto* o_multicast = app.add_option("--multicast", multicast,
+                                     "also publish samples and events to GROUP:PORT (e.g. 239.255.47.80:47801)");
+  auto* o_ttl = app.add_option("--multicast-ttl", d.network.multicast_ttl, "multicast TTL (1: this LAN segment)")
+                    ->check(CLI::Range(0, 255))
+                    ->capture_default_str();
+  auto* o_record =
+      app.add_option("--record", record_path, "record everything published to this .fgr file (refuses to overwrite)");
+  auto* o_append =
+      app.add_flag("--append", append, "with --record: append to an existing recording of the same display");
+  auto* o_rate =
+      app.add_option("--rate", d.source.rate_hz, "synthetic source: sample rate in Hz")->capture_default_str();
+  auto* o_seed = app.add_option("--seed", d.source.seed, "synthetic source: random seed (same seed, same gaze)")
+                     ->capture_default_str();
+  auto* o_speed = app.add_option("--speed", d.source.speed, "replay source: speed factor (2 = twice as fast)")
+                      ->capture_default_str();
+  auto* o_loop = app.add_flag("--loop", loop, "replay source: start again at the end");
+  auto* o_display = app.add_option(
+      "--display", display,
+      "display geometry WxH@WMMxHMMmm,DISTmm (default: the recording's, or 1920x1080@531.3x298.9mm,650mm)");
+  auto* o_lease =
+      app.add_option("--lease-ms", d.network.lease_ms, "lease granted to subscribers that do not ask for one")
+          ->check(CLI::Range(200u, 600000u))
+          ->capture_default_str();
+  auto* o_max = app.add_option("--max-subscribers", d.network.max_subscribers, "refuse subscriptions beyond this many")
+                    ->capture_default_str();
+  auto* o_allow = app.add_option("--control-allow", control_allow,
+                                 "networks allowed to send control commands (reload, record-start/stop), A.B.C.D/N; "
+                                 "repeat or separate with commas (default 127.0.0.0/8)")
+                      ->delimiter(',');
+  auto* o_calibration = app.add_option("--calibration", calibration, "calibration file (JSON)");
+  auto* o_classifier = app.add_option("--classifier", classifier, "online classifier method");
+  app.add_option("--duration", run.duration_s, "stop after this many seconds (0: run until signalled)")
       ->capture_default_str();
-  app.add_option("--port", port, "UDP port to serve on")->capture_default_str();
-  app.add_option("--listen", listen, "local IPv4 address to bind (0.0.0.0 to serve other machines)")
-      ->capture_default_str();
-  app.add_option("--multicast", multicast, "also publish samples and events to GROUP:PORT (e.g. 239.255.47.80:47801)");
-  app.add_option("--multicast-ttl", multicast_ttl, "multicast TTL (1: this LAN segment)")
-      ->check(CLI::Range(0, 255))
-      ->capture_default_str();
-  app.add_option("--record", o.record_path, "record everything published to this .fgr file (refuses to overwrite)");
-  app.add_flag("--append", o.record_append, "with --record: append to an existing recording of the same display");
-  app.add_option("--rate", o.synthetic_rate_hz, "synthetic source: sample rate in Hz")->capture_default_str();
-  app.add_option("--seed", o.seed, "synthetic source: random seed (same seed, same gaze)")->capture_default_str();
-  app.add_option("--speed", o.replay_speed, "replay source: speed factor (2 = twice as fast)")->capture_default_str();
-  app.add_flag("--loop", o.replay_loop, "replay source: start again at the end");
-  app.add_option("--display", display,
-                 "display geometry WxH@WMMxHMMmm,DISTmm (default: the recording's, or 1920x1080@531.3x298.9mm,650mm)");
-  app.add_option("--lease-ms", o.server.default_lease_ms, "lease granted to subscribers that do not ask for one")
-      ->check(CLI::Range(200u, 600000u))
-      ->capture_default_str();
-  app.add_option("--max-subscribers", o.server.max_subscribers, "refuse subscriptions beyond this many")
-      ->capture_default_str();
-  app.add_option("--duration", o.duration_s, "stop after this many seconds (0: run until signalled)")
-      ->capture_default_str();
-  app.add_flag("--exit-at-end", o.exit_when_source_ends, "exit when the source ends (default: keep serving status)");
-  app.add_option("--log-level", log_level, "log verbosity")
-      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
-      ->capture_default_str();
+  app.add_flag("--exit-at-end", run.exit_when_source_ends, "exit when the source ends (default: keep serving status)");
+  auto* o_log = app.add_option("--log-level", log_level, "log verbosity")
+                    ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
+                    ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   auto logger = spdlog::stderr_color_mt("fovea-trackerd");
-  logger->set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%-5l%$ fovea-trackerd: %v");
+  // Under systemd the journal stamps every line itself.
+  logger->set_pattern(std::getenv("JOURNAL_STREAM") != nullptr ? "%^%-5l%$ %v"
+                                                               : "%Y-%m-%dT%H:%M:%S.%e %^%-5l%$ fovea-trackerd: %v");
   spdlog::set_default_logger(logger);
   spdlog::set_level(spdlog::level::from_str(log_level));
 
+  // Flags given on the command line override the file, now and on every reload.
+  svc::CliOverrides cli;
   try {
-    o.server.listen = protocol::parse_endpoint(listen, port);
-    o.server.listen.port = port;
-    if (!multicast.empty()) {
-      o.server.multicast = protocol::parse_multicast(multicast);
-      o.server.multicast->ttl = static_cast<std::uint8_t>(multicast_ttl);
+    const auto given = [](const CLI::Option* o) { return o->count() > 0; };
+    if (given(o_source)) cli.source = d.source.spec;
+    if (given(o_rate)) cli.rate_hz = d.source.rate_hz;
+    if (given(o_seed)) cli.seed = d.source.seed;
+    if (given(o_speed)) cli.speed = d.source.speed;
+    if (given(o_loop)) cli.loop = loop;
+    if (given(o_display)) cli.display = protocol::parse_display_geometry(display);
+    if (given(o_listen)) cli.listen = d.network.listen;
+    if (given(o_port)) cli.port = d.network.port;
+    if (given(o_multicast)) {
+      if (!multicast.empty()) (void)protocol::parse_multicast(multicast);
+      cli.multicast = multicast;
     }
-    if (!display.empty()) o.display = protocol::parse_display_geometry(display);
+    if (given(o_ttl)) cli.multicast_ttl = d.network.multicast_ttl;
+    if (given(o_max)) cli.max_subscribers = d.network.max_subscribers;
+    if (given(o_lease)) cli.lease_ms = d.network.lease_ms;
+    if (given(o_allow)) {
+      std::vector<protocol::Ipv4Cidr> nets;
+      for (const auto& text : control_allow) nets.push_back(protocol::parse_cidr(text));
+      cli.control_allow = nets;
+    }
+    if (given(o_record)) cli.record_path = record_path;
+    if (given(o_append)) cli.record_append = append;
+    if (given(o_calibration)) cli.calibration_file = calibration;
+    if (given(o_classifier)) cli.classifier_method = classifier;
+    if (given(o_log)) cli.log_level = log_level;
+    if (given(o_listen)) (void)protocol::parse_endpoint(d.network.listen, d.network.port);
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return 2;
   }
 
+  if (check_config && config_path.empty()) config_path = svc::kDefaultConfigPath;
+  const trackerd::ConfigLoader load = [config_path, cli] {
+    svc::DaemonConfig c = config_path.empty() ? svc::DaemonConfig{} : svc::load_config(config_path);
+    svc::apply_overrides(c, cli);
+    return c;
+  };
+
+  if (check_config) {
+    try {
+      const svc::DaemonConfig c = load();
+      std::vector<std::string> problems;
+      if (const std::string p = trackerd::check_source_spec(c.source.spec); !p.empty())
+        problems.push_back("source.spec: " + p);
+      try {
+        (void)svc::server_options(c);
+      } catch (const std::exception& e) {
+        problems.push_back(std::string("network: ") + e.what());
+      }
+      if (!problems.empty()) throw svc::ConfigError(problems);
+      std::fputs(svc::to_toml(c).c_str(), stdout);
+      std::fprintf(stderr, "fovea-trackerd: configuration %s is valid\n", c.origin.c_str());
+      return 0;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "fovea-trackerd: configuration %s is invalid:\n%s\n", config_path.c_str(), e.what());
+      return 1;
+    }
+  }
+
+  svc::DaemonConfig config;
+  try {
+    config = load();
+  } catch (const svc::ConfigError& e) {
+    spdlog::error("configuration {} is invalid:\n{}", config_path, e.what());
+    return kExitConfig;
+  }
+  spdlog::set_level(spdlog::level::from_str(config.log_level));  // the file's, unless --log-level
+  if (!config_path.empty()) spdlog::info("configuration {}", config_path);
+
   struct sigaction sa {};
-  sa.sa_handler = on_signal;
   sigemptyset(&sa.sa_mask);
+  sa.sa_handler = on_stop;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  sa.sa_handler = on_hangup;
+  sigaction(SIGHUP, &sa, nullptr);
   std::signal(SIGPIPE, SIG_IGN);
 
-  const int status = trackerd::run_daemon(o, g_stop);
+  const int status = trackerd::run_daemon(config, run, trackerd::DaemonSignals{&g_stop, &g_reload}, load);
   if (g_stop.load()) spdlog::info("signal received, shut down cleanly");
   return status;
 }

@@ -26,6 +26,26 @@ const char* to_string(MessageType t) {
     case MessageType::TimeSyncRequest: return "TIME_SYNC_REQUEST";
     case MessageType::TimeSyncReply: return "TIME_SYNC_REPLY";
     case MessageType::Error: return "ERROR";
+    case MessageType::ControlRequest: return "CONTROL_REQUEST";
+    case MessageType::ControlReply: return "CONTROL_REPLY";
+  }
+  return "?";
+}
+
+const char* to_string(ControlCommand c) {
+  switch (c) {
+    case ControlCommand::Reload: return "reload";
+    case ControlCommand::StartRecording: return "record-start";
+    case ControlCommand::StopRecording: return "record-stop";
+  }
+  return "?";
+}
+
+const char* to_string(ControlResult r) {
+  switch (r) {
+    case ControlResult::Ok: return "ok";
+    case ControlResult::Refused: return "refused";
+    case ControlResult::Failed: return "failed";
   }
   return "?";
 }
@@ -79,7 +99,6 @@ std::uint64_t DecodeCounters::rejected() const {
 
 namespace {
 
-constexpr std::size_t kDisplaySize = 32;
 
 std::size_t size_of(MessageType t) {
   switch (t) {
@@ -96,6 +115,8 @@ std::size_t size_of(MessageType t) {
     case MessageType::TimeSyncRequest: return 24;
     case MessageType::TimeSyncReply: return 24;
     case MessageType::Error: return 8;
+    case MessageType::ControlRequest: return 72;  // as large as CONTROL_REPLY: no amplification
+    case MessageType::ControlReply: return 72;
   }
   return 0;
 }
@@ -216,6 +237,15 @@ struct Writer {
     put<std::uint16_t>(0, static_cast<std::uint16_t>(m.code));
     put<std::uint8_t>(2, static_cast<std::uint8_t>(m.request_type));
     put<std::uint8_t>(3, m.supported_version);
+  }
+  void operator()(const ControlRequest& m) {
+    put<std::uint8_t>(0, static_cast<std::uint8_t>(m.command));
+    text(8, m.argument);
+  }
+  void operator()(const ControlReply& m) {
+    put<std::uint8_t>(0, static_cast<std::uint8_t>(m.command));
+    put<std::uint8_t>(1, static_cast<std::uint8_t>(m.result));
+    text(8, m.message);
   }
 };
 
@@ -440,6 +470,21 @@ struct Reader {
         m.request_type = enumeration<MessageType>(2, 1, kMaxMessageType);
         m.supported_version = get<std::uint8_t>(3);
         zero(4, 4);
+        return m;
+      }
+      case MessageType::ControlRequest: {
+        ControlRequest m;
+        m.command = enumeration<ControlCommand>(0, 1, kMaxControlCommand);
+        zero(1, 7);
+        text(8, m.argument);
+        return m;
+      }
+      case MessageType::ControlReply: {
+        ControlReply m;
+        m.command = enumeration<ControlCommand>(0, 1, kMaxControlCommand);
+        m.result = enumeration<ControlResult>(1, 0, kMaxControlResult);
+        zero(2, 6);
+        text(8, m.message);
         return m;
       }
     }

@@ -3,6 +3,8 @@
 #include <sys/random.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cstdio>
 #include <stdexcept>
 
 #include "fovea/protocol/clock.h"
@@ -21,6 +23,63 @@ MulticastTarget parse_multicast(const std::string& text) {
   }
   if (t.group.port == 0) throw std::invalid_argument("multicast \"" + text + "\": port must be 1..65535");
   return t;
+}
+
+namespace {
+std::string dotted_quad(std::uint32_t ip) {
+  const std::string s = Endpoint{ip, 0}.to_string();
+  return s.substr(0, s.rfind(':'));
+}
+}  // namespace
+
+bool Ipv4Cidr::contains(std::uint32_t ip) const {
+  const std::uint32_t mask = prefix == 0 ? 0u : ~std::uint32_t{0} << (32 - prefix);
+  return (ip & mask) == network;
+}
+
+std::string Ipv4Cidr::to_string() const {
+  return dotted_quad(network) + "/" + std::to_string(prefix);
+}
+
+Ipv4Cidr parse_cidr(const std::string& text) {
+  const auto fail = [&](const std::string& why) {
+    return std::invalid_argument("network \"" + text + "\": " + why +
+                                 " (expected A.B.C.D/N with N in 0..32, e.g. 127.0.0.0/8 or 192.168.1.0/24)");
+  };
+  const std::size_t slash = text.find('/');
+  const std::string addr = text.substr(0, slash);
+  unsigned a = 0, b = 0, c = 0, d = 0;
+  int consumed = 0;
+  if (addr.empty() || std::sscanf(addr.c_str(), "%3u.%3u.%3u.%3u%n", &a, &b, &c, &d, &consumed) != 4 ||
+      static_cast<std::size_t>(consumed) != addr.size() || a > 255 || b > 255 || c > 255 || d > 255 ||
+      !std::all_of(addr.begin(), addr.end(),
+                   [](char ch) { return ch == '.' || std::isdigit(static_cast<unsigned char>(ch)) != 0; })) {
+    throw fail("not a dotted-quad IPv4 address");
+  }
+  Ipv4Cidr n;
+  n.network = (a << 24) | (b << 16) | (c << 8) | d;
+  if (slash != std::string::npos) {
+    const std::string len = text.substr(slash + 1);
+    if (len.empty() || len.size() > 2 || !std::all_of(len.begin(), len.end(), [](char ch) {
+          return std::isdigit(static_cast<unsigned char>(ch)) != 0;
+        })) {
+      throw fail("prefix length is not a number");
+    }
+    const int p = std::stoi(len);
+    if (p > 32) throw fail("prefix length " + len + " is larger than 32");
+    n.prefix = static_cast<std::uint8_t>(p);
+  }
+  const std::uint32_t mask = n.prefix == 0 ? 0u : ~std::uint32_t{0} << (32 - n.prefix);
+  if ((n.network & ~mask) != 0) {
+    Ipv4Cidr fixed{n.network & mask, n.prefix};
+    throw fail("host bits are set below the /" + std::to_string(n.prefix) + " prefix; did you mean " +
+               fixed.to_string() + "?");
+  }
+  return n;
+}
+
+bool allowed(const std::vector<Ipv4Cidr>& list, std::uint32_t ip) {
+  return std::any_of(list.begin(), list.end(), [&](const Ipv4Cidr& n) { return n.contains(ip); });
 }
 
 namespace {
@@ -66,6 +125,27 @@ void GazeServer::set_display(const DisplayGeometry& g) {
 void GazeServer::set_nominal_rate(double hz) {
   std::lock_guard lock(mutex_);
   options_.nominal_rate_hz = hz;
+}
+
+void GazeServer::set_limits(std::uint32_t default_lease_ms, std::size_t max_subscribers) {
+  std::lock_guard lock(mutex_);
+  options_.default_lease_ms = std::clamp(default_lease_ms, options_.min_lease_ms, options_.max_lease_ms);
+  options_.max_subscribers = max_subscribers;
+}
+
+void GazeServer::set_control_allow(std::vector<Ipv4Cidr> allow) {
+  std::lock_guard lock(mutex_);
+  options_.control_allow = std::move(allow);
+}
+
+std::vector<Ipv4Cidr> GazeServer::control_allow() const {
+  std::lock_guard lock(mutex_);
+  return options_.control_allow;
+}
+
+void GazeServer::on_control(ControlHandler handler) {
+  std::lock_guard lock(mutex_);
+  on_control_ = std::move(handler);
 }
 
 ServerStats GazeServer::stats() const {
@@ -173,7 +253,56 @@ std::uint32_t GazeServer::clamp_lease(std::uint32_t requested) const {
   return std::clamp(requested, options_.min_lease_ms, options_.max_lease_ms);
 }
 
+void GazeServer::handle_control(const Message& m, const Endpoint& from) {
+  const auto& req = std::get<ControlRequest>(m.payload);
+  const std::uint64_t seq = m.header.sequence;
+  ControlHandler handler;
+  {
+    std::lock_guard lock(mutex_);
+    if (!allowed(options_.control_allow, from.ip)) {
+      ++stats_.control_refused;
+      ControlReply no{req.command, ControlResult::Refused, {}};
+      no.message.value = "not allowed from " + dotted_quad(from.ip);
+      reply(from, seq, no);
+      return;
+    }
+    // A retransmission of a request already executed gets the same answer again.
+    for (const auto& r : recent_control_) {
+      if (r.from == from && r.sequence == seq && r.request == req) {
+        reply(from, seq, r.reply);
+        return;
+      }
+    }
+    ++stats_.control_requests;
+    handler = on_control_;
+  }
+  // The handler runs without the lock: it may reconfigure this server (set_limits, ...).
+  ControlReply answer{req.command, ControlResult::Failed, {}};
+  if (!handler) {
+    answer.message.value = "this server executes no control commands";
+  } else {
+    try {
+      answer = handler(req, from);
+      answer.command = req.command;
+      if (answer.message.value.size() >= decltype(answer.message)::capacity) {
+        answer.message.value = answer.message.value.substr(0, decltype(answer.message)::capacity - 4) + "...";
+      }
+    } catch (const std::exception& e) {
+      answer = ControlReply{req.command, ControlResult::Failed, {}};
+      answer.message.value = std::string(e.what()).substr(0, decltype(answer.message)::capacity - 1);
+    }
+  }
+  std::lock_guard lock(mutex_);
+  if (recent_control_.size() >= 16) recent_control_.erase(recent_control_.begin());
+  recent_control_.push_back(RecentControl{from, seq, req, answer});
+  reply(from, seq, answer);
+}
+
 void GazeServer::handle(const Message& m, const Endpoint& from, std::int64_t received_ns) {
+  if (m.header.type == MessageType::ControlRequest) {
+    handle_control(m, from);
+    return;
+  }
   std::lock_guard lock(mutex_);
   const std::uint64_t seq = m.header.sequence;
   switch (m.header.type) {

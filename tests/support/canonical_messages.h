@@ -83,6 +83,15 @@ inline std::vector<std::pair<std::string, protocol::Message>> canonical_messages
   out.emplace_back("time_sync_request", Message{header(6), TimeSyncRequest{5'000'000'000}});
   out.emplace_back("time_sync_reply", Message{header(6), TimeSyncReply{5'000'000'000, 1'000'100'000, 1'000'120'000}});
   out.emplace_back("error", Message{header(2), Error{ErrorCode::BadCookie, MessageType::Subscribe, kVersion}});
+  ControlRequest control;
+  control.command = ControlCommand::StartRecording;
+  control.argument.value = "/var/lib/fovea/session-01.fgr";
+  out.emplace_back("control_request", Message{header(7), control});
+  ControlReply control_reply;
+  control_reply.command = ControlCommand::StartRecording;
+  control_reply.result = ControlResult::Ok;
+  control_reply.message.value = "recording to /var/lib/fovea/session-01.fgr";
+  out.emplace_back("control_reply", Message{header(7), control_reply});
   for (auto& [name, m] : out) m.header.type = type_of(m.payload);
   return out;
 }

@@ -3,15 +3,20 @@
 // offline (`fovea-ctl classify`). Input positions are degrees of visual angle from the screen centre
 // (display geometry and viewing distance convert pixels to degrees beforehand); output is one label
 // per input sample, in order.
+//
+// The methods, their parameters, sources and measured accuracy are documented in trackerd/CLASSIFY.md.
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "fovea/protocol/display_geometry.h"
+
 namespace fovea::trackerd::classify {
 
 enum class Label : std::uint8_t { Fixation, Saccade, Pso, Pursuit, Blink, Lost, Unknown };
 const char* to_string(Label l);  // "fixation", "saccade", "pso", "pursuit", "blink", "lost", "unknown"
+inline constexpr int kLabelCount = 7;
 
 struct Sample {
   double t_s = 0;              // sample time, seconds (monotonic, not necessarily evenly spaced)
@@ -21,6 +26,11 @@ struct Sample {
   // Lee 2009 §3.5.2 calls a blink when it drops below 0.7.
   double pupil_aspect = 0;
 };
+// Defined behaviour on bad input (no method ever throws from push/flush):
+//  - t_s not finite, or not greater than the last accepted t_s (time standing still or going
+//    backwards): the sample is labelled Unknown and otherwise ignored (it does not move time).
+//  - valid but x_deg/y_deg not finite or beyond +-90 deg (no gaze direction): treated as a lost sample.
+//  - pupil_aspect not finite or <= 0: unknown (ignored).
 
 struct Labeled {
   std::uint64_t index = 0;  // position of the sample in the input (0-based)
@@ -30,6 +40,10 @@ struct Labeled {
 // Online classification: push samples as they arrive; labels come out once final, in order, after
 // a bounded delay (latency_s(): how far behind the newest sample a label may trail). flush() at the
 // end of the stream finalises the rest.
+//
+// Latency contract: after push() of a sample whose time is T (the newest accepted time), every
+// sample with t_s < T - latency_s() has been labelled. A rejected sample (bad time) is labelled as
+// soon as every sample before it has been.
 class OnlineClassifier {
  public:
   virtual ~OnlineClassifier() = default;
@@ -46,10 +60,21 @@ struct ClassifierInfo {
 // Every method this build knows; the first is the default (the best one, by the benchmark).
 const std::vector<ClassifierInfo>& classifiers();
 
-// Throws std::invalid_argument naming the method and listing the known ones.
+// What a method may need besides the samples. Only the Lee 2009 preset reads the display (its
+// thresholds are in normalized screen units per 60 Hz frame).
+struct ClassifierOptions {
+  double nominal_rate_hz = 250;  // a hint only; every method works on the sample times
+  protocol::DisplayGeometry display;
+};
+
+// Throws std::invalid_argument naming the method and listing the known ones (also for a rate that
+// is not finite and positive, or an invalid display).
 std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, double nominal_rate_hz);
+std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const ClassifierOptions& options);
 
 // Runs an online classifier over a whole recording: one label per sample, in order.
 std::vector<Label> classify_all(const std::string& name, double nominal_rate_hz, const std::vector<Sample>& samples);
+std::vector<Label> classify_all(const std::string& name, const ClassifierOptions& options,
+                                const std::vector<Sample>& samples);
 
 }  // namespace fovea::trackerd::classify

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <random>
 #include <nlohmann/json.hpp>
 #include <thread>
 #include <unistd.h>
@@ -16,6 +17,7 @@
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/csv.h"
 #include "fovea/protocol/recording.h"
+#include "classify/classifier.h"
 
 namespace {
 
@@ -302,6 +304,186 @@ int cmd_info(const std::string& path) {
   }
 }
 
+// ---- control commands (reload, record-start, record-stop) ------------------------------------
+
+// Sends one CONTROL_REQUEST and prints the daemon's answer. The request is retransmitted unchanged
+// (same sequence) after 1 s without a reply; the daemon answers a retransmission without executing
+// it twice. Exit status: 0 ok, 1 refused, failed or no answer, 2 bad arguments.
+int cmd_control(const Common& c, ControlCommand command, const std::string& argument) {
+  const std::string role = to_string(command);
+  Endpoint server;
+  ControlRequest request{command, {}};
+  try {
+    server = parse_endpoint(c.server, kDefaultPort);
+    request.argument.value = argument;
+    Message m{Header{}, request};
+    (void)encode(m);  // the argument must fit (at most 63 bytes)
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl %s: %s\n", role.c_str(), e.what());
+    return 2;
+  }
+  UdpSocket sock = UdpSocket::bind(Endpoint{0, 0});
+  Message m{Header{}, request};
+  std::random_device rd;
+  m.header.sequence = (std::uint64_t{rd()} << 32) | rd();
+  m.header.send_time_ns = m.header.origin_time_ns = monotonic_ns();
+  const std::vector<std::uint8_t> bytes = encode(m);
+  const std::int64_t deadline = monotonic_ns() + 4'000'000'000;
+  std::int64_t next_send = 0;
+  std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+  while (monotonic_ns() < deadline) {
+    if (monotonic_ns() >= next_send) {
+      sock.send_to(server, bytes);
+      next_send = monotonic_ns() + 1'000'000'000;
+    }
+    Endpoint from;
+    const std::size_t n = sock.receive(buf, from, 20);
+    if (n == 0 || n > kMaxDatagramSize || !(from == server)) continue;
+    Message r;
+    if (!decode(std::span<const std::uint8_t>(buf.data(), n), r) || r.header.type != MessageType::ControlReply ||
+        r.header.sequence != m.header.sequence) {
+      continue;
+    }
+    const auto& reply = std::get<ControlReply>(r.payload);
+    std::fprintf(reply.result == ControlResult::Ok ? stdout : stderr, "fovea-ctl %s: %s: %s\n", role.c_str(),
+                 to_string(reply.result), reply.message.value.c_str());
+    return reply.result == ControlResult::Ok ? 0 : 1;
+  }
+  std::fprintf(stderr,
+               "fovea-ctl %s: no answer from %s within 4000 ms; is fovea-trackerd (with control support) "
+               "running there?\n",
+               role.c_str(), server.to_string().c_str());
+  return 1;
+}
+
+// --- classify: offline eye-movement classification of a CSV of gaze points (trackerd/CLASSIFY.md) ---
+
+// Parses a decimal number field of the classify input; `nan_ok` accepts "nan" (any case) as NaN.
+double classify_field(const std::string& text, const char* name, bool nan_ok, const std::string& where) {
+  std::string t = text;
+  while (!t.empty() && (t.back() == ' ' || t.back() == '\t')) t.pop_back();
+  std::size_t b = 0;
+  while (b < t.size() && (t[b] == ' ' || t[b] == '\t')) ++b;
+  t = t.substr(b);
+  std::string lower;
+  for (char ch : t) lower += (ch >= 'A' && ch <= 'Z') ? static_cast<char>(ch - 'A' + 'a') : ch;
+  if (nan_ok && (lower == "nan" || lower == "-nan" || lower == "+nan")) return std::nan("");
+  double v = 0;
+  std::size_t used = 0;
+  try {
+    v = std::stod(t, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (t.empty() || used != t.size() || !std::isfinite(v)) {
+    throw std::runtime_error(where + ": " + name + " \"" + text + "\" is not a finite number" +
+                             (nan_ok ? " or nan" : ""));
+  }
+  return v;
+}
+
+int cmd_classify(const std::string& in_path, const std::string& out_path, double rate_hz, std::uint32_t w_px,
+                 std::uint32_t h_px, double w_mm, double h_mm, double dist_mm, const std::string& method, bool force) {
+  namespace cl = fovea::trackerd::classify;
+  const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
+  try {
+    if (!force && std::filesystem::exists(out_path)) {
+      throw std::runtime_error(out_path + " already exists (use --force to replace it)");
+    }
+    if (!std::isfinite(rate_hz) || rate_hz <= 0 || rate_hz > 100000) {
+      throw std::runtime_error("RATE_HZ " + std::to_string(rate_hz) + " is out of range (0, 100000]");
+    }
+    DisplayGeometry g;
+    g.width_px = w_px;
+    g.height_px = h_px;
+    g.width_m = w_mm / 1000.0;
+    g.height_m = h_mm / 1000.0;
+    g.viewing_distance_m = dist_mm / 1000.0;
+    if (const std::string err = validate(g); !err.empty()) throw std::runtime_error("screen geometry: " + err);
+
+    std::ifstream in(in_path);
+    if (!in) throw std::runtime_error("cannot open " + in_path);
+    std::vector<cl::Sample> samples;
+    std::vector<std::string> times;  // t_ms exactly as written, echoed to OUT
+    std::string line;
+    std::size_t line_no = 0;
+    double last_t = 0;
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      const std::string where = in_path + ":" + std::to_string(line_no);
+      if (line_no == 1) {
+        if (line.size() >= 3 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // UTF-8 BOM
+        if (line != "t_ms,x_px,y_px") {
+          throw std::runtime_error(where + ": header is \"" + line + "\", expected \"t_ms,x_px,y_px\"");
+        }
+        continue;
+      }
+      if (line.empty()) throw std::runtime_error(where + ": empty line (expected t_ms,x_px,y_px)");
+      std::vector<std::string> f;
+      std::size_t start = 0;
+      for (std::size_t comma; (comma = line.find(',', start)) != std::string::npos; start = comma + 1) {
+        f.push_back(line.substr(start, comma - start));
+      }
+      f.push_back(line.substr(start));
+      if (f.size() != 3) {
+        throw std::runtime_error(where + ": " + std::to_string(f.size()) + " fields, expected 3 (t_ms,x_px,y_px)");
+      }
+      const double t_ms = classify_field(f[0], "t_ms", false, where);
+      const double x_px = classify_field(f[1], "x_px", true, where);
+      const double y_px = classify_field(f[2], "y_px", true, where);
+      if (!samples.empty() && !(t_ms > last_t)) {
+        throw std::runtime_error(where + ": t_ms " + f[0] + " is not after the previous row's " + times.back() +
+                                 " (times must strictly increase)");
+      }
+      last_t = t_ms;
+      cl::Sample s;
+      s.t_s = t_ms / 1000.0;
+      s.valid = std::isfinite(x_px) && std::isfinite(y_px);
+      if (s.valid) {
+        // Pixels (origin top-left) to normalized, then to degrees from the centre: atan(offset / d).
+        const Degrees d = normalized_to_degrees(
+            g, Normalized{x_px / static_cast<double>(w_px), y_px / static_cast<double>(h_px)});
+        s.x_deg = d.x;
+        s.y_deg = d.y;
+      }
+      samples.push_back(s);
+      times.push_back(f[0]);
+    }
+    if (in.bad()) throw std::runtime_error("error reading " + in_path);
+    if (line_no == 0) throw std::runtime_error(in_path + ": empty file (expected the header t_ms,x_px,y_px)");
+
+    cl::ClassifierOptions options;
+    options.nominal_rate_hz = rate_hz;
+    options.display = g;
+    const std::vector<cl::Label> labels = cl::classify_all(method, options, samples);
+
+    std::map<std::string, std::size_t> counts;
+    {
+      std::ofstream out(tmp);
+      if (!out) throw std::runtime_error("cannot create " + tmp);
+      out << "t_ms,label\n";
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        out << times[i] << ',' << cl::to_string(labels[i]) << '\n';
+        ++counts[cl::to_string(labels[i])];
+      }
+      out.close();
+      if (!out) throw std::runtime_error("cannot write " + tmp);
+    }
+    std::filesystem::rename(tmp, out_path);  // atomic: OUT is either absent/old or complete
+    std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", samples.size(),
+                 method.c_str(), cl::make_classifier(method, options)->latency_s() * 1000);
+    for (const auto& [k, n] : counts) std::fprintf(stderr, " %zu %s", n, k.c_str());
+    std::fprintf(stderr, "\nfovea-ctl classify: wrote %s\n", out_path.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    std::fprintf(stderr, "fovea-ctl classify: %s\n", e.what());
+    return 1;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -345,6 +527,46 @@ int main(int argc, char** argv) {
   auto* info = app.add_subcommand("info", "describe a recording: display, rate, span, events, integrity");
   info->add_option("FILE", info_path, ".fgr or .csv file")->required()->check(CLI::ExistingFile);
 
+  auto* reload = app.add_subcommand(
+      "reload", "make the daemon reload its configuration and calibration (as SIGHUP; subscribers stay connected)");
+  std::string control_record_path;
+  auto* record_start =
+      app.add_subcommand("record-start", "make the daemon record what it publishes to PATH on its machine");
+  record_start->add_option("PATH", control_record_path,
+                           "new .fgr file, at most 63 bytes; relative to the daemon's working directory "
+                           "(/var/lib/fovea for the service)")
+      ->required();
+  auto* record_stop = app.add_subcommand("record-stop", "make the daemon stop the recording it is writing");
+
+  // classify: offline eye-movement classification (trackerd/CLASSIFY.md)
+  std::string cls_in, cls_out, cls_method = fovea::trackerd::classify::classifiers().front().name;
+  double cls_rate = 0, cls_w_mm = 0, cls_h_mm = 0, cls_dist_mm = 0;
+  std::uint32_t cls_w_px = 0, cls_h_px = 0;
+  bool cls_force = false;
+  auto* classify = app.add_subcommand("classify", "label every gaze sample of a CSV (t_ms,x_px,y_px) as fixation, "
+                                                  "saccade, pso, pursuit, blink, lost or unknown");
+  classify->add_option("IN", cls_in, "input CSV with header t_ms,x_px,y_px (nan marks a lost sample)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  classify->add_option("OUT", cls_out, "output CSV t_ms,label, one row per input row (refuses to overwrite)")
+      ->required();
+  classify->add_option("RATE_HZ", cls_rate, "nominal sample rate, Hz")->required();
+  classify->add_option("SCREEN_W_PX", cls_w_px, "screen width, pixels")->required();
+  classify->add_option("SCREEN_H_PX", cls_h_px, "screen height, pixels")->required();
+  classify->add_option("SCREEN_W_MM", cls_w_mm, "screen width, millimetres")->required();
+  classify->add_option("SCREEN_H_MM", cls_h_mm, "screen height, millimetres")->required();
+  classify->add_option("DIST_MM", cls_dist_mm, "eye-to-screen distance, millimetres")->required();
+  {
+    std::vector<std::string> names;
+    std::string help = "classification method:";
+    for (const auto& m : fovea::trackerd::classify::classifiers()) {
+      names.push_back(m.name);
+      help += "\n  " + m.name + (names.size() == 1 ? " (default)" : "") + ": " + m.summary;
+    }
+    classify->add_option("--method", cls_method, help)->check(CLI::IsMember(names))->capture_default_str();
+  }
+  classify->add_flag("--force", cls_force, "replace OUT if it exists");
+
   CLI11_PARSE(app, argc, argv);
 
   struct sigaction sa {};
@@ -358,5 +580,12 @@ int main(int argc, char** argv) {
   if (record->parsed()) return cmd_record(c, record_path, append);
   if (convert->parsed()) return cmd_convert(in_path, out_path, force);
   if (info->parsed()) return cmd_info(info_path);
+  if (classify->parsed()) {
+    return cmd_classify(cls_in, cls_out, cls_rate, cls_w_px, cls_h_px, cls_w_mm, cls_h_mm, cls_dist_mm, cls_method,
+                        cls_force);
+  }
+  if (reload->parsed()) return cmd_control(c, ControlCommand::Reload, "");
+  if (record_start->parsed()) return cmd_control(c, ControlCommand::StartRecording, control_record_path);
+  if (record_stop->parsed()) return cmd_control(c, ControlCommand::StopRecording, "");
   return 2;
 }

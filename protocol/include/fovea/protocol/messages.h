@@ -32,8 +32,10 @@ enum class MessageType : std::uint8_t {
   TimeSyncRequest = 11,
   TimeSyncReply = 12,
   Error = 13,
+  ControlRequest = 14,
+  ControlReply = 15,
 };
-inline constexpr std::uint8_t kMaxMessageType = 13;
+inline constexpr std::uint8_t kMaxMessageType = 15;
 const char* to_string(MessageType t);
 
 // Subscription stream bits.
@@ -212,8 +214,32 @@ struct Error {
   friend bool operator==(const Error&, const Error&) = default;
 };
 
+// Operator commands (a compatible v1 extension): executed only for requests from the server's
+// control allow-list (default: loopback); everyone else gets result Refused.
+enum class ControlCommand : std::uint8_t { Reload = 1, StartRecording = 2, StopRecording = 3 };
+inline constexpr std::uint8_t kMaxControlCommand = 3;
+const char* to_string(ControlCommand c);  // "reload", "record-start", "record-stop"
+
+enum class ControlResult : std::uint8_t { Ok = 0, Refused = 1, Failed = 2 };
+inline constexpr std::uint8_t kMaxControlResult = 2;
+const char* to_string(ControlResult r);  // "ok", "refused", "failed"
+
+struct ControlRequest {
+  ControlCommand command = ControlCommand::Reload;
+  FixedString<64> argument;  // StartRecording: the recording path; otherwise empty
+  friend bool operator==(const ControlRequest&, const ControlRequest&) = default;
+};
+
+struct ControlReply {
+  ControlCommand command = ControlCommand::Reload;  // echoed from the request
+  ControlResult result = ControlResult::Ok;
+  FixedString<64> message;  // what happened, for people (e.g. "recording to /var/lib/fovea/a.fgr")
+  friend bool operator==(const ControlReply&, const ControlReply&) = default;
+};
+
 using Payload = std::variant<Hello, Challenge, Subscribe, Subscribed, Heartbeat, Unsubscribe, GazeSample,
-                             GazeEvent, StatusRequest, StatusReply, TimeSyncRequest, TimeSyncReply, Error>;
+                             GazeEvent, StatusRequest, StatusReply, TimeSyncRequest, TimeSyncReply, Error,
+                             ControlRequest, ControlReply>;
 
 MessageType type_of(const Payload& p);
 

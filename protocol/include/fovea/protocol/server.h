@@ -27,6 +27,19 @@ struct MulticastTarget {
 // "GROUP:PORT"; throws std::invalid_argument when GROUP is not in 224.0.0.0/4 or PORT is missing.
 MulticastTarget parse_multicast(const std::string& text);
 
+// An IPv4 network in CIDR notation ("127.0.0.0/8", "192.168.1.20/32", or a bare address = /32).
+struct Ipv4Cidr {
+  std::uint32_t network = 0;  // host byte order, host bits cleared
+  std::uint8_t prefix = 32;   // 0..32
+  bool contains(std::uint32_t ip) const;
+  std::string to_string() const;
+  friend bool operator==(const Ipv4Cidr&, const Ipv4Cidr&) = default;
+};
+// Throws std::invalid_argument naming the text and the expected form. Host bits set below the
+// prefix ("10.1.2.3/8") are an error: they usually mean a typo in the prefix length.
+Ipv4Cidr parse_cidr(const std::string& text);
+bool allowed(const std::vector<Ipv4Cidr>& list, std::uint32_t ip);
+
 struct ServerOptions {
   Endpoint listen{0x7F000001, kDefaultPort};  // 127.0.0.1:47800
   std::uint32_t default_lease_ms = 5000;
@@ -38,6 +51,8 @@ struct ServerOptions {
   DisplayGeometry display;
   double nominal_rate_hz = 0;
   std::string source_name;
+  // Who may send CONTROL_REQUEST; everyone else is refused and counted. Default: loopback only.
+  std::vector<Ipv4Cidr> control_allow{Ipv4Cidr{0x7F000000, 8}};
 };
 
 struct SubscriberInfo {
@@ -57,8 +72,14 @@ struct ServerStats {
   std::uint64_t requests_refused = 0;    // decoded, answered with ERROR
   std::uint64_t unexpected_messages = 0; // decoded but not a request (e.g. a GAZE_SAMPLE sent to us)
   std::uint64_t leases_expired = 0;
+  std::uint64_t control_requests = 0;  // CONTROL_REQUEST from allowed addresses (handled or failed)
+  std::uint64_t control_refused = 0;   // CONTROL_REQUEST from outside the allow-list, never executed
   std::size_t subscribers = 0;
 };
+
+// Executes an operator command; called on the server's control thread without the server's lock
+// held (so it may call the server's setters), only for requests from allowed addresses.
+using ControlHandler = std::function<ControlReply(const ControlRequest&, const Endpoint& from)>;
 
 class GazeServer {
  public:
@@ -79,6 +100,13 @@ class GazeServer {
   void set_source_state(SourceState s) { source_state_.store(s); }
   void set_display(const DisplayGeometry& g);
   void set_nominal_rate(double hz);
+  // Live changes (e.g. on a configuration reload); existing sessions keep their address and
+  // sequence numbers and lease. A lower max_subscribers refuses new sessions but drops none; a new
+  // default lease applies to subscriptions that do not ask for a lease of their own from now on.
+  void set_limits(std::uint32_t default_lease_ms, std::size_t max_subscribers);
+  void set_control_allow(std::vector<Ipv4Cidr> allow);
+  std::vector<Ipv4Cidr> control_allow() const;
+  void on_control(ControlHandler handler);
   ServerStats stats() const;
   std::vector<SubscriberInfo> subscribers() const;
   const DecodeCounters& decode_counters() const { return rejected_; }
@@ -90,6 +118,7 @@ class GazeServer {
  private:
   void control_loop();
   void handle(const Message& m, const Endpoint& from, std::int64_t received_ns);
+  void handle_control(const Message& m, const Endpoint& from);
   void reply(const Endpoint& to, std::uint64_t sequence, Payload payload, std::int64_t origin_ns = 0);
   void refuse(const Endpoint& to, std::uint64_t sequence, MessageType request, ErrorCode code);
   void expire_leases(std::int64_t now_ns);
@@ -110,6 +139,16 @@ class GazeServer {
   ServerStats stats_;
   std::vector<Endpoint> targets_;  // scratch for publish
   std::function<void(const SubscriberInfo&, const char*)> on_change_;
+  ControlHandler on_control_;
+  // Replies to the last few control requests, so a retransmitted request (its reply was lost) is
+  // answered again instead of executed twice.
+  struct RecentControl {
+    Endpoint from;
+    std::uint64_t sequence = 0;
+    ControlRequest request;
+    ControlReply reply;
+  };
+  std::vector<RecentControl> recent_control_;  // control thread only
 
   DecodeCounters rejected_;
   std::atomic<bool> running_{true};

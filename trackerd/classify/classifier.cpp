@@ -1,0 +1,102 @@
+#include "classify/classifier.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "classify/pipeline.h"
+
+namespace fovea::trackerd::classify {
+
+const char* to_string(Label l) {
+  switch (l) {
+    case Label::Fixation: return "fixation";
+    case Label::Saccade: return "saccade";
+    case Label::Pso: return "pso";
+    case Label::Pursuit: return "pursuit";
+    case Label::Blink: return "blink";
+    case Label::Lost: return "lost";
+    case Label::Unknown: return "unknown";
+  }
+  return "unknown";
+}
+
+const std::vector<ClassifierInfo>& classifiers() {
+  static const std::vector<ClassifierInfo> all = {
+      {"ivvt",
+       "I-VVT (Komogortsev & Karpov 2013): saccades by a noise-adaptive velocity threshold with onset/offset "
+       "and PSO detection after Nystrom & Holmqvist 2010; pursuit vs fixation by low-pass velocity as in "
+       "REMoDNaV (Dar et al. 2021); gap fill-in 75 ms"},
+      {"ivt",
+       "I-VT after the Tobii I-VT filter (Olsen 2012): 20 ms velocity window, 30 deg/s, gap fill-in 75 ms, "
+       "merge fixations within 75 ms and 0.5 deg, discard fixations under 60 ms"},
+      {"idt", "I-DT (Salvucci & Goldberg 2000): dispersion <= 1.0 deg over >= 100 ms is a fixation, else saccade"},
+      {"lee2009",
+       "Lee 2009 sec. 3.5.2 (the seed's rule): normalized speed per 60 Hz frame < 0.03 fixation, > 0.1 saccade, "
+       "between drift (labelled pursuit); pupil aspect < 0.7 blink"},
+  };
+  return all;
+}
+
+namespace {
+
+std::string known_names() {
+  std::string s;
+  for (const auto& c : classifiers()) s += (s.empty() ? "" : ", ") + c.name;
+  return s;
+}
+
+}  // namespace
+
+std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const ClassifierOptions& options) {
+  if (!std::isfinite(options.nominal_rate_hz) || options.nominal_rate_hz <= 0) {
+    throw std::invalid_argument("classifier " + name + ": nominal rate " + std::to_string(options.nominal_rate_hz) +
+                                " Hz is not a positive number");
+  }
+  if (const std::string err = protocol::validate(options.display); !err.empty()) {
+    throw std::invalid_argument("classifier " + name + ": display geometry: " + err);
+  }
+  const FrontendOptions standard;  // 75 ms gap fill-in, blink for losses up to 0.5 s
+  if (name == "ivvt") return std::make_unique<Pipeline>(name, standard, make_ivvt_core());
+  if (name == "ivt") return std::make_unique<Pipeline>(name, standard, make_ivt_core());
+  if (name == "idt") return std::make_unique<Pipeline>(name, standard, make_idt_core());
+  if (name == "lee2009") {
+    // The seed's rule as published: no fill-in, blinks only from the pupil aspect ratio.
+    FrontendOptions lee;
+    lee.gap_fill_max_s = 0;
+    lee.loss_blink_max_s = 0;
+    return std::make_unique<Pipeline>(name, lee, make_lee_core(options.display));
+  }
+  throw std::invalid_argument("unknown classification method \"" + name + "\" (known: " + known_names() + ")");
+}
+
+std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, double nominal_rate_hz) {
+  ClassifierOptions o;
+  o.nominal_rate_hz = nominal_rate_hz;
+  return make_classifier(name, o);
+}
+
+std::vector<Label> classify_all(const std::string& name, const ClassifierOptions& options,
+                                const std::vector<Sample>& samples) {
+  auto c = make_classifier(name, options);
+  std::vector<Label> labels(samples.size(), Label::Unknown);
+  std::vector<Labeled> out;
+  const auto take = [&] {
+    for (const Labeled& l : out) labels.at(l.index) = l.label;
+    out.clear();
+  };
+  for (const Sample& s : samples) {
+    c->push(s, out);
+    take();
+  }
+  c->flush(out);
+  take();
+  return labels;
+}
+
+std::vector<Label> classify_all(const std::string& name, double nominal_rate_hz, const std::vector<Sample>& samples) {
+  ClassifierOptions o;
+  o.nominal_rate_hz = nominal_rate_hz;
+  return classify_all(name, o, samples);
+}
+
+}  // namespace fovea::trackerd::classify

@@ -1,0 +1,28 @@
+#pragma once
+// Measuring a classifier against ground truth, and degrading clean data the way real trackers do
+// (used by the benchmark and the tests; no dependency on any source).
+#include <array>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "classify/classifier.h"
+
+namespace fovea::trackerd::classify {
+
+// Cohen's kappa of one class against the rest (sample level): kappa = (p_o - p_e) / (1 - p_e).
+// NaN when the class occurs in neither sequence or in every sample of both (kappa undefined).
+double class_kappa(const std::vector<Label>& truth, const std::vector<Label>& predicted, Label c);
+// Cohen's kappa over all seven labels at once.
+double overall_kappa(const std::vector<Label>& truth, const std::vector<Label>& predicted);
+
+struct Degradation {
+  double extra_noise_deg = 0;      // added gaussian noise, per axis, degrees (RMS)
+  double dropouts_per_s = 0;       // Poisson rate of runs of lost samples
+  double dropout_mean_s = 0.020;   // mean length of a run (exponential), capped at 10x
+  std::uint64_t seed = 7;
+};
+// Adds noise and drops runs of samples to invalid (x, y set to NaN). Times are untouched.
+void degrade(std::vector<Sample>& samples, const Degradation& d);
+
+}  // namespace fovea::trackerd::classify

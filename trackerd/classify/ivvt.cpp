@@ -1,0 +1,306 @@
+// The default method: I-VVT, velocity-velocity threshold identification (Komogortsev & Karpov 2013,
+// "Automated classification and scoring of smooth pursuit eye movements in the presence of
+// fixations and saccades", Behav Res Methods 45:203-215): a high velocity threshold separates
+// saccades; among the rest, a low velocity threshold separates pursuit from fixation. Fixed
+// thresholds break across trackers (a 60 Hz remote tracker's noise velocity exceeds a lab tracker's
+// pursuit), so both thresholds here adapt to the measured noise, and the saccade detector carries
+// onset/offset and post-saccadic oscillation (PSO) handling:
+//
+//  1. Velocity: least-squares slope over a 20 ms window centred on the sample (at least one
+//     neighbour each side) -- a first-order Savitzky-Golay differentiator, as in Nystrom &
+//     Holmqvist 2010 and REMoDNaV (19 ms).
+//  2. Noise: sigma, the tracker's per-axis position noise, from the median absolute deviation of
+//     each sample from the line through its neighbours (a robust second difference, insensitive to
+//     saccades and linear motion), over the last 1 s. The velocity noise of a sample is then
+//     sigma_v = sigma / sqrt(sum (t - mean t)^2) over its window.
+//  3. Saccades (Nystrom & Holmqvist 2010, with Engbert & Kliegl 2003's lambda = 6): a peak above
+//     max(30 deg/s, 6 sigma_v); onset walks back while the velocity falls and stays above half the
+//     peak threshold (their onset:peak ratio 3 sigma : 6 sigma); offset is the first sample below
+//     that or where the velocity, already under half the saccade's peak, rises again (a local
+//     minimum: the eye has landed, e.g. on a moving target).
+//  4. PSO (Nystrom & Holmqvist 2010; 40 ms as REMoDNaV's max_pso_duration): within 40 ms after the
+//     offset, a renewed rise of the velocity above the offset velocity + max(3 sigma_v, 5 deg/s)
+//     (N&H 2010 use the local noise level, mean + 3 SD, as the PSO threshold)
+//     marks the samples from the offset to the last such sample as PSO -- also when the rise passes
+//     the peak threshold (their "high-velocity PSO"): no new saccade starts within those 40 ms.
+//  5. Pursuit vs fixation (REMoDNaV, Dar, Wagner & Hanke 2021: a velocity threshold on low-pass
+//     filtered gaze, 2 deg/s): the least-squares slope over +-100 ms of the surrounding
+//     inter-saccadic samples (a low-pass filter with its first zero at 5 Hz, close to REMoDNaV's
+//     4 Hz) must exceed max(2 deg/s, 3 x its own noise sigma / sqrt(sum (t - mean t)^2)); the
+//     second term keeps a noisy or short stretch from passing for pursuit.
+//
+// Latency: the velocity window (10 ms) plus the pursuit window (100 ms) = 110 ms in this core; the
+// saccade onset walk-back and the PSO window (40 ms) fit inside it.
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+
+#include "classify/pipeline.h"
+
+namespace fovea::trackerd::classify {
+namespace {
+
+constexpr double kVelHalfS = 0.010;        // 20 ms velocity window (Nystrom & Holmqvist 2010; Olsen 2012)
+constexpr double kPeakFloorDegS = 30.0;    // lowest saccade peak threshold (the I-VT standard, Olsen 2012)
+constexpr double kPeakK = 6.0;             // Engbert & Kliegl 2003 lambda; Nystrom & Holmqvist 2010: mean + 6 SD
+constexpr double kOnsetRatio = 0.5;        // Nystrom & Holmqvist 2010: onset at 3 SD vs peak at 6 SD
+constexpr double kPsoMaxS = 0.040;         // Nystrom & Holmqvist 2010; REMoDNaV max_pso_duration
+constexpr double kPsoK = 3.0;              // a renewed rise of 3 sigma_v counts as an oscillation
+constexpr double kPsoMinRiseDegS = 5.0;    // ... and at least this much (ignores drift-sized wiggles)
+constexpr double kSmoothHalfS = 0.100;     // pursuit low-pass window (REMoDNaV: 4 Hz low-pass)
+constexpr double kPursuitFloorDegS = 2.0;  // REMoDNaV pursuit_velthresh
+constexpr double kPursuitK = 3.0;          // slope must exceed 3 standard errors of noise
+constexpr double kNoiseWindowS = 1.0;      // trailing window of the noise estimate
+constexpr double kNoisePriorDeg = 0.05;    // until 16 residuals are in: a typical video tracker
+constexpr std::size_t kNoiseMaxResiduals = 4096;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Fit {
+  double vx = 0, vy = 0, stt = 0;
+  std::size_t n = 0;
+};
+
+class IvvtCore final : public Core {
+ public:
+  double latency_s() const override { return kVelHalfS + kSmoothHalfS; }
+
+  void push(const Prepared& p, std::vector<Labeled>& out) override {
+    buf_.push_back(Entry{p});
+    ++count_;
+    newest_t_ = p.t;
+    if (!p.has_gaze()) {
+      while (vel_next_ + 1 < count_) compute_velocity(vel_next_++);
+      close_pso();
+      state_ = State::Idle;
+      vel_next_ = count_;
+      break_upto_ = count_;
+    } else {
+      while (vel_next_ < count_ && at(vel_next_).p.t + kVelHalfS < newest_t_) compute_velocity(vel_next_++);
+    }
+    finalize(out, false);
+    trim();
+  }
+
+  void flush(std::vector<Labeled>& out) override {
+    while (vel_next_ < count_) compute_velocity(vel_next_++);
+    close_pso();
+    state_ = State::Idle;
+    finalize(out, true);
+    trim();
+  }
+
+ private:
+  struct Entry {
+    Prepared p;
+    double v = kNaN;     // speed, deg/s (NaN: no neighbour to differentiate against)
+    double sv = 0;       // velocity noise (sigma_v) at this sample
+    double sigma = 0;    // position noise estimate when the velocity was computed
+    bool marked = false;
+    Label mark = Label::Unknown;  // Saccade or Pso when marked
+  };
+
+  Entry& at(std::uint64_t k) { return buf_[static_cast<std::size_t>(k - base_)]; }
+  bool gaze(std::uint64_t k) { return at(k).p.has_gaze(); }
+
+  // Least-squares slope of x(t), y(t) over entries a..b.
+  Fit fit(std::uint64_t a, std::uint64_t b) {
+    Fit f;
+    double mt = 0, mx = 0, my = 0;
+    for (std::uint64_t j = a; j <= b; ++j) {
+      mt += at(j).p.t;
+      mx += at(j).p.x;
+      my += at(j).p.y;
+    }
+    const double n = static_cast<double>(b - a + 1);
+    mt /= n, mx /= n, my /= n;
+    double sxt = 0, syt = 0;
+    for (std::uint64_t j = a; j <= b; ++j) {
+      const double dt = at(j).p.t - mt;
+      f.stt += dt * dt;
+      sxt += dt * (at(j).p.x - mx);
+      syt += dt * (at(j).p.y - my);
+    }
+    f.n = static_cast<std::size_t>(b - a + 1);
+    if (f.stt > 0) f.vx = sxt / f.stt, f.vy = syt / f.stt;
+    return f;
+  }
+
+  void compute_velocity(std::uint64_t k) {
+    Entry& e = at(k);
+    if (!e.p.has_gaze()) return;
+    const double t = e.p.t;
+    std::uint64_t a = k, b = k;
+    while (a > base_ && gaze(a - 1) && at(a - 1).p.t >= t - kVelHalfS) --a;
+    if (a == k && a > base_ && gaze(a - 1)) --a;
+    while (b + 1 < count_ && gaze(b + 1) && at(b + 1).p.t <= t + kVelHalfS) ++b;
+    if (b == k && b + 1 < count_ && gaze(b + 1)) ++b;
+    add_noise_residual(k);
+    e.sigma = sigma_;
+    if (a != b) {
+      const Fit f = fit(a, b);
+      e.v = std::hypot(f.vx, f.vy);
+      e.sv = f.stt > 0 ? sigma_ / std::sqrt(f.stt) : 0;
+    }
+    saccade_step(k);
+  }
+
+  // --- noise -------------------------------------------------------------------------------------
+  void add_noise_residual(std::uint64_t k) {
+    if (k == base_ || k + 1 >= count_) return;
+    const Prepared &p0 = at(k - 1).p, &p1 = at(k).p, &p2 = at(k + 1).p;
+    if (p0.kind != Prepared::Kind::Gaze || p1.kind != Prepared::Kind::Gaze || p2.kind != Prepared::Kind::Gaze) return;
+    const double w = (p1.t - p0.t) / (p2.t - p0.t);
+    const double c = std::sqrt(1 + w * w + (1 - w) * (1 - w));  // residual SD in units of sigma
+    residuals_.push_back({p1.t, std::abs(p1.x - (p0.x + w * (p2.x - p0.x))) / c});
+    residuals_.push_back({p1.t, std::abs(p1.y - (p0.y + w * (p2.y - p0.y))) / c});
+    while (!residuals_.empty() && (residuals_.front().first < p1.t - kNoiseWindowS || residuals_.size() > kNoiseMaxResiduals)) {
+      residuals_.pop_front();
+    }
+    if (residuals_.size() >= 16 && ++since_update_ >= std::max<std::size_t>(1, residuals_.size() / 32)) {
+      since_update_ = 0;
+      scratch_.clear();
+      for (const auto& r : residuals_) scratch_.push_back(r.second);
+      auto mid = scratch_.begin() + static_cast<std::ptrdiff_t>(scratch_.size() / 2);
+      std::nth_element(scratch_.begin(), mid, scratch_.end());
+      sigma_ = *mid / 0.6745;  // MAD of a zero-mean normal
+    }
+  }
+
+  // --- saccades and PSO ----------------------------------------------------------------------------
+  enum class State : std::uint8_t { Idle, Saccade, Pso };
+
+  void mark(std::uint64_t k, Label l) {
+    at(k).marked = true;
+    at(k).mark = l;
+  }
+
+  void close_pso() {
+    if (state_ != State::Pso) return;
+    if (pso_has_above_) {
+      for (std::uint64_t j = std::max(pso_start_, fin_next_); j <= pso_last_above_; ++j) {
+        if (gaze(j) && !at(j).marked) mark(j, Label::Pso);
+      }
+    }
+    state_ = State::Idle;
+  }
+
+  void saccade_step(std::uint64_t k) {
+    const Entry& e = at(k);
+    if (std::isnan(e.v)) {
+      close_pso();
+      state_ = State::Idle;
+      return;
+    }
+    const double peak_thr = std::max(kPeakFloorDegS, kPeakK * e.sv);
+    const double onset_thr = kOnsetRatio * peak_thr;
+    if (state_ == State::Pso) {
+      if (e.p.t > pso_end_t_) {
+        close_pso();  // window over: handled below as idle
+      } else {
+        // Fast oscillations count too (N&H 2010's "high-velocity PSO"): no saccade follows
+        // another within 40 ms.
+        if (e.v > pso_thr_) {
+          pso_has_above_ = true;
+          pso_last_above_ = k;
+        }
+        return;
+      }
+    }
+    if (state_ == State::Saccade) {
+      const bool offset = e.v < onset_thr || (prev_v_ < 0.5 * peak_v_ && e.v > prev_v_ + e.sv);
+      if (!offset) {
+        mark(k, Label::Saccade);
+        peak_v_ = std::max(peak_v_, e.v);
+        prev_v_ = e.v;
+        return;
+      }
+      state_ = State::Pso;
+      pso_start_ = k;
+      pso_end_t_ = e.p.t + kPsoMaxS;
+      pso_thr_ = e.v + std::max(kPsoK * e.sv, kPsoMinRiseDegS);
+      pso_has_above_ = false;
+      return;
+    }
+    if (e.v > peak_thr) {
+      mark(k, Label::Saccade);
+      // Onset: walk back down the rising flank (still unlabelled samples only).
+      for (std::uint64_t j = k; j > fin_next_ && j > base_;) {
+        --j;
+        const Entry& q = at(j);
+        const Entry& r = at(j + 1);
+        if (!q.p.has_gaze() || q.marked || std::isnan(q.v)) break;
+        if (q.v <= kOnsetRatio * std::max(kPeakFloorDegS, kPeakK * q.sv) || q.v > r.v + q.sv) break;
+        mark(j, Label::Saccade);
+      }
+      state_ = State::Saccade;
+      peak_v_ = e.v;
+      prev_v_ = e.v;
+    }
+  }
+
+  // --- fixation vs pursuit, and output -------------------------------------------------------------
+  Label smooth_label(std::uint64_t f) {
+    const double t = at(f).p.t;
+    std::uint64_t a = f, b = f;
+    const auto usable = [&](std::uint64_t j) { return gaze(j) && !at(j).marked; };
+    while (a > base_ && usable(a - 1) && at(a - 1).p.t >= t - kSmoothHalfS) --a;
+    while (b + 1 < vel_next_ && usable(b + 1) && at(b + 1).p.t <= t + kSmoothHalfS) ++b;
+    if (b - a + 1 < 3) return Label::Fixation;
+    const Fit fw = fit(a, b);
+    if (!(fw.stt > 0)) return Label::Fixation;
+    const double threshold = std::max(kPursuitFloorDegS, kPursuitK * at(f).sigma / std::sqrt(fw.stt));
+    return std::hypot(fw.vx, fw.vy) > threshold ? Label::Pursuit : Label::Fixation;
+  }
+
+  void finalize(std::vector<Labeled>& out, bool flushing) {
+    while (fin_next_ < vel_next_) {
+      const Entry& e = at(fin_next_);
+      const bool ready = flushing || fin_next_ < break_upto_ || newest_t_ > e.p.t + kSmoothHalfS + kVelHalfS;
+      if (!ready) break;
+      if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS) close_pso();
+      Label l;
+      if (e.p.kind == Prepared::Kind::Blink) l = Label::Blink;
+      else if (e.p.kind == Prepared::Kind::Lost) l = Label::Lost;
+      else if (e.marked) l = e.mark;
+      else if (std::isnan(e.v)) l = Label::Unknown;
+      else l = smooth_label(fin_next_);
+      out.push_back({e.p.index, l});
+      ++fin_next_;
+    }
+  }
+
+  void trim() {
+    // Keep the pursuit window's history before the next sample to finalize (and its velocity window).
+    const double ref = fin_next_ < count_ ? at(fin_next_).p.t : newest_t_;
+    while (base_ + 1 < fin_next_ && buf_[1].p.t < ref - kSmoothHalfS - kVelHalfS) {
+      buf_.pop_front();
+      ++base_;
+    }
+  }
+
+  std::deque<Entry> buf_;
+  std::uint64_t base_ = 0;       // absolute position of buf_[0]
+  std::uint64_t count_ = 0;      // entries pushed
+  std::uint64_t vel_next_ = 0;   // next entry needing its velocity
+  std::uint64_t fin_next_ = 0;   // next entry to label
+  std::uint64_t break_upto_ = 0; // entries before this precede a loss: nothing after them matters
+  double newest_t_ = 0;
+
+  std::deque<std::pair<double, double>> residuals_;  // (time, |residual| / its SD factor)
+  std::vector<double> scratch_;
+  std::size_t since_update_ = 0;
+  double sigma_ = kNoisePriorDeg;
+
+  State state_ = State::Idle;
+  double peak_v_ = 0, prev_v_ = 0;
+  std::uint64_t pso_start_ = 0, pso_last_above_ = 0;
+  double pso_end_t_ = 0, pso_thr_ = 0;
+  bool pso_has_above_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Core> make_ivvt_core() { return std::make_unique<IvvtCore>(); }
+
+}  // namespace fovea::trackerd::classify

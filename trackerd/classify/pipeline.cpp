@@ -1,0 +1,100 @@
+#include "classify/pipeline.h"
+
+namespace fovea::trackerd::classify {
+
+// --- Frontend ---------------------------------------------------------------------------------
+
+Prepared::Kind Frontend::loss_kind(double t, bool aspect_blink) const {
+  if (aspect_blink) return Prepared::Kind::Blink;  // direct evidence: the lid covers the pupil
+  if (o_.loss_blink_max_s > 0 && have_valid_ && t - last_valid_.t <= o_.loss_blink_max_s) return Prepared::Kind::Blink;
+  return Prepared::Kind::Lost;
+}
+
+void Frontend::release_unfilled(const Emit& emit) {
+  for (Held& h : held_) {
+    h.p.kind = loss_kind(h.p.t, h.aspect_blink);
+    emit(h.p);
+  }
+  held_.clear();
+}
+
+void Frontend::push(std::uint64_t index, const Sample& s, const Emit& emit) {
+  const double t = s.t_s;
+  const bool aspect_blink = std::isfinite(s.pupil_aspect) && s.pupil_aspect > 0 && s.pupil_aspect < o_.blink_aspect;
+  const bool gaze = s.valid && !aspect_blink && std::isfinite(s.x_deg) && std::isfinite(s.y_deg) &&
+                    std::abs(s.x_deg) <= 90 && std::abs(s.y_deg) <= 90;
+  if (gaze) {
+    Prepared p{index, t, s.x_deg, s.y_deg, Prepared::Kind::Gaze};
+    if (!held_.empty()) {
+      // Held samples are only ever a run that may still be bridged (see below): bridge it if this
+      // sample closes it in time, otherwise it is a loss.
+      if (t - last_valid_.t <= o_.gap_fill_max_s) {
+        const double span = t - last_valid_.t;
+        for (Held& h : held_) {
+          const double f = (h.p.t - last_valid_.t) / span;  // Olsen 2012 §2.4: linear interpolation
+          h.p.x = last_valid_.x + f * (p.x - last_valid_.x);
+          h.p.y = last_valid_.y + f * (p.y - last_valid_.y);
+          h.p.kind = Prepared::Kind::Filled;
+          emit(h.p);
+        }
+        held_.clear();
+      } else {
+        release_unfilled(emit);
+      }
+    }
+    emit(p);
+    last_valid_ = p;
+    have_valid_ = true;
+    return;
+  }
+  Held h{Prepared{index, t, 0, 0, Prepared::Kind::Lost}, aspect_blink};
+  const bool may_fill = have_valid_ && o_.gap_fill_max_s > 0 && !aspect_blink && t - last_valid_.t <= o_.gap_fill_max_s;
+  if (may_fill) {
+    held_.push_back(h);
+    return;
+  }
+  release_unfilled(emit);  // the run has outlived the fill-in limit (or holds a blink): a loss
+  h.p.kind = loss_kind(t, aspect_blink);
+  emit(h.p);
+}
+
+void Frontend::flush(const Emit& emit) { release_unfilled(emit); }  // a gap at the end is never bridged
+
+// --- Pipeline ---------------------------------------------------------------------------------
+
+void Pipeline::push(const Sample& s, std::vector<Labeled>& out) {
+  const std::uint64_t index = next_index_++;
+  if (!std::isfinite(s.t_s) || (have_time_ && !(s.t_s > last_t_))) {
+    rejected_.push_back(index);  // time standing still or going backwards: Unknown, ignored otherwise
+  } else {
+    have_time_ = true;
+    last_t_ = s.t_s;
+    accepted_.push_back(index);
+    frontend_.push(index, s, [this](const Prepared& p) { core_->push(p, core_out_); });
+  }
+  forward(out);
+}
+
+void Pipeline::flush(std::vector<Labeled>& out) {
+  frontend_.flush([this](const Prepared& p) { core_->push(p, core_out_); });
+  core_->flush(core_out_);
+  forward(out);
+}
+
+void Pipeline::forward(std::vector<Labeled>& out) {
+  for (const Labeled& l : core_out_) {
+    while (!rejected_.empty() && rejected_.front() < l.index) {
+      out.push_back({rejected_.front(), Label::Unknown});
+      rejected_.pop_front();
+    }
+    out.push_back(l);
+    if (!accepted_.empty() && accepted_.front() == l.index) accepted_.pop_front();
+  }
+  core_out_.clear();
+  while (!rejected_.empty() && (accepted_.empty() || rejected_.front() < accepted_.front())) {
+    out.push_back({rejected_.front(), Label::Unknown});
+    rejected_.pop_front();
+  }
+}
+
+}  // namespace fovea::trackerd::classify

@@ -1,0 +1,118 @@
+#pragma once
+// The shared online machinery every method runs on:
+//
+//   push(Sample) -> [Pipeline: reject bad times] -> [Frontend: lost/blink, gap fill-in] -> [Core: the method]
+//
+// The front end turns raw samples into Prepared samples, in order: gaze (valid), filled (a short gap
+// bridged by linear interpolation, Olsen 2012 §2.4), or a loss (blink or lost, final). A core labels
+// Prepared samples and emits them in order; the pipeline interleaves the samples it rejected.
+// Each stage holds a sample for a bounded time (in sample time), so the whole pipeline's latency is
+// the sum of the stages' bounds.
+#include <cmath>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "classify/classifier.h"
+
+namespace fovea::trackerd::classify {
+
+struct Prepared {
+  enum class Kind : std::uint8_t { Gaze, Filled, Blink, Lost };
+  std::uint64_t index = 0;
+  double t = 0;
+  double x = 0, y = 0;  // degrees from the screen centre (Gaze, Filled)
+  Kind kind = Kind::Gaze;
+  bool has_gaze() const { return kind == Kind::Gaze || kind == Kind::Filled; }
+};
+
+struct FrontendOptions {
+  // Gaps (time from the last valid sample to the next) up to this long are bridged by linear
+  // interpolation; 0 turns fill-in off. Olsen 2012 (Tobii I-VT): 75 ms.
+  double gap_fill_max_s = 0.075;
+  // An unbridged loss of data counts as a blink while it is at most this old (time since the last
+  // valid sample); afterwards, or with no valid sample before it, as lost. 0: never (only the pupil
+  // aspect ratio calls blinks). Blinks last about 100-400 ms; we take 0.5 s as the ceiling.
+  double loss_blink_max_s = 0.5;
+  double blink_aspect = 0.7;  // Lee 2009 §3.5.2: pupil ellipse aspect ratio below this is a blink
+};
+
+class Frontend {
+ public:
+  using Emit = std::function<void(const Prepared&)>;
+  explicit Frontend(FrontendOptions o) : o_(o) {}
+  void push(std::uint64_t index, const Sample& s, const Emit& emit);  // s.t_s already accepted
+  void flush(const Emit& emit);
+  double latency_s() const { return o_.gap_fill_max_s; }
+
+ private:
+  Prepared::Kind loss_kind(double t, bool aspect_blink) const;
+  void release_unfilled(const Emit& emit);
+  struct Held {
+    Prepared p;
+    bool aspect_blink = false;
+  };
+  FrontendOptions o_;
+  bool have_valid_ = false;
+  Prepared last_valid_;
+  std::vector<Held> held_;  // an invalid run that may still be bridged
+};
+
+// A method: labels Prepared samples, emitting (index, label) strictly in input order.
+class Core {
+ public:
+  virtual ~Core() = default;
+  virtual void push(const Prepared& p, std::vector<Labeled>& out) = 0;
+  virtual void flush(std::vector<Labeled>& out) = 0;
+  virtual double latency_s() const = 0;  // the core's own bound, in sample time
+};
+
+class Pipeline final : public OnlineClassifier {
+ public:
+  Pipeline(std::string name, FrontendOptions fo, std::unique_ptr<Core> core)
+      : name_(std::move(name)), frontend_(fo), core_(std::move(core)) {}
+  std::string name() const override { return name_; }
+  double latency_s() const override { return frontend_.latency_s() + core_->latency_s(); }
+  void push(const Sample& s, std::vector<Labeled>& out) override;
+  void flush(std::vector<Labeled>& out) override;
+
+ private:
+  void forward(std::vector<Labeled>& out);  // core output + rejected samples, in index order
+  std::string name_;
+  Frontend frontend_;
+  std::unique_ptr<Core> core_;
+  std::uint64_t next_index_ = 0;
+  bool have_time_ = false;
+  double last_t_ = 0;
+  std::deque<std::uint64_t> rejected_;  // indices of rejected samples not yet emitted
+  std::deque<std::uint64_t> accepted_;  // indices of accepted samples not yet emitted
+  std::vector<Labeled> core_out_;
+};
+
+// --- geometry shared by the methods -------------------------------------------------------------
+
+inline constexpr double kDegToRad = std::numbers::pi / 180.0;
+inline constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+
+// Angle between two gaze directions given as per-axis angles from the screen centre (the same
+// convention as protocol::normalized_to_degrees: the screen point is (tan x, tan y) * distance).
+inline double angle_between_deg(double ax, double ay, double bx, double by) {
+  const double tax = std::tan(ax * kDegToRad), tay = std::tan(ay * kDegToRad);
+  const double tbx = std::tan(bx * kDegToRad), tby = std::tan(by * kDegToRad);
+  // atan2(|a x b|, a . b) is accurate for small angles, where acos is not.
+  const double cx = tay * 1 - 1 * tby, cy = 1 * tbx - tax * 1, cz = tax * tby - tay * tbx;
+  const double cross = std::sqrt(cx * cx + cy * cy + cz * cz);
+  const double dot = tax * tbx + tay * tby + 1;
+  return std::atan2(cross, dot) * kRadToDeg;
+}
+
+// The cores of each method (one file each).
+std::unique_ptr<Core> make_ivt_core();      // ivt.cpp
+std::unique_ptr<Core> make_idt_core();      // idt.cpp
+std::unique_ptr<Core> make_lee_core(const protocol::DisplayGeometry& display);  // lee2009.cpp
+std::unique_ptr<Core> make_ivvt_core();     // ivvt.cpp
+
+}  // namespace fovea::trackerd::classify

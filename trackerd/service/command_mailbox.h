@@ -1,0 +1,85 @@
+#pragma once
+// Hands control commands from the server's control thread to the publishing loop, which owns the
+// daemon's state (recorder, configuration) and executes them between two samples. The caller
+// waits for the result; a command the loop has not picked up within the timeout is withdrawn and
+// reported as not executed, so a reply never claims something that did not (or did) happen.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+
+#include "fovea/protocol/messages.h"
+
+namespace fovea::trackerd::service {
+
+class CommandMailbox {
+ public:
+  // Control thread: queues `request` and waits for the loop to execute it.
+  protocol::ControlReply submit(const protocol::ControlRequest& request, std::chrono::milliseconds timeout) {
+    auto entry = std::make_shared<Entry>(Entry{request, std::nullopt});
+    std::unique_lock lock(mutex_);
+    if (closed_) return failed(request, "the daemon is stopping");
+    queue_.push_back(entry);
+    pending_.store(true);
+    if (!cv_.wait_for(lock, timeout, [&] { return entry->reply.has_value() || closed_; })) {
+      if (const auto it = std::find(queue_.begin(), queue_.end(), entry); it != queue_.end()) {
+        queue_.erase(it);
+        return failed(request, "the daemon is busy; not executed");
+      }
+      cv_.wait(lock, [&] { return entry->reply.has_value() || closed_; });  // running now: wait for it
+    }
+    if (entry->reply) return *entry->reply;
+    return failed(request, "the daemon is stopping");
+  }
+
+  // Publishing loop: true when commands are waiting (cheap; checked between samples).
+  bool pending() const { return pending_.load(std::memory_order_relaxed); }
+
+  // Publishing loop: executes every queued command.
+  void drain(const std::function<protocol::ControlReply(const protocol::ControlRequest&)>& execute) {
+    std::deque<std::shared_ptr<Entry>> work;
+    {
+      std::lock_guard lock(mutex_);
+      work.swap(queue_);
+      pending_.store(false);
+    }
+    for (auto& e : work) {
+      protocol::ControlReply r = execute(e->request);
+      std::lock_guard lock(mutex_);
+      e->reply = std::move(r);
+      cv_.notify_all();
+    }
+  }
+
+  // Publishing loop, on the way out: refuses what is queued and everything after.
+  void close() {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+    queue_.clear();
+    pending_.store(false);
+    cv_.notify_all();
+  }
+
+ private:
+  struct Entry {
+    protocol::ControlRequest request;
+    std::optional<protocol::ControlReply> reply;
+  };
+  static protocol::ControlReply failed(const protocol::ControlRequest& r, const char* why) {
+    protocol::ControlReply out{r.command, protocol::ControlResult::Failed, {}};
+    out.message.value = why;
+    return out;
+  }
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<std::shared_ptr<Entry>> queue_;
+  std::atomic<bool> pending_{false};
+  bool closed_ = false;
+};
+
+}  // namespace fovea::trackerd::service

@@ -1,0 +1,536 @@
+#include "service/config.h"
+
+#include <spdlog/fmt/fmt.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace fovea::trackerd::service {
+
+namespace {
+
+std::string join(const std::vector<std::string>& v, const char* sep = "\n") {
+  std::string out;
+  for (std::size_t i = 0; i < v.size(); ++i) out += (i ? sep : "") + v[i];
+  return out;
+}
+
+const char* type_name(const toml::node& n) {
+  switch (n.type()) {
+    case toml::node_type::table:
+      return "a table";
+    case toml::node_type::array:
+      return "an array";
+    case toml::node_type::string:
+      return "a string";
+    case toml::node_type::integer:
+      return "an integer";
+    case toml::node_type::floating_point:
+      return "a number";
+    case toml::node_type::boolean:
+      return "a boolean";
+    case toml::node_type::date:
+      return "a date";
+    case toml::node_type::time:
+      return "a time";
+    case toml::node_type::date_time:
+      return "a date-time";
+    case toml::node_type::none:
+      break;
+  }
+  return "nothing";
+}
+
+// Collects problems while walking the document; each one names file:line and the dotted key.
+class Checker {
+ public:
+  Checker(std::string origin, std::filesystem::path base_dir)
+      : origin_(std::move(origin)), base_(std::move(base_dir)) {}
+
+  void problem(const toml::source_region& where, const std::string& key, const std::string& what) {
+    problems_.push_back(fmt::format("{}:{}: {}: {}", origin_, where.begin.line, key, what));
+  }
+  const std::vector<std::string>& problems() const { return problems_; }
+
+  // Reports keys of `t` that are not in `allowed`.
+  void only(const toml::table& t, const std::string& prefix, const std::vector<std::string>& allowed) {
+    for (auto&& [k, v] : t) {
+      if (std::find(allowed.begin(), allowed.end(), std::string(k.str())) == allowed.end()) {
+        problem(k.source().begin.line ? k.source() : v.source(), prefix + std::string(k.str()),
+                "unknown key; allowed in " +
+                    (prefix.empty() ? std::string("the top level") : "[" + prefix.substr(0, prefix.size() - 1) + "]") +
+                    ": " + join(allowed, ", "));
+      }
+    }
+  }
+
+  const toml::table* table(const toml::table& parent, const char* name) {
+    const toml::node* n = parent.get(name);
+    if (n == nullptr) return nullptr;
+    if (!n->is_table()) {
+      problem(n->source(), name, std::string("must be a table ([") + name + "]), not " + type_name(*n));
+      return nullptr;
+    }
+    return n->as_table();
+  }
+
+  void string(const toml::table& t, const std::string& prefix, const char* key, std::string& out,
+              const char* allowed = "any text") {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return;
+    if (!n->is_string()) {
+      problem(n->source(), prefix + key,
+              std::string("must be a string, not ") + type_name(*n) + "; allowed: " + allowed);
+      return;
+    }
+    out = n->as_string()->get();
+  }
+
+  void boolean(const toml::table& t, const std::string& prefix, const char* key, bool& out) {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return;
+    if (!n->is_boolean()) {
+      problem(n->source(), prefix + key, std::string("must be true or false, not ") + type_name(*n));
+      return;
+    }
+    out = n->as_boolean()->get();
+  }
+
+  template <typename T>
+  void integer(const toml::table& t, const std::string& prefix, const char* key, T& out, std::int64_t lo,
+               std::int64_t hi) {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return;
+    const std::string allowed = fmt::format("an integer in {}..{}", lo, hi);
+    if (!n->is_integer()) {
+      problem(n->source(), prefix + key,
+              std::string("must be an integer, not ") + type_name(*n) + "; allowed: " + allowed);
+      return;
+    }
+    const std::int64_t v = n->as_integer()->get();
+    if (v < lo || v > hi) {
+      problem(n->source(), prefix + key, fmt::format("{} is out of range; allowed: {}", v, allowed));
+      return;
+    }
+    out = static_cast<T>(v);
+  }
+
+  // A number (integer or float) with lo < v <= hi (lo_open) or lo <= v <= hi.
+  void number(const toml::table& t, const std::string& prefix, const char* key, double& out, double lo, double hi,
+              bool lo_open, const char* unit) {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return;
+    const std::string allowed = fmt::format("a number in {}{}, {}] {}", lo_open ? "(" : "[", lo, hi, unit);
+    double v = 0;
+    if (n->is_integer()) {
+      v = static_cast<double>(n->as_integer()->get());
+    } else if (n->is_floating_point()) {
+      v = n->as_floating_point()->get();
+    } else {
+      problem(n->source(), prefix + key,
+              std::string("must be a number, not ") + type_name(*n) + "; allowed: " + allowed);
+      return;
+    }
+    if (!std::isfinite(v) || (lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) {
+      problem(n->source(), prefix + key, fmt::format("{} is out of range; allowed: {}", v, allowed));
+      return;
+    }
+    out = v;
+  }
+
+  // Resolves a path from the file against the file's directory.
+  std::string path(const std::string& p) const {
+    if (p.empty() || std::filesystem::path(p).is_absolute()) return p;
+    return (base_ / p).lexically_normal().string();
+  }
+
+  std::string origin_;
+
+ private:
+  std::filesystem::path base_;
+  std::vector<std::string> problems_;
+};
+
+// USB ids: an integer (0x046d) or a string of 1-4 hex digits ("046d").
+void usb_id(Checker& c, const toml::table& t, const std::string& prefix, const char* key, std::uint16_t& out) {
+  const toml::node* n = t.get(key);
+  const std::string allowed = "a 16-bit USB id: an integer 0..0xffff (e.g. 0x046d) or a string of 1-4 hex digits";
+  if (n == nullptr) {
+    c.problem(t.source(), prefix + key, "missing; every [[devices]] entry needs vid, pid, kind and name");
+    return;
+  }
+  if (n->is_integer()) {
+    const std::int64_t v = n->as_integer()->get();
+    if (v < 0 || v > 0xFFFF) {
+      c.problem(n->source(), prefix + key, fmt::format("{} is out of range; allowed: {}", v, allowed));
+      return;
+    }
+    out = static_cast<std::uint16_t>(v);
+    return;
+  }
+  if (n->is_string()) {
+    const std::string s = n->as_string()->get();
+    std::string digits = s.rfind("0x", 0) == 0 ? s.substr(2) : s;
+    if (!digits.empty() && digits.size() <= 4 && std::all_of(digits.begin(), digits.end(), [](char ch) {
+          return std::isxdigit(static_cast<unsigned char>(ch)) != 0;
+        })) {
+      out = static_cast<std::uint16_t>(std::stoul(digits, nullptr, 16));
+      return;
+    }
+    c.problem(n->source(), prefix + key, "\"" + s + "\" is not a USB id; allowed: " + allowed);
+    return;
+  }
+  c.problem(n->source(), prefix + key,
+            std::string("must be an integer or a string, not ") + type_name(*n) + "; allowed: " + allowed);
+}
+
+void check_calibration_file(Checker& c, const toml::node& where, const std::string& path) {
+  std::ifstream in(path);
+  if (!in) {
+    c.problem(where.source(), "calibration.file", path + ": cannot read (" + std::strerror(errno) + ")");
+    return;
+  }
+  try {
+    const nlohmann::json doc = nlohmann::json::parse(in);
+    (void)doc;  // step 5 checks the calibration model's fields
+  } catch (const std::exception& e) {
+    c.problem(where.source(), "calibration.file", path + ": not a JSON document (" + e.what() + ")");
+  }
+}
+
+const std::vector<std::string> kLogLevels = {"trace", "debug", "info", "warn", "error"};
+
+DaemonConfig parse_table(const toml::table& doc, Checker& c) {
+  DaemonConfig cfg;
+  cfg.origin = c.origin_;
+  c.only(doc, "", {"source", "display", "network", "record", "calibration", "classifier", "devices", "log"});
+
+  if (const auto* t = c.table(doc, "source")) {
+    c.only(*t, "source.", {"spec", "rate", "seed", "speed", "loop"});
+    c.string(*t, "source.", "spec", cfg.source.spec, "synthetic or replay:FILE");
+    if (cfg.source.spec.empty())
+      c.problem(t->get("spec")->source(), "source.spec", "is empty; allowed: synthetic, replay:FILE");
+    if (cfg.source.spec.rfind("replay:", 0) == 0 && cfg.source.spec.size() > 7) {
+      cfg.source.spec = "replay:" + c.path(cfg.source.spec.substr(7));
+    }
+    c.number(*t, "source.", "rate", cfg.source.rate_hz, 1, 10000, false, "Hz");
+    c.integer(*t, "source.", "seed", cfg.source.seed, 0, std::numeric_limits<std::int64_t>::max());
+    c.number(*t, "source.", "speed", cfg.source.speed, 0, 1000, true, "(1 = real time)");
+    c.boolean(*t, "source.", "loop", cfg.source.loop);
+  }
+
+  if (const auto* t = c.table(doc, "display")) {
+    const std::vector<std::string> keys = {"width_px", "height_px", "width_mm", "height_mm", "distance_mm"};
+    c.only(*t, "display.", keys);
+    bool complete = true;
+    for (const auto& k : keys) {
+      if (!t->contains(k)) {
+        c.problem(t->source(), "display." + k, "missing; a [display] table needs all of " + join(keys, ", "));
+        complete = false;
+      }
+    }
+    protocol::DisplayGeometry g;
+    double w = g.width_m * 1000, h = g.height_m * 1000, d = g.viewing_distance_m * 1000;
+    c.integer(*t, "display.", "width_px", g.width_px, 1, 65536);
+    c.integer(*t, "display.", "height_px", g.height_px, 1, 65536);
+    c.number(*t, "display.", "width_mm", w, 0, 100000, true, "mm");
+    c.number(*t, "display.", "height_mm", h, 0, 100000, true, "mm");
+    c.number(*t, "display.", "distance_mm", d, 0, 100000, true, "mm");
+    g.width_m = w / 1000;
+    g.height_m = h / 1000;
+    g.viewing_distance_m = d / 1000;
+    if (complete) {
+      if (const std::string err = protocol::validate(g); !err.empty()) {
+        c.problem(t->source(), "display", err);
+      } else {
+        cfg.display = g;
+      }
+    }
+  }
+
+  if (const auto* t = c.table(doc, "network")) {
+    c.only(*t, "network.",
+           {"listen", "port", "multicast", "multicast_ttl", "max_subscribers", "lease_ms", "control_allow"});
+    auto& n = cfg.network;
+    c.string(*t, "network.", "listen", n.listen, "a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
+    if (const auto* node = t->get("listen"); node != nullptr && node->is_string()) {
+      try {
+        (void)protocol::parse_endpoint(n.listen, n.port);
+      } catch (const std::exception& e) {
+        c.problem(node->source(), "network.listen",
+                  std::string(e.what()) + "; allowed: a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
+      }
+    }
+    c.integer(*t, "network.", "port", n.port, 1, 65535);
+    c.string(*t, "network.", "multicast", n.multicast, "GROUP:PORT with GROUP in 224.0.0.0/4, or \"\" for none");
+    if (const auto* node = t->get("multicast"); node != nullptr && node->is_string() && !n.multicast.empty()) {
+      try {
+        (void)protocol::parse_multicast(n.multicast);
+      } catch (const std::exception& e) {
+        c.problem(node->source(), "network.multicast", e.what());
+      }
+    }
+    c.integer(*t, "network.", "multicast_ttl", n.multicast_ttl, 0, 255);
+    c.integer(*t, "network.", "max_subscribers", n.max_subscribers, 1, 65536);
+    c.integer(*t, "network.", "lease_ms", n.lease_ms, 200, 600000);
+    if (const toml::node* node = t->get("control_allow")) {
+      const char* allowed =
+          "an array of IPv4 networks A.B.C.D/N, e.g. [\"127.0.0.0/8\", \"192.168.1.0/24\"]; [] allows none";
+      if (!node->is_array()) {
+        c.problem(node->source(), "network.control_allow",
+                  std::string("must be an array, not ") + type_name(*node) + "; allowed: " + allowed);
+      } else {
+        n.control_allow.clear();
+        std::size_t i = 0;
+        for (const toml::node& el : *node->as_array()) {
+          const std::string key = fmt::format("network.control_allow[{}]", i++);
+          if (!el.is_string()) {
+            c.problem(el.source(), key,
+                      std::string("must be a string, not ") + type_name(el) + "; allowed: " + allowed);
+            continue;
+          }
+          try {
+            n.control_allow.push_back(protocol::parse_cidr(el.as_string()->get()));
+          } catch (const std::exception& e) {
+            c.problem(el.source(), key, e.what());
+          }
+        }
+      }
+    }
+  }
+
+  if (const auto* t = c.table(doc, "record")) {
+    c.only(*t, "record.", {"path", "append"});
+    c.string(*t, "record.", "path", cfg.record.path, "a .fgr file name, or \"\" for none");
+    cfg.record.path = c.path(cfg.record.path);
+    c.boolean(*t, "record.", "append", cfg.record.append);
+  }
+
+  if (const auto* t = c.table(doc, "calibration")) {
+    c.only(*t, "calibration.", {"file"});
+    c.string(*t, "calibration.", "file", cfg.calibration.file, "a calibration JSON file, or \"\" for none");
+    cfg.calibration.file = c.path(cfg.calibration.file);
+    if (!cfg.calibration.file.empty()) check_calibration_file(c, *t->get("file"), cfg.calibration.file);
+  }
+
+  if (const auto* t = c.table(doc, "classifier")) {
+    c.only(*t, "classifier.", {"method"});
+    c.string(*t, "classifier.", "method", cfg.classifier.method, "a classifier name (fovea-ctl classify --list)");
+  }
+
+  if (const auto* t = c.table(doc, "log")) {
+    c.only(*t, "log.", {"level"});
+    c.string(*t, "log.", "level", cfg.log_level, "trace, debug, info, warn, error");
+    if (std::find(kLogLevels.begin(), kLogLevels.end(), cfg.log_level) == kLogLevels.end()) {
+      c.problem(t->get("level")->source(), "log.level",
+                "\"" + cfg.log_level + "\" is not a level; allowed: " + join(kLogLevels, ", "));
+      cfg.log_level = "info";
+    }
+  }
+
+  if (const toml::node* node = doc.get("devices")) {
+    if (!node->is_array_of_tables()) {
+      c.problem(node->source(), "devices",
+                std::string("must be an array of tables ([[devices]] entries), not ") + type_name(*node));
+    } else {
+      std::size_t i = 0;
+      for (const toml::node& el : *node->as_array()) {
+        const std::string prefix = fmt::format("devices[{}].", i++);
+        const toml::table& t = *el.as_table();
+        c.only(t, prefix, {"vid", "pid", "kind", "name"});
+        DeviceEntry d;
+        usb_id(c, t, prefix, "vid", d.vid);
+        usb_id(c, t, prefix, "pid", d.pid);
+        c.string(t, prefix, "kind", d.kind, "hid, camera");
+        if (!t.contains("kind")) {
+          c.problem(t.source(), prefix + "kind", "missing; allowed: " + join(kDeviceKinds, ", "));
+        } else if (t.get("kind")->is_string() &&
+                   std::find(kDeviceKinds.begin(), kDeviceKinds.end(), d.kind) == kDeviceKinds.end()) {
+          c.problem(t.get("kind")->source(), prefix + "kind",
+                    "\"" + d.kind + "\" is not a device kind; allowed: " + join(kDeviceKinds, ", "));
+        }
+        c.string(t, prefix, "name", d.name);
+        for (const auto& other : cfg.devices) {
+          if (other.vid == d.vid && other.pid == d.pid) {
+            c.problem(t.source(), prefix + "vid", fmt::format("{:04x}:{:04x} is listed twice", d.vid, d.pid));
+          }
+        }
+        cfg.devices.push_back(d);
+      }
+    }
+  }
+  return cfg;
+}
+
+// A TOML basic string.
+std::string quoted(const std::string& s) {
+  std::string out = "\"";
+  for (const char ch : s) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (ch == '"' || ch == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (u < 0x20 || u == 0x7F) {
+      out += fmt::format("\\u{:04X}", static_cast<unsigned>(u));
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
+}  // namespace
+
+ConfigError::ConfigError(std::vector<std::string> problems)
+    : std::runtime_error(join(problems)), problems_(std::move(problems)) {}
+
+DaemonConfig parse_config(const std::string& text, const std::string& origin, const std::string& base_dir) {
+  toml::table doc;
+  try {
+    doc = toml::parse(text, origin);
+  } catch (const toml::parse_error& e) {
+    throw ConfigError(
+        {fmt::format("{}:{}:{}: {}", origin, e.source().begin.line, e.source().begin.column, e.description())});
+  }
+  Checker c(origin, base_dir);
+  DaemonConfig cfg = parse_table(doc, c);
+  if (!c.problems().empty()) throw ConfigError(c.problems());
+  return cfg;
+}
+
+DaemonConfig load_config(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ConfigError({path + ": cannot read configuration file (" + std::strerror(errno) + ")"});
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::filesystem::path dir = std::filesystem::absolute(path).parent_path();
+  return parse_config(ss.str(), path, dir.string());
+}
+
+void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
+  if (o.source) c.source.spec = *o.source;
+  if (o.rate_hz) c.source.rate_hz = *o.rate_hz;
+  if (o.seed) c.source.seed = *o.seed;
+  if (o.speed) c.source.speed = *o.speed;
+  if (o.loop) c.source.loop = *o.loop;
+  if (o.display) c.display = *o.display;
+  if (o.listen) c.network.listen = *o.listen;
+  if (o.port) c.network.port = *o.port;
+  if (o.multicast) c.network.multicast = *o.multicast;
+  if (o.multicast_ttl) c.network.multicast_ttl = *o.multicast_ttl;
+  if (o.max_subscribers) c.network.max_subscribers = *o.max_subscribers;
+  if (o.lease_ms) c.network.lease_ms = *o.lease_ms;
+  if (o.control_allow) c.network.control_allow = *o.control_allow;
+  if (o.record_path) c.record.path = *o.record_path;
+  if (o.record_append) c.record.append = *o.record_append;
+  if (o.classifier_method) c.classifier.method = *o.classifier_method;
+  if (o.calibration_file) c.calibration.file = *o.calibration_file;
+  if (o.log_level) c.log_level = *o.log_level;
+}
+
+std::string to_toml(const DaemonConfig& c) {
+  std::string out = "# effective configuration (" + c.origin + " + command line)\n";
+  out += "[source]\n";
+  out += "spec = " + quoted(c.source.spec) + "\n";
+  out += fmt::format("rate = {}\nseed = {}\nspeed = {}\nloop = {}\n", c.source.rate_hz, c.source.seed, c.source.speed,
+                     c.source.loop);
+  if (c.display) {
+    const auto& g = *c.display;
+    out += fmt::format("\n[display]\nwidth_px = {}\nheight_px = {}\nwidth_mm = {}\nheight_mm = {}\ndistance_mm = {}\n",
+                       g.width_px, g.height_px, g.width_m * 1000, g.height_m * 1000, g.viewing_distance_m * 1000);
+  } else {
+    out += "\n# [display]: the source's own geometry\n";
+  }
+  const auto& n = c.network;
+  out += "\n[network]\nlisten = " + quoted(n.listen) + fmt::format("\nport = {}\n", n.port);
+  out += "multicast = " + quoted(n.multicast) + "\n";
+  out += fmt::format("multicast_ttl = {}\nmax_subscribers = {}\nlease_ms = {}\n", n.multicast_ttl, n.max_subscribers,
+                     n.lease_ms);
+  std::vector<std::string> nets;
+  for (const auto& a : n.control_allow) nets.push_back(quoted(a.to_string()));
+  out += "control_allow = [" + join(nets, ", ") + "]\n";
+  out += "\n[record]\npath = " + quoted(c.record.path) + fmt::format("\nappend = {}\n", c.record.append);
+  out += "\n[calibration]\nfile = " + quoted(c.calibration.file) + "\n";
+  out += "\n[classifier]\nmethod = " + quoted(c.classifier.method) + "\n";
+  out += "\n[log]\nlevel = " + quoted(c.log_level) + "\n";
+  for (const auto& d : c.devices) {
+    out += fmt::format("\n[[devices]]\nvid = 0x{:04x}\npid = 0x{:04x}\nkind = {}\nname = {}\n", d.vid, d.pid,
+                       quoted(d.kind), quoted(d.name));
+  }
+  return out;
+}
+
+protocol::ServerOptions server_options(const DaemonConfig& c) {
+  protocol::ServerOptions so;
+  so.listen = protocol::parse_endpoint(c.network.listen, c.network.port);
+  so.listen.port = c.network.port;
+  if (!c.network.multicast.empty()) {
+    so.multicast = protocol::parse_multicast(c.network.multicast);
+    so.multicast->ttl = static_cast<std::uint8_t>(c.network.multicast_ttl);
+  }
+  so.default_lease_ms = c.network.lease_ms;
+  so.max_subscribers = c.network.max_subscribers;
+  so.control_allow = c.network.control_allow;
+  return so;
+}
+
+ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
+  ConfigChanges ch;
+  const auto note = [](std::vector<std::string>& to, const char* key, const auto& x, const auto& y) {
+    if (!(x == y)) to.push_back(fmt::format("{} {} -> {}", key, x, y));
+  };
+  const auto text = [](const std::string& s) { return s.empty() ? std::string("(none)") : s; };
+  const auto display = [](const std::optional<protocol::DisplayGeometry>& g) {
+    return g ? protocol::to_string(*g) : std::string("(the source's)");
+  };
+  const auto nets = [](const std::vector<protocol::Ipv4Cidr>& v) {
+    std::vector<std::string> s;
+    for (const auto& n : v) s.push_back(n.to_string());
+    return "[" + join(s, ", ") + "]";
+  };
+  // Live: the daemon applies these without closing its socket or dropping a session.
+  note(ch.live, "display", display(a.display), display(b.display));
+  note(ch.live, "network.lease_ms", a.network.lease_ms, b.network.lease_ms);
+  note(ch.live, "network.max_subscribers", a.network.max_subscribers, b.network.max_subscribers);
+  note(ch.live, "network.control_allow", nets(a.network.control_allow), nets(b.network.control_allow));
+  note(ch.live, "record.path", text(a.record.path), text(b.record.path));
+  note(ch.live, "record.append", a.record.append, b.record.append);
+  note(ch.live, "calibration.file", text(a.calibration.file), text(b.calibration.file));
+  note(ch.live, "classifier.method", text(a.classifier.method), text(b.classifier.method));
+  note(ch.live, "log.level", a.log_level, b.log_level);
+  // Restart: the socket, the source and device discovery are set up once.
+  note(ch.needs_restart, "source.spec", a.source.spec, b.source.spec);
+  note(ch.needs_restart, "source.rate", a.source.rate_hz, b.source.rate_hz);
+  note(ch.needs_restart, "source.seed", a.source.seed, b.source.seed);
+  note(ch.needs_restart, "source.speed", a.source.speed, b.source.speed);
+  note(ch.needs_restart, "source.loop", a.source.loop, b.source.loop);
+  note(ch.needs_restart, "network.listen", a.network.listen, b.network.listen);
+  note(ch.needs_restart, "network.port", a.network.port, b.network.port);
+  note(ch.needs_restart, "network.multicast", text(a.network.multicast), text(b.network.multicast));
+  note(ch.needs_restart, "network.multicast_ttl", a.network.multicast_ttl, b.network.multicast_ttl);
+  if (!(a.devices == b.devices)) {
+    ch.needs_restart.push_back(fmt::format("devices ({} entries -> {})", a.devices.size(), b.devices.size()));
+  }
+  return ch;
+}
+
+DaemonConfig adopt_live(const DaemonConfig& running, const DaemonConfig& next) {
+  DaemonConfig out = next;
+  out.source = running.source;
+  out.network.listen = running.network.listen;
+  out.network.port = running.network.port;
+  out.network.multicast = running.network.multicast;
+  out.network.multicast_ttl = running.network.multicast_ttl;
+  out.devices = running.devices;
+  return out;
+}
+
+}  // namespace fovea::trackerd::service

@@ -1,0 +1,134 @@
+#pragma once
+// fovea-trackerd's configuration: a TOML file (deploy/trackerd.toml documents every key), overridden
+// by command-line flags. Loading is strict: an unknown key, a value of the wrong type or out of range
+// is an error that names the file, the line, the key and what is allowed.
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "fovea/protocol/display_geometry.h"
+#include "fovea/protocol/server.h"
+
+namespace fovea::trackerd::service {
+
+// The file the service unit passes with --config, and the one --check-config checks by default.
+inline constexpr const char* kDefaultConfigPath = "/etc/fovea/trackerd.toml";
+
+struct SourceConfig {
+  std::string spec = "synthetic";  // synthetic | replay:FILE (more kinds come with the hardware sources)
+  double rate_hz = 250;            // synthetic: sample rate, 1..10000
+  std::uint64_t seed = 1;          // synthetic: random seed
+  double speed = 1.0;              // replay: speed factor, (0, 1000]
+  bool loop = false;               // replay: start again at the end
+  friend bool operator==(const SourceConfig&, const SourceConfig&) = default;
+};
+
+struct NetworkConfig {
+  std::string listen = "127.0.0.1";
+  std::uint16_t port = protocol::kDefaultPort;
+  std::string multicast;  // GROUP:PORT, empty: none
+  int multicast_ttl = 1;
+  std::size_t max_subscribers = 256;
+  std::uint32_t lease_ms = 5000;  // default lease for subscribers that do not ask for one
+  std::vector<protocol::Ipv4Cidr> control_allow{protocol::Ipv4Cidr{0x7F000000, 8}};
+  friend bool operator==(const NetworkConfig&, const NetworkConfig&) = default;
+};
+
+struct RecordConfig {
+  std::string path;  // empty: do not record
+  bool append = false;
+  friend bool operator==(const RecordConfig&, const RecordConfig&) = default;
+};
+
+struct CalibrationConfig {
+  std::string file;  // empty: none (identity)
+  friend bool operator==(const CalibrationConfig&, const CalibrationConfig&) = default;
+};
+
+struct ClassifierConfig {
+  std::string method;  // empty: the classify module's default; validated by that module
+  friend bool operator==(const ClassifierConfig&, const ClassifierConfig&) = default;
+};
+
+// A known tracker or eye camera (USB vendor:product), for device discovery and hotplug.
+struct DeviceEntry {
+  std::uint16_t vid = 0;
+  std::uint16_t pid = 0;
+  std::string kind;  // one of kDeviceKinds
+  std::string name;
+  friend bool operator==(const DeviceEntry&, const DeviceEntry&) = default;
+};
+inline const std::vector<std::string> kDeviceKinds = {"hid", "camera"};
+
+struct DaemonConfig {
+  std::string origin = "built-in defaults";  // the file it was read from, for messages
+  SourceConfig source;
+  std::optional<protocol::DisplayGeometry> display;  // unset: the source's own (synthetic default)
+  NetworkConfig network;
+  RecordConfig record;
+  CalibrationConfig calibration;
+  ClassifierConfig classifier;
+  std::vector<DeviceEntry> devices;
+  std::string log_level = "info";  // trace | debug | info | warn | error
+};
+
+// Every problem found in a configuration file, one per line, each "FILE:LINE: KEY: what is wrong;
+// allowed: ...".
+class ConfigError : public std::runtime_error {
+ public:
+  explicit ConfigError(std::vector<std::string> problems);
+  const std::vector<std::string>& problems() const { return problems_; }
+
+ private:
+  std::vector<std::string> problems_;
+};
+
+// Reads and validates a configuration file. Relative paths in it (record.path, calibration.file)
+// are resolved against the file's directory. Throws ConfigError.
+DaemonConfig load_config(const std::string& path);
+// The same, from text (`origin` names it in messages; relative paths resolve against `base_dir`).
+DaemonConfig parse_config(const std::string& text, const std::string& origin, const std::string& base_dir = ".");
+
+// Command-line values that override the file; unset members leave the file's value.
+struct CliOverrides {
+  std::optional<std::string> source;
+  std::optional<double> rate_hz;
+  std::optional<std::uint64_t> seed;
+  std::optional<double> speed;
+  std::optional<bool> loop;
+  std::optional<protocol::DisplayGeometry> display;
+  std::optional<std::string> listen;
+  std::optional<std::uint16_t> port;
+  std::optional<std::string> multicast;
+  std::optional<int> multicast_ttl;
+  std::optional<std::size_t> max_subscribers;
+  std::optional<std::uint32_t> lease_ms;
+  std::optional<std::vector<protocol::Ipv4Cidr>> control_allow;
+  std::optional<std::string> record_path;
+  std::optional<bool> record_append;
+  std::optional<std::string> classifier_method;
+  std::optional<std::string> calibration_file;
+  std::optional<std::string> log_level;
+};
+void apply_overrides(DaemonConfig& config, const CliOverrides& cli);
+
+// The configuration as a TOML document (what --check-config prints); load_config() reads it back
+// to an equal configuration.
+std::string to_toml(const DaemonConfig& config);
+
+// Server options (listen address, multicast, limits, allow-list) for this configuration; throws
+// std::invalid_argument when the listen address or multicast group cannot be parsed.
+protocol::ServerOptions server_options(const DaemonConfig& config);
+
+// What differs between two configurations, split by whether the running daemon can apply it.
+struct ConfigChanges {
+  std::vector<std::string> live;           // e.g. "network.lease_ms 5000 -> 2000"
+  std::vector<std::string> needs_restart;  // e.g. "network.port 47800 -> 47801"
+};
+ConfigChanges diff(const DaemonConfig& running, const DaemonConfig& next);
+// `next` with every setting that needs a restart taken from `running`: what a reload adopts.
+DaemonConfig adopt_live(const DaemonConfig& running, const DaemonConfig& next);
+
+}  // namespace fovea::trackerd::service
