@@ -6,30 +6,39 @@
 #include <cerrno>
 #include <chrono>
 #include <ctime>
+#include <fstream>
 #include <stdexcept>
+#include <thread>
 
 #include "fovea/protocol/clock.h"
+#include "fovea/protocol/csv.h"
 #include "service/calibration_stage.h"
 #include "service/command_mailbox.h"
 #include "service/systemd_notify.h"
+#include "classify_stage.h"
+#include "sources/frame_capture_source.h"
+#include "sources/hid/hid_source.h"
 #include "sources/replay_source.h"
 #include "sources/synthetic_gaze.h"
+#include "sources/v4l2_camera.h"
+#include "sources/video_file.h"
 
 namespace fovea::trackerd {
 
 using protocol::monotonic_ns;
 
 // ---- sources ---------------------------------------------------------------------------------
-// Seam for the hardware sources (hid, camera:, video:): add the kind to check_source_spec() and
-// build it in make_source().
 
 std::string check_source_spec(const std::string& spec) {
-  if (spec == "synthetic") return {};
-  if (spec.rfind("replay:", 0) == 0) {
-    return spec.size() > 7 ? std::string() : "--source replay:FILE needs a file name";
+  if (spec == "synthetic" || spec == "hid" || spec.rfind("hid:", 0) == 0) return {};
+  for (const char* prefix : {"replay:", "camera:", "video:"}) {
+    const std::size_t n = std::char_traits<char>::length(prefix);
+    if (spec.rfind(prefix, 0) == 0) {
+      return spec.size() > n ? std::string() : "--source " + std::string(prefix) + " needs a file or device name";
+    }
   }
   return "unknown source \"" + spec +
-         "\"; this build supports: synthetic, replay:FILE (camera:, hid and video: come with the hardware sources)";
+         "\"; this build supports: synthetic, replay:FILE, hid[:VID:PID], camera:/dev/videoN, video:FILE";
 }
 
 std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int64_t start_time_ns) {
@@ -46,13 +55,26 @@ std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int
     so.start_time_ns = start_time_ns;
     return std::make_unique<SyntheticGaze>(so);
   }
+  const protocol::DisplayGeometry display = c.display.value_or(protocol::DisplayGeometry{});
+  if (spec == "hid" || spec.rfind("hid:", 0) == 0) return make_hid_source(spec, display);
+  if (spec.rfind("camera:", 0) == 0) return std::make_unique<FrameCaptureSource>(make_camera_source(spec), display);
+  if (spec.rfind("video:", 0) == 0) {
+    return std::make_unique<FrameCaptureSource>(make_video_file_source(spec, true), display);
+  }
   // replay:FILE
   ReplayOptions ro;
   ro.path = spec.substr(7);
   ro.speed = c.source.speed;
   ro.loop = c.source.loop;
   ro.start_time_ns = start_time_ns;
-  auto src = std::make_unique<ReplaySource>(ro);
+  std::unique_ptr<ReplaySource> src;
+  if (ro.path.size() > 4 && ro.path.compare(ro.path.size() - 4, 4, ".csv") == 0) {
+    std::ifstream in(ro.path);
+    if (!in) throw std::runtime_error("cannot open " + ro.path);
+    src = std::make_unique<ReplaySource>(ro, protocol::read_csv(in, ro.path));  // CSV form (RECORDING.md)
+  } else {
+    src = std::make_unique<ReplaySource>(ro);
+  }
   const auto& rep = src->recovery();
   if (!rep.header_valid || rep.damaged_regions > 0 || rep.truncated_tail) {
     spdlog::warn("{}: {}", ro.path, rep.describe());
@@ -85,6 +107,7 @@ class Daemon {
 
   bool start(std::int64_t start_ns);
   void publish(GazeItem item);
+  void send(const GazeItem& item);
   Wake wait_until(std::int64_t due_ns);
   bool attention() const { return (signals_.reload != nullptr && signals_.reload->load()) || mailbox_.pending(); }
   void attend();
@@ -106,8 +129,8 @@ class Daemon {
   service::CommandMailbox mailbox_;
   std::unique_ptr<GazeSource> source_;
   std::unique_ptr<service::CalibrationStage> calibration_;
-  // Seam for the online classifier (trackerd/classify): built from config_.classifier.method,
-  // fed in publish(), rebuilt on reload when the method changes.
+  std::unique_ptr<ClassifyStage> classify_;  // rebuilt on reload when the method changes
+  std::vector<GazeItem> outgoing_;
   std::unique_ptr<protocol::GazeServer> server_;
   std::unique_ptr<protocol::RecordingWriter> recorder_;
   std::string recording_path_;
@@ -115,13 +138,34 @@ class Daemon {
   std::uint64_t control_refused_logged_ = 0;
   std::int64_t next_refusal_check_ns_ = 0;
   int status_ = 0;
+  // A device source can block in next() waiting for data; this thread interrupts it when the loop
+  // must attend (stop, reload, control) or has not ticked the watchdog for 500 ms.
+  std::atomic<std::int64_t> in_next_since_ns_{0};
+  std::atomic<bool> watcher_stop_{false};
+  std::thread watcher_;
+  void watch_source();
 };
+
+void Daemon::watch_source() {
+  while (!watcher_stop_.load()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const std::int64_t since = in_next_since_ns_.load();
+    if (since != 0 && (stopping() || attention() || monotonic_ns() - since > 500 * kMs)) source_->interrupt();
+  }
+}
 
 bool Daemon::start(std::int64_t start_ns) {
   try {
     source_ = make_source(config_, start_ns);
   } catch (const std::exception& e) {
     spdlog::error("cannot start source: {}", e.what());
+    return false;
+  }
+  try {
+    classify_ = std::make_unique<ClassifyStage>(config_.classifier.method, source_->nominal_rate_hz(),
+                                                config_.display.value_or(source_->display()));
+  } catch (const std::exception& e) {
+    spdlog::error("classifier: {}", e.what());
     return false;
   }
   try {
@@ -172,20 +216,23 @@ bool Daemon::start(std::int64_t start_ns) {
   spdlog::info("serving {} on {} ({} Hz, display {})", source_->description(), server_->local_endpoint().to_string(),
                so.nominal_rate_hz, protocol::to_string(display_));
   if (so.multicast) spdlog::info("also publishing to multicast group {}", so.multicast->group.to_string());
-  spdlog::info("control commands accepted from {}; calibration: {}{}", networks(config_.network.control_allow),
-               calibration_->description(),
-               config_.classifier.method.empty() ? std::string()
-                                                 : "; classifier method " + config_.classifier.method +
-                                                       " (applied once the online classifier is built in)");
+  spdlog::info("control commands accepted from {}; calibration: {}; classifier: {}",
+               networks(config_.network.control_allow), calibration_->description(), classify_->description());
   if (notifier_.watchdog_interval_ns() > 0) {
     spdlog::info("systemd watchdog: pinging every {} ms", notifier_.watchdog_interval_ns() / kMs);
   }
   return true;
 }
 
-// calibration -> (online classifier: step 3 seam) -> publisher -> recorder
+// calibration -> online classifier -> publisher -> recorder
 void Daemon::publish(GazeItem item) {
   calibration_->apply(item);
+  outgoing_.clear();
+  classify_->process(item, outgoing_);
+  for (const GazeItem& out : outgoing_) send(out);
+}
+
+void Daemon::send(const GazeItem& item) {
   const std::uint64_t seq = std::visit([&](const auto& v) { return server_->publish(v); }, item);
   if (recorder_) {
     try {
@@ -357,7 +404,16 @@ protocol::ControlReply Daemon::reload(const std::string& why) {
     }
   }
   if (next.classifier.method != config_.classifier.method) {
-    spdlog::info("classifier method {} (applied once the online classifier is built in)", next.classifier.method);
+    try {
+      outgoing_.clear();
+      classify_->flush(outgoing_);  // close the old classifier's open event before switching
+      for (const GazeItem& pending : outgoing_) send(pending);
+      classify_ = std::make_unique<ClassifyStage>(next.classifier.method, source_->nominal_rate_hz(), display_);
+      spdlog::info("classifier: {}", classify_->description());
+    } catch (const std::exception& e) {
+      spdlog::error("classifier {}: {}; keeping {}", next.classifier.method, e.what(), classify_->description());
+      next.classifier.method = config_.classifier.method;
+    }
   }
   spdlog::set_level(spdlog::level::from_str(next.log_level));
   for (const auto& c : changes.live) spdlog::info("applied: {}", c);
@@ -383,6 +439,16 @@ int Daemon::run() {
   const std::int64_t start_ns = monotonic_ns() + 50 * kMs;
   if (!start(start_ns)) return 2;
   notifier_.ready(status_line());
+  watcher_ = std::thread([this] { watch_source(); });
+  if (run_.wait_subscribers > 0) {
+    // As gpsfake does: hold the source until the expected clients are listening, so they see the
+    // stream from its first sample (regression tests diff what they receive).
+    spdlog::info("waiting for {} subscriber(s) before starting the source", run_.wait_subscribers);
+    while (!stopping() && server_->stats().subscribers < run_.wait_subscribers) {
+      service_tick();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
 
   const std::int64_t end_ns =
       run_.duration_s > 0 ? start_ns + static_cast<std::int64_t>(run_.duration_s * 1e9) : INT64_MAX;
@@ -397,8 +463,17 @@ int Daemon::run() {
       continue;
     }
     if (!item) {
+      in_next_since_ns_.store(monotonic_ns());
       item = source_->next();
+      in_next_since_ns_.store(0);
+      if (!item && !source_->ended()) {  // a device with nothing yet, or interrupted: attend, go on
+        service_tick();
+        continue;
+      }
       if (!item) {
+        outgoing_.clear();
+        classify_->flush(outgoing_);
+        for (const GazeItem& out : outgoing_) send(out);
         source_ended = true;
         server_->set_source_state(protocol::SourceState::Ended);
         spdlog::info("source ended after {} samples", server_->stats().samples_published);
@@ -414,6 +489,8 @@ int Daemon::run() {
     item.reset();
   }
 
+  watcher_stop_ = true;
+  if (watcher_.joinable()) watcher_.join();
   notifier_.stopping();
   mailbox_.close();
   const auto st = server_->stats();

@@ -18,6 +18,7 @@ namespace fovea::trackerd {
 struct RunOptions {
   double duration_s = 0;  // 0: until signalled
   bool exit_when_source_ends = false;
+  std::size_t wait_subscribers = 0;  // hold the source until this many clients have subscribed
 };
 
 // Produces the configuration to adopt on a reload (SIGHUP or the control command): the file read

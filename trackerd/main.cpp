@@ -89,6 +89,8 @@ int main(int argc, char** argv) {
   app.add_option("--duration", run.duration_s, "stop after this many seconds (0: run until signalled)")
       ->capture_default_str();
   app.add_flag("--exit-at-end", run.exit_when_source_ends, "exit when the source ends (default: keep serving status)");
+  app.add_option("--wait-subscribers", run.wait_subscribers,
+                 "start the source only once this many clients have subscribed (regression tests)");
   auto* o_log = app.add_option("--log-level", log_level, "log verbosity")
                     ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
                     ->capture_default_str();

@@ -72,8 +72,8 @@ int main(int argc, char** argv) {
     ++by_state[to_string(s.state)];
     if (s.flags & kGazeValid) {
       ++valid;
-      sx += s.x;
-      sy += s.y;
+      sx += static_cast<double>(s.x);
+      sy += static_cast<double>(s.y);
     }
   }
   std::printf("valid %zu mean_x %.4f mean_y %.4f\n", valid, valid ? sx / static_cast<double>(valid) : 0.0,

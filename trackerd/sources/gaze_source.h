@@ -21,8 +21,14 @@ class GazeSource {
   virtual std::string description() const = 0;  // e.g. "replay:demo.fgr (x1.0, loop)"
   virtual protocol::DisplayGeometry display() const = 0;
   virtual double nominal_rate_hz() const = 0;
-  // The next item in time order; nullopt when the source has ended.
+  // The next item in time order. nullopt: the source has ended (ended() true), or it has nothing
+  // yet / was interrupted (ended() false) and next() may be called again.
   virtual std::optional<GazeItem> next() = 0;
+  // After next() returned nullopt: is the stream over for good? (files: yes; devices: no)
+  virtual bool ended() const { return true; }
+  // Thread-safe; a source that can block in next() (a device waiting for data) returns nullopt
+  // soon after. One-shot: later next() calls work normally.
+  virtual void interrupt() {}
 };
 
 }  // namespace fovea::trackerd

@@ -349,7 +349,7 @@ bool HidSource::try_reopen() {
 
 std::optional<GazeItem> HidSource::next() {
   std::vector<std::uint8_t> buf;
-  while (!interrupted_.load()) {
+  while (!interrupted_.exchange(false)) {  // one-shot: the next call reads again
     if (!device_) {
       const std::int64_t now = protocol::monotonic_ns();
       if (now >= next_retry_ns_) {

@@ -84,7 +84,8 @@ class HidSource final : public GazeSource {
   std::optional<GazeItem> next() override;
 
   HidSourceStatus status() const;  // thread-safe
-  void interrupt();                // thread-safe: makes next() return nullopt within read_timeout_ms
+  void interrupt() override;       // thread-safe, one-shot: next() returns nullopt within read_timeout_ms
+  bool ended() const override { return false; }  // a device never ends; it is lost and reopened
   const EyeTrackerLayout& layout() const { return decoder_->layout(); }
 
  private:

@@ -1,0 +1,169 @@
+#include "classify_stage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace fovea::trackerd {
+
+using protocol::EventPhase;
+using protocol::EyeMovement;
+using protocol::GazeEvent;
+using protocol::GazeSample;
+
+namespace {
+
+// PSO belongs to the saccade it follows (the wire has no PSO class); lost/unknown make no event.
+EyeMovement to_movement(classify::Label l) {
+  switch (l) {
+    case classify::Label::Fixation: return EyeMovement::Fixation;
+    case classify::Label::Saccade:
+    case classify::Label::Pso: return EyeMovement::Saccade;
+    case classify::Label::Pursuit: return EyeMovement::Pursuit;
+    case classify::Label::Blink: return EyeMovement::Blink;
+    case classify::Label::Lost:
+    case classify::Label::Unknown: return EyeMovement::Unknown;
+  }
+  return EyeMovement::Unknown;
+}
+
+double angle_deg(double ax, double ay, double bx, double by) {
+  const double d2r = M_PI / 180.0;
+  const double tax = std::tan(ax * d2r), tay = std::tan(ay * d2r), tbx = std::tan(bx * d2r), tby = std::tan(by * d2r);
+  const double dot = (tax * tbx + tay * tby + 1) / (std::sqrt(tax * tax + tay * tay + 1) * std::sqrt(tbx * tbx + tby * tby + 1));
+  return std::acos(std::clamp(dot, -1.0, 1.0)) / d2r;
+}
+
+}  // namespace
+
+ClassifyStage::ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display)
+    : method_(method.empty() ? classify::classifiers().front().name : method), display_(display) {
+  if (method_ != "source") {
+    classify::ClassifierOptions o;
+    o.nominal_rate_hz = nominal_rate_hz > 0 ? nominal_rate_hz : 250;
+    classifier_ = classify::make_classifier(method_, o);
+  }
+}
+
+std::string ClassifyStage::description() const {
+  if (!classifier_) return "source (the source's own labels and events are passed through)";
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s (labels final %.0f ms after the sample; sample state trails by that)",
+                method_.c_str(), classifier_->latency_s() * 1000);
+  return buf;
+}
+
+void ClassifyStage::process(const GazeItem& in, std::vector<GazeItem>& out) {
+  if (!classifier_) {
+    out.push_back(in);
+    return;
+  }
+  const auto* sample = std::get_if<GazeSample>(&in);
+  if (sample == nullptr) return;  // the classifier's events replace the source's
+  GazeSample s = *sample;
+  if (!have_origin_) {
+    origin_ns_ = s.tracker_time_ns;
+    have_origin_ = true;
+  }
+  classify::Sample cs;
+  cs.t_s = static_cast<double>(s.tracker_time_ns - origin_ns_) * 1e-9;
+  cs.valid = (s.flags & protocol::kGazeValid) != 0;
+  cs.x_deg = s.x_deg;
+  cs.y_deg = s.y_deg;
+  if (cs.valid && s.angular_velocity_deg_s == 0.0f && have_prev_ && s.tracker_time_ns > prev_t_) {
+    // Sources that report no velocity (HID trackers) get one from consecutive samples.
+    const double v = angle_deg(prev_xd_, prev_yd_, s.x_deg, s.y_deg) / (static_cast<double>(s.tracker_time_ns - prev_t_) * 1e-9);
+    if (std::isfinite(v)) s.angular_velocity_deg_s = static_cast<float>(std::min(v, 5000.0));
+  }
+  if (cs.valid) {
+    have_prev_ = true;
+    prev_xd_ = s.x_deg;
+    prev_yd_ = s.y_deg;
+    prev_t_ = s.tracker_time_ns;
+  }
+  labels_.clear();
+  classifier_->push(cs, labels_);
+  pending_.push_back({s});
+  finalise(labels_, out);
+  s.state = latest_final_;
+  out.insert(out.begin(), GazeItem{s});  // the sample itself goes out first, events (in the past) after
+}
+
+void ClassifyStage::flush(std::vector<GazeItem>& out) {
+  if (!classifier_) return;
+  labels_.clear();
+  classifier_->flush(labels_);
+  finalise(labels_, out);
+  if (run_open_ && have_prev_) close_run(prev_t_, out);
+}
+
+void ClassifyStage::finalise(const std::vector<classify::Labeled>& labels, std::vector<GazeItem>& out) {
+  for (const auto& l : labels) {
+    if (pending_.empty()) break;
+    const GazeSample s = pending_.front().sample;
+    pending_.pop_front();
+    latest_final_ = to_movement(l.label);
+    take(s, latest_final_, out);
+  }
+}
+
+void ClassifyStage::take(const GazeSample& s, EyeMovement kind, std::vector<GazeItem>& out) {
+  if (!run_open_ || kind != run_.kind) {
+    if (run_open_) close_run(s.tracker_time_ns, out);
+    run_ = Run{};
+    run_.kind = kind;
+    run_.start_ns = s.tracker_time_ns;
+    run_open_ = true;
+    if (kind != EyeMovement::Unknown) {
+      GazeEvent e;
+      e.kind = kind;
+      e.phase = EventPhase::Start;
+      e.start_time_ns = s.tracker_time_ns;
+      e.centroid_x = s.x;
+      e.centroid_y = s.y;
+      e.centroid_x_deg = s.x_deg;
+      e.centroid_y_deg = s.y_deg;
+      out.push_back(e);
+    }
+  }
+  if (s.flags & protocol::kGazeValid) {
+    run_.sum_x += static_cast<double>(s.x);
+    run_.sum_y += static_cast<double>(s.y);
+    run_.sum_xd += static_cast<double>(s.x_deg);
+    run_.sum_yd += static_cast<double>(s.y_deg);
+    ++run_.valid;
+    if (!run_.have_first) {
+      run_.first_xd = s.x_deg;
+      run_.first_yd = s.y_deg;
+      run_.have_first = true;
+    }
+    run_.last_xd = s.x_deg;
+    run_.last_yd = s.y_deg;
+    run_.peak_velocity = std::max(run_.peak_velocity, static_cast<double>(s.angular_velocity_deg_s));
+  }
+}
+
+void ClassifyStage::close_run(std::int64_t end_ns, std::vector<GazeItem>& out) {
+  run_open_ = false;
+  if (run_.kind == EyeMovement::Unknown) return;
+  GazeEvent e;
+  e.kind = run_.kind;
+  e.phase = EventPhase::End;
+  e.start_time_ns = run_.start_ns;
+  e.duration_ns = std::max<std::int64_t>(0, end_ns - run_.start_ns);
+  if (run_.valid > 0) {
+    const double n = static_cast<double>(run_.valid);
+    // Saccades report their landing point; the others the mean position.
+    const bool landing = run_.kind == EyeMovement::Saccade;
+    e.centroid_x_deg = static_cast<float>(landing ? run_.last_xd : run_.sum_xd / n);
+    e.centroid_y_deg = static_cast<float>(landing ? run_.last_yd : run_.sum_yd / n);
+    const auto norm = protocol::degrees_to_normalized(display_, {e.centroid_x_deg, e.centroid_y_deg});
+    e.centroid_x = static_cast<float>(norm.x);
+    e.centroid_y = static_cast<float>(norm.y);
+    e.amplitude_deg = static_cast<float>(angle_deg(run_.first_xd, run_.first_yd, run_.last_xd, run_.last_yd));
+    e.peak_velocity_deg_s = static_cast<float>(run_.peak_velocity);
+  }
+  out.push_back(e);
+}
+
+}  // namespace fovea::trackerd

@@ -1,0 +1,60 @@
+#pragma once
+// The daemon's online classification stage: labels each published sample with the classifier's
+// latest final label and builds GAZE_EVENT start/end messages from runs of final labels
+// (centroid, duration, amplitude, peak velocity). With method "source" it passes the source's own
+// labels and events through (the synthetic source's ground truth, a recording's events).
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "classify/classifier.h"
+#include "fovea/protocol/display_geometry.h"
+#include "sources/gaze_source.h"
+
+namespace fovea::trackerd {
+
+class ClassifyStage {
+ public:
+  // Throws std::invalid_argument for an unknown method (listing the known ones).
+  ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display);
+  std::string description() const;
+  bool passthrough() const { return classifier_ == nullptr; }
+  // One item from the source in; the items to publish out (in time order).
+  void process(const GazeItem& in, std::vector<GazeItem>& out);
+  // End of stream: finalises the remaining labels and closes the open event.
+  void flush(std::vector<GazeItem>& out);
+
+ private:
+  struct Pending {
+    protocol::GazeSample sample;
+  };
+  struct Run {
+    protocol::EyeMovement kind = protocol::EyeMovement::Unknown;
+    std::int64_t start_ns = 0;
+    double sum_x = 0, sum_y = 0, sum_xd = 0, sum_yd = 0;
+    std::size_t valid = 0;
+    double first_xd = 0, first_yd = 0, last_xd = 0, last_yd = 0;
+    bool have_first = false;
+    double peak_velocity = 0;
+  };
+  void finalise(const std::vector<classify::Labeled>& labels, std::vector<GazeItem>& out);
+  void take(const protocol::GazeSample& s, protocol::EyeMovement kind, std::vector<GazeItem>& out);
+  void close_run(std::int64_t end_ns, std::vector<GazeItem>& out);
+
+  std::string method_;
+  protocol::DisplayGeometry display_;
+  std::unique_ptr<classify::OnlineClassifier> classifier_;
+  std::deque<Pending> pending_;  // pushed, label not yet final
+  std::vector<classify::Labeled> labels_;
+  std::int64_t origin_ns_ = 0;
+  bool have_origin_ = false;
+  protocol::EyeMovement latest_final_ = protocol::EyeMovement::Unknown;
+  Run run_;
+  bool run_open_ = false;
+  bool have_prev_ = false;
+  double prev_xd_ = 0, prev_yd_ = 0;
+  std::int64_t prev_t_ = 0;
+};
+
+}  // namespace fovea::trackerd
