@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "classify/classifier.h"
+#include "classify/synthetic_labelled.h"
 #include "classify/evaluate.h"
 #include "sources/synthetic_gaze.h"
 
@@ -23,38 +24,10 @@ using namespace fovea::trackerd::classify;
 
 namespace {
 
-struct Labelled {
-  std::vector<Sample> samples;
-  std::vector<Label> truth;
-};
+using Labelled = LabelledGaze;
 
 Labelled synthetic(double rate_hz, double seconds, std::uint64_t seed) {
-  SyntheticGazeOptions o;
-  o.rate_hz = rate_hz;
-  o.seed = seed;
-  SyntheticGaze g(o);
-  Labelled l;
-  const auto n = static_cast<std::size_t>(rate_hz * seconds);
-  while (l.samples.size() < n) {
-    const auto item = g.next();
-    if (!item) break;
-    const auto* s = std::get_if<protocol::GazeSample>(&*item);
-    if (!s) continue;
-    Sample c;
-    c.t_s = static_cast<double>(s->tracker_time_ns) * 1e-9;
-    c.valid = (s->flags & protocol::kGazeValid) != 0;
-    c.x_deg = s->x_deg;
-    c.y_deg = s->y_deg;
-    l.samples.push_back(c);
-    switch (s->state) {
-      case protocol::EyeMovement::Fixation: l.truth.push_back(Label::Fixation); break;
-      case protocol::EyeMovement::Saccade: l.truth.push_back(Label::Saccade); break;
-      case protocol::EyeMovement::Pursuit: l.truth.push_back(Label::Pursuit); break;
-      case protocol::EyeMovement::Blink: l.truth.push_back(Label::Blink); break;
-      case protocol::EyeMovement::Unknown: l.truth.push_back(Label::Unknown); break;
-    }
-  }
-  return l;
+  return synthetic_labelled(rate_hz, seconds, seed);
 }
 
 struct Condition {

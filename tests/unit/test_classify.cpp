@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "classify/classifier.h"
+#include "classify/synthetic_labelled.h"
 #include "classify/evaluate.h"
 #include "sources/synthetic_gaze.h"
 
@@ -94,36 +95,10 @@ double share(const std::vector<Label>& l, std::size_t from, std::size_t to, Labe
 
 // --- labelled synthetic gaze ---------------------------------------------------------------------
 
-struct Labelled {
-  std::vector<Sample> samples;
-  std::vector<Label> truth;
-};
+using Labelled = LabelledGaze;
 
 Labelled synthetic(double rate_hz, double seconds, std::uint64_t seed) {
-  SyntheticGazeOptions o;
-  o.rate_hz = rate_hz;
-  o.seed = seed;
-  SyntheticGaze g(o);
-  Labelled l;
-  const auto n = static_cast<std::size_t>(rate_hz * seconds);
-  while (l.samples.size() < n) {
-    const auto item = g.next();
-    if (!item) break;
-    const auto* s = std::get_if<protocol::GazeSample>(&*item);
-    if (!s) continue;
-    Sample c;
-    c.t_s = static_cast<double>(s->tracker_time_ns) * 1e-9;
-    c.valid = (s->flags & protocol::kGazeValid) != 0;
-    c.x_deg = s->x_deg;
-    c.y_deg = s->y_deg;
-    l.samples.push_back(c);
-    l.truth.push_back(s->state == protocol::EyeMovement::Fixation  ? Label::Fixation
-                      : s->state == protocol::EyeMovement::Saccade ? Label::Saccade
-                      : s->state == protocol::EyeMovement::Pursuit ? Label::Pursuit
-                      : s->state == protocol::EyeMovement::Blink   ? Label::Blink
-                                                                   : Label::Unknown);
-  }
-  return l;
+  return synthetic_labelled(rate_hz, seconds, seed);
 }
 
 // Pushes one sample at a time, checks order and the latency bound after every push.
