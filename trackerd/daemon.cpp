@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <sys/prctl.h>
 
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <ctime>
@@ -17,6 +18,7 @@
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
 #include "sources/frame_capture_source.h"
+#include "sources/hotplug_camera.h"
 #include "sources/hid/hid_source.h"
 #include "sources/replay_source.h"
 #include "sources/synthetic_gaze.h"
@@ -38,7 +40,8 @@ std::string check_source_spec(const std::string& spec) {
     }
   }
   return "unknown source \"" + spec +
-         "\"; this build supports: synthetic, replay:FILE, hid[:VID:PID], camera:/dev/videoN, video:FILE";
+         "\"; this build supports: synthetic, replay:FILE, hid[:VID:PID], camera:/dev/videoN, camera:usb:VID:PID, "
+         "video:FILE";
 }
 
 std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int64_t start_time_ns) {
@@ -56,7 +59,23 @@ std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int
     return std::make_unique<SyntheticGaze>(so);
   }
   const protocol::DisplayGeometry display = c.display.value_or(protocol::DisplayGeometry{});
-  if (spec == "hid" || spec.rfind("hid:", 0) == 0) return make_hid_source(spec, display);
+  // Devices in the configuration's [[devices]] table may be plugged in after start (hotplug).
+  std::vector<KnownDevice> known;
+  for (const auto& d : c.devices) {
+    known.push_back(KnownDevice{d.vid, d.pid, d.kind == "hid" ? UsbDeviceKind::hid : UsbDeviceKind::camera, d.name});
+  }
+  if (spec == "hid" || spec.rfind("hid:", 0) == 0) {
+    std::string lower = spec;
+    for (char& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    bool listed = false;
+    for (const auto& k : known) {
+      listed |= k.kind == UsbDeviceKind::hid && lower == "hid:" + usb_id(k.vid, k.pid);
+    }
+    return make_hid_source(spec, display, listed);
+  }
+  if (spec.rfind("camera:usb:", 0) == 0) {
+    return std::make_unique<FrameCaptureSource>(std::make_unique<HotplugCamera>(spec, known), display);
+  }
   if (spec.rfind("camera:", 0) == 0) return std::make_unique<FrameCaptureSource>(make_camera_source(spec), display);
   if (spec.rfind("video:", 0) == 0) {
     return std::make_unique<FrameCaptureSource>(make_video_file_source(spec, true), display);
@@ -137,6 +156,8 @@ class Daemon {
   protocol::DisplayGeometry display_;  // what clients are told
   std::uint64_t control_refused_logged_ = 0;
   std::int64_t next_refusal_check_ns_ = 0;
+  std::int64_t next_health_check_ns_ = 0;
+  std::string source_problem_;
   int status_ = 0;
   // A device source can block in next() waiting for data; this thread interrupts it when the loop
   // must attend (stop, reload, control) or has not ticked the watchdog for 500 ms.
@@ -268,6 +289,19 @@ void Daemon::attend() {
 
 void Daemon::service_tick() {
   const std::int64_t now = monotonic_ns();
+  if (now >= next_health_check_ns_) {
+    next_health_check_ns_ = now + 200 * kMs;
+    const std::string problem = source_->problem();
+    if (problem != source_problem_) {
+      if (problem.empty()) {
+        spdlog::info("{}: working again", source_->description());
+      } else {
+        spdlog::warn("{}", problem);
+      }
+      source_problem_ = problem;
+      server_->set_source_state(problem.empty() ? protocol::SourceState::Running : protocol::SourceState::Retrying);
+    }
+  }
   notifier_.watchdog_tick(now);
   notifier_.status_tick(now, [&] { return status_line(); });
   if (now >= next_refusal_check_ns_) {
@@ -467,6 +501,7 @@ int Daemon::run() {
       item = source_->next();
       in_next_since_ns_.store(0);
       if (!item && !source_->ended()) {  // a device with nothing yet, or interrupted: attend, go on
+        if (monotonic_ns() >= end_ns) break;
         service_tick();
         continue;
       }

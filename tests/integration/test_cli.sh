@@ -26,6 +26,22 @@ grep -q 'width_px' <<<"$out" || fail "message does not name the field: $out"
 out=$("$CTL" --server 127.0.0.1:1 status 2>&1) && fail "status without daemon succeeded"
 grep -q 'no answer from 127.0.0.1:1' <<<"$out" || fail "unclear message: $out"
 
+echo "== device sources: missing devices are named; known devices are waited for (hotplug)"
+out=$("$TRACKERD" --source camera:/dev/video99 --port $PORT 2>&1) && fail "missing camera accepted"
+grep -q "/dev/video99" <<<"$out" || fail "missing camera message does not name the device: $out"
+out=$("$TRACKERD" --source hid:ffff:fffe --port $PORT 2>&1) && fail "missing HID tracker accepted"
+grep -q "ffff:fffe" <<<"$out" || fail "missing HID message does not name the device: $out"
+printf '[source]\nspec = "hid:ffff:fffe"\n[network]\nport = %d\n[[devices]]\nvid = "0xffff"\npid = "0xfffe"\nkind = "hid"\nname = "test tracker"\n' $PORT >"$WORK/hid.toml"
+"$TRACKERD" --config "$WORK/hid.toml" --duration 3 >"$WORK/hid.log" 2>&1 &
+H=$!
+sleep 1.2
+"$CTL" --server "$SRV" status >"$WORK/hid.status" 2>&1 || fail "daemon waiting for a known HID tracker does not answer status"
+grep -q "retrying" "$WORK/hid.status" || fail "status does not say the tracker is being retried: $(cat "$WORK/hid.status")"
+wait $H || fail "daemon waiting for a known tracker exited with an error: $(tail -3 "$WORK/hid.log")"
+"$TRACKERD" --source camera:usb:ffff:fffe --port $PORT --duration 1 >"$WORK/usbcam.log" 2>&1 \
+  || fail "camera:usb: (waiting for a USB camera) failed: $(tail -3 "$WORK/usbcam.log")"
+grep -q "eye pipeline" "$WORK/usbcam.log" || fail "camera source does not say gaze needs the eye pipeline"
+
 echo "== daemon replays the bundled recording; watch and record run side by side"
 "$TRACKERD" --source "replay:$REC" --port $PORT --loop >"$WORK/daemon.log" 2>&1 &
 DPID=$!; PIDS+=($DPID)

@@ -20,6 +20,10 @@ class FrameCaptureSource final : public GazeSource {
   std::optional<GazeItem> next() override;
   bool ended() const override { return frames_->ended(); }
   FrameSourceStatus status() const { return frames_->status(); }
+  std::string problem() const override {
+    const FrameSourceStatus s = frames_->status();
+    return s.healthy ? std::string() : s.problem;
+  }
 
  private:
   std::unique_ptr<FrameSource> frames_;

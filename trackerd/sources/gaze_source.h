@@ -29,6 +29,9 @@ class GazeSource {
   // Thread-safe; a source that can block in next() (a device waiting for data) returns nullopt
   // soon after. One-shot: later next() calls work normally.
   virtual void interrupt() {}
+  // Empty while the source works; otherwise why not (device missing, busy, lost and being
+  // retried), naming the device. The daemon reports it in its status and logs.
+  virtual std::string problem() const { return {}; }
 };
 
 }  // namespace fovea::trackerd

@@ -185,7 +185,20 @@ struct HidSource::Device {
 HidSource::HidSource(HidSourceOptions options) : options_(std::move(options)) {
   spec_ = parse_hid_spec(options_.spec);
   if (hid_init() != 0) throw std::runtime_error("hidapi initialisation failed: " + hid_error_text(nullptr));
-  open_device();
+  try {
+    open_device();
+  } catch (const std::exception& e) {
+    if (!options_.wait_for_device) throw;
+    // A known device that is not plugged in yet: serve status and open it when it arrives.
+    description_ = options_.spec;
+    display_ = options_.fallback_display;
+    rate_hz_ = options_.assumed_rate_hz;
+    next_retry_ns_ = 0;
+    std::lock_guard lock(status_mutex_);
+    status_.healthy = false;
+    status_.problem = std::string(e.what()) + "; waiting for it to be plugged in; retrying every " +
+                      std::to_string(options_.retry_interval_ms) + " ms";
+  }
 }
 
 HidSource::~HidSource() = default;
@@ -392,10 +405,12 @@ std::optional<GazeItem> HidSource::next() {
 
 namespace fovea::trackerd {
 
-std::unique_ptr<GazeSource> make_hid_source(const std::string& spec, const protocol::DisplayGeometry& fallback_display) {
+std::unique_ptr<GazeSource> make_hid_source(const std::string& spec, const protocol::DisplayGeometry& fallback_display,
+                                            bool wait_for_device) {
   hid::HidSourceOptions options;
   options.spec = spec;
   options.fallback_display = fallback_display;
+  options.wait_for_device = wait_for_device;
   return std::make_unique<hid::HidSource>(options);
 }
 

@@ -64,6 +64,9 @@ struct HidSourceOptions {
   int retry_interval_ms = 1000;
   int read_timeout_ms = 100;   // how often a blocked next() checks interrupt()
   double assumed_rate_hz = 60; // nominal rate when the tracker reports no sampling frequency
+  // A device from the configuration's known-device table may be absent at start: instead of
+  // throwing, the source reports it unhealthy and opens it once it is plugged in (hotplug).
+  bool wait_for_device = false;
 };
 
 class HidSource final : public GazeSource {
@@ -86,6 +89,10 @@ class HidSource final : public GazeSource {
   HidSourceStatus status() const;  // thread-safe
   void interrupt() override;       // thread-safe, one-shot: next() returns nullopt within read_timeout_ms
   bool ended() const override { return false; }  // a device never ends; it is lost and reopened
+  std::string problem() const override {
+    const HidSourceStatus s = status();
+    return s.healthy ? std::string() : s.problem;
+  }
   const EyeTrackerLayout& layout() const { return decoder_->layout(); }
 
  private:
@@ -118,6 +125,7 @@ namespace fovea::trackerd {
 // The factory the daemon's make_source uses for "hid" and "hid:VID:PID" (returns a
 // hid::HidSource; dynamic_cast to reach status() and interrupt()). Throws std::invalid_argument for
 // a malformed spec and std::runtime_error when no usable tracker can be opened.
-std::unique_ptr<GazeSource> make_hid_source(const std::string& spec, const protocol::DisplayGeometry& fallback_display);
+std::unique_ptr<GazeSource> make_hid_source(const std::string& spec, const protocol::DisplayGeometry& fallback_display,
+                                            bool wait_for_device = false);
 
 }  // namespace fovea::trackerd
