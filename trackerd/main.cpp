@@ -49,7 +49,9 @@ int main(int argc, char** argv) {
           ") with the flags applied, print the effective configuration and exit 0, or the problems and exit 1");
   auto* o_source =
       app.add_option("--source", d.source.spec,
-                     "where gaze comes from: 'synthetic' (seeded model viewer) or 'replay:FILE' (a .fgr recording)")
+                     "where gaze comes from: synthetic (seeded model viewer), replay:FILE (.fgr or .csv), "
+                     "hid[:VID:PID] (HID eye tracker), camera:/dev/videoN or camera:usb:VID:PID (eye camera), "
+                     "video:FILE (eye video); cameras and videos need the eye pipeline (step 4) for gaze")
           ->capture_default_str();
   auto* o_port = app.add_option("--port", d.network.port, "UDP port to serve on")->capture_default_str();
   auto* o_listen =
@@ -85,7 +87,9 @@ int main(int argc, char** argv) {
                                  "repeat or separate with commas (default 127.0.0.0/8)")
                       ->delimiter(',');
   auto* o_calibration = app.add_option("--calibration", calibration, "calibration file (JSON)");
-  auto* o_classifier = app.add_option("--classifier", classifier, "online classifier method");
+  auto* o_classifier = app.add_option("--classifier", classifier,
+                                       "online classifier: ivvt (default), ivt, idt, lee2009, or 'source' to pass "
+                                       "the source's own labels and events (trackerd/CLASSIFY.md)");
   app.add_option("--duration", run.duration_s, "stop after this many seconds (0: run until signalled)")
       ->capture_default_str();
   app.add_flag("--exit-at-end", run.exit_when_source_ends, "exit when the source ends (default: keep serving status)");
