@@ -28,10 +28,7 @@ EyeMovement to_movement(classify::Label l) {
 }
 
 double angle_deg(double ax, double ay, double bx, double by) {
-  const double d2r = M_PI / 180.0;
-  const double tax = std::tan(ax * d2r), tay = std::tan(ay * d2r), tbx = std::tan(bx * d2r), tby = std::tan(by * d2r);
-  const double dot = (tax * tbx + tay * tby + 1) / (std::sqrt(tax * tax + tay * tay + 1) * std::sqrt(tbx * tbx + tby * tby + 1));
-  return std::acos(std::clamp(dot, -1.0, 1.0)) / d2r;
+  return protocol::angle_between_deg({ax, ay}, {bx, by});
 }
 
 }  // namespace

@@ -52,6 +52,15 @@ Normalized degrees_to_normalized(const DisplayGeometry& g, Degrees d) {
   return {0.5 + std::tan(ax) * g.viewing_distance_m / g.width_m, 0.5 + std::tan(ay) * g.viewing_distance_m / g.height_m};
 }
 
+double angle_between_deg(Degrees a, Degrees b) {
+  const double tax = std::tan(a.x * kDegToRad), tay = std::tan(a.y * kDegToRad);
+  const double tbx = std::tan(b.x * kDegToRad), tby = std::tan(b.y * kDegToRad);
+  // Directions (tax, tay, 1) and (tbx, tby, 1); atan2(|a x b|, a . b) keeps precision for small
+  // angles, where acos of the normalised dot product does not.
+  const double cx = tay - tby, cy = tbx - tax, cz = tax * tby - tay * tbx;
+  return std::atan2(std::sqrt(cx * cx + cy * cy + cz * cz), tax * tbx + tay * tby + 1) * kRadToDeg;
+}
+
 std::string to_string(const DisplayGeometry& g) {
   char buf[128];
   std::snprintf(buf, sizeof buf, "%ux%u@%.10gx%.10gmm,%.10gmm", g.width_px, g.height_px, g.width_m * 1000.0,

@@ -66,3 +66,17 @@ TEST(DisplayGeometry, ParseAndValidate) {
   zero_area.height_m = 0;
   EXPECT_NE(validate(zero_area).find("height_m"), std::string::npos);
 }
+
+TEST(DisplayGeometry, AngleBetweenGazeDirections) {
+  EXPECT_NEAR(angle_between_deg({0, 0}, {10, 0}), 10.0, 1e-12);
+  EXPECT_NEAR(angle_between_deg({0, -7}, {0, 5}), 12.0, 1e-12);
+  EXPECT_DOUBLE_EQ(angle_between_deg({3, 4}, {3, 4}), 0.0);
+  // Off-axis: compare with the dot product of the two direction vectors.
+  const double d2r = M_PI / 180;
+  const double ax = std::tan(20 * d2r), ay = std::tan(-10 * d2r), bx = std::tan(-5 * d2r), by = std::tan(15 * d2r);
+  const double dot = (ax * bx + ay * by + 1) / (std::sqrt(ax * ax + ay * ay + 1) * std::sqrt(bx * bx + by * by + 1));
+  EXPECT_NEAR(angle_between_deg({20, -10}, {-5, 15}), std::acos(dot) / d2r, 1e-9);
+  // Tiny angles (fixational tremor) keep their precision.
+  EXPECT_NEAR(angle_between_deg({0, 0}, {1e-7, 0}), 1e-7, 1e-15);
+  EXPECT_GT(angle_between_deg({1, 1}, {1 + 1e-7, 1}), 0.0);
+}

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "classify/classifier.h"
+#include "fovea/protocol/display_geometry.h"
 
 namespace fovea::trackerd::classify {
 
@@ -100,13 +101,7 @@ inline constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 // Angle between two gaze directions given as per-axis angles from the screen centre (the same
 // convention as protocol::normalized_to_degrees: the screen point is (tan x, tan y) * distance).
 inline double angle_between_deg(double ax, double ay, double bx, double by) {
-  const double tax = std::tan(ax * kDegToRad), tay = std::tan(ay * kDegToRad);
-  const double tbx = std::tan(bx * kDegToRad), tby = std::tan(by * kDegToRad);
-  // atan2(|a x b|, a . b) is accurate for small angles, where acos is not.
-  const double cx = tay * 1 - 1 * tby, cy = 1 * tbx - tax * 1, cz = tax * tby - tay * tbx;
-  const double cross = std::sqrt(cx * cx + cy * cy + cz * cz);
-  const double dot = tax * tbx + tay * tby + 1;
-  return std::atan2(cross, dot) * kRadToDeg;
+  return protocol::angle_between_deg({ax, ay}, {bx, by});
 }
 
 // The cores of each method (one file each).

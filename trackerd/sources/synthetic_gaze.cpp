@@ -61,12 +61,7 @@ std::vector<double> saccade_profile(double amplitude_deg, double duration_s, dou
 }
 
 double angle_between_deg(double ax, double ay, double bx, double by) {
-  // Gaze directions as unit vectors through the screen points (degrees from centre per axis).
-  const double tax = std::tan(ax * kPi / 180), tay = std::tan(ay * kPi / 180);
-  const double tbx = std::tan(bx * kPi / 180), tby = std::tan(by * kPi / 180);
-  const double na = std::sqrt(tax * tax + tay * tay + 1), nb = std::sqrt(tbx * tbx + tby * tby + 1);
-  const double dot = std::clamp((tax * tbx + tay * tby + 1) / (na * nb), -1.0, 1.0);
-  return std::acos(dot) * 180 / kPi;
+  return protocol::angle_between_deg({ax, ay}, {bx, by});
 }
 
 }  // namespace

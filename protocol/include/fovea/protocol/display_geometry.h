@@ -38,6 +38,10 @@ struct Normalized {
 Degrees normalized_to_degrees(const DisplayGeometry& g, Normalized p);
 Normalized degrees_to_normalized(const DisplayGeometry& g, Degrees d);
 
+// The angle between two gaze directions given as degrees from the screen centre (each the
+// direction through that point of the screen plane), in degrees. Accurate for small angles too.
+double angle_between_deg(Degrees a, Degrees b);
+
 // "1920x1080@531.3x298.9mm,650mm" — the form used on command lines and in CSV headers
 // (millimetres with up to 10 significant digits).
 std::string to_string(const DisplayGeometry& g);
