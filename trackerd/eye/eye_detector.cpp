@@ -1,0 +1,2 @@
+#include "eye/eye_detector.h"
+// Being written (step 4).

@@ -1,0 +1,86 @@
+#pragma once
+// Dark-pupil and corneal-glint detection on infrared eye-camera frames.
+//
+// Pupil: coarse localisation by a centre-surround (Haar-like) dark-blob response on an integral
+// image (Świrski, Bulling & Dodgson 2012, §3.1), edge points found along rays cast from that
+// centre (Starburst: Li, Winfield & Parkhurst 2005, §2.3) with glints masked out, a RANSAC
+// ellipse fit with an image-aware support check rejecting eyelid, eyelash and glint outliers
+// (Świrski 2012 §3.3; Fischler & Bolles 1981), then a least-squares refit on the inliers for a
+// sub-pixel centre. Confidence combines outline contrast, edge support and aspect ratio in the
+// spirit of PuRe (Santini, Fuhl & Kasneci 2018, §3.4) and is calibrated: it is the predicted
+// probability that the centre is within 1 px of the truth (see eye/EYE.md for how it is fitted).
+// Glints: small saturated blobs near the pupil, paired with the LED layout; the pupil–glint vector
+// uses the centroid of the layout's glints (estimated from the paired ones when some are missing).
+// Blinks: no pupil, or a fitted ellipse with minor/major < 0.7 (Lee 2009 §3.5.2).
+#include <chrono>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "eye/ellipse.h"
+#include "eye/led_layout.h"
+
+namespace fovea::trackerd::eye {
+
+enum class EdgeMethod { Rays, Canny };         // Starburst-style rays | Canny edges of the ROI
+enum class FitMethod { Ransac, LeastSquares };  // RANSAC + inlier refit | one fit to all edge points
+
+struct DetectorSettings {
+  int coarse_downscale = 2;       // 1, 2 or 4: coarse localisation runs on an image this much smaller
+  bool roi_tracking = true;       // search near the last pupil first; fall back to the whole frame
+  EdgeMethod edges = EdgeMethod::Rays;
+  FitMethod fit = FitMethod::Ransac;
+  int rays = 64;                  // rays cast for edge points (EdgeMethod::Rays)
+  // Pupil radius range as fractions of min(width, height); everything else scales with the image.
+  double min_pupil_radius = 0.02, max_pupil_radius = 0.25;
+  double blink_aspect = 0.7;      // Lee 2009 §3.5.2: minor/major below this is a blink
+  double min_confidence = 0.2;    // below this the pupil counts as not found
+  LedLayout leds;                 // empty: glints are reported unpaired
+  // Checks ranges; throws std::invalid_argument naming the field and its allowed range.
+  void validate() const;
+};
+
+struct Glint {
+  cv::Point2d centre;   // pixels, intensity-weighted (sub-pixel)
+  double area_px = 0;
+  int led = -1;         // index into DetectorSettings::leds, -1 when unpaired
+};
+
+struct EyeMeasurement {
+  bool pupil_found = false;
+  Ellipse pupil;                  // valid when pupil_found
+  double confidence = 0;          // [0, 1]; 0 when not found
+  bool blink = false;             // no pupil, or aspect < blink_aspect
+  std::vector<Glint> glints;      // near the pupil (or anywhere when no pupil), at most 8
+  bool pupil_glint_valid = false;
+  cv::Point2d pupil_glint;        // pupil centre - reference glint point, pixels
+  std::string why;                // when no pupil: what failed ("no dark blob", "too few edge points", ...)
+  bool used_roi = false;          // found within the tracked ROI (no full-frame search needed)
+};
+
+class EyeDetector {
+ public:
+  explicit EyeDetector(DetectorSettings settings = {});
+  const DetectorSettings& settings() const { return settings_; }
+  // Any image: 8- or 16-bit, 1, 3 or 4 channels (converted to 8-bit grey); empty or tiny images
+  // give "no pupil". Never throws for image content; never returns NaN. Keeps ROI state between calls.
+  EyeMeasurement detect(const cv::Mat& image);
+  void reset();  // forget the tracked ROI
+
+ private:
+  DetectorSettings settings_;
+  std::optional<Ellipse> last_pupil_;
+  cv::Mat grey_, integral_, small_;  // reused buffers
+};
+
+// The peer baseline: threshold at a fixed fraction of the dark range, take the largest dark
+// contour and cv::fitEllipse it. No glint handling, no outlier rejection.
+EyeMeasurement detect_pupil_baseline(const cv::Mat& image);
+
+// Converts any supported image to 8-bit single-channel grey (16-bit: scaled by the frame's own
+// maximum so 10/12-bit sensors in 16-bit containers keep their contrast). Empty stays empty.
+cv::Mat to_grey8(const cv::Mat& image);
+
+}  // namespace fovea::trackerd::eye

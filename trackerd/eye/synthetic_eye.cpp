@@ -1,0 +1,2 @@
+#include "eye/synthetic_eye.h"
+// Being written (step 4).
