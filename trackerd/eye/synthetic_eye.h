@@ -6,8 +6,16 @@
 //
 // Geometry (head frame, millimetres): origin at the eye's rotation centre; x right, y down, z
 // forward (towards the screen). At yaw = pitch = 0 the optical axis is +z. Positive yaw turns the
-// eye right (+x), positive pitch turns it down (+y) — the same signs as screen degrees.
+// eye right (+x), positive pitch turns it down (+y) — the same signs as screen degrees:
+//   d(yaw, pitch) = (sin yaw cos pitch, sin pitch, cos yaw cos pitch).
+// The cornea is a sphere about C = rotation_to_cornea * d; the pupil and the iris are discs about
+// P = C + cornea_to_pupil * d in the plane normal to d. Corneal refraction is ignored: the pupil
+// is imaged where it physically is, so EyeTruth::pupil is the exact image conic of that disc.
+// The camera's image x is its "right", image y its "down", chosen so image down is as close to
+// head +y as possible; a camera facing the eye therefore sees the eye mirrored (positive yaw
+// moves the pupil towards image left with the default camera), as a real eye camera does.
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -55,18 +63,22 @@ struct SyntheticEyeOptions {
   // 1..4 mm) so that the boundary passes through the glint nearest to it; when no radius in that
   // range does, that LED is displaced for the frame (EyeTruth::leds_used says where).
   bool glint_on_pupil_edge = false;
+
+  // Checks every field; throws std::invalid_argument naming the field and its allowed range.
+  void validate() const;
 };
 
 // What is in a rendered frame, exactly.
 struct EyeTruth {
   double yaw_deg = 0, pitch_deg = 0;  // optical-axis direction rendered
   double openness = 1;                // 1 open, 0 closed
-  bool closed = false;                // lids closed: no pupil visible at all
+  bool closed = false;                // lids closed: no pupil visible at all (pupil_visible_fraction == 0)
   Ellipse pupil;                      // the projected pupil boundary (exact conic), valid unless closed
   double pupil_visible_fraction = 1;  // share of the pupil disc's image area not hidden by lids
   std::vector<cv::Point2d> glints;    // visible glint centres, pixels
   std::vector<int> glint_led;         // the LED index of each visible glint
-  cv::Point2d glint_centroid;         // centroid of all LEDs' glints (visible or not)
+  cv::Point2d glint_centroid;         // centroid of all LEDs' glints (visible or not); with no LEDs,
+                                      // where the glint of an LED at the lens centre would be
   cv::Point2d pupil_glint;            // pupil.centre - glint_centroid (pixels)
   double pupil_radius_mm = 0;         // as rendered (differs from the model with glint_on_pupil_edge)
   LedLayout leds_used;                // as rendered
@@ -74,19 +86,28 @@ struct EyeTruth {
 
 class SyntheticEye {
  public:
-  explicit SyntheticEye(SyntheticEyeOptions options);
+  explicit SyntheticEye(SyntheticEyeOptions options);  // validates: throws std::invalid_argument
   const SyntheticEyeOptions& options() const { return options_; }
   const LedLayout& leds() const { return options_.leds; }
 
   // Ground truth only (no image): used to fit model-based maps and by tests.
   EyeTruth project(double yaw_deg, double pitch_deg, double openness = 1.0) const;
   // Renders one 8-bit GREY frame of options().width x height. Deterministic for a given seed and
-  // call sequence (noise and random effects draw from the instance's generator).
+  // call sequence: the eye's appearance (iris texture, skin, lashes, spectacle reflections, the
+  // direction of uneven illumination) is fixed per instance by the seed, as a person and a headset
+  // are; each frame draws only its sensor noise from the instance's generator. truth may be null.
   cv::Mat render(double yaw_deg, double pitch_deg, double openness, EyeTruth* truth);
+  // project() and render() throw std::invalid_argument for a non-finite angle or openness; angles
+  // are clamped to [-60, 60] degrees and openness to [0, 1] (EyeTruth reports what was rendered).
 
  private:
+  struct Look;   // the instance's fixed appearance (iris texture, skin, lashes, reflections), from the seed
+  struct Frame;  // one frame's geometry
+  Frame frame(double yaw_deg, double pitch_deg, double openness) const;
+
   SyntheticEyeOptions options_;
   std::mt19937_64 rng_;
+  std::shared_ptr<const Look> look_;  // immutable, so copies may share it
 };
 
 }  // namespace fovea::trackerd::eye
