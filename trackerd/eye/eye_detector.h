@@ -11,8 +11,10 @@
 // probability that the centre is within 1 px of the truth (see eye/EYE.md for how it is fitted).
 // Glints: small saturated blobs near the pupil, paired with the LED layout; the pupil–glint vector
 // uses the centroid of the layout's glints (estimated from the paired ones when some are missing).
-// Blinks: no pupil, or a fitted ellipse with minor/major < 0.7 (Lee 2009 §3.5.2).
-#include <chrono>
+// Blinks: no pupil, or a fitted ellipse with minor/major < 0.7 (Lee 2009 §3.5.2) times the
+// eye's recent open minor/major (an off-axis camera sees open eyes flattened).
+#include <array>
+#include <cstddef>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,7 +37,7 @@ struct DetectorSettings {
   int rays = 64;                  // rays cast for edge points (EdgeMethod::Rays)
   // Pupil radius range as fractions of min(width, height); everything else scales with the image.
   double min_pupil_radius = 0.02, max_pupil_radius = 0.25;
-  double blink_aspect = 0.7;      // Lee 2009 §3.5.2: minor/major below this is a blink
+  double blink_aspect = 0.7;      // Lee 2009 §3.5.2: minor/major below this (relative to the eye's open aspect) is a blink
   double min_confidence = 0.2;    // below this the pupil counts as not found
   LedLayout leds;                 // empty: glints are reported unpaired
   // Checks ranges; throws std::invalid_argument naming the field and its allowed range.
@@ -48,10 +50,25 @@ struct Glint {
   int led = -1;         // index into DetectorSettings::leds, -1 when unpaired
 };
 
+// What the confidence is computed from (kept for diagnostics and for refitting the model).
+struct PupilEvidence {
+  double support = 0;    // share of rays (or of the outline, for Canny) whose edge point fits the ellipse
+  double outline = 0;    // share of the outline where inside is clearly darker than outside
+  double residual_px = 0;  // RMS distance of the inlier edge points from the ellipse
+  double contrast = 0;   // surround minus pupil grey level
+  double aspect = 0;     // minor / major of the fitted ellipse
+};
+
+// The logistic confidence model: features of the evidence (bias term first) and the probability.
+inline constexpr std::size_t kConfidenceFeatures = 6;
+std::array<double, kConfidenceFeatures> confidence_features(const PupilEvidence& evidence);
+double confidence_of(const PupilEvidence& evidence);
+
 struct EyeMeasurement {
   bool pupil_found = false;
   Ellipse pupil;                  // valid when pupil_found
-  double confidence = 0;          // [0, 1]; 0 when not found
+  double confidence = 0;          // [0, 1]: predicted probability that the centre is within 1 px; 0 when not found
+  PupilEvidence evidence;         // of the best candidate, also when it was rejected
   bool blink = false;             // no pupil, or aspect < blink_aspect
   std::vector<Glint> glints;      // near the pupil (or anywhere when no pupil), at most 8
   bool pupil_glint_valid = false;
@@ -72,7 +89,9 @@ class EyeDetector {
  private:
   DetectorSettings settings_;
   std::optional<Ellipse> last_pupil_;
-  cv::Mat grey_, integral_, small_;  // reused buffers
+  double last_glint_scale_ = 0;
+  double open_aspect_ = 0;  // running minor/major of this eye's confident open pupils (0: none yet)  // px per mm of the LED layout's glint image, from the last paired frame
+  cv::Mat grey_, integral_, small_, smooth_;  // reused buffers
 };
 
 // The peer baseline: threshold at a fixed fraction of the dark range, take the largest dark
