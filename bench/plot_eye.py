@@ -1,0 +1,54 @@
+#!/usr/bin/env python3
+"""Plots bench_eye's CSV: pupil-centre error against ms/frame per detector variant.
+
+usage: bench/plot_eye.py bench_eye.csv out.png
+Left: clean images (median error). Right: the hard set (95th-percentile error), one marker per
+variant and resolution; detection rate in the legend of the hard panel.
+"""
+import csv
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def main() -> int:
+    if len(sys.argv) != 3:
+        print(__doc__.strip(), file=sys.stderr)
+        return 2
+    rows = list(csv.DictReader(open(sys.argv[1], newline="")))
+    if not rows:
+        print(f"{sys.argv[1]}: no rows", file=sys.stderr)
+        return 1
+    sizes = sorted({r["resolution"] for r in rows}, key=lambda s: int(s.split("x")[0]))
+    markers = dict(zip(sizes, "o^sDv"))
+    variants = list(dict.fromkeys(r["variant"] for r in rows))
+    colours = dict(zip(variants, plt.cm.tab10.colors))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
+    for ax, (set_name, column, label) in zip(
+        axes, [("clean", "median_px", "median"), ("hard", "p95_px", "95th percentile")]
+    ):
+        for r in rows:
+            if r["set"] != set_name or not r[column]:
+                continue
+            ax.scatter(float(r["ms_per_frame"]), float(r[column]), marker=markers[r["resolution"]],
+                       color=colours[r["variant"]], s=45)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("ms per frame (one core)")
+        ax.set_ylabel(f"pupil-centre error, {label} (px)")
+        ax.set_title(f"{set_name} set")
+        ax.grid(True, which="both", alpha=0.3)
+    handles = [plt.Line2D([], [], color=colours[v], marker="o", linestyle="", label=v) for v in variants]
+    handles += [plt.Line2D([], [], color="grey", marker=markers[s], linestyle="", label=s) for s in sizes]
+    axes[1].legend(handles=handles, fontsize=7, loc="best")
+    fig.suptitle("fovea pupil detector: accuracy versus time (bench_eye)")
+    fig.tight_layout()
+    fig.savefig(sys.argv[2], dpi=110)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
