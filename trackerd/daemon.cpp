@@ -17,7 +17,8 @@
 #include "service/command_mailbox.h"
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
-#include "sources/frame_capture_source.h"
+#include "eye/eye_source.h"
+#include "eye/synthetic_eye_frames.h"
 #include "sources/hotplug_camera.h"
 #include "sources/hid/hid_source.h"
 #include "sources/replay_source.h"
@@ -32,7 +33,7 @@ using protocol::monotonic_ns;
 // ---- sources ---------------------------------------------------------------------------------
 
 std::string check_source_spec(const std::string& spec) {
-  if (spec == "synthetic" || spec == "hid" || spec.rfind("hid:", 0) == 0) return {};
+  if (spec == "synthetic" || spec == "synthetic-eye" || spec == "hid" || spec.rfind("hid:", 0) == 0) return {};
   for (const char* prefix : {"replay:", "camera:", "video:"}) {
     const std::size_t n = std::char_traits<char>::length(prefix);
     if (spec.rfind(prefix, 0) == 0) {
@@ -40,25 +41,108 @@ std::string check_source_spec(const std::string& spec) {
     }
   }
   return "unknown source \"" + spec +
-         "\"; this build supports: synthetic, replay:FILE, hid[:VID:PID], camera:/dev/videoN, camera:usb:VID:PID, "
-         "video:FILE";
+         "\"; this build supports: synthetic, synthetic-eye, replay:FILE, hid[:VID:PID], camera:/dev/videoN, "
+         "camera:usb:VID:PID, video:FILE";
 }
+
+std::vector<std::string> check_eye_config(const service::EyeConfig& eye) {
+  std::vector<std::string> problems;
+  try {
+    (void)eye::parse_eye_side(eye.side);
+  } catch (const std::exception& e) {
+    problems.push_back(std::string("eye.side: ") + e.what());
+  }
+  if (!eye.leds.empty()) {
+    try {
+      (void)eye::LedLayout::parse(eye.leds);
+    } catch (const std::exception& e) {
+      problems.push_back(std::string("eye.leds: ") + e.what());
+    }
+  }
+  if (eye.pupil_downscale != 1 && eye.pupil_downscale != 2 && eye.pupil_downscale != 4) {
+    problems.push_back("eye.pupil_downscale: " + std::to_string(eye.pupil_downscale) +
+                       " is not allowed; allowed: 1, 2, 4");
+  }
+  for (const auto& [name, v] : {std::pair{"eye.synthetic_width", eye.synthetic_width},
+                               std::pair{"eye.synthetic_height", eye.synthetic_height}}) {
+    if (v < 32 || v > 4096) problems.push_back(std::string(name) + ": " + std::to_string(v) + " is outside 32..4096");
+  }
+  return problems;
+}
+
+namespace {
+
+// The eye pipeline's settings from the configuration ([eye]); `leds`: the layout to pair glints with.
+eye::EyePipelineOptions eye_pipeline_options(const service::DaemonConfig& c, const protocol::DisplayGeometry& display,
+                                             const eye::LedLayout& leds) {
+  eye::EyePipelineOptions o;
+  o.detector.coarse_downscale = c.eye.pupil_downscale;
+  o.detector.roi_tracking = c.eye.pupil_roi;
+  o.detector.leds = leds;
+  o.eye = eye::parse_eye_side(c.eye.side);
+  o.display = display;
+  return o;
+}
+
+void throw_eye_problems(const service::EyeConfig& eye) {
+  const std::vector<std::string> problems = check_eye_config(eye);
+  if (problems.empty()) return;
+  std::string all;
+  for (const auto& p : problems) all += (all.empty() ? "" : "; ") + p;
+  throw std::invalid_argument(all);
+}
+
+// A camera or eye video through the eye pipeline (no calibration map yet: pupil data, no gaze).
+// The caller has checked c.eye (before opening the device).
+std::unique_ptr<GazeSource> eye_camera_source(std::unique_ptr<FrameSource> frames, const service::DaemonConfig& c,
+                                              const protocol::DisplayGeometry& display) {
+  eye::EyePipelineOptions o = eye_pipeline_options(c, display, c.eye.leds.empty() ? eye::LedLayout{}
+                                                                                   : eye::LedLayout::parse(c.eye.leds));
+  if (const auto* cam = dynamic_cast<const V4l2Camera*>(frames.get())) o.nominal_rate_hz = cam->mode().fps();
+  if (const auto* video = dynamic_cast<const VideoFileSource*>(frames.get())) o.nominal_rate_hz = video->file_fps();
+  return std::make_unique<eye::EyePipelineSource>(std::move(frames), std::move(o));
+}
+
+}  // namespace
 
 std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int64_t start_time_ns) {
   const std::string& spec = c.source.spec;
   if (const std::string problem = check_source_spec(spec); !problem.empty()) throw std::invalid_argument(problem);
   if (spec == "synthetic") {
-    if (!(c.source.rate_hz >= 1 && c.source.rate_hz <= 10000)) {
-      throw std::invalid_argument("--rate " + std::to_string(c.source.rate_hz) + " is outside 1..10000 Hz");
+    const double rate = c.source.rate_hz > 0 ? c.source.rate_hz : 250;
+    if (!(rate >= 1 && rate <= 10000)) {
+      throw std::invalid_argument("--rate " + std::to_string(rate) + " is outside 1..10000 Hz");
     }
     SyntheticGazeOptions so;
-    so.rate_hz = c.source.rate_hz;
+    so.rate_hz = rate;
     so.seed = c.source.seed;
     so.display = c.display.value_or(protocol::DisplayGeometry{});
     so.start_time_ns = start_time_ns;
     return std::make_unique<SyntheticGaze>(so);
   }
   const protocol::DisplayGeometry display = c.display.value_or(protocol::DisplayGeometry{});
+  if (spec == "synthetic-eye") {
+    const double rate = c.source.rate_hz > 0 ? c.source.rate_hz : 120;
+    if (!(rate >= 1 && rate <= 1000)) {
+      throw std::invalid_argument("--rate " + std::to_string(rate) + " is outside 1..1000 Hz for synthetic-eye");
+    }
+    throw_eye_problems(c.eye);
+    eye::SyntheticEyeFramesOptions fo;
+    fo.eye.width = static_cast<int>(c.eye.synthetic_width);
+    fo.eye.height = static_cast<int>(c.eye.synthetic_height);
+    fo.eye.seed = c.source.seed;
+    fo.eye.leds = eye::LedLayout::parse(c.eye.leds.empty() ? "2" : c.eye.leds);
+    if (c.eye.synthetic_hard) fo.eye = eye::with_hard_conditions(fo.eye);
+    fo.rate_hz = rate;
+    fo.display = display;
+    auto frames = std::make_unique<eye::SyntheticEyeFrames>(fo);
+    eye::EyePipelineOptions po = eye_pipeline_options(c, display, fo.eye.leds);
+    po.nominal_rate_hz = rate;
+    po.mm_per_px = frames->mm_per_px();
+    po.map = frames->pupil_glint_map();
+    po.detector.blink_aspect = frames->blink_aspect();  // the synthetic camera's factory setting
+    return std::make_unique<eye::EyePipelineSource>(std::move(frames), std::move(po));
+  }
   // Devices in the configuration's [[devices]] table may be plugged in after start (hotplug).
   std::vector<KnownDevice> known;
   for (const auto& d : c.devices) {
@@ -74,11 +158,16 @@ std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int
     return make_hid_source(spec, display, listed);
   }
   if (spec.rfind("camera:usb:", 0) == 0) {
-    return std::make_unique<FrameCaptureSource>(std::make_unique<HotplugCamera>(spec, known), display);
+    throw_eye_problems(c.eye);  // before the device is opened: a settings error is not a device error
+    return eye_camera_source(std::make_unique<HotplugCamera>(spec, known), c, display);
   }
-  if (spec.rfind("camera:", 0) == 0) return std::make_unique<FrameCaptureSource>(make_camera_source(spec), display);
+  if (spec.rfind("camera:", 0) == 0) {
+    throw_eye_problems(c.eye);
+    return eye_camera_source(make_camera_source(spec), c, display);
+  }
   if (spec.rfind("video:", 0) == 0) {
-    return std::make_unique<FrameCaptureSource>(make_video_file_source(spec, true), display);
+    throw_eye_problems(c.eye);
+    return eye_camera_source(make_video_file_source(spec, true), c, display);
   }
   // replay:FILE
   ReplayOptions ro;
@@ -320,6 +409,7 @@ std::string Daemon::status_line() const {
   std::string s = source_->description() + ", " + std::to_string(static_cast<long>(source_->nominal_rate_hz())) +
                   " Hz, " + std::to_string(st.subscribers) + " subscribers, " + std::to_string(st.samples_published) +
                   " samples";
+  if (const std::string detail = source_->status_detail(); !detail.empty()) s += ", " + detail;
   if (recorder_) s += ", recording " + recording_path_;
   return s;
 }
@@ -536,6 +626,9 @@ int Daemon::run() {
       st.samples_published, st.events_published, st.datagrams_sent, st.send_failures, st.datagrams_rejected,
       st.leases_expired, st.control_requests, st.control_refused,
       recorder_ ? ", " + std::to_string(recorder_->records_written()) + " records written" : std::string());
+  if (const std::string detail = source_->status_detail(); !detail.empty()) {
+    spdlog::info("{}: {}", source_->description(), detail);
+  }
   return status_;
 }
 

@@ -7,6 +7,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "fovea/protocol/server.h"
 #include "service/config.h"
@@ -34,6 +35,10 @@ struct DaemonSignals {
 // Empty when this build has a source of the kind `spec` names; otherwise a message naming the
 // spec and the kinds it supports. (--check-config uses it without opening anything.)
 std::string check_source_spec(const std::string& spec);
+
+// The eye pipeline's settings ([eye], --eye, --leds, ...) that only the eye module can check (the
+// LED layout's syntax); one "eye.KEY: what is wrong" per problem, empty when all are usable.
+std::vector<std::string> check_eye_config(const service::EyeConfig& eye);
 
 // Builds the source named by `config.source.spec`; throws std::invalid_argument /
 // std::runtime_error with a message naming the spec and what is wrong.

@@ -7,6 +7,8 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <stdexcept>
+#include <utility>
 
 #include "daemon.h"
 #include "service/config.h"
@@ -49,9 +51,12 @@ int main(int argc, char** argv) {
           ") with the flags applied, print the effective configuration and exit 0, or the problems and exit 1");
   auto* o_source =
       app.add_option("--source", d.source.spec,
-                     "where gaze comes from: synthetic (seeded model viewer), replay:FILE (.fgr or .csv), "
-                     "hid[:VID:PID] (HID eye tracker), camera:/dev/videoN or camera:usb:VID:PID (eye camera), "
-                     "video:FILE (eye video); cameras and videos need the eye pipeline (step 4) for gaze")
+                     "where gaze comes from: synthetic (seeded model viewer), synthetic-eye (rendered infrared eye "
+                     "images of that viewer through the eye pipeline, with its factory calibration), replay:FILE "
+                     "(.fgr or .csv), hid[:VID:PID] (HID eye tracker), camera:/dev/videoN or camera:usb:VID:PID (eye "
+                     "camera), video:FILE (eye video). Cameras and videos run the eye pipeline (pupil and glint "
+                     "detection) and publish pupil data; their gaze stays invalid until a calibration is loaded "
+                     "(step 5)")
           ->capture_default_str();
   auto* o_port = app.add_option("--port", d.network.port, "UDP port to serve on")->capture_default_str();
   auto* o_listen =
@@ -66,10 +71,33 @@ int main(int argc, char** argv) {
       app.add_option("--record", record_path, "record everything published to this .fgr file (refuses to overwrite)");
   auto* o_append =
       app.add_flag("--append", append, "with --record: append to an existing recording of the same display");
-  auto* o_rate =
-      app.add_option("--rate", d.source.rate_hz, "synthetic source: sample rate in Hz")->capture_default_str();
-  auto* o_seed = app.add_option("--seed", d.source.seed, "synthetic source: random seed (same seed, same gaze)")
-                     ->capture_default_str();
+  auto* o_rate = app.add_option("--rate", d.source.rate_hz,
+                                "synthetic sources: sample (frame) rate in Hz; synthetic 1..10000 (default 250), "
+                                "synthetic-eye 1..1000 (default 120)")
+                     ->check(CLI::Range(1.0, 10000.0));
+  auto* o_seed =
+      app.add_option("--seed", d.source.seed, "synthetic sources: random seed (same seed, same gaze)")
+          ->capture_default_str();
+  // The eye pipeline (camera:, video:, synthetic-eye).
+  std::string eye_side = defaults.eye.side, leds, eye_size;
+  bool no_pupil_roi = false, eye_hard = false;
+  auto* o_eye = app.add_option("--eye", eye_side, "eye pipeline: which eye the camera sees (fills that eye's data)")
+                    ->check(CLI::IsMember(svc::kEyeSides))
+                    ->capture_default_str();
+  auto* o_leds = app.add_option("--leds", leds,
+                                "eye pipeline: infrared LED layout around the camera lens, a preset 0..5 or "
+                                "\"x,y;x,y;...\" in mm (default: synthetic-eye 2, cameras and videos unknown)");
+  auto* o_downscale = app.add_option("--pupil-downscale", d.eye.pupil_downscale,
+                                     "eye pipeline: coarse pupil search on an image 1, 2 or 4 times smaller")
+                          ->check(CLI::IsMember({1, 2, 4}))
+                          ->capture_default_str();
+  auto* o_no_roi =
+      app.add_flag("--no-pupil-roi", no_pupil_roi, "eye pipeline: search the whole frame every time (no tracking ROI)");
+  auto* o_eye_size =
+      app.add_option("--eye-size", eye_size, "synthetic-eye: eye camera image size WxH (default 320x240)");
+  auto* o_eye_hard = app.add_flag("--eye-hard", eye_hard,
+                                  "synthetic-eye: hard imaging conditions (sensor noise 10, 2 px motion blur, upper "
+                                  "lid over 30% of the pupil, spectacle reflections, uneven illumination)");
   auto* o_speed = app.add_option("--speed", d.source.speed, "replay source: speed factor (2 = twice as fast)")
                       ->capture_default_str();
   auto* o_loop = app.add_flag("--loop", loop, "replay source: start again at the end");
@@ -136,6 +164,19 @@ int main(int argc, char** argv) {
     if (given(o_calibration)) cli.calibration_file = calibration;
     if (given(o_classifier)) cli.classifier_method = classifier;
     if (given(o_log)) cli.log_level = log_level;
+    if (given(o_eye)) cli.eye_side = eye_side;
+    if (given(o_leds)) cli.eye_leds = leds;
+    if (given(o_downscale)) cli.pupil_downscale = d.eye.pupil_downscale;
+    if (given(o_no_roi)) cli.pupil_roi = !no_pupil_roi;
+    if (given(o_eye_hard)) cli.synthetic_hard = eye_hard;
+    if (given(o_eye_size)) {
+      unsigned w = 0, h = 0;
+      char tail = 0;
+      if (std::sscanf(eye_size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
+        throw std::invalid_argument("--eye-size \"" + eye_size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
+      }
+      cli.synthetic_size = std::pair{std::uint32_t{w}, std::uint32_t{h}};
+    }
     if (given(o_listen)) (void)protocol::parse_endpoint(d.network.listen, d.network.port);
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
@@ -155,6 +196,7 @@ int main(int argc, char** argv) {
       std::vector<std::string> problems;
       if (const std::string p = trackerd::check_source_spec(c.source.spec); !p.empty())
         problems.push_back("source.spec: " + p);
+      for (const std::string& p : trackerd::check_eye_config(c.eye)) problems.push_back(p);
       try {
         (void)svc::server_options(c);
       } catch (const std::exception& e) {

@@ -40,7 +40,8 @@ grep -q "retrying" "$WORK/hid.status" || fail "status does not say the tracker i
 wait $H || fail "daemon waiting for a known tracker exited with an error: $(tail -3 "$WORK/hid.log")"
 "$TRACKERD" --source camera:usb:ffff:fffe --port $PORT --duration 1 >"$WORK/usbcam.log" 2>&1 \
   || fail "camera:usb: (waiting for a USB camera) failed: $(tail -3 "$WORK/usbcam.log")"
-grep -q "eye pipeline" "$WORK/usbcam.log" || fail "camera source does not say gaze needs the eye pipeline"
+grep -q "gaze stays invalid (kGazeValid clear) until a calibration is loaded" "$WORK/usbcam.log" \
+  || fail "camera source does not say its gaze stays invalid until a calibration is loaded: $(cat "$WORK/usbcam.log")"
 
 echo "== daemon replays the bundled recording; watch and record run side by side"
 "$TRACKERD" --source "replay:$REC" --port $PORT --loop >"$WORK/daemon.log" 2>&1 &

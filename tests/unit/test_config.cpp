@@ -57,6 +57,8 @@ TEST(Config, DocumentedExampleParses) {
   ASSERT_EQ(c.network.control_allow.size(), 1u);
   EXPECT_EQ(c.network.control_allow[0].to_string(), "127.0.0.0/8");
   EXPECT_FALSE(c.devices.empty()) << "the example documents [[devices]]";
+  EXPECT_EQ(c.eye, EyeConfig{}) << "the example documents [eye] with its defaults";
+  EXPECT_EQ(c.source.rate_hz, 0) << "rate is left out: each synthetic source's own default";
   for (const auto& d : c.devices) EXPECT_FALSE(d.name.empty());
 }
 
@@ -147,7 +149,7 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   expect_problem("[source]\nrate = 0\n", {"test.toml:2:", "source.rate", "[1, 10000] Hz"});
   expect_problem("[source]\nspeed = -1.5\n", {"test.toml:2:", "source.speed", "(0, 1000]"});
   expect_problem("[source]\nloop = \"yes\"\n", {"test.toml:2:", "source.loop", "true or false"});
-  expect_problem("[source]\nspec = \"\"\n", {"test.toml:2:", "source.spec", "synthetic, replay:FILE"});
+  expect_problem("[source]\nspec = \"\"\n", {"test.toml:2:", "source.spec", "synthetic, synthetic-eye, replay:FILE"});
   expect_problem("[display]\nwidth_px = 1920\n", {"test.toml:1:", "display.height_px", "missing"});
   expect_problem("[display]\nwidth_px = 0\nheight_px = 1080\nwidth_mm = 531\nheight_mm = 299\ndistance_mm = 650\n",
                  {"test.toml:2:", "display.width_px", "1..65536"});
@@ -247,6 +249,49 @@ TEST(Config, ReloadSeparatesLiveChangesFromRestartOnes) {
   EXPECT_TRUE(adopted.display.has_value());
   EXPECT_TRUE(diff(a, a).live.empty());
   EXPECT_TRUE(diff(a, a).needs_restart.empty());
+}
+
+TEST(Config, EyePipelineTable) {
+  const DaemonConfig c = parse_config(
+      "[source]\nspec = \"synthetic-eye\"\n[eye]\nside = \"left\"\nleds = \"-8,0;8,0\"\npupil_downscale = 4\n"
+      "pupil_roi = false\nsynthetic_width = 640\nsynthetic_height = 480\nsynthetic_hard = true\n",
+      "eye.toml");
+  EXPECT_EQ(c.eye.side, "left");
+  EXPECT_EQ(c.eye.leds, "-8,0;8,0");
+  EXPECT_EQ(c.eye.pupil_downscale, 4);
+  EXPECT_FALSE(c.eye.pupil_roi);
+  EXPECT_EQ(c.eye.synthetic_width, 640u);
+  EXPECT_EQ(c.eye.synthetic_height, 480u);
+  EXPECT_TRUE(c.eye.synthetic_hard);
+  EXPECT_EQ(parse_config(to_toml(c), "printed.toml").eye, c.eye);
+  EXPECT_EQ(DaemonConfig{}.eye.side, "right");
+  EXPECT_EQ(DaemonConfig{}.source.rate_hz, 0) << "0: the source's own default rate";
+  EXPECT_EQ(parse_config(to_toml(DaemonConfig{}), "d.toml").source, DaemonConfig{}.source);
+
+  expect_problem("[eye]\nside = \"middle\"\n", {"test.toml:2:", "eye.side", "left, right"});
+  expect_problem("[eye]\npupil_downscale = 3\n", {"test.toml:2:", "eye.pupil_downscale", "1, 2, 4"});
+  expect_problem("[eye]\npupil_downscale = 8\n", {"test.toml:2:", "eye.pupil_downscale", "1..4"});
+  expect_problem("[eye]\nsynthetic_width = 10\n", {"test.toml:2:", "eye.synthetic_width", "32..4096"});
+  expect_problem("[eye]\nleds = 2\n", {"test.toml:2:", "eye.leds", "must be a string"});
+  expect_problem("[eye]\nglints = 2\n", {"test.toml:2:", "eye.glints", "unknown key", "pupil_roi"});
+
+  CliOverrides cli;
+  cli.eye_side = "left";
+  cli.synthetic_size = std::pair{std::uint32_t{160}, std::uint32_t{120}};
+  cli.pupil_roi = false;
+  DaemonConfig d;
+  apply_overrides(d, cli);
+  EXPECT_EQ(d.eye.side, "left");
+  EXPECT_EQ(d.eye.synthetic_width, 160u);
+  EXPECT_FALSE(d.eye.pupil_roi);
+  EXPECT_EQ(d.eye.pupil_downscale, 2);  // not given: the default
+
+  // The source is built once: eye settings need a restart.
+  const ConfigChanges ch = diff(DaemonConfig{}, d);
+  ASSERT_EQ(ch.needs_restart.size(), 4u);
+  EXPECT_EQ(ch.needs_restart[0], "eye.side right -> left");
+  EXPECT_TRUE(ch.live.empty());
+  EXPECT_EQ(adopt_live(DaemonConfig{}, d).eye, DaemonConfig{}.eye);
 }
 
 TEST(Cidr, ParsesAndMatches) {

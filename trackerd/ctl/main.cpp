@@ -1,4 +1,5 @@
-// fovea-ctl: the command-line client of fovea-trackerd (status, watch, record) and recording tools.
+// fovea-ctl: the command-line client of fovea-trackerd (status, watch, record), recording tools and
+// eye-image tools (detect-pupil, synth-eye).
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <cmath>
@@ -18,6 +19,11 @@
 #include "fovea/protocol/csv.h"
 #include "fovea/protocol/recording.h"
 #include "classify/classifier.h"
+#include "eye/eye_detector.h"
+#include "eye/synthetic_eye.h"
+#include "eye/synthetic_eye_frames.h"
+
+#include <opencv2/imgcodecs.hpp>
 
 namespace {
 
@@ -156,8 +162,22 @@ int cmd_watch(const Common& c, unsigned every, bool events_only) {
                         static_cast<double>(s.y_deg), static_cast<double>(s.angular_velocity_deg_s),
                         static_cast<double>(s.confidence));
           } else {
-            std::printf("%9.3fs #%-7llu %-8s (no gaze)\n", rel(s.tracker_time_ns),
-                        static_cast<unsigned long long>(a.sequence), to_string(s.state));
+            // Eye-camera sources without a calibration still publish the pupil: show it.
+            std::string pupil;
+            for (const auto& [side, e] : {std::pair{"left", &s.left}, std::pair{"right", &s.right}}) {
+              if ((e->flags & kEyePupilValid) == 0) continue;
+              char buf[128];
+              std::snprintf(buf, sizeof buf, " %s pupil (%.1f, %.1f) px", side, static_cast<double>(e->pupil_x_px),
+                            static_cast<double>(e->pupil_y_px));
+              pupil += buf;
+              if (e->flags & kEyeGlintValid) {
+                std::snprintf(buf, sizeof buf, ", pupil-glint (%+.2f, %+.2f) px",
+                              static_cast<double>(e->pupil_glint_x_px), static_cast<double>(e->pupil_glint_y_px));
+                pupil += buf;
+              }
+            }
+            std::printf("%9.3fs #%-7llu %-8s (no gaze)%s\n", rel(s.tracker_time_ns),
+                        static_cast<unsigned long long>(a.sequence), to_string(s.state), pupil.c_str());
           }
           std::fflush(stdout);
         });
@@ -484,6 +504,182 @@ int cmd_classify(const std::string& in_path, const std::string& out_path, double
   }
 }
 
+// --- eye images: detect-pupil and synth-eye (trackerd/eye/) ---
+
+namespace eye = fovea::trackerd::eye;
+
+// A CSV field: quoted when it holds a comma, a quote or a line break (RFC 4180).
+std::string csv_field(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string out = "\"";
+  for (const char ch : text) {
+    if (ch == '"') out += '"';
+    out += ch;
+  }
+  return out + "\"";
+}
+
+std::string fixed3(double v) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.3f", std::isfinite(v) ? v : 0.0);
+  return buf;
+}
+
+std::string glint_list(const std::vector<cv::Point2d>& points) {
+  std::string out;
+  for (const auto& p : points) out += (out.empty() ? "" : ";") + fixed3(p.x) + ":" + fixed3(p.y);
+  return out;
+}
+
+// Writes `text` to `path` through a temporary file beside it (never a half-written file), refusing
+// to replace an existing one unless `force`.
+void write_new_file(const std::string& path, const std::string& text, bool force) {
+  if (!force && std::filesystem::exists(path)) {
+    throw std::runtime_error(path + " already exists (use --force to replace it)");
+  }
+  const std::string tmp = path + ".partial-" + std::to_string(getpid());
+  {
+    std::ofstream out(tmp);
+    out << text;
+    out.close();
+    if (!out) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw std::runtime_error("cannot write " + path);
+    }
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+int cmd_detect_pupil(const std::vector<std::string>& images, const std::string& out_path, bool force,
+                     const std::string& leds, int downscale, bool track) {
+  eye::DetectorSettings settings;
+  try {
+    if (!leds.empty()) settings.leds = eye::LedLayout::parse(leds);
+    settings.coarse_downscale = downscale;
+    settings.roi_tracking = track;
+    settings.validate();
+    if (!out_path.empty() && !force && std::filesystem::exists(out_path)) {
+      throw std::runtime_error(out_path + " already exists (use --force to replace it)");
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl detect-pupil: %s\n", e.what());
+    return 2;
+  }
+  eye::EyeDetector detector(settings);
+  const std::string header = "file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints\n";
+  std::string csv = header;
+  std::fputs(header.c_str(), stdout);
+  int status = 0;
+  for (const std::string& file : images) {
+    std::error_code ec;
+    const auto st = std::filesystem::status(file, ec);
+    cv::Mat image;
+    std::string why;
+    if (!std::filesystem::exists(st)) {
+      why = "no such file";
+    } else if (std::filesystem::is_directory(st)) {
+      why = "is a directory";
+    } else {
+      try {
+        image = cv::imread(file, cv::IMREAD_UNCHANGED);
+      } catch (const cv::Exception&) {
+        image.release();
+      }
+      if (image.empty()) why = "cannot be read as an image (unreadable, or a format OpenCV cannot decode)";
+    }
+    if (!why.empty()) {
+      std::fprintf(stderr, "fovea-ctl detect-pupil: %s: %s\n", file.c_str(), why.c_str());
+      status = 1;
+      continue;
+    }
+    if (!track) detector.reset();
+    const eye::EyeMeasurement m = detector.detect(image);
+    std::string row = csv_field(file) + ",";
+    if (m.pupil_found) {
+      row += fixed3(m.pupil.centre.x) + "," + fixed3(m.pupil.centre.y) + "," + fixed3(m.pupil.major) + "," +
+             fixed3(m.pupil.minor) + "," + fixed3(m.pupil.angle_deg) + ",";
+    } else {
+      row += ",,,,,";
+    }
+    std::vector<cv::Point2d> glints;
+    for (const auto& g : m.glints) glints.push_back(g.centre);
+    row += fixed3(m.confidence) + "," + std::to_string(glints.size()) + "," + glint_list(glints) + "\n";
+    std::fputs(row.c_str(), stdout);
+    csv += row;
+  }
+  std::fflush(stdout);
+  if (!out_path.empty()) {
+    try {
+      write_new_file(out_path, csv, force);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "fovea-ctl detect-pupil: %s\n", e.what());
+      return 1;
+    }
+  }
+  return status;
+}
+
+int cmd_synth_eye(const std::string& dir, int count, const std::string& size, bool hard, std::uint64_t seed,
+                  const std::string& leds) {
+  try {
+    unsigned w = 0, h = 0;
+    char tail = 0;
+    if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
+      throw std::runtime_error("--size \"" + size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
+    }
+    if (count < 1 || count > 100000) {
+      throw std::runtime_error("--count " + std::to_string(count) + " is outside 1..100000");
+    }
+    std::error_code ec;
+    if (std::filesystem::exists(dir, ec)) {
+      if (!std::filesystem::is_directory(dir, ec)) throw std::runtime_error(dir + " exists and is not a directory");
+      if (!std::filesystem::is_empty(dir, ec)) {
+        throw std::runtime_error(dir + " is not empty (synth-eye writes only into a new or empty directory)");
+      }
+    } else if (!std::filesystem::create_directories(dir, ec)) {
+      throw std::runtime_error("cannot create " + dir + ": " + ec.message());
+    }
+    eye::SyntheticEyeOptions o;
+    o.width = static_cast<int>(w);
+    o.height = static_cast<int>(h);
+    o.seed = seed;
+    o.leds = eye::LedLayout::parse(leds);
+    if (hard) o = eye::with_hard_conditions(o);
+    eye::SyntheticEye generator(o);
+    std::mt19937_64 rng(seed ^ 0x5eed5eedULL);  // the gazes; the generator draws its noise from its own
+    std::uniform_real_distribution<double> angle(-20.0, 20.0);
+    std::string csv =
+        "file,pupil_x,pupil_y,major,minor,angle_deg,closed,glint_count,glints,pupil_glint_x,pupil_glint_y\n";
+    for (int i = 0; i < count; ++i) {
+      const double yaw = angle(rng), pitch = angle(rng);
+      eye::EyeTruth t;
+      const cv::Mat image = generator.render(yaw, pitch, 1.0, &t);
+      char name[32];
+      std::snprintf(name, sizeof name, "eye_%04d.png", i);
+      const std::string path = (std::filesystem::path(dir) / name).string();
+      if (!cv::imwrite(path, image)) throw std::runtime_error("cannot write " + path);
+      csv += std::string(name) + ",";
+      if (t.closed) {
+        csv += ",,,,,1,";
+      } else {
+        csv += fixed3(t.pupil.centre.x) + "," + fixed3(t.pupil.centre.y) + "," + fixed3(t.pupil.major) + "," +
+               fixed3(t.pupil.minor) + "," + fixed3(t.pupil.angle_deg) + ",0,";
+      }
+      csv += std::to_string(t.glints.size()) + "," + glint_list(t.glints) + ",";
+      csv += t.closed ? std::string(",") : fixed3(t.pupil_glint.x) + "," + fixed3(t.pupil_glint.y);
+      csv += "\n";
+    }
+    write_new_file((std::filesystem::path(dir) / "truth.csv").string(), csv, false);
+    std::fprintf(stderr, "fovea-ctl synth-eye: wrote %d image(s) %ux%u%s and truth.csv to %s\n", count, w, h,
+                 hard ? " (hard conditions)" : "", dir.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl synth-eye: %s\n", e.what());
+    return 1;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -567,6 +763,44 @@ int main(int argc, char** argv) {
   }
   classify->add_flag("--force", cls_force, "replace OUT if it exists");
 
+  // detect-pupil / synth-eye: the eye pipeline's detector on image files, and test images for it
+  std::vector<std::string> dp_images;
+  std::string dp_out, dp_leds;
+  int dp_downscale = eye::DetectorSettings{}.coarse_downscale;
+  bool dp_track = false, dp_force = false;
+  auto* detect_pupil = app.add_subcommand(
+      "detect-pupil", "find the pupil and corneal glints in eye images (PNG, JPEG, ... 8 or 16 bit); one CSV row "
+                      "per image: file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints");
+  detect_pupil->add_option("IMAGE", dp_images, "eye images")->required();
+  detect_pupil->add_option("--out", dp_out, "also write the CSV to this file (refuses to overwrite)");
+  detect_pupil->add_flag("--force", dp_force, "with --out: replace the file if it exists");
+  detect_pupil->add_option("--leds", dp_leds,
+                           "LED layout to pair glints with: a preset 0..5 or \"x,y;x,y;...\" in mm (default: "
+                           "unknown, glints unpaired)");
+  detect_pupil->add_option("--downscale", dp_downscale, "coarse pupil search on an image 1, 2 or 4 times smaller")
+      ->check(CLI::IsMember({1, 2, 4}))
+      ->capture_default_str();
+  detect_pupil->add_flag("--track", dp_track,
+                         "treat the images as consecutive video frames: search near the last pupil first "
+                         "(default: every image on its own)");
+
+  std::string se_dir, se_size = "320x240", se_leds = "2";
+  int se_count = 20;
+  bool se_hard = false;
+  std::uint64_t se_seed = 1;
+  auto* synth_eye = app.add_subcommand(
+      "synth-eye", "write synthetic infrared eye images (eye_0000.png, ...) with their exact truth (truth.csv) "
+                   "for gazes drawn uniformly within +-20 degrees");
+  synth_eye->add_option("--out", se_dir, "new or empty directory to write into")->required();
+  synth_eye->add_option("--count", se_count, "number of images")->capture_default_str();
+  synth_eye->add_option("--size", se_size, "image size WxH")->capture_default_str();
+  synth_eye->add_flag("--hard", se_hard,
+                      "hard conditions: sensor noise 10, 2 px motion blur, upper lid over 30% of the pupil, "
+                      "spectacle reflections, uneven illumination");
+  synth_eye->add_option("--seed", se_seed, "random seed (same seed, same images)")->capture_default_str();
+  synth_eye->add_option("--leds", se_leds, "LED layout: a preset 0..5 or \"x,y;x,y;...\" in mm")
+      ->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
 
   struct sigaction sa {};
@@ -584,6 +818,8 @@ int main(int argc, char** argv) {
     return cmd_classify(cls_in, cls_out, cls_rate, cls_w_px, cls_h_px, cls_w_mm, cls_h_mm, cls_dist_mm, cls_method,
                         cls_force);
   }
+  if (detect_pupil->parsed()) return cmd_detect_pupil(dp_images, dp_out, dp_force, dp_leds, dp_downscale, dp_track);
+  if (synth_eye->parsed()) return cmd_synth_eye(se_dir, se_count, se_size, se_hard, se_seed, se_leds);
   if (reload->parsed()) return cmd_control(c, ControlCommand::Reload, "");
   if (record_start->parsed()) return cmd_control(c, ControlCommand::StartRecording, control_record_path);
   if (record_stop->parsed()) return cmd_control(c, ControlCommand::StopRecording, "");

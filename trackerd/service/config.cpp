@@ -207,17 +207,19 @@ void check_calibration_file(Checker& c, const toml::node& where, const std::stri
 }
 
 const std::vector<std::string> kLogLevels = {"trace", "debug", "info", "warn", "error"};
+constexpr const char* kSourceKinds =
+    "synthetic, synthetic-eye, replay:FILE, hid[:VID:PID], camera:/dev/videoN, camera:usb:VID:PID, video:FILE";
 
 DaemonConfig parse_table(const toml::table& doc, Checker& c) {
   DaemonConfig cfg;
   cfg.origin = c.origin_;
-  c.only(doc, "", {"source", "display", "network", "record", "calibration", "classifier", "devices", "log"});
+  c.only(doc, "", {"source", "display", "network", "record", "calibration", "classifier", "eye", "devices", "log"});
 
   if (const auto* t = c.table(doc, "source")) {
     c.only(*t, "source.", {"spec", "rate", "seed", "speed", "loop"});
-    c.string(*t, "source.", "spec", cfg.source.spec, "synthetic or replay:FILE");
+    c.string(*t, "source.", "spec", cfg.source.spec, kSourceKinds);
     if (cfg.source.spec.empty())
-      c.problem(t->get("spec")->source(), "source.spec", "is empty; allowed: synthetic, replay:FILE");
+      c.problem(t->get("spec")->source(), "source.spec", std::string("is empty; allowed: ") + kSourceKinds);
     if (cfg.source.spec.rfind("replay:", 0) == 0 && cfg.source.spec.size() > 7) {
       cfg.source.spec = "replay:" + c.path(cfg.source.spec.substr(7));
     }
@@ -324,6 +326,29 @@ DaemonConfig parse_table(const toml::table& doc, Checker& c) {
   if (const auto* t = c.table(doc, "classifier")) {
     c.only(*t, "classifier.", {"method"});
     c.string(*t, "classifier.", "method", cfg.classifier.method, "a classifier name (fovea-ctl classify --list)");
+  }
+
+  if (const auto* t = c.table(doc, "eye")) {
+    c.only(*t, "eye.",
+           {"side", "leds", "pupil_downscale", "pupil_roi", "synthetic_width", "synthetic_height", "synthetic_hard"});
+    c.string(*t, "eye.", "side", cfg.eye.side, "left, right");
+    if (std::find(kEyeSides.begin(), kEyeSides.end(), cfg.eye.side) == kEyeSides.end()) {
+      c.problem(t->get("side")->source(), "eye.side",
+                "\"" + cfg.eye.side + "\" is not an eye; allowed: " + join(kEyeSides, ", "));
+      cfg.eye.side = "right";
+    }
+    // The layout's syntax is checked by the eye module when the source starts (and --check-config).
+    c.string(*t, "eye.", "leds", cfg.eye.leds,
+             "a preset \"0\"..\"5\", \"x,y;x,y;...\" in mm, or \"\" for the source's default");
+    c.integer(*t, "eye.", "pupil_downscale", cfg.eye.pupil_downscale, 1, 4);
+    if (cfg.eye.pupil_downscale == 3) {
+      c.problem(t->get("pupil_downscale")->source(), "eye.pupil_downscale", "3 is not allowed; allowed: 1, 2, 4");
+      cfg.eye.pupil_downscale = 2;
+    }
+    c.boolean(*t, "eye.", "pupil_roi", cfg.eye.pupil_roi);
+    c.integer(*t, "eye.", "synthetic_width", cfg.eye.synthetic_width, 32, 4096);
+    c.integer(*t, "eye.", "synthetic_height", cfg.eye.synthetic_height, 32, 4096);
+    c.boolean(*t, "eye.", "synthetic_hard", cfg.eye.synthetic_hard);
   }
 
   if (const auto* t = c.table(doc, "log")) {
@@ -434,14 +459,27 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
   if (o.classifier_method) c.classifier.method = *o.classifier_method;
   if (o.calibration_file) c.calibration.file = *o.calibration_file;
   if (o.log_level) c.log_level = *o.log_level;
+  if (o.eye_side) c.eye.side = *o.eye_side;
+  if (o.eye_leds) c.eye.leds = *o.eye_leds;
+  if (o.pupil_downscale) c.eye.pupil_downscale = *o.pupil_downscale;
+  if (o.pupil_roi) c.eye.pupil_roi = *o.pupil_roi;
+  if (o.synthetic_size) {
+    c.eye.synthetic_width = o.synthetic_size->first;
+    c.eye.synthetic_height = o.synthetic_size->second;
+  }
+  if (o.synthetic_hard) c.eye.synthetic_hard = *o.synthetic_hard;
 }
 
 std::string to_toml(const DaemonConfig& c) {
   std::string out = "# effective configuration (" + c.origin + " + command line)\n";
   out += "[source]\n";
   out += "spec = " + quoted(c.source.spec) + "\n";
-  out += fmt::format("rate = {}\nseed = {}\nspeed = {}\nloop = {}\n", c.source.rate_hz, c.source.seed, c.source.speed,
-                     c.source.loop);
+  if (c.source.rate_hz > 0) {
+    out += fmt::format("rate = {}\n", c.source.rate_hz);
+  } else {
+    out += "# rate: the source's default\n";
+  }
+  out += fmt::format("seed = {}\nspeed = {}\nloop = {}\n", c.source.seed, c.source.speed, c.source.loop);
   if (c.display) {
     const auto& g = *c.display;
     out += fmt::format("\n[display]\nwidth_px = {}\nheight_px = {}\nwidth_mm = {}\nheight_mm = {}\ndistance_mm = {}\n",
@@ -460,6 +498,11 @@ std::string to_toml(const DaemonConfig& c) {
   out += "\n[record]\npath = " + quoted(c.record.path) + fmt::format("\nappend = {}\n", c.record.append);
   out += "\n[calibration]\nfile = " + quoted(c.calibration.file) + "\n";
   out += "\n[classifier]\nmethod = " + quoted(c.classifier.method) + "\n";
+  out += "\n[eye]\nside = " + quoted(c.eye.side) + "\nleds = " + quoted(c.eye.leds) + "\n";
+  out += fmt::format("pupil_downscale = {}\npupil_roi = {}\nsynthetic_width = {}\nsynthetic_height = {}\n"
+                     "synthetic_hard = {}\n",
+                     c.eye.pupil_downscale, c.eye.pupil_roi, c.eye.synthetic_width, c.eye.synthetic_height,
+                     c.eye.synthetic_hard);
   out += "\n[log]\nlevel = " + quoted(c.log_level) + "\n";
   for (const auto& d : c.devices) {
     out += fmt::format("\n[[devices]]\nvid = 0x{:04x}\npid = 0x{:04x}\nkind = {}\nname = {}\n", d.vid, d.pid,
@@ -508,10 +551,18 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.live, "log.level", a.log_level, b.log_level);
   // Restart: the socket, the source and device discovery are set up once.
   note(ch.needs_restart, "source.spec", a.source.spec, b.source.spec);
-  note(ch.needs_restart, "source.rate", a.source.rate_hz, b.source.rate_hz);
+  const auto rate = [](double r) { return r > 0 ? fmt::format("{}", r) : std::string("(the source's default)"); };
+  note(ch.needs_restart, "source.rate", rate(a.source.rate_hz), rate(b.source.rate_hz));
   note(ch.needs_restart, "source.seed", a.source.seed, b.source.seed);
   note(ch.needs_restart, "source.speed", a.source.speed, b.source.speed);
   note(ch.needs_restart, "source.loop", a.source.loop, b.source.loop);
+  note(ch.needs_restart, "eye.side", a.eye.side, b.eye.side);
+  note(ch.needs_restart, "eye.leds", text(a.eye.leds), text(b.eye.leds));
+  note(ch.needs_restart, "eye.pupil_downscale", a.eye.pupil_downscale, b.eye.pupil_downscale);
+  note(ch.needs_restart, "eye.pupil_roi", a.eye.pupil_roi, b.eye.pupil_roi);
+  note(ch.needs_restart, "eye.synthetic_width", a.eye.synthetic_width, b.eye.synthetic_width);
+  note(ch.needs_restart, "eye.synthetic_height", a.eye.synthetic_height, b.eye.synthetic_height);
+  note(ch.needs_restart, "eye.synthetic_hard", a.eye.synthetic_hard, b.eye.synthetic_hard);
   note(ch.needs_restart, "network.listen", a.network.listen, b.network.listen);
   note(ch.needs_restart, "network.port", a.network.port, b.network.port);
   note(ch.needs_restart, "network.multicast", text(a.network.multicast), text(b.network.multicast));
@@ -525,6 +576,7 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
 DaemonConfig adopt_live(const DaemonConfig& running, const DaemonConfig& next) {
   DaemonConfig out = next;
   out.source = running.source;
+  out.eye = running.eye;  // the source is built once
   out.network.listen = running.network.listen;
   out.network.port = running.network.port;
   out.network.multicast = running.network.multicast;

@@ -6,6 +6,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fovea/protocol/display_geometry.h"
@@ -17,9 +18,9 @@ namespace fovea::trackerd::service {
 inline constexpr const char* kDefaultConfigPath = "/etc/fovea/trackerd.toml";
 
 struct SourceConfig {
-  std::string spec = "synthetic";  // synthetic | replay:FILE (more kinds come with the hardware sources)
-  double rate_hz = 250;            // synthetic: sample rate, 1..10000
-  std::uint64_t seed = 1;          // synthetic: random seed
+  std::string spec = "synthetic";  // synthetic | synthetic-eye | replay:FILE | hid[:VID:PID] | camera:... | video:FILE
+  double rate_hz = 0;              // synthetic 1..10000, synthetic-eye 1..1000 Hz; 0: the source's default (250 / 120)
+  std::uint64_t seed = 1;          // synthetic, synthetic-eye: random seed
   double speed = 1.0;              // replay: speed factor, (0, 1000]
   bool loop = false;               // replay: start again at the end
   friend bool operator==(const SourceConfig&, const SourceConfig&) = default;
@@ -52,6 +53,19 @@ struct ClassifierConfig {
   friend bool operator==(const ClassifierConfig&, const ClassifierConfig&) = default;
 };
 
+// The eye pipeline (eye cameras, eye videos, the synthetic eye): trackerd/DEVICES.md.
+struct EyeConfig {
+  std::string side = "right";        // left | right: which eye the camera sees (the sample's EyeData it fills)
+  std::string leds;                  // LED layout (preset "0".."5" or "x,y;x,y;..." mm); "" = the source's default
+                                     // (synthetic-eye: preset 2; cameras and videos: unknown, glints unpaired)
+  int pupil_downscale = 2;           // 1, 2 or 4: coarse pupil search on an image this much smaller
+  bool pupil_roi = true;             // search near the last pupil first
+  std::uint32_t synthetic_width = 320, synthetic_height = 240;  // synthetic-eye image size, 32..4096
+  bool synthetic_hard = false;       // synthetic-eye: hard imaging conditions (noise, blur, lid, reflections)
+  friend bool operator==(const EyeConfig&, const EyeConfig&) = default;
+};
+inline const std::vector<std::string> kEyeSides = {"left", "right"};
+
 // A known tracker or eye camera (USB vendor:product), for device discovery and hotplug.
 struct DeviceEntry {
   std::uint16_t vid = 0;
@@ -70,6 +84,7 @@ struct DaemonConfig {
   RecordConfig record;
   CalibrationConfig calibration;
   ClassifierConfig classifier;
+  EyeConfig eye;
   std::vector<DeviceEntry> devices;
   std::string log_level = "info";  // trace | debug | info | warn | error
 };
@@ -111,6 +126,12 @@ struct CliOverrides {
   std::optional<std::string> classifier_method;
   std::optional<std::string> calibration_file;
   std::optional<std::string> log_level;
+  std::optional<std::string> eye_side;
+  std::optional<std::string> eye_leds;
+  std::optional<int> pupil_downscale;
+  std::optional<bool> pupil_roi;
+  std::optional<std::pair<std::uint32_t, std::uint32_t>> synthetic_size;
+  std::optional<bool> synthetic_hard;
 };
 void apply_overrides(DaemonConfig& config, const CliOverrides& cli);
 

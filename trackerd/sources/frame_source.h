@@ -1,7 +1,7 @@
 #pragma once
-// A source of eye-camera frames (V4L2 camera, recorded eye video). The eye pipeline (pupil and
-// corneal-glint detection, step 4) turns frames into gaze samples; until it exists the daemon
-// captures and reports frames but publishes no gaze from such a source, and says so.
+// A source of eye-camera frames (V4L2 camera, recorded eye video, the synthetic eye). The eye
+// pipeline (eye/eye_source.h: pupil and corneal-glint detection, then a calibration map) turns
+// each frame into a gaze sample.
 #include <cstdint>
 #include <optional>
 #include <string>

@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# fovea-ctl synth-eye and detect-pupil as a user runs them, and the daemon's eye options at the
+# command line.
+set -u
+TRACKERD=$1 CTL=$2
+WORK=$(mktemp -d)
+trap 'rm -rf "$WORK"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+echo "== synth-eye writes images and their truth"
+"$CTL" synth-eye --out "$WORK/eyes" --count 12 --seed 3 2>"$WORK/synth.err" || fail "synth-eye: $(cat "$WORK/synth.err")"
+[ -f "$WORK/eyes/eye_0000.png" ] && [ -f "$WORK/eyes/eye_0011.png" ] || fail "images missing: $(ls "$WORK/eyes")"
+head -1 "$WORK/eyes/truth.csv" | grep -qx "file,pupil_x,pupil_y,major,minor,angle_deg,closed,glint_count,glints,pupil_glint_x,pupil_glint_y" \
+  || fail "truth.csv header: $(head -1 "$WORK/eyes/truth.csv")"
+[ "$(wc -l <"$WORK/eyes/truth.csv")" -eq 13 ] || fail "truth.csv rows: $(wc -l <"$WORK/eyes/truth.csv")"
+out=$("$CTL" synth-eye --out "$WORK/eyes" --count 1 2>&1) && fail "synth-eye wrote into a non-empty directory"
+grep -q "not empty" <<<"$out" || fail "unclear refusal: $out"
+"$CTL" synth-eye --out "$WORK/hard" --count 3 --hard --size 160x120 2>/dev/null || fail "synth-eye --hard"
+out=$("$CTL" synth-eye --out "$WORK/bad" --size 10x10 2>&1) && fail "tiny size accepted"
+grep -q -- "--size" <<<"$out" || fail "unclear size message: $out"
+
+echo "== detect-pupil finds the pupils synth-eye drew"
+(cd "$WORK/eyes" && "$CTL" detect-pupil eye_*.png --leds 2 --out "$WORK/det.csv" >"$WORK/det.out" 2>"$WORK/det.err") \
+  || fail "detect-pupil failed: $(cat "$WORK/det.err")"
+cmp -s "$WORK/det.out" "$WORK/det.csv" || fail "--out differs from stdout"
+head -1 "$WORK/det.csv" | grep -qx "file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints" \
+  || fail "detect-pupil header: $(head -1 "$WORK/det.csv")"
+[ "$(wc -l <"$WORK/det.csv")" -eq 13 ] || fail "detect-pupil rows: $(cat "$WORK/det.csv")"
+# Pupil centre within 1.5 px of the truth in at least 11 of 12 images.
+good=$(awk -F, 'NR==FNR { if (FNR > 1) { tx[$1] = $2; ty[$1] = $3 } next }
+                FNR > 1 && $2 != "" { dx = $2 - tx[$1]; dy = $3 - ty[$1]; if (dx*dx + dy*dy <= 2.25) n++ }
+                END { print n + 0 }' "$WORK/eyes/truth.csv" "$WORK/det.csv")
+[ "$good" -ge 11 ] || fail "only $good of 12 pupils within 1.5 px: $(paste -d'\n' "$WORK/eyes/truth.csv" "$WORK/det.csv")"
+# Two glints (preset 2) in most rows, formatted x:y;x:y.
+grep -Eq ',2,[0-9.]+:[0-9.]+;[0-9.]+:[0-9.]+$' "$WORK/det.csv" || fail "no row with two glints: $(cat "$WORK/det.csv")"
+out=$("$CTL" detect-pupil "$WORK/eyes/eye_0000.png" --out "$WORK/det.csv" 2>&1) && fail "--out overwrote a file"
+grep -q "already exists" <<<"$out" || fail "unclear overwrite refusal: $out"
+"$CTL" detect-pupil "$WORK"/eyes/eye_000[0-3].png --track --downscale 4 >"$WORK/track.out" 2>/dev/null || fail "--track"
+[ "$(wc -l <"$WORK/track.out")" -eq 5 ] || fail "--track rows: $(cat "$WORK/track.out")"
+
+echo "== unreadable inputs are named, the others still processed, exit 1"
+echo "not an image" >"$WORK/text.png"
+"$CTL" detect-pupil "$WORK/eyes/eye_0001.png" "$WORK/missing.png" "$WORK/text.png" "$WORK/eyes/eye_0002.png" \
+  >"$WORK/mixed.out" 2>"$WORK/mixed.err"
+rc=$?
+[ $rc -eq 1 ] || fail "exit status $rc with unreadable inputs (want 1)"
+grep -q "$WORK/missing.png: no such file" "$WORK/mixed.err" || fail "missing file not named: $(cat "$WORK/mixed.err")"
+grep -q "$WORK/text.png: cannot be read as an image" "$WORK/mixed.err" || fail "bad image not named: $(cat "$WORK/mixed.err")"
+[ "$(wc -l <"$WORK/mixed.out")" -eq 3 ] || fail "the readable images were not all processed: $(cat "$WORK/mixed.out")"
+out=$("$CTL" detect-pupil "$WORK/eyes/eye_0001.png" --leds "1,2;x" 2>&1) && fail "bad --leds accepted"
+grep -q "x" <<<"$out" && grep -q "LED layout" <<<"$out" || fail "unclear --leds message: $out"
+
+echo "== fovea-trackerd eye options are checked"
+out=$("$TRACKERD" --check-config --config /dev/null --source synthetic-eye --leds "1,2;oops" 2>&1) && fail "bad --leds passed --check-config"
+grep -q "eye.leds" <<<"$out" && grep -q "oops" <<<"$out" || fail "--check-config does not name eye.leds: $out"
+"$TRACKERD" --check-config --config /dev/null --source synthetic-eye --eye left --leds 4 --eye-size 640x480 --eye-hard \
+  --pupil-downscale 4 --no-pupil-roi >"$WORK/eff.toml" 2>/dev/null || fail "valid eye options refused"
+for line in 'side = "left"' 'leds = "4"' 'pupil_downscale = 4' 'pupil_roi = false' 'synthetic_width = 640' \
+            'synthetic_height = 480' 'synthetic_hard = true' 'spec = "synthetic-eye"'; do
+  grep -qF "$line" "$WORK/eff.toml" || fail "effective configuration lacks '$line': $(cat "$WORK/eff.toml")"
+done
+out=$("$TRACKERD" --source synthetic-eye --eye-size 20x20 2>&1) && fail "bad --eye-size accepted"
+grep -q -- "--eye-size" <<<"$out" || fail "unclear --eye-size message: $out"
+out=$("$TRACKERD" --source synthetic-eye --leds 9 --port 1 2>&1) && fail "LED preset 9 accepted"
+grep -q "LED preset 9" <<<"$out" || fail "unclear LED message: $out"
+"$TRACKERD" --help | grep -q "synthetic-eye" || fail "--help does not list synthetic-eye"
+"$CTL" --help | grep -q "detect-pupil" || fail "fovea-ctl --help does not list detect-pupil"
+echo "PASS"
