@@ -26,6 +26,7 @@
 
 #include "eye/eye_detector.h"
 #include "eye/synthetic_eye.h"
+#include "eye/synthetic_eye_frames.h"
 #include "sources/synthetic_gaze.h"
 
 namespace eye = fovea::trackerd::eye;
@@ -64,14 +65,9 @@ std::vector<ImageSet> all_sets() {
     o.illumination_gradient = 0.4;
   });
   add("all-at-once", [](eye::SyntheticEyeOptions& o) {  // every hard condition in every frame: a stress set
+    o = eye::with_hard_conditions(o);  // as fovea-trackerd --eye-hard, plus the two below
     o.glint_on_pupil_edge = true;
-    o.eyelid_cover = 0.3;
-    o.noise_sigma = 10;
-    o.motion_blur_px = 2;
-    o.motion_blur_angle_deg = 30;
     o.defocus_px = 1;
-    o.glasses_reflection = true;
-    o.illumination_gradient = 0.4;
   }, false, false);
   add("closed", [](eye::SyntheticEyeOptions& o) { o.noise_sigma = 4; }, true, false);
   return sets;
@@ -249,11 +245,14 @@ int fit_confidence(int frames) {
         s.leds = eye::LedLayout::preset(2);
         s.min_confidence = 0;
         eye::EyeDetector detector(s);
+        // Every fitted candidate, not only the winners: the confidence also chooses among them.
         for (const auto& f : sequence) {
-          const auto m = detector.detect(f.image);
-          if (!m.pupil_found) continue;
-          samples.push_back({m.evidence, std::hypot(m.pupil.centre.x - f.truth.pupil.centre.x,
-                                                    m.pupil.centre.y - f.truth.pupil.centre.y)});
+          std::vector<eye::EyeDetector::CandidateFit> candidates;
+          detector.reset();
+          detector.detect(f.image, &candidates);
+          for (const auto& c : candidates)
+            samples.push_back({c.evidence, std::hypot(c.ellipse.centre.x - f.truth.pupil.centre.x,
+                                                      c.ellipse.centre.y - f.truth.pupil.centre.y)});
         }
       }
     return samples;

@@ -21,10 +21,10 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kToPublic = 0.5;
 
 // Logistic model of P(centre error <= 1 px): bias, support, outline, residual px, aspect, contrast/100.
-constexpr std::size_t kCandidates = 4;  // pupil candidates fitted per search
+constexpr std::size_t kCandidates = 8;  // pupil candidates fitted per search
 constexpr double kClearPupil = 0.9;     // a fit this confident ends the search
 
-constexpr std::array<double, 6> kConfidenceModel{-12.5378, 24.0986, 1.6925, -13.3678, 4.4379, 4.8786};
+constexpr std::array<double, 6> kConfidenceModel{-17.0048, 20.2948, 4.1147, -15.5830, 10.5985, 3.8343};
 
 double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1.0) : 0.0; }
 
@@ -291,7 +291,8 @@ GlintCandidates find_glints(const cv::Mat& grey, const cv::Rect& window, double 
   for (int i = 1; i < n; ++i) {
     const int area = stats.at<int>(i, cv::CC_STAT_AREA);
     const int bw = stats.at<int>(i, cv::CC_STAT_WIDTH), bh = stats.at<int>(i, cv::CC_STAT_HEIGHT);
-    if (area > max_area || bw > 2 * max_radius + 2 || bh > 2 * max_radius + 2) continue;
+    // Single saturated pixels are sensor noise on bright skin; a glint covers a few pixels.
+    if (area < (image_size >= 160 ? 3 : 2) || area > max_area || bw > 2 * max_radius + 2 || bh > 2 * max_radius + 2) continue;
     if (std::max(bw, bh) > 3 * std::min(bw, bh) + 2) continue;  // streaks (glasses edges, lashes) are not glints
     // Intensity-weighted centroid over the component's box, above the threshold.
     const int bx = stats.at<int>(i, cv::CC_STAT_LEFT), by = stats.at<int>(i, cv::CC_STAT_TOP);
@@ -308,7 +309,12 @@ GlintCandidates find_glints(const cv::Mat& grey, const cv::Rect& window, double 
     const cv::Rect around = cv::Rect(bx - ring, by - ring, bw + 2 * ring, bh + 2 * ring) & cv::Rect(0, 0, region.cols, region.rows);
     const double ring_mean = (cv::sum(region(around))[0] - cv::sum(region(cv::Rect(bx, by, bw, bh)))[0]) /
                              std::max(1.0, static_cast<double>(around.area() - bw * bh));
-    if (ring_mean > threshold - 15) continue;
+    // A glint is a near-saturated peak well above its surround; sensor noise on the bright sclera
+    // crosses the threshold too, but neither reaches the frame's brightest level nor stands 50
+    // grey levels above its neighbours.
+    double peak = 0;
+    cv::minMaxLoc(region(cv::Rect(bx, by, bw, bh)), nullptr, &peak);
+    if (ring_mean > threshold - 15 || peak < hi - 12 || peak - ring_mean < 50) continue;
     Glint g;
     g.centre = {window.x + sx / sw, window.y + sy / sw};
     g.area_px = area;
@@ -780,7 +786,7 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
 
 }  // namespace
 
-EyeMeasurement EyeDetector::detect(const cv::Mat& image) {
+EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFit>* candidates) {
   EyeMeasurement result;
   try {
     grey_ = to_grey8(image);
@@ -882,6 +888,10 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image) {
       best.why = "no dark blob";
       for (const Blob& blob : blobs) {
         Attempt a = fit_candidate(blob, best.glints);
+        if (candidates && a.confidence > 0)
+          candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
+                                         a.ellipse.minor, a.ellipse.angle_deg},
+                                 a.evidence, a.confidence});
         if (a.confidence > best.confidence || (best.confidence == 0 && best.why == "no dark blob")) {
           a.glints = std::move(best.glints);
           best = std::move(a);

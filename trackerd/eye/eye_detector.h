@@ -38,7 +38,7 @@ struct DetectorSettings {
   // Pupil radius range as fractions of min(width, height); everything else scales with the image.
   double min_pupil_radius = 0.02, max_pupil_radius = 0.25;
   double blink_aspect = 0.7;      // Lee 2009 §3.5.2: minor/major below this (relative to the eye's open aspect) is a blink
-  double min_confidence = 0.2;    // below this the pupil counts as not found
+  double min_confidence = 0.5;    // below this the pupil counts as not found (more likely wrong than right)
   LedLayout leds;                 // empty: glints are reported unpaired
   // Checks ranges; throws std::invalid_argument naming the field and its allowed range.
   void validate() const;
@@ -83,7 +83,14 @@ class EyeDetector {
   const DetectorSettings& settings() const { return settings_; }
   // Any image: 8- or 16-bit, 1, 3 or 4 channels (converted to 8-bit grey); empty or tiny images
   // give "no pupil". Never throws for image content; never returns NaN. Keeps ROI state between calls.
-  EyeMeasurement detect(const cv::Mat& image);
+  EyeMeasurement detect(const cv::Mat& image) { return detect(image, nullptr); }
+  // Also lists every pupil candidate that was fitted (for refitting the confidence model).
+  struct CandidateFit {
+    Ellipse ellipse;  // in Ellipse's pixel convention
+    PupilEvidence evidence;
+    double confidence = 0;
+  };
+  EyeMeasurement detect(const cv::Mat& image, std::vector<CandidateFit>* candidates);
   void reset();  // forget the tracked ROI
 
  private:
