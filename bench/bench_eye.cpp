@@ -86,7 +86,7 @@ std::vector<Variant> all_variants() {
     tweak(s);
     v.push_back({std::move(name), s});
   };
-  add("default(ds2,roi,rays,ransac)", [](eye::DetectorSettings&) {});
+  add("default(ds2 roi rays ransac)", [](eye::DetectorSettings&) {});
   add("ds1", [](eye::DetectorSettings& s) { s.coarse_downscale = 1; });
   add("ds4", [](eye::DetectorSettings& s) { s.coarse_downscale = 4; });
   add("no-roi", [](eye::DetectorSettings& s) { s.roi_tracking = false; });

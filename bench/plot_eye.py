@@ -1,9 +1,9 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Plots bench_eye's CSV: pupil-centre error against ms/frame per detector variant.
 
 usage: bench/plot_eye.py bench_eye.csv out.png
-Left: clean images (median error). Right: the hard set (95th-percentile error), one marker per
-variant and resolution; detection rate in the legend of the hard panel.
+Left: clean images (median error). Right: the hard set (95th-percentile error). One colour per
+variant, one marker shape per resolution; detection rates are in the CSV and bench/RESULTS.md.
 """
 import csv
 import sys
