@@ -217,3 +217,33 @@ TEST(EyeDaemon, DetectPupilKeeps16BitImages) {
   ASSERT_EQ(std::sscanf(row.c_str() + png.string().size(), ",%lf,%lf", &x, &y), 2) << row;
   EXPECT_LT(std::hypot(x - truth.pupil.centre.x, y - truth.pupil.centre.y), 1.5) << row;
 }
+
+// Ordinary photographs: a colour JPEG (lossy, 3 channels) and a small grey JPEG.
+TEST(EyeDaemon, DetectPupilReadsColourAndGreyJpegs) {
+  TempDir d;
+  SyntheticEyeOptions options;
+  options.seed = 9;
+  SyntheticEye eye{options};
+  EyeTruth truth;
+  const cv::Mat grey = eye.render(-8, 5, 1.0, &truth);
+  cv::Mat colour;
+  cv::cvtColor(grey, colour, cv::COLOR_GRAY2BGR);
+  colour.forEach<cv::Vec3b>([](cv::Vec3b& p, const int*) { p[2] = cv::saturate_cast<std::uint8_t>(p[2] * 1.1); });  // a warm tint
+  const fs::path jpeg = d.path / "eye.jpg", grey_jpeg = d.path / "grey.jpeg";
+  ASSERT_TRUE(cv::imwrite(jpeg.string(), colour, {cv::IMWRITE_JPEG_QUALITY, 85}));
+  ASSERT_TRUE(cv::imwrite(grey_jpeg.string(), grey, {cv::IMWRITE_JPEG_QUALITY, 70}));
+  const fs::path out = d.path / "out.csv";
+  const std::string cmd = std::string(FOVEA_CTL_PATH) + " detect-pupil " + jpeg.string() + " " + grey_jpeg.string() +
+                          " --out " + out.string() + " >/dev/null";
+  ASSERT_EQ(exit_status(cmd), 0);
+  std::istringstream rows(read_text(out));
+  std::string header, row;
+  std::getline(rows, header);
+  for (const fs::path& file : {jpeg, grey_jpeg}) {
+    ASSERT_TRUE(std::getline(rows, row));
+    ASSERT_EQ(row.rfind(file.string() + ",", 0), 0u) << row;
+    double x = 0, y = 0;
+    ASSERT_EQ(std::sscanf(row.c_str() + file.string().size(), ",%lf,%lf", &x, &y), 2) << row;
+    EXPECT_LT(std::hypot(x - truth.pupil.centre.x, y - truth.pupil.centre.y), 1.0) << row;
+  }
+}
