@@ -108,29 +108,37 @@ struct Frame {
 
 // A viewer's gaze over time (fixations, saccades, pursuit) from the synthetic gaze model, rendered
 // at 120 Hz. Blinks in the model are skipped: open sets stay open and the closed set is all closed.
+// Each eye (seed) has its own look: iris texture, lashes, skin, where spectacle reflections fall.
+// A set is several eyes, each followed for kFramesPerEye frames, so one unlucky look does not make
+// the figure.
+constexpr int kFramesPerEye = 25;
+
 std::vector<Frame> render_sequence(const ImageSet& set, cv::Size size, int frames, std::uint64_t seed) {
-  eye::SyntheticEyeOptions o = set.options;
-  o.width = size.width;
-  o.height = size.height;
-  o.seed = seed;
-  eye::SyntheticEye generator(o);
-  fovea::trackerd::SyntheticGazeOptions g;
-  g.rate_hz = 120;
-  g.seed = seed;
-  g.noise_deg = 0;
-  fovea::trackerd::SyntheticGaze gaze(g);
   std::vector<Frame> out;
   out.reserve(static_cast<std::size_t>(frames));
-  while (static_cast<int>(out.size()) < frames) {
-    const auto item = gaze.next();
-    if (!item) break;
-    const auto* sample = std::get_if<fovea::protocol::GazeSample>(&*item);
-    if (!sample || !(sample->flags & fovea::protocol::kGazeValid)) continue;
-    if (sample->state == fovea::protocol::EyeMovement::Blink) continue;
-    Frame f;
-    f.image = generator.render(static_cast<double>(sample->x_deg), static_cast<double>(sample->y_deg),
-                               set.closed ? 0.0 : 1.0, &f.truth);
-    out.push_back(std::move(f));
+  for (std::uint64_t look = 0; static_cast<int>(out.size()) < frames; ++look) {
+    eye::SyntheticEyeOptions o = set.options;
+    o.width = size.width;
+    o.height = size.height;
+    o.seed = seed * 1000 + look;
+    eye::SyntheticEye generator(o);
+    fovea::trackerd::SyntheticGazeOptions g;
+    g.rate_hz = 120;
+    g.seed = o.seed;
+    g.noise_deg = 0;
+    fovea::trackerd::SyntheticGaze gaze(g);
+    const std::size_t end = std::min<std::size_t>(static_cast<std::size_t>(frames), out.size() + kFramesPerEye);
+    while (out.size() < end) {
+      const auto item = gaze.next();
+      if (!item) break;
+      const auto* sample = std::get_if<fovea::protocol::GazeSample>(&*item);
+      if (!sample || !(sample->flags & fovea::protocol::kGazeValid)) continue;
+      if (sample->state == fovea::protocol::EyeMovement::Blink) continue;
+      Frame f;
+      f.image = generator.render(static_cast<double>(sample->x_deg), static_cast<double>(sample->y_deg),
+                                 set.closed ? 0.0 : 1.0, &f.truth);
+      out.push_back(std::move(f));
+    }
   }
   return out;
 }

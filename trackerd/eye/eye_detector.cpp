@@ -24,7 +24,7 @@ constexpr double kToPublic = 0.5;
 constexpr std::size_t kCandidates = 8;  // pupil candidates fitted per search
 constexpr double kClearPupil = 0.9;     // a fit this confident ends the search
 
-constexpr std::array<double, 6> kConfidenceModel{-17.0048, 20.2948, 4.1147, -15.5830, 10.5985, 3.8343};
+constexpr std::array<double, 6> kConfidenceModel{-21.6006, 15.4716, 4.0722, -12.6362, 18.2015, 2.4973};
 
 double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1.0) : 0.0; }
 
