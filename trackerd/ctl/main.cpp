@@ -770,7 +770,9 @@ int main(int argc, char** argv) {
   bool dp_track = false, dp_force = false;
   auto* detect_pupil = app.add_subcommand(
       "detect-pupil", "find the pupil and corneal glints in eye images (PNG, JPEG, ... 8 or 16 bit); one CSV row "
-                      "per image: file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints");
+                      "per image: file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints (pixels from "
+                      "the top-left corner; confidence = probability that the centre is within 1 px; method: "
+                      "trackerd/eye/EYE.md)");
   detect_pupil->add_option("IMAGE", dp_images, "eye images")->required();
   detect_pupil->add_option("--out", dp_out, "also write the CSV to this file (refuses to overwrite)");
   detect_pupil->add_flag("--force", dp_force, "with --out: replace the file if it exists");
