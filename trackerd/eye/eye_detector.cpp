@@ -672,7 +672,7 @@ cv::Mat to_grey8(const cv::Mat& image) {
     case 1: grey = image; break;
     case 3: cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY); break;
     case 4: cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY); break;
-    default: return {};
+    default: cv::extractChannel(image, grey, 0); break;  // e.g. grey + alpha: the first channel
   }
   if (grey.depth() == CV_8U) return grey;
   cv::Mat as_double;  // float is exact for 16-bit values and is what patchNaNs accepts

@@ -81,7 +81,7 @@ class EyeDetector {
  public:
   explicit EyeDetector(DetectorSettings settings = {});
   const DetectorSettings& settings() const { return settings_; }
-  // Any image: 8- or 16-bit, 1, 3 or 4 channels (converted to 8-bit grey); empty or tiny images
+  // Any image: 8- or 16-bit, grey, BGR or BGRA (other channel counts: the first channel), converted to 8-bit grey; empty or tiny images
   // give "no pupil". Never throws for image content; never returns NaN. Keeps ROI state between calls.
   EyeMeasurement detect(const cv::Mat& image) { return detect(image, nullptr); }
   // Also lists every pupil candidate that was fitted (for refitting the confidence model).
@@ -105,7 +105,7 @@ class EyeDetector {
 // contour and cv::fitEllipse it. No glint handling, no outlier rejection.
 EyeMeasurement detect_pupil_baseline(const cv::Mat& image);
 
-// Converts any supported image to 8-bit single-channel grey (16-bit: scaled by the frame's own
+// Converts any image to 8-bit single-channel grey (BGR, BGRA; otherwise the first channel; 16-bit: scaled by the frame's own
 // maximum so 10/12-bit sensors in 16-bit containers keep their contrast). Empty stays empty.
 cv::Mat to_grey8(const cv::Mat& image);
 

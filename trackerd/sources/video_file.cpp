@@ -1,5 +1,7 @@
 #include "sources/video_file.h"
 
+#include "eye/eye_detector.h"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -41,18 +43,6 @@ std::vector<cv::VideoCaptureAPIs> file_backends(const std::string& path) {
   return apis;
 }
 
-cv::Mat to_grey(const cv::Mat& frame) {
-  cv::Mat eight = frame;
-  if (frame.depth() != CV_8U) frame.convertTo(eight, CV_8U);
-  cv::Mat grey;
-  switch (eight.channels()) {
-    case 1: grey = eight.clone(); break;
-    case 3: cv::cvtColor(eight, grey, cv::COLOR_BGR2GRAY); break;
-    case 4: cv::cvtColor(eight, grey, cv::COLOR_BGRA2GRAY); break;
-    default: cv::extractChannel(eight, grey, 0); break;
-  }
-  return grey;
-}
 
 }  // namespace
 
@@ -123,7 +113,9 @@ bool VideoFileSource::read_pending() {
                        last_file_ns_ + 1);
   }
   last_file_ns_ = file_ns;
-  pending_ = EyeFrame{to_grey(frame), file_ns - first_file_ns_, index_};
+  cv::Mat grey = eye::to_grey8(frame);
+  if (grey.data == frame.data) grey = grey.clone();  // the capture reuses its buffer
+  pending_ = EyeFrame{std::move(grey), file_ns - first_file_ns_, index_};
   ++index_;
   return true;
 }
