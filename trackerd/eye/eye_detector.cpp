@@ -701,11 +701,17 @@ namespace {
 
 // Pairs glints with the LED layout: the glints are a reduced, upright copy of the layout, so a
 // scale and translation map LED positions to glint positions (rotation is not modelled).
+// Two glints fit several LED pairs exactly (each at its own scale), so among hypotheses matching as
+// many glints the one whose scale is nearest the scale seen in earlier frames wins: the glint
+// pattern's size changes slowly (with the eye's distance), and without that prior the reference
+// point can flip between LED assignments from frame to frame, moving the pupil–glint vector by a
+// whole LED spacing.
 struct Pairing {
   std::vector<int> led_of;  // per glint
   cv::Point2d reference;    // image of the layout's centroid
   bool valid = false;
   double scale = 0;
+  int matches = 0;
 };
 
 Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layout, double tolerance,
@@ -719,7 +725,7 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
   for (const auto& l : leds) layout_centroid += l;
   layout_centroid *= 1.0 / static_cast<double>(m);
   int best_matches = 0;
-  double best_residual = 1e300;
+  double best_cost = 1e300;
   const auto evaluate = [&](double s, const cv::Point2d& t) {
     std::vector<int> led_of(g, -1);
     int matches = 0;
@@ -741,9 +747,11 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
         residual += nearest;
       }
     }
-    if (matches > best_matches || (matches == best_matches && residual < best_residual)) {
+    // A scale 20 % off the last one costs as much as being 1.5 tolerances off per glint.
+    const double cost = residual + (last_scale > 0 ? 8 * tolerance * std::abs(std::log(s / last_scale)) : 0.0);
+    if (matches > best_matches || (matches == best_matches && cost < best_cost)) {
       best_matches = matches;
-      best_residual = residual;
+      best_cost = cost;
       best.led_of = led_of;
       best.scale = s;
       best.reference = s * layout_centroid + t;
@@ -781,6 +789,7 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
     return best;
   }
   best.valid = best_matches >= 2 || (best_matches == 1 && last_scale > 0);
+  best.matches = best_matches;
   return best;
 }
 
@@ -957,7 +966,14 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
       if (pairing.valid) {
         reference = pairing.reference;
         reference_valid = true;
-        if (pairing.scale > 0 && settings_.leds.positions_mm.size() >= 2) last_glint_scale_ = pairing.scale;
+        // The scale prior learns from unambiguous pairings (three or more glints), or from two when
+        // it has nothing yet or they agree with it.
+        const bool learn = pairing.matches >= 3 ||
+                           (pairing.matches == 2 && (last_glint_scale_ <= 0 ||
+                                                     std::abs(std::log(pairing.scale / last_glint_scale_)) < 0.2));
+        if (pairing.scale > 0 && settings_.leds.positions_mm.size() >= 2 && learn) {
+          last_glint_scale_ = last_glint_scale_ > 0 ? 0.8 * last_glint_scale_ + 0.2 * pairing.scale : pairing.scale;
+        }
       }
     } else if (!glints.empty()) {
       for (const auto& g : glints) reference += g.centre;
