@@ -4,10 +4,13 @@
 #include <sys/prctl.h>
 
 #include <cctype>
+#include <charconv>
+#include <cmath>
 #include <cerrno>
 #include <chrono>
 #include <ctime>
 #include <fstream>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -45,6 +48,58 @@ std::string check_source_spec(const std::string& spec) {
          "camera:usb:VID:PID, video:FILE";
 }
 
+namespace {
+
+std::optional<calib::ScheduleOptions> parse_eye_script(const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  const std::string prefix = "calibration:";
+  if (text.rfind(prefix, 0) != 0) {
+    throw std::invalid_argument("\"" + text + "\" is not a script; expected calibration:POINTS[:SEED[:VALIDATION]]");
+  }
+  std::vector<long long> values;
+  std::size_t at = prefix.size();
+  while (true) {
+    const std::size_t colon = text.find(':', at);
+    const std::string part = text.substr(at, colon == std::string::npos ? std::string::npos : colon - at);
+    long long v = 0;
+    const auto r = std::from_chars(part.data(), part.data() + part.size(), v);
+    if (part.empty() || r.ec != std::errc{} || r.ptr != part.data() + part.size() || v < 0) {
+      throw std::invalid_argument("\"" + text + "\": \"" + part + "\" is not a non-negative integer");
+    }
+    values.push_back(v);
+    if (colon == std::string::npos) break;
+    at = colon + 1;
+  }
+  if (values.size() > 3) throw std::invalid_argument("\"" + text + "\": at most POINTS:SEED:VALIDATION");
+  calib::ScheduleOptions o;
+  o.points = static_cast<int>(std::min(values[0], 1000LL));
+  if (values.size() > 1) o.seed = static_cast<std::uint64_t>(values[1]);
+  if (values.size() > 2) o.validation_points = static_cast<int>(std::min(values[2], 1000LL));
+  o.check();
+  return o;
+}
+
+cv::Point3d parse_head_offset(const std::string& text) {
+  double v[3] = {0, 0, 0};
+  std::size_t at = 0;
+  for (int i = 0; i < 3; ++i) {
+    const std::size_t comma = text.find(',', at);
+    if ((i < 2) == (comma == std::string::npos)) {
+      throw std::invalid_argument("\"" + text + "\" is not X,Y,Z (three numbers in mm)");
+    }
+    const std::string part = text.substr(at, i < 2 ? comma - at : std::string::npos);
+    const auto r = std::from_chars(part.data(), part.data() + part.size(), v[i]);
+    if (part.empty() || r.ec != std::errc{} || r.ptr != part.data() + part.size() || !std::isfinite(v[i]) ||
+        std::abs(v[i]) > 250) {
+      throw std::invalid_argument("\"" + text + "\": \"" + part + "\" is not a number of mm within +-250");
+    }
+    at = comma + 1;
+  }
+  return {v[0], v[1], v[2]};
+}
+
+}  // namespace
+
 std::vector<std::string> check_eye_config(const service::EyeConfig& eye) {
   std::vector<std::string> problems;
   try {
@@ -62,6 +117,16 @@ std::vector<std::string> check_eye_config(const service::EyeConfig& eye) {
   if (eye.pupil_downscale != 1 && eye.pupil_downscale != 2 && eye.pupil_downscale != 4) {
     problems.push_back("eye.pupil_downscale: " + std::to_string(eye.pupil_downscale) +
                        " is not allowed; allowed: 1, 2, 4");
+  }
+  try {
+    (void)parse_eye_script(eye.synthetic_script);
+  } catch (const std::exception& e) {
+    problems.push_back(std::string("eye.synthetic_script: ") + e.what());
+  }
+  try {
+    (void)parse_head_offset(eye.synthetic_head_offset_mm);
+  } catch (const std::exception& e) {
+    problems.push_back(std::string("eye.synthetic_head_offset_mm: ") + e.what());
   }
   for (const auto& [name, v] : {std::pair{"eye.synthetic_width", eye.synthetic_width},
                                std::pair{"eye.synthetic_height", eye.synthetic_height}}) {
@@ -135,6 +200,8 @@ std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int
     if (c.eye.synthetic_hard) fo.eye = eye::with_hard_conditions(fo.eye);
     fo.rate_hz = rate;
     fo.display = display;
+    fo.calibration_script = parse_eye_script(c.eye.synthetic_script);
+    fo.head_offset_mm = parse_head_offset(c.eye.synthetic_head_offset_mm);
     auto frames = std::make_unique<eye::SyntheticEyeFrames>(fo);
     eye::EyePipelineOptions po = eye_pipeline_options(c, display, fo.eye.leds);
     po.nominal_rate_hz = rate;
@@ -224,6 +291,7 @@ class Daemon {
   protocol::ControlReply reload(const std::string& why);
   std::string start_recording(const std::string& path, bool append);  // empty or what went wrong
   std::string stop_recording();
+  protocol::ControlReply load_calibration(const std::string& argument);
   void apply_display(const std::optional<protocol::DisplayGeometry>& configured);
   std::string status_line() const;
   bool stopping() const { return signals_.stop != nullptr && signals_.stop->load(); }
@@ -237,6 +305,8 @@ class Daemon {
   service::CommandMailbox mailbox_;
   std::unique_ptr<GazeSource> source_;
   std::unique_ptr<service::CalibrationStage> calibration_;
+  // A calibration loaded by the control command; kept over reloads until "configured" or a restart.
+  std::optional<std::string> calibration_override_;
   std::unique_ptr<ClassifyStage> classify_;  // rebuilt on reload when the method changes
   std::vector<GazeItem> outgoing_;
   std::unique_ptr<protocol::GazeServer> server_;
@@ -279,7 +349,8 @@ bool Daemon::start(std::int64_t start_ns) {
     return false;
   }
   try {
-    calibration_ = service::load_calibration_stage(config_.calibration.file);
+    calibration_ = service::load_calibration_stage(config_.calibration.file,
+                                                   config_.display.value_or(source_->display()));
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return false;
@@ -410,6 +481,7 @@ std::string Daemon::status_line() const {
                   " Hz, " + std::to_string(st.subscribers) + " subscribers, " + std::to_string(st.samples_published) +
                   " samples";
   if (const std::string detail = source_->status_detail(); !detail.empty()) s += ", " + detail;
+  s += ", calibration " + calibration_->description();
   if (recorder_) s += ", recording " + recording_path_;
   return s;
 }
@@ -436,8 +508,35 @@ protocol::ControlReply Daemon::execute(const protocol::ControlRequest& r) {
       out.message.value = stop_recording();
       return out;
     }
+    case protocol::ControlCommand::LoadCalibration:
+      return load_calibration(r.argument.value);
   }
   return fail("unknown command");
+}
+
+// "none": no calibration; "configured": the configuration's file; anything else: a file to load.
+protocol::ControlReply Daemon::load_calibration(const std::string& argument) {
+  protocol::ControlReply out{protocol::ControlCommand::LoadCalibration, protocol::ControlResult::Ok, {}};
+  auto reply = [&](protocol::ControlResult result, std::string text) {
+    out.result = result;
+    if (text.size() > 63) text = text.substr(0, 60) + "...";
+    out.message.value = std::move(text);
+    return out;
+  };
+  if (argument.empty()) return reply(protocol::ControlResult::Failed, "calibration-load needs a file, none or configured");
+  const std::optional<std::string> next_override =
+      argument == "configured" ? std::nullopt : std::optional<std::string>(argument == "none" ? "" : argument);
+  const std::string file = next_override.value_or(config_.calibration.file);
+  try {
+    calibration_ = service::load_calibration_stage(file, display_);
+  } catch (const std::exception& e) {
+    spdlog::error("calibration-load {}: {}; keeping {}", argument, e.what(), calibration_->description());
+    return reply(protocol::ControlResult::Failed, e.what());
+  }
+  calibration_override_ = next_override;
+  spdlog::info("calibration (control request): {}", calibration_->description());
+  notifier_.status(status_line());
+  return reply(protocol::ControlResult::Ok, "calibration: " + calibration_->description());
 }
 
 std::string Daemon::start_recording(const std::string& path, bool append) {
@@ -505,17 +604,19 @@ protocol::ControlReply Daemon::reload(const std::string& why) {
   for (const auto& c : changes.needs_restart) spdlog::warn("{}: needs a restart; keeping the running value", c);
   next = service::adopt_live(config_, next);
 
-  // Calibration: read again even when the name is unchanged (the file may have been refitted).
+  // Calibration: read again even when the name is unchanged (the file may have been refitted);
+  // checked against the display the clients are told from now on.
+  apply_display(next.display);
   std::string problems;
   try {
-    calibration_ = service::load_calibration_stage(next.calibration.file);
-    spdlog::info("calibration: {}", calibration_->description());
+    calibration_ = service::load_calibration_stage(calibration_override_.value_or(next.calibration.file), display_);
+    spdlog::info("calibration: {}{}", calibration_->description(),
+                 calibration_override_ ? " (loaded by calibration-load; kept over reloads)" : "");
   } catch (const std::exception& e) {
     spdlog::error("{}; keeping the previous calibration", e.what());
     next.calibration = config_.calibration;
     problems = e.what();
   }
-  apply_display(next.display);
   server_->set_limits(next.network.lease_ms, next.network.max_subscribers);
   server_->set_control_allow(next.network.control_allow);
   if (!(next.record == config_.record)) {

@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
       app.add_option("--seed", d.source.seed, "synthetic sources: random seed (same seed, same gaze)")
           ->capture_default_str();
   // The eye pipeline (camera:, video:, synthetic-eye).
-  std::string eye_side = defaults.eye.side, leds, eye_size;
+  std::string eye_side = defaults.eye.side, leds, eye_size, eye_script, eye_head_offset;
   bool no_pupil_roi = false, eye_hard = false;
   auto* o_eye = app.add_option("--eye", eye_side, "eye pipeline: which eye the camera sees (fills that eye's data)")
                     ->check(CLI::IsMember(svc::kEyeSides))
@@ -98,6 +98,15 @@ int main(int argc, char** argv) {
   auto* o_eye_hard = app.add_flag("--eye-hard", eye_hard,
                                   "synthetic-eye: hard imaging conditions (sensor noise 10, 2 px motion blur, upper "
                                   "lid over 30% of the pupil, spectacle reflections, uneven illumination)");
+  auto* o_eye_script = app.add_option(
+      "--eye-script", eye_script,
+      "synthetic-eye: calibration:POINTS[:SEED[:VALIDATION]] makes the viewer follow the targets that "
+      "'fovea-calibrate run --points POINTS --seed SEED --validation-points VALIDATION' shows (defaults 1 "
+      "and 4), starting with the first frame: a whole calibration without a person");
+  auto* o_eye_head_offset = app.add_option(
+      "--eye-head-offset", eye_head_offset,
+      "synthetic-eye: X,Y,Z mm, the viewer's head moved from where the factory calibration assumes it "
+      "(x right, y down, z towards the screen)");
   auto* o_speed = app.add_option("--speed", d.source.speed, "replay source: speed factor (2 = twice as fast)")
                       ->capture_default_str();
   auto* o_loop = app.add_flag("--loop", loop, "replay source: start again at the end");
@@ -169,6 +178,8 @@ int main(int argc, char** argv) {
     if (given(o_downscale)) cli.pupil_downscale = d.eye.pupil_downscale;
     if (given(o_no_roi)) cli.pupil_roi = !no_pupil_roi;
     if (given(o_eye_hard)) cli.synthetic_hard = eye_hard;
+    if (given(o_eye_script)) cli.synthetic_script = eye_script;
+    if (given(o_eye_head_offset)) cli.synthetic_head_offset_mm = eye_head_offset;
     if (given(o_eye_size)) {
       unsigned w = 0, h = 0;
       char tail = 0;
@@ -221,6 +232,13 @@ int main(int argc, char** argv) {
   }
   spdlog::set_level(spdlog::level::from_str(config.log_level));  // the file's, unless --log-level
   if (!config_path.empty()) spdlog::info("configuration {}", config_path);
+
+  // A scripted synthetic viewer follows the calibration from its first frame: hold the source until
+  // the calibration tool has subscribed, so that the script and the targets start together.
+  if (config.source.spec == "synthetic-eye" && !config.eye.synthetic_script.empty() && run.wait_subscribers == 0) {
+    run.wait_subscribers = 1;
+    spdlog::info("--eye-script: the source starts when the first client subscribes");
+  }
 
   struct sigaction sa {};
   sigemptyset(&sa.sa_mask);

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cerrno>
 #include <cstring>
@@ -181,12 +182,88 @@ std::string kinds_list() {
 }
 }  // namespace
 
-std::unique_ptr<CalibrationModel> fit_model(std::string_view kind, std::span<const Correspondence> pts) {
+namespace {
+
+std::unique_ptr<CalibrationModel> fit_once(std::string_view kind, std::span<const Correspondence> pts) {
   if (kind == "poly2") return std::make_unique<Poly2Model>(Poly2Map::fit(pts));
   if (kind == "affine") return std::make_unique<AffineModel>(AffineMap::fit(pts));
   if (kind == "homography") return std::make_unique<HomographyModel>(HomographyMap::fit(pts));
   if (kind == "bilinear-grid") return std::make_unique<GridModel>(BilinearGrid::fit(pts));
   throw std::invalid_argument("unknown calibration model '" + std::string(kind) + "' (known: " + kinds_list() + ")");
+}
+
+std::size_t parameters_of(std::string_view kind) {
+  if (kind == "poly2") return 2 * Poly2Map::kTerms;
+  if (kind == "affine") return 6;
+  if (kind == "homography") return 8;
+  return 0;
+}
+
+double median_of(std::vector<double> v) {
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  return v[mid];
+}
+
+}  // namespace
+
+ModelFit fit_model(std::string_view kind, std::span<const Correspondence> pts, const FitOptions& options) {
+  // Several noisy samples per target make the design matrix full rank numerically even when there
+  // are fewer distinct targets than the model has terms per axis; such a fit is determined by noise.
+  const std::size_t terms = kind == "poly2" ? Poly2Map::kTerms : kind == "affine" ? 3 : kind == "homography" ? 4 : 0;
+  if (terms > 0 && pts.size() >= 2 * terms) {
+    std::vector<std::pair<double, double>> targets;
+    for (const auto& c : pts) targets.emplace_back(c.target.x, c.target.y);
+    std::sort(targets.begin(), targets.end());
+    const auto distinct = static_cast<std::size_t>(std::unique(targets.begin(), targets.end()) - targets.begin());
+    if (distinct < terms) {
+      throw std::invalid_argument(std::string(kind) + " needs at least " + std::to_string(terms) +
+                                  " distinct targets; got " + std::to_string(distinct) +
+                                  " distinct (more samples of a target do not add information)");
+    }
+  }
+  ModelFit out;
+  out.model = fit_once(kind, pts);
+  const bool robust = kind != "bilinear-grid" &&
+                      (options.robust == FitOptions::Robust::On ||
+                       (options.robust == FitOptions::Robust::Auto && kind == "poly2"));
+  if (!robust || pts.empty()) return out;
+  if (!(options.k > 0) || options.max_rounds < 1) throw std::invalid_argument("robust fit: k must be > 0 and max_rounds >= 1");
+
+  // Residual floor: a model that fits (nearly) exactly must not reject points for rounding noise.
+  double extent = 0;
+  for (const auto& c : pts) extent = std::max({extent, std::abs(c.target.x), std::abs(c.target.y)});
+  const double floor = 1e-9 * std::max(extent, 1.0);
+  const std::size_t keep_at_least = std::max(parameters_of(kind), (pts.size() + 1) / 2);
+  std::vector<Correspondence> kept(pts.begin(), pts.end());
+  for (int round = 0; round < options.max_rounds; ++round) {
+    std::vector<double> residual(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Point p = out.model->apply(pts[i].raw);
+      residual[i] = std::hypot(p.x - pts[i].target.x, p.y - pts[i].target.y);
+    }
+    // Sigma from the residuals of all correspondences against the current model (the rejected ones
+    // are re-admitted when the model moves towards them).
+    const double sigma = std::max(median_of(residual) / 1.1774, floor);
+    std::vector<Correspondence> next;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (std::isfinite(residual[i]) && residual[i] <= options.k * sigma) next.push_back(pts[i]);
+    }
+    if (next.size() < keep_at_least || next.size() == kept.size()) {
+      if (next.size() == kept.size()) out.outliers_rejected = pts.size() - kept.size();
+      break;
+    }
+    std::unique_ptr<CalibrationModel> refit;
+    try {
+      refit = fit_once(kind, next);
+    } catch (const std::invalid_argument&) {
+      break;  // the inliers alone do not determine the model: keep the last good fit
+    }
+    out.model = std::move(refit);
+    kept = std::move(next);
+    out.outliers_rejected = pts.size() - kept.size();
+  }
+  return out;
 }
 
 std::unique_ptr<CalibrationModel> model_from_json(const json& j, const std::string& where) {
@@ -208,9 +285,38 @@ json Calibration::to_json() const {
          {"rms_residual", rms_residual},
          {"condition", std::isfinite(condition) ? json(condition) : json(nullptr)},
          {"created", created}};
+  j["input"] = input;
+  if (!eye.empty()) j["eye"] = eye;
+  j["outliers_rejected"] = outliers_rejected;
   if (on_top_of) j["on_top_of"] = on_top_of->to_json();
-  if (!display.is_null()) j["display"] = display;
+  if (display) j["display"] = calib::to_json(*display);
+  if (!validation.is_null()) j["validation"] = validation;
   return j;
+}
+
+std::optional<double> Calibration::validated_accuracy_deg() const {
+  if (!validation.is_object()) return std::nullopt;
+  const auto it = validation.find("accuracy_deg");
+  if (it == validation.end() || !it->is_number()) return std::nullopt;
+  const double a = it->get<double>();
+  return std::isfinite(a) ? std::optional<double>(a) : std::nullopt;
+}
+
+std::string Calibration::describe() const {
+  std::ostringstream s;
+  s << (model ? model->kind() : "?");
+  if (on_top_of) s << " on " << on_top_of->kind();
+  s << " on " << input;
+  if (!eye.empty()) s << " (" << eye << " eye)";
+  s << ", " << points_used << " samples";
+  if (const auto a = validated_accuracy_deg()) {
+    s.setf(std::ios::fixed);
+    s.precision(2);
+    s << ", validated " << *a << " deg";
+  } else {
+    s << ", not validated";
+  }
+  return s.str();
 }
 
 std::string utc_now_iso8601() {
@@ -222,7 +328,8 @@ std::string utc_now_iso8601() {
   return buf;
 }
 
-Calibration fit_calibration(std::string_view kind, std::span<const Correspondence> pts, const Calibration* base) {
+Calibration fit_calibration(std::string_view kind, std::span<const Correspondence> pts, const Calibration* base,
+                            const FitOptions& options) {
   Calibration cal;
   std::vector<Correspondence> corrected;
   std::span<const Correspondence> use = pts;
@@ -236,8 +343,12 @@ Calibration fit_calibration(std::string_view kind, std::span<const Correspondenc
     use = corrected;
     cal.on_top_of = base->model->clone();
     cal.display = base->display;
+    cal.input = base->input;
+    cal.eye = base->eye;
   }
-  cal.model = fit_model(kind, use);
+  ModelFit fit = fit_model(kind, use, options);
+  cal.model = std::move(fit.model);
+  cal.outliers_rejected = fit.outliers_rejected;
   const FitStats s = cal.model->stats();
   cal.points_used = s.points;
   cal.rms_residual = s.rms_residual;  // of model(base(raw)) against the targets: the whole chain
@@ -318,9 +429,34 @@ Calibration load_calibration(const std::filesystem::path& path) {
     const json& created = member(j, name, "created");
     if (!created.is_string()) bad(name, "created", "must be an ISO-8601 string");
     cal.created = created.get<std::string>();
-    if (j.contains("display")) {
-      if (!j["display"].is_object()) bad(name, "display", "must be an object");
-      cal.display = j["display"];
+    if (j.contains("display")) cal.display = display_from_json(j["display"], name + ": display");
+    // Files written before "input" existed were fitted from CSV on screen points.
+    if (j.contains("input")) {
+      const json& input = j["input"];
+      if (!input.is_string() ||
+          (input.get<std::string>() != kInputScreen && input.get<std::string>() != kInputPupilGlint)) {
+        bad(name, "input", "must be \"screen\" or \"pupil-glint\"");
+      }
+      cal.input = input.get<std::string>();
+    }
+    if (j.contains("eye")) {
+      const json& e = j["eye"];
+      if (!e.is_string() || (e.get<std::string>() != "left" && e.get<std::string>() != "right")) {
+        bad(name, "eye", "must be \"left\" or \"right\"");
+      }
+      cal.eye = e.get<std::string>();
+    }
+    if (j.contains("outliers_rejected")) {
+      if (!j["outliers_rejected"].is_number_unsigned()) bad(name, "outliers_rejected", "must be a non-negative integer");
+      cal.outliers_rejected = j["outliers_rejected"].get<std::size_t>();
+    }
+    if (j.contains("validation")) {
+      if (!j["validation"].is_object()) bad(name, "validation", "must be an object");
+      cal.validation = j["validation"];
+      if (cal.validation.contains("accuracy_deg") && !cal.validation["accuracy_deg"].is_null()) {
+        const double a = number(cal.validation["accuracy_deg"], name + ": validation", "accuracy_deg");
+        if (a < 0) bad(name + ": validation", "accuracy_deg", "must be >= 0");
+      }
     }
     return cal;
   } catch (const std::invalid_argument& e) {

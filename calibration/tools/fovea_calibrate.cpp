@@ -4,7 +4,6 @@
 
 #include <unistd.h>
 
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -14,7 +13,10 @@
 #include <string>
 #include <vector>
 
+#include "csv_rows.h"
 #include "fovea/calib/model.h"
+#include "run_command.h"
+#include "validate_command.h"
 
 namespace {
 
@@ -22,76 +24,7 @@ namespace fs = std::filesystem;
 using fovea::calib::Calibration;
 using fovea::calib::Correspondence;
 
-struct Row {
-  std::size_t line = 0;
-  std::vector<std::string> text;
-  std::vector<double> values;
-};
-
-std::string trim(std::string s) {
-  while (!s.empty() && (s.back() == '\r' || s.back() == ' ' || s.back() == '\t')) s.pop_back();
-  std::size_t b = 0;
-  while (b < s.size() && (s[b] == ' ' || s[b] == '\t')) ++b;
-  return s.substr(b);
-}
-
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> out;
-  std::size_t start = 0;
-  for (;;) {
-    const std::size_t comma = line.find(',', start);
-    out.push_back(trim(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
-    if (comma == std::string::npos) return out;
-    start = comma + 1;
-  }
-}
-
-// Reads a CSV with exactly `header`; every field a number (finite unless allow_nan; "nan" then
-// allowed in the columns from `nan_from` on). Errors name the file, line and column.
-std::vector<Row> read_csv(const std::string& path, const std::vector<std::string>& header, bool allow_nan,
-                          std::size_t nan_from) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open");
-  std::string line;
-  std::size_t no = 0;
-  std::vector<Row> rows;
-  bool have_header = false;
-  std::string want;
-  for (const auto& h : header) want += (want.empty() ? "" : ",") + h;
-  while (std::getline(in, line)) {
-    ++no;
-    line = trim(line);
-    if (line.empty() || line[0] == '#') continue;
-    const auto fields = split(line);
-    if (!have_header) {
-      if (fields != header) {
-        throw std::runtime_error(path + ":" + std::to_string(no) + ": header must be '" + want + "', not '" + line + "'");
-      }
-      have_header = true;
-      continue;
-    }
-    if (fields.size() != header.size()) {
-      throw std::runtime_error(path + ":" + std::to_string(no) + ": " + std::to_string(fields.size()) +
-                               " field(s); expected " + std::to_string(header.size()) + " (" + want + ")");
-    }
-    Row r{no, fields, {}};
-    for (std::size_t c = 0; c < fields.size(); ++c) {
-      const std::string& f = fields[c];
-      double v = 0;
-      const auto [end, ec] = std::from_chars(f.data(), f.data() + f.size(), v);
-      const bool parsed = !f.empty() && ec == std::errc() && end == f.data() + f.size();
-      const bool nan_ok = allow_nan && c >= nan_from && std::isnan(v);
-      if (!parsed || (!std::isfinite(v) && !nan_ok)) {
-        throw std::runtime_error(path + ":" + std::to_string(no) + ": column " + std::to_string(c + 1) + " (" +
-                                 header[c] + "): '" + f + "' is not a " + (parsed ? "finite " : "") + "number");
-      }
-      r.values.push_back(v);
-    }
-    rows.push_back(std::move(r));
-  }
-  if (!have_header) throw std::runtime_error(path + ": empty; expected the header '" + want + "'");
-  return rows;
-}
+using fovea::calib::csv::read_csv;
 
 // Writes `text` to `path` via a temporary file; refuses to replace an existing file.
 void write_new_file(const std::string& path, const std::string& text) {
@@ -160,9 +93,9 @@ int cmd_apply(const std::string& cal_path, const std::string& in, const std::str
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "fovea-calibrate: fit calibration files from calibration points and apply them to raw gaze streams.\n"
-      "Implemented: fit, apply. Not implemented yet: 'run' (interactive calibration with targets on screen)\n"
-      "and 'validate' (accuracy/precision report); see calibration/CALIBRATION.md."};
+      "fovea-calibrate: calibrate a viewer on fovea-trackerd (run), fit calibration files from calibration\n"
+      "points (fit), check them on validation points (validate) and apply them to raw gaze (apply).\n"
+      "See calibration/CALIBRATION.md."};
   app.require_subcommand(1);
 
   std::string points, kind, base, out;
@@ -182,7 +115,14 @@ int main(int argc, char** argv) {
   apply->add_option("IN", in_csv, "input CSV")->required();
   apply->add_option("OUT", out_csv, "output CSV (must not exist)")->required();
 
+  fovea::calib::ValidateArgs validate_args;
+  auto* validate = fovea::calib::add_validate_subcommand(app, validate_args);
+  fovea::calib::RunArgs run_args;
+  auto* run = fovea::calib::add_run_subcommand(app, run_args);
+
   CLI11_PARSE(app, argc, argv);
+  if (*validate) return fovea::calib::run_validate(validate_args);
+  if (*run) return fovea::calib::run_calibration(run_args);
   try {
     if (*fit) return cmd_fit(points, kind, base, out, force);
     if (*apply) return cmd_apply(cal_path, in_csv, out_csv);

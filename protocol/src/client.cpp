@@ -4,6 +4,7 @@
 #include <sys/random.h>
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 
 #include "fovea/protocol/clock.h"
@@ -327,9 +328,15 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
   }
 }
 
-std::optional<StatusReply> GazeClient::query_status(const Endpoint& server, int timeout_ms) {
+namespace {
+
+// One request/reply exchange without a session: sends `request` (with a random sequence),
+// retransmits it unchanged every `resend_ms`, and returns the first decodable reply of type
+// `reply_type` from `server` that carries the request's sequence.
+std::optional<Message> exchange(const Endpoint& server, Payload request, MessageType reply_type, int timeout_ms,
+                                int resend_ms) {
   UdpSocket sock = UdpSocket::bind(Endpoint{0, 0});
-  Message req{Header{}, StatusRequest{}};
+  Message req{Header{}, std::move(request)};
   req.header.sequence = random_nonce();
   req.header.send_time_ns = req.header.origin_time_ns = monotonic_ns();
   const std::vector<std::uint8_t> bytes = encode(req);
@@ -341,17 +348,31 @@ std::optional<StatusReply> GazeClient::query_status(const Endpoint& server, int 
     if (now >= deadline) return std::nullopt;
     if (now >= next_send) {
       sock.send_to(server, bytes);
-      next_send = now + 250 * kMs;
+      next_send = now + std::int64_t{resend_ms} * kMs;
     }
     Endpoint from;
     const std::size_t n = sock.receive(buf, from, 20);
     if (n == 0 || n > kMaxDatagramSize || !(from == server)) continue;
     Message m;
     if (!decode(std::span<const std::uint8_t>(buf.data(), n), m)) continue;
-    if (m.header.type == MessageType::StatusReply && m.header.sequence == req.header.sequence) {
-      return std::get<StatusReply>(m.payload);
-    }
+    if (m.header.type == reply_type && m.header.sequence == req.header.sequence) return m;
   }
+}
+
+}  // namespace
+
+std::optional<StatusReply> GazeClient::query_status(const Endpoint& server, int timeout_ms) {
+  const auto m = exchange(server, StatusRequest{}, MessageType::StatusReply, timeout_ms, 250);
+  if (!m) return std::nullopt;
+  return std::get<StatusReply>(m->payload);
+}
+
+std::optional<ControlReply> GazeClient::send_control(const Endpoint& server, const ControlRequest& request,
+                                                     int timeout_ms) {
+  // Retransmitted after 1 s: the daemon answers a retransmission without executing it twice.
+  const auto m = exchange(server, request, MessageType::ControlReply, timeout_ms, 1000);
+  if (!m) return std::nullopt;
+  return std::get<ControlReply>(m->payload);
 }
 
 }  // namespace fovea::protocol

@@ -37,6 +37,7 @@ const char* to_string(ControlCommand c) {
     case ControlCommand::Reload: return "reload";
     case ControlCommand::StartRecording: return "record-start";
     case ControlCommand::StopRecording: return "record-stop";
+    case ControlCommand::LoadCalibration: return "calibration-load";
   }
   return "?";
 }

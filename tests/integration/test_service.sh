@@ -54,7 +54,9 @@ control_allow = [$6]
 file = "cal.json"
 EOF
 }
-echo '{"model": "identity"}' >"$WORK/cal.json"
+# An identity calibration of the tracker's own gaze (affine x = u, y = v).
+echo '{"format": "fovea-calibration", "version": 1, "model": {"kind": "affine", "a": [0, 1, 0, 0, 0, 1]},
+ "input": "screen", "points_used": 9, "rms_residual": 0, "condition": 1, "created": "2026-11-23T00:00:00Z"}' >"$WORK/cal.json"
 
 echo "== --check-config: the documented example, a good file, bad files"
 "$TRACKERD" --check-config --config "$SRC/deploy/trackerd.toml" >"$WORK/check.out" 2>"$WORK/check.err" \

@@ -98,7 +98,7 @@ TEST(CalibrationStability, IllConditionedFitsAreReportedOrRefused) {
   // Nearly collinear at 1e-4: fits, and says so through the condition number.
   auto mild = square_grid(1e-4);
   for (auto& c : mild) c.raw.y += c.raw.x;  // also skew: correlated columns
-  const auto m = fit_model("affine", mild);
+  const auto m = fit_model("affine", mild).model;
   EXPECT_GT(m->stats().condition, 1e3);
   EXPECT_LT(m->stats().rms_residual, 1e-6);
   // Collinear to working precision: refused.

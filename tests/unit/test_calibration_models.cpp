@@ -198,7 +198,7 @@ TEST(Calibration, FitModelKnowsEveryKindAndRefusesOthers) {
   const auto pts = sample(4, affine_truth);
   for (const auto& kind : model_kinds()) {
     if (kind == "bilinear-grid") continue;
-    const auto m = fit_model(kind, pts);
+    const auto m = fit_model(kind, pts).model;
     EXPECT_EQ(m->kind(), kind);
     EXPECT_NEAR(m->apply({1, 2}).x, affine_truth({1, 2}).x, 1e-7) << kind;
   }
@@ -217,12 +217,19 @@ TEST(Calibration, FileRoundTripsEveryModel) {
     const fs::path path = temp_path(kind + ".json");
     fs::remove(path);
     Calibration withdisplay = fit_calibration(kind, kind == "bilinear-grid" ? grid_points() : poly_pts);
-    withdisplay.display = {{"width_px", 1680}, {"height_px", 1050}};
+    withdisplay.display = Display{1680, 1050, 474, 296, 600};
+    withdisplay.input = kInputPupilGlint;
+    withdisplay.eye = "left";
+    withdisplay.validation = {{"targets", 4}, {"accuracy_deg", 0.5}};
     save_calibration(withdisplay, path);
     const Calibration back = load_calibration(path);
     EXPECT_EQ(back.model->kind(), kind);
     EXPECT_EQ(back.points_used, cal.points_used);
-    EXPECT_EQ(back.display["width_px"], 1680);
+    ASSERT_TRUE(back.display.has_value());
+    EXPECT_EQ(*back.display, *withdisplay.display);
+    EXPECT_EQ(back.input, kInputPupilGlint);
+    EXPECT_EQ(back.eye, "left");
+    EXPECT_EQ(back.validated_accuracy_deg(), 0.5);
     EXPECT_EQ(back.created.size(), 20u);
     EXPECT_EQ(back.created.back(), 'Z');
     for (const Point p : {Point{1, 2}, Point{130, 20}, Point{-3, 7}}) {

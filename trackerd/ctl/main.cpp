@@ -19,11 +19,13 @@
 #include "fovea/protocol/csv.h"
 #include "fovea/protocol/recording.h"
 #include "classify/classifier.h"
+#include "eye/calibration_viewer.h"
 #include "eye/eye_detector.h"
 #include "eye/synthetic_eye.h"
 #include "eye/synthetic_eye_frames.h"
 
 #include <opencv2/imgcodecs.hpp>
+#include <spdlog/spdlog.h>
 
 namespace {
 
@@ -680,6 +682,94 @@ int cmd_synth_eye(const std::string& dir, int count, const std::string& size, bo
   }
 }
 
+// --- synth-calibration: a recorded calibration session of the synthetic viewer ---
+
+int cmd_synth_calibration(const std::string& out, int points, int validation_points, std::uint64_t seed, bool hard,
+                          const std::string& head_offset, const std::string& display_text, const std::string& size) {
+  try {
+    unsigned w = 0, h = 0;
+    char tail = 0;
+    if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
+      throw std::runtime_error("--eye-size \"" + size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
+    }
+    eye::CalibrationSessionOptions o;
+    try {
+      o.head_offset_mm = eye::parse_head_offset(head_offset);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("--head-offset: ") + e.what());
+    }
+    if (!display_text.empty()) {
+      try {
+        o.display = parse_display_geometry(display_text);
+      } catch (const std::invalid_argument& e) {
+        throw std::runtime_error(std::string("--display: ") + e.what());
+      }
+    }
+    o.schedule.points = points;
+    o.schedule.validation_points = validation_points;
+    o.schedule.seed = seed;
+    try {
+      o.schedule.check();
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("--points/--validation-points: ") + e.what());
+    }
+    o.eye.width = static_cast<int>(w);
+    o.eye.height = static_cast<int>(h);
+    o.eye.seed = seed;
+    if (hard) o.eye = eye::with_hard_conditions(o.eye);
+    // SESSION.fgr and SESSION.targets.csv: both new, or neither is written.
+    const std::string base = ends_with(out, ".fgr") ? out.substr(0, out.size() - 4) : out;
+    const std::string fgr = base + ".fgr", targets = base + ".targets.csv";
+    std::error_code ec;
+    for (const std::string& p : {fgr, targets}) {
+      if (std::filesystem::exists(p, ec) || std::filesystem::is_symlink(p, ec)) {
+        throw std::runtime_error(p + " already exists (synth-calibration never overwrites; it writes " + fgr +
+                                 " and " + targets + " together)");
+      }
+    }
+    spdlog::set_level(spdlog::level::warn);  // the pipeline's start-up lines: not this tool's one-line summary
+    o.start_time_ns = monotonic_ns();  // frame 0 on this machine's monotonic clock, as the daemon records
+    const std::int64_t created_unix = realtime_ns();
+    const eye::CalibrationSession session = eye::simulate_calibration_session(o);
+
+    RecordingHeader header;
+    header.device = ("synthetic-eye calibration seed " + std::to_string(seed)).substr(0, 63);
+    header.display = o.display;
+    header.nominal_rate_hz = o.rate_hz;
+    header.clock = RecordingClock::Monotonic;
+    header.created_unix_ns = created_unix;
+    header.created_clock_ns = o.start_time_ns;
+    try {
+      RecordingWriter writer(fgr, header, RecordingWriter::Mode::CreateNew);
+      std::uint64_t sequence = 0;
+      for (const auto& item : session.published) {
+        std::visit([&](const auto& v) { writer.append(Record{sequence++, v}); }, item);
+      }
+      writer.sync();
+    } catch (...) {
+      std::filesystem::remove(fgr, ec);
+      throw;
+    }
+    try {
+      fovea::calib::write_target_windows(targets, session.targets);
+    } catch (...) {
+      std::filesystem::remove(fgr, ec);
+      throw;
+    }
+    std::size_t calibrate = 0;
+    for (const auto& t : session.targets) calibrate += t.phase == fovea::calib::TargetPhase::Calibrate ? 1 : 0;
+    std::printf("synth-calibration: %s (%zu samples, %zu events, %.1f s at %.0f Hz, eye %ux%u%s, seed %llu, head "
+                "offset %g,%g,%g mm) and %s (%zu calibration + %zu validation targets)\n",
+                fgr.c_str(), session.samples.size(), session.events.size(), session.session_s, o.rate_hz, w, h,
+                hard ? " hard" : "", static_cast<unsigned long long>(seed), o.head_offset_mm.x, o.head_offset_mm.y,
+                o.head_offset_mm.z, targets.c_str(), calibrate, session.targets.size() - calibrate);
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl synth-calibration: %s\n", e.what());
+    return 1;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -803,6 +893,39 @@ int main(int argc, char** argv) {
   synth_eye->add_option("--leds", se_leds, "LED layout: a preset 0..5 or \"x,y;x,y;...\" in mm")
       ->capture_default_str();
 
+  std::string sc_out, sc_offset = "0,0,0", sc_display, sc_size = "320x240";
+  int sc_points = 9, sc_validation = 4;
+  std::uint64_t sc_seed = 1;
+  bool sc_hard = false;
+  auto* synth_calibration = app.add_subcommand(
+      "synth-calibration",
+      "write a recorded calibration session of the synthetic viewer, for fovea-calibrate run --headless --from: "
+      "the synthetic eye follows the calibration targets (reaction, main-sequence saccades with undershoot and "
+      "correction, fixation jitter, blinks) and goes through the daemon's eye pipeline and classifier, as "
+      "fovea-trackerd --source synthetic-eye --eye-script calibration:POINTS[:SEED] publishes; writes SESSION.fgr "
+      "and the targets shown, on the recording's clock, as SESSION.targets.csv");
+  synth_calibration->add_option("--out", sc_out, "SESSION.fgr to write (with SESSION.targets.csv beside it; refuses "
+                                                 "to overwrite either)")
+      ->required();
+  synth_calibration->add_option("--points", sc_points, "calibration targets: 5, 9, 16 or 64")
+      ->check(CLI::IsMember({5, 9, 16, 64}))
+      ->capture_default_str();
+  synth_calibration->add_option("--validation-points", sc_validation, "validation targets after them: 0, 4 or 9")
+      ->check(CLI::IsMember({0, 4, 9}))
+      ->capture_default_str();
+  synth_calibration->add_option("--seed", sc_seed, "the viewer, its eye's look and the target order")
+      ->capture_default_str();
+  synth_calibration->add_flag("--eye-hard", sc_hard,
+                              "hard imaging conditions: sensor noise 10, 2 px motion blur, upper lid over 30% of "
+                              "the pupil, spectacle reflections, uneven illumination");
+  synth_calibration->add_option("--head-offset", sc_offset,
+                                "X,Y,Z mm: the eye displaced from the position the tracker's factory calibration "
+                                "assumes (x right, y down, z towards the screen; camera fixed to the screen)")
+      ->capture_default_str();
+  synth_calibration->add_option("--display", sc_display,
+                                "display geometry WxH@WMMxHMMmm,DISTmm (default " + to_string(DisplayGeometry{}) + ")");
+  synth_calibration->add_option("--eye-size", sc_size, "eye image size WxH")->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
 
   struct sigaction sa {};
@@ -822,6 +945,9 @@ int main(int argc, char** argv) {
   }
   if (detect_pupil->parsed()) return cmd_detect_pupil(dp_images, dp_out, dp_force, dp_leds, dp_downscale, dp_track);
   if (synth_eye->parsed()) return cmd_synth_eye(se_dir, se_count, se_size, se_hard, se_seed, se_leds);
+  if (synth_calibration->parsed()) {
+    return cmd_synth_calibration(sc_out, sc_points, sc_validation, sc_seed, sc_hard, sc_offset, sc_display, sc_size);
+  }
   if (reload->parsed()) return cmd_control(c, ControlCommand::Reload, "");
   if (record_start->parsed()) return cmd_control(c, ControlCommand::StartRecording, control_record_path);
   if (record_stop->parsed()) return cmd_control(c, ControlCommand::StopRecording, "");

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "eye/calibration_viewer.h"
 #include "fovea/protocol/clock.h"
 
 namespace fovea::trackerd::eye {
@@ -42,6 +43,33 @@ protocol::Degrees eye_rotation_to_screen(const protocol::DisplayGeometry& displa
   const double y = r.yaw_deg * kDeg, p = r.pitch_deg * kDeg;
   const double ax = std::cos(p) * std::sin(y), ay = std::sin(p), az = std::cos(p) * std::cos(y);
   return {std::atan2(ax, az) / kDeg, std::atan2(ay, az) / kDeg};
+}
+
+EyeRotation screen_to_eye_rotation(const protocol::DisplayGeometry& display, protocol::Degrees gaze,
+                                   cv::Point3d head_offset_mm) {
+  // The screen point in the calibration position's frame (mm), then seen from the displaced eye.
+  const double d = display.viewing_distance_m * 1000.0;
+  const double px = d * std::tan(gaze.x * kDeg) - head_offset_mm.x;
+  const double py = d * std::tan(gaze.y * kDeg) - head_offset_mm.y;
+  const double pz = d - head_offset_mm.z;
+  return {std::atan2(px, pz) / kDeg, std::atan2(py, std::hypot(px, pz)) / kDeg};
+}
+
+SyntheticEyeOptions with_head_offset(SyntheticEyeOptions o, const protocol::DisplayGeometry& display,
+                                     cv::Point3d offset) {
+  for (const double c : {offset.x, offset.y, offset.z}) {
+    if (!std::isfinite(c) || std::abs(c) > 250) {
+      throw std::invalid_argument("head offset (" + std::to_string(offset.x) + ", " + std::to_string(offset.y) + ", " +
+                                  std::to_string(offset.z) + ") mm: allowed finite, |each| <= 250");
+    }
+  }
+  if (offset.x == 0 && offset.y == 0 && offset.z == 0) return o;
+  const double d = display.viewing_distance_m * 1000.0;
+  const cv::Point3d c = o.camera.position_mm;
+  const double scale = std::sqrt(c.x * c.x + c.y * c.y + c.z * c.z) / d;
+  o.camera.position_mm -= offset * scale;
+  o.camera.look_at_mm -= offset * scale;
+  return o;
 }
 
 SyntheticEyeOptions with_hard_conditions(SyntheticEyeOptions o) {
@@ -199,16 +227,43 @@ SyntheticEyeFramesOptions checked(SyntheticEyeFramesOptions o) {
 
 SyntheticEyeFrames::SyntheticEyeFrames(SyntheticEyeFramesOptions options)
     : options_(checked(std::move(options))),
-      eye_(options_.eye),
-      motion_(options_.rate_hz, options_.eye.seed, options_.display, 0, options_.lid_transition_s),
-      factory_map_(fit_factory_map(eye_, options_.display)),
-      blink_aspect_(factory_blink_aspect(eye_, options_.display)),
-      mm_per_px_(pupil_mm_per_px(eye_)) {
+      eye_(with_head_offset(options_.eye, options_.display, options_.head_offset_mm)),
+      // The factory calibration and blink threshold belong to the tracker at its calibration
+      // position (the nominal eye), whatever the head offset.
+      factory_map_(fit_factory_map(SyntheticEye(options_.eye), options_.display)),
+      blink_aspect_(factory_blink_aspect(SyntheticEye(options_.eye), options_.display)),
+      mm_per_px_(pupil_mm_per_px(SyntheticEye(options_.eye))) {
+  if (options_.calibration_script) {
+    schedule_ = calib::make_schedule(options_.display.width_px, options_.display.height_px,
+                                     *options_.calibration_script);
+    TargetFollowingOptions to;
+    to.rate_hz = options_.rate_hz;
+    to.seed = options_.eye.seed;
+    to.display = options_.display;
+    to.start_time_ns = 0;
+    to.lid_transition_s = options_.lid_transition_s;
+    to.head_offset_mm = options_.head_offset_mm;
+    to.fixation_bias_deg = options_.fixation_bias_deg;
+    script_ = std::make_unique<TargetFollowingMotion>(schedule_, to);
+  } else {
+    motion_ = std::make_unique<SyntheticEyeMotion>(options_.rate_hz, options_.eye.seed, options_.display, 0,
+                                                   options_.lid_transition_s);
+  }
   char buf[160];
   std::snprintf(buf, sizeof buf, "synthetic-eye %dx%d %.0f Hz (seed %llu, %zu LEDs%s)", options_.eye.width,
                 options_.eye.height, options_.rate_hz, static_cast<unsigned long long>(options_.eye.seed),
                 options_.eye.leds.positions_mm.size(), has_hard_conditions(options_.eye) ? ", hard" : "");
   status_.description = buf;
+}
+
+SyntheticEyeFrames::~SyntheticEyeFrames() = default;
+
+SyntheticEyeFrameTruth SyntheticEyeFrames::next_truth() {
+  if (script_) return script_->next();
+  SyntheticEyeFrameTruth t = motion_->next();
+  const cv::Point3d& o = options_.head_offset_mm;
+  if (o.x != 0 || o.y != 0 || o.z != 0) t.rotation = screen_to_eye_rotation(options_.display, t.gaze_deg, o);
+  return t;
 }
 
 FrameSourceStatus SyntheticEyeFrames::status() const {
@@ -228,7 +283,7 @@ std::optional<EyeFrame> SyntheticEyeFrames::next(int timeout_ms) {
     const auto period_ns = static_cast<std::int64_t>(1e9 / options_.rate_hz);
     // Behind by more than two periods: skip to the newest frame, as a camera drops frames.
     while (now - due_of(index_) > 2 * period_ns) {
-      (void)motion_.next();
+      (void)next_truth();
       ++index_;
       ++skipped;
     }
@@ -243,7 +298,7 @@ std::optional<EyeFrame> SyntheticEyeFrames::next(int timeout_ms) {
     }
     sleep_until(due);
   }
-  truth_ = motion_.next();
+  truth_ = next_truth();
   ++index_;
   EyeFrame frame;
   frame.image = eye_.render(truth_.rotation.yaw_deg, truth_.rotation.pitch_deg, truth_.openness, &render_truth_);

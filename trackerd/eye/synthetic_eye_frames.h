@@ -31,12 +31,15 @@
 //    the threshold is set to 0.9 x the flattest open pupil over the screen (at most 0.7).
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <mutex>
 #include <optional>
+#include <vector>
 
 #include "eye/eye_source.h"
 #include "eye/synthetic_eye.h"
 #include "fovea/calib/poly2.h"
+#include "fovea/calib/session.h"
 #include "sources/frame_source.h"
 #include "sources/synthetic_gaze.h"
 
@@ -50,6 +53,28 @@ struct EyeRotation {
 // distance; and back.
 EyeRotation screen_to_eye_rotation(const protocol::DisplayGeometry& display, protocol::Degrees gaze);
 protocol::Degrees eye_rotation_to_screen(const protocol::DisplayGeometry& display, EyeRotation rotation);
+
+// Head offset: the eye displaced from the calibration position (on the screen centre's normal at
+// the viewing distance) by `head_offset_mm` in the head frame (x right, y down, z towards the
+// screen; the head is translated, not turned). The rotation that looks at the screen point `gaze`
+// (degrees from the screen centre as seen from the calibration position, i.e. which screen point)
+// from the displaced eye. Equal to the overload above for a zero offset.
+EyeRotation screen_to_eye_rotation(const protocol::DisplayGeometry& display, protocol::Degrees gaze,
+                                   cv::Point3d head_offset_mm);
+
+// The eye options as a camera fixed to the screen sees the displaced eye (a remote tracker: the
+// camera and its LEDs stay with the screen while the head moves). The synthetic eye camera is near
+// the eye (|position_mm| ~ 42 mm) where a remote camera is at about the viewing distance D; the
+// camera (and with it the LEDs around its lens, and its look-at point: its orientation is kept) is
+// moved by -head_offset_mm * |position_mm| / D. That keeps, exactly, the direction from the eye to
+// the camera and the relative change of their distance that a camera at the screen would see, so
+// the eye translates in the image by the same visual angle and the glints (and the pupil–glint
+// vector) change with the viewing direction and the distance as they would for the remote camera.
+// Not modelled: the remote camera's own (smaller) perspective and LED spread, depth of field, and
+// the spectacle reflections (fixed in the image). Identity for a zero offset. Throws
+// std::invalid_argument for a non-finite offset or one beyond 250 mm in any axis.
+SyntheticEyeOptions with_head_offset(SyntheticEyeOptions options, const protocol::DisplayGeometry& display,
+                                     cv::Point3d head_offset_mm);
 
 // The hard imaging conditions of --eye-hard / synth-eye --hard: strong sensor noise (sigma 10),
 // 2 px motion blur, the upper lid over 30% of the pupil, spectacle reflections and a 0.4
@@ -106,6 +131,8 @@ class SyntheticEyeMotion {
   std::uint64_t sequence_ = 0;
 };
 
+class TargetFollowingMotion;  // eye/calibration_viewer.h
+
 struct SyntheticEyeFramesOptions {
   SyntheticEyeOptions eye;           // image size, seed, LEDs, imaging effects (the viewer uses eye.seed too)
   double rate_hz = 120;              // 1..1000
@@ -115,12 +142,23 @@ struct SyntheticEyeFramesOptions {
   std::optional<std::int64_t> start_time_ns;
   bool realtime = true;              // false: deliver frames as fast as they render (tests, benchmarks)
   double lid_transition_s = 0.05;
+  // Set: the viewer follows the calibration schedule make_schedule(display px, *calibration_script)
+  // (eye/calibration_viewer.h, TargetFollowingMotion, seeded by eye.seed) instead of the random
+  // viewer; frame 0 is the session start (schedule times are relative to it).
+  std::optional<calib::ScheduleOptions> calibration_script;
+  // The eye displaced from the calibration position (see with_head_offset); the factory
+  // calibration stays the one fitted at the calibration position. Zero: the nominal geometry.
+  cv::Point3d head_offset_mm{0, 0, 0};
+  // With calibration_script: where this viewer fixates relative to a target's centre (degrees,
+  // constant per viewer; people fixate a few tenths of a degree off). Default none.
+  protocol::Degrees fixation_bias_deg{0, 0};
 };
 
 class SyntheticEyeFrames final : public FrameSource {
  public:
   // Throws std::invalid_argument for a rate outside 1..1000 Hz or an image smaller than 32x32.
   explicit SyntheticEyeFrames(SyntheticEyeFramesOptions options);
+  ~SyntheticEyeFrames() override;
 
   FrameSourceStatus status() const override;
   std::optional<EyeFrame> next(int timeout_ms) override;
@@ -134,11 +172,20 @@ class SyntheticEyeFrames final : public FrameSource {
   PupilGlintMap pupil_glint_map() const { return factory_pupil_glint_map(factory_map_, options_.display); }
   double blink_aspect() const { return blink_aspect_; }
   double mm_per_px() const { return mm_per_px_; }
+  // With calibration_script: the schedule followed (times relative to frame 0); else empty.
+  const std::vector<calib::ScheduledTarget>& schedule() const { return schedule_; }
+  // Time of frame 0 (set by the first next() unless start_time_ns was given): with schedule(),
+  // calib::place_schedule(schedule(), *origin_ns()) gives the targets on the frames' clock.
+  std::optional<std::int64_t> origin_ns() const { return origin_ns_; }
 
  private:
+  SyntheticEyeFrameTruth next_truth();
+
   SyntheticEyeFramesOptions options_;
-  SyntheticEye eye_;
-  SyntheticEyeMotion motion_;
+  SyntheticEye eye_;  // as rendered (with the head offset); the factory calibration uses the nominal eye
+  std::vector<calib::ScheduledTarget> schedule_;
+  std::unique_ptr<SyntheticEyeMotion> motion_;        // the random viewer, or
+  std::unique_ptr<TargetFollowingMotion> script_;     // the calibration viewer
   calib::Poly2Map factory_map_;
   double blink_aspect_ = 0.7;
   double mm_per_px_ = 0;

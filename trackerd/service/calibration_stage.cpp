@@ -1,10 +1,9 @@
 #include "service/calibration_stage.h"
 
-#include <cerrno>
-#include <cstring>
-#include <fstream>
-#include <nlohmann/json.hpp>
+#include <cmath>
 #include <stdexcept>
+
+#include "fovea/calib/model.h"
 
 namespace fovea::trackerd::service {
 
@@ -12,28 +11,84 @@ namespace {
 
 class IdentityCalibration final : public CalibrationStage {
  public:
-  explicit IdentityCalibration(std::string what) : what_(std::move(what)) {}
-  std::string description() const override { return what_; }
+  std::string description() const override { return "none (the source's own gaze)"; }
   void apply(GazeItem&) const override {}
+};
+
+class MappedCalibration final : public CalibrationStage {
+ public:
+  MappedCalibration(calib::Calibration cal, std::string file, const protocol::DisplayGeometry& display)
+      : cal_(std::move(cal)), file_(std::move(file)), display_(display) {
+    pupil_glint_ = cal_.input == calib::kInputPupilGlint;
+  }
+
+  std::string description() const override { return file_ + ": " + cal_.describe(); }
+
+  void apply(GazeItem& item) const override {
+    auto* s = std::get_if<protocol::GazeSample>(&item);
+    if (s == nullptr) return;
+    std::optional<calib::Point> raw;
+    if (pupil_glint_) {
+      raw = pupil_glint(*s);
+    } else if ((s->flags & protocol::kGazeValid) != 0) {
+      raw = calib::Point{static_cast<double>(s->x) * display_.width_px, static_cast<double>(s->y) * display_.height_px};
+    }
+    s->angular_velocity_deg_s = 0;  // recomputed by the classifier from the calibrated gaze
+    if (!raw) {
+      invalidate(*s);
+      return;
+    }
+    const calib::Point px = cal_.apply(*raw);
+    const double nx = px.x / display_.width_px, ny = px.y / display_.height_px;
+    if (!std::isfinite(nx) || !std::isfinite(ny) || std::abs(nx) > 100 || std::abs(ny) > 100) {
+      invalidate(*s);
+      return;
+    }
+    const protocol::Degrees deg = protocol::normalized_to_degrees(display_, {nx, ny});
+    s->x = static_cast<float>(nx);
+    s->y = static_cast<float>(ny);
+    s->x_deg = static_cast<float>(deg.x);
+    s->y_deg = static_cast<float>(deg.y);
+    s->flags = static_cast<std::uint8_t>(s->flags | protocol::kGazeValid);
+  }
 
  private:
-  std::string what_;
+  std::optional<calib::Point> pupil_glint(const protocol::GazeSample& s) const {
+    constexpr std::uint8_t both = protocol::kEyePupilValid | protocol::kEyeGlintValid;
+    auto usable = [&](const protocol::EyeData& e) { return (e.flags & both) == both; };
+    const protocol::EyeData* eye = nullptr;
+    if (cal_.eye == "left") eye = usable(s.left) ? &s.left : nullptr;
+    else if (cal_.eye == "right") eye = usable(s.right) ? &s.right : nullptr;
+    else eye = usable(s.right) ? &s.right : usable(s.left) ? &s.left : nullptr;
+    if (eye == nullptr) return std::nullopt;
+    return calib::Point{eye->pupil_glint_x_px, eye->pupil_glint_y_px};
+  }
+
+  static void invalidate(protocol::GazeSample& s) {
+    s.flags = static_cast<std::uint8_t>(s.flags & ~protocol::kGazeValid);
+    s.x = s.y = s.x_deg = s.y_deg = 0;
+  }
+
+  calib::Calibration cal_;
+  std::string file_;
+  protocol::DisplayGeometry display_;
+  bool pupil_glint_ = false;
 };
 
 }  // namespace
 
-std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file) {
-  if (file.empty()) return std::make_unique<IdentityCalibration>("none (identity)");
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error("calibration file " + file + ": cannot read (" + std::strerror(errno) + ")");
-  nlohmann::json doc;
-  try {
-    doc = nlohmann::json::parse(in);
-  } catch (const std::exception& e) {
-    throw std::runtime_error("calibration file " + file + ": not a JSON document (" + e.what() + ")");
+std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file,
+                                                         const protocol::DisplayGeometry& display) {
+  if (file.empty()) return std::make_unique<IdentityCalibration>();
+  calib::Calibration cal = calib::load_calibration(file);  // names the file and field at fault
+  if (cal.display) {
+    if (cal.display->width_px != display.width_px || cal.display->height_px != display.height_px) {
+      throw std::runtime_error("calibration file " + file + ": made for a " + calib::to_string(*cal.display) +
+                               " screen; the daemon's display is " + protocol::to_string(display) +
+                               " (calibrate again on this display)");
+    }
   }
-  // Seam for step 5: build the fitted calibration map from `doc` here.
-  return std::make_unique<IdentityCalibration>(file + " (identity until the calibration map lands in step 5)");
+  return std::make_unique<MappedCalibration>(std::move(cal), file, display);
 }
 
 }  // namespace fovea::trackerd::service

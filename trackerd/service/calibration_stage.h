@@ -1,11 +1,21 @@
 #pragma once
-// The daemon's calibration stage: maps raw tracker gaze to calibrated screen gaze before the
-// classifier and the publisher see it. The calibration map itself arrives with step 5
-// (calibration/); until then the stage is the identity and a configured calibration file is only
-// checked (it must be readable JSON) and named in the log.
+// The daemon's calibration stage: maps raw tracker output to calibrated screen gaze before the
+// classifier and the publisher see it (calibration/CALIBRATION.md describes the file).
+//
+//  - input "pupil-glint": the stage computes the gaze from the sample's pupil–glint vector (the
+//    calibration's eye, or whichever eye has one) through the calibration map; a sample without a
+//    valid pupil and glint has no valid gaze. This replaces any gaze the source computed itself
+//    (the synthetic eye's factory calibration).
+//  - input "screen": the stage corrects the tracker's own gaze (its screen point in pixels), as
+//    Jensen & Pedersen 2009 §4.2 correct a commercial tracker's calibration.
+// The mapped point becomes the normalised and angular gaze on the daemon's display; the angular
+// velocity is cleared so that the classifier computes it from the calibrated gaze. A mapped point
+// that is not finite or lies absurdly far outside the screen (beyond 100 screen widths) makes the
+// sample invalid rather than carry an overflow onto the wire.
 #include <memory>
 #include <string>
 
+#include "fovea/protocol/display_geometry.h"
 #include "sources/gaze_source.h"
 
 namespace fovea::trackerd::service {
@@ -14,12 +24,14 @@ class CalibrationStage {
  public:
   virtual ~CalibrationStage() = default;
   virtual std::string description() const = 0;  // for the log and STATUS=
-  // Calibrates one item in place (samples; events pass unchanged unless the map moves them).
+  // Calibrates one item in place (samples; events pass unchanged).
   virtual void apply(GazeItem& item) const = 0;
 };
 
-// Loads `file` (empty: no calibration). Throws std::runtime_error naming the file when it cannot
-// be read or is not JSON. Called at start and on every reload.
-std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file);
+// Loads `file` (empty: no calibration, the identity) for a daemon whose clients are told `display`.
+// Throws std::runtime_error naming the file and what is wrong: unreadable, not a calibration file,
+// from a newer fovea, or made for a screen of another pixel size than `display`.
+std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file,
+                                                         const protocol::DisplayGeometry& display);
 
 }  // namespace fovea::trackerd::service

@@ -330,7 +330,8 @@ DaemonConfig parse_table(const toml::table& doc, Checker& c) {
 
   if (const auto* t = c.table(doc, "eye")) {
     c.only(*t, "eye.",
-           {"side", "leds", "pupil_downscale", "pupil_roi", "synthetic_width", "synthetic_height", "synthetic_hard"});
+           {"side", "leds", "pupil_downscale", "pupil_roi", "synthetic_width", "synthetic_height", "synthetic_hard",
+            "synthetic_script", "synthetic_head_offset_mm"});
     c.string(*t, "eye.", "side", cfg.eye.side, "left, right");
     if (std::find(kEyeSides.begin(), kEyeSides.end(), cfg.eye.side) == kEyeSides.end()) {
       c.problem(t->get("side")->source(), "eye.side",
@@ -349,6 +350,10 @@ DaemonConfig parse_table(const toml::table& doc, Checker& c) {
     c.integer(*t, "eye.", "synthetic_width", cfg.eye.synthetic_width, 32, 4096);
     c.integer(*t, "eye.", "synthetic_height", cfg.eye.synthetic_height, 32, 4096);
     c.boolean(*t, "eye.", "synthetic_hard", cfg.eye.synthetic_hard);
+    // Their syntax is checked by the daemon when the source starts (and --check-config).
+    c.string(*t, "eye.", "synthetic_script", cfg.eye.synthetic_script,
+             "\"\" or \"calibration:POINTS[:SEED[:VALIDATION]]\"");
+    c.string(*t, "eye.", "synthetic_head_offset_mm", cfg.eye.synthetic_head_offset_mm, "\"x,y,z\" in mm");
   }
 
   if (const auto* t = c.table(doc, "log")) {
@@ -468,6 +473,8 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
     c.eye.synthetic_height = o.synthetic_size->second;
   }
   if (o.synthetic_hard) c.eye.synthetic_hard = *o.synthetic_hard;
+  if (o.synthetic_script) c.eye.synthetic_script = *o.synthetic_script;
+  if (o.synthetic_head_offset_mm) c.eye.synthetic_head_offset_mm = *o.synthetic_head_offset_mm;
 }
 
 std::string to_toml(const DaemonConfig& c) {
@@ -503,6 +510,8 @@ std::string to_toml(const DaemonConfig& c) {
                      "synthetic_hard = {}\n",
                      c.eye.pupil_downscale, c.eye.pupil_roi, c.eye.synthetic_width, c.eye.synthetic_height,
                      c.eye.synthetic_hard);
+  out += "synthetic_script = " + quoted(c.eye.synthetic_script) + "\n";
+  out += "synthetic_head_offset_mm = " + quoted(c.eye.synthetic_head_offset_mm) + "\n";
   out += "\n[log]\nlevel = " + quoted(c.log_level) + "\n";
   for (const auto& d : c.devices) {
     out += fmt::format("\n[[devices]]\nvid = 0x{:04x}\npid = 0x{:04x}\nkind = {}\nname = {}\n", d.vid, d.pid,
@@ -563,6 +572,9 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.needs_restart, "eye.synthetic_width", a.eye.synthetic_width, b.eye.synthetic_width);
   note(ch.needs_restart, "eye.synthetic_height", a.eye.synthetic_height, b.eye.synthetic_height);
   note(ch.needs_restart, "eye.synthetic_hard", a.eye.synthetic_hard, b.eye.synthetic_hard);
+  note(ch.needs_restart, "eye.synthetic_script", text(a.eye.synthetic_script), text(b.eye.synthetic_script));
+  note(ch.needs_restart, "eye.synthetic_head_offset_mm", text(a.eye.synthetic_head_offset_mm),
+       text(b.eye.synthetic_head_offset_mm));
   note(ch.needs_restart, "network.listen", a.network.listen, b.network.listen);
   note(ch.needs_restart, "network.port", a.network.port, b.network.port);
   note(ch.needs_restart, "network.multicast", text(a.network.multicast), text(b.network.multicast));

@@ -62,6 +62,10 @@ struct EyeConfig {
   bool pupil_roi = true;             // search near the last pupil first
   std::uint32_t synthetic_width = 320, synthetic_height = 240;  // synthetic-eye image size, 32..4096
   bool synthetic_hard = false;       // synthetic-eye: hard imaging conditions (noise, blur, lid, reflections)
+  // synthetic-eye: "" (the random viewer) or "calibration:POINTS[:SEED[:VALIDATION]]" (a viewer who
+  // follows the calibration fovea-calibrate run shows with those settings; calib::ScheduleOptions).
+  std::string synthetic_script;
+  std::string synthetic_head_offset_mm = "0,0,0";  // synthetic-eye: "x,y,z" mm, the head moved from the calibration position
   friend bool operator==(const EyeConfig&, const EyeConfig&) = default;
 };
 inline const std::vector<std::string> kEyeSides = {"left", "right"};
@@ -132,6 +136,8 @@ struct CliOverrides {
   std::optional<bool> pupil_roi;
   std::optional<std::pair<std::uint32_t, std::uint32_t>> synthetic_size;
   std::optional<bool> synthetic_hard;
+  std::optional<std::string> synthetic_script;
+  std::optional<std::string> synthetic_head_offset_mm;
 };
 void apply_overrides(DaemonConfig& config, const CliOverrides& cli);
 

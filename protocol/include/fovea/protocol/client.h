@@ -82,6 +82,11 @@ class GazeClient {
 
   // One-shot request/reply helpers (no subscription), used by `fovea-ctl status`.
   static std::optional<StatusReply> query_status(const Endpoint& server, int timeout_ms);
+  // Sends an operator command (CONTROL_REQUEST, PROTOCOL.md §4.15) and waits for its reply;
+  // nullopt when none came within `timeout_ms`. Throws std::invalid_argument when the request
+  // cannot be encoded (an argument longer than 63 bytes).
+  static std::optional<ControlReply> send_control(const Endpoint& server, const ControlRequest& request,
+                                                  int timeout_ms);
 
  private:
   void loop();

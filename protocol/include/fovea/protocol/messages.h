@@ -216,9 +216,9 @@ struct Error {
 
 // Operator commands (a compatible v1 extension): executed only for requests from the server's
 // control allow-list (default: loopback); everyone else gets result Refused.
-enum class ControlCommand : std::uint8_t { Reload = 1, StartRecording = 2, StopRecording = 3 };
-inline constexpr std::uint8_t kMaxControlCommand = 3;
-const char* to_string(ControlCommand c);  // "reload", "record-start", "record-stop"
+enum class ControlCommand : std::uint8_t { Reload = 1, StartRecording = 2, StopRecording = 3, LoadCalibration = 4 };
+inline constexpr std::uint8_t kMaxControlCommand = 4;
+const char* to_string(ControlCommand c);  // "reload", "record-start", "record-stop", "calibration-load"
 
 enum class ControlResult : std::uint8_t { Ok = 0, Refused = 1, Failed = 2 };
 inline constexpr std::uint8_t kMaxControlResult = 2;
@@ -226,7 +226,8 @@ const char* to_string(ControlResult r);  // "ok", "refused", "failed"
 
 struct ControlRequest {
   ControlCommand command = ControlCommand::Reload;
-  FixedString<64> argument;  // StartRecording: the recording path; otherwise empty
+  FixedString<64> argument;  // StartRecording: the recording path; LoadCalibration: the calibration
+                             // file, "none" or "configured"; otherwise empty
   friend bool operator==(const ControlRequest&, const ControlRequest&) = default;
 };
 

@@ -1,0 +1,553 @@
+#include "run_command.h"
+
+#include <CLI/CLI.hpp>
+#define GLFW_INCLUDE_NONE
+#include <GL/gl.h>
+#include <GLFW/glfw3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include "fovea/calib/model.h"
+#include "fovea/calib/session.h"
+#include "fovea/calib/validation.h"
+#include "fovea/protocol/client.h"
+#include "fovea/protocol/clock.h"
+#include "fovea/protocol/recording.h"
+#include "fovea/protocol/udp.h"
+#include "validation_report.h"
+
+namespace fovea::calib {
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace proto = fovea::protocol;
+
+constexpr std::int64_t kMs = 1'000'000;
+
+struct Session {
+  proto::DisplayGeometry display;
+  double nominal_rate_hz = 0;
+  std::string device;
+  std::vector<proto::Record> samples;  // GAZE_SAMPLE records, in time order
+  std::vector<TargetWindow> targets;
+};
+
+Display to_calib_display(const proto::DisplayGeometry& g) {
+  return Display{static_cast<double>(g.width_px), static_cast<double>(g.height_px), g.width_m * 1000,
+                 g.height_m * 1000, g.viewing_distance_m * 1000};
+}
+
+ScheduleOptions schedule_options(const RunArgs& a) {
+  ScheduleOptions o;
+  o.points = a.points;
+  o.validation_points = a.validation_points;
+  o.seed = a.seed;
+  o.randomize = !a.fixed_order;
+  o.lead_in_s = a.lead_in_s;
+  o.shrink_s = a.shrink_s;
+  o.settle_s = a.settle_s;
+  o.duration_s = a.duration_s;
+  o.check();
+  return o;
+}
+
+const proto::GazeSample& sample_of(const proto::Record& r) { return std::get<proto::GazeSample>(r.item); }
+
+// --- what is calibrated: the input and the eye ---
+
+bool has_pupil_glint(const proto::EyeData& e) {
+  constexpr std::uint8_t both = proto::kEyePupilValid | proto::kEyeGlintValid;
+  return (e.flags & both) == both;
+}
+
+struct InputChoice {
+  std::string input;  // kInputPupilGlint or kInputScreen
+  std::string eye;    // pupil-glint: "left" or "right"
+};
+
+InputChoice choose_input(const RunArgs& a, const std::vector<proto::Record>& samples) {
+  std::size_t left = 0, right = 0, gaze = 0;
+  for (const auto& r : samples) {
+    const auto& s = sample_of(r);
+    left += has_pupil_glint(s.left) ? 1u : 0u;
+    right += has_pupil_glint(s.right) ? 1u : 0u;
+    gaze += (s.flags & proto::kGazeValid) != 0 ? 1u : 0u;
+  }
+  InputChoice c;
+  if (a.input == "screen" || (a.input == "auto" && left == 0 && right == 0)) {
+    if (gaze == 0) {
+      throw std::runtime_error("no sample of the " + std::to_string(samples.size()) +
+                               " received has a valid gaze or a pupil-glint vector: is the tracker seeing an eye?");
+    }
+    c.input = kInputScreen;
+    return c;
+  }
+  c.input = kInputPupilGlint;
+  c.eye = a.eye != "auto" ? a.eye : (left > right ? "left" : "right");
+  if ((c.eye == "left" ? left : right) == 0) {
+    throw std::runtime_error("no sample has a pupil-glint vector for the " + c.eye + " eye (left: " +
+                             std::to_string(left) + ", right: " + std::to_string(right) + " samples)");
+  }
+  return c;
+}
+
+RawSample::State state_of(proto::EyeMovement m) {
+  switch (m) {
+    case proto::EyeMovement::Fixation: return RawSample::State::Fixation;
+    case proto::EyeMovement::Saccade: return RawSample::State::Saccade;
+    case proto::EyeMovement::Pursuit: return RawSample::State::Pursuit;
+    case proto::EyeMovement::Blink: return RawSample::State::Blink;
+    case proto::EyeMovement::Unknown: break;
+  }
+  return RawSample::State::Unknown;
+}
+
+std::vector<RawSample> raw_samples(const Session& s, const InputChoice& in) {
+  std::vector<RawSample> out;
+  for (const auto& r : s.samples) {
+    const auto& g = sample_of(r);
+    RawSample raw;
+    raw.time_ns = g.tracker_time_ns;
+    raw.state = state_of(g.state);
+    if (in.input == kInputPupilGlint) {
+      const proto::EyeData& e = in.eye == "left" ? g.left : g.right;
+      raw.valid = has_pupil_glint(e);
+      raw.raw = {e.pupil_glint_x_px, e.pupil_glint_y_px};
+    } else {
+      raw.valid = (g.flags & proto::kGazeValid) != 0;
+      raw.raw = {static_cast<double>(g.x) * s.display.width_px, static_cast<double>(g.y) * s.display.height_px};
+    }
+    out.push_back(raw);
+  }
+  std::stable_sort(out.begin(), out.end(), [](const RawSample& a, const RawSample& b) { return a.time_ns < b.time_ns; });
+  return out;
+}
+
+std::string auto_model(const InputChoice& in, std::size_t targets_used, bool full_grid) {
+  if (in.input == kInputScreen) return full_grid ? "bilinear-grid" : "affine";
+  return targets_used >= 6 ? "poly2" : "homography";
+}
+
+void print_collection(const std::vector<TargetCollection>& collected) {
+  std::printf("%5s  %-9s  %8s %8s  %6s  %s\n", "index", "phase", "x_px", "y_px", "kept", "samples in window");
+  for (const auto& c : collected) {
+    std::printf("%5d  %-9s  %8.1f %8.1f  %6zu  %zu (%zu invalid, %zu moving, %zu off target)%s%s\n", c.target.index,
+                to_string(c.target.phase), c.target.position_px.x, c.target.position_px.y, c.kept.size(), c.in_window,
+                c.invalid, c.moving, c.outliers, c.used ? "" : "  NOT USED: ", c.used ? "" : c.why_not.c_str());
+  }
+}
+
+std::string control_reply_text(const std::optional<proto::ControlReply>& r) {
+  if (!r) return "no answer (is fovea-trackerd running there, and new enough to know calibration-load?)";
+  return std::string(proto::to_string(r->result)) + ": " + r->message.value;
+}
+
+// Tells the daemon to load `file`; true when it did.
+bool tell_daemon(const RunArgs& a, const std::string& file) {
+  const proto::Endpoint server = proto::parse_endpoint(a.server, proto::kDefaultPort);
+  proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
+  req.argument.value = file;
+  if (file.size() > 63) {
+    std::fprintf(stderr,
+                 "fovea-calibrate run: %s is written, but its absolute path is longer than the 63 bytes a control "
+                 "message carries; load it with 'fovea-ctl calibration-load' from a shorter path, or name it in "
+                 "the daemon's [calibration] file and send SIGHUP\n",
+                 file.c_str());
+    return false;
+  }
+  const auto reply = proto::GazeClient::send_control(server, req, 4000);
+  const bool ok = reply && reply->result == proto::ControlResult::Ok;
+  std::fprintf(ok ? stdout : stderr, "daemon %s: calibration-load: %s\n", server.to_string().c_str(),
+               control_reply_text(reply).c_str());
+  return ok;
+}
+
+// --- the analysis shared by live and headless runs ---
+
+int analyse(const RunArgs& a, const Session& s, bool live) {
+  if (s.samples.empty()) throw std::runtime_error("no gaze samples were received or recorded");
+  const InputChoice in = choose_input(a, s.samples);
+  const std::vector<RawSample> raw = raw_samples(s, in);
+  const std::vector<TargetCollection> collected = collect(raw, s.targets);
+  std::printf("input: %s%s, %zu samples, %zu targets\n", in.input.c_str(),
+              in.eye.empty() ? "" : (" (" + in.eye + " eye)").c_str(), raw.size(), s.targets.size());
+  print_collection(collected);
+
+  const std::vector<Correspondence> corr = correspondences(collected, TargetPhase::Calibrate);
+  std::size_t used = 0, calibration_targets = 0;
+  for (const auto& c : collected) {
+    if (c.target.phase != TargetPhase::Calibrate) continue;
+    ++calibration_targets;
+    used += c.used ? 1u : 0u;
+  }
+  if (used == 0) throw std::runtime_error("no calibration target has enough fixation samples; nothing to fit");
+  const bool full_grid = used == calibration_targets && (calibration_targets == 9 || calibration_targets == 16 ||
+                                                         calibration_targets == 64);
+  const std::string kind = a.model == "auto" ? auto_model(in, used, full_grid) : a.model;
+  Calibration cal;
+  try {
+    cal = fit_calibration(kind, corr);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error("fitting " + kind + " to " + std::to_string(used) + " of " +
+                             std::to_string(calibration_targets) + " calibration targets: " + e.what());
+  }
+  cal.input = in.input;
+  cal.eye = in.eye;
+  cal.display = to_calib_display(s.display);
+  std::printf("model: %s, %zu samples (%zu rejected as outliers), rms residual %.2f px\n", kind.c_str(),
+              cal.points_used, cal.outliers_rejected, cal.rms_residual);
+
+  // Validation on the separate targets: every valid sample in the window that is not in a saccade
+  // or blink (no off-target filtering: the figures must include what a user would get).
+  std::vector<ValidationSample> vs;
+  for (const TargetWindow& t : s.targets) {
+    if (t.phase != TargetPhase::Validate) continue;
+    for (const RawSample& r : raw) {
+      if (r.time_ns < t.collect_from_ns || r.time_ns >= t.collect_to_ns || !r.valid) continue;
+      if (r.state == RawSample::State::Saccade || r.state == RawSample::State::Blink ||
+          r.state == RawSample::State::Pursuit) {
+        continue;
+      }
+      ValidationSample v;
+      v.target_px = t.position_px;
+      v.measured_px = cal.apply(r.raw);
+      if (in.input == kInputScreen) v.before_px = r.raw;
+      vs.push_back(v);
+    }
+  }
+  std::optional<ValidationResult> result;
+  if (vs.empty()) {
+    std::printf("validation: none (no validation targets, or no usable samples on them)\n");
+  } else {
+    result = validate(vs, *cal.display);
+    std::printf("%s", format_table(*result).c_str());
+    cal.validation = to_json(result->after);
+    std::size_t vt = 0;
+    for (const auto& t : result->targets) vt += t.after.has_data() ? 1u : 0u;
+    cal.validation["targets"] = vt;
+    cal.validation["date"] = utc_now_iso8601();
+  }
+  save_calibration(cal, a.out, a.force);
+  std::printf("wrote %s: %s\n", a.out.c_str(), cal.describe().c_str());
+  if (!a.report_dir.empty() && result) {
+    write_validation_report(a.report_dir, *result, vs, *cal.display,
+                            "fovea-calibrate run: " + kind + " on " + in.input + ", " + std::to_string(used) +
+                                " calibration targets");
+    std::printf("wrote the validation report to %s\n", a.report_dir.c_str());
+  }
+  if ((live && !a.no_load) || (!live && a.load)) {
+    if (!tell_daemon(a, fs::absolute(a.out).lexically_normal().string())) return 1;
+  }
+  return 0;
+}
+
+// --- live: the target window ---
+
+struct WindowSize {
+  int width = 0, height = 0;
+};
+
+std::optional<WindowSize> parse_window(const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  int w = 0, h = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 64 || h < 64 || w > 16384 || h > 16384) {
+    throw std::runtime_error("--window " + text + ": expected WxH (64..16384 each)");
+  }
+  return WindowSize{w, h};
+}
+
+void draw_disc(double cx, double cy, double r, float grey) {
+  glColor3f(grey, grey, grey);
+  glBegin(GL_TRIANGLE_FAN);
+  glVertex2d(cx, cy);
+  for (int i = 0; i <= 48; ++i) {
+    const double a = 2 * M_PI * i / 48;
+    glVertex2d(cx + r * std::cos(a), cy + r * std::sin(a));
+  }
+  glEnd();
+}
+
+class TargetWindowGl {
+ public:
+  TargetWindowGl(const std::optional<WindowSize>& size, const proto::DisplayGeometry& display) : display_(display) {
+    glfwSetErrorCallback([](int code, const char* text) { std::fprintf(stderr, "GLFW error %d: %s\n", code, text); });
+    if (glfwInit() != GLFW_TRUE) {
+      throw std::runtime_error("cannot open a window (GLFW could not initialise: no display? run under a desktop "
+                               "session, or use --headless --from SESSION.fgr)");
+    }
+    GLFWmonitor* monitor = size ? nullptr : glfwGetPrimaryMonitor();
+    int w = size ? size->width : 0, h = size ? size->height : 0;
+    if (monitor != nullptr) {
+      const GLFWvidmode* mode = glfwGetVideoMode(monitor);
+      w = mode->width;
+      h = mode->height;
+    } else if (!size) {
+      glfwTerminate();
+      throw std::runtime_error("no monitor found for a full-screen window; pass --window WxH");
+    }
+    window_ = glfwCreateWindow(w, h, "fovea-calibrate", monitor, nullptr);
+    if (window_ == nullptr) {
+      glfwTerminate();
+      throw std::runtime_error("cannot create the calibration window");
+    }
+    glfwMakeContextCurrent(window_);
+    glfwSwapInterval(1);
+    if (monitor != nullptr &&
+        (static_cast<std::uint32_t>(w) != display.width_px || static_cast<std::uint32_t>(h) != display.height_px)) {
+      std::fprintf(stderr,
+                   "fovea-calibrate run: the monitor is %dx%d but the daemon's display is %ux%u px; targets are "
+                   "scaled to fit (set the daemon's [display] to this monitor for a true calibration)\n",
+                   w, h, display.width_px, display.height_px);
+    }
+  }
+  ~TargetWindowGl() {
+    if (window_ != nullptr) glfwDestroyWindow(window_);
+    glfwTerminate();
+  }
+  TargetWindowGl(const TargetWindowGl&) = delete;
+  TargetWindowGl& operator=(const TargetWindowGl&) = delete;
+
+  bool wants_close() const {
+    return glfwWindowShouldClose(window_) == GLFW_TRUE || glfwGetKey(window_, GLFW_KEY_ESCAPE) == GLFW_PRESS;
+  }
+
+  // Draws the target shown at `t_s` seconds into the schedule (none between targets).
+  void draw(const std::vector<ScheduledTarget>& schedule, const ScheduleOptions& o, double t_s) {
+    glfwPollEvents();
+    int fw = 0, fh = 0;
+    glfwGetFramebufferSize(window_, &fw, &fh);
+    glViewport(0, 0, fw, fh);
+    glClearColor(0.45f, 0.45f, 0.45f, 1.0f);  // mid grey: the pupil neither constricts nor dilates much between targets
+    glClear(GL_COLOR_BUFFER_BIT);
+    glMatrixMode(GL_PROJECTION);
+    glLoadIdentity();
+    glOrtho(0, display_.width_px, display_.height_px, 0, -1, 1);  // display pixels, y down
+    glMatrixMode(GL_MODELVIEW);
+    glLoadIdentity();
+    const double px = std::max(1.0, static_cast<double>(display_.width_px) / 1920.0);
+    for (const ScheduledTarget& t : schedule) {
+      if (t_s < t.onset_s || t_s >= t.onset_s + o.duration_s) continue;
+      // Shrinking target: large to catch the eye, then small to hold it (radius 24 -> 7 px at 1080p).
+      const double k = o.shrink_s > 0 ? std::clamp((t_s - t.onset_s) / o.shrink_s, 0.0, 1.0) : 1.0;
+      const double r = (24 - 17 * k) * px;
+      draw_disc(t.position_px.x, t.position_px.y, r, 0.95f);
+      draw_disc(t.position_px.x, t.position_px.y, 2 * px, 0.05f);
+    }
+    glfwSwapBuffers(window_);
+  }
+
+ private:
+  proto::DisplayGeometry display_;
+  GLFWwindow* window_ = nullptr;
+};
+
+int run_live(const RunArgs& a) {
+  const proto::Endpoint server = proto::parse_endpoint(a.server, proto::kDefaultPort);
+  const ScheduleOptions so = schedule_options(a);
+  const auto size = parse_window(a.window);
+  if (!a.force && fs::exists(a.out)) throw std::runtime_error(a.out + ": exists; refusing to overwrite it (use --force)");
+  const std::string session_fgr = a.save_session.empty() ? "" : a.save_session + ".fgr";
+  const std::string session_targets = a.save_session.empty() ? "" : a.save_session + ".targets.csv";
+  for (const std::string& p : {session_fgr, session_targets}) {
+    if (!p.empty() && fs::exists(p)) throw std::runtime_error(p + ": exists; not replaced (--save-session)");
+  }
+
+  // The display geometry comes with the subscription; a first short subscription would cost a
+  // synthetic viewer its script, so the window opens at the daemon's STATUS display instead.
+  const auto status = proto::GazeClient::query_status(server, a.connect_timeout_ms);
+  if (!status) {
+    throw std::runtime_error("no answer from fovea-trackerd at " + server.to_string() + " within " +
+                             std::to_string(a.connect_timeout_ms) + " ms (is it running? --server HOST:PORT)");
+  }
+  Session s;
+  s.display = status->display;
+  s.nominal_rate_hz = status->nominal_rate_hz;
+  s.device = status->source.value;
+  const std::vector<ScheduledTarget> schedule =
+      make_schedule(s.display.width_px, s.display.height_px, so);
+  TargetWindowGl window(size, s.display);
+  window.draw(schedule, so, -1);
+
+  proto::ClientOptions co;
+  co.server = server;
+  co.streams = proto::kStreamSamples;
+  co.name = "fovea-calibrate";
+  co.queue_capacity = 1 << 18;
+  proto::GazeClient client(co);
+  client.start();
+  if (!client.wait_subscribed(a.connect_timeout_ms)) {
+    throw std::runtime_error("could not subscribe to fovea-trackerd at " + server.to_string());
+  }
+  // Screen input is calibrated on the tracker's own gaze: the daemon's current calibration must be
+  // off while we collect, and is restored if we do not finish.
+  const bool screen_input = a.input == "screen";
+  if (screen_input) {
+    proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
+    req.argument.value = "none";
+    const auto r = proto::GazeClient::send_control(server, req, 4000);
+    if (!r || r->result != proto::ControlResult::Ok) {
+      throw std::runtime_error("could not switch the daemon's calibration off for collection: " + control_reply_text(r));
+    }
+  }
+  auto restore = [&] {
+    if (!screen_input) return;
+    proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
+    req.argument.value = "configured";
+    (void)proto::GazeClient::send_control(server, req, 2000);
+  };
+
+  std::vector<std::pair<proto::GazeSample, proto::Arrival>> batch;
+  std::optional<std::int64_t> start_ns;  // tracker clock: the first sample received starts the schedule
+  std::int64_t last_arrival = proto::monotonic_ns();
+  const double end_s = schedule_end_s(schedule) + 0.2;
+  try {
+    while (true) {
+      batch.clear();
+      client.poll(batch);
+      for (const auto& [sample, arrival] : batch) {
+        if (!start_ns) start_ns = sample.tracker_time_ns;
+        s.samples.push_back(proto::Record{arrival.sequence, sample});
+        last_arrival = arrival.receive_ns;
+      }
+      const std::int64_t now = proto::monotonic_ns();
+      if (now - last_arrival > 3000 * kMs) {
+        throw std::runtime_error("the gaze stream stopped for 3 s (" + std::to_string(s.samples.size()) +
+                                 " samples so far); calibration abandoned");
+      }
+      if (window.wants_close()) throw std::runtime_error("abandoned by the user (Esc or window closed); nothing written");
+      const double t_s =
+          start_ns ? static_cast<double>(now + client.stats().clock_offset_ns - *start_ns) * 1e-9 : -1.0;
+      if (start_ns && !s.samples.empty() &&
+          static_cast<double>(sample_of(s.samples.back()).tracker_time_ns - *start_ns) * 1e-9 >= end_s) {
+        break;
+      }
+      window.draw(schedule, so, t_s);
+    }
+  } catch (...) {
+    restore();
+    throw;
+  }
+  client.stop();
+  s.targets = place_schedule(schedule, *start_ns);
+  std::stable_sort(s.samples.begin(), s.samples.end(),
+                   [](const proto::Record& x, const proto::Record& y) { return x.time_ns() < y.time_ns(); });
+  if (!session_fgr.empty()) {
+    proto::RecordingHeader h;
+    h.device = ("calibration session: " + s.device).substr(0, 63);
+    h.display = s.display;
+    h.nominal_rate_hz = s.nominal_rate_hz;
+    h.clock = proto::RecordingClock::Monotonic;
+    h.created_unix_ns = proto::realtime_ns();
+    h.created_clock_ns = proto::monotonic_ns() + client.stats().clock_offset_ns;
+    {
+      proto::RecordingWriter w(session_fgr, h);
+      for (const auto& r : s.samples) w.append(r);
+      w.sync();
+    }
+    write_target_windows(session_targets, s.targets);
+    std::printf("saved the session to %s and %s\n", session_fgr.c_str(), session_targets.c_str());
+  }
+  try {
+    return analyse(a, s, true);
+  } catch (...) {
+    restore();
+    throw;
+  }
+}
+
+int run_headless(const RunArgs& a) {
+  if (a.from.empty()) throw std::runtime_error("--headless needs --from SESSION.fgr");
+  std::string targets = a.targets;
+  if (targets.empty()) {
+    fs::path p(a.from);
+    p.replace_extension(".targets.csv");
+    targets = p.string();
+  }
+  const proto::Recording rec = proto::read_recording(a.from);
+  if (rec.report.damaged_regions > 0 || rec.report.truncated_tail) {
+    std::fprintf(stderr, "fovea-calibrate run: %s: %s; using the intact records\n", a.from.c_str(),
+                 rec.report.describe().c_str());
+  }
+  Session s;
+  s.display = rec.header.display;
+  s.nominal_rate_hz = rec.header.nominal_rate_hz;
+  s.device = rec.header.device;
+  for (const auto& r : rec.records) {
+    if (std::holds_alternative<proto::GazeSample>(r.item)) s.samples.push_back(r);
+  }
+  s.targets = read_target_windows(targets);
+  return analyse(a, s, false);
+}
+
+}  // namespace
+
+CLI::App* add_run_subcommand(CLI::App& app, RunArgs& a) {
+  auto* run = app.add_subcommand(
+      "run", "calibrate: show targets, collect the tracker's raw stream, fit, validate, write CAL.json and make "
+             "fovea-trackerd load it (or --headless --from a recorded session)");
+  run->add_option("--out", a.out, "calibration file to write")->required();
+  run->add_flag("--force", a.force, "replace --out if it exists");
+  run->add_option("--server", a.server, "fovea-trackerd HOST[:PORT]")->capture_default_str();
+  run->add_option("--points", a.points, "calibration targets: 5, 9, 16 or 64")
+      ->check(CLI::IsMember({5, 9, 16, 64}))
+      ->capture_default_str();
+  run->add_option("--validation-points", a.validation_points, "separate validation targets: 0, 4 or 9")
+      ->check(CLI::IsMember({0, 4, 9}))
+      ->capture_default_str();
+  run->add_option("--seed", a.seed, "order of the targets")->capture_default_str();
+  run->add_flag("--fixed-order", a.fixed_order, "show the targets row by row instead of in random order");
+  run->add_option("--dwell", a.duration_s, "seconds each target is shown")->capture_default_str();
+  run->add_option("--settle", a.settle_s, "seconds after a target appears before samples are collected")
+      ->capture_default_str();
+  run->add_option("--shrink", a.shrink_s, "seconds over which the target shrinks")->capture_default_str();
+  run->add_option("--model", a.model,
+                  "auto (pupil-glint: poly2, or homography below 6 targets; screen: bilinear-grid on a full "
+                  "grid, else affine) | poly2 | affine | homography | bilinear-grid")
+      ->check(CLI::IsMember({"auto", "poly2", "affine", "homography", "bilinear-grid"}))
+      ->capture_default_str();
+  run->add_option("--input", a.input,
+                  "auto (pupil-glint when the stream carries pupil-glint vectors, else screen) | pupil-glint | "
+                  "screen (correct the tracker's own gaze; the daemon's calibration is switched off meanwhile)")
+      ->check(CLI::IsMember({"auto", "pupil-glint", "screen"}))
+      ->capture_default_str();
+  run->add_option("--eye", a.eye, "pupil-glint: auto | left | right")
+      ->check(CLI::IsMember({"auto", "left", "right"}))
+      ->capture_default_str();
+  run->add_option("--report", a.report_dir, "also write the validation report (tables, errors.png) to DIR");
+  run->add_option("--save-session", a.save_session, "keep the session as PREFIX.fgr and PREFIX.targets.csv");
+  run->add_option("--window", a.window, "a WxH window instead of full screen");
+  run->add_flag("--no-load", a.no_load, "do not tell the daemon to load the new calibration");
+  run->add_flag("--headless", a.headless, "no window, no daemon: analyse a recorded session (--from)");
+  run->add_option("--from", a.from, "headless: the session recording SESSION.fgr");
+  run->add_option("--targets", a.targets, "headless: its targets file (default SESSION.targets.csv)");
+  run->add_flag("--load", a.load, "headless: also tell the daemon at --server to load the result");
+  return run;
+}
+
+int run_calibration(const RunArgs& a) {
+  try {
+    (void)schedule_options(a);
+    if (a.headless) {
+      if (!a.force && fs::exists(a.out)) {
+        throw std::runtime_error(a.out + ": exists; refusing to overwrite it (use --force)");
+      }
+      return run_headless(a);
+    }
+    return run_live(a);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-calibrate run: %s\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace fovea::calib

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# fovea-calibrate run as a user runs it: headless on a recorded session of the synthetic viewer,
+# live against fovea-trackerd (targets in a window under Xvfb, the synthetic viewer following them),
+# loading the result into the running daemon, and the refusals.
+# Usage: test_calibrate_run.sh CALIBRATE TRACKERD CTL WITH_XVFB
+set -u
+CAL=$1 TRACKERD=$2 CTL=$3 XVFB=$4
+WORK=$(mktemp -d)
+DPID=""
+trap '[ -n "$DPID" ] && kill "$DPID" 2>/dev/null; rm -rf "$WORK"' EXIT
+fail() { echo "FAIL: $*"; [ -f "$WORK/d.log" ] && tail -n 20 "$WORK/d.log"; exit 1; }
+json() { python3 -c "import json,sys; d=json.load(open(sys.argv[1])); print(eval(sys.argv[2]))" "$@"; }
+
+echo "== headless: a recorded session of the synthetic viewer (9 targets, head moved 20 mm)"
+"$CTL" synth-calibration --out "$WORK/s.fgr" --points 9 --seed 2 --head-offset 20,-10,30 --eye-size 240x180 \
+  >"$WORK/synth.out" 2>&1 || fail "synth-calibration: $(cat "$WORK/synth.out")"
+"$CAL" run --headless --from "$WORK/s.fgr" --out "$WORK/cal.json" --report "$WORK/rep" >"$WORK/run.out" 2>&1 \
+  || fail "headless run: $(cat "$WORK/run.out")"
+grep -q "input: pupil-glint (right eye)" "$WORK/run.out" || fail "input: $(cat "$WORK/run.out")"
+grep -q "^overall " "$WORK/run.out" || fail "no validation table: $(cat "$WORK/run.out")"
+[ "$(json "$WORK/cal.json" "d['input']")" = pupil-glint ] || fail "input not recorded: $(cat "$WORK/cal.json")"
+[ "$(json "$WORK/cal.json" "d['model']['kind']")" = poly2 ] || fail "auto model"
+[ "$(json "$WORK/cal.json" "d['display']['width_px']")" = 1920.0 ] || fail "display not recorded"
+acc=$(json "$WORK/cal.json" "d['validation']['accuracy_deg']")
+python3 -c "import sys; sys.exit(0 if float('$acc') < 1.5 else 1)" || fail "validated accuracy $acc deg >= 1.5"
+[ -f "$WORK/rep/errors.png" ] && [ -f "$WORK/rep/report.md" ] || fail "report missing: $(ls "$WORK/rep")"
+echo "   validated accuracy $acc deg"
+# The same session with an explicit model and an affine baseline: the affine map is worse.
+"$CAL" run --headless --from "$WORK/s.fgr" --model affine --out "$WORK/affine.json" >/dev/null 2>&1 || fail "affine"
+acc_affine=$(json "$WORK/affine.json" "d['validation']['accuracy_deg']")
+python3 -c "import sys; sys.exit(0 if float('$acc_affine') > float('$acc') else 1)" \
+  || fail "affine ($acc_affine deg) not worse than poly2 ($acc deg)"
+
+echo "== headless refusals"
+out=$("$CAL" run --headless --from "$WORK/s.fgr" --out "$WORK/cal.json" 2>&1) && fail "overwrote cal.json"
+grep -q "exists" <<<"$out" || fail "unclear overwrite refusal: $out"
+mv "$WORK/s.targets.csv" "$WORK/moved.csv"
+out=$("$CAL" run --headless --from "$WORK/s.fgr" --out "$WORK/x.json" 2>&1) && fail "ran without a targets file"
+grep -q "s.targets.csv: cannot open" <<<"$out" || fail "unclear missing-targets message: $out"
+[ -e "$WORK/x.json" ] && fail "a calibration was written after an error"
+"$CAL" run --headless --from "$WORK/s.fgr" --targets "$WORK/moved.csv" --out "$WORK/x.json" >/dev/null 2>&1 \
+  || fail "--targets"
+out=$("$CAL" run --headless --from "$WORK/moved.csv" --out "$WORK/y.json" 2>&1) && fail "read a CSV as a recording"
+grep -q "moved.csv" <<<"$out" || fail "unclear bad-recording message: $out"
+out=$("$CAL" run --out "$WORK/z.json" --server 127.0.0.1:1 --window 320x200 2>&1) && fail "live run without a daemon"
+grep -q "no answer from fovea-trackerd" <<<"$out" || fail "unclear no-daemon message: $out"
+
+echo "== live: fovea-trackerd's synthetic viewer follows the targets fovea-calibrate shows"
+PORT=$((47000 + RANDOM % 900))
+"$TRACKERD" --source synthetic-eye --eye-script calibration:5:4 --eye-size 240x180 --port "$PORT" \
+  --log-level info >"$WORK/d.log" 2>&1 &
+DPID=$!
+sleep 0.5
+"$XVFB" "$CAL" run --server "127.0.0.1:$PORT" --points 5 --seed 4 --window 480x270 --out "$WORK/live.json" \
+  >"$WORK/live.out" 2>&1 || fail "live run: $(cat "$WORK/live.out")"
+grep -q "calibration-load: ok" "$WORK/live.out" || fail "not loaded: $(cat "$WORK/live.out")"
+[ "$(json "$WORK/live.json" "d['model']['kind']")" = homography ] || fail "auto model for 5 targets"
+acc_live=$(json "$WORK/live.json" "d['validation']['accuracy_deg']")
+python3 -c "import sys; sys.exit(0 if float('$acc_live') < 2.0 else 1)" || fail "live accuracy $acc_live deg >= 2"
+echo "   live validated accuracy $acc_live deg"
+sleep 0.3
+grep -q "calibration (control request): .*live.json: homography on pupil-glint (right eye).*validated" "$WORK/d.log" \
+  || fail "daemon did not load it"
+# A reload keeps the calibration loaded by control.
+kill -HUP "$DPID"
+sleep 0.5
+grep -q "kept over reloads" "$WORK/d.log" || fail "SIGHUP dropped the loaded calibration"
+kill "$DPID"
+wait "$DPID" 2>/dev/null
+DPID=""
+echo "PASS"
