@@ -694,6 +694,7 @@ EyeDetector::EyeDetector(DetectorSettings settings) : settings_(std::move(settin
 void EyeDetector::reset() {
   last_pupil_.reset();
   last_glint_scale_ = 0;
+  last_reference_.reset();
   open_aspect_ = 0;
 }
 
@@ -715,7 +716,7 @@ struct Pairing {
 };
 
 Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layout, double tolerance,
-                         double last_scale) {
+                         double last_scale, const std::optional<cv::Point2d>& last_reference) {
   Pairing best;
   best.led_of.assign(glints.size(), -1);
   const auto& leds = layout.positions_mm;
@@ -726,7 +727,7 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
   layout_centroid *= 1.0 / static_cast<double>(m);
   int best_matches = 0;
   double best_cost = 1e300;
-  const auto evaluate = [&](double s, const cv::Point2d& t) {
+  const auto evaluate = [&](double s, const cv::Point2d& t, double extra_cost) {
     std::vector<int> led_of(g, -1);
     int matches = 0;
     double residual = 0;
@@ -748,7 +749,8 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
       }
     }
     // A scale 20 % off the last one costs as much as being 1.5 tolerances off per glint.
-    const double cost = residual + (last_scale > 0 ? 8 * tolerance * std::abs(std::log(s / last_scale)) : 0.0);
+    const double cost =
+        residual + extra_cost + (last_scale > 0 ? 8 * tolerance * std::abs(std::log(s / last_scale)) : 0.0);
     if (matches > best_matches || (matches == best_matches && cost < best_cost)) {
       best_matches = matches;
       best_cost = cost;
@@ -772,14 +774,19 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
             if (!(s > 0)) continue;
             const double cross = std::abs(dg.x * dl.y - dg.y * dl.x) / std::sqrt(dl2);
             if (cross > 0.35 * std::hypot(dg.x, dg.y) + tolerance) continue;  // rotated by more than ~20 deg
-            evaluate(s, glints[i].centre - s * leds[a]);
+            evaluate(s, glints[i].centre - s * leds[a], 0.0);
           }
       }
   }
   if (best_matches < 2 && last_scale > 0) {
-    // One glint: place the layout by the scale seen in earlier frames, trying each LED for it.
+    // One glint: place the layout by the scale seen in earlier frames, trying each LED for it; every
+    // choice fits that glint exactly, so the one keeping the reference nearest the last frame's wins.
     for (std::size_t a = 0; a < m; ++a)
-      for (std::size_t i = 0; i < g; ++i) evaluate(last_scale, glints[i].centre - last_scale * leds[a]);
+      for (std::size_t i = 0; i < g; ++i) {
+        const cv::Point2d t = glints[i].centre - last_scale * leds[a];
+        const cv::Point2d reference = last_scale * layout_centroid + t;
+        evaluate(last_scale, t, last_reference ? std::hypot(reference.x - last_reference->x, reference.y - last_reference->y) : 0.0);
+      }
   }
   if (m == 1 && g >= 1) {
     best.led_of.assign(g, -1);
@@ -961,11 +968,12 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     bool reference_valid = false;
     if (!settings_.leds.positions_mm.empty() && !glints.empty()) {
       const double tolerance = std::max(1.5, 0.012 * size);
-      const Pairing pairing = pair_with_layout(glints, settings_.leds, tolerance, last_glint_scale_);
+      const Pairing pairing = pair_with_layout(glints, settings_.leds, tolerance, last_glint_scale_, last_reference_);
       for (std::size_t i = 0; i < glints.size(); ++i) glints[i].led = pairing.led_of[i];
       if (pairing.valid) {
         reference = pairing.reference;
         reference_valid = true;
+        last_reference_ = pairing.reference;
         // The scale prior learns from unambiguous pairings (three or more glints), or from two when
         // it has nothing yet or they agree with it.
         const bool learn = pairing.matches >= 3 ||

@@ -97,6 +97,9 @@ class EyeDetector {
   DetectorSettings settings_;
   std::optional<Ellipse> last_pupil_;
   double last_glint_scale_ = 0;
+  // Image of the LED layout's centroid in the last frame with paired glints: with one glint left,
+  // the LED it belongs to is the one that keeps the reference where it was.
+  std::optional<cv::Point2d> last_reference_;
   double open_aspect_ = 0;  // running minor/major of this eye's confident open pupils (0: none yet)  // px per mm of the LED layout's glint image, from the last paired frame
   cv::Mat grey_, integral_, small_, smooth_;  // reused buffers
 };
