@@ -150,6 +150,9 @@ int main(int argc, char** argv) {
   }
   const cv::Point3d offset = trackerd::eye::parse_head_offset(offset_text);
   const protocol::DisplayGeometry display;
+  const calib::Display calib_display{static_cast<double>(display.width_px), static_cast<double>(display.height_px),
+                                     display.width_m * 1000, display.height_m * 1000,
+                                     display.viewing_distance_m * 1000};
 
   // The longest sessions first, so the threads finish together.
   std::vector<Job> jobs;
@@ -198,6 +201,11 @@ int main(int argc, char** argv) {
         }
         std::vector<std::string> names = models;
         if (input == CalibrationInput::Screen) names.insert(names.begin(), "none");
+        // The same models fitted to the Fick angles of the targets (what fovea-calibrate run does
+        // for pupil-glint input): the eye rotates, the screen is flat.
+        if (input == CalibrationInput::PupilGlint) {
+          for (const char* m : {"affine@fick", "homography@fick", "poly2@fick"}) names.push_back(m);
+        }
         for (const std::string& model : names) {
           Row r = base;
           r.model = model;
@@ -217,6 +225,9 @@ int main(int argc, char** argv) {
             if (model == "poly2+bilinear-grid") {
               const calib::Calibration b = calib::fit_calibration("poly2", corr);
               return calib::fit_calibration("bilinear-grid", corr, &b);
+            }
+            if (const auto at = model.find("@fick"); at != std::string::npos) {
+              return calib::fit_calibration(model.substr(0, at), corr, nullptr, {}, &calib_display);
             }
             return calib::fit_calibration(model, corr);
           };
@@ -241,7 +252,7 @@ int main(int argc, char** argv) {
       std::lock_guard lock(mutex);
       rows.insert(rows.end(), out.begin(), out.end());
       std::fprintf(stderr, "  %2zu/%zu  %2d points, offset %d, viewer %llu, %s: %.1f s session simulated in %.1f s\n",
-                   rows.size() / 11, jobs.size(), job.points, job.offset ? 1 : 0,
+                   rows.size() / 14, jobs.size(), job.points, job.offset ? 1 : 0,
                    static_cast<unsigned long long>(job.viewer), job.hard ? "hard" : "normal", session.session_s, sim_s);
     }
   };

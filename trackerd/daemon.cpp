@@ -536,7 +536,7 @@ protocol::ControlReply Daemon::load_calibration(const std::string& argument) {
   calibration_override_ = next_override;
   spdlog::info("calibration (control request): {}", calibration_->description());
   notifier_.status(status_line());
-  return reply(protocol::ControlResult::Ok, "calibration: " + calibration_->description());
+  return reply(protocol::ControlResult::Ok, "loaded " + calibration_->summary());
 }
 
 std::string Daemon::start_recording(const std::string& path, bool append) {

@@ -109,6 +109,22 @@ Point px_to_mm(const Display& d, Point px) {
   return {(px.x - d.width_px / 2) * (d.width_mm / d.width_px), (px.y - d.height_px / 2) * (d.height_mm / d.height_px)};
 }
 
+Point px_to_fick_deg(const Display& d, Point px) {
+  constexpr double kDeg = 180.0 / 3.14159265358979323846;
+  const Point mm = px_to_mm(d, px);
+  return {std::atan2(mm.x, d.distance_mm) * kDeg, std::atan2(mm.y, std::hypot(mm.x, d.distance_mm)) * kDeg};
+}
+
+Point fick_deg_to_px(const Display& d, Point a) {
+  constexpr double kRad = 3.14159265358979323846 / 180.0;
+  if (!(std::abs(a.x) < 89.9) || !(std::abs(a.y) < 89.9)) {
+    return {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
+  }
+  const double x_mm = d.distance_mm * std::tan(a.x * kRad);
+  const double y_mm = std::tan(a.y * kRad) * std::hypot(x_mm, d.distance_mm);
+  return {x_mm * (d.width_px / d.width_mm) + d.width_px / 2, y_mm * (d.height_px / d.height_mm) + d.height_px / 2};
+}
+
 double px_per_mm(const Display& d) { return d.width_px / d.width_mm; }
 
 double angle_between_deg(const Display& d, Point a, Point b) {

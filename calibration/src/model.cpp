@@ -287,11 +287,21 @@ json Calibration::to_json() const {
          {"created", created}};
   j["input"] = input;
   if (!eye.empty()) j["eye"] = eye;
+  j["target_space"] = target_space;
   j["outliers_rejected"] = outliers_rejected;
   if (on_top_of) j["on_top_of"] = on_top_of->to_json();
   if (display) j["display"] = calib::to_json(*display);
   if (!validation.is_null()) j["validation"] = validation;
   return j;
+}
+
+Point Calibration::apply(Point raw) const {
+  const Point out = model->apply(on_top_of ? on_top_of->apply(raw) : raw);
+  if (target_space == kTargetFickDegrees) {
+    if (!display) return {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
+    return fick_deg_to_px(*display, out);
+  }
+  return out;
 }
 
 std::optional<double> Calibration::validated_accuracy_deg() const {
@@ -329,20 +339,37 @@ std::string utc_now_iso8601() {
 }
 
 Calibration fit_calibration(std::string_view kind, std::span<const Correspondence> pts, const Calibration* base,
-                            const FitOptions& options) {
+                            const FitOptions& options, const Display* fick_display) {
   Calibration cal;
   std::vector<Correspondence> corrected;
   std::span<const Correspondence> use = pts;
+  if (fick_display) {
+    if (const std::string problem = check(*fick_display); !problem.empty()) throw std::invalid_argument(problem);
+    if (base && base->target_space != kTargetPixels) {
+      throw std::invalid_argument("a model in Fick angles cannot be stacked on one that is not in pixels");
+    }
+    corrected.reserve(pts.size());
+    for (const auto& c : pts) corrected.push_back({c.raw, px_to_fick_deg(*fick_display, c.target)});
+    use = corrected;
+    cal.target_space = kTargetFickDegrees;
+    cal.display = *fick_display;
+  }
   if (base) {
     if (base->on_top_of) {
       throw std::invalid_argument("the base calibration is itself a " + base->model->kind() + " on top of a " +
                                   base->on_top_of->kind() + "; stacking more than two models is not supported");
     }
-    corrected.reserve(pts.size());
-    for (const auto& c : pts) corrected.push_back({base->model->apply(c.raw), c.target});
+    if (base->target_space != kTargetPixels) {
+      throw std::invalid_argument("the base calibration's output is in " + base->target_space +
+                                  "; a model can only be stacked on one whose output is in pixels");
+    }
+    std::vector<Correspondence> on_base;
+    on_base.reserve(use.size());
+    for (const auto& c : use) on_base.push_back({base->model->apply(c.raw), c.target});
+    corrected = std::move(on_base);
     use = corrected;
     cal.on_top_of = base->model->clone();
-    cal.display = base->display;
+    if (!fick_display) cal.display = base->display;
     cal.input = base->input;
     cal.eye = base->eye;
   }
@@ -445,6 +472,16 @@ Calibration load_calibration(const std::filesystem::path& path) {
         bad(name, "eye", "must be \"left\" or \"right\"");
       }
       cal.eye = e.get<std::string>();
+    }
+    if (j.contains("target_space")) {
+      const json& t = j["target_space"];
+      if (!t.is_string() || (t.get<std::string>() != kTargetPixels && t.get<std::string>() != kTargetFickDegrees)) {
+        bad(name, "target_space", "must be \"px\" or \"fick-deg\"");
+      }
+      cal.target_space = t.get<std::string>();
+      if (cal.target_space == kTargetFickDegrees && !cal.display) {
+        bad(name, "display", "is required when target_space is \"fick-deg\"");
+      }
     }
     if (j.contains("outliers_rejected")) {
       if (!j["outliers_rejected"].is_number_unsigned()) bad(name, "outliers_rejected", "must be a non-negative integer");

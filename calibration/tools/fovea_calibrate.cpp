@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -53,15 +54,31 @@ std::string fmt(double v) {
   return buf;
 }
 
-int cmd_fit(const std::string& points, const std::string& kind, const std::string& base_path, const std::string& out,
-            bool force) {
+struct FitArgs {
+  std::string points, kind, base, out, display, input = fovea::calib::kInputScreen, eye, target_space = "px";
+  bool force = false;
+};
+
+int cmd_fit(const FitArgs& a) {
+  const std::string &points = a.points, &kind = a.kind, &base_path = a.base, &out = a.out;
+  const bool force = a.force;
+  std::optional<fovea::calib::Display> display;
+  if (!a.display.empty()) display = fovea::calib::parse_display(a.display);
+  const bool fick = a.target_space == fovea::calib::kTargetFickDegrees;
+  if (fick && !display) throw std::runtime_error("--target-space fick-deg needs --display (the targets' screen)");
   const auto rows = read_csv(points, {"target_x_px", "target_y_px", "raw_x", "raw_y"}, false, 0);
   std::vector<Correspondence> pts;
   for (const auto& r : rows) pts.push_back({{r.values[2], r.values[3]}, {r.values[0], r.values[1]}});
   Calibration base;
   if (!base_path.empty()) base = fovea::calib::load_calibration(base_path);
   if (!force && fs::exists(out)) throw std::runtime_error(out + ": exists; refusing to overwrite it (use --force)");
-  const Calibration cal = fovea::calib::fit_calibration(kind, pts, base_path.empty() ? nullptr : &base);
+  Calibration cal = fovea::calib::fit_calibration(kind, pts, base_path.empty() ? nullptr : &base, {},
+                                                  fick ? &*display : nullptr);
+  if (display) cal.display = display;
+  if (base_path.empty()) {
+    cal.input = a.input;
+    cal.eye = a.eye;
+  }
   fovea::calib::save_calibration(cal, out, force);
   std::cout << "model: " << cal.model->kind() << (cal.on_top_of ? " on top of " + cal.on_top_of->kind() : "") << '\n'
             << "points used: " << cal.points_used << '\n'
@@ -98,16 +115,25 @@ int main(int argc, char** argv) {
       "See calibration/CALIBRATION.md."};
   app.require_subcommand(1);
 
-  std::string points, kind, base, out;
-  bool force = false;
+  FitArgs fa;
   auto* fit = app.add_subcommand("fit", "fit a model to POINTS.csv (target_x_px,target_y_px,raw_x,raw_y) and write CAL.json");
-  fit->add_option("--points", points, "calibration points CSV; several rows per target allowed")->required();
-  fit->add_option("--model", kind, "bilinear-grid | poly2 | affine | homography")
+  fit->add_option("--points", fa.points, "calibration points CSV; several rows per target allowed")->required();
+  fit->add_option("--model", fa.kind, "bilinear-grid | poly2 | affine | homography")
       ->required()
       ->check(CLI::IsMember(fovea::calib::model_kinds()));
-  fit->add_option("--on-top-of", base, "calibration file whose model is applied first; the new model corrects it");
-  fit->add_option("--out", out, "calibration file to write")->required();
-  fit->add_flag("--force", force, "replace --out if it exists");
+  fit->add_option("--on-top-of", fa.base, "calibration file whose model is applied first; the new model corrects it");
+  fit->add_option("--out", fa.out, "calibration file to write")->required();
+  fit->add_flag("--force", fa.force, "replace --out if it exists");
+  fit->add_option("--display", fa.display,
+                  "the targets' screen, WxH@WMMxHMMmm,DISTmm (recorded in the file; needed by validate and fick-deg)");
+  fit->add_option("--input", fa.input, "what raw_x,raw_y are: screen (a tracker's gaze, px) | pupil-glint")
+      ->check(CLI::IsMember({fovea::calib::kInputScreen, fovea::calib::kInputPupilGlint}))
+      ->capture_default_str();
+  fit->add_option("--eye", fa.eye, "pupil-glint: left | right (which eye the daemon takes the vector of)")
+      ->check(CLI::IsMember({"left", "right"}));
+  fit->add_option("--target-space", fa.target_space, "px | fick-deg (fit to the line of sight's angles; needs --display)")
+      ->check(CLI::IsMember({fovea::calib::kTargetPixels, fovea::calib::kTargetFickDegrees}))
+      ->capture_default_str();
 
   std::string cal_path, in_csv, out_csv;
   auto* apply = app.add_subcommand("apply", "map IN.csv rows t_ms,raw_x,raw_y to OUT.csv rows t_ms,x_px,y_px");
@@ -124,7 +150,7 @@ int main(int argc, char** argv) {
   if (*validate) return fovea::calib::run_validate(validate_args);
   if (*run) return fovea::calib::run_calibration(run_args);
   try {
-    if (*fit) return cmd_fit(points, kind, base, out, force);
+    if (*fit) return cmd_fit(fa);
     if (*apply) return cmd_apply(cal_path, in_csv, out_csv);
   } catch (const std::exception& e) {
     std::cerr << "fovea-calibrate: " << e.what() << '\n';

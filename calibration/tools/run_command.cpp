@@ -193,18 +193,22 @@ int analyse(const RunArgs& a, const Session& s, bool live) {
   const bool full_grid = used == calibration_targets && (calibration_targets == 9 || calibration_targets == 16 ||
                                                          calibration_targets == 64);
   const std::string kind = a.model == "auto" ? auto_model(in, used, full_grid) : a.model;
+  const Display display = to_calib_display(s.display);
+  const bool fick = a.target_space == kTargetFickDegrees || (a.target_space == "auto" && in.input == kInputPupilGlint);
+  if (fick && kind == "bilinear-grid") throw std::runtime_error("bilinear-grid corrects screen pixels: use --target-space px");
   Calibration cal;
   try {
-    cal = fit_calibration(kind, corr);
+    cal = fit_calibration(kind, corr, nullptr, {}, fick ? &display : nullptr);
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error("fitting " + kind + " to " + std::to_string(used) + " of " +
                              std::to_string(calibration_targets) + " calibration targets: " + e.what());
   }
   cal.input = in.input;
   cal.eye = in.eye;
-  cal.display = to_calib_display(s.display);
-  std::printf("model: %s, %zu samples (%zu rejected as outliers), rms residual %.2f px\n", kind.c_str(),
-              cal.points_used, cal.outliers_rejected, cal.rms_residual);
+  cal.display = display;
+  std::printf("model: %s in %s, %zu samples (%zu rejected as outliers), rms residual %.3f %s\n", kind.c_str(),
+              fick ? "Fick angles" : "pixels", cal.points_used, cal.outliers_rejected, cal.rms_residual,
+              fick ? "deg" : "px");
 
   // Validation on the separate targets: every valid sample in the window that is not in a saccade
   // or blink (no off-target filtering: the figures must include what a user would get).
@@ -522,6 +526,11 @@ CLI::App* add_run_subcommand(CLI::App& app, RunArgs& a) {
       ->capture_default_str();
   run->add_option("--eye", a.eye, "pupil-glint: auto | left | right")
       ->check(CLI::IsMember({"auto", "left", "right"}))
+      ->capture_default_str();
+  run->add_option("--target-space", a.target_space,
+                  "what the model is fitted to: auto (pupil-glint: fick-deg, screen: px) | px (screen pixels) | "
+                  "fick-deg (the line of sight's yaw and pitch, which the eye's rotation follows)")
+      ->check(CLI::IsMember({"auto", "px", "fick-deg"}))
       ->capture_default_str();
   run->add_option("--report", a.report_dir, "also write the validation report (tables, errors.png) to DIR");
   run->add_option("--save-session", a.save_session, "keep the session as PREFIX.fgr and PREFIX.targets.csv");

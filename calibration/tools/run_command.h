@@ -27,6 +27,7 @@ struct RunArgs {
   std::string model = "auto";  // auto | poly2 | affine | homography | bilinear-grid
   std::string input = "auto";  // auto | pupil-glint | screen
   std::string eye = "auto";    // auto | left | right
+  std::string target_space = "auto";  // auto (pupil-glint: fick-deg; screen: px) | px | fick-deg
   std::string out;
   bool force = false;
   std::string report_dir;

@@ -65,6 +65,20 @@ grep -q "calibration (control request): .*live.json: homography on pupil-glint (
 kill -HUP "$DPID"
 sleep 0.5
 grep -q "kept over reloads" "$WORK/d.log" || fail "SIGHUP dropped the loaded calibration"
+echo "== fovea-ctl calibration-load: a bad file is refused by name and the running one stays"
+echo '{"format": "fovea-calibration", "version": 2}' >"$WORK/newer.json"
+out=$("$CTL" --server "127.0.0.1:$PORT" calibration-load "$WORK/newer.json" 2>&1) && fail "loaded a newer file"
+grep -q "failed: .*newer.json: written by a newer fovea" <<<"$out" || fail "unclear refusal: $out"
+grep -q "keeping .*live.json" "$WORK/d.log" || fail "the running calibration was not kept"
+out=$("$CTL" --server "127.0.0.1:$PORT" calibration-load "$WORK/missing.json" 2>&1) && fail "loaded a missing file"
+grep -q "missing.json" <<<"$out" || fail "unclear missing-file message: $out"
+"$CTL" --server "127.0.0.1:$PORT" calibration-load none >"$WORK/none.out" 2>&1 || fail "none: $(cat "$WORK/none.out")"
+grep -q "ok: loaded none" "$WORK/none.out" || fail "none: $(cat "$WORK/none.out")"
+(cd "$WORK" && "$CTL" --server "127.0.0.1:$PORT" calibration-load cal.json) >"$WORK/rel.out" 2>&1 \
+  || fail "relative path: $(cat "$WORK/rel.out")"
+grep -q "ok: loaded poly2 on pupil-glint, validated [0-9.]* deg" "$WORK/rel.out" \
+  || fail "relative path: $(cat "$WORK/rel.out")"
+"$CTL" --server "127.0.0.1:$PORT" calibration-load configured >/dev/null 2>&1 || fail "configured"
 kill "$DPID"
 wait "$DPID" 2>/dev/null
 DPID=""

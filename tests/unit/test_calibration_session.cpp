@@ -268,3 +268,60 @@ TEST(CalibrationRobustFit, FileRecordsRejectedOutliersAndDescribesItself) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(CalibrationFickAngles, RoundTripAndAFitInAnglesMapsBackToPixels) {
+  const Display d;
+  for (const Point px : {Point{960, 540}, Point{0, 0}, Point{1920, 1080}, Point{100, 900}, Point{-500, 3000}}) {
+    const Point a = px_to_fick_deg(d, px);
+    const Point back = fick_deg_to_px(d, a);
+    EXPECT_NEAR(back.x, px.x, 1e-9);
+    EXPECT_NEAR(back.y, px.y, 1e-9);
+  }
+  EXPECT_NEAR(px_to_fick_deg(d, {960, 540}).x, 0, 1e-12);
+  // 265.65 mm right at 650 mm: atan(265.65 / 650) = 22.22 deg.
+  EXPECT_NEAR(px_to_fick_deg(d, {1920, 540}).x, std::atan(265.65 / 650) * 180 / M_PI, 1e-9);
+  EXPECT_TRUE(std::isnan(fick_deg_to_px(d, {90, 0}).x));
+  EXPECT_TRUE(std::isnan(fick_deg_to_px(d, {std::nan(""), 0}).y));
+
+  // A raw signal that is exactly quadratic in the angles: poly2 in Fick angles is exact, in pixels not.
+  std::vector<Correspondence> pts;
+  for (double y : {108.0, 540.0, 972.0}) {
+    for (double x : {192.0, 960.0, 1728.0}) {
+      const Point a = px_to_fick_deg(d, {x, y});
+      pts.push_back({{std::sin(a.x * M_PI / 180) * 30, std::sin(a.y * M_PI / 180) * 30}, {x, y}});
+    }
+  }
+  const Calibration in_angles = fit_calibration("poly2", pts, nullptr, {}, &d);
+  EXPECT_EQ(in_angles.target_space, kTargetFickDegrees);
+  ASSERT_TRUE(in_angles.display.has_value());
+  const Calibration in_px = fit_calibration("poly2", pts);
+  const Point probe{1344, 324};
+  const Point a = px_to_fick_deg(d, probe);
+  const Point raw{std::sin(a.x * M_PI / 180) * 30, std::sin(a.y * M_PI / 180) * 30};
+  const Point pa = in_angles.apply(raw), pp = in_px.apply(raw);
+  EXPECT_LT(std::hypot(pa.x - probe.x, pa.y - probe.y), std::hypot(pp.x - probe.x, pp.y - probe.y));
+  // The file keeps the space; without its display it is refused.
+  const fs::path path = temp_path("fick.json");
+  fs::remove(path);
+  save_calibration(in_angles, path);
+  const Calibration back = load_calibration(path);
+  EXPECT_EQ(back.target_space, kTargetFickDegrees);
+  EXPECT_EQ(back.apply(raw), in_angles.apply(raw));
+  fs::remove(path);
+  Calibration no_display = fit_calibration("poly2", pts, nullptr, {}, &d);
+  no_display.display.reset();
+  save_calibration(no_display, path);
+  try {
+    (void)load_calibration(path);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_CONTAINS(e.what(), "display");
+  }
+  fs::remove(path);
+  // Stacking a grid on a model in angles is refused (the grid corrects pixels).
+  EXPECT_THROW((void)fit_calibration("bilinear-grid", pts, &in_angles), std::invalid_argument);
+}
+
+}  // namespace

@@ -326,7 +326,7 @@ int cmd_info(const std::string& path) {
   }
 }
 
-// ---- control commands (reload, record-start, record-stop) ------------------------------------
+// ---- control commands (reload, record-start, record-stop, calibration-load) ------------------------
 
 // Sends one CONTROL_REQUEST and prints the daemon's answer. The request is retransmitted unchanged
 // (same sequence) after 1 s without a reply; the daemon answers a retransmission without executing
@@ -344,38 +344,17 @@ int cmd_control(const Common& c, ControlCommand command, const std::string& argu
     std::fprintf(stderr, "fovea-ctl %s: %s\n", role.c_str(), e.what());
     return 2;
   }
-  UdpSocket sock = UdpSocket::bind(Endpoint{0, 0});
-  Message m{Header{}, request};
-  std::random_device rd;
-  m.header.sequence = (std::uint64_t{rd()} << 32) | rd();
-  m.header.send_time_ns = m.header.origin_time_ns = monotonic_ns();
-  const std::vector<std::uint8_t> bytes = encode(m);
-  const std::int64_t deadline = monotonic_ns() + 4'000'000'000;
-  std::int64_t next_send = 0;
-  std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
-  while (monotonic_ns() < deadline) {
-    if (monotonic_ns() >= next_send) {
-      sock.send_to(server, bytes);
-      next_send = monotonic_ns() + 1'000'000'000;
-    }
-    Endpoint from;
-    const std::size_t n = sock.receive(buf, from, 20);
-    if (n == 0 || n > kMaxDatagramSize || !(from == server)) continue;
-    Message r;
-    if (!decode(std::span<const std::uint8_t>(buf.data(), n), r) || r.header.type != MessageType::ControlReply ||
-        r.header.sequence != m.header.sequence) {
-      continue;
-    }
-    const auto& reply = std::get<ControlReply>(r.payload);
-    std::fprintf(reply.result == ControlResult::Ok ? stdout : stderr, "fovea-ctl %s: %s: %s\n", role.c_str(),
-                 to_string(reply.result), reply.message.value.c_str());
-    return reply.result == ControlResult::Ok ? 0 : 1;
+  const std::optional<ControlReply> reply = GazeClient::send_control(server, request, 4000);
+  if (!reply) {
+    std::fprintf(stderr,
+                 "fovea-ctl %s: no answer from %s within 4000 ms; is fovea-trackerd (with control support) "
+                 "running there?\n",
+                 role.c_str(), server.to_string().c_str());
+    return 1;
   }
-  std::fprintf(stderr,
-               "fovea-ctl %s: no answer from %s within 4000 ms; is fovea-trackerd (with control support) "
-               "running there?\n",
-               role.c_str(), server.to_string().c_str());
-  return 1;
+  std::fprintf(reply->result == ControlResult::Ok ? stdout : stderr, "fovea-ctl %s: %s: %s\n", role.c_str(),
+               to_string(reply->result), reply->message.value.c_str());
+  return reply->result == ControlResult::Ok ? 0 : 1;
 }
 
 // --- classify: offline eye-movement classification of a CSV of gaze points (trackerd/CLASSIFY.md) ---
@@ -823,6 +802,15 @@ int main(int argc, char** argv) {
                            "(/var/lib/fovea for the service)")
       ->required();
   auto* record_stop = app.add_subcommand("record-stop", "make the daemon stop the recording it is writing");
+  std::string calibration_file;
+  auto* calibration_load = app.add_subcommand(
+      "calibration-load",
+      "make the daemon load a calibration file now (kept over reloads), 'none' (the source's own gaze) or "
+      "'configured' (back to its configuration's [calibration] file); subscribers stay connected");
+  calibration_load->add_option("FILE", calibration_file,
+                               "calibration file (fovea-calibrate), read by the daemon on its machine; its absolute "
+                               "path must fit in 63 bytes")
+      ->required();
 
   // classify: offline eye-movement classification (trackerd/CLASSIFY.md)
   std::string cls_in, cls_out, cls_method = fovea::trackerd::classify::classifiers().front().name;
@@ -950,6 +938,12 @@ int main(int argc, char** argv) {
   }
   if (reload->parsed()) return cmd_control(c, ControlCommand::Reload, "");
   if (record_start->parsed()) return cmd_control(c, ControlCommand::StartRecording, control_record_path);
+  if (calibration_load->parsed()) {
+    // A file is named to the daemon by its absolute path (the daemon may run elsewhere in the tree).
+    std::string arg = calibration_file;
+    if (arg != "none" && arg != "configured") arg = std::filesystem::absolute(arg).lexically_normal().string();
+    return cmd_control(c, ControlCommand::LoadCalibration, arg);
+  }
   if (record_stop->parsed()) return cmd_control(c, ControlCommand::StopRecording, "");
   return 2;
 }

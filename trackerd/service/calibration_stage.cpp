@@ -1,6 +1,7 @@
 #include "service/calibration_stage.h"
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "fovea/calib/model.h"
@@ -12,6 +13,7 @@ namespace {
 class IdentityCalibration final : public CalibrationStage {
  public:
   std::string description() const override { return "none (the source's own gaze)"; }
+  std::string summary() const override { return description(); }
   void apply(GazeItem&) const override {}
 };
 
@@ -23,6 +25,15 @@ class MappedCalibration final : public CalibrationStage {
   }
 
   std::string description() const override { return file_ + ": " + cal_.describe(); }
+  std::string summary() const override {
+    std::string s = cal_.model->kind() + (cal_.on_top_of ? " on " + cal_.on_top_of->kind() : "") + " on " + cal_.input;
+    if (const auto a = cal_.validated_accuracy_deg()) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, ", validated %.2f deg", *a);
+      s += buf;
+    }
+    return s;
+  }
 
   void apply(GazeItem& item) const override {
     auto* s = std::get_if<protocol::GazeSample>(&item);

@@ -23,7 +23,8 @@ namespace fovea::trackerd::service {
 class CalibrationStage {
  public:
   virtual ~CalibrationStage() = default;
-  virtual std::string description() const = 0;  // for the log and STATUS=
+  virtual std::string description() const = 0;  // for the log and STATUS= (names the file)
+  virtual std::string summary() const = 0;      // short, without the file (63-byte control replies)
   // Calibrates one item in place (samples; events pass unchanged).
   virtual void apply(GazeItem& item) const = 0;
 };

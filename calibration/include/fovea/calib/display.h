@@ -47,6 +47,15 @@ Display parse_display(std::string_view text);
 // Screen-plane millimetres from the screen centre, x right, y down.
 Point px_to_mm(const Display& display, Point px);
 
+// The direction of the line of sight to a screen point as Fick angles in degrees, for an eye on
+// the screen centre's normal at distance_mm: yaw (x, right positive) about the vertical axis, then
+// pitch (y, down positive): yaw = atan2(x_mm, d), pitch = atan2(y_mm, hypot(x_mm, d)). The eye's
+// own rotation is of this form, which is why calibration models fitted in these coordinates follow
+// the pupil–glint vector better than models fitted straight to pixels. fick_deg_to_px inverts it;
+// NaN for |yaw| or |pitch| >= 89.9 deg (no screen point) or non-finite input.
+Point px_to_fick_deg(const Display& display, Point px);
+Point fick_deg_to_px(const Display& display, Point fick_deg);
+
 // Pixels per millimetre along x (width_px / width_mm).
 double px_per_mm(const Display& display);
 

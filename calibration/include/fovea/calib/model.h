@@ -70,6 +70,8 @@ inline constexpr int kCalibrationFileVersion = 1;
 // gaze on the screen in pixels, or an eye camera's pupil–glint vector in camera pixels.
 inline constexpr const char* kInputScreen = "screen";
 inline constexpr const char* kInputPupilGlint = "pupil-glint";
+inline constexpr const char* kTargetPixels = "px";
+inline constexpr const char* kTargetFickDegrees = "fick-deg";
 
 struct Calibration {
   std::unique_ptr<CalibrationModel> model;
@@ -86,7 +88,12 @@ struct Calibration {
   // "accuracy_mm": m, "precision_rms_deg": p, "precision_std_deg": s, "max_deg": x, ...}.
   nlohmann::json validation;
 
-  Point apply(Point raw) const { return model->apply(on_top_of ? on_top_of->apply(raw) : raw); }
+  // What the model's output is: screen pixels, or the Fick angles of the line of sight (degrees,
+  // display.h) that apply() turns into pixels with `display` (which must then be set).
+  std::string target_space = kTargetPixels;
+
+  // The screen point in pixels (NaN when the model's output has no screen point).
+  Point apply(Point raw) const;
   // validation["accuracy_deg"] when present and finite.
   std::optional<double> validated_accuracy_deg() const;
   // "poly2 on pupil-glint (right eye), 9 targets/412 samples, validated 0.61 deg" (for logs, STATUS).
@@ -99,9 +106,12 @@ struct Calibration {
 // another model is refused). points_used, residual and condition are the new model's, the residual
 // being that of the whole chain.
 // The result's input, eye and display are the base's when a base is given, else the defaults (the
-// caller sets them).
+// caller sets them). With `fick_display`, the targets (pixels on that display) are converted to Fick
+// angles and the model is fitted to those (target_space fick-deg, display set, residuals in
+// degrees); a base must then be in pixels.
 Calibration fit_calibration(std::string_view kind, std::span<const Correspondence> correspondences,
-                            const Calibration* base = nullptr, const FitOptions& options = {});
+                            const Calibration* base = nullptr, const FitOptions& options = {},
+                            const Display* fick_display = nullptr);
 
 // Writes to a temporary file beside `path` and moves it into place. Refuses (std::runtime_error)
 // when `path` exists, unless `overwrite`.
