@@ -31,9 +31,10 @@ for r in rows:
 inputs = ["pupil-glint", "screen"]
 offsets = sorted({r["offset_mm"] for r in rows}, key=lambda o: (o != "0", o))
 imagings = [i for i in ("normal", "hard") if any(r["imaging"] == i for r in rows)]
-models = ["none", "affine", "homography", "poly2", "bilinear-grid", "poly2+bilinear-grid"]
+models = ["none", "affine", "homography", "poly2", "bilinear-grid", "poly2+bilinear-grid",
+          "affine@fick", "homography@fick", "poly2@fick"]
 colours = {"none": "0.5", "affine": "C0", "homography": "C1", "poly2": "C2", "bilinear-grid": "C3",
-           "poly2+bilinear-grid": "C4"}
+           "poly2+bilinear-grid": "C4", "affine@fick": "C0", "homography@fick": "C1", "poly2@fick": "C2"}
 points = sorted({int(r["points"]) for r in rows})
 
 fig, axes = plt.subplots(len(inputs), len(offsets), figsize=(6 * len(offsets), 4.3 * len(inputs)), squeeze=False,
@@ -51,8 +52,9 @@ for i, inp in enumerate(inputs):
                         ys.append(sum(v) / len(v))
                 if not xs:
                     continue
-                label = model + ("" if imaging == "normal" else " (hard)")
-                ax.plot(xs, ys, "-o" if imaging == "normal" else "--x", color=colours[model], label=label,
+                label = model.replace("@fick", " (Fick angles)") + ("" if imaging == "normal" else " (hard)")
+                style = ":s" if "@fick" in model else ("-o" if imaging == "normal" else "--x")
+                ax.plot(xs, ys, style, color=colours[model], label=label,
                         alpha=1.0 if imaging == "normal" else 0.6, markersize=4)
         ax.set_xscale("log")
         ax.set_yscale("log")

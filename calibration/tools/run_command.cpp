@@ -132,8 +132,11 @@ std::vector<RawSample> raw_samples(const Session& s, const InputChoice& in) {
   return out;
 }
 
+// The most accurate model for what was collected, from bench_calibration (bench/RESULTS.md): with a
+// full grid of 16 or more targets, a bilinear grid on top of poly2 (pixels); on 9, poly2 (Fick
+// angles for pupil-glint; the grid on top for screen input); below 6 targets, a homography.
 std::string auto_model(const InputChoice& in, std::size_t targets_used, bool full_grid) {
-  if (in.input == kInputScreen) return full_grid ? "bilinear-grid" : "affine";
+  if (full_grid && (targets_used >= 16 || in.input == kInputScreen)) return "poly2+bilinear-grid";
   return targets_used >= 6 ? "poly2" : "homography";
 }
 
@@ -194,11 +197,19 @@ int analyse(const RunArgs& a, const Session& s, bool live) {
                                                          calibration_targets == 64);
   const std::string kind = a.model == "auto" ? auto_model(in, used, full_grid) : a.model;
   const Display display = to_calib_display(s.display);
-  const bool fick = a.target_space == kTargetFickDegrees || (a.target_space == "auto" && in.input == kInputPupilGlint);
-  if (fick && kind == "bilinear-grid") throw std::runtime_error("bilinear-grid corrects screen pixels: use --target-space px");
+  const bool grid = kind == "bilinear-grid" || kind == "poly2+bilinear-grid";
+  const bool fick = a.target_space == kTargetFickDegrees ||
+                    (a.target_space == "auto" && in.input == kInputPupilGlint && !grid);
+  if (fick && grid) throw std::runtime_error(kind + " corrects screen pixels: use --target-space px");
   Calibration cal;
   try {
-    cal = fit_calibration(kind, corr, nullptr, {}, fick ? &display : nullptr);
+    if (kind == "poly2+bilinear-grid") {
+      const Calibration base = fit_calibration("poly2", corr);
+      cal = fit_calibration("bilinear-grid", corr, &base);
+      cal.outliers_rejected = base.outliers_rejected;
+    } else {
+      cal = fit_calibration(kind, corr, nullptr, {}, fick ? &display : nullptr);
+    }
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error("fitting " + kind + " to " + std::to_string(used) + " of " +
                              std::to_string(calibration_targets) + " calibration targets: " + e.what());
@@ -515,9 +526,10 @@ CLI::App* add_run_subcommand(CLI::App& app, RunArgs& a) {
       ->capture_default_str();
   run->add_option("--shrink", a.shrink_s, "seconds over which the target shrinks")->capture_default_str();
   run->add_option("--model", a.model,
-                  "auto (pupil-glint: poly2, or homography below 6 targets; screen: bilinear-grid on a full "
-                  "grid, else affine) | poly2 | affine | homography | bilinear-grid")
-      ->check(CLI::IsMember({"auto", "poly2", "affine", "homography", "bilinear-grid"}))
+                  "auto (a full grid of 16+ targets, or 9 on screen input: poly2+bilinear-grid; 6+ targets: "
+                  "poly2; fewer: homography) | poly2 | affine | homography | bilinear-grid | poly2+bilinear-grid "
+                  "(J&P's grid correcting a poly2)")
+      ->check(CLI::IsMember({"auto", "poly2", "affine", "homography", "bilinear-grid", "poly2+bilinear-grid"}))
       ->capture_default_str();
   run->add_option("--input", a.input,
                   "auto (pupil-glint when the stream carries pupil-glint vectors, else screen) | pupil-glint | "

@@ -24,7 +24,7 @@ struct RunArgs {
   std::uint64_t seed = 1;
   bool fixed_order = false;
   double lead_in_s = 1.0, shrink_s = 0.8, settle_s = 0.6, duration_s = 1.6;
-  std::string model = "auto";  // auto | poly2 | affine | homography | bilinear-grid
+  std::string model = "auto";  // auto | poly2 | affine | homography | bilinear-grid | poly2+bilinear-grid
   std::string input = "auto";  // auto | pupil-glint | screen
   std::string eye = "auto";    // auto | left | right
   std::string target_space = "auto";  // auto (pupil-glint: fick-deg; screen: px) | px | fick-deg

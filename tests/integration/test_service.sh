@@ -98,6 +98,9 @@ wait_status "$SRV" || fail "daemon did not answer status"
 wait_for "$WORK/notify.log" "READY=1" || fail "no READY=1"
 wait_for "$WORK/notify.log" "WATCHDOG=1" 30 || fail "no WATCHDOG=1 within 3 s at WatchdogSec=1s"
 wait_for "$WORK/notify.log" "STATUS=synthetic.*subscribers" 30 || fail "no STATUS= line"
+# The status names the active calibration and whether (and how well) it was validated.
+grep -q "STATUS=.*calibration .*cal.json: affine on screen, 9 samples, not validated" "$WORK/notify.log" \
+  || fail "STATUS= does not name the calibration: $(grep STATUS= "$WORK/notify.log" | tail -1)"
 grep -q "calibration: .*cal.json" "$WORK/daemon.log" || fail "calibration file not logged"
 sleep 0.5
 FD0=$(fd_count $DPID)
