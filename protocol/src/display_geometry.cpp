@@ -35,6 +35,11 @@ double pixels_per_mm(const DisplayGeometry& g) {
   return d_px / d_mm;
 }
 
+double degrees_to_image_pixels(const DisplayGeometry& g, std::uint32_t image_width, double degrees) {
+  const double size_m = 2.0 * g.viewing_distance_m * std::tan(degrees * std::numbers::pi / 360.0);
+  return size_m / g.width_m * image_width;
+}
+
 double visual_angle_deg(double size_m, double distance_m) {
   return 2.0 * std::atan(size_m / (2.0 * distance_m)) * kRadToDeg;  // Jensen & Pedersen 2009, eq. 2.1
 }

@@ -19,7 +19,8 @@ const char* kHelp =
     "fovea-render viewer keys:\n"
     "  W/S forward/back, A/D left/right, Q/E down/up, arrows turn; hold Shift to move faster\n"
     "  G gaze overlay, M mouse gaze on/off (with --gaze mouse), O cycle map (none, depth, id, normal, motion)\n"
-    "  1 dof, 2 lod, 3 gi, 4 attention, 5 shadows (toggle the setting), X print the frame plan, Esc quit\n";
+    "  1 dof, 2 lod, 3 gi, 4 attention, 5 shadows (toggle the setting), F focus overlay (the focused object),\n"
+    "  P cycle attention maps (none, saliency, spatial, temporal, attention), X print the frame plan, Esc quit\n";
 
 void toggle(Settings& s, const std::string& key) {
   s.set(key, s.flag(key) ? "false" : "true");
@@ -74,6 +75,15 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
     case GLFW_KEY_5: toggle(s, "shadows"); break;
     case GLFW_KEY_O: {
       static const char* maps[] = {"none", "depth", "id", "normal", "motion"};
+      std::size_t i = 0;
+      while (i < 5 && !s.is("overlay.map", maps[i])) ++i;
+      s.set("overlay.map", maps[(i + 1) % 5]);
+      std::printf("overlay.map=%s\n", s.text("overlay.map").c_str());
+      break;
+    }
+    case GLFW_KEY_F: toggle(s, "overlay.focus"); break;
+    case GLFW_KEY_P: {
+      static const char* maps[] = {"none", "saliency", "spatial", "temporal", "attention"};
       std::size_t i = 0;
       while (i < 5 && !s.is("overlay.map", maps[i])) ++i;
       s.set("overlay.map", maps[(i + 1) % 5]);

@@ -1,13 +1,17 @@
 #include "gaze/gaze_input.h"
 
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/csv.h"
+#include "fovea/protocol/display_geometry.h"
 #include "fovea/protocol/recording.h"
 
 namespace fovea::render {
@@ -21,15 +25,33 @@ class NoGaze final : public GazeInput {
   GazeState at(double) override { return GazeState{}; }
 };
 
+// The cursor as gaze. A fixation onset is counted when the cursor has stayed within kFixationDeg of
+// where it came to rest for kFixationS (a dispersion test, like the daemon's I-DT classifier, on the
+// frame clock); the start-up position counts as the first once it has rested that long.
 class MouseGaze final : public GazeInput {
  public:
+  static constexpr double kFixationDeg = 1.0, kFixationS = 0.1;
   std::string description() const override { return "mouse"; }
-  GazeState at(double) override {
+  GazeState at(double t) override {
+    const protocol::DisplayGeometry display;  // the mouse knows no display: the default one's angles
+    const double moved = protocol::angle_between_deg(protocol::normalized_to_degrees(display, {x_, y_}),
+                                                     protocol::normalized_to_degrees(display, {rest_x_, rest_y_}));
+    if (!std::isfinite(moved) || moved > kFixationDeg || !std::isfinite(rest_since_) || t < rest_since_) {
+      rest_x_ = x_;  // moved away (or the clock went back): a new resting place, not yet a fixation
+      rest_y_ = y_;
+      rest_since_ = t;
+      counted_ = false;
+    }
+    if (!counted_ && t - rest_since_ >= kFixationS - 1e-9) {  // (frame times may fall an ulp short)
+      ++fixations_;
+      counted_ = true;
+    }
     GazeState g;
     g.x = x_;
     g.y = y_;
     g.valid = true;
     g.movement = protocol::EyeMovement::Fixation;
+    g.fixations = fixations_;
     return g;
   }
   void set_cursor(double x, double y) override {
@@ -39,6 +61,9 @@ class MouseGaze final : public GazeInput {
 
  private:
   double x_ = 0.5, y_ = 0.5;
+  double rest_x_ = 0.5, rest_y_ = 0.5, rest_since_ = std::numeric_limits<double>::quiet_NaN();
+  bool counted_ = false;
+  std::uint64_t fixations_ = 0;
 };
 
 class UdpGaze final : public GazeInput {
@@ -49,6 +74,11 @@ class UdpGaze final : public GazeInput {
     o.streams = protocol::kStreamSamples | protocol::kStreamEvents;
     o.name = "fovea-render";
     client_ = std::make_unique<protocol::GazeClient>(o);
+    client_->on_event([this](const protocol::GazeEvent& e, const protocol::Arrival&) {
+      if (e.kind == protocol::EyeMovement::Fixation && e.phase == protocol::EventPhase::Start) {
+        fixations_.fetch_add(1, std::memory_order_relaxed);
+      }
+    });
     client_->start();
   }
   std::string description() const override { return "udp://" + address_; }
@@ -67,11 +97,13 @@ class UdpGaze final : public GazeInput {
       state_.lost = stats.samples.lost;
       state_.latency_p99_ms = static_cast<double>(stats.latency_p99_ns) / 1e6;
     }
+    state_.fixations = fixations_.load(std::memory_order_relaxed);
     return state_;
   }
 
  private:
   std::string address_;
+  std::atomic<std::uint64_t> fixations_{0};  // written on the client's receive thread; outlives client_
   std::unique_ptr<protocol::GazeClient> client_;
   GazeState state_;
 };
@@ -89,13 +121,30 @@ class FileGaze final : public GazeInput {
     } else {
       rec = protocol::read_recording(path);
     }
+    bool any_event = false;
     for (const auto& r : rec.records) {
       if (const auto* s = std::get_if<protocol::GazeSample>(&r.item)) samples_.push_back(*s);
+      if (const auto* e = std::get_if<protocol::GazeEvent>(&r.item)) {
+        any_event = true;
+        if (e->kind == protocol::EyeMovement::Fixation && e->phase == protocol::EventPhase::Start) {
+          fixation_onsets_ns_.push_back(e->start_time_ns);
+        }
+      }
     }
     if (samples_.empty()) throw std::runtime_error("gaze recording " + path + " holds no samples");
     std::stable_sort(samples_.begin(), samples_.end(), [](const auto& a, const auto& b) {
       return a.tracker_time_ns < b.tracker_time_ns;
     });
+    if (!any_event) {
+      // No events (CSV keeps none): a fixation starts where a sample's state turns to Fixation.
+      for (std::size_t i = 0; i < samples_.size(); ++i) {
+        if (samples_[i].state == protocol::EyeMovement::Fixation &&
+            (i == 0 || samples_[i - 1].state != protocol::EyeMovement::Fixation)) {
+          fixation_onsets_ns_.push_back(samples_[i].tracker_time_ns);
+        }
+      }
+    }
+    std::sort(fixation_onsets_ns_.begin(), fixation_onsets_ns_.end());
   }
   std::string description() const override { return "file:" + path_; }
   GazeState at(double t) override {
@@ -117,12 +166,15 @@ class FileGaze final : public GazeInput {
     }
     g.age_ms = static_cast<double>(target - it->tracker_time_ns) / 1e6;
     g.received = index + 1;
+    g.fixations = static_cast<std::uint64_t>(
+        std::upper_bound(fixation_onsets_ns_.begin(), fixation_onsets_ns_.end(), target) - fixation_onsets_ns_.begin());
     return g;
   }
 
  private:
   std::string path_;
   std::vector<protocol::GazeSample> samples_;
+  std::vector<std::int64_t> fixation_onsets_ns_;  // Fixation Start times, sorted
 };
 
 }  // namespace

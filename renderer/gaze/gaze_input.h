@@ -16,6 +16,7 @@ struct GazeState {
   double age_ms = 0;             // how old the sample is (live: now - sample time)
   std::uint64_t received = 0, lost = 0;
   double latency_p99_ms = 0;
+  std::uint64_t fixations = 0;   // fixation onsets (GAZE_EVENT Fixation Start) seen so far; a change = a new fixation
 };
 
 class GazeInput {
@@ -29,6 +30,11 @@ class GazeInput {
   virtual void set_cursor(double /*x*/, double /*y*/) {}
 };
 
+// Fixation onsets (GazeState::fixations): udp counts the stream's GAZE_EVENT Fixation Start; file
+// counts the recording's Fixation Start events up to the replay time (a recording without events, as
+// CSV is, counts samples whose state turns to Fixation instead); mouse counts a fixation when the
+// cursor has stayed within 1 deg (on the default display geometry) for 100 ms after moving; none
+// never counts one.
 // "udp://HOST:PORT", "file:REC.fgr" (or .csv), "mouse", "none". Throws std::invalid_argument for a
 // bad spec and std::runtime_error when the source cannot start (unreadable recording).
 std::unique_ptr<GazeInput> make_gaze_input(const std::string& spec);

@@ -4,6 +4,7 @@
 #include <optional>
 #include <string>
 
+#include "attention/attention.h"
 #include "backend/gbuffer.h"
 #include "fovea/protocol/display_geometry.h"
 #include "image/image.h"
@@ -17,14 +18,38 @@ struct GazeMark {
 
 // Visual angle to pixels on this display at this image resolution: the diameter in pixels of a
 // circle subtending `degrees` at the screen centre (Jensen & Pedersen 2009, eq. 2.1-2.2).
-double degrees_to_pixels(const protocol::DisplayGeometry& display, std::uint32_t image_width, double degrees);
+inline double degrees_to_pixels(const protocol::DisplayGeometry& display, std::uint32_t image_width, double degrees) {
+  return protocol::degrees_to_image_pixels(display, image_width, degrees);
+}
 
 // Draws a ring of 1 deg diameter at the gaze point (red when the sample is valid, grey when the
 // last valid point is shown), and, if area_deg > 0, a thin ring of that diameter (the gaze area).
 void draw_gaze(Image8& image, const protocol::DisplayGeometry& display, const GazeMark& gaze, double area_deg);
 
+// Shows the focus pass's result: outlines the focused object's pixels (yellow when settled, cyan
+// during a focus transition); for a focal depth without an object (screen centre, depth under the
+// gaze point) it draws the iso-depth line where the scene crosses the focal depth instead. The image
+// code has no text drawing, so `label` (FocusResult::why) is not drawn; it is taken so that callers
+// need not change when text arrives. The G-buffer is sampled nearest when its size differs.
+void draw_focus(Image8& image, const GBuffer& g, std::uint32_t focused_object, double focal_depth_m,
+                bool in_transition, const std::string& label);
+
 // Replaces the image with a false-colour view of a G-buffer map: depth, id, normal, motion.
 // Returns false when `map` is not a G-buffer map (maps of later passes).
 bool draw_gbuffer_map(Image8& image, const GBuffer& g, const std::string& map, float far_m);
+
+// Attention overlays (Lee 2009 Fig. 3.4): replaces the image (kept at its size) with a false-colour
+// view of the attention pass's maps, black (0) through blue, red and yellow to white (maximum):
+//   saliency   the pixel saliency S_p (bilinear upsampling of the map; [0, 1] as is);
+//   spatial    each listed object's T_s (nearest upsampling of the map's item buffer; 0.5 = white);
+//   temporal   each listed object's T_t (same scale as spatial);
+//   attention  each listed object's S_o after the filter (scaled by the frame's highest S_o).
+// Pixels of unlisted objects (background, T_i = 0) stay black in the object maps. Returns false when
+// `map` is none of these.
+bool draw_attention_map(Image8& image, const attention::AttentionFrame& frame, const std::string& map);
+
+// Marks the most attended object: a small white square (black rim) at its pixels' centroid. Draws
+// nothing when no object is attended.
+void draw_attention_mark(Image8& image, const attention::AttentionFrame& frame);
 
 }  // namespace fovea::render

@@ -1,8 +1,60 @@
 #include "pipeline/frame_pipeline.h"
 
+#include <cmath>
+
+#include "attention/focus_input.h"
 #include "passes/tonemap.h"
 
 namespace fovea::render {
+
+namespace {
+// The attention.* settings as the tracker's settings.
+attention::AttentionSettings attention_settings(const Settings& s) {
+  attention::AttentionSettings a;
+  a.map_size = static_cast<int>(std::lround(s.number("attention.map_size")));
+  const std::string& groups = s.text("attention.groups");
+  a.groups.image = groups.find('B') != std::string::npos;
+  a.groups.object = groups.find('E') != std::string::npos;
+  a.groups.context = groups.find('T') != std::string::npos;
+  a.temporal_window = static_cast<int>(std::lround(s.number("attention.lambda")));
+  a.preferred_distance_m = s.number("attention.distance_m");
+  a.kalman = s.flag("attention.kalman");
+  return a;
+}
+
+bool same(const attention::AttentionSettings& a, const attention::AttentionSettings& b) {
+  return a.map_size == b.map_size && a.groups.image == b.groups.image && a.groups.object == b.groups.object &&
+         a.groups.context == b.groups.context && a.preferred_distance_m == b.preferred_distance_m && a.c_y == b.c_y &&
+         a.temporal_window == b.temporal_window && a.kalman == b.kalman &&
+         a.kalman_process_noise == b.kalman_process_noise && a.kalman_measurement_noise == b.kalman_measurement_noise;
+}
+
+attention::FocusSettings focus_settings(const Settings& s, const Lens& lens) {
+  attention::FocusSettings f;
+  const std::string& mode = s.text("focus.mode");
+  f.mode = mode == "fixed"       ? attention::FocusMode::Fixed
+           : mode == "gaze"      ? attention::FocusMode::Gaze
+           : mode == "attention" ? attention::FocusMode::Attention
+                                 : attention::FocusMode::GazeAndAttention;
+  f.transition =
+      s.is("focus.transition", "lowpass") ? attention::FocusTransition::LowPass : attention::FocusTransition::Lerp;
+  f.transition_s = s.number("focus.transition_ms") / 1000.0;
+  f.cutoff_hz = s.number("focus.cutoff_hz");
+  f.gaze_radius_deg = s.number("focus.gaze_radius_deg");
+  if (std::isfinite(lens.focus_distance_m) && lens.focus_distance_m > 0) f.fixed_depth_m = lens.focus_distance_m;
+  return f;
+}
+
+bool same(const attention::FocusSettings& a, const attention::FocusSettings& b) {
+  return a.mode == b.mode && a.transition == b.transition && a.transition_s == b.transition_s &&
+         a.cutoff_hz == b.cutoff_hz && a.gaze_radius_deg == b.gaze_radius_deg && a.min_attention == b.min_attention &&
+         a.fixed_depth_m == b.fixed_depth_m;
+}
+
+bool is_attention_map(const std::string& map) {
+  return map == "saliency" || map == "spatial" || map == "temporal" || map == "attention";
+}
+}  // namespace
 
 FramePipeline::FramePipeline(Scene scene, Settings settings, std::unique_ptr<Backend> backend, GazeInput& gaze)
     : scene_(std::move(scene)), settings_(std::move(settings)), backend_(std::move(backend)), gaze_(gaze) {
@@ -28,7 +80,26 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
   }
   f.gbuffer = &gbuffer_;
-  // attention, focus, lod-select, dof and gi arrive with steps 6-9; the plan says when they would run.
+  if (f.plan.runs(PassId::Attention)) {
+    auto t = timer.scope("attention");
+    const attention::AttentionSettings wanted = attention_settings(settings_);
+    if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
+    attention_.update(gbuffer_, scene_, now_s, previous_s);
+    f.attention = &attention_.last();
+  }
+  if (f.plan.runs(PassId::Focus)) {
+    auto t = timer.scope("focus");
+    const attention::FocusSettings wanted = focus_settings(settings_, scene_.camera.lens);
+    if (!same(wanted, focus_settings_)) {  // a changed setting starts the focus afresh
+      focus_settings_ = wanted;
+      focus_ = attention::FocusTracker(wanted);
+    }
+    // On the frame clock (the gaze's clock): transitions are perceptual time, even with the scene paused.
+    focus_.update(frame_clock_s, gbuffer_, scene_, f.attention, attention::focus_gaze_from(f.gaze, gaze_.available()),
+                  scene_.display);
+    f.focus = &focus_.last();
+  }
+  // lod-select, dof and gi arrive with steps 7-9; the plan says when they would run.
   if (f.plan.runs(PassId::Tonemap)) {
     auto t = timer.scope("tonemap");
     TonemapParams p;
@@ -41,7 +112,17 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   if (f.plan.runs(PassId::Overlay)) {
     auto t = timer.scope("overlay");
     const std::string& map = settings_.text("overlay.map");
-    if (map != "none") draw_gbuffer_map(image_, gbuffer_, map, scene_.camera.far_m);
+    if (is_attention_map(map)) {
+      if (f.attention != nullptr) {
+        draw_attention_map(image_, *f.attention, map);
+        draw_attention_mark(image_, *f.attention);
+      }
+    } else if (map != "none") {
+      draw_gbuffer_map(image_, gbuffer_, map, scene_.camera.far_m);
+    }
+    if (f.focus != nullptr && settings_.flag("overlay.focus")) {
+      draw_focus(image_, gbuffer_, f.focus->object, f.focus->focal_depth_m, f.focus->in_transition, f.focus->why);
+    }
     if (settings_.flag("overlay.gaze") && gaze_.available()) {
       const double area = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
       draw_gaze(image_, scene_.display, GazeMark{f.gaze.x, f.gaze.y, f.gaze.valid}, area);

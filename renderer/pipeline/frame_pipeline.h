@@ -3,6 +3,8 @@
 // the PassTimer. Owns the backend and the frame's buffers.
 #include <memory>
 
+#include "attention/attention.h"
+#include "attention/focus.h"
 #include "backend/backend.h"
 #include "gaze/gaze_input.h"
 #include "image/image.h"
@@ -22,6 +24,8 @@ class FramePipeline {
     GazeState gaze;
     const GBuffer* gbuffer = nullptr;
     const Image8* image = nullptr;  // null when output=gbuffer
+    const attention::AttentionFrame* attention = nullptr;  // null when the attention pass did not run
+    const attention::FocusResult* focus = nullptr;         // null when the focus pass did not run
   };
   // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
   // with gaze sampled at `frame_clock_s` on the gaze input.
@@ -43,6 +47,9 @@ class FramePipeline {
   GazeInput& gaze_;
   GBuffer gbuffer_;
   Image8 image_;
+  attention::AttentionTracker attention_;  // settings from attention.* each frame it runs
+  attention::FocusSettings focus_settings_;  // what focus_ was built with (focus.* and the lens)
+  attention::FocusTracker focus_;
 };
 
 }  // namespace fovea::render

@@ -9,10 +9,11 @@ const std::vector<PassDecl>& pass_declarations() {
   static const std::vector<PassDecl> kPasses = {
       {PassId::GBuffer, "gbuffer", "scene, camera, time", "colour, depth, id, normal, motion",
        "always: every output starts from it", ""},
-      {PassId::Attention, "attention", "gbuffer (colour, depth, id, motion), task importance",
-       "per-object attention S_o, saliency maps", "focus, lod-select or an attention overlay consume it", "step 6"},
-      {PassId::Focus, "focus", "gaze, attention, depth, id", "focal depth", "dof runs and focus is not fixed",
-       "step 6"},
+      {PassId::Attention, "attention", "gbuffer (colour, depth, id), scene (object and observer motion, task importance)",
+       "per-object attention S_o, saliency maps",
+       "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it", ""},
+      {PassId::Focus, "focus", "gaze, attention, depth, id", "focal depth",
+       "dof runs or overlay.focus shows it, and focus is not fixed", ""},
       {PassId::LodSelect, "lod-select", "attention, gaze, camera", "LOD level per object",
        "the scene has LOD chains and lod.enabled", "step 9"},
       {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
@@ -63,6 +64,7 @@ FramePlan plan_frame(const PlanContext& c) {
   decide(PassId::Tonemap, image, image ? "output=final is a display image" : "output=gbuffer: no display image");
   const bool map_overlay = image && !s.is("overlay.map", "none");
   const bool gaze_overlay = image && s.flag("overlay.gaze") && c.gaze_available;
+  const bool focus_overlay = image && s.flag("overlay.focus") && !s.is("focus.mode", "fixed");
   std::string overlay_reason;
   if (!image) {
     overlay_reason = "output=gbuffer: nothing to draw on";
@@ -70,11 +72,13 @@ FramePlan plan_frame(const PlanContext& c) {
     overlay_reason = "overlay.map=" + s.text("overlay.map");
   } else if (gaze_overlay) {
     overlay_reason = "overlay.gaze=true and a gaze source is connected";
+  } else if (focus_overlay) {
+    overlay_reason = "overlay.focus=true";
   } else {
     overlay_reason = !s.flag("overlay.gaze") ? "overlay.gaze=false and overlay.map=none"
                                              : "no gaze source (--gaze none) and overlay.map=none";
   }
-  decide(PassId::Overlay, map_overlay || gaze_overlay, overlay_reason);
+  decide(PassId::Overlay, map_overlay || gaze_overlay || focus_overlay, overlay_reason);
 
   // Global illumination: only with light to carry; the caustic map only with specular/refractive
   // surfaces to focus it.
@@ -120,14 +124,19 @@ FramePlan plan_frame(const PlanContext& c) {
     decide(PassId::LodSelect, true, "objects with LOD chains");
   }
 
-  // Focus: consumed only by DOF.
+  // Focus: consumed by DOF, and shown by the focus overlay (which lands before DOF, step 7).
   const std::string& mode = s.text("focus.mode");
-  if (!plan.needed(PassId::Dof)) {
-    decide(PassId::Focus, false, "nothing consumes a focal depth (dof not planned)");
+  const bool shows_focus = image && s.flag("overlay.focus");
+  if (!plan.needed(PassId::Dof) && !shows_focus) {
+    decide(PassId::Focus, false,
+           image ? "nothing consumes a focal depth (dof not planned, overlay.focus=false)"
+                 : "nothing consumes a focal depth (dof not planned)");
   } else if (mode == "fixed") {
     decide(PassId::Focus, false, "focus.mode=fixed: the lens focus distance is used");
   } else {
-    std::string why = "dof needs a focal depth; focus.mode=" + mode;
+    std::string why = plan.needed(PassId::Dof) ? "dof needs a focal depth" : "overlay.focus shows the focal depth";
+    if (plan.needed(PassId::Dof) && shows_focus) why += " (overlay.focus shows it)";
+    why += "; focus.mode=" + mode;
     if ((mode == "gaze") && !c.gaze_available) why += " without a gaze source: the screen centre is used";
     decide(PassId::Focus, true, why);
   }
@@ -136,7 +145,11 @@ FramePlan plan_frame(const PlanContext& c) {
   std::vector<std::string> consumers;
   if (plan.needed(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")) consumers.push_back("focus");
   if (plan.needed(PassId::LodSelect)) consumers.push_back("lod-select");
-  if (s.is("overlay.map", "attention") && image) consumers.push_back("overlay");
+  const std::string& overlay_map = s.text("overlay.map");
+  if (image && (overlay_map == "saliency" || overlay_map == "spatial" || overlay_map == "temporal" ||
+                overlay_map == "attention")) {
+    consumers.push_back("overlay (overlay.map=" + overlay_map + ")");
+  }
   if (consumers.empty()) {
     decide(PassId::Attention, false, "nothing consumes attention");
   } else if (!s.flag("attention.enabled")) {

@@ -12,9 +12,24 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"output", "final", "final|gbuffer", "what the frame is built for: the tone-mapped image, or the G-buffer alone"},
       {"shadows", "false", "bool", "shadow rays for direct light in local illumination (Embree backend only)"},
       {"attention.enabled", "true", "bool", "allow the visual attention pass (Lee 2009 ch. 3) when something consumes it"},
+      {"attention.map_size", "256", "number in [64, 512]",
+       "side of the square saliency map in pixels (rounded); the G-buffer is resampled to it (Lee 2009 §3.5.4: 64-512)"},
+      {"attention.groups", "BET", "BET|BE|BT|ET|B|E|T|none",
+       "feature groups of Lee 2009 Table 3.2: B luminance and hue, E depth, size and motion, T spatial and temporal "
+       "context"},
+      {"attention.lambda", "30", "number in [1, 3600]", "frames in the temporal context's running mean (Lee 2009 eq. 3.10)"},
+      {"attention.distance_m", "4", "number in [0.01, 10000]",
+       "preferred viewing distance L: the spatial context peaks there (Lee 2009 eq. 3.9)"},
+      {"attention.kalman", "true", "bool", "smooth each object's attention with a Kalman filter (Lee 2009 §3.3)"},
       {"focus.mode", "gaze+attention", "fixed|gaze|attention|gaze+attention",
        "where the lens focuses: the scene's focus distance, the gazed object, the most attended object, or gaze with "
        "attention breaking ties"},
+      {"focus.transition", "lerp", "lerp|lowpass",
+       "how the focal depth moves to a new target: linear over focus.transition_ms (Lee 2009 eq. 6.1) or a low-pass filter"},
+      {"focus.transition_ms", "300", "number in [0, 2000]", "duration of a lerp focus transition (tau of Lee eq. 6.1)"},
+      {"focus.cutoff_hz", "1", "number in [0.01, 2]", "cut-off of the low-pass focus transition (Lee 2009 §6.1: <= 2 Hz)"},
+      {"focus.gaze_radius_deg", "1.5", "number in [0, 10]",
+       "gaze+attention: objects with pixels this close to the gaze point compete on attention (tracker error 1-2 deg)"},
       {"dof.enabled", "true", "bool", "depth of field for thin-lens cameras"},
       {"dof.method", "lee-mipmap", "reference|lee-mipmap|lee-splat|schedl-layered", "depth-of-field algorithm"},
       {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
@@ -25,8 +40,12 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"tonemap.exposure", "1", "number in [0.0001, 10000]", "linear scale applied before tone mapping"},
       {"tonemap.exact", "false", "bool", "sRGB-encode with pow() per channel (reference) instead of a table (<= 1/255 off)"},
       {"overlay.gaze", "true", "bool", "draw the gaze point (and the gaze area when GI is on)"},
-      {"overlay.map", "none", "none|depth|id|normal|motion|attention|coc|gaze-area|photons",
-       "show a map instead of the image (maps of later passes appear when those passes exist)"},
+      {"overlay.focus", "false", "bool",
+       "outline the focused object (or mark the focal depth) on the display image; plans the focus pass (and "
+       "attention for focus.mode=attention|gaze+attention) even without depth of field"},
+      {"overlay.map", "none", "none|depth|id|normal|motion|saliency|spatial|temporal|attention|coc|gaze-area|photons",
+       "show a map instead of the image: saliency is the pixel saliency S_p, spatial/temporal/attention colour each "
+       "object by T_s, T_t, S_o (maps of later passes appear when those passes exist)"},
   };
   return kSpecs;
 }

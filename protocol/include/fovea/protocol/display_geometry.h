@@ -21,6 +21,11 @@ std::string validate(const DisplayGeometry& g);
 // Pixels per millimetre along the diagonal. Jensen & Pedersen 2009, eq. 2.2.
 double pixels_per_mm(const DisplayGeometry& g);
 
+// The diameter in pixels of an image that fills the screen's width (`image_width` pixels across)
+// of a circle subtending `degrees` at the screen centre: eq. 2.1 solved for the size, then screen
+// millimetres to image pixels (Jensen & Pedersen 2009, eqs. 2.1-2.2).
+double degrees_to_image_pixels(const DisplayGeometry& g, std::uint32_t image_width, double degrees);
+
 // Visual angle subtended by an extent of `size_m` centred on the line of sight at distance d.
 // Jensen & Pedersen 2009, eq. 2.1: theta = 2 atan(h / 2d).
 double visual_angle_deg(double size_m, double distance_m);

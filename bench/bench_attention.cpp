@@ -1,0 +1,242 @@
+// Visual attention tracking (Lee 2009 ch. 3): milliseconds per frame of AttentionTracker::update on
+// Embree G-buffers of renderer/scenes/attention.json over its 8 s animation, per saliency-map size,
+// split into the pixel saliency map (resampling, features, pyramids, eqs. 3.1-3.6) and the object
+// stage (eq. 3.7, contexts 3.8-3.10, Kalman, sort); OpenCV's saliency module on the same frames at
+// the same map sizes as a peer baseline for the bottom-up map (spectral residual, Hou & Zhang 2007;
+// fine-grained, Montabone & Soto 2010); and the object stage alone for 256 synthetic objects.
+//
+// Usage: bench_attention [--frames N] [--csv FILE] [--sizes 512x512,960x540] [--maps 64,128,256,512]
+// Plain table on stdout (median and p95 over the frames; the first frame is a warm-up, not counted).
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/saliency.hpp>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "attention/attention.h"
+#include "backend/embree/embree_backend.h"
+#include "scene/geometry.h"
+#include "scene/scene_loader.h"
+
+using namespace fovea::render;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct Stats {
+  std::vector<double> ms;
+  double median() const { return quantile(0.5); }
+  double p95() const { return quantile(0.95); }
+  double quantile(double q) const {
+    if (ms.empty()) return 0;
+    std::vector<double> v = ms;
+    std::sort(v.begin(), v.end());
+    return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
+  }
+};
+
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+// The display image OpenCV sees: the G-buffer's HDR colour clamped to [0, 1] and quantised to 8 bits
+// (BGR), like the tracker's own clamp. Not timed: it stands for the renderer's tone-mapped output.
+cv::Mat to_bgr8(const GBuffer& g) {
+  cv::Mat img(static_cast<int>(g.height), static_cast<int>(g.width), CV_8UC3);
+  for (std::uint32_t y = 0; y < g.height; ++y) {
+    auto* row = img.ptr<cv::Vec3b>(static_cast<int>(y));
+    for (std::uint32_t x = 0; x < g.width; ++x) {
+      const glm::vec3 c = glm::clamp(g.color[g.index(x, y)], 0.0f, 1.0f) * 255.0f + 0.5f;
+      row[x] = cv::Vec3b(static_cast<std::uint8_t>(c.b), static_cast<std::uint8_t>(c.g), static_cast<std::uint8_t>(c.r));
+    }
+  }
+  return img;
+}
+
+std::vector<std::pair<std::uint32_t, std::uint32_t>> parse_sizes(const std::string& text) {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    unsigned w = 0, h = 0;
+    if (std::sscanf(item.c_str(), "%ux%u", &w, &h) != 2 || w == 0 || h == 0) throw std::runtime_error("bad size " + item);
+    out.emplace_back(w, h);
+  }
+  return out;
+}
+
+struct Row {
+  std::string input, method;
+  int map = 0;
+  std::size_t frames = 0;
+  Stats total, saliency, object;
+  std::size_t objects = 0;  // listed objects, last frame
+};
+
+// 256 objects, each a 32x32 patch of its own colour and depth in a 512x512 G-buffer; the camera
+// moves forward and a quarter of the objects move.
+void synthetic_objects(std::vector<Row>& rows, int frames) {
+  Scene scene;
+  scene.camera.position = {0, 0, 0};
+  scene.camera.target = {0, 0, -1};
+  scene.camera.far_m = 100;
+  Animation forward;
+  forward.loop = false;
+  forward.keys = {{0, {0, 0, 0}, {}}, {100, {0, 0, -100}, {}}};
+  scene.camera.animation = forward;
+  const auto mesh = std::make_shared<Mesh>(make_box({0.5f, 0.5f, 0.5f}));
+  GBuffer g;
+  g.resize(512, 512);
+  for (std::uint32_t k = 0; k < 256; ++k) {
+    Object o;
+    o.id = k + 1;
+    o.mesh = mesh;
+    o.task_importance = 0.1f + 0.9f * static_cast<float>(k % 17) / 16.0f;
+    o.transform.translation = {static_cast<float>(k % 16) - 8, static_cast<float>(k / 16) - 8, -3 - static_cast<float>(k % 23)};
+    if (k % 4 == 0) {
+      Animation a;
+      a.keys = {{0, {}, {}}, {2, {1, 0, -3}, {0, 180, 0}}, {4, {}, {}}};
+      o.animation = a;
+    }
+    scene.objects.push_back(o);
+    const std::uint32_t x0 = (k % 16) * 32, y0 = (k / 16) * 32;
+    for (std::uint32_t y = y0; y < y0 + 32; ++y) {
+      for (std::uint32_t x = x0; x < x0 + 32; ++x) {
+        const std::size_t i = g.index(x, y);
+        g.color[i] = glm::vec3(static_cast<float>(k % 5) / 4, static_cast<float>(k % 7) / 6, static_cast<float>(k % 3) / 2);
+        g.depth[i] = 3 + static_cast<float>(k % 23);
+        g.object_id[i] = k + 1;
+      }
+    }
+  }
+  for (int map : {64, 256}) {
+    attention::AttentionSettings s;
+    s.map_size = map;
+    attention::AttentionTracker tracker(s);
+    Row row{"synthetic 256 objects 512x512", "fovea object stage", map, 0, {}, {}, {}, 0};
+    for (int k = 0; k <= frames; ++k) {
+      const double t = k / 60.0;
+      const auto& f = tracker.update(g, scene, t, k == 0 ? t : t - 1.0 / 60);
+      if (k == 0) continue;
+      row.total.ms.push_back(f.seconds * 1e3);
+      row.saliency.ms.push_back(f.saliency_seconds * 1e3);
+      row.object.ms.push_back((f.seconds - f.saliency_seconds) * 1e3);
+      row.objects = f.objects.size();
+    }
+    row.frames = row.total.ms.size();
+    rows.push_back(std::move(row));
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Attention tracking (Lee 2009 ch. 3) time per frame versus map size, with OpenCV saliency as a peer"};
+  int frames = 40;
+  std::string csv_path, sizes_text = "512x512,960x540", maps_text = "64,128,256,512";
+  std::string scene_path = std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/attention.json";
+  app.add_option("--frames", frames, "frames over the scene's 8 s animation")->check(CLI::Range(5, 100000));
+  app.add_option("--csv", csv_path, "also write the table as CSV");
+  app.add_option("--sizes", sizes_text, "G-buffer resolutions, WxH comma-separated");
+  app.add_option("--scene", scene_path, "scene file");
+  app.add_option("--maps", maps_text, "saliency-map sizes, comma-separated (64..512)");
+  CLI11_PARSE(app, argc, argv);
+
+  cv::setNumThreads(1);  // the tracker runs on one thread; compare like with like
+  std::vector<Row> rows;
+  std::vector<int> maps;
+  for (const auto& [m, unused] : parse_sizes(std::regex_replace(maps_text, std::regex("(\\d+)"), "$1x1"))) {
+    maps.push_back(static_cast<int>(m));
+  }
+  for (const auto& [w, h] : parse_sizes(sizes_text)) {
+    Scene scene = load_scene(scene_path);
+    scene.camera.width = w;
+    scene.camera.height = h;
+    EmbreeBackend backend;
+    backend.set_scene(scene);
+    const std::string input = scene.name + " " + std::to_string(w) + "x" + std::to_string(h);
+    std::map<int, attention::AttentionTracker> trackers;
+    std::map<std::string, Row> by_key;
+    const auto row_for = [&](const std::string& method, int map) -> Row& {
+      Row& r = by_key[method + "/" + std::to_string(1000 + map)];
+      r.input = input;
+      r.method = method;
+      r.map = map;
+      return r;
+    };
+    for (int m : maps) {
+      attention::AttentionSettings s;
+      s.map_size = m;
+      trackers.emplace(m, attention::AttentionTracker(s));
+    }
+    auto spectral = cv::saliency::StaticSaliencySpectralResidual::create();
+    auto fine = cv::saliency::StaticSaliencyFineGrained::create();
+    GBuffer g;
+    for (int k = 0; k <= frames; ++k) {
+      const double t = 8.0 * k / frames, previous = k == 0 ? t : t - 1.0 / 60;
+      backend.render({t, previous}, {}, g);
+      const cv::Mat bgr = to_bgr8(g);
+      for (int m : maps) {
+        const auto& f = trackers.at(m).update(g, scene, t, previous);
+        cv::Mat small, out;
+        auto start = Clock::now();
+        cv::resize(bgr, small, cv::Size(m, m), 0, 0, cv::INTER_AREA);
+        spectral->computeSaliency(small, out);
+        const double spectral_ms = ms_since(start);
+        start = Clock::now();
+        cv::resize(bgr, small, cv::Size(m, m), 0, 0, cv::INTER_AREA);
+        fine->computeSaliency(small, out);
+        const double fine_ms = ms_since(start);
+        if (k == 0) continue;  // warm-up
+        Row& r = row_for("fovea (Lee 2009)", m);
+        r.total.ms.push_back(f.seconds * 1e3);
+        r.saliency.ms.push_back(f.saliency_seconds * 1e3);
+        r.object.ms.push_back((f.seconds - f.saliency_seconds) * 1e3);
+        r.objects = f.objects.size();
+        row_for("opencv spectral residual", m).saliency.ms.push_back(spectral_ms);
+        row_for("opencv spectral residual", m).total.ms.push_back(spectral_ms);
+        row_for("opencv fine grained", m).saliency.ms.push_back(fine_ms);
+        row_for("opencv fine grained", m).total.ms.push_back(fine_ms);
+      }
+    }
+    for (auto& [key, r] : by_key) {
+      r.frames = r.total.ms.size();
+      rows.push_back(std::move(r));
+    }
+  }
+  synthetic_objects(rows, std::max(frames, 30));
+
+  std::printf("%-32s %-26s %5s %6s %10s %10s %12s %10s %8s\n", "input", "method", "map", "frames", "total_ms",
+              "p95_ms", "saliency_ms", "object_ms", "objects");
+  std::ofstream csv;
+  if (!csv_path.empty()) {
+    csv.open(csv_path);
+    if (!csv) {
+      std::cerr << "cannot write " << csv_path << "\n";
+      return 1;
+    }
+    csv << "input,method,map,frames,total_median_ms,total_p95_ms,saliency_median_ms,object_median_ms,objects\n";
+  }
+  for (const Row& r : rows) {
+    const bool ours = r.method.rfind("fovea", 0) == 0;
+    std::printf("%-32s %-26s %5d %6zu %10.3f %10.3f %12.3f %10s %8s\n", r.input.c_str(), r.method.c_str(), r.map,
+                r.frames, r.total.median(), r.total.p95(), r.saliency.median(),
+                ours ? std::to_string(r.object.median()).substr(0, 6).c_str() : "-",
+                ours ? std::to_string(r.objects).c_str() : "-");
+    if (csv) {
+      csv << r.input << "," << r.method << "," << r.map << "," << r.frames << "," << r.total.median() << ","
+          << r.total.p95() << "," << r.saliency.median() << "," << (ours ? std::to_string(r.object.median()) : "")
+          << "," << (ours ? std::to_string(r.objects) : "") << "\n";
+    }
+  }
+  return 0;
+}

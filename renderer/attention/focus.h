@@ -1,0 +1,92 @@
+#pragma once
+// The focus pass: where the thin lens focuses this frame (Lee 2009 §6.1), from attention without a
+// tracker, from gaze with one, or from both.
+//
+//  - attention: the focal depth is the depth of the most attended object; when no foreground object
+//    is visible (or its attention falls below `min_attention`), the depth at the screen centre.
+//  - gaze: the object under the gaze point (item buffer), refocused at fixation onset (a new
+//    fixation in the gaze stream) and held during saccades and blinks.
+//  - gaze+attention: trackers err by 1-2 deg (Jensen & Pedersen 2009, Table 4.1), so the gazed object
+//    is chosen among the foreground objects with pixels within `gaze_radius_deg` of the gaze point:
+//    the one with the highest attention S_o wins (Lee §6.3's ambiguity); with no foreground object
+//    in reach, the depth under the gaze point.
+// A change of the focused target starts a transition: linear interpolation of the focal depth over
+// `transition_s` (eq. 6.1, Z_f = lerp(Z_p(t), Z_n(t), t/tau), both depths followed while they move),
+// or a low-pass filter with cut-off `cutoff_hz` (<= 2 Hz; critically damped second order).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "attention/attention.h"
+#include "backend/gbuffer.h"
+#include "fovea/protocol/display_geometry.h"
+
+namespace fovea::render::attention {
+
+enum class FocusMode { Fixed, Gaze, Attention, GazeAndAttention };
+enum class FocusTransition { Lerp, LowPass };
+
+struct FocusSettings {
+  FocusMode mode = FocusMode::GazeAndAttention;
+  FocusTransition transition = FocusTransition::Lerp;
+  double transition_s = 0.3;     // eq. 6.1's tau
+  double cutoff_hz = 1.0;        // low-pass cut-off, (0, 2]
+  double gaze_radius_deg = 1.5;  // how far from the gaze point an object may be and still be the gazed one
+  double min_attention = 1e-3;   // below: no foreground object is attended (screen-centre depth)
+  double fixed_depth_m = 2.0;    // FocusMode::Fixed (the lens' focus distance)
+  void check() const;            // std::invalid_argument naming the bad field
+};
+
+// What the focus pass knows about the gaze this frame.
+struct FocusGaze {
+  bool available = false;        // a gaze source is connected
+  bool valid = false;            // this sample has valid gaze
+  double x = 0.5, y = 0.5;       // normalised screen coordinates
+  bool saccade_or_blink = false; // the stream says the eye is moving or closed: hold the focus
+  std::uint64_t fixations = 0;   // fixation onsets seen so far (a change = a new fixation: refocus)
+};
+
+struct FocusResult {
+  double focal_depth_m = 2.0;    // what the lens focuses at this frame (after the transition)
+  double target_depth_m = 2.0;   // where the transition is heading
+  std::uint32_t object = 0;      // the focused object (0: a depth without an object, e.g. screen centre)
+  bool in_transition = false;
+  std::string why;               // "attention: red_ball (S_o 0.42)", "gaze+attention: ...", for --explain and overlays
+};
+
+class FocusTracker {
+ public:
+  explicit FocusTracker(FocusSettings settings = {});
+  // `attention` may be null (attention not planned): gaze+attention then acts as gaze, attention as
+  // the screen centre. `display` converts gaze_radius_deg to pixels of the G-buffer.
+  const FocusResult& update(double time_s, const GBuffer& g, const Scene& scene, const AttentionFrame* attention,
+                            const FocusGaze& gaze, const protocol::DisplayGeometry& display);
+  const FocusResult& last() const { return result_; }
+  void reset();
+
+ private:
+  // What the lens is pointed at: its depth is re-read every frame, so a moving object is followed.
+  struct Target {
+    enum class Kind { Fixed, Depth, Centre, Point, Object } kind = Kind::Centre;
+    std::uint32_t object = 0;   // Kind::Object
+    double x = 0.5, y = 0.5;    // Kind::Point: the gaze point it was picked at (Object: likewise, if by gaze)
+    double depth_m = 2.0;       // the last depth it resolved to (Kind::Depth: the depth itself)
+    std::string why;
+  };
+  struct FrameView;  // this frame's inputs (focus.cpp)
+  Target pick_attention(const FrameView& f) const;
+  Target pick_gaze(const FrameView& f, double x, double y, bool with_attention) const;
+  double resolve(const FrameView& f, Target& t, bool* visible = nullptr) const;
+
+  FocusSettings settings_;
+  FocusResult result_;
+  Target target_, from_;          // Z_n's and Z_p's targets of eq. 6.1
+  double last_time_s_ = 0;
+  double transition_elapsed_s_ = 0;  // t of eq. 6.1: the frame gaps summed since the change (never backwards)
+  double filter_velocity_ = 0;    // low-pass state (the position is result_.focal_depth_m)
+  std::uint64_t last_fixations_ = 0;
+  bool started_ = false;
+  bool gaze_target_ = false;      // target_ was picked from the gaze (gaze modes hold it until the next fixation)
+};
+
+}  // namespace fovea::render::attention

@@ -1,0 +1,23 @@
+#pragma once
+// The focus pass's view of the renderer's gaze input (gaze/gaze_input.h): kept apart from focus.h
+// so the focus code itself does not depend on the gaze sources.
+#include "attention/focus.h"
+#include "gaze/gaze_input.h"
+
+namespace fovea::render::attention {
+
+// `available`: GazeInput::available() (false for --gaze none). A sample that is not valid (blink,
+// lost track) or classified as a saccade or blink holds the focus.
+inline FocusGaze focus_gaze_from(const GazeState& state, bool available) {
+  FocusGaze g;
+  g.available = available;
+  g.valid = available && state.valid;
+  g.x = state.x;
+  g.y = state.y;
+  g.saccade_or_blink = state.movement == protocol::EyeMovement::Saccade ||
+                       state.movement == protocol::EyeMovement::Blink || !state.valid;
+  g.fixations = state.fixations;
+  return g;
+}
+
+}  // namespace fovea::render::attention
