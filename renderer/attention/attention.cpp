@@ -1,6 +1,10 @@
 #include "attention/attention.h"
 
 #include <algorithm>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -315,13 +319,13 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
 
   // Per map row: accumulate the source rows of its box column by column (r, g, b, z per map pixel),
   // then convert. Comparisons written as `v > 0 ? v : 0` map NaN to the fallback without a branch.
-  // Single-threaded: splitting rows over the 2 cores with TBB gave no measurable gain on the shared
-  // 2-core machine (bench/RESULTS.md, attention section), so it was taken out again.
+  // Map rows are independent: split over the cores (TBB), each range with its own scratch rows.
   const float depth_fallback = ffar;
   // Per map row: first the box's source rows summed per source column (straight loops over whole
   // rows), then the columns of each map pixel's box summed.
+  const auto resample_rows = [&](std::size_t y_begin, std::size_t y_end) {
   std::vector<float> col(W * 4), acc(un * 4);
-  for (std::size_t y = 0; y < un && has_image; ++y) {
+  for (std::size_t y = y_begin; y < y_end && has_image; ++y) {
     std::fill(col.begin(), col.end(), 0.0f);
     for (int sy = cy0[y]; sy < cy1[y]; ++sy) {
       const std::size_t row = static_cast<std::size_t>(sy) * W;
@@ -380,7 +384,8 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
         const double sat = std::clamp(chroma / std::max(1e-9, 1.0 - std::fabs(2.0 * l - 1.0)), 0.0, 1.0);
         double h6 = 0;  // hue in sixths of a turn
         if (mx == rgb.r) {
-          h6 = std::fmod((rgb.g - rgb.b) / chroma + 6.0, 6.0);
+          h6 = (rgb.g - rgb.b) / chroma;  // in [-1, 1]
+          if (h6 < 0) h6 += 6.0;
         } else if (mx == rgb.g) {
           h6 = (rgb.b - rgb.r) / chroma + 2.0;
         } else {
@@ -399,6 +404,9 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
       if (has_depth && f.ids[m] != 0) map_depth[m] = std::clamp(finite_or(g.depth[ni], ffar), fnear, ffar);
     }
   }
+  };
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, un, 8),
+                    [&](const tbb::blocked_range<std::size_t>& r) { resample_rows(r.begin(), r.end()); });
 
   // --- Object features: B_s (eq. 3.2) and B_m (eq. 3.3) -------------------------------------------
   // B_s counts the pixels of the item buffer as resampled to the map (nearest), over the map's
@@ -432,27 +440,40 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
   // --- Pyramids, centre-surround (eq. 3.4), weights (eq. 3.6), S_p (eq. 3.5) ----------------------
   const bool image_group = settings_.groups.image, object_group = settings_.groups.object;
   for (auto& c : f.contrast) c.assign(npix, 0.0f);
-  if (image_group) {
-    build_pyramid(lum, 1);
-    build_pyramid(hue, 2);
-    centre_surround(lum, 1, n, f.contrast[kLum]);
-    centre_surround(hue, 2, n, f.contrast[kHue]);
-  }
-  if (object_group) {
-    build_pyramid(dsm, 3);
-    // Split the interleaved DSM pyramid into three one-channel pyramids for eq. 3.4.
-    for (int c = 0; c < 3; ++c) {
-      Level one[kLevels];
-      for (int l = 0; l < kLevels; ++l) {
-        one[l].w = dsm[l].w;
-        one[l].h = dsm[l].h;
-        const std::size_t sz = static_cast<std::size_t>(dsm[l].w) * static_cast<std::size_t>(dsm[l].h);
-        one[l].v.resize(sz);
-        for (std::size_t i = 0; i < sz; ++i) one[l].v[i] = dsm[l].v[3 * i + static_cast<std::size_t>(c)];
-      }
-      centre_surround(one, 1, n, f.contrast[kDepth + c]);
+  // The five contrast maps are independent: computed as parallel tasks (TBB).
+  if (object_group) build_pyramid(dsm, 3);
+  const auto dsm_channel = [&](int c) {
+    // Split the interleaved DSM pyramid into a one-channel pyramid for eq. 3.4.
+    Level one[kLevels];
+    for (int l = 0; l < kLevels; ++l) {
+      one[l].w = dsm[l].w;
+      one[l].h = dsm[l].h;
+      const std::size_t sz = static_cast<std::size_t>(dsm[l].w) * static_cast<std::size_t>(dsm[l].h);
+      one[l].v.resize(sz);
+      for (std::size_t i = 0; i < sz; ++i) one[l].v[i] = dsm[l].v[3 * i + static_cast<std::size_t>(c)];
     }
-  }
+    centre_surround(one, 1, n, f.contrast[kDepth + c]);
+  };
+  tbb::parallel_invoke(
+      [&] {
+        if (!image_group) return;
+        build_pyramid(hue, 2);
+        centre_surround(hue, 2, n, f.contrast[kHue]);
+      },
+      [&] {
+        if (!image_group) return;
+        build_pyramid(lum, 1);
+        centre_surround(lum, 1, n, f.contrast[kLum]);
+      },
+      [&] {
+        if (object_group) dsm_channel(0);
+      },
+      [&] {
+        if (object_group) dsm_channel(1);
+      },
+      [&] {
+        if (object_group) dsm_channel(2);
+      });
   f.saliency.assign(npix, 0.0f);
   if (image_group || object_group) {
     std::vector<double> sbar(npix, 0.0);
