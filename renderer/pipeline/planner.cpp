@@ -39,9 +39,9 @@ std::string FramePlan::explain() const {
     const PassDecl& d = declaration(p.id);
     const char* verdict = p.runs ? "run " : (p.needed ? "later" : "skip");
     char line[512];
+    const bool unimplemented = p.needed && !p.runs && d.implemented_in[0] != '\0';
     std::snprintf(line, sizeof line, "  %-5s %-10s %s%s%s\n", verdict, d.name, p.reason.c_str(),
-                  p.needed && !p.runs ? " — needed, but not implemented until " : "",
-                  p.needed && !p.runs ? d.implemented_in : "");
+                  unimplemented ? " — needed, but not implemented until " : "", unimplemented ? d.implemented_in : "");
     out += line;
   }
   return out;
@@ -161,6 +161,26 @@ FramePlan plan_frame(const PlanContext& c) {
   }
 
   decide(PassId::GBuffer, true, "every output starts from the G-buffer");
+
+  // An implemented pass whose consumers are all needed-but-not-implemented would compute something
+  // nobody reads: it waits (needed, not run) until a consumer runs. Focus feeds dof (and the focus
+  // overlay); attention feeds focus, lod-select and the attention overlays.
+  const auto wait_unless = [&](PassId id, bool consumer_runs, const std::string& why) {
+    PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
+    if (p.runs && !consumer_runs) {
+      p.runs = false;
+      p.reason += "; waits: " + why;
+    }
+  };
+  wait_unless(PassId::Focus, plan.runs(PassId::Dof) || shows_focus,
+              std::string("dof is not implemented until ") + declaration(PassId::Dof).implemented_in +
+                  " (overlay.focus=true shows the focus meanwhile)");
+  const bool attention_overlay = image && (s.is("overlay.map", "saliency") || s.is("overlay.map", "spatial") ||
+                                           s.is("overlay.map", "temporal") || s.is("overlay.map", "attention"));
+  wait_unless(PassId::Attention,
+              attention_overlay || plan.runs(PassId::LodSelect) ||
+                  (plan.runs(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")),
+              "none of its consumers runs yet");
   return plan;
 }
 
