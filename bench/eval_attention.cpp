@@ -433,11 +433,11 @@ int evaluate(const EvalOptions& o) {
     if (!valid) continue;
     if (has_state) {
       keep[i] = s.state == proto::EyeMovement::Fixation;
-      n_fix += keep[i] ? 1 : 0;
+      if (keep[i]) ++n_fix;
     } else if (i > 0 && (samples[i - 1].flags & proto::kGazeValid) != 0) {
       const double v = std::hypot(static_cast<double>(s.x - samples[i - 1].x), static_cast<double>(s.y - samples[i - 1].y));
       keep[i] = v < 0.1;
-      (v < 0.03 ? n_fix : n_drift) += keep[i] ? 1 : 0;
+      if (keep[i]) ++(v < 0.03 ? n_fix : n_drift);
     }
   }
   const double first = stime.front(), last = stime.back();
@@ -510,6 +510,8 @@ int evaluate(const EvalOptions& o) {
 
   std::size_t frames = 0, no_sample = 0, not_fixation = 0, background_only = 0, scored = 0, gaze_miss = 0,
               snapped = 0;
+  // Per object: scored frames it was gazed at, and frames the full model ranked it first (0: none).
+  std::map<std::uint32_t, std::pair<std::size_t, std::size_t>> who;
   GBuffer g;
   std::size_t j = 0;  // sample cursor
   const auto wall = Clock::now();
@@ -593,6 +595,8 @@ int evaluate(const EvalOptions& o) {
       if (gazed != 0) ++snapped;
     }
     if (gazed == 0) ++gaze_miss;
+    ++who[gazed].first;
+    if (!ranks[kFull].empty()) ++who[ranks[kFull][0]].second;
     for (std::size_t c = 0; c < 8; ++c) ablation_scores[c].add(gazed, ranks[c]);
     for (auto& [m, sc] : sweep_scores) sc.add(gazed, sweep_ranks[m]);
     // Random pixel: 1, 2 or 3 distinct uniformly random pixels; their objects are the prediction.
@@ -619,13 +623,15 @@ int evaluate(const EvalOptions& o) {
   std::vector<Score> baselines = {random, sr_plain, sr_ctx, fg_plain, fg_ctx};
   std::ostringstream text;
   char line[512];
-  const auto put = [&](const char* fmt, auto... args) {
-    std::snprintf(line, sizeof line, fmt, args...);
-    text << line;
-  };
-  put("scene %s at %ux%u, %g fps; gaze %s (device '%s', %zu samples, %s)\n", o.scene.c_str(), o.width, o.height, o.fps,
-      o.gaze.c_str(), rec.header.device.c_str(), ns,
-      has_state ? "sample states: Fixation kept" : "no states: velocity rule, < 0.03 fixation, < 0.1 drift");
+#define put(...)                                \
+  do {                                          \
+    std::snprintf(line, sizeof line, __VA_ARGS__); \
+    text << line;                               \
+  } while (0)
+  put("scene %s at %ux%u, %g fps; gaze %s (device '%s', %zu samples; %s: %zu fixation, %zu drift samples kept)\n",
+      o.scene.c_str(), o.width, o.height, o.fps, o.gaze.c_str(), rec.header.device.c_str(), ns,
+      has_state ? "sample states, Fixation kept" : "no states, velocity rule |dp| < 0.03 fixation, < 0.1 drift", n_fix,
+      n_drift);
   put("frames %zu (scene time %.3f .. %.3f s): %zu without a sample within half a frame, %zu not fixation/drift, "
       "%zu with only background; %zu scored, of which %zu with the gaze on no foreground object within 1 deg "
       "(misses for every method) and %zu snapped to the nearest object within 1 deg (%.1f px); %.1f s\n",
@@ -650,6 +656,14 @@ int evaluate(const EvalOptions& o) {
     put("%4dx%-4d %7.3f %7.3f %7.3f %6zu/%5zu/%5zu %10.3f\n", m, m, s.a(0), s.a(1), s.a(2), s.hits[0], s.hits[1],
         s.hits[2], s.ms());
   }
+  put("\nGazed object versus the full model's first choice (map %dx%d), frames\n", amap, amap);
+  put("%-20s %5s %8s %10s\n", "object", "T_i", "gazed", "ranked 1st");
+  for (const auto& [id, n] : who) {
+    const Object* obj = scene.object_by_id(id);
+    put("%-20s %5.2f %8zu %10zu\n", id == 0 ? "(none)" : (obj ? obj->name.c_str() : "?"),
+        static_cast<double>(importance(t_of, id)), n.first, n.second);
+  }
+#undef put
   std::cout << text.str();
 
   if (!o.out.empty()) {
