@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_images.h"
 #include "attention/attention.h"
 #include "backend/embree/embree_backend.h"
 #include "scene/geometry.h"
@@ -48,19 +49,7 @@ struct Stats {
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
-// The display image OpenCV sees: the G-buffer's HDR colour clamped to [0, 1] and quantised to 8 bits
-// (BGR), like the tracker's own clamp. Not timed: it stands for the renderer's tone-mapped output.
-cv::Mat to_bgr8(const GBuffer& g) {
-  cv::Mat img(static_cast<int>(g.height), static_cast<int>(g.width), CV_8UC3);
-  for (std::uint32_t y = 0; y < g.height; ++y) {
-    auto* row = img.ptr<cv::Vec3b>(static_cast<int>(y));
-    for (std::uint32_t x = 0; x < g.width; ++x) {
-      const glm::vec3 c = glm::clamp(g.color[g.index(x, y)], 0.0f, 1.0f) * 255.0f + 0.5f;
-      row[x] = cv::Vec3b(static_cast<std::uint8_t>(c.b), static_cast<std::uint8_t>(c.g), static_cast<std::uint8_t>(c.r));
-    }
-  }
-  return img;
-}
+using fovea::bench::to_bgr8;
 
 std::vector<std::pair<std::uint32_t, std::uint32_t>> parse_sizes(const std::string& text) {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> out;

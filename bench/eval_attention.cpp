@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_images.h"
 #include "attention/attention.h"
 #include "backend/embree/embree_backend.h"
 #include "fovea/protocol/display_geometry.h"
@@ -338,18 +339,7 @@ std::vector<int> parse_maps(const std::string& text) {
   return out;
 }
 
-// The display image OpenCV sees: HDR colour clamped to [0, 1], 8-bit BGR (as bench_attention).
-cv::Mat to_bgr8(const GBuffer& g) {
-  cv::Mat img(static_cast<int>(g.height), static_cast<int>(g.width), CV_8UC3);
-  for (std::uint32_t y = 0; y < g.height; ++y) {
-    auto* row = img.ptr<cv::Vec3b>(static_cast<int>(y));
-    for (std::uint32_t x = 0; x < g.width; ++x) {
-      const glm::vec3 c = glm::clamp(g.color[g.index(x, y)], 0.0f, 1.0f) * 255.0f + 0.5f;
-      row[x] = cv::Vec3b(static_cast<std::uint8_t>(c.b), static_cast<std::uint8_t>(c.g), static_cast<std::uint8_t>(c.r));
-    }
-  }
-  return img;
-}
+using fovea::bench::to_bgr8;
 
 std::vector<std::uint32_t> top3(const attention::AttentionFrame& f) {
   std::vector<std::uint32_t> r;

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "attention/attention.h"
+#include "attention_scene.h"
 #include "scene/geometry.h"
 
 using namespace fovea::render;
@@ -15,25 +16,9 @@ using namespace fovea::render::attention;
 
 namespace {
 
-Scene make_scene() {
-  Scene s;
-  s.camera.position = {0, 0, 0};
-  s.camera.target = {0, 0, -1};
-  s.camera.near_m = 0.1f;
-  s.camera.far_m = 100.0f;
-  s.materials.push_back(Material{});
-  return s;
-}
-
+Scene make_scene() { return test::make_attention_scene(); }
 Object& add_object(Scene& s, std::uint32_t id, glm::vec3 at, float importance) {
-  Object o;
-  o.name = "object" + std::to_string(id);
-  o.id = id;
-  o.mesh = std::make_shared<Mesh>(make_box({0.5f, 0.5f, 0.5f}));
-  o.transform.translation = at;
-  o.task_importance = importance;
-  s.objects.push_back(o);
-  return s.objects.back();
+  return test::add_box_object(s, id, at, importance);
 }
 
 GBuffer make_gbuffer(std::uint32_t w, std::uint32_t h) {
@@ -46,14 +31,7 @@ GBuffer make_gbuffer(std::uint32_t w, std::uint32_t h) {
 
 void paint(GBuffer& g, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::uint32_t id,
            glm::vec3 colour, float depth) {
-  for (std::uint32_t y = y0; y < y1; ++y) {
-    for (std::uint32_t x = x0; x < x1; ++x) {
-      const std::size_t i = g.index(x, y);
-      g.color[i] = colour;
-      g.depth[i] = depth;
-      g.object_id[i] = id;
-    }
-  }
+  test::paint_object(g, x0, y0, x1, y1, id, colour, depth);
 }
 
 // Every number the tracker hands out is finite; S_p and contrast in range; attention >= 0; sorted.
