@@ -69,6 +69,7 @@ int run_headless(const RenderOptions& o) {
   double previous = 0;
   std::ofstream gaze_log(fs::path(o.out_dir) / "gaze.csv");
   gaze_log << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
+  std::ofstream focus_log;
   for (std::uint64_t i = 0; i < o.frames; ++i) {
     const double scheduled = static_cast<double>(i) / o.fps;
     double clock = scheduled;
@@ -91,6 +92,19 @@ int run_headless(const RenderOptions& o) {
                   clock, f.gaze.x, f.gaze.y, f.gaze.valid ? 1 : 0, protocol::to_string(f.gaze.movement), f.gaze.age_ms,
                   static_cast<unsigned long long>(f.gaze.received), static_cast<unsigned long long>(f.gaze.lost));
     gaze_log << line;
+    if (f.focus != nullptr) {
+      // focus.csv: what the focus pass decided each frame (only when it ran).
+      if (!focus_log.is_open()) {
+        focus_log.open(fs::path(o.out_dir) / "focus.csv");
+        focus_log << "frame,focal_depth_m,target_depth_m,object,in_transition,why\n";
+      }
+      std::string why = f.focus->why;
+      for (char& ch : why) if (ch == '"') ch = '\'';
+      char fl[128];
+      std::snprintf(fl, sizeof fl, "%llu,%.4f,%.4f,%u,%d,", static_cast<unsigned long long>(i), f.focus->focal_depth_m,
+                    f.focus->target_depth_m, f.focus->object, f.focus->in_transition ? 1 : 0);
+      focus_log << fl << '"' << why << "\"\n";
+    }
     if (tty) progress(i + 1, o.frames, timer.last_ms("frame"));
   }
   if (tty) std::fputc('\n', stderr);

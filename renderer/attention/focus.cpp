@@ -339,7 +339,11 @@ const FocusResult& FocusTracker::update(double time_s, const GBuffer& g, const S
   double focal = zn;
   bool in_transition = false;
   if (!started_ || settings_.mode == FocusMode::Fixed) {
+    // Nothing to move from: the first target is in focus at once, and no transition is running
+    // (the lerp below would otherwise start one from a default target on the next frame).
     filter_velocity_ = 0;
+    transition_elapsed_s_ = 1e9;
+    from_ = target_;
   } else if (settings_.transition == FocusTransition::Lerp) {
     // Lee 2009, eq. 6.1: Z_f(t) = lerp(Z_p(t), Z_n(t), t / tau), both depths followed as they move.
     const double s =

@@ -67,6 +67,16 @@ echo "== viewer under Xvfb, mouse gaze, 5 frames"
   >"$WORK/viewer.out" 2>&1 || fail "viewer: $(cat "$WORK/viewer.out")"
 grep -q "^frame " "$WORK/viewer.out" || fail "viewer printed no timing summary"
 
+echo "== the focus follows the recorded gaze (focus.csv), and only runs when something shows it"
+"$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --headless --frames 12 --fps 10 --gaze "file:$REC" \
+  --set overlay.focus=true --out "$WORK/focus" >"$WORK/focus.log" 2>&1 || fail "focus run: $(tail -5 "$WORK/focus.log")"
+head -1 "$WORK/focus/focus.csv" | grep -qx "frame,focal_depth_m,target_depth_m,object,in_transition,why" \
+  || fail "focus.csv header: $(head -1 "$WORK/focus/focus.csv")"
+[ "$(wc -l <"$WORK/focus/focus.csv")" -eq 13 ] || fail "focus.csv rows: $(cat "$WORK/focus/focus.csv")"
+grep -q "gaze+attention: " "$WORK/focus/focus.csv" || fail "focus.csv why: $(cat "$WORK/focus/focus.csv")"
+grep -q "run   attention" "$WORK/focus/plan.txt" || fail "attention did not run for the focus: $(cat "$WORK/focus/plan.txt")"
+[ -e "$WORK/full/focus.csv" ] && fail "focus ran although nothing consumes it"
+
 echo "== two render clients against one daemon"
 PORT=$(( 48100 + RANDOM % 800 ))
 "$TRACKERD" --source "replay:$REC" --loop --port $PORT >"$WORK/daemon.log" 2>&1 &

@@ -469,6 +469,23 @@ TEST(FocusHardCases, GazeOutsideTheScreenIsClamped) {
   }
 }
 
+TEST(FocusTransitions, TheFirstTargetIsInFocusAndStaysWithoutATransition) {
+  // Found in a headless run: the first frame focused at once, but the next frames started a lerp
+  // from the default target (the screen centre) although the target had not changed.
+  for (FocusTransition transition : {FocusTransition::Lerp, FocusTransition::LowPass}) {
+    World w = two_cups();
+    FocusSettings s = settings(FocusMode::Attention, 0.3);
+    s.transition = transition;
+    FocusTracker focus(s);
+    w.attend({attended(1, 0.8, 2.0)});
+    for (double t : {0.0, 0.1, 0.2, 0.35}) {
+      const FocusResult& r = focus.update(t, w.g, w.scene, &w.attention, FocusGaze{}, w.display);
+      EXPECT_NEAR(r.focal_depth_m, 2.0, 1e-9) << "t=" << t;
+      EXPECT_FALSE(r.in_transition) << "t=" << t;
+    }
+  }
+}
+
 TEST(FocusHardCases, TenSecondGapCompletesTheTransition) {
   for (FocusTransition transition : {FocusTransition::Lerp, FocusTransition::LowPass}) {
     World w = two_cups();
