@@ -22,6 +22,7 @@
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/recording.h"
 #include "fovea/protocol/udp.h"
+#include "gaze_samples.h"
 #include "validation_report.h"
 
 namespace fovea::calib {
@@ -100,34 +101,11 @@ InputChoice choose_input(const RunArgs& a, const std::vector<proto::Record>& sam
   return c;
 }
 
-RawSample::State state_of(proto::EyeMovement m) {
-  switch (m) {
-    case proto::EyeMovement::Fixation: return RawSample::State::Fixation;
-    case proto::EyeMovement::Saccade: return RawSample::State::Saccade;
-    case proto::EyeMovement::Pursuit: return RawSample::State::Pursuit;
-    case proto::EyeMovement::Blink: return RawSample::State::Blink;
-    case proto::EyeMovement::Unknown: break;
-  }
-  return RawSample::State::Unknown;
-}
-
 std::vector<RawSample> raw_samples(const Session& s, const InputChoice& in) {
+  const GazeInput input = in.input == kInputPupilGlint ? GazeInput::PupilGlint : GazeInput::Screen;
   std::vector<RawSample> out;
-  for (const auto& r : s.samples) {
-    const auto& g = sample_of(r);
-    RawSample raw;
-    raw.time_ns = g.tracker_time_ns;
-    raw.state = state_of(g.state);
-    if (in.input == kInputPupilGlint) {
-      const proto::EyeData& e = in.eye == "left" ? g.left : g.right;
-      raw.valid = has_pupil_glint(e);
-      raw.raw = {e.pupil_glint_x_px, e.pupil_glint_y_px};
-    } else {
-      raw.valid = (g.flags & proto::kGazeValid) != 0;
-      raw.raw = {static_cast<double>(g.x) * s.display.width_px, static_cast<double>(g.y) * s.display.height_px};
-    }
-    out.push_back(raw);
-  }
+  out.reserve(s.samples.size());
+  for (const auto& r : s.samples) out.push_back(to_raw_sample(sample_of(r), input, in.eye == "left", s.display));
   std::stable_sort(out.begin(), out.end(), [](const RawSample& a, const RawSample& b) { return a.time_ns < b.time_ns; });
   return out;
 }

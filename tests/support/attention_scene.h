@@ -10,7 +10,7 @@
 
 namespace fovea::render::test {
 
-inline Scene make_attention_scene() {
+inline Scene make_scene() {
   Scene s;
   s.camera.position = {0, 0, 0};
   s.camera.target = {0, 0, -1};
@@ -20,7 +20,7 @@ inline Scene make_attention_scene() {
   return s;
 }
 
-inline Object& add_box_object(Scene& s, std::uint32_t id, glm::vec3 at, float importance) {
+inline Object& add_object(Scene& s, std::uint32_t id, glm::vec3 at, float importance) {
   Object o;
   o.name = "object" + std::to_string(id);
   o.id = id;
@@ -32,7 +32,7 @@ inline Object& add_box_object(Scene& s, std::uint32_t id, glm::vec3 at, float im
 }
 
 // Paints a rectangle [x0, x1) x [y0, y1) of object `id` into a G-buffer.
-inline void paint_object(GBuffer& g, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1,
+inline void paint(GBuffer& g, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1,
                          std::uint32_t id, glm::vec3 colour, float depth) {
   for (std::uint32_t y = y0; y < y1; ++y) {
     for (std::uint32_t x = x0; x < x1; ++x) {

@@ -15,10 +15,9 @@ using namespace fovea::render::attention;
 
 namespace {
 
-Scene make_scene() { return test::make_attention_scene(); }
-Object& add_object(Scene& s, std::uint32_t id, glm::vec3 at, float importance) {
-  return test::add_box_object(s, id, at, importance);
-}
+using test::add_object;
+using test::make_scene;
+using test::paint;
 
 GBuffer make_gbuffer(std::uint32_t w, std::uint32_t h, glm::vec3 background = glm::vec3(0.05f), float far_m = 100) {
   GBuffer g;
@@ -28,10 +27,6 @@ GBuffer make_gbuffer(std::uint32_t w, std::uint32_t h, glm::vec3 background = gl
   return g;
 }
 
-void paint(GBuffer& g, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::uint32_t id,
-           glm::vec3 colour, float depth) {
-  test::paint_object(g, x0, y0, x1, y1, id, colour, depth);
-}
 
 AttentionSettings small(int map = 64) {
   AttentionSettings s;

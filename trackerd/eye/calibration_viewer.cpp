@@ -1,3 +1,4 @@
+#include "gaze_samples.h"
 #include "eye/calibration_viewer.h"
 
 #include <algorithm>
@@ -289,31 +290,9 @@ const char* to_string(CalibrationInput input) {
 
 std::vector<calib::RawSample> raw_samples(std::span<const protocol::GazeSample> samples, CalibrationInput input,
                                           const protocol::DisplayGeometry& display, EyeSide eye) {
-  std::vector<calib::RawSample> out;
-  out.reserve(samples.size());
-  for (const protocol::GazeSample& s : samples) {
-    calib::RawSample r;
-    r.time_ns = s.tracker_time_ns;
-    if (input == CalibrationInput::PupilGlint) {
-      const protocol::EyeData& e = eye == EyeSide::Right ? s.right : s.left;
-      r.valid = (e.flags & protocol::kEyeFlagMask) == protocol::kEyeFlagMask;
-      r.raw = {static_cast<double>(e.pupil_glint_x_px), static_cast<double>(e.pupil_glint_y_px)};
-    } else {
-      r.valid = (s.flags & protocol::kGazeValid) != 0;
-      r.raw = {static_cast<double>(s.x) * display.width_px, static_cast<double>(s.y) * display.height_px};
-    }
-    r.valid = r.valid && std::isfinite(r.raw.x) && std::isfinite(r.raw.y);
-    using State = calib::RawSample::State;
-    switch (s.state) {
-      case protocol::EyeMovement::Fixation: r.state = State::Fixation; break;
-      case protocol::EyeMovement::Saccade: r.state = State::Saccade; break;
-      case protocol::EyeMovement::Pursuit: r.state = State::Pursuit; break;
-      case protocol::EyeMovement::Blink: r.state = State::Blink; break;
-      default: r.state = State::Unknown; break;
-    }
-    out.push_back(r);
-  }
-  return out;
+  return calib::to_raw_samples(
+      samples, input == CalibrationInput::PupilGlint ? calib::GazeInput::PupilGlint : calib::GazeInput::Screen,
+      eye == EyeSide::Left, display);
 }
 
 cv::Point3d parse_head_offset(const std::string& text) {
