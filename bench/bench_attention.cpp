@@ -67,7 +67,7 @@ struct Row {
   std::string input, method;
   int map = 0;
   std::size_t frames = 0;
-  Stats total, saliency, object;
+  Stats total, saliency, resample, object;
   std::size_t objects = 0;  // listed objects, last frame
 };
 
@@ -111,13 +111,14 @@ void synthetic_objects(std::vector<Row>& rows, int frames) {
     attention::AttentionSettings s;
     s.map_size = map;
     attention::AttentionTracker tracker(s);
-    Row row{"synthetic 256 objects 512x512", "fovea object stage", map, 0, {}, {}, {}, 0};
+    Row row{"synthetic 256 objects 512x512", "fovea object stage", map, 0, {}, {}, {}, {}, 0};
     for (int k = 0; k <= frames; ++k) {
       const double t = k / 60.0;
       const auto& f = tracker.update(g, scene, t, k == 0 ? t : t - 1.0 / 60);
       if (k == 0) continue;
       row.total.ms.push_back(f.seconds * 1e3);
       row.saliency.ms.push_back(f.saliency_seconds * 1e3);
+      row.resample.ms.push_back(f.resample_seconds * 1e3);
       row.object.ms.push_back((f.seconds - f.saliency_seconds) * 1e3);
       row.objects = f.objects.size();
     }
@@ -130,10 +131,12 @@ void synthetic_objects(std::vector<Row>& rows, int frames) {
 
 int main(int argc, char** argv) {
   CLI::App app{"Attention tracking (Lee 2009 ch. 3) time per frame versus map size, with OpenCV saliency as a peer"};
-  int frames = 40;
+  int frames = 40, rounds = 1;
   std::string csv_path, sizes_text = "512x512,960x540", maps_text = "64,128,256,512";
   std::string scene_path = std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/attention.json";
   app.add_option("--frames", frames, "frames over the scene's 8 s animation")->check(CLI::Range(5, 100000));
+  app.add_option("--rounds", rounds, "time every stored frame this many times (more samples, same frames)")
+      ->check(CLI::Range(1, 1000));
   app.add_option("--csv", csv_path, "also write the table as CSV");
   app.add_option("--sizes", sizes_text, "G-buffer resolutions, WxH comma-separated");
   app.add_option("--scene", scene_path, "scene file");
@@ -153,7 +156,7 @@ int main(int argc, char** argv) {
     EmbreeBackend backend;
     backend.set_scene(scene);
     const std::string input = scene.name + " " + std::to_string(w) + "x" + std::to_string(h);
-    std::map<int, attention::AttentionTracker> trackers;
+    std::map<int, attention::AttentionTracker> trackers, nearest;  // attention.resample box / nearest
     std::map<std::string, Row> by_key;
     const auto row_for = [&](const std::string& method, int map) -> Row& {
       Row& r = by_key[method + "/" + std::to_string(1000 + map)];
@@ -166,15 +169,35 @@ int main(int argc, char** argv) {
       attention::AttentionSettings s;
       s.map_size = m;
       trackers.emplace(m, attention::AttentionTracker(s));
+      s.resample = attention::Resample::Nearest;
+      nearest.emplace(m, attention::AttentionTracker(s));
     }
     auto spectral = cv::saliency::StaticSaliencySpectralResidual::create();
     auto fine = cv::saliency::StaticSaliencyFineGrained::create();
-    GBuffer g;
+    // Render every frame first, then time the methods over the stored frames: the renderer's own
+    // time and cache traffic do not land between the timed updates.
+    std::vector<GBuffer> frames_g(static_cast<std::size_t>(frames) + 1);
+    std::vector<cv::Mat> frames_bgr;
     for (int k = 0; k <= frames; ++k) {
       const double t = 8.0 * k / frames, previous = k == 0 ? t : t - 1.0 / 60;
-      backend.render({t, previous}, {}, g);
-      const cv::Mat bgr = to_bgr8(g);
+      backend.render({t, previous}, {}, frames_g[static_cast<std::size_t>(k)]);
+      frames_bgr.push_back(to_bgr8(frames_g[static_cast<std::size_t>(k)]));
+    }
+    for (int round = 0; round < rounds; ++round) {
+    for (int k = 0; k <= frames; ++k) {
+      const double t = 8.0 * k / frames, previous = k == 0 ? t : t - 1.0 / 60;
+      const GBuffer& g = frames_g[static_cast<std::size_t>(k)];
+      const cv::Mat& bgr = frames_bgr[static_cast<std::size_t>(k)];
       for (int m : maps) {
+        const auto& fn = nearest.at(m).update(g, scene, t, previous);
+        if (k > 0 || round > 0) {
+          Row& r = row_for("fovea, nearest resample", m);
+          r.total.ms.push_back(fn.seconds * 1e3);
+          r.saliency.ms.push_back(fn.saliency_seconds * 1e3);
+          r.resample.ms.push_back(fn.resample_seconds * 1e3);
+          r.object.ms.push_back((fn.seconds - fn.saliency_seconds) * 1e3);
+          r.objects = fn.objects.size();
+        }
         const auto& f = trackers.at(m).update(g, scene, t, previous);
         cv::Mat small, out;
         auto start = Clock::now();
@@ -185,10 +208,11 @@ int main(int argc, char** argv) {
         cv::resize(bgr, small, cv::Size(m, m), 0, 0, cv::INTER_AREA);
         fine->computeSaliency(small, out);
         const double fine_ms = ms_since(start);
-        if (k == 0) continue;  // warm-up
+        if (k == 0 && round == 0) continue;  // warm-up
         Row& r = row_for("fovea (Lee 2009)", m);
         r.total.ms.push_back(f.seconds * 1e3);
         r.saliency.ms.push_back(f.saliency_seconds * 1e3);
+        r.resample.ms.push_back(f.resample_seconds * 1e3);
         r.object.ms.push_back((f.seconds - f.saliency_seconds) * 1e3);
         r.objects = f.objects.size();
         row_for("opencv spectral residual", m).saliency.ms.push_back(spectral_ms);
@@ -197,6 +221,7 @@ int main(int argc, char** argv) {
         row_for("opencv fine grained", m).total.ms.push_back(fine_ms);
       }
     }
+    }
     for (auto& [key, r] : by_key) {
       r.frames = r.total.ms.size();
       rows.push_back(std::move(r));
@@ -204,8 +229,8 @@ int main(int argc, char** argv) {
   }
   synthetic_objects(rows, std::max(frames, 30));
 
-  std::printf("%-32s %-26s %5s %6s %10s %10s %12s %10s %8s\n", "input", "method", "map", "frames", "total_ms",
-              "p95_ms", "saliency_ms", "object_ms", "objects");
+  std::printf("%-32s %-26s %5s %6s %10s %10s %12s %12s %10s %8s\n", "input", "method", "map", "frames", "total_ms",
+              "p95_ms", "saliency_ms", "resample_ms", "object_ms", "objects");
   std::ofstream csv;
   if (!csv_path.empty()) {
     csv.open(csv_path);
@@ -213,17 +238,20 @@ int main(int argc, char** argv) {
       std::cerr << "cannot write " << csv_path << "\n";
       return 1;
     }
-    csv << "input,method,map,frames,total_median_ms,total_p95_ms,saliency_median_ms,object_median_ms,objects\n";
+    csv << "input,method,map,frames,total_median_ms,total_p95_ms,saliency_median_ms,resample_median_ms,object_median_ms,"
+           "objects\n";
   }
   for (const Row& r : rows) {
     const bool ours = r.method.rfind("fovea", 0) == 0;
-    std::printf("%-32s %-26s %5d %6zu %10.3f %10.3f %12.3f %10s %8s\n", r.input.c_str(), r.method.c_str(), r.map,
+    std::printf("%-32s %-26s %5d %6zu %10.3f %10.3f %12.3f %12s %10s %8s\n", r.input.c_str(), r.method.c_str(), r.map,
                 r.frames, r.total.median(), r.total.p95(), r.saliency.median(),
+                ours ? std::to_string(r.resample.median()).substr(0, 6).c_str() : "-",
                 ours ? std::to_string(r.object.median()).substr(0, 6).c_str() : "-",
                 ours ? std::to_string(r.objects).c_str() : "-");
     if (csv) {
       csv << r.input << "," << r.method << "," << r.map << "," << r.frames << "," << r.total.median() << ","
-          << r.total.p95() << "," << r.saliency.median() << "," << (ours ? std::to_string(r.object.median()) : "")
+          << r.total.p95() << "," << r.saliency.median() << "," << (ours ? std::to_string(r.resample.median()) : "") << ","
+          << (ours ? std::to_string(r.object.median()) : "")
           << "," << (ours ? std::to_string(r.objects) : "") << "\n";
     }
   }

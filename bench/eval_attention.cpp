@@ -466,18 +466,22 @@ int evaluate(const EvalOptions& o) {
   constexpr std::size_t kFull = 7;
   std::map<int, attention::AttentionTracker> sweep;
   std::map<int, Score> sweep_scores;
+  // Keys: m for box resampling, -m for nearest (attention.resample), both full model.
   for (int m : maps) {
-    if (m != amap) {
-      attention::AttentionSettings s;
-      s.map_size = m;
-      sweep.emplace(m, attention::AttentionTracker(s));
+    for (const int key : {m, -m}) {
+      if (key != amap) {
+        attention::AttentionSettings s;
+        s.map_size = m;
+        s.resample = key < 0 ? attention::Resample::Nearest : attention::Resample::Box;
+        sweep.emplace(key, attention::AttentionTracker(s));
+      }
+      Score sc;
+      sc.section = "map_size";
+      sc.method = key < 0 ? "fovea nearest" : "fovea";
+      sc.b = sc.e = sc.t = 1;
+      sc.map = m;
+      sweep_scores[key] = sc;
     }
-    Score sc;
-    sc.section = "map_size";
-    sc.method = "fovea";
-    sc.b = sc.e = sc.t = 1;
-    sc.map = m;
-    sweep_scores[m] = sc;
   }
   const auto baseline = [&](const std::string& method, int t) {
     Score sc;
@@ -640,11 +644,11 @@ int evaluate(const EvalOptions& o) {
     put("%-28s %-4s %5d %7.3f %7.3f %7.3f %6zu/%5zu/%5zu %10.3f\n", s.method.c_str(),
         s.t < 0 ? "-" : (s.t ? "1" : "0"), s.map, s.a(0), s.a(1), s.a(2), s.hits[0], s.hits[1], s.hits[2], s.ms());
   }
-  put("\nMap size, full model (B E T), %zu frames\n", scored);
-  put("%-9s %7s %7s %7s %18s %10s\n", "map", "A1", "A2", "A3", "hits (1/2/3)", "ms/frame");
-  for (const auto& [m, s] : sweep_scores) {
-    put("%4dx%-4d %7.3f %7.3f %7.3f %6zu/%5zu/%5zu %10.3f\n", m, m, s.a(0), s.a(1), s.a(2), s.hits[0], s.hits[1],
-        s.hits[2], s.ms());
+  put("\nMap size and resampling (attention.resample), full model (B E T), %zu frames\n", scored);
+  put("%-9s %-8s %7s %7s %7s %18s %10s\n", "map", "resample", "A1", "A2", "A3", "hits (1/2/3)", "ms/frame");
+  for (const auto& [key, s] : sweep_scores) {
+    put("%4dx%-4d %-8s %7.3f %7.3f %7.3f %6zu/%5zu/%5zu %10.3f\n", s.map, s.map, key < 0 ? "nearest" : "box", s.a(0),
+        s.a(1), s.a(2), s.hits[0], s.hits[1], s.hits[2], s.ms());
   }
   put("\nGazed object versus the full model's first choice (map %dx%d), frames\n", amap, amap);
   put("%-20s %5s %8s %10s\n", "object", "T_i", "gazed", "ranked 1st");

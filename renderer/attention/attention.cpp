@@ -37,34 +37,33 @@ namespace {
 constexpr int kLevels = 7;  // pyramid levels 0 (finest) to 6 (coarsest), Lee 2009 §3.1.1
 enum Feature { kLum = 0, kHue = 1, kDepth = 2, kSize = 3, kMotion = 4 };
 
-// One level of a feature pyramid (one or two channels interleaved).
+// One level of a one-channel feature pyramid.
 struct Level {
   int w = 0, h = 0;
-  std::vector<float> v;  // w * h * channels
+  std::vector<float> v;  // w * h
 };
+using Pyramid = Level[kLevels];
 
 // 2x2 box downsampling (what glGenerateMipmap does for power-of-two sizes). For an odd size the level
 // below is ceil(n / 2) and the missing texel of the last 2x2 block repeats the edge texel.
-void downsample(const Level& src, Level& dst, int ch) {
+void downsample(const Level& src, Level& dst) {
   dst.w = std::max(1, (src.w + 1) / 2);
   dst.h = std::max(1, (src.h + 1) / 2);
-  dst.v.assign(static_cast<std::size_t>(dst.w) * static_cast<std::size_t>(dst.h) * static_cast<std::size_t>(ch), 0.0f);
+  const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(dst.w);
+  dst.v.resize(dw * static_cast<std::size_t>(dst.h));
+  const std::size_t pairs = sw / 2;  // whole 2x2 blocks per row
   for (int y = 0; y < dst.h; ++y) {
-    const int y0 = std::min(2 * y, src.h - 1), y1 = std::min(2 * y + 1, src.h - 1);
-    for (int x = 0; x < dst.w; ++x) {
-      const int x0 = std::min(2 * x, src.w - 1), x1 = std::min(2 * x + 1, src.w - 1);
-      for (int c = 0; c < ch; ++c) {
-        const auto at = [&](int xx, int yy) {
-          return src.v[(static_cast<std::size_t>(yy) * static_cast<std::size_t>(src.w) + static_cast<std::size_t>(xx)) *
-                           static_cast<std::size_t>(ch) +
-                       static_cast<std::size_t>(c)];
-        };
-        dst.v[(static_cast<std::size_t>(y) * static_cast<std::size_t>(dst.w) + static_cast<std::size_t>(x)) *
-                  static_cast<std::size_t>(ch) +
-              static_cast<std::size_t>(c)] = 0.25f * (at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1));
-      }
-    }
+    const float* __restrict a = src.v.data() + static_cast<std::size_t>(std::min(2 * y, src.h - 1)) * sw;
+    const float* __restrict b = src.v.data() + static_cast<std::size_t>(std::min(2 * y + 1, src.h - 1)) * sw;
+    float* __restrict o = dst.v.data() + static_cast<std::size_t>(y) * dw;
+#pragma omp simd
+    for (std::size_t x = 0; x < pairs; ++x) o[x] = 0.25f * (a[2 * x] + a[2 * x + 1] + b[2 * x] + b[2 * x + 1]);
+    if (pairs < dw) o[pairs] = 0.5f * (a[sw - 1] + b[sw - 1]);  // odd width: the edge texel twice
   }
+}
+
+void build_pyramid(Pyramid& pyr) {
+  for (int l = 1; l < kLevels; ++l) downsample(pyr[l - 1], pyr[l]);
 }
 
 // Bilinear magnification of a coarse level onto the n samples of level 0 along one axis, as a GPU's
@@ -91,83 +90,129 @@ Axis axis(int n, int m) {
   return a;
 }
 
-// Eq. 3.4 for one feature (ch = 1, or 2 for the hue vector, whose difference is the Euclidean
-// distance of the two vectors): C = 1/6 sum_{i in 0..2} sum_{j in 3,4} |B^i - B^{i+j}|, every level
-// sampled at the level-0 pixel (Fig. 3.3's shader: texture2D(DSM, tc0, i)), coarse levels by
-// bilinear magnification. Works row by row: the levels are first magnified horizontally (h_L x n
-// each), then each output row is a vertical lerp of two of those rows.
-void centre_surround(const Level (&pyr)[kLevels], int ch, int n, std::vector<float>& out) {
-  const auto un = static_cast<std::size_t>(n), uch = static_cast<std::size_t>(ch);
-  out.assign(un * un, 0.0f);
-  std::vector<float> horizontal[kLevels];
+// The coarse levels 1..6 of a pyramid magnified horizontally to n columns (h_L rows each), and the
+// vertical lerp of each output row: level-0 row y of level L is a[y] + f[y] (b[y] - a[y]).
+struct Magnified {
+  std::vector<float> rows[kLevels];
   Axis vertical[kLevels];
-  for (int l = 1; l < kLevels; ++l) {
-    const Level& lv = pyr[l];
-    const Axis ax = axis(n, lv.w);
-    vertical[l] = axis(n, lv.h);
-    auto& hz = horizontal[l];
-    hz.resize(static_cast<std::size_t>(lv.h) * un * uch);
-    for (int y = 0; y < lv.h; ++y) {
-      const float* row = lv.v.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(lv.w) * uch;
-      float* o = hz.data() + static_cast<std::size_t>(y) * un * uch;
-      for (std::size_t x = 0; x < un; ++x) {
-        const auto a = static_cast<std::size_t>(ax.i0[x]) * uch, b = static_cast<std::size_t>(ax.i1[x]) * uch;
-        for (std::size_t c = 0; c < uch; ++c) o[x * uch + c] = row[a + c] + ax.f[x] * (row[b + c] - row[a + c]);
+  void build(const Pyramid& pyr, int n) {
+    const auto un = static_cast<std::size_t>(n);
+    for (int l = 1; l < kLevels; ++l) {
+      const Level& lv = pyr[l];
+      const Axis ax = axis(n, lv.w);
+      vertical[l] = axis(n, lv.h);
+      auto& hz = rows[l];
+      hz.resize(static_cast<std::size_t>(lv.h) * un);
+      for (int y = 0; y < lv.h; ++y) {
+        const float* row = lv.v.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(lv.w);
+        float* o = hz.data() + static_cast<std::size_t>(y) * un;
+        for (std::size_t x = 0; x < un; ++x) {
+          const float p = row[ax.i0[x]], q = row[ax.i1[x]];
+          o[x] = p + ax.f[x] * (q - p);
+        }
       }
     }
   }
-  std::vector<float> rows(static_cast<std::size_t>(kLevels) * un * uch);
-  for (std::size_t y = 0; y < un; ++y) {
-    const float* r[kLevels];
-    r[0] = pyr[0].v.data() + y * un * uch;
+  struct Row {
+    const float* a[kLevels];
+    const float* b[kLevels];
+    float f[kLevels];
+  };
+  Row row(std::size_t y, std::size_t un) const {
+    Row r{};
     for (int l = 1; l < kLevels; ++l) {
-      const Axis& ay = vertical[l];
-      const float* a = horizontal[l].data() + static_cast<std::size_t>(ay.i0[y]) * un * uch;
-      const float* b = horizontal[l].data() + static_cast<std::size_t>(ay.i1[y]) * un * uch;
-      const float f = ay.f[y];
-      float* o = rows.data() + static_cast<std::size_t>(l) * un * uch;
-      for (std::size_t k = 0; k < un * uch; ++k) o[k] = a[k] + f * (b[k] - a[k]);
-      r[l] = o;
+      r.a[l] = rows[l].data() + static_cast<std::size_t>(vertical[l].i0[y]) * un;
+      r.b[l] = rows[l].data() + static_cast<std::size_t>(vertical[l].i1[y]) * un;
+      r.f[l] = vertical[l].f[y];
     }
-    float* c_out = out.data() + y * un;
-    if (ch == 1) {
-      for (std::size_t x = 0; x < un; ++x) {
-        c_out[x] = (std::fabs(r[0][x] - r[3][x]) + std::fabs(r[0][x] - r[4][x]) + std::fabs(r[1][x] - r[4][x]) +
-                    std::fabs(r[1][x] - r[5][x]) + std::fabs(r[2][x] - r[5][x]) + std::fabs(r[2][x] - r[6][x])) /
-                   6.0f;
-      }
-    } else {
-      const auto d = [&](int i, int j, std::size_t x) {
-        const float da = r[i][2 * x] - r[j][2 * x], db = r[i][2 * x + 1] - r[j][2 * x + 1];
-        return std::sqrt(da * da + db * db);
-      };
-      for (std::size_t x = 0; x < un; ++x) {
-        c_out[x] = (d(0, 3, x) + d(0, 4, x) + d(1, 4, x) + d(1, 5, x) + d(2, 5, x) + d(2, 6, x)) / 6.0f;
-      }
+    return r;
+  }
+};
+
+// Eq. 3.4 for one feature: C = 1/6 sum_{i in 0..2} sum_{j in 3,4} |B^i - B^{i+j}|, every level
+// sampled at the level-0 pixel (Fig. 3.3's shader: texture2D(DSM, tc0, i)), coarse levels by
+// bilinear magnification (first horizontally per level, then a vertical lerp per output row, fused
+// with the differences so the row loop vectorises).
+void centre_surround(const Pyramid& pyr, int n, Magnified& mg, std::vector<float>& out) {
+  const auto un = static_cast<std::size_t>(n);
+  out.resize(un * un);
+  mg.build(pyr, n);
+  for (std::size_t y = 0; y < un; ++y) {
+    const Magnified::Row r = mg.row(y, un);
+    const float* __restrict p0 = pyr[0].v.data() + y * un;
+    const float *__restrict a1 = r.a[1], *__restrict b1 = r.b[1], *__restrict a2 = r.a[2], *__restrict b2 = r.b[2];
+    const float *__restrict a3 = r.a[3], *__restrict b3 = r.b[3], *__restrict a4 = r.a[4], *__restrict b4 = r.b[4];
+    const float *__restrict a5 = r.a[5], *__restrict b5 = r.b[5], *__restrict a6 = r.a[6], *__restrict b6 = r.b[6];
+    const float f1 = r.f[1], f2 = r.f[2], f3 = r.f[3], f4 = r.f[4], f5 = r.f[5], f6 = r.f[6];
+    float* __restrict o = out.data() + y * un;
+#pragma omp simd
+    for (std::size_t x = 0; x < un; ++x) {
+      const float v0 = p0[x];
+      const float v1 = a1[x] + f1 * (b1[x] - a1[x]), v2 = a2[x] + f2 * (b2[x] - a2[x]);
+      const float v3 = a3[x] + f3 * (b3[x] - a3[x]), v4 = a4[x] + f4 * (b4[x] - a4[x]);
+      const float v5 = a5[x] + f5 * (b5[x] - a5[x]), v6 = a6[x] + f6 * (b6[x] - a6[x]);
+      o[x] = (std::fabs(v0 - v3) + std::fabs(v0 - v4) + std::fabs(v1 - v4) + std::fabs(v1 - v5) + std::fabs(v2 - v5) +
+              std::fabs(v2 - v6)) *
+             (1.0f / 6.0f);
     }
   }
 }
 
-void build_pyramid(Level (&pyr)[kLevels], int ch) {
-  for (int l = 1; l < kLevels; ++l) downsample(pyr[l - 1], pyr[l], ch);
+// Eq. 3.4 for the hue vector (two pyramids, its components): |B^i - B^{i+j}| is the Euclidean
+// distance between the two levels' vectors.
+void centre_surround_vector(const Pyramid& pu, const Pyramid& pw, int n, Magnified& mu, Magnified& mw,
+                            std::vector<float>& out) {
+  const auto un = static_cast<std::size_t>(n);
+  out.resize(un * un);
+  mu.build(pu, n);
+  mw.build(pw, n);
+  for (std::size_t y = 0; y < un; ++y) {
+    const Magnified::Row r = mu.row(y, un), q = mw.row(y, un);
+    const float *__restrict u0 = pu[0].v.data() + y * un, *__restrict w0 = pw[0].v.data() + y * un;
+    const float *__restrict ua1 = r.a[1], *__restrict ub1 = r.b[1], *__restrict ua2 = r.a[2], *__restrict ub2 = r.b[2];
+    const float *__restrict ua3 = r.a[3], *__restrict ub3 = r.b[3], *__restrict ua4 = r.a[4], *__restrict ub4 = r.b[4];
+    const float *__restrict ua5 = r.a[5], *__restrict ub5 = r.b[5], *__restrict ua6 = r.a[6], *__restrict ub6 = r.b[6];
+    const float *__restrict wa1 = q.a[1], *__restrict wb1 = q.b[1], *__restrict wa2 = q.a[2], *__restrict wb2 = q.b[2];
+    const float *__restrict wa3 = q.a[3], *__restrict wb3 = q.b[3], *__restrict wa4 = q.a[4], *__restrict wb4 = q.b[4];
+    const float *__restrict wa5 = q.a[5], *__restrict wb5 = q.b[5], *__restrict wa6 = q.a[6], *__restrict wb6 = q.b[6];
+    const float f1 = r.f[1], f2 = r.f[2], f3 = r.f[3], f4 = r.f[4], f5 = r.f[5], f6 = r.f[6];
+    float* __restrict o = out.data() + y * un;
+#pragma omp simd
+    for (std::size_t x = 0; x < un; ++x) {
+      const float x0 = u0[x], y0 = w0[x];
+      const float x1 = ua1[x] + f1 * (ub1[x] - ua1[x]), y1 = wa1[x] + f1 * (wb1[x] - wa1[x]);
+      const float x2 = ua2[x] + f2 * (ub2[x] - ua2[x]), y2 = wa2[x] + f2 * (wb2[x] - wa2[x]);
+      const float x3 = ua3[x] + f3 * (ub3[x] - ua3[x]), y3 = wa3[x] + f3 * (wb3[x] - wa3[x]);
+      const float x4 = ua4[x] + f4 * (ub4[x] - ua4[x]), y4 = wa4[x] + f4 * (wb4[x] - wa4[x]);
+      const float x5 = ua5[x] + f5 * (ub5[x] - ua5[x]), y5 = wa5[x] + f5 * (wb5[x] - wa5[x]);
+      const float x6 = ua6[x] + f6 * (ub6[x] - ua6[x]), y6 = wa6[x] + f6 * (wb6[x] - wa6[x]);
+      const float d03 = std::sqrt((x0 - x3) * (x0 - x3) + (y0 - y3) * (y0 - y3));
+      const float d04 = std::sqrt((x0 - x4) * (x0 - x4) + (y0 - y4) * (y0 - y4));
+      const float d14 = std::sqrt((x1 - x4) * (x1 - x4) + (y1 - y4) * (y1 - y4));
+      const float d15 = std::sqrt((x1 - x5) * (x1 - x5) + (y1 - y5) * (y1 - y5));
+      const float d25 = std::sqrt((x2 - x5) * (x2 - x5) + (y2 - y5) * (y2 - y5));
+      const float d26 = std::sqrt((x2 - x6) * (x2 - x6) + (y2 - y6) * (y2 - y6));
+      o[x] = (d03 + d04 + d14 + d15 + d25 + d26) * (1.0f / 6.0f);
+    }
+  }
 }
 
 // (cos, sin) of the hue angle h6 * 60 deg, h6 in [0, 6): a table of 1536 steps with linear
 // interpolation (error < 3e-6, far below the 8-bit colour it stands for), instead of two libm
 // calls per map pixel.
-glm::dvec2 hue_direction(double h6) {
+glm::vec2 hue_direction(float h6) {
   constexpr int kSteps = 1536;
-  static const std::vector<glm::dvec2> table = [] {
-    std::vector<glm::dvec2> t(kSteps + 1);
+  static const std::vector<glm::vec2> table = [] {
+    std::vector<glm::vec2> t(kSteps + 1);
     for (int i = 0; i <= kSteps; ++i) {
       const double a = 2.0 * std::numbers::pi * i / kSteps;
-      t[static_cast<std::size_t>(i)] = {std::cos(a), std::sin(a)};
+      t[static_cast<std::size_t>(i)] = {static_cast<float>(std::cos(a)), static_cast<float>(std::sin(a))};
     }
     return t;
   }();
-  const double s = (h6 > 0 ? std::min(h6, 6.0) : 0.0) * (kSteps / 6.0);  // NaN: 0 (never a NaN cast)
+  const float s = (h6 > 0 ? std::min(h6, 6.0f) : 0.0f) * (kSteps / 6.0f);  // NaN: 0 (never a NaN cast)
   const auto i = std::min(static_cast<std::size_t>(s), static_cast<std::size_t>(kSteps - 1));
-  const double f = s - static_cast<double>(i);
+  const float f = s - static_cast<float>(i);
   return table[i] + f * (table[i + 1] - table[i]);
 }
 
@@ -184,9 +229,27 @@ struct Slot {
   std::vector<float> depths;
 };
 
+// The planar feature maps (level 0 of each pyramid): L, the hue vector's two components, and the
+// DSM texture of Fig. 3.3 (depth, size, motion) as three planes.
+enum Plane { kPL = 0, kPHa, kPHb, kPDepth, kPSize, kPMotion, kPlanes };
+
 }  // namespace
 
-AttentionTracker::AttentionTracker(AttentionSettings settings) : settings_(settings) { settings_.check(); }
+// Buffers reused from frame to frame: allocating ~2 MB of maps per frame costs page faults.
+struct AttentionTracker::Scratch {
+  Pyramid planes[kPlanes];
+  Magnified magnified[kPlanes];
+  std::vector<float> map_depth, sbar;
+  std::vector<std::uint32_t> map_slot;
+};
+
+AttentionTracker::AttentionTracker(AttentionSettings settings)
+    : settings_(settings), scratch_(std::make_unique<Scratch>()) {
+  settings_.check();
+}
+AttentionTracker::~AttentionTracker() = default;
+AttentionTracker::AttentionTracker(AttentionTracker&&) noexcept = default;
+AttentionTracker& AttentionTracker::operator=(AttentionTracker&&) noexcept = default;
 
 void AttentionTracker::set_settings(const AttentionSettings& s) {
   s.check();
@@ -275,7 +338,8 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
 
   // --- Resample the G-buffer to n x n ----------------------------------------------------------
   // Colour and depth: box filter (the mean of the source pixels whose centres fall in the map
-  // pixel; when the map is finer than the image, the one source pixel under the map pixel's centre).
+  // pixel; when the map is finer than the image, or with Resample::Nearest, the one source pixel
+  // under the map pixel's centre).
   // Ids and the per-object depth: nearest (the source pixel under the map pixel's centre): ids must
   // not be averaged. The map is square like the paper's (64^2 .. 512^2); the image's aspect is not kept.
   // HDR colour is clamped to [0, 1] per source pixel before filtering: HLS is a display-colour model
@@ -295,7 +359,7 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
       const int centre = std::clamp(static_cast<int>(std::floor((kk + 0.5) * s / n)), 0, static_cast<int>(size) - 1);
       lo = std::clamp(lo, 0, static_cast<int>(size));
       hi = std::clamp(hi, 0, static_cast<int>(size));
-      if (hi <= lo) {
+      if (hi <= lo || settings_.resample == Resample::Nearest) {
         lo = centre;
         hi = centre + 1;
       }
@@ -307,113 +371,157 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
     range(H, cy0, cy1, ny);
   }
 
-  Level lum[kLevels], hue[kLevels], dsm[kLevels];  // DSM interleaves depth, size, motion (Fig. 3.3)
-  for (Level* p : {&lum[0], &hue[0], &dsm[0]}) {
-    p->w = p->h = n;
+  Scratch& sc = *scratch_;
+  auto& planes = sc.planes;
+  for (Pyramid& p : planes) {
+    p[0].w = p[0].h = n;
+    p[0].v.assign(npix, 0.0f);
   }
-  lum[0].v.assign(npix, 0.0f);
-  hue[0].v.assign(npix * 2, 0.0f);
-  dsm[0].v.assign(npix * 3, 0.0f);
+  float* __restrict lum0 = planes[kPL][0].v.data();
+  float* __restrict hue_a0 = planes[kPHa][0].v.data();
+  float* __restrict hue_b0 = planes[kPHb][0].v.data();
+  float* __restrict depth0 = planes[kPDepth][0].v.data();
   f.ids.assign(npix, 0);
-  std::vector<float> map_depth(npix, ffar);  // nearest: per-object median depth
+  std::vector<float>& map_depth = sc.map_depth;  // nearest: per-object median depth
+  map_depth.assign(npix, ffar);
 
-  // Per map row: accumulate the source rows of its box column by column (r, g, b, z per map pixel),
-  // then convert. Comparisons written as `v > 0 ? v : 0` map NaN to the fallback without a branch.
-  // Map rows are independent: split over the cores (TBB), each range with its own scratch rows.
+  // Per map row: the box's source rows summed per source column (straight loops over whole rows;
+  // comparisons written as `v > 0 ? v : 0` map NaN to the fallback without a branch), then the
+  // columns of each map pixel's box summed, then HLS. Map rows are independent: split over the cores
+  // (TBB), each range with its own scratch rows.
+  static_assert(sizeof(glm::vec3) == 3 * sizeof(float), "the colour plane is read as packed floats");
   const float depth_fallback = ffar;
-  // Per map row: first the box's source rows summed per source column (straight loops over whole
-  // rows), then the columns of each map pixel's box summed.
-  const auto resample_rows = [&](std::size_t y_begin, std::size_t y_end) {
-  std::vector<float> col(W * 4), acc(un * 4);
-  for (std::size_t y = y_begin; y < y_end && has_image; ++y) {
-    std::fill(col.begin(), col.end(), 0.0f);
+  const float fz_near = fnear, fz_inv_range = static_cast<float>(1.0 / z_range);
+  // Box: the source rows of map row y summed per source column.
+  const auto accumulate_box_rows = [&](std::size_t y, std::vector<float>& col_rgb, std::vector<float>& col_z) {
+    std::fill(col_rgb.begin(), col_rgb.end(), 0.0f);
+    std::fill(col_z.begin(), col_z.end(), 0.0f);
+    float* __restrict crgb = col_rgb.data();
+    float* __restrict cz = col_z.data();
     for (int sy = cy0[y]; sy < cy1[y]; ++sy) {
       const std::size_t row = static_cast<std::size_t>(sy) * W;
       if (has_color) {
-        const glm::vec3* c = g.color.data() + row;
-        for (std::size_t sx = 0; sx < W; ++sx) {
-          const float cr = c[sx].x > 0.0f ? c[sx].x : 0.0f, cg = c[sx].y > 0.0f ? c[sx].y : 0.0f,
-                      cb = c[sx].z > 0.0f ? c[sx].z : 0.0f;  // NaN: 0
-          col[4 * sx] += cr < 1.0f ? cr : 1.0f;
-          col[4 * sx + 1] += cg < 1.0f ? cg : 1.0f;
-          col[4 * sx + 2] += cb < 1.0f ? cb : 1.0f;
+        const float* __restrict c = &g.color[row].x;
+#pragma omp simd
+        for (std::size_t i = 0; i < 3 * W; ++i) {
+          const float v = c[i] > 0.0f ? c[i] : 0.0f;  // NaN: 0
+          crgb[i] += v < 1.0f ? v : 1.0f;
         }
       }
       // Background pixels (id 0) sit at the far plane whatever the depth plane says; NaN and +Inf: far.
       if (has_depth) {
-        const float* dp = g.depth.data() + row;
-        const std::uint32_t* ip = has_ids ? g.object_id.data() + row : nullptr;
-        for (std::size_t sx = 0; sx < W; ++sx) {
-          float d = dp[sx] < ffar ? dp[sx] : ffar;
-          d = d > fnear ? d : fnear;
-          col[4 * sx + 3] += (ip == nullptr || ip[sx] != 0) ? d : depth_fallback;
+        const float* __restrict dp = g.depth.data() + row;
+        if (has_ids) {
+          const std::uint32_t* __restrict ip = g.object_id.data() + row;
+#pragma omp simd
+          for (std::size_t sx = 0; sx < W; ++sx) {
+            float d = dp[sx] < ffar ? dp[sx] : ffar;
+            d = d > fnear ? d : fnear;
+            cz[sx] += ip[sx] != 0 ? d : depth_fallback;
+          }
+        } else {
+#pragma omp simd
+          for (std::size_t sx = 0; sx < W; ++sx) {
+            const float d = dp[sx] < ffar ? dp[sx] : ffar;
+            cz[sx] += d > fnear ? d : fnear;
+          }
         }
       } else {
-        for (std::size_t sx = 0; sx < W; ++sx) col[4 * sx + 3] += depth_fallback;
+        for (std::size_t sx = 0; sx < W; ++sx) cz[sx] += depth_fallback;
       }
     }
+  };
+  // Nearest: the one source pixel under each map pixel's centre, read directly (no pass over whole
+  // source rows), into the same per-column layout with one column per map pixel.
+  const auto read_nearest_row = [&](std::size_t y, std::vector<float>& col_rgb, std::vector<float>& col_z) {
+    const std::size_t row = static_cast<std::size_t>(ny[y]) * W;
     for (std::size_t x = 0; x < un; ++x) {
-      float r = 0, gg = 0, b = 0, z = 0;
-      for (int sx = cx0[x]; sx < cx1[x]; ++sx) {
-        const float* c = col.data() + 4 * static_cast<std::size_t>(sx);
-        r += c[0];
-        gg += c[1];
-        b += c[2];
-        z += c[3];
+      const std::size_t i = row + static_cast<std::size_t>(nx[x]);
+      for (glm::length_t c = 0; c < 3; ++c) {
+        const float v = has_color ? g.color[i][c] : 0.0f;
+        const float v0 = v > 0.0f ? v : 0.0f;  // NaN: 0
+        col_rgb[3 * x + static_cast<std::size_t>(c)] = v0 < 1.0f ? v0 : 1.0f;
       }
-      acc[4 * x] = r;
-      acc[4 * x + 1] = gg;
-      acc[4 * x + 2] = b;
-      acc[4 * x + 3] = z;
+      float d = depth_fallback;
+      if (has_depth && (!has_ids || g.object_id[i] != 0)) {
+        d = g.depth[i] < ffar ? g.depth[i] : ffar;
+        d = d > fnear ? d : fnear;
+      }
+      col_z[x] = d;
     }
-    const int rows_in = cy1[y] - cy0[y];
-    for (std::size_t x = 0; x < un; ++x) {
-      const std::size_t m = y * un + x;
-      const int count = rows_in * (cx1[x] - cx0[x]);
-      const double inv = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
-      const glm::dvec3 rgb = glm::dvec3(acc[4 * x], acc[4 * x + 1], acc[4 * x + 2]) * inv;
-      const double z = count > 0 ? static_cast<double>(acc[4 * x + 3]) * inv : static_cast<double>(ffar);
-      // HLS (Lee 2009 §3.1.1): L = (max + min) / 2, S = chroma / (1 - |2L - 1|), H the hexcone angle.
-      // Hue is an angle, so |B_h^i - B_h^{i+j}| of eq. 3.4 is taken between hue vectors
-      // (S cos H, S sin H): the chord between two hues on the colour wheel, scaled by saturation.
-      // Grey pixels have S = 0, the zero vector: no hue, no NaN, and no contrast against any grey.
-      const double mx = std::max({rgb.r, rgb.g, rgb.b}), mn = std::min({rgb.r, rgb.g, rgb.b});
-      const double l = 0.5 * (mx + mn), chroma = mx - mn;
-      double ha = 0, hb = 0;
-      if (chroma > 1e-9) {
-        const double sat = std::clamp(chroma / std::max(1e-9, 1.0 - std::fabs(2.0 * l - 1.0)), 0.0, 1.0);
-        double h6 = 0;  // hue in sixths of a turn
-        if (mx == rgb.r) {
-          h6 = (rgb.g - rgb.b) / chroma;  // in [-1, 1]
-          if (h6 < 0) h6 += 6.0;
-        } else if (mx == rgb.g) {
-          h6 = (rgb.b - rgb.r) / chroma + 2.0;
-        } else {
-          h6 = (rgb.r - rgb.g) / chroma + 4.0;
+  };
+  const bool nearest = settings_.resample == Resample::Nearest;
+  const auto resample_rows = [&](std::size_t y_begin, std::size_t y_end) {
+    std::vector<float> col_rgb(nearest ? un * 3 : W * 3), col_z(nearest ? un : W);
+    for (std::size_t y = y_begin; y < y_end && has_image; ++y) {
+      if (nearest) {
+        read_nearest_row(y, col_rgb, col_z);
+      } else {
+        accumulate_box_rows(y, col_rgb, col_z);
+      }
+      const float* __restrict crgb = col_rgb.data();
+      const float* __restrict cz = col_z.data();
+      const int rows_in = nearest ? 1 : cy1[y] - cy0[y];
+      for (std::size_t x = 0; x < un; ++x) {
+        float r = 0, gg = 0, b = 0, z = 0;
+        const int c0 = nearest ? static_cast<int>(x) : cx0[x], c1 = nearest ? c0 + 1 : cx1[x];
+        for (int sx = c0; sx < c1; ++sx) {
+          const auto k = static_cast<std::size_t>(sx);
+          r += crgb[3 * k];
+          gg += crgb[3 * k + 1];
+          b += crgb[3 * k + 2];
+          z += cz[k];
         }
-        const glm::dvec2 dir = hue_direction(h6);
-        ha = sat * dir.x;
-        hb = sat * dir.y;
+        const std::size_t m = y * un + x;
+        const int count = rows_in * (c1 - c0);
+        const float inv = count > 0 ? 1.0f / static_cast<float>(count) : 0.0f;
+        r *= inv;
+        gg *= inv;
+        b *= inv;
+        z = count > 0 ? z * inv : ffar;
+        // HLS (Lee 2009 §3.1.1): L = (max + min) / 2, S = chroma / (1 - |2L - 1|), H the hexcone angle.
+        // Hue is an angle, so |B_h^i - B_h^{i+j}| of eq. 3.4 is taken between hue vectors
+        // (S cos H, S sin H): the chord between two hues on the colour wheel, scaled by saturation.
+        // Grey pixels have S = 0, the zero vector: no hue, no NaN, and no contrast against any grey.
+        const float mx = std::max({r, gg, b}), mn = std::min({r, gg, b});
+        const float l = 0.5f * (mx + mn), chroma = mx - mn;
+        float ha = 0, hb = 0;
+        if (chroma > 1e-6f) {
+          const float sat = std::clamp(chroma / std::max(1e-6f, 1.0f - std::fabs(2.0f * l - 1.0f)), 0.0f, 1.0f);
+          float h6 = 0;  // hue in sixths of a turn
+          if (mx == r) {
+            h6 = (gg - b) / chroma;  // in [-1, 1]
+            if (h6 < 0) h6 += 6.0f;
+          } else if (mx == gg) {
+            h6 = (b - r) / chroma + 2.0f;
+          } else {
+            h6 = (r - gg) / chroma + 4.0f;
+          }
+          const glm::vec2 dir = hue_direction(h6);
+          ha = sat * dir.x;
+          hb = sat * dir.y;
+        }
+        lum0[m] = l;
+        hue_a0[m] = ha;
+        hue_b0[m] = hb;
+        depth0[m] = std::clamp((z - fz_near) * fz_inv_range, 0.0f, 1.0f);  // eq. 3.1
+        const std::size_t ni = static_cast<std::size_t>(ny[y]) * W + static_cast<std::size_t>(nx[x]);
+        if (has_ids) f.ids[m] = g.object_id[ni];
+        if (has_depth && f.ids[m] != 0) map_depth[m] = std::clamp(finite_or(g.depth[ni], ffar), fnear, ffar);
       }
-      lum[0].v[m] = static_cast<float>(l);
-      hue[0].v[2 * m] = static_cast<float>(ha);
-      hue[0].v[2 * m + 1] = static_cast<float>(hb);
-      dsm[0].v[3 * m] = static_cast<float>(std::clamp((z - z_near) / z_range, 0.0, 1.0));  // eq. 3.1
-      const std::size_t ni = static_cast<std::size_t>(ny[y]) * W + static_cast<std::size_t>(nx[x]);
-      if (has_ids) f.ids[m] = g.object_id[ni];
-      if (has_depth && f.ids[m] != 0) map_depth[m] = std::clamp(finite_or(g.depth[ni], ffar), fnear, ffar);
     }
-  }
   };
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, un, 8),
                     [&](const tbb::blocked_range<std::size_t>& r) { resample_rows(r.begin(), r.end()); });
+  f.resample_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   // --- Object features: B_s (eq. 3.2) and B_m (eq. 3.3) -------------------------------------------
   // B_s counts the pixels of the item buffer as resampled to the map (nearest), over the map's
   // pixels: the map is the image the paper's GPU pass works on, and it spares a second pass over the
   // full-resolution buffer (an object smaller than a map pixel may get 0; it has no pixels in S_p
   // either, so eq. 3.7 cannot list it anyway).
-  std::vector<std::uint32_t> map_slot(npix, 0);
+  std::vector<std::uint32_t>& map_slot = sc.map_slot;
+  map_slot.assign(npix, 0);
   for (std::size_t m = 0; m < npix; ++m) {
     map_slot[m] = slot_for(f.ids[m]);
     if (map_slot[m] != 0) ++slots[map_slot[m] - 1].full_pixels;
@@ -430,68 +538,72 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
     const float d = glm::length(a - b);
     s.motion = (finite(a) && finite(b) && std::isfinite(d)) ? d : 0.0f;
   }
-  for (std::size_t m = 0; m < npix; ++m) {
-    if (map_slot[m] != 0) {
-      dsm[0].v[3 * m + 1] = slots[map_slot[m] - 1].size;
-      dsm[0].v[3 * m + 2] = slots[map_slot[m] - 1].motion;
+  {
+    float* __restrict size0 = planes[kPSize][0].v.data();
+    float* __restrict motion0 = planes[kPMotion][0].v.data();
+    for (std::size_t m = 0; m < npix; ++m) {
+      if (map_slot[m] != 0) {
+        size0[m] = slots[map_slot[m] - 1].size;
+        motion0[m] = slots[map_slot[m] - 1].motion;
+      }
     }
   }
 
   // --- Pyramids, centre-surround (eq. 3.4), weights (eq. 3.6), S_p (eq. 3.5) ----------------------
-  const bool image_group = settings_.groups.image, object_group = settings_.groups.object;
-  for (auto& c : f.contrast) c.assign(npix, 0.0f);
   // The five contrast maps are independent: computed as parallel tasks (TBB).
-  if (object_group) build_pyramid(dsm, 3);
-  const auto dsm_channel = [&](int c) {
-    // Split the interleaved DSM pyramid into a one-channel pyramid for eq. 3.4.
-    Level one[kLevels];
-    for (int l = 0; l < kLevels; ++l) {
-      one[l].w = dsm[l].w;
-      one[l].h = dsm[l].h;
-      const std::size_t sz = static_cast<std::size_t>(dsm[l].w) * static_cast<std::size_t>(dsm[l].h);
-      one[l].v.resize(sz);
-      for (std::size_t i = 0; i < sz; ++i) one[l].v[i] = dsm[l].v[3 * i + static_cast<std::size_t>(c)];
+  const bool image_group = settings_.groups.image, object_group = settings_.groups.object;
+  const auto contrast = [&](bool on, Feature feature, Plane plane) {
+    if (!on) {
+      f.contrast[feature].assign(npix, 0.0f);
+      return;
     }
-    centre_surround(one, 1, n, f.contrast[kDepth + c]);
+    build_pyramid(planes[plane]);
+    centre_surround(planes[plane], n, sc.magnified[plane], f.contrast[feature]);
   };
   tbb::parallel_invoke(
       [&] {
-        if (!image_group) return;
-        build_pyramid(hue, 2);
-        centre_surround(hue, 2, n, f.contrast[kHue]);
+        if (!image_group) {
+          f.contrast[kHue].assign(npix, 0.0f);
+          return;
+        }
+        tbb::parallel_invoke([&] { build_pyramid(planes[kPHa]); }, [&] { build_pyramid(planes[kPHb]); });
+        centre_surround_vector(planes[kPHa], planes[kPHb], n, sc.magnified[kPHa], sc.magnified[kPHb], f.contrast[kHue]);
       },
-      [&] {
-        if (!image_group) return;
-        build_pyramid(lum, 1);
-        centre_surround(lum, 1, n, f.contrast[kLum]);
-      },
-      [&] {
-        if (object_group) dsm_channel(0);
-      },
-      [&] {
-        if (object_group) dsm_channel(1);
-      },
-      [&] {
-        if (object_group) dsm_channel(2);
-      });
+      [&] { contrast(image_group, kLum, kPL); }, [&] { contrast(object_group, kDepth, kPDepth); },
+      [&] { contrast(object_group, kSize, kPSize); }, [&] { contrast(object_group, kMotion, kPMotion); });
   f.saliency.assign(npix, 0.0f);
   if (image_group || object_group) {
-    std::vector<double> sbar(npix, 0.0);
-    for (auto& c : f.contrast) {
+    std::vector<float>& sbar = sc.sbar;
+    sbar.assign(npix, 0.0f);
+    float* __restrict sb = sbar.data();
+    for (auto& map : f.contrast) {
+      float* __restrict c = map.data();
       float mx = 0;
-      for (float& v : c) {
-        if (!std::isfinite(v)) v = 0;  // cannot happen with finite inputs; kept as a guard
+#pragma omp simd reduction(max : mx)
+      for (std::size_t i = 0; i < npix; ++i) {
+        // Contrast is >= 0; NaN and Inf (impossible with finite inputs) become 0 as a guard.
+        const float v = c[i] >= 0.0f && c[i] <= std::numeric_limits<float>::max() ? c[i] : 0.0f;
+        c[i] = v;
         mx = std::max(mx, v);
       }
       if (mx <= 0) continue;  // eq. 3.6: a map without contrast contributes nothing (not 1/0)
-      const double w = 1.0 / static_cast<double>(mx);
-      for (std::size_t i = 0; i < npix; ++i) sbar[i] += w * static_cast<double>(c[i]);
+      const float w = 1.0f / mx;
+#pragma omp simd
+      for (std::size_t i = 0; i < npix; ++i) sb[i] += w * c[i];
     }
     // Normalise to [0, 1] by min and max; a map whose pixels are all equal has no salient pixel: 0.
-    const auto [lo, hi] = std::minmax_element(sbar.begin(), sbar.end());
-    const double span = *hi - *lo;
-    if (span > 1e-12 * std::max(1.0, *hi)) {
-      for (std::size_t i = 0; i < npix; ++i) f.saliency[i] = static_cast<float>(std::clamp((sbar[i] - *lo) / span, 0.0, 1.0));
+    float lo = std::numeric_limits<float>::max(), hi = 0;
+#pragma omp simd reduction(min : lo) reduction(max : hi)
+    for (std::size_t i = 0; i < npix; ++i) {
+      lo = std::min(lo, sb[i]);
+      hi = std::max(hi, sb[i]);
+    }
+    const float span = hi - lo;
+    if (span > 1e-6f * std::max(1.0f, hi)) {
+      const float inv = 1.0f / span;
+      float* __restrict out = f.saliency.data();
+#pragma omp simd
+      for (std::size_t i = 0; i < npix; ++i) out[i] = std::clamp((sb[i] - lo) * inv, 0.0f, 1.0f);
     }
   } else {
     // Neither B nor E: there is no bottom-up map, every pixel counts alike (S_p = 1) so that

@@ -33,8 +33,14 @@ struct FeatureGroups {
   bool context = true;  // T: spatial and temporal context (off: S_o = S^_o)
 };
 
+// How the G-buffer becomes the map's input: the mean of the source pixels under each map pixel
+// (reads the whole G-buffer: memory-bound, ~1.5 ms for 960x540 on this project's 2-core machine),
+// or the one source pixel under its centre (reads map_size^2 pixels; aliases fine detail).
+enum class Resample { Box, Nearest };
+
 struct AttentionSettings {
   int map_size = 256;               // the saliency map is map_size x map_size, 64..512
+  Resample resample = Resample::Box;
   FeatureGroups groups;
   double preferred_distance_m = 4;  // L of eq. 3.9: the distance of maximum spatial emphasis, c_x = L / 0.707
   double c_y = 4;                   // screen emphasis of eq. 3.9; y = distance from the screen centre, normalised
@@ -71,11 +77,15 @@ struct AttentionFrame {
   std::uint32_t most_attended = 0;       // objects[0].id, or 0 when no foreground object is visible
   double seconds = 0;            // time the update took (wall clock)
   double saliency_seconds = 0;   // of which the pixel saliency map: resampling, features, pyramids, eqs. 3.1-3.6
+  double resample_seconds = 0;   // of which the resampling of the G-buffer to the map (and HLS, eq. 3.1)
 };
 
 class AttentionTracker {
  public:
   explicit AttentionTracker(AttentionSettings settings = {});
+  ~AttentionTracker();
+  AttentionTracker(AttentionTracker&&) noexcept;
+  AttentionTracker& operator=(AttentionTracker&&) noexcept;
   // One frame: `g` is the frame's G-buffer, `scene` the scene at `time_s` (objects, camera, their
   // animations), `previous_time_s` the previous frame's time (object motion, observer motion; equal to
   // time_s on the first frame or after reset). Frames are expected in order; a gap of any length or
@@ -103,7 +113,9 @@ class AttentionTracker {
     glm::vec3 farthest{0.0f};
   };
   glm::vec3 farthest_vertex(const std::shared_ptr<const Mesh>& mesh);
+  struct Scratch;
   AttentionSettings settings_;
+  std::unique_ptr<Scratch> scratch_;
   AttentionFrame frame_;
   std::map<std::uint32_t, Track> tracks_;
   std::map<const Mesh*, Extent> extents_;

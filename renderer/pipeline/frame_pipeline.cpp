@@ -12,6 +12,7 @@ namespace {
 attention::AttentionSettings attention_settings(const Settings& s) {
   attention::AttentionSettings a;
   a.map_size = static_cast<int>(std::lround(s.number("attention.map_size")));
+  a.resample = s.is("attention.resample", "nearest") ? attention::Resample::Nearest : attention::Resample::Box;
   const std::string& groups = s.text("attention.groups");
   a.groups.image = groups.find('B') != std::string::npos;
   a.groups.object = groups.find('E') != std::string::npos;
@@ -23,7 +24,7 @@ attention::AttentionSettings attention_settings(const Settings& s) {
 }
 
 bool same(const attention::AttentionSettings& a, const attention::AttentionSettings& b) {
-  return a.map_size == b.map_size && a.groups.image == b.groups.image && a.groups.object == b.groups.object &&
+  return a.map_size == b.map_size && a.resample == b.resample && a.groups.image == b.groups.image && a.groups.object == b.groups.object &&
          a.groups.context == b.groups.context && a.preferred_distance_m == b.preferred_distance_m && a.c_y == b.c_y &&
          a.temporal_window == b.temporal_window && a.kalman == b.kalman &&
          a.kalman_process_noise == b.kalman_process_noise && a.kalman_measurement_noise == b.kalman_measurement_noise;

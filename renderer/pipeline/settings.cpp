@@ -14,6 +14,9 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"attention.enabled", "true", "bool", "allow the visual attention pass (Lee 2009 ch. 3) when something consumes it"},
       {"attention.map_size", "256", "number in [64, 512]",
        "side of the square saliency map in pixels (rounded); the G-buffer is resampled to it (Lee 2009 §3.5.4: 64-512)"},
+      {"attention.resample", "box", "box|nearest",
+       "G-buffer to map: the mean of the pixels under each map pixel (reads the whole G-buffer) or the one pixel under "
+       "its centre (reads map_size^2 pixels, aliases fine detail)"},
       {"attention.groups", "BET", "BET|BE|BT|ET|B|E|T|none",
        "feature groups of Lee 2009 Table 3.2: B luminance and hue, E depth, size and motion, T spatial and temporal "
        "context"},

@@ -89,6 +89,28 @@ TEST(AttentionSaliency, BrightSquarePeaksOnTheSquareAndIsZeroFarAway) {
   EXPECT_NEAR(f.objects[0].depth_m, 4.0, 1e-6);
 }
 
+// attention.resample: box sees a one-pixel light between the map pixels' centres (a quarter of a
+// map pixel's box); nearest reads only the pixel under each centre and misses it (the aliasing its
+// setting's help names).
+TEST(AttentionSaliency, BoxResampleSeesAOnePixelLightNearestMissesIt) {
+  Scene scene = make_scene();
+  GBuffer g = make_gbuffer(128, 128, glm::vec3(0.0f));
+  paint(g, 40, 40, 41, 41, 0, glm::vec3(1.0f), 100.0f);  // map 64: box of pixel 20 is source 40..41, centre 41
+  AttentionSettings box = small(64), nearest = small(64);
+  nearest.resample = Resample::Nearest;
+  AttentionTracker tb(box), tn(nearest);
+  const AttentionFrame& fb = tb.update(g, scene, 0, 0);
+  EXPECT_GT(*std::max_element(fb.contrast[0].begin(), fb.contrast[0].end()), 0.0f);
+  EXPECT_FLOAT_EQ(fb.saliency[20 * 64 + 20], 1.0f);  // the light's map pixel is the peak
+  const AttentionFrame& fn = tn.update(g, scene, 0, 0);
+  EXPECT_EQ(*std::max_element(fn.contrast[0].begin(), fn.contrast[0].end()), 0.0f);
+  // Moved under a centre, nearest sees it too.
+  paint(g, 40, 40, 41, 41, 0, glm::vec3(0.0f), 100.0f);
+  paint(g, 41, 41, 42, 42, 0, glm::vec3(1.0f), 100.0f);
+  const AttentionFrame& fn2 = tn.update(g, scene, 0, 0);
+  EXPECT_FLOAT_EQ(fn2.saliency[20 * 64 + 20], 1.0f);
+}
+
 TEST(AttentionSaliency, CentreSurroundOfAConstantMapIsZero) {
   Scene scene = make_scene();
   add_object(scene, 1, {0, 0, -4}, 1.0f);
