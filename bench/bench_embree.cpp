@@ -165,10 +165,10 @@ void frame(benchmark::State& state, std::shared_ptr<const Scene> scene, EmbreeOp
   GBuffer g;
   double t = 0;
   std::uint64_t primary = 0, shadow = 0;
-  backend.render({t, t}, {shadows}, g);  // warm-up
+  backend.render({t, t}, {shadows, {}}, g);  // warm-up
   for (auto _ : state) {
     t += 1.0 / 60;
-    backend.render({t, t - 1.0 / 60}, {shadows}, g);
+    backend.render({t, t - 1.0 / 60}, {shadows, {}}, g);
     benchmark::DoNotOptimize(g.color.data());
     primary += backend.last_frame_stats().primary_rays;
     shadow += backend.last_frame_stats().shadow_rays;
@@ -213,14 +213,14 @@ void compare(benchmark::State& state, const std::string& scene_name, std::shared
   }
   GBuffer g;
   double t = 0;
-  for (Config& c : configs) c.backend->render({t, t}, {shading}, g);  // warm-up
+  for (Config& c : configs) c.backend->render({t, t}, {shading, {}}, g);  // warm-up
   std::size_t rotation = 0;
   for (auto _ : state) {
     t += 1.0 / 60;
     for (std::size_t k = 0; k < configs.size(); ++k) {
       Config& c = configs[(k + rotation) % configs.size()];
       const auto start = std::chrono::steady_clock::now();
-      c.backend->render({t, t - 1.0 / 60}, {shading}, g);
+      c.backend->render({t, t - 1.0 / 60}, {shading, {}}, g);
       c.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       c.rays += c.backend->last_frame_stats().primary_rays;
       benchmark::DoNotOptimize(g.color.data());

@@ -20,7 +20,8 @@ const char* kHelp =
     "  W/S forward/back, A/D left/right, Q/E down/up, arrows turn; hold Shift to move faster\n"
     "  G gaze overlay, M mouse gaze on/off (with --gaze mouse), O cycle map (none, depth, id, normal, motion)\n"
     "  1 dof, 2 lod, 3 gi, 4 attention, 5 shadows (toggle the setting), F focus overlay (the focused object),\n"
-    "  P cycle attention maps (none, saliency, spatial, temporal, attention), X print the frame plan, Esc quit\n";
+    "  P cycle attention maps (none, saliency, spatial, temporal, attention), C CoC map (dof), K cycle DOF method\n"
+    "  (lee-mipmap, lee-splat, accum, reference), X print the frame plan, Esc quit\n";
 
 void toggle(Settings& s, const std::string& key) {
   s.set(key, s.flag(key) ? "false" : "true");
@@ -88,6 +89,19 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
       while (i < 5 && !s.is("overlay.map", maps[i])) ++i;
       s.set("overlay.map", maps[(i + 1) % 5]);
       std::printf("overlay.map=%s\n", s.text("overlay.map").c_str());
+      break;
+    }
+    case GLFW_KEY_C: {
+      s.set("overlay.map", s.is("overlay.map", "coc") ? "none" : "coc");
+      std::printf("overlay.map=%s\n", s.text("overlay.map").c_str());
+      break;
+    }
+    case GLFW_KEY_K: {
+      static const char* methods[] = {"lee-mipmap", "lee-splat", "accum", "reference"};
+      std::size_t i = 0;
+      while (i < 4 && !s.is("dof.method", methods[i])) ++i;
+      s.set("dof.method", methods[(i + 1) % 4]);
+      std::printf("dof.method=%s\n", s.text("dof.method").c_str());
       break;
     }
     case GLFW_KEY_X: std::printf("%s", ks->pipeline->plan().explain().c_str()); break;

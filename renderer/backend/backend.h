@@ -6,6 +6,7 @@
 #include <string>
 
 #include "backend/gbuffer.h"
+#include "backend/lens_sample.h"
 #include "scene/scene.h"
 
 namespace fovea::render {
@@ -17,6 +18,13 @@ struct FrameTime {
 
 struct BackendSettings {
   bool shadows = false;   // shadow rays for direct light (Embree); GL ignores this and says so
+  // Thin-lens primary rays (the DOF references). Embree: per pixel or one point; GL: one point only
+  // (an off-axis frustum), per_pixel is refused. Depth stays view-axis depth from the lens plane.
+  LensSample lens;
+  // Depth peeling by object (Lee 2009 §5.1.2's hidden image H): each pixel shows the nearest surface
+  // behind its visible one that belongs to another object (background where there is none); the
+  // visible object's own back faces are skipped. Embree only; the raster backend refuses it.
+  bool hidden_layer = false;
 };
 
 class Backend {

@@ -75,13 +75,14 @@ CocModel coc_model(const Camera& camera, const protocol::DisplayGeometry& displa
   m.focus_m = std::isnan(focus_m) ? lens.focus_distance_m : focus_m;
   const double w = camera.width, h = camera.height;
   m.max_coc_px = std::max(1.0, std::hypot(w, h));
-  // d_r: the lens's image distance, else V_f of eq. 4.2 for the lens's own focus distance (the
-  // sensor sits where the lens's nominal focus is sharp; refocusing changes d_f, not d_r).
+  // d_r: the lens's image distance (the eye's 24 mm), else V_f of eq. 4.2 at the current focus: a
+  // camera refocuses by moving its lens, and the renderer keeps the field of view, so the sensor
+  // spans the field of view at V_f. Then the Sensor projection is exactly what a thin-lens ray
+  // tracer with this aperture produces: C = E |d - d_f| / (d d_f) x height / (2 tan(fov / 2)).
   double d_r = lens.image_distance_m;
   if (!(d_r > 0)) {
     const double f = lens.focal_length_m;
-    d_r = f * lens.focus_distance_m / focus_gap(lens.focus_distance_m, f);
-    if (!std::isfinite(d_r)) d_r = f;  // focused at infinity: the sensor at F
+    d_r = std::isinf(m.focus_m) ? f : f * m.focus_m / focus_gap(m.focus_m, f);
   }
   if (!(d_r > 0) || !std::isfinite(d_r)) {
     m.px_per_image_m = 0;

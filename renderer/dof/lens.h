@@ -51,7 +51,7 @@ struct CocModel {
 // The model for a scene's lens at focus distance `focus_m` (the focus pass's result, or the lens's
 // own focus distance), rendered at width x height with the camera's vertical field of view.
 // Projection::Display uses the scene's display geometry (Lee eq. 4.4); Sensor the field of view.
-// The image distance d_r is the lens's image_distance_m, or V_f of eq. 4.2 when that is 0.
+// The image distance d_r is the lens's image_distance_m, or V_f of eq. 4.2 at focus_m when that is 0.
 CocModel coc_model(const Camera& camera, const protocol::DisplayGeometry& display, double focus_m,
                    CocProjection projection);
 

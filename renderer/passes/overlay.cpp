@@ -130,6 +130,26 @@ glm::vec3 heat(float v) {
 }
 }  // namespace
 
+void draw_coc_map(Image8& img, const GBuffer& g, const dof::CocModel& coc) {
+  if (img.width == 0 || img.height == 0) return;
+  if (g.width == 0 || g.height == 0 || g.depth.size() < std::size_t{g.width} * g.height) {
+    img.resize(img.width, img.height);
+    return;
+  }
+  double max_c = 1;
+  for (const float d : g.depth) max_c = std::max(max_c, coc.coc_px(static_cast<double>(d)));
+  for (std::uint32_t y = 0; y < img.height; ++y) {
+    const auto gy = std::min<std::uint32_t>(g.height - 1, static_cast<std::uint32_t>((y + 0.5) * g.height / img.height));
+    for (std::uint32_t x = 0; x < img.width; ++x) {
+      const auto gx = std::min<std::uint32_t>(g.width - 1, static_cast<std::uint32_t>((x + 0.5) * g.width / img.width));
+      const double b = coc.signed_coc_px(static_cast<double>(g.depth[g.index(gx, gy)]));
+      glm::vec3 c = heat(static_cast<float>(std::fabs(b) / max_c));
+      if (b < 0) c.b = std::min(1.0f, c.b + 0.3f);
+      img.set(x, y, c);
+    }
+  }
+}
+
 bool draw_attention_map(Image8& img, const attention::AttentionFrame& f, const std::string& map) {
   if (map != "saliency" && map != "spatial" && map != "temporal" && map != "attention") return false;
   const std::size_t n = static_cast<std::size_t>(std::max(0, f.map_width)) * static_cast<std::size_t>(std::max(0, f.map_height));

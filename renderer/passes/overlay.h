@@ -5,6 +5,7 @@
 #include <string>
 
 #include "attention/attention.h"
+#include "dof/lens.h"
 #include "backend/gbuffer.h"
 #include "fovea/protocol/display_geometry.h"
 #include "image/image.h"
@@ -47,6 +48,12 @@ bool draw_gbuffer_map(Image8& image, const GBuffer& g, const std::string& map, f
 // Pixels of unlisted objects (background, T_i = 0) stay black in the object maps. Returns false when
 // `map` is none of these.
 bool draw_attention_map(Image8& image, const attention::AttentionFrame& frame, const std::string& map);
+
+// The DOF pass's circle of confusion (overlay.map=coc): each pixel's CoC diameter C (Lee 2009 eqs.
+// 4.2-4.4) from its depth, black (in focus) through blue, red and yellow to white at the frame's
+// largest C (at least 1 px); pixels in front of the focal plane get a blue tint, so the two sides of
+// the plane can be told apart.
+void draw_coc_map(Image8& image, const GBuffer& g, const dof::CocModel& coc);
 
 // Marks the most attended object: a small white square (black rim) at its pixels' centroid. Draws
 // nothing when no object is attended.

@@ -3,6 +3,8 @@
 #include <cmath>
 
 #include "attention/focus_input.h"
+#include "dof/lee_splat.h"
+#include "dof/reference.h"
 #include "passes/tonemap.h"
 
 namespace fovea::render {
@@ -62,7 +64,9 @@ FramePipeline::FramePipeline(Scene scene, Settings settings, std::unique_ptr<Bac
   backend_->set_scene(scene_);
 }
 
-FramePlan FramePipeline::plan() const { return plan_frame(PlanContext{scene_, settings_, gaze_.available()}); }
+FramePlan FramePipeline::plan() const {
+  return plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->name() == "embree"});
+}
 
 FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now_s, double previous_s,
                                            double frame_clock_s, PassTimer& timer) {
@@ -100,14 +104,24 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
                   scene_.display);
     f.focus = &focus_.last();
   }
-  // lod-select, dof and gi arrive with steps 7-9; the plan says when they would run.
+  const std::vector<glm::vec3>* hdr = &gbuffer_.color;
+  if (f.plan.runs(PassId::Dof)) {
+    auto t = timer.scope("dof");
+    // The focus pass's depth; with focus.mode=fixed (focus not run) the lens's own focus distance.
+    const double focus_m = f.focus != nullptr ? f.focus->focal_depth_m : scene_.camera.lens.focus_distance_m;
+    run_dof(focus_m, now_s, previous_s);
+    hdr = &dof_color_;
+    f.dof = &dof_color_;
+    f.focal_depth_m = focus_m;
+  }
+  // lod-select and gi arrive with steps 8-9; the plan says when they would run.
   if (f.plan.runs(PassId::Tonemap)) {
     auto t = timer.scope("tonemap");
     TonemapParams p;
     p.exposure = static_cast<float>(settings_.number("tonemap.exposure"));
     p.op = settings_.text("tonemap.operator");
     p.exact = settings_.flag("tonemap.exact");
-    tonemap(gbuffer_.color, gbuffer_.width, gbuffer_.height, p, image_);
+    tonemap(*hdr, gbuffer_.width, gbuffer_.height, p, image_);
     f.image = &image_;
   }
   if (f.plan.runs(PassId::Overlay)) {
@@ -118,6 +132,11 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
         draw_attention_map(image_, *f.attention, map);
         draw_attention_mark(image_, *f.attention);
       }
+    } else if (map == "coc") {
+      const double focus_m = f.dof != nullptr   ? f.focal_depth_m
+                             : f.focus != nullptr ? f.focus->focal_depth_m
+                                                  : scene_.camera.lens.focus_distance_m;
+      draw_coc_map(image_, gbuffer_, coc_model(focus_m));
     } else if (map != "none") {
       draw_gbuffer_map(image_, gbuffer_, map, scene_.camera.far_m);
     }
@@ -130,6 +149,55 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     }
   }
   return f;
+}
+
+dof::CocModel FramePipeline::coc_model(double focus_m) const {
+  return dof::coc_model(scene_.camera, scene_.display, focus_m,
+                        settings_.is("dof.projection", "display") ? dof::CocProjection::Display
+                                                                   : dof::CocProjection::Sensor);
+}
+
+void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
+  const std::string& method = settings_.text("dof.method");
+  if (method == "reference" || method == "accum") {
+    BackendSettings bs;
+    bs.shadows = settings_.flag("shadows");
+    dof::DofReference ref(*backend_, FrameTime{now_s, previous_s}, bs, scene_.camera.lens, focus_m,
+                          method == "reference" ? dof::ReferenceKind::RayTraced : dof::ReferenceKind::Accumulation,
+                          static_cast<std::uint64_t>(settings_.number("dof.seed")));
+    ref.add_samples(static_cast<std::uint32_t>(std::lround(settings_.number("dof.samples"))));
+    dof_color_ = ref.image();
+    return;
+  }
+  dof::DofInput in;
+  in.width = gbuffer_.width;
+  in.height = gbuffer_.height;
+  in.color = gbuffer_.color.data();
+  in.depth = gbuffer_.depth.data();
+  in.coc = coc_model(focus_m);
+  if (method == "lee-splat") {
+    dof::LeeSplatSettings s;
+    // The hidden image H (Lee §5.1.2): a second render, peeled by object (Embree only).
+    s.use_hidden = settings_.flag("dof.hidden") && backend_->name() == "embree";
+    if (s.use_hidden) {
+      BackendSettings bs;
+      bs.shadows = settings_.flag("shadows");
+      bs.hidden_layer = true;
+      backend_->render(FrameTime{now_s, previous_s}, bs, hidden_);
+      in.hidden_color = hidden_.color.data();
+      in.hidden_depth = hidden_.depth.data();
+    }
+    const std::string& aperture = settings_.text("dof.aperture");
+    s.aperture = aperture == "gaussian"  ? dof::Aperture::Gaussian
+                 : aperture == "hexagon" ? dof::Aperture::Hexagon
+                                         : dof::Aperture::Disc;
+    dof::lee_splat(in, s, dof_color_);
+    return;
+  }
+  dof::LeeMipmapSettings s;
+  s.anisotropic = settings_.flag("dof.anisotropic");
+  s.smooth_foreground = settings_.flag("dof.smooth_foreground");
+  lee_mipmap_.run(in, s, dof_color_);
 }
 
 }  // namespace fovea::render

@@ -6,6 +6,8 @@
 #include "attention/attention.h"
 #include "attention/focus.h"
 #include "backend/backend.h"
+#include "dof/dof_image.h"
+#include "dof/lee_mipmap.h"
 #include "gaze/gaze_input.h"
 #include "image/image.h"
 #include "passes/overlay.h"
@@ -26,6 +28,8 @@ class FramePipeline {
     const Image8* image = nullptr;  // null when output=gbuffer
     const attention::AttentionFrame* attention = nullptr;  // null when the attention pass did not run
     const attention::FocusResult* focus = nullptr;         // null when the focus pass did not run
+    const dof::RgbImage* dof = nullptr;  // the DOF pass's HDR colour; null when it did not run
+    double focal_depth_m = 0;            // what the DOF pass focused at (0 when it did not run)
   };
   // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
   // with gaze sampled at `frame_clock_s` on the gaze input.
@@ -50,6 +54,12 @@ class FramePipeline {
   attention::AttentionTracker attention_;  // settings from attention.* each frame it runs
   attention::FocusSettings focus_settings_;  // what focus_ was built with (focus.* and the lens)
   attention::FocusTracker focus_;
+  dof::RgbImage dof_color_;
+  GBuffer hidden_;  // lee-splat's hidden image (the layer behind the visible surfaces)
+  dof::LeeMipmap lee_mipmap_;
+  // Runs dof.method on the G-buffer with the lens focused at focus_m into dof_color_.
+  void run_dof(double focus_m, double now_s, double previous_s);
+  dof::CocModel coc_model(double focus_m) const;
 };
 
 }  // namespace fovea::render

@@ -17,7 +17,7 @@ const std::vector<PassDecl>& pass_declarations() {
       {PassId::LodSelect, "lod-select", "attention, gaze, camera", "LOD level per object",
        "the scene has LOD chains and lod.enabled", "step 9"},
       {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
-       "step 7"},
+       ""},
       {PassId::Gi, "gi", "gbuffer, gaze", "colour (hybrid composite)", "gi.enabled and the scene has lights",
        "step 8"},
       {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image", ""},
@@ -110,9 +110,19 @@ FramePlan plan_frame(const PlanContext& c) {
     decide(PassId::Dof, false, "pinhole lens: nothing is out of focus");
   } else {
     char why[160];
+    const std::string& method = s.text("dof.method");
     std::snprintf(why, sizeof why, "thin lens F=%.1f mm, aperture %.2f mm, method %s", lens.focal_length_m * 1000,
-                  lens.aperture_m * 1000, s.text("dof.method").c_str());
+                  lens.aperture_m * 1000, method.c_str());
     decide(PassId::Dof, true, why);
+    PlannedPass& dof = plan.passes[static_cast<std::size_t>(PassId::Dof)];
+    if (method == "schedl-layered") {
+      dof.runs = false;
+      dof.reason += " — not implemented yet (step 7 continues): choose lee-mipmap, lee-splat, accum or reference";
+    } else if (method == "reference" && !c.backend_traces_rays) {
+      dof.runs = false;
+      dof.reason += " — the ray-traced reference needs --backend embree (per-pixel lens rays); accum is the raster "
+                    "backend's reference";
+    }
   }
 
   // LOD selection: only objects with LOD chains can change detail.
@@ -173,8 +183,7 @@ FramePlan plan_frame(const PlanContext& c) {
     }
   };
   wait_unless(PassId::Focus, plan.runs(PassId::Dof) || shows_focus,
-              std::string("dof is not implemented until ") + declaration(PassId::Dof).implemented_in +
-                  " (overlay.focus=true shows the focus meanwhile)");
+              "dof does not run with this method (overlay.focus=true shows the focus meanwhile)");
   const bool attention_overlay = image && (s.is("overlay.map", "saliency") || s.is("overlay.map", "spatial") ||
                                            s.is("overlay.map", "temporal") || s.is("overlay.map", "attention"));
   wait_unless(PassId::Attention,

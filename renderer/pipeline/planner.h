@@ -36,6 +36,7 @@ struct PlanContext {
   const Scene& scene;
   const Settings& settings;
   bool gaze_available = false;  // a gaze source other than "none"
+  bool backend_traces_rays = true;  // the backend takes per-pixel lens rays (Embree; not the raster backend)
 };
 
 struct FramePlan {

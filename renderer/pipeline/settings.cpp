@@ -34,7 +34,21 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"focus.gaze_radius_deg", "1.5", "number in [0, 10]",
        "gaze+attention: objects with pixels this close to the gaze point compete on attention (tracker error 1-2 deg)"},
       {"dof.enabled", "true", "bool", "depth of field for thin-lens cameras"},
-      {"dof.method", "lee-mipmap", "reference|lee-mipmap|lee-splat|schedl-layered", "depth-of-field algorithm"},
+      {"dof.method", "lee-mipmap", "reference|accum|lee-mipmap|lee-splat|schedl-layered",
+       "depth-of-field algorithm: reference = thin-lens distributed ray tracing (Embree), accum = the "
+       "accumulation-buffer equivalent (any backend), lee-mipmap (Lee 2009 ch. 4), lee-splat (ch. 5), schedl-layered "
+       "(Schedl & Wimmer; not implemented yet)"},
+      {"dof.samples", "64", "number in [1, 4096]", "lens samples per frame of the reference and accum methods"},
+      {"dof.seed", "1", "number in [0, 4294967295]", "seed of the reference's lens samples (same seed, same image)"},
+      {"dof.projection", "sensor", "sensor|display",
+       "CoC in pixels: the camera's image plane over its field of view (what the references render), or Lee 2009 "
+       "eq. 4.4 with the scene's display geometry"},
+      {"dof.anisotropic", "true", "bool", "lee-mipmap: anisotropic mipmap against intensity leakage (Lee 2009 eq. 4.9)"},
+      {"dof.smooth_foreground", "true", "bool", "lee-mipmap: DoN smoothing of blurred foreground boundaries (eqs. 4.10-4.11)"},
+      {"dof.hidden", "true", "bool",
+       "lee-splat: render the hidden image (the surfaces behind the visible ones, Lee 2009 §5.1.2) for partial "
+       "occlusion: a second render per frame (Embree only; the raster backend runs without it)"},
+      {"dof.aperture", "disc", "disc|gaussian|hexagon", "lee-splat: aperture shape of the splats (the IDF image)"},
       {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
       {"gi.enabled", "false", "bool", "gaze-directed global illumination (photon mapping, hybrid composite)"},
       {"gi.caustics", "true", "bool", "caustic photon map when the scene has specular or refractive surfaces"},

@@ -65,7 +65,7 @@ GBuffer render(const Scene& s, FrameTime time = {}, bool shadows = false, Embree
   EmbreeBackend b(options);
   b.set_scene(s);
   GBuffer g;
-  b.render(time, BackendSettings{shadows}, g);
+  b.render(time, BackendSettings{shadows, {}}, g);
   return g;
 }
 
@@ -479,9 +479,9 @@ TEST(EmbreeBackend, SingleAndMultiThreadedAreIdentical) {
   b.set_scene(s);
   GBuffer one, many, again;
   tbb::task_arena single(1);
-  single.execute([&] { b.render({0.25, 0.2}, {true}, one); });
-  b.render({0.25, 0.2}, {true}, many);
-  b.render({0.25, 0.2}, {true}, again);
+  single.execute([&] { b.render({0.25, 0.2}, {true, {}}, one); });
+  b.render({0.25, 0.2}, {true, {}}, many);
+  b.render({0.25, 0.2}, {true, {}}, again);
   EXPECT_EQ(mismatches(one, many, 0.0f), 0u);
   EXPECT_EQ(mismatches(many, again, 0.0f), 0u);
   EXPECT_EQ(one.color, many.color);
@@ -516,7 +516,7 @@ TEST(EmbreeBackend, AnimatedObjectsFollowTimeAcrossFrames) {
     b.set_scene(s);
     for (double t : {0.0, 0.3, 0.7, 0.3}) {
       GBuffer g;
-      b.render({t, t}, {false}, g);
+      b.render({t, t}, {false, {}}, g);
       const GBuffer fresh = render(s, {t, t}, false, {EmbreeTraversal::Packet8, geo, true});
       EXPECT_EQ(mismatches(g, fresh, 1e-5f), 0u) << to_string(geo) << " t=" << t;
     }
@@ -529,4 +529,33 @@ TEST(EmbreeBackend, ShadingOffLeavesColourZeroOnObjects) {
   const GBuffer g = render(s, {}, false, {EmbreeTraversal::Packet8, EmbreeGeometry::Flattened, false});
   EXPECT_EQ(g.color[g.index(3, 3)], glm::vec3(0.0f));
   EXPECT_EQ(g.object_id[g.index(3, 3)], 1u);
+}
+
+// The hidden layer (depth peeling by object, Lee 2009 §5.1.2): behind a sphere in front of a wall
+// lies the wall (the sphere's own back faces are skipped), behind the wall nothing (background).
+TEST(EmbreeBackend, HiddenLayerShowsTheNextObjectBehindTheVisibleOne) {
+  for (EmbreeGeometry geometry : kAllGeometry) {
+    Scene s = base_scene();
+    s.objects.push_back(facing_plane(1, {0, 0, -2}));  // wall 7 m away
+    Transform at;
+    at.translation = {0, 0, 2};
+    s.objects.push_back(object(2, make_sphere(0.5f, 24, 48), at));  // sphere 3 m away
+    EmbreeOptions o;
+    o.geometry = geometry;
+    EmbreeBackend b(o);
+    b.set_scene(s);
+    GBuffer visible, hidden;
+    b.render({}, {}, visible);
+    BackendSettings bs;
+    bs.hidden_layer = true;
+    b.render({}, bs, hidden);
+    const std::size_t centre = visible.index(32, 24), corner = visible.index(1, 1);
+    EXPECT_EQ(visible.object_id[centre], 2u);
+    EXPECT_NEAR(visible.depth[centre], 2.5f, 1e-3f);
+    EXPECT_EQ(hidden.object_id[centre], 1u);  // the wall, not the sphere's back face
+    EXPECT_NEAR(hidden.depth[centre], 7.0f, 1e-3f);
+    EXPECT_EQ(visible.object_id[corner], 1u);
+    EXPECT_EQ(hidden.object_id[corner], 0u);  // nothing behind the wall
+    EXPECT_EQ(hidden.depth[corner], s.camera.far_m);
+  }
 }

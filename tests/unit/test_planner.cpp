@@ -92,16 +92,30 @@ TEST(Planner, DecisionTable) {
   }
 }
 
-TEST(Planner, NeededButUnimplementedPassesAreSaidSoNotRun) {
+TEST(Planner, DofRunsWithAThinLensAndSaysWhenAMethodCannotRun) {
   const Scene scene = make_scene({.thin_lens = true});
-  const Settings settings;
-  const FramePlan plan = plan_frame(PlanContext{scene, settings, true});
+  Settings settings;
+  FramePlan plan = plan_frame(PlanContext{scene, settings, true});
+  EXPECT_TRUE(plan.runs(PassId::Dof)) << plan.explain();
+  EXPECT_NE(plan.explain().find("method lee-mipmap"), std::string::npos) << plan.explain();
+  // schedl-layered is not implemented yet: needed, not run, and the plan says what to choose.
+  settings.set_assignment("dof.method=schedl-layered");
+  plan = plan_frame(PlanContext{scene, settings, true});
   ASSERT_TRUE(plan.needed(PassId::Dof));
-  EXPECT_FALSE(plan.runs(PassId::Dof)) << "dof arrives with step 7";
-  const std::string text = plan.explain();
+  EXPECT_FALSE(plan.runs(PassId::Dof));
+  std::string text = plan.explain();
   EXPECT_NE(text.find("later dof"), std::string::npos) << text;
-  EXPECT_NE(text.find("not implemented until step 7"), std::string::npos) << text;
+  EXPECT_NE(text.find("not implemented yet"), std::string::npos) << text;
   EXPECT_NE(text.find("run   gbuffer"), std::string::npos) << text;
+  // The ray-traced reference needs per-pixel lens rays: not on the raster backend.
+  settings.set_assignment("dof.method=reference");
+  EXPECT_TRUE(plan_frame(PlanContext{scene, settings, true, true}).runs(PassId::Dof));
+  plan = plan_frame(PlanContext{scene, settings, true, false});
+  EXPECT_FALSE(plan.runs(PassId::Dof));
+  text = plan.explain();
+  EXPECT_NE(text.find("--backend embree"), std::string::npos) << text;
+  settings.set_assignment("dof.method=accum");
+  EXPECT_TRUE(plan_frame(PlanContext{scene, settings, true, false}).runs(PassId::Dof));
 }
 
 TEST(Planner, EveryPassHasADeclaration) {
@@ -134,7 +148,7 @@ TEST(Settings, RejectUnknownKeysAndBadValuesNamingWhatIsAllowed) {
   EXPECT_NE(message("gi.enabled=yes").find("allowed bool"), std::string::npos);
   EXPECT_NE(message("tonemap.exposure=nan").find("number in"), std::string::npos);
   EXPECT_NE(message("tonemap.exposure=-1").find("number in"), std::string::npos);
-  EXPECT_NE(message("dof.method=magic").find("reference|lee-mipmap"), std::string::npos);
+  EXPECT_NE(message("dof.method=magic").find("reference|accum|lee-mipmap"), std::string::npos);
   EXPECT_NE(message("novalue").find("expected key=value"), std::string::npos);
   EXPECT_TRUE(s.flag("gi.enabled")) << "a refused assignment changes nothing";
 }

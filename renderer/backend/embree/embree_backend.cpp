@@ -154,6 +154,23 @@ struct Frame {
     const float ndc_y = 1.0f - 2.0f * (static_cast<float>(y) + 0.5f) / static_cast<float>(height);
     return right * (ndc_x * tan_x) + up * (ndc_y * tan_y) - back;
   }
+
+  // Thin lens (BackendSettings::lens): the ray of pixel (x, y) leaves from its lens point and passes
+  // through the pixel's point on the plane in focus; divided by the focus distance its view-axis
+  // component stays 1, so t is still view-axis depth (from the lens plane).
+  LensSample lens;
+  bool lens_on = false;
+  float lens_radius = 0, focus = 1;
+  void ray(std::uint32_t x, std::uint32_t y, glm::vec3& origin, glm::vec3& dir) const {
+    dir = direction(x, y);
+    origin = eye;
+    if (!lens_on) return;
+    const glm::vec2 p = lens_sampling::pixel_disc_point(lens, x, y) * lens_radius;
+    const glm::vec3 offset = right * p.x + up * p.y;
+    const glm::vec3 focal = eye + dir * focus;
+    origin = eye + offset;
+    dir = (focal - origin) / focus;
+  }
 };
 
 // Image position in pixels (x right, y down, pixel centres at +0.5) of an object-space point under
@@ -205,10 +222,11 @@ bool shadow_visible(void* context, const glm::vec3& from, const glm::vec3& to) {
 
 template <class Ray>
 void fill_ray(Ray& r, const Frame& f, std::uint32_t x, std::uint32_t y) {
-  const glm::vec3 d = f.direction(x, y);
-  r.org_x = f.eye.x;
-  r.org_y = f.eye.y;
-  r.org_z = f.eye.z;
+  glm::vec3 o, d;
+  f.ray(x, y, o, d);
+  r.org_x = o.x;
+  r.org_y = o.y;
+  r.org_z = o.z;
   r.dir_x = d.x;
   r.dir_y = d.y;
   r.dir_z = d.z;
@@ -277,10 +295,11 @@ void trace_packets(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32
         const std::uint32_t y = by + static_cast<std::uint32_t>(i) / P::bw;
         const auto lane = static_cast<std::size_t>(i);
         valid[lane] = (x < x1 && y < y1) ? -1 : 0;
-        const glm::vec3 d = valid[lane] != 0 ? f.direction(x, y) : glm::vec3(0, 0, -1);
-        rh.ray.org_x[lane] = f.eye.x;
-        rh.ray.org_y[lane] = f.eye.y;
-        rh.ray.org_z[lane] = f.eye.z;
+        glm::vec3 o = f.eye, d(0, 0, -1);
+        if (valid[lane] != 0) f.ray(x, y, o, d);
+        rh.ray.org_x[lane] = o.x;
+        rh.ray.org_y[lane] = o.y;
+        rh.ray.org_z[lane] = o.z;
         rh.ray.dir_x[lane] = d.x;
         rh.ray.dir_y[lane] = d.y;
         rh.ray.dir_z[lane] = d.z;
@@ -324,6 +343,42 @@ void trace_stream(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_
     for (std::uint32_t x = x0; x < x1; ++x) {
       const RTCRayHit& r = rh[count++];
       hits[tile_slot(x - x0, y - y0)] = {r.ray.tfar, r.hit.u, r.hit.v, r.hit.geomID, r.hit.primID, r.hit.instID[0]};
+    }
+  }
+}
+
+// Depth peeling by object: the first hit of another object than the visible one's, continuing the
+// ray past each hit of the visible object (its back faces, its other parts).
+void trace_hidden(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1,
+                  std::uint32_t y1, bool instanced, TileHits& hits) {
+  RTCIntersectContext ic;
+  rtcInitIntersectContext(&ic);
+  for (std::uint32_t y = y0; y < y1; ++y) {
+    for (std::uint32_t x = x0; x < x1; ++x) {
+      Hit out;  // miss unless another object is found
+      RTCRayHit rh{};
+      fill_ray(rh.ray, f, x, y);
+      rh.hit.geomID = kInvalidId;
+      rh.hit.instID[0] = kInvalidId;
+      rtcIntersect1(scene, &ic, &rh);
+      if (rh.hit.geomID != kInvalidId) {
+        const unsigned visible = instanced ? rh.hit.instID[0] : rh.hit.geomID;
+        for (int step = 0; step < 64; ++step) {
+          const float t = rh.ray.tfar;
+          fill_ray(rh.ray, f, x, y);
+          rh.ray.tnear = t + std::max(1e-4f, 1e-5f * t);
+          rh.hit.geomID = kInvalidId;
+          rh.hit.instID[0] = kInvalidId;
+          if (!(rh.ray.tnear < rh.ray.tfar)) break;
+          rtcIntersect1(scene, &ic, &rh);
+          if (rh.hit.geomID == kInvalidId) break;
+          if ((instanced ? rh.hit.instID[0] : rh.hit.geomID) != visible) {
+            out = {rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.geomID, rh.hit.primID, rh.hit.instID[0]};
+            break;
+          }
+        }
+      }
+      hits[tile_slot(x - x0, y - y0)] = out;
     }
   }
 }
@@ -555,6 +610,10 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   f.tan_y = tan_half;
   f.near_m = std::max(0.0f, cam.near_m);
   f.far_m = cam.far_m;
+  f.lens = settings.lens;
+  f.lens_on = settings.lens.active();
+  f.lens_radius = static_cast<float>(settings.lens.aperture_radius_m);
+  f.focus = static_cast<float>(settings.lens.focus_m);
   const bool camera_ok = finite(view) && finite(cam_to_world) && std::isfinite(tan_half) && tan_half > 0 &&
                          std::isfinite(f.tan_x) && std::isfinite(f.far_m) && f.far_m > f.near_m;
   if (!im.has_scene || !camera_ok) {
@@ -612,6 +671,7 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   const bool shade = options_.shading;
   const VisibilityFn visibility = settings.shadows ? &shadow_visible : nullptr;
   const EmbreeTraversal traversal = options_.traversal;
+  const bool hidden_layer = settings.hidden_layer;
   RTCScene top = im.top;
 
   // Turns one traced hit into G-buffer texels.
@@ -632,13 +692,14 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
     const std::uint32_t i0 = m.indices[3 * std::size_t{h.prim}], i1 = m.indices[3 * std::size_t{h.prim} + 1],
                         i2 = m.indices[3 * std::size_t{h.prim} + 2];
     const float u = h.u, v = h.v, w = 1.0f - u - v;
-    const glm::vec3 dir = f.direction(x, y);
+    glm::vec3 origin, dir;
+    f.ray(x, y, origin, dir);
 
     // The hit in object space, from the barycentrics: exact on the triangle, and the same point
     // the motion vector follows back in time.
     const glm::vec3 p_obj = w * m.positions[i0] + u * m.positions[i1] + v * m.positions[i2];
     glm::vec3 p = transform_point(of.model_now, p_obj);
-    if (!finite(p)) p = f.eye + h.t * dir;
+    if (!finite(p)) p = origin + h.t * dir;
 
     // Shading normal: interpolated vertex normals, else the face normal, else towards the eye.
     glm::vec3 n_obj = m.normals.empty() ? glm::vec3(0.0f) : w * m.normals[i0] + u * m.normals[i1] + v * m.normals[i2];
@@ -663,7 +724,7 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
       const float scale = std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
       shadow.epsilon = 1e-4f * scale;
       shadow.offset = n * shadow.epsilon;
-      color = shade_local(s, *r.material, p, n, f.eye, visibility, &shadow);
+      color = shade_local(s, *r.material, p, n, origin, visibility, &shadow);
     }
     out.color[i] = finite(color) ? color : glm::vec3(0.0f);
 
@@ -688,12 +749,16 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
       const auto tx = static_cast<std::uint32_t>(t % tiles_x), ty = static_cast<std::uint32_t>(t / tiles_x);
       const std::uint32_t x0 = tx * kTile, y0 = ty * kTile;
       const std::uint32_t x1 = std::min(x0 + kTile, f.width), y1 = std::min(y0 + kTile, f.height);
-      switch (traversal) {
+      if (hidden_layer) {
+        trace_hidden(top, f, x0, y0, x1, y1, instanced, hits);
+      } else {
+        switch (traversal) {
         case EmbreeTraversal::Single: trace_single(top, f, x0, y0, x1, y1, hits); break;
         case EmbreeTraversal::Packet4: trace_packets<4>(top, f, x0, y0, x1, y1, hits); break;
         case EmbreeTraversal::Packet8: trace_packets<8>(top, f, x0, y0, x1, y1, hits); break;
         case EmbreeTraversal::Packet16: trace_packets<16>(top, f, x0, y0, x1, y1, hits); break;
         case EmbreeTraversal::Stream: trace_stream(top, f, x0, y0, x1, y1, hits); break;
+        }
       }
       for (std::uint32_t y = y0; y < y1; ++y) {
         for (std::uint32_t x = x0; x < x1; ++x) resolve(hits[tile_slot(x - x0, y - y0)], x, y, shadow);

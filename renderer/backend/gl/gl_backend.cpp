@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 #include <stdexcept>
 #include <string>
@@ -257,7 +258,7 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   check_gl("GlBackend::ensure_framebuffer");
 }
 
-void GlBackend::draw(const FrameTime& time) {
+void GlBackend::draw(const FrameTime& time, const LensSample& lens) {
   if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
   const Scene& scene = *scene_;
   const Camera& cam = scene.camera;
@@ -284,10 +285,26 @@ void GlBackend::draw(const FrameTime& time) {
   glClearBufferfv(GL_COLOR, 4, zero);
   glClearBufferfv(GL_DEPTH, 0, &one);
 
-  const glm::mat4 view = cam.view_at(time.now_s);
-  const glm::mat4 view_prev = cam.view_at(time.previous_s);
-  const glm::mat4 proj = cam.projection();
-  const glm::vec3 eye = cam.position_at(time.now_s);
+  glm::mat4 view = cam.view_at(time.now_s);
+  glm::mat4 view_prev = cam.view_at(time.previous_s);
+  glm::mat4 proj = cam.projection();
+  glm::vec3 eye = cam.position_at(time.now_s);
+  if (lens.active()) {
+    // One view of an accumulation buffer: the eye moved to lens point p (camera right/up) and the
+    // frustum sheared so the plane in focus projects where the pinhole projects it: at the near
+    // plane n the window shifts by -p n / focus (view-space z, hence linear depth, is unchanged).
+    const glm::vec2 p = lens.disc * static_cast<float>(lens.aperture_radius_m);
+    const float n = cam.near_m, focus = static_cast<float>(lens.focus_m);
+    const float ty = n * std::tan(glm::radians(cam.vertical_fov_deg) * 0.5f);
+    const float tx = ty * static_cast<float>(cam.width) / static_cast<float>(cam.height);
+    const float sx = p.x * n / focus, sy = p.y * n / focus;
+    proj = glm::frustum(-tx - sx, tx - sx, -ty - sy, ty - sy, n, cam.far_m);
+    const glm::mat4 shift = glm::translate(glm::mat4(1.0f), glm::vec3(-p.x, -p.y, 0.0f));
+    const glm::mat4 cam_to_world = glm::inverse(view);
+    eye = glm::vec3(cam_to_world * glm::vec4(p.x, p.y, 0.0f, 1.0f));
+    view = shift * view;
+    view_prev = shift * view_prev;
+  }
   const bool camera_moved = view != view_prev;
 
   glUseProgram(program_);
@@ -337,8 +354,17 @@ void GlBackend::render_without_readback(const FrameTime& time) {
 void GlBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
   // settings.shadows is not supported by the raster backend in this step (no shadow maps yet):
   // shading is unshadowed local illumination regardless. The Embree backend honours it.
-  static_cast<void>(settings);
-  draw(time);
+  if (settings.lens.active() && settings.lens.per_pixel) {
+    throw std::invalid_argument(
+        "OpenGL backend: a lens sample per pixel needs the ray tracer (--backend embree); the raster backend takes "
+        "one lens point per render (an accumulation-buffer view)");
+  }
+  if (settings.hidden_layer) {
+    throw std::invalid_argument(
+        "OpenGL backend: the hidden layer (depth peeling) is not implemented for the raster backend yet; use "
+        "--backend embree");
+  }
+  draw(time, settings.lens);
   const std::uint32_t w = scene_->camera.width, h = scene_->camera.height;
   out.resize(w, h);
   if (w == 0 || h == 0) return;

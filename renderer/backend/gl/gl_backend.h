@@ -58,7 +58,7 @@ class GlBackend final : public Backend {
     std::size_t mesh;  // index into meshes_
   };
 
-  void draw(const FrameTime& time);
+  void draw(const FrameTime& time, const LensSample& lens = {});
   void ensure_framebuffer(std::uint32_t width, std::uint32_t height);
   void release_framebuffer();
   void release_meshes();

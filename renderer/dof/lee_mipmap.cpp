@@ -1,0 +1,596 @@
+#include "dof/lee_mipmap.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+
+namespace fovea::render::dof {
+
+namespace {
+
+constexpr float kFarDepth = 1e30f;          // non-finite depth: the far limit, kept finite for averaging
+constexpr float kTiny = 1e-18f;             // the geometric blend's floor for 0 (log2 stays finite)
+constexpr float kHuge = 1e18f;              // and its ceiling: b / a stays a normal float
+constexpr int kChunk = 64;                  // pixels per gather/blend batch of the final pass
+
+// One level of the mipmaps: colour I, depth Z and DoB B (Fig. 4.10's I and ZBN).
+struct Level {
+  int w = 0, h = 0;
+  std::vector<glm::vec3> c;
+  std::vector<float> z, s;
+  std::size_t at(int x, int y) const { return static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x); }
+};
+
+// The downsampling taps along one axis, 4 per destination texel. Eq. 4.1's 3x3 Gaussian G is the
+// binomial [1 2 1] / 4 (the paper gives no sigma; this is the 3x3 kernel a GPU shader would use),
+// and its three samples sit one source texel apart around the destination texel's centre, each read
+// with bilinear filtering as the GPU's texture unit does (GL: destination texel i's centre is at
+// (i + 0.5) sw / dw - 0.5 in source texels). For power-of-two sizes the centre is 2i + 0.5 and the
+// taps are the familiar [1 3 3 1] / 8; for other sizes they follow the centre, so no level drifts.
+// Indices are clamped to the edge (GL_CLAMP_TO_EDGE).
+struct Taps {
+  std::vector<int> idx;    // 4 per destination texel
+  std::vector<float> w;    // 4 per destination texel, summing to 1
+  void build(int sw, int dw) {
+    idx.assign(static_cast<std::size_t>(dw) * 4, 0);
+    w.assign(static_cast<std::size_t>(dw) * 4, 0.0f);
+    for (int i = 0; i < dw; ++i) {
+      const double c = (i + 0.5) * sw / dw - 0.5;
+      const double base = std::floor(c - 1.0);
+      const auto o = static_cast<std::size_t>(i) * 4;
+      for (int t = -1; t <= 1; ++t) {
+        const double g = t == 0 ? 0.5 : 0.25;
+        const double pos = c + t;
+        const double fl = std::floor(pos);
+        const auto k = static_cast<std::size_t>(fl - base);  // 0..2
+        const double f = pos - fl;
+        w[o + k] += static_cast<float>(g * (1.0 - f));
+        w[o + k + 1] += static_cast<float>(g * f);
+      }
+      for (int k = 0; k < 4; ++k) idx[o + static_cast<std::size_t>(k)] = std::clamp(static_cast<int>(base) + k, 0, sw - 1);
+    }
+  }
+};
+
+// Eq. 4.6 (and eq. 4.11, the same map applied to the DoN): the continuous mipmap level of a DoB.
+inline float level_of(float sigma, float k_sigma) {
+  const float x = k_sigma * sigma;
+  return x < 0.5f ? 0.0f : 1.0f + std::log2(x);
+}
+
+// log2 and exp2 for the geometric blend of eq. 4.8, written so the blend loop vectorises (libm's
+// are scalar calls without -ffast-math, and a clamp inside the loop stops GCC's if-conversion under
+// -ftrapping-math). fast_log2: x > 0 and normal. fast_exp2: |x| <= 126. exp2(log2(x)) is within
+// 2e-6 of x; the blend's factors are kept in [kTiny, kHuge] (gather()), so b / a is normal and
+// |beta log2(b / a)| < 120.
+inline float fast_log2(float x) {
+  const auto bits = std::bit_cast<std::int32_t>(x);
+  const float e = static_cast<float>(((bits >> 23) & 255) - 127);
+  const float m = std::bit_cast<float>((bits & 0x7fffff) | 0x3f800000);  // [1, 2)
+  // log2(m) = (2 / ln 2) atanh(t) = (2 / ln 2) (t + t^3/3 + ...), t = (m - 1) / (m + 1) in [0, 1/3]
+  const float t = (m - 1.0f) / (m + 1.0f), t2 = t * t;
+  constexpr float c1 = 2.8853900817779268f, c3 = c1 / 3, c5 = c1 / 5, c7 = c1 / 7, c9 = c1 / 9, c11 = c1 / 11;
+  return e + t * (c1 + t2 * (c3 + t2 * (c5 + t2 * (c7 + t2 * (c9 + t2 * c11)))));
+}
+inline float fast_exp2(float x) {
+  constexpr float kRound = 12582912.0f;  // 1.5 2^23: adding it rounds x to an integer in the low bits
+  const float big = x + kRound;
+  const float r = big - kRound;           // round(x)
+  const float f = (x - r) * 0.69314718f;  // [-0.347, 0.347]
+  const auto n = static_cast<std::uint32_t>(std::bit_cast<std::int32_t>(big) - 0x4B400000 + 127);
+  // e^f, Taylor to degree 6 (error < 2e-7), times 2^round(x) built in the exponent bits.
+  const float p =
+      1.0f + f * (1.0f + f * (0.5f + f * (1.0f / 6.0f + f * (1.0f / 24.0f + f * (1.0f / 120.0f + f * (1.0f / 720.0f))))));
+  return p * std::bit_cast<float>(n << 23);
+}
+
+// A colour kept where the fast log/exp are exact enough (colours beyond kHuge saturate).
+inline float gather(float v) { return std::min(std::max(v, kTiny), kHuge); }
+
+// The 3x3 neighbourhood of eq. 4.8 (Fig. 4.4): offsets in texels of the level it is read at, and
+// the Gaussian weights G(q - p) of the same binomial kernel as eq. 4.1 (centre 4, edge 2, corner
+// 1, over 16). Circular: the corners move onto the unit circle, (1/sqrt 2, 1/sqrt 2).
+struct Neighbourhood {
+  std::array<float, 9> ox{}, oy{}, w{};
+  explicit Neighbourhood(bool circular) {
+    const float d = circular ? 0.70710678f : 1.0f;
+    const std::array<float, 9> x = {0, 1, -1, 0, 0, d, -d, d, -d};
+    const std::array<float, 9> y = {0, 0, 0, 1, -1, d, d, -d, -d};
+    const std::array<float, 9> g = {4, 2, 2, 2, 2, 1, 1, 1, 1};
+    for (std::size_t k = 0; k < 9; ++k) {
+      ox[k] = x[k];
+      oy[k] = y[k];
+      w[k] = g[k] / 16.0f;
+    }
+  }
+};
+
+// Horizontal bilinear taps of one level at the level-0 columns, for each of the 5 offset classes:
+// texel coordinate X = pos(x, o) * n - 0.5, GL_CLAMP_TO_EDGE.
+struct HTab {
+  int n = 0;
+  std::size_t w = 0;
+  std::vector<int> i0, i1;  // [class * w + x]
+  std::vector<float> f;
+  template <class Pos>
+  void build(int width, int n_src, Pos pos, const std::array<float, 5>& cls) {
+    n = n_src;
+    w = static_cast<std::size_t>(width);
+    i0.resize(5 * w);
+    i1.resize(5 * w);
+    f.resize(5 * w);
+    for (std::size_t c = 0; c < 5; ++c)
+      for (int x = 0; x < width; ++x) {
+        const float X = pos(x, cls[c]) * static_cast<float>(n_src) - 0.5f;
+        const float fl = std::floor(X);
+        const int j = static_cast<int>(fl);
+        const std::size_t at = c * w + static_cast<std::size_t>(x);
+        i0[at] = std::clamp(j, 0, n_src - 1);
+        i1[at] = std::clamp(j + 1, 0, n_src - 1);
+        f[at] = X - fl;
+      }
+  }
+  float at(std::size_t c, const float* row, std::size_t x) const {
+    const std::size_t k = c * w + x;
+    const float a = row[i0[k]], b = row[i1[k]];
+    return a + f[k] * (b - a);
+  }
+  glm::vec3 at3(std::size_t c, const glm::vec3* row, std::size_t x) const {
+    glm::vec3 v;
+    at3(c, row, x, &v.x, &v.y, &v.z);
+    return v;
+  }
+  // The same into three floats, reading the texels as floats (no vec3 temporaries on the stack).
+  void at3(std::size_t c, const glm::vec3* row, std::size_t x, float* r, float* g, float* b) const {
+    const std::size_t k = c * w + x;
+    const float* p = reinterpret_cast<const float*>(row) + 3 * static_cast<std::size_t>(i0[k]);
+    const float* q = reinterpret_cast<const float*>(row) + 3 * static_cast<std::size_t>(i1[k]);
+    const float t = f[k];
+    *r = p[0] + t * (q[0] - p[0]);
+    *g = p[1] + t * (q[1] - p[1]);
+    *b = p[2] + t * (q[2] - p[2]);
+  }
+};
+
+// Vertical bilinear taps at texel coordinate Y of an n-row level.
+struct VRow {
+  std::size_t r0, r1;
+  float f;
+};
+inline VRow vrow(int n, float Y) {
+  const float fl = std::floor(Y);
+  const int j = static_cast<int>(fl);
+  return {static_cast<std::size_t>(std::clamp(j, 0, n - 1)), static_cast<std::size_t>(std::clamp(j + 1, 0, n - 1)), Y - fl};
+}
+// out = row r0 + f (row r1 - row r0) of a plane with `len` floats per row.
+inline void lerp_rows(const float* plane, int len, const VRow& vr, float* __restrict out) {
+  const auto ul = static_cast<std::size_t>(len);
+  const float* __restrict a = plane + vr.r0 * ul;
+  const float* __restrict b = plane + vr.r1 * ul;
+  const float f = vr.f;
+#pragma omp simd
+  for (std::size_t i = 0; i < ul; ++i) out[i] = a[i] + f * (b[i] - a[i]);
+}
+
+float finite_or_zero(float v) { return std::isfinite(v) ? std::max(v, 0.0f) : 0.0f; }
+
+}  // namespace
+
+struct LeeMipmap::Scratch {
+  std::vector<Level> levels;  // 0..M
+  std::vector<float> don;     // N(M), eq. 4.10, at the top level only (the only level step 4 reads)
+  std::vector<Taps> tx, ty;   // downsampling taps from level l-1 to l (index l)
+  std::vector<float> tmp_z, tmp_s;  // horizontal pass of the separable isotropic downsampling
+  std::vector<glm::vec3> row_max;   // per-row colour maxima of the input
+  std::vector<float> level_map, dob_map;
+  std::vector<HTab> hx;  // horizontal taps per level
+  HTab hn;               // horizontal taps of the DoN magnification
+};
+
+LeeMipmap::LeeMipmap() : scratch_(std::make_unique<Scratch>()) {}
+LeeMipmap::~LeeMipmap() = default;
+const std::vector<float>& LeeMipmap::level_map() const { return scratch_->level_map; }
+const std::vector<float>& LeeMipmap::dob_map() const { return scratch_->dob_map; }
+
+void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& out, LeeMipmapStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Scratch& sc = *scratch_;
+  const int W = static_cast<int>(in.width), H = static_cast<int>(in.height);
+  const std::size_t np = in.pixels();
+  out.resize(np);
+  sc.level_map.clear();
+  sc.dob_map.clear();
+  LeeMipmapStats st;
+  const auto finish = [&] {
+    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (stats) *stats = st;
+  };
+  if (np == 0 || !in.color) {
+    std::fill(out.begin(), out.end(), glm::vec3(0.0f));
+    finish();
+    return;
+  }
+  const auto uw = static_cast<std::size_t>(W);
+
+  // A pinhole: the output is the input, bit for bit (non-finite colour as 0, per dof_image.h).
+  const auto copy_input = [&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 16384), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t i = r.begin(); i < r.end(); ++i) {
+        const glm::vec3 c = in.color[i];
+        out[i] = {std::isfinite(c.x) ? c.x : 0.0f, std::isfinite(c.y) ? c.y : 0.0f, std::isfinite(c.z) ? c.z : 0.0f};
+      }
+    });
+  };
+  if (in.coc.pinhole() || !in.depth) {
+    copy_input();
+    finish();
+    return;
+  }
+
+  // Step 1 (Fig. 4.10): I(0), Z(0) and B(0) = sigma = dob_per_coc x C (C / 2 in §4.1.3).
+  sc.levels.reserve(33);  // every level a 2^32-pixel side can have: references below stay valid
+  if (sc.levels.empty()) sc.levels.resize(1);
+  Level& L0 = sc.levels[0];
+  L0.w = W;
+  L0.h = H;
+  L0.c.resize(np);
+  L0.z.resize(np);
+  L0.s.resize(np);
+  sc.row_max.resize(static_cast<std::size_t>(H));
+  const CocModel coc = in.coc;
+  // sigma = C / 2 (Lee §4.1.3) by default; dob_per_coc = 1/4 matches a uniform disc's variance.
+  const double dob = std::isfinite(s.dob_per_coc) && s.dob_per_coc > 0 ? s.dob_per_coc : 0.5;
+  tbb::parallel_for(tbb::blocked_range<int>(0, H), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      glm::vec3 mx(0.0f);
+      for (std::size_t x = 0; x < uw; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * uw + x;
+        const glm::vec3 c = in.color[i];
+        const glm::vec3 v{finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
+        // The mipmaps hold colours in [kTiny, kHuge], where the geometric blend's fast log/exp
+        // work (0 reads as kTiny: the blend then stays ~0, as 0^(1-beta) does); every coarser
+        // texel and bilinear sample is a convex mix of these, so stays inside too.
+        L0.c[i] = {gather(v.x), gather(v.y), gather(v.z)};
+        mx = glm::max(mx, v);
+        const float d = in.depth[i];
+        L0.z[i] = std::isnan(d) ? kFarDepth : std::clamp(d, 0.0f, kFarDepth);
+        const double sig = dob * coc.coc_px(static_cast<double>(d));
+        L0.s[i] = std::isfinite(sig) ? static_cast<float>(std::max(sig, 0.0)) : 0.0f;
+      }
+      sc.row_max[static_cast<std::size_t>(y)] = mx;
+    }
+  });
+  glm::vec3 cmax(0.0f);
+  for (const glm::vec3& m : sc.row_max) cmax = glm::max(cmax, m);
+  float smax = 0;
+  for (float v : L0.s) smax = std::max(smax, v);
+  st.max_dob_px = smax;
+  const float ks = std::isfinite(s.k_sigma) && s.k_sigma > 0 ? static_cast<float>(s.k_sigma) : 2.0f / 3.0f;
+  if (!(smax > 0)) {  // everything in focus: eq. 4.6 gives m = 0 everywhere
+    copy_input();
+    finish();
+    return;
+  }
+
+  // The levels: up to the one the largest DoB needs (§4.4 step 2). Eq. 4.8 reads levels l - 1 and l
+  // with l = floor(m), so m_max needs floor(m_max); at least level 1 for eq. 4.11's DoN; at most the
+  // top level of a GL mipmap (1 texel along the longer side), or the caller's max_level.
+  const int top = static_cast<int>(std::floor(std::log2(static_cast<double>(std::max(W, H)))));
+  int M = std::max(1, static_cast<int>(std::floor(level_of(smax, ks))));
+  if (s.max_level > 0) M = std::min(M, s.max_level);
+  M = std::min(M, top);
+  st.levels = M;
+  if (M < 1) {  // a 1x1 image: every blur of one texel clamped to the edge is that texel
+    copy_input();
+    finish();
+    return;
+  }
+  const float zf = std::isfinite(coc.focus_m) ? static_cast<float>(std::max(coc.focus_m, 0.0))
+                                              : (coc.focus_m > 0 ? kFarDepth : 0.0f);
+  const float delta = std::isfinite(s.delta) ? static_cast<float>(s.delta) : 0.0f;
+
+  sc.levels.resize(static_cast<std::size_t>(M) + 1);
+  sc.tx.resize(static_cast<std::size_t>(M) + 1);
+  sc.ty.resize(static_cast<std::size_t>(M) + 1);
+  for (int l = 1; l <= M; ++l) {
+    const Level& src = sc.levels[static_cast<std::size_t>(l - 1)];
+    Level& dst = sc.levels[static_cast<std::size_t>(l)];
+    dst.w = std::max(1, W >> l);  // GL mipmap sizes
+    dst.h = std::max(1, H >> l);
+    const auto dn = static_cast<std::size_t>(dst.w) * static_cast<std::size_t>(dst.h);
+    dst.c.resize(dn);
+    dst.z.resize(dn);
+    dst.s.resize(dn);
+    Taps& tx = sc.tx[static_cast<std::size_t>(l)];
+    Taps& ty = sc.ty[static_cast<std::size_t>(l)];
+    tx.build(src.w, dst.w);
+    ty.build(src.h, dst.h);
+    const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(dst.w);
+
+    // Step 2: Z and B, isotropic (eq. 4.1), separable: rows first, then columns.
+    sc.tmp_z.resize(static_cast<std::size_t>(src.h) * dw);
+    sc.tmp_s.resize(static_cast<std::size_t>(src.h) * dw);
+    tbb::parallel_for(tbb::blocked_range<int>(0, src.h), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        const float* zr = src.z.data() + static_cast<std::size_t>(y) * sw;
+        const float* sr = src.s.data() + static_cast<std::size_t>(y) * sw;
+        float* oz = sc.tmp_z.data() + static_cast<std::size_t>(y) * dw;
+        float* os = sc.tmp_s.data() + static_cast<std::size_t>(y) * dw;
+        for (std::size_t x = 0; x < dw; ++x) {
+          float az = 0, as = 0;
+          for (std::size_t k = 0; k < 4; ++k) {
+            const auto j = static_cast<std::size_t>(tx.idx[4 * x + k]);
+            az += tx.w[4 * x + k] * zr[j];
+            as += tx.w[4 * x + k] * sr[j];
+          }
+          oz[x] = az;
+          os[x] = as;
+        }
+      }
+    });
+    tbb::parallel_for(tbb::blocked_range<int>(0, dst.h), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        const auto uy = static_cast<std::size_t>(y);
+        float* oz = dst.z.data() + uy * dw;
+        float* os = dst.s.data() + uy * dw;
+        std::fill(oz, oz + dw, 0.0f);
+        std::fill(os, os + dw, 0.0f);
+        for (std::size_t k = 0; k < 4; ++k) {
+          const float wk = ty.w[4 * uy + k];
+          const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + k]) * dw;
+          const float* __restrict az = sc.tmp_z.data() + row;
+          const float* __restrict as = sc.tmp_s.data() + row;
+#pragma omp simd
+          for (std::size_t x = 0; x < dw; ++x) {
+            oz[x] += wk * az[x];
+            os[x] += wk * as[x];
+          }
+        }
+      }
+    });
+
+    // Step 3: the colour, with the anisotropic Gaussian H of eq. 4.9 over the same taps. The centre
+    // p is the destination texel (its Z and DoB from step 2, level l); the neighbours q are the
+    // source texels (level l - 1). A sharper neighbour (sigma_q + delta < sigma_p) of a background
+    // centre (Z_p > Z_f) gets weight 0, so a focused object's intensity does not flow into the blurred
+    // background around it (Fig. 4.6b). The blurriest tap always keeps its weight (sigma_p is an average of the taps' DoBs), so the weights never all vanish; the
+    // isotropic fallback below only guards rounding.
+    const bool aniso = s.anisotropic;
+    tbb::parallel_for(tbb::blocked_range<int>(0, dst.h), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        const auto uy = static_cast<std::size_t>(y);
+        for (std::size_t x = 0; x < dw; ++x) {
+          const std::size_t p = uy * dw + x;
+          const float sp = dst.s[p];
+          const bool background = aniso && dst.z[p] > zf;
+          glm::vec3 acc(0.0f), iso(0.0f);
+          float wsum = 0;
+          for (std::size_t a = 0; a < 4; ++a) {
+            const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + a]) * sw;
+            const float wy = ty.w[4 * uy + a];
+            for (std::size_t b = 0; b < 4; ++b) {
+              const std::size_t q = row + static_cast<std::size_t>(tx.idx[4 * x + b]);
+              const float g = wy * tx.w[4 * x + b];  // G(q - p), eq. 4.1
+              const glm::vec3 cq = src.c[q];
+              iso += g * cq;
+              const float h = background && sp > src.s[q] + delta ? 0.0f : g;  // Lee 2009, eq. 4.9
+              acc += h * cq;
+              wsum += h;
+            }
+          }
+          dst.c[p] = wsum > 1e-6f ? acc / wsum : iso;  // w_G = 1 / sum of the weights (eq. 4.1)
+        }
+      }
+    });
+  }
+
+  // Step 2's DoN at the top level M (eq. 4.10): the largest DoB of level M - 1 among the taps q of
+  // texel p that are foreground (Z_q < Z_f) and nearer than p (Z_q < Z_p); 0 where there is none.
+  // Step 4 reads only N(M), and eq. 4.10 builds N(l) from B(l - 1) and Z, not from N(l - 1), so the
+  // lower levels of N are never needed and are not built.
+  const Level& top_l = sc.levels[static_cast<std::size_t>(M)];
+  const bool smooth = s.smooth_foreground;
+  if (smooth) {
+    const Level& src = sc.levels[static_cast<std::size_t>(M - 1)];
+    const Taps& tx = sc.tx[static_cast<std::size_t>(M)];
+    const Taps& ty = sc.ty[static_cast<std::size_t>(M)];
+    const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(top_l.w);
+    sc.don.assign(dw * static_cast<std::size_t>(top_l.h), 0.0f);
+    tbb::parallel_for(tbb::blocked_range<int>(0, top_l.h), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        const auto uy = static_cast<std::size_t>(y);
+        for (std::size_t x = 0; x < dw; ++x) {
+          const float zp = top_l.z[uy * dw + x];
+          float rho = 0;  // Lee 2009, eq. 4.10
+          for (std::size_t a = 0; a < 4; ++a) {
+            const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + a]) * sw;
+            for (std::size_t b = 0; b < 4; ++b) {
+              const std::size_t q = row + static_cast<std::size_t>(tx.idx[4 * x + b]);
+              if (src.z[q] < zf && src.z[q] < zp) rho = std::max(rho, src.s[q]);
+            }
+          }
+          sc.don[uy * dw + x] = rho;
+        }
+      }
+    });
+  }
+
+  // Steps 4 and 5. Every bilinear lookup is at a position (u + o_x / w_k, v + o_y / h_k): for a
+  // given level and offset class its horizontal texels and weight depend on x only (tables, built
+  // once) and its vertical ones on y only (a lerped row per level and class, built per output row),
+  // as a GPU's texture unit with GL_LINEAR and GL_CLAMP_TO_EDGE would read them.
+  const Neighbourhood nb(s.circular);
+  const float dg = s.circular ? 0.70710678f : 1.0f;
+  const std::array<float, 5> cls = {-1.0f, -dg, 0.0f, dg, 1.0f};  // offset classes, texels
+  // Neighbourhood sample k -> (x class, y class).
+  constexpr std::array<int, 9> kcx = {2, 4, 0, 2, 2, 3, 1, 3, 1}, kcy = {2, 2, 2, 4, 0, 3, 3, 1, 1};
+  const auto L = static_cast<std::size_t>(M) + 1;
+  // Horizontal tables: level k read at offsets of its own texels; the DoN (level M) at offsets of
+  // level M - 1's texels (the circular magnification of step 4, as eq. 4.8 reads one level lower).
+  const auto htab = [&](HTab& t, int n_src, float unit) {
+    t.build(W, n_src, [&](int x, float o) { return ((static_cast<float>(x) + 0.5f) / static_cast<float>(W) + o / unit); }, cls);
+  };
+  sc.hx.resize(L);
+  for (std::size_t k = 0; k < L; ++k) htab(sc.hx[k], sc.levels[k].w, static_cast<float>(sc.levels[k].w));
+  const Level& below = sc.levels[static_cast<std::size_t>(M - 1)];
+  if (smooth) htab(sc.hn, top_l.w, static_cast<float>(below.w));
+  const bool geometric = s.geometric;
+  const bool debug = record_debug_;
+  if (debug) {
+    sc.level_map.resize(np);
+    sc.dob_map.resize(np);
+  }
+  const float mcap = static_cast<float>(M + 1);
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, 8), [&](const tbb::blocked_range<int>& r) {
+    // a[k][ch][i], b[k][ch][i]: sample k of I(l - 1) and I(l) for batch pixel i (eq. 4.8's factors).
+    alignas(64) float A[9][3][kChunk];
+    alignas(64) float B[9][3][kChunk];
+    alignas(64) float beta[kChunk];
+    alignas(64) float res[3][kChunk];
+    bool copy[kChunk];
+    std::vector<std::vector<glm::vec3>> vc(L * 5);  // colour rows: level k, y class c at [5 k + c]
+    std::vector<std::vector<float>> vs(L), vn(5);    // DoB rows (no offset), DoN rows
+    for (std::size_t k = 0; k < L; ++k) {
+      for (std::size_t c = 0; c < 5; ++c) vc[5 * k + c].resize(static_cast<std::size_t>(sc.levels[k].w));
+      vs[k].resize(static_cast<std::size_t>(sc.levels[k].w));
+    }
+    for (auto& row : vn) row.resize(static_cast<std::size_t>(top_l.w));
+    for (int y = r.begin(); y < r.end(); ++y) {
+      const float v = (static_cast<float>(y) + 0.5f) / static_cast<float>(H);
+      for (std::size_t k = 0; k < L; ++k) {
+        const Level& lv = sc.levels[k];
+        const float hk = static_cast<float>(lv.h);
+        for (std::size_t c = 0; c < 5; ++c) {
+          const VRow vr = vrow(lv.h, (v + cls[c] / hk) * hk - 0.5f);
+          lerp_rows(reinterpret_cast<const float*>(lv.c.data()), lv.w * 3, vr, reinterpret_cast<float*>(vc[5 * k + c].data()));
+        }
+        lerp_rows(lv.s.data(), lv.w, vrow(lv.h, v * hk - 0.5f), vs[k].data());
+      }
+      bool row_has_don = false;  // no foreground near this row: eq. 4.11 gives n = 0 throughout
+      if (smooth) {
+        const float hb = static_cast<float>(below.h), ht = static_cast<float>(top_l.h);
+        for (std::size_t c = 0; c < 5; ++c) {
+          lerp_rows(sc.don.data(), top_l.w, vrow(top_l.h, (v + cls[c] / hb) * ht - 0.5f), vn[c].data());
+          for (float d : vn[c]) row_has_don = row_has_don || d > 0;
+        }
+      }
+      for (int x0 = 0; x0 < W; x0 += kChunk) {
+        const int n = std::min(kChunk, W - x0);
+        for (int i = 0; i < n; ++i) {
+          const auto ux = static_cast<std::size_t>(x0 + i);
+          const auto ui = static_cast<std::size_t>(i);
+          const std::size_t p = static_cast<std::size_t>(y) * uw + ux;
+          float sigma = L0.s[p];
+          if (row_has_don) {
+            // Step 4: rho(M) magnified with the circular 9-point filter, then n by eq. 4.11.
+            float rho = 0;
+            for (std::size_t k = 0; k < 9; ++k)
+              rho += nb.w[k] * sc.hn.at(static_cast<std::size_t>(kcx[k]), vn[static_cast<std::size_t>(kcy[k])].data(), ux);
+            const float nlev = std::min(level_of(rho, ks), static_cast<float>(M));  // Lee 2009, eq. 4.11
+            if (nlev > 0) {
+              // sigma(n): B read at the continuous level n (trilinear, as texture2DLod would).
+              const auto n0 = static_cast<std::size_t>(std::min(static_cast<int>(nlev), M));
+              const float fn = nlev - static_cast<float>(n0);
+              const float sa = sc.hx[n0].at(2, vs[n0].data(), ux);
+              sigma = (n0 + 1 < L && fn > 0) ? sa + fn * (sc.hx[n0 + 1].at(2, vs[n0 + 1].data(), ux) - sa) : sa;
+            }
+          }
+          const float m = std::min(level_of(sigma, ks), mcap);  // Lee 2009, eq. 4.6
+          if (debug) {
+            sc.level_map[p] = m;
+            sc.dob_map[p] = sigma;
+          }
+          const glm::vec3 c0 = L0.c[p];
+          if (!(m > 0)) {  // no blur: the pixel itself
+            copy[ui] = true;
+            beta[ui] = 0;
+            for (std::size_t k = 0; k < 9; ++k)
+              for (int ch = 0; ch < 3; ++ch) A[k][ch][ui] = B[k][ch][ui] = c0[ch];
+            continue;
+          }
+          copy[ui] = false;
+          int l = static_cast<int>(m);
+          float bt = m - static_cast<float>(l);
+          if (l > M) {
+            l = M;
+            bt = 1;
+          }
+          beta[ui] = bt;
+          if (l == 0) {
+            // m in (0, 1): there is no level -1 for eq. 4.8, so blend (eq. 4.7's form) the pixel
+            // itself with its 3x3 circular Gaussian at level 0, which is eq. 4.8's value at m = 1;
+            // continuous with eq. 4.8 there and equal to the input at m = 0.
+            glm::vec3 f(0.0f);
+            for (std::size_t k = 0; k < 9; ++k)
+              f += nb.w[k] * sc.hx[0].at3(static_cast<std::size_t>(kcx[k]), vc[static_cast<std::size_t>(kcy[k])].data(), ux);
+            for (std::size_t k = 0; k < 9; ++k)
+              for (int ch = 0; ch < 3; ++ch) {
+                A[k][ch][ui] = c0[ch];
+                B[k][ch][ui] = f[ch];
+              }
+            continue;
+          }
+          // Eq. 4.8: the 3x3 circular neighbourhood; I(l - 1) read at offsets of its texels (eq.
+          // 4.8 exactly at integer m) and I(l) at offsets of its own texels. The paper reads both at
+          // level l - 1's offsets, but then the filter's footprint halves where m crosses an integer
+          // (a visible seam along a depth gradient); this way the result is continuous in m.
+          const auto lo = static_cast<std::size_t>(l - 1), hi = static_cast<std::size_t>(l);
+          const HTab& tlo = sc.hx[lo];
+          const HTab& thi = sc.hx[hi];
+          for (std::size_t k = 0; k < 9; ++k) {
+            const auto cx = static_cast<std::size_t>(kcx[k]), cy = static_cast<std::size_t>(kcy[k]);
+            tlo.at3(cx, vc[5 * lo + cy].data(), ux, &A[k][0][ui], &A[k][1][ui], &A[k][2][ui]);
+            thi.at3(cx, vc[5 * hi + cy].data(), ux, &B[k][0][ui], &B[k][1][ui], &B[k][2][ui]);
+          }
+        }
+        // The blend: sum_q G(q - p) I_q(l-1)^(1 - beta) I_q(l)^beta (eq. 4.8), or linear.
+        const auto un = static_cast<std::size_t>(n);
+        for (std::size_t ch = 0; ch < 3; ++ch) {
+          float* __restrict o = res[ch];
+          std::fill(o, o + un, 0.0f);
+          for (std::size_t k = 0; k < 9; ++k) {
+            const float wk = nb.w[k];
+            const float* __restrict a = A[k][ch];
+            const float* __restrict b = B[k][ch];
+            if (geometric) {
+#pragma omp simd
+              for (std::size_t i = 0; i < un; ++i) {
+                // a^(1-beta) b^beta = a 2^(beta log2(b / a))
+                o[i] += wk * a[i] * fast_exp2(beta[i] * fast_log2(b[i] / a[i]));  // Lee 2009, eq. 4.8
+              }
+            } else {
+#pragma omp simd
+              for (std::size_t i = 0; i < un; ++i) o[i] += wk * (a[i] + beta[i] * (b[i] - a[i]));
+            }
+          }
+        }
+        for (std::size_t i = 0; i < un; ++i) {
+          const std::size_t p = static_cast<std::size_t>(y) * uw + static_cast<std::size_t>(x0) + i;
+          if (copy[i]) {  // the input itself, exactly (non-finite and negative as 0)
+            const glm::vec3 c = in.color[p];
+            out[p] = {finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
+            continue;
+          }
+          // Every factor is a convex mix of input texels, so only the approximate log/exp can leave
+          // [0, max input]; clamp to it (a NaN cannot arise: all factors are in [kTiny, kHuge]).
+          out[p] = {std::clamp(res[0][i], 0.0f, cmax.x), std::clamp(res[1][i], 0.0f, cmax.y),
+                    std::clamp(res[2][i], 0.0f, cmax.z)};
+        }
+      }
+    }
+  });
+  finish();
+}
+
+void lee_mipmap(const DofInput& in, const LeeMipmapSettings& s, RgbImage& out, LeeMipmapStats* stats) {
+  LeeMipmap m;
+  m.run(in, s, out, stats);
+}
+
+}  // namespace fovea::render::dof
