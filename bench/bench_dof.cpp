@@ -319,7 +319,7 @@ int main(int argc, char** argv) {
                            with.hidden_depth = hidden.depth.data();
                            lee_splat(with, LeeSplatSettings{}, out);
                          }});
-      methods.push_back({"accum (embree, 16 views)", [&](RgbImage& out) {
+      methods.push_back({"accum (embree 16 views)", [&](RgbImage& out) {
                            DofReference a(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::Accumulation, 1);
                            a.add_samples(16);
                            out = a.image();

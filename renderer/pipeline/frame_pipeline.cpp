@@ -197,6 +197,7 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
   dof::LeeMipmapSettings s;
   s.anisotropic = settings_.flag("dof.anisotropic");
   s.smooth_foreground = settings_.flag("dof.smooth_foreground");
+  s.dob_per_coc = settings_.number("dof.sigma_per_coc");
   lee_mipmap_.run(in, s, dof_color_);
 }
 

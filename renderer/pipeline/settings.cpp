@@ -44,6 +44,9 @@ const std::vector<SettingSpec>& Settings::specs() {
        "CoC in pixels: the camera's image plane over its field of view (what the references render), or Lee 2009 "
        "eq. 4.4 with the scene's display geometry"},
       {"dof.anisotropic", "true", "bool", "lee-mipmap: anisotropic mipmap against intensity leakage (Lee 2009 eq. 4.9)"},
+      {"dof.sigma_per_coc", "0.5", "number in [0.05, 2]",
+       "lee-mipmap: degree of blurring per CoC diameter, sigma = this x C (Lee 2009 §4.1.3: 0.5; 0.25 matches the "
+       "thin lens's uniform disc and scores 4-6 dB higher against the ray-traced reference, bench/RESULTS.md)"},
       {"dof.smooth_foreground", "true", "bool", "lee-mipmap: DoN smoothing of blurred foreground boundaries (eqs. 4.10-4.11)"},
       {"dof.hidden", "true", "bool",
        "lee-splat: render the hidden image (the surfaces behind the visible ones, Lee 2009 §5.1.2) for partial "

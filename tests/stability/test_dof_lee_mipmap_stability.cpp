@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "dof/lee_mipmap.h"
+#include "dof_lens.h"
 
 namespace fovea::render::dof {
 namespace {
@@ -17,14 +18,7 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-CocModel lens_k(double k_px, double focus_m = 2.0) {
-  CocModel m;
-  m.focal_length_m = 0.05;
-  m.aperture_m = 0.01;
-  m.focus_m = focus_m;
-  m.px_per_image_m = k_px * (focus_m - m.focal_length_m) / (m.aperture_m * m.focal_length_m);
-  return m;
-}
+CocModel lens_k(double k_px, double focus_m = 2.0) { return test::lens_with_k(k_px, focus_m); }
 
 struct Image {
   std::uint32_t w = 0, h = 0;

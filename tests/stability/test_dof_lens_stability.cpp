@@ -5,19 +5,12 @@
 #include <limits>
 
 #include "dof/lens.h"
+#include "dof_lens.h"
 
 namespace fovea::render::dof {
 namespace {
 
-CocModel model(double f, double e, double focus, double px_per_m) {
-  CocModel m;
-  m.focal_length_m = f;
-  m.aperture_m = e;
-  m.focus_m = focus;
-  m.px_per_image_m = px_per_m;
-  m.max_coc_px = 1e4;
-  return m;
-}
+CocModel model(double f, double e, double focus, double px_per_m) { return test::thin_lens(f, e, focus, px_per_m); }
 
 TEST(DofLensStability, HardCasesAreFinite) {
   const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();

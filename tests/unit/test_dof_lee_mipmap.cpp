@@ -9,19 +9,12 @@
 #include <vector>
 
 #include "dof/lee_mipmap.h"
+#include "dof_lens.h"
 
 namespace fovea::render::dof {
 namespace {
 
-// A lens with C(d) = K |d - d_f| / d (eq. 5.3's K in pixels): F = 50 mm, E = 10 mm.
-CocModel lens_k(double k_px, double focus_m = 2.0) {
-  CocModel m;
-  m.focal_length_m = 0.05;
-  m.aperture_m = 0.01;
-  m.focus_m = focus_m;
-  m.px_per_image_m = k_px * (focus_m - m.focal_length_m) / (m.aperture_m * m.focal_length_m);
-  return m;
-}
+CocModel lens_k(double k_px, double focus_m = 2.0) { return test::lens_with_k(k_px, focus_m); }
 // The depth behind the focal plane whose CoC is c (c < K).
 float depth_for_coc(const CocModel& m, double c) { return static_cast<float>(m.depth_far_for_coc(c)); }
 

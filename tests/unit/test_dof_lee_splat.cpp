@@ -11,6 +11,7 @@
 #include <random>
 
 #include "dof/lee_splat.h"
+#include "dof_lens.h"
 
 using namespace fovea::render::dof;
 
@@ -19,15 +20,7 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // A lens with K (eq. 5.3, pixels) = k_px, focused at focus_m.
-CocModel lens(double k_px, double focus_m = 2.0) {
-  CocModel m;
-  m.focal_length_m = 0.05;
-  m.aperture_m = 0.01;
-  m.focus_m = focus_m;
-  m.px_per_image_m = k_px * (focus_m - m.focal_length_m) / (m.aperture_m * m.focal_length_m);
-  m.max_coc_px = 1e4;
-  return m;
-}
+CocModel lens(double k_px, double focus_m = 2.0) { return test::lens_with_k(k_px, focus_m); }
 
 struct Scene {
   std::uint32_t w = 0, h = 0;

@@ -5,19 +5,12 @@
 #include <limits>
 
 #include "dof/lens.h"
+#include "dof_lens.h"
 
 namespace fovea::render::dof {
 namespace {
 
-CocModel model(double f, double e, double focus, double px_per_m) {
-  CocModel m;
-  m.focal_length_m = f;
-  m.aperture_m = e;
-  m.focus_m = focus;
-  m.px_per_image_m = px_per_m;
-  m.max_coc_px = 1e4;
-  return m;
-}
+CocModel model(double f, double e, double focus, double px_per_m) { return test::thin_lens(f, e, focus, px_per_m); }
 
 TEST(DofLens, Eq43MatchesTheImageDistanceForm) {
   // R = |V - V_f| E / V with V = F d / (d - F) (eq. 4.2) equals the closed form of eq. 4.3.
