@@ -55,7 +55,9 @@ int main(int argc, char** argv) {
       const auto gaze = make_gaze_input(o.gaze);
       std::printf("frame plan for %s (%s backend, gaze %s):\n", o.scene_path.c_str(), backend.c_str(),
                   gaze->description().c_str());
-      std::printf("%s", plan_frame(PlanContext{scene, o.settings, gaze->available()}).explain().c_str());
+      std::printf("%s", plan_frame(PlanContext{scene, o.settings, gaze->available(), o.backend == BackendKind::Embree})
+                            .explain()
+                            .c_str());
       return 0;
     }
     return o.headless ? run_headless(o) : run_viewer(o);

@@ -77,6 +77,28 @@ grep -q "gaze+attention: " "$WORK/focus/focus.csv" || fail "focus.csv why: $(cat
 grep -q "run   attention" "$WORK/focus/plan.txt" || fail "attention did not run for the focus: $(cat "$WORK/focus/plan.txt")"
 [ -e "$WORK/full/focus.csv" ] && fail "focus ran although nothing consumes it"
 
+echo "== depth of field: every method headless, the CoC overlay, the raster backend's reference"
+# f/0.5: CoCs of several pixels even at 160x120.
+DOF=(--scene "$SCENES/attention.json" "${SMALL[@]}" --scene-set camera.lens.f_number=0.5 --headless --frames 2 --fps 10
+     --gaze none --set focus.mode=fixed)
+"$RENDER" "${DOF[@]}" --set dof.enabled=false --out "$WORK/dof-off" >/dev/null 2>&1 || fail "dof off run"
+grep -qE "skip +dof +dof.enabled=false" "$WORK/dof-off/plan.txt" || fail "dof off plan: $(cat "$WORK/dof-off/plan.txt")"
+for m in lee-mipmap lee-splat accum reference; do
+  "$RENDER" "${DOF[@]}" --set dof.method=$m --set dof.samples=4 --out "$WORK/dof-$m" >"$WORK/dof-$m.log" 2>&1 \
+    || fail "dof.method=$m: $(tail -5 "$WORK/dof-$m.log")"
+  grep -qE "run +dof .*method $m" "$WORK/dof-$m/plan.txt" || fail "$m plan: $(cat "$WORK/dof-$m/plan.txt")"
+  [ "$(grep -c ",dof," "$WORK/dof-$m/timings.csv")" -eq 2 ] || fail "$m: timings.csv lacks 2 dof rows"
+  cmp -s "$WORK/dof-$m/frame-000001.png" "$WORK/dof-off/frame-000001.png" && fail "$m left the frame unblurred"
+done
+"$RENDER" "${DOF[@]}" --set overlay.map=coc --out "$WORK/dof-coc" >/dev/null 2>&1 || fail "coc overlay run"
+cmp -s "$WORK/dof-coc/frame-000001.png" "$WORK/dof-lee-mipmap/frame-000001.png" && fail "the CoC overlay drew nothing"
+out=$("${XVFB[@]}" "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --backend gl --explain --gaze none \
+  --set dof.method=reference 2>&1) || fail "gl explain: $out"
+grep -qE "later +dof .*--backend embree" <<<"$out" || fail "gl + reference should say to use embree: $out"
+"${XVFB[@]}" "$RENDER" "${DOF[@]}" --backend gl --set dof.method=accum --set dof.samples=4 --out "$WORK/dof-gl" \
+  >"$WORK/dof-gl.log" 2>&1 || fail "gl accum: $(tail -5 "$WORK/dof-gl.log")"
+grep -qE "run +dof .*method accum" "$WORK/dof-gl/plan.txt" || fail "gl accum plan: $(cat "$WORK/dof-gl/plan.txt")"
+
 echo "== two render clients against one daemon"
 PORT=$(( 48100 + RANDOM % 800 ))
 "$TRACKERD" --source "replay:$REC" --loop --port $PORT >"$WORK/daemon.log" 2>&1 &
