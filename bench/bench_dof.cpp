@@ -39,6 +39,7 @@
 #include "dof/lee_splat.h"
 #include "dof/lens.h"
 #include "dof/reference.h"
+#include "dof/schedl_layered.h"
 #include "image/image.h"
 #include "passes/tonemap.h"
 #include "scene/scene_loader.h"
@@ -230,7 +231,7 @@ int main(int argc, char** argv) {
     GBuffer g, hidden;
     backend.render({}, {}, g);
     BackendSettings peel;
-    peel.hidden_layer = true;
+    peel.peel = 1;
     backend.render({}, peel, hidden);
     const Lens base_lens = scene.camera.lens;
     for (const double target : cocs) {
@@ -319,6 +320,19 @@ int main(int argc, char** argv) {
                            with.hidden_depth = hidden.depth.data();
                            lee_splat(with, LeeSplatSettings{}, out);
                          }});
+      // Schedl & Wimmer on M = 3 depth-peeled layers (the two peel renders are part of its time) and on
+      // the visible layer alone (M = 1).
+      GBuffer peel1, peel2;
+      methods.push_back({"schedl-layered M=3", [&](RgbImage& out) {
+                           BackendSettings p1, p2;
+                           p1.peel = 1;
+                           p2.peel = 2;
+                           backend.render({}, p1, peel1);
+                           backend.render({}, p2, peel2);
+                           schedl_layered(in, {{peel1.color.data(), peel1.depth.data()}, {peel2.color.data(), peel2.depth.data()}},
+                                          SchedlSettings{}, out);
+                         }});
+      methods.push_back({"schedl-layered M=1", [&](RgbImage& out) { schedl_layered(in, {}, SchedlSettings{}, out); }});
       methods.push_back({"accum (embree 16 views)", [&](RgbImage& out) {
                            DofReference a(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::Accumulation, 1);
                            a.add_samples(16);

@@ -21,10 +21,11 @@ struct BackendSettings {
   // Thin-lens primary rays (the DOF references). Embree: per pixel or one point; GL: one point only
   // (an off-axis frustum), per_pixel is refused. Depth stays view-axis depth from the lens plane.
   LensSample lens;
-  // Depth peeling by object (Lee 2009 §5.1.2's hidden image H): each pixel shows the nearest surface
-  // behind its visible one that belongs to another object (background where there is none); the
-  // visible object's own back faces are skipped. Embree only; the raster backend refuses it.
-  bool hidden_layer = false;
+  // Depth peeling by object (Lee 2009 §5.1.2's hidden image H; Schedl & Wimmer's M layers): with
+  // peel = n each pixel shows the surface of the n-th object met behind the visible one along its
+  // ray (background where there is none); an object's own back faces and other parts are skipped
+  // (each object counts once). 0: the visible surface. Embree only; the raster backend refuses it.
+  std::uint32_t peel = 0;
 };
 
 class Backend {

@@ -5,6 +5,7 @@
 #include "attention/focus_input.h"
 #include "dof/lee_splat.h"
 #include "dof/reference.h"
+#include "dof/schedl_layered.h"
 #include "passes/tonemap.h"
 
 namespace fovea::render {
@@ -175,6 +176,21 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
   in.color = gbuffer_.color.data();
   in.depth = gbuffer_.depth.data();
   in.coc = coc_model(focus_m);
+  if (method == "schedl-layered") {
+    // M depth-peeled layers (Embree; the raster backend peels nothing yet: M = 1).
+    const auto m = backend_->name() == "embree" ? static_cast<std::uint32_t>(std::lround(settings_.number("dof.layers"))) : 1u;
+    peeled_.resize(m > 0 ? m - 1 : 0);
+    std::vector<dof::PeeledLayer> layers;
+    for (std::uint32_t k = 0; k < peeled_.size(); ++k) {
+      BackendSettings bs;
+      bs.shadows = settings_.flag("shadows");
+      bs.peel = k + 1;
+      backend_->render(FrameTime{now_s, previous_s}, bs, peeled_[k]);
+      layers.push_back({peeled_[k].color.data(), peeled_[k].depth.data()});
+    }
+    dof::schedl_layered(in, layers, dof::SchedlSettings{}, dof_color_);
+    return;
+  }
   if (method == "lee-splat") {
     dof::LeeSplatSettings s;
     // The hidden image H (Lee §5.1.2): a second render, peeled by object (Embree only).
@@ -182,7 +198,7 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
     if (s.use_hidden) {
       BackendSettings bs;
       bs.shadows = settings_.flag("shadows");
-      bs.hidden_layer = true;
+      bs.peel = 1;
       backend_->render(FrameTime{now_s, previous_s}, bs, hidden_);
       in.hidden_color = hidden_.color.data();
       in.hidden_depth = hidden_.depth.data();

@@ -56,6 +56,7 @@ class FramePipeline {
   attention::FocusTracker focus_;
   dof::RgbImage dof_color_;
   GBuffer hidden_;  // lee-splat's hidden image (the layer behind the visible surfaces)
+  std::vector<GBuffer> peeled_;  // schedl-layered's depth-peeled layers behind the visible one
   dof::LeeMipmap lee_mipmap_;
   // Runs dof.method on the G-buffer with the lens focused at focus_m into dof_color_.
   void run_dof(double focus_m, double now_s, double previous_s);

@@ -115,10 +115,7 @@ FramePlan plan_frame(const PlanContext& c) {
                   lens.aperture_m * 1000, method.c_str());
     decide(PassId::Dof, true, why);
     PlannedPass& dof = plan.passes[static_cast<std::size_t>(PassId::Dof)];
-    if (method == "schedl-layered") {
-      dof.runs = false;
-      dof.reason += " — not implemented yet (step 7 continues): choose lee-mipmap, lee-splat, accum or reference";
-    } else if (method == "reference" && !c.backend_traces_rays) {
+    if (method == "reference" && !c.backend_traces_rays) {
       dof.runs = false;
       dof.reason += " — the ray-traced reference needs --backend embree (per-pixel lens rays); accum is the raster "
                     "backend's reference";

@@ -37,7 +37,7 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"dof.method", "lee-mipmap", "reference|accum|lee-mipmap|lee-splat|schedl-layered",
        "depth-of-field algorithm: reference = thin-lens distributed ray tracing (Embree), accum = the "
        "accumulation-buffer equivalent (any backend), lee-mipmap (Lee 2009 ch. 4), lee-splat (ch. 5), schedl-layered "
-       "(Schedl & Wimmer; not implemented yet)"},
+       "(Schedl & Wimmer, layered on depth-peeled input)"},
       {"dof.samples", "64", "number in [1, 4096]", "lens samples per frame of the reference and accum methods"},
       {"dof.seed", "1", "number in [0, 4294967295]", "seed of the reference's lens samples (same seed, same image)"},
       {"dof.projection", "sensor", "sensor|display",
@@ -51,6 +51,9 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"dof.hidden", "true", "bool",
        "lee-splat: render the hidden image (the surfaces behind the visible ones, Lee 2009 §5.1.2) for partial "
        "occlusion: a second render per frame (Embree only; the raster backend runs without it)"},
+      {"dof.layers", "3", "number in [1, 8]",
+       "schedl-layered: depth-peeled input layers M (the visible one and M - 1 objects behind it: M - 1 extra renders; "
+       "Embree only, the raster backend uses 1)"},
       {"dof.aperture", "disc", "disc|gaussian|hexagon", "lee-splat: aperture shape of the splats (the IDF image)"},
       {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
       {"gi.enabled", "false", "bool", "gaze-directed global illumination (photon mapping, hybrid composite)"},

@@ -83,7 +83,7 @@ DOF=(--scene "$SCENES/attention.json" "${SMALL[@]}" --scene-set camera.lens.f_nu
      --gaze none --set focus.mode=fixed)
 "$RENDER" "${DOF[@]}" --set dof.enabled=false --out "$WORK/dof-off" >/dev/null 2>&1 || fail "dof off run"
 grep -qE "skip +dof +dof.enabled=false" "$WORK/dof-off/plan.txt" || fail "dof off plan: $(cat "$WORK/dof-off/plan.txt")"
-for m in lee-mipmap lee-splat accum reference; do
+for m in lee-mipmap lee-splat schedl-layered accum reference; do
   "$RENDER" "${DOF[@]}" --set dof.method=$m --set dof.samples=4 --out "$WORK/dof-$m" >"$WORK/dof-$m.log" 2>&1 \
     || fail "dof.method=$m: $(tail -5 "$WORK/dof-$m.log")"
   grep -qE "run +dof .*method $m" "$WORK/dof-$m/plan.txt" || fail "$m plan: $(cat "$WORK/dof-$m/plan.txt")"

@@ -547,7 +547,7 @@ TEST(EmbreeBackend, HiddenLayerShowsTheNextObjectBehindTheVisibleOne) {
     GBuffer visible, hidden;
     b.render({}, {}, visible);
     BackendSettings bs;
-    bs.hidden_layer = true;
+    bs.peel = 1;
     b.render({}, bs, hidden);
     const std::size_t centre = visible.index(32, 24), corner = visible.index(1, 1);
     EXPECT_EQ(visible.object_id[centre], 2u);
@@ -557,5 +557,16 @@ TEST(EmbreeBackend, HiddenLayerShowsTheNextObjectBehindTheVisibleOne) {
     EXPECT_EQ(visible.object_id[corner], 1u);
     EXPECT_EQ(hidden.object_id[corner], 0u);  // nothing behind the wall
     EXPECT_EQ(hidden.depth[corner], s.camera.far_m);
+    // Two objects deep: behind the sphere and the wall, the back plane (10 m away).
+    Scene deeper = s;
+    deeper.objects.push_back(facing_plane(3, {0, 0, -5}, {60, 60}));
+    EmbreeBackend b3(o);
+    b3.set_scene(deeper);
+    GBuffer second;
+    bs.peel = 2;
+    b3.render({}, bs, second);
+    EXPECT_EQ(second.object_id[centre], 3u);
+    EXPECT_NEAR(second.depth[centre], 10.0f, 1e-3f);
+    EXPECT_EQ(second.object_id[corner], 0u);  // wall then back plane: nothing two objects deep
   }
 }

@@ -347,10 +347,10 @@ void trace_stream(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_
   }
 }
 
-// Depth peeling by object: the first hit of another object than the visible one's, continuing the
-// ray past each hit of the visible object (its back faces, its other parts).
-void trace_hidden(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1,
-                  std::uint32_t y1, bool instanced, TileHits& hits) {
+// Depth peeling by object: the first hit of the peel-th object behind the visible one, continuing
+// the ray past each further hit of an object already met (its back faces, its other parts).
+void trace_peeled(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1,
+                  std::uint32_t y1, bool instanced, std::uint32_t peel, TileHits& hits) {
   RTCIntersectContext ic;
   rtcInitIntersectContext(&ic);
   for (std::uint32_t y = y0; y < y1; ++y) {
@@ -362,8 +362,9 @@ void trace_hidden(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_
       rh.hit.instID[0] = kInvalidId;
       rtcIntersect1(scene, &ic, &rh);
       if (rh.hit.geomID != kInvalidId) {
-        const unsigned visible = instanced ? rh.hit.instID[0] : rh.hit.geomID;
-        for (int step = 0; step < 64; ++step) {
+        unsigned current = instanced ? rh.hit.instID[0] : rh.hit.geomID;
+        std::uint32_t met = 0;  // objects met behind the visible one
+        for (int step = 0; step < 256; ++step) {
           const float t = rh.ray.tfar;
           fill_ray(rh.ray, f, x, y);
           rh.ray.tnear = t + std::max(1e-4f, 1e-5f * t);
@@ -372,9 +373,13 @@ void trace_hidden(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_
           if (!(rh.ray.tnear < rh.ray.tfar)) break;
           rtcIntersect1(scene, &ic, &rh);
           if (rh.hit.geomID == kInvalidId) break;
-          if ((instanced ? rh.hit.instID[0] : rh.hit.geomID) != visible) {
-            out = {rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.geomID, rh.hit.primID, rh.hit.instID[0]};
-            break;
+          const unsigned id = instanced ? rh.hit.instID[0] : rh.hit.geomID;
+          if (id != current) {
+            current = id;
+            if (++met == peel) {
+              out = {rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.geomID, rh.hit.primID, rh.hit.instID[0]};
+              break;
+            }
           }
         }
       }
@@ -671,7 +676,7 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   const bool shade = options_.shading;
   const VisibilityFn visibility = settings.shadows ? &shadow_visible : nullptr;
   const EmbreeTraversal traversal = options_.traversal;
-  const bool hidden_layer = settings.hidden_layer;
+  const std::uint32_t peel = settings.peel;
   RTCScene top = im.top;
 
   // Turns one traced hit into G-buffer texels.
@@ -749,8 +754,8 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
       const auto tx = static_cast<std::uint32_t>(t % tiles_x), ty = static_cast<std::uint32_t>(t / tiles_x);
       const std::uint32_t x0 = tx * kTile, y0 = ty * kTile;
       const std::uint32_t x1 = std::min(x0 + kTile, f.width), y1 = std::min(y0 + kTile, f.height);
-      if (hidden_layer) {
-        trace_hidden(top, f, x0, y0, x1, y1, instanced, hits);
+      if (peel > 0) {
+        trace_peeled(top, f, x0, y0, x1, y1, instanced, peel, hits);
       } else {
         switch (traversal) {
         case EmbreeTraversal::Single: trace_single(top, f, x0, y0, x1, y1, hits); break;

@@ -359,7 +359,7 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
         "OpenGL backend: a lens sample per pixel needs the ray tracer (--backend embree); the raster backend takes "
         "one lens point per render (an accumulation-buffer view)");
   }
-  if (settings.hidden_layer) {
+  if (settings.peel > 0) {
     throw std::invalid_argument(
         "OpenGL backend: the hidden layer (depth peeling) is not implemented for the raster backend yet; use "
         "--backend embree");
