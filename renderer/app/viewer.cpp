@@ -21,7 +21,7 @@ const char* kHelp =
     "  G gaze overlay, M mouse gaze on/off (with --gaze mouse), O cycle map (none, depth, id, normal, motion)\n"
     "  1 dof, 2 lod, 3 gi, 4 attention, 5 shadows (toggle the setting), F focus overlay (the focused object),\n"
     "  P cycle attention maps (none, saliency, spatial, temporal, attention), C CoC map (dof), K cycle DOF method\n"
-    "  (lee-mipmap, lee-splat, accum, reference), X print the frame plan, Esc quit\n";
+    "  (lee-mipmap, lee-splat, schedl-layered, accum, reference), X print the frame plan, Esc quit\n";
 
 void toggle(Settings& s, const std::string& key) {
   s.set(key, s.flag(key) ? "false" : "true");
@@ -97,10 +97,10 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
       break;
     }
     case GLFW_KEY_K: {
-      static const char* methods[] = {"lee-mipmap", "lee-splat", "accum", "reference"};
+      static const char* methods[] = {"lee-mipmap", "lee-splat", "schedl-layered", "accum", "reference"};
       std::size_t i = 0;
-      while (i < 4 && !s.is("dof.method", methods[i])) ++i;
-      s.set("dof.method", methods[(i + 1) % 4]);
+      while (i < 5 && !s.is("dof.method", methods[i])) ++i;
+      s.set("dof.method", methods[(i + 1) % 5]);
       std::printf("dof.method=%s\n", s.text("dof.method").c_str());
       break;
     }
