@@ -66,15 +66,19 @@ inline float level_of(float sigma, float k_sigma) {
 
 // log2 and exp2 for the geometric blend of eq. 4.8, written so the blend loop vectorises (libm's
 // are scalar calls without -ffast-math, and a clamp inside the loop stops GCC's if-conversion under
-// -ftrapping-math). fast_log2: x > 0 and normal. fast_exp2: |x| <= 126. exp2(log2(x)) is within
-// 2e-6 of x; the blend's factors are kept in [kTiny, kHuge] (gather()), so b / a is normal and
-// |beta log2(b / a)| < 120.
-inline float fast_log2(float x) {
-  const auto bits = std::bit_cast<std::int32_t>(x);
-  const float e = static_cast<float>(((bits >> 23) & 255) - 127);
-  const float m = std::bit_cast<float>((bits & 0x7fffff) | 0x3f800000);  // [1, 2)
-  // log2(m) = (2 / ln 2) atanh(t) = (2 / ln 2) (t + t^3/3 + ...), t = (m - 1) / (m + 1) in [0, 1/3]
-  const float t = (m - 1.0f) / (m + 1.0f), t2 = t * t;
+// -ftrapping-math). fast_log2_ratio: a, b > 0 and normal. fast_exp2: |x| <= 126. The blend's
+// factors are kept in [kTiny, kHuge] (gather()), so |beta log2(b / a)| < 120.
+//
+// log2(b / a) with one division: a = 2^ea ma and b = 2^eb mb (ma, mb in [1, 2)), so log2(b / a) =
+// eb - ea + log2(mb / ma), and log2(mb / ma) = (2 / ln 2) atanh(t) with t = (mb - ma) / (mb + ma)
+// in (-1/3, 1/3) (a series to t^11, error < 2e-7). One division instead of two: log2(m) of a single
+// m in [1, 2) takes the same series with t = (m - 1) / (m + 1), and b / a would be another.
+inline float fast_log2_ratio(float b, float a) {
+  const auto ba = std::bit_cast<std::int32_t>(a), bb = std::bit_cast<std::int32_t>(b);
+  const float e = static_cast<float>(((bb >> 23) & 255) - ((ba >> 23) & 255));
+  const float ma = std::bit_cast<float>((ba & 0x7fffff) | 0x3f800000);
+  const float mb = std::bit_cast<float>((bb & 0x7fffff) | 0x3f800000);
+  const float t = (mb - ma) / (mb + ma), t2 = t * t;
   constexpr float c1 = 2.8853900817779268f, c3 = c1 / 3, c5 = c1 / 5, c7 = c1 / 7, c9 = c1 / 9, c11 = c1 / 11;
   return e + t * (c1 + t2 * (c3 + t2 * (c5 + t2 * (c7 + t2 * (c9 + t2 * c11)))));
 }
@@ -88,6 +92,82 @@ inline float fast_exp2(float x) {
   const float p =
       1.0f + f * (1.0f + f * (0.5f + f * (1.0f / 6.0f + f * (1.0f / 24.0f + f * (1.0f / 120.0f + f * (1.0f / 720.0f))))));
   return p * std::bit_cast<float>(n << 23);
+}
+
+// The final pass's blend over one batch of kChunk pixels: res[ch][i] = sum_k w_k
+// A[k][ch][i]^(1 - beta_i) B[k][ch][i]^beta_i (eq. 4.8), or the linear blend: 27 exp2/log2 per
+// pixel. On x86-64 (GCC) it is also compiled for x86-64-v3 (AVX2, FMA: 8 lanes instead of 4),
+// picked at run time when the CPU has it, without changing the library's baseline compile flags.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define FOVEA_LEE_BLEND_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define FOVEA_LEE_BLEND_CLONES
+#endif
+FOVEA_LEE_BLEND_CLONES __attribute__((noinline)) void blend_chunk(const float (*A)[3][kChunk], const float (*B)[3][kChunk],
+                                                   const float* beta, const float* w, std::size_t n,
+                                                   bool geometric, float (*res)[kChunk]) {
+  for (std::size_t ch = 0; ch < 3; ++ch) {
+    float* __restrict o = res[ch];
+    std::fill(o, o + n, 0.0f);
+    for (std::size_t k = 0; k < 9; ++k) {
+      const float wk = w[k];
+      const float* __restrict a = A[k][ch];
+      const float* __restrict b = B[k][ch];
+      if (geometric) {
+#pragma omp simd
+        for (std::size_t i = 0; i < n; ++i) {
+          // a^(1-beta) b^beta = a 2^(beta log2(b / a))
+          o[i] += wk * a[i] * fast_exp2(beta[i] * fast_log2_ratio(b[i], a[i]));  // Lee 2009, eq. 4.8
+        }
+      } else {
+#pragma omp simd
+        for (std::size_t i = 0; i < n; ++i) o[i] += wk * (a[i] + beta[i] * (b[i] - a[i]));
+      }
+    }
+  }
+}
+
+// Neighbourhood sample k -> (x offset class, y offset class) of the final pass (classes: -1, -d,
+// 0, d, 1 texels, see cls in run()).
+constexpr std::array<int, 9> kcx = {2, 4, 0, 2, 2, 3, 1, 3, 1}, kcy = {2, 2, 2, 4, 0, 3, 3, 1, 1};
+
+// One horizontal bilinear tap: texels j and j + 1 with weight f on the second. HTab's edge cases,
+// where both of its texels are the same clamped one, are stored as that texel with f = 0 (exactly
+// its value: x + 0 (y - x) = x for finite y), so the second texel is always the next one.
+struct HTap {
+  int j;
+  float f;
+};
+
+// The final pass's bilinear colour reads for one batch (eq. 4.8's factors): A[k][ch][i] is sample
+// k of I(l_i - 1), B[k][ch][i] of I(l_i). Every read is "texels j0 and j1 of a vertically lerped
+// planar row" with j0, j1, f from HTab's tables flattened over levels. rows: the lerped rows of
+// this output row, plane (level k, y class c, channel ch) at rows[((5 k + c) 3 + ch) W]; taps:
+// horizontal taps of level k and x class c at [(5 k + c) W + x]. Scalar on purpose: with the
+// level varying per pixel every read is a gather, and a vectorised version (AVX2 vgatherdps, or
+// SSE2's emulated gathers) measured slower than this loop on the development machine.
+__attribute__((noinline)) void gather_chunk(const float* rows, const HTap* taps, int W, int x0,
+                                                    const int* lvl, std::size_t n, float (*A)[3][kChunk],
+                                                    float (*B)[3][kChunk]) {
+  for (std::size_t k = 0; k < 9; ++k) {
+    const int cx = kcx[k], cy = kcy[k];
+    for (int role = 0; role < 2; ++role) {  // 0: I(l - 1), 1: I(l)
+      float(*D)[kChunk] = role == 0 ? A[k] : B[k];
+      for (std::size_t i = 0; i < n; ++i) {
+        const int lv = lvl[i] - 1 + role;
+        const int t = (5 * lv + cx) * W + x0 + static_cast<int>(i);
+        const HTap tp = taps[t];
+        const float f = tp.f;
+        // plane (lv, cy, 0) at texel j; the next two planes follow at strides of W
+        const float* ro = rows + (15 * lv + 3 * cy) * W + tp.j;
+        const float r0 = ro[0], g0 = ro[W], b0 = ro[2 * W];
+        const float r1 = ro[1], g1 = ro[W + 1], b1 = ro[2 * W + 1];
+        D[0][i] = r0 + f * (r1 - r0);
+        D[1][i] = g0 + f * (g1 - g0);
+        D[2][i] = b0 + f * (b1 - b0);
+      }
+    }
+  }
 }
 
 // A colour kept where the fast log/exp are exact enough (colours beyond kHuge saturate).
@@ -191,6 +271,7 @@ struct LeeMipmap::Scratch {
   std::vector<float> level_map, dob_map;
   std::vector<HTab> hx;  // horizontal taps per level
   HTab hn;               // horizontal taps of the DoN magnification
+  std::vector<HTap> taps;  // hx flattened over levels (gather_chunk)
 };
 
 LeeMipmap::LeeMipmap() : scratch_(std::make_unique<Scratch>()) {}
@@ -428,8 +509,6 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
   const Neighbourhood nb(s.circular);
   const float dg = s.circular ? 0.70710678f : 1.0f;
   const std::array<float, 5> cls = {-1.0f, -dg, 0.0f, dg, 1.0f};  // offset classes, texels
-  // Neighbourhood sample k -> (x class, y class).
-  constexpr std::array<int, 9> kcx = {2, 4, 0, 2, 2, 3, 1, 3, 1}, kcy = {2, 2, 2, 4, 0, 3, 3, 1, 1};
   const auto L = static_cast<std::size_t>(M) + 1;
   // Horizontal tables: level k read at offsets of its own texels; the DoN (level M) at offsets of
   // level M - 1's texels (the circular magnification of step 4, as eq. 4.8 reads one level lower).
@@ -440,6 +519,16 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
   for (std::size_t k = 0; k < L; ++k) htab(sc.hx[k], sc.levels[k].w, static_cast<float>(sc.levels[k].w));
   const Level& below = sc.levels[static_cast<std::size_t>(M - 1)];
   if (smooth) htab(sc.hn, top_l.w, static_cast<float>(below.w));
+  // The same taps flattened over levels for gather_chunk: [(5 k + c) W + x].
+  sc.taps.resize(L * 5 * uw);
+  for (std::size_t k = 0; k < L; ++k) {
+    const HTab& t = sc.hx[k];
+    for (std::size_t e = 0; e < 5 * uw; ++e)
+      sc.taps[k * 5 * uw + e] = {t.i0[e], t.i1[e] == t.i0[e] ? 0.0f : t.f[e]};  // i1 = i0 + 1 otherwise
+  }
+  // Planar lerped rows per task: plane (k, c, ch) at ((5 k + c) 3 + ch) W (a stride of W for
+  // every level, so gather_chunk finds a plane by arithmetic alone).
+  const auto row_off = [&](std::size_t k, std::size_t c, std::size_t ch) { return ((5 * k + c) * 3 + ch) * uw; };
   const bool geometric = s.geometric;
   const bool debug = record_debug_;
   if (debug) {
@@ -454,6 +543,10 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
     alignas(64) float beta[kChunk];
     alignas(64) float res[3][kChunk];
     bool copy[kChunk];
+    alignas(64) int lvl[kChunk];      // l of eq. 4.8 per batch pixel (1 for the special cases below)
+    bool special[kChunk];             // copy or m < 1: A and B from spec_a, spec_b instead of the gather
+    alignas(64) float spec_a[3][kChunk], spec_b[3][kChunk];
+    std::vector<float> rows(L * 15 * uw + 1);  // + 1: the last plane's texel w_k (read with f = 0)
     std::vector<std::vector<glm::vec3>> vc(L * 5);  // colour rows: level k, y class c at [5 k + c]
     std::vector<std::vector<float>> vs(L), vn(5);    // DoB rows (no offset), DoN rows
     for (std::size_t k = 0; k < L; ++k) {
@@ -461,6 +554,9 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
       vs[k].resize(static_cast<std::size_t>(sc.levels[k].w));
     }
     for (auto& row : vn) row.resize(static_cast<std::size_t>(top_l.w));
+    // don_count[j]: how many of the DoN's top-level columns < j are non-zero in any of this row's
+    // five lerped DoN rows, so a pixel whose taps all read zeros skips the 9 reads of step 4.
+    std::vector<int> don_count(static_cast<std::size_t>(top_l.w) + 1);
     for (int y = r.begin(); y < r.end(); ++y) {
       const float v = (static_cast<float>(y) + 0.5f) / static_cast<float>(H);
       for (std::size_t k = 0; k < L; ++k) {
@@ -469,6 +565,17 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
         for (std::size_t c = 0; c < 5; ++c) {
           const VRow vr = vrow(lv.h, (v + cls[c] / hk) * hk - 0.5f);
           lerp_rows(reinterpret_cast<const float*>(lv.c.data()), lv.w * 3, vr, reinterpret_cast<float*>(vc[5 * k + c].data()));
+          // and planar, for gather_chunk
+          const float* src = reinterpret_cast<const float*>(vc[5 * k + c].data());
+          float* __restrict pr = rows.data() + row_off(k, c, 0);
+          float* __restrict pg = rows.data() + row_off(k, c, 1);
+          float* __restrict pb = rows.data() + row_off(k, c, 2);
+          const auto wk = static_cast<std::size_t>(lv.w);
+          for (std::size_t x = 0; x < wk; ++x) {
+            pr[x] = src[3 * x];
+            pg[x] = src[3 * x + 1];
+            pb[x] = src[3 * x + 2];
+          }
         }
         lerp_rows(lv.s.data(), lv.w, vrow(lv.h, v * hk - 0.5f), vs[k].data());
       }
@@ -479,6 +586,12 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
           lerp_rows(sc.don.data(), top_l.w, vrow(top_l.h, (v + cls[c] / hb) * ht - 0.5f), vn[c].data());
           for (float d : vn[c]) row_has_don = row_has_don || d > 0;
         }
+        if (row_has_don)
+          for (std::size_t j = 0; j < vn[0].size(); ++j) {
+            bool nz = false;
+            for (const auto& row : vn) nz = nz || row[j] > 0;
+            don_count[j + 1] = don_count[j] + (nz ? 1 : 0);
+          }
       }
       for (int x0 = 0; x0 < W; x0 += kChunk) {
         const int n = std::min(kChunk, W - x0);
@@ -487,7 +600,13 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
           const auto ui = static_cast<std::size_t>(i);
           const std::size_t p = static_cast<std::size_t>(y) * uw + ux;
           float sigma = L0.s[p];
-          if (row_has_don) {
+          // The taps of step 4's filter lie between class -1's left texel and class +1's right one
+          // (cls is ascending, the clamp monotone); if the DoN is 0 there, rho = 0 and n = 0.
+          const auto don_near = [&] {
+            const auto d0 = static_cast<std::size_t>(sc.hn.i0[ux]), d1 = static_cast<std::size_t>(sc.hn.i1[4 * sc.hn.w + ux]);
+            return don_count[d1 + 1] != don_count[d0];
+          };
+          if (row_has_don && don_near()) {
             // Step 4: rho(M) magnified with the circular 9-point filter, then n by eq. 4.11.
             float rho = 0;
             for (std::size_t k = 0; k < 9; ++k)
@@ -509,9 +628,10 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
           const glm::vec3 c0 = L0.c[p];
           if (!(m > 0)) {  // no blur: the pixel itself
             copy[ui] = true;
+            special[ui] = true;
+            lvl[ui] = 1;
             beta[ui] = 0;
-            for (std::size_t k = 0; k < 9; ++k)
-              for (int ch = 0; ch < 3; ++ch) A[k][ch][ui] = B[k][ch][ui] = c0[ch];
+            for (int ch = 0; ch < 3; ++ch) spec_a[ch][ui] = spec_b[ch][ui] = c0[ch];
             continue;
           }
           copy[ui] = false;
@@ -529,47 +649,32 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
             glm::vec3 f(0.0f);
             for (std::size_t k = 0; k < 9; ++k)
               f += nb.w[k] * sc.hx[0].at3(static_cast<std::size_t>(kcx[k]), vc[static_cast<std::size_t>(kcy[k])].data(), ux);
-            for (std::size_t k = 0; k < 9; ++k)
-              for (int ch = 0; ch < 3; ++ch) {
-                A[k][ch][ui] = c0[ch];
-                B[k][ch][ui] = f[ch];
-              }
+            special[ui] = true;
+            lvl[ui] = 1;
+            for (int ch = 0; ch < 3; ++ch) {
+              spec_a[ch][ui] = c0[ch];
+              spec_b[ch][ui] = f[ch];
+            }
             continue;
           }
           // Eq. 4.8: the 3x3 circular neighbourhood; I(l - 1) read at offsets of its texels (eq.
           // 4.8 exactly at integer m) and I(l) at offsets of its own texels. The paper reads both at
           // level l - 1's offsets, but then the filter's footprint halves where m crosses an integer
           // (a visible seam along a depth gradient); this way the result is continuous in m.
-          const auto lo = static_cast<std::size_t>(l - 1), hi = static_cast<std::size_t>(l);
-          const HTab& tlo = sc.hx[lo];
-          const HTab& thi = sc.hx[hi];
-          for (std::size_t k = 0; k < 9; ++k) {
-            const auto cx = static_cast<std::size_t>(kcx[k]), cy = static_cast<std::size_t>(kcy[k]);
-            tlo.at3(cx, vc[5 * lo + cy].data(), ux, &A[k][0][ui], &A[k][1][ui], &A[k][2][ui]);
-            thi.at3(cx, vc[5 * hi + cy].data(), ux, &B[k][0][ui], &B[k][1][ui], &B[k][2][ui]);
-          }
+          // (The reads themselves: gather_chunk, for the whole batch.)
+          special[ui] = false;
+          lvl[ui] = l;
         }
-        // The blend: sum_q G(q - p) I_q(l-1)^(1 - beta) I_q(l)^beta (eq. 4.8), or linear.
         const auto un = static_cast<std::size_t>(n);
-        for (std::size_t ch = 0; ch < 3; ++ch) {
-          float* __restrict o = res[ch];
-          std::fill(o, o + un, 0.0f);
-          for (std::size_t k = 0; k < 9; ++k) {
-            const float wk = nb.w[k];
-            const float* __restrict a = A[k][ch];
-            const float* __restrict b = B[k][ch];
-            if (geometric) {
-#pragma omp simd
-              for (std::size_t i = 0; i < un; ++i) {
-                // a^(1-beta) b^beta = a 2^(beta log2(b / a))
-                o[i] += wk * a[i] * fast_exp2(beta[i] * fast_log2(b[i] / a[i]));  // Lee 2009, eq. 4.8
+        gather_chunk(rows.data(), sc.taps.data(), W, x0, lvl, un, A, B);
+        for (std::size_t i = 0; i < un; ++i)
+          if (special[i])
+            for (std::size_t k = 0; k < 9; ++k)
+              for (std::size_t ch = 0; ch < 3; ++ch) {
+                A[k][ch][i] = spec_a[ch][i];
+                B[k][ch][i] = spec_b[ch][i];
               }
-            } else {
-#pragma omp simd
-              for (std::size_t i = 0; i < un; ++i) o[i] += wk * (a[i] + beta[i] * (b[i] - a[i]));
-            }
-          }
-        }
+        blend_chunk(A, B, beta, nb.w.data(), un, geometric, res);
         for (std::size_t i = 0; i < un; ++i) {
           const std::size_t p = static_cast<std::size_t>(y) * uw + static_cast<std::size_t>(x0) + i;
           if (copy[i]) {  // the input itself, exactly (non-finite and negative as 0)
