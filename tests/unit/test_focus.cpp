@@ -710,29 +710,33 @@ TEST(FocusPlanner, TheFocusOverlayNeedsTheFocusPassBeforeDofExists) {
 }
 
 TEST(FocusPlanner, PassesWhoseConsumersDoNotRunYetWait) {
-  // A thin lens needs dof, dof needs focus, focus needs attention: until dof is implemented, focus
-  // and attention would compute what nobody reads, so they wait (needed, not run) and say why.
+  // A thin lens needs dof, dof needs focus, focus needs attention. When dof cannot run (the
+  // ray-traced reference on the raster backend), focus and attention would compute what nobody
+  // reads, so they wait (needed, not run) and say why.
   Scene thin;
   thin.camera.lens.aperture_m = 0.01;
   Settings s;
-  const FramePlan p = plan_frame(PlanContext{thin, s, true});
+  s.set_assignment("dof.method=reference");
+  const FramePlan p = plan_frame(PlanContext{thin, s, true, false});
   ASSERT_TRUE(p.needed(PassId::Dof));
-  if (!p.runs(PassId::Dof)) {
-    EXPECT_TRUE(p.needed(PassId::Focus));
-    EXPECT_FALSE(p.runs(PassId::Focus));
-    EXPECT_NE(p.at(PassId::Focus).reason.find("waits: dof is not implemented"), std::string::npos)
-        << p.at(PassId::Focus).reason;
-    EXPECT_FALSE(p.runs(PassId::Attention));
-    EXPECT_NE(p.explain().find("waits"), std::string::npos) << p.explain();
-  }
+  ASSERT_FALSE(p.runs(PassId::Dof));
+  EXPECT_TRUE(p.needed(PassId::Focus));
+  EXPECT_FALSE(p.runs(PassId::Focus));
+  EXPECT_NE(p.at(PassId::Focus).reason.find("waits: dof does not run"), std::string::npos)
+      << p.at(PassId::Focus).reason;
+  EXPECT_FALSE(p.runs(PassId::Attention));
+  EXPECT_NE(p.explain().find("waits"), std::string::npos) << p.explain();
+  // With a method that runs, they run for it.
+  EXPECT_TRUE(plan_frame(PlanContext{thin, Settings{}, true}).runs(PassId::Focus));
   // Something that shows them makes them run.
   s.set_assignment("overlay.focus=true");
-  const FramePlan shown = plan_frame(PlanContext{thin, s, true});
+  const FramePlan shown = plan_frame(PlanContext{thin, s, true, false});
   EXPECT_TRUE(shown.runs(PassId::Focus));
   EXPECT_TRUE(shown.runs(PassId::Attention));
   Settings map;
+  map.set_assignment("dof.method=reference");
   map.set_assignment("overlay.map=saliency");
-  EXPECT_TRUE(plan_frame(PlanContext{thin, map, true}).runs(PassId::Attention));
+  EXPECT_TRUE(plan_frame(PlanContext{thin, map, true, false}).runs(PassId::Attention));
 }
 
 TEST(FocusPlanner, FocusSettingsAreKnownWithTheirRanges) {
