@@ -163,6 +163,7 @@ int main(int argc, char** argv) {
   CLI::App app{"Depth of field: PSNR, SSIM, failure modes and ms/frame of every method against the thin-lens "
                "ray-traced reference, per scene and mean CoC"};
   std::string size_text = "1024x768", csv_path, png_dir, cocs_text = "4,8,16,32,64", cases_text = "all";
+  std::string methods_text = "all";
   std::uint32_t samples = 256, repeats = 5;
   std::uint32_t convergence = 0;
   app.add_option("--size", size_text, "image size WxH");
@@ -174,6 +175,9 @@ int main(int argc, char** argv) {
   app.add_option("--convergence", convergence,
                  "also measure the reference's own convergence: RMSE of 4..N/4 samples against N samples on the "
                  "first case at the largest CoC (N = this value; 0: skip)");
+  app.add_option("--methods", methods_text,
+                 "comma-separated method names to run (a name selects every row that starts with it, e.g. lee-mipmap), "
+                 "or all");
   app.add_option("--csv", csv_path, "write the table as CSV");
   app.add_option("--png", png_dir, "write every image (reference and methods) as PNG into this directory");
   CLI11_PARSE(app, argc, argv);
@@ -197,6 +201,17 @@ int main(int argc, char** argv) {
       cocs.push_back(v);
     }
   }
+  std::vector<std::string> method_filter;
+  if (methods_text != "all") {
+    std::stringstream ss(methods_text);
+    std::string item;
+    while (std::getline(ss, item, ',')) method_filter.push_back(item);
+  }
+  const auto method_selected = [&](const std::string& name) {
+    if (method_filter.empty()) return true;
+    return std::any_of(method_filter.begin(), method_filter.end(),
+                       [&](const std::string& f) { return name.rfind(f, 0) == 0; });
+  };
   const std::string src = FOVEA_SOURCE_DIR;
   std::vector<Case> cases = {{"background-blur", src + "/renderer/scenes/attention.json", 2.9},
                              {"foreground-blur", src + "/renderer/scenes/attention.json", 14.0},
@@ -338,7 +353,16 @@ int main(int argc, char** argv) {
                            a.add_samples(16);
                            out = a.image();
                          }});
+      for (const std::string& f : method_filter) {
+        if (std::none_of(methods.begin(), methods.end(), [&](const Method& m) { return m.name.rfind(f, 0) == 0; })) {
+          std::cerr << "--methods: '" << f << "' names no method; methods are:";
+          for (const Method& m : methods) std::cerr << " '" << m.name << "'";
+          std::cerr << "\n";
+          return 2;
+        }
+      }
       for (const Method& m : methods) {
+        if (!method_selected(m.name)) continue;
         RgbImage out;
         std::vector<double> ms;
         // The accumulation baseline is 16 full renders: once is enough to time it.

@@ -19,12 +19,16 @@ constexpr float kTiny = 1e-18f;             // the geometric blend's floor for 0
 constexpr float kHuge = 1e18f;              // and its ceiling: b / a stays a normal float
 constexpr int kChunk = 64;                  // pixels per gather/blend batch of the final pass
 
-// One level of the mipmaps: colour I, depth Z and DoB B (Fig. 4.10's I and ZBN).
+// One level of the mipmaps: colour I, depth Z and DoB B (Fig. 4.10's I and ZBN). The colour is
+// planar (channel ch at ch w h) so that the final pass lerps its rows straight into the planar
+// rows its gathers read, with no per-row transposition.
 struct Level {
   int w = 0, h = 0;
-  std::vector<glm::vec3> c;
+  std::vector<float> c;
   std::vector<float> z, s;
-  std::size_t at(int x, int y) const { return static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x); }
+  std::size_t pixels() const { return static_cast<std::size_t>(w) * static_cast<std::size_t>(h); }
+  const float* plane(std::size_t ch) const { return c.data() + ch * pixels(); }
+  float* plane(std::size_t ch) { return c.data() + ch * pixels(); }
 };
 
 // The downsampling taps along one axis, 4 per destination texel. Eq. 4.1's 3x3 Gaussian G is the
@@ -320,7 +324,7 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
   Level& L0 = sc.levels[0];
   L0.w = W;
   L0.h = H;
-  L0.c.resize(np);
+  L0.c.resize(3 * np);
   L0.z.resize(np);
   L0.s.resize(np);
   sc.row_max.resize(static_cast<std::size_t>(H));
@@ -337,13 +341,15 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
         // The mipmaps hold colours in [kTiny, kHuge], where the geometric blend's fast log/exp
         // work (0 reads as kTiny: the blend then stays ~0, as 0^(1-beta) does); every coarser
         // texel and bilinear sample is a convex mix of these, so stays inside too.
-        L0.c[i] = {gather(v.x), gather(v.y), gather(v.z)};
+        L0.c[i] = gather(v.x);
+        L0.c[np + i] = gather(v.y);
+        L0.c[2 * np + i] = gather(v.z);
         mx = glm::max(mx, v);
         const float d = in.depth[i];
         L0.z[i] = std::isnan(d) ? kFarDepth : std::clamp(d, 0.0f, kFarDepth);
-        const double sig = dob * coc.coc_px(static_cast<double>(d));
-        L0.s[i] = std::isfinite(sig) ? static_cast<float>(std::max(sig, 0.0)) : 0.0f;
       }
+      const std::size_t row = static_cast<std::size_t>(y) * uw;
+      coc.scaled_coc_px(in.depth + row, uw, dob, L0.s.data() + row);
       sc.row_max[static_cast<std::size_t>(y)] = mx;
     }
   });
@@ -385,7 +391,7 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
     dst.w = std::max(1, W >> l);  // GL mipmap sizes
     dst.h = std::max(1, H >> l);
     const auto dn = static_cast<std::size_t>(dst.w) * static_cast<std::size_t>(dst.h);
-    dst.c.resize(dn);
+    dst.c.resize(3 * dn);
     dst.z.resize(dn);
     dst.s.resize(dn);
     Taps& tx = sc.tx[static_cast<std::size_t>(l)];
@@ -443,6 +449,7 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
     // background around it (Fig. 4.6b). The blurriest tap always keeps its weight (sigma_p is an average of the taps' DoBs), so the weights never all vanish; the
     // isotropic fallback below only guards rounding.
     const bool aniso = s.anisotropic;
+    const std::size_t sn = src.pixels();
     tbb::parallel_for(tbb::blocked_range<int>(0, dst.h), [&](const tbb::blocked_range<int>& r) {
       for (int y = r.begin(); y < r.end(); ++y) {
         const auto uy = static_cast<std::size_t>(y);
@@ -458,14 +465,17 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
             for (std::size_t b = 0; b < 4; ++b) {
               const std::size_t q = row + static_cast<std::size_t>(tx.idx[4 * x + b]);
               const float g = wy * tx.w[4 * x + b];  // G(q - p), eq. 4.1
-              const glm::vec3 cq = src.c[q];
+              const glm::vec3 cq{src.c[q], src.c[sn + q], src.c[2 * sn + q]};
               iso += g * cq;
               const float h = background && sp > src.s[q] + delta ? 0.0f : g;  // Lee 2009, eq. 4.9
               acc += h * cq;
               wsum += h;
             }
           }
-          dst.c[p] = wsum > 1e-6f ? acc / wsum : iso;  // w_G = 1 / sum of the weights (eq. 4.1)
+          const glm::vec3 c = wsum > 1e-6f ? acc / wsum : iso;  // w_G = 1 / sum of the weights (eq. 4.1)
+          dst.c[p] = c.x;
+          dst.c[dn + p] = c.y;
+          dst.c[2 * dn + p] = c.z;
         }
       }
     });
@@ -501,6 +511,8 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
       }
     });
   }
+
+  st.mipmap_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   // Steps 4 and 5. Every bilinear lookup is at a position (u + o_x / w_k, v + o_y / h_k): for a
   // given level and offset class its horizontal texels and weight depend on x only (tables, built
@@ -540,20 +552,18 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
     // a[k][ch][i], b[k][ch][i]: sample k of I(l - 1) and I(l) for batch pixel i (eq. 4.8's factors).
     alignas(64) float A[9][3][kChunk];
     alignas(64) float B[9][3][kChunk];
-    alignas(64) float beta[kChunk];
     alignas(64) float res[3][kChunk];
-    bool copy[kChunk];
-    alignas(64) int lvl[kChunk];      // l of eq. 4.8 per batch pixel (1 for the special cases below)
-    bool special[kChunk];             // copy or m < 1: A and B from spec_a, spec_b instead of the gather
-    alignas(64) float spec_a[3][kChunk], spec_b[3][kChunk];
+    // Per pixel of the output row: the pass's case, l of eq. 4.8 (1 for the special cases, so
+    // gather_chunk reads levels that exist; their values are replaced) and beta = m - l.
+    enum Kind : std::uint8_t { kCopy, kBelowOne, kBlend };
+    std::vector<std::uint8_t> kind(uw);
+    std::vector<int> lvl(uw);
+    std::vector<float> beta(uw);
     std::vector<float> rows(L * 15 * uw + 1);  // + 1: the last plane's texel w_k (read with f = 0)
-    std::vector<std::vector<glm::vec3>> vc(L * 5);  // colour rows: level k, y class c at [5 k + c]
-    std::vector<std::vector<float>> vs(L), vn(5);    // DoB rows (no offset), DoN rows
-    for (std::size_t k = 0; k < L; ++k) {
-      for (std::size_t c = 0; c < 5; ++c) vc[5 * k + c].resize(static_cast<std::size_t>(sc.levels[k].w));
-      vs[k].resize(static_cast<std::size_t>(sc.levels[k].w));
-    }
+    std::vector<std::vector<float>> vs(L), vn(5);  // DoB rows (no offset) per level, DoN rows per class
+    for (std::size_t k = 0; k < L; ++k) vs[k].resize(static_cast<std::size_t>(sc.levels[k].w));
     for (auto& row : vn) row.resize(static_cast<std::size_t>(top_l.w));
+    std::vector<bool> needed(L);
     // don_count[j]: how many of the DoN's top-level columns < j are non-zero in any of this row's
     // five lerped DoN rows, so a pixel whose taps all read zeros skips the 9 reads of step 4.
     std::vector<int> don_count(static_cast<std::size_t>(top_l.w) + 1);
@@ -561,23 +571,7 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
       const float v = (static_cast<float>(y) + 0.5f) / static_cast<float>(H);
       for (std::size_t k = 0; k < L; ++k) {
         const Level& lv = sc.levels[k];
-        const float hk = static_cast<float>(lv.h);
-        for (std::size_t c = 0; c < 5; ++c) {
-          const VRow vr = vrow(lv.h, (v + cls[c] / hk) * hk - 0.5f);
-          lerp_rows(reinterpret_cast<const float*>(lv.c.data()), lv.w * 3, vr, reinterpret_cast<float*>(vc[5 * k + c].data()));
-          // and planar, for gather_chunk
-          const float* src = reinterpret_cast<const float*>(vc[5 * k + c].data());
-          float* __restrict pr = rows.data() + row_off(k, c, 0);
-          float* __restrict pg = rows.data() + row_off(k, c, 1);
-          float* __restrict pb = rows.data() + row_off(k, c, 2);
-          const auto wk = static_cast<std::size_t>(lv.w);
-          for (std::size_t x = 0; x < wk; ++x) {
-            pr[x] = src[3 * x];
-            pg[x] = src[3 * x + 1];
-            pb[x] = src[3 * x + 2];
-          }
-        }
-        lerp_rows(lv.s.data(), lv.w, vrow(lv.h, v * hk - 0.5f), vs[k].data());
+        lerp_rows(lv.s.data(), lv.w, vrow(lv.h, v * static_cast<float>(lv.h) - 0.5f), vs[k].data());
       }
       bool row_has_don = false;  // no foreground near this row: eq. 4.11 gives n = 0 throughout
       if (smooth) {
@@ -593,91 +587,110 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
             don_count[j + 1] = don_count[j] + (nz ? 1 : 0);
           }
       }
-      for (int x0 = 0; x0 < W; x0 += kChunk) {
-        const int n = std::min(kChunk, W - x0);
-        for (int i = 0; i < n; ++i) {
-          const auto ux = static_cast<std::size_t>(x0 + i);
-          const auto ui = static_cast<std::size_t>(i);
-          const std::size_t p = static_cast<std::size_t>(y) * uw + ux;
-          float sigma = L0.s[p];
-          // The taps of step 4's filter lie between class -1's left texel and class +1's right one
-          // (cls is ascending, the clamp monotone); if the DoN is 0 there, rho = 0 and n = 0.
-          const auto don_near = [&] {
-            const auto d0 = static_cast<std::size_t>(sc.hn.i0[ux]), d1 = static_cast<std::size_t>(sc.hn.i1[4 * sc.hn.w + ux]);
-            return don_count[d1 + 1] != don_count[d0];
-          };
-          if (row_has_don && don_near()) {
-            // Step 4: rho(M) magnified with the circular 9-point filter, then n by eq. 4.11.
-            float rho = 0;
-            for (std::size_t k = 0; k < 9; ++k)
-              rho += nb.w[k] * sc.hn.at(static_cast<std::size_t>(kcx[k]), vn[static_cast<std::size_t>(kcy[k])].data(), ux);
-            const float nlev = std::min(level_of(rho, ks), static_cast<float>(M));  // Lee 2009, eq. 4.11
-            if (nlev > 0) {
-              // sigma(n): B read at the continuous level n (trilinear, as texture2DLod would).
-              const auto n0 = static_cast<std::size_t>(std::min(static_cast<int>(nlev), M));
-              const float fn = nlev - static_cast<float>(n0);
-              const float sa = sc.hx[n0].at(2, vs[n0].data(), ux);
-              sigma = (n0 + 1 < L && fn > 0) ? sa + fn * (sc.hx[n0 + 1].at(2, vs[n0 + 1].data(), ux) - sa) : sa;
-            }
+      // Steps 4 and 5's level per pixel, and which levels this row reads at all.
+      std::fill(needed.begin(), needed.end(), false);
+      for (std::size_t ux = 0; ux < uw; ++ux) {
+        const std::size_t p = static_cast<std::size_t>(y) * uw + ux;
+        float sigma = L0.s[p];
+        // The taps of step 4's filter lie between class -1's left texel and class +1's right one
+        // (cls is ascending, the clamp monotone); if the DoN is 0 there, rho = 0 and n = 0.
+        const auto don_near = [&] {
+          const auto d0 = static_cast<std::size_t>(sc.hn.i0[ux]), d1 = static_cast<std::size_t>(sc.hn.i1[4 * sc.hn.w + ux]);
+          return don_count[d1 + 1] != don_count[d0];
+        };
+        if (row_has_don && don_near()) {
+          // Step 4: rho(M) magnified with the circular 9-point filter, then n by eq. 4.11.
+          float rho = 0;
+          for (std::size_t k = 0; k < 9; ++k)
+            rho += nb.w[k] * sc.hn.at(static_cast<std::size_t>(kcx[k]), vn[static_cast<std::size_t>(kcy[k])].data(), ux);
+          const float nlev = std::min(level_of(rho, ks), static_cast<float>(M));  // Lee 2009, eq. 4.11
+          if (nlev > 0) {
+            // sigma(n): B read at the continuous level n (trilinear, as texture2DLod would).
+            const auto n0 = static_cast<std::size_t>(std::min(static_cast<int>(nlev), M));
+            const float fn = nlev - static_cast<float>(n0);
+            const float sa = sc.hx[n0].at(2, vs[n0].data(), ux);
+            sigma = (n0 + 1 < L && fn > 0) ? sa + fn * (sc.hx[n0 + 1].at(2, vs[n0 + 1].data(), ux) - sa) : sa;
           }
-          const float m = std::min(level_of(sigma, ks), mcap);  // Lee 2009, eq. 4.6
-          if (debug) {
-            sc.level_map[p] = m;
-            sc.dob_map[p] = sigma;
-          }
-          const glm::vec3 c0 = L0.c[p];
-          if (!(m > 0)) {  // no blur: the pixel itself
-            copy[ui] = true;
-            special[ui] = true;
-            lvl[ui] = 1;
-            beta[ui] = 0;
-            for (int ch = 0; ch < 3; ++ch) spec_a[ch][ui] = spec_b[ch][ui] = c0[ch];
-            continue;
-          }
-          copy[ui] = false;
-          int l = static_cast<int>(m);
-          float bt = m - static_cast<float>(l);
-          if (l > M) {
-            l = M;
-            bt = 1;
-          }
-          beta[ui] = bt;
-          if (l == 0) {
-            // m in (0, 1): there is no level -1 for eq. 4.8, so blend (eq. 4.7's form) the pixel
-            // itself with its 3x3 circular Gaussian at level 0, which is eq. 4.8's value at m = 1;
-            // continuous with eq. 4.8 there and equal to the input at m = 0.
-            glm::vec3 f(0.0f);
-            for (std::size_t k = 0; k < 9; ++k)
-              f += nb.w[k] * sc.hx[0].at3(static_cast<std::size_t>(kcx[k]), vc[static_cast<std::size_t>(kcy[k])].data(), ux);
-            special[ui] = true;
-            lvl[ui] = 1;
-            for (int ch = 0; ch < 3; ++ch) {
-              spec_a[ch][ui] = c0[ch];
-              spec_b[ch][ui] = f[ch];
-            }
-            continue;
-          }
-          // Eq. 4.8: the 3x3 circular neighbourhood; I(l - 1) read at offsets of its texels (eq.
-          // 4.8 exactly at integer m) and I(l) at offsets of its own texels. The paper reads both at
-          // level l - 1's offsets, but then the filter's footprint halves where m crosses an integer
-          // (a visible seam along a depth gradient); this way the result is continuous in m.
-          // (The reads themselves: gather_chunk, for the whole batch.)
-          special[ui] = false;
-          lvl[ui] = l;
         }
-        const auto un = static_cast<std::size_t>(n);
-        gather_chunk(rows.data(), sc.taps.data(), W, x0, lvl, un, A, B);
-        for (std::size_t i = 0; i < un; ++i)
-          if (special[i])
-            for (std::size_t k = 0; k < 9; ++k)
-              for (std::size_t ch = 0; ch < 3; ++ch) {
-                A[k][ch][i] = spec_a[ch][i];
-                B[k][ch][i] = spec_b[ch][i];
-              }
-        blend_chunk(A, B, beta, nb.w.data(), un, geometric, res);
+        const float m = std::min(level_of(sigma, ks), mcap);  // Lee 2009, eq. 4.6
+        if (debug) {
+          sc.level_map[p] = m;
+          sc.dob_map[p] = sigma;
+        }
+        lvl[ux] = 1;
+        if (!(m > 0)) {  // no blur: the pixel itself
+          kind[ux] = kCopy;
+          continue;
+        }
+        int l = static_cast<int>(m);
+        float bt = m - static_cast<float>(l);
+        if (l > M) {
+          l = M;
+          bt = 1;
+        }
+        beta[ux] = bt;
+        if (l == 0) {
+          kind[ux] = kBelowOne;
+          needed[0] = true;
+          continue;
+        }
+        kind[ux] = kBlend;
+        lvl[ux] = l;
+        needed[static_cast<std::size_t>(l - 1)] = true;
+        needed[static_cast<std::size_t>(l)] = true;
+      }
+      // The vertically lerped planar rows of the levels this row reads (a row in focus reads none).
+      for (std::size_t k = 0; k < L; ++k) {
+        if (!needed[k]) continue;
+        const Level& lv = sc.levels[k];
+        const float hk = static_cast<float>(lv.h);
+        for (std::size_t c = 0; c < 5; ++c) {
+          const VRow vr = vrow(lv.h, (v + cls[c] / hk) * hk - 0.5f);
+          for (std::size_t ch = 0; ch < 3; ++ch) lerp_rows(lv.plane(ch), lv.w, vr, rows.data() + row_off(k, c, ch));
+        }
+      }
+      for (int x0 = 0; x0 < W; x0 += kChunk) {
+        const auto ux0 = static_cast<std::size_t>(x0);
+        const auto un = static_cast<std::size_t>(std::min(kChunk, W - x0));
+        const std::size_t p0 = static_cast<std::size_t>(y) * uw + ux0;
+        const std::uint8_t* kd = kind.data() + ux0;
+        if (std::all_of(kd, kd + un, [](std::uint8_t k) { return k == kCopy; })) {
+          for (std::size_t i = 0; i < un; ++i) {
+            const glm::vec3 c = in.color[p0 + i];
+            out[p0 + i] = {finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
+          }
+          continue;
+        }
+        gather_chunk(rows.data(), sc.taps.data(), W, x0, lvl.data() + ux0, un, A, B);
         for (std::size_t i = 0; i < un; ++i) {
-          const std::size_t p = static_cast<std::size_t>(y) * uw + static_cast<std::size_t>(x0) + i;
-          if (copy[i]) {  // the input itself, exactly (non-finite and negative as 0)
+          if (kd[i] == kBlend) continue;
+          // Copy: A = B = the pixel (the blend gives it back; the output is taken from the input
+          // below anyway). m in (0, 1): there is no level -1 for eq. 4.8, so blend (eq. 4.7's form)
+          // the pixel itself with its 3x3 circular Gaussian at level 0, which is eq. 4.8's value at
+          // m = 1; continuous with eq. 4.8 there and equal to the input at m = 0.
+          float self[3], filtered[3] = {0, 0, 0};
+          for (std::size_t ch = 0; ch < 3; ++ch) self[ch] = L0.c[ch * np + p0 + i];
+          if (kd[i] == kBelowOne) {
+            for (std::size_t k = 0; k < 9; ++k) {
+              const HTap tp = sc.taps[static_cast<std::size_t>(kcx[k]) * uw + ux0 + i];
+              for (std::size_t ch = 0; ch < 3; ++ch) {
+                const float* ro = rows.data() + row_off(0, static_cast<std::size_t>(kcy[k]), ch) + static_cast<std::size_t>(tp.j);
+                filtered[ch] += nb.w[k] * (ro[0] + tp.f * (ro[1] - ro[0]));
+              }
+            }
+          } else {
+            std::copy(self, self + 3, filtered);
+          }
+          for (std::size_t k = 0; k < 9; ++k)
+            for (std::size_t ch = 0; ch < 3; ++ch) {
+              A[k][ch][i] = self[ch];
+              B[k][ch][i] = filtered[ch];
+            }
+        }
+        blend_chunk(A, B, beta.data() + ux0, nb.w.data(), un, geometric, res);
+        for (std::size_t i = 0; i < un; ++i) {
+          const std::size_t p = p0 + i;
+          if (kd[i] == kCopy) {  // the input itself, exactly (non-finite and negative as 0)
             const glm::vec3 c = in.color[p];
             out[p] = {finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
             continue;

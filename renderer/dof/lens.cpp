@@ -49,6 +49,39 @@ double CocModel::signed_coc_px(double depth_m) const {
 
 double CocModel::coc_px(double depth_m) const { return std::fabs(signed_coc_px(depth_m)); }
 
+void CocModel::scaled_coc_px(const float* depth, std::size_t n, double scale, float* out) const {
+  // A product beyond float's range is kept at its largest finite value, never +inf.
+  constexpr double kMaxFinite = static_cast<double>(std::numeric_limits<float>::max());
+  const auto slow = [&](float d) {
+    const double v = scale * coc_px(static_cast<double>(d));
+    return std::isfinite(v) ? static_cast<float>(std::clamp(v, 0.0, kMaxFinite)) : 0.0f;
+  };
+  if (pinhole() || !std::isfinite(aperture_m) || !std::isfinite(px_per_image_m) || !(focal_length_m > 0) ||
+      !std::isfinite(focus_m) || !std::isfinite(scale)) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = slow(depth[i]);
+    return;
+  }
+  // signed_coc_px's regular branch: B = K (d - d_f) / d, clamped to the cap (eq. 5.3).
+  const double k = aperture_m * focal_length_m / focus_gap(focus_m, focal_length_m) * px_per_image_m;
+  const double df = std::max(focus_m, 0.0), cap = std::max(0.0, max_coc_px);
+  if (!std::isfinite(k)) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = slow(depth[i]);
+    return;
+  }
+#pragma omp simd
+  for (std::size_t i = 0; i < n; ++i) {
+    const double d = static_cast<double>(depth[i]);
+    const bool regular = d > 0 && d <= kMaxFinite;
+    const double dd = regular ? d : 1.0;
+    const double v = scale * std::min(std::fabs(k * (dd - df) / dd), cap);
+    out[i] = regular ? static_cast<float>(std::clamp(v, 0.0, kMaxFinite)) : 0.0f;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const float d = depth[i];
+    if (!(d > 0 && static_cast<double>(d) <= kMaxFinite)) out[i] = slow(d);
+  }
+}
+
 double CocModel::depth_near_for_coc(double c_px) const {
   // Schedl & Wimmer eqs. 5-6: C = K (d_f - d) / d for d < d_f  =>  d = K d_f / (K + C).
   const double k = k_px();

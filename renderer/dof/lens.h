@@ -1,4 +1,5 @@
 #pragma once
+#include <cstddef>
 // Thin-lens circle of confusion (CoC) for the depth-of-field pass.
 //
 //   V = F d / (d - F),  V_f = F d_f / (d_f - F)                               Lee 2009, eq. 4.2
@@ -41,6 +42,10 @@ struct CocModel {
   double coc_px(double depth_m) const;
   // Signed CoC B (eq. 5.3): negative in front of the focal plane, positive behind; |B| <= max_coc_px.
   double signed_coc_px(double depth_m) const;
+  // scale x coc_px(depth[i]) for n depths into out (NaN products as 0, beyond float's range as its
+  // largest value): the scalar call's values, with the common case (finite focus, finite positive
+  // depth) in a vectorisable loop.
+  void scaled_coc_px(const float* depth, std::size_t n, double scale, float* out) const;
   // The depths at which the CoC diameter equals c (Schedl & Wimmer eqs. 5-9, the inverted CoC):
   // near (in front of d_f) and far (behind; +infinity when c >= the far limit K, eq. 8's bound).
   double depth_near_for_coc(double c_px) const;
