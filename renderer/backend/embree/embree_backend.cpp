@@ -115,6 +115,7 @@ struct ObjectRecord {
   bool animated = false;
   bool enabled = true;             // instanced: disabled while the transform is singular
   glm::mat4 committed{1.0f};       // model matrix the BVH currently holds
+  glm::mat3 normal_committed{1.0f};  // its cofactor (transforms normals)
 };
 
 // Per-frame, per-object matrices.
@@ -535,6 +536,7 @@ void EmbreeBackend::set_scene(const Scene& scene) {
     r.mesh = pm;
     r.animated = o.animation.has_value();
     r.committed = o.transform_at(0).matrix();
+    r.normal_committed = cofactor(r.committed);
     const bool emitter = r.material->type == MaterialType::Emissive;
 
     RTCGeometry g = nullptr;
@@ -635,6 +637,7 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
     const glm::mat4 m = s.objects[r.object].transform_at(time.now_s).matrix();
     if (m == r.committed) continue;
     r.committed = m;
+    r.normal_committed = cofactor(m);
     changed = true;
     if (instanced) {
       const bool ok = invertible(m);
@@ -773,6 +776,84 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   });
   im.stats.primary_rays = out.size();
   im.stats.shadow_rays = im.shadow_rays.load();
+}
+
+const Scene& EmbreeBackend::scene() const { return impl_->scene; }
+
+bool EmbreeBackend::intersect(const glm::vec3& origin, const glm::vec3& direction, float t_min, float t_max,
+                              RayVisibility visibility, SurfaceHit& hit) const {
+  const Impl& im = *impl_;
+  if (!im.has_scene || !finite(origin) || !finite(direction) || !(glm::dot(direction, direction) > 0.0f) ||
+      !(t_max > t_min)) {
+    return false;
+  }
+  RTCIntersectContext ic;
+  rtcInitIntersectContext(&ic);
+  RTCRayHit rh{};
+  rh.ray.org_x = origin.x;
+  rh.ray.org_y = origin.y;
+  rh.ray.org_z = origin.z;
+  rh.ray.dir_x = direction.x;
+  rh.ray.dir_y = direction.y;
+  rh.ray.dir_z = direction.z;
+  rh.ray.tnear = std::max(0.0f, t_min);
+  rh.ray.tfar = t_max;
+  rh.ray.mask = visibility == RayVisibility::All ? kMaskPrimary : kMaskShadowCaster;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(im.top, &ic, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || !std::isfinite(rh.ray.tfar)) return false;
+  const bool instanced = options_.geometry == EmbreeGeometry::Instanced;
+  const unsigned id = instanced ? rh.hit.instID[0] : rh.hit.geomID;
+  if (id >= im.records.size()) return false;
+  const ObjectRecord& r = im.records[id];
+  const PreparedMesh& m = *r.mesh;
+  if (rh.hit.primID >= m.triangle_count()) return false;
+  const std::size_t base = 3 * std::size_t{rh.hit.primID};
+  const std::uint32_t i0 = m.indices[base], i1 = m.indices[base + 1], i2 = m.indices[base + 2];
+  const float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
+  hit.t = rh.ray.tfar;
+  hit.position = transform_point(r.committed, w * m.positions[i0] + u * m.positions[i1] + v * m.positions[i2]);
+  if (!finite(hit.position)) hit.position = origin + hit.t * direction;
+  glm::vec3 ng = transform_vector(r.normal_committed,
+                                  glm::cross(m.positions[i1] - m.positions[i0], m.positions[i2] - m.positions[i0]));
+  if (!normalize_checked(ng)) {
+    ng = -direction;
+    if (!normalize_checked(ng)) ng = glm::vec3(0, 1, 0);
+  }
+  // A mirroring transform (negative determinant) turns the cofactor's normal inwards.
+  if (glm::determinant(glm::mat3(r.committed)) < 0.0f) ng = -ng;
+  glm::vec3 ns = m.normals.empty() ? glm::vec3(0.0f) : w * m.normals[i0] + u * m.normals[i1] + v * m.normals[i2];
+  ns = transform_vector(r.normal_committed, ns);
+  if (glm::determinant(glm::mat3(r.committed)) < 0.0f) ns = -ns;
+  if (!normalize_checked(ns)) ns = ng;
+  if (glm::dot(ns, ng) < 0.0f) ns = -ns;
+  hit.geometric_normal = ng;
+  hit.normal = ns;
+  hit.object_id = im.scene.objects[r.object].id;
+  hit.material = r.material;
+  return true;
+}
+
+bool EmbreeBackend::occluded(const glm::vec3& from, const glm::vec3& to) const {
+  const Impl& im = *impl_;
+  if (!im.has_scene) return false;
+  const glm::vec3 d = to - from;
+  if (!finite(from) || !finite(d)) return false;
+  RTCIntersectContext ic;
+  rtcInitIntersectContext(&ic);
+  RTCRay ray{};
+  ray.org_x = from.x;
+  ray.org_y = from.y;
+  ray.org_z = from.z;
+  ray.dir_x = d.x;
+  ray.dir_y = d.y;
+  ray.dir_z = d.z;
+  ray.tnear = 0.0f;
+  ray.tfar = 1.0f;
+  ray.mask = kMaskShadowCaster;
+  rtcOccluded1(im.top, &ic, &ray);
+  return !(ray.tfar >= 0.0f);  // Embree sets tfar = -inf when occluded
 }
 
 std::unique_ptr<Backend> make_embree_backend() { return std::make_unique<EmbreeBackend>(); }

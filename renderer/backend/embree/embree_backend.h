@@ -5,6 +5,7 @@
 // Geometry and traversal are selectable so bench/bench_embree.cpp can measure the alternatives side
 // by side; the defaults are the measured winners (numbers at EmbreeOptions below).
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <memory>
 
 #include "backend/backend.h"
@@ -57,6 +58,21 @@ struct EmbreeFrameStats {
   std::uint64_t shadow_rays = 0;
 };
 
+// A surface point hit by a world-space ray (EmbreeBackend::intersect), for passes that trace their
+// own rays (photon mapping, the GI render).
+struct SurfaceHit {
+  float t = 0;                          // ray parameter: distance in units of |direction|
+  glm::vec3 position{0.0f};             // world space, from the barycentrics (exact on the triangle)
+  glm::vec3 normal{0, 1, 0};            // shading normal (interpolated), unit, on the geometric normal's side
+  glm::vec3 geometric_normal{0, 1, 0};  // unit face normal, outward by the triangle's winding
+  std::uint32_t object_id = 0;          // Object::id
+  const Material* material = nullptr;   // in the backend's copy of the scene; never null on a hit
+};
+
+// What a world-space ray can hit: everything, or only shadow casters (emissive objects are the
+// visible face of a light and neither cast shadows nor stop photons).
+enum class RayVisibility { All, ShadowCasters };
+
 class EmbreeBackend final : public Backend {
  public:
   // Throws std::runtime_error if Embree cannot create a device.
@@ -72,6 +88,16 @@ class EmbreeBackend final : public Backend {
   // Updates animated objects to time.now_s, then fills `out`. Renders the background only if no
   // scene was set.
   void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override;
+
+  // World-space rays against the geometry as of the last render() (or set_scene()'s time 0).
+  // Thread-safe between renders. The nearest hit with t in [t_min, t_max], or false (also for a
+  // non-finite or zero direction, or no scene).
+  bool intersect(const glm::vec3& origin, const glm::vec3& direction, float t_min, float t_max,
+                 RayVisibility visibility, SurfaceHit& hit) const;
+  // True if a shadow caster lies on the open segment (from, to).
+  bool occluded(const glm::vec3& from, const glm::vec3& to) const;
+  // The backend's copy of the scene (materials of hits point into it).
+  const Scene& scene() const;
 
   const EmbreeOptions& options() const { return options_; }
   EmbreeFrameStats last_frame_stats() const;

@@ -1,0 +1,349 @@
+#include "gi/photon_tracer.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include "backend/embree/embree_backend.h"
+
+namespace fovea::render::gi {
+
+namespace {
+
+constexpr float kPi = std::numbers::pi_v<float>;
+
+bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+float mean(const glm::vec3& v) { return (v.x + v.y + v.z) / 3.0f; }
+// Russian roulette's probability for a coloured reflectance: its largest channel (Jensen 2001,
+// §5.2.1), so that power * reflectance / probability never grows in any channel.
+float max3(const glm::vec3& v) { return std::max({v.x, v.y, v.z}); }
+glm::vec3 clamp01(const glm::vec3& v) {
+  const auto c = [](float x) { return std::isfinite(x) ? std::clamp(x, 0.0f, 1.0f) : 0.0f; };
+  return {c(v.x), c(v.y), c(v.z)};
+}
+
+// Two unit tangents of a plane with unit normal n (the same construction as scene/shading.cpp's
+// area-light samples, so photons leave the same rectangle local illumination samples).
+void tangents(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
+  const glm::vec3 helper = std::abs(n.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+  t = glm::normalize(glm::cross(helper, n));
+  b = glm::cross(n, t);
+}
+
+// A direction around unit n with pdf cos(theta) / pi (Malley: a uniform disc point lifted).
+glm::vec3 cosine_direction(const glm::vec3& n, float u1, float u2) {
+  glm::vec3 t, b;
+  tangents(n, t, b);
+  const float r = std::sqrt(u1), phi = 2 * kPi * u2;
+  const float x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0f, 1.0f - u1));
+  return glm::normalize(t * x + b * y + n * z);
+}
+
+// A direction around unit axis with pdf (e + 1) / (2 pi) cos^e(alpha): the Phong lobe.
+glm::vec3 lobe_direction(const glm::vec3& axis, float exponent, float u1, float u2) {
+  glm::vec3 t, b;
+  tangents(axis, t, b);
+  const float cos_a = std::pow(u1, 1.0f / (exponent + 1.0f));
+  const float sin_a = std::sqrt(std::max(0.0f, 1.0f - cos_a * cos_a));
+  const float phi = 2 * kPi * u2;
+  return glm::normalize(t * (sin_a * std::cos(phi)) + b * (sin_a * std::sin(phi)) + axis * cos_a);
+}
+
+glm::vec3 reflect(const glm::vec3& d, const glm::vec3& n) { return d - 2.0f * glm::dot(d, n) * n; }
+
+// Unpolarised Fresnel reflectance of a dielectric, cos_i > 0 on the incident side, eta = n_i / n_t.
+// Returns 1 for total internal reflection and writes the refracted direction otherwise.
+float fresnel_dielectric(const glm::vec3& d, const glm::vec3& n, float eta, glm::vec3& refracted) {
+  const float cos_i = -glm::dot(d, n);
+  const float sin2_t = eta * eta * std::max(0.0f, 1.0f - cos_i * cos_i);
+  if (sin2_t >= 1.0f) return 1.0f;
+  const float cos_t = std::sqrt(1.0f - sin2_t);
+  refracted = glm::normalize(eta * d + (eta * cos_i - cos_t) * n);
+  const float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+  const float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+  return std::clamp(0.5f * (rs * rs + rp * rp), 0.0f, 1.0f);
+}
+
+// Offset of a new ray's origin off a surface: relative to the coordinates' size (float spacing
+// grows with magnitude), as the G-buffer's shadow rays do.
+float surface_epsilon(const glm::vec3& p) { return 1e-4f * std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
+
+}  // namespace
+
+Pcg32::Pcg32(std::uint64_t seed, std::uint64_t stream) : inc_((stream << 1u) | 1u) {
+  next();
+  state_ += seed;
+  next();
+}
+
+std::uint32_t Pcg32::next() {
+  const std::uint64_t old = state_;
+  state_ = old * 6364136223846793005ULL + inc_;
+  const auto xorshifted = static_cast<std::uint32_t>(((old >> 18u) ^ old) >> 27u);
+  const auto rot = static_cast<std::uint32_t>(old >> 59u);
+  return (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
+}
+
+float Pcg32::uniform() { return static_cast<float>(next() >> 8) * 0x1p-24f; }
+
+std::uint32_t hash_seed(std::uint64_t a, std::uint64_t b, std::uint64_t c) {
+  std::uint64_t z = a * 0x9E3779B97F4A7C15ULL ^ (b + 0x632BE59BD9B4E019ULL) * 0xC2B2AE3D27D4EB4FULL ^ (c + 1) * 0x165667B19E3779F9ULL;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  return static_cast<std::uint32_t>(z ^ (z >> 31));
+}
+
+std::vector<double> light_shares(const Scene& scene) {
+  std::vector<double> share(scene.lights.size(), 0.0);
+  double total = 0;
+  for (std::size_t i = 0; i < scene.lights.size(); ++i) {
+    const glm::vec3 p = scene.lights[i].power;
+    const double m = (static_cast<double>(p.x) + static_cast<double>(p.y) + static_cast<double>(p.z)) / 3.0;
+    share[i] = std::isfinite(m) && m > 0 && finite3(scene.lights[i].position) ? m : 0.0;
+    total += share[i];
+  }
+  for (double& s : share) s = total > 0 ? s / total : 0.0;
+  return share;
+}
+
+EmittedPhoton emit_from_light(const Scene& scene, std::size_t light_index, std::uint32_t seed) {
+  EmittedPhoton e;
+  e.light = static_cast<std::uint8_t>(std::min<std::size_t>(light_index, 255));
+  e.seed = seed;
+  if (light_index >= scene.lights.size()) return e;
+  const Light& light = scene.lights[light_index];
+  Pcg32 rng(seed, 0x5eed);  // emission draws from its own stream of the trace's seed
+  const float u1 = rng.uniform(), u2 = rng.uniform();
+  glm::vec3 axis = light.direction;
+  if (!(glm::length(axis) > 0) || !finite3(axis)) axis = glm::vec3(0, -1, 0);
+  axis = glm::normalize(axis);
+  e.origin = light.position;
+  e.power = glm::max(light.power, glm::vec3(0.0f));
+  switch (light.type) {
+    case LightType::Point: {  // Algorithm 6.1's uniform sphere, by inversion instead of rejection
+      const float z = 1 - 2 * u1, r = std::sqrt(std::max(0.0f, 1 - z * z)), phi = 2 * kPi * u2;
+      e.direction = {r * std::cos(phi), r * std::sin(phi), z};
+      break;
+    }
+    case LightType::Spot: {
+      // Uniform inside the cutoff cone (solid angle 2 pi (1 - cos c)); the power is the cone's share
+      // of a point light's, times the smoothstep falloff local illumination uses (shading.cpp).
+      const float cutoff = std::cos(glm::radians(std::clamp(light.spot_cutoff_deg, 0.0f, 180.0f)));
+      const float inner = std::cos(glm::radians(std::clamp(light.spot_cutoff_deg - light.spot_falloff_deg, 0.0f, 180.0f)));
+      const float cos_a = 1 - u1 * (1 - cutoff), sin_a = std::sqrt(std::max(0.0f, 1 - cos_a * cos_a));
+      glm::vec3 t, b;
+      tangents(axis, t, b);
+      const float phi = 2 * kPi * u2;
+      e.direction = glm::normalize(t * (sin_a * std::cos(phi)) + b * (sin_a * std::sin(phi)) + axis * cos_a);
+      const float start = std::max(inner, cutoff + 1e-6f);
+      const float x = std::clamp((cos_a - cutoff) / (start - cutoff), 0.0f, 1.0f);
+      e.power *= (1 - cutoff) / 2 * (x * x * (3 - 2 * x));
+      break;
+    }
+    case LightType::Area: {  // a uniform point of the rectangle, a cosine-weighted direction
+      glm::vec3 t, b;
+      tangents(axis, t, b);
+      const float u3 = rng.uniform(), u4 = rng.uniform();
+      e.origin = light.position + t * ((u3 - 0.5f) * light.area_size.x) + b * ((u4 - 0.5f) * light.area_size.y);
+      e.direction = cosine_direction(axis, u1, u2);
+      break;
+    }
+  }
+  if (!finite3(e.power) || !finite3(e.direction) || !finite3(e.origin)) e.power = glm::vec3(0.0f);
+  return e;
+}
+
+std::uint32_t trace_photon(const EmbreeBackend& backend, const EmittedPhoton& start, const TraceSettings& s,
+                           std::vector<Photon>& out, const DiffuseGuide& guide) {
+  if (!(mean(start.power) > 0) || s.max_depth == 0) return 0;
+  Pcg32 rng(start.seed);
+  glm::vec3 origin = start.origin, dir = start.direction, power = start.power;
+  std::uint32_t parent = kNoParent;
+  std::uint8_t diffuse_bounces = 0;
+  bool via_specular = false;
+  std::uint32_t rays = 0;
+  SurfaceHit hit;
+  for (std::uint32_t depth = 0; depth < s.max_depth; ++depth) {
+    ++rays;
+    if (!backend.intersect(origin, dir, 0.0f, std::numeric_limits<float>::infinity(), RayVisibility::ShadowCasters, hit)) break;
+    const Material& m = *hit.material;
+    // The side the photon arrived at (glass is entered from outside, left from inside).
+    const bool from_front = glm::dot(dir, hit.geometric_normal) < 0.0f;
+    const glm::vec3 n_face = from_front ? hit.normal : -hit.normal;  // shading normal on the arrival side
+    const float eps = surface_epsilon(hit.position);
+    const bool diffuse = m.type == MaterialType::Lambertian || m.type == MaterialType::BlinnPhong;
+    const glm::vec3 kd = diffuse ? clamp01(m.kd) : glm::vec3(0.0f);
+    // Store at diffuse surfaces (§6.2.3), black ones too (their irradiance is real; they reflect
+    // none of it): every hit in the global map; a caustic map keeps only the
+    // diffuse end of light -> specular+ -> diffuse paths and ends the trace there.
+    std::uint32_t stored = kNoParent;
+    if (diffuse) {
+      const bool keep = s.mode == TraceMode::Global || (via_specular && diffuse_bounces == 0);
+      if (keep) {
+        Photon p;
+        p.position = hit.position;
+        p.power = power;
+        p.incoming = dir;
+        p.normal = n_face;
+        p.parent = parent;
+        p.seed = start.seed;
+        p.light = start.light;
+        p.diffuse_bounces = diffuse_bounces;
+        p.via_specular = via_specular;
+        p.kind = start.kind;
+        p.flags = start.kind == EmissionKind::Traditional ? kTraditional : 0;
+        stored = static_cast<std::uint32_t>(out.size());
+        if (parent != kNoParent) out[parent].outgoing = dir;
+        out.push_back(p);
+        parent = stored;
+      }
+      if (s.mode == TraceMode::Caustic) break;
+    }
+    if (s.mode == TraceMode::Caustic && !(m.type == MaterialType::Mirror || m.type == MaterialType::Glass)) break;
+
+    // Russian roulette (eq. 6.3): reflect, transmit or absorb with the material's probabilities;
+    // the surviving photon's power is scaled by reflectance / probability per channel.
+    const float u = rng.uniform();
+    glm::vec3 next_dir(0.0f), next_origin(0.0f);
+    if (diffuse) {
+      const glm::vec3 ks = m.type == MaterialType::BlinnPhong ? clamp01(m.ks) : glm::vec3(0.0f);
+      float pd = max3(kd), ps = max3(ks);
+      if (pd + ps > 1.0f) {  // a material reflecting more than it receives: keep the ratio, total 1
+        const float t = pd + ps;
+        pd /= t;
+        ps /= t;
+      }
+      if (u < pd) {
+        std::optional<glm::vec3> guided;
+        if (guide && stored != kNoParent) guided = guide(out[stored], n_face, rng);
+        next_dir = guided && glm::dot(*guided, n_face) > 0 ? *guided : cosine_direction(n_face, rng.uniform(), rng.uniform());
+        power *= kd / pd;
+        ++diffuse_bounces;
+      } else if (u < pd + ps) {
+        next_dir = lobe_direction(reflect(dir, n_face), std::max(0.0f, m.shininess), rng.uniform(), rng.uniform());
+        if (glm::dot(next_dir, n_face) <= 0) break;  // the lobe dipped below the surface: absorbed
+        power *= ks / ps;
+      } else {
+        break;  // absorbed
+      }
+      next_origin = hit.position + n_face * eps;
+    } else if (m.type == MaterialType::Mirror) {
+      const glm::vec3 r = clamp01(m.reflectance);
+      const float pr = max3(r);
+      if (!(u < pr)) break;
+      next_dir = reflect(dir, n_face);
+      next_origin = hit.position + n_face * eps;
+      power *= r / pr;
+      via_specular = true;
+    } else if (m.type == MaterialType::Glass) {
+      const glm::vec3 tint = clamp01(m.reflectance);
+      const float pt = max3(tint);
+      if (!(u < pt)) break;
+      const float ior = std::isfinite(m.ior) && m.ior > 0 ? m.ior : 1.5f;
+      const float eta = from_front ? 1.0f / ior : ior;
+      glm::vec3 refracted(0.0f);
+      const float f = fresnel_dielectric(dir, n_face, eta, refracted);
+      if (rng.uniform() < f) {
+        next_dir = reflect(dir, n_face);
+        next_origin = hit.position + n_face * eps;
+      } else {
+        next_dir = refracted;
+        next_origin = hit.position - n_face * eps;
+      }
+      power *= tint / pt;
+      via_specular = true;
+    } else {
+      break;  // emissive (photon rays skip emitters; kept for safety)
+    }
+    if (!finite3(power) || !finite3(next_dir) || !(mean(power) > 0)) break;
+    origin = next_origin;
+    dir = next_dir;
+  }
+  return rays;
+}
+
+PhotonTraceResult trace_photons(const EmbreeBackend& backend, const TraceSettings& s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PhotonTraceResult result;
+  const Scene& scene = backend.scene();
+  result.emitted_per_light.assign(scene.lights.size(), 0);
+  const std::vector<double> share = light_shares(scene);
+  const bool any_light = std::any_of(share.begin(), share.end(), [](double v) { return v > 0; });
+  const auto finish = [&] {
+    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return std::move(result);
+  };
+  if (!any_light) {
+    result.note = scene.lights.empty() ? "no lights" : "no light has positive, finite power";
+    return finish();
+  }
+  if (s.stored_photons == 0 || s.max_depth == 0) {
+    result.note = s.stored_photons == 0 ? "0 photons asked for" : "trace depth 0";
+    return finish();
+  }
+  const std::uint64_t round = std::max<std::uint32_t>(1, s.round);
+  const std::uint64_t cap = std::uint64_t{s.stored_photons} * std::max<std::uint32_t>(1, s.max_emitted_per_stored);
+  // Photons per light per round, by power share (at least one for every light with power).
+  std::vector<std::uint64_t> per_round(scene.lights.size(), 0);
+  for (std::size_t l = 0; l < share.size(); ++l)
+    if (share[l] > 0) per_round[l] = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(share[l] * static_cast<double>(round))));
+  std::uint64_t per_round_total = 0;
+  for (std::uint64_t v : per_round) per_round_total += v;
+
+  constexpr std::uint64_t kChunk = 256;
+  std::uint64_t rays = 0;
+  while (result.photons.size() < s.stored_photons && result.emitted < cap) {
+    // This round's emissions: (light, index within the light) in a fixed order.
+    struct Job {
+      std::uint32_t light;
+      std::uint64_t index;
+    };
+    std::vector<Job> jobs;
+    jobs.reserve(per_round_total);
+    for (std::size_t l = 0; l < per_round.size(); ++l)
+      for (std::uint64_t k = 0; k < per_round[l]; ++k) jobs.push_back({static_cast<std::uint32_t>(l), result.emitted_per_light[l] + k});
+    const std::size_t chunks = (jobs.size() + kChunk - 1) / kChunk;
+    std::vector<std::vector<Photon>> stored(chunks);
+    std::vector<std::uint64_t> chunk_rays(chunks, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t c = r.begin(); c < r.end(); ++c) {
+        std::vector<Photon>& local = stored[c];
+        const std::size_t end = std::min<std::size_t>(jobs.size(), (c + 1) * kChunk);
+        for (std::size_t j = c * kChunk; j < end; ++j) {
+          const std::uint32_t seed = hash_seed(s.seed, jobs[j].light, jobs[j].index);
+          const EmittedPhoton e = emit_from_light(scene, jobs[j].light, seed);
+          // Parents in `local` are indices of local; shifted below when the chunk is appended.
+          chunk_rays[c] += trace_photon(backend, e, s, local);
+        }
+      }
+    });
+    for (std::size_t c = 0; c < chunks; ++c) {
+      const auto offset = static_cast<std::uint32_t>(result.photons.size());
+      for (Photon& p : stored[c]) {
+        if (p.parent != kNoParent) p.parent += offset;
+        result.photons.push_back(p);
+      }
+      rays += chunk_rays[c];
+    }
+    for (std::size_t l = 0; l < per_round.size(); ++l) result.emitted_per_light[l] += per_round[l];
+    result.emitted += per_round_total;
+  }
+  // Eq. 6.1: each light's power is shared by the photons it emitted.
+  for (Photon& p : result.photons) {
+    const std::uint64_t n = p.light < result.emitted_per_light.size() ? result.emitted_per_light[p.light] : 0;
+    p.power = n > 0 ? p.power / static_cast<float>(n) : glm::vec3(0.0f);
+  }
+  result.rays = rays;
+  if (result.photons.size() < s.stored_photons) {
+    result.note = "stored " + std::to_string(result.photons.size()) + " of " + std::to_string(s.stored_photons) +
+                  " photons after emitting " + std::to_string(result.emitted) +
+                  (result.photons.empty() ? " (no photon reached a diffuse surface)" : " (the emission cap)");
+  }
+  return finish();
+}
+
+}  // namespace fovea::render::gi
