@@ -25,9 +25,16 @@ const std::array<std::uint8_t, kLutSize + 1>& srgb_lut() {
   return lut;
 }
 
-float map_operator(float v, bool reinhard) {
+enum class Operator { Reinhard, Clamp, Exponential };
+
+float map_operator(float v, Operator op) {
   v = std::isfinite(v) ? std::max(v, 0.0f) : 0.0f;
-  return reinhard ? v / (1.0f + v) : std::min(v, 1.0f);
+  switch (op) {
+    case Operator::Reinhard: return v / (1.0f + v);
+    case Operator::Exponential: return 1.0f - std::exp(-v);  // Jensen & Pedersen 2009, eq. 8.7 (exposure applied before)
+    case Operator::Clamp: break;
+  }
+  return std::min(v, 1.0f);
 }
 
 }  // namespace
@@ -35,13 +42,13 @@ float map_operator(float v, bool reinhard) {
 void tonemap(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height, const TonemapParams& p,
              Image8& out) {
   out.resize(width, height);
-  const bool reinhard = p.op == "reinhard";
+  const Operator op = p.op == "reinhard" ? Operator::Reinhard : p.op == "exponential" ? Operator::Exponential : Operator::Clamp;
   const auto& lut = srgb_lut();
   const std::size_t n = std::size_t{width} * height;
   for (std::size_t i = 0; i < n; ++i) {
     const glm::vec3 c = hdr[i] * p.exposure;
     for (int k = 0; k < 3; ++k) {
-      const float v = map_operator(c[k], reinhard);
+      const float v = map_operator(c[k], op);
       if (p.exact) {
         out.rgb[3 * i + static_cast<std::size_t>(k)] =
             static_cast<std::uint8_t>(std::lround(linear_to_srgb(v) * 255.0f));

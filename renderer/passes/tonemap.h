@@ -9,7 +9,9 @@ namespace fovea::render {
 
 struct TonemapParams {
   float exposure = 1.0f;
-  std::string op = "reinhard";  // reinhard: c / (1 + c) per channel; clamp: min(c, 1)
+  // reinhard: c / (1 + c) per channel; clamp: min(c, 1); exponential: 1 - exp(-c) (Jensen &
+  // Pedersen 2009, eq. 8.7, the hybrid renderer's operator); c = exposure x radiance.
+  std::string op = "reinhard";
   bool exact = false;            // true: pow() per channel (the reference); false: 16K-entry table
 };
 

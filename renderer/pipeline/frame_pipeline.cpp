@@ -65,6 +65,11 @@ FramePipeline::FramePipeline(Scene scene, Settings settings, std::unique_ptr<Bac
   backend_->set_scene(scene_);
 }
 
+void FramePipeline::scene_changed() {
+  backend_->set_scene(scene_);
+  if (gi_backend_) gi_backend_->set_scene(scene_);
+}
+
 FramePlan FramePipeline::plan() const {
   return plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->name() == "embree"});
 }
@@ -115,7 +120,13 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     f.dof = &dof_color_;
     f.focal_depth_m = focus_m;
   }
-  // lod-select and gi arrive with steps 8-9; the plan says when they would run.
+  // lod-select arrives with step 9; the plan says when it would run.
+  if (f.plan.runs(PassId::Gi)) {
+    auto t = timer.scope("gi");
+    run_gi(f, *hdr, now_s, timer);
+    hdr = &hybrid_;
+    f.gi = &gi_frame_;
+  }
   if (f.plan.runs(PassId::Tonemap)) {
     auto t = timer.scope("tonemap");
     TonemapParams p;
@@ -150,6 +161,79 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     }
   }
   return f;
+}
+
+void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer) {
+  if (!gi_backend_) {
+    gi_backend_ = std::make_unique<EmbreeBackend>();
+    gi_backend_->set_scene(scene_);
+  }
+  gi_backend_->set_time(now_s);
+  const Settings& s = settings_;
+  const auto count = [&](const char* key) { return static_cast<std::uint32_t>(std::lround(s.number(key))); };
+  gi_frame_ = Frame::Gi{};
+  // The first pass: the global map and, for specular or refractive surfaces, the caustic map.
+  {
+    auto t = timer.scope("gi.photons");
+    gi::TraceSettings ts;
+    ts.stored_photons = count("gi.photons");
+    ts.max_depth = count("gi.trace_depth");
+    ts.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
+    gi_maps_.global = gi::trace_photons(*gi_backend_, ts);
+    gi_maps_.caustic = {};
+    if (s.flag("gi.caustics") && scene_.has_specular_or_refractive() && count("gi.caustic_photons") > 0) {
+      ts.mode = gi::TraceMode::Caustic;
+      ts.stored_photons = count("gi.caustic_photons");
+      ts.max_depth = std::max<std::uint32_t>(ts.max_depth, 2);  // light -> specular -> diffuse at least
+      ts.seed = gi::hash_seed(ts.seed, 0xca05, 0);
+      gi_maps_.caustic = gi::trace_photons(*gi_backend_, ts);
+    }
+  }
+  {
+    auto t = timer.scope("gi.index");
+    gi_maps_.index();
+  }
+  // Where: the gaze point, else the most attended object, else the screen centre; or everything.
+  const Camera& cam = scene_.camera;
+  glm::vec2 centre(0.5f);
+  if (s.is("gi.area", "full")) {
+    gi_frame_.follows = "full screen";
+  } else if (gaze_.available()) {
+    centre = {static_cast<float>(f.gaze.x), static_cast<float>(f.gaze.y)};
+    gi_frame_.follows = "gaze";
+  } else if (f.attention != nullptr && !f.attention->objects.empty()) {
+    centre = {static_cast<float>(f.attention->objects.front().screen_x), static_cast<float>(f.attention->objects.front().screen_y)};
+    gi_frame_.follows = "attention";
+  } else {
+    gi_frame_.follows = "screen centre";
+  }
+  if (s.is("gi.area", "full")) {
+    gi_frame_.area.center_px = {0.5f * static_cast<float>(cam.width), 0.5f * static_cast<float>(cam.height)};
+    gi_frame_.area.radius_px = 0.5f * std::hypot(static_cast<float>(cam.width), static_cast<float>(cam.height)) + 1.0f;
+  } else {
+    gi_frame_.area = gi::gaze_area(scene_.display, cam.width, cam.height, centre, s.number("gi.gaze_area_deg"));
+  }
+  gi::GiRenderSettings rs;
+  rs.estimate.nearest = count("gi.nnn");
+  rs.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
+  rs.estimate.filter = s.is("gi.filter", "disc") ? gi::EstimateFilter::Disc : gi::EstimateFilter::Cone;
+  rs.caustic_estimate.filter = rs.estimate.filter;
+  rs.ray_depth = count("gi.ray_depth");
+  rs.shadows = s.flag("shadows");
+  {
+    auto t = timer.scope("gi.render");
+    gi_color_.assign(local.size(), glm::vec3(0.0f));
+    gi::render_gaze_area(*gi_backend_, cam, now_s, gi_maps_, gi_frame_.area, rs, gi_color_, &gi_frame_.render);
+  }
+  {
+    auto t = timer.scope("gi.composite");
+    const float fovea = s.is("gi.area", "full") ? 1.0f : static_cast<float>(s.number("gi.fovea"));
+    gi::hybrid_composite(local, gi_color_, cam.width, cam.height, gi_frame_.area, fovea, hybrid_);
+  }
+  gi_frame_.photons = gi_maps_.global.photons.size();
+  gi_frame_.caustic_photons = gi_maps_.caustic.photons.size();
+  gi_frame_.emitted = gi_maps_.global.emitted + gi_maps_.caustic.emitted;
+  gi_frame_.note = gi_maps_.global.note.empty() ? gi_maps_.caustic.note : gi_maps_.global.note;
 }
 
 dof::CocModel FramePipeline::coc_model(double focus_m) const {

@@ -6,9 +6,11 @@
 #include "attention/attention.h"
 #include "attention/focus.h"
 #include "backend/backend.h"
+#include "backend/embree/embree_backend.h"
 #include "dof/dof_image.h"
 #include "dof/lee_mipmap.h"
 #include "gaze/gaze_input.h"
+#include "gi/gi_render.h"
 #include "image/image.h"
 #include "passes/overlay.h"
 #include "pipeline/pass_timer.h"
@@ -30,6 +32,15 @@ class FramePipeline {
     const attention::FocusResult* focus = nullptr;         // null when the focus pass did not run
     const dof::RgbImage* dof = nullptr;  // the DOF pass's HDR colour; null when it did not run
     double focal_depth_m = 0;            // what the DOF pass focused at (0 when it did not run)
+    struct Gi {
+      gi::GazeArea area;            // where GI was ray traced (the full screen: a circle around it)
+      const char* follows = "";     // "gaze", "attention", "screen centre" or "full screen"
+      std::size_t photons = 0, caustic_photons = 0;
+      std::uint64_t emitted = 0;
+      gi::GiStats render;
+      std::string note;  // the tracer's note (fewer photons than asked, and why)
+    };
+    const Gi* gi = nullptr;  // null when the gi pass did not run
   };
   // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
   // with gaze sampled at `frame_clock_s` on the gaze input.
@@ -40,7 +51,7 @@ class FramePipeline {
   const Scene& scene() const { return scene_; }
   Scene& mutable_scene() { return scene_; }
   // Call after changing the scene (camera moves included) so the backend sees it.
-  void scene_changed() { backend_->set_scene(scene_); }
+  void scene_changed();
   Settings& settings() { return settings_; }
   const Backend& backend() const { return *backend_; }
 
@@ -58,6 +69,13 @@ class FramePipeline {
   GBuffer hidden_;  // lee-splat's hidden image (the layer behind the visible surfaces)
   std::vector<GBuffer> peeled_;  // schedl-layered's depth-peeled layers behind the visible one
   dof::LeeMipmap lee_mipmap_;
+  // The gi pass ray traces with its own Embree backend (whatever renders the G-buffer).
+  std::unique_ptr<EmbreeBackend> gi_backend_;
+  gi::PhotonMaps gi_maps_;
+  std::vector<glm::vec3> gi_color_, hybrid_;
+  Frame::Gi gi_frame_;
+  // Traces the photon maps, ray traces the gaze area and composites it over `local` into hybrid_.
+  void run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer);
   // Runs dof.method on the G-buffer with the lens focused at focus_m into dof_color_.
   void run_dof(double focus_m, double now_s, double previous_s);
   dof::CocModel coc_model(double focus_m) const;

@@ -18,8 +18,8 @@ const std::vector<PassDecl>& pass_declarations() {
        "the scene has LOD chains and lod.enabled", "step 9"},
       {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
        ""},
-      {PassId::Gi, "gi", "gbuffer, gaze", "colour (hybrid composite)", "gi.enabled and the scene has lights",
-       "step 8"},
+      {PassId::Gi, "gi", "gbuffer, gaze (or attention)", "colour (hybrid composite)", "gi.enabled and the scene has lights",
+       ""},
       {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image", ""},
       {PassId::Overlay, "overlay", "display image, gaze, maps", "display image",
        "overlay.gaze with a gaze source, or overlay.map", ""},
@@ -97,6 +97,15 @@ FramePlan plan_frame(const PlanContext& c) {
     } else {
       why += "no (no specular or refractive surface)";
     }
+    if (s.is("gi.area", "full")) {
+      why += "; gi.area=full: the whole screen is ray traced";
+    } else if (c.gaze_available) {
+      why += "; the " + s.text("gi.gaze_area_deg") + " deg gaze area follows the gaze";
+    } else if (s.flag("attention.enabled")) {
+      why += "; no gaze source: the gaze area follows the most attended object";
+    } else {
+      why += "; no gaze source and attention.enabled=false: the gaze area stays at the screen centre";
+    }
     decide(PassId::Gi, true, why);
   }
 
@@ -152,6 +161,8 @@ FramePlan plan_frame(const PlanContext& c) {
   std::vector<std::string> consumers;
   if (plan.needed(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")) consumers.push_back("focus");
   if (plan.needed(PassId::LodSelect)) consumers.push_back("lod-select");
+  const bool gi_follows_attention = plan.needed(PassId::Gi) && !c.gaze_available && !s.is("gi.area", "full");
+  if (gi_follows_attention) consumers.push_back("gi (no gaze source: its gaze area)");
   const std::string& overlay_map = s.text("overlay.map");
   if (image && (overlay_map == "saliency" || overlay_map == "spatial" || overlay_map == "temporal" ||
                 overlay_map == "attention")) {
@@ -184,7 +195,7 @@ FramePlan plan_frame(const PlanContext& c) {
   const bool attention_overlay = image && (s.is("overlay.map", "saliency") || s.is("overlay.map", "spatial") ||
                                            s.is("overlay.map", "temporal") || s.is("overlay.map", "attention"));
   wait_unless(PassId::Attention,
-              attention_overlay || plan.runs(PassId::LodSelect) ||
+              attention_overlay || plan.runs(PassId::LodSelect) || (gi_follows_attention && plan.runs(PassId::Gi)) ||
                   (plan.runs(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")),
               "none of its consumers runs yet");
   return plan;

@@ -630,33 +630,8 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   }
 
   // Move animated objects to now_s (see the geometry note above set_scene).
+  set_time(time.now_s);
   const bool instanced = options_.geometry == EmbreeGeometry::Instanced;
-  bool changed = false;
-  for (ObjectRecord& r : im.records) {
-    if (!r.animated) continue;
-    const glm::mat4 m = s.objects[r.object].transform_at(time.now_s).matrix();
-    if (m == r.committed) continue;
-    r.committed = m;
-    r.normal_committed = cofactor(m);
-    changed = true;
-    if (instanced) {
-      const bool ok = invertible(m);
-      if (ok) rtcSetGeometryTransform(r.geometry, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, &m[0][0]);
-      if (ok && !r.enabled) rtcEnableGeometry(r.geometry);
-      if (!ok && r.enabled) rtcDisableGeometry(r.geometry);
-      r.enabled = ok;
-    } else {
-      auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(r.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
-      if (vertices != nullptr) write_world_vertices(vertices, *r.mesh, m);
-      rtcUpdateGeometryBuffer(r.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
-    }
-    rtcCommitGeometry(r.geometry);
-  }
-  if (changed) {
-    rtcCommitScene(im.top);
-    im.check("updating animated objects");
-  }
-
   f.motion = time.previous_s != time.now_s;
   const glm::mat4 proj = cam.projection();
   f.view_proj_now = proj * view;
@@ -776,6 +751,38 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   });
   im.stats.primary_rays = out.size();
   im.stats.shadow_rays = im.shadow_rays.load();
+}
+
+void EmbreeBackend::set_time(double now_s) {
+  Impl& im = *impl_;
+  if (!im.has_scene) return;
+  const Scene& s = im.scene;
+  const bool instanced = options_.geometry == EmbreeGeometry::Instanced;
+  bool changed = false;
+  for (ObjectRecord& r : im.records) {
+    if (!r.animated) continue;
+    const glm::mat4 m = s.objects[r.object].transform_at(now_s).matrix();
+    if (m == r.committed) continue;
+    r.committed = m;
+    r.normal_committed = cofactor(m);
+    changed = true;
+    if (instanced) {
+      const bool ok = invertible(m);
+      if (ok) rtcSetGeometryTransform(r.geometry, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, &m[0][0]);
+      if (ok && !r.enabled) rtcEnableGeometry(r.geometry);
+      if (!ok && r.enabled) rtcDisableGeometry(r.geometry);
+      r.enabled = ok;
+    } else {
+      auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(r.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
+      if (vertices != nullptr) write_world_vertices(vertices, *r.mesh, m);
+      rtcUpdateGeometryBuffer(r.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+    }
+    rtcCommitGeometry(r.geometry);
+  }
+  if (changed) {
+    rtcCommitScene(im.top);
+    im.check("updating animated objects");
+  }
 }
 
 const Scene& EmbreeBackend::scene() const { return impl_->scene; }

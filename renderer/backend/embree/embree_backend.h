@@ -96,6 +96,8 @@ class EmbreeBackend final : public Backend {
                  RayVisibility visibility, SurfaceHit& hit) const;
   // True if a shadow caster lies on the open segment (from, to).
   bool occluded(const glm::vec3& from, const glm::vec3& to) const;
+  // Moves animated objects to scene time now_s (render() does this itself) for intersect().
+  void set_time(double now_s);
   // The backend's copy of the scene (materials of hits point into it).
   const Scene& scene() const;
 

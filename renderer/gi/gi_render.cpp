@@ -1,0 +1,256 @@
+#include "gi/gi_render.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "backend/embree/embree_backend.h"
+#include "scene/shading.h"
+
+namespace fovea::render::gi {
+
+namespace {
+
+bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+glm::vec3 finite_or_zero(const glm::vec3& v) { return finite3(v) ? v : glm::vec3(0.0f); }
+glm::vec3 reflect(const glm::vec3& d, const glm::vec3& n) { return d - 2.0f * glm::dot(d, n) * n; }
+float surface_epsilon(const glm::vec3& p) { return 1e-4f * std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
+
+// The eye rays of a pinhole camera through pixel centres: the same rays as the Embree G-buffer
+// (backend/embree: direction scaled to unit length along the view axis).
+struct EyeRays {
+  glm::vec3 eye{0.0f}, right{1, 0, 0}, up{0, 1, 0}, back{0, 0, 1};
+  float tan_x = 1, tan_y = 1;
+  std::uint32_t width = 0, height = 0;
+  bool ok = false;
+  EyeRays(const Camera& cam, double t) : width(cam.width), height(cam.height) {
+    const glm::mat4 to_world = glm::inverse(cam.view_at(t));
+    eye = glm::vec3(to_world[3]);
+    right = glm::vec3(to_world[0]);
+    up = glm::vec3(to_world[1]);
+    back = glm::vec3(to_world[2]);
+    tan_y = std::tan(glm::radians(cam.vertical_fov_deg) * 0.5f);
+    tan_x = tan_y * static_cast<float>(cam.width) / static_cast<float>(std::max(1u, cam.height));
+    ok = finite3(eye) && finite3(right) && finite3(up) && finite3(back) && std::isfinite(tan_x) && tan_y > 0 &&
+         width > 0 && height > 0;
+  }
+  glm::vec3 direction(std::uint32_t x, std::uint32_t y) const {
+    const float ndc_x = 2.0f * (static_cast<float>(x) + 0.5f) / static_cast<float>(width) - 1.0f;
+    const float ndc_y = 1.0f - 2.0f * (static_cast<float>(y) + 0.5f) / static_cast<float>(height);
+    return right * (ndc_x * tan_x) + up * (ndc_y * tan_y) - back;
+  }
+};
+
+// Shadow rays for shade_local, from the shaded point pushed off its surface.
+struct ShadowRays {
+  const EmbreeBackend* backend = nullptr;
+  glm::vec3 offset{0.0f};
+};
+bool visible(void* context, const glm::vec3& from, const glm::vec3& to) {
+  const auto* c = static_cast<const ShadowRays*>(context);
+  return !c->backend->occluded(from + c->offset, to);
+}
+
+// Unpolarised dielectric Fresnel reflectance (see photon_tracer.cpp); 1 for total internal reflection.
+float fresnel(const glm::vec3& d, const glm::vec3& n, float eta, glm::vec3& refracted) {
+  const float cos_i = -glm::dot(d, n);
+  const float sin2_t = eta * eta * std::max(0.0f, 1.0f - cos_i * cos_i);
+  if (sin2_t >= 1.0f) return 1.0f;
+  const float cos_t = std::sqrt(1.0f - sin2_t);
+  refracted = glm::normalize(eta * d + (eta * cos_i - cos_t) * n);
+  const float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+  const float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+  return std::clamp(0.5f * (rs * rs + rp * rp), 0.0f, 1.0f);
+}
+
+struct Tracer {
+  const EmbreeBackend& backend;
+  const Scene& lights;  // the scene's lights, without ambient unless asked for
+  const PhotonMaps& maps;
+  const GiRenderSettings& s;
+  struct Local {
+    Neighbours scratch;
+    std::vector<std::uint32_t> used, used_indirect, used_caustic;
+    std::uint64_t rays = 0;
+  };
+
+  glm::vec3 radiance(const glm::vec3& origin, const glm::vec3& dir, std::uint32_t depth, Local& local, bool mark) const {
+    ++local.rays;
+    SurfaceHit hit;
+    if (!backend.intersect(origin, dir, 0.0f, std::numeric_limits<float>::infinity(), RayVisibility::All, hit)) {
+      return lights.background;
+    }
+    const Material& m = *hit.material;
+    const bool from_front = glm::dot(dir, hit.geometric_normal) < 0.0f;
+    const glm::vec3 n = from_front ? hit.normal : -hit.normal;
+    const float eps = surface_epsilon(hit.position);
+    switch (m.type) {
+      case MaterialType::Emissive: return finite_or_zero(m.emission);
+      case MaterialType::Mirror: {
+        if (depth >= s.ray_depth) return glm::vec3(0.0f);
+        const glm::vec3 r = glm::clamp(m.reflectance, 0.0f, 1.0f);
+        return r * radiance(hit.position + n * eps, reflect(dir, n), depth + 1, local, mark);
+      }
+      case MaterialType::Glass: {
+        if (depth >= s.ray_depth) return glm::vec3(0.0f);
+        const glm::vec3 tint = glm::clamp(m.reflectance, 0.0f, 1.0f);
+        const float ior = std::isfinite(m.ior) && m.ior > 0 ? m.ior : 1.5f;
+        glm::vec3 refracted(0.0f);
+        const float f = fresnel(glm::normalize(dir), n, from_front ? 1.0f / ior : ior, refracted);
+        glm::vec3 l = f * radiance(hit.position + n * eps, reflect(glm::normalize(dir), n), depth + 1, local, mark);
+        if (f < 1.0f) l += (1.0f - f) * radiance(hit.position - n * eps, refracted, depth + 1, local, mark);
+        return tint * l;
+      }
+      case MaterialType::Lambertian:
+      case MaterialType::BlinnPhong: break;
+    }
+    // Direct light: eq. 5.22 with shadow rays, exactly as the G-buffer shades it.
+    ShadowRays shadow{&backend, n * eps};
+    glm::vec3 l = shade_local(lights, m, hit.position, n, origin, s.shadows ? &visible : nullptr, &shadow);
+    // Photon terms: sum f_r(l = -incoming, v) Phi_p / (pi r^2) over the nearest photons (eq. 6.6).
+    const glm::vec3 v = glm::normalize(origin - hit.position);
+    const glm::vec3 kd = m.kd, ks = m.type == MaterialType::BlinnPhong ? m.ks : glm::vec3(0.0f);
+    const float shininess = m.shininess;
+    const auto brdf = [&](const Photon& p) {
+      if (ks == glm::vec3(0.0f)) return kd;
+      const glm::vec3 h = glm::normalize(v - p.incoming);  // eq. 5.21
+      return kd + ks * std::pow(std::max(0.0f, glm::dot(n, h)), shininess);
+    };
+    if (s.indirect && !maps.indirect.empty()) {
+      l += maps.indirect.flux_density(hit.position, n, s.estimate, local.scratch, brdf, mark ? &local.used : nullptr);
+      if (mark) local.used_indirect.insert(local.used_indirect.end(), local.used.begin(), local.used.end());
+    }
+    if (s.caustics && !maps.caustics.empty()) {
+      l += maps.caustics.flux_density(hit.position, n, s.caustic_estimate, local.scratch, brdf, mark ? &local.used : nullptr);
+      if (mark) local.used_caustic.insert(local.used_caustic.end(), local.used.begin(), local.used.end());
+    }
+    return finite_or_zero(l);
+  }
+};
+
+}  // namespace
+
+bool GazeArea::contains(float x, float y) const {
+  const float dx = x - center_px.x, dy = y - center_px.y;
+  return dx * dx + dy * dy <= radius_px * radius_px;
+}
+
+GazeArea gaze_area(const protocol::DisplayGeometry& display, std::uint32_t width, std::uint32_t height,
+                   glm::vec2 gaze_normalized, double diameter_deg) {
+  GazeArea a;
+  const glm::vec2 g = std::isfinite(gaze_normalized.x) && std::isfinite(gaze_normalized.y) ? gaze_normalized : glm::vec2(0.5f);
+  a.center_px = {g.x * static_cast<float>(width), g.y * static_cast<float>(height)};
+  const double d = std::isfinite(diameter_deg) ? std::clamp(diameter_deg, 0.0, 179.0) : 0.0;
+  const double px = protocol::degrees_to_image_pixels(display, width, d);
+  a.radius_px = std::isfinite(px) && px > 0 ? static_cast<float>(0.5 * px) : 0.0f;
+  return a;
+}
+
+void PhotonMaps::index() {
+  std::vector<std::uint32_t> after_bounce;
+  for (std::size_t i = 0; i < global.photons.size(); ++i)
+    if (global.photons[i].diffuse_bounces > 0) after_bounce.push_back(static_cast<std::uint32_t>(i));
+  if (after_bounce.empty()) {
+    indirect.clear();
+  } else {
+    indirect.build(global.photons, after_bounce);
+  }
+  if (caustic.photons.empty()) {
+    caustics.clear();
+  } else {
+    caustics.build_all(caustic.photons);
+  }
+}
+
+void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,
+                      const GazeArea& area, const GiRenderSettings& s, std::vector<glm::vec3>& hdr, GiStats* stats,
+                      bool mark) {
+  const auto t0 = std::chrono::steady_clock::now();
+  GiStats st;
+  const EyeRays eye(camera, now_s);
+  const std::size_t n = std::size_t{camera.width} * camera.height;
+  if (hdr.size() != n) hdr.assign(n, glm::vec3(0.0f));
+  const bool usable = eye.ok && std::isfinite(area.center_px.x) && std::isfinite(area.center_px.y) &&
+                      std::isfinite(area.radius_px) && area.radius_px > 0;
+  if (usable) {
+    // The pixel rows and columns the circle touches, clipped to the image (a gaze point off the
+    // screen still renders the part of its area that is on it).
+    const float r = area.radius_px;
+    const auto clip = [](float v, std::uint32_t hi) {
+      return static_cast<std::uint32_t>(std::clamp(v, 0.0f, static_cast<float>(hi)));
+    };
+    const std::uint32_t x0 = clip(std::floor(area.center_px.x - r), camera.width);
+    const std::uint32_t x1 = clip(std::ceil(area.center_px.x + r), camera.width);
+    const std::uint32_t y0 = clip(std::floor(area.center_px.y - r), camera.height);
+    const std::uint32_t y1 = clip(std::ceil(area.center_px.y + r), camera.height);
+    Scene lights;
+    lights.lights = backend.scene().lights;
+    lights.background = backend.scene().background;
+    lights.ambient = s.ambient ? backend.scene().ambient : glm::vec3(0.0f);
+    const Tracer tracer{backend, lights, maps, s};
+    tbb::enumerable_thread_specific<Tracer::Local> locals;
+    std::atomic<std::uint64_t> pixels{0};
+    if (y1 > y0 && x1 > x0) {
+      tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1), [&](const tbb::blocked_range<std::uint32_t>& rows) {
+        Tracer::Local& local = locals.local();
+        std::uint64_t count = 0;
+        for (std::uint32_t y = rows.begin(); y < rows.end(); ++y) {
+          for (std::uint32_t x = x0; x < x1; ++x) {
+            if (!area.contains(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f)) continue;
+            hdr[std::size_t{y} * camera.width + x] = tracer.radiance(eye.eye, eye.direction(x, y), 0, local, mark);
+            ++count;
+          }
+        }
+        pixels.fetch_add(count, std::memory_order_relaxed);
+      });
+    }
+    st.pixels = pixels.load();
+    std::vector<std::uint8_t> seen_indirect(mark ? maps.global.photons.size() : 0), seen_caustic(mark ? maps.caustic.photons.size() : 0);
+    for (const Tracer::Local& local : locals) {
+      st.rays += local.rays;
+      for (std::uint32_t i : local.used_indirect) seen_indirect[i] = 1;
+      for (std::uint32_t i : local.used_caustic) seen_caustic[i] = 1;
+    }
+    for (std::size_t i = 0; i < seen_indirect.size(); ++i)
+      if (seen_indirect[i]) {
+        maps.global.photons[i].flags |= kInGazeRegion;
+        ++st.photons_used;
+      }
+    for (std::size_t i = 0; i < seen_caustic.size(); ++i)
+      if (seen_caustic[i]) {
+        maps.caustic.photons[i].flags |= kInGazeRegion;
+        ++st.photons_used;
+      }
+  }
+  st.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (stats) *stats = st;
+}
+
+void hybrid_composite(const std::vector<glm::vec3>& local, const std::vector<glm::vec3>& gi, std::uint32_t width,
+                      std::uint32_t height, const GazeArea& area, float fovea_fraction, std::vector<glm::vec3>& out) {
+  const std::size_t n = std::size_t{width} * height;
+  if (&out != &local) out = local;
+  if (local.size() < n || gi.size() < n) return;
+  const float radius = area.radius_px;
+  if (!(radius > 0) || !std::isfinite(radius) || !std::isfinite(area.center_px.x) || !std::isfinite(area.center_px.y)) return;
+  const float fovea = std::clamp(std::isfinite(fovea_fraction) ? fovea_fraction : 0.7f, 0.0f, 1.0f) * radius;
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, height), [&](const tbb::blocked_range<std::uint32_t>& rows) {
+    for (std::uint32_t y = rows.begin(); y < rows.end(); ++y) {
+      for (std::uint32_t x = 0; x < width; ++x) {
+        const float dx = static_cast<float>(x) + 0.5f - area.center_px.x, dy = static_cast<float>(y) + 0.5f - area.center_px.y;
+        const float d = std::sqrt(dx * dx + dy * dy);
+        if (d >= radius) continue;  // Algorithm 8.4 step 7: local illumination
+        const std::size_t i = std::size_t{y} * width + x;
+        // Step 8: GI inside the fovea, then a linear ramp to local illumination at the radius.
+        const float alpha = d >= fovea && radius > fovea ? (d - fovea) / (radius - fovea) : 0.0f;
+        out[i] = alpha * local[i] + (1.0f - alpha) * gi[i];
+      }
+    }
+  });
+}
+
+}  // namespace fovea::render::gi

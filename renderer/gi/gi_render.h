@@ -1,0 +1,82 @@
+#pragma once
+// The second pass of photon mapping and the gaze-directed hybrid render (Jensen & Pedersen 2009,
+// §6.3, §7.5, §8.3): eye rays through the pixels of a circular gaze area, shaded with
+//   direct light by shadow rays (the modified Blinn-Phong of scene/shading.h, eq. 5.22, the same
+//     function the raster side uses, so the two halves of the hybrid image agree),
+//   indirect light from the global photon map (photons after at least one diffuse bounce),
+//   caustics from the caustic map (light -> specular+ -> diffuse),
+//   mirror reflection and glass refraction by recursive rays,
+// then blended into the local-illumination image from 0.7 of the radius outward (Algorithm 8.4).
+//
+// Radiometry: the photon tracer moves light between surfaces with kd as albedo (photon_tracer.h);
+// the view-facing BRDF is eq. 5.22's f_r = k_d + k_s (n.h)^n for the direct and the photon terms
+// alike, so the ratio of indirect to direct light is the physical one, and the gaze area matches
+// the raster image where there is no indirect light. The ambient term of local illumination (its
+// stand-in for indirect light) is left out inside the area: the photon map is the real thing.
+#include <cstdint>
+#include <vector>
+
+#include "fovea/protocol/display_geometry.h"
+#include "gi/photon_map.h"
+#include "gi/photon_tracer.h"
+#include "scene/scene.h"
+
+namespace fovea::render {
+class EmbreeBackend;
+}
+
+namespace fovea::render::gi {
+
+// A circle on the image, pixels (x right, y down, pixel centres at +0.5).
+struct GazeArea {
+  glm::vec2 center_px{0.0f};
+  float radius_px = 0;
+  bool contains(float x, float y) const;
+};
+
+// The area a visual angle of `diameter_deg` subtends around gaze point (normalised screen
+// coordinates, [0, 1]^2, y down) on `display`, for an image `width` x `height` that fills the
+// screen (eqs. 2.1-2.2). A non-finite gaze point gives the screen centre.
+GazeArea gaze_area(const protocol::DisplayGeometry& display, std::uint32_t width, std::uint32_t height,
+                   glm::vec2 gaze_normalized, double diameter_deg);
+
+// The photon maps of one frame.
+struct PhotonMaps {
+  PhotonTraceResult global;   // every stored photon of the global trace
+  PhotonTraceResult caustic;  // the caustic trace's photons (empty without specular/refractive surfaces)
+  PhotonMap indirect;         // global photons with >= 1 diffuse bounce (direct light comes from shadow rays)
+  PhotonMap caustics;         // all caustic photons
+  void index();               // (re)builds both trees over the traces' photons
+};
+
+struct GiRenderSettings {
+  EstimateSettings estimate;    // nNN = 240, NNRadius = 0.3 m (Table 8.3), cone filter
+  EstimateSettings caustic_estimate{60, 0.1f, EstimateFilter::Cone, 1.1f};  // caustics are sharper: fewer, nearer photons
+  std::uint32_t ray_depth = 5;  // mirror/glass bounces followed by eye rays
+  bool shadows = true;
+  bool indirect = true;
+  bool caustics = true;
+  bool ambient = false;  // keep local illumination's ambient term inside the area (false: photons replace it)
+};
+
+struct GiStats {
+  std::uint64_t pixels = 0;           // shaded inside the area
+  std::uint64_t rays = 0;             // eye, reflection and refraction rays (shadow rays not counted)
+  std::uint64_t photons_used = 0;     // distinct photons that shaded the area (the gaze photons of §8.4.4)
+  double render_seconds = 0;
+};
+
+// The GI image of a gaze area, traced with `backend` (set to the frame's scene and time) through
+// `camera` at scene time now_s. hdr: width x height of the camera, row-major; only pixels inside
+// `area` are written. When mark is true the photons that shaded the area get kInGazeRegion in their
+// flags, as §8.4.4's ray-tracing step labels them.
+void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,
+                      const GazeArea& area, const GiRenderSettings& s, std::vector<glm::vec3>& hdr,
+                      GiStats* stats = nullptr, bool mark = false);
+
+// Algorithm 8.4: inside the fovea (fovea_fraction x radius) the GI image, outside the area the
+// local one, a linear ramp between. out may alias local. Pixels outside the area are copied.
+void hybrid_composite(const std::vector<glm::vec3>& local, const std::vector<glm::vec3>& gi, std::uint32_t width,
+                      std::uint32_t height, const GazeArea& area, float fovea_fraction, std::vector<glm::vec3>& out);
+
+}  // namespace fovea::render::gi
