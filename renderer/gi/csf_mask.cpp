@@ -8,6 +8,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace fovea::render::gi {
 
@@ -39,22 +40,36 @@ glm::dvec2 resolve_gaze(glm::dvec2 gaze, double width, double height) {
 
 double cross(glm::dvec2 a, glm::dvec2 b) { return a.x * b.y - a.y * b.x; }
 
-// Merges vertices that land on the same pixel: a pixel's ray is cast once.
+// Merges vertices that land on the same pixel: a pixel's ray is cast once. Vertices only collide
+// where the spacing is near one pixel; a dense grid covers the screen plus `margin` pixels around it
+// (every quad that reaches the screen has its corners in there); vertices further out are kept
+// as they come (their quads are culled).
 class VertexSet {
  public:
-  explicit VertexSet(std::vector<glm::vec2>& out) : out_(out) {}
+  VertexSet(std::vector<glm::vec2>& out, std::uint32_t width, std::uint32_t height, std::int64_t margin)
+      : out_(out),
+        margin_(margin),
+        grid_width_(std::int64_t{width} + 2 * margin),
+        grid_height_(std::int64_t{height} + 2 * margin),
+        grid_(static_cast<std::size_t>(grid_width_ * grid_height_), kNone) {}
   std::uint32_t at_pixel_of(glm::dvec2 p) {
-    const auto px = static_cast<std::int64_t>(std::floor(p.x)), py = static_cast<std::int64_t>(std::floor(p.y));
-    const std::uint64_t key = (static_cast<std::uint64_t>(px + (std::int64_t{1} << 31)) << 32) |
-                              (static_cast<std::uint64_t>(py + (std::int64_t{1} << 31)) & 0xffffffffu);
-    const auto [it, inserted] = index_.try_emplace(key, static_cast<std::uint32_t>(out_.size()));
-    if (inserted) out_.emplace_back(static_cast<float>(static_cast<double>(px) + 0.5), static_cast<float>(static_cast<double>(py) + 0.5));
-    return it->second;
+    const double fx = std::floor(p.x), fy = std::floor(p.y);
+    const std::int64_t gx = static_cast<std::int64_t>(fx) + margin_, gy = static_cast<std::int64_t>(fy) + margin_;
+    const auto index = static_cast<std::uint32_t>(out_.size());
+    if (gx >= 0 && gy >= 0 && gx < grid_width_ && gy < grid_height_) {
+      std::uint32_t& cell = grid_[static_cast<std::size_t>(gy * grid_width_ + gx)];
+      if (cell != kNone) return cell;
+      cell = index;
+    }
+    out_.emplace_back(static_cast<float>(fx + 0.5), static_cast<float>(fy + 0.5));
+    return index;
   }
 
  private:
+  static constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
   std::vector<glm::vec2>& out_;
-  std::unordered_map<std::uint64_t, std::uint32_t> index_;
+  std::int64_t margin_, grid_width_, grid_height_;
+  std::vector<std::uint32_t> grid_;
 };
 
 // One ring's vertices in order of angle; `closed` rings wrap from the last vertex to the first.
@@ -270,7 +285,8 @@ RingMesh ring_mesh(const protocol::DisplayGeometry& display, std::uint32_t width
     rings.emplace_back(r, spacing);
   } while (r < r_far + spacing);
 
-  VertexSet vertex_set(mesh.vertices);
+  VertexSet vertex_set(mesh.vertices, width, height,
+                       static_cast<std::int64_t>(std::ceil(2 * settings.max_ring_spacing_px)) + 2);
   std::vector<std::uint32_t> quads;
   RingVertices previous;
   if (fan_from_gaze) {
@@ -401,7 +417,12 @@ class SampleCache {
     }
     return it->second;
   }
-  void remember(glm::vec2 p, std::uint32_t index) { index_.try_emplace(key(p), index); }
+  // The midpoint of a and b: a itself when both are the same sample (the repeated corner of a
+  // triangle), otherwise a new ray unless a neighbour already cast it.
+  std::uint32_t midpoint(std::uint32_t a, std::uint32_t b) {
+    if (a == b) return a;
+    return add((out_.sample_px[a] + out_.sample_px[b]) * 0.5f);
+  }
 
  private:
   static std::uint64_t key(glm::vec2 p) {
@@ -432,8 +453,8 @@ void subdivide(SilhouetteRefinement& r, SampleCache& cache, const std::array<std
     r.pieces.push_back({{c[0], c[1], c[2], c[3]}, true});
     return;
   }
-  const std::uint32_t m01 = cache.add((p[0] + p[1]) * 0.5f), m12 = cache.add((p[1] + p[2]) * 0.5f);
-  const std::uint32_t m23 = cache.add((p[2] + p[3]) * 0.5f), m30 = cache.add((p[3] + p[0]) * 0.5f);
+  const std::uint32_t m01 = cache.midpoint(c[0], c[1]), m12 = cache.midpoint(c[1], c[2]);
+  const std::uint32_t m23 = cache.midpoint(c[2], c[3]), m30 = cache.midpoint(c[3], c[0]);
   const std::uint32_t centre = cache.add((p[0] + p[1] + p[2] + p[3]) * 0.25f);
   const std::array<std::array<std::uint32_t, 4>, 4> children = {{{c[0], m01, centre, m30},
                                                                  {m01, c[1], m12, centre},
@@ -462,7 +483,6 @@ SilhouetteRefinement refine_silhouettes(const RingMesh& mesh, const ObjectAt& ob
     r.sample_px.push_back(mesh.vertices[v]);
     r.sample_object.push_back(object_at(mesh.vertices[v]));
     ++r.rays_cast;
-    cache.remember(mesh.vertices[v], v);
   }
   const std::size_t quad_count = mesh.quad_count();
   r.quad_refined.assign(quad_count, 0);
@@ -477,22 +497,20 @@ SilhouetteRefinement refine_silhouettes(const RingMesh& mesh, const ObjectAt& ob
     }
   }
   if (settings.refine_neighbours && r.disagreeing_quads > 0) {
-    // Quads across each edge (the two sides of an interior edge).
-    std::unordered_map<std::uint64_t, std::array<std::uint32_t, 2>> sides;
-    constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+    // The edges of the disagreeing quads; any other quad with one of those edges is a neighbour.
+    std::unordered_set<std::uint64_t> silhouette_edges;
     for (std::size_t q = 0; q < quad_count; ++q) {
+      if (!r.quad_refined[q]) continue;
       const auto c = corners_of(q);
-      for (std::size_t k = 0; k < 4; ++k) {
-        if (c[k] == c[(k + 1) % 4]) continue;
-        auto [it, inserted] = sides.try_emplace(edge_key(c[k], c[(k + 1) % 4]), std::array<std::uint32_t, 2>{kNone, kNone});
-        it->second[it->second[0] == kNone ? 0 : 1] = static_cast<std::uint32_t>(q);
-      }
+      for (std::size_t k = 0; k < 4; ++k)
+        if (c[k] != c[(k + 1) % 4]) silhouette_edges.insert(edge_key(c[k], c[(k + 1) % 4]));
     }
     std::vector<std::uint8_t> neighbour(quad_count, 0);
-    for (const auto& [key, pair] : sides) {
-      if (pair[1] == kNone) continue;
-      if (r.quad_refined[pair[0]] == 1) neighbour[pair[1]] = 1;
-      if (r.quad_refined[pair[1]] == 1) neighbour[pair[0]] = 1;
+    for (std::size_t q = 0; q < quad_count; ++q) {
+      if (r.quad_refined[q]) continue;
+      const auto c = corners_of(q);
+      for (std::size_t k = 0; k < 4 && !neighbour[q]; ++k)
+        if (c[k] != c[(k + 1) % 4] && silhouette_edges.count(edge_key(c[k], c[(k + 1) % 4])) != 0) neighbour[q] = 1;
     }
     for (std::size_t q = 0; q < quad_count; ++q)
       if (neighbour[q] && !r.quad_refined[q]) r.quad_refined[q] = 2;
@@ -531,8 +549,11 @@ void rasterize_piece(const std::array<glm::dvec2, 4>& p, std::uint32_t width, st
     const double area = cross(b - a, c - a);
     if (std::abs(area) < 1e-9) continue;
     const glm::dvec2 lo = glm::min(glm::min(a, b), c), hi = glm::max(glm::max(a, b), c);
-    const double x0 = std::max(0.0, std::ceil(lo.x - 0.5)), x1 = std::min(static_cast<double>(width) - 1, std::floor(hi.x - 0.5));
-    const double y0 = std::max(0.0, std::ceil(lo.y - 0.5)), y1 = std::min(static_cast<double>(height) - 1, std::floor(hi.y - 0.5));
+    // Pixel centres (x + 0.5, y + 0.5) inside the bounding box, on the image.
+    const double x0 = std::max(0.0, std::ceil(lo.x - 0.5));
+    const double x1 = std::min(static_cast<double>(width) - 1, std::floor(hi.x - 0.5));
+    const double y0 = std::max(0.0, std::ceil(lo.y - 0.5));
+    const double y1 = std::min(static_cast<double>(height) - 1, std::floor(hi.y - 0.5));
     for (double y = y0; y <= y1; ++y) {
       for (double x = x0; x <= x1; ++x) {
         const glm::dvec2 q{x + 0.5, y + 0.5};
@@ -612,7 +633,9 @@ CsfReconstruction reconstruct(const RingMesh& mesh, const SilhouetteRefinement& 
     if (!piece.pixel_level) continue;
     ++stats.pixel_level_pieces;
     rasterize_piece(corner_positions(piece), mesh.width, mesh.height,
-                    [&](std::uint32_t x, std::uint32_t y, const std::array<double, 4>&) { cast_pixel(x, y, stats.pixel_level_rays); });
+                    [&](std::uint32_t x, std::uint32_t y, const std::array<double, 4>&) {
+                      cast_pixel(x, y, stats.pixel_level_rays);
+                    });
   }
   for (const RefinedPiece& piece : refinement.pieces) {
     if (piece.pixel_level) continue;

@@ -34,9 +34,10 @@
 // Silhouette refinement (Murphy 5.2.3): a quad whose corners hit different objects is subdivided
 // at its edge midpoints and centre (rays at the new points), recursively, down to pieces at most one
 // pixel across; there every pixel centre the piece covers gets its own ray. With
-// `refine_neighbours`, quads sharing an edge with a refined quad are refined too: a silhouette that
-// enters and leaves a quad through the same edge (near-tangent to it) leaves that quad's corners in
-// agreement, but its neighbour across the edge disagrees.
+// `refine_neighbours`, quads sharing an edge with a disagreeing quad get a ray through every pixel
+// they cover: a silhouette that enters and leaves a quad through the same edge (near-tangent to it)
+// leaves that quad's corners in agreement, and no subdivision sample is sure to find it, but its
+// neighbour across the edge disagrees.
 //
 // Reconstruction: pixels in the foveal disc and in pixel-level pieces are ray cast; pixels in
 // pieces whose corners agree take that object id and the colour interpolated (barycentrically, the
@@ -44,12 +45,12 @@
 //
 // Hard cases: a NaN or infinite gaze coordinate means the screen centre (no gaze known: the centre is
 // the likeliest point of regard). A gaze outside the screen is used as given, but pulled to within 16
-// image sizes of the screen (a desktop display then sees every pixel at > 80 deg eccentricity, where
-// the spacing is at or near its maximum, and positions stay exact in float). 0x0 images give empty results without calling any callback; 1x1 images
-// one ray. A display geometry that protocol::validate rejects, and invalid settings (see
-// validate(CsfSettings)), throw std::invalid_argument naming the field. Quality 0 is the coarsest
-// sampling (every ring at the maximum spacing, no foveal disc); negative, NaN or infinite quality is
-// rejected.
+// image sizes of the screen (a desktop display then sees every pixel at > 60 deg eccentricity, where
+// the spacing is at or near its maximum, and positions stay precise in float). 0x0 images give empty
+// results without calling any callback; 1x1 images one ray. A display geometry that
+// protocol::validate rejects, and invalid settings (see validate(CsfSettings)), throw
+// std::invalid_argument naming the field. Quality 0 is the coarsest sampling (every ring at the
+// maximum spacing, no foveal disc); negative, NaN or infinite quality is rejected.
 #include <cstdint>
 #include <functional>
 #include <glm/glm.hpp>

@@ -120,7 +120,14 @@ struct Tracer {
       const glm::vec3 h = glm::normalize(v - p.incoming);  // eq. 5.21
       return kd + ks * std::pow(std::max(0.0f, glm::dot(n, h)), shininess);
     };
-    if (s.indirect && !maps.indirect.empty()) {
+    if (s.indirect && s.indirect_estimate == IndirectEstimate::Precomputed) {
+      // The nearest precomputed photon on a surface facing the same way (Christensen 1999: normals
+      // within ~25 deg), its irradiance times the diffuse BRDF.
+      const glm::vec3 nn = n;
+      maps.precomputed.nearest(hit.position, 1, s.estimate.max_radius, local.scratch,
+                               [&nn](const Photon& p) { return glm::dot(p.normal, nn) > 0.9f; });
+      if (local.scratch.size() == 1) l += kd * maps.irradiance[local.scratch.index[0]];
+    } else if (s.indirect && !maps.indirect.empty()) {
       l += maps.indirect.flux_density(hit.position, n, s.estimate, local.scratch, brdf, mark ? &local.used : nullptr);
       if (mark) local.used_indirect.insert(local.used_indirect.end(), local.used.begin(), local.used.end());
     }
@@ -164,6 +171,32 @@ void PhotonMaps::index() {
   } else {
     caustics.build_all(caustic.photons);
   }
+}
+
+void PhotonMaps::precompute_irradiance(const EstimateSettings& s, std::uint32_t stride) {
+  const auto t0 = std::chrono::steady_clock::now();
+  irradiance.assign(global.photons.size(), glm::vec3(0.0f));
+  std::vector<std::uint32_t> chosen;
+  const std::uint32_t step = std::max<std::uint32_t>(1, stride);
+  std::uint32_t k = 0;
+  for (std::size_t i = 0; i < global.photons.size(); ++i) {
+    if (global.photons[i].diffuse_bounces == 0) continue;
+    if (k++ % step == 0) chosen.push_back(static_cast<std::uint32_t>(i));
+  }
+  if (chosen.empty() || indirect.empty()) {
+    precomputed.clear();
+  } else {
+    tbb::enumerable_thread_specific<Neighbours> scratch;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chosen.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+      Neighbours& nb = scratch.local();
+      for (std::size_t j = r.begin(); j < r.end(); ++j) {
+        const Photon& p = global.photons[chosen[j]];
+        irradiance[chosen[j]] = indirect.flux_density(p.position, p.normal, s, nb);
+      }
+    });
+    precomputed.build(global.photons, chosen);
+  }
+  precompute_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,

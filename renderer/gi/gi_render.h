@@ -47,11 +47,27 @@ struct PhotonMaps {
   PhotonMap indirect;         // global photons with >= 1 diffuse bounce (direct light comes from shadow rays)
   PhotonMap caustics;         // all caustic photons
   void index();               // (re)builds both trees over the traces' photons
+
+  // Precomputed irradiance (Christensen 1999, "Faster photon map global illumination"): the flux
+  // density at every stride-th indirect photon, from its own neighbourhood (settings' nNN and
+  // radius), so a shading point needs only its nearest precomputed photon with a similar normal
+  // instead of nNN photons. Glossy indirect light (k_s) is left out: the stored value is irradiance.
+  PhotonMap precomputed;               // the photons that carry a value
+  std::vector<glm::vec3> irradiance;   // per global photon (0 where none was computed)
+  double precompute_seconds = 0;
+  void precompute_irradiance(const EstimateSettings& s, std::uint32_t stride);
+};
+
+// How the indirect term is estimated.
+enum class IndirectEstimate {
+  Nearest,      // nNN nearest photons per shading point (Jensen & Pedersen §6.3.2)
+  Precomputed,  // the nearest precomputed irradiance photon (PhotonMaps::precompute_irradiance)
 };
 
 struct GiRenderSettings {
   EstimateSettings estimate;    // nNN = 240, NNRadius = 0.3 m (Table 8.3), cone filter
   EstimateSettings caustic_estimate{60, 0.1f, EstimateFilter::Cone, 1.1f};  // caustics are sharper: fewer, nearer photons
+  IndirectEstimate indirect_estimate = IndirectEstimate::Nearest;
   std::uint32_t ray_depth = 5;  // mirror/glass bounces followed by eye rays
   bool shadows = true;
   bool indirect = true;

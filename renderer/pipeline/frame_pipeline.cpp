@@ -193,6 +193,7 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
     auto t = timer.scope("gi.index");
     gi_maps_.index();
   }
+  const bool precomputed = s.is("gi.estimate", "precomputed");
   // Where: the gaze point, else the most attended object, else the screen centre; or everything.
   const Camera& cam = scene_.camera;
   glm::vec2 centre(0.5f);
@@ -218,6 +219,11 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   rs.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
   rs.estimate.filter = s.is("gi.filter", "disc") ? gi::EstimateFilter::Disc : gi::EstimateFilter::Cone;
   rs.caustic_estimate.filter = rs.estimate.filter;
+  rs.indirect_estimate = precomputed ? gi::IndirectEstimate::Precomputed : gi::IndirectEstimate::Nearest;
+  if (precomputed) {
+    auto t = timer.scope("gi.precompute");
+    gi_maps_.precompute_irradiance(rs.estimate, count("gi.precompute_stride"));
+  }
   rs.ray_depth = count("gi.ray_depth");
   rs.shadows = s.flag("shadows");
   {

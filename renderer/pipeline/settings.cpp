@@ -68,6 +68,10 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"gi.nnn", "240", "number in [1, 100000]", "nearest photons per radiance estimate (nNN, Table 8.3)"},
       {"gi.nn_radius", "0.3", "number in [0.0001, 1000]", "search radius of the radiance estimate, metres (NNRadius, Table 8.3)"},
       {"gi.filter", "cone", "cone|disc", "radiance estimate filter: Jensen's cone filter (k = 1.1) or constant over the disc"},
+      {"gi.estimate", "nearest", "nearest|precomputed",
+       "indirect light per shading point from its gi.nnn nearest photons (Jensen & Pedersen §6.3.2), or from the nearest "
+       "photon's precomputed irradiance (Christensen 1999; diffuse only, much faster)"},
+      {"gi.precompute_stride", "4", "number in [1, 1000]", "gi.estimate=precomputed: irradiance at every n-th indirect photon"},
       {"gi.ray_depth", "5", "number in [0, 64]", "mirror and glass bounces followed by the GI's eye rays"},
       {"gi.fovea", "0.7", "number in [0, 1]",
        "fraction of the gaze area's radius shown as pure GI before the blend to raster (Algorithm 8.4: 0.7)"},

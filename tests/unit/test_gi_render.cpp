@@ -1,0 +1,158 @@
+// The GI render and the hybrid composite (renderer/gi/gi_render.h).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "backend/embree/embree_backend.h"
+#include "gi/gi_render.h"
+#include "scene/scene_loader.h"
+
+namespace fovea::render::gi {
+namespace {
+
+Scene cornell(std::uint32_t w = 160, std::uint32_t h = 120) {
+  Scene s = load_scene(std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/cornell.json");
+  s.camera.width = w;
+  s.camera.height = h;
+  return s;
+}
+
+PhotonMaps trace(const EmbreeBackend& backend, std::uint32_t photons, std::uint32_t caustic = 0) {
+  PhotonMaps maps;
+  TraceSettings ts;
+  ts.stored_photons = photons;
+  maps.global = trace_photons(backend, ts);
+  if (caustic > 0) {
+    ts.mode = TraceMode::Caustic;
+    ts.stored_photons = caustic;
+    ts.max_emitted_per_stored = 1000;
+    maps.caustic = trace_photons(backend, ts);
+  }
+  maps.index();
+  return maps;
+}
+
+double mean(const std::vector<glm::vec3>& img, const GazeArea& a, std::uint32_t w) {
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < img.size(); ++i) {
+    const auto x = static_cast<float>(i % w) + 0.5f, y = static_cast<float>(i / w) + 0.5f;
+    if (!a.contains(x, y)) continue;
+    sum += static_cast<double>(img[i].x + img[i].y + img[i].z);
+    ++n;
+  }
+  return n ? sum / static_cast<double>(n) : 0.0;
+}
+
+// Without photon terms and with ambient kept, the GI image is the raster image: the two halves of
+// the hybrid render use the same modified Blinn-Phong (eq. 5.22) and shadow test.
+TEST(GiRender, DirectLightEqualsTheGBufferSoTheHybridIsSeamless) {
+  const Scene scene = cornell();
+  EmbreeBackend backend;
+  backend.set_scene(scene);
+  GBuffer g;
+  BackendSettings bs;
+  bs.shadows = true;
+  backend.render({}, bs, g);
+  PhotonMaps maps;
+  GiRenderSettings s;
+  s.indirect = s.caustics = false;
+  s.ambient = true;
+  const GazeArea all{{80.0f, 60.0f}, 200.0f};
+  std::vector<glm::vec3> hdr;
+  GiStats st;
+  render_gaze_area(backend, scene.camera, 0, maps, all, s, hdr, &st);
+  EXPECT_EQ(st.pixels, 160u * 120u);
+  std::size_t compared = 0;
+  for (std::size_t i = 0; i < hdr.size(); ++i) {
+    if (g.object_id[i] == 0) continue;
+    const glm::vec3 a = hdr[i], b = g.color[i];
+    EXPECT_NEAR(a.x, b.x, 1e-3f * std::max(1.0f, b.x)) << i;
+    EXPECT_NEAR(a.y, b.y, 1e-3f * std::max(1.0f, b.y)) << i;
+    ++compared;
+  }
+  EXPECT_GT(compared, 10000u);
+}
+
+TEST(GiRender, IndirectLightAddsColourBleedingAndBothEstimatesAgree) {
+  const Scene scene = cornell();
+  EmbreeBackend backend;
+  backend.set_scene(scene);
+  PhotonMaps maps = trace(backend, 40000);
+  ASSERT_GT(maps.indirect.size(), 1000u);
+  GiRenderSettings s;
+  const GazeArea all{{80.0f, 60.0f}, 200.0f};
+  std::vector<glm::vec3> direct, with, pre;
+  s.indirect = false;
+  render_gaze_area(backend, scene.camera, 0, maps, all, s, direct);
+  s.indirect = true;
+  GiStats st;
+  render_gaze_area(backend, scene.camera, 0, maps, all, s, with, &st, true);
+  const double d = mean(direct, all, 160), w = mean(with, all, 160);
+  EXPECT_GT(w, 1.1 * d);  // a white room with albedo 0.5 walls: indirect light is a good part of it
+  // Colour bleeding: the white floor next to the red wall is redder than next to the green one.
+  const glm::vec3 near_red = with[std::size_t{110} * 160 + 12], near_green = with[std::size_t{110} * 160 + 148];
+  EXPECT_GT(near_red.x / near_red.y, near_green.x / near_green.y);
+  // The photons that shaded the area are marked (§8.4.4).
+  EXPECT_GT(st.photons_used, 1000u);
+  std::size_t marked = 0;
+  for (const Photon& p : maps.global.photons) marked += (p.flags & kInGazeRegion) ? 1 : 0;
+  EXPECT_EQ(marked, st.photons_used);
+  // Precomputed irradiance estimates the same light (diffuse room: within a few per cent on average).
+  maps.precompute_irradiance(s.estimate, 4);
+  s.indirect_estimate = IndirectEstimate::Precomputed;
+  render_gaze_area(backend, scene.camera, 0, maps, all, s, pre);
+  EXPECT_NEAR(mean(pre, all, 160), w, 0.05 * w);
+}
+
+TEST(GiRender, CausticsOfAGlassSphereBrightenTheFloorBelowIt) {
+  Scene scene = cornell();
+  scene.objects[6].material = 4;  // glass (cornell.json's unused glass material)
+  ASSERT_EQ(scene.materials[4].type, MaterialType::Glass);
+  EmbreeBackend backend;
+  backend.set_scene(scene);
+  PhotonMaps maps = trace(backend, 20000, 20000);
+  ASSERT_FALSE(maps.caustics.empty());
+  // Caustic photons gather under the sphere (light above at y = 1.7, sphere at y = 0.5).
+  std::size_t under = 0;
+  for (const Photon& p : maps.caustic.photons) {
+    const float dx = p.position.x - 0.3f, dz = p.position.z + 1.0f;
+    under += (p.position.y < 0.01f && dx * dx + dz * dz < 0.25f) ? 1 : 0;
+  }
+  EXPECT_GT(under, maps.caustic.photons.size() / 3);
+}
+
+TEST(GiRender, CompositeFollowsAlgorithm84) {
+  const std::uint32_t w = 101, h = 101;
+  const std::vector<glm::vec3> local(w * h, glm::vec3(0.0f)), gi(w * h, glm::vec3(1.0f));
+  std::vector<glm::vec3> out;
+  const GazeArea a{{50.5f, 50.5f}, 40.0f};
+  hybrid_composite(local, gi, w, h, a, 0.7f, out);
+  const auto at = [&](std::uint32_t x, std::uint32_t y) { return out[std::size_t{y} * w + x].x; };
+  EXPECT_EQ(at(50, 50), 1.0f);          // centre: GI
+  EXPECT_EQ(at(50 + 27, 50), 1.0f);     // inside the fovea (0.7 x 40 = 28)
+  EXPECT_EQ(at(50 + 41, 50), 0.0f);     // outside the area: local
+  EXPECT_EQ(at(0, 0), 0.0f);
+  const float mid = at(50 + 34, 50);    // pixel centre 84.5, d = 34: alpha = (34 - 28) / 12
+  EXPECT_NEAR(mid, 1.0f - (34.0f - 28.0f) / 12.0f, 1e-5f);
+  float previous = 1.0f;
+  for (std::uint32_t x = 50; x < 101; ++x) {  // monotone from GI to local
+    EXPECT_LE(at(x, 50), previous + 1e-6f);
+    previous = at(x, 50);
+  }
+}
+
+TEST(GiRender, GazeAreaRadiusComesFromTheVisualAngle) {
+  protocol::DisplayGeometry d;
+  const GazeArea a = gaze_area(d, 640, 480, {0.25f, 0.75f}, 20.0);
+  EXPECT_FLOAT_EQ(a.center_px.x, 160.0f);
+  EXPECT_FLOAT_EQ(a.center_px.y, 360.0f);
+  EXPECT_NEAR(a.radius_px, 0.5 * protocol::degrees_to_image_pixels(d, 640, 20.0), 1e-3);
+  // Small angles: the radius is close to proportional to the angle (tan), slightly more than double.
+  const float r5 = gaze_area(d, 640, 480, {0.5f, 0.5f}, 5.0).radius_px, r10 = gaze_area(d, 640, 480, {0.5f, 0.5f}, 10.0).radius_px;
+  EXPECT_GT(r10, 2.0f * r5);
+  EXPECT_LT(r10, 2.02f * r5);
+}
+
+}  // namespace
+}  // namespace fovea::render::gi
