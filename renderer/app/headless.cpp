@@ -69,7 +69,7 @@ int run_headless(const RenderOptions& o) {
   double previous = 0;
   std::ofstream gaze_log(fs::path(o.out_dir) / "gaze.csv");
   gaze_log << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
-  std::ofstream focus_log;
+  std::ofstream focus_log, gi_log;
   for (std::uint64_t i = 0; i < o.frames; ++i) {
     const double scheduled = static_cast<double>(i) / o.fps;
     double clock = scheduled;
@@ -104,6 +104,22 @@ int run_headless(const RenderOptions& o) {
       std::snprintf(fl, sizeof fl, "%llu,%.4f,%.4f,%u,%d,", static_cast<unsigned long long>(i), f.focus->focal_depth_m,
                     f.focus->target_depth_m, f.focus->object, f.focus->in_transition ? 1 : 0);
       focus_log << fl << '"' << why << "\"\n";
+    }
+    if (f.gi != nullptr) {
+      // gi.csv: where the gi pass ray traced and with how many photons (only when it ran).
+      if (!gi_log.is_open()) {
+        gi_log.open(fs::path(o.out_dir) / "gi.csv");
+        gi_log << "frame,follows,center_x_px,center_y_px,radius_px,photons,caustic_photons,emitted,pixels,rays,"
+                  "photons_used,note\n";
+      }
+      char gl[256];
+      std::snprintf(gl, sizeof gl, "%llu,%s,%.1f,%.1f,%.1f,%zu,%zu,%llu,%llu,%llu,%llu,", static_cast<unsigned long long>(i),
+                    f.gi->follows, static_cast<double>(f.gi->area.center_px.x), static_cast<double>(f.gi->area.center_px.y),
+                    static_cast<double>(f.gi->area.radius_px), f.gi->photons, f.gi->caustic_photons,
+                    static_cast<unsigned long long>(f.gi->emitted), static_cast<unsigned long long>(f.gi->render.pixels),
+                    static_cast<unsigned long long>(f.gi->render.rays),
+                    static_cast<unsigned long long>(f.gi->render.photons_used));
+      gi_log << gl << '"' << f.gi->note << "\"\n";
     }
     if (tty) progress(i + 1, o.frames, timer.last_ms("frame"));
   }

@@ -99,6 +99,30 @@ grep -qE "later +dof .*--backend embree" <<<"$out" || fail "gl + reference shoul
   >"$WORK/dof-gl.log" 2>&1 || fail "gl accum: $(tail -5 "$WORK/dof-gl.log")"
 grep -qE "run +dof .*method accum" "$WORK/dof-gl/plan.txt" || fail "gl accum plan: $(cat "$WORK/dof-gl/plan.txt")"
 
+echo "== gaze-directed hybrid GI (photon mapping)"
+out=$("$RENDER" --scene "$SCENES/cornell.json" --explain --gaze none --set gi.enabled=true) || fail "gi explain: $out"
+grep -qE "run +gi .*caustic map: no .*most attended object" <<<"$out" || fail "gi plan without gaze: $out"
+grep -qE "run +attention .*consumed by gi" <<<"$out" || fail "gi without gaze should plan attention: $out"
+out=$("$RENDER" --scene "$SCENES/cornell.json" --explain --gaze none --set gi.enabled=true \
+  --scene-set objects.6.material=glass) || fail "gi glass explain: $out"
+grep -qE "run +gi .*caustic map: yes" <<<"$out" || fail "glass sphere should plan a caustic map: $out"
+GI=(--scene "$SCENES/cornell.json" "${SMALL[@]}" --headless --frames 3 --fps 2 --gaze "file:$REC" --set gi.photons=5000)
+"$RENDER" "${GI[@]}" --out "$WORK/gi-off" >/dev/null 2>&1 || fail "gi off run"
+for e in nearest precomputed; do
+  "$RENDER" "${GI[@]}" --set gi.enabled=true --set gi.estimate=$e --out "$WORK/gi-$e" >"$WORK/gi-$e.log" 2>&1 \
+    || fail "gi.estimate=$e: $(tail -5 "$WORK/gi-$e.log")"
+  [ "$(grep -c ",gi," "$WORK/gi-$e/timings.csv")" -eq 3 ] || fail "gi $e: timings.csv lacks 3 gi rows"
+  [ "$(grep -c ",gaze," "$WORK/gi-$e/gi.csv")" -eq 3 ] || fail "gi $e: the area should follow the gaze: $(cat "$WORK/gi-$e/gi.csv")"
+  cmp -s "$WORK/gi-$e/frame-000002.png" "$WORK/gi-off/frame-000002.png" && fail "gi $e changed nothing"
+done
+# The area moves with the recorded gaze (frames 0.5 s apart).
+[ "$(cut -d, -f3,4 "$WORK/gi-nearest/gi.csv" | sort -u | wc -l)" -ge 3 ] || fail "gi area did not move: $(cat "$WORK/gi-nearest/gi.csv")"
+"${XVFB[@]}" "$RENDER" "${GI[@]}" --backend gl --set gi.enabled=true --out "$WORK/gi-gl" >"$WORK/gi-gl.log" 2>&1 \
+  || fail "gi over the raster backend: $(tail -5 "$WORK/gi-gl.log")"
+grep -qE "run +gi" "$WORK/gi-gl/plan.txt" || fail "gi gl plan: $(cat "$WORK/gi-gl/plan.txt")"
+out=$("$RENDER" "${GI[@]}" --set gi.enabled=true --set gi.filter=square --out "$WORK/gi-bad" 2>&1) && fail "a bad gi.filter was accepted"
+grep -q "gi.filter" <<<"$out" || fail "the error should name gi.filter: $out"
+
 echo "== two render clients against one daemon"
 PORT=$(( 48100 + RANDOM % 800 ))
 "$TRACKERD" --source "replay:$REC" --loop --port $PORT >"$WORK/daemon.log" 2>&1 &
