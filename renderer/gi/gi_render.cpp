@@ -9,41 +9,18 @@
 #include <cmath>
 
 #include "backend/embree/embree_backend.h"
+#include "gi/eye_rays.h"
+#include "gi/optics.h"
 #include "scene/shading.h"
 
 namespace fovea::render::gi {
 
 namespace {
 
-bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+using optics::finite3;
+using optics::reflect;
+using optics::surface_epsilon;
 glm::vec3 finite_or_zero(const glm::vec3& v) { return finite3(v) ? v : glm::vec3(0.0f); }
-glm::vec3 reflect(const glm::vec3& d, const glm::vec3& n) { return d - 2.0f * glm::dot(d, n) * n; }
-float surface_epsilon(const glm::vec3& p) { return 1e-4f * std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
-
-// The eye rays of a pinhole camera through pixel centres: the same rays as the Embree G-buffer
-// (backend/embree: direction scaled to unit length along the view axis).
-struct EyeRays {
-  glm::vec3 eye{0.0f}, right{1, 0, 0}, up{0, 1, 0}, back{0, 0, 1};
-  float tan_x = 1, tan_y = 1;
-  std::uint32_t width = 0, height = 0;
-  bool ok = false;
-  EyeRays(const Camera& cam, double t) : width(cam.width), height(cam.height) {
-    const glm::mat4 to_world = glm::inverse(cam.view_at(t));
-    eye = glm::vec3(to_world[3]);
-    right = glm::vec3(to_world[0]);
-    up = glm::vec3(to_world[1]);
-    back = glm::vec3(to_world[2]);
-    tan_y = std::tan(glm::radians(cam.vertical_fov_deg) * 0.5f);
-    tan_x = tan_y * static_cast<float>(cam.width) / static_cast<float>(std::max(1u, cam.height));
-    ok = finite3(eye) && finite3(right) && finite3(up) && finite3(back) && std::isfinite(tan_x) && tan_y > 0 &&
-         width > 0 && height > 0;
-  }
-  glm::vec3 direction(std::uint32_t x, std::uint32_t y) const {
-    const float ndc_x = 2.0f * (static_cast<float>(x) + 0.5f) / static_cast<float>(width) - 1.0f;
-    const float ndc_y = 1.0f - 2.0f * (static_cast<float>(y) + 0.5f) / static_cast<float>(height);
-    return right * (ndc_x * tan_x) + up * (ndc_y * tan_y) - back;
-  }
-};
 
 // Shadow rays for shade_local, from the shaded point pushed off its surface.
 struct ShadowRays {
@@ -55,18 +32,6 @@ bool visible(void* context, const glm::vec3& from, const glm::vec3& to) {
   return !c->backend->occluded(from + c->offset, to);
 }
 
-// Unpolarised dielectric Fresnel reflectance (see photon_tracer.cpp); 1 for total internal reflection.
-float fresnel(const glm::vec3& d, const glm::vec3& n, float eta, glm::vec3& refracted) {
-  const float cos_i = -glm::dot(d, n);
-  const float sin2_t = eta * eta * std::max(0.0f, 1.0f - cos_i * cos_i);
-  if (sin2_t >= 1.0f) return 1.0f;
-  const float cos_t = std::sqrt(1.0f - sin2_t);
-  refracted = glm::normalize(eta * d + (eta * cos_i - cos_t) * n);
-  const float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-  const float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-  return std::clamp(0.5f * (rs * rs + rp * rp), 0.0f, 1.0f);
-}
-
 struct Tracer {
   const EmbreeBackend& backend;
   const Scene& lights;  // the scene's lights, without ambient unless asked for
@@ -75,6 +40,7 @@ struct Tracer {
   struct Local {
     Neighbours scratch;
     std::vector<std::uint32_t> used, used_indirect, used_caustic;
+    std::vector<double> traditional_flux, gaze_flux;
     std::uint64_t rays = 0;
   };
 
@@ -100,7 +66,7 @@ struct Tracer {
         const glm::vec3 tint = glm::clamp(m.reflectance, 0.0f, 1.0f);
         const float ior = std::isfinite(m.ior) && m.ior > 0 ? m.ior : 1.5f;
         glm::vec3 refracted(0.0f);
-        const float f = fresnel(glm::normalize(dir), n, from_front ? 1.0f / ior : ior, refracted);
+        const float f = optics::fresnel_dielectric(glm::normalize(dir), n, from_front ? 1.0f / ior : ior, refracted);
         glm::vec3 l = f * radiance(hit.position + n * eps, reflect(glm::normalize(dir), n), depth + 1, local, mark);
         if (f < 1.0f) l += (1.0f - f) * radiance(hit.position - n * eps, refracted, depth + 1, local, mark);
         return tint * l;
@@ -126,10 +92,22 @@ struct Tracer {
       const glm::vec3 nn = n;
       maps.precomputed.nearest(hit.position, 1, s.estimate.max_radius, local.scratch,
                                [&nn](const Photon& p) { return glm::dot(p.normal, nn) > 0.9f; });
-      if (local.scratch.size() == 1) l += kd * maps.irradiance[local.scratch.index[0]];
+      if (local.scratch.size() == 1) {
+        l += kd * maps.irradiance[local.scratch.index[0]];
+        if (mark) local.used_indirect.push_back(local.scratch.index[0]);
+      }
     } else if (s.indirect && !maps.indirect.empty()) {
       l += maps.indirect.flux_density(hit.position, n, s.estimate, local.scratch, brdf, mark ? &local.used : nullptr);
-      if (mark) local.used_indirect.insert(local.used_indirect.end(), local.used.begin(), local.used.end());
+      if (mark) {
+        local.used_indirect.insert(local.used_indirect.end(), local.used.begin(), local.used.end());
+        const float r2 = local.scratch.radius2;
+        for (std::uint32_t i : local.used) {
+          const Photon& p = maps.global.photons[i];
+          if (!(r2 > 0) || p.light >= local.traditional_flux.size()) continue;
+          const double flux = static_cast<double>((p.power.x + p.power.y + p.power.z) / (3.0f * r2));
+          (p.kind == EmissionKind::Traditional ? local.traditional_flux : local.gaze_flux)[p.light] += flux;
+        }
+      }
     }
     if (s.caustics && !maps.caustics.empty()) {
       l += maps.caustics.flux_density(hit.position, n, s.caustic_estimate, local.scratch, brdf, mark ? &local.used : nullptr);
@@ -230,6 +208,8 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
     if (y1 > y0 && x1 > x0) {
       tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1), [&](const tbb::blocked_range<std::uint32_t>& rows) {
         Tracer::Local& local = locals.local();
+        local.traditional_flux.resize(lights.lights.size(), 0.0);
+        local.gaze_flux.resize(lights.lights.size(), 0.0);
         std::uint64_t count = 0;
         for (std::uint32_t y = rows.begin(); y < rows.end(); ++y) {
           for (std::uint32_t x = x0; x < x1; ++x) {
@@ -243,8 +223,14 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
     }
     st.pixels = pixels.load();
     std::vector<std::uint8_t> seen_indirect(mark ? maps.global.photons.size() : 0), seen_caustic(mark ? maps.caustic.photons.size() : 0);
+    st.traditional_flux.assign(lights.lights.size(), 0.0);
+    st.gaze_flux.assign(lights.lights.size(), 0.0);
     for (const Tracer::Local& local : locals) {
       st.rays += local.rays;
+      for (std::size_t l = 0; l < local.traditional_flux.size(); ++l) {
+        st.traditional_flux[l] += local.traditional_flux[l];
+        st.gaze_flux[l] += local.gaze_flux[l];
+      }
       for (std::uint32_t i : local.used_indirect) seen_indirect[i] = 1;
       for (std::uint32_t i : local.used_caustic) seen_caustic[i] = 1;
     }

@@ -79,13 +79,18 @@ struct GiStats {
   std::uint64_t pixels = 0;           // shaded inside the area
   std::uint64_t rays = 0;             // eye, reflection and refraction rays (shadow rays not counted)
   std::uint64_t photons_used = 0;     // distinct photons that shaded the area (the gaze photons of §8.4.4)
+  // With marking: per light, the indirect flux density the area's shading points gathered from
+  // traditionally emitted photons and from gaze-emitted ones (sum over points of sum Phi / r^2, same
+  // neighbourhoods for both): what the gaze-directed mapper's power scaling compares.
+  std::vector<double> traditional_flux, gaze_flux;
   double render_seconds = 0;
 };
 
 // The GI image of a gaze area, traced with `backend` (set to the frame's scene and time) through
 // `camera` at scene time now_s. hdr: width x height of the camera, row-major; only pixels inside
 // `area` are written. When mark is true the photons that shaded the area get kInGazeRegion in their
-// flags, as §8.4.4's ray-tracing step labels them.
+// flags, as §8.4.4's ray-tracing step labels them (with precomputed irradiance: the precomputed
+// photon each shading point used).
 void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,
                       const GazeArea& area, const GiRenderSettings& s, std::vector<glm::vec3>& hdr,
                       GiStats* stats = nullptr, bool mark = false);

@@ -190,6 +190,7 @@ glm::vec3 PhotonMap::flux_density(const glm::vec3& x, const glm::vec3& n, const 
     sum += w * power;
     if (used) used->push_back(i);
   }
+  scratch.radius2 = r2;
   const float norm = cone ? 1.0f - 2.0f / (3.0f * k) : 1.0f;  // the cone filter's integral over the disc
   const glm::vec3 e = sum / (norm * kPi * r2);                 // Jensen & Pedersen eq. 6.6: dPhi / (pi r^2)
   return finite3(e) ? glm::max(e, glm::vec3(0.0f)) : glm::vec3(0.0f);

@@ -36,6 +36,8 @@ struct Photon {
   glm::vec3 incoming{0.0f};    // unit direction of travel when it arrived (Jensen's indir)
   glm::vec3 outgoing{0.0f};    // unit direction it left in (the next photon's incoming; 0 at the end)
   glm::vec3 normal{0.0f};      // unit surface normal where it was stored (front side: dot(incoming, n) < 0)
+  glm::vec3 emission_origin{0.0f};     // where its trace left the light
+  glm::vec3 emission_direction{0.0f};  // and which way (the photon emission map's entry, §8.4.5)
   std::uint32_t parent = kNoParent;  // the previous stored photon of the same trace
   std::uint32_t seed = 0;            // the trace's frame-coherent seed (§8.4.6)
   std::uint8_t flags = 0;            // PhotonFlag bits
@@ -93,7 +95,8 @@ class PhotonMap {
   // nearest photons arriving at the front side, weighted by the filter, over the disc's area
   // (Jensen & Pedersen eqs. 6.4-6.6 without the BRDF). `weight` (optional) multiplies each photon's
   // power, e.g. by the BRDF towards the viewer: radiance = flux_density(..., f_r). Finite always;
-  // 0 when fewer than one photon is found. `used` (optional) receives the photons that contributed.
+  // 0 when fewer than one photon is found. `used` (optional) receives the photons that contributed;
+  // scratch.radius2 the squared radius of the disc they were gathered from.
   glm::vec3 flux_density(const glm::vec3& x, const glm::vec3& n, const EstimateSettings& s, Neighbours& scratch,
                          const std::function<glm::vec3(const Photon&)>& weight = {},
                          std::vector<std::uint32_t>* used = nullptr) const;

@@ -9,14 +9,21 @@
 #include <numbers>
 
 #include "backend/embree/embree_backend.h"
+#include "gi/optics.h"
 
 namespace fovea::render::gi {
 
 namespace {
 
+using optics::cosine_direction;
+using optics::finite3;
+using optics::fresnel_dielectric;
+using optics::reflect;
+using optics::surface_epsilon;
+using optics::tangents;
+
 constexpr float kPi = std::numbers::pi_v<float>;
 
-bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 float mean(const glm::vec3& v) { return (v.x + v.y + v.z) / 3.0f; }
 // Russian roulette's probability for a coloured reflectance: its largest channel (Jensen 2001,
 // §5.2.1), so that power * reflectance / probability never grows in any channel.
@@ -24,23 +31,6 @@ float max3(const glm::vec3& v) { return std::max({v.x, v.y, v.z}); }
 glm::vec3 clamp01(const glm::vec3& v) {
   const auto c = [](float x) { return std::isfinite(x) ? std::clamp(x, 0.0f, 1.0f) : 0.0f; };
   return {c(v.x), c(v.y), c(v.z)};
-}
-
-// Two unit tangents of a plane with unit normal n (the same construction as scene/shading.cpp's
-// area-light samples, so photons leave the same rectangle local illumination samples).
-void tangents(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
-  const glm::vec3 helper = std::abs(n.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
-  t = glm::normalize(glm::cross(helper, n));
-  b = glm::cross(n, t);
-}
-
-// A direction around unit n with pdf cos(theta) / pi (Malley: a uniform disc point lifted).
-glm::vec3 cosine_direction(const glm::vec3& n, float u1, float u2) {
-  glm::vec3 t, b;
-  tangents(n, t, b);
-  const float r = std::sqrt(u1), phi = 2 * kPi * u2;
-  const float x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0f, 1.0f - u1));
-  return glm::normalize(t * x + b * y + n * z);
 }
 
 // A direction around unit axis with pdf (e + 1) / (2 pi) cos^e(alpha): the Phong lobe.
@@ -52,25 +42,6 @@ glm::vec3 lobe_direction(const glm::vec3& axis, float exponent, float u1, float 
   const float phi = 2 * kPi * u2;
   return glm::normalize(t * (sin_a * std::cos(phi)) + b * (sin_a * std::sin(phi)) + axis * cos_a);
 }
-
-glm::vec3 reflect(const glm::vec3& d, const glm::vec3& n) { return d - 2.0f * glm::dot(d, n) * n; }
-
-// Unpolarised Fresnel reflectance of a dielectric, cos_i > 0 on the incident side, eta = n_i / n_t.
-// Returns 1 for total internal reflection and writes the refracted direction otherwise.
-float fresnel_dielectric(const glm::vec3& d, const glm::vec3& n, float eta, glm::vec3& refracted) {
-  const float cos_i = -glm::dot(d, n);
-  const float sin2_t = eta * eta * std::max(0.0f, 1.0f - cos_i * cos_i);
-  if (sin2_t >= 1.0f) return 1.0f;
-  const float cos_t = std::sqrt(1.0f - sin2_t);
-  refracted = glm::normalize(eta * d + (eta * cos_i - cos_t) * n);
-  const float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-  const float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-  return std::clamp(0.5f * (rs * rs + rp * rp), 0.0f, 1.0f);
-}
-
-// Offset of a new ray's origin off a surface: relative to the coordinates' size (float spacing
-// grows with magnitude), as the G-buffer's shadow rays do.
-float surface_epsilon(const glm::vec3& p) { return 1e-4f * std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
 
 }  // namespace
 
@@ -110,6 +81,21 @@ std::vector<double> light_shares(const Scene& scene) {
   return share;
 }
 
+glm::vec3 emitted_power(const Light& light, const glm::vec3& direction) {
+  glm::vec3 power = glm::max(light.power, glm::vec3(0.0f));
+  if (light.type == LightType::Spot) {
+    glm::vec3 axis = light.direction;
+    if (!(glm::length(axis) > 0) || !finite3(axis)) axis = glm::vec3(0, -1, 0);
+    axis = glm::normalize(axis);
+    const float cutoff = std::cos(glm::radians(std::clamp(light.spot_cutoff_deg, 0.0f, 180.0f)));
+    const float inner = std::cos(glm::radians(std::clamp(light.spot_cutoff_deg - light.spot_falloff_deg, 0.0f, 180.0f)));
+    const float start = std::max(inner, cutoff + 1e-6f);
+    const float x = std::clamp((glm::dot(direction, axis) - cutoff) / (start - cutoff), 0.0f, 1.0f);
+    power *= (1 - cutoff) / 2 * (x * x * (3 - 2 * x));
+  }
+  return finite3(power) ? power : glm::vec3(0.0f);
+}
+
 EmittedPhoton emit_from_light(const Scene& scene, std::size_t light_index, std::uint32_t seed) {
   EmittedPhoton e;
   e.light = static_cast<std::uint8_t>(std::min<std::size_t>(light_index, 255));
@@ -133,15 +119,12 @@ EmittedPhoton emit_from_light(const Scene& scene, std::size_t light_index, std::
       // Uniform inside the cutoff cone (solid angle 2 pi (1 - cos c)); the power is the cone's share
       // of a point light's, times the smoothstep falloff local illumination uses (shading.cpp).
       const float cutoff = std::cos(glm::radians(std::clamp(light.spot_cutoff_deg, 0.0f, 180.0f)));
-      const float inner = std::cos(glm::radians(std::clamp(light.spot_cutoff_deg - light.spot_falloff_deg, 0.0f, 180.0f)));
       const float cos_a = 1 - u1 * (1 - cutoff), sin_a = std::sqrt(std::max(0.0f, 1 - cos_a * cos_a));
       glm::vec3 t, b;
       tangents(axis, t, b);
       const float phi = 2 * kPi * u2;
       e.direction = glm::normalize(t * (sin_a * std::cos(phi)) + b * (sin_a * std::sin(phi)) + axis * cos_a);
-      const float start = std::max(inner, cutoff + 1e-6f);
-      const float x = std::clamp((cos_a - cutoff) / (start - cutoff), 0.0f, 1.0f);
-      e.power *= (1 - cutoff) / 2 * (x * x * (3 - 2 * x));
+      e.power = emitted_power(light, e.direction);
       break;
     }
     case LightType::Area: {  // a uniform point of the rectangle, a cosine-weighted direction
@@ -182,13 +165,16 @@ std::uint32_t trace_photon(const EmbreeBackend& backend, const EmittedPhoton& st
     // diffuse end of light -> specular+ -> diffuse paths and ends the trace there.
     std::uint32_t stored = kNoParent;
     if (diffuse) {
-      const bool keep = s.mode == TraceMode::Global || (via_specular && diffuse_bounces == 0);
+      const bool keep = (s.mode == TraceMode::Global || (via_specular && diffuse_bounces == 0)) &&
+                        (!s.store_if || s.store_if(hit.position, n_face));
       if (keep) {
         Photon p;
         p.position = hit.position;
         p.power = power;
         p.incoming = dir;
         p.normal = n_face;
+        p.emission_origin = start.origin;
+        p.emission_direction = start.direction;
         p.parent = parent;
         p.seed = start.seed;
         p.light = start.light;
@@ -266,6 +252,31 @@ std::uint32_t trace_photon(const EmbreeBackend& backend, const EmittedPhoton& st
   return rays;
 }
 
+std::uint64_t trace_emitted(const EmbreeBackend& backend, const TraceSettings& s, const std::vector<EmittedPhoton>& emissions,
+                            std::vector<Photon>& out, const DiffuseGuide& guide) {
+  constexpr std::size_t kChunk = 256;
+  const std::size_t chunks = (emissions.size() + kChunk - 1) / kChunk;
+  std::vector<std::vector<Photon>> stored(chunks);
+  std::vector<std::uint64_t> chunk_rays(chunks, 0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t c = r.begin(); c < r.end(); ++c) {
+      const std::size_t end = std::min(emissions.size(), (c + 1) * kChunk);
+      // Parents in stored[c] are its own indices; shifted below when the chunk is appended.
+      for (std::size_t j = c * kChunk; j < end; ++j) chunk_rays[c] += trace_photon(backend, emissions[j], s, stored[c], guide);
+    }
+  });
+  std::uint64_t rays = 0;
+  for (std::size_t c = 0; c < chunks; ++c) {
+    const auto offset = static_cast<std::uint32_t>(out.size());
+    for (Photon& p : stored[c]) {
+      if (p.parent != kNoParent) p.parent += offset;
+      out.push_back(p);
+    }
+    rays += chunk_rays[c];
+  }
+  return rays;
+}
+
 PhotonTraceResult trace_photons(const EmbreeBackend& backend, const TraceSettings& s) {
   const auto t0 = std::chrono::steady_clock::now();
   PhotonTraceResult result;
@@ -294,41 +305,15 @@ PhotonTraceResult trace_photons(const EmbreeBackend& backend, const TraceSetting
   std::uint64_t per_round_total = 0;
   for (std::uint64_t v : per_round) per_round_total += v;
 
-  constexpr std::uint64_t kChunk = 256;
   std::uint64_t rays = 0;
+  std::vector<EmittedPhoton> emissions;
   while (result.photons.size() < s.stored_photons && result.emitted < cap) {
     // This round's emissions: (light, index within the light) in a fixed order.
-    struct Job {
-      std::uint32_t light;
-      std::uint64_t index;
-    };
-    std::vector<Job> jobs;
-    jobs.reserve(per_round_total);
+    emissions.clear();
     for (std::size_t l = 0; l < per_round.size(); ++l)
-      for (std::uint64_t k = 0; k < per_round[l]; ++k) jobs.push_back({static_cast<std::uint32_t>(l), result.emitted_per_light[l] + k});
-    const std::size_t chunks = (jobs.size() + kChunk - 1) / kChunk;
-    std::vector<std::vector<Photon>> stored(chunks);
-    std::vector<std::uint64_t> chunk_rays(chunks, 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t c = r.begin(); c < r.end(); ++c) {
-        std::vector<Photon>& local = stored[c];
-        const std::size_t end = std::min<std::size_t>(jobs.size(), (c + 1) * kChunk);
-        for (std::size_t j = c * kChunk; j < end; ++j) {
-          const std::uint32_t seed = hash_seed(s.seed, jobs[j].light, jobs[j].index);
-          const EmittedPhoton e = emit_from_light(scene, jobs[j].light, seed);
-          // Parents in `local` are indices of local; shifted below when the chunk is appended.
-          chunk_rays[c] += trace_photon(backend, e, s, local);
-        }
-      }
-    });
-    for (std::size_t c = 0; c < chunks; ++c) {
-      const auto offset = static_cast<std::uint32_t>(result.photons.size());
-      for (Photon& p : stored[c]) {
-        if (p.parent != kNoParent) p.parent += offset;
-        result.photons.push_back(p);
-      }
-      rays += chunk_rays[c];
-    }
+      for (std::uint64_t k = 0; k < per_round[l]; ++k)
+        emissions.push_back(emit_from_light(scene, l, hash_seed(s.seed, l, result.emitted_per_light[l] + k)));
+    rays += trace_emitted(backend, s, emissions, result.photons);
     for (std::size_t l = 0; l < per_round.size(); ++l) result.emitted_per_light[l] += per_round[l];
     result.emitted += per_round_total;
   }

@@ -60,6 +60,9 @@ struct TraceSettings {
   // Stop after this many emitted photons per stored photon asked for, whatever was stored (a light
   // enclosed by geometry that absorbs everything, or one that shines into the void).
   std::uint32_t max_emitted_per_stored = 64;
+  // Store a photon only where this says yes (position, surface normal on the arrival side); empty:
+  // everywhere. The importon strategy (§7.2) stores only near important surfaces this way.
+  std::function<bool(const glm::vec3&, const glm::vec3&)> store_if;
 };
 
 // Where a diffusely reflected photon goes next: return a unit direction on the side `normal`
@@ -91,10 +94,20 @@ struct PhotonTraceResult {
 // caller divides by the number emitted from that light.
 EmittedPhoton emit_from_light(const Scene& scene, std::size_t light_index, std::uint32_t seed);
 
+// The power a photon leaving `light` in unit `direction` carries before division by the number
+// emitted: Phi, for a spot light times its cone's share of the sphere and the smoothstep falloff.
+glm::vec3 emitted_power(const Light& light, const glm::vec3& direction);
+
 // Traces one photon, appending the photons it stores to `out` (parents as indices into `out`).
 // Returns the number of rays cast.
 std::uint32_t trace_photon(const EmbreeBackend& backend, const EmittedPhoton& start, const TraceSettings& s,
                            std::vector<Photon>& out, const DiffuseGuide& guide = {});
+
+// Traces a list of emissions in parallel; the stored photons are appended to `out` in emission
+// order (parents shifted to indices of `out`), whatever the number of threads. `guide` (optional)
+// steers diffuse reflections. Returns the rays cast. Powers are left as emitted.
+std::uint64_t trace_emitted(const EmbreeBackend& backend, const TraceSettings& s, const std::vector<EmittedPhoton>& emissions,
+                            std::vector<Photon>& out, const DiffuseGuide& guide = {});
 
 // Emits and traces photons in rounds until settings.stored_photons are stored (or the emission cap
 // is reached), in parallel, deterministic for a given seed.

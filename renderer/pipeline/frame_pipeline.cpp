@@ -172,28 +172,6 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   const Settings& s = settings_;
   const auto count = [&](const char* key) { return static_cast<std::uint32_t>(std::lround(s.number(key))); };
   gi_frame_ = Frame::Gi{};
-  // The first pass: the global map and, for specular or refractive surfaces, the caustic map.
-  {
-    auto t = timer.scope("gi.photons");
-    gi::TraceSettings ts;
-    ts.stored_photons = count("gi.photons");
-    ts.max_depth = count("gi.trace_depth");
-    ts.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
-    gi_maps_.global = gi::trace_photons(*gi_backend_, ts);
-    gi_maps_.caustic = {};
-    if (s.flag("gi.caustics") && scene_.has_specular_or_refractive() && count("gi.caustic_photons") > 0) {
-      ts.mode = gi::TraceMode::Caustic;
-      ts.stored_photons = count("gi.caustic_photons");
-      ts.max_depth = std::max<std::uint32_t>(ts.max_depth, 2);  // light -> specular -> diffuse at least
-      ts.seed = gi::hash_seed(ts.seed, 0xca05, 0);
-      gi_maps_.caustic = gi::trace_photons(*gi_backend_, ts);
-    }
-  }
-  {
-    auto t = timer.scope("gi.index");
-    gi_maps_.index();
-  }
-  const bool precomputed = s.is("gi.estimate", "precomputed");
   // Where: the gaze point, else the most attended object, else the screen centre; or everything.
   const Camera& cam = scene_.camera;
   glm::vec2 centre(0.5f);
@@ -214,6 +192,56 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   } else {
     gi_frame_.area = gi::gaze_area(scene_.display, cam.width, cam.height, centre, s.number("gi.gaze_area_deg"));
   }
+  // The first pass: the global map (by gi.strategy) and, for specular or refractive surfaces, the caustic map.
+  const std::string& strategy = s.text("gi.strategy");
+  const bool gaze_directed = strategy == "gaze-directed";
+  if (!gaze_directed) gaze_mapper_.reset();
+  {
+    auto t = timer.scope("gi.photons");
+    gi::TraceSettings ts;
+    ts.stored_photons = count("gi.photons");
+    ts.max_depth = count("gi.trace_depth");
+    ts.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
+    if (gaze_directed) {
+      gi::GazeDirectedSettings gs;
+      gs.max_photons = ts.stored_photons;
+      gs.trace_depth = ts.max_depth;
+      gs.seed = ts.seed;
+      gs.emission_ratio = s.number("gi.emission_ratio");
+      gs.gaze_directed_reflections = s.flag("gi.guided_reflections");
+      gs.nn_reflect_radius = static_cast<float>(s.number("gi.nn_reflect_radius"));
+      gs.noise_scale = static_cast<float>(s.number("gi.noise_scale"));
+      gi_maps_.global = gaze_mapper_.trace(*gi_backend_, gs, &gi_frame_.gaze);
+      gi_frame_.strategy = "gaze-directed";
+    } else if (strategy == "importon") {
+      gi::ImportonSettings is;
+      is.importons = count("gi.importons");
+      is.reach = static_cast<float>(s.number("gi.nn_radius"));
+      is.seed = ts.seed;
+      importons_.build(*gi_backend_, cam, now_s, gi_frame_.area, is);
+      gi_frame_.importons = importons_.size();
+      ts.max_emitted_per_stored = 1000;  // most photons land where the gaze area cannot see them
+      gi_maps_.global = gi::trace_photons_with_importons(*gi_backend_, ts, importons_);
+      gi_frame_.strategy = "importon";
+    } else {
+      gi_maps_.global = gi::trace_photons(*gi_backend_, ts);
+    }
+    gi_maps_.caustic = {};
+    if (s.flag("gi.caustics") && scene_.has_specular_or_refractive() && count("gi.caustic_photons") > 0) {
+      ts.mode = gi::TraceMode::Caustic;
+      ts.stored_photons = count("gi.caustic_photons");
+      ts.max_depth = std::max<std::uint32_t>(ts.max_depth, 2);  // light -> specular -> diffuse at least
+      ts.seed = gi::hash_seed(ts.seed, 0xca05, 0);
+      ts.store_if = {};
+      ts.max_emitted_per_stored = 64;
+      gi_maps_.caustic = gi::trace_photons(*gi_backend_, ts);
+    }
+  }
+  {
+    auto t = timer.scope("gi.index");
+    gi_maps_.index();
+  }
+  const bool precomputed = s.is("gi.estimate", "precomputed");
   gi::GiRenderSettings rs;
   rs.estimate.nearest = count("gi.nnn");
   rs.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
@@ -229,7 +257,8 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   {
     auto t = timer.scope("gi.render");
     gi_color_.assign(local.size(), glm::vec3(0.0f));
-    gi::render_gaze_area(*gi_backend_, cam, now_s, gi_maps_, gi_frame_.area, rs, gi_color_, &gi_frame_.render);
+    gi::render_gaze_area(*gi_backend_, cam, now_s, gi_maps_, gi_frame_.area, rs, gi_color_, &gi_frame_.render,
+                         gaze_directed);
   }
   {
     auto t = timer.scope("gi.composite");
@@ -239,7 +268,11 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_frame_.photons = gi_maps_.global.photons.size();
   gi_frame_.caustic_photons = gi_maps_.caustic.photons.size();
   gi_frame_.emitted = gi_maps_.global.emitted + gi_maps_.caustic.emitted;
-  gi_frame_.note = gi_maps_.global.note.empty() ? gi_maps_.caustic.note : gi_maps_.global.note;
+  gi_frame_.note = !gi_maps_.global.note.empty() ? gi_maps_.global.note
+                   : !gi_frame_.gaze.note.empty() ? gi_frame_.gaze.note
+                                                  : gi_maps_.caustic.note;
+  // The labelled map steers the next frame (it is not read again this frame).
+  if (gaze_directed) gaze_mapper_.finish_frame(std::move(gi_maps_.global), gi_frame_.render);
 }
 
 dof::CocModel FramePipeline::coc_model(double focus_m) const {

@@ -10,6 +10,7 @@
 #include "dof/dof_image.h"
 #include "dof/lee_mipmap.h"
 #include "gaze/gaze_input.h"
+#include "gi/gaze_photons.h"
 #include "gi/gi_render.h"
 #include "image/image.h"
 #include "passes/overlay.h"
@@ -39,6 +40,9 @@ class FramePipeline {
       std::uint64_t emitted = 0;
       gi::GiStats render;
       std::string note;  // the tracer's note (fewer photons than asked, and why)
+      const char* strategy = "traditional";
+      gi::GazeFrameStats gaze;      // gaze-directed: emission map, bins, power scale
+      std::size_t importons = 0;    // importon: importons stored
     };
     const Gi* gi = nullptr;  // null when the gi pass did not run
   };
@@ -72,6 +76,8 @@ class FramePipeline {
   // The gi pass ray traces with its own Embree backend (whatever renders the G-buffer).
   std::unique_ptr<EmbreeBackend> gi_backend_;
   gi::PhotonMaps gi_maps_;
+  gi::GazePhotonMapper gaze_mapper_;  // gi.strategy=gaze-directed: the last frame's labelled map
+  gi::ImportonMap importons_;
   std::vector<glm::vec3> gi_color_, hybrid_;
   Frame::Gi gi_frame_;
   // Traces the photon maps, ray traces the gaze area and composites it over `local` into hybrid_.

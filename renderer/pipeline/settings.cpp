@@ -72,6 +72,16 @@ const std::vector<SettingSpec>& Settings::specs() {
        "indirect light per shading point from its gi.nnn nearest photons (Jensen & Pedersen §6.3.2), or from the nearest "
        "photon's precomputed irradiance (Christensen 1999; diffuse only, much faster)"},
       {"gi.precompute_stride", "4", "number in [1, 1000]", "gi.estimate=precomputed: irradiance at every n-th indirect photon"},
+      {"gi.strategy", "traditional", "traditional|gaze-directed|importon",
+       "how the photon map is built: uniform emission (ch. 6), steered by the last frame's gaze photons (ch. 8: emission "
+       "maps, guided reflections, power scaling) or stored only where importons from the gaze area reach (§7.2)"},
+      {"gi.emission_ratio", "0.5", "number in [0, 1]", "gaze-directed: share of photons emitted from the emission map (Table 8.3)"},
+      {"gi.guided_reflections", "false", "bool",
+       "gaze-directed: traditional photons' diffuse reflections are guided too (gazeDirectedReflections; Table 8.3 says "
+       "yes, but it biases the power scaling's reference: the gaze area comes out too bright, GI.md)"},
+      {"gi.nn_reflect_radius", "0.01", "number in [0.00001, 100]", "gaze-directed: NNReflectRadius, metres (Table 8.3)"},
+      {"gi.noise_scale", "0.1", "number in [0, 10]", "gaze-directed: noiseScale of eq. 8.8 (Table 8.3)"},
+      {"gi.importons", "10000", "number in [1, 10000000]", "importon: importons traced through the gaze area (n_i, eq. 7.19)"},
       {"gi.ray_depth", "5", "number in [0, 64]", "mirror and glass bounces followed by the GI's eye rays"},
       {"gi.fovea", "0.7", "number in [0, 1]",
        "fraction of the gaze area's radius shown as pure GI before the blend to raster (Algorithm 8.4: 0.7)"},

@@ -115,6 +115,14 @@ for e in nearest precomputed; do
   [ "$(grep -c ",gaze," "$WORK/gi-$e/gi.csv")" -eq 3 ] || fail "gi $e: the area should follow the gaze: $(cat "$WORK/gi-$e/gi.csv")"
   cmp -s "$WORK/gi-$e/frame-000002.png" "$WORK/gi-off/frame-000002.png" && fail "gi $e changed nothing"
 done
+for st in gaze-directed importon; do
+  "$RENDER" "${GI[@]}" --set gi.enabled=true --set gi.strategy=$st --out "$WORK/gi-$st" >"$WORK/gi-$st.log" 2>&1 \
+    || fail "gi.strategy=$st: $(tail -5 "$WORK/gi-$st.log")"
+  [ "$(grep -c ",$st,gaze," "$WORK/gi-$st/gi.csv")" -eq 3 ] || fail "gi $st: gi.csv: $(cat "$WORK/gi-$st/gi.csv")"
+done
+# From the second frame on, the gaze-directed map has an emission map (column 13) from the first frame's labels.
+[ "$(sed -n 3p "$WORK/gi-gaze-directed/gi.csv" | cut -d, -f13)" -gt 0 ] || fail "no emission map: $(cat "$WORK/gi-gaze-directed/gi.csv")"
+[ "$(sed -n 2p "$WORK/gi-importon/gi.csv" | cut -d, -f15)" -gt 0 ] || fail "no importons: $(cat "$WORK/gi-importon/gi.csv")"
 # The area moves with the recorded gaze (frames 0.5 s apart).
 [ "$(cut -d, -f3,4 "$WORK/gi-nearest/gi.csv" | sort -u | wc -l)" -ge 3 ] || fail "gi area did not move: $(cat "$WORK/gi-nearest/gi.csv")"
 "${XVFB[@]}" "$RENDER" "${GI[@]}" --backend gl --set gi.enabled=true --out "$WORK/gi-gl" >"$WORK/gi-gl.log" 2>&1 \
