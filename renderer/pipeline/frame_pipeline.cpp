@@ -67,7 +67,7 @@ FramePipeline::FramePipeline(Scene scene, Settings settings, std::unique_ptr<Bac
 
 void FramePipeline::scene_changed() {
   backend_->set_scene(scene_);
-  if (gi_backend_) gi_backend_->set_scene(scene_);
+  if (gi_pass_) gi_pass_->set_scene(scene_);
 }
 
 FramePlan FramePipeline::plan() const {
@@ -164,18 +164,18 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
 }
 
 void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer) {
-  if (!gi_backend_) {
-    gi_backend_ = std::make_unique<EmbreeBackend>();
-    gi_backend_->set_scene(scene_);
+  if (!gi_pass_) {
+    gi_pass_ = std::make_unique<gi::GiPass>();
+    gi_pass_->set_scene(scene_);
   }
-  gi_backend_->set_time(now_s);
   const Settings& s = settings_;
   const auto count = [&](const char* key) { return static_cast<std::uint32_t>(std::lround(s.number(key))); };
   gi_frame_ = Frame::Gi{};
   // Where: the gaze point, else the most attended object, else the screen centre; or everything.
   const Camera& cam = scene_.camera;
+  const bool full = s.is("gi.area", "full");
   glm::vec2 centre(0.5f);
-  if (s.is("gi.area", "full")) {
+  if (full) {
     gi_frame_.follows = "full screen";
   } else if (gaze_.available()) {
     centre = {static_cast<float>(f.gaze.x), static_cast<float>(f.gaze.y)};
@@ -186,93 +186,51 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   } else {
     gi_frame_.follows = "screen centre";
   }
-  if (s.is("gi.area", "full")) {
+  if (full) {
     gi_frame_.area.center_px = {0.5f * static_cast<float>(cam.width), 0.5f * static_cast<float>(cam.height)};
     gi_frame_.area.radius_px = 0.5f * std::hypot(static_cast<float>(cam.width), static_cast<float>(cam.height)) + 1.0f;
   } else {
     gi_frame_.area = gi::gaze_area(scene_.display, cam.width, cam.height, centre, s.number("gi.gaze_area_deg"));
   }
-  // The first pass: the global map (by gi.strategy) and, for specular or refractive surfaces, the caustic map.
+  gi::GiPassSettings gs;
   const std::string& strategy = s.text("gi.strategy");
-  const bool gaze_directed = strategy == "gaze-directed";
-  if (!gaze_directed) gaze_mapper_.reset();
-  {
-    auto t = timer.scope("gi.photons");
-    gi::TraceSettings ts;
-    ts.stored_photons = count("gi.photons");
-    ts.max_depth = count("gi.trace_depth");
-    ts.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
-    if (gaze_directed) {
-      gi::GazeDirectedSettings gs;
-      gs.max_photons = ts.stored_photons;
-      gs.trace_depth = ts.max_depth;
-      gs.seed = ts.seed;
-      gs.emission_ratio = s.number("gi.emission_ratio");
-      gs.gaze_directed_reflections = s.flag("gi.guided_reflections");
-      gs.nn_reflect_radius = static_cast<float>(s.number("gi.nn_reflect_radius"));
-      gs.noise_scale = static_cast<float>(s.number("gi.noise_scale"));
-      gi_maps_.global = gaze_mapper_.trace(*gi_backend_, gs, &gi_frame_.gaze);
-      gi_frame_.strategy = "gaze-directed";
-    } else if (strategy == "importon") {
-      gi::ImportonSettings is;
-      is.importons = count("gi.importons");
-      is.reach = static_cast<float>(s.number("gi.nn_radius"));
-      is.seed = ts.seed;
-      importons_.build(*gi_backend_, cam, now_s, gi_frame_.area, is);
-      gi_frame_.importons = importons_.size();
-      ts.max_emitted_per_stored = 1000;  // most photons land where the gaze area cannot see them
-      gi_maps_.global = gi::trace_photons_with_importons(*gi_backend_, ts, importons_);
-      gi_frame_.strategy = "importon";
-    } else {
-      gi_maps_.global = gi::trace_photons(*gi_backend_, ts);
-    }
-    gi_maps_.caustic = {};
-    if (s.flag("gi.caustics") && scene_.has_specular_or_refractive() && count("gi.caustic_photons") > 0) {
-      ts.mode = gi::TraceMode::Caustic;
-      ts.stored_photons = count("gi.caustic_photons");
-      ts.max_depth = std::max<std::uint32_t>(ts.max_depth, 2);  // light -> specular -> diffuse at least
-      ts.seed = gi::hash_seed(ts.seed, 0xca05, 0);
-      ts.store_if = {};
-      ts.max_emitted_per_stored = 64;
-      gi_maps_.caustic = gi::trace_photons(*gi_backend_, ts);
-    }
-  }
-  {
-    auto t = timer.scope("gi.index");
-    gi_maps_.index();
-  }
-  const bool precomputed = s.is("gi.estimate", "precomputed");
-  gi::GiRenderSettings rs;
-  rs.estimate.nearest = count("gi.nnn");
-  rs.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
-  rs.estimate.filter = s.is("gi.filter", "disc") ? gi::EstimateFilter::Disc : gi::EstimateFilter::Cone;
-  rs.caustic_estimate.filter = rs.estimate.filter;
-  rs.indirect_estimate = precomputed ? gi::IndirectEstimate::Precomputed : gi::IndirectEstimate::Nearest;
-  if (precomputed) {
-    auto t = timer.scope("gi.precompute");
-    gi_maps_.precompute_irradiance(rs.estimate, count("gi.precompute_stride"));
-  }
-  rs.ray_depth = count("gi.ray_depth");
-  rs.shadows = s.flag("shadows");
-  {
-    auto t = timer.scope("gi.render");
-    gi_color_.assign(local.size(), glm::vec3(0.0f));
-    gi::render_gaze_area(*gi_backend_, cam, now_s, gi_maps_, gi_frame_.area, rs, gi_color_, &gi_frame_.render,
-                         gaze_directed);
-  }
-  {
-    auto t = timer.scope("gi.composite");
-    const float fovea = s.is("gi.area", "full") ? 1.0f : static_cast<float>(s.number("gi.fovea"));
-    gi::hybrid_composite(local, gi_color_, cam.width, cam.height, gi_frame_.area, fovea, hybrid_);
-  }
-  gi_frame_.photons = gi_maps_.global.photons.size();
-  gi_frame_.caustic_photons = gi_maps_.caustic.photons.size();
-  gi_frame_.emitted = gi_maps_.global.emitted + gi_maps_.caustic.emitted;
-  gi_frame_.note = !gi_maps_.global.note.empty() ? gi_maps_.global.note
-                   : !gi_frame_.gaze.note.empty() ? gi_frame_.gaze.note
-                                                  : gi_maps_.caustic.note;
-  // The labelled map steers the next frame (it is not read again this frame).
-  if (gaze_directed) gaze_mapper_.finish_frame(std::move(gi_maps_.global), gi_frame_.render);
+  gs.strategy = strategy == "gaze-directed" ? gi::Strategy::GazeDirected
+                : strategy == "importon"    ? gi::Strategy::Importon
+                                            : gi::Strategy::Traditional;
+  gs.photons = count("gi.photons");
+  gs.caustic_photons = count("gi.caustic_photons");
+  gs.caustics = s.flag("gi.caustics");
+  gs.trace_depth = count("gi.trace_depth");
+  gs.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
+  gs.render.estimate.nearest = count("gi.nnn");
+  gs.render.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
+  gs.render.estimate.filter = s.is("gi.filter", "disc") ? gi::EstimateFilter::Disc : gi::EstimateFilter::Cone;
+  gs.render.caustic_estimate.filter = gs.render.estimate.filter;
+  gs.render.indirect_estimate =
+      s.is("gi.estimate", "precomputed") ? gi::IndirectEstimate::Precomputed : gi::IndirectEstimate::Nearest;
+  gs.render.ray_depth = count("gi.ray_depth");
+  gs.render.shadows = s.flag("shadows");
+  gs.precompute_stride = count("gi.precompute_stride");
+  gs.gaze.emission_ratio = s.number("gi.emission_ratio");
+  gs.gaze.gaze_directed_reflections = s.flag("gi.guided_reflections");
+  gs.gaze.nn_reflect_radius = static_cast<float>(s.number("gi.nn_reflect_radius"));
+  gs.gaze.noise_scale = static_cast<float>(s.number("gi.noise_scale"));
+  gs.importons = count("gi.importons");
+  gs.fovea = full ? 1.0f : static_cast<float>(s.number("gi.fovea"));
+  const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_);
+  timer.record("gi.photons", r.photons_ms);
+  timer.record("gi.index", r.index_ms);
+  if (gs.render.indirect_estimate == gi::IndirectEstimate::Precomputed) timer.record("gi.precompute", r.precompute_ms);
+  timer.record("gi.render", r.render_ms);
+  timer.record("gi.composite", r.composite_ms);
+  gi_frame_.strategy = gi::to_string(r.strategy);
+  gi_frame_.render = r.render;
+  gi_frame_.gaze = r.gaze;
+  gi_frame_.photons = r.photons;
+  gi_frame_.caustic_photons = r.caustic_photons;
+  gi_frame_.importons = r.importons;
+  gi_frame_.emitted = r.emitted;
+  gi_frame_.note = r.note;
 }
 
 dof::CocModel FramePipeline::coc_model(double focus_m) const {

@@ -6,12 +6,10 @@
 #include "attention/attention.h"
 #include "attention/focus.h"
 #include "backend/backend.h"
-#include "backend/embree/embree_backend.h"
 #include "dof/dof_image.h"
 #include "dof/lee_mipmap.h"
 #include "gaze/gaze_input.h"
-#include "gi/gaze_photons.h"
-#include "gi/gi_render.h"
+#include "gi/gi_pass.h"
 #include "image/image.h"
 #include "passes/overlay.h"
 #include "pipeline/pass_timer.h"
@@ -73,14 +71,10 @@ class FramePipeline {
   GBuffer hidden_;  // lee-splat's hidden image (the layer behind the visible surfaces)
   std::vector<GBuffer> peeled_;  // schedl-layered's depth-peeled layers behind the visible one
   dof::LeeMipmap lee_mipmap_;
-  // The gi pass ray traces with its own Embree backend (whatever renders the G-buffer).
-  std::unique_ptr<EmbreeBackend> gi_backend_;
-  gi::PhotonMaps gi_maps_;
-  gi::GazePhotonMapper gaze_mapper_;  // gi.strategy=gaze-directed: the last frame's labelled map
-  gi::ImportonMap importons_;
-  std::vector<glm::vec3> gi_color_, hybrid_;
+  std::unique_ptr<gi::GiPass> gi_pass_;  // created on the first frame that runs gi
+  std::vector<glm::vec3> hybrid_;
   Frame::Gi gi_frame_;
-  // Traces the photon maps, ray traces the gaze area and composites it over `local` into hybrid_.
+  // Places the gaze area, runs the gi pass over `local` into hybrid_, records its stage times.
   void run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer);
   // Runs dof.method on the G-buffer with the lens focused at focus_m into dof_color_.
   void run_dof(double focus_m, double now_s, double previous_s);

@@ -1,0 +1,146 @@
+#include "gi/gi_pass.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "backend/embree/embree_backend.h"
+#include "gi/eye_rays.h"
+
+namespace fovea::render::gi {
+
+namespace {
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Indirect photons that project inside the area and are not hidden from the eye (Tables 9.9-9.10's
+// "photons in the gaze region").
+std::size_t photons_seen_in_area(const EmbreeBackend& backend, const Camera& camera, double now_s, const GazeArea& area,
+                                 const std::vector<Photon>& photons) {
+  const glm::mat4 view = camera.view_at(now_s);
+  const EyeRays eye(camera, now_s);
+  if (!eye.ok) return 0;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, photons.size()), std::size_t{0},
+      [&](const tbb::blocked_range<std::size_t>& r, std::size_t count) {
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+          const Photon& p = photons[i];
+          if (p.diffuse_bounces == 0) continue;
+          const glm::vec3 v = glm::vec3(view * glm::vec4(p.position, 1.0f));
+          if (!(v.z < -1e-4f)) continue;  // behind the camera
+          const float px = (v.x / -v.z / eye.tan_x + 1.0f) * 0.5f * static_cast<float>(camera.width);
+          const float py = (1.0f - v.y / -v.z / eye.tan_y) * 0.5f * static_cast<float>(camera.height);
+          if (!area.contains(px, py) || px < 0 || py < 0 || px >= static_cast<float>(camera.width) ||
+              py >= static_cast<float>(camera.height)) {
+            continue;
+          }
+          if (glm::dot(p.normal, eye.eye - p.position) <= 0) continue;  // the photon's side faces away
+          const glm::vec3 from = p.position + p.normal * (1e-3f * std::max(1.0f, glm::length(p.position)));
+          if (!backend.occluded(from, eye.eye)) ++count;
+        }
+        return count;
+      },
+      std::plus<>());
+}
+
+}  // namespace
+
+const char* to_string(Strategy s) {
+  switch (s) {
+    case Strategy::Traditional: return "traditional";
+    case Strategy::GazeDirected: return "gaze-directed";
+    case Strategy::Importon: return "importon";
+  }
+  return "traditional";
+}
+
+GiPass::GiPass() : backend_(std::make_unique<EmbreeBackend>()) {}
+GiPass::~GiPass() = default;
+
+void GiPass::set_scene(const Scene& scene) {
+  backend_->set_scene(scene);
+  has_scene_ = true;
+  gaze_mapper_.reset();  // last frame's paths belong to the old scene
+}
+
+const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
+                                const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out) {
+  result_ = GiPassResult{};
+  result_.strategy = s.strategy;
+  backend_->set_time(now_s);
+  const Scene& scene = backend_->scene();
+  const bool gaze_directed = s.strategy == Strategy::GazeDirected;
+  if (!gaze_directed) gaze_mapper_.reset();
+
+  // The first pass: the global map by strategy, and the caustic map for specular or refractive surfaces.
+  auto t0 = std::chrono::steady_clock::now();
+  TraceSettings ts;
+  ts.stored_photons = s.photons;
+  ts.max_depth = s.trace_depth;
+  ts.seed = s.seed;
+  if (gaze_directed) {
+    GazeDirectedSettings gs = s.gaze;
+    gs.max_photons = s.photons;
+    gs.trace_depth = s.trace_depth;
+    gs.seed = s.seed;
+    maps_.global = gaze_mapper_.trace(*backend_, gs, &result_.gaze);
+  } else if (s.strategy == Strategy::Importon) {
+    ImportonSettings is;
+    is.importons = s.importons;
+    is.reach = s.render.estimate.max_radius;
+    is.seed = s.seed;
+    importons_.build(*backend_, camera, now_s, area, is);
+    result_.importons = importons_.size();
+    ts.max_emitted_per_stored = 1000;  // most photons land where the gaze area cannot see them
+    maps_.global = trace_photons_with_importons(*backend_, ts, importons_);
+  } else {
+    maps_.global = trace_photons(*backend_, ts);
+  }
+  maps_.caustic = {};
+  if (s.caustics && scene.has_specular_or_refractive() && s.caustic_photons > 0) {
+    TraceSettings cs;
+    cs.mode = TraceMode::Caustic;
+    cs.stored_photons = s.caustic_photons;
+    cs.max_depth = std::max<std::uint32_t>(s.trace_depth, 2);  // light -> specular -> diffuse at least
+    cs.seed = hash_seed(s.seed, 0xca05, 0);
+    maps_.caustic = trace_photons(*backend_, cs);
+  }
+  result_.photons_ms = ms_since(t0);
+
+  t0 = std::chrono::steady_clock::now();
+  maps_.index();
+  result_.index_ms = ms_since(t0);
+  if (s.render.indirect_estimate == IndirectEstimate::Precomputed) {
+    t0 = std::chrono::steady_clock::now();
+    maps_.precompute_irradiance(s.render.estimate, s.precompute_stride);
+    result_.precompute_ms = ms_since(t0);
+  }
+
+  // The second pass inside the area, then Algorithm 8.4.
+  t0 = std::chrono::steady_clock::now();
+  gi_color_.assign(local.size(), glm::vec3(0.0f));
+  render_gaze_area(*backend_, camera, now_s, maps_, area, s.render, gi_color_, &result_.render,
+                   gaze_directed || s.label_gaze_photons);
+  result_.render_ms = ms_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  hybrid_composite(local, gi_color_, camera.width, camera.height, area, s.fovea, out);
+  result_.composite_ms = ms_since(t0);
+
+  if (s.count_area_photons) result_.area_photons = photons_seen_in_area(*backend_, camera, now_s, area, maps_.global.photons);
+  result_.photons = maps_.global.photons.size();
+  result_.caustic_photons = maps_.caustic.photons.size();
+  result_.emitted = maps_.global.emitted + maps_.caustic.emitted;
+  result_.note = !maps_.global.note.empty() ? maps_.global.note
+                 : !result_.gaze.note.empty() ? result_.gaze.note
+                                              : maps_.caustic.note;
+  // The labelled map steers the next frame (it is not read again this frame).
+  if (gaze_directed) gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
+  return result_;
+}
+
+}  // namespace fovea::render::gi

@@ -1,0 +1,80 @@
+#pragma once
+// One frame of gaze-directed hybrid rendering (Jensen & Pedersen 2009, ch. 7-8) as one object: the
+// photon maps by the chosen strategy, the GI of the gaze area, and the composite into the local
+// image (Algorithm 8.4). The frame pipeline's gi pass and bench_gi both run it. It ray traces with
+// its own Embree backend, whatever renders the G-buffer.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gi/gaze_photons.h"
+#include "gi/gi_render.h"
+
+namespace fovea::render {
+class EmbreeBackend;
+}
+
+namespace fovea::render::gi {
+
+enum class Strategy { Traditional, GazeDirected, Importon };
+const char* to_string(Strategy s);
+
+struct GiPassSettings {
+  Strategy strategy = Strategy::Traditional;
+  std::uint32_t photons = 40000;          // stored in the global map (maxPhotons)
+  std::uint32_t caustic_photons = 20000;  // stored in the caustic map (only with specular/refractive surfaces)
+  bool caustics = true;
+  std::uint32_t trace_depth = 3;          // pmTraceDepth
+  std::uint64_t seed = 1;
+  GiRenderSettings render;
+  std::uint32_t precompute_stride = 4;    // with render.indirect_estimate = Precomputed
+  GazeDirectedSettings gaze;              // strategy GazeDirected (max_photons, trace_depth, seed taken from above)
+  std::uint32_t importons = 10000;        // strategy Importon (reach: render.estimate.max_radius)
+  float fovea = 0.7f;                     // Algorithm 8.4's share of the radius shown as pure GI
+  // Label the photons that shade the area even when the strategy does not need it (statistics).
+  bool label_gaze_photons = false;
+  // Count the indirect photons visible inside the area (bench_gi's density measure; ~1 ray each).
+  bool count_area_photons = false;
+};
+
+struct GiPassResult {
+  Strategy strategy = Strategy::Traditional;
+  GiStats render;
+  GazeFrameStats gaze;
+  std::size_t photons = 0, caustic_photons = 0, importons = 0;
+  std::uint64_t emitted = 0;
+  std::size_t area_photons = 0;  // with count_area_photons: indirect photons seen inside the area
+  std::string note;              // fewer photons than asked and why, or power scaling held
+  // Stage times, milliseconds.
+  double photons_ms = 0, index_ms = 0, precompute_ms = 0, render_ms = 0, composite_ms = 0;
+};
+
+class GiPass {
+ public:
+  GiPass();
+  ~GiPass();
+  GiPass(const GiPass&) = delete;
+  GiPass& operator=(const GiPass&) = delete;
+
+  void set_scene(const Scene& scene);
+  // One frame at scene time now_s: out = local with the GI of `area` blended in. local and out are
+  // camera.width x camera.height; out may not alias local.
+  const GiPassResult& run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
+                          const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out);
+  // The GI of the area alone (HDR, 0 outside it) from the last run.
+  const std::vector<glm::vec3>& gi_image() const { return gi_color_; }
+  const GiPassResult& last() const { return result_; }
+  const EmbreeBackend& backend() const { return *backend_; }
+
+ private:
+  std::unique_ptr<EmbreeBackend> backend_;
+  bool has_scene_ = false;
+  PhotonMaps maps_;
+  GazePhotonMapper gaze_mapper_;
+  ImportonMap importons_;
+  std::vector<glm::vec3> gi_color_;
+  GiPassResult result_;
+};
+
+}  // namespace fovea::render::gi
