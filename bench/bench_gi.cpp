@@ -1,0 +1,324 @@
+// Gaze-directed hybrid rendering with photon mapping (Jensen & Pedersen 2009): the thesis's tables
+// on this machine, and accuracy against a converged reference.
+//
+//   stages    per-stage times like Tables 9.13-9.15 (traditional, gaze-directed, traditional with the
+//             gaze-directed map's photon count in the area) per image size
+//   density   photons in the gaze area at 5/10/20 deg like Tables 9.9-9.10, on a diffuse, a specular
+//             (glass) and an indirectly lit scene, per strategy
+//   area      full screen against a 20 deg gaze area like Table 9.16
+//   accuracy  relative RMSE inside the gaze area against a many-photon traditional reference, against
+//             ms per frame, per strategy, photon count and estimate (CSV; bench/plot_gi.py plots it)
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "backend/embree/embree_backend.h"
+#include "gi/gi_pass.h"
+#include "scene/scene_loader.h"
+
+namespace fs = std::filesystem;
+using namespace fovea::render;
+
+namespace {
+
+struct Size {
+  std::uint32_t w, h;
+};
+
+std::vector<std::string> split(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// The bench's scenes: cornell.json (the thesis's test room), its sphere in glass, and the room lit
+// only indirectly (a spot light aimed at the ceiling).
+Scene make_scene(const std::string& kind, Size size) {
+  Scene s = load_scene(std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/cornell.json");
+  s.camera.width = size.w;
+  s.camera.height = size.h;
+  if (kind == "specular") {
+    for (std::size_t m = 0; m < s.materials.size(); ++m)
+      if (s.materials[m].type == MaterialType::Glass) s.objects.back().material = static_cast<std::uint32_t>(m);
+  } else if (kind == "indirect") {
+    Light& l = s.lights.front();
+    l.type = LightType::Spot;
+    l.position = {0.0f, 1.2f, -1.0f};
+    l.direction = {0, 1, 0};
+    l.spot_cutoff_deg = 35;
+    l.spot_falloff_deg = 5;
+  }
+  s.ambient = glm::vec3(0.0f);  // the GI replaces it inside the area; keep the local image comparable
+  return s;
+}
+
+// Where a viewer looks: the sphere (cornell.json's last object) projected on the screen.
+glm::vec2 gaze_on_sphere(const Scene& s) {
+  const glm::vec3 c = s.objects.back().transform.translation;
+  const glm::vec4 clip = s.camera.projection() * s.camera.view_at(0) * glm::vec4(c, 1.0f);
+  return {0.5f * (clip.x / clip.w + 1.0f), 0.5f * (1.0f - clip.y / clip.w)};
+}
+
+struct Run {
+  gi::GiPassResult last;
+  double photons_ms = 0, index_ms = 0, precompute_ms = 0, render_ms = 0, composite_ms = 0, total_ms = 0;
+  std::vector<glm::vec3> gi;  // the last frame's GI image
+};
+
+// `frames` frames with the gaze still; stage medians over the frames after `warmup`.
+Run run_frames(gi::GiPass& pass, const Scene& scene, const gi::GazeArea& area, const gi::GiPassSettings& s,
+               const std::vector<glm::vec3>& local, int frames, int warmup) {
+  Run r;
+  std::vector<double> ph, ix, pc, rd, cp, tot;
+  std::vector<glm::vec3> out;
+  for (int k = 0; k < frames; ++k) {
+    const gi::GiPassResult& g = pass.run(scene.camera, 0, area, s, local, out);
+    if (k < warmup) continue;
+    ph.push_back(g.photons_ms);
+    ix.push_back(g.index_ms);
+    pc.push_back(g.precompute_ms);
+    rd.push_back(g.render_ms);
+    cp.push_back(g.composite_ms);
+    tot.push_back(g.photons_ms + g.index_ms + g.precompute_ms + g.render_ms + g.composite_ms);
+  }
+  r.last = pass.last();
+  r.gi = pass.gi_image();
+  r.photons_ms = median(ph);
+  r.index_ms = median(ix);
+  r.precompute_ms = median(pc);
+  r.render_ms = median(rd);
+  r.composite_ms = median(cp);
+  r.total_ms = median(tot);
+  return r;
+}
+
+double relative_rmse(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& ref, const gi::GazeArea& area,
+                     std::uint32_t w) {
+  double se = 0, sum = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < ref.size(); ++i) {
+    if (!area.contains(static_cast<float>(i % w) + 0.5f, static_cast<float>(i / w) + 0.5f)) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = static_cast<double>(a[i][c]) - static_cast<double>(ref[i][c]);
+      se += d * d;
+      sum += static_cast<double>(ref[i][c]);
+      ++n;
+    }
+  }
+  return n > 0 && sum > 0 ? std::sqrt(se / static_cast<double>(n)) / (sum / static_cast<double>(n)) : 0.0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Gaze-directed hybrid rendering with photon mapping: per-stage times, photons in the gaze area, "
+               "full screen against the gaze area, and accuracy against a converged reference"};
+  std::string sections = "stages,density,area,accuracy", sizes_text = "320x240,640x480,1024x768", csv_dir;
+  std::uint32_t photons = 40000, reference_photons = 2000000;
+  int frames = 6;
+  app.add_option("--sections", sections, "comma-separated: stages,density,area,accuracy");
+  app.add_option("--sizes", sizes_text, "image sizes of the stages section, WxH comma-separated");
+  app.add_option("--photons", photons, "stored photons per frame (maxPhotons)")->check(CLI::Range(100u, 10000000u));
+  app.add_option("--reference-photons", reference_photons, "photons of the accuracy section's reference")
+      ->check(CLI::Range(1000u, 100000000u));
+  app.add_option("--frames", frames, "frames per measurement (the first 2 warm the gaze-directed map up)")
+      ->check(CLI::Range(3, 100));
+  app.add_option("--csv-dir", csv_dir, "write one CSV per section into this directory");
+  CLI11_PARSE(app, argc, argv);
+
+  std::vector<Size> sizes;
+  for (const std::string& t : split(sizes_text)) {
+    unsigned w = 0, h = 0;
+    if (std::sscanf(t.c_str(), "%ux%u", &w, &h) != 2 || w == 0 || h == 0 || w > 8192 || h > 8192) {
+      std::fprintf(stderr, "--sizes: '%s' is not WxH (1..8192 each)\n", t.c_str());
+      return 2;
+    }
+    sizes.push_back({w, h});
+  }
+  const std::vector<std::string> wanted = split(sections);
+  for (const std::string& w : wanted) {
+    if (w != "stages" && w != "density" && w != "area" && w != "accuracy") {
+      std::fprintf(stderr, "--sections: '%s' is not one of stages, density, area, accuracy\n", w.c_str());
+      return 2;
+    }
+  }
+  const auto section = [&](const char* name) { return std::find(wanted.begin(), wanted.end(), name) != wanted.end(); };
+  if (!csv_dir.empty()) fs::create_directories(csv_dir);
+  const auto csv = [&](const std::string& name) {
+    return csv_dir.empty() ? std::ofstream() : std::ofstream(fs::path(csv_dir) / name);
+  };
+  const int warmup = 2;
+
+  const auto base_settings = [&](gi::Strategy strategy, gi::IndirectEstimate estimate) {
+    gi::GiPassSettings s;
+    s.strategy = strategy;
+    s.photons = photons;
+    s.render.indirect_estimate = estimate;
+    s.render.shadows = true;
+    return s;
+  };
+  const auto local_image = [](const Scene& scene, double* ms) {
+    EmbreeBackend b;
+    b.set_scene(scene);
+    GBuffer g;
+    BackendSettings bs;
+    bs.shadows = true;
+    const auto t0 = std::chrono::steady_clock::now();
+    b.render({}, bs, g);
+    if (ms) *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return g.color;
+  };
+
+  if (section("stages")) {
+    std::printf("== per-stage ms (Tables 9.13-9.15), diffuse scene, 20 deg gaze area on the sphere, %u photons\n", photons);
+    std::printf("%-10s %-26s %-11s %8s %8s %8s %8s %8s %8s %8s %8s\n", "size", "strategy", "estimate", "stored",
+                "in_area", "photons", "index", "precomp", "render", "compose", "total");
+    std::ofstream out = csv("gi_stages.csv");
+    if (out) out << "size,strategy,estimate,photons_stored,area_photons,photons_ms,index_ms,precompute_ms,render_ms,composite_ms,total_ms,gbuffer_ms,area_pixels\n";
+    for (Size size : sizes) {
+      const Scene scene = make_scene("diffuse", size);
+      double gbuffer_ms = 0;
+      const std::vector<glm::vec3> local = local_image(scene, &gbuffer_ms);
+      const gi::GazeArea area = gi::gaze_area(scene.display, size.w, size.h, gaze_on_sphere(scene), 20.0);
+      std::size_t trad_area = 0, gaze_area_photons = 0;
+      const auto row = [&](const std::string& name, gi::GiPassSettings s) {
+        s.count_area_photons = true;
+        gi::GiPass pass;
+        pass.set_scene(scene);
+        const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
+        const char* est = s.render.indirect_estimate == gi::IndirectEstimate::Nearest ? "nearest" : "precomputed";
+        std::printf("%4ux%-5u %-26s %-11s %8zu %8zu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f\n", size.w, size.h, name.c_str(), est,
+                    r.last.photons, r.last.area_photons, r.photons_ms, r.index_ms, r.precompute_ms, r.render_ms,
+                    r.composite_ms, r.total_ms);
+        std::fflush(stdout);
+        if (out)
+          out << size.w << "x" << size.h << "," << name << "," << est << "," << r.last.photons << "," << r.last.area_photons
+              << "," << r.photons_ms << "," << r.index_ms << "," << r.precompute_ms << "," << r.render_ms << ","
+              << r.composite_ms << "," << r.total_ms << "," << gbuffer_ms << "," << r.last.render.pixels << "\n";
+        return r;
+      };
+      for (gi::IndirectEstimate est : {gi::IndirectEstimate::Nearest, gi::IndirectEstimate::Precomputed}) {
+        trad_area = row("traditional", base_settings(gi::Strategy::Traditional, est)).last.area_photons;
+        gaze_area_photons = row("gaze-directed", base_settings(gi::Strategy::GazeDirected, est)).last.area_photons;
+        // Traditional photon mapping with as many photons in the area as the gaze-directed map had.
+        gi::GiPassSettings eq = base_settings(gi::Strategy::Traditional, est);
+        eq.photons = trad_area > 0 ? static_cast<std::uint32_t>(std::min<double>(
+                                         2e7, static_cast<double>(photons) * static_cast<double>(gaze_area_photons) /
+                                                  static_cast<double>(trad_area)))
+                                   : photons;
+        row("traditional, equal in area", eq);
+      }
+      std::printf("%4ux%-5u G-buffer (local illumination, Embree, shadows): %.1f ms\n", size.w, size.h, gbuffer_ms);
+    }
+  }
+
+  if (section("density")) {
+    std::printf("\n== photons in the gaze area (Tables 9.9-9.10), 640x480, %u photons stored, after %d frames\n", photons, frames);
+    std::printf("%-9s %5s %-14s %10s %10s %9s\n", "scene", "deg", "strategy", "in_area", "used", "gain_%");
+    std::ofstream out = csv("gi_density.csv");
+    if (out) out << "scene,area_deg,strategy,area_photons,photons_used,gain_percent\n";
+    for (const std::string kind : {"diffuse", "specular", "indirect"}) {
+      const Scene scene = make_scene(kind, {640, 480});
+      const std::vector<glm::vec3> local = local_image(scene, nullptr);
+      for (double deg : {5.0, 10.0, 20.0}) {
+        const gi::GazeArea area = gi::gaze_area(scene.display, 640, 480, gaze_on_sphere(scene), deg);
+        double trad = 0;
+        for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected, gi::Strategy::Importon}) {
+          gi::GiPassSettings s = base_settings(st, gi::IndirectEstimate::Nearest);
+          s.count_area_photons = true;
+          s.label_gaze_photons = true;
+          gi::GiPass pass;
+          pass.set_scene(scene);
+          const Run r = run_frames(pass, scene, area, s, local, frames, frames - 1);
+          const auto in_area = static_cast<double>(r.last.area_photons);
+          if (st == gi::Strategy::Traditional) trad = in_area;
+          const double gain = trad > 0 ? 100.0 * (in_area / trad - 1.0) : 0.0;
+          std::printf("%-9s %5.0f %-14s %10zu %10llu %9.0f\n", kind.c_str(), deg, gi::to_string(st), r.last.area_photons,
+                      static_cast<unsigned long long>(r.last.render.photons_used), gain);
+          std::fflush(stdout);
+          if (out)
+            out << kind << "," << deg << "," << gi::to_string(st) << "," << r.last.area_photons << ","
+                << r.last.render.photons_used << "," << gain << "\n";
+        }
+      }
+    }
+  }
+
+  if (section("area")) {
+    std::printf("\n== full screen against a 20 deg gaze area (Table 9.16), 640x480 diffuse, %u photons\n", photons);
+    std::printf("%-14s %-11s %-12s %10s %10s %10s\n", "strategy", "estimate", "area", "pixels", "render_ms", "total_ms");
+    std::ofstream out = csv("gi_area.csv");
+    if (out) out << "strategy,estimate,area,pixels,render_ms,total_ms\n";
+    const Scene scene = make_scene("diffuse", {640, 480});
+    const std::vector<glm::vec3> local = local_image(scene, nullptr);
+    const gi::GazeArea gaze = gi::gaze_area(scene.display, 640, 480, gaze_on_sphere(scene), 20.0);
+    const gi::GazeArea full{{320.0f, 240.0f}, 401.0f};
+    for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected})
+      for (gi::IndirectEstimate est : {gi::IndirectEstimate::Nearest, gi::IndirectEstimate::Precomputed})
+        for (const auto& [name, area] : {std::pair<const char*, gi::GazeArea>{"full screen", full}, {"20 deg", gaze}}) {
+          gi::GiPassSettings s = base_settings(st, est);
+          if (std::string(name) == "full screen") s.fovea = 1.0f;
+          gi::GiPass pass;
+          pass.set_scene(scene);
+          const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
+          const char* e = est == gi::IndirectEstimate::Nearest ? "nearest" : "precomputed";
+          std::printf("%-14s %-11s %-12s %10llu %10.1f %10.1f\n", gi::to_string(st), e, name,
+                      static_cast<unsigned long long>(r.last.render.pixels), r.render_ms, r.total_ms);
+          std::fflush(stdout);
+          if (out)
+            out << gi::to_string(st) << "," << e << "," << name << "," << r.last.render.pixels << "," << r.render_ms << ","
+                << r.total_ms << "\n";
+        }
+  }
+
+  if (section("accuracy")) {
+    const Scene scene = make_scene("diffuse", {640, 480});
+    const std::vector<glm::vec3> local = local_image(scene, nullptr);
+    const gi::GazeArea area = gi::gaze_area(scene.display, 640, 480, gaze_on_sphere(scene), 20.0);
+    std::printf("\n== relative RMSE in the 20 deg gaze area against traditional photon mapping with %u photons, 640x480\n",
+                reference_photons);
+    gi::GiPassSettings ref = base_settings(gi::Strategy::Traditional, gi::IndirectEstimate::Nearest);
+    ref.photons = reference_photons;
+    gi::GiPass ref_pass;
+    ref_pass.set_scene(scene);
+    const auto t0 = std::chrono::steady_clock::now();
+    const Run reference = run_frames(ref_pass, scene, area, ref, local, 1, 0);
+    std::printf("reference: %zu photons, %.1f s\n", reference.last.photons,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    std::printf("%-14s %-11s %8s %10s %10s\n", "strategy", "estimate", "photons", "ms/frame", "rel_rmse");
+    std::ofstream out = csv("gi_accuracy.csv");
+    if (out) out << "strategy,estimate,photons,ms_per_frame,relative_rmse,reference_photons\n";
+    for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected, gi::Strategy::Importon})
+      for (gi::IndirectEstimate est : {gi::IndirectEstimate::Nearest, gi::IndirectEstimate::Precomputed})
+        for (std::uint32_t n : {5000u, 10000u, 20000u, 40000u, 80000u}) {
+          gi::GiPassSettings s = base_settings(st, est);
+          s.photons = n;
+          gi::GiPass pass;
+          pass.set_scene(scene);
+          const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
+          const double e = relative_rmse(r.gi, reference.gi, area, 640);
+          const char* en = est == gi::IndirectEstimate::Nearest ? "nearest" : "precomputed";
+          std::printf("%-14s %-11s %8u %10.1f %10.4f\n", gi::to_string(st), en, n, r.total_ms, e);
+          std::fflush(stdout);
+          if (out) out << gi::to_string(st) << "," << en << "," << n << "," << r.total_ms << "," << e << "," << reference_photons << "\n";
+        }
+  }
+  return 0;
+}
