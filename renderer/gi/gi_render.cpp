@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 
@@ -32,14 +33,31 @@ bool visible(void* context, const glm::vec3& from, const glm::vec3& to) {
   return !c->backend->occluded(from + c->offset, to);
 }
 
+// Adds each photon's flux density (mean channel power / r^2) to its light's traditional or gaze sum.
+void accumulate_flux_by_kind(const std::vector<Photon>& photons, const std::vector<std::uint32_t>& used, float r2,
+                             std::vector<double>& traditional, std::vector<double>& gaze) {
+  if (!(r2 > 0)) return;
+  for (std::uint32_t i : used) {
+    const Photon& p = photons[i];
+    if (p.light >= traditional.size()) continue;
+    const double flux = static_cast<double>((p.power.x + p.power.y + p.power.z) / (3.0f * r2));
+    (p.kind == EmissionKind::Traditional ? traditional : gaze)[p.light] += flux;
+  }
+}
+
+// Labels a photon as used (relaxed atomic byte stores: many shading points share photons).
+void label(std::uint8_t* seen, std::uint32_t i) { std::atomic_ref<std::uint8_t>(seen[i]).store(1, std::memory_order_relaxed); }
+
 struct Tracer {
   const EmbreeBackend& backend;
   const Scene& lights;  // the scene's lights, without ambient unless asked for
   const PhotonMaps& maps;
   const GiRenderSettings& s;
+  std::uint8_t* seen_indirect;  // per global photon, when labelling
+  std::uint8_t* seen_caustic;   // per caustic photon
   struct Local {
     Neighbours scratch;
-    std::vector<std::uint32_t> used, used_indirect, used_caustic;
+    std::vector<std::uint32_t> used;
     std::vector<double> traditional_flux, gaze_flux;
     std::uint64_t rays = 0;
   };
@@ -93,25 +111,29 @@ struct Tracer {
       maps.precomputed.nearest(hit.position, 1, s.estimate.max_radius, local.scratch,
                                [&nn](const Photon& p) { return glm::dot(p.normal, nn) > 0.9f; });
       if (local.scratch.size() == 1) {
-        l += kd * maps.irradiance[local.scratch.index[0]];
-        if (mark) local.used_indirect.push_back(local.scratch.index[0]);
+        const std::uint32_t i = local.scratch.index[0];
+        l += kd * maps.irradiance[i];
+        if (mark) {
+          label(seen_indirect, i);
+          const std::size_t lights_n = local.traditional_flux.size();
+          for (std::size_t k = 0; k < lights_n && (i + 1) * lights_n <= maps.irradiance_traditional.size(); ++k) {
+            local.traditional_flux[k] += static_cast<double>(maps.irradiance_traditional[i * lights_n + k]);
+            local.gaze_flux[k] += static_cast<double>(maps.irradiance_gaze[i * lights_n + k]);
+          }
+        }
       }
     } else if (s.indirect && !maps.indirect.empty()) {
       l += maps.indirect.flux_density(hit.position, n, s.estimate, local.scratch, brdf, mark ? &local.used : nullptr);
       if (mark) {
-        local.used_indirect.insert(local.used_indirect.end(), local.used.begin(), local.used.end());
-        const float r2 = local.scratch.radius2;
-        for (std::uint32_t i : local.used) {
-          const Photon& p = maps.global.photons[i];
-          if (!(r2 > 0) || p.light >= local.traditional_flux.size()) continue;
-          const double flux = static_cast<double>((p.power.x + p.power.y + p.power.z) / (3.0f * r2));
-          (p.kind == EmissionKind::Traditional ? local.traditional_flux : local.gaze_flux)[p.light] += flux;
-        }
+        for (std::uint32_t i : local.used) label(seen_indirect, i);
+        accumulate_flux_by_kind(maps.global.photons, local.used, local.scratch.radius2, local.traditional_flux,
+                                local.gaze_flux);
       }
     }
     if (s.caustics && !maps.caustics.empty()) {
       l += maps.caustics.flux_density(hit.position, n, s.caustic_estimate, local.scratch, brdf, mark ? &local.used : nullptr);
-      if (mark) local.used_caustic.insert(local.used_caustic.end(), local.used.begin(), local.used.end());
+      if (mark)
+        for (std::uint32_t i : local.used) label(seen_caustic, i);
     }
     return finite_or_zero(l);
   }
@@ -164,12 +186,30 @@ void PhotonMaps::precompute_irradiance(const EstimateSettings& s, std::uint32_t 
   if (chosen.empty() || indirect.empty()) {
     precomputed.clear();
   } else {
-    tbb::enumerable_thread_specific<Neighbours> scratch;
+    // The same neighbourhoods' flux split by the kind of photon, per light (the gaze-directed
+    // mapper's power scaling reads it through the render's labels).
+    std::size_t lights = 0;
+    for (const Photon& p : global.photons) lights = std::max<std::size_t>(lights, std::size_t{p.light} + 1);
+    irradiance_traditional.assign(global.photons.size() * lights, 0.0f);
+    irradiance_gaze.assign(global.photons.size() * lights, 0.0f);
+    struct Scratch {
+      Neighbours nb;
+      std::vector<std::uint32_t> used;
+      std::vector<double> trad, gaze;
+    };
+    tbb::enumerable_thread_specific<Scratch> scratch;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chosen.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
-      Neighbours& nb = scratch.local();
+      Scratch& sc = scratch.local();
       for (std::size_t j = r.begin(); j < r.end(); ++j) {
         const Photon& p = global.photons[chosen[j]];
-        irradiance[chosen[j]] = indirect.flux_density(p.position, p.normal, s, nb);
+        irradiance[chosen[j]] = indirect.flux_density(p.position, p.normal, s, sc.nb, {}, &sc.used);
+        sc.trad.assign(lights, 0.0);
+        sc.gaze.assign(lights, 0.0);
+        accumulate_flux_by_kind(global.photons, sc.used, sc.nb.radius2, sc.trad, sc.gaze);
+        for (std::size_t l = 0; l < lights; ++l) {
+          irradiance_traditional[chosen[j] * lights + l] = static_cast<float>(sc.trad[l]);
+          irradiance_gaze[chosen[j] * lights + l] = static_cast<float>(sc.gaze[l]);
+        }
       }
     });
     precomputed.build(global.photons, chosen);
@@ -202,7 +242,8 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
     lights.lights = backend.scene().lights;
     lights.background = backend.scene().background;
     lights.ambient = s.ambient ? backend.scene().ambient : glm::vec3(0.0f);
-    const Tracer tracer{backend, lights, maps, s};
+    std::vector<std::uint8_t> seen_indirect(mark ? maps.global.photons.size() : 0), seen_caustic(mark ? maps.caustic.photons.size() : 0);
+    const Tracer tracer{backend, lights, maps, s, seen_indirect.data(), seen_caustic.data()};
     tbb::enumerable_thread_specific<Tracer::Local> locals;
     std::atomic<std::uint64_t> pixels{0};
     if (y1 > y0 && x1 > x0) {
@@ -222,7 +263,6 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
       });
     }
     st.pixels = pixels.load();
-    std::vector<std::uint8_t> seen_indirect(mark ? maps.global.photons.size() : 0), seen_caustic(mark ? maps.caustic.photons.size() : 0);
     st.traditional_flux.assign(lights.lights.size(), 0.0);
     st.gaze_flux.assign(lights.lights.size(), 0.0);
     for (const Tracer::Local& local : locals) {
@@ -231,8 +271,6 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
         st.traditional_flux[l] += local.traditional_flux[l];
         st.gaze_flux[l] += local.gaze_flux[l];
       }
-      for (std::uint32_t i : local.used_indirect) seen_indirect[i] = 1;
-      for (std::uint32_t i : local.used_caustic) seen_caustic[i] = 1;
     }
     for (std::size_t i = 0; i < seen_indirect.size(); ++i)
       if (seen_indirect[i]) {

@@ -54,6 +54,8 @@ struct PhotonMaps {
   // instead of nNN photons. Glossy indirect light (k_s) is left out: the stored value is irradiance.
   PhotonMap precomputed;               // the photons that carry a value
   std::vector<glm::vec3> irradiance;   // per global photon (0 where none was computed)
+  // The same flux split by the kind of photon: [photon * lights + light], traditional and gaze.
+  std::vector<float> irradiance_traditional, irradiance_gaze;
   double precompute_seconds = 0;
   void precompute_irradiance(const EstimateSettings& s, std::uint32_t stride);
 };
