@@ -21,7 +21,8 @@ const char* kHelp =
     "  G gaze overlay, M mouse gaze on/off (with --gaze mouse), O cycle map (none, depth, id, normal, motion)\n"
     "  1 dof, 2 lod, 3 gi, 4 attention, 5 shadows (toggle the setting), F focus overlay (the focused object),\n"
     "  P cycle attention maps (none, saliency, spatial, temporal, attention), C CoC map (dof), K cycle DOF method\n"
-    "  (lee-mipmap, lee-splat, schedl-layered, accum, reference), X print the frame plan, Esc quit\n";
+    "  (lee-mipmap, lee-splat, schedl-layered, accum, reference), I cycle the GI strategy (traditional,\n"
+    "  gaze-directed, importon), U GI estimate (nearest, precomputed), X print the frame plan, Esc quit\n";
 
 void toggle(Settings& s, const std::string& key) {
   s.set(key, s.flag(key) ? "false" : "true");
@@ -104,6 +105,18 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
       std::printf("dof.method=%s\n", s.text("dof.method").c_str());
       break;
     }
+    case GLFW_KEY_I: {
+      static const char* strategies[] = {"traditional", "gaze-directed", "importon"};
+      std::size_t i = 0;
+      while (i < 3 && !s.is("gi.strategy", strategies[i])) ++i;
+      s.set("gi.strategy", strategies[(i + 1) % 3]);
+      std::printf("gi.strategy=%s\n", s.text("gi.strategy").c_str());
+      break;
+    }
+    case GLFW_KEY_U:
+      s.set("gi.estimate", s.is("gi.estimate", "nearest") ? "precomputed" : "nearest");
+      std::printf("gi.estimate=%s\n", s.text("gi.estimate").c_str());
+      break;
     case GLFW_KEY_X: std::printf("%s", ks->pipeline->plan().explain().c_str()); break;
     default: break;
   }

@@ -296,7 +296,7 @@ PhotonTraceResult trace_photons(const EmbreeBackend& backend, const TraceSetting
     result.note = s.stored_photons == 0 ? "0 photons asked for" : "trace depth 0";
     return finish();
   }
-  const std::uint64_t round = std::max<std::uint32_t>(1, s.round);
+  const std::uint64_t round = s.round > 0 ? s.round : std::clamp<std::uint64_t>(s.stored_photons / 4, 256, 8192);
   const std::uint64_t cap = std::uint64_t{s.stored_photons} * std::max<std::uint32_t>(1, s.max_emitted_per_stored);
   // Photons per light per round, by power share (at least one for every light with power).
   std::vector<std::uint64_t> per_round(scene.lights.size(), 0);

@@ -56,7 +56,9 @@ struct TraceSettings {
   std::uint32_t stored_photons = 40000;  // emit rounds until this many are stored (maxPhotons, Table 8.3)
   std::uint32_t max_depth = 3;           // surface interactions per trace (pmTraceDepth, Table 8.3); 0: none
   std::uint64_t seed = 1;
-  std::uint32_t round = 8192;            // photons emitted per round (over all lights)
+  // Photons emitted per round (over all lights); 0: a quarter of stored_photons, within [256, 8192], so
+  // a small map does not overshoot its count by a whole large round.
+  std::uint32_t round = 0;
   // Stop after this many emitted photons per stored photon asked for, whatever was stored (a light
   // enclosed by geometry that absorbs everything, or one that shines into the void).
   std::uint32_t max_emitted_per_stored = 64;
