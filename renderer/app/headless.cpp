@@ -110,16 +110,17 @@ int run_headless(const RenderOptions& o) {
       if (!gi_log.is_open()) {
         gi_log.open(fs::path(o.out_dir) / "gi.csv");
         gi_log << "frame,strategy,follows,center_x_px,center_y_px,radius_px,photons,caustic_photons,emitted,pixels,rays,"
-                  "photons_used,emission_map,power_scale,importons,note\n";
+                  "photons_used,emission_map,power_scale,importons,periphery_rays,full_resolution_rays,note\n";
       }
-      char gl[256];
-      std::snprintf(gl, sizeof gl, "%llu,%s,%s,%.1f,%.1f,%.1f,%zu,%zu,%llu,%llu,%llu,%llu,%zu,%.4f,%zu,",
+      char gl[320];
+      std::snprintf(gl, sizeof gl, "%llu,%s,%s,%.1f,%.1f,%.1f,%zu,%zu,%llu,%llu,%llu,%llu,%zu,%.4f,%zu,%llu,%llu,",
                     static_cast<unsigned long long>(i), f.gi->strategy, f.gi->follows, static_cast<double>(f.gi->area.center_px.x), static_cast<double>(f.gi->area.center_px.y),
                     static_cast<double>(f.gi->area.radius_px), f.gi->photons, f.gi->caustic_photons,
                     static_cast<unsigned long long>(f.gi->emitted), static_cast<unsigned long long>(f.gi->render.pixels),
                     static_cast<unsigned long long>(f.gi->render.rays),
                     static_cast<unsigned long long>(f.gi->render.photons_used), f.gi->gaze.emission_map,
-                    f.gi->gaze.scale, f.gi->importons);
+                    f.gi->gaze.scale, f.gi->importons, static_cast<unsigned long long>(f.gi->csf.rays_cast),
+                    static_cast<unsigned long long>(f.gi->csf.full_resolution_rays));
       gi_log << gl << '"' << f.gi->note << "\"\n";
     }
     if (tty) progress(i + 1, o.frames, timer.last_ms("frame"));

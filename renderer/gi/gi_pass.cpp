@@ -9,6 +9,8 @@
 
 #include "backend/embree/embree_backend.h"
 #include "gi/eye_rays.h"
+#include "gi/optics.h"
+#include "scene/shading.h"
 
 namespace fovea::render::gi {
 
@@ -121,14 +123,52 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
     result_.precompute_ms = ms_since(t0);
   }
 
+  // The periphery by CSF-driven ray casting (Murphy 2007), when asked, in place of `local`.
+  const std::vector<glm::vec3>* base = &local;
+  if (s.csf_periphery) {
+    t0 = std::chrono::steady_clock::now();
+    const EyeRays eye(camera, now_s);
+    const bool shadows = s.render.shadows;
+    const auto cast = [&](glm::vec2 px, SurfaceHit& hit) {
+      return eye.ok && backend_->intersect(eye.eye, eye.direction_at(px.x, px.y), 0.0f,
+                                           std::numeric_limits<float>::infinity(), RayVisibility::All, hit);
+    };
+    const ObjectAt object_at = [&](glm::vec2 px) -> std::uint32_t {
+      SurfaceHit hit;
+      return cast(px, hit) ? hit.object_id : 0u;
+    };
+    const ColourAt colour_at = [&](glm::vec2 px, std::uint32_t) -> glm::vec3 {
+      SurfaceHit hit;
+      if (!cast(px, hit)) return scene.background;
+      const glm::vec3 dir = eye.direction_at(px.x, px.y);
+      const glm::vec3 n = glm::dot(dir, hit.geometric_normal) < 0.0f ? hit.normal : -hit.normal;
+      struct Shadow {
+        const EmbreeBackend* backend;
+        glm::vec3 offset;
+      } shadow{backend_.get(), n * optics::surface_epsilon(hit.position)};
+      const VisibilityFn visible = [](void* c, const glm::vec3& from, const glm::vec3& to) {
+        const auto* sh = static_cast<const Shadow*>(c);
+        return !sh->backend->occluded(from + sh->offset, to);
+      };
+      const glm::vec3 c = shade_local(scene, *hit.material, hit.position, n, eye.eye, shadows ? visible : nullptr, &shadow);
+      return optics::finite3(c) ? c : glm::vec3(0.0f);
+    };
+    const glm::vec2 gaze = area.center_px;
+    CsfReconstruction rec = render_csf(scene.display, camera.width, camera.height, gaze, s.csf, object_at, colour_at);
+    periphery_ = std::move(rec.colours);
+    result_.csf = rec.stats;
+    base = &periphery_;
+    result_.periphery_ms = ms_since(t0);
+  }
+
   // The second pass inside the area, then Algorithm 8.4.
   t0 = std::chrono::steady_clock::now();
-  gi_color_.assign(local.size(), glm::vec3(0.0f));
+  gi_color_.assign(base->size(), glm::vec3(0.0f));
   render_gaze_area(*backend_, camera, now_s, maps_, area, s.render, gi_color_, &result_.render,
                    gaze_directed || s.label_gaze_photons);
   result_.render_ms = ms_since(t0);
   t0 = std::chrono::steady_clock::now();
-  hybrid_composite(local, gi_color_, camera.width, camera.height, area, s.fovea, out);
+  hybrid_composite(*base, gi_color_, camera.width, camera.height, area, s.fovea, out);
   result_.composite_ms = ms_since(t0);
 
   if (s.count_area_photons) result_.area_photons = photons_seen_in_area(*backend_, camera, now_s, area, maps_.global.photons);

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "gi/csf_mask.h"
 #include "gi/gaze_photons.h"
 #include "gi/gi_render.h"
 
@@ -32,6 +33,11 @@ struct GiPassSettings {
   GazeDirectedSettings gaze;              // strategy GazeDirected (max_photons, trace_depth, seed taken from above)
   std::uint32_t importons = 10000;        // strategy Importon (reach: render.estimate.max_radius)
   float fovea = 0.7f;                     // Algorithm 8.4's share of the radius shown as pure GI
+  // The periphery (outside the gaze area): the caller's local image, or Murphy 2007's CSF-driven ray
+  // casting (csf_mask.h: rays where the eye can resolve them, interpolated elsewhere, with the same
+  // local illumination and shadows as the G-buffer), which then replaces `local`.
+  bool csf_periphery = false;
+  CsfSettings csf;
   // Label the photons that shade the area even when the strategy does not need it (statistics).
   bool label_gaze_photons = false;
   // Count the indirect photons visible inside the area (bench_gi's density measure; ~1 ray each).
@@ -45,6 +51,8 @@ struct GiPassResult {
   std::size_t photons = 0, caustic_photons = 0, importons = 0;
   std::uint64_t emitted = 0;
   std::size_t area_photons = 0;  // with count_area_photons: indirect photons seen inside the area
+  CsfStats csf;                  // with csf_periphery: rays cast against full resolution
+  double periphery_ms = 0;
   std::string note;              // fewer photons than asked and why, or power scaling held
   // Stage times, milliseconds.
   double photons_ms = 0, index_ms = 0, precompute_ms = 0, render_ms = 0, composite_ms = 0;
@@ -73,7 +81,7 @@ class GiPass {
   PhotonMaps maps_;
   GazePhotonMapper gaze_mapper_;
   ImportonMap importons_;
-  std::vector<glm::vec3> gi_color_;
+  std::vector<glm::vec3> gi_color_, periphery_;
   GiPassResult result_;
 };
 

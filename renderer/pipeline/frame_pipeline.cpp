@@ -217,12 +217,16 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gs.gaze.noise_scale = static_cast<float>(s.number("gi.noise_scale"));
   gs.importons = count("gi.importons");
   gs.fovea = full ? 1.0f : static_cast<float>(s.number("gi.fovea"));
+  gs.csf_periphery = s.is("gi.periphery", "csf") && !full;
+  gs.csf.quality = s.number("gi.csf_quality");
   const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_);
   timer.record("gi.photons", r.photons_ms);
   timer.record("gi.index", r.index_ms);
   if (gs.render.indirect_estimate == gi::IndirectEstimate::Precomputed) timer.record("gi.precompute", r.precompute_ms);
   timer.record("gi.render", r.render_ms);
   timer.record("gi.composite", r.composite_ms);
+  if (gs.csf_periphery) timer.record("gi.periphery", r.periphery_ms);
+  gi_frame_.csf = r.csf;
   gi_frame_.strategy = gi::to_string(r.strategy);
   gi_frame_.render = r.render;
   gi_frame_.gaze = r.gaze;

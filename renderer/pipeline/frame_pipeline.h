@@ -41,6 +41,7 @@ class FramePipeline {
       const char* strategy = "traditional";
       gi::GazeFrameStats gaze;      // gaze-directed: emission map, bins, power scale
       std::size_t importons = 0;    // importon: importons stored
+      gi::CsfStats csf;             // gi.periphery=csf: rays cast against full resolution
     };
     const Gi* gi = nullptr;  // null when the gi pass did not run
   };

@@ -106,6 +106,9 @@ FramePlan plan_frame(const PlanContext& c) {
     } else {
       why += "; no gaze source and attention.enabled=false: the gaze area stays at the screen centre";
     }
+    if (s.is("gi.periphery", "csf") && !s.is("gi.area", "full")) {
+      why += "; periphery by CSF-driven ray casting (Murphy 2007)";
+    }
     decide(PassId::Gi, true, why);
   }
 

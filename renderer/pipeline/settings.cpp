@@ -82,6 +82,11 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"gi.nn_reflect_radius", "0.01", "number in [0.00001, 100]", "gaze-directed: NNReflectRadius, metres (Table 8.3)"},
       {"gi.noise_scale", "0.1", "number in [0, 10]", "gaze-directed: noiseScale of eq. 8.8 (Table 8.3)"},
       {"gi.importons", "10000", "number in [1, 10000000]", "importon: importons traced through the gaze area (n_i, eq. 7.19)"},
+      {"gi.periphery", "raster", "raster|csf",
+       "outside the gaze area: the G-buffer's local illumination, or Murphy 2007's CSF-driven ray casting (rays only "
+       "where the eye resolves them, silhouettes refined, the rest interpolated; gi.csv reports rays against full "
+       "resolution)"},
+      {"gi.csf_quality", "1", "number in [0, 16]", "gi.periphery=csf: multiplies the cutoff frequency the rays resolve (2: ~4x the rays)"},
       {"gi.ray_depth", "5", "number in [0, 64]", "mirror and glass bounces followed by the GI's eye rays"},
       {"gi.fovea", "0.7", "number in [0, 1]",
        "fraction of the gaze area's radius shown as pure GI before the blend to raster (Algorithm 8.4: 0.7)"},

@@ -123,6 +123,15 @@ done
 # From the second frame on, the gaze-directed map has an emission map (column 13) from the first frame's labels.
 [ "$(sed -n 3p "$WORK/gi-gaze-directed/gi.csv" | cut -d, -f13)" -gt 0 ] || fail "no emission map: $(cat "$WORK/gi-gaze-directed/gi.csv")"
 [ "$(sed -n 2p "$WORK/gi-importon/gi.csv" | cut -d, -f15)" -gt 0 ] || fail "no importons: $(cat "$WORK/gi-importon/gi.csv")"
+# Murphy's CSF-driven periphery: fewer rays than pixels, reported per frame (at 640x480: on cornell's
+# 474 mm display a 160x120 image's pixels are so coarse that the eye resolves every one).
+"$RENDER" --scene "$SCENES/cornell.json" --headless --frames 1 --gaze "file:$REC" --set gi.photons=5000 \
+  --set gi.estimate=precomputed --set gi.enabled=true --set gi.periphery=csf --out "$WORK/gi-csf" >"$WORK/gi-csf.log" 2>&1 \
+  || fail "gi.periphery=csf: $(tail -5 "$WORK/gi-csf.log")"
+grep -qE "run +gi .*CSF-driven ray casting" "$WORK/gi-csf/plan.txt" || fail "csf plan: $(cat "$WORK/gi-csf/plan.txt")"
+line=$(sed -n 2p "$WORK/gi-csf/gi.csv")
+rays=$(cut -d, -f16 <<<"$line") full=$(cut -d, -f17 <<<"$line")
+[ "$rays" -gt 0 ] && [ "$rays" -lt "$full" ] || fail "csf periphery rays $rays of $full: $line"
 # The area moves with the recorded gaze (frames 0.5 s apart).
 [ "$(cut -d, -f3,4 "$WORK/gi-nearest/gi.csv" | sort -u | wc -l)" -ge 3 ] || fail "gi area did not move: $(cat "$WORK/gi-nearest/gi.csv")"
 "${XVFB[@]}" "$RENDER" "${GI[@]}" --backend gl --set gi.enabled=true --out "$WORK/gi-gl" >"$WORK/gi-gl.log" 2>&1 \

@@ -8,55 +8,17 @@
 
 #include "backend/embree/embree_backend.h"
 #include "gi/gaze_photons.h"
+#include "gi_frames.h"
 #include "scene/scene_loader.h"
 
 namespace fovea::render::gi {
 namespace {
 
-Scene cornell() {
-  Scene s = load_scene(std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/cornell.json");
-  s.camera.width = 160;
-  s.camera.height = 120;
-  return s;
-}
-
-double mean_in(const std::vector<glm::vec3>& img, const GazeArea& a, std::uint32_t w) {
-  double sum = 0;
-  std::size_t n = 0;
-  for (std::size_t i = 0; i < img.size(); ++i) {
-    if (!a.contains(static_cast<float>(i % w) + 0.5f, static_cast<float>(i / w) + 0.5f)) continue;
-    sum += static_cast<double>(img[i].x + img[i].y + img[i].z) / 3.0;
-    ++n;
-  }
-  return n ? sum / static_cast<double>(n) : 0.0;
-}
-
-// One frame of the loop the pipeline runs: trace, index, render with labels, hand back.
-struct Frame {
-  double mean = 0;
-  GiStats render;
-  GazeFrameStats gaze;
-  std::vector<Photon> photons;  // a copy of the frame's map
-};
-Frame gaze_frame(const EmbreeBackend& backend, const Scene& scene, GazePhotonMapper& mapper, const GazeDirectedSettings& gs,
-                 const GazeArea& area, const GiRenderSettings& rs) {
-  Frame f;
-  PhotonMaps maps;
-  maps.global = mapper.trace(backend, gs, &f.gaze);
-  maps.index();
-  std::vector<glm::vec3> hdr;
-  render_gaze_area(backend, scene.camera, 0, maps, area, rs, hdr, &f.render, true);
-  f.mean = mean_in(hdr, area, scene.camera.width);
-  f.photons = maps.global.photons;
-  mapper.finish_frame(std::move(maps.global), f.render);
-  return f;
-}
-
-GiRenderSettings indirect_only() {
-  GiRenderSettings rs;
-  rs.shadows = true;
-  return rs;
-}
+using test::cornell;
+using test::Frame;
+using test::gaze_frame;
+using test::indirect_only;
+using test::mean_in;
 
 TEST(GiGazePhotons, EmissionMapBackTracksLabelledPhotonsToTheirEmission) {
   // Three traces: 0 -> 1 -> 2 (2 in the gaze area), 3 alone (direct, in the area), 4 -> 5 (5 not).
@@ -145,30 +107,6 @@ TEST(GiGazePhotons, PowerScalingKeepsTheGazeAreaAsBrightAsTraditionalMapping) {
     }
     EXPECT_NEAR(sum / n, want, 0.04 * want) << "emissionRatio " << ratio;
   }
-}
-
-// Where s cannot be measured it is held and said so: emissionRatio 1 leaves no traditional photon.
-TEST(GiGazePhotons, PowerScalingIsHeldWhereItBreaksDown) {
-  const Scene scene = cornell();
-  EmbreeBackend backend;
-  backend.set_scene(scene);
-  const GazeArea area = gaze_area(scene.display, 160, 120, {0.5f, 0.6f}, 20.0);
-  GazeDirectedSettings gs;
-  gs.max_photons = 10000;
-  gs.emission_ratio = 1.0;
-  GazePhotonMapper mapper;
-  Frame f;
-  for (int k = 0; k < 4; ++k) f = gaze_frame(backend, scene, mapper, gs, area, indirect_only());
-  EXPECT_FALSE(f.gaze.scale_measured);
-  EXPECT_NE(f.gaze.note.find("held"), std::string::npos);
-  EXPECT_EQ(f.gaze.traditional, 0u);
-  EXPECT_TRUE(std::isfinite(f.gaze.scale) && f.gaze.scale > 0);
-  EXPECT_TRUE(std::isfinite(f.mean));
-  // emissionRatio 0: traditional photon mapping with an emission map nobody uses.
-  gs.emission_ratio = 0.0;
-  GazePhotonMapper plain;
-  for (int k = 0; k < 3; ++k) f = gaze_frame(backend, scene, plain, gs, area, indirect_only());
-  EXPECT_EQ(f.gaze.old_gaze + f.gaze.new_gaze + f.gaze.fill, 0u);
 }
 
 // Frame-coherent random numbers: with the gaze and the scene still, the old gaze photons of a frame
