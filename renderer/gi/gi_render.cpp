@@ -58,6 +58,8 @@ struct Tracer {
   struct Local {
     Neighbours scratch;
     std::vector<std::uint32_t> used;
+    Neighbours estimate_scratch;           // a lazily precomputed photon's own neighbourhood
+    std::vector<float> trad_split, gaze_split;
     std::vector<double> traditional_flux, gaze_flux;
     std::uint64_t rays = 0;
   };
@@ -112,13 +114,15 @@ struct Tracer {
                                [&nn](const Photon& p) { return glm::dot(p.normal, nn) > 0.9f; });
       if (local.scratch.size() == 1) {
         const std::uint32_t i = local.scratch.index[0];
-        l += kd * maps.irradiance[i];
+        const std::size_t lights_n = maps.lights();
+        local.trad_split.resize(lights_n);
+        local.gaze_split.resize(lights_n);
+        l += kd * maps.irradiance_of(i, local.estimate_scratch, local.used, local.trad_split.data(), local.gaze_split.data());
         if (mark) {
           label(seen_indirect, i);
-          const std::size_t lights_n = local.traditional_flux.size();
-          for (std::size_t k = 0; k < lights_n && (i + 1) * lights_n <= maps.irradiance_traditional.size(); ++k) {
-            local.traditional_flux[k] += static_cast<double>(maps.irradiance_traditional[i * lights_n + k]);
-            local.gaze_flux[k] += static_cast<double>(maps.irradiance_gaze[i * lights_n + k]);
+          for (std::size_t k = 0; k < lights_n && k < local.traditional_flux.size(); ++k) {
+            local.traditional_flux[k] += static_cast<double>(local.trad_split[k]);
+            local.gaze_flux[k] += static_cast<double>(local.gaze_split[k]);
           }
         }
       }
@@ -173,48 +177,93 @@ void PhotonMaps::index() {
   }
 }
 
-void PhotonMaps::precompute_irradiance(const EstimateSettings& s, std::uint32_t stride) {
+void PhotonMaps::precompute_irradiance(const EstimateSettings& s, std::uint32_t stride, bool lazy) {
   const auto t0 = std::chrono::steady_clock::now();
-  irradiance.assign(global.photons.size(), glm::vec3(0.0f));
+  precompute_settings_ = s;
+  const std::size_t n = global.photons.size();
+  lights_ = 0;
+  for (const Photon& p : global.photons) lights_ = std::max<std::size_t>(lights_, std::size_t{p.light} + 1);
+  irradiance_.assign(n, glm::vec3(0.0f));
+  irradiance_traditional_.assign(n * lights_, 0.0f);
+  irradiance_gaze_.assign(n * lights_, 0.0f);
+  irradiance_state_ = std::make_unique<std::atomic<std::uint8_t>[]>(n);  // value-initialised: 0, none computed
   std::vector<std::uint32_t> chosen;
   const std::uint32_t step = std::max<std::uint32_t>(1, stride);
   std::uint32_t k = 0;
-  for (std::size_t i = 0; i < global.photons.size(); ++i) {
+  for (std::size_t i = 0; i < n; ++i) {
     if (global.photons[i].diffuse_bounces == 0) continue;
     if (k++ % step == 0) chosen.push_back(static_cast<std::uint32_t>(i));
   }
   if (chosen.empty() || indirect.empty()) {
     precomputed.clear();
   } else {
-    // The same neighbourhoods' flux split by the kind of photon, per light (the gaze-directed
-    // mapper's power scaling reads it through the render's labels).
-    std::size_t lights = 0;
-    for (const Photon& p : global.photons) lights = std::max<std::size_t>(lights, std::size_t{p.light} + 1);
-    irradiance_traditional.assign(global.photons.size() * lights, 0.0f);
-    irradiance_gaze.assign(global.photons.size() * lights, 0.0f);
-    struct Scratch {
-      Neighbours nb;
-      std::vector<std::uint32_t> used;
-      std::vector<double> trad, gaze;
-    };
-    tbb::enumerable_thread_specific<Scratch> scratch;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chosen.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
-      Scratch& sc = scratch.local();
-      for (std::size_t j = r.begin(); j < r.end(); ++j) {
-        const Photon& p = global.photons[chosen[j]];
-        irradiance[chosen[j]] = indirect.flux_density(p.position, p.normal, s, sc.nb, {}, &sc.used);
-        sc.trad.assign(lights, 0.0);
-        sc.gaze.assign(lights, 0.0);
-        accumulate_flux_by_kind(global.photons, sc.used, sc.nb.radius2, sc.trad, sc.gaze);
-        for (std::size_t l = 0; l < lights; ++l) {
-          irradiance_traditional[chosen[j] * lights + l] = static_cast<float>(sc.trad[l]);
-          irradiance_gaze[chosen[j] * lights + l] = static_cast<float>(sc.gaze[l]);
-        }
-      }
-    });
     precomputed.build(global.photons, chosen);
+    if (!lazy) {
+      struct Scratch {
+        Neighbours nb;
+        std::vector<std::uint32_t> used;
+      };
+      tbb::enumerable_thread_specific<Scratch> scratch;
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chosen.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+        Scratch& sc = scratch.local();
+        for (std::size_t j = r.begin(); j < r.end(); ++j) irradiance_of(chosen[j], sc.nb, sc.used, nullptr, nullptr);
+      });
+    }
   }
   precompute_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+glm::vec3 PhotonMaps::compute_irradiance(std::uint32_t i, Neighbours& scratch, std::vector<std::uint32_t>& used,
+                                         float* trad, float* gaze) const {
+  const Photon& p = global.photons[i];
+  const glm::vec3 e = indirect.flux_density(p.position, p.normal, precompute_settings_, scratch, {}, &used);
+  // The same neighbourhood's flux split by the kind of photon, per light (the gaze-directed mapper's
+  // power scaling reads it through the render's labels).
+  std::vector<double> t(lights_, 0.0), g(lights_, 0.0);
+  accumulate_flux_by_kind(global.photons, used, scratch.radius2, t, g);
+  for (std::size_t l = 0; l < lights_; ++l) {
+    if (trad) trad[l] = static_cast<float>(t[l]);
+    if (gaze) gaze[l] = static_cast<float>(g[l]);
+  }
+  return e;
+}
+
+glm::vec3 PhotonMaps::irradiance_of(std::uint32_t i, Neighbours& scratch, std::vector<std::uint32_t>& used, float* trad,
+                                    float* gaze) const {
+  if (i >= irradiance_.size() || !irradiance_state_) return glm::vec3(0.0f);
+  std::atomic<std::uint8_t>& state = irradiance_state_[i];
+  const auto copy_split = [&] {
+    for (std::size_t l = 0; l < lights_; ++l) {
+      if (trad) trad[l] = irradiance_traditional_[i * lights_ + l];
+      if (gaze) gaze[l] = irradiance_gaze_[i * lights_ + l];
+    }
+  };
+  if (state.load(std::memory_order_acquire) == 2) {
+    copy_split();
+    return irradiance_[i];
+  }
+  // Not there yet: compute; the thread that claims the photon stores the value, any other thread
+  // that got here meanwhile uses its own (identical) result.
+  std::vector<float> t(lights_), g(lights_);
+  const glm::vec3 e = compute_irradiance(i, scratch, used, t.data(), g.data());
+  std::uint8_t expected = 0;
+  if (state.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) {
+    irradiance_[i] = e;
+    std::copy(t.begin(), t.end(), irradiance_traditional_.begin() + static_cast<std::ptrdiff_t>(i * lights_));
+    std::copy(g.begin(), g.end(), irradiance_gaze_.begin() + static_cast<std::ptrdiff_t>(i * lights_));
+    state.store(2, std::memory_order_release);
+  }
+  for (std::size_t l = 0; l < lights_; ++l) {
+    if (trad) trad[l] = t[l];
+    if (gaze) gaze[l] = g[l];
+  }
+  return e;
+}
+
+std::size_t PhotonMaps::precomputed_count() const {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < irradiance_.size(); ++i) n += irradiance_state_ && irradiance_state_[i].load() == 2 ? 1u : 0u;
+  return n;
 }
 
 void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,

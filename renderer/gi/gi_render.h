@@ -13,7 +13,9 @@
 // alike, so the ratio of indirect to direct light is the physical one, and the gaze area matches
 // the raster image where there is no indirect light. The ambient term of local illumination (its
 // stand-in for indirect light) is left out inside the area: the photon map is the real thing.
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "fovea/protocol/display_geometry.h"
@@ -52,12 +54,29 @@ struct PhotonMaps {
   // density at every stride-th indirect photon, from its own neighbourhood (settings' nNN and
   // radius), so a shading point needs only its nearest precomputed photon with a similar normal
   // instead of nNN photons. Glossy indirect light (k_s) is left out: the stored value is irradiance.
-  PhotonMap precomputed;               // the photons that carry a value
-  std::vector<glm::vec3> irradiance;   // per global photon (0 where none was computed)
-  // The same flux split by the kind of photon: [photon * lights + light], traditional and gaze.
-  std::vector<float> irradiance_traditional, irradiance_gaze;
+  // Lazy (the default): a photon's value is computed the first time a shading point needs it
+  // (thread-safe; the same value whichever thread computes it), so only photons near what the gaze
+  // area sees cost anything; eager computes all of them up front.
+  PhotonMap precomputed;  // the photons that carry a value
   double precompute_seconds = 0;
-  void precompute_irradiance(const EstimateSettings& s, std::uint32_t stride);
+  void precompute_irradiance(const EstimateSettings& s, std::uint32_t stride, bool lazy = true);
+  // Irradiance of precomputed photon i (an index of global.photons), and its flux split by photon
+  // kind per light into trad and gaze (lights() floats each; may be null).
+  glm::vec3 irradiance_of(std::uint32_t i, Neighbours& scratch, std::vector<std::uint32_t>& used, float* trad,
+                          float* gaze) const;
+  std::size_t lights() const { return lights_; }
+  std::size_t precomputed_count() const;  // values computed so far
+
+ private:
+  EstimateSettings precompute_settings_;
+  std::size_t lights_ = 0;
+  // Per global photon: the value, its split [photon * lights + light], and its state (0 none, 1 being
+  // computed, 2 done).
+  mutable std::vector<glm::vec3> irradiance_;
+  mutable std::vector<float> irradiance_traditional_, irradiance_gaze_;
+  mutable std::unique_ptr<std::atomic<std::uint8_t>[]> irradiance_state_;
+  glm::vec3 compute_irradiance(std::uint32_t i, Neighbours& scratch, std::vector<std::uint32_t>& used, float* trad,
+                               float* gaze) const;
 };
 
 // How the indirect term is estimated.

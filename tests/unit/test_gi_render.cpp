@@ -103,6 +103,17 @@ TEST(GiRender, IndirectLightAddsColourBleedingAndBothEstimatesAgree) {
   s.indirect_estimate = IndirectEstimate::Precomputed;
   render_gaze_area(backend, scene.camera, 0, maps, all, s, pre);
   EXPECT_NEAR(mean(pre, all, 160), w, 0.05 * w);
+  // Computed on demand or up front: the same image, and on demand computes only what was needed.
+  maps.precompute_irradiance(s.estimate, 4, /*lazy=*/true);
+  std::vector<glm::vec3> lazy_img, eager_img;
+  const GazeArea small{{80.0f, 70.0f}, 20.0f};
+  render_gaze_area(backend, scene.camera, 0, maps, small, s, lazy_img);
+  const std::size_t computed = maps.precomputed_count();
+  maps.precompute_irradiance(s.estimate, 4, /*lazy=*/false);
+  EXPECT_EQ(maps.precomputed_count(), maps.precomputed.size());
+  EXPECT_LT(computed, maps.precomputed.size() / 2);
+  render_gaze_area(backend, scene.camera, 0, maps, small, s, eager_img);
+  EXPECT_EQ(lazy_img, eager_img);
 }
 
 TEST(GiRender, CausticsOfAGlassSphereBrightenTheFloorBelowIt) {
