@@ -1,5 +1,7 @@
 #include "scene/scene_loader.h"
 
+#include "scene/mesh_simplify.h"
+
 #include <algorithm>
 #include <array>
 #include <assimp/Importer.hpp>
@@ -10,7 +12,6 @@
 #include <cstdint>
 #include <fstream>
 #include <map>
-#include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
@@ -921,6 +922,36 @@ void append_node(const aiScene& s, const aiNode& node, const glm::mat4& parent, 
   for (unsigned c = 0; c < node.mNumChildren; ++c) append_node(s, *node.mChildren[c], world, out);
 }
 
+}  // namespace
+
+Mesh read_mesh_file(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw SceneError("mesh file not found: " + path.string());
+
+  Assimp::Importer importer;
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const aiScene* s = importer.ReadFile(path.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                                          aiProcess_GenSmoothNormals | aiProcess_SortByPType |
+                                                          aiProcess_ValidateDataStructure);
+  if (s == nullptr || s->mRootNode == nullptr) {
+    const std::string why = importer.GetErrorString();
+    if (why.find("o meshes") != std::string::npos || why.find("empty") != std::string::npos) {
+      throw SceneError("degenerate mesh: " + path.string() + " contains no triangles (" + why + ")");
+    }
+    throw SceneError("cannot read mesh " + path.string() + ": " + why);
+  }
+  Mesh mesh;
+  append_node(*s, *s->mRootNode, glm::mat4(1.0f), mesh);
+  if (mesh.indices.empty()) throw SceneError("degenerate mesh: " + path.string() + " contains no triangles");
+  for (const glm::vec3& p : mesh.positions) {
+    if (!finite(p)) throw SceneError("mesh " + path.string() + " has a non-finite vertex position");
+  }
+  repair_normals(mesh);
+  return mesh;
+}
+
+namespace {
+
 std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
   const std::string rel = string(n, "a mesh file path relative to the scene file");
   std::filesystem::path path = std::filesystem::path(rel);
@@ -937,26 +968,12 @@ std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) fail(n, "mesh file not found: " + path.string());
   if (auto it = mesh_cache_.find(path.string()); it != mesh_cache_.end()) return it->second;
-
-  Assimp::Importer importer;
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const aiScene* s = importer.ReadFile(path.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                                                          aiProcess_GenSmoothNormals | aiProcess_SortByPType |
-                                                          aiProcess_ValidateDataStructure);
-  if (s == nullptr || s->mRootNode == nullptr) {
-    const std::string why = importer.GetErrorString();
-    if (why.find("o meshes") != std::string::npos || why.find("empty") != std::string::npos) {
-      fail(n, "degenerate mesh: " + path.string() + " contains no triangles (" + why + ")");
-    }
-    fail(n, "cannot read mesh " + path.string() + ": " + why);
+  std::shared_ptr<Mesh> mesh;
+  try {
+    mesh = std::make_shared<Mesh>(read_mesh_file(path));
+  } catch (const SceneError& e) {
+    fail(n, e.what());
   }
-  auto mesh = std::make_shared<Mesh>();
-  append_node(*s, *s->mRootNode, glm::mat4(1.0f), *mesh);
-  if (mesh->indices.empty()) fail(n, "degenerate mesh: " + path.string() + " contains no triangles");
-  for (const glm::vec3& p : mesh->positions) {
-    if (!finite(p)) fail(n, "mesh " + path.string() + " has a non-finite vertex position");
-  }
-  repair_normals(*mesh);
   mesh_cache_.emplace(path.string(), mesh);
   return mesh;
 }
@@ -964,35 +981,13 @@ std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
 // ---------------------------------------------------------------------------------------------
 // Levels of detail
 
-// Simplifies `full` to about ratio * its triangles with meshoptimizer's edge-collapse simplifier.
-// The count is the target; the error bound is left open (1.0 = the mesh's whole extent) and the
-// error reached is returned in metres (meshopt's relative error times meshopt_simplifyScale).
+// Simplifies `full` to about ratio * its triangles (scene/mesh_simplify.h), welding vertices that
+// share a position so UV or normal seams do not lock the simplifier (SCENES.md). The error reached
+// is returned in metres.
 Mesh simplify(const Mesh& full, double ratio, float& error_m) {
-  const std::size_t count = full.indices.size();
-  const float* xyz = &full.positions.front().x;
-  // Weld vertices that share a position (seams, split normals) so they do not lock the simplifier.
-  std::vector<unsigned> shadow(count);
-  meshopt_generateShadowIndexBuffer(shadow.data(), full.indices.data(), count, xyz, full.positions.size(),
-                                    sizeof(glm::vec3), sizeof(glm::vec3));
-  const auto target_tris = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(
-                                                        static_cast<double>(count / 3) * ratio)));
-  std::vector<unsigned> out(count);
-  float relative = 0;
-  const std::size_t n = meshopt_simplify(out.data(), shadow.data(), count, xyz, full.positions.size(),
-                                         sizeof(glm::vec3), target_tris * 3, 1.0f, 0, &relative);
-  out.resize(n);
-  Mesh m;
-  std::vector<std::uint32_t> remap(full.positions.size(), UINT32_MAX);
-  for (const unsigned old : out) {
-    if (remap[old] == UINT32_MAX) {
-      remap[old] = static_cast<std::uint32_t>(m.positions.size());
-      m.positions.push_back(full.positions[old]);
-      m.normals.push_back(full.normals[old]);
-    }
-    m.indices.push_back(remap[old]);
-  }
-  error_m = relative * meshopt_simplifyScale(xyz, full.positions.size(), sizeof(glm::vec3));
-  return m;
+  SimplifiedMesh s = simplify_mesh(full, ratio, SeamHandling::Weld);
+  error_m = s.error_m;
+  return std::move(s.mesh);
 }
 
 std::vector<LodLevel> Loader::lods(const Node& n, const Mesh& full) {

@@ -31,4 +31,9 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverr
 Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
                   const std::vector<SceneOverride>& overrides = {});
 
+// Reads a mesh file (OBJ, PLY, glTF) as scenes read them: triangulated, identical vertices joined,
+// missing normals generated (smooth), node transforms applied. Throws SceneError naming the file
+// and the problem (not found, unreadable, no triangles, a non-finite position).
+Mesh read_mesh_file(const std::filesystem::path& path);
+
 }  // namespace fovea::render
