@@ -1,5 +1,6 @@
 #include "scene/scene_loader.h"
 
+#include "lod/lod_chain.h"
 #include "scene/mesh_simplify.h"
 
 #include <algorithm>
@@ -139,7 +140,8 @@ const Keys kShapeKeys{"mesh", "box", "sphere", "plane", "cylinder"};
 const Keys kSphereKeys{"radius", "rings", "segments", "comment"};
 const Keys kCylinderKeys{"radius", "height", "segments", "comment"};
 const Keys kTransformKeys{"translation", "rotation_deg", "scale", "comment"};
-const Keys kLodSimplifyKeys{"simplify", "comment"};
+const Keys kLodSimplifyKeys{"simplify", "chain", "comment"};
+const Keys kLodChainKeys{"levels", "base", "attributes", "comment"};
 const Keys kLodLevelKeys{"mesh", "max_error_m", "comment"};
 const Keys kLightKeys{"type", "position", "power", "direction", "cutoff_deg", "falloff_deg", "normal", "size",
                       "samples", "comment"};
@@ -992,8 +994,37 @@ Mesh simplify(const Mesh& full, double ratio, float& error_m) {
 
 std::vector<LodLevel> Loader::lods(const Node& n, const Mesh& full) {
   std::vector<LodLevel> out;
+  if (n.v.is_object() && get(n, "chain")) {
+    check_keys(n, kLodSimplifyKeys, "{\"chain\": {...}}, {\"simplify\": [ratios]} or [{\"mesh\", \"max_error_m\"}]");
+    if (get(n, "simplify")) fail(n, "give either \"chain\" or \"simplify\", not both");
+    const Node c = *get(n, "chain");
+    check_keys(c, kLodChainKeys, "an LOD chain {\"levels\", \"base\", \"attributes\"}");
+    lod::ChainSettings cs;
+    if (auto v = get(c, "levels")) cs.levels = static_cast<int>(number(*v, Range{2, 16, false, false, ""}));
+    if (auto v = get(c, "base")) cs.base = number(*v, Range{1, 1e6, true, false, ""});
+    if (auto v = get(c, "attributes")) {
+      const std::string a = string(*v, "seams or weld");
+      if (a != "seams" && a != "weld") fail(*v, "must be seams or weld");
+      cs.attributes = a == "weld" ? lod::Attributes::Weld : lod::Attributes::Seams;
+    }
+    // Built once per mesh and settings and cached on disk (lod/lod_chain.h): the same chain
+    // fovea-lod writes. Levels the simplifier could not take below the previous one are left out.
+    const lod::Chain chain = lod::cached_chain(full, cs, "scene mesh");
+    std::size_t prev_tris = full.triangle_count();
+    for (std::size_t l = 1; l < chain.levels.size(); ++l) {
+      const lod::ChainLevel& cl = chain.levels[l];
+      if (cl.mesh.triangle_count() == 0 || cl.mesh.triangle_count() >= prev_tris) continue;
+      prev_tris = cl.mesh.triangle_count();
+      LodLevel level;
+      level.mesh = std::make_shared<const Mesh>(cl.mesh);
+      level.max_error_m = cl.error_m;
+      out.push_back(std::move(level));
+    }
+    if (out.empty()) fail(c, "the simplifier could not reduce this mesh at all (" + std::to_string(full.triangle_count()) + " triangles)");
+    return out;
+  }
   if (n.v.is_object()) {
-    check_keys(n, kLodSimplifyKeys, "{\"simplify\": [ratios]} or [{\"mesh\", \"max_error_m\"}]");
+    check_keys(n, kLodSimplifyKeys, "{\"chain\": {...}}, {\"simplify\": [ratios]} or [{\"mesh\", \"max_error_m\"}]");
     const Node ratios = require(n, "simplify", "an array of triangle-count ratios in (0, 1), decreasing");
     if (!ratios.v.is_array() || ratios.v.empty()) fail(ratios, "must be a non-empty array of ratios in (0, 1)");
     double prev_ratio = 1;

@@ -2,6 +2,7 @@
 // non-manifold and degenerate input, out-of-range indices, a ratio simplification cannot reach,
 // bad settings, unreadable files.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>

@@ -1,13 +1,16 @@
 // Level-of-detail chains (renderer/lod/lod_chain.h): Lee 2009 eq. 7.4's ratios, seams kept,
 // files and manifest round trip, the cache.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
+#include <cstdlib>
 #include <fstream>
 
 #include "lod/lod_chain.h"
 #include "scene/geometry.h"
+#include "scene/scene_loader.h"
 
 namespace fovea::render::lod {
 namespace {
@@ -116,6 +119,45 @@ TEST(LodChain, CacheBuildsOnceAndRebuildsADamagedEntry) {
   const Chain rebuilt = cached_chain(sphere, ChainSettings{}, "s", root, &hit);
   EXPECT_FALSE(hit);
   EXPECT_EQ(rebuilt.levels[2].mesh.triangle_count(), first.levels[2].mesh.triangle_count());
+  fs::remove_all(root);
+}
+
+// A scene asks for a chain; the loader builds it through the same code and cache as fovea-lod.
+TEST(LodChain, ScenesBuildChainsThroughTheCache) {
+  const fs::path root = temp_dir("scene_cache");
+  ::setenv("FOVEA_LOD_CACHE", root.c_str(), 1);
+  const std::string json = R"({"name": "lod", "camera": {"position": [0, 0, 5], "target": [0, 0, 0]},
+    "materials": {"m": {"type": "lambertian", "kd": [0.5, 0.5, 0.5]}},
+    "objects": [{"name": "ball", "material": "m", "geometry": {"sphere": {"radius": 1, "rings": 48, "segments": 96}},
+                 "lod": {"chain": {"levels": 4, "base": 4}}}],
+    "lights": [{"type": "point", "position": [0, 3, 3], "power": [100, 100, 100]}]})";
+  const Scene a = parse_scene(json, "lod.json", fs::temp_directory_path());
+  ASSERT_EQ(a.objects[0].lods.size(), 3u);
+  std::size_t previous = a.objects[0].mesh->triangle_count();
+  float previous_error = 0;
+  for (const LodLevel& l : a.objects[0].lods) {
+    EXPECT_LT(l.mesh->triangle_count(), previous);
+    EXPECT_GE(l.max_error_m, previous_error);
+    previous = l.mesh->triangle_count();
+    previous_error = l.max_error_m;
+  }
+  EXPECT_FALSE(fs::is_empty(root));  // the chain went to the cache
+  const Scene b = parse_scene(json, "lod.json", fs::temp_directory_path());
+  ASSERT_EQ(b.objects[0].lods.size(), 3u);
+  EXPECT_EQ(b.objects[0].lods[2].mesh->triangle_count(), a.objects[0].lods[2].mesh->triangle_count());
+  // Both forms at once, or bad chain settings: errors that name the field.
+  std::string both = json;
+  both.replace(both.find("\"chain\""), 7, "\"simplify\": [0.5], \"chain\"");
+  EXPECT_THROW(parse_scene(both, "lod.json", fs::temp_directory_path()), SceneError);
+  std::string bad = json;
+  bad.replace(bad.find("\"base\": 4"), 9, "\"base\": 1");
+  try {
+    parse_scene(bad, "lod.json", fs::temp_directory_path());
+    FAIL() << "base 1 accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("base"), std::string::npos) << e.what();
+  }
+  ::unsetenv("FOVEA_LOD_CACHE");
   fs::remove_all(root);
 }
 
