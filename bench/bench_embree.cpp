@@ -29,6 +29,12 @@ using namespace fovea::render;
 
 namespace {
 
+BackendSettings shadow_settings(bool shadows) {
+  BackendSettings s;
+  s.shadows = shadows;
+  return s;
+}
+
 constexpr std::uint32_t kWidth = 1024, kHeight = 768;
 
 Object make_object(std::uint32_t id, Mesh mesh, glm::vec3 at, std::uint32_t material, glm::vec3 rotation_deg = {}) {
@@ -165,10 +171,10 @@ void frame(benchmark::State& state, std::shared_ptr<const Scene> scene, EmbreeOp
   GBuffer g;
   double t = 0;
   std::uint64_t primary = 0, shadow = 0;
-  backend.render({t, t}, {shadows, {}}, g);  // warm-up
+  backend.render({t, t}, shadow_settings(shadows), g);  // warm-up
   for (auto _ : state) {
     t += 1.0 / 60;
-    backend.render({t, t - 1.0 / 60}, {shadows, {}}, g);
+    backend.render({t, t - 1.0 / 60}, shadow_settings(shadows), g);
     benchmark::DoNotOptimize(g.color.data());
     primary += backend.last_frame_stats().primary_rays;
     shadow += backend.last_frame_stats().shadow_rays;
@@ -213,14 +219,14 @@ void compare(benchmark::State& state, const std::string& scene_name, std::shared
   }
   GBuffer g;
   double t = 0;
-  for (Config& c : configs) c.backend->render({t, t}, {shading, {}}, g);  // warm-up
+  for (Config& c : configs) c.backend->render({t, t}, shadow_settings(shading), g);  // warm-up
   std::size_t rotation = 0;
   for (auto _ : state) {
     t += 1.0 / 60;
     for (std::size_t k = 0; k < configs.size(); ++k) {
       Config& c = configs[(k + rotation) % configs.size()];
       const auto start = std::chrono::steady_clock::now();
-      c.backend->render({t, t - 1.0 / 60}, {shading, {}}, g);
+      c.backend->render({t, t - 1.0 / 60}, shadow_settings(shading), g);
       c.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       c.rays += c.backend->last_frame_stats().primary_rays;
       benchmark::DoNotOptimize(g.color.data());

@@ -69,7 +69,7 @@ int run_headless(const RenderOptions& o) {
   double previous = 0;
   std::ofstream gaze_log(fs::path(o.out_dir) / "gaze.csv");
   gaze_log << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
-  std::ofstream focus_log, gi_log;
+  std::ofstream focus_log, gi_log, lod_log;
   for (std::uint64_t i = 0; i < o.frames; ++i) {
     const double scheduled = static_cast<double>(i) / o.fps;
     double clock = scheduled;
@@ -122,6 +122,25 @@ int run_headless(const RenderOptions& o) {
                     f.gi->gaze.scale, f.gi->importons, static_cast<unsigned long long>(f.gi->csf.rays_cast),
                     static_cast<unsigned long long>(f.gi->csf.full_resolution_rays));
       gi_log << gl << '"' << f.gi->note << "\"\n";
+    }
+    if (f.lod != nullptr) {
+      // lod.csv: the levels drawn this frame (only when lod-select ran).
+      if (!lod_log.is_open()) {
+        lod_log.open(fs::path(o.out_dir) / "lod.csv");
+        lod_log << "frame,policy,objects,triangles,full_triangles,budget_bias,cannot_meet,levels\n";
+      }
+      std::string levels;
+      for (const lod::Selection& sel : f.lod->selection) {
+        char item[48];
+        std::snprintf(item, sizeof item, "%s%u:%d", levels.empty() ? "" : " ", sel.id, sel.drawn);
+        levels += item;
+      }
+      char ll[160];
+      std::snprintf(ll, sizeof ll, "%llu,%s,%zu,%llu,%llu,%.2f,%d,", static_cast<unsigned long long>(i), f.lod->policy,
+                    f.lod->selection.size(), static_cast<unsigned long long>(f.lod->triangles),
+                    static_cast<unsigned long long>(f.lod->full_triangles), f.lod->budget.bias,
+                    f.lod->budget.cannot_meet ? 1 : 0);
+      lod_log << ll << '"' << levels << "\"\n";
     }
     if (tty) progress(i + 1, o.frames, timer.last_ms("frame"));
   }

@@ -4,6 +4,7 @@
 // with the same BRDF (scene/shading.h), so their images can be composited without a seam.
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "backend/gbuffer.h"
 #include "backend/lens_sample.h"
@@ -26,6 +27,10 @@ struct BackendSettings {
   // ray (background where there is none); an object's own back faces and other parts are skipped
   // (each object counts once). 0: the visible surface. Embree only; the raster backend refuses it.
   std::uint32_t peel = 0;
+  // Level of detail per scene object (index into Scene::objects): 0 the full mesh, k the object's
+  // lods[k - 1], clamped to what it has. Empty (or shorter than the object list): full detail.
+  // Embree switches geometry per frame; the raster backend draws the chosen mesh too.
+  std::vector<std::uint8_t> lod_levels;
 };
 
 class Backend {

@@ -1,6 +1,7 @@
 #include "pipeline/frame_pipeline.h"
 
 #include <cmath>
+#include <unordered_map>
 
 #include "attention/focus_input.h"
 #include "dof/lee_splat.h"
@@ -84,10 +85,18 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     auto t = timer.scope("gaze");
     f.gaze = gaze_.at(frame_clock_s);
   }
+  lod_levels_.clear();
+  if (f.plan.runs(PassId::LodSelect)) {
+    const double last_frame_ms = timer.last_ms("frame");
+    auto t = timer.scope("lod-select");
+    run_lod_select(f.gaze, now_s, previous_s, last_frame_ms);
+    f.lod = &lod_frame_;
+  }
   {
     auto t = timer.scope("gbuffer");
     BackendSettings bs;
     bs.shadows = settings_.flag("shadows");
+    bs.lod_levels = lod_levels_;
     backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
   }
   f.gbuffer = &gbuffer_;
@@ -237,6 +246,108 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_frame_.note = r.note;
 }
 
+void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms) {
+  const Settings& s = settings_;
+  lod::PolicySettings ps;
+  ps.policy = lod::parse_policy(s.text("lod.policy"));
+  ps.tolerance_px = s.number("lod.tolerance_px");
+  ps.distance_ref_m = s.number("lod.distance_ref_m");
+  ps.hysteresis = s.number("lod.hysteresis");
+  lod_selector_.set_settings(ps);
+  if (lod_selector_.budget().target_ms != s.number("lod.budget_ms")) lod_selector_.set_budget_ms(s.number("lod.budget_ms"));
+  const Camera& cam = scene_.camera;
+  const glm::mat4 view = cam.view_at(now_s), view_prev = cam.view_at(previous_s), proj = cam.projection();
+  const glm::vec3 eye = cam.position_at(now_s);
+  const double px_per_radian = static_cast<double>(cam.height) / (2.0 * std::tan(glm::radians(static_cast<double>(cam.vertical_fov_deg)) / 2.0));
+  const protocol::Degrees gaze_deg = protocol::normalized_to_degrees(scene_.display, {gaze.x, gaze.y});
+  // Per-object luminance contrast from the last frame's G-buffer (Brown's luminance feature).
+  std::vector<float> lum_min(scene_.objects.size(), 1e30f), lum_max(scene_.objects.size(), 0.0f);
+  std::unordered_map<std::uint32_t, std::size_t> index_of;
+  for (std::size_t i = 0; i < scene_.objects.size(); ++i) index_of[scene_.objects[i].id] = i;
+  for (std::size_t p = 0; p < gbuffer_.object_id.size() && p < gbuffer_.color.size(); ++p) {
+    const auto it = index_of.find(gbuffer_.object_id[p]);
+    if (it == index_of.end()) continue;
+    const glm::vec3 c = gbuffer_.color[p];
+    const float y = 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b;
+    lum_min[it->second] = std::min(lum_min[it->second], y);
+    lum_max[it->second] = std::max(lum_max[it->second], y);
+  }
+  const auto project = [&](const glm::mat4& v, const glm::vec3& p, glm::dvec2& out) {
+    const glm::vec4 clip = proj * v * glm::vec4(p, 1.0f);
+    if (!(clip.w > 1e-6f)) return false;
+    out = {0.5 * (static_cast<double>(clip.x / clip.w) + 1.0), 0.5 * (1.0 - static_cast<double>(clip.y / clip.w))};
+    return true;
+  };
+  std::vector<lod::ObjectView> views;
+  std::vector<std::size_t> object_of;
+  lod_frame_ = Frame::Lod{};
+  lod_frame_.policy = lod::to_string(ps.policy);
+  for (std::size_t i = 0; i < scene_.objects.size(); ++i) {
+    const Object& o = scene_.objects[i];
+    if (!o.mesh || o.mesh->positions.empty()) continue;
+    // The bounding sphere: the mesh's box centre and the farthest vertex, scaled.
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const glm::vec3& p : o.mesh->positions) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+    const glm::vec3 centre_obj = 0.5f * (lo + hi);
+    float r2 = 0;
+    for (const glm::vec3& p : o.mesh->positions) r2 = std::max(r2, glm::dot(p - centre_obj, p - centre_obj));
+    const Transform now_t = o.transform_at(now_s), prev_t = o.transform_at(previous_s);
+    const glm::vec3 centre = glm::vec3(now_t.matrix() * glm::vec4(centre_obj, 1.0f));
+    const glm::vec3 centre_prev = glm::vec3(prev_t.matrix() * glm::vec4(centre_obj, 1.0f));
+    const float scale = std::max({std::abs(now_t.scale.x), std::abs(now_t.scale.y), std::abs(now_t.scale.z)});
+    lod::ObjectView v;
+    v.id = o.id;
+    v.levels = 1 + static_cast<int>(o.lods.size());
+    v.level_error_m.push_back(0.0f);
+    v.level_triangles.push_back(o.mesh->triangle_count());
+    for (const LodLevel& l : o.lods) {
+      v.level_error_m.push_back(l.max_error_m * scale);  // object-space metres to world
+      v.level_triangles.push_back(l.mesh ? l.mesh->triangle_count() : 0);
+    }
+    v.base = o.lods.empty() || o.lods[0].mesh == nullptr || o.lods[0].mesh->triangle_count() == 0
+                 ? 4.0
+                 : static_cast<double>(o.mesh->triangle_count()) / static_cast<double>(o.lods[0].mesh->triangle_count());
+    v.distance_m = static_cast<double>(glm::length(centre - eye));
+    v.radius_m = static_cast<double>(std::sqrt(r2) * scale);
+    v.px_per_radian = px_per_radian;
+    v.projected_radius_px = v.distance_m > 0 ? v.radius_m / v.distance_m * px_per_radian : 1e9;
+    v.screen_area_px = static_cast<double>(cam.width) * static_cast<double>(cam.height);
+    glm::dvec2 sp(0.5), sp_prev(0.5);
+    const bool visible = project(view, centre, sp);
+    if (visible && project(view_prev, centre_prev, sp_prev)) {
+      v.velocity_px_per_frame = glm::length((sp - sp_prev) * glm::dvec2(cam.width, cam.height));
+    }
+    v.screen_x = sp.x;
+    v.screen_y = sp.y;
+    v.eccentricity_deg = visible ? protocol::angle_between_deg(gaze_deg, protocol::normalized_to_degrees(scene_.display, {sp.x, sp.y}))
+                                 : 180.0;
+    const glm::vec3 dr = glm::abs(now_t.rotation_deg - prev_t.rotation_deg);
+    v.rotation_deg_per_frame = static_cast<double>(std::max({dr.x, dr.y, dr.z}));
+    v.luminance_contrast = lum_max[i] > 0 && lum_min[i] < 1e29f
+                               ? static_cast<double>((lum_max[i] - lum_min[i]) / (lum_max[i] + lum_min[i]))
+                               : 0.0;
+    const attention::AttentionFrame& att = attention_.last();
+    for (const attention::ObjectAttention& a : att.objects)
+      if (a.id == o.id) v.attention = a.attention;
+    if (o.lods.empty()) continue;  // nothing to choose: drawn at full detail, not listed
+    views.push_back(v);
+    object_of.push_back(i);
+  }
+  const std::vector<lod::Selection>& sel = lod_selector_.select(views, last_frame_ms);
+  lod_levels_.assign(scene_.objects.size(), 0);
+  for (std::size_t k = 0; k < sel.size(); ++k) {
+    const std::size_t i = object_of[k];
+    lod_levels_[i] = static_cast<std::uint8_t>(std::clamp(sel[k].drawn, 0, 255));
+    lod_frame_.triangles += views[k].level_triangles[static_cast<std::size_t>(std::clamp(sel[k].drawn, 0, views[k].levels - 1))];
+    lod_frame_.full_triangles += views[k].level_triangles[0];
+  }
+  lod_frame_.selection = sel;
+  lod_frame_.budget = lod_selector_.budget();
+}
+
 dof::CocModel FramePipeline::coc_model(double focus_m) const {
   return dof::coc_model(scene_.camera, scene_.display, focus_m,
                         settings_.is("dof.projection", "display") ? dof::CocProjection::Display
@@ -270,6 +381,7 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
       BackendSettings bs;
       bs.shadows = settings_.flag("shadows");
       bs.peel = k + 1;
+      bs.lod_levels = lod_levels_;
       backend_->render(FrameTime{now_s, previous_s}, bs, peeled_[k]);
       layers.push_back({peeled_[k].color.data(), peeled_[k].depth.data()});
     }
@@ -284,6 +396,7 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
       BackendSettings bs;
       bs.shadows = settings_.flag("shadows");
       bs.peel = 1;
+      bs.lod_levels = lod_levels_;
       backend_->render(FrameTime{now_s, previous_s}, bs, hidden_);
       in.hidden_color = hidden_.color.data();
       in.hidden_depth = hidden_.depth.data();

@@ -10,6 +10,7 @@
 #include "dof/lee_mipmap.h"
 #include "gaze/gaze_input.h"
 #include "gi/gi_pass.h"
+#include "lod/lod_policy.h"
 #include "image/image.h"
 #include "passes/overlay.h"
 #include "pipeline/pass_timer.h"
@@ -44,6 +45,13 @@ class FramePipeline {
       gi::CsfStats csf;             // gi.periphery=csf: rays cast against full resolution
     };
     const Gi* gi = nullptr;  // null when the gi pass did not run
+    struct Lod {
+      const char* policy = "none";
+      std::vector<lod::Selection> selection;  // per visible object with a chain
+      std::uint64_t triangles = 0, full_triangles = 0;  // drawn, and at full detail
+      lod::BudgetState budget;
+    };
+    const Lod* lod = nullptr;  // null when lod-select did not run
   };
   // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
   // with gaze sampled at `frame_clock_s` on the gaze input.
@@ -73,6 +81,11 @@ class FramePipeline {
   std::vector<GBuffer> peeled_;  // schedl-layered's depth-peeled layers behind the visible one
   dof::LeeMipmap lee_mipmap_;
   std::unique_ptr<gi::GiPass> gi_pass_;  // created on the first frame that runs gi
+  lod::LodSelector lod_selector_;
+  Frame::Lod lod_frame_;
+  std::vector<std::uint8_t> lod_levels_;  // per scene object, for the backend
+  // Chooses this frame's levels from the camera, the last frame's attention and G-buffer, and gaze.
+  void run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms);
   std::vector<glm::vec3> hybrid_;
   Frame::Gi gi_frame_;
   // Places the gaze area, runs the gi pass over `local` into hybrid_, records its stage times.

@@ -14,8 +14,8 @@ const std::vector<PassDecl>& pass_declarations() {
        "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it", ""},
       {PassId::Focus, "focus", "gaze, attention, depth, id", "focal depth",
        "dof runs or overlay.focus shows it, and focus is not fixed", ""},
-      {PassId::LodSelect, "lod-select", "attention, gaze, camera", "LOD level per object",
-       "the scene has LOD chains and lod.enabled", "step 9"},
+      {PassId::LodSelect, "lod-select", "camera, last frame's attention and G-buffer, gaze", "LOD level per object",
+       "the scene has LOD chains and lod.enabled", ""},
       {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
        ""},
       {PassId::Gi, "gi", "gbuffer, gaze (or attention)", "colour (hybrid composite)", "gi.enabled and the scene has lights",
@@ -140,7 +140,10 @@ FramePlan plan_frame(const PlanContext& c) {
   } else if (!scene.has_lods()) {
     decide(PassId::LodSelect, false, "no object has an LOD chain");
   } else {
-    decide(PassId::LodSelect, true, "objects with LOD chains");
+    std::string why = "objects with LOD chains; lod.policy=" + s.text("lod.policy");
+    if (s.is("lod.policy", "gaze") && !c.gaze_available) why += " without a gaze source: eccentricity from the screen centre";
+    if (s.number("lod.budget_ms") > 0) why += "; frame budget " + s.text("lod.budget_ms") + " ms";
+    decide(PassId::LodSelect, true, why);
   }
 
   // Focus: consumed by DOF, and shown by the focus overlay (which lands before DOF, step 7).
@@ -163,7 +166,8 @@ FramePlan plan_frame(const PlanContext& c) {
   // Attention: computed only when something consumes it.
   std::vector<std::string> consumers;
   if (plan.needed(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")) consumers.push_back("focus");
-  if (plan.needed(PassId::LodSelect)) consumers.push_back("lod-select");
+  const bool lod_uses_attention = plan.needed(PassId::LodSelect) && s.is("lod.policy", "ulod");
+  if (lod_uses_attention) consumers.push_back("lod-select (lod.policy=ulod)");
   const bool gi_follows_attention = plan.needed(PassId::Gi) && !c.gaze_available && !s.is("gi.area", "full");
   if (gi_follows_attention) consumers.push_back("gi (no gaze source: its gaze area)");
   const std::string& overlay_map = s.text("overlay.map");
@@ -198,7 +202,8 @@ FramePlan plan_frame(const PlanContext& c) {
   const bool attention_overlay = image && (s.is("overlay.map", "saliency") || s.is("overlay.map", "spatial") ||
                                            s.is("overlay.map", "temporal") || s.is("overlay.map", "attention"));
   wait_unless(PassId::Attention,
-              attention_overlay || plan.runs(PassId::LodSelect) || (gi_follows_attention && plan.runs(PassId::Gi)) ||
+              attention_overlay || (lod_uses_attention && plan.runs(PassId::LodSelect)) ||
+                  (gi_follows_attention && plan.runs(PassId::Gi)) ||
                   (plan.runs(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")),
               "none of its consumers runs yet");
   return plan;

@@ -56,6 +56,16 @@ const std::vector<SettingSpec>& Settings::specs() {
        "Embree only, the raster backend uses 1)"},
       {"dof.aperture", "disc", "disc|gaussian|hexagon", "lee-splat: aperture shape of the splats (the IDF image)"},
       {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
+      {"lod.policy", "screen-size", "none|distance|screen-size|brown|ulod|gaze",
+       "how levels are chosen: distance (2 log_beta(d / lod.distance_ref_m)), projected error within lod.tolerance_px, "
+       "Brown 2003's binary importance, Lee 2009's ULOD L = M(1 - S_o) from the attention pass, or gaze eccentricity "
+       "through the Geisler-Perry contrast threshold (renderer/lod/lod_policy.h)"},
+      {"lod.tolerance_px", "1", "number in [0.01, 1000]", "screen-size policy: geometric error allowed on screen, pixels"},
+      {"lod.distance_ref_m", "2", "number in [0.001, 100000]", "distance policy: full detail up to this distance"},
+      {"lod.hysteresis", "0.25", "number in [0, 2]", "levels beyond half a level an object's L must move before its drawn level changes"},
+      {"lod.budget_ms", "0", "number in [0, 100000]",
+       "frame-time budget (0: none): the selection coarsens every object while frames are slower and says when no "
+       "level can meet it"},
       {"gi.enabled", "false", "bool", "gaze-directed global illumination (photon mapping, hybrid composite)"},
       {"gi.caustics", "true", "bool", "caustic photon map when the scene has specular or refractive surfaces"},
       {"gi.gaze_area_deg", "20", "number in [1, 180]", "diameter of the high-quality gaze area in degrees of visual angle"},

@@ -140,6 +140,19 @@ grep -qE "run +gi" "$WORK/gi-gl/plan.txt" || fail "gi gl plan: $(cat "$WORK/gi-g
 out=$("$RENDER" "${GI[@]}" --set gi.enabled=true --set gi.filter=square --out "$WORK/gi-bad" 2>&1) && fail "a bad gi.filter was accepted"
 grep -q "gi.filter" <<<"$out" || fail "the error should name gi.filter: $out"
 
+echo "== level of detail: every policy headless, levels in lod.csv"
+for pol in distance screen-size brown ulod gaze; do
+  "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --headless --frames 2 --fps 10 --gaze "file:$REC" \
+    --set lod.policy=$pol --out "$WORK/lod-$pol" >"$WORK/lod-$pol.log" 2>&1 || fail "lod.policy=$pol: $(tail -5 "$WORK/lod-$pol.log")"
+  grep -qE "run +lod-select .*lod.policy=$pol" "$WORK/lod-$pol/plan.txt" || fail "lod plan: $(cat "$WORK/lod-$pol/plan.txt")"
+  line=$(sed -n 2p "$WORK/lod-$pol/lod.csv")
+  [ "$(cut -d, -f2 <<<"$line")" = "$pol" ] || fail "lod.csv policy: $line"
+  [ "$(cut -d, -f4 <<<"$line")" -le "$(cut -d, -f5 <<<"$line")" ] || fail "more triangles than full detail: $line"
+done
+grep -qE "run +attention .*lod-select" "$WORK/lod-ulod/plan.txt" || fail "ulod should plan attention: $(cat "$WORK/lod-ulod/plan.txt")"
+out=$("$RENDER" --scene "$SCENES/attention.json" --explain --gaze none --set lod.policy=fastest 2>&1) && fail "bad lod.policy accepted"
+grep -q "lod.policy" <<<"$out" || fail "the error should name lod.policy: $out"
+
 echo "== two render clients against one daemon"
 PORT=$(( 48100 + RANDOM % 800 ))
 "$TRACKERD" --source "replay:$REC" --loop --port $PORT >"$WORK/daemon.log" 2>&1 &

@@ -65,7 +65,9 @@ GBuffer render(const Scene& s, FrameTime time = {}, bool shadows = false, Embree
   EmbreeBackend b(options);
   b.set_scene(s);
   GBuffer g;
-  b.render(time, BackendSettings{shadows, {}}, g);
+  BackendSettings bs;
+  bs.shadows = shadows;
+  b.render(time, bs, g);
   return g;
 }
 
@@ -479,9 +481,11 @@ TEST(EmbreeBackend, SingleAndMultiThreadedAreIdentical) {
   b.set_scene(s);
   GBuffer one, many, again;
   tbb::task_arena single(1);
-  single.execute([&] { b.render({0.25, 0.2}, {true, {}}, one); });
-  b.render({0.25, 0.2}, {true, {}}, many);
-  b.render({0.25, 0.2}, {true, {}}, again);
+  BackendSettings with_shadows;
+  with_shadows.shadows = true;
+  single.execute([&] { b.render({0.25, 0.2}, with_shadows, one); });
+  b.render({0.25, 0.2}, with_shadows, many);
+  b.render({0.25, 0.2}, with_shadows, again);
   EXPECT_EQ(mismatches(one, many, 0.0f), 0u);
   EXPECT_EQ(mismatches(many, again, 0.0f), 0u);
   EXPECT_EQ(one.color, many.color);
@@ -516,7 +520,7 @@ TEST(EmbreeBackend, AnimatedObjectsFollowTimeAcrossFrames) {
     b.set_scene(s);
     for (double t : {0.0, 0.3, 0.7, 0.3}) {
       GBuffer g;
-      b.render({t, t}, {false, {}}, g);
+      b.render({t, t}, BackendSettings{}, g);
       const GBuffer fresh = render(s, {t, t}, false, {EmbreeTraversal::Packet8, geo, true});
       EXPECT_EQ(mismatches(g, fresh, 1e-5f), 0u) << to_string(geo) << " t=" << t;
     }

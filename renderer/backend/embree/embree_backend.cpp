@@ -116,6 +116,8 @@ struct ObjectRecord {
   bool enabled = true;             // instanced: disabled while the transform is singular
   glm::mat4 committed{1.0f};       // model matrix the BVH currently holds
   glm::mat3 normal_committed{1.0f};  // its cofactor (transforms normals)
+  std::uint32_t lod = 0;           // 0: the object's full mesh; k: its lods[k - 1]
+  bool lod_active = true;          // this level is the one drawn (only one per object is)
 };
 
 // Per-frame, per-object matrices.
@@ -526,52 +528,61 @@ void EmbreeBackend::set_scene(const Scene& scene) {
   for (std::size_t i = 0; i < s.objects.size(); ++i) {
     const Object& o = s.objects[i];
     if (!o.mesh) continue;
-    auto& pm = prepared[o.mesh.get()];
-    if (!pm) pm = prepare(*o.mesh);
-    if (pm->triangle_count() == 0 || pm->positions.empty()) continue;
+    // Level 0 (the full mesh) and every LOD level get their own geometry; only one per object is
+    // enabled at a time (BackendSettings::lod_levels), so switching costs a commit, not a rebuild.
+    for (std::uint32_t lod = 0; lod <= o.lods.size(); ++lod) {
+      const std::shared_ptr<const Mesh>& source = lod == 0 ? o.mesh : o.lods[lod - 1].mesh;
+      if (!source) continue;
+      auto& pm = prepared[source.get()];
+      if (!pm) pm = prepare(*source);
+      if (pm->triangle_count() == 0 || pm->positions.empty()) continue;
 
-    ObjectRecord r;
-    r.object = i;
-    r.material = o.material < s.materials.size() ? &s.materials[o.material] : &default_material();
-    r.mesh = pm;
-    r.animated = o.animation.has_value();
-    r.committed = o.transform_at(0).matrix();
-    r.normal_committed = cofactor(r.committed);
-    const bool emitter = r.material->type == MaterialType::Emissive;
+      ObjectRecord r;
+      r.object = i;
+      r.material = o.material < s.materials.size() ? &s.materials[o.material] : &default_material();
+      r.mesh = pm;
+      r.animated = o.animation.has_value();
+      r.lod = lod;
+      r.lod_active = lod == 0;
+      r.committed = o.transform_at(0).matrix();
+      r.normal_committed = cofactor(r.committed);
+      const bool emitter = r.material->type == MaterialType::Emissive;
 
-    RTCGeometry g = nullptr;
-    if (instanced) {
-      RTCScene& ms = mesh_scene[pm.get()];
-      if (ms == nullptr) {
-        ms = rtcNewScene(im.device);
-        im.mesh_scenes.push_back(ms);
-        RTCGeometry tri = new_triangle_geometry(im.device, *pm);
-        rtcCommitGeometry(tri);
-        rtcAttachGeometry(ms, tri);
-        rtcReleaseGeometry(tri);
-        rtcCommitScene(ms);
-        im.check("mesh of object '" + o.name + "'");
+      RTCGeometry g = nullptr;
+      if (instanced) {
+        RTCScene& ms = mesh_scene[pm.get()];
+        if (ms == nullptr) {
+          ms = rtcNewScene(im.device);
+          im.mesh_scenes.push_back(ms);
+          RTCGeometry tri = new_triangle_geometry(im.device, *pm);
+          rtcCommitGeometry(tri);
+          rtcAttachGeometry(ms, tri);
+          rtcReleaseGeometry(tri);
+          rtcCommitScene(ms);
+          im.check("mesh of object '" + o.name + "'");
+        }
+        g = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, ms);
+        rtcSetGeometryTimeStepCount(g, 1);
+        r.enabled = invertible(r.committed);
+        const glm::mat4 m = r.enabled ? r.committed : glm::mat4(1.0f);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, &m[0][0]);
+        if (!r.enabled) rtcDisableGeometry(g);
+      } else {
+        g = new_triangle_geometry(im.device, *pm);
+        auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
+        if (vertices != nullptr) write_world_vertices(vertices, *pm, r.committed);
+        if (r.animated) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
       }
-      g = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
-      rtcSetGeometryInstancedScene(g, ms);
-      rtcSetGeometryTimeStepCount(g, 1);
-      r.enabled = invertible(r.committed);
-      const glm::mat4 m = r.enabled ? r.committed : glm::mat4(1.0f);
-      rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, &m[0][0]);
-      if (!r.enabled) rtcDisableGeometry(g);
-    } else {
-      g = new_triangle_geometry(im.device, *pm);
-      auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
-      if (vertices != nullptr) write_world_vertices(vertices, *pm, r.committed);
-      if (r.animated) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
+      if (emitter) rtcSetGeometryMask(g, kMaskEmitter);
+      if (!r.lod_active) rtcDisableGeometry(g);
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(im.top, g, static_cast<unsigned>(im.records.size()));
+      rtcReleaseGeometry(g);  // the scene holds it; r.geometry stays valid while `top` lives
+      r.geometry = g;
+      im.check("object '" + o.name + "'");
+      im.records.push_back(std::move(r));
     }
-    if (emitter) rtcSetGeometryMask(g, kMaskEmitter);
-    rtcCommitGeometry(g);
-    rtcAttachGeometryByID(im.top, g, static_cast<unsigned>(im.records.size()));
-    rtcReleaseGeometry(g);  // the scene holds it; r.geometry stays valid while `top` lives
-    r.geometry = g;
-    im.check("object '" + o.name + "'");
-    im.records.push_back(std::move(r));
   }
   rtcCommitScene(im.top);
   im.check("scene '" + s.name + "'");
@@ -629,6 +640,25 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
     return;
   }
 
+  // The levels of detail asked for: one geometry per object enabled.
+  bool lod_changed = false;
+  for (ObjectRecord& r : im.records) {
+    const Object& o = s.objects[r.object];
+    const std::uint32_t want = r.object < settings.lod_levels.size()
+                                   ? std::min<std::uint32_t>(settings.lod_levels[r.object], static_cast<std::uint32_t>(o.lods.size()))
+                                   : 0u;
+    const bool active = r.lod == want;
+    if (active == r.lod_active) continue;
+    r.lod_active = active;
+    lod_changed = true;
+    if (active && (options_.geometry != EmbreeGeometry::Instanced || r.enabled)) rtcEnableGeometry(r.geometry);
+    if (!active) rtcDisableGeometry(r.geometry);
+    rtcCommitGeometry(r.geometry);
+  }
+  if (lod_changed) {
+    rtcCommitScene(im.top);
+    im.check("switching levels of detail");
+  }
   // Move animated objects to now_s (see the geometry note above set_scene).
   set_time(time.now_s);
   const bool instanced = options_.geometry == EmbreeGeometry::Instanced;
@@ -769,8 +799,8 @@ void EmbreeBackend::set_time(double now_s) {
     if (instanced) {
       const bool ok = invertible(m);
       if (ok) rtcSetGeometryTransform(r.geometry, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, &m[0][0]);
-      if (ok && !r.enabled) rtcEnableGeometry(r.geometry);
-      if (!ok && r.enabled) rtcDisableGeometry(r.geometry);
+      if (ok && !r.enabled && r.lod_active) rtcEnableGeometry(r.geometry);
+      if (!ok && r.enabled && r.lod_active) rtcDisableGeometry(r.geometry);
       r.enabled = ok;
     } else {
       auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(r.geometry, RTC_BUFFER_TYPE_VERTEX, 0));

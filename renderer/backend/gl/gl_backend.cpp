@@ -130,23 +130,27 @@ void GlBackend::set_scene(const Scene& scene) {
       throw std::invalid_argument(object_label(scene, o) + ": material index " + std::to_string(o.material) +
                                   " out of range [0, " + std::to_string(scene.materials.size()) + ")");
     }
-    const Mesh& m = *o.mesh;
-    if (m.normals.size() != m.positions.size()) {
-      throw std::invalid_argument(object_label(scene, o) + ": mesh has " + std::to_string(m.normals.size()) +
-                                  " normals for " + std::to_string(m.positions.size()) +
-                                  " positions (must be one per position)");
-    }
-    if (m.indices.size() % 3 != 0) {
-      throw std::invalid_argument(object_label(scene, o) + ": mesh index count " + std::to_string(m.indices.size()) +
-                                  " is not a multiple of 3");
-    }
-    if (m.indices.size() > static_cast<std::size_t>(std::numeric_limits<GLsizei>::max())) {
-      throw std::invalid_argument(object_label(scene, o) + ": mesh has too many indices for OpenGL");
-    }
-    for (const std::uint32_t i : m.indices) {
-      if (i >= m.positions.size()) {
-        throw std::invalid_argument(object_label(scene, o) + ": mesh index " + std::to_string(i) +
-                                    " out of range [0, " + std::to_string(m.positions.size()) + ")");
+    for (std::size_t level = 0; level <= o.lods.size(); ++level) {
+      const Mesh* level_mesh = level == 0 ? o.mesh.get() : o.lods[level - 1].mesh.get();
+      if (level_mesh == nullptr) continue;
+      const Mesh& m = *level_mesh;
+      if (m.normals.size() != m.positions.size()) {
+        throw std::invalid_argument(object_label(scene, o) + ": mesh has " + std::to_string(m.normals.size()) +
+                                    " normals for " + std::to_string(m.positions.size()) +
+                                    " positions (must be one per position)");
+      }
+      if (m.indices.size() % 3 != 0) {
+        throw std::invalid_argument(object_label(scene, o) + ": mesh index count " + std::to_string(m.indices.size()) +
+                                    " is not a multiple of 3");
+      }
+      if (m.indices.size() > static_cast<std::size_t>(std::numeric_limits<GLsizei>::max())) {
+        throw std::invalid_argument(object_label(scene, o) + ": mesh has too many indices for OpenGL");
+      }
+      for (const std::uint32_t i : m.indices) {
+        if (i >= m.positions.size()) {
+          throw std::invalid_argument(object_label(scene, o) + ": mesh index " + std::to_string(i) +
+                                      " out of range [0, " + std::to_string(m.positions.size()) + ")");
+        }
       }
     }
   }
@@ -171,17 +175,9 @@ void GlBackend::set_scene(const Scene& scene) {
   release_meshes();
   std::unordered_map<const Mesh*, std::size_t> uploaded;  // shared meshes are uploaded once
   std::vector<float> interleaved;
-  for (const Object& o : scene.objects) {
-    const Mesh* mesh = o.mesh.get();
-    if (mesh == nullptr) {
-      draws_.push_back({kNoMesh});
-      continue;
-    }
+  const auto upload = [&](const Mesh* mesh) -> std::size_t {
     const auto found = uploaded.find(mesh);
-    if (found != uploaded.end()) {
-      draws_.push_back({found->second});
-      continue;
-    }
+    if (found != uploaded.end()) return found->second;
     GpuMesh gpu;
     gpu.index_count = static_cast<std::int32_t>(mesh->indices.size());
     interleaved.resize(mesh->positions.size() * 6);
@@ -209,8 +205,17 @@ void GlBackend::set_scene(const Scene& scene) {
     glBindVertexArray(0);
     glBindBuffer(GL_ARRAY_BUFFER, 0);
     uploaded.emplace(mesh, meshes_.size());
-    draws_.push_back({meshes_.size()});
     meshes_.push_back(gpu);
+    return meshes_.size() - 1;
+  };
+  for (const Object& o : scene.objects) {
+    if (o.mesh == nullptr) {
+      draws_.push_back({kNoMesh, {}});
+      continue;
+    }
+    DrawItem item{upload(o.mesh.get()), {}};
+    for (const LodLevel& l : o.lods) item.lods.push_back(l.mesh ? upload(l.mesh.get()) : item.mesh);
+    draws_.push_back(std::move(item));
   }
   glBindBuffer(GL_UNIFORM_BUFFER, light_ubo_);
   if (!packed.empty()) {
@@ -258,7 +263,7 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   check_gl("GlBackend::ensure_framebuffer");
 }
 
-void GlBackend::draw(const FrameTime& time, const LensSample& lens) {
+void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels) {
   if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
   const Scene& scene = *scene_;
   const Camera& cam = scene.camera;
@@ -320,7 +325,9 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens) {
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const Object& o = scene.objects[i];
     if (draws_[i].mesh == kNoMesh) continue;
-    const GpuMesh& gpu = meshes_[draws_[i].mesh];
+    // The level of detail asked for (BackendSettings::lod_levels), clamped to what the object has.
+    const std::size_t level = i < lod_levels.size() ? std::min<std::size_t>(lod_levels[i], draws_[i].lods.size()) : 0;
+    const GpuMesh& gpu = meshes_[level == 0 ? draws_[i].mesh : draws_[i].lods[level - 1]];
     if (gpu.index_count == 0) continue;
     const Material& m = scene.materials[o.material];
     const glm::mat4 model = o.transform_at(time.now_s).matrix();
@@ -364,7 +371,7 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
         "OpenGL backend: the hidden layer (depth peeling) is not implemented for the raster backend yet; use "
         "--backend embree");
   }
-  draw(time, settings.lens);
+  draw(time, settings.lens, settings.lod_levels);
   const std::uint32_t w = scene_->camera.width, h = scene_->camera.height;
   out.resize(w, h);
   if (w == 0 || h == 0) return;

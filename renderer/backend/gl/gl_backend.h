@@ -55,10 +55,11 @@ class GlBackend final : public Backend {
     std::int32_t index_count = 0;
   };
   struct DrawItem {
-    std::size_t mesh;  // index into meshes_
+    std::size_t mesh;               // index into meshes_ (kNoMesh: nothing to draw)
+    std::vector<std::size_t> lods;  // the object's LOD levels 1.. in meshes_
   };
 
-  void draw(const FrameTime& time, const LensSample& lens = {});
+  void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {});
   void ensure_framebuffer(std::uint32_t width, std::uint32_t height);
   void release_framebuffer();
   void release_meshes();
