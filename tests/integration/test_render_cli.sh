@@ -150,6 +150,10 @@ for pol in distance screen-size brown ulod gaze; do
   [ "$(cut -d, -f4 <<<"$line")" -le "$(cut -d, -f5 <<<"$line")" ] || fail "more triangles than full detail: $line"
 done
 grep -qE "run +attention .*lod-select" "$WORK/lod-ulod/plan.txt" || fail "ulod should plan attention: $(cat "$WORK/lod-ulod/plan.txt")"
+"${XVFB[@]}" "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --backend gl --headless --frames 2 --fps 10 \
+  --gaze "file:$REC" --set lod.policy=distance --set lod.distance_ref_m=0.5 --out "$WORK/lod-gl" >"$WORK/lod-gl.log" 2>&1 \
+  || fail "lod with the raster backend: $(tail -5 "$WORK/lod-gl.log")"
+grep -qE '"[0-9]+:[1-9]' "$WORK/lod-gl/lod.csv" || fail "the raster backend should draw a coarser level: $(cat "$WORK/lod-gl/lod.csv")"
 out=$("$RENDER" --scene "$SCENES/attention.json" --explain --gaze none --set lod.policy=fastest 2>&1) && fail "bad lod.policy accepted"
 grep -q "lod.policy" <<<"$out" || fail "the error should name lod.policy: $out"
 

@@ -9,6 +9,7 @@
 
 #include "backend/embree/embree_backend.h"
 #include "scene/geometry.h"
+#include "scene/mesh_simplify.h"
 #include "scene/shading.h"
 
 using namespace fovea::render;
@@ -572,5 +573,68 @@ TEST(EmbreeBackend, HiddenLayerShowsTheNextObjectBehindTheVisibleOne) {
     EXPECT_EQ(second.object_id[centre], 3u);
     EXPECT_NEAR(second.depth[centre], 10.0f, 1e-3f);
     EXPECT_EQ(second.object_id[corner], 0u);  // wall then back plane: nothing two objects deep
+  }
+}
+
+namespace {
+
+// A sphere with two coarser levels (simplified through the LOD chain code scenes use).
+fovea::render::Scene lod_scene(fovea::render::EmbreeGeometry) {
+  using namespace fovea::render;
+  Scene s;
+  s.camera.position = {0, 0, 3};
+  s.camera.target = {0, 0, 0};
+  s.camera.width = 64;
+  s.camera.height = 64;
+  Material m;
+  m.kd = glm::vec3(0.5f);
+  s.materials.push_back(m);
+  Object o;
+  o.name = "ball";
+  o.id = 7;
+  o.mesh = std::make_shared<Mesh>(make_sphere(1.0f, 32, 64));
+  for (double ratio : {0.1, 0.01}) {
+    SimplifiedMesh r = simplify_mesh(join_identical_vertices(*o.mesh), ratio, SeamHandling::Keep);
+    o.lods.push_back({std::make_shared<const Mesh>(std::move(r.mesh)), r.error_m});
+  }
+  s.objects.push_back(o);
+  Light l;
+  l.position = {0, 3, 3};
+  s.lights.push_back(l);
+  return s;
+}
+
+}  // namespace
+
+// BackendSettings::lod_levels switches the drawn mesh per object, per frame, in both geometry
+// modes; levels beyond the chain clamp to its coarsest; the object keeps its id.
+TEST(EmbreeBackend, LevelsOfDetailSwitchPerFrame) {
+  using namespace fovea::render;
+  for (EmbreeGeometry geometry : {EmbreeGeometry::Flattened, EmbreeGeometry::Instanced}) {
+    EmbreeOptions opt;
+    opt.geometry = geometry;
+    EmbreeBackend b(opt);
+    b.set_scene(lod_scene(geometry));
+    GBuffer full, coarse, clamped, back;
+    BackendSettings bs;
+    b.render({}, bs, full);
+    bs.lod_levels = {2};
+    b.render({}, bs, coarse);
+    bs.lod_levels = {200};
+    b.render({}, bs, clamped);
+    bs.lod_levels = {};
+    b.render({}, bs, back);
+    double depth_diff = 0;
+    std::size_t ids = 0;
+    for (std::size_t i = 0; i < full.size(); ++i) {
+      if (full.object_id[i] == 7 && coarse.object_id[i] == 7) {
+        depth_diff = std::max(depth_diff, static_cast<double>(std::abs(full.depth[i] - coarse.depth[i])));
+        ++ids;
+      }
+    }
+    EXPECT_GT(ids, 500u) << to_string(geometry);
+    EXPECT_GT(depth_diff, 1e-3) << to_string(geometry);  // a 40-triangle sphere is visibly faceted
+    EXPECT_EQ(clamped.depth, coarse.depth) << to_string(geometry);
+    EXPECT_EQ(back.depth, full.depth) << to_string(geometry);
   }
 }
