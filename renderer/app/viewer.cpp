@@ -22,7 +22,8 @@ const char* kHelp =
     "  1 dof, 2 lod, 3 gi, 4 attention, 5 shadows (toggle the setting), F focus overlay (the focused object),\n"
     "  P cycle attention maps (none, saliency, spatial, temporal, attention), C CoC map (dof), K cycle DOF method\n"
     "  (lee-mipmap, lee-splat, schedl-layered, accum, reference), I cycle the GI strategy (traditional,\n"
-    "  gaze-directed, importon), U GI estimate (nearest, precomputed), X print the frame plan, Esc quit\n";
+    "  gaze-directed, importon), U GI estimate (nearest, precomputed), L cycle the LOD policy (screen-size,\n"
+    "  distance, brown, ulod, gaze, none), X print the frame plan, Esc quit\n";
 
 void toggle(Settings& s, const std::string& key) {
   s.set(key, s.flag(key) ? "false" : "true");
@@ -111,6 +112,14 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
       while (i < 3 && !s.is("gi.strategy", strategies[i])) ++i;
       s.set("gi.strategy", strategies[(i + 1) % 3]);
       std::printf("gi.strategy=%s\n", s.text("gi.strategy").c_str());
+      break;
+    }
+    case GLFW_KEY_L: {
+      static const char* policies[] = {"screen-size", "distance", "brown", "ulod", "gaze", "none"};
+      std::size_t i = 0;
+      while (i < 6 && !s.is("lod.policy", policies[i])) ++i;
+      s.set("lod.policy", policies[(i + 1) % 6]);
+      std::printf("lod.policy=%s\n", s.text("lod.policy").c_str());
       break;
     }
     case GLFW_KEY_U:

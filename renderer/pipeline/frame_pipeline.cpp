@@ -98,6 +98,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     bs.shadows = settings_.flag("shadows");
     bs.lod_levels = lod_levels_;
     backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
+    if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
   }
   f.gbuffer = &gbuffer_;
   if (f.plan.runs(PassId::Attention)) {
@@ -244,6 +245,37 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_frame_.importons = r.importons;
   gi_frame_.emitted = r.emitted;
   gi_frame_.note = r.note;
+}
+
+void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& drawn) {
+  // Lee 2009 §7.3 with Giegl et al.'s unpopping LOD: each object is drawn at floor(L) and at the next
+  // level, and the two images are blended by frac(L) where the object covers the first, so a
+  // continuous L never pops between levels. One more G-buffer render when any object is between.
+  BackendSettings next = drawn;
+  next.lod_levels.assign(scene_.objects.size(), 0);
+  std::unordered_map<std::uint32_t, double> blend_of;
+  std::unordered_map<std::uint32_t, std::size_t> index_of;
+  for (std::size_t i = 0; i < scene_.objects.size(); ++i) index_of[scene_.objects[i].id] = i;
+  bool any = false;
+  for (const lod::Selection& sel : lod_frame_.selection) {
+    const auto it = index_of.find(sel.id);
+    if (it == index_of.end()) continue;
+    next.lod_levels[it->second] = static_cast<std::uint8_t>(std::clamp(sel.blend_to, 0, 255));
+    if (sel.blend > 0 && sel.blend_to != sel.drawn) {
+      blend_of[sel.id] = sel.blend;
+      any = true;
+    }
+  }
+  if (!any) return;
+  backend_->render(time, next, ulod_next_);
+  for (std::size_t p = 0; p < gbuffer_.size() && p < ulod_next_.size(); ++p) {
+    const auto it = blend_of.find(gbuffer_.object_id[p]);
+    if (it == blend_of.end()) continue;
+    // Where the coarser level does not cover the pixel, the finer one stays (no holes).
+    if (ulod_next_.object_id[p] != gbuffer_.object_id[p]) continue;
+    const float b = static_cast<float>(it->second);
+    gbuffer_.color[p] = (1.0f - b) * gbuffer_.color[p] + b * ulod_next_.color[p];
+  }
 }
 
 void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms) {

@@ -86,6 +86,8 @@ class FramePipeline {
   std::vector<std::uint8_t> lod_levels_;  // per scene object, for the backend
   // Chooses this frame's levels from the camera, the last frame's attention and G-buffer, and gaze.
   void run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms);
+  GBuffer ulod_next_;  // lod.policy=ulod: the next-coarser levels, blended into the colour
+  void blend_ulod(const FrameTime& time, const BackendSettings& drawn);
   std::vector<glm::vec3> hybrid_;
   Frame::Gi gi_frame_;
   // Places the gaze area, runs the gi pass over `local` into hybrid_, records its stage times.
