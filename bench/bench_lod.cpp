@@ -219,8 +219,14 @@ int main(int argc, char** argv) {
       reference_backend.set_scene(scene);
       GBuffer ref;
       reference_backend.render({}, BackendSettings{}, ref);
+      // One second of frames at 30 Hz: eq. 3.10's temporal context (lambda = 30 frames) and the Kalman
+      // filter need a history; a single update gives every object a low S_o.
       attention::AttentionTracker tracker;
-      const attention::AttentionFrame& att = tracker.update(ref, scene, 0, 0);
+      for (int k = 0; k < 30; ++k) tracker.update(ref, scene, k / 30.0, k > 0 ? (k - 1) / 30.0 : 0.0);
+      const attention::AttentionFrame& att = tracker.last();
+      if (!att.objects.empty())
+        std::printf("# %d objects: S_o of the most attended %.3f, of the 10th %.3f\n", count, att.objects.front().attention,
+                    att.objects[std::min<std::size_t>(9, att.objects.size() - 1)].attention);
       std::vector<std::uint32_t> attended;
       for (std::size_t k = 0; k < att.objects.size() && k < std::max<std::size_t>(1, att.objects.size() / 10); ++k)
         attended.push_back(att.objects[k].id);
@@ -243,10 +249,12 @@ int main(int argc, char** argv) {
           if (a.id == id) return a.attention;
         return 0.0;
       };
-      for (int m = 2; m <= 5; ++m) {  // ULODm: levels 0..m-1, L = (m - 1)(1 - S_o) (eq. 7.3), rounded
+      const double top_attention = att.objects.empty() || !(att.objects.front().attention > 0) ? 1.0 : att.objects.front().attention;
+      for (int m = 2; m <= 5; ++m) {  // ULODm: levels 0..m-1, L = (m - 1)(1 - S_o / max S_o) (eq. 7.3), rounded
         Condition c{"ULOD" + std::to_string(m), std::vector<std::uint8_t>(scene.objects.size(), 0)};
         for (std::size_t i = 1; i < scene.objects.size(); ++i)
-          c.levels[i] = static_cast<std::uint8_t>(std::lround((m - 1) * (1.0 - attention_of(scene.objects[i].id))));
+          c.levels[i] = static_cast<std::uint8_t>(
+              std::lround((m - 1) * (1.0 - std::min(1.0, attention_of(scene.objects[i].id) / top_attention))));
         conditions.push_back(c);
       }
       for (lod::Policy p : {lod::Policy::Distance, lod::Policy::ScreenSize, lod::Policy::Brown, lod::Policy::Gaze}) {

@@ -149,13 +149,22 @@ const std::vector<Selection>& LodSelector::select(const std::vector<ObjectView>&
   // Brown's stress s (eq. 4) from the controller's bias: (1 + a)(1 - 4^-bias), from 0 (no stress) to
   // 1 + a (even important objects at their coarsest).
   frame.stress = brown ? (1.0 + settings_.brown.a) * (1.0 - std::pow(4.0, -budget_.bias)) : 0.0;
+  // ULOD: S_o relative to the frame's most attended object (Lee §7.3: "an object with the highest
+  // attention value (i.e., S_o = 1) is rendered using its finest model"); the attention pass's S_o
+  // are not scaled so that the top one is 1.
+  double max_attention = 0;
+  for (const ObjectView& o : objects)
+    if (std::isfinite(o.attention)) max_attention = std::max(max_attention, o.attention);
   bool all_coarsest = true;
   std::vector<std::pair<std::uint32_t, int>> drawn;
   for (const ObjectView& o : objects) {
     Selection sel;
     sel.id = o.id;
     const double top = std::max(0, o.levels - 1);
-    double l = continuous_level(o, settings_, frame);
+    ObjectView relative = o;
+    if (settings_.policy == Policy::Ulod && max_attention > 0 && std::isfinite(o.attention))
+      relative.attention = o.attention / max_attention;
+    double l = continuous_level(relative, settings_, frame);
     if (!brown) l = std::min(top, l + budget_.bias);
     sel.level = l;
     if (settings_.policy == Policy::Ulod) {

@@ -12,7 +12,9 @@
 //                (eq. 5) from size, position, rotational and translational motion and luminance
 //                contrast; P_LOD = P + a I P - s P (eq. 4 with a and the stress s as shares of P,
 //                P_LOD <= P, eq. 3), the level the triangle count maps to: log_beta(P / P_LOD).
-//   ulod         Lee 2009, eq. 7.3: L = M (1 - S_o) with the attention pass's S_o.
+//   ulod         Lee 2009, eq. 7.3: L = M (1 - S_o) with the attention pass's S_o; LodSelector
+//                takes S_o relative to the frame's most attended object (Lee: "the highest
+//                attention value (i.e., S_o = 1)" gets the finest model).
 //   gaze         Murphy 2007's contrast sensitivity: the coarsest level whose geometric error,
 //                as a visual angle, stays below half a period of the finest grating the eye sees
 //                at the object's eccentricity (f_c of eq. 4.3).

@@ -94,13 +94,22 @@ TEST(LodPolicy, UlodFollowsEq73AndBlendsAdjacentLevels) {
   o.attention = 0;
   EXPECT_DOUBLE_EQ(continuous_level(o, s, {}), 4.0);
   o.attention = 0.6;  // L = 4 (1 - 0.6) = 1.6: level 1 blended with level 2 by 0.6
+  ObjectView top = chain_object(2);
+  top.attention = 1.0;  // the frame's most attended object (the selector takes S_o relative to it)
   LodSelector sel(s);
-  const auto& out = sel.select({o}, 0);
-  ASSERT_EQ(out.size(), 1u);
+  const auto& out = sel.select({o, top}, 0);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[1].drawn, 0);
   EXPECT_NEAR(out[0].level, 1.6, 1e-12);
   EXPECT_EQ(out[0].drawn, 1);
   EXPECT_EQ(out[0].blend_to, 2);
   EXPECT_NEAR(out[0].blend, 0.6, 1e-12);
+  // S_o relative to the frame's top: 0.2 and 0.1 read as 1 and 0.5.
+  o.attention = 0.1;
+  top.attention = 0.2;
+  const auto& rel = sel.select({o, top}, 0);
+  EXPECT_NEAR(rel[0].level, 2.0, 1e-12);
+  EXPECT_NEAR(rel[1].level, 0.0, 1e-12);
 }
 
 TEST(LodPolicy, GazeCoarsensWithEccentricity) {
