@@ -33,6 +33,16 @@ namespace {
 
 constexpr float kPi = std::numbers::pi_v<float>;
 
+// Two triangles per cell of a (rows + 1) x (cols + 1) vertex grid.
+void grid_indices(Mesh& m, int rows, int cols) {
+  const auto row = static_cast<std::uint32_t>(cols + 1);
+  for (std::uint32_t r = 0; r < static_cast<std::uint32_t>(rows); ++r)
+    for (std::uint32_t c = 0; c < static_cast<std::uint32_t>(cols); ++c) {
+      const std::uint32_t a = r * row + c, b = a + row;
+      m.indices.insert(m.indices.end(), {a, b, a + 1, a + 1, b, b + 1});
+    }
+}
+
 // A bumpy ellipsoid: rings x segments quads, radially displaced by a few sines.
 Mesh bunny_like(int rings, int segments) {
   Mesh m;
@@ -46,12 +56,7 @@ Mesh bunny_like(int rings, int segments) {
       m.normals.push_back(d);
     }
   }
-  const auto row = static_cast<std::uint32_t>(segments + 1);
-  for (std::uint32_t r = 0; r < static_cast<std::uint32_t>(rings); ++r)
-    for (std::uint32_t s = 0; s < static_cast<std::uint32_t>(segments); ++s) {
-      const std::uint32_t a = r * row + s, b = a + row;
-      m.indices.insert(m.indices.end(), {a, b, a + 1, a + 1, b, b + 1});
-    }
+  grid_indices(m, rings, segments);
   return m;
 }
 
@@ -75,12 +80,7 @@ Mesh dragon_like(int along, int around) {
       m.normals.push_back(d);
     }
   }
-  const auto row = static_cast<std::uint32_t>(around + 1);
-  for (std::uint32_t i = 0; i < static_cast<std::uint32_t>(along); ++i)
-    for (std::uint32_t j = 0; j < static_cast<std::uint32_t>(around); ++j) {
-      const std::uint32_t a = i * row + j, b = a + row;
-      m.indices.insert(m.indices.end(), {a, b, a + 1, a + 1, b, b + 1});
-    }
+  grid_indices(m, along, around);
   return m;
 }
 

@@ -200,13 +200,8 @@ struct ShadowContext {
   std::uint64_t rays = 0;
 };
 
-bool shadow_visible(void* context, const glm::vec3& from, const glm::vec3& to) {
-  auto* c = static_cast<ShadowContext*>(context);
-  ++c->rays;
-  const glm::vec3 origin = from + c->offset;
-  const glm::vec3 d = to - origin;
-  const float len = glm::length(d);
-  if (!(len > c->epsilon) || !std::isfinite(len)) return true;  // light on the surface: nothing between
+// True if a shadow caster lies on origin + t d for t in (0, t_far).
+bool segment_occluded(RTCScene scene, const glm::vec3& origin, const glm::vec3& d, float t_far) {
   RTCIntersectContext ic;
   rtcInitIntersectContext(&ic);
   RTCRay ray{};
@@ -217,10 +212,20 @@ bool shadow_visible(void* context, const glm::vec3& from, const glm::vec3& to) {
   ray.dir_y = d.y;
   ray.dir_z = d.z;
   ray.tnear = 0.0f;
-  ray.tfar = 1.0f - c->epsilon / len;  // stop just short of the light sample
+  ray.tfar = t_far;
   ray.mask = kMaskShadowCaster;
-  rtcOccluded1(c->scene, &ic, &ray);
-  return ray.tfar >= 0.0f;  // Embree sets tfar = -inf when occluded
+  rtcOccluded1(scene, &ic, &ray);
+  return !(ray.tfar >= 0.0f);  // Embree sets tfar = -inf when occluded
+}
+
+bool shadow_visible(void* context, const glm::vec3& from, const glm::vec3& to) {
+  auto* c = static_cast<ShadowContext*>(context);
+  ++c->rays;
+  const glm::vec3 origin = from + c->offset;
+  const glm::vec3 d = to - origin;
+  const float len = glm::length(d);
+  if (!(len > c->epsilon) || !std::isfinite(len)) return true;  // light on the surface: nothing between
+  return !segment_occluded(c->scene, origin, d, 1.0f - c->epsilon / len);  // stop just short of the light sample
 }
 
 template <class Ray>
@@ -877,20 +882,7 @@ bool EmbreeBackend::occluded(const glm::vec3& from, const glm::vec3& to) const {
   if (!im.has_scene) return false;
   const glm::vec3 d = to - from;
   if (!finite(from) || !finite(d)) return false;
-  RTCIntersectContext ic;
-  rtcInitIntersectContext(&ic);
-  RTCRay ray{};
-  ray.org_x = from.x;
-  ray.org_y = from.y;
-  ray.org_z = from.z;
-  ray.dir_x = d.x;
-  ray.dir_y = d.y;
-  ray.dir_z = d.z;
-  ray.tnear = 0.0f;
-  ray.tfar = 1.0f;
-  ray.mask = kMaskShadowCaster;
-  rtcOccluded1(im.top, &ic, &ray);
-  return !(ray.tfar >= 0.0f);  // Embree sets tfar = -inf when occluded
+  return segment_occluded(im.top, from, d, 1.0f);
 }
 
 std::unique_ptr<Backend> make_embree_backend() { return std::make_unique<EmbreeBackend>(); }
