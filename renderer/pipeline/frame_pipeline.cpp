@@ -86,6 +86,25 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     f.gaze = gaze_.at(frame_clock_s);
   }
   lod_levels_.clear();
+  // Lee 2009 §7.2: when attention chooses the levels (ULOD), the attention pass runs first, on a
+  // G-buffer of every object's coarsest level (its proxy: the attention values barely change, Fig.
+  // 7.1), so the levels follow this frame's attention (cost model eq. 7.2: T_n + T_a + t (a + r)).
+  bool attention_done = false;
+  if (f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && settings_.is("lod.policy", "ulod")) {
+    {
+      auto t = timer.scope("attention.proxy");
+      BackendSettings ps;
+      ps.shadows = settings_.flag("shadows");
+      ps.lod_levels.assign(scene_.objects.size(), 255);  // clamped to each object's coarsest level
+      backend_->render(FrameTime{now_s, previous_s}, ps, proxy_);
+    }
+    auto t = timer.scope("attention");
+    const attention::AttentionSettings wanted = attention_settings(settings_);
+    if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
+    attention_.update(proxy_, scene_, now_s, previous_s);
+    f.attention = &attention_.last();
+    attention_done = true;
+  }
   if (f.plan.runs(PassId::LodSelect)) {
     const double last_frame_ms = timer.last_ms("frame");
     auto t = timer.scope("lod-select");
@@ -101,7 +120,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
   }
   f.gbuffer = &gbuffer_;
-  if (f.plan.runs(PassId::Attention)) {
+  if (f.plan.runs(PassId::Attention) && !attention_done) {
     auto t = timer.scope("attention");
     const attention::AttentionSettings wanted = attention_settings(settings_);
     if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);

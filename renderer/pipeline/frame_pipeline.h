@@ -87,6 +87,7 @@ class FramePipeline {
   // Chooses this frame's levels from the camera, the last frame's attention and G-buffer, and gaze.
   void run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms);
   GBuffer ulod_next_;  // lod.policy=ulod: the next-coarser levels, blended into the colour
+  GBuffer proxy_;      // lod.policy=ulod: every object at its coarsest level, for the attention pass
   void blend_ulod(const FrameTime& time, const BackendSettings& drawn);
   std::vector<glm::vec3> hybrid_;
   Frame::Gi gi_frame_;

@@ -150,6 +150,9 @@ for pol in distance screen-size brown ulod gaze; do
   [ "$(cut -d, -f4 <<<"$line")" -le "$(cut -d, -f5 <<<"$line")" ] || fail "more triangles than full detail: $line"
 done
 grep -qE "run +attention .*lod-select" "$WORK/lod-ulod/plan.txt" || fail "ulod should plan attention: $(cat "$WORK/lod-ulod/plan.txt")"
+# Lee §7.2: with ULOD the attention pass runs on the coarsest-level proxy, before lod-select.
+[ "$(grep -c ",attention.proxy," "$WORK/lod-ulod/timings.csv")" -eq 2 ] || fail "ulod: no attention proxy in timings.csv"
+grep -q ",attention.proxy," "$WORK/lod-distance/timings.csv" && fail "the distance policy should not render an attention proxy"
 "${XVFB[@]}" "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --backend gl --headless --frames 2 --fps 10 \
   --gaze "file:$REC" --set lod.policy=distance --set lod.distance_ref_m=0.5 --out "$WORK/lod-gl" >"$WORK/lod-gl.log" 2>&1 \
   || fail "lod with the raster backend: $(tail -5 "$WORK/lod-gl.log")"
