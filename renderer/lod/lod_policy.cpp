@@ -116,7 +116,8 @@ void LodSelector::set_budget_ms(double ms) {
   budget_.target_ms = std::isfinite(ms) && ms > 0 ? ms : 0.0;
 }
 
-const std::vector<Selection>& LodSelector::select(const std::vector<ObjectView>& objects, double last_frame_ms) {
+const std::vector<Selection>& LodSelector::select(const std::vector<ObjectView>& objects, double last_frame_ms,
+                                                 double top_attention) {
   out_.clear();
   // The frame-time controller: 0.25 level per frame towards the budget.
   int max_levels = 1;
@@ -152,9 +153,10 @@ const std::vector<Selection>& LodSelector::select(const std::vector<ObjectView>&
   // ULOD: S_o relative to the frame's most attended object (Lee §7.3: "an object with the highest
   // attention value (i.e., S_o = 1) is rendered using its finest model"); the attention pass's S_o
   // are not scaled so that the top one is 1.
-  double max_attention = 0;
-  for (const ObjectView& o : objects)
-    if (std::isfinite(o.attention)) max_attention = std::max(max_attention, o.attention);
+  double max_attention = std::isfinite(top_attention) && top_attention > 0 ? top_attention : 0.0;
+  if (max_attention <= 0)
+    for (const ObjectView& o : objects)
+      if (std::isfinite(o.attention)) max_attention = std::max(max_attention, o.attention);
   bool all_coarsest = true;
   std::vector<std::pair<std::uint32_t, int>> drawn;
   for (const ObjectView& o : objects) {

@@ -23,6 +23,7 @@
 // chain (levels = 1) is always level 0; non-finite distances, sizes or eccentricities read as the
 // farthest / smallest / most peripheral (coarsest) case; a budget no level can meet is reported.
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -115,7 +116,10 @@ class LodSelector {
   // measured frame time is over the budget and lowers it while it is under 85 % of it.
   void set_budget_ms(double ms);
   // Selects this frame's levels. last_frame_ms: the measured time of the previous frame (budget).
-  const std::vector<Selection>& select(const std::vector<ObjectView>& objects, double last_frame_ms);
+  // top_attention: the S_o of the frame's most attended object, chain or not (ULOD takes S_o relative
+  // to it); NaN or <= 0: the largest among `objects`.
+  const std::vector<Selection>& select(const std::vector<ObjectView>& objects, double last_frame_ms,
+                                       double top_attention = std::numeric_limits<double>::quiet_NaN());
   const BudgetState& budget() const { return budget_; }
 
  private:

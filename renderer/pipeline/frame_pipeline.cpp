@@ -387,7 +387,10 @@ void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double p
     views.push_back(v);
     object_of.push_back(i);
   }
-  const std::vector<lod::Selection>& sel = lod_selector_.select(views, last_frame_ms);
+  // ULOD: S_o relative to the frame's most attended object, whether it has a chain or not.
+  const attention::AttentionFrame& att = attention_.last();
+  const double top_attention = att.objects.empty() ? std::numeric_limits<double>::quiet_NaN() : att.objects.front().attention;
+  const std::vector<lod::Selection>& sel = lod_selector_.select(views, last_frame_ms, top_attention);
   lod_levels_.assign(scene_.objects.size(), 0);
   for (std::size_t k = 0; k < sel.size(); ++k) {
     const std::size_t i = object_of[k];

@@ -110,6 +110,10 @@ TEST(LodPolicy, UlodFollowsEq73AndBlendsAdjacentLevels) {
   const auto& rel = sel.select({o, top}, 0);
   EXPECT_NEAR(rel[0].level, 2.0, 1e-12);
   EXPECT_NEAR(rel[1].level, 0.0, 1e-12);
+  // The frame's top S_o may belong to an object without a chain: then both are coarser.
+  const auto& outside = sel.select({o, top}, 0, 0.4);
+  EXPECT_NEAR(outside[0].level, 4.0 * (1.0 - 0.25), 1e-12);
+  EXPECT_NEAR(outside[1].level, 4.0 * (1.0 - 0.5), 1e-12);
 }
 
 TEST(LodPolicy, GazeCoarsensWithEccentricity) {
