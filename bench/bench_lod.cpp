@@ -1,11 +1,14 @@
 // Level of detail (Lee 2009 Fig. 7.4/7.5): frame time against the number of visible objects for
 // NOLOD, ULOD2..ULOD5 and each selection policy, with the triangles drawn and the image error against
-// full detail inside the attended (or gazed) region and in the periphery.
+// full detail inside the gazed region and in the periphery.
 //
-// Scene: N of 256 objects (a bunny-like bumpy ellipsoid of 69,432 triangles, or a dragon-like bumpy
+// Scene: N of 256 objects (a bunny-like bumpy ellipsoid of 69,384 triangles, or a dragon-like bumpy
 // torus knot of 435,200, generated here: Lee's counts) with random colour, size and pose on a floor in
-// front of the camera; chains of 5 levels, base 4 (eq. 7.4). Attention S_o from the attention pass
-// (Lee ch. 3) on the full-detail frame; the gaze at the most attended object for the gaze policy.
+// front of the camera; chains of 5 levels, base 4 (eq. 7.4). ULODm is timed as fovea's lod-select
+// pass runs it: the proxy G-buffer (every object at level m-1, Lee §7.2), the attention pass on it,
+// eq. 7.3, the G-buffer at the chosen levels and the unpopping blend pass; each part is reported
+// next to eq. 7.2's prediction from T_n (a frame without objects) and t (NOLOD's cost per object).
+// The viewer is taken to look at the object the full-detail attention pass ranks first.
 // The raster backend (OpenGL; run under deploy/with-xvfb.sh) is the renderer Lee's costs are about;
 // Embree's ray casting is timed alongside (its cost grows with the log of the triangles).
 #include <CLI/CLI.hpp>
@@ -24,6 +27,7 @@
 #include "backend/backend.h"
 #include "backend/embree/embree_backend.h"
 #include "lod/lod_chain.h"
+#include "lod/lod_frame.h"
 #include "lod/lod_policy.h"
 
 using namespace fovea::render;
@@ -147,15 +151,16 @@ Scene make_scene(const lod::Chain& chain, int count, std::uint32_t seed, std::ui
   return s;
 }
 
-double psnr(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b, const std::vector<std::uint8_t>& mask,
+// PSNR of the tone-mapped (x / (1 + x)) colours over the pixels whose region is `which`.
+double psnr(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b, const std::vector<std::uint8_t>& region,
             std::uint8_t which) {
   double se = 0;
   std::size_t n = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
-    if (mask[i] != which) continue;
+    if (region[i] != which) continue;
     for (int c = 0; c < 3; ++c) {
-      const auto to8 = [](float v) { return std::min(1.0, static_cast<double>(v) / (1.0 + static_cast<double>(v))); };
-      const double d = to8(a[i][c]) - to8(b[i][c]);
+      const auto tone = [](float v) { return std::min(1.0, static_cast<double>(v) / (1.0 + static_cast<double>(v))); };
+      const double d = tone(a[i][c]) - tone(b[i][c]);
       se += d * d;
       ++n;
     }
@@ -165,19 +170,41 @@ double psnr(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b, co
   return mse > 0 ? 10 * std::log10(1.0 / mse) : 99.0;
 }
 
+template <typename F>
+double median_ms(int frames, F&& body) {
+  std::vector<double> ms;
+  for (int f = 0; f < frames; ++f) {
+    const auto s0 = Clock::now();
+    body();
+    ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - s0).count());
+  }
+  std::sort(ms.begin(), ms.end());
+  return ms[ms.size() / 2];
+}
+
+double attention_of(const attention::AttentionFrame& att, std::uint32_t id) {
+  for (const auto& a : att.objects)
+    if (a.id == id) return a.attention;
+  return 0.0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"LOD: frame time against visible objects for NOLOD, ULOD2..5 and each policy (Lee 2009 Fig. 7.4/7.5)"};
   std::string models_text = "bunny,dragon", counts_text = "16,64,128,256", backends_text = "gl,embree", csv_path;
   std::string size_text = "1024x768";
-  int frames = 5;
+  int frames = 5, map_size = 64;
+  double region_deg = 5;
   bool quick = false;
   app.add_option("--models", models_text, "bunny, dragon");
   app.add_option("--counts", counts_text, "numbers of visible objects");
   app.add_option("--backends", backends_text, "gl (needs a display: deploy/with-xvfb.sh), embree");
   app.add_option("--size", size_text, "WxH");
   app.add_option("--frames", frames, "timed frames per condition (median)")->check(CLI::Range(1, 100));
+  app.add_option("--map-size", map_size, "the attention pass's saliency map (Lee 7.4 used 64x64)")->check(CLI::Range(64, 512));
+  app.add_option("--region-deg", region_deg, "the gazed region: object pixels within this visual angle of the gaze point")
+      ->check(CLI::Range(0.5, 60.0));
   app.add_option("--csv", csv_path, "write the table as CSV");
   app.add_flag("--quick", quick, "meshes 16x smaller (a smoke run)");
   CLI11_PARSE(app, argc, argv);
@@ -196,10 +223,25 @@ int main(int argc, char** argv) {
   std::ofstream csv;
   if (!csv_path.empty()) {
     csv.open(csv_path);
-    csv << "model,backend,objects,condition,ms_per_frame,triangles,psnr_attended_db,psnr_periphery_db\n";
+    csv << "model,backend,objects,condition,ms_per_frame,ms_render,ms_proxy,ms_attention,ms_blend,ms_model,triangles,"
+           "psnr_attended_db,psnr_gazed_db,psnr_periphery_db,proxy_mean_abs_dso,proxy_top10_same\n";
   }
-  std::printf("%-7s %-7s %5s %-12s %10s %12s %10s %10s\n", "model", "backend", "objs", "condition", "ms/frame", "triangles",
-              "psnr_att", "psnr_per");
+  std::printf("%-7s %-7s %5s %-10s %9s %9s %8s %8s %8s %9s %11s %7s %7s %7s %6s\n", "model", "backend", "objs", "condition",
+              "ms/frame", "render", "proxy", "attn", "blend", "eq7.2", "triangles", "dB_att", "dB_gaze", "dB_per", "|dSo|");
+  attention::AttentionSettings as;
+  as.map_size = map_size;
+  // One second of frames at 30 Hz: eq. 3.10's temporal context (lambda = 30 frames) and the Kalman
+  // filter need a history. T_a: the median of the last five updates.
+  const auto track = [&](const GBuffer& g, const Scene& scene, attention::AttentionTracker& tracker) {
+    std::vector<double> ms;
+    for (int k = 0; k < 30; ++k) {
+      const auto s0 = Clock::now();
+      tracker.update(g, scene, k / 30.0, k > 0 ? (k - 1) / 30.0 : 0.0);
+      if (k >= 25) ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - s0).count());
+    }
+    std::sort(ms.begin(), ms.end());
+    return ms[ms.size() / 2];
+  };
   for (const std::string& model : split(models_text)) {
     const int q = quick ? 4 : 1;
     const Mesh mesh = model == "dragon" ? dragon_like(1700 / q, 128 / q) : bunny_like(147 / q, 236 / q);
@@ -209,123 +251,190 @@ int main(int argc, char** argv) {
     std::printf("# %s: %zu triangles, chain", model.c_str(), mesh.triangle_count());
     for (const auto& l : chain.levels) std::printf(" %zu", l.mesh.triangle_count());
     std::printf(" (built in %.1f s)\n", std::chrono::duration<double>(Clock::now() - t0).count());
+    const auto triangles_at = [&](int level) {
+      return chain.levels[static_cast<std::size_t>(std::clamp(level, 0, static_cast<int>(chain.levels.size()) - 1))].mesh.triangle_count();
+    };
     for (const std::string& count_text : split(counts_text)) {
       const int count = std::stoi(count_text);
       const Scene scene = make_scene(chain, count, 7, w, h);
-      // Attention on the full-detail frame (Embree), and the attended region: its top 10 % objects.
+      const Scene floor_only = make_scene(chain, 0, 7, w, h);
+      // Attention on the full-detail frame (Embree): where the viewer is taken to look (the most
+      // attended object) and what the proxies' attention is compared against (Lee Fig. 7.1).
       EmbreeOptions eo;
       eo.geometry = EmbreeGeometry::Instanced;  // 256 x 435k triangles only fit shared
-      EmbreeBackend reference_backend(eo);
-      reference_backend.set_scene(scene);
-      GBuffer ref;
-      reference_backend.render({}, BackendSettings{}, ref);
-      // One second of frames at 30 Hz: eq. 3.10's temporal context (lambda = 30 frames) and the Kalman
-      // filter need a history; a single update gives every object a low S_o.
-      attention::AttentionTracker tracker;
-      for (int k = 0; k < 30; ++k) tracker.update(ref, scene, k / 30.0, k > 0 ? (k - 1) / 30.0 : 0.0);
-      const attention::AttentionFrame& att = tracker.last();
-      if (!att.objects.empty())
-        std::printf("# %d objects: S_o of the most attended %.3f, of the 10th %.3f\n", count, att.objects.front().attention,
-                    att.objects[std::min<std::size_t>(9, att.objects.size() - 1)].attention);
-      std::vector<std::uint32_t> attended;
-      for (std::size_t k = 0; k < att.objects.size() && k < std::max<std::size_t>(1, att.objects.size() / 10); ++k)
-        attended.push_back(att.objects[k].id);
-      std::vector<std::uint8_t> mask(ref.size(), 1);  // 0 attended, 1 periphery, 2 background
-      for (std::size_t i = 0; i < ref.size(); ++i) {
-        if (ref.object_id[i] <= 1) mask[i] = 2;
-        else if (std::find(attended.begin(), attended.end(), ref.object_id[i]) != attended.end()) mask[i] = 0;
+      attention::AttentionFrame full_attention;
+      {
+        EmbreeBackend reference_backend(eo);
+        reference_backend.set_scene(scene);
+        GBuffer ref;
+        reference_backend.render({}, BackendSettings{}, ref);
+        attention::AttentionTracker tracker(as);
+        track(ref, scene, tracker);
+        full_attention = tracker.last();
       }
+      const auto& fa = full_attention.objects;
+      if (!fa.empty())
+        std::printf("# %d objects: S_o of the most attended %.3f, of the 10th %.3f\n", count, fa.front().attention,
+                    fa[std::min<std::size_t>(9, fa.size() - 1)].attention);
       glm::dvec2 gaze(0.5);
-      if (!att.objects.empty()) gaze = {att.objects.front().screen_x, att.objects.front().screen_y};
-      // Conditions: level per object index.
-      struct Condition {
-        std::string name;
-        std::vector<std::uint8_t> levels;
+      if (!fa.empty()) gaze = {fa.front().screen_x, fa.front().screen_y};
+      const fovea::protocol::Degrees gaze_deg = fovea::protocol::normalized_to_degrees(scene.display, {gaze.x, gaze.y});
+      lod::BoundsCache bounds;
+      std::vector<std::size_t> object_index;
+      const auto views_for = [&](const attention::AttentionFrame& att) {
+        lod::ViewInputs in;
+        in.gaze_x = gaze.x;
+        in.gaze_y = gaze.y;
+        in.attention = [&att](std::uint32_t id) { return attention_of(att, id); };
+        return lod::object_views(scene, in, bounds, object_index);
       };
-      std::vector<Condition> conditions;
-      conditions.push_back({"NOLOD", std::vector<std::uint8_t>(scene.objects.size(), 0)});
-      const auto attention_of = [&](std::uint32_t id) {
-        for (const auto& a : att.objects)
-          if (a.id == id) return a.attention;
-        return 0.0;
-      };
-      const double top_attention = att.objects.empty() || !(att.objects.front().attention > 0) ? 1.0 : att.objects.front().attention;
-      for (int m = 2; m <= 5; ++m) {  // ULODm: levels 0..m-1, L = (m - 1)(1 - S_o / max S_o) (eq. 7.3), rounded
-        Condition c{"ULOD" + std::to_string(m), std::vector<std::uint8_t>(scene.objects.size(), 0)};
-        for (std::size_t i = 1; i < scene.objects.size(); ++i)
-          c.levels[i] = static_cast<std::uint8_t>(
-              std::lround((m - 1) * (1.0 - std::min(1.0, attention_of(scene.objects[i].id) / top_attention))));
-        conditions.push_back(c);
-      }
-      for (lod::Policy p : {lod::Policy::Distance, lod::Policy::ScreenSize, lod::Policy::Brown, lod::Policy::Gaze}) {
-        lod::PolicySettings ps;
-        ps.policy = p;
-        lod::LodSelector sel(ps);
-        std::vector<lod::ObjectView> views;
-        const glm::mat4 vp = scene.camera.projection() * scene.camera.view_at(0);
-        const double px_per_rad = h / (2.0 * std::tan(glm::radians(static_cast<double>(scene.camera.vertical_fov_deg)) / 2));
-        const fovea::protocol::Degrees gaze_deg = fovea::protocol::normalized_to_degrees(scene.display, {gaze.x, gaze.y});
-        for (std::size_t i = 1; i < scene.objects.size(); ++i) {
-          const Object& o = scene.objects[i];
-          lod::ObjectView v;
-          v.id = o.id;
-          v.levels = 5;
-          for (const auto& l : chain.levels) {
-            v.level_error_m.push_back(l.error_m * o.transform.scale.x);
-            v.level_triangles.push_back(l.mesh.triangle_count());
-          }
-          const glm::vec3 c = o.transform.translation;
-          v.distance_m = static_cast<double>(glm::length(c - scene.camera.position));
-          v.radius_m = 0.5 * static_cast<double>(o.transform.scale.x);
-          v.px_per_radian = px_per_rad;
-          v.projected_radius_px = v.radius_m / v.distance_m * px_per_rad;
-          v.screen_area_px = static_cast<double>(w) * h;
-          const glm::vec4 clip = vp * glm::vec4(c, 1);
-          v.screen_x = 0.5 * (static_cast<double>(clip.x / clip.w) + 1);
-          v.screen_y = 0.5 * (1 - static_cast<double>(clip.y / clip.w));
-          v.eccentricity_deg = fovea::protocol::angle_between_deg(gaze_deg, fovea::protocol::normalized_to_degrees(scene.display, {v.screen_x, v.screen_y}));
-          v.attention = attention_of(o.id);
-          v.luminance_contrast = 0.1;
-          views.push_back(v);
-        }
-        const auto& chosen = sel.select(views, 0);
-        Condition c{lod::to_string(p), std::vector<std::uint8_t>(scene.objects.size(), 0)};
-        for (std::size_t k = 0; k < chosen.size(); ++k) c.levels[k + 1] = static_cast<std::uint8_t>(chosen[k].drawn);
-        conditions.push_back(c);
-      }
       for (const std::string& backend_name : split(backends_text)) {
         std::unique_ptr<Backend> backend;
         try {
           if (backend_name == "gl") backend = make_backend(BackendKind::OpenGL);
           else backend = std::make_unique<EmbreeBackend>(eo);
-          backend->set_scene(scene);
+          backend->set_scene(floor_only);
         } catch (const std::exception& e) {
           std::printf("# %s backend unavailable: %s\n", backend_name.c_str(), e.what());
           continue;
         }
+        GBuffer g, next, proxy;
+        // T_n of eqs. 7.1-7.2: the frame without any object (clear, set-up, the G-buffer's read-back).
+        backend->render({}, BackendSettings{}, g);
+        const double t_n = median_ms(frames, [&] { backend->render({}, BackendSettings{}, g); });
+        backend->set_scene(scene);
+        struct Row {
+          std::string condition;
+          double total = 0, render = 0, proxy = 0, attention = 0, blend = 0, model = std::nan("");
+          std::uint64_t triangles = 0;
+          double dso = std::nan("");
+          int top_same = -1;
+        };
         GBuffer full_image;
-        for (const Condition& c : conditions) {
-          BackendSettings bs;
-          bs.lod_levels = c.levels;
-          GBuffer g;
-          backend->render({}, bs, g);  // warm-up (level switch)
-          std::vector<double> ms;
-          for (int f = 0; f < frames; ++f) {
-            const auto s0 = Clock::now();
-            backend->render({}, bs, g);
-            ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - s0).count());
-          }
-          std::sort(ms.begin(), ms.end());
-          if (c.name == "NOLOD") full_image = g;
-          std::uint64_t tris = 0;
-          for (std::size_t i = 1; i < scene.objects.size(); ++i) tris += chain.levels[std::min<std::size_t>(c.levels[i], 4)].mesh.triangle_count();
-          const double pa = psnr(g.color, full_image.color, mask, 0), pp = psnr(g.color, full_image.color, mask, 1);
-          std::printf("%-7s %-7s %5d %-12s %10.1f %12llu %10.1f %10.1f\n", model.c_str(), backend_name.c_str(), count,
-                      c.name.c_str(), ms[ms.size() / 2], static_cast<unsigned long long>(tris), pa, pp);
+        std::vector<std::uint8_t> region;    // 0 gazed, 1 periphery, 2 floor and background
+        std::vector<std::uint8_t> attended;  // 0: an object the full-detail pass attends (S_o >= half the top's)
+        double per_object_ms = 0;          // t of eq. 7.1 per object at full detail
+        const auto emit = [&](const Row& r, const GBuffer& image) {
+          const double pa = psnr(image.color, full_image.color, attended, 0);
+          const double pg = psnr(image.color, full_image.color, region, 0), pp = psnr(image.color, full_image.color, region, 1);
+          std::printf("%-7s %-7s %5d %-10s %9.1f %9.1f %8.1f %8.1f %8.1f %9.1f %11llu %7.1f %7.1f %7.1f %6.3f\n", model.c_str(),
+                      backend_name.c_str(), count, r.condition.c_str(), r.total, r.render, r.proxy, r.attention, r.blend, r.model,
+                      static_cast<unsigned long long>(r.triangles), pa, pg, pp, r.dso);
           std::fflush(stdout);
           if (csv)
-            csv << model << "," << backend_name << "," << count << "," << c.name << "," << ms[ms.size() / 2] << "," << tris
-                << "," << pa << "," << pp << "\n";
+            csv << model << "," << backend_name << "," << count << "," << r.condition << "," << r.total << "," << r.render << ","
+                << r.proxy << "," << r.attention << "," << r.blend << "," << r.model << "," << r.triangles << "," << pa << "," << pg << ","
+                << pp << "," << r.dso << "," << r.top_same << "\n";
+        };
+        const auto render_levels = [&](const std::vector<std::uint8_t>& levels, GBuffer& out) {
+          BackendSettings bs;
+          bs.lod_levels = levels;
+          backend->render({}, bs, out);  // warm-up (level switch)
+          return median_ms(frames, [&] { backend->render({}, bs, out); });
+        };
+        {
+          Row r{"NOLOD"};
+          r.render = r.total = render_levels(std::vector<std::uint8_t>(scene.objects.size(), 0), full_image);
+          r.triangles = static_cast<std::uint64_t>(count) * triangles_at(0);
+          per_object_ms = count > 0 ? std::max(0.0, r.total - t_n) / count : 0;
+          r.model = t_n + per_object_ms * count;
+          region.assign(full_image.size(), 2);
+          for (std::uint32_t y = 0; y < full_image.height; ++y)
+            for (std::uint32_t x = 0; x < full_image.width; ++x) {
+              const std::size_t i = full_image.index(x, y);
+              if (full_image.object_id[i] <= 1) continue;
+              const fovea::protocol::Degrees at = fovea::protocol::normalized_to_degrees(
+                  scene.display, {(x + 0.5) / full_image.width, (y + 0.5) / full_image.height});
+              region[i] = fovea::protocol::angle_between_deg(gaze_deg, at) <= region_deg ? 0 : 1;
+            }
+          attended.assign(full_image.size(), 1);
+          const double top = fa.empty() ? 0.0 : fa.front().attention;
+          for (std::size_t i = 0; i < full_image.size(); ++i)
+            if (full_image.object_id[i] > 1 && top > 0 && attention_of(full_attention, full_image.object_id[i]) >= 0.5 * top)
+              attended[i] = 0;
+          Row floor{"floor-only"};
+          floor.total = floor.render = floor.model = t_n;
+          emit(floor, full_image);
+          emit(r, full_image);
+        }
+        // ULODm (Lee §7.4): levels 0..m-1; the attention pass runs on every object's level m-1 (its
+        // proxy, §7.2), eq. 7.3 on S_o relative to the most attended object, and the two adjacent
+        // levels are blended in image space (a second G-buffer when any object is between levels).
+        for (int m = 2; m <= 5; ++m) {
+          Row r{"ULOD" + std::to_string(m)};
+          const std::vector<std::uint8_t> proxy_levels(scene.objects.size(), static_cast<std::uint8_t>(m - 1));
+          r.proxy = render_levels(proxy_levels, proxy);
+          attention::AttentionTracker tracker(as);
+          r.attention = track(proxy, scene, tracker);
+          const attention::AttentionFrame& att = tracker.last();
+          // Lee Fig. 7.1: the proxy's attention against the full-detail frame's.
+          double sum = 0;
+          int n = 0;
+          for (const auto& a : fa)
+            if (a.attention > 0 || attention_of(att, a.id) > 0) {
+              sum += std::abs(a.attention - attention_of(att, a.id));
+              ++n;
+            }
+          r.dso = n > 0 ? sum / n : 0;
+          r.top_same = 1;
+          for (std::size_t k = 0; k < std::min<std::size_t>(10, std::min(fa.size(), att.objects.size())); ++k)
+            if (fa[k].id != att.objects[k].id) r.top_same = 0;
+          const auto s0 = Clock::now();
+          std::vector<lod::ObjectView> views = views_for(att);
+          for (lod::ObjectView& v : views) {  // the chain cut to m levels
+            v.levels = std::min(v.levels, m);
+            v.level_error_m.resize(static_cast<std::size_t>(v.levels));
+            v.level_triangles.resize(static_cast<std::size_t>(v.levels));
+          }
+          lod::PolicySettings ps;
+          ps.policy = lod::Policy::Ulod;
+          lod::LodSelector selector(ps);
+          const double top = att.objects.empty() ? std::nan("") : att.objects.front().attention;
+          const std::vector<lod::Selection> chosen = selector.select(views, 0, top);
+          std::vector<std::uint8_t> levels(scene.objects.size(), 0), next_levels;
+          for (std::size_t k = 0; k < chosen.size(); ++k) levels[object_index[k]] = static_cast<std::uint8_t>(chosen[k].drawn);
+          const bool blends = lod::ulod_next_levels(scene, chosen, next_levels);
+          const double select_ms = std::chrono::duration<double, std::milli>(Clock::now() - s0).count();
+          r.render = render_levels(levels, g) + select_ms;
+          double share = 0;  // sum over objects of (a + r + b): eq. 7.2's t . (a + r), plus the blend pass
+          for (std::size_t k = 0; k < chosen.size(); ++k) {
+            const double full = static_cast<double>(triangles_at(0));
+            r.triangles += triangles_at(m - 1) + triangles_at(chosen[k].drawn);
+            share += static_cast<double>(triangles_at(m - 1) + triangles_at(chosen[k].drawn)) / full;
+            if (blends) {
+              r.triangles += triangles_at(chosen[k].blend_to);
+              share += static_cast<double>(triangles_at(chosen[k].blend_to)) / full;
+            }
+          }
+          if (blends) {
+            r.blend = render_levels(next_levels, next);
+            const auto b0 = Clock::now();
+            lod::ulod_blend(g, next, chosen);
+            r.blend += std::chrono::duration<double, std::milli>(Clock::now() - b0).count();
+          }
+          r.total = r.proxy + r.attention + r.render + r.blend;
+          r.model = t_n * (blends ? 3 : 2) + r.attention + per_object_ms * share;
+          emit(r, g);
+        }
+        for (lod::Policy p : {lod::Policy::Distance, lod::Policy::ScreenSize, lod::Policy::Brown, lod::Policy::Gaze}) {
+          Row r{lod::to_string(p)};
+          const auto s0 = Clock::now();
+          const std::vector<lod::ObjectView> views = views_for(full_attention);
+          lod::PolicySettings ps;
+          ps.policy = p;
+          lod::LodSelector selector(ps);
+          const auto& chosen = selector.select(views, 0);
+          const double select_ms = std::chrono::duration<double, std::milli>(Clock::now() - s0).count();
+          std::vector<std::uint8_t> levels(scene.objects.size(), 0);
+          double share = 0;
+          for (std::size_t k = 0; k < chosen.size(); ++k) {
+            levels[object_index[k]] = static_cast<std::uint8_t>(chosen[k].drawn);
+            r.triangles += triangles_at(chosen[k].drawn);
+            share += static_cast<double>(triangles_at(chosen[k].drawn)) / static_cast<double>(triangles_at(0));
+          }
+          r.render = r.total = render_levels(levels, g) + select_ms;
+          r.model = t_n + per_object_ms * share;
+          emit(r, g);
         }
       }
     }

@@ -8,6 +8,7 @@
 #include "dof/reference.h"
 #include "dof/schedl_layered.h"
 #include "passes/tonemap.h"
+#include "pipeline/finite_check.h"
 
 namespace fovea::render {
 
@@ -75,12 +76,33 @@ FramePlan FramePipeline::plan() const {
   return plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->name() == "embree"});
 }
 
+namespace {
+
+// The module-boundary check (finite_check.h) on a G-buffer a pass wrote.
+void require_finite_gbuffer(const char* pass, const GBuffer& g) {
+  require_finite(pass, "color", g.color, g.width);
+  require_finite(pass, "depth", g.depth, g.width);
+  require_finite(pass, "normal", g.normal, g.width);
+  require_finite(pass, "motion", g.motion, g.width);
+}
+
+void require_finite_attention(const attention::AttentionFrame& a) {
+  require_finite("attention", "saliency map", a.saliency, static_cast<std::uint32_t>(a.map_width));
+  std::vector<double> values;
+  for (const attention::ObjectAttention& o : a.objects)
+    values.insert(values.end(), {o.attention, o.attention_raw, o.screen_x, o.screen_y, o.depth_m, o.distance_m});
+  require_finite("attention", "object attention (S_o, screen position, depth)", values);
+}
+
+}  // namespace
+
 FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now_s, double previous_s,
                                            double frame_clock_s, PassTimer& timer) {
   timer.begin_frame(frame_index, now_s);
   auto whole = timer.scope("frame");
   Frame f;
   f.plan = plan();
+  const bool check = settings_.flag("debug.finite_checks");
   {
     auto t = timer.scope("gaze");
     f.gaze = gaze_.at(frame_clock_s);
@@ -97,12 +119,14 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
       ps.shadows = settings_.flag("shadows");
       ps.lod_levels.assign(scene_.objects.size(), 255);  // clamped to each object's coarsest level
       backend_->render(FrameTime{now_s, previous_s}, ps, proxy_);
+      if (check) require_finite_gbuffer("attention.proxy", proxy_);
     }
     auto t = timer.scope("attention");
     const attention::AttentionSettings wanted = attention_settings(settings_);
     if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
     attention_.update(proxy_, scene_, now_s, previous_s);
     f.attention = &attention_.last();
+    if (check) require_finite_attention(*f.attention);
     attention_done = true;
   }
   if (f.plan.runs(PassId::LodSelect)) {
@@ -118,6 +142,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     bs.lod_levels = lod_levels_;
     backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
     if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
+    if (check) require_finite_gbuffer("gbuffer", gbuffer_);
   }
   f.gbuffer = &gbuffer_;
   if (f.plan.runs(PassId::Attention) && !attention_done) {
@@ -126,6 +151,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
     attention_.update(gbuffer_, scene_, now_s, previous_s);
     f.attention = &attention_.last();
+    if (check) require_finite_attention(*f.attention);
   }
   if (f.plan.runs(PassId::Focus)) {
     auto t = timer.scope("focus");
@@ -138,6 +164,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     focus_.update(frame_clock_s, gbuffer_, scene_, f.attention, attention::focus_gaze_from(f.gaze, gaze_.available()),
                   scene_.display);
     f.focus = &focus_.last();
+    if (check) require_finite("focus", "focal depth", std::vector<double>{f.focus->focal_depth_m, f.focus->target_depth_m});
   }
   const std::vector<glm::vec3>* hdr = &gbuffer_.color;
   if (f.plan.runs(PassId::Dof)) {
@@ -146,6 +173,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     const double focus_m = f.focus != nullptr ? f.focus->focal_depth_m : scene_.camera.lens.focus_distance_m;
     run_dof(focus_m, now_s, previous_s);
     hdr = &dof_color_;
+    if (check) require_finite("dof", "colour", dof_color_, gbuffer_.width);
     f.dof = &dof_color_;
     f.focal_depth_m = focus_m;
   }
@@ -154,6 +182,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     auto t = timer.scope("gi");
     run_gi(f, *hdr, now_s, timer);
     hdr = &hybrid_;
+    if (check) require_finite("gi", "hybrid colour", hybrid_, gbuffer_.width);
     f.gi = &gi_frame_;
   }
   if (f.plan.runs(PassId::Tonemap)) {
@@ -268,33 +297,12 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
 
 void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& drawn) {
   // Lee 2009 §7.3 with Giegl et al.'s unpopping LOD: each object is drawn at floor(L) and at the next
-  // level, and the two images are blended by frac(L) where the object covers the first, so a
-  // continuous L never pops between levels. One more G-buffer render when any object is between.
+  // level, and the two images are blended by frac(L), so a continuous L never pops between levels.
+  // One more G-buffer render when any object is between levels.
   BackendSettings next = drawn;
-  next.lod_levels.assign(scene_.objects.size(), 0);
-  std::unordered_map<std::uint32_t, double> blend_of;
-  std::unordered_map<std::uint32_t, std::size_t> index_of;
-  for (std::size_t i = 0; i < scene_.objects.size(); ++i) index_of[scene_.objects[i].id] = i;
-  bool any = false;
-  for (const lod::Selection& sel : lod_frame_.selection) {
-    const auto it = index_of.find(sel.id);
-    if (it == index_of.end()) continue;
-    next.lod_levels[it->second] = static_cast<std::uint8_t>(std::clamp(sel.blend_to, 0, 255));
-    if (sel.blend > 0 && sel.blend_to != sel.drawn) {
-      blend_of[sel.id] = sel.blend;
-      any = true;
-    }
-  }
-  if (!any) return;
+  if (!lod::ulod_next_levels(scene_, lod_frame_.selection, next.lod_levels)) return;
   backend_->render(time, next, ulod_next_);
-  for (std::size_t p = 0; p < gbuffer_.size() && p < ulod_next_.size(); ++p) {
-    const auto it = blend_of.find(gbuffer_.object_id[p]);
-    if (it == blend_of.end()) continue;
-    // Where the coarser level does not cover the pixel, the finer one stays (no holes).
-    if (ulod_next_.object_id[p] != gbuffer_.object_id[p]) continue;
-    const float b = static_cast<float>(it->second);
-    gbuffer_.color[p] = (1.0f - b) * gbuffer_.color[p] + b * ulod_next_.color[p];
-  }
+  lod::ulod_blend(gbuffer_, ulod_next_, lod_frame_.selection);
 }
 
 void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms) {
@@ -306,89 +314,23 @@ void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double p
   ps.hysteresis = s.number("lod.hysteresis");
   lod_selector_.set_settings(ps);
   if (lod_selector_.budget().target_ms != s.number("lod.budget_ms")) lod_selector_.set_budget_ms(s.number("lod.budget_ms"));
-  const Camera& cam = scene_.camera;
-  const glm::mat4 view = cam.view_at(now_s), view_prev = cam.view_at(previous_s), proj = cam.projection();
-  const glm::vec3 eye = cam.position_at(now_s);
-  const double px_per_radian = static_cast<double>(cam.height) / (2.0 * std::tan(glm::radians(static_cast<double>(cam.vertical_fov_deg)) / 2.0));
-  const protocol::Degrees gaze_deg = protocol::normalized_to_degrees(scene_.display, {gaze.x, gaze.y});
-  // Per-object luminance contrast from the last frame's G-buffer (Brown's luminance feature).
-  std::vector<float> lum_min(scene_.objects.size(), 1e30f), lum_max(scene_.objects.size(), 0.0f);
-  std::unordered_map<std::uint32_t, std::size_t> index_of;
-  for (std::size_t i = 0; i < scene_.objects.size(); ++i) index_of[scene_.objects[i].id] = i;
-  for (std::size_t p = 0; p < gbuffer_.object_id.size() && p < gbuffer_.color.size(); ++p) {
-    const auto it = index_of.find(gbuffer_.object_id[p]);
-    if (it == index_of.end()) continue;
-    const glm::vec3 c = gbuffer_.color[p];
-    const float y = 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b;
-    lum_min[it->second] = std::min(lum_min[it->second], y);
-    lum_max[it->second] = std::max(lum_max[it->second], y);
-  }
-  const auto project = [&](const glm::mat4& v, const glm::vec3& p, glm::dvec2& out) {
-    const glm::vec4 clip = proj * v * glm::vec4(p, 1.0f);
-    if (!(clip.w > 1e-6f)) return false;
-    out = {0.5 * (static_cast<double>(clip.x / clip.w) + 1.0), 0.5 * (1.0 - static_cast<double>(clip.y / clip.w))};
-    return true;
-  };
-  std::vector<lod::ObjectView> views;
-  std::vector<std::size_t> object_of;
   lod_frame_ = Frame::Lod{};
   lod_frame_.policy = lod::to_string(ps.policy);
-  for (std::size_t i = 0; i < scene_.objects.size(); ++i) {
-    const Object& o = scene_.objects[i];
-    if (!o.mesh || o.mesh->positions.empty()) continue;
-    // The bounding sphere: the mesh's box centre and the farthest vertex, scaled.
-    glm::vec3 lo(1e30f), hi(-1e30f);
-    for (const glm::vec3& p : o.mesh->positions) {
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
-    }
-    const glm::vec3 centre_obj = 0.5f * (lo + hi);
-    float r2 = 0;
-    for (const glm::vec3& p : o.mesh->positions) r2 = std::max(r2, glm::dot(p - centre_obj, p - centre_obj));
-    const Transform now_t = o.transform_at(now_s), prev_t = o.transform_at(previous_s);
-    const glm::vec3 centre = glm::vec3(now_t.matrix() * glm::vec4(centre_obj, 1.0f));
-    const glm::vec3 centre_prev = glm::vec3(prev_t.matrix() * glm::vec4(centre_obj, 1.0f));
-    const float scale = std::max({std::abs(now_t.scale.x), std::abs(now_t.scale.y), std::abs(now_t.scale.z)});
-    lod::ObjectView v;
-    v.id = o.id;
-    v.levels = 1 + static_cast<int>(o.lods.size());
-    v.level_error_m.push_back(0.0f);
-    v.level_triangles.push_back(o.mesh->triangle_count());
-    for (const LodLevel& l : o.lods) {
-      v.level_error_m.push_back(l.max_error_m * scale);  // object-space metres to world
-      v.level_triangles.push_back(l.mesh ? l.mesh->triangle_count() : 0);
-    }
-    v.base = o.lods.empty() || o.lods[0].mesh == nullptr || o.lods[0].mesh->triangle_count() == 0
-                 ? 4.0
-                 : static_cast<double>(o.mesh->triangle_count()) / static_cast<double>(o.lods[0].mesh->triangle_count());
-    v.distance_m = static_cast<double>(glm::length(centre - eye));
-    v.radius_m = static_cast<double>(std::sqrt(r2) * scale);
-    v.px_per_radian = px_per_radian;
-    v.projected_radius_px = v.distance_m > 0 ? v.radius_m / v.distance_m * px_per_radian : 1e9;
-    v.screen_area_px = static_cast<double>(cam.width) * static_cast<double>(cam.height);
-    glm::dvec2 sp(0.5), sp_prev(0.5);
-    const bool visible = project(view, centre, sp);
-    if (visible && project(view_prev, centre_prev, sp_prev)) {
-      v.velocity_px_per_frame = glm::length((sp - sp_prev) * glm::dvec2(cam.width, cam.height));
-    }
-    v.screen_x = sp.x;
-    v.screen_y = sp.y;
-    v.eccentricity_deg = visible ? protocol::angle_between_deg(gaze_deg, protocol::normalized_to_degrees(scene_.display, {sp.x, sp.y}))
-                                 : 180.0;
-    const glm::vec3 dr = glm::abs(now_t.rotation_deg - prev_t.rotation_deg);
-    v.rotation_deg_per_frame = static_cast<double>(std::max({dr.x, dr.y, dr.z}));
-    v.luminance_contrast = lum_max[i] > 0 && lum_min[i] < 1e29f
-                               ? static_cast<double>((lum_max[i] - lum_min[i]) / (lum_max[i] + lum_min[i]))
-                               : 0.0;
-    const attention::AttentionFrame& att = attention_.last();
-    for (const attention::ObjectAttention& a : att.objects)
-      if (a.id == o.id) v.attention = a.attention;
-    if (o.lods.empty()) continue;  // nothing to choose: drawn at full detail, not listed
-    views.push_back(v);
-    object_of.push_back(i);
-  }
-  // ULOD: S_o relative to the frame's most attended object, whether it has a chain or not.
   const attention::AttentionFrame& att = attention_.last();
+  lod::ViewInputs in;
+  in.now_s = now_s;
+  in.previous_s = previous_s;
+  in.gaze_x = gaze.x;
+  in.gaze_y = gaze.y;
+  in.last_frame = &gbuffer_;
+  in.attention = [&att](std::uint32_t id) {
+    for (const attention::ObjectAttention& a : att.objects)
+      if (a.id == id) return a.attention;
+    return 0.0;
+  };
+  std::vector<std::size_t> object_of;
+  const std::vector<lod::ObjectView> views = lod::object_views(scene_, in, lod_bounds_, object_of);
+  // ULOD: S_o relative to the frame's most attended object, whether it has a chain or not.
   const double top_attention = att.objects.empty() ? std::numeric_limits<double>::quiet_NaN() : att.objects.front().attention;
   const std::vector<lod::Selection>& sel = lod_selector_.select(views, last_frame_ms, top_attention);
   lod_levels_.assign(scene_.objects.size(), 0);

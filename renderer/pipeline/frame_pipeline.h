@@ -10,6 +10,7 @@
 #include "dof/lee_mipmap.h"
 #include "gaze/gaze_input.h"
 #include "gi/gi_pass.h"
+#include "lod/lod_frame.h"
 #include "lod/lod_policy.h"
 #include "image/image.h"
 #include "passes/overlay.h"
@@ -82,6 +83,7 @@ class FramePipeline {
   dof::LeeMipmap lee_mipmap_;
   std::unique_ptr<gi::GiPass> gi_pass_;  // created on the first frame that runs gi
   lod::LodSelector lod_selector_;
+  lod::BoundsCache lod_bounds_;
   Frame::Lod lod_frame_;
   std::vector<std::uint8_t> lod_levels_;  // per scene object, for the backend
   // Chooses this frame's levels from the camera, the last frame's attention and G-buffer, and gaze.

@@ -5,6 +5,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "pipeline/finite_check.h"
+
 namespace fovea::render {
 
 const std::vector<SettingSpec>& Settings::specs() {
@@ -104,6 +106,9 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"tonemap.operator", "reinhard", "reinhard|clamp|exponential", "HDR to display mapping (exponential: eq. 8.7)"},
       {"tonemap.exposure", "1", "number in [0.0001, 10000]", "linear scale applied before tone mapping"},
       {"tonemap.exact", "false", "bool", "sRGB-encode with pow() per channel (reference) instead of a table (<= 1/255 off)"},
+      {"debug.finite_checks", kFiniteChecksByDefault ? "true" : "false", "bool",
+       "scan every pass's output for NaN/Inf and stop the frame naming the pass, buffer and pixel (on by default "
+       "in debug builds)"},
       {"overlay.gaze", "true", "bool", "draw the gaze point (and the gaze area when GI is on)"},
       {"overlay.focus", "false", "bool",
        "outline the focused object (or mark the focal depth) on the display image; plans the focus pass (and "
