@@ -69,7 +69,12 @@ int run_headless(const RenderOptions& o) {
   double previous = 0;
   std::ofstream gaze_log(fs::path(o.out_dir) / "gaze.csv");
   gaze_log << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
-  std::ofstream focus_log, gi_log, lod_log;
+  std::ofstream focus_log, gi_log, lod_log, governor_log;
+  std::unique_ptr<Governor> governor = make_governor(o);
+  if (governor) {
+    governor_log.open(fs::path(o.out_dir) / "governor.csv");
+    governor_log << "frame,budget_ms,frame_ms,predicted_ms,other_ms,cannot_meet,replans,choices\n";
+  }
   for (std::uint64_t i = 0; i < o.frames; ++i) {
     const double scheduled = static_cast<double>(i) / o.fps;
     double clock = scheduled;
@@ -78,8 +83,27 @@ int run_headless(const RenderOptions& o) {
       clock = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
     const double now = clock;
+    if (governor)
+      governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width, pipeline.scene().camera.height,
+                      pipeline.settings());
     const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, clock, timer);
     previous = now;
+    if (governor) {
+      // governor.csv: the budget, what the frame took and what the governor chose and expects.
+      governor->observe(timer);
+      const Governor::State& g = governor->state();
+      std::string choices;
+      for (const Governor::Choice& c : g.choices) {
+        char item[200];
+        std::snprintf(item, sizeof item, "%s%s=%s (%.4g %s)", choices.empty() ? "" : "; ", c.effect.c_str(), c.label.c_str(),
+                      c.accuracy, c.metric.c_str());
+        choices += item;
+      }
+      char gl[160];
+      std::snprintf(gl, sizeof gl, "%llu,%.2f,%.3f,%.3f,%.3f,%d,%llu,", static_cast<unsigned long long>(i), g.budget_ms,
+                    g.measured_ms, g.predicted_ms, g.other_ms, g.cannot_meet ? 1 : 0, static_cast<unsigned long long>(g.replans));
+      governor_log << gl << '"' << choices << "\"\n";
+    }
     {
       auto t = timer.scope("write");
       if (f.image != nullptr) write_png(frame_name(o.out_dir, i, "png"), *f.image);
@@ -148,6 +172,7 @@ int run_headless(const RenderOptions& o) {
   std::printf("fovea-render: %llu frames of %s with %s (gaze %s) -> %s\n", static_cast<unsigned long long>(o.frames),
               o.scene_path.c_str(), pipeline.backend().name().c_str(), gaze->description().c_str(), o.out_dir.c_str());
   std::printf("%s", timer.summary_table().c_str());
+  if (governor) std::printf("governor: %s\n", governor->state().summary().c_str());
   return 0;
 }
 

@@ -29,6 +29,15 @@ int main(int argc, char** argv) {
   app.add_option("--out", o.out_dir, "headless output directory (created; must be empty)");
   app.add_flag("--exr", o.exr, "headless: also write HDR colour as OpenEXR");
   app.add_flag("--realtime", o.realtime, "headless: pace frames on the wall clock (default with udp:// gaze)");
+  app.add_option("--budget-ms", o.budget_ms,
+                 "frame-time budget: the governor picks each running effect's settings (DOF method, GI photons and "
+                 "strategy, saliency map size, LOD policy) from the measured accuracy-vs-time fronts to maximise "
+                 "accuracy within it, adapts to measured times, and reports the expected accuracy (viewer title, "
+                 "headless governor.csv)")
+      ->check(CLI::Range(0.1, 1e6));
+  app.add_option("--fronts", o.fronts_path,
+                 "the governor's fronts JSON (default: the ones measured on the project's machine, "
+                 "renderer/governor/fronts.json, built in)");
   CLI11_PARSE(app, argc, argv);
 
   if (list_settings) {

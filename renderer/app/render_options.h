@@ -1,9 +1,11 @@
 #pragma once
 // What fovea-render was asked to do, parsed from its command line.
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "backend/backend.h"
+#include "governor/governor.h"
 #include "pipeline/settings.h"
 #include "scene/scene_loader.h"
 
@@ -22,7 +24,15 @@ struct RenderOptions {
   std::string out_dir;
   bool exr = false;
   bool realtime = false;  // pace frames on the wall clock (default with live gaze)
+  double budget_ms = 0;   // > 0: the governor picks effect settings to hold this frame time
+  std::string fronts_path;  // the governor's fronts (empty: the built-in ones)
 };
+
+// The governor --budget-ms asks for (null without a budget), on --fronts or the built-in fronts.
+inline std::unique_ptr<Governor> make_governor(const RenderOptions& o) {
+  if (!(o.budget_ms > 0)) return nullptr;
+  return std::make_unique<Governor>(o.budget_ms, o.fronts_path.empty() ? builtin_fronts() : load_fronts(o.fronts_path));
+}
 
 int run_headless(const RenderOptions& options);
 int run_viewer(const RenderOptions& options);

@@ -152,6 +152,7 @@ int run_viewer(const RenderOptions& o) {
   std::fflush(stdout);
 
   PassTimer timer;
+  std::unique_ptr<Governor> governor = make_governor(o);
   const auto start = std::chrono::steady_clock::now();
   double previous = 0;
   std::vector<std::uint8_t> rgba;
@@ -167,7 +168,11 @@ int run_viewer(const RenderOptions& o) {
     int ww = 1, wh = 1;
     glfwGetWindowSize(window.window(), &ww, &wh);
     gaze->set_cursor(cx / std::max(1, ww), cy / std::max(1, wh));
+    if (governor)
+      governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width, pipeline.scene().camera.height,
+                      pipeline.settings());
     const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer);
+    if (governor) governor->observe(timer);
     previous = now;
     window.make_current();
     if (f.image != nullptr) {
@@ -188,10 +193,14 @@ int run_viewer(const RenderOptions& o) {
                     pipeline.backend().name().c_str(), timer.last_ms("frame"), gaze->description().c_str(), f.gaze.x,
                     f.gaze.y, f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
                     static_cast<unsigned long long>(f.gaze.lost));
-      glfwSetWindowTitle(window.window(), title);
+      std::string full = title;
+      if (governor) full += " | " + governor->state().summary();
+      glfwSetWindowTitle(window.window(), full.c_str());
+      if (governor && i % 100 == 0) std::printf("governor: %s\n", governor->state().summary().c_str());
     }
   }
   std::printf("%s", timer.summary_table().c_str());
+  if (governor) std::printf("governor: %s\n", governor->state().summary().c_str());
   return 0;
 }
 

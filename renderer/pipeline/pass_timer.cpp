@@ -14,11 +14,13 @@ PassTimer::PassTimer(const std::string& csv_path) : csv_(csv_path) {
 void PassTimer::begin_frame(std::uint64_t frame, double scene_time_s) {
   frame_ = frame;
   scene_time_s_ = scene_time_s;
+  this_frame_.clear();
 }
 
 void PassTimer::record(const std::string& pass, double ms) {
   if (!samples_.contains(pass)) order_.push_back(pass);
   samples_[pass].push_back(ms);
+  this_frame_[pass] += ms;
   if (csv_.is_open()) {
     char line[160];
     std::snprintf(line, sizeof line, "%llu,%.6f,%s,%.4f\n", static_cast<unsigned long long>(frame_), scene_time_s_,
@@ -31,6 +33,11 @@ void PassTimer::record(const std::string& pass, double ms) {
 double PassTimer::last_ms(const std::string& pass) const {
   const auto it = samples_.find(pass);
   return it == samples_.end() || it->second.empty() ? 0.0 : it->second.back();
+}
+
+double PassTimer::frame_ms(const std::string& pass) const {
+  const auto it = this_frame_.find(pass);
+  return it == this_frame_.end() ? 0.0 : it->second;
 }
 
 std::map<std::string, PassTimer::Summary> PassTimer::summary() const {

@@ -44,12 +44,15 @@ class PassTimer {
   std::map<std::string, Summary> summary() const;
   std::string summary_table() const;
   double last_ms(const std::string& pass) const;
+  // The pass's time in the frame begun last (summed when it ran more than once); 0 when it did not run.
+  double frame_ms(const std::string& pass) const;
 
  private:
   std::ofstream csv_;
   std::uint64_t frame_ = 0;
   double scene_time_s_ = 0;
   std::map<std::string, std::vector<double>> samples_;
+  std::map<std::string, double> this_frame_;
   std::vector<std::string> order_;
 };
 

@@ -1,0 +1,120 @@
+#!/usr/bin/python3
+"""Builds the governor's accuracy-versus-time fronts (renderer/governor/fronts.json) from the
+benchmarks' checked-in CSVs: every option is a set of render settings with the time it took and the
+accuracy it reached against the effect's reference, and only the Pareto-optimal ones are kept (no
+other option is both at least as fast and at least as accurate).
+
+Usage: make_fronts.py [RESULTS_DIR] [OUT_JSON]   (defaults bench/results, renderer/governor/fronts.json)
+"""
+import csv
+import json
+import os
+import sys
+from collections import defaultdict
+
+
+def pareto(options, higher_better):
+    key = (lambda o: o["accuracy"]) if higher_better else (lambda o: -o["accuracy"])
+    kept = []
+    for o in sorted(options, key=lambda o: (o["ms"], -key(o))):
+        if not kept or key(o) > key(kept[-1]):
+            kept.append(o)
+    return kept
+
+
+def dof_front(path):
+    # bench_dof: mean over its three scenes at a mean CoC of 16 px (1024x768).
+    settings = {
+        "lee-mipmap": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.5"},
+        "lee-mipmap sigma=C/4": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.25"},
+        "lee-splat": {"dof.method": "lee-splat", "dof.hidden": "true"},
+        "lee-splat no hidden": {"dof.method": "lee-splat", "dof.hidden": "false"},
+        "schedl-layered M=3": {"dof.method": "schedl-layered", "dof.layers": "3"},
+        "schedl-layered M=1": {"dof.method": "schedl-layered", "dof.layers": "1"},
+        "accum (embree 16 views)": {"dof.method": "accum", "dof.samples": "16"},
+    }
+    acc, ms = defaultdict(list), defaultdict(list)
+    for r in csv.DictReader(open(path)):
+        if r["mean_coc_px"] == "16" and r["method"] in settings:
+            acc[r["method"]].append(float(r["psnr_db"]))
+            ms[r["method"]].append(float(r["ms_per_frame"]))
+    options = [{"label": m, "settings": settings[m], "ms": sum(ms[m]) / len(ms[m]), "accuracy": sum(acc[m]) / len(acc[m])}
+               for m in acc]
+    return {"effect": "dof", "passes": ["dof"], "metric": "PSNR dB", "higher_better": True,
+            "reference": "64-sample thin-lens ray tracing, mean CoC 16 px, bench_dof's three scenes",
+            "pixels": 1024 * 768, "scales_with_pixels": True, "source": "bench/results/bench_dof.csv",
+            "options": pareto(options, True)}
+
+
+def gi_front(path):
+    options = []
+    for r in csv.DictReader(open(path)):
+        options.append({"label": f'{r["strategy"]} {r["estimate"]} {int(r["photons"]) // 1000}k',
+                        "settings": {"gi.strategy": r["strategy"], "gi.estimate": r["estimate"], "gi.photons": r["photons"]},
+                        "ms": float(r["ms_per_frame"]), "accuracy": float(r["relative_rmse"])})
+    return {"effect": "gi", "passes": ["gi"], "metric": "relative RMSE", "higher_better": False,
+            "reference": "a 2M-photon traditional map, radiance in a 20 deg gaze area (cornell.json)",
+            "pixels": 640 * 480, "scales_with_pixels": True, "source": "bench/results/gi/gi_accuracy.csv",
+            "options": pareto(options, False)}
+
+
+def attention_front(path):
+    options = []
+    for r in csv.DictReader(open(path)):
+        if r["section"] != "map_size":
+            continue
+        resample = "nearest" if r["method"].endswith("nearest") else "box"
+        options.append({"label": f'{r["map"]}x{r["map"]} {resample}',
+                        "settings": {"attention.map_size": r["map"], "attention.resample": resample},
+                        "ms": float(r["ms_per_frame"]), "accuracy": float(r["A1"])})
+    return {"effect": "attention", "passes": ["attention"], "metric": "A1 (share of frames the most attended object is the gazed one)",
+            "higher_better": True, "reference": "a synthetic viewer's gaze on renderer/scenes/attention.json (fovea-eval-attention)",
+            "pixels": 0, "scales_with_pixels": False, "source": "bench/results/eval_attention.csv",
+            "options": pareto(options, True)}
+
+
+def lod_fronts(path):
+    fronts = []
+    rows = list(csv.DictReader(open(path)))
+    for backend in sorted({r["backend"] for r in rows}):
+        mine = [r for r in rows if r["backend"] == backend and r["model"] == "dragon"]
+        most = max(int(r["objects"]) for r in mine)
+        policy = {"NOLOD": "none", "ULOD5": "ulod", "distance": "distance", "screen-size": "screen-size",
+                  "brown": "brown", "gaze": "gaze"}
+        options = []
+        for r in mine:
+            if int(r["objects"]) != most or r["condition"] not in policy:
+                continue
+            db = float(r["psnr_periphery_db"])
+            options.append({"label": policy[r["condition"]], "settings": {"lod.policy": policy[r["condition"]]},
+                            "ms": float(r["ms_per_frame"]), "accuracy": min(db, 60.0) if db == db else 60.0})
+        fronts.append({"effect": "lod", "backend": backend, "passes": ["gbuffer", "attention.proxy", "lod-select"],
+                       "metric": "PSNR dB (periphery)", "higher_better": True,
+                       "reference": f"full detail, {most} dragon-like objects (bench_lod)", "pixels": 1024 * 768,
+                       "scales_with_pixels": False, "source": "bench/results/bench_lod.csv",
+                       "options": pareto(options, True)})
+    return fronts
+
+
+def main():
+    results = sys.argv[1] if len(sys.argv) > 1 else "bench/results"
+    out = sys.argv[2] if len(sys.argv) > 2 else "renderer/governor/fronts.json"
+    fronts = [dof_front(os.path.join(results, "bench_dof.csv")),
+              gi_front(os.path.join(results, "gi", "gi_accuracy.csv")),
+              attention_front(os.path.join(results, "eval_attention.csv"))]
+    fronts += lod_fronts(os.path.join(results, "bench_lod.csv"))
+    for f in fronts:
+        for o in f["options"]:
+            o["ms"] = round(o["ms"], 3)
+            o["accuracy"] = round(o["accuracy"], 5)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    with open(out, "w") as fh:
+        json.dump({"machine": "the project's 2-core Debian 12 machine (see bench/RESULTS.md)", "fronts": fronts}, fh, indent=1)
+        fh.write("\n")
+    for f in fronts:
+        print(f["effect"], f.get("backend", ""), [(o["label"], o["ms"], o["accuracy"]) for o in f["options"]])
+    print("wrote", out)
+
+
+if __name__ == "__main__":
+    main()
