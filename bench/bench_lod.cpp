@@ -197,6 +197,7 @@ int main(int argc, char** argv) {
   int frames = 5, map_size = 64;
   double region_deg = 5;
   bool quick = false;
+  std::string proxy_resolution = "map";
   app.add_option("--models", models_text, "bunny, dragon");
   app.add_option("--counts", counts_text, "numbers of visible objects");
   app.add_option("--backends", backends_text, "gl (needs a display: deploy/with-xvfb.sh), embree");
@@ -205,6 +206,8 @@ int main(int argc, char** argv) {
   app.add_option("--map-size", map_size, "the attention pass's saliency map (Lee 7.4 used 64x64)")->check(CLI::Range(64, 512));
   app.add_option("--region-deg", region_deg, "the gazed region: object pixels within this visual angle of the gaze point")
       ->check(CLI::Range(0.5, 60.0));
+  app.add_option("--proxy-resolution", proxy_resolution, "the attention proxy at twice the map's side (map) or full size")
+      ->check(CLI::IsMember({"map", "full"}));
   app.add_option("--csv", csv_path, "write the table as CSV");
   app.add_flag("--quick", quick, "meshes 16x smaller (a smoke run)");
   CLI11_PARSE(app, argc, argv);
@@ -326,11 +329,14 @@ int main(int argc, char** argv) {
                 << r.proxy << "," << r.attention << "," << r.blend << "," << r.model << "," << r.triangles << "," << pa << "," << pg << ","
                 << pp << "," << r.dso << "," << r.top_same << "\n";
         };
+        const auto render_with = [&](const BackendSettings& bs, GBuffer& out) {
+          backend->render({}, bs, out);  // warm-up (level switch)
+          return median_ms(frames, [&] { backend->render({}, bs, out); });
+        };
         const auto render_levels = [&](const std::vector<std::uint8_t>& levels, GBuffer& out) {
           BackendSettings bs;
           bs.lod_levels = levels;
-          backend->render({}, bs, out);  // warm-up (level switch)
-          return median_ms(frames, [&] { backend->render({}, bs, out); });
+          return render_with(bs, out);
         };
         {
           Row r{"NOLOD"};
@@ -362,8 +368,10 @@ int main(int argc, char** argv) {
         // levels are blended in image space (a second G-buffer when any object is between levels).
         for (int m = 2; m <= 5; ++m) {
           Row r{"ULOD" + std::to_string(m)};
-          const std::vector<std::uint8_t> proxy_levels(scene.objects.size(), static_cast<std::uint8_t>(m - 1));
-          r.proxy = render_levels(proxy_levels, proxy);
+          BackendSettings proxy_settings;
+          proxy_settings.lod_levels.assign(scene.objects.size(), static_cast<std::uint8_t>(m - 1));
+          if (proxy_resolution == "map") lod::proxy_size(w, h, map_size, proxy_settings.width, proxy_settings.height);
+          r.proxy = render_with(proxy_settings, proxy);
           attention::AttentionTracker tracker(as);
           r.attention = track(proxy, scene, tracker);
           const attention::AttentionFrame& att = tracker.last();
@@ -407,13 +415,27 @@ int main(int argc, char** argv) {
             }
           }
           if (blends) {
-            r.blend = render_levels(next_levels, next);
+            BackendSettings next_settings;
+            next_settings.lod_levels = next_levels;
+            lod::ulod_pixel_mask(g, chosen, next_settings.pixel_mask);
+            next_settings.color_and_id_only = true;
+            r.blend = render_with(next_settings, next);
             const auto b0 = Clock::now();
             lod::ulod_blend(g, next, chosen);
             r.blend += std::chrono::duration<double, std::milli>(Clock::now() - b0).count();
           }
           r.total = r.proxy + r.attention + r.render + r.blend;
-          r.model = t_n * (blends ? 3 : 2) + r.attention + per_object_ms * share;
+          // T_n per pass in proportion to the pixels it renders (the proxy's are fewer; Embree traces only
+          // the blend pass's masked pixels, the raster backend draws them all).
+          const double proxy_share = proxy_settings.width > 0 ? static_cast<double>(proxy_settings.width) * proxy_settings.height / (static_cast<double>(w) * h) : 1.0;
+          double blend_share = 0;
+          if (blends) {
+            std::vector<std::uint8_t> mask;
+            lod::ulod_pixel_mask(g, chosen, mask);
+            blend_share = backend_name == "gl" ? 1.0
+                                               : static_cast<double>(std::count(mask.begin(), mask.end(), 1)) / static_cast<double>(mask.size());
+          }
+          r.model = t_n * (1 + proxy_share + blend_share) + r.attention + per_object_ms * share;
           emit(r, g);
         }
         for (lod::Policy p : {lod::Policy::Distance, lod::Policy::ScreenSize, lod::Policy::Brown, lod::Policy::Gaze}) {

@@ -31,6 +31,17 @@ struct BackendSettings {
   // lods[k - 1], clamped to what it has. Empty (or shorter than the object list): full detail.
   // Embree switches geometry per frame; the raster backend draws the chosen mesh too.
   std::vector<std::uint8_t> lod_levels;
+  // Render at width x height instead of the camera's resolution (0: the camera's), with the camera's
+  // field of view and aspect (pixels stretch if the aspect differs). The attention pass's proxy
+  // G-buffer (Lee 2009 §7.2) is rendered near the saliency map's size this way.
+  std::uint32_t width = 0, height = 0;
+  // Non-empty (one byte per output pixel): only the pixels marked non-zero need to be right; the
+  // Embree backend skips 16x16 tiles with none marked (background there). ULOD's second pass reads only
+  // the pixels of objects between levels. The raster backend draws everything regardless.
+  std::vector<std::uint8_t> pixel_mask;
+  // Only colour and object id are wanted (ULOD's second pass): the raster backend skips reading back
+  // depth, normal and motion (left at 0); the Embree backend writes them anyway.
+  bool color_and_id_only = false;
 };
 
 class Backend {

@@ -116,6 +116,23 @@ bool ulod_next_levels(const Scene& scene, const std::vector<Selection>& selectio
   return any;
 }
 
+void ulod_pixel_mask(const GBuffer& base, const std::vector<Selection>& selection, std::vector<std::uint8_t>& mask) {
+  std::unordered_map<std::uint32_t, bool> blends;
+  for (const Selection& sel : selection)
+    if (sel.blend > 0 && sel.blend_to != sel.drawn) blends[sel.id] = true;
+  mask.assign(base.size(), 0);
+  for (std::size_t p = 0; p < base.size() && p < base.object_id.size(); ++p)
+    if (blends.contains(base.object_id[p])) mask[p] = 1;
+}
+
+void proxy_size(std::uint32_t camera_width, std::uint32_t camera_height, int map_size, std::uint32_t& width,
+                std::uint32_t& height) {
+  height = std::min<std::uint32_t>(camera_height, static_cast<std::uint32_t>(std::max(1, 2 * map_size)));
+  const double aspect = camera_height > 0 ? static_cast<double>(camera_width) / camera_height : 1.0;
+  width = std::clamp<std::uint32_t>(static_cast<std::uint32_t>(std::lround(height * aspect)), 1u, std::max(1u, camera_width));
+  if (camera_width == 0 || camera_height == 0) width = height = 0;
+}
+
 void ulod_blend(GBuffer& base, const GBuffer& next, const std::vector<Selection>& selection) {
   std::unordered_map<std::uint32_t, float> blend_of;
   for (const Selection& sel : selection)

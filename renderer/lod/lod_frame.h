@@ -42,8 +42,17 @@ std::vector<ObjectView> object_views(const Scene& scene, const ViewInputs& in, B
 // at its selection's blend_to, objects without a chain at 0), and whether any object is between
 // levels (no second pass needed otherwise).
 bool ulod_next_levels(const Scene& scene, const std::vector<Selection>& selection, std::vector<std::uint8_t>& levels);
+// The pixels the blend reads: those where `base` shows an object between levels (the second pass
+// need not be right elsewhere: BackendSettings::pixel_mask).
+void ulod_pixel_mask(const GBuffer& base, const std::vector<Selection>& selection, std::vector<std::uint8_t>& mask);
 // Blends `next` into `base`'s colour by each object's blend weight where the same object covers the
 // pixel in both (where the coarser level does not cover it, the finer one stays: no holes).
 void ulod_blend(GBuffer& base, const GBuffer& next, const std::vector<Selection>& selection);
+
+// The proxy G-buffer's size for the attention pass (Lee 2009 §7.2): twice the saliency map's side in
+// height (the map's box resample then averages about 2x2 pixels), the camera's aspect, never more
+// than the camera's resolution.
+void proxy_size(std::uint32_t camera_width, std::uint32_t camera_height, int map_size, std::uint32_t& width,
+                std::uint32_t& height);
 
 }  // namespace fovea::render::lod

@@ -118,6 +118,9 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
       BackendSettings ps;
       ps.shadows = settings_.flag("shadows");
       ps.lod_levels.assign(scene_.objects.size(), 255);  // clamped to each object's coarsest level
+      if (settings_.is("lod.proxy_resolution", "map"))
+        lod::proxy_size(scene_.camera.width, scene_.camera.height, static_cast<int>(settings_.number("attention.map_size")),
+                        ps.width, ps.height);
       backend_->render(FrameTime{now_s, previous_s}, ps, proxy_);
       if (check) require_finite_gbuffer("attention.proxy", proxy_);
     }
@@ -301,6 +304,8 @@ void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& dra
   // One more G-buffer render when any object is between levels.
   BackendSettings next = drawn;
   if (!lod::ulod_next_levels(scene_, lod_frame_.selection, next.lod_levels)) return;
+  lod::ulod_pixel_mask(gbuffer_, lod_frame_.selection, next.pixel_mask);
+  next.color_and_id_only = true;  // the blend reads nothing else
   backend_->render(time, next, ulod_next_);
   lod::ulod_blend(gbuffer_, ulod_next_, lod_frame_.selection);
 }

@@ -58,6 +58,9 @@ const std::vector<SettingSpec>& Settings::specs() {
        "Embree only, the raster backend uses 1)"},
       {"dof.aperture", "disc", "disc|gaussian|hexagon", "lee-splat: aperture shape of the splats (the IDF image)"},
       {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
+      {"lod.proxy_resolution", "map", "map|full",
+       "lod.policy=ulod: the attention pass's proxy G-buffer (every object at its coarsest level, Lee 2009 §7.2) at "
+       "twice the saliency map's side (map) or at the camera's resolution (full)"},
       {"lod.policy", "screen-size", "none|distance|screen-size|brown|ulod|gaze",
        "how levels are chosen: distance (2 log_beta(d / lod.distance_ref_m)), projected error within lod.tolerance_px, "
        "Brown 2003's binary importance, Lee 2009's ULOD L = M(1 - S_o) from the attention pass, or gaze eccentricity "

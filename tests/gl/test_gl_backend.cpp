@@ -819,3 +819,44 @@ TEST_F(GlBackendTest, PerPixelLensSamplesAreRefusedWithTheReason) {
 
 }  // namespace
 }  // namespace fovea::render
+
+namespace fovea::render {
+namespace {
+
+TEST_F(GlBackendTest, SmallerResolutionIsTheCameraAtThatResolutionAndColourOnlySkipsTheRest) {
+  Scene s = base_scene();
+  const auto box = std::make_shared<const Mesh>(make_box(glm::vec3(0.5f)));
+  s.objects.push_back(object(s, "box", box, 0, {0, 0, 0}));
+  s.lights.push_back(Light{LightType::Point, {0, 0, 3}, glm::vec3(50.0f)});
+  backend_->set_scene(s);
+  BackendSettings small_settings;  // the attention proxy's size, alternating with the full one
+  small_settings.width = 80;
+  small_settings.height = 60;
+  GBuffer small, full;
+  backend_->render({}, small_settings, small);
+  backend_->render({}, BackendSettings{}, full);
+  backend_->render({}, small_settings, small);
+  ASSERT_EQ(small.width, 80u);
+  ASSERT_EQ(small.height, 60u);
+  ASSERT_EQ(full.width, s.camera.width);
+  // Centre pixel: the box, at the same depth as at full size; a corner: background.
+  EXPECT_EQ(small.object_id[small.index(40, 30)], 1u);
+  EXPECT_NEAR(small.depth[small.index(40, 30)], full.depth[full.index(160, 120)], 1e-4f);
+  EXPECT_EQ(small.object_id[small.index(0, 0)], 0u);
+  s.camera.width = 80;
+  s.camera.height = 60;
+  const GBuffer direct = render(s);
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < direct.size(); ++i) differ += direct.object_id[i] != small.object_id[i] ? 1u : 0u;
+  EXPECT_EQ(differ, 0u);
+  BackendSettings colour_only;
+  colour_only.color_and_id_only = true;
+  GBuffer c;
+  backend_->render({}, colour_only, c);
+  EXPECT_EQ(c.object_id, direct.object_id);
+  EXPECT_EQ(c.color, direct.color);
+  EXPECT_EQ(c.normal[c.index(40, 30)], glm::vec3(0.0f));
+}
+
+}  // namespace
+}  // namespace fovea::render

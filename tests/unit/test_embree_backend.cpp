@@ -638,3 +638,54 @@ TEST(EmbreeBackend, LevelsOfDetailSwitchPerFrame) {
     EXPECT_EQ(back.depth, full.depth) << to_string(geometry);
   }
 }
+
+namespace fovea::render {
+namespace {
+
+TEST(EmbreeBackend, SmallerResolutionIsTheCameraAtThatResolution) {
+  // BackendSettings::width/height (the attention proxy): the same image as a camera of that size.
+  Scene s = many_objects_scene();
+  s.camera.width = 96;
+  s.camera.height = 64;
+  EmbreeBackend full;
+  full.set_scene(s);
+  BackendSettings small_settings;
+  small_settings.width = 33;
+  small_settings.height = 22;
+  GBuffer small;
+  full.render({0.25, 0.2}, small_settings, small);
+  ASSERT_EQ(small.width, 33u);
+  ASSERT_EQ(small.height, 22u);
+  s.camera.width = 33;
+  s.camera.height = 22;
+  EmbreeBackend direct;
+  direct.set_scene(s);
+  GBuffer expected;
+  direct.render({0.25, 0.2}, BackendSettings{}, expected);
+  EXPECT_EQ(mismatches(small, expected, 0.0f), 0u);
+}
+
+TEST(EmbreeBackend, PixelMaskTracesOnlyTilesWithMarkedPixelsAndThoseExactly) {
+  const Scene s = many_objects_scene();
+  EmbreeBackend b;
+  b.set_scene(s);
+  GBuffer all, masked;
+  b.render({0.25, 0.2}, BackendSettings{}, all);
+  BackendSettings m;
+  m.pixel_mask.assign(all.size(), 0);
+  m.pixel_mask[all.index(50, 30)] = 1;  // one pixel: its 16x16 tile is traced, the rest is background
+  b.render({0.25, 0.2}, m, masked);
+  EXPECT_EQ(masked.object_id[all.index(50, 30)], all.object_id[all.index(50, 30)]);
+  EXPECT_EQ(masked.color[all.index(50, 30)], all.color[all.index(50, 30)]);
+  std::size_t background = 0;
+  for (std::size_t i = 0; i < masked.size(); ++i) background += masked.object_id[i] == 0 ? 1u : 0u;
+  EXPECT_GE(background, masked.size() - 256);
+  EXPECT_LT(background, masked.size());
+  BackendSettings wrong_size;  // a mask of another size is ignored: everything is traced
+  wrong_size.pixel_mask.assign(7, 0);
+  b.render({0.25, 0.2}, wrong_size, masked);
+  EXPECT_EQ(mismatches(masked, all, 0.0f), 0u);
+}
+
+}  // namespace
+}  // namespace fovea::render

@@ -597,11 +597,13 @@ void EmbreeBackend::set_scene(const Scene& scene) {
 void EmbreeBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
   Impl& im = *impl_;
   const Camera& cam = im.scene.camera;
+  const std::uint32_t width = settings.width > 0 ? settings.width : cam.width;
+  const std::uint32_t height = settings.height > 0 ? settings.height : cam.height;
   // Every texel is written below, so a buffer of the right size is reused without clearing.
-  const std::size_t texels = std::size_t{cam.width} * cam.height;
-  if (out.width != cam.width || out.height != cam.height || out.color.size() != texels || out.depth.size() != texels ||
+  const std::size_t texels = std::size_t{width} * height;
+  if (out.width != width || out.height != height || out.color.size() != texels || out.depth.size() != texels ||
       out.object_id.size() != texels || out.normal.size() != texels || out.motion.size() != texels) {
-    out.resize(cam.width, cam.height);
+    out.resize(width, height);
   }
   im.stats = {};
   im.shadow_rays = 0;
@@ -619,8 +621,8 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
 
   // Camera frame. A degenerate camera (up parallel to the view axis, bad FOV) renders background.
   Frame f;
-  f.width = cam.width;
-  f.height = cam.height;
+  f.width = width;
+  f.height = height;
   const glm::mat4 view = cam.view_at(time.now_s);
   const glm::mat4 cam_to_world = glm::inverse(view);
   const float tan_half = std::tan(glm::radians(cam.vertical_fov_deg) * 0.5f);
@@ -757,6 +759,13 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
     out.motion[i] = motion;
   };
 
+  const bool masked = settings.pixel_mask.size() == out.size();
+  const auto tile_marked = [&](std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1) {
+    for (std::uint32_t y = y0; y < y1; ++y)
+      for (std::uint32_t x = x0; x < x1; ++x)
+        if (settings.pixel_mask[out.index(x, y)] != 0) return true;
+    return false;
+  };
   const std::uint32_t tiles_x = (f.width + kTile - 1) / kTile, tiles_y = (f.height + kTile - 1) / kTile;
   const std::size_t tile_count = std::size_t{tiles_x} * tiles_y;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& range) {
@@ -767,6 +776,11 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
       const auto tx = static_cast<std::uint32_t>(t % tiles_x), ty = static_cast<std::uint32_t>(t / tiles_x);
       const std::uint32_t x0 = tx * kTile, y0 = ty * kTile;
       const std::uint32_t x1 = std::min(x0 + kTile, f.width), y1 = std::min(y0 + kTile, f.height);
+      if (masked && !tile_marked(x0, y0, x1, y1)) {
+        for (std::uint32_t y = y0; y < y1; ++y)
+          for (std::uint32_t x = x0; x < x1; ++x) fill_background(out.index(x, y));
+        continue;
+      }
       if (peel > 0) {
         trace_peeled(top, f, x0, y0, x1, y1, instanced, peel, hits);
       } else {

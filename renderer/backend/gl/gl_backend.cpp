@@ -263,14 +263,21 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   check_gl("GlBackend::ensure_framebuffer");
 }
 
-void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels) {
+void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels,
+                     std::uint32_t width, std::uint32_t height) {
   if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
   const Scene& scene = *scene_;
   const Camera& cam = scene.camera;
   context_.make_current();
-  ensure_framebuffer(cam.width, cam.height);
+  // A smaller image (BackendSettings::width/height) goes to the framebuffer's lower-left corner, so
+  // alternating sizes do not reallocate it.
+  if (width == 0) width = cam.width;
+  if (height == 0) height = cam.height;
+  ensure_framebuffer(std::max(std::max(cam.width, width), fb_width_), std::max(std::max(cam.height, height), fb_height_));
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  glViewport(0, 0, static_cast<GLsizei>(cam.width), static_cast<GLsizei>(cam.height));
+  glViewport(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+  glEnable(GL_SCISSOR_TEST);  // clears only the image's corner of the framebuffer
+  glScissor(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDepthMask(GL_TRUE);
@@ -320,7 +327,7 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   glUniform1i(loc_light_count_, light_sample_count_);
   glUniform3fv(loc_eye_, 1, glm::value_ptr(eye));
   glUniform3fv(loc_ambient_, 1, glm::value_ptr(scene.ambient));
-  glUniform2f(loc_viewport_, static_cast<float>(cam.width), static_cast<float>(cam.height));
+  glUniform2f(loc_viewport_, static_cast<float>(width), static_cast<float>(height));
 
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const Object& o = scene.objects[i];
@@ -350,6 +357,7 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   }
   glBindVertexArray(0);
   glUseProgram(0);
+  glDisable(GL_SCISSOR_TEST);
   check_gl("GlBackend::render (draw)");
 }
 
@@ -371,8 +379,9 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
         "OpenGL backend: the hidden layer (depth peeling) is not implemented for the raster backend yet; use "
         "--backend embree");
   }
-  draw(time, settings.lens, settings.lod_levels);
-  const std::uint32_t w = scene_->camera.width, h = scene_->camera.height;
+  draw(time, settings.lens, settings.lod_levels, settings.width, settings.height);
+  const std::uint32_t w = settings.width > 0 ? settings.width : scene_->camera.width;
+  const std::uint32_t h = settings.height > 0 ? settings.height : scene_->camera.height;
   out.resize(w, h);
   if (w == 0 || h == 0) return;
   const auto gw = static_cast<GLsizei>(w), gh = static_cast<GLsizei>(h);
@@ -396,22 +405,26 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
       out.color[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
     }
   }
-  read_float(kDepth, GL_RED, 1);
-  for (std::uint32_t y = 0; y < h; ++y) {
-    for (std::uint32_t x = 0; x < w; ++x) out.depth[out.index(x, y)] = finite_or(scratch_[src(x, y)], far_m);
-  }
-  read_float(kNormal, GL_RGBA, 4);
-  for (std::uint32_t y = 0; y < h; ++y) {
-    for (std::uint32_t x = 0; x < w; ++x) {
-      const float* p = &scratch_[4 * src(x, y)];
-      out.normal[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
+  if (settings.color_and_id_only) {
+    std::fill(out.depth.begin(), out.depth.end(), far_m);
+  } else {
+    read_float(kDepth, GL_RED, 1);
+    for (std::uint32_t y = 0; y < h; ++y) {
+      for (std::uint32_t x = 0; x < w; ++x) out.depth[out.index(x, y)] = finite_or(scratch_[src(x, y)], far_m);
     }
-  }
-  read_float(kMotion, GL_RG, 2);
-  for (std::uint32_t y = 0; y < h; ++y) {
-    for (std::uint32_t x = 0; x < w; ++x) {
-      const float* p = &scratch_[2 * src(x, y)];
-      out.motion[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0)};
+    read_float(kNormal, GL_RGBA, 4);
+    for (std::uint32_t y = 0; y < h; ++y) {
+      for (std::uint32_t x = 0; x < w; ++x) {
+        const float* p = &scratch_[4 * src(x, y)];
+        out.normal[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
+      }
+    }
+    read_float(kMotion, GL_RG, 2);
+    for (std::uint32_t y = 0; y < h; ++y) {
+      for (std::uint32_t x = 0; x < w; ++x) {
+        const float* p = &scratch_[2 * src(x, y)];
+        out.motion[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0)};
+      }
     }
   }
   scratch_id_.resize(n);

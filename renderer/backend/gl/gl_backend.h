@@ -59,7 +59,9 @@ class GlBackend final : public Backend {
     std::vector<std::size_t> lods;  // the object's LOD levels 1.. in meshes_
   };
 
-  void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {});
+  // width/height 0: the camera's resolution.
+  void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {},
+            std::uint32_t width = 0, std::uint32_t height = 0);
   void ensure_framebuffer(std::uint32_t width, std::uint32_t height);
   void release_framebuffer();
   void release_meshes();
