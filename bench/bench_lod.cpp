@@ -227,7 +227,7 @@ int main(int argc, char** argv) {
   if (!csv_path.empty()) {
     csv.open(csv_path);
     csv << "model,backend,objects,condition,ms_per_frame,ms_render,ms_proxy,ms_attention,ms_blend,ms_model,triangles,"
-           "psnr_attended_db,psnr_gazed_db,psnr_periphery_db,proxy_mean_abs_dso,proxy_top10_same\n";
+           "psnr_attended_db,psnr_gazed_db,psnr_periphery_db,proxy_mean_abs_dso,proxy_top1_same,proxy_top10_same\n";
   }
   std::printf("%-7s %-7s %5s %-10s %9s %9s %8s %8s %8s %9s %11s %7s %7s %7s %6s\n", "model", "backend", "objs", "condition",
               "ms/frame", "render", "proxy", "attn", "blend", "eq7.2", "triangles", "dB_att", "dB_gaze", "dB_per", "|dSo|");
@@ -311,7 +311,8 @@ int main(int argc, char** argv) {
           double total = 0, render = 0, proxy = 0, attention = 0, blend = 0, model = std::nan("");
           std::uint64_t triangles = 0;
           double dso = std::nan("");
-          int top_same = -1;
+          int top_same = -1;  // the ten most attended objects in the same order (1), or not (0)
+          int top1_same = -1; // the most attended object the same
         };
         GBuffer full_image;
         std::vector<std::uint8_t> region;    // 0 gazed, 1 periphery, 2 floor and background
@@ -327,7 +328,7 @@ int main(int argc, char** argv) {
           if (csv)
             csv << model << "," << backend_name << "," << count << "," << r.condition << "," << r.total << "," << r.render << ","
                 << r.proxy << "," << r.attention << "," << r.blend << "," << r.model << "," << r.triangles << "," << pa << "," << pg << ","
-                << pp << "," << r.dso << "," << r.top_same << "\n";
+                << pp << "," << r.dso << "," << r.top1_same << "," << r.top_same << "\n";
         };
         const auto render_with = [&](const BackendSettings& bs, GBuffer& out) {
           backend->render({}, bs, out);  // warm-up (level switch)
@@ -385,6 +386,7 @@ int main(int argc, char** argv) {
             }
           r.dso = n > 0 ? sum / n : 0;
           r.top_same = 1;
+          r.top1_same = !fa.empty() && !att.objects.empty() && fa.front().id == att.objects.front().id ? 1 : 0;
           for (std::size_t k = 0; k < std::min<std::size_t>(10, std::min(fa.size(), att.objects.size())); ++k)
             if (fa[k].id != att.objects[k].id) r.top_same = 0;
           const auto s0 = Clock::now();
