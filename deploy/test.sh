@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # fovea's test command (README command 2; .ci/run runs exactly this):
 #   installs dependencies if missing, builds the normal and the ASan+UBSan configurations (and the
-#   libFuzzer targets when clang is present), runs ctest on each, prints the summaries and exits
-#   non-zero on any failure.
+#   libFuzzer targets when clang is present), runs ctest on each, runs the quick accuracy-cost report
+#   against its checked-in baseline (bench/baseline-quick.json: ratios measured in the same run),
+#   prints the summaries and exits non-zero on any failure.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 JOBS=${FOVEA_JOBS:-$(nproc)}
@@ -28,6 +29,15 @@ run_suite() {  # name preset ctest-args...
 }
 
 run_suite "release" default
+
+# The accuracy-cost report, quick: every effect's sweep in ~2 minutes, checked against the baseline.
+echo "=== accuracy-cost report (fovea-bench report --quick)"
+if python3 bench/fovea-bench report --quick --force --out build/report-quick --check-baseline bench/baseline-quick.json; then
+  summary+=("report --quick: baseline checks passed (build/report-quick/report.html)")
+else
+  summary+=("report --quick: FAILED (see build/report-quick/report.html)"); status=1
+fi
+
 run_suite "asan+ubsan" asan
 
 if command -v clang++ >/dev/null 2>&1; then
