@@ -42,6 +42,8 @@ int run_headless(const RenderOptions& o) {
     std::fprintf(stderr, "fovea-render: --headless needs --out DIR\n");
     return 2;
   }
+  // The governor's fronts are read (and refused) before anything is written.
+  std::unique_ptr<Governor> governor = make_governor(o);
   std::error_code ec;
   if (fs::exists(o.out_dir) && !fs::is_empty(o.out_dir, ec)) {
     std::fprintf(stderr, "fovea-render: output directory %s is not empty; choose a new one (nothing is overwritten)\n",
@@ -70,7 +72,6 @@ int run_headless(const RenderOptions& o) {
   std::ofstream gaze_log(fs::path(o.out_dir) / "gaze.csv");
   gaze_log << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
   std::ofstream focus_log, gi_log, lod_log, governor_log;
-  std::unique_ptr<Governor> governor = make_governor(o);
   if (governor) {
     governor_log.open(fs::path(o.out_dir) / "governor.csv");
     governor_log << "frame,budget_ms,frame_ms,predicted_ms,other_ms,cannot_meet,replans,choices\n";

@@ -160,6 +160,30 @@ grep -qE '"[0-9]+:[1-9]' "$WORK/lod-gl/lod.csv" || fail "the raster backend shou
 out=$("$RENDER" --scene "$SCENES/attention.json" --explain --gaze none --set lod.policy=fastest 2>&1) && fail "bad lod.policy accepted"
 grep -q "lod.policy" <<<"$out" || fail "the error should name lod.policy: $out"
 
+echo "== the governor: --budget-ms headless and in the viewer, a budget it cannot meet, bad fronts"
+GOV=(--scene "$SCENES/cornell.json" "${SMALL[@]}" --gaze "file:$REC" --set gi.enabled=true --set gi.photons=5000)
+"$RENDER" "${GOV[@]}" --headless --frames 6 --fps 10 --budget-ms 500 --out "$WORK/gov" >"$WORK/gov.log" 2>&1 \
+  || fail "governor: $(tail -5 "$WORK/gov.log")"
+[ "$(wc -l <"$WORK/gov/governor.csv")" -eq 7 ] || fail "governor.csv should have 6 frames: $(cat "$WORK/gov/governor.csv")"
+grep -q '"gi=' "$WORK/gov/governor.csv" || fail "the governor should choose gi settings: $(cat "$WORK/gov/governor.csv")"
+[ "$(tail -1 "$WORK/gov/governor.csv" | cut -d, -f6)" = 0 ] || fail "500 ms should be met: $(tail -1 "$WORK/gov/governor.csv")"
+grep -q "^governor: budget 500.0 ms" "$WORK/gov.log" || fail "no governor summary: $(tail -3 "$WORK/gov.log")"
+"$RENDER" "${GOV[@]}" --headless --frames 3 --fps 10 --budget-ms 0.5 --out "$WORK/gov-tight" >"$WORK/gov-tight.log" 2>&1 \
+  || fail "governor, tight budget: $(tail -5 "$WORK/gov-tight.log")"
+[ "$(tail -1 "$WORK/gov-tight/governor.csv" | cut -d, -f6)" = 1 ] || fail "0.5 ms cannot be met: $(cat "$WORK/gov-tight/governor.csv")"
+grep -q "cannot meet" "$WORK/gov-tight.log" || fail "the summary should say the budget cannot be met"
+echo '{"fronts": [{"effect": "gi", "passes": ["gi"], "metric": "m", "reference": "r", "higher_better": true,
+  "scales_with_pixels": false, "pixels": 0, "options": [{"label": "x", "settings": {"gi.photons": "-5"}, "ms": 1, "accuracy": 1}]}]}' \
+  >"$WORK/bad-fronts.json"
+out=$("$RENDER" "${GOV[@]}" --headless --frames 1 --budget-ms 50 --fronts "$WORK/bad-fronts.json" --out "$WORK/gov-bad" 2>&1) \
+  && fail "bad fronts accepted"
+grep -q "bad-fronts.json.fronts\[0\].options\[0\].settings" <<<"$out" || fail "the error should name the option: $out"
+[ -e "$WORK/gov-bad" ] && fail "refused fronts should leave no output directory behind"
+out=$("$RENDER" "${GOV[@]}" --headless --frames 1 --budget-ms 0 --out "$WORK/gov-zero" 2>&1) && fail "--budget-ms 0 accepted"
+"${XVFB[@]}" "$RENDER" "${GOV[@]}" --frames 5 --budget-ms 500 >"$WORK/viewer-gov.out" 2>&1 \
+  || fail "viewer with the governor: $(tail -5 "$WORK/viewer-gov.out")"
+grep -q "^governor: budget 500.0 ms" "$WORK/viewer-gov.out" || fail "the viewer should report the governor: $(tail -3 "$WORK/viewer-gov.out")"
+
 echo "== two render clients against one daemon"
 PORT=$(( 48100 + RANDOM % 800 ))
 "$TRACKERD" --source "replay:$REC" --loop --port $PORT >"$WORK/daemon.log" 2>&1 &
