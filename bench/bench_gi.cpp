@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "backend/embree/embree_backend.h"
+#include "gi/csf_mask.h"
 #include "gi/gi_pass.h"
 #include "scene/scene_loader.h"
 
@@ -79,7 +80,8 @@ glm::vec2 gaze_on_sphere(const Scene& s) {
 struct Run {
   gi::GiPassResult last;
   double photons_ms = 0, index_ms = 0, precompute_ms = 0, render_ms = 0, composite_ms = 0, total_ms = 0;
-  std::vector<glm::vec3> gi;  // the last frame's GI image
+  std::vector<glm::vec3> gi;         // the last frame's GI image
+  std::vector<glm::vec3> composite;  // the last frame's output: GI in the gaze area blended into the local image
 };
 
 // `frames` frames with the gaze still; stage medians over the frames after `warmup`.
@@ -100,6 +102,7 @@ Run run_frames(gi::GiPass& pass, const Scene& scene, const gi::GazeArea& area, c
   }
   r.last = pass.last();
   r.gi = pass.gi_image();
+  r.composite = out;
   r.photons_ms = median(ph);
   r.index_ms = median(ix);
   r.precompute_ms = median(pc);
@@ -125,15 +128,38 @@ double relative_rmse(const std::vector<glm::vec3>& a, const std::vector<glm::vec
   return n > 0 && sum > 0 ? std::sqrt(se / static_cast<double>(n)) / (sum / static_cast<double>(n)) : 0.0;
 }
 
+// Relative RMSE over the whole image with each pixel weighted by what the eye resolves at its
+// eccentricity from the gaze: the Geisler-Perry cutoff frequency there over the fovea's (Murphy
+// 2007 eq. 4.3). An error in the periphery counts as much less as the eye sees there.
+double csf_weighted_relative_rmse(const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& ref, std::uint32_t w,
+                                  std::uint32_t h, const fovea::protocol::DisplayGeometry& display, glm::vec2 gaze) {
+  const gi::CsfSettings csf;
+  const double fovea_cpd = gi::cutoff_frequency_cpd(0.0, csf);
+  const fovea::protocol::Degrees g = fovea::protocol::normalized_to_degrees(display, {gaze.x, gaze.y});
+  double se = 0, sum = 0, weights = 0;
+  for (std::size_t i = 0; i < ref.size(); ++i) {
+    const double x = (static_cast<double>(i % w) + 0.5) / w, y = (static_cast<double>(i / w) + 0.5) / h;
+    const double ecc = fovea::protocol::angle_between_deg(g, fovea::protocol::normalized_to_degrees(display, {x, y}));
+    const double wt = gi::cutoff_frequency_cpd(ecc, csf) / fovea_cpd;
+    for (int c = 0; c < 3; ++c) {
+      const double d = static_cast<double>(a[i][c]) - static_cast<double>(ref[i][c]);
+      se += wt * d * d;
+      sum += wt * static_cast<double>(ref[i][c]);
+    }
+    weights += 3 * wt;
+  }
+  return weights > 0 && sum > 0 ? std::sqrt(se / weights) / (sum / weights) : 0.0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"Gaze-directed hybrid rendering with photon mapping: per-stage times, photons in the gaze area, "
                "full screen against the gaze area, and accuracy against a converged reference"};
-  std::string sections = "stages,density,area,accuracy", sizes_text = "320x240,640x480,1024x768", csv_dir;
+  std::string sections = "stages,density,area,accuracy,radius", sizes_text = "320x240,640x480,1024x768", csv_dir;
   std::uint32_t photons = 40000, reference_photons = 2000000;
   int frames = 6;
-  app.add_option("--sections", sections, "comma-separated: stages,density,area,accuracy");
+  app.add_option("--sections", sections, "comma-separated: stages,density,area,accuracy,radius");
   app.add_option("--sizes", sizes_text, "image sizes of the stages section, WxH comma-separated");
   app.add_option("--photons", photons, "stored photons per frame (maxPhotons)")->check(CLI::Range(100u, 10000000u));
   app.add_option("--reference-photons", reference_photons, "photons of the accuracy section's reference")
@@ -154,8 +180,8 @@ int main(int argc, char** argv) {
   }
   const std::vector<std::string> wanted = split(sections);
   for (const std::string& w : wanted) {
-    if (w != "stages" && w != "density" && w != "area" && w != "accuracy") {
-      std::fprintf(stderr, "--sections: '%s' is not one of stages, density, area, accuracy\n", w.c_str());
+    if (w != "stages" && w != "density" && w != "area" && w != "accuracy" && w != "radius") {
+      std::fprintf(stderr, "--sections: '%s' is not one of stages, density, area, accuracy, radius\n", w.c_str());
       return 2;
     }
   }
@@ -318,6 +344,48 @@ int main(int argc, char** argv) {
           std::printf("%-14s %-11s %8u %10.1f %10.4f\n", gi::to_string(st), en, n, r.total_ms, e);
           std::fflush(stdout);
           if (out) out << gi::to_string(st) << "," << en << "," << n << "," << r.total_ms << "," << e << "," << reference_photons << "\n";
+        }
+  }
+  if (section("radius")) {
+    // The gaze area's size against photons: the hybrid image (GI in the area, local illumination
+    // outside) against a full-screen reference, errors weighted by the eye's resolution at each
+    // pixel's eccentricity (the governor trades gi.gaze_area_deg against gi.photons on this). The
+    // raster side keeps the scene's ambient term outside the area, as fovea-render's does.
+    Scene scene = make_scene("diffuse", {640, 480});
+    scene.ambient = load_scene(std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/cornell.json").ambient;
+    const std::vector<glm::vec3> local = local_image(scene, nullptr);
+    const glm::vec2 gaze = gaze_on_sphere(scene);
+    const gi::GazeArea full{{320.0f, 240.0f}, 401.0f};
+    std::printf("\n== gaze-area size against photons: CSF-weighted relative RMSE over the image against a full-screen "
+                "traditional map with %u photons, 640x480\n", reference_photons);
+    gi::GiPassSettings ref = base_settings(gi::Strategy::Traditional, gi::IndirectEstimate::Nearest);
+    ref.photons = reference_photons;
+    ref.fovea = 1.0f;
+    gi::GiPass ref_pass;
+    ref_pass.set_scene(scene);
+    const Run reference = run_frames(ref_pass, scene, full, ref, local, 1, 0);
+    std::printf("%-14s %-11s %8s %8s %10s %10s %10s\n", "strategy", "estimate", "photons", "area", "ms/frame", "csf_rmse",
+                "area_rmse");
+    std::ofstream out = csv("gi_radius.csv");
+    if (out) out << "strategy,estimate,photons,area_deg,ms_per_frame,csf_weighted_rmse,area_rmse,reference_photons\n";
+    for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected})
+      for (std::uint32_t n : {10000u, 40000u, 80000u})
+        for (double deg : {10.0, 20.0, 40.0, 0.0}) {  // 0: the full screen
+          gi::GiPassSettings s = base_settings(st, gi::IndirectEstimate::Precomputed);
+          s.photons = n;
+          const gi::GazeArea area = deg > 0 ? gi::gaze_area(scene.display, 640, 480, gaze, deg) : full;
+          if (deg == 0) s.fovea = 1.0f;
+          gi::GiPass pass;
+          pass.set_scene(scene);
+          const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
+          const double e = csf_weighted_relative_rmse(r.composite, reference.composite, 640, 480, scene.display, gaze);
+          const double ea = relative_rmse(r.composite, reference.composite, area, 640);
+          std::printf("%-14s %-11s %8u %8s %10.1f %10.4f %10.4f\n", gi::to_string(st), "precomputed", n,
+                      deg > 0 ? (std::to_string(static_cast<int>(deg)) + " deg").c_str() : "full", r.total_ms, e, ea);
+          std::fflush(stdout);
+          if (out)
+            out << gi::to_string(st) << ",precomputed," << n << "," << deg << "," << r.total_ms << "," << e << "," << ea << ","
+                << reference_photons << "\n";
         }
   }
   return 0;

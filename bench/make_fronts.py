@@ -46,9 +46,30 @@ def dof_front(path):
             "options": pareto(options, True)}
 
 
-def gi_front(path):
+def gi_front(results):
+    # The gaze area's size traded against photons (bench_gi --sections radius): the hybrid image
+    # against a full-screen reference with errors weighted by the eye's resolution at each pixel's
+    # eccentricity. Without that run, the photons alone in a 20 deg area (--sections accuracy).
+    radius = os.path.join(results, "gi", "gi_radius.csv")
+    if os.path.exists(radius):
+        options = []
+        for r in csv.DictReader(open(radius)):
+            deg = float(r["area_deg"])
+            settings = {"gi.strategy": r["strategy"], "gi.estimate": r["estimate"], "gi.photons": r["photons"],
+                        "gi.area": "gaze" if deg > 0 else "full"}
+            if deg > 0:
+                settings["gi.gaze_area_deg"] = f"{deg:g}"
+            options.append({"label": f'{r["strategy"]} {r["estimate"]} {int(r["photons"]) // 1000}k, '
+                                     + (f"{deg:g} deg" if deg > 0 else "full screen"),
+                            "settings": settings, "ms": float(r["ms_per_frame"]),
+                            "accuracy": float(r["csf_weighted_rmse"])})
+        return {"effect": "gi", "passes": ["gi"], "metric": "CSF-weighted relative RMSE over the image", "higher_better": False,
+                "reference": "a full-screen traditional map (bench_gi --reference-photons), errors weighted by the "
+                             "Geisler-Perry cutoff frequency at each pixel's eccentricity from the gaze (cornell.json)",
+                "pixels": 640 * 480, "scales_with_pixels": True, "source": "bench/results/gi/gi_radius.csv",
+                "options": pareto(options, False)}
     options = []
-    for r in csv.DictReader(open(path)):
+    for r in csv.DictReader(open(os.path.join(results, "gi", "gi_accuracy.csv"))):
         options.append({"label": f'{r["strategy"]} {r["estimate"]} {int(r["photons"]) // 1000}k',
                         "settings": {"gi.strategy": r["strategy"], "gi.estimate": r["estimate"], "gi.photons": r["photons"]},
                         "ms": float(r["ms_per_frame"]), "accuracy": float(r["relative_rmse"])})
@@ -100,7 +121,7 @@ def main():
     results = sys.argv[1] if len(sys.argv) > 1 else "bench/results"
     out = sys.argv[2] if len(sys.argv) > 2 else "renderer/governor/fronts.json"
     fronts = [dof_front(os.path.join(results, "bench_dof.csv")),
-              gi_front(os.path.join(results, "gi", "gi_accuracy.csv")),
+              gi_front(results),
               attention_front(os.path.join(results, "eval_attention.csv"))]
     fronts += lod_fronts(os.path.join(results, "bench_lod.csv"))
     for f in fronts:

@@ -32,7 +32,7 @@ run_suite "release" default
 
 # The accuracy-cost report, quick: every effect's sweep in ~2 minutes, checked against the baseline.
 echo "=== accuracy-cost report (fovea-bench report --quick)"
-if python3 bench/fovea-bench report --quick --force --out build/report-quick --check-baseline bench/baseline-quick.json; then
+if bench/fovea-bench report --quick --force --out build/report-quick --check-baseline bench/baseline-quick.json; then
   summary+=("report --quick: baseline checks passed (build/report-quick/report.html)")
 else
   summary+=("report --quick: FAILED (see build/report-quick/report.html)"); status=1
