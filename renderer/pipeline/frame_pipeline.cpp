@@ -125,11 +125,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
       if (check) require_finite_gbuffer("attention.proxy", proxy_);
     }
     auto t = timer.scope("attention");
-    const attention::AttentionSettings wanted = attention_settings(settings_);
-    if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
-    attention_.update(proxy_, scene_, now_s, previous_s);
-    f.attention = &attention_.last();
-    if (check) require_finite_attention(*f.attention);
+    f.attention = &run_attention(proxy_, now_s, previous_s, check);
     attention_done = true;
   }
   if (f.plan.runs(PassId::LodSelect)) {
@@ -150,11 +146,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   f.gbuffer = &gbuffer_;
   if (f.plan.runs(PassId::Attention) && !attention_done) {
     auto t = timer.scope("attention");
-    const attention::AttentionSettings wanted = attention_settings(settings_);
-    if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
-    attention_.update(gbuffer_, scene_, now_s, previous_s);
-    f.attention = &attention_.last();
-    if (check) require_finite_attention(*f.attention);
+    f.attention = &run_attention(gbuffer_, now_s, previous_s, check);
   }
   if (f.plan.runs(PassId::Focus)) {
     auto t = timer.scope("focus");
@@ -296,6 +288,15 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_frame_.importons = r.importons;
   gi_frame_.emitted = r.emitted;
   gi_frame_.note = r.note;
+}
+
+const attention::AttentionFrame& FramePipeline::run_attention(const GBuffer& g, double now_s, double previous_s,
+                                                              bool check) {
+  const attention::AttentionSettings wanted = attention_settings(settings_);
+  if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
+  const attention::AttentionFrame& a = attention_.update(g, scene_, now_s, previous_s);
+  if (check) require_finite_attention(a);
+  return a;
 }
 
 void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& drawn) {

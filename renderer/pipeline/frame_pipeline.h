@@ -91,6 +91,8 @@ class FramePipeline {
   GBuffer ulod_next_;  // lod.policy=ulod: the next-coarser levels, blended into the colour
   GBuffer proxy_;      // lod.policy=ulod: every object at its coarsest level, for the attention pass
   void blend_ulod(const FrameTime& time, const BackendSettings& drawn);
+  // The attention pass on `g` (the proxy or the frame's G-buffer) with attention.* applied.
+  const attention::AttentionFrame& run_attention(const GBuffer& g, double now_s, double previous_s, bool check);
   std::vector<glm::vec3> hybrid_;
   Frame::Gi gi_frame_;
   // Places the gaze area, runs the gi pass over `local` into hybrid_, records its stage times.
