@@ -7,6 +7,7 @@ set -euo pipefail
 PACKAGES=(
   # toolchain
   build-essential g++ cmake ninja-build pkg-config git
+  universal-ctags                     # dev/long-functions (function lengths)
   clang libclang-rt-14-dev            # libFuzzer target and its sanitizer runtimes
   # protocol, daemon and CLI
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libtomlplusplus-dev
