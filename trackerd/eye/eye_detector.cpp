@@ -1,4 +1,5 @@
 #include "eye/eye_detector.h"
+#include "sources/grey8.h"
 
 #include <algorithm>
 #include <array>
@@ -663,30 +664,6 @@ void DetectorSettings::validate() const {
   if (!(blink_aspect >= 0 && blink_aspect <= 1)) fail("blink_aspect: allowed 0..1");
   if (!(min_confidence >= 0 && min_confidence <= 1)) fail("min_confidence: allowed 0..1");
   if (leds.positions_mm.size() > 8) fail("at most 8 LEDs");
-}
-
-cv::Mat to_grey8(const cv::Mat& image) {
-  if (image.empty()) return {};
-  cv::Mat grey;
-  switch (image.channels()) {
-    case 1: grey = image; break;
-    case 3: cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY); break;
-    case 4: cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY); break;
-    default: cv::extractChannel(image, grey, 0); break;  // e.g. grey + alpha: the first channel
-  }
-  if (grey.depth() == CV_8U) return grey;
-  cv::Mat as_double;  // float is exact for 16-bit values and is what patchNaNs accepts
-  grey.convertTo(as_double, CV_32F);
-  cv::patchNaNs(as_double, 0.0);
-  cv::max(as_double, -std::numeric_limits<float>::max(), as_double);  // -Inf -> finite
-  cv::min(as_double, std::numeric_limits<float>::max(), as_double);   // +Inf -> finite
-  double lo = 0, hi = 0;
-  cv::minMaxLoc(as_double, &lo, &hi);
-  if (!std::isfinite(hi) || hi <= 0) hi = 1;
-  lo = std::min(0.0, lo);
-  cv::Mat eight;
-  as_double.convertTo(eight, CV_8U, 255.0 / (hi - lo), -lo * 255.0 / (hi - lo));
-  return eight;
 }
 
 EyeDetector::EyeDetector(DetectorSettings settings) : settings_(std::move(settings)) { settings_.validate(); }

@@ -108,8 +108,4 @@ class EyeDetector {
 // contour and cv::fitEllipse it. No glint handling, no outlier rejection.
 EyeMeasurement detect_pupil_baseline(const cv::Mat& image);
 
-// Converts any image to 8-bit single-channel grey (BGR, BGRA; otherwise the first channel; 16-bit: scaled by the frame's own
-// maximum so 10/12-bit sensors in 16-bit containers keep their contrast). Empty stays empty.
-cv::Mat to_grey8(const cv::Mat& image);
-
 }  // namespace fovea::trackerd::eye

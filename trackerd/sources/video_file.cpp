@@ -1,6 +1,6 @@
 #include "sources/video_file.h"
 
-#include "eye/eye_detector.h"
+#include "sources/grey8.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -113,7 +113,7 @@ bool VideoFileSource::read_pending() {
                        last_file_ns_ + 1);
   }
   last_file_ns_ = file_ns;
-  cv::Mat grey = eye::to_grey8(frame);
+  cv::Mat grey = to_grey8(frame);
   if (grey.data == frame.data) grey = grey.clone();  // the capture reuses its buffer
   pending_ = EyeFrame{std::move(grey), file_ns - first_file_ns_, index_};
   ++index_;
