@@ -1,5 +1,5 @@
 // Calibration accuracy versus cost (step 5): error against the number of calibration points and
-// the model, on the synthetic eye following a calibration (trackerd/eye/calibration_viewer.h) with
+// the model, on the synthetic eye following a calibration (trackerd/sim/calibration_viewer.h) with
 // realistic fixation behaviour, image noise and a head offset.
 //
 // For every points count (5, 9, 16, 64) x head offset (0, and --offset) x viewer (seed: its own eye
@@ -33,7 +33,7 @@
 #include <tuple>
 #include <vector>
 
-#include "eye/calibration_viewer.h"
+#include "sim/calibration_viewer.h"
 #include "fovea/calib/model.h"
 #include "fovea/calib/session.h"
 #include "fovea/protocol/display_geometry.h"

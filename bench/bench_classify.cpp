@@ -16,7 +16,7 @@
 #include "classify/classifier.h"
 #include "classify/synthetic_labelled.h"
 #include "classify/evaluate.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 using namespace fovea;
 using namespace fovea::trackerd;

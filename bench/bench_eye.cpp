@@ -25,9 +25,9 @@
 #include <opencv2/core.hpp>
 
 #include "eye/eye_detector.h"
-#include "eye/synthetic_eye.h"
-#include "eye/synthetic_eye_frames.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_eye.h"
+#include "sim/synthetic_eye_frames.h"
+#include "sim/synthetic_gaze.h"
 
 namespace eye = fovea::trackerd::eye;
 using fovea::trackerd::GazeItem;

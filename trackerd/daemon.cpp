@@ -21,11 +21,12 @@
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
 #include "eye/eye_source.h"
-#include "eye/synthetic_eye_frames.h"
+#include "sim/calibration_viewer.h"
+#include "sim/synthetic_eye_frames.h"
 #include "sources/hotplug_camera.h"
 #include "sources/hid/hid_source.h"
 #include "sources/replay_source.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 #include "sources/v4l2_camera.h"
 #include "sources/video_file.h"
 
@@ -79,25 +80,6 @@ std::optional<calib::ScheduleOptions> parse_eye_script(const std::string& text) 
   return o;
 }
 
-cv::Point3d parse_head_offset(const std::string& text) {
-  double v[3] = {0, 0, 0};
-  std::size_t at = 0;
-  for (int i = 0; i < 3; ++i) {
-    const std::size_t comma = text.find(',', at);
-    if ((i < 2) == (comma == std::string::npos)) {
-      throw std::invalid_argument("\"" + text + "\" is not X,Y,Z (three numbers in mm)");
-    }
-    const std::string part = text.substr(at, i < 2 ? comma - at : std::string::npos);
-    const auto r = std::from_chars(part.data(), part.data() + part.size(), v[i]);
-    if (part.empty() || r.ec != std::errc{} || r.ptr != part.data() + part.size() || !std::isfinite(v[i]) ||
-        std::abs(v[i]) > 250) {
-      throw std::invalid_argument("\"" + text + "\": \"" + part + "\" is not a number of mm within +-250");
-    }
-    at = comma + 1;
-  }
-  return {v[0], v[1], v[2]};
-}
-
 }  // namespace
 
 std::vector<std::string> check_eye_config(const service::EyeConfig& eye) {
@@ -124,7 +106,7 @@ std::vector<std::string> check_eye_config(const service::EyeConfig& eye) {
     problems.push_back(std::string("eye.synthetic_script: ") + e.what());
   }
   try {
-    (void)parse_head_offset(eye.synthetic_head_offset_mm);
+    (void)eye::parse_head_offset(eye.synthetic_head_offset_mm);
   } catch (const std::exception& e) {
     problems.push_back(std::string("eye.synthetic_head_offset_mm: ") + e.what());
   }
@@ -201,7 +183,7 @@ std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& c, std::int
     fo.rate_hz = rate;
     fo.display = display;
     fo.calibration_script = parse_eye_script(c.eye.synthetic_script);
-    fo.head_offset_mm = parse_head_offset(c.eye.synthetic_head_offset_mm);
+    fo.head_offset_mm = eye::parse_head_offset(c.eye.synthetic_head_offset_mm);
     auto frames = std::make_unique<eye::SyntheticEyeFrames>(fo);
     eye::EyePipelineOptions po = eye_pipeline_options(c, display, fo.eye.leds);
     po.nominal_rate_hz = rate;

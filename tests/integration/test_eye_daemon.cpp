@@ -22,8 +22,8 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
-#include "eye/synthetic_eye.h"
-#include "eye/synthetic_eye_frames.h"
+#include "sim/synthetic_eye.h"
+#include "sim/synthetic_eye_frames.h"
 #include "fovea/protocol/recording.h"
 
 namespace fs = std::filesystem;

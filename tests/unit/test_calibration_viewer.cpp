@@ -1,4 +1,4 @@
-// The synthetic viewer that follows a calibration (trackerd/eye/calibration_viewer.h): it lands on
+// The synthetic viewer that follows a calibration (trackerd/sim/calibration_viewer.h): it lands on
 // each target within its collection window, its saccades follow the main sequence, it blinks, it
 // is deterministic; a simulated session collects and calibrates; a zero head offset is the old
 // geometry and a non-zero one moves the eye as a camera fixed to the screen sees it.
@@ -10,12 +10,12 @@
 #include <numeric>
 #include <vector>
 
-#include "eye/calibration_viewer.h"
-#include "eye/synthetic_eye_frames.h"
+#include "sim/calibration_viewer.h"
+#include "sim/synthetic_eye_frames.h"
 #include "fovea/calib/model.h"
 #include "fovea/calib/session.h"
 #include "fovea/protocol/display_geometry.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 namespace fovea::trackerd::eye {
 namespace {

@@ -8,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "eye/eye_detector.h"
-#include "eye/synthetic_eye.h"
+#include "sim/synthetic_eye.h"
 
 namespace fovea::trackerd::eye {
 namespace {

@@ -1,5 +1,5 @@
 // The eye pipeline as a daemon source (eye/eye_source.h) and the synthetic-eye frame source
-// (eye/synthetic_eye_frames.h): detection on rendered frames, the factory calibration, blinks,
+// (sim/synthetic_eye_frames.h): detection on rendered frames, the factory calibration, blinks,
 // frame-source health, never NaN, real-time pacing, and the daemon's synthetic-eye spec.
 #include <gtest/gtest.h>
 
@@ -13,8 +13,8 @@
 
 #include "daemon.h"
 #include "eye/eye_source.h"
-#include "eye/synthetic_eye.h"
-#include "eye/synthetic_eye_frames.h"
+#include "sim/synthetic_eye.h"
+#include "sim/synthetic_eye_frames.h"
 #include "fovea/protocol/clock.h"
 
 using namespace fovea;

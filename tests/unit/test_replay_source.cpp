@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "sources/replay_source.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 using namespace fovea;
 using namespace fovea::trackerd;

@@ -12,7 +12,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "eye/synthetic_eye.h"
+#include "sim/synthetic_eye.h"
 
 namespace fovea::trackerd::eye {
 namespace {

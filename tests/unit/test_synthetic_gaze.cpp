@@ -6,7 +6,7 @@
 #include <map>
 
 #include "fovea/protocol/codec.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 using namespace fovea;
 using namespace fovea::trackerd;

@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "classify/classifier.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 namespace fovea::trackerd::classify {
 

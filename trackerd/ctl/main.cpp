@@ -19,10 +19,10 @@
 #include "fovea/protocol/csv.h"
 #include "fovea/protocol/recording.h"
 #include "classify/classifier.h"
-#include "eye/calibration_viewer.h"
+#include "sim/calibration_viewer.h"
 #include "eye/eye_detector.h"
-#include "eye/synthetic_eye.h"
-#include "eye/synthetic_eye_frames.h"
+#include "sim/synthetic_eye.h"
+#include "sim/synthetic_eye_frames.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>

@@ -1,4 +1,4 @@
-#include "eye/synthetic_eye.h"
+#include "sim/synthetic_eye.h"
 
 #include <algorithm>
 #include <array>

@@ -1,6 +1,6 @@
 #pragma once
-// `synthetic-eye`: a frame source that renders the synthetic eye (eye/synthetic_eye.h) as a camera
-// would deliver it, driven by the synthetic viewer's gaze (sources/synthetic_gaze.h, without
+// `synthetic-eye`: a frame source that renders the synthetic eye (sim/synthetic_eye.h) as a camera
+// would deliver it, driven by the synthetic viewer's gaze (sim/synthetic_gaze.h, without
 // tracker noise) so the whole eye pipeline — detection, mapping, classification, publishing — runs
 // on images with a known truth.
 //
@@ -37,11 +37,11 @@
 #include <vector>
 
 #include "eye/eye_source.h"
-#include "eye/synthetic_eye.h"
+#include "sim/synthetic_eye.h"
 #include "fovea/calib/poly2.h"
 #include "fovea/calib/session.h"
 #include "sources/frame_source.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 namespace fovea::trackerd::eye {
 
@@ -131,7 +131,7 @@ class SyntheticEyeMotion {
   std::uint64_t sequence_ = 0;
 };
 
-class TargetFollowingMotion;  // eye/calibration_viewer.h
+class TargetFollowingMotion;  // sim/calibration_viewer.h
 
 struct SyntheticEyeFramesOptions {
   SyntheticEyeOptions eye;           // image size, seed, LEDs, imaging effects (the viewer uses eye.seed too)
@@ -143,7 +143,7 @@ struct SyntheticEyeFramesOptions {
   bool realtime = true;              // false: deliver frames as fast as they render (tests, benchmarks)
   double lid_transition_s = 0.05;
   // Set: the viewer follows the calibration schedule make_schedule(display px, *calibration_script)
-  // (eye/calibration_viewer.h, TargetFollowingMotion, seeded by eye.seed) instead of the random
+  // (sim/calibration_viewer.h, TargetFollowingMotion, seeded by eye.seed) instead of the random
   // viewer; frame 0 is the session start (schedule times are relative to it).
   std::optional<calib::ScheduleOptions> calibration_script;
   // The eye displaced from the calibration position (see with_head_offset); the factory

@@ -9,7 +9,7 @@
 //  - after each onset a reaction latency (uniform 180-280 ms: saccadic latency to a step target,
 //    Carpenter 1988; Leigh & Zee), then a saccade towards the target. Saccade duration follows the
 //    main sequence, D = 2.2 ms/deg x A + 21 ms (Carpenter 1988; the same relation as the random
-//    viewer, sources/synthetic_gaze.h), with a minimum-jerk position profile
+//    viewer, sim/synthetic_gaze.h), with a minimum-jerk position profile
 //    s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5 (Flash & Hogan 1985);
 //  - primary saccades undershoot by 5-10 % of the amplitude (Becker 1989), and a corrective saccade
 //    to the target follows 120-200 ms after the primary one ends;
@@ -34,7 +34,7 @@
 #include <opencv2/core.hpp>
 
 #include "eye/eye_source.h"
-#include "eye/synthetic_eye_frames.h"
+#include "sim/synthetic_eye_frames.h"
 #include "fovea/calib/session.h"
 #include "fovea/protocol/display_geometry.h"
 #include "fovea/protocol/messages.h"

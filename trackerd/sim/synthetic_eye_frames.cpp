@@ -1,4 +1,4 @@
-#include "eye/synthetic_eye_frames.h"
+#include "sim/synthetic_eye_frames.h"
 
 #include <time.h>
 
@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "eye/calibration_viewer.h"
+#include "sim/calibration_viewer.h"
 #include "fovea/protocol/clock.h"
 
 namespace fovea::trackerd::eye {

@@ -1,7 +1,8 @@
 #include "gaze_samples.h"
-#include "eye/calibration_viewer.h"
+#include "sim/calibration_viewer.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -12,7 +13,7 @@
 
 #include "classify_stage.h"
 #include "service/config.h"
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 namespace fovea::trackerd::eye {
 
@@ -307,13 +308,10 @@ cv::Point3d parse_head_offset(const std::string& text) {
     const std::size_t end = text.find(',', pos);
     if ((i < 2) != (end != std::string::npos)) throw bad("not three comma-separated numbers");
     const std::string part = text.substr(pos, end == std::string::npos ? std::string::npos : end - pos);
-    std::size_t used = 0;
-    try {
-      v[i] = std::stod(part, &used);
-    } catch (const std::exception&) {
+    const auto r = std::from_chars(part.data(), part.data() + part.size(), v[i]);
+    if (part.empty() || r.ec != std::errc{} || r.ptr != part.data() + part.size()) {
       throw bad("\"" + part + "\" is not a number");
     }
-    if (used != part.size()) throw bad("\"" + part + "\" is not a number");
     if (!std::isfinite(v[i]) || std::abs(v[i]) > 250) throw bad("\"" + part + "\" is out of range");
     pos = end + 1;
   }

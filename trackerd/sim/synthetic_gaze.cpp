@@ -1,4 +1,4 @@
-#include "sources/synthetic_gaze.h"
+#include "sim/synthetic_gaze.h"
 
 #include <algorithm>
 #include <cmath>
