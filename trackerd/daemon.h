@@ -32,18 +32,6 @@ struct DaemonSignals {
   std::atomic<bool>* reload = nullptr;      // SIGHUP; the loop clears it when it starts the reload
 };
 
-// Empty when this build has a source of the kind `spec` names; otherwise a message naming the
-// spec and the kinds it supports. (--check-config uses it without opening anything.)
-std::string check_source_spec(const std::string& spec);
-
-// The eye pipeline's settings ([eye], --eye, --leds, ...) that only the eye module can check (the
-// LED layout's syntax); one "eye.KEY: what is wrong" per problem, empty when all are usable.
-std::vector<std::string> check_eye_config(const service::EyeConfig& eye);
-
-// Builds the source named by `config.source.spec`; throws std::invalid_argument /
-// std::runtime_error with a message naming the spec and what is wrong.
-std::unique_ptr<GazeSource> make_source(const service::DaemonConfig& config, std::int64_t start_time_ns);
-
 // Runs until `signals.stop` becomes true, the duration elapses, or (if asked) the source ends.
 // Returns the process exit status (0 clean, 1 recording failed on the way, 2 could not start).
 int run_daemon(const service::DaemonConfig& config, const RunOptions& run, const DaemonSignals& signals,

@@ -12,6 +12,7 @@
 
 #include "daemon.h"
 #include "service/config.h"
+#include "sources/source_table.h"
 
 namespace {
 std::atomic<bool> g_stop{false};
@@ -50,13 +51,7 @@ int main(int argc, char** argv) {
       std::string("validate the configuration (--config FILE, default ") + svc::kDefaultConfigPath +
           ") with the flags applied, print the effective configuration and exit 0, or the problems and exit 1");
   auto* o_source =
-      app.add_option("--source", d.source.spec,
-                     "where gaze comes from: synthetic (seeded model viewer), synthetic-eye (rendered infrared eye "
-                     "images of that viewer through the eye pipeline, with its factory calibration), replay:FILE "
-                     "(.fgr or .csv), hid[:VID:PID] (HID eye tracker), camera:/dev/videoN or camera:usb:VID:PID (eye "
-                     "camera), video:FILE (eye video). Cameras and videos run the eye pipeline (pupil and glint "
-                     "detection) and publish pupil data; their gaze stays invalid until a calibration is loaded "
-                     "(step 5)")
+      app.add_option("--source", d.source.spec, trackerd::source_help())
           ->capture_default_str();
   auto* o_port = app.add_option("--port", d.network.port, "UDP port to serve on")->capture_default_str();
   auto* o_listen =

@@ -13,6 +13,8 @@
 #include <sstream>
 #include <toml++/toml.h>
 
+#include "sources/source_table.h"
+
 namespace fovea::trackerd::service {
 
 namespace {
@@ -207,8 +209,6 @@ void check_calibration_file(Checker& c, const toml::node& where, const std::stri
 }
 
 const std::vector<std::string> kLogLevels = {"trace", "debug", "info", "warn", "error"};
-constexpr const char* kSourceKinds =
-    "synthetic, synthetic-eye, replay:FILE, hid[:VID:PID], camera:/dev/videoN, camera:usb:VID:PID, video:FILE";
 
 DaemonConfig parse_table(const toml::table& doc, Checker& c) {
   DaemonConfig cfg;
@@ -217,9 +217,10 @@ DaemonConfig parse_table(const toml::table& doc, Checker& c) {
 
   if (const auto* t = c.table(doc, "source")) {
     c.only(*t, "source.", {"spec", "rate", "seed", "speed", "loop"});
-    c.string(*t, "source.", "spec", cfg.source.spec, kSourceKinds);
+    const std::string kinds = source_kind_list();
+    c.string(*t, "source.", "spec", cfg.source.spec, kinds.c_str());
     if (cfg.source.spec.empty())
-      c.problem(t->get("spec")->source(), "source.spec", std::string("is empty; allowed: ") + kSourceKinds);
+      c.problem(t->get("spec")->source(), "source.spec", "is empty; allowed: " + kinds);
     if (cfg.source.spec.rfind("replay:", 0) == 0 && cfg.source.spec.size() > 7) {
       cfg.source.spec = "replay:" + c.path(cfg.source.spec.substr(7));
     }
