@@ -1,0 +1,383 @@
+// fovea-ctl's eye tools: detect-pupil (the eye pipeline's detector on image files), synth-eye (test
+// images with their exact truth) and synth-calibration (a recorded calibration session of the
+// synthetic viewer).
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <opencv2/imgcodecs.hpp>
+#include <spdlog/spdlog.h>
+
+#include "ctl/commands.h"
+#include "eye/eye_detector.h"
+#include "fovea/protocol/clock.h"
+#include "fovea/protocol/recording.h"
+#include "sim/calibration_viewer.h"
+#include "sim/synthetic_eye.h"
+#include "sim/synthetic_eye_frames.h"
+
+namespace fovea::ctl {
+namespace {
+
+using namespace fovea::protocol;
+
+namespace eye = fovea::trackerd::eye;
+
+// A CSV field: quoted when it holds a comma, a quote or a line break (RFC 4180).
+std::string csv_field(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string out = "\"";
+  for (const char ch : text) {
+    if (ch == '"') out += '"';
+    out += ch;
+  }
+  return out + "\"";
+}
+
+std::string fixed3(double v) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.3f", std::isfinite(v) ? v : 0.0);
+  return buf;
+}
+
+std::string glint_list(const std::vector<cv::Point2d>& points) {
+  std::string out;
+  for (const auto& p : points) out += (out.empty() ? "" : ";") + fixed3(p.x) + ":" + fixed3(p.y);
+  return out;
+}
+
+// Writes `text` to `path` through a temporary file beside it (never a half-written file), refusing
+// to replace an existing one unless `force`.
+void write_new_file(const std::string& path, const std::string& text, bool force) {
+  if (!force && std::filesystem::exists(path)) {
+    throw std::runtime_error(path + " already exists (use --force to replace it)");
+  }
+  const std::string tmp = path + ".partial-" + std::to_string(getpid());
+  {
+    std::ofstream out(tmp);
+    out << text;
+    out.close();
+    if (!out) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw std::runtime_error("cannot write " + path);
+    }
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+int cmd_detect_pupil(const std::vector<std::string>& images, const std::string& out_path, bool force,
+                     const std::string& leds, int downscale, bool track) {
+  eye::DetectorSettings settings;
+  try {
+    if (!leds.empty()) settings.leds = eye::LedLayout::parse(leds);
+    settings.coarse_downscale = downscale;
+    settings.roi_tracking = track;
+    settings.validate();
+    if (!out_path.empty() && !force && std::filesystem::exists(out_path)) {
+      throw std::runtime_error(out_path + " already exists (use --force to replace it)");
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl detect-pupil: %s\n", e.what());
+    return 2;
+  }
+  eye::EyeDetector detector(settings);
+  const std::string header = "file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints\n";
+  std::string csv = header;
+  std::fputs(header.c_str(), stdout);
+  int status = 0;
+  for (const std::string& file : images) {
+    std::error_code ec;
+    const auto st = std::filesystem::status(file, ec);
+    cv::Mat image;
+    std::string why;
+    if (!std::filesystem::exists(st)) {
+      why = "no such file";
+    } else if (std::filesystem::is_directory(st)) {
+      why = "is a directory";
+    } else {
+      try {
+        image = cv::imread(file, cv::IMREAD_UNCHANGED);
+      } catch (const cv::Exception&) {
+        image.release();
+      }
+      if (image.empty()) why = "cannot be read as an image (unreadable, or a format OpenCV cannot decode)";
+    }
+    if (!why.empty()) {
+      std::fprintf(stderr, "fovea-ctl detect-pupil: %s: %s\n", file.c_str(), why.c_str());
+      status = 1;
+      continue;
+    }
+    if (!track) detector.reset();
+    const eye::EyeMeasurement m = detector.detect(image);
+    std::string row = csv_field(file) + ",";
+    if (m.pupil_found) {
+      row += fixed3(m.pupil.centre.x) + "," + fixed3(m.pupil.centre.y) + "," + fixed3(m.pupil.major) + "," +
+             fixed3(m.pupil.minor) + "," + fixed3(m.pupil.angle_deg) + ",";
+    } else {
+      row += ",,,,,";
+    }
+    std::vector<cv::Point2d> glints;
+    for (const auto& g : m.glints) glints.push_back(g.centre);
+    row += fixed3(m.confidence) + "," + std::to_string(glints.size()) + "," + glint_list(glints) + "\n";
+    std::fputs(row.c_str(), stdout);
+    csv += row;
+  }
+  std::fflush(stdout);
+  if (!out_path.empty()) {
+    try {
+      write_new_file(out_path, csv, force);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "fovea-ctl detect-pupil: %s\n", e.what());
+      return 1;
+    }
+  }
+  return status;
+}
+
+int cmd_synth_eye(const std::string& dir, int count, const std::string& size, bool hard, std::uint64_t seed,
+                  const std::string& leds) {
+  try {
+    unsigned w = 0, h = 0;
+    char tail = 0;
+    if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
+      throw std::runtime_error("--size \"" + size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
+    }
+    if (count < 1 || count > 100000) {
+      throw std::runtime_error("--count " + std::to_string(count) + " is outside 1..100000");
+    }
+    std::error_code ec;
+    if (std::filesystem::exists(dir, ec)) {
+      if (!std::filesystem::is_directory(dir, ec)) throw std::runtime_error(dir + " exists and is not a directory");
+      if (!std::filesystem::is_empty(dir, ec)) {
+        throw std::runtime_error(dir + " is not empty (synth-eye writes only into a new or empty directory)");
+      }
+    } else if (!std::filesystem::create_directories(dir, ec)) {
+      throw std::runtime_error("cannot create " + dir + ": " + ec.message());
+    }
+    eye::SyntheticEyeOptions o;
+    o.width = static_cast<int>(w);
+    o.height = static_cast<int>(h);
+    o.seed = seed;
+    o.leds = eye::LedLayout::parse(leds);
+    if (hard) o = eye::with_hard_conditions(o);
+    eye::SyntheticEye generator(o);
+    std::mt19937_64 rng(seed ^ 0x5eed5eedULL);  // the gazes; the generator draws its noise from its own
+    std::uniform_real_distribution<double> angle(-20.0, 20.0);
+    std::string csv =
+        "file,pupil_x,pupil_y,major,minor,angle_deg,closed,glint_count,glints,pupil_glint_x,pupil_glint_y\n";
+    for (int i = 0; i < count; ++i) {
+      const double yaw = angle(rng), pitch = angle(rng);
+      eye::EyeTruth t;
+      const cv::Mat image = generator.render(yaw, pitch, 1.0, &t);
+      char name[32];
+      std::snprintf(name, sizeof name, "eye_%04d.png", i);
+      const std::string path = (std::filesystem::path(dir) / name).string();
+      if (!cv::imwrite(path, image)) throw std::runtime_error("cannot write " + path);
+      csv += std::string(name) + ",";
+      if (t.closed) {
+        csv += ",,,,,1,";
+      } else {
+        csv += fixed3(t.pupil.centre.x) + "," + fixed3(t.pupil.centre.y) + "," + fixed3(t.pupil.major) + "," +
+               fixed3(t.pupil.minor) + "," + fixed3(t.pupil.angle_deg) + ",0,";
+      }
+      csv += std::to_string(t.glints.size()) + "," + glint_list(t.glints) + ",";
+      csv += t.closed ? std::string(",") : fixed3(t.pupil_glint.x) + "," + fixed3(t.pupil_glint.y);
+      csv += "\n";
+    }
+    write_new_file((std::filesystem::path(dir) / "truth.csv").string(), csv, false);
+    std::fprintf(stderr, "fovea-ctl synth-eye: wrote %d image(s) %ux%u%s and truth.csv to %s\n", count, w, h,
+                 hard ? " (hard conditions)" : "", dir.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl synth-eye: %s\n", e.what());
+    return 1;
+  }
+}
+
+// --- synth-calibration: a recorded calibration session of the synthetic viewer ---
+
+int cmd_synth_calibration(const std::string& out, int points, int validation_points, std::uint64_t seed, bool hard,
+                          const std::string& head_offset, const std::string& display_text, const std::string& size) {
+  try {
+    unsigned w = 0, h = 0;
+    char tail = 0;
+    if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
+      throw std::runtime_error("--eye-size \"" + size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
+    }
+    eye::CalibrationSessionOptions o;
+    try {
+      o.head_offset_mm = eye::parse_head_offset(head_offset);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("--head-offset: ") + e.what());
+    }
+    if (!display_text.empty()) {
+      try {
+        o.display = parse_display_geometry(display_text);
+      } catch (const std::invalid_argument& e) {
+        throw std::runtime_error(std::string("--display: ") + e.what());
+      }
+    }
+    o.schedule.points = points;
+    o.schedule.validation_points = validation_points;
+    o.schedule.seed = seed;
+    try {
+      o.schedule.check();
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("--points/--validation-points: ") + e.what());
+    }
+    o.eye.width = static_cast<int>(w);
+    o.eye.height = static_cast<int>(h);
+    o.eye.seed = seed;
+    if (hard) o.eye = eye::with_hard_conditions(o.eye);
+    // SESSION.fgr and SESSION.targets.csv: both new, or neither is written.
+    const std::string base = ends_with(out, ".fgr") ? out.substr(0, out.size() - 4) : out;
+    const std::string fgr = base + ".fgr", targets = base + ".targets.csv";
+    std::error_code ec;
+    for (const std::string& p : {fgr, targets}) {
+      if (std::filesystem::exists(p, ec) || std::filesystem::is_symlink(p, ec)) {
+        throw std::runtime_error(p + " already exists (synth-calibration never overwrites; it writes " + fgr +
+                                 " and " + targets + " together)");
+      }
+    }
+    spdlog::set_level(spdlog::level::warn);  // the pipeline's start-up lines: not this tool's one-line summary
+    o.start_time_ns = monotonic_ns();  // frame 0 on this machine's monotonic clock, as the daemon records
+    const std::int64_t created_unix = realtime_ns();
+    const eye::CalibrationSession session = eye::simulate_calibration_session(o);
+
+    RecordingHeader header;
+    header.device = ("synthetic-eye calibration seed " + std::to_string(seed)).substr(0, 63);
+    header.display = o.display;
+    header.nominal_rate_hz = o.rate_hz;
+    header.clock = RecordingClock::Monotonic;
+    header.created_unix_ns = created_unix;
+    header.created_clock_ns = o.start_time_ns;
+    try {
+      RecordingWriter writer(fgr, header, RecordingWriter::Mode::CreateNew);
+      std::uint64_t sequence = 0;
+      for (const auto& item : session.published) {
+        std::visit([&](const auto& v) { writer.append(Record{sequence++, v}); }, item);
+      }
+      writer.sync();
+    } catch (...) {
+      std::filesystem::remove(fgr, ec);
+      throw;
+    }
+    try {
+      fovea::calib::write_target_windows(targets, session.targets);
+    } catch (...) {
+      std::filesystem::remove(fgr, ec);
+      throw;
+    }
+    std::size_t calibrate = 0;
+    for (const auto& t : session.targets) calibrate += t.phase == fovea::calib::TargetPhase::Calibrate ? 1 : 0;
+    std::printf("synth-calibration: %s (%zu samples, %zu events, %.1f s at %.0f Hz, eye %ux%u%s, seed %llu, head "
+                "offset %g,%g,%g mm) and %s (%zu calibration + %zu validation targets)\n",
+                fgr.c_str(), session.samples.size(), session.events.size(), session.session_s, o.rate_hz, w, h,
+                hard ? " hard" : "", static_cast<unsigned long long>(seed), o.head_offset_mm.x, o.head_offset_mm.y,
+                o.head_offset_mm.z, targets.c_str(), calibrate, session.targets.size() - calibrate);
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl synth-calibration: %s\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace
+
+std::vector<Command> add_eye_commands(CLI::App& app) {
+  struct Options {
+    std::vector<std::string> dp_images;
+    std::string dp_out, dp_leds;
+    int dp_downscale = eye::DetectorSettings{}.coarse_downscale;
+    bool dp_track = false, dp_force = false;
+    std::string se_dir, se_size = "320x240", se_leds = "2";
+    int se_count = 20;
+    bool se_hard = false;
+    std::uint64_t se_seed = 1;
+    std::string sc_out, sc_offset = "0,0,0", sc_display, sc_size = "320x240";
+    int sc_points = 9, sc_validation = 4;
+    std::uint64_t sc_seed = 1;
+    bool sc_hard = false;
+  };
+  auto o = std::make_shared<Options>();
+  auto& [dp_images, dp_out, dp_leds, dp_downscale, dp_track, dp_force, se_dir, se_size, se_leds, se_count, se_hard,
+         se_seed, sc_out, sc_offset, sc_display, sc_size, sc_points, sc_validation, sc_seed, sc_hard] = *o;
+  // detect-pupil / synth-eye: the eye pipeline's detector on image files, and test images for it
+  auto* detect_pupil = app.add_subcommand(
+      "detect-pupil", "find the pupil and corneal glints in eye images (PNG, JPEG, ... 8 or 16 bit); one CSV row "
+                      "per image: file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints (pixels from "
+                      "the top-left corner; confidence = probability that the centre is within 1 px; method: "
+                      "trackerd/eye/EYE.md)");
+  detect_pupil->add_option("IMAGE", dp_images, "eye images")->required();
+  detect_pupil->add_option("--out", dp_out, "also write the CSV to this file (refuses to overwrite)");
+  detect_pupil->add_flag("--force", dp_force, "with --out: replace the file if it exists");
+  detect_pupil->add_option("--leds", dp_leds,
+                           "LED layout to pair glints with: a preset 0..5 or \"x,y;x,y;...\" in mm (default: "
+                           "unknown, glints unpaired)");
+  detect_pupil->add_option("--downscale", dp_downscale, "coarse pupil search on an image 1, 2 or 4 times smaller")
+      ->check(CLI::IsMember({1, 2, 4}))
+      ->capture_default_str();
+  detect_pupil->add_flag("--track", dp_track,
+                         "treat the images as consecutive video frames: search near the last pupil first "
+                         "(default: every image on its own)");
+
+  auto* synth_eye = app.add_subcommand(
+      "synth-eye", "write synthetic infrared eye images (eye_0000.png, ...) with their exact truth (truth.csv) "
+                   "for gazes drawn uniformly within +-20 degrees");
+  synth_eye->add_option("--out", se_dir, "new or empty directory to write into")->required();
+  synth_eye->add_option("--count", se_count, "number of images")->capture_default_str();
+  synth_eye->add_option("--size", se_size, "image size WxH")->capture_default_str();
+  synth_eye->add_flag("--hard", se_hard,
+                      "hard conditions: sensor noise 10, 2 px motion blur, upper lid over 30% of the pupil, "
+                      "spectacle reflections, uneven illumination");
+  synth_eye->add_option("--seed", se_seed, "random seed (same seed, same images)")->capture_default_str();
+  synth_eye->add_option("--leds", se_leds, "LED layout: a preset 0..5 or \"x,y;x,y;...\" in mm")
+      ->capture_default_str();
+
+  auto* synth_calibration = app.add_subcommand(
+      "synth-calibration",
+      "write a recorded calibration session of the synthetic viewer, for fovea-calibrate run --headless --from: "
+      "the synthetic eye follows the calibration targets (reaction, main-sequence saccades with undershoot and "
+      "correction, fixation jitter, blinks) and goes through the daemon's eye pipeline and classifier, as "
+      "fovea-trackerd --source synthetic-eye --eye-script calibration:POINTS[:SEED] publishes; writes SESSION.fgr "
+      "and the targets shown, on the recording's clock, as SESSION.targets.csv");
+  synth_calibration->add_option("--out", sc_out, "SESSION.fgr to write (with SESSION.targets.csv beside it; refuses "
+                                                 "to overwrite either)")
+      ->required();
+  synth_calibration->add_option("--points", sc_points, "calibration targets: 5, 9, 16 or 64")
+      ->check(CLI::IsMember({5, 9, 16, 64}))
+      ->capture_default_str();
+  synth_calibration->add_option("--validation-points", sc_validation, "validation targets after them: 0, 4 or 9")
+      ->check(CLI::IsMember({0, 4, 9}))
+      ->capture_default_str();
+  synth_calibration->add_option("--seed", sc_seed, "the viewer, its eye's look and the target order")
+      ->capture_default_str();
+  synth_calibration->add_flag("--eye-hard", sc_hard,
+                              "hard imaging conditions: sensor noise 10, 2 px motion blur, upper lid over 30% of "
+                              "the pupil, spectacle reflections, uneven illumination");
+  synth_calibration->add_option("--head-offset", sc_offset,
+                                "X,Y,Z mm: the eye displaced from the position the tracker's factory calibration "
+                                "assumes (x right, y down, z towards the screen; camera fixed to the screen)")
+      ->capture_default_str();
+  synth_calibration->add_option("--display", sc_display,
+                                "display geometry WxH@WMMxHMMmm,DISTmm (default " + to_string(DisplayGeometry{}) + ")");
+  synth_calibration->add_option("--eye-size", sc_size, "eye image size WxH")->capture_default_str();
+
+  return {
+      {detect_pupil,
+       [o] { return cmd_detect_pupil(o->dp_images, o->dp_out, o->dp_force, o->dp_leds, o->dp_downscale, o->dp_track); }},
+      {synth_eye, [o] { return cmd_synth_eye(o->se_dir, o->se_count, o->se_size, o->se_hard, o->se_seed, o->se_leds); }},
+      {synth_calibration,
+       [o] {
+         return cmd_synth_calibration(o->sc_out, o->sc_points, o->sc_validation, o->sc_seed, o->sc_hard, o->sc_offset,
+                                      o->sc_display, o->sc_size);
+       }},
+  };
+}
+
+}  // namespace fovea::ctl

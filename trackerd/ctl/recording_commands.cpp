@@ -1,0 +1,286 @@
+// fovea-ctl's recording tools: convert (.fgr <-> .csv, repairing damaged files), info, and classify
+// (offline eye-movement classification of a CSV of gaze points, trackerd/CLASSIFY.md).
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "classify/classifier.h"
+#include "ctl/commands.h"
+#include "fovea/protocol/csv.h"
+#include "fovea/protocol/recording.h"
+
+namespace fovea::ctl {
+namespace {
+
+using namespace fovea::protocol;
+
+Recording load_any(const std::string& path) {
+  if (ends_with(path, ".csv")) {
+    std::ifstream in(path);
+    if (!in) throw std::runtime_error("cannot open " + path);
+    return read_csv(in, path);
+  }
+  return read_recording(path);
+}
+
+int cmd_convert(const std::string& in_path, const std::string& out_path, bool force) {
+  // A name of our own next to OUT, so rename() is atomic and nobody else's file is touched.
+  const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
+  try {
+    if (!force && std::filesystem::exists(out_path)) {
+      throw std::runtime_error(out_path + " already exists (use --force to replace it)");
+    }
+    const Recording rec = load_any(in_path);
+    std::fprintf(stderr, "fovea-ctl convert: %s: %s\n", in_path.c_str(), rec.report.describe().c_str());
+    if (ends_with(out_path, ".csv")) {
+      std::ofstream out(tmp);
+      const std::size_t events = write_csv(out, rec);
+      out.close();
+      if (!out) throw std::runtime_error("cannot write " + tmp);
+      if (events > 0) std::fprintf(stderr, "fovea-ctl convert: %zu events left out (CSV holds samples only)\n", events);
+    } else if (ends_with(out_path, ".fgr")) {
+      RecordingWriter w(tmp, rec.header);
+      for (const Record& r : rec.records) w.append(r);
+      w.sync();
+    } else {
+      throw std::runtime_error("output " + out_path + ": unknown format (use .fgr or .csv)");
+    }
+    // Replace atomically so an interrupted conversion never leaves a half-written output.
+    std::filesystem::rename(tmp, out_path);
+    std::fprintf(stderr, "fovea-ctl convert: wrote %s\n", out_path.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    std::fprintf(stderr, "fovea-ctl convert: %s\n", e.what());
+    return 1;
+  }
+}
+
+int cmd_info(const std::string& path) {
+  try {
+    const Recording rec = load_any(path);
+    std::size_t samples = 0, valid = 0;
+    std::map<std::string, std::size_t> ends;
+    std::int64_t first = INT64_MAX, last = INT64_MIN;
+    for (const Record& r : rec.records) {
+      if (const auto* s = std::get_if<GazeSample>(&r.item)) {
+        first = std::min(first, s->tracker_time_ns);  // the span of samples: events may end later
+        last = std::max(last, s->tracker_time_ns);
+        ++samples;
+        if (s->flags & kGazeValid) ++valid;
+      } else if (const auto& e = std::get<GazeEvent>(r.item); e.phase == EventPhase::End) {
+        ++ends[to_string(e.kind)];
+      }
+    }
+    std::printf("file        %s\n", path.c_str());
+    std::printf("device      %s\n", rec.header.device.c_str());
+    std::printf("display     %s\n", to_string(rec.header.display).c_str());
+    std::printf("rate        %.1f Hz (nominal)\n", rec.header.nominal_rate_hz);
+    const double span = samples > 1 ? static_cast<double>(last - first) / 1e9 : 0;
+    std::printf("span        %.3f s\n", span);
+    std::printf("samples     %zu (%zu with valid gaze)", samples, valid);
+    if (span > 0) std::printf(", %.1f Hz measured", static_cast<double>(samples - 1) / span);
+    std::printf("\n");
+    std::printf("events     ");
+    for (const auto& [k, n] : ends) std::printf(" %zu %s", n, k.c_str());
+    std::printf("\nintegrity   %s\n", rec.report.describe().c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl info: %s\n", e.what());
+    return 1;
+  }
+}
+
+// --- classify: offline eye-movement classification of a CSV of gaze points (trackerd/CLASSIFY.md) ---
+
+// Parses a decimal number field of the classify input; `nan_ok` accepts "nan" (any case) as NaN.
+double classify_field(const std::string& text, const char* name, bool nan_ok, const std::string& where) {
+  std::string t = text;
+  while (!t.empty() && (t.back() == ' ' || t.back() == '\t')) t.pop_back();
+  std::size_t b = 0;
+  while (b < t.size() && (t[b] == ' ' || t[b] == '\t')) ++b;
+  t = t.substr(b);
+  std::string lower;
+  for (char ch : t) lower += (ch >= 'A' && ch <= 'Z') ? static_cast<char>(ch - 'A' + 'a') : ch;
+  if (nan_ok && (lower == "nan" || lower == "-nan" || lower == "+nan")) return std::nan("");
+  double v = 0;
+  std::size_t used = 0;
+  try {
+    v = std::stod(t, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (t.empty() || used != t.size() || !std::isfinite(v)) {
+    throw std::runtime_error(where + ": " + name + " \"" + text + "\" is not a finite number" +
+                             (nan_ok ? " or nan" : ""));
+  }
+  return v;
+}
+
+int cmd_classify(const std::string& in_path, const std::string& out_path, double rate_hz, std::uint32_t w_px,
+                 std::uint32_t h_px, double w_mm, double h_mm, double dist_mm, const std::string& method, bool force) {
+  namespace cl = fovea::trackerd::classify;
+  const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
+  try {
+    if (!force && std::filesystem::exists(out_path)) {
+      throw std::runtime_error(out_path + " already exists (use --force to replace it)");
+    }
+    if (!std::isfinite(rate_hz) || rate_hz <= 0 || rate_hz > 100000) {
+      throw std::runtime_error("RATE_HZ " + std::to_string(rate_hz) + " is out of range (0, 100000]");
+    }
+    DisplayGeometry g;
+    g.width_px = w_px;
+    g.height_px = h_px;
+    g.width_m = w_mm / 1000.0;
+    g.height_m = h_mm / 1000.0;
+    g.viewing_distance_m = dist_mm / 1000.0;
+    if (const std::string err = validate(g); !err.empty()) throw std::runtime_error("screen geometry: " + err);
+
+    std::ifstream in(in_path);
+    if (!in) throw std::runtime_error("cannot open " + in_path);
+    std::vector<cl::Sample> samples;
+    std::vector<std::string> times;  // t_ms exactly as written, echoed to OUT
+    std::string line;
+    std::size_t line_no = 0;
+    double last_t = 0;
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      const std::string where = in_path + ":" + std::to_string(line_no);
+      if (line_no == 1) {
+        if (line.size() >= 3 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // UTF-8 BOM
+        if (line != "t_ms,x_px,y_px") {
+          throw std::runtime_error(where + ": header is \"" + line + "\", expected \"t_ms,x_px,y_px\"");
+        }
+        continue;
+      }
+      if (line.empty()) throw std::runtime_error(where + ": empty line (expected t_ms,x_px,y_px)");
+      std::vector<std::string> f;
+      std::size_t start = 0;
+      for (std::size_t comma; (comma = line.find(',', start)) != std::string::npos; start = comma + 1) {
+        f.push_back(line.substr(start, comma - start));
+      }
+      f.push_back(line.substr(start));
+      if (f.size() != 3) {
+        throw std::runtime_error(where + ": " + std::to_string(f.size()) + " fields, expected 3 (t_ms,x_px,y_px)");
+      }
+      const double t_ms = classify_field(f[0], "t_ms", false, where);
+      const double x_px = classify_field(f[1], "x_px", true, where);
+      const double y_px = classify_field(f[2], "y_px", true, where);
+      if (!samples.empty() && !(t_ms > last_t)) {
+        throw std::runtime_error(where + ": t_ms " + f[0] + " is not after the previous row's " + times.back() +
+                                 " (times must strictly increase)");
+      }
+      last_t = t_ms;
+      cl::Sample s;
+      s.t_s = t_ms / 1000.0;
+      s.valid = std::isfinite(x_px) && std::isfinite(y_px);
+      if (s.valid) {
+        // Pixels (origin top-left) to normalized, then to degrees from the centre: atan(offset / d).
+        const Degrees d = normalized_to_degrees(
+            g, Normalized{x_px / static_cast<double>(w_px), y_px / static_cast<double>(h_px)});
+        s.x_deg = d.x;
+        s.y_deg = d.y;
+      }
+      samples.push_back(s);
+      times.push_back(f[0]);
+    }
+    if (in.bad()) throw std::runtime_error("error reading " + in_path);
+    if (line_no == 0) throw std::runtime_error(in_path + ": empty file (expected the header t_ms,x_px,y_px)");
+
+    cl::ClassifierOptions options;
+    options.nominal_rate_hz = rate_hz;
+    options.display = g;
+    const std::vector<cl::Label> labels = cl::classify_all(method, options, samples);
+
+    std::map<std::string, std::size_t> counts;
+    {
+      std::ofstream out(tmp);
+      if (!out) throw std::runtime_error("cannot create " + tmp);
+      out << "t_ms,label\n";
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        out << times[i] << ',' << cl::to_string(labels[i]) << '\n';
+        ++counts[cl::to_string(labels[i])];
+      }
+      out.close();
+      if (!out) throw std::runtime_error("cannot write " + tmp);
+    }
+    std::filesystem::rename(tmp, out_path);  // atomic: OUT is either absent/old or complete
+    std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", samples.size(),
+                 method.c_str(), cl::make_classifier(method, options)->latency_s() * 1000);
+    for (const auto& [k, n] : counts) std::fprintf(stderr, " %zu %s", n, k.c_str());
+    std::fprintf(stderr, "\nfovea-ctl classify: wrote %s\n", out_path.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    std::fprintf(stderr, "fovea-ctl classify: %s\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace
+
+std::vector<Command> add_recording_commands(CLI::App& app) {
+  struct Options {
+    std::string in_path, out_path;
+    bool force = false;
+    std::string info_path;
+    std::string cls_in, cls_out, cls_method = fovea::trackerd::classify::classifiers().front().name;
+    double cls_rate = 0, cls_w_mm = 0, cls_h_mm = 0, cls_dist_mm = 0;
+    std::uint32_t cls_w_px = 0, cls_h_px = 0;
+    bool cls_force = false;
+  };
+  auto o = std::make_shared<Options>();
+  auto& [in_path, out_path, force, info_path, cls_in, cls_out, cls_method, cls_rate, cls_w_mm, cls_h_mm, cls_dist_mm,
+         cls_w_px, cls_h_px, cls_force] = *o;
+  auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files)");
+  convert->add_option("IN", in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
+  convert->add_option("OUT", out_path, "output .fgr or .csv")->required();
+  convert->add_flag("--force", force, "replace OUT if it exists");
+
+  auto* info = app.add_subcommand("info", "describe a recording: display, rate, span, events, integrity");
+  info->add_option("FILE", info_path, ".fgr or .csv file")->required()->check(CLI::ExistingFile);
+
+  // classify: offline eye-movement classification (trackerd/CLASSIFY.md)
+  auto* classify = app.add_subcommand("classify", "label every gaze sample of a CSV (t_ms,x_px,y_px) as fixation, "
+                                                  "saccade, pso, pursuit, blink, lost or unknown");
+  classify->add_option("IN", cls_in, "input CSV with header t_ms,x_px,y_px (nan marks a lost sample)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  classify->add_option("OUT", cls_out, "output CSV t_ms,label, one row per input row (refuses to overwrite)")
+      ->required();
+  classify->add_option("RATE_HZ", cls_rate, "nominal sample rate, Hz")->required();
+  classify->add_option("SCREEN_W_PX", cls_w_px, "screen width, pixels")->required();
+  classify->add_option("SCREEN_H_PX", cls_h_px, "screen height, pixels")->required();
+  classify->add_option("SCREEN_W_MM", cls_w_mm, "screen width, millimetres")->required();
+  classify->add_option("SCREEN_H_MM", cls_h_mm, "screen height, millimetres")->required();
+  classify->add_option("DIST_MM", cls_dist_mm, "eye-to-screen distance, millimetres")->required();
+  {
+    std::vector<std::string> names;
+    std::string help = "classification method:";
+    for (const auto& m : fovea::trackerd::classify::classifiers()) {
+      names.push_back(m.name);
+      help += "\n  " + m.name + (names.size() == 1 ? " (default)" : "") + ": " + m.summary;
+    }
+    classify->add_option("--method", cls_method, help)->check(CLI::IsMember(names))->capture_default_str();
+  }
+  classify->add_flag("--force", cls_force, "replace OUT if it exists");
+
+  return {
+      {convert, [o] { return cmd_convert(o->in_path, o->out_path, o->force); }},
+      {info, [o] { return cmd_info(o->info_path); }},
+      {classify,
+       [o] {
+         return cmd_classify(o->cls_in, o->cls_out, o->cls_rate, o->cls_w_px, o->cls_h_px, o->cls_w_mm, o->cls_h_mm,
+                             o->cls_dist_mm, o->cls_method, o->cls_force);
+       }},
+  };
+}
+
+}  // namespace fovea::ctl
