@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "daemon.h"
+#include "sources/source_table.h"
 #include "eye/eye_source.h"
 #include "sim/synthetic_eye.h"
 #include "sim/synthetic_eye_frames.h"
