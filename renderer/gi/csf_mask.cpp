@@ -20,7 +20,6 @@ constexpr int kRingDirections = 32;
 // Gaze further than this many image sizes off the screen is pulled in (see the header).
 constexpr double kMaxGazeOffsetImages = 16.0;
 
-bool finite_positive(double v) { return std::isfinite(v) && v > 0; }
 
 std::string field_error(const char* field, double value, const char* allowed) {
   return std::string("CsfSettings.") + field + " = " + std::to_string(value) + " (allowed " + allowed + ")";
@@ -118,9 +117,7 @@ void zip_rings(const RingVertices& inner, const RingVertices& outer, std::vector
 }  // namespace
 
 std::string validate(const CsfSettings& s) {
-  if (!(std::isfinite(s.ct0) && s.ct0 > 0 && s.ct0 < 1)) return field_error("ct0", s.ct0, "(0, 1)");
-  if (!finite_positive(s.alpha)) return field_error("alpha", s.alpha, "finite > 0");
-  if (!finite_positive(s.e2_deg)) return field_error("e2_deg", s.e2_deg, "finite > 0 degrees");
+  if (std::string e = perception::validate(s, "CsfSettings."); !e.empty()) return e;
   if (!(std::isfinite(s.quality) && s.quality >= 0)) return field_error("quality", s.quality, "finite >= 0");
   if (!(std::isfinite(s.min_ring_spacing_px) && s.min_ring_spacing_px >= 1 && s.min_ring_spacing_px <= 4096))
     return field_error("min_ring_spacing_px", s.min_ring_spacing_px, "[1, 4096] pixels");
@@ -128,21 +125,6 @@ std::string validate(const CsfSettings& s) {
         s.max_ring_spacing_px <= 4096))
     return field_error("max_ring_spacing_px", s.max_ring_spacing_px, "[min_ring_spacing_px, 4096] pixels");
   return {};
-}
-
-double contrast_threshold(double frequency_cpd, double eccentricity_deg, const CsfSettings& s) {
-  const double e = std::abs(eccentricity_deg);
-  return s.ct0 * std::exp(s.alpha * frequency_cpd * (e + s.e2_deg) / s.e2_deg);  // Murphy 2007, eq. 4.1
-}
-
-double cutoff_eccentricity_deg(double frequency_cpd, const CsfSettings& s) {
-  if (!(frequency_cpd > 0)) return std::numeric_limits<double>::infinity();
-  return s.e2_deg / (s.alpha * frequency_cpd) * std::log(1.0 / s.ct0) - s.e2_deg;  // Murphy 2007, eq. 4.2
-}
-
-double cutoff_frequency_cpd(double eccentricity_deg, const CsfSettings& s) {
-  const double e = std::abs(eccentricity_deg);
-  return s.e2_deg * std::log(1.0 / s.ct0) / (s.alpha * (e + s.e2_deg));  // Murphy 2007, eq. 4.3
 }
 
 CsfSamplingField::CsfSamplingField(const protocol::DisplayGeometry& display, std::uint32_t width, std::uint32_t height,

@@ -4,13 +4,8 @@
 // connect them into an intermediate mesh of concentric rings around the point of regard, refine the
 // quads a silhouette passes through, and fill the full-resolution image from that mesh.
 //
-// Contrast sensitivity (Murphy 4.4.3, after Geisler & Perry 1998):
-//   CT(f, e)  = CT0 exp(alpha f (e + e2) / e2)                     Murphy 2007, eq. 4.1
-//   e_c(f)    = e2 / (alpha f) ln(1 / CT0) - e2    (CT = 1)         Murphy 2007, eq. 4.2
-//   f_c(e)    = e2 ln(1 / CT0) / (alpha (e + e2))  (CT = 1)         Murphy 2007, eq. 4.3
-// f in cycles/deg, e in degrees from the point of regard. The paper names the constants but gives no
-// values ("Geisler and Perry have determined empirical values"), so the defaults are Geisler &
-// Perry's fit: alpha = 0.106, e2 = 2.3 deg, CT0 = 1/64 (f_c(0) = ln 64 / 0.106 = 39.2 cycles/deg).
+// Contrast sensitivity: Geisler & Perry's model, Murphy 2007 eqs. 4.1-4.3 (perception/csf.h, which
+// the LOD pass's gaze policy uses too): f_c(e), the highest frequency visible at eccentricity e.
 //
 // Sampling: Murphy discretises eq. 4.3 against "a ray every n pixels" (4.4.4); here the image's pixel
 // grid resolves at most its Nyquist frequency N(p) = 1 / (2 * pixel pitch in degrees) at pixel p
@@ -58,14 +53,13 @@
 #include <vector>
 
 #include "fovea/protocol/display_geometry.h"
+#include "perception/csf.h"
 
 namespace fovea::render::gi {
 
-struct CsfSettings {
-  // Geisler & Perry 1998 (the constants of Murphy 2007, eq. 4.1).
-  double ct0 = 1.0 / 64.0;  // minimum contrast threshold CT0, (0, 1)
-  double alpha = 0.106;     // spatial frequency decay constant
-  double e2_deg = 2.3;      // half-resolution eccentricity, degrees
+// The eye's contrast sensitivity (Geisler & Perry's constants ct0, alpha, e2_deg; perception/csf.h)
+// and how densely to sample against it.
+struct CsfSettings : perception::GeislerPerry {
   // Multiplies the cutoff frequency the rays must resolve: 2 halves the spacing (about 4x the
   // peripheral rays), 0.5 doubles it. 0: the coarsest sampling. Finite and >= 0.
   double quality = 1.0;
@@ -79,15 +73,10 @@ struct CsfSettings {
 // Empty when the settings are usable; otherwise the field, its value and the allowed range.
 std::string validate(const CsfSettings& settings);
 
-// Murphy 2007, eq. 4.1: the contrast threshold at spatial frequency f (cycles/deg) and eccentricity
-// e (deg). Negative e is taken as |e|.
-double contrast_threshold(double frequency_cpd, double eccentricity_deg, const CsfSettings& settings);
-// Murphy 2007, eq. 4.2: the eccentricity beyond which frequency f is invisible (CT = 1). Negative
-// when f is above the foveal cutoff f_c(0); +infinity for f <= 0.
-double cutoff_eccentricity_deg(double frequency_cpd, const CsfSettings& settings);
-// Murphy 2007, eq. 4.3: the highest visible frequency (CT = 1) at eccentricity e; f_c(0) =
-// ln(1/CT0) / alpha.
-double cutoff_frequency_cpd(double eccentricity_deg, const CsfSettings& settings);
+// Eqs. 4.1-4.3 for these settings' constants.
+using perception::contrast_threshold;
+using perception::cutoff_eccentricity_deg;
+using perception::cutoff_frequency_cpd;
 
 // The per-pixel quantities of the sampling for one image on one display and one point of regard.
 // Positions are continuous pixel coordinates (pixel (x, y) spans [x, x+1) x [y, y+1), its centre is

@@ -101,7 +101,7 @@ double continuous_level(const ObjectView& o, const PolicySettings& s, const Fram
     case Policy::Gaze: {
       if (!(d > 0) || !std::isfinite(d)) return clamp_level(std::numeric_limits<double>::infinity(), o.levels);
       const double ecc = std::abs(finite_or(o.eccentricity_deg, 180.0));
-      const double fc = gi::cutoff_frequency_cpd(ecc, s.csf);  // Murphy 2007, eq. 4.3
+      const double fc = perception::cutoff_frequency_cpd(ecc, s.csf);  // Murphy 2007, eq. 4.3
       const double tolerance_deg = fc > 0 && std::isfinite(fc) ? 0.5 / fc : std::numeric_limits<double>::infinity();
       return clamp_level(level_within(errors_in([&](double e) { return std::atan2(e, d) * 180.0 / std::numbers::pi; }),
                                       tolerance_deg),

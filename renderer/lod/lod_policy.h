@@ -27,7 +27,7 @@
 #include <string>
 #include <vector>
 
-#include "gi/csf_mask.h"
+#include "perception/csf.h"
 
 namespace fovea::render::lod {
 
@@ -76,7 +76,7 @@ struct PolicySettings {
   double distance_ref_m = 2;      // distance policy: full detail up to here
   double tolerance_px = 1;        // screen-size policy: geometric error allowed on screen
   BrownSettings brown;
-  gi::CsfSettings csf;            // gaze policy: Geisler-Perry constants (Murphy eqs. 4.1-4.3)
+  perception::GeislerPerry csf;   // gaze policy: Geisler-Perry constants (Murphy eqs. 4.1-4.3)
   double hysteresis = 0.25;       // levels: a drawn level changes when L leaves it by 0.5 + this
 };
 
