@@ -11,7 +11,8 @@
 #include <stdexcept>
 
 #include "scene/mesh_simplify.h"
-#include "scene/scene_loader.h"
+#include "scene/mesh_io.h"
+#include "scene/scene_error.h"
 
 namespace fovea::render::lod {
 

@@ -11,7 +11,8 @@
 #include <iostream>
 
 #include "lod/lod_chain.h"
-#include "scene/scene_loader.h"
+#include "scene/scene_error.h"
+#include "scene/mesh_io.h"
 
 namespace fs = std::filesystem;
 using namespace fovea::render;

@@ -1,469 +1,49 @@
 #include "scene/scene_loader.h"
 
-#include "lod/lod_chain.h"
-#include "scene/mesh_simplify.h"
-
 #include <algorithm>
-#include <array>
-#include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <optional>
-#include <set>
 #include <sstream>
 #include <string_view>
 #include <utility>
 
+#include "lod/lod_chain.h"
 #include "scene/geometry.h"
+#include "scene/json_path.h"
+#include "scene/mesh_io.h"
+#include "scene/mesh_simplify.h"
+#include "scene/scene_overrides.h"
+#include "scene/scene_schema.h"
 
 namespace fovea::render {
 
 namespace {
 
-// ordered_json keeps the file's key order, so "the first error" is the first one in the file and
-// materials given as an object keep their order.
-using Json = nlohmann::ordered_json;
-using Keys = std::vector<std::string_view>;
-
-// ---------------------------------------------------------------------------------------------
-// Formatting
-
-std::string format_number(double v) {
-  if (std::isnan(v)) return "nan";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  std::array<char, 64> buf{};
-  const auto res = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), res.ptr);
-}
-
-// Floats print as the shortest text that reads back as the same float (0.6, not 0.6000000238...).
-std::string format_number(float v) {
-  if (!std::isfinite(v)) return format_number(static_cast<double>(v));
-  std::array<char, 32> buf{};
-  const auto res = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), res.ptr);
-}
-
-// The offending value as it appears in messages: JSON text, shortened when long.
-std::string describe(const Json& v) {
-  if (v.is_number_float()) return format_number(v.get<double>());
-  std::string s = v.dump();
-  if (s.size() > 80) s = s.substr(0, 77) + "...";
-  return s;
-}
-
-bool is_identifier(std::string_view key) {
-  if (key.empty()) return false;
-  return std::all_of(key.begin(), key.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
-  });
-}
-
-std::string key_suffix(std::string_view key) {
-  if (is_identifier(key)) return "." + std::string(key);
-  return "[" + Json(std::string(key)).dump() + "]";
-}
-
-std::string index_suffix(std::size_t i) { return "[" + std::to_string(i) + "]"; }
-
-std::string join(const Keys& keys) {
-  std::string out;
-  for (const std::string_view k : keys) {
-    if (!out.empty()) out += ", ";
-    out += k;
-  }
-  return out;
-}
-
-std::size_t edit_distance(std::string_view a, std::string_view b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diag = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0u : 1u)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
-
-// "unknown field; allowed: a, b, c (did you mean 'b'?)"
-std::string unknown_field_message(std::string_view key, const Keys& allowed) {
-  std::string msg = "unknown field; allowed fields here: " + join(allowed);
-  std::string_view best;
-  std::size_t best_d = 3;  // suggest only close matches
-  for (const std::string_view k : allowed) {
-    const std::size_t d = edit_distance(key, k);
-    if (d < best_d) {
-      best_d = d;
-      best = k;
-    }
-  }
-  if (!best.empty()) msg += " (did you mean '" + std::string(best) + "'?)";
-  return msg;
-}
-
-// ---------------------------------------------------------------------------------------------
-// The schema: which keys each kind of JSON object may hold. Validation and overrides share it.
-
-enum class Kind {
-  Scene, Camera, Lens, Animation, AnimationKeys, AnimationKey, Materials, Material, Objects, Object, Geometry,
-  Sphere, Cylinder, Transform, Lod, LodLevel, Lights, Light, Display, Value
-};
-
-const Keys kSceneKeys{"name",    "camera",     "materials", "objects", "lights",
-                      "ambient", "background", "display",   "comment"};
-const Keys kCameraKeys{"position", "target", "up", "vertical_fov_deg", "width", "height",
-                       "near", "far", "lens", "animation", "comment"};
-const Keys kLensKeys{"type", "focal_length_mm", "f_number", "aperture_mm", "focus_distance_m", "image_distance_mm",
-                     "comment"};
-const Keys kPinholeKeys{"type", "comment"};
-const Keys kThinLensKeys{"type", "focal_length_mm", "f_number", "aperture_mm", "focus_distance_m",
-                         "image_distance_mm", "comment"};
-const Keys kHumanEyeKeys{"type", "focus_distance_m", "comment"};
-const Keys kAnimationKeys{"loop", "keys", "comment"};
-const Keys kObjectKeyframeKeys{"t", "translation", "rotation_deg", "comment"};
-const Keys kCameraKeyframeKeys{"t", "translation", "comment"};
-const Keys kMaterialKeys{"name", "type", "kd", "ks", "shininess", "reflectance", "ior", "emission", "comment"};
-const Keys kObjectKeys{"name", "geometry", "material", "transform", "animation", "task_importance", "lod", "comment"};
-const Keys kGeometryKeys{"mesh", "box", "sphere", "plane", "cylinder", "comment"};
-const Keys kShapeKeys{"mesh", "box", "sphere", "plane", "cylinder"};
-const Keys kSphereKeys{"radius", "rings", "segments", "comment"};
-const Keys kCylinderKeys{"radius", "height", "segments", "comment"};
-const Keys kTransformKeys{"translation", "rotation_deg", "scale", "comment"};
-const Keys kLodSimplifyKeys{"simplify", "chain", "comment"};
-const Keys kLodChainKeys{"levels", "base", "attributes", "comment"};
-const Keys kLodLevelKeys{"mesh", "max_error_m", "comment"};
-const Keys kLightKeys{"type", "position", "power", "direction", "cutoff_deg", "falloff_deg", "normal", "size",
-                      "samples", "comment"};
-const Keys kPointLightKeys{"type", "position", "power", "comment"};
-const Keys kSpotLightKeys{"type", "position", "direction", "power", "cutoff_deg", "falloff_deg", "comment"};
-const Keys kAreaLightKeys{"type", "position", "normal", "size", "power", "samples", "comment"};
-const Keys kDisplayKeys{"width_px", "height_px", "width_mm", "height_mm", "viewing_distance_mm", "comment"};
-const Keys kNoKeys{};
-
-const Keys& keys_of(Kind k) {
-  switch (k) {
-    case Kind::Scene: return kSceneKeys;
-    case Kind::Camera: return kCameraKeys;
-    case Kind::Lens: return kLensKeys;
-    case Kind::Animation: return kAnimationKeys;
-    case Kind::AnimationKey: return kObjectKeyframeKeys;
-    case Kind::Material: return kMaterialKeys;
-    case Kind::Object: return kObjectKeys;
-    case Kind::Geometry: return kGeometryKeys;
-    case Kind::Sphere: return kSphereKeys;
-    case Kind::Cylinder: return kCylinderKeys;
-    case Kind::Transform: return kTransformKeys;
-    case Kind::Lod: return kLodSimplifyKeys;
-    case Kind::LodLevel: return kLodLevelKeys;
-    case Kind::Light: return kLightKeys;
-    case Kind::Display: return kDisplayKeys;
-    default: return kNoKeys;  // arrays, maps of user-chosen names, and plain values
-  }
-}
-
-Kind child_kind(Kind parent, std::string_view key) {
-  switch (parent) {
-    case Kind::Scene:
-      if (key == "camera") return Kind::Camera;
-      if (key == "materials") return Kind::Materials;
-      if (key == "objects") return Kind::Objects;
-      if (key == "lights") return Kind::Lights;
-      if (key == "display") return Kind::Display;
-      return Kind::Value;
-    case Kind::Camera:
-      if (key == "lens") return Kind::Lens;
-      if (key == "animation") return Kind::Animation;
-      return Kind::Value;
-    case Kind::Animation: return key == "keys" ? Kind::AnimationKeys : Kind::Value;
-    case Kind::Materials: return Kind::Material;  // materials given as {"name": {...}}
-    case Kind::Object:
-      if (key == "geometry") return Kind::Geometry;
-      if (key == "transform") return Kind::Transform;
-      if (key == "animation") return Kind::Animation;
-      if (key == "lod") return Kind::Lod;
-      return Kind::Value;
-    case Kind::Geometry:
-      if (key == "sphere") return Kind::Sphere;
-      if (key == "cylinder") return Kind::Cylinder;
-      return Kind::Value;
-    default: return Kind::Value;
-  }
-}
-
-Kind element_kind(Kind parent) {
-  switch (parent) {
-    case Kind::Objects: return Kind::Object;
-    case Kind::Lights: return Kind::Light;
-    case Kind::Materials: return Kind::Material;
-    case Kind::AnimationKeys: return Kind::AnimationKey;
-    case Kind::Lod: return Kind::LodLevel;
-    default: return Kind::Value;
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Parsing: a SAX handler that builds the document while tracking the JSON path, so that duplicate
-// keys and numbers that overflow a double (1e999) are reported at their path. nlohmann's DOM
-// parser keeps the last of duplicate keys silently and reports overflow without a path.
-
-class DocumentBuilder final : public nlohmann::json_sax<Json> {
- public:
-  explicit DocumentBuilder(std::string source) : source_(std::move(source)) {}
-
-  Json& document() { return root_; }
-  const std::string& error() const { return error_; }
-
-  bool null() override { return scalar(Json(nullptr)); }
-  bool boolean(bool v) override { return scalar(Json(v)); }
-  bool number_integer(number_integer_t v) override { return scalar(Json(v)); }
-  bool number_unsigned(number_unsigned_t v) override { return scalar(Json(v)); }
-  bool number_float(number_float_t v, const string_t& /*text*/) override { return scalar(Json(v)); }
-  bool string(string_t& v) override { return scalar(Json(v)); }
-  bool binary(binary_t& /*v*/) override { return scalar(Json(nullptr)); }  // not produced by the JSON parser
-
-  bool start_object(std::size_t /*elements*/) override {
-    stack_.push_back(Frame{put(Json::object()), false, 0, {}, {}});
-    return true;
-  }
-  bool key(string_t& k) override {
-    Frame& f = stack_.back();
-    if (!f.keys.insert(k).second) {
-      error_ = source_ + ": " + path(stack_.size() - 1) + key_suffix(k) +
-               ": duplicate key (each key may appear once in an object)";
-      return false;
-    }
-    f.key = k;
-    return true;
-  }
-  bool end_object() override { return end(); }
-  bool start_array(std::size_t /*elements*/) override {
-    stack_.push_back(Frame{put(Json::array()), true, 0, {}, {}});
-    return true;
-  }
-  bool end_array() override { return end(); }
-
-  bool parse_error(std::size_t position, const std::string& last_token,
-                   const nlohmann::detail::exception& ex) override {
-    if (ex.id == 406) {  // out_of_range.406: number overflow
-      error_ = source_ + ": " + path() + " = " + last_token +
-               ": number overflows a double; must be a finite number (JSON has no NaN or Infinity)";
-      return false;
-    }
-    std::string what = ex.what();
-    if (const auto close = what.find("] "); what.starts_with("[json.exception") && close != std::string::npos) {
-      what = what.substr(close + 2);
-    }
-    error_ = source_ + ": invalid JSON (byte " + std::to_string(position) + "): " + what;
-    return false;
-  }
-
- private:
-  struct Frame {
-    Json* node;
-    bool is_array;
-    std::size_t index;
-    std::string key;
-    std::set<std::string> keys;
-  };
-
-  // The path of the value being parsed, through the first `depth` open containers (all by default).
-  std::string path(std::size_t depth = SIZE_MAX) const {
-    std::string p = "$";
-    for (std::size_t i = 0; i < std::min(depth, stack_.size()); ++i) {
-      const Frame& f = stack_[i];
-      p += f.is_array ? index_suffix(f.index) : key_suffix(f.key);
-    }
-    return p;
-  }
-  // Places a value at the current position. Pointers into the parent stay valid because the parent
-  // is not modified again until this child is complete.
-  Json* put(Json&& v) {
-    if (stack_.empty()) {
-      root_ = std::move(v);
-      return &root_;
-    }
-    Frame& f = stack_.back();
-    if (f.is_array) {
-      f.node->push_back(std::move(v));
-      return &f.node->back();
-    }
-    Json& slot = (*f.node)[f.key];
-    slot = std::move(v);
-    return &slot;
-  }
-  void element_done() {
-    if (!stack_.empty() && stack_.back().is_array) ++stack_.back().index;
-  }
-  bool scalar(Json&& v) {
-    put(std::move(v));
-    element_done();
-    return true;
-  }
-  bool end() {
-    stack_.pop_back();
-    element_done();
-    return true;
-  }
-
-  std::string source_;
-  Json root_;
-  std::vector<Frame> stack_;
-  std::string error_;
-};
-
-// ---------------------------------------------------------------------------------------------
-// Validation helpers
-
-struct Node {
-  const Json& v;
-  std::string path;
-};
-
-enum class Sign { Any, NonNegative, Positive };
-
-struct Range {
-  double lo, hi;
-  bool lo_open, hi_open;
-  const char* unit;
-  bool contains(double x) const {
-    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
-  }
-  std::string text() const {
-    std::string s = std::string(lo_open ? "(" : "[") + format_number(lo) + ", " + format_number(hi) +
-                    (hi_open ? ")" : "]");
-    if (unit != nullptr && *unit != '\0') s += std::string(" ") + unit;
-    return s;
-  }
-};
+using namespace json;
+using namespace schema;
 
 constexpr double kMaxCoordinate = 1e6;  // metres; larger values lose float precision in the backends
 
-class Loader {
+bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+// The scene's sections, read through json::Reader (errors by path) against the schema.
+class Loader : private json::Reader {
  public:
   Loader(std::string source, std::filesystem::path base_dir)
-      : source_(std::move(source)), base_dir_(std::move(base_dir)) {}
+      : json::Reader(std::move(source)), base_dir_(std::move(base_dir)) {}
 
-  // ---- errors ----
-  [[noreturn]] void fail(const std::string& path, const Json* value, const std::string& what) const {
-    std::string msg = source_ + ": " + path;
-    if (value != nullptr) msg += " = " + describe(*value);
-    msg += ": " + what;
-    for (const auto& [p, text] : overridden_) {
-      if (path == p || path.starts_with(p + ".") || path.starts_with(p + "[")) {
-        msg += " (set by override '" + text + "')";
-        break;
-      }
-    }
-    throw SceneError(msg);
-  }
-  [[noreturn]] void fail(const Node& n, const std::string& what) const { fail(n.path, &n.v, what); }
-
-  // ---- overrides ----
-  void apply_override(Json& doc, const SceneOverride& o);
-
-  // ---- structure ----
-  void expect_object(const Node& n, const char* what) const {
-    if (!n.v.is_object()) fail(n, std::string("must be an object (") + what + ")");
-  }
-  void check_keys(const Node& n, const Keys& allowed, const char* what) const {
-    expect_object(n, what);
-    for (const auto& [k, v] : n.v.items()) {
-      if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
-        fail(n.path + key_suffix(k), &v, unknown_field_message(k, allowed));
-      }
-      if (k == "comment" && !v.is_string()) fail(n.path + key_suffix(k), &v, "must be a string (a free-form comment)");
-    }
-  }
-  static std::optional<Node> get(const Node& n, std::string_view key) {
-    const auto it = n.v.find(key);
-    if (it == n.v.end()) return std::nullopt;
-    return Node{*it, n.path + key_suffix(key)};
-  }
-  Node require(const Node& n, std::string_view key, const std::string& what) const {
-    auto c = get(n, key);
-    if (!c) fail(n.path + key_suffix(key), nullptr, "missing required field: " + what);
-    return *c;
-  }
-  static Node element(const Node& n, std::size_t i) { return Node{n.v[i], n.path + index_suffix(i)}; }
-
-  // ---- values ----
-  double number(const Node& n, const Range& r) const {
-    const std::string allowed = "must be a finite number in " + r.text();
-    if (n.v.is_string()) fail(n, allowed + " (a number, not a string; JSON has no NaN or Infinity)");
-    if (!n.v.is_number()) fail(n, allowed);
-    const double x = n.v.get<double>();
-    if (!std::isfinite(x) || !r.contains(x)) fail(n, allowed);
-    return x;
-  }
-  float number_f(const Node& n, const Range& r) const { return static_cast<float>(number(n, r)); }
-  std::int64_t integer(const Node& n, std::int64_t lo, std::int64_t hi) const {
-    const std::string allowed = "must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi);
-    std::int64_t x = 0;
-    if (n.v.is_number_unsigned()) {
-      const auto u = n.v.get<std::uint64_t>();
-      if (u > static_cast<std::uint64_t>(hi)) fail(n, allowed);
-      x = static_cast<std::int64_t>(u);
-    } else if (n.v.is_number_integer()) {
-      x = n.v.get<std::int64_t>();
-    } else {
-      fail(n, allowed);
-    }
-    if (x < lo || x > hi) fail(n, allowed);
-    return x;
-  }
-  std::string string(const Node& n, const char* what) const {
-    if (!n.v.is_string()) fail(n, std::string("must be a string (") + what + ")");
-    return n.v.get<std::string>();
-  }
-  bool boolean(const Node& n) const {
-    if (!n.v.is_boolean()) fail(n, "must be true or false");
-    return n.v.get<bool>();
-  }
-  static Range sign_range(Sign s) {
-    switch (s) {
-      case Sign::NonNegative: return {0, 1e30, false, false, ""};
-      case Sign::Positive: return {0, 1e30, true, false, ""};
-      case Sign::Any: break;
-    }
-    return {-1e30, 1e30, false, false, ""};
-  }
-  template <int N>
-  glm::vec<N, float> vec(const Node& n, const Range& r, const char* what) const {
-    if (!n.v.is_array() || n.v.size() != static_cast<std::size_t>(N)) {
-      fail(n, "must be an array of " + std::to_string(N) + " numbers (" + what + ")");
-    }
-    glm::vec<N, float> out{};
-    for (int i = 0; i < N; ++i) out[i] = number_f(element(n, static_cast<std::size_t>(i)), r);
-    return out;
-  }
-  glm::vec3 vec3(const Node& n, const Range& r, const char* what) const { return vec<3>(n, r, what); }
-  glm::vec3 colour(const Node& n, const char* what) const {
-    return vec3(n, Range{0, 1e9, false, false, ""}, what);
-  }
-  glm::vec3 position(const Node& n, const char* what) const {
-    return vec3(n, Range{-kMaxCoordinate, kMaxCoordinate, false, false, "m"}, what);
-  }
-  glm::vec3 direction(const Node& n, const char* what) const {
-    const glm::vec3 d = vec3(n, Range{-1e6, 1e6, false, false, ""}, what);
-    if (!(glm::length(d) > 1e-9f)) fail(n, std::string("must be a non-zero vector (") + what + ")");
-    return glm::normalize(d);
-  }
+  json::Reader& reader() { return *this; }
 
   // ---- sections ----
   Scene build(const Json& doc, const std::string& default_name);
 
  private:
+  glm::vec3 position(const Node& n, const char* what) const {
+    return vec3(n, Range{-kMaxCoordinate, kMaxCoordinate, false, false, "m"}, what);
+  }
   Camera camera(const Node& n);
   Lens lens(const Node& n);
   Animation animation(const Node& n, bool camera);
@@ -477,76 +57,9 @@ class Loader {
   protocol::DisplayGeometry display(const Node& n);
   void check_finite(const Scene& s) const;
 
-  std::string source_;
   std::filesystem::path base_dir_;
-  std::vector<std::pair<std::string, std::string>> overridden_;  // JSON path -> "path=value"
   std::map<std::string, std::shared_ptr<const Mesh>> mesh_cache_;  // by resolved path
 };
-
-// ---------------------------------------------------------------------------------------------
-// Overrides
-
-void Loader::apply_override(Json& doc, const SceneOverride& o) {
-  const std::string text = o.path + "=" + o.value;
-  const auto bad = [&](const std::string& what) -> void {
-    throw SceneError(source_ + ": override '" + text + "': " + what);
-  };
-  std::vector<std::string> segments;
-  {
-    std::string seg;
-    std::istringstream in(o.path);
-    while (std::getline(in, seg, '.')) segments.push_back(seg);
-    if (!o.path.empty() && o.path.back() == '.') segments.emplace_back();
-  }
-  if (segments.empty()) bad("empty path; expected a dotted path such as camera.width or lights.0.power");
-  for (const std::string& s : segments) {
-    if (s.empty()) bad("empty path segment; expected a dotted path such as camera.width or lights.0.power");
-  }
-
-  Json value;
-  try {
-    value = Json::parse(o.value);
-  } catch (const nlohmann::json::exception&) {
-    value = Json(o.value);  // not JSON: taken as a string
-  }
-
-  Json* node = &doc;
-  Kind kind = Kind::Scene;
-  std::string path = "$";
-  for (std::size_t i = 0; i < segments.size(); ++i) {
-    const std::string& seg = segments[i];
-    const bool last = i + 1 == segments.size();
-    if (node->is_array()) {
-      const bool numeric = std::all_of(seg.begin(), seg.end(), [](char c) { return c >= '0' && c <= '9'; });
-      if (!numeric || seg.size() > 9) bad(path + " is an array; '" + seg + "' must be an element index");
-      const auto index = static_cast<std::size_t>(std::stoul(seg));
-      if (index >= node->size()) {
-        bad(path + index_suffix(index) + ": index out of range (the array has " + std::to_string(node->size()) +
-            " elements)");
-      }
-      node = &(*node)[index];
-      path += index_suffix(index);
-      kind = element_kind(kind);
-    } else if (node->is_object()) {
-      const Keys& known = keys_of(kind);
-      if (!node->contains(seg)) {
-        if (std::find(known.begin(), known.end(), seg) == known.end()) {
-          std::string what = path + key_suffix(seg) + ": no such field in the scene";
-          if (!known.empty()) what += "; " + unknown_field_message(seg, known);
-          bad(what);
-        }
-        (*node)[seg] = last ? Json(nullptr) : Json::object();  // a known optional field: create it
-      }
-      node = &(*node)[seg];
-      path += key_suffix(seg);
-      kind = child_kind(kind, seg);
-    } else {
-      bad(path + " = " + describe(*node) + " is not an object or array; cannot set '" + seg + "' inside it");
-    }
-  }
-  *node = std::move(value);
-  overridden_.emplace_back(path, text);
-}
 
 // ---------------------------------------------------------------------------------------------
 // Sections
@@ -863,97 +376,6 @@ std::shared_ptr<const Mesh> Loader::geometry(const Node& n) {
   return std::make_shared<const Mesh>(make_cylinder(radius, height, segments));
 }
 
-// ---------------------------------------------------------------------------------------------
-// Meshes from files (assimp)
-
-glm::mat4 to_glm(const aiMatrix4x4& m) {
-  // assimp is row-major (a1..a4 is the first row); glm is column-major.
-  return glm::mat4(m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2, m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4);
-}
-
-bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
-
-// Normals that are missing, zero or non-finite (degenerate faces) are replaced by the area-weighted
-// average of the incident face normals, or +Y where even that is zero.
-void repair_normals(Mesh& m) {
-  if (m.normals.size() != m.positions.size()) m.normals.assign(m.positions.size(), glm::vec3(0.0f));
-  std::vector<glm::vec3> acc(m.positions.size(), glm::vec3(0.0f));
-  for (std::size_t i = 0; i + 2 < m.indices.size(); i += 3) {
-    const glm::vec3& a = m.positions[m.indices[i]];
-    const glm::vec3& b = m.positions[m.indices[i + 1]];
-    const glm::vec3& c = m.positions[m.indices[i + 2]];
-    const glm::vec3 n = glm::cross(b - a, c - a);  // length = twice the area
-    if (!finite(n)) continue;
-    for (std::size_t k = 0; k < 3; ++k) acc[m.indices[i + k]] += n;
-  }
-  for (std::size_t v = 0; v < m.normals.size(); ++v) {
-    glm::vec3& n = m.normals[v];
-    const float len = glm::length(n);
-    if (finite(n) && len > 1e-12f && std::isfinite(len)) {
-      n /= len;
-      continue;
-    }
-    const float alen = glm::length(acc[v]);
-    n = alen > 1e-20f && std::isfinite(alen) ? acc[v] / alen : glm::vec3(0, 1, 0);
-  }
-}
-
-void append_node(const aiScene& s, const aiNode& node, const glm::mat4& parent, Mesh& out) {
-  const glm::mat4 world = parent * to_glm(node.mTransformation);
-  const glm::mat3 normal_matrix = glm::transpose(glm::inverse(glm::mat3(world)));
-  for (unsigned k = 0; k < node.mNumMeshes; ++k) {
-    const aiMesh& m = *s.mMeshes[node.mMeshes[k]];
-    if ((m.mPrimitiveTypes & aiPrimitiveType_TRIANGLE) == 0) continue;
-    const auto base = static_cast<std::uint32_t>(out.positions.size());
-    for (unsigned v = 0; v < m.mNumVertices; ++v) {
-      const aiVector3D& p = m.mVertices[v];
-      out.positions.emplace_back(world * glm::vec4(p.x, p.y, p.z, 1.0f));
-      if (m.mNormals != nullptr) {
-        const aiVector3D& n = m.mNormals[v];
-        out.normals.push_back(normal_matrix * glm::vec3(n.x, n.y, n.z));
-      } else {
-        out.normals.emplace_back(0.0f);  // repaired below
-      }
-    }
-    for (unsigned f = 0; f < m.mNumFaces; ++f) {
-      const aiFace& face = m.mFaces[f];
-      if (face.mNumIndices != 3) continue;  // points and lines left after triangulation
-      for (unsigned i = 0; i < 3; ++i) out.indices.push_back(base + face.mIndices[i]);
-    }
-  }
-  for (unsigned c = 0; c < node.mNumChildren; ++c) append_node(s, *node.mChildren[c], world, out);
-}
-
-}  // namespace
-
-Mesh read_mesh_file(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw SceneError("mesh file not found: " + path.string());
-
-  Assimp::Importer importer;
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const aiScene* s = importer.ReadFile(path.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                                                          aiProcess_GenSmoothNormals | aiProcess_SortByPType |
-                                                          aiProcess_ValidateDataStructure);
-  if (s == nullptr || s->mRootNode == nullptr) {
-    const std::string why = importer.GetErrorString();
-    if (why.find("o meshes") != std::string::npos || why.find("empty") != std::string::npos) {
-      throw SceneError("degenerate mesh: " + path.string() + " contains no triangles (" + why + ")");
-    }
-    throw SceneError("cannot read mesh " + path.string() + ": " + why);
-  }
-  Mesh mesh;
-  append_node(*s, *s->mRootNode, glm::mat4(1.0f), mesh);
-  if (mesh.indices.empty()) throw SceneError("degenerate mesh: " + path.string() + " contains no triangles");
-  for (const glm::vec3& p : mesh.positions) {
-    if (!finite(p)) throw SceneError("mesh " + path.string() + " has a non-finite vertex position");
-  }
-  repair_normals(mesh);
-  return mesh;
-}
-
-namespace {
-
 std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
   const std::string rel = string(n, "a mesh file path relative to the scene file");
   std::filesystem::path path = std::filesystem::path(rel);
@@ -1182,24 +604,13 @@ void Loader::check_finite(const Scene& s) const {
   v3(s.background, "background");
 }
 
-Json parse_document(const std::string& text, const std::string& source) {
-  DocumentBuilder builder(source);
-  const bool ok = Json::sax_parse(text, &builder);
-  if (!ok) {
-    throw SceneError(builder.error().empty() ? source + ": invalid JSON" : builder.error());
-  }
-  Json doc = std::move(builder.document());
-  if (!doc.is_object()) throw SceneError(source + ": $ = " + describe(doc) + ": a scene file must hold a JSON object");
-  return doc;
-}
-
 }  // namespace
 
 Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
                   const std::vector<SceneOverride>& overrides) {
   Json doc = parse_document(json_text, source_name);
   Loader loader(source_name, base_dir);
-  for (const SceneOverride& o : overrides) loader.apply_override(doc, o);
+  for (const SceneOverride& o : overrides) apply_override(doc, o, loader.reader());
   std::string default_name = std::filesystem::path(source_name).stem().string();
   if (default_name.empty()) default_name = source_name;
   Scene scene = loader.build(doc, default_name);

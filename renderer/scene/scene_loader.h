@@ -2,19 +2,17 @@
 // Loads JSON scene files (format: renderer/SCENES.md) into a validated Scene. Every error names the
 // file, the JSON path, the bad value and the allowed range, e.g.
 //   scenes/room.json: $.objects[2].transform.translation[1] = nan: must be a finite number
+//
+// The loader reads JSON through scene/json_path.h, checks it against scene/scene_schema.h, applies
+// overrides (scene/scene_overrides.h) and reads mesh files through scene/mesh_io.h.
 #include <filesystem>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "scene/scene.h"
+#include "scene/scene_error.h"
 
 namespace fovea::render {
-
-class SceneError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 // Overrides applied to the JSON document before validation: "camera.width=320" sets the value at
 // that dotted path (array elements by index: "lights.0.power=[10,10,10]"). The value is parsed as
@@ -30,10 +28,5 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverr
 // The same from text; `source_name` is used in messages and `base_dir` to resolve mesh files.
 Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
                   const std::vector<SceneOverride>& overrides = {});
-
-// Reads a mesh file (OBJ, PLY, glTF) as scenes read them: triangulated, identical vertices joined,
-// missing normals generated (smooth), node transforms applied. Throws SceneError naming the file
-// and the problem (not found, unreadable, no triangles, a non-finite position).
-Mesh read_mesh_file(const std::filesystem::path& path);
 
 }  // namespace fovea::render
