@@ -56,7 +56,7 @@ int run_headless(const RenderOptions& o) {
     return 2;
   }
 
-  Scene scene = load_scene(o.scene_path, o.scene_overrides);
+  Scene scene = load_render_scene(o);
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
   {

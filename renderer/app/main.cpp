@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
       o.scene_overrides.push_back({s.substr(0, eq), s.substr(eq + 1)});
     }
     if (o.explain) {
-      const Scene scene = load_scene(o.scene_path, o.scene_overrides);
+      const Scene scene = load_render_scene(o);
       const auto gaze = make_gaze_input(o.gaze);
       std::printf("frame plan for %s (%s backend, gaze %s):\n", o.scene_path.c_str(), backend.c_str(),
                   gaze->description().c_str());

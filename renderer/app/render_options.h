@@ -6,6 +6,7 @@
 
 #include "backend/backend.h"
 #include "governor/governor.h"
+#include "lod/lod_chain.h"
 #include "pipeline/settings.h"
 #include "scene/scene_loader.h"
 
@@ -32,6 +33,13 @@ struct RenderOptions {
 inline std::unique_ptr<Governor> make_governor(const RenderOptions& o) {
   if (!(o.budget_ms > 0)) return nullptr;
   return std::make_unique<Governor>(o.budget_ms, o.fronts_path.empty() ? builtin_fronts() : load_fronts(o.fronts_path));
+}
+
+// The scene as every mode renders it: loaded with its overrides, then its LOD chains attached.
+inline Scene load_render_scene(const RenderOptions& o) {
+  Scene scene = load_scene(o.scene_path, o.scene_overrides);
+  lod::attach_chains(scene);
+  return scene;
 }
 
 int run_headless(const RenderOptions& options);

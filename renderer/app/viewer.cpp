@@ -135,7 +135,7 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
 }  // namespace
 
 int run_viewer(const RenderOptions& o) {
-  Scene scene = load_scene(o.scene_path, o.scene_overrides);
+  Scene scene = load_render_scene(o);
   GlContextOptions co;
   co.visible = true;
   co.title = "fovea-render: " + scene.name;

@@ -76,6 +76,63 @@ Chain build_chain(const Mesh& mesh, const ChainSettings& s, const std::string& i
   return chain;
 }
 
+namespace {
+
+ChainSettings settings_for(const LodChainRequest& r) {
+  ChainSettings cs;
+  if (r.levels) cs.levels = *r.levels;
+  if (r.base) cs.base = *r.base;
+  if (r.weld_attributes) cs.attributes = *r.weld_attributes ? Attributes::Weld : Attributes::Seams;
+  return cs;
+}
+
+bool finite(const Mesh& m) {
+  for (const auto* points : {&m.positions, &m.normals}) {
+    for (const glm::vec3& p : *points) {
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
+    }
+  }
+  return true;
+}
+
+// The chain's levels below the full mesh that are coarser than the one before them.
+std::vector<LodLevel> chain_levels(const Chain& chain, std::size_t full_triangles) {
+  std::vector<LodLevel> out;
+  std::size_t prev_tris = full_triangles;
+  for (std::size_t l = 1; l < chain.levels.size(); ++l) {
+    const ChainLevel& cl = chain.levels[l];
+    if (cl.mesh.triangle_count() == 0 || cl.mesh.triangle_count() >= prev_tris) continue;
+    prev_tris = cl.mesh.triangle_count();
+    LodLevel level;
+    level.mesh = std::make_shared<const Mesh>(cl.mesh);
+    level.max_error_m = cl.error_m;
+    out.push_back(std::move(level));
+  }
+  return out;
+}
+
+}  // namespace
+
+void attach_chains(Scene& scene) {
+  for (Object& o : scene.objects) {
+    if (!o.lod_chain) continue;
+    // Built once per mesh and settings and cached on disk: the same chain fovea-lod writes.
+    const Chain chain = cached_chain(*o.mesh, settings_for(*o.lod_chain), "scene mesh");
+    o.lods = chain_levels(chain, o.mesh->triangle_count());
+    if (o.lods.empty()) {
+      throw SceneError(o.lod_chain->where + ": the simplifier could not reduce this mesh at all (" +
+                       std::to_string(o.mesh->triangle_count()) + " triangles)");
+    }
+    for (const LodLevel& l : o.lods) {
+      // A chain read back from a damaged cache must not carry NaN into the backends.
+      if (!finite(*l.mesh) || !std::isfinite(l.max_error_m)) {
+        throw SceneError(o.lod_chain->where + ": internal error: non-finite level of detail");
+      }
+    }
+    o.lod_chain.reset();
+  }
+}
+
 Mesh read_mesh(const fs::path& path) { return read_mesh_file(path); }
 
 void write_mesh(const Mesh& mesh, const fs::path& path) {

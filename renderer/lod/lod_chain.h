@@ -69,7 +69,15 @@ Chain cached_chain(const Mesh& mesh, const ChainSettings& s, const std::string& 
                    std::filesystem::path root = {}, bool* hit = nullptr);
 std::filesystem::path default_cache_root();
 
-// Mesh files (OBJ, PLY, glTF) as scenes read them.
+// Builds or loads (cached_chain) the chain each object of `scene` asks for (Object::lod_chain, kept
+// by the scene loader) and fills its Object::lods with the chain's levels below the full mesh;
+// levels the simplifier could not take below the previous one are left out. Clears the requests.
+// Throws SceneError naming the scene file and the object's "lod.chain" when the simplifier cannot
+// reduce a mesh at all. Run it after load_scene / parse_scene whenever the scene will be drawn
+// with its levels of detail (fovea-render does).
+void attach_chains(Scene& scene);
+
+// Mesh files (OBJ, PLY, glTF) as scenes read them (scene/mesh_io.h).
 Mesh read_mesh(const std::filesystem::path& path);
 void write_mesh(const Mesh& mesh, const std::filesystem::path& path);  // .obj or .ply (ASCII)
 

@@ -63,11 +63,22 @@ struct LodLevel {
   float max_error_m = 0;  // geometric error of this level against the full mesh (metres, object space)
 };
 
+// A level-of-detail chain a scene file asks for ("lod": {"chain": {...}}, Lee 2009 eq. 7.4). The
+// loader keeps the request; lod::attach_chains (lod/lod_chain.h) builds or loads the chain and fills
+// Object::lods. Unset fields take lod::ChainSettings' defaults.
+struct LodChainRequest {
+  std::optional<int> levels;
+  std::optional<double> base;
+  std::optional<bool> weld_attributes;  // "attributes": "weld" (true) or "seams" (false)
+  std::string where;                    // "scene.json: $.objects[2].lod.chain", for messages
+};
+
 struct Object {
   std::string name;
   std::uint32_t id = 0;  // 1-based, unique; 0 in a G-buffer means "no object"
   std::shared_ptr<const Mesh> mesh;
   std::vector<LodLevel> lods;  // optional, coarser levels after the full mesh
+  std::optional<LodChainRequest> lod_chain;  // until lod::attach_chains has filled `lods`
   std::uint32_t material = 0;  // index into Scene::materials
   Transform transform;
   std::optional<Animation> animation;

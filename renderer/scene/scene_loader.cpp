@@ -10,7 +10,6 @@
 #include <string_view>
 #include <utility>
 
-#include "lod/lod_chain.h"
 #include "scene/geometry.h"
 #include "scene/json_path.h"
 #include "scene/mesh_io.h"
@@ -52,7 +51,8 @@ class Loader : private json::Reader {
   Transform transform(const Node& n);
   std::shared_ptr<const Mesh> geometry(const Node& n);
   std::shared_ptr<const Mesh> mesh_file(const Node& n);
-  std::vector<LodLevel> lods(const Node& n, const Mesh& full);
+  // The levels the scene gives (files or simplification ratios), or none and the chain it asks for.
+  std::vector<LodLevel> lods(const Node& n, const Mesh& full, std::optional<LodChainRequest>& chain);
   Light light(const Node& n);
   protocol::DisplayGeometry display(const Node& n);
   void check_finite(const Scene& s) const;
@@ -105,7 +105,7 @@ Scene Loader::build(const Json& doc, const std::string& default_name) {
     if (auto t = get(n, "transform")) obj.transform = transform(*t);
     if (auto a = get(n, "animation")) obj.animation = animation(*a, false);
     if (auto ti = get(n, "task_importance")) obj.task_importance = number_f(*ti, Range{0, 1, false, false, ""});
-    if (auto l = get(n, "lod")) obj.lods = lods(*l, *obj.mesh);
+    if (auto l = get(n, "lod")) obj.lods = lods(*l, *obj.mesh, obj.lod_chain);
     scene.objects.push_back(std::move(obj));
   }
 
@@ -414,35 +414,25 @@ Mesh simplify(const Mesh& full, double ratio, float& error_m) {
   return std::move(s.mesh);
 }
 
-std::vector<LodLevel> Loader::lods(const Node& n, const Mesh& full) {
+std::vector<LodLevel> Loader::lods(const Node& n, const Mesh& full, std::optional<LodChainRequest>& chain) {
   std::vector<LodLevel> out;
   if (n.v.is_object() && get(n, "chain")) {
     check_keys(n, kLodSimplifyKeys, "{\"chain\": {...}}, {\"simplify\": [ratios]} or [{\"mesh\", \"max_error_m\"}]");
     if (get(n, "simplify")) fail(n, "give either \"chain\" or \"simplify\", not both");
     const Node c = *get(n, "chain");
     check_keys(c, kLodChainKeys, "an LOD chain {\"levels\", \"base\", \"attributes\"}");
-    lod::ChainSettings cs;
-    if (auto v = get(c, "levels")) cs.levels = static_cast<int>(number(*v, Range{2, 16, false, false, ""}));
-    if (auto v = get(c, "base")) cs.base = number(*v, Range{1, 1e6, true, false, ""});
+    LodChainRequest request;
+    if (auto v = get(c, "levels")) request.levels = static_cast<int>(number(*v, Range{2, 16, false, false, ""}));
+    if (auto v = get(c, "base")) request.base = number(*v, Range{1, 1e6, true, false, ""});
     if (auto v = get(c, "attributes")) {
       const std::string a = string(*v, "seams or weld");
       if (a != "seams" && a != "weld") fail(*v, "must be seams or weld");
-      cs.attributes = a == "weld" ? lod::Attributes::Weld : lod::Attributes::Seams;
+      request.weld_attributes = a == "weld";
     }
-    // Built once per mesh and settings and cached on disk (lod/lod_chain.h): the same chain
-    // fovea-lod writes. Levels the simplifier could not take below the previous one are left out.
-    const lod::Chain chain = lod::cached_chain(full, cs, "scene mesh");
-    std::size_t prev_tris = full.triangle_count();
-    for (std::size_t l = 1; l < chain.levels.size(); ++l) {
-      const lod::ChainLevel& cl = chain.levels[l];
-      if (cl.mesh.triangle_count() == 0 || cl.mesh.triangle_count() >= prev_tris) continue;
-      prev_tris = cl.mesh.triangle_count();
-      LodLevel level;
-      level.mesh = std::make_shared<const Mesh>(cl.mesh);
-      level.max_error_m = cl.error_m;
-      out.push_back(std::move(level));
-    }
-    if (out.empty()) fail(c, "the simplifier could not reduce this mesh at all (" + std::to_string(full.triangle_count()) + " triangles)");
+    // Built (or loaded from the disk cache) by lod::attach_chains after loading: the same chain
+    // fovea-lod writes.
+    request.where = source_ + ": " + c.path;
+    chain = std::move(request);
     return out;
   }
   if (n.v.is_object()) {

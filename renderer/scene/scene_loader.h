@@ -4,7 +4,9 @@
 //   scenes/room.json: $.objects[2].transform.translation[1] = nan: must be a finite number
 //
 // The loader reads JSON through scene/json_path.h, checks it against scene/scene_schema.h, applies
-// overrides (scene/scene_overrides.h) and reads mesh files through scene/mesh_io.h.
+// overrides (scene/scene_overrides.h) and reads mesh files through scene/mesh_io.h. A scene's LOD
+// chains ("lod": {"chain": ...}) are not built here: the loader keeps the request
+// (Object::lod_chain) and lod::attach_chains (lod/lod_chain.h) builds or loads them.
 #include <filesystem>
 #include <string>
 #include <vector>

@@ -131,7 +131,11 @@ TEST(LodChain, ScenesBuildChainsThroughTheCache) {
     "objects": [{"name": "ball", "material": "m", "geometry": {"sphere": {"radius": 1, "rings": 48, "segments": 96}},
                  "lod": {"chain": {"levels": 4, "base": 4}}}],
     "lights": [{"type": "point", "position": [0, 3, 3], "power": [100, 100, 100]}]})";
-  const Scene a = parse_scene(json, "lod.json", fs::temp_directory_path());
+  Scene a = parse_scene(json, "lod.json", fs::temp_directory_path());
+  ASSERT_TRUE(a.objects[0].lod_chain.has_value());  // the loader keeps the request; lod/ builds it
+  EXPECT_TRUE(a.objects[0].lods.empty());
+  attach_chains(a);
+  EXPECT_FALSE(a.objects[0].lod_chain.has_value());
   ASSERT_EQ(a.objects[0].lods.size(), 3u);
   std::size_t previous = a.objects[0].mesh->triangle_count();
   float previous_error = 0;
@@ -142,7 +146,8 @@ TEST(LodChain, ScenesBuildChainsThroughTheCache) {
     previous_error = l.max_error_m;
   }
   EXPECT_FALSE(fs::is_empty(root));  // the chain went to the cache
-  const Scene b = parse_scene(json, "lod.json", fs::temp_directory_path());
+  Scene b = parse_scene(json, "lod.json", fs::temp_directory_path());
+  attach_chains(b);
   ASSERT_EQ(b.objects[0].lods.size(), 3u);
   EXPECT_EQ(b.objects[0].lods[2].mesh->triangle_count(), a.objects[0].lods[2].mesh->triangle_count());
   // Both forms at once, or bad chain settings: errors that name the field.
