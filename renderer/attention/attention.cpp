@@ -292,24 +292,17 @@ glm::vec3 AttentionTracker::farthest_vertex(const std::shared_ptr<const Mesh>& m
   return far_v;
 }
 
-const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& scene, double time_s,
-                                               double previous_time_s) {
-  const auto start = std::chrono::steady_clock::now();
-  const int n = settings_.map_size;
-  const auto un = static_cast<std::size_t>(n), npix = un * un;
-  AttentionFrame& f = frame_;
-  f.map_width = f.map_height = n;
-  f.objects.clear();
-  f.most_attended = 0;
+// The stages of AttentionTracker::update, in the order it runs them.
+namespace {
 
-  // --- Scene objects by id (dense slots for the visible ones) -------------------------------------
-  std::unordered_map<std::uint32_t, std::size_t> object_index;
-  object_index.reserve(scene.objects.size() * 2);
-  for (std::size_t i = 0; i < scene.objects.size(); ++i) object_index.emplace(scene.objects[i].id, i);
-  std::vector<Slot> slots;
-  std::unordered_map<std::uint32_t, std::uint32_t> slot_of;  // id -> slot + 1 (0: not an object of the scene)
-  std::uint32_t last_id = 0, last_slot = 0;
-  const auto slot_for = [&](std::uint32_t id) -> std::uint32_t {
+// Scene objects by id, and a dense slot for each one seen in the map (made on first sight).
+struct SlotTable {
+  explicit SlotTable(const Scene& s) : scene(s) {
+    object_index.reserve(scene.objects.size() * 2);
+    for (std::size_t i = 0; i < scene.objects.size(); ++i) object_index.emplace(scene.objects[i].id, i);
+  }
+  // The object's slot + 1; 0 for the background and for ids that are not objects of the scene.
+  std::uint32_t slot_for(std::uint32_t id) {
     if (id == 0) return 0;
     if (id == last_id) return last_slot;
     auto it = slot_of.find(id);
@@ -327,30 +320,58 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
     last_id = id;
     last_slot = s;
     return s;
-  };
+  }
+  const Scene& scene;
+  std::unordered_map<std::uint32_t, std::size_t> object_index;
+  std::vector<Slot> slots;
+  std::unordered_map<std::uint32_t, std::uint32_t> slot_of;  // id -> slot + 1 (0: not an object of the scene)
+  std::uint32_t last_id = 0, last_slot = 0;
+};
 
+// The G-buffer as the resampling reads it: which planes it has, and the depth range of eq. 3.1.
+struct Source {
+  const GBuffer& g;
+  std::size_t W, H;
+  bool has_image, has_color, has_depth, has_ids;
+  double z_range;    // z_far - z_near of eq. 3.1 (1 for a degenerate camera)
+  float fnear, ffar;  // what depths are clamped to
+};
+
+Source read_source(const GBuffer& g, const Camera& camera) {
   // A G-buffer with missing planes is read as black, at the far plane and without objects.
   const std::size_t W = g.width, H = g.height;
   const bool has_image = W > 0 && H > 0;
   const bool has_color = has_image && g.color.size() >= W * H;
   const bool has_depth = has_image && g.depth.size() >= W * H;
   const bool has_ids = has_image && g.object_id.size() >= W * H;
-
-  // --- Resample the G-buffer to n x n ----------------------------------------------------------
-  // Colour and depth: box filter (the mean of the source pixels whose centres fall in the map
-  // pixel; when the map is finer than the image, or with Resample::Nearest, the one source pixel
-  // under the map pixel's centre).
-  // Ids and the per-object depth: nearest (the source pixel under the map pixel's centre): ids must
-  // not be averaged. The map is square like the paper's (64^2 .. 512^2); the image's aspect is not kept.
-  // HDR colour is clamped to [0, 1] per source pixel before filtering: HLS is a display-colour model
-  // (the paper reads an 8-bit render target), and a lamp's radiance of 8 must not dwarf the rest.
-  const double z_near = scene.camera.near_m, z_far = scene.camera.far_m;
+  const double z_near = camera.near_m, z_far = camera.far_m;
   const double z_range = (std::isfinite(z_far - z_near) && z_far > z_near) ? z_far - z_near : 1.0;
   const float fnear = static_cast<float>(std::isfinite(z_near) ? z_near : 0.0);
   const float ffar = static_cast<float>(std::isfinite(z_far) ? z_far : static_cast<double>(fnear) + 1.0);
-  std::vector<int> cx0(un), cx1(un), cy0(un), cy1(un), nx(un), ny(un);
+  return Source{g, W, H, has_image, has_color, has_depth, has_ids, z_range, fnear, ffar};
+}
+
+// Per map column (x) and row (y): the source columns / rows [c0, c1) of its box, and the one source
+// column / row under its centre (n).
+struct ResampleGrid {
+  explicit ResampleGrid(std::size_t un) : cx0(un), cx1(un), cy0(un), cy1(un), nx(un), ny(un) {}
+  std::vector<int> cx0, cx1, cy0, cy1, nx, ny;
+};
+
+// Resample the G-buffer to n x n.
+// Colour and depth: box filter (the mean of the source pixels whose centres fall in the map
+// pixel; when the map is finer than the image, or with Resample::Nearest, the one source pixel
+// under the map pixel's centre).
+// Ids and the per-object depth: nearest (the source pixel under the map pixel's centre): ids must
+// not be averaged. The map is square like the paper's (64^2 .. 512^2); the image's aspect is not kept.
+// HDR colour is clamped to [0, 1] per source pixel before filtering: HLS is a display-colour model
+// (the paper reads an 8-bit render target), and a lamp's radiance of 8 must not dwarf the rest.
+ResampleGrid resample_grid(const Source& src, int n, Resample resample) {
+  const auto un = static_cast<std::size_t>(n);
+  const std::size_t W = src.W, H = src.H;
+  ResampleGrid grid(un);
   for (std::size_t k = 0; k < un; ++k) {
-    if (!has_image) break;
+    if (!src.has_image) break;
     const auto range = [&](std::size_t size, std::vector<int>& a, std::vector<int>& b, std::vector<int>& near_i) {
       const auto s = static_cast<double>(size);
       const auto kk = static_cast<double>(k);
@@ -359,7 +380,7 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
       const int centre = std::clamp(static_cast<int>(std::floor((kk + 0.5) * s / n)), 0, static_cast<int>(size) - 1);
       lo = std::clamp(lo, 0, static_cast<int>(size));
       hi = std::clamp(hi, 0, static_cast<int>(size));
-      if (hi <= lo || settings_.resample == Resample::Nearest) {
+      if (hi <= lo || resample == Resample::Nearest) {
         lo = centre;
         hi = centre + 1;
       }
@@ -367,165 +388,225 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
       b[k] = hi;
       near_i[k] = centre;
     };
-    range(W, cx0, cx1, nx);
-    range(H, cy0, cy1, ny);
+    range(W, grid.cx0, grid.cx1, grid.nx);
+    range(H, grid.cy0, grid.cy1, grid.ny);
   }
+  return grid;
+}
 
-  Scratch& sc = *scratch_;
-  auto& planes = sc.planes;
+// Box: the source rows of map row y summed per source column (straight loops over whole rows;
+// comparisons written as `v > 0 ? v : 0` map NaN to the fallback without a branch).
+void accumulate_box_rows(const Source& src, const ResampleGrid& grid, std::size_t y, std::vector<float>& col_rgb,
+                         std::vector<float>& col_z) {
+  const GBuffer& g = src.g;
+  const std::size_t W = src.W;
+  const bool has_color = src.has_color, has_depth = src.has_depth, has_ids = src.has_ids;
+  const float fnear = src.fnear, ffar = src.ffar;
+  const float depth_fallback = ffar;
+  const std::vector<int>&cy0 = grid.cy0, &cy1 = grid.cy1;
+  std::fill(col_rgb.begin(), col_rgb.end(), 0.0f);
+  std::fill(col_z.begin(), col_z.end(), 0.0f);
+  float* __restrict crgb = col_rgb.data();
+  float* __restrict cz = col_z.data();
+  for (int sy = cy0[y]; sy < cy1[y]; ++sy) {
+    const std::size_t row = static_cast<std::size_t>(sy) * W;
+    if (has_color) {
+      const float* __restrict c = &g.color[row].x;
+#pragma omp simd
+      for (std::size_t i = 0; i < 3 * W; ++i) {
+        const float v = c[i] > 0.0f ? c[i] : 0.0f;  // NaN: 0
+        crgb[i] += v < 1.0f ? v : 1.0f;
+      }
+    }
+    // Background pixels (id 0) sit at the far plane whatever the depth plane says; NaN and +Inf: far.
+    if (has_depth) {
+      const float* __restrict dp = g.depth.data() + row;
+      if (has_ids) {
+        const std::uint32_t* __restrict ip = g.object_id.data() + row;
+#pragma omp simd
+        for (std::size_t sx = 0; sx < W; ++sx) {
+          float d = dp[sx] < ffar ? dp[sx] : ffar;
+          d = d > fnear ? d : fnear;
+          cz[sx] += ip[sx] != 0 ? d : depth_fallback;
+        }
+      } else {
+#pragma omp simd
+        for (std::size_t sx = 0; sx < W; ++sx) {
+          const float d = dp[sx] < ffar ? dp[sx] : ffar;
+          cz[sx] += d > fnear ? d : fnear;
+        }
+      }
+    } else {
+      for (std::size_t sx = 0; sx < W; ++sx) cz[sx] += depth_fallback;
+    }
+  }
+}
+
+// Nearest: the one source pixel under each map pixel's centre, read directly (no pass over whole
+// source rows), into the same per-column layout with one column per map pixel.
+void read_nearest_row(const Source& src, const ResampleGrid& grid, std::size_t un, std::size_t y,
+                      std::vector<float>& col_rgb, std::vector<float>& col_z) {
+  const GBuffer& g = src.g;
+  const std::size_t W = src.W;
+  const bool has_color = src.has_color, has_depth = src.has_depth, has_ids = src.has_ids;
+  const float fnear = src.fnear, ffar = src.ffar;
+  const float depth_fallback = ffar;
+  const std::vector<int>&nx = grid.nx, &ny = grid.ny;
+  const std::size_t row = static_cast<std::size_t>(ny[y]) * W;
+  for (std::size_t x = 0; x < un; ++x) {
+    const std::size_t i = row + static_cast<std::size_t>(nx[x]);
+    for (glm::length_t c = 0; c < 3; ++c) {
+      const float v = has_color ? g.color[i][c] : 0.0f;
+      const float v0 = v > 0.0f ? v : 0.0f;  // NaN: 0
+      col_rgb[3 * x + static_cast<std::size_t>(c)] = v0 < 1.0f ? v0 : 1.0f;
+    }
+    float d = depth_fallback;
+    if (has_depth && (!has_ids || g.object_id[i] != 0)) {
+      d = g.depth[i] < ffar ? g.depth[i] : ffar;
+      d = d > fnear ? d : fnear;
+    }
+    col_z[x] = d;
+  }
+}
+
+// One map pixel's lightness and hue vector.
+struct Hls {
+  float l, hue_a, hue_b;
+};
+
+// HLS (Lee 2009 §3.1.1): L = (max + min) / 2, S = chroma / (1 - |2L - 1|), H the hexcone angle.
+// Hue is an angle, so |B_h^i - B_h^{i+j}| of eq. 3.4 is taken between hue vectors
+// (S cos H, S sin H): the chord between two hues on the colour wheel, scaled by saturation.
+// Grey pixels have S = 0, the zero vector: no hue, no NaN, and no contrast against any grey.
+Hls hls(float r, float gg, float b) {
+  const float mx = std::max({r, gg, b}), mn = std::min({r, gg, b});
+  const float l = 0.5f * (mx + mn), chroma = mx - mn;
+  float ha = 0, hb = 0;
+  if (chroma > 1e-6f) {
+    const float sat = std::clamp(chroma / std::max(1e-6f, 1.0f - std::fabs(2.0f * l - 1.0f)), 0.0f, 1.0f);
+    float h6 = 0;  // hue in sixths of a turn
+    if (mx == r) {
+      h6 = (gg - b) / chroma;  // in [-1, 1]
+      if (h6 < 0) h6 += 6.0f;
+    } else if (mx == gg) {
+      h6 = (b - r) / chroma + 2.0f;
+    } else {
+      h6 = (r - gg) / chroma + 4.0f;
+    }
+    const glm::vec2 dir = hue_direction(h6);
+    ha = sat * dir.x;
+    hb = sat * dir.y;
+  }
+  return Hls{l, ha, hb};
+}
+
+// Where the resampling writes: level 0 of the L, hue and depth planes, the map's ids (nearest) and
+// the per-pixel depth the per-object median is taken of (nearest).
+struct ResampleTarget {
+  float* lum0;
+  float* hue_a0;
+  float* hue_b0;
+  float* depth0;
+  std::vector<std::uint32_t>& ids;
+  std::vector<float>& map_depth;
+};
+
+// Map rows [y_begin, y_end): per map row the source columns (box or nearest), then the columns of
+// each map pixel's box summed, then HLS and eq. 3.1. `col_rgb` and `col_z` are this range's own
+// scratch rows.
+void resample_rows(const Source& src, const ResampleGrid& grid, std::size_t un, bool nearest, const ResampleTarget& out,
+                   std::size_t y_begin, std::size_t y_end) {
+  const GBuffer& g = src.g;
+  const std::size_t W = src.W;
+  const bool has_image = src.has_image, has_depth = src.has_depth, has_ids = src.has_ids;
+  const float fnear = src.fnear, ffar = src.ffar;
+  const float fz_near = fnear, fz_inv_range = static_cast<float>(1.0 / src.z_range);
+  const std::vector<int>&cx0 = grid.cx0, &cx1 = grid.cx1, &cy0 = grid.cy0, &cy1 = grid.cy1;
+  const std::vector<int>&nx = grid.nx, &ny = grid.ny;
+  float* __restrict lum0 = out.lum0;
+  float* __restrict hue_a0 = out.hue_a0;
+  float* __restrict hue_b0 = out.hue_b0;
+  float* __restrict depth0 = out.depth0;
+  std::vector<std::uint32_t>& ids = out.ids;
+  std::vector<float>& map_depth = out.map_depth;
+  std::vector<float> col_rgb(nearest ? un * 3 : W * 3), col_z(nearest ? un : W);
+  for (std::size_t y = y_begin; y < y_end && has_image; ++y) {
+    if (nearest) {
+      read_nearest_row(src, grid, un, y, col_rgb, col_z);
+    } else {
+      accumulate_box_rows(src, grid, y, col_rgb, col_z);
+    }
+    const float* __restrict crgb = col_rgb.data();
+    const float* __restrict cz = col_z.data();
+    const int rows_in = nearest ? 1 : cy1[y] - cy0[y];
+    for (std::size_t x = 0; x < un; ++x) {
+      float r = 0, gg = 0, b = 0, z = 0;
+      const int c0 = nearest ? static_cast<int>(x) : cx0[x], c1 = nearest ? c0 + 1 : cx1[x];
+      for (int sx = c0; sx < c1; ++sx) {
+        const auto k = static_cast<std::size_t>(sx);
+        r += crgb[3 * k];
+        gg += crgb[3 * k + 1];
+        b += crgb[3 * k + 2];
+        z += cz[k];
+      }
+      const std::size_t m = y * un + x;
+      const int count = rows_in * (c1 - c0);
+      const float inv = count > 0 ? 1.0f / static_cast<float>(count) : 0.0f;
+      r *= inv;
+      gg *= inv;
+      b *= inv;
+      z = count > 0 ? z * inv : ffar;
+      const Hls c = hls(r, gg, b);
+      lum0[m] = c.l;
+      hue_a0[m] = c.hue_a;
+      hue_b0[m] = c.hue_b;
+      depth0[m] = std::clamp((z - fz_near) * fz_inv_range, 0.0f, 1.0f);  // eq. 3.1
+      const std::size_t ni = static_cast<std::size_t>(ny[y]) * W + static_cast<std::size_t>(nx[x]);
+      if (has_ids) ids[m] = g.object_id[ni];
+      if (has_depth && ids[m] != 0) map_depth[m] = std::clamp(finite_or(g.depth[ni], ffar), fnear, ffar);
+    }
+  }
+}
+
+// The resampled G-buffer: level 0 of the planes, the map's ids and per-pixel depth. Map rows are
+// independent: split over the cores (TBB), each range with its own scratch rows.
+void resample_gbuffer(const Source& src, const ResampleGrid& grid, int n, Resample resample, Pyramid (&planes)[kPlanes],
+                      std::vector<std::uint32_t>& ids, std::vector<float>& map_depth) {
+  const auto un = static_cast<std::size_t>(n), npix = un * un;
   for (Pyramid& p : planes) {
     p[0].w = p[0].h = n;
     p[0].v.assign(npix, 0.0f);
   }
-  float* __restrict lum0 = planes[kPL][0].v.data();
-  float* __restrict hue_a0 = planes[kPHa][0].v.data();
-  float* __restrict hue_b0 = planes[kPHb][0].v.data();
-  float* __restrict depth0 = planes[kPDepth][0].v.data();
-  f.ids.assign(npix, 0);
-  std::vector<float>& map_depth = sc.map_depth;  // nearest: per-object median depth
-  map_depth.assign(npix, ffar);
-
-  // Per map row: the box's source rows summed per source column (straight loops over whole rows;
-  // comparisons written as `v > 0 ? v : 0` map NaN to the fallback without a branch), then the
-  // columns of each map pixel's box summed, then HLS. Map rows are independent: split over the cores
-  // (TBB), each range with its own scratch rows.
+  const ResampleTarget out{planes[kPL][0].v.data(), planes[kPHa][0].v.data(), planes[kPHb][0].v.data(),
+                           planes[kPDepth][0].v.data(), ids, map_depth};
+  ids.assign(npix, 0);
+  map_depth.assign(npix, src.ffar);  // nearest: per-object median depth
   static_assert(sizeof(glm::vec3) == 3 * sizeof(float), "the colour plane is read as packed floats");
-  const float depth_fallback = ffar;
-  const float fz_near = fnear, fz_inv_range = static_cast<float>(1.0 / z_range);
-  // Box: the source rows of map row y summed per source column.
-  const auto accumulate_box_rows = [&](std::size_t y, std::vector<float>& col_rgb, std::vector<float>& col_z) {
-    std::fill(col_rgb.begin(), col_rgb.end(), 0.0f);
-    std::fill(col_z.begin(), col_z.end(), 0.0f);
-    float* __restrict crgb = col_rgb.data();
-    float* __restrict cz = col_z.data();
-    for (int sy = cy0[y]; sy < cy1[y]; ++sy) {
-      const std::size_t row = static_cast<std::size_t>(sy) * W;
-      if (has_color) {
-        const float* __restrict c = &g.color[row].x;
-#pragma omp simd
-        for (std::size_t i = 0; i < 3 * W; ++i) {
-          const float v = c[i] > 0.0f ? c[i] : 0.0f;  // NaN: 0
-          crgb[i] += v < 1.0f ? v : 1.0f;
-        }
-      }
-      // Background pixels (id 0) sit at the far plane whatever the depth plane says; NaN and +Inf: far.
-      if (has_depth) {
-        const float* __restrict dp = g.depth.data() + row;
-        if (has_ids) {
-          const std::uint32_t* __restrict ip = g.object_id.data() + row;
-#pragma omp simd
-          for (std::size_t sx = 0; sx < W; ++sx) {
-            float d = dp[sx] < ffar ? dp[sx] : ffar;
-            d = d > fnear ? d : fnear;
-            cz[sx] += ip[sx] != 0 ? d : depth_fallback;
-          }
-        } else {
-#pragma omp simd
-          for (std::size_t sx = 0; sx < W; ++sx) {
-            const float d = dp[sx] < ffar ? dp[sx] : ffar;
-            cz[sx] += d > fnear ? d : fnear;
-          }
-        }
-      } else {
-        for (std::size_t sx = 0; sx < W; ++sx) cz[sx] += depth_fallback;
-      }
-    }
-  };
-  // Nearest: the one source pixel under each map pixel's centre, read directly (no pass over whole
-  // source rows), into the same per-column layout with one column per map pixel.
-  const auto read_nearest_row = [&](std::size_t y, std::vector<float>& col_rgb, std::vector<float>& col_z) {
-    const std::size_t row = static_cast<std::size_t>(ny[y]) * W;
-    for (std::size_t x = 0; x < un; ++x) {
-      const std::size_t i = row + static_cast<std::size_t>(nx[x]);
-      for (glm::length_t c = 0; c < 3; ++c) {
-        const float v = has_color ? g.color[i][c] : 0.0f;
-        const float v0 = v > 0.0f ? v : 0.0f;  // NaN: 0
-        col_rgb[3 * x + static_cast<std::size_t>(c)] = v0 < 1.0f ? v0 : 1.0f;
-      }
-      float d = depth_fallback;
-      if (has_depth && (!has_ids || g.object_id[i] != 0)) {
-        d = g.depth[i] < ffar ? g.depth[i] : ffar;
-        d = d > fnear ? d : fnear;
-      }
-      col_z[x] = d;
-    }
-  };
-  const bool nearest = settings_.resample == Resample::Nearest;
-  const auto resample_rows = [&](std::size_t y_begin, std::size_t y_end) {
-    std::vector<float> col_rgb(nearest ? un * 3 : W * 3), col_z(nearest ? un : W);
-    for (std::size_t y = y_begin; y < y_end && has_image; ++y) {
-      if (nearest) {
-        read_nearest_row(y, col_rgb, col_z);
-      } else {
-        accumulate_box_rows(y, col_rgb, col_z);
-      }
-      const float* __restrict crgb = col_rgb.data();
-      const float* __restrict cz = col_z.data();
-      const int rows_in = nearest ? 1 : cy1[y] - cy0[y];
-      for (std::size_t x = 0; x < un; ++x) {
-        float r = 0, gg = 0, b = 0, z = 0;
-        const int c0 = nearest ? static_cast<int>(x) : cx0[x], c1 = nearest ? c0 + 1 : cx1[x];
-        for (int sx = c0; sx < c1; ++sx) {
-          const auto k = static_cast<std::size_t>(sx);
-          r += crgb[3 * k];
-          gg += crgb[3 * k + 1];
-          b += crgb[3 * k + 2];
-          z += cz[k];
-        }
-        const std::size_t m = y * un + x;
-        const int count = rows_in * (c1 - c0);
-        const float inv = count > 0 ? 1.0f / static_cast<float>(count) : 0.0f;
-        r *= inv;
-        gg *= inv;
-        b *= inv;
-        z = count > 0 ? z * inv : ffar;
-        // HLS (Lee 2009 §3.1.1): L = (max + min) / 2, S = chroma / (1 - |2L - 1|), H the hexcone angle.
-        // Hue is an angle, so |B_h^i - B_h^{i+j}| of eq. 3.4 is taken between hue vectors
-        // (S cos H, S sin H): the chord between two hues on the colour wheel, scaled by saturation.
-        // Grey pixels have S = 0, the zero vector: no hue, no NaN, and no contrast against any grey.
-        const float mx = std::max({r, gg, b}), mn = std::min({r, gg, b});
-        const float l = 0.5f * (mx + mn), chroma = mx - mn;
-        float ha = 0, hb = 0;
-        if (chroma > 1e-6f) {
-          const float sat = std::clamp(chroma / std::max(1e-6f, 1.0f - std::fabs(2.0f * l - 1.0f)), 0.0f, 1.0f);
-          float h6 = 0;  // hue in sixths of a turn
-          if (mx == r) {
-            h6 = (gg - b) / chroma;  // in [-1, 1]
-            if (h6 < 0) h6 += 6.0f;
-          } else if (mx == gg) {
-            h6 = (b - r) / chroma + 2.0f;
-          } else {
-            h6 = (r - gg) / chroma + 4.0f;
-          }
-          const glm::vec2 dir = hue_direction(h6);
-          ha = sat * dir.x;
-          hb = sat * dir.y;
-        }
-        lum0[m] = l;
-        hue_a0[m] = ha;
-        hue_b0[m] = hb;
-        depth0[m] = std::clamp((z - fz_near) * fz_inv_range, 0.0f, 1.0f);  // eq. 3.1
-        const std::size_t ni = static_cast<std::size_t>(ny[y]) * W + static_cast<std::size_t>(nx[x]);
-        if (has_ids) f.ids[m] = g.object_id[ni];
-        if (has_depth && f.ids[m] != 0) map_depth[m] = std::clamp(finite_or(g.depth[ni], ffar), fnear, ffar);
-      }
-    }
-  };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, un, 8),
-                    [&](const tbb::blocked_range<std::size_t>& r) { resample_rows(r.begin(), r.end()); });
-  f.resample_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const bool nearest = resample == Resample::Nearest;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, un, 8), [&](const tbb::blocked_range<std::size_t>& r) {
+    resample_rows(src, grid, un, nearest, out, r.begin(), r.end());
+  });
+}
 
-  // --- Object features: B_s (eq. 3.2) and B_m (eq. 3.3) -------------------------------------------
-  // B_s counts the pixels of the item buffer as resampled to the map (nearest), over the map's
-  // pixels: the map is the image the paper's GPU pass works on, and it spares a second pass over the
-  // full-resolution buffer (an object smaller than a map pixel may get 0; it has no pixels in S_p
-  // either, so eq. 3.7 cannot list it anyway).
-  std::vector<std::uint32_t>& map_slot = sc.map_slot;
+// Object features: B_s (eq. 3.2) and B_m (eq. 3.3).
+// B_s counts the pixels of the item buffer as resampled to the map (nearest), over the map's
+// pixels: the map is the image the paper's GPU pass works on, and it spares a second pass over the
+// full-resolution buffer (an object smaller than a map pixel may get 0; it has no pixels in S_p
+// either, so eq. 3.7 cannot list it anyway).
+void count_object_pixels(const std::vector<std::uint32_t>& ids, std::size_t npix, SlotTable& table,
+                         std::vector<std::uint32_t>& map_slot) {
+  std::vector<Slot>& slots = table.slots;
   map_slot.assign(npix, 0);
   for (std::size_t m = 0; m < npix; ++m) {
-    map_slot[m] = slot_for(f.ids[m]);
+    map_slot[m] = table.slot_for(ids[m]);
     if (map_slot[m] != 0) ++slots[map_slot[m] - 1].full_pixels;
   }
+}
+
+// B_s (eq. 3.2) and B_m (eq. 3.3) per visible object; `farthest_vertex` gives eq. 3.3's p of a mesh.
+template <class FarthestVertex>
+void measure_size_and_motion(std::vector<Slot>& slots, std::size_t npix, double time_s, double previous_time_s,
+                             const FarthestVertex& farthest_vertex) {
   for (Slot& s : slots) {
     s.size = static_cast<float>(static_cast<double>(s.full_pixels) / static_cast<double>(npix));
     // B_m: the displacement over the frame of the vertex farthest from the object's centre, so that
@@ -538,45 +619,57 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
     const float d = glm::length(a - b);
     s.motion = (finite(a) && finite(b) && std::isfinite(d)) ? d : 0.0f;
   }
-  {
-    float* __restrict size0 = planes[kPSize][0].v.data();
-    float* __restrict motion0 = planes[kPMotion][0].v.data();
-    for (std::size_t m = 0; m < npix; ++m) {
-      if (map_slot[m] != 0) {
-        size0[m] = slots[map_slot[m] - 1].size;
-        motion0[m] = slots[map_slot[m] - 1].motion;
-      }
+}
+
+// The size and motion planes of Fig. 3.3's DSM texture: each object's B_s and B_m on its pixels.
+void paint_object_planes(const std::vector<std::uint32_t>& map_slot, const std::vector<Slot>& slots, std::size_t npix,
+                         Pyramid (&planes)[kPlanes]) {
+  float* __restrict size0 = planes[kPSize][0].v.data();
+  float* __restrict motion0 = planes[kPMotion][0].v.data();
+  for (std::size_t m = 0; m < npix; ++m) {
+    if (map_slot[m] != 0) {
+      size0[m] = slots[map_slot[m] - 1].size;
+      motion0[m] = slots[map_slot[m] - 1].motion;
     }
   }
+}
 
-  // --- Pyramids, centre-surround (eq. 3.4), weights (eq. 3.6), S_p (eq. 3.5) ----------------------
-  // The five contrast maps are independent: computed as parallel tasks (TBB).
-  const bool image_group = settings_.groups.image, object_group = settings_.groups.object;
+// Pyramids and centre-surround (eq. 3.4): the five contrast maps C_f (0 for a group that is off).
+// They are independent: computed as parallel tasks (TBB).
+void contrast_maps(Pyramid (&planes)[kPlanes], Magnified (&magnified)[kPlanes], int n, const FeatureGroups& groups,
+                   std::vector<float> (&maps)[5]) {
+  const auto un = static_cast<std::size_t>(n), npix = un * un;
+  const bool image_group = groups.image, object_group = groups.object;
   const auto contrast = [&](bool on, Feature feature, Plane plane) {
     if (!on) {
-      f.contrast[feature].assign(npix, 0.0f);
+      maps[feature].assign(npix, 0.0f);
       return;
     }
     build_pyramid(planes[plane]);
-    centre_surround(planes[plane], n, sc.magnified[plane], f.contrast[feature]);
+    centre_surround(planes[plane], n, magnified[plane], maps[feature]);
   };
   tbb::parallel_invoke(
       [&] {
         if (!image_group) {
-          f.contrast[kHue].assign(npix, 0.0f);
+          maps[kHue].assign(npix, 0.0f);
           return;
         }
         tbb::parallel_invoke([&] { build_pyramid(planes[kPHa]); }, [&] { build_pyramid(planes[kPHb]); });
-        centre_surround_vector(planes[kPHa], planes[kPHb], n, sc.magnified[kPHa], sc.magnified[kPHb], f.contrast[kHue]);
+        centre_surround_vector(planes[kPHa], planes[kPHb], n, magnified[kPHa], magnified[kPHb], maps[kHue]);
       },
       [&] { contrast(image_group, kLum, kPL); }, [&] { contrast(object_group, kDepth, kPDepth); },
       [&] { contrast(object_group, kSize, kPSize); }, [&] { contrast(object_group, kMotion, kPMotion); });
-  f.saliency.assign(npix, 0.0f);
-  if (image_group || object_group) {
-    std::vector<float>& sbar = sc.sbar;
+}
+
+// Weights (eq. 3.6) and S_p (eq. 3.5): the weighted sum of the contrast maps, normalised to [0, 1].
+// The contrast maps are sanitised in place (NaN and Inf: 0).
+void saliency_map(std::vector<float> (&maps)[5], const FeatureGroups& groups, std::size_t npix, std::vector<float>& sbar,
+                  std::vector<float>& saliency) {
+  saliency.assign(npix, 0.0f);
+  if (groups.image || groups.object) {
     sbar.assign(npix, 0.0f);
     float* __restrict sb = sbar.data();
-    for (auto& map : f.contrast) {
+    for (auto& map : maps) {
       float* __restrict c = map.data();
       float mx = 0;
 #pragma omp simd reduction(max : mx)
@@ -601,97 +694,141 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
     const float span = hi - lo;
     if (span > 1e-6f * std::max(1.0f, hi)) {
       const float inv = 1.0f / span;
-      float* __restrict out = f.saliency.data();
+      float* __restrict out = saliency.data();
 #pragma omp simd
       for (std::size_t i = 0; i < npix; ++i) out[i] = std::clamp((sb[i] - lo) * inv, 0.0f, 1.0f);
     }
   } else {
     // Neither B nor E: there is no bottom-up map, every pixel counts alike (S_p = 1) so that
     // S^_o = T_i and the top-down contexts alone decide (the "T only" row of Lee's Table 3.2).
-    std::fill(f.saliency.begin(), f.saliency.end(), 1.0f);
+    std::fill(saliency.begin(), saliency.end(), 1.0f);
   }
+}
 
-  f.saliency_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
-  // --- Object level: eq. 3.7 ----------------------------------------------------------------------
+// Object level, eq. 3.7's sums: per object its map pixels, their saliency, their centroid and depths.
+void accumulate_object_pixels(const std::vector<std::uint32_t>& map_slot, const std::vector<float>& saliency,
+                              const std::vector<float>& map_depth, int n, std::vector<Slot>& slots) {
+  const auto un = static_cast<std::size_t>(n);
   for (std::size_t y = 0; y < un; ++y) {
     for (std::size_t x = 0; x < un; ++x) {
       const std::size_t m = y * un + x;
       if (map_slot[m] == 0) continue;
       Slot& s = slots[map_slot[m] - 1];
       ++s.n;
-      s.sum_saliency += static_cast<double>(f.saliency[m]);
+      s.sum_saliency += static_cast<double>(saliency[m]);
       s.sum_x += (static_cast<double>(x) + 0.5) / n;
       s.sum_y += (static_cast<double>(y) + 0.5) / n;
       s.depths.push_back(map_depth[m]);
     }
   }
+}
 
-  // --- Top-down contexts: eqs. 3.8-3.10 -----------------------------------------------------------
+// The observer of eq. 3.9 over the frame, and the equation's constants.
+struct SpatialContext {
+  glm::dvec3 eye_now, eye_before;  // observer position now and at the previous frame
+  bool moving_forward;             // v . w > 0
+  double c_x, c_s, c_y;
+};
+
+// Top-down contexts (eqs. 3.8-3.10): the observer and the constants of eq. 3.9.
+SpatialContext spatial_context(const Camera& camera, const AttentionSettings& settings, double time_s,
+                               double previous_time_s) {
   // Observer: position now and at the previous frame, viewing direction v, moving direction w.
   // A camera animation that yields non-finite positions counts as an observer that does not move.
-  glm::dvec3 eye_now = glm::dvec3(scene.camera.position_at(time_s));
-  glm::dvec3 eye_before = glm::dvec3(scene.camera.position_at(previous_time_s));
-  if (!std::isfinite(eye_now.x + eye_now.y + eye_now.z)) eye_now = glm::dvec3(scene.camera.position);
+  glm::dvec3 eye_now = glm::dvec3(camera.position_at(time_s));
+  glm::dvec3 eye_before = glm::dvec3(camera.position_at(previous_time_s));
+  if (!std::isfinite(eye_now.x + eye_now.y + eye_now.z)) eye_now = glm::dvec3(camera.position);
   if (!std::isfinite(eye_before.x + eye_before.y + eye_before.z)) eye_before = eye_now;
-  const glm::dvec3 view = glm::dvec3(scene.camera.target) - glm::dvec3(scene.camera.position);  // v (animation moves both)
-  const glm::dvec3 moving = eye_now - eye_before;                                                 // w
+  const glm::dvec3 view = glm::dvec3(camera.target) - glm::dvec3(camera.position);  // v (animation moves both)
+  const glm::dvec3 moving = eye_now - eye_before;                                     // w
   const bool moving_forward = glm::dot(view, moving) > 0;
   // Eq. 3.9's distance term (x/c_x) e^{-(x/c_x)^2} peaks at x/c_x = 1/sqrt(2); the paper's
   // c_x = L / 0.707 is L / (1/sqrt 2) rounded, and we use c_x = sqrt(2) L so the peak is exactly at L.
   // c_s scales the peak of the product (screen term <= 1) to 0.5: c_s = 0.5 / (e^{-1/2} / sqrt 2), so
   // T_s lies in [0, 0.5] and reaches 0.5 for an object at distance L in the screen centre.
-  const double c_x = std::numbers::sqrt2 * settings_.preferred_distance_m;
+  const double c_x = std::numbers::sqrt2 * settings.preferred_distance_m;
   const double c_s = 0.5 / (std::exp(-0.5) / std::numbers::sqrt2);
-  const auto lambda = static_cast<std::size_t>(settings_.temporal_window);
-  // Kalman time step: |time_s - previous_time_s| (time going backwards is a step of the same
-  // length), at most 1 s (a longer gap would extrapolate the rate too far; the filter re-converges
-  // within a frame after a long gap anyway, its covariance having grown).
+  return SpatialContext{eye_now, eye_before, moving_forward, c_x, c_s, settings.c_y};
+}
+
+// Kalman time step: |time_s - previous_time_s| (time going backwards is a step of the same
+// length), at most 1 s (a longer gap would extrapolate the rate too far; the filter re-converges
+// within a frame after a long gap anyway, its covariance having grown).
+double kalman_time_step(double time_s, double previous_time_s) {
   double dt = std::fabs(time_s - previous_time_s);
   if (!std::isfinite(dt)) dt = 0;
   dt = std::min(dt, 1.0);
+  return dt;
+}
 
-  std::map<std::uint32_t, double> spatial_now;  // T_s of this frame, per listed object
+// Eq. 3.7: S^_o = T_i / n sum S_p over the object's pixels, with their centroid and median depth.
+ObjectAttention object_saliency(const Object& o, Slot& s) {
+  ObjectAttention a;
+  a.id = o.id;
+  a.pixels = s.n;
+  a.size = s.size;
+  a.motion = s.motion;
+  a.saliency = static_cast<double>(o.task_importance) * s.sum_saliency / static_cast<double>(s.n);  // eq. 3.7
+  a.screen_x = s.sum_x / static_cast<double>(s.n);
+  a.screen_y = s.sum_y / static_cast<double>(s.n);
+  auto mid = s.depths.begin() + static_cast<std::ptrdiff_t>(s.depths.size() / 2);
+  std::nth_element(s.depths.begin(), mid, s.depths.end());
+  a.depth_m = *mid;
+  return a;
+}
+
+// Eq. 3.9: T_s from the observer-to-object distance, its change over the frame and the screen position.
+void spatial_emphasis(const Object& o, const SpatialContext& ctx, double time_s, double previous_time_s,
+                      ObjectAttention& a) {
+  // x and dx of eq. 3.9: observer to object centre (the transform's translation) now and at the
+  // previous frame. A non-finite object position makes x = 0 and dx = 0 (T_s = 0 then: no
+  // distance emphasis for an object we cannot place).
+  const glm::dvec3 centre_now = glm::dvec3(o.transform_at(time_s).translation);
+  const glm::dvec3 centre_before = glm::dvec3(o.transform_at(previous_time_s).translation);
+  double x_now = glm::length(centre_now - ctx.eye_now), x_before = glm::length(centre_before - ctx.eye_before);
+  if (!std::isfinite(x_now)) x_now = 0;
+  if (!std::isfinite(x_before)) x_before = x_now;
+  a.distance_m = x_now;
+  const double dx = x_now - x_before;
+  const double sy = std::hypot(a.screen_x - 0.5, a.screen_y - 0.5) / std::sqrt(0.5);  // corner = 1
+  if (ctx.moving_forward && dx > 0) {
+    a.spatial = 0;  // moving forward and the object moves away: not attended (eq. 3.9, first case)
+  } else {
+    const double r = x_now / ctx.c_x;
+    a.spatial = ctx.c_s * r * std::exp(-r * r) * std::exp(-ctx.c_y * sy * sy);
+  }
+  if (!std::isfinite(a.spatial)) a.spatial = 0;
+}
+
+// The objects eq. 3.7 lists (foreground, with pixels in the map), with S^_o and T_s; `spatial_now`
+// gets each one's T_s.
+void list_objects(std::vector<Slot>& slots, const SpatialContext& ctx, double time_s, double previous_time_s,
+                  std::vector<ObjectAttention>& objects, std::map<std::uint32_t, double>& spatial_now) {
   for (Slot& s : slots) {
     const Object& o = *s.object;
     if (!(o.task_importance > 0) || s.n == 0) continue;  // background objects and invisible ones
-    ObjectAttention a;
-    a.id = o.id;
-    a.pixels = s.n;
-    a.size = s.size;
-    a.motion = s.motion;
-    a.saliency = static_cast<double>(o.task_importance) * s.sum_saliency / static_cast<double>(s.n);  // eq. 3.7
-    a.screen_x = s.sum_x / static_cast<double>(s.n);
-    a.screen_y = s.sum_y / static_cast<double>(s.n);
-    auto mid = s.depths.begin() + static_cast<std::ptrdiff_t>(s.depths.size() / 2);
-    std::nth_element(s.depths.begin(), mid, s.depths.end());
-    a.depth_m = *mid;
-    // x and dx of eq. 3.9: observer to object centre (the transform's translation) now and at the
-    // previous frame. A non-finite object position makes x = 0 and dx = 0 (T_s = 0 then: no
-    // distance emphasis for an object we cannot place).
-    const glm::dvec3 centre_now = glm::dvec3(o.transform_at(time_s).translation);
-    const glm::dvec3 centre_before = glm::dvec3(o.transform_at(previous_time_s).translation);
-    double x_now = glm::length(centre_now - eye_now), x_before = glm::length(centre_before - eye_before);
-    if (!std::isfinite(x_now)) x_now = 0;
-    if (!std::isfinite(x_before)) x_before = x_now;
-    a.distance_m = x_now;
-    const double dx = x_now - x_before;
-    const double sy = std::hypot(a.screen_x - 0.5, a.screen_y - 0.5) / std::sqrt(0.5);  // corner = 1
-    if (moving_forward && dx > 0) {
-      a.spatial = 0;  // moving forward and the object moves away: not attended (eq. 3.9, first case)
-    } else {
-      const double r = x_now / c_x;
-      a.spatial = c_s * r * std::exp(-r * r) * std::exp(-settings_.c_y * sy * sy);
-    }
-    if (!std::isfinite(a.spatial)) a.spatial = 0;
+    ObjectAttention a = object_saliency(o, s);
+    spatial_emphasis(o, ctx, time_s, previous_time_s, a);
     spatial_now[o.id] = a.spatial;
-    f.objects.push_back(a);
+    objects.push_back(a);
   }
+}
 
-  // Eq. 3.10: T_t = (1/lambda) sum of the last lambda T_s. A frame in which an object was not listed
-  // (not visible, or no pixels in the map) contributes T_s = 0, and so does every frame before the
-  // object was first seen: T_t rises over lambda frames. A track whose last lambda T_s are all 0 is
-  // dropped (bounded memory with many objects coming and going).
+// Objects by attention, highest first (ties by id), and the most attended one.
+void rank_by_attention(AttentionFrame& f) {
+  std::sort(f.objects.begin(), f.objects.end(), [](const ObjectAttention& a, const ObjectAttention& b) {
+    return a.attention != b.attention ? a.attention > b.attention : a.id < b.id;
+  });
+  if (!f.objects.empty()) f.most_attended = f.objects.front().id;
+}
+
+}  // namespace
+
+// Eq. 3.10: T_t = (1/lambda) sum of the last lambda T_s. A frame in which an object was not listed
+// (not visible, or no pixels in the map) contributes T_s = 0, and so does every frame before the
+// object was first seen: T_t rises over lambda frames. A track whose last lambda T_s are all 0 is
+// dropped (bounded memory with many objects coming and going).
+void AttentionTracker::age_tracks(const std::map<std::uint32_t, double>& spatial_now, std::size_t lambda) {
   for (auto& [id, track] : tracks_) {
     if (spatial_now.count(id) == 0) {
       track.spatial[track.next] = 0;
@@ -701,69 +838,108 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
     }
   }
   std::erase_if(tracks_, [&](const auto& t) { return t.second.zeros >= lambda && spatial_now.count(t.first) == 0; });
-  const double q = settings_.kalman_process_noise, rn = settings_.kalman_measurement_noise;
-  for (ObjectAttention& a : f.objects) {
-    Track& t = tracks_[a.id];
-    if (t.spatial.size() != lambda) {
-      t.spatial.assign(lambda, 0.0);
-      t.next = 0;
-    }
-    t.spatial[t.next] = a.spatial;
-    t.next = (t.next + 1) % lambda;
-    t.zeros = a.spatial > 0 ? 0 : t.zeros + 1;
-    double sum = 0;
-    for (double v : t.spatial) sum += v;
-    a.temporal = sum / static_cast<double>(lambda);
-    // Eq. 3.8; without the context group, S_o = S^_o.
-    a.attention_raw = settings_.groups.context ? (a.spatial + a.temporal) * a.saliency : a.saliency;
-    if (!std::isfinite(a.attention_raw)) a.attention_raw = 0;
+}
 
-    // Discrete Kalman filter (Lee §3.3, stage 4), constant-velocity model: state (attention, rate),
-    // F = [1 dt; 0 1], white-noise acceleration of spectral density q:
-    // Q = q [dt^3/3 dt^2/2; dt^2/2 dt]; measurement H = [1 0] with variance r. An object seen for the
-    // first time (or again after a frame out of view) starts at its measurement.
-    if (!settings_.kalman) {
-      a.attention = a.attention_raw;
-      continue;
-    }
-    const double z = a.attention_raw;
-    if (!t.filtered) {
+// Eq. 3.10 for a listed object: its T_s joins the ring of the last lambda; T_t is their mean.
+double AttentionTracker::temporal_context(Track& t, double spatial, std::size_t lambda) {
+  if (t.spatial.size() != lambda) {
+    t.spatial.assign(lambda, 0.0);
+    t.next = 0;
+  }
+  t.spatial[t.next] = spatial;
+  t.next = (t.next + 1) % lambda;
+  t.zeros = spatial > 0 ? 0 : t.zeros + 1;
+  double sum = 0;
+  for (double v : t.spatial) sum += v;
+  return sum / static_cast<double>(lambda);
+}
+
+// Discrete Kalman filter (Lee §3.3, stage 4), constant-velocity model: state (attention, rate),
+// F = [1 dt; 0 1], white-noise acceleration of spectral density q:
+// Q = q [dt^3/3 dt^2/2; dt^2/2 dt]; measurement H = [1 0] with variance r. An object seen for the
+// first time (or again after a frame out of view) starts at its measurement.
+double AttentionTracker::kalman_filter(Track& t, double z, double dt, double q, double rn) {
+  if (!t.filtered) {
+    t.x = z;
+    t.v = 0;
+    t.p00 = rn;
+    t.p01 = 0;
+    t.p11 = 1;
+    t.filtered = true;
+  } else {
+    // Predict.
+    const double x = t.x + dt * t.v;
+    const double p00 = t.p00 + dt * (2 * t.p01 + dt * t.p11) + q * dt * dt * dt / 3;
+    const double p01 = t.p01 + dt * t.p11 + q * dt * dt / 2;
+    const double p11 = t.p11 + q * dt;
+    // Update.
+    const double s = p00 + rn;
+    const double k0 = p00 / s, k1 = p01 / s;
+    const double innovation = z - x;
+    t.x = x + k0 * innovation;
+    t.v = t.v + k1 * innovation;
+    t.p00 = (1 - k0) * p00;
+    t.p01 = (1 - k0) * p01;
+    t.p11 = p11 - k1 * p01;
+    if (!std::isfinite(t.x + t.v + t.p00 + t.p01 + t.p11)) {
       t.x = z;
       t.v = 0;
       t.p00 = rn;
       t.p01 = 0;
       t.p11 = 1;
-      t.filtered = true;
-    } else {
-      // Predict.
-      const double x = t.x + dt * t.v;
-      const double p00 = t.p00 + dt * (2 * t.p01 + dt * t.p11) + q * dt * dt * dt / 3;
-      const double p01 = t.p01 + dt * t.p11 + q * dt * dt / 2;
-      const double p11 = t.p11 + q * dt;
-      // Update.
-      const double s = p00 + rn;
-      const double k0 = p00 / s, k1 = p01 / s;
-      const double innovation = z - x;
-      t.x = x + k0 * innovation;
-      t.v = t.v + k1 * innovation;
-      t.p00 = (1 - k0) * p00;
-      t.p01 = (1 - k0) * p01;
-      t.p11 = p11 - k1 * p01;
-      if (!std::isfinite(t.x + t.v + t.p00 + t.p01 + t.p11)) {
-        t.x = z;
-        t.v = 0;
-        t.p00 = rn;
-        t.p01 = 0;
-        t.p11 = 1;
-      }
     }
-    a.attention = std::max(0.0, t.x);  // the state keeps its sign; what we report is >= 0
   }
+  return std::max(0.0, t.x);  // the state keeps its sign; what we report is >= 0
+}
 
-  std::sort(f.objects.begin(), f.objects.end(), [](const ObjectAttention& a, const ObjectAttention& b) {
-    return a.attention != b.attention ? a.attention > b.attention : a.id < b.id;
-  });
-  if (!f.objects.empty()) f.most_attended = f.objects.front().id;
+// Per listed object: T_t (eq. 3.10), S_o (eq. 3.8) and S_o after the Kalman filter (§3.2.1).
+void AttentionTracker::filter_attention(std::vector<ObjectAttention>& objects, std::size_t lambda, double dt) {
+  const double q = settings_.kalman_process_noise, rn = settings_.kalman_measurement_noise;
+  for (ObjectAttention& a : objects) {
+    Track& t = tracks_[a.id];
+    a.temporal = temporal_context(t, a.spatial, lambda);
+    // Eq. 3.8; without the context group, S_o = S^_o.
+    a.attention_raw = settings_.groups.context ? (a.spatial + a.temporal) * a.saliency : a.saliency;
+    if (!std::isfinite(a.attention_raw)) a.attention_raw = 0;
+    a.attention = settings_.kalman ? kalman_filter(t, a.attention_raw, dt, q, rn) : a.attention_raw;
+  }
+}
+
+const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& scene, double time_s,
+                                               double previous_time_s) {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = settings_.map_size;
+  const auto un = static_cast<std::size_t>(n), npix = un * un;
+  AttentionFrame& f = frame_;
+  f.map_width = f.map_height = n;
+  f.objects.clear();
+  f.most_attended = 0;
+  Scratch& sc = *scratch_;
+
+  // Pixel saliency map (§3.1): the G-buffer resampled to n x n, the object features, eqs. 3.1-3.6.
+  SlotTable table(scene);
+  const Source src = read_source(g, scene.camera);
+  const ResampleGrid grid = resample_grid(src, n, settings_.resample);
+  resample_gbuffer(src, grid, n, settings_.resample, sc.planes, f.ids, sc.map_depth);
+  f.resample_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  count_object_pixels(f.ids, npix, table, sc.map_slot);
+  measure_size_and_motion(table.slots, npix, time_s, previous_time_s,
+                          [this](const std::shared_ptr<const Mesh>& mesh) { return farthest_vertex(mesh); });
+  paint_object_planes(sc.map_slot, table.slots, npix, sc.planes);
+  contrast_maps(sc.planes, sc.magnified, n, settings_.groups, f.contrast);
+  saliency_map(f.contrast, settings_.groups, npix, sc.sbar, f.saliency);
+  f.saliency_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // Object attention (§3.2): eq. 3.7, the top-down contexts of eqs. 3.8-3.10, the Kalman filter.
+  accumulate_object_pixels(sc.map_slot, f.saliency, sc.map_depth, n, table.slots);
+  const SpatialContext context = spatial_context(scene.camera, settings_, time_s, previous_time_s);
+  const auto lambda = static_cast<std::size_t>(settings_.temporal_window);
+  const double dt = kalman_time_step(time_s, previous_time_s);
+  std::map<std::uint32_t, double> spatial_now;  // T_s of this frame, per listed object
+  list_objects(table.slots, context, time_s, previous_time_s, f.objects, spatial_now);
+  age_tracks(spatial_now, lambda);
+  filter_attention(f.objects, lambda, dt);
+  rank_by_attention(f);
   f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return f;
 }

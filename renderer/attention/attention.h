@@ -113,6 +113,11 @@ class AttentionTracker {
     glm::vec3 farthest{0.0f};
   };
   glm::vec3 farthest_vertex(const std::shared_ptr<const Mesh>& mesh);
+  // The stages of update() that keep the per-object tracks (eqs. 3.8 and 3.10, the Kalman filter).
+  void age_tracks(const std::map<std::uint32_t, double>& spatial_now, std::size_t lambda);
+  void filter_attention(std::vector<ObjectAttention>& objects, std::size_t lambda, double dt);
+  static double temporal_context(Track& t, double spatial, std::size_t lambda);
+  static double kalman_filter(Track& t, double z, double dt, double q, double rn);
   struct Scratch;
   AttentionSettings settings_;
   std::unique_ptr<Scratch> scratch_;
