@@ -132,7 +132,7 @@ FOVEA_LEE_BLEND_CLONES __attribute__((noinline)) void blend_chunk(const float (*
 }
 
 // Neighbourhood sample k -> (x offset class, y offset class) of the final pass (classes: -1, -d,
-// 0, d, 1 texels, see cls in run()).
+// 0, d, 1 texels, see FinalPass::cls).
 constexpr std::array<int, 9> kcx = {2, 4, 0, 2, 2, 3, 1, 3, 1}, kcy = {2, 2, 2, 4, 0, 3, 3, 1, 1};
 
 // One horizontal bilinear tap: texels j and j + 1 with weight f on the second. HTab's edge cases,
@@ -264,9 +264,8 @@ inline void lerp_rows(const float* plane, int len, const VRow& vr, float* __rest
 
 float finite_or_zero(float v) { return std::isfinite(v) ? std::max(v, 0.0f) : 0.0f; }
 
-}  // namespace
-
-struct LeeMipmap::Scratch {
+// What LeeMipmap keeps from frame to frame (its Scratch), declared here so the stages below can take it.
+struct Buffers {
   std::vector<Level> levels;  // 0..M
   std::vector<float> don;     // N(M), eq. 4.10, at the top level only (the only level step 4 reads)
   std::vector<Taps> tx, ty;   // downsampling taps from level l-1 to l (index l)
@@ -278,47 +277,23 @@ struct LeeMipmap::Scratch {
   std::vector<HTap> taps;  // hx flattened over levels (gather_chunk)
 };
 
-LeeMipmap::LeeMipmap() : scratch_(std::make_unique<Scratch>()) {}
-LeeMipmap::~LeeMipmap() = default;
-const std::vector<float>& LeeMipmap::level_map() const { return scratch_->level_map; }
-const std::vector<float>& LeeMipmap::dob_map() const { return scratch_->dob_map; }
+// A pinhole: the output is the input, bit for bit (non-finite colour as 0, per dof_image.h).
+static void copy_input(const DofInput& in, RgbImage& out) {
+  const std::size_t np = in.pixels();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 16384), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      const glm::vec3 c = in.color[i];
+      out[i] = {std::isfinite(c.x) ? c.x : 0.0f, std::isfinite(c.y) ? c.y : 0.0f, std::isfinite(c.z) ? c.z : 0.0f};
+    }
+  });
+}
 
-void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& out, LeeMipmapStats* stats) {
-  const auto t0 = std::chrono::steady_clock::now();
-  Scratch& sc = *scratch_;
+// Step 1 (Fig. 4.10): I(0), Z(0) and B(0) = sigma = dob_per_coc x C (C / 2 in §4.1.3). Returns the
+// largest input colour per channel, the final pass's clamp.
+static glm::vec3 base_level(const DofInput& in, const LeeMipmapSettings& s, Buffers& sc) {
   const int W = static_cast<int>(in.width), H = static_cast<int>(in.height);
   const std::size_t np = in.pixels();
-  out.resize(np);
-  sc.level_map.clear();
-  sc.dob_map.clear();
-  LeeMipmapStats st;
-  const auto finish = [&] {
-    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (stats) *stats = st;
-  };
-  if (np == 0 || !in.color) {
-    std::fill(out.begin(), out.end(), glm::vec3(0.0f));
-    finish();
-    return;
-  }
   const auto uw = static_cast<std::size_t>(W);
-
-  // A pinhole: the output is the input, bit for bit (non-finite colour as 0, per dof_image.h).
-  const auto copy_input = [&] {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 16384), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t i = r.begin(); i < r.end(); ++i) {
-        const glm::vec3 c = in.color[i];
-        out[i] = {std::isfinite(c.x) ? c.x : 0.0f, std::isfinite(c.y) ? c.y : 0.0f, std::isfinite(c.z) ? c.z : 0.0f};
-      }
-    });
-  };
-  if (in.coc.pinhole() || !in.depth) {
-    copy_input();
-    finish();
-    return;
-  }
-
-  // Step 1 (Fig. 4.10): I(0), Z(0) and B(0) = sigma = dob_per_coc x C (C / 2 in §4.1.3).
   sc.levels.reserve(33);  // every level a 2^32-pixel side can have: references below stay valid
   if (sc.levels.empty()) sc.levels.resize(1);
   Level& L0 = sc.levels[0];
@@ -355,33 +330,112 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
   });
   glm::vec3 cmax(0.0f);
   for (const glm::vec3& m : sc.row_max) cmax = glm::max(cmax, m);
-  float smax = 0;
-  for (float v : L0.s) smax = std::max(smax, v);
-  st.max_dob_px = smax;
-  const float ks = std::isfinite(s.k_sigma) && s.k_sigma > 0 ? static_cast<float>(s.k_sigma) : 2.0f / 3.0f;
-  if (!(smax > 0)) {  // everything in focus: eq. 4.6 gives m = 0 everywhere
-    copy_input();
-    finish();
-    return;
-  }
+  return cmax;
+}
 
-  // The levels: up to the one the largest DoB needs (§4.4 step 2). Eq. 4.8 reads levels l - 1 and l
-  // with l = floor(m), so m_max needs floor(m_max); at least level 1 for eq. 4.11's DoN; at most the
-  // top level of a GL mipmap (1 texel along the longer side), or the caller's max_level.
+// The levels: up to the one the largest DoB needs (§4.4 step 2). Eq. 4.8 reads levels l - 1 and l
+// with l = floor(m), so m_max needs floor(m_max); at least level 1 for eq. 4.11's DoN; at most the
+// top level of a GL mipmap (1 texel along the longer side), or the caller's max_level.
+static int top_mipmap_level(int W, int H, float smax, float ks, int max_level) {
   const int top = static_cast<int>(std::floor(std::log2(static_cast<double>(std::max(W, H)))));
   int M = std::max(1, static_cast<int>(std::floor(level_of(smax, ks))));
-  if (s.max_level > 0) M = std::min(M, s.max_level);
+  if (max_level > 0) M = std::min(M, max_level);
   M = std::min(M, top);
-  st.levels = M;
-  if (M < 1) {  // a 1x1 image: every blur of one texel clamped to the edge is that texel
-    copy_input();
-    finish();
-    return;
-  }
-  const float zf = std::isfinite(coc.focus_m) ? static_cast<float>(std::max(coc.focus_m, 0.0))
-                                              : (coc.focus_m > 0 ? kFarDepth : 0.0f);
-  const float delta = std::isfinite(s.delta) ? static_cast<float>(s.delta) : 0.0f;
+  return M;
+}
 
+// Step 2: Z and B of level l from level l - 1, isotropic (eq. 4.1), separable: rows first (into
+// tmp_z, tmp_s), then columns.
+static void downsample_depth_and_dob(const Level& src, Level& dst, const Taps& tx, const Taps& ty,
+                                     std::vector<float>& tmp_z, std::vector<float>& tmp_s) {
+  const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(dst.w);
+  tmp_z.resize(static_cast<std::size_t>(src.h) * dw);
+  tmp_s.resize(static_cast<std::size_t>(src.h) * dw);
+  tbb::parallel_for(tbb::blocked_range<int>(0, src.h), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      const float* zr = src.z.data() + static_cast<std::size_t>(y) * sw;
+      const float* sr = src.s.data() + static_cast<std::size_t>(y) * sw;
+      float* oz = tmp_z.data() + static_cast<std::size_t>(y) * dw;
+      float* os = tmp_s.data() + static_cast<std::size_t>(y) * dw;
+      for (std::size_t x = 0; x < dw; ++x) {
+        float az = 0, as = 0;
+        for (std::size_t k = 0; k < 4; ++k) {
+          const auto j = static_cast<std::size_t>(tx.idx[4 * x + k]);
+          az += tx.w[4 * x + k] * zr[j];
+          as += tx.w[4 * x + k] * sr[j];
+        }
+        oz[x] = az;
+        os[x] = as;
+      }
+    }
+  });
+  tbb::parallel_for(tbb::blocked_range<int>(0, dst.h), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      const auto uy = static_cast<std::size_t>(y);
+      float* oz = dst.z.data() + uy * dw;
+      float* os = dst.s.data() + uy * dw;
+      std::fill(oz, oz + dw, 0.0f);
+      std::fill(os, os + dw, 0.0f);
+      for (std::size_t k = 0; k < 4; ++k) {
+        const float wk = ty.w[4 * uy + k];
+        const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + k]) * dw;
+        const float* __restrict az = tmp_z.data() + row;
+        const float* __restrict as = tmp_s.data() + row;
+#pragma omp simd
+        for (std::size_t x = 0; x < dw; ++x) {
+          oz[x] += wk * az[x];
+          os[x] += wk * as[x];
+        }
+      }
+    }
+  });
+}
+
+// Step 3: the colour, with the anisotropic Gaussian H of eq. 4.9 over the same taps. The centre
+// p is the destination texel (its Z and DoB from step 2, level l); the neighbours q are the
+// source texels (level l - 1). A sharper neighbour (sigma_q + delta < sigma_p) of a background
+// centre (Z_p > Z_f) gets weight 0, so a focused object's intensity does not flow into the blurred
+// background around it (Fig. 4.6b). The blurriest tap always keeps its weight (sigma_p is an
+// average of the taps' DoBs), so the weights never all vanish; the isotropic fallback below only
+// guards rounding.
+static void downsample_colour(const Level& src, Level& dst, const Taps& tx, const Taps& ty, bool aniso, float zf,
+                              float delta) {
+  const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(dst.w);
+  const std::size_t sn = src.pixels(), dn = dst.pixels();
+  tbb::parallel_for(tbb::blocked_range<int>(0, dst.h), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      const auto uy = static_cast<std::size_t>(y);
+      for (std::size_t x = 0; x < dw; ++x) {
+        const std::size_t p = uy * dw + x;
+        const float sp = dst.s[p];
+        const bool background = aniso && dst.z[p] > zf;
+        glm::vec3 acc(0.0f), iso(0.0f);
+        float wsum = 0;
+        for (std::size_t a = 0; a < 4; ++a) {
+          const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + a]) * sw;
+          const float wy = ty.w[4 * uy + a];
+          for (std::size_t b = 0; b < 4; ++b) {
+            const std::size_t q = row + static_cast<std::size_t>(tx.idx[4 * x + b]);
+            const float g = wy * tx.w[4 * x + b];  // G(q - p), eq. 4.1
+            const glm::vec3 cq{src.c[q], src.c[sn + q], src.c[2 * sn + q]};
+            iso += g * cq;
+            const float h = background && sp > src.s[q] + delta ? 0.0f : g;  // Lee 2009, eq. 4.9
+            acc += h * cq;
+            wsum += h;
+          }
+        }
+        const glm::vec3 c = wsum > 1e-6f ? acc / wsum : iso;  // w_G = 1 / sum of the weights (eq. 4.1)
+        dst.c[p] = c.x;
+        dst.c[dn + p] = c.y;
+        dst.c[2 * dn + p] = c.z;
+      }
+    }
+  });
+}
+
+// Steps 2 and 3 (Fig. 4.10): levels 1..M of Z, B and I, each from the level below.
+static void build_mipmaps(Buffers& sc, int M, bool aniso, float zf, float delta) {
+  const int W = sc.levels[0].w, H = sc.levels[0].h;
   sc.levels.resize(static_cast<std::size_t>(M) + 1);
   sc.tx.resize(static_cast<std::size_t>(M) + 1);
   sc.ty.resize(static_cast<std::size_t>(M) + 1);
@@ -398,139 +452,80 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
     Taps& ty = sc.ty[static_cast<std::size_t>(l)];
     tx.build(src.w, dst.w);
     ty.build(src.h, dst.h);
-    const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(dst.w);
-
-    // Step 2: Z and B, isotropic (eq. 4.1), separable: rows first, then columns.
-    sc.tmp_z.resize(static_cast<std::size_t>(src.h) * dw);
-    sc.tmp_s.resize(static_cast<std::size_t>(src.h) * dw);
-    tbb::parallel_for(tbb::blocked_range<int>(0, src.h), [&](const tbb::blocked_range<int>& r) {
-      for (int y = r.begin(); y < r.end(); ++y) {
-        const float* zr = src.z.data() + static_cast<std::size_t>(y) * sw;
-        const float* sr = src.s.data() + static_cast<std::size_t>(y) * sw;
-        float* oz = sc.tmp_z.data() + static_cast<std::size_t>(y) * dw;
-        float* os = sc.tmp_s.data() + static_cast<std::size_t>(y) * dw;
-        for (std::size_t x = 0; x < dw; ++x) {
-          float az = 0, as = 0;
-          for (std::size_t k = 0; k < 4; ++k) {
-            const auto j = static_cast<std::size_t>(tx.idx[4 * x + k]);
-            az += tx.w[4 * x + k] * zr[j];
-            as += tx.w[4 * x + k] * sr[j];
-          }
-          oz[x] = az;
-          os[x] = as;
-        }
-      }
-    });
-    tbb::parallel_for(tbb::blocked_range<int>(0, dst.h), [&](const tbb::blocked_range<int>& r) {
-      for (int y = r.begin(); y < r.end(); ++y) {
-        const auto uy = static_cast<std::size_t>(y);
-        float* oz = dst.z.data() + uy * dw;
-        float* os = dst.s.data() + uy * dw;
-        std::fill(oz, oz + dw, 0.0f);
-        std::fill(os, os + dw, 0.0f);
-        for (std::size_t k = 0; k < 4; ++k) {
-          const float wk = ty.w[4 * uy + k];
-          const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + k]) * dw;
-          const float* __restrict az = sc.tmp_z.data() + row;
-          const float* __restrict as = sc.tmp_s.data() + row;
-#pragma omp simd
-          for (std::size_t x = 0; x < dw; ++x) {
-            oz[x] += wk * az[x];
-            os[x] += wk * as[x];
-          }
-        }
-      }
-    });
-
-    // Step 3: the colour, with the anisotropic Gaussian H of eq. 4.9 over the same taps. The centre
-    // p is the destination texel (its Z and DoB from step 2, level l); the neighbours q are the
-    // source texels (level l - 1). A sharper neighbour (sigma_q + delta < sigma_p) of a background
-    // centre (Z_p > Z_f) gets weight 0, so a focused object's intensity does not flow into the blurred
-    // background around it (Fig. 4.6b). The blurriest tap always keeps its weight (sigma_p is an average of the taps' DoBs), so the weights never all vanish; the
-    // isotropic fallback below only guards rounding.
-    const bool aniso = s.anisotropic;
-    const std::size_t sn = src.pixels();
-    tbb::parallel_for(tbb::blocked_range<int>(0, dst.h), [&](const tbb::blocked_range<int>& r) {
-      for (int y = r.begin(); y < r.end(); ++y) {
-        const auto uy = static_cast<std::size_t>(y);
-        for (std::size_t x = 0; x < dw; ++x) {
-          const std::size_t p = uy * dw + x;
-          const float sp = dst.s[p];
-          const bool background = aniso && dst.z[p] > zf;
-          glm::vec3 acc(0.0f), iso(0.0f);
-          float wsum = 0;
-          for (std::size_t a = 0; a < 4; ++a) {
-            const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + a]) * sw;
-            const float wy = ty.w[4 * uy + a];
-            for (std::size_t b = 0; b < 4; ++b) {
-              const std::size_t q = row + static_cast<std::size_t>(tx.idx[4 * x + b]);
-              const float g = wy * tx.w[4 * x + b];  // G(q - p), eq. 4.1
-              const glm::vec3 cq{src.c[q], src.c[sn + q], src.c[2 * sn + q]};
-              iso += g * cq;
-              const float h = background && sp > src.s[q] + delta ? 0.0f : g;  // Lee 2009, eq. 4.9
-              acc += h * cq;
-              wsum += h;
-            }
-          }
-          const glm::vec3 c = wsum > 1e-6f ? acc / wsum : iso;  // w_G = 1 / sum of the weights (eq. 4.1)
-          dst.c[p] = c.x;
-          dst.c[dn + p] = c.y;
-          dst.c[2 * dn + p] = c.z;
-        }
-      }
-    });
+    downsample_depth_and_dob(src, dst, tx, ty, sc.tmp_z, sc.tmp_s);
+    downsample_colour(src, dst, tx, ty, aniso, zf, delta);
   }
+}
 
-  // Step 2's DoN at the top level M (eq. 4.10): the largest DoB of level M - 1 among the taps q of
-  // texel p that are foreground (Z_q < Z_f) and nearer than p (Z_q < Z_p); 0 where there is none.
-  // Step 4 reads only N(M), and eq. 4.10 builds N(l) from B(l - 1) and Z, not from N(l - 1), so the
-  // lower levels of N are never needed and are not built.
+// Step 2's DoN at the top level M (eq. 4.10): the largest DoB of level M - 1 among the taps q of
+// texel p that are foreground (Z_q < Z_f) and nearer than p (Z_q < Z_p); 0 where there is none.
+// Step 4 reads only N(M), and eq. 4.10 builds N(l) from B(l - 1) and Z, not from N(l - 1), so the
+// lower levels of N are never needed and are not built.
+static void depth_of_neighbours(Buffers& sc, int M, float zf) {
   const Level& top_l = sc.levels[static_cast<std::size_t>(M)];
-  const bool smooth = s.smooth_foreground;
-  if (smooth) {
-    const Level& src = sc.levels[static_cast<std::size_t>(M - 1)];
-    const Taps& tx = sc.tx[static_cast<std::size_t>(M)];
-    const Taps& ty = sc.ty[static_cast<std::size_t>(M)];
-    const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(top_l.w);
-    sc.don.assign(dw * static_cast<std::size_t>(top_l.h), 0.0f);
-    tbb::parallel_for(tbb::blocked_range<int>(0, top_l.h), [&](const tbb::blocked_range<int>& r) {
-      for (int y = r.begin(); y < r.end(); ++y) {
-        const auto uy = static_cast<std::size_t>(y);
-        for (std::size_t x = 0; x < dw; ++x) {
-          const float zp = top_l.z[uy * dw + x];
-          float rho = 0;  // Lee 2009, eq. 4.10
-          for (std::size_t a = 0; a < 4; ++a) {
-            const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + a]) * sw;
-            for (std::size_t b = 0; b < 4; ++b) {
-              const std::size_t q = row + static_cast<std::size_t>(tx.idx[4 * x + b]);
-              if (src.z[q] < zf && src.z[q] < zp) rho = std::max(rho, src.s[q]);
-            }
+  const Level& src = sc.levels[static_cast<std::size_t>(M - 1)];
+  const Taps& tx = sc.tx[static_cast<std::size_t>(M)];
+  const Taps& ty = sc.ty[static_cast<std::size_t>(M)];
+  const auto sw = static_cast<std::size_t>(src.w), dw = static_cast<std::size_t>(top_l.w);
+  sc.don.assign(dw * static_cast<std::size_t>(top_l.h), 0.0f);
+  tbb::parallel_for(tbb::blocked_range<int>(0, top_l.h), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y) {
+      const auto uy = static_cast<std::size_t>(y);
+      for (std::size_t x = 0; x < dw; ++x) {
+        const float zp = top_l.z[uy * dw + x];
+        float rho = 0;  // Lee 2009, eq. 4.10
+        for (std::size_t a = 0; a < 4; ++a) {
+          const std::size_t row = static_cast<std::size_t>(ty.idx[4 * uy + a]) * sw;
+          for (std::size_t b = 0; b < 4; ++b) {
+            const std::size_t q = row + static_cast<std::size_t>(tx.idx[4 * x + b]);
+            if (src.z[q] < zf && src.z[q] < zp) rho = std::max(rho, src.s[q]);
           }
-          sc.don[uy * dw + x] = rho;
         }
+        sc.don[uy * dw + x] = rho;
       }
-    });
-  }
+    }
+  });
+}
 
-  st.mipmap_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+// Steps 4 and 5's inputs, fixed for the whole image. Every bilinear lookup is at a position
+// (u + o_x / w_k, v + o_y / h_k): for a given level and offset class its horizontal texels and
+// weight depend on x only (tables, built once) and its vertical ones on y only (a lerped row per
+// level and class, built per output row), as a GPU's texture unit with GL_LINEAR and
+// GL_CLAMP_TO_EDGE would read them. out and sc (level_map, dob_map) are written through.
+struct FinalPass {
+  const DofInput& in;
+  RgbImage& out;
+  Buffers& sc;
+  const Level& L0;
+  const Level& top_l;  // level M, where the DoN is
+  const Level& below;  // level M - 1, whose texels step 4's magnification steps by
+  Neighbourhood nb;
+  std::array<float, 5> cls;  // offset classes, texels
+  int W, H, M;
+  std::size_t uw, np, L;  // L = M + 1 levels
+  float ks, mcap;
+  bool smooth, geometric, debug;
+  glm::vec3 cmax;  // largest input colour: the output's clamp
+  // Planar lerped rows per task: plane (k, c, ch) at ((5 k + c) 3 + ch) W (a stride of W for
+  // every level, so gather_chunk finds a plane by arithmetic alone).
+  std::size_t row_off(std::size_t k, std::size_t c, std::size_t ch) const { return ((5 * k + c) * 3 + ch) * uw; }
+};
 
-  // Steps 4 and 5. Every bilinear lookup is at a position (u + o_x / w_k, v + o_y / h_k): for a
-  // given level and offset class its horizontal texels and weight depend on x only (tables, built
-  // once) and its vertical ones on y only (a lerped row per level and class, built per output row),
-  // as a GPU's texture unit with GL_LINEAR and GL_CLAMP_TO_EDGE would read them.
-  const Neighbourhood nb(s.circular);
-  const float dg = s.circular ? 0.70710678f : 1.0f;
-  const std::array<float, 5> cls = {-1.0f, -dg, 0.0f, dg, 1.0f};  // offset classes, texels
-  const auto L = static_cast<std::size_t>(M) + 1;
-  // Horizontal tables: level k read at offsets of its own texels; the DoN (level M) at offsets of
-  // level M - 1's texels (the circular magnification of step 4, as eq. 4.8 reads one level lower).
+// Horizontal tables: level k read at offsets of its own texels; the DoN (level M) at offsets of
+// level M - 1's texels (the circular magnification of step 4, as eq. 4.8 reads one level lower).
+static void horizontal_taps(Buffers& sc, const FinalPass& fp) {
+  const int W = fp.W;
+  const std::size_t uw = fp.uw, L = fp.L;
+  const std::array<float, 5>& cls = fp.cls;
   const auto htab = [&](HTab& t, int n_src, float unit) {
-    t.build(W, n_src, [&](int x, float o) { return ((static_cast<float>(x) + 0.5f) / static_cast<float>(W) + o / unit); }, cls);
+    const auto pos = [&](int x, float o) {
+      return ((static_cast<float>(x) + 0.5f) / static_cast<float>(W) + o / unit);
+    };
+    t.build(W, n_src, pos, cls);
   };
   sc.hx.resize(L);
   for (std::size_t k = 0; k < L; ++k) htab(sc.hx[k], sc.levels[k].w, static_cast<float>(sc.levels[k].w));
-  const Level& below = sc.levels[static_cast<std::size_t>(M - 1)];
-  if (smooth) htab(sc.hn, top_l.w, static_cast<float>(below.w));
+  if (fp.smooth) htab(sc.hn, fp.top_l.w, static_cast<float>(fp.below.w));
   // The same taps flattened over levels for gather_chunk: [(5 k + c) W + x].
   sc.taps.resize(L * 5 * uw);
   for (std::size_t k = 0; k < L; ++k) {
@@ -538,171 +533,302 @@ void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& ou
     for (std::size_t e = 0; e < 5 * uw; ++e)
       sc.taps[k * 5 * uw + e] = {t.i0[e], t.i1[e] == t.i0[e] ? 0.0f : t.f[e]};  // i1 = i0 + 1 otherwise
   }
-  // Planar lerped rows per task: plane (k, c, ch) at ((5 k + c) 3 + ch) W (a stride of W for
-  // every level, so gather_chunk finds a plane by arithmetic alone).
-  const auto row_off = [&](std::size_t k, std::size_t c, std::size_t ch) { return ((5 * k + c) * 3 + ch) * uw; };
-  const bool geometric = s.geometric;
-  const bool debug = record_debug_;
-  if (debug) {
-    sc.level_map.resize(np);
-    sc.dob_map.resize(np);
+}
+
+// The final pass's case per pixel.
+enum PixelKind : std::uint8_t { kCopy, kBelowOne, kBlend };
+
+// One task's buffers of the final pass, reused from row to row.
+struct RowBuffers {
+  // a[k][ch][i], b[k][ch][i]: sample k of I(l - 1) and I(l) for batch pixel i (eq. 4.8's factors).
+  alignas(64) float A[9][3][kChunk];
+  alignas(64) float B[9][3][kChunk];
+  alignas(64) float res[3][kChunk];
+  // Per pixel of the output row: the pass's case, l of eq. 4.8 (1 for the special cases, so
+  // gather_chunk reads levels that exist; their values are replaced) and beta = m - l.
+  std::vector<std::uint8_t> kind;
+  std::vector<int> lvl;
+  std::vector<float> beta;
+  std::vector<float> rows;  // + 1: the last plane's texel w_k (read with f = 0)
+  std::vector<std::vector<float>> vs, vn;  // DoB rows (no offset) per level, DoN rows per class
+  std::vector<bool> needed;
+  // don_count[j]: how many of the DoN's top-level columns < j are non-zero in any of this row's
+  // five lerped DoN rows, so a pixel whose taps all read zeros skips the 9 reads of step 4.
+  std::vector<int> don_count;
+  explicit RowBuffers(const FinalPass& fp)
+      : kind(fp.uw), lvl(fp.uw), beta(fp.uw), rows(fp.L * 15 * fp.uw + 1), vs(fp.L), vn(5), needed(fp.L),
+        don_count(static_cast<std::size_t>(fp.top_l.w) + 1) {
+    for (std::size_t k = 0; k < fp.L; ++k) vs[k].resize(static_cast<std::size_t>(fp.sc.levels[k].w));
+    for (auto& row : vn) row.resize(static_cast<std::size_t>(fp.top_l.w));
   }
-  const float mcap = static_cast<float>(M + 1);
-  tbb::parallel_for(tbb::blocked_range<int>(0, H, 8), [&](const tbb::blocked_range<int>& r) {
-    // a[k][ch][i], b[k][ch][i]: sample k of I(l - 1) and I(l) for batch pixel i (eq. 4.8's factors).
-    alignas(64) float A[9][3][kChunk];
-    alignas(64) float B[9][3][kChunk];
-    alignas(64) float res[3][kChunk];
-    // Per pixel of the output row: the pass's case, l of eq. 4.8 (1 for the special cases, so
-    // gather_chunk reads levels that exist; their values are replaced) and beta = m - l.
-    enum Kind : std::uint8_t { kCopy, kBelowOne, kBlend };
-    std::vector<std::uint8_t> kind(uw);
-    std::vector<int> lvl(uw);
-    std::vector<float> beta(uw);
-    std::vector<float> rows(L * 15 * uw + 1);  // + 1: the last plane's texel w_k (read with f = 0)
-    std::vector<std::vector<float>> vs(L), vn(5);  // DoB rows (no offset) per level, DoN rows per class
-    for (std::size_t k = 0; k < L; ++k) vs[k].resize(static_cast<std::size_t>(sc.levels[k].w));
-    for (auto& row : vn) row.resize(static_cast<std::size_t>(top_l.w));
-    std::vector<bool> needed(L);
-    // don_count[j]: how many of the DoN's top-level columns < j are non-zero in any of this row's
-    // five lerped DoN rows, so a pixel whose taps all read zeros skips the 9 reads of step 4.
-    std::vector<int> don_count(static_cast<std::size_t>(top_l.w) + 1);
-    for (int y = r.begin(); y < r.end(); ++y) {
-      const float v = (static_cast<float>(y) + 0.5f) / static_cast<float>(H);
-      for (std::size_t k = 0; k < L; ++k) {
-        const Level& lv = sc.levels[k];
-        lerp_rows(lv.s.data(), lv.w, vrow(lv.h, v * static_cast<float>(lv.h) - 0.5f), vs[k].data());
-      }
-      bool row_has_don = false;  // no foreground near this row: eq. 4.11 gives n = 0 throughout
-      if (smooth) {
-        const float hb = static_cast<float>(below.h), ht = static_cast<float>(top_l.h);
-        for (std::size_t c = 0; c < 5; ++c) {
-          lerp_rows(sc.don.data(), top_l.w, vrow(top_l.h, (v + cls[c] / hb) * ht - 0.5f), vn[c].data());
-          for (float d : vn[c]) row_has_don = row_has_don || d > 0;
-        }
-        if (row_has_don)
-          for (std::size_t j = 0; j < vn[0].size(); ++j) {
-            bool nz = false;
-            for (const auto& row : vn) nz = nz || row[j] > 0;
-            don_count[j + 1] = don_count[j] + (nz ? 1 : 0);
-          }
-      }
-      // Steps 4 and 5's level per pixel, and which levels this row reads at all.
-      std::fill(needed.begin(), needed.end(), false);
-      for (std::size_t ux = 0; ux < uw; ++ux) {
-        const std::size_t p = static_cast<std::size_t>(y) * uw + ux;
-        float sigma = L0.s[p];
-        // The taps of step 4's filter lie between class -1's left texel and class +1's right one
-        // (cls is ascending, the clamp monotone); if the DoN is 0 there, rho = 0 and n = 0.
-        const auto don_near = [&] {
-          const auto d0 = static_cast<std::size_t>(sc.hn.i0[ux]), d1 = static_cast<std::size_t>(sc.hn.i1[4 * sc.hn.w + ux]);
-          return don_count[d1 + 1] != don_count[d0];
-        };
-        if (row_has_don && don_near()) {
-          // Step 4: rho(M) magnified with the circular 9-point filter, then n by eq. 4.11.
-          float rho = 0;
-          for (std::size_t k = 0; k < 9; ++k)
-            rho += nb.w[k] * sc.hn.at(static_cast<std::size_t>(kcx[k]), vn[static_cast<std::size_t>(kcy[k])].data(), ux);
-          const float nlev = std::min(level_of(rho, ks), static_cast<float>(M));  // Lee 2009, eq. 4.11
-          if (nlev > 0) {
-            // sigma(n): B read at the continuous level n (trilinear, as texture2DLod would).
-            const auto n0 = static_cast<std::size_t>(std::min(static_cast<int>(nlev), M));
-            const float fn = nlev - static_cast<float>(n0);
-            const float sa = sc.hx[n0].at(2, vs[n0].data(), ux);
-            sigma = (n0 + 1 < L && fn > 0) ? sa + fn * (sc.hx[n0 + 1].at(2, vs[n0 + 1].data(), ux) - sa) : sa;
-          }
-        }
-        const float m = std::min(level_of(sigma, ks), mcap);  // Lee 2009, eq. 4.6
-        if (debug) {
-          sc.level_map[p] = m;
-          sc.dob_map[p] = sigma;
-        }
-        lvl[ux] = 1;
-        if (!(m > 0)) {  // no blur: the pixel itself
-          kind[ux] = kCopy;
-          continue;
-        }
-        int l = static_cast<int>(m);
-        float bt = m - static_cast<float>(l);
-        if (l > M) {
-          l = M;
-          bt = 1;
-        }
-        beta[ux] = bt;
-        if (l == 0) {
-          kind[ux] = kBelowOne;
-          needed[0] = true;
-          continue;
-        }
-        kind[ux] = kBlend;
-        lvl[ux] = l;
-        needed[static_cast<std::size_t>(l - 1)] = true;
-        needed[static_cast<std::size_t>(l)] = true;
-      }
-      // The vertically lerped planar rows of the levels this row reads (a row in focus reads none).
-      for (std::size_t k = 0; k < L; ++k) {
-        if (!needed[k]) continue;
-        const Level& lv = sc.levels[k];
-        const float hk = static_cast<float>(lv.h);
-        for (std::size_t c = 0; c < 5; ++c) {
-          const VRow vr = vrow(lv.h, (v + cls[c] / hk) * hk - 0.5f);
-          for (std::size_t ch = 0; ch < 3; ++ch) lerp_rows(lv.plane(ch), lv.w, vr, rows.data() + row_off(k, c, ch));
-        }
-      }
-      for (int x0 = 0; x0 < W; x0 += kChunk) {
-        const auto ux0 = static_cast<std::size_t>(x0);
-        const auto un = static_cast<std::size_t>(std::min(kChunk, W - x0));
-        const std::size_t p0 = static_cast<std::size_t>(y) * uw + ux0;
-        const std::uint8_t* kd = kind.data() + ux0;
-        if (std::all_of(kd, kd + un, [](std::uint8_t k) { return k == kCopy; })) {
-          for (std::size_t i = 0; i < un; ++i) {
-            const glm::vec3 c = in.color[p0 + i];
-            out[p0 + i] = {finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
-          }
-          continue;
-        }
-        gather_chunk(rows.data(), sc.taps.data(), W, x0, lvl.data() + ux0, un, A, B);
-        for (std::size_t i = 0; i < un; ++i) {
-          if (kd[i] == kBlend) continue;
-          // Copy: A = B = the pixel (the blend gives it back; the output is taken from the input
-          // below anyway). m in (0, 1): there is no level -1 for eq. 4.8, so blend (eq. 4.7's form)
-          // the pixel itself with its 3x3 circular Gaussian at level 0, which is eq. 4.8's value at
-          // m = 1; continuous with eq. 4.8 there and equal to the input at m = 0.
-          float self[3], filtered[3] = {0, 0, 0};
-          for (std::size_t ch = 0; ch < 3; ++ch) self[ch] = L0.c[ch * np + p0 + i];
-          if (kd[i] == kBelowOne) {
-            for (std::size_t k = 0; k < 9; ++k) {
-              const HTap tp = sc.taps[static_cast<std::size_t>(kcx[k]) * uw + ux0 + i];
-              for (std::size_t ch = 0; ch < 3; ++ch) {
-                const float* ro = rows.data() + row_off(0, static_cast<std::size_t>(kcy[k]), ch) + static_cast<std::size_t>(tp.j);
-                filtered[ch] += nb.w[k] * (ro[0] + tp.f * (ro[1] - ro[0]));
-              }
-            }
-          } else {
-            std::copy(self, self + 3, filtered);
-          }
-          for (std::size_t k = 0; k < 9; ++k)
-            for (std::size_t ch = 0; ch < 3; ++ch) {
-              A[k][ch][i] = self[ch];
-              B[k][ch][i] = filtered[ch];
-            }
-        }
-        blend_chunk(A, B, beta.data() + ux0, nb.w.data(), un, geometric, res);
-        for (std::size_t i = 0; i < un; ++i) {
-          const std::size_t p = p0 + i;
-          if (kd[i] == kCopy) {  // the input itself, exactly (non-finite and negative as 0)
-            const glm::vec3 c = in.color[p];
-            out[p] = {finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
-            continue;
-          }
-          // Every factor is a convex mix of input texels, so only the approximate log/exp can leave
-          // [0, max input]; clamp to it (a NaN cannot arise: all factors are in [kTiny, kHuge]).
-          out[p] = {std::clamp(res[0][i], 0.0f, cmax.x), std::clamp(res[1][i], 0.0f, cmax.y),
-                    std::clamp(res[2][i], 0.0f, cmax.z)};
-        }
-      }
+};
+
+// B of every level at this row's v, no offset (step 4 reads sigma(n) at a level n per pixel).
+static void lerp_dob_rows(const FinalPass& fp, RowBuffers& rb, float v) {
+  for (std::size_t k = 0; k < fp.L; ++k) {
+    const Level& lv = fp.sc.levels[k];
+    lerp_rows(lv.s.data(), lv.w, vrow(lv.h, v * static_cast<float>(lv.h) - 0.5f), rb.vs[k].data());
+  }
+}
+
+// N(M) at this row's v plus each offset class in level M - 1's texels, and don_count. Returns
+// false where there is no foreground near this row: eq. 4.11 gives n = 0 throughout.
+static bool lerp_don_rows(const FinalPass& fp, RowBuffers& rb, float v) {
+  bool row_has_don = false;
+  const float hb = static_cast<float>(fp.below.h), ht = static_cast<float>(fp.top_l.h);
+  for (std::size_t c = 0; c < 5; ++c) {
+    lerp_rows(fp.sc.don.data(), fp.top_l.w, vrow(fp.top_l.h, (v + fp.cls[c] / hb) * ht - 0.5f), rb.vn[c].data());
+    for (float d : rb.vn[c]) row_has_don = row_has_don || d > 0;
+  }
+  if (row_has_don)
+    for (std::size_t j = 0; j < rb.vn[0].size(); ++j) {
+      bool nz = false;
+      for (const auto& row : rb.vn) nz = nz || row[j] > 0;
+      rb.don_count[j + 1] = rb.don_count[j] + (nz ? 1 : 0);
     }
+  return row_has_don;
+}
+
+// Step 4: rho(M) magnified with the circular 9-point filter, then n by eq. 4.11; returns the DoB
+// read at level n (sigma unchanged where n = 0).
+static float foreground_smoothed_dob(const FinalPass& fp, const RowBuffers& rb, std::size_t ux, float sigma) {
+  float rho = 0;
+  for (std::size_t k = 0; k < 9; ++k)
+    rho += fp.nb.w[k] *
+           fp.sc.hn.at(static_cast<std::size_t>(kcx[k]), rb.vn[static_cast<std::size_t>(kcy[k])].data(), ux);
+  const float nlev = std::min(level_of(rho, fp.ks), static_cast<float>(fp.M));  // Lee 2009, eq. 4.11
+  if (nlev > 0) {
+    // sigma(n): B read at the continuous level n (trilinear, as texture2DLod would).
+    const auto n0 = static_cast<std::size_t>(std::min(static_cast<int>(nlev), fp.M));
+    const float fn = nlev - static_cast<float>(n0);
+    const float sa = fp.sc.hx[n0].at(2, rb.vs[n0].data(), ux);
+    sigma = (n0 + 1 < fp.L && fn > 0) ? sa + fn * (fp.sc.hx[n0 + 1].at(2, rb.vs[n0 + 1].data(), ux) - sa) : sa;
+  }
+  return sigma;
+}
+
+// Steps 4 and 5's level per pixel (m of eq. 4.6, after eq. 4.11's smoothing), its case, l and beta,
+// and which levels this row reads at all.
+static void pixel_levels(const FinalPass& fp, RowBuffers& rb, int y, bool row_has_don) {
+  std::fill(rb.needed.begin(), rb.needed.end(), false);
+  for (std::size_t ux = 0; ux < fp.uw; ++ux) {
+    const std::size_t p = static_cast<std::size_t>(y) * fp.uw + ux;
+    float sigma = fp.L0.s[p];
+    // The taps of step 4's filter lie between class -1's left texel and class +1's right one
+    // (cls is ascending, the clamp monotone); if the DoN is 0 there, rho = 0 and n = 0.
+    const auto don_near = [&] {
+      const HTab& hn = fp.sc.hn;
+      const auto d0 = static_cast<std::size_t>(hn.i0[ux]), d1 = static_cast<std::size_t>(hn.i1[4 * hn.w + ux]);
+      return rb.don_count[d1 + 1] != rb.don_count[d0];
+    };
+    if (row_has_don && don_near()) sigma = foreground_smoothed_dob(fp, rb, ux, sigma);
+    const float m = std::min(level_of(sigma, fp.ks), fp.mcap);  // Lee 2009, eq. 4.6
+    if (fp.debug) {
+      fp.sc.level_map[p] = m;
+      fp.sc.dob_map[p] = sigma;
+    }
+    rb.lvl[ux] = 1;
+    if (!(m > 0)) {  // no blur: the pixel itself
+      rb.kind[ux] = kCopy;
+      continue;
+    }
+    int l = static_cast<int>(m);
+    float bt = m - static_cast<float>(l);
+    if (l > fp.M) {
+      l = fp.M;
+      bt = 1;
+    }
+    rb.beta[ux] = bt;
+    if (l == 0) {
+      rb.kind[ux] = kBelowOne;
+      rb.needed[0] = true;
+      continue;
+    }
+    rb.kind[ux] = kBlend;
+    rb.lvl[ux] = l;
+    rb.needed[static_cast<std::size_t>(l - 1)] = true;
+    rb.needed[static_cast<std::size_t>(l)] = true;
+  }
+}
+
+// The vertically lerped planar rows of the levels this row reads (a row in focus reads none).
+static void lerp_colour_rows(const FinalPass& fp, RowBuffers& rb, float v) {
+  for (std::size_t k = 0; k < fp.L; ++k) {
+    if (!rb.needed[k]) continue;
+    const Level& lv = fp.sc.levels[k];
+    const float hk = static_cast<float>(lv.h);
+    for (std::size_t c = 0; c < 5; ++c) {
+      const VRow vr = vrow(lv.h, (v + fp.cls[c] / hk) * hk - 0.5f);
+      for (std::size_t ch = 0; ch < 3; ++ch) lerp_rows(lv.plane(ch), lv.w, vr, rb.rows.data() + fp.row_off(k, c, ch));
+    }
+  }
+}
+
+// The special cases' factors over gather_chunk's, for the batch at ux0 (p0 in the image). Copy:
+// A = B = the pixel (the blend gives it back; the output is taken from the input anyway). m in
+// (0, 1): there is no level -1 for eq. 4.8, so blend (eq. 4.7's form) the pixel itself with its 3x3
+// circular Gaussian at level 0, which is eq. 4.8's value at m = 1; continuous with eq. 4.8 there
+// and equal to the input at m = 0.
+static void special_case_factors(const FinalPass& fp, RowBuffers& rb, std::size_t ux0, std::size_t p0,
+                                 std::size_t un) {
+  const std::uint8_t* kd = rb.kind.data() + ux0;
+  for (std::size_t i = 0; i < un; ++i) {
+    if (kd[i] == kBlend) continue;
+    float self[3], filtered[3] = {0, 0, 0};
+    for (std::size_t ch = 0; ch < 3; ++ch) self[ch] = fp.L0.c[ch * fp.np + p0 + i];
+    if (kd[i] == kBelowOne) {
+      for (std::size_t k = 0; k < 9; ++k) {
+        const HTap tp = fp.sc.taps[static_cast<std::size_t>(kcx[k]) * fp.uw + ux0 + i];
+        for (std::size_t ch = 0; ch < 3; ++ch) {
+          const float* ro = rb.rows.data() + fp.row_off(0, static_cast<std::size_t>(kcy[k]), ch) +
+                            static_cast<std::size_t>(tp.j);
+          filtered[ch] += fp.nb.w[k] * (ro[0] + tp.f * (ro[1] - ro[0]));
+        }
+      }
+    } else {
+      std::copy(self, self + 3, filtered);
+    }
+    for (std::size_t k = 0; k < 9; ++k)
+      for (std::size_t ch = 0; ch < 3; ++ch) {
+        rb.A[k][ch][i] = self[ch];
+        rb.B[k][ch][i] = filtered[ch];
+      }
+  }
+}
+
+// Step 5 for the batch of kChunk pixels at x0 of row y: eq. 4.8's factors, their blend, clamped.
+static void shade_chunk(const FinalPass& fp, RowBuffers& rb, int y, int x0) {
+  const auto ux0 = static_cast<std::size_t>(x0);
+  const auto un = static_cast<std::size_t>(std::min(kChunk, fp.W - x0));
+  const std::size_t p0 = static_cast<std::size_t>(y) * fp.uw + ux0;
+  const std::uint8_t* kd = rb.kind.data() + ux0;
+  if (std::all_of(kd, kd + un, [](std::uint8_t k) { return k == kCopy; })) {
+    for (std::size_t i = 0; i < un; ++i) {
+      const glm::vec3 c = fp.in.color[p0 + i];
+      fp.out[p0 + i] = {finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
+    }
+    return;
+  }
+  gather_chunk(rb.rows.data(), fp.sc.taps.data(), fp.W, x0, rb.lvl.data() + ux0, un, rb.A, rb.B);
+  special_case_factors(fp, rb, ux0, p0, un);
+  blend_chunk(rb.A, rb.B, rb.beta.data() + ux0, fp.nb.w.data(), un, fp.geometric, rb.res);
+  for (std::size_t i = 0; i < un; ++i) {
+    const std::size_t p = p0 + i;
+    if (kd[i] == kCopy) {  // the input itself, exactly (non-finite and negative as 0)
+      const glm::vec3 c = fp.in.color[p];
+      fp.out[p] = {finite_or_zero(c.x), finite_or_zero(c.y), finite_or_zero(c.z)};
+      continue;
+    }
+    // Every factor is a convex mix of input texels, so only the approximate log/exp can leave
+    // [0, max input]; clamp to it (a NaN cannot arise: all factors are in [kTiny, kHuge]).
+    fp.out[p] = {std::clamp(rb.res[0][i], 0.0f, fp.cmax.x), std::clamp(rb.res[1][i], 0.0f, fp.cmax.y),
+                 std::clamp(rb.res[2][i], 0.0f, fp.cmax.z)};
+  }
+}
+
+// Steps 4 and 5 for output row y.
+static void final_pass_row(const FinalPass& fp, RowBuffers& rb, int y) {
+  const float v = (static_cast<float>(y) + 0.5f) / static_cast<float>(fp.H);
+  lerp_dob_rows(fp, rb, v);
+  const bool row_has_don = fp.smooth && lerp_don_rows(fp, rb, v);
+  pixel_levels(fp, rb, y, row_has_don);
+  lerp_colour_rows(fp, rb, v);
+  for (int x0 = 0; x0 < fp.W; x0 += kChunk) shade_chunk(fp, rb, y, x0);
+}
+
+// Steps 4 and 5 (§4.4) over the image, 8 rows per task.
+static void final_pass(const FinalPass& fp) {
+  if (fp.debug) {
+    fp.sc.level_map.resize(fp.np);
+    fp.sc.dob_map.resize(fp.np);
+  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, fp.H, 8), [&](const tbb::blocked_range<int>& r) {
+    RowBuffers rb(fp);
+    for (int y = r.begin(); y < r.end(); ++y) final_pass_row(fp, rb, y);
   });
+}
+
+}  // namespace
+
+struct LeeMipmap::Scratch : Buffers {};
+
+LeeMipmap::LeeMipmap() : scratch_(std::make_unique<Scratch>()) {}
+LeeMipmap::~LeeMipmap() = default;
+const std::vector<float>& LeeMipmap::level_map() const { return scratch_->level_map; }
+const std::vector<float>& LeeMipmap::dob_map() const { return scratch_->dob_map; }
+
+void LeeMipmap::run(const DofInput& in, const LeeMipmapSettings& s, RgbImage& out, LeeMipmapStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Scratch& sc = *scratch_;
+  const int W = static_cast<int>(in.width), H = static_cast<int>(in.height);
+  const std::size_t np = in.pixels();
+  out.resize(np);
+  sc.level_map.clear();
+  sc.dob_map.clear();
+  LeeMipmapStats st;
+  const auto finish = [&] {
+    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (stats) *stats = st;
+  };
+  if (np == 0 || !in.color) {
+    std::fill(out.begin(), out.end(), glm::vec3(0.0f));
+    finish();
+    return;
+  }
+  if (in.coc.pinhole() || !in.depth) {
+    copy_input(in, out);
+    finish();
+    return;
+  }
+
+  const glm::vec3 cmax = base_level(in, s, sc);
+  float smax = 0;
+  for (float v : sc.levels[0].s) smax = std::max(smax, v);
+  st.max_dob_px = smax;
+  const float ks = std::isfinite(s.k_sigma) && s.k_sigma > 0 ? static_cast<float>(s.k_sigma) : 2.0f / 3.0f;
+  if (!(smax > 0)) {  // everything in focus: eq. 4.6 gives m = 0 everywhere
+    copy_input(in, out);
+    finish();
+    return;
+  }
+  const int M = top_mipmap_level(W, H, smax, ks, s.max_level);
+  st.levels = M;
+  if (M < 1) {  // a 1x1 image: every blur of one texel clamped to the edge is that texel
+    copy_input(in, out);
+    finish();
+    return;
+  }
+  const CocModel& coc = in.coc;
+  const float zf = std::isfinite(coc.focus_m) ? static_cast<float>(std::max(coc.focus_m, 0.0))
+                                              : (coc.focus_m > 0 ? kFarDepth : 0.0f);
+  const float delta = std::isfinite(s.delta) ? static_cast<float>(s.delta) : 0.0f;
+  build_mipmaps(sc, M, s.anisotropic, zf, delta);
+  if (s.smooth_foreground) depth_of_neighbours(sc, M, zf);
+  st.mipmap_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  const float dg = s.circular ? 0.70710678f : 1.0f;
+  const FinalPass fp{.in = in,
+                     .out = out,
+                     .sc = sc,
+                     .L0 = sc.levels[0],
+                     .top_l = sc.levels[static_cast<std::size_t>(M)],
+                     .below = sc.levels[static_cast<std::size_t>(M - 1)],
+                     .nb = Neighbourhood(s.circular),
+                     .cls = {-1.0f, -dg, 0.0f, dg, 1.0f},
+                     .W = W,
+                     .H = H,
+                     .M = M,
+                     .uw = static_cast<std::size_t>(W),
+                     .np = np,
+                     .L = static_cast<std::size_t>(M) + 1,
+                     .ks = ks,
+                     .mcap = static_cast<float>(M + 1),
+                     .smooth = s.smooth_foreground,
+                     .geometric = s.geometric,
+                     .debug = record_debug_,
+                     .cmax = cmax};
+  horizontal_taps(sc, fp);
+  final_pass(fp);
   finish();
 }
 
