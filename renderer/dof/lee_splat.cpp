@@ -217,31 +217,7 @@ struct Workspace {
   std::vector<glm::vec4> acc;            // per pixel L^0, L^1, L^2 as (r, g, b, alpha), premultiplied
 };
 
-}  // namespace
-
-void lee_splat(const DofInput& in, const LeeSplatSettings& s, RgbImage& out, LeeSplatStats* stats) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::size_t n = in.pixels();
-  out.assign(n, glm::vec3(0));
-  LeeSplatStats st;
-  const auto finish = [&] {
-    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (stats) *stats = st;
-  };
-  if (n == 0 || !in.color) return finish();
-  const int w = static_cast<int>(in.width), h = static_cast<int>(in.height);
-  const auto uw = std::size_t{in.width};
-  if (!in.depth) {  // no depth: nothing can be defocused
-    for (std::size_t i = 0; i < n; ++i) {
-      out[i] = {finite_or_zero(in.color[i].x), finite_or_zero(in.color[i].y), finite_or_zero(in.color[i].z)};
-    }
-    return finish();
-  }
-
-  // The calling thread's buffers; the TBB workers below reach them through this reference (a
-  // thread_local named inside a lambda would be the worker's own, empty, instance).
-  thread_local Workspace tls_workspace;
-  Workspace& ws = tls_workspace;
+void prepare_workspace(Workspace& ws, std::size_t n) {
   ws.col.resize(n);
   ws.bv.resize(n);
   ws.cv.resize(n);
@@ -249,36 +225,40 @@ void lee_splat(const DofInput& in, const LeeSplatSettings& s, RgbImage& out, Lee
   ws.edge.assign(n, 0);
   ws.hid_ok.assign(n, 0);
   ws.covered.assign(n, 0);
+}
 
-  const CocModel& coc = in.coc;
-  const float delta = static_cast<float>(std::isfinite(s.delta) ? std::max(0.0, s.delta) : 0.4);
-  // A footprint of radius = the image diagonal covers the whole image from any pixel; CoCs larger
-  // than the image are clamped to that (their weight 1/area then no longer falls with C: every such
-  // pixel becomes the same whole-image blur). B is clamped alike so that it stays a finite float.
-  const double diag = std::hypot(static_cast<double>(in.width), static_cast<double>(in.height));
-  const double r_cap = std::max(1.0, diag);
-  const auto signed_coc = [&](float d) {
-    return static_cast<float>(std::clamp(coc.signed_coc_px(double{d}), -2 * r_cap, 2 * r_cap));
-  };
-  // §5.1.2's "normalized scale": depth / d_f (the focus distance is unit depth). Without a finite
-  // focus distance, 1 m.
-  const double zf = coc.focus_m;
-  const double zscale = (std::isfinite(zf) && zf > 0) ? zf : 1.0;
-  const auto znorm = [&](float d) {  // non-finite or non-positive depth: far (NaN, +inf) or 0
+// The identity result (non-finite colour as 0), for frames where nothing is defocused.
+void copy_input_finite(const DofInput& in, RgbImage& out) {
+  const std::size_t n = in.pixels();
+  for (std::size_t i = 0; i < n; ++i) {
+    out[i] = {finite_or_zero(in.color[i].x), finite_or_zero(in.color[i].y), finite_or_zero(in.color[i].z)};
+  }
+}
+
+// Per-frame constants derived once from the input and settings, shared by every stage.
+struct Frame {
+  const DofInput& in;
+  const LeeSplatSettings& s;
+  int w, h;
+  std::size_t uw, uh;
+  float delta;           // δ of eq. 5.3, sanitised
+  double r_cap;          // footprint radius cap: the image diagonal
+  double zf, zscale;     // focus distance and §5.1.2's depth normalisation
+  bool hidden_in;        // the hidden image H is present and used
+  int reduce;            // §5.3's block size r
+  float min_block_coc;   // §5.3: smallest C that may be splatted through a block
+  double eps, lap_thr;   // §5.1.2's tests 1 and 3
+
+  float signed_coc(float d) const {
+    return static_cast<float>(std::clamp(in.coc.signed_coc_px(double{d}), -2 * r_cap, 2 * r_cap));
+  }
+  double znorm(float d) const {  // non-finite or non-positive depth: far (NaN, +inf) or 0
     const double z = double{d} / zscale;
     if (std::isnan(z)) return 1e6;
     return std::clamp(z, 0.0, 1e6);
-  };
-  const bool hidden_in = s.use_hidden && in.hidden_color && in.hidden_depth;
-  const int reduce = std::clamp(s.reduce, 1, 64);
-  // §5.3: CoCs under 4 px stay at full resolution (the paper's "focused regions"), and so do CoCs
-  // under 2 r, so that a block's sub-block shift of its centre (<= r / 2) stays under C / 4.
-  const float min_block_coc = std::max(4.0f, 2.0f * static_cast<float>(reduce));
-  const double eps = std::isfinite(s.hidden_epsilon) ? s.hidden_epsilon : 0.05;
-  const double lap_thr = std::isfinite(s.laplacian_threshold) ? s.laplacian_threshold : 0.01;
-
+  }
   // Lee 2009, eq. 5.1: L(p) = sum_n (Z_v(n) - Z_v(p)) / N_Ω over samples within radius `rad` of p.
-  const auto laplacian = [&](int x, int y, double rad, bool symmetric) {
+  double laplacian(int x, int y, double rad, bool symmetric) const {
     const double zp = znorm(in.depth[std::size_t(y) * uw + std::size_t(x)]);
     double sum = 0;
     int count = 0;
@@ -291,9 +271,68 @@ void lee_splat(const DofInput& in, const LeeSplatSettings& s, RgbImage& out, Lee
       }
     }
     return sum / count;
-  };
+  }
+};
 
-  // Pass 1 (per pixel): source colour, B_v, C_v, the hidden pixel's three tests, §5.3's edge flag.
+Frame make_frame(const DofInput& in, const LeeSplatSettings& s) {
+  const int w = static_cast<int>(in.width), h = static_cast<int>(in.height);
+  const CocModel& coc = in.coc;
+  const float delta = static_cast<float>(std::isfinite(s.delta) ? std::max(0.0, s.delta) : 0.4);
+  // A footprint of radius = the image diagonal covers the whole image from any pixel; CoCs larger
+  // than the image are clamped to that (their weight 1/area then no longer falls with C: every such
+  // pixel becomes the same whole-image blur). B is clamped alike so that it stays a finite float.
+  const double diag = std::hypot(static_cast<double>(in.width), static_cast<double>(in.height));
+  const double r_cap = std::max(1.0, diag);
+  // §5.1.2's "normalized scale": depth / d_f (the focus distance is unit depth). Without a finite
+  // focus distance, 1 m.
+  const double zf = coc.focus_m;
+  const double zscale = (std::isfinite(zf) && zf > 0) ? zf : 1.0;
+  const bool hidden_in = s.use_hidden && in.hidden_color && in.hidden_depth;
+  const int reduce = std::clamp(s.reduce, 1, 64);
+  // §5.3: CoCs under 4 px stay at full resolution (the paper's "focused regions"), and so do CoCs
+  // under 2 r, so that a block's sub-block shift of its centre (<= r / 2) stays under C / 4.
+  const float min_block_coc = std::max(4.0f, 2.0f * static_cast<float>(reduce));
+  const double eps = std::isfinite(s.hidden_epsilon) ? s.hidden_epsilon : 0.05;
+  const double lap_thr = std::isfinite(s.laplacian_threshold) ? s.laplacian_threshold : 0.01;
+  return Frame{.in = in,
+               .s = s,
+               .w = w,
+               .h = h,
+               .uw = std::size_t{in.width},
+               .uh = static_cast<std::size_t>(h),
+               .delta = delta,
+               .r_cap = r_cap,
+               .zf = zf,
+               .zscale = zscale,
+               .hidden_in = hidden_in,
+               .reduce = reduce,
+               .min_block_coc = min_block_coc,
+               .eps = eps,
+               .lap_thr = lap_thr};
+}
+
+// Lee 2009, §5.1.2: the three depth tests for the hidden fragment at p (of signed CoC b).
+bool hidden_pixel_passes(const Frame& fr, int x, int y, std::size_t i, float b) {
+  const DofInput& in = fr.in;
+  const float zh = in.hidden_depth[i], zv = in.depth[i];
+  bool ok = std::isfinite(zh) && zh > 0;
+  ok = ok && fr.znorm(zh) >= fr.znorm(zv) + fr.eps;                     // 1: not the same surface (ε)
+  ok = ok && !(fr.znorm(zv) > fr.zf / fr.zscale) && std::isfinite(zv);  // 2: visible pixel not background
+  ok = ok && fr.laplacian(x, y, 0.5 * std::fabs(double{b}), false) >= fr.lap_thr;  // 3: eq. 5.1
+  return ok;
+}
+
+struct PixelSummary {
+  float max_c = 0;              // largest |B| of any splat (visible or accepted hidden)
+  std::size_t hidden_used = 0;  // hidden pixels that passed §5.1.2's tests
+};
+
+// Pass 1 (per pixel): source colour, B_v, C_v, the hidden pixel's three tests, §5.3's edge flag.
+PixelSummary classify_pixels(const Frame& fr, Workspace& ws) {
+  const DofInput& in = fr.in;
+  const LeeSplatSettings& s = fr.s;
+  const int w = fr.w, h = fr.h;
+  const std::size_t uw = fr.uw;
   std::vector<float> row_max_c(static_cast<std::size_t>(h), 0.0f);
   std::vector<std::size_t> row_hidden(static_cast<std::size_t>(h), 0);
   tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
@@ -305,120 +344,133 @@ void lee_splat(const DofInput& in, const LeeSplatSettings& s, RgbImage& out, Lee
         glm::vec3 c = sane(in.color[i]);
         if (s.ldr_highlights) c = extrapolate_highlight(c, s);
         ws.col[i] = c;
-        const float b = signed_coc(in.depth[i]);
+        const float b = fr.signed_coc(in.depth[i]);
         ws.bv[i] = b;
         ws.cv[i] = std::fabs(b);
-        ws.tv[i] = delta * std::fabs(b);
+        ws.tv[i] = fr.delta * std::fabs(b);
         cmax = std::max(cmax, std::fabs(b));
-        if (hidden_in) {
-          // Lee 2009, §5.1.2: the three depth tests for the hidden fragment at p.
-          const float zh = in.hidden_depth[i], zv = in.depth[i];
-          bool ok = std::isfinite(zh) && zh > 0;
-          ok = ok && znorm(zh) >= znorm(zv) + eps;                  // 1: not the same surface (ε)
-          ok = ok && !(znorm(zv) > zf / zscale) && std::isfinite(zv);  // 2: visible pixel not background
-          ok = ok && laplacian(x, y, 0.5 * std::fabs(double{b}), false) >= lap_thr;  // 3: eq. 5.1
-          if (ok) {
-            ws.hid_ok[i] = 1;
-            ++hid;
-            cmax = std::max(cmax, std::fabs(signed_coc(zh)));
-          }
+        if (fr.hidden_in && hidden_pixel_passes(fr, x, y, i, b)) {
+          ws.hid_ok[i] = 1;
+          ++hid;
+          cmax = std::max(cmax, std::fabs(fr.signed_coc(in.hidden_depth[i])));
         }
-        if (reduce > 1 && std::fabs(b) >= min_block_coc) {
+        if (fr.reduce > 1 && std::fabs(b) >= fr.min_block_coc) {
           // §5.3: where depth changes within (95 % of) the CoC, splat at full resolution. Samples
           // are mirrored so that a planar depth ramp has L = 0 exactly and is not flagged.
-          ws.edge[i] = std::fabs(laplacian(x, y, 0.95 * 0.5 * std::fabs(double{b}), true)) >= lap_thr;
+          ws.edge[i] = std::fabs(fr.laplacian(x, y, 0.95 * 0.5 * std::fabs(double{b}), true)) >= fr.lap_thr;
         }
       }
       row_max_c[std::size_t(y)] = cmax;
       row_hidden[std::size_t(y)] = hid;
     }
   });
-  for (std::size_t y = 0; y < row_hidden.size(); ++y) st.hidden_used += row_hidden[y];
+  PixelSummary sum;
+  for (std::size_t y = 0; y < row_hidden.size(); ++y) sum.hidden_used += row_hidden[y];
+  sum.max_c = *std::max_element(row_max_c.begin(), row_max_c.end());
+  return sum;
+}
 
-  // Every footprint is the pixel itself (C < 1 px everywhere, e.g. a pinhole): the result is the
-  // input, exactly (eq. 5.4 with one unit-weight splat per pixel is the identity).
-  if (*std::max_element(row_max_c.begin(), row_max_c.end()) < 1.0f) {
-    for (std::size_t i = 0; i < n; ++i) {
-      out[i] = {finite_or_zero(in.color[i].x), finite_or_zero(in.color[i].y), finite_or_zero(in.color[i].z)};
-    }
-    st.splats = n + st.hidden_used;
-    return finish();
-  }
+// One splat of eq. 5.2: radius C/2 (capped at the image diagonal), weight k_n(C)/C^2 times `weight`.
+Point make_point(const Frame& fr, double cx, double cy, float b, float weight, const glm::vec3& c, bool hidden,
+                 std::vector<double>& scratch) {
+  Point p;
+  p.cx = static_cast<float>(cx);
+  p.cy = static_cast<float>(cy);
+  p.r = static_cast<float>(std::min(0.5 * std::fabs(double{b}), fr.r_cap));
+  p.b = b;
+  const Footprint f{fr.s.aperture, cx, cy, double{p.r}};
+  p.w = static_cast<float>(double{weight} * footprint_norm(f, scratch));
+  p.c = c;
+  p.hidden = hidden;
+  return p;
+}
 
-  // Pass 2 (per block or pixel): the points. §5.3's reduced point array: an r x r block becomes one
-  // point (mean colour, mean B, weight r^2 at the block centre) when all its pixels are blurred
-  // (C >= max(4, 2 r), min_block_coc), lie in one depth group (B range <= δ min C, eq. 5.3's test), and
-  // none is at a depth edge or has a hidden pixel. Blocks are splatted onto the full-resolution
-  // layers, so the per-pixel layer decomposition stays exact.
-  ws.slots.assign(2 * n, Point{});
-  const auto make_point = [&](double cx, double cy, float b, float weight, const glm::vec3& c, bool hidden,
-                              std::vector<double>& scratch) {
-    Point p;
-    p.cx = static_cast<float>(cx);
-    p.cy = static_cast<float>(cy);
-    p.r = static_cast<float>(std::min(0.5 * std::fabs(double{b}), r_cap));
-    p.b = b;
-    const Footprint f{s.aperture, cx, cy, double{p.r}};
-    p.w = static_cast<float>(double{weight} * footprint_norm(f, scratch));
-    p.c = c;
-    p.hidden = hidden;
-    return p;
-  };
-  if (reduce > 1) {
-    const int bw = w / reduce, bh = h / reduce;  // whole blocks only; the rest stays at full resolution
-    const auto r2 = static_cast<float>(reduce * reduce);
-    tbb::parallel_for(tbb::blocked_range<int>(0, bh), [&](const tbb::blocked_range<int>& brows) {
-      std::vector<double> scratch;
-      for (int by = brows.begin(); by < brows.end(); ++by) {
-        for (int bx = 0; bx < bw; ++bx) {
-          float cmin = std::numeric_limits<float>::max(), bmin = cmin, bmax = -cmin;
-          bool ok = true;
-          double bsum = 0;
-          glm::dvec3 csum(0);
-          for (int yy = by * reduce; ok && yy < (by + 1) * reduce; ++yy) {
-            for (int xx = bx * reduce; xx < (bx + 1) * reduce; ++xx) {
-              const std::size_t i = std::size_t(yy) * uw + std::size_t(xx);
-              if (ws.edge[i] || ws.hid_ok[i]) {
-                ok = false;
-                break;
-              }
-              cmin = std::min(cmin, ws.cv[i]);
-              bmin = std::min(bmin, ws.bv[i]);
-              bmax = std::max(bmax, ws.bv[i]);
-              bsum += double{ws.bv[i]};
-              csum += glm::dvec3(ws.col[i]);
+// §5.3's reduced point array: one point per r x r block that passes the tests (see build_points).
+void reduced_block_points(const Frame& fr, Workspace& ws) {
+  const int reduce = fr.reduce;
+  const std::size_t uw = fr.uw;
+  const int bw = fr.w / reduce, bh = fr.h / reduce;  // whole blocks only; the rest stays at full resolution
+  const auto r2 = static_cast<float>(reduce * reduce);
+  tbb::parallel_for(tbb::blocked_range<int>(0, bh), [&](const tbb::blocked_range<int>& brows) {
+    std::vector<double> scratch;
+    for (int by = brows.begin(); by < brows.end(); ++by) {
+      for (int bx = 0; bx < bw; ++bx) {
+        float cmin = std::numeric_limits<float>::max(), bmin = cmin, bmax = -cmin;
+        bool ok = true;
+        double bsum = 0;
+        glm::dvec3 csum(0);
+        for (int yy = by * reduce; ok && yy < (by + 1) * reduce; ++yy) {
+          for (int xx = bx * reduce; xx < (bx + 1) * reduce; ++xx) {
+            const std::size_t i = std::size_t(yy) * uw + std::size_t(xx);
+            if (ws.edge[i] || ws.hid_ok[i]) {
+              ok = false;
+              break;
             }
+            cmin = std::min(cmin, ws.cv[i]);
+            bmin = std::min(bmin, ws.bv[i]);
+            bmax = std::max(bmax, ws.bv[i]);
+            bsum += double{ws.bv[i]};
+            csum += glm::dvec3(ws.col[i]);
           }
-          if (!ok || cmin < min_block_coc || bmax - bmin > delta * cmin) continue;
-          for (int yy = by * reduce; yy < (by + 1) * reduce; ++yy) {
-            for (int xx = bx * reduce; xx < (bx + 1) * reduce; ++xx) ws.covered[std::size_t(yy) * uw + std::size_t(xx)] = 1;
-          }
-          const double inv = 1.0 / double{r2};
-          const std::size_t i0 = std::size_t(by * reduce) * uw + std::size_t(bx * reduce);
-          ws.slots[2 * i0] = make_point(bx * reduce + 0.5 * (reduce - 1), by * reduce + 0.5 * (reduce - 1),
-                                        static_cast<float>(bsum * inv), r2, sane(glm::vec3(csum * inv)), false, scratch);
         }
+        if (!ok || cmin < fr.min_block_coc || bmax - bmin > fr.delta * cmin) continue;
+        for (int yy = by * reduce; yy < (by + 1) * reduce; ++yy) {
+          for (int xx = bx * reduce; xx < (bx + 1) * reduce; ++xx) {
+            ws.covered[std::size_t(yy) * uw + std::size_t(xx)] = 1;
+          }
+        }
+        const double inv = 1.0 / double{r2};
+        const std::size_t i0 = std::size_t(by * reduce) * uw + std::size_t(bx * reduce);
+        ws.slots[2 * i0] = make_point(fr, bx * reduce + 0.5 * (reduce - 1), by * reduce + 0.5 * (reduce - 1),
+                                      static_cast<float>(bsum * inv), r2, sane(glm::vec3(csum * inv)), false, scratch);
       }
-    });
-  }
-  tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+    }
+  });
+}
+
+// One point per visible pixel not covered by a block, and one per accepted hidden pixel (§5.1.2).
+void pixel_points(const Frame& fr, Workspace& ws) {
+  const DofInput& in = fr.in;
+  const LeeSplatSettings& s = fr.s;
+  const int w = fr.w;
+  const std::size_t uw = fr.uw;
+  tbb::parallel_for(tbb::blocked_range<int>(0, fr.h), [&](const tbb::blocked_range<int>& rows) {
     std::vector<double> scratch;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < w; ++x) {
         const std::size_t i = std::size_t(y) * uw + std::size_t(x);
-        if (!ws.covered[i]) ws.slots[2 * i] = make_point(x, y, ws.bv[i], 1.0f, ws.col[i], false, scratch);
+        if (!ws.covered[i]) ws.slots[2 * i] = make_point(fr, x, y, ws.bv[i], 1.0f, ws.col[i], false, scratch);
         if (ws.hid_ok[i]) {
           glm::vec3 c = sane(in.hidden_color[i]);
           if (s.ldr_highlights) c = extrapolate_highlight(c, s);
-          ws.slots[2 * i + 1] = make_point(x, y, signed_coc(in.hidden_depth[i]), 1.0f, c, true, scratch);
+          ws.slots[2 * i + 1] = make_point(fr, x, y, fr.signed_coc(in.hidden_depth[i]), 1.0f, c, true, scratch);
         }
       }
     }
   });
+}
 
-  // Pass 3: bucket the points by (radius class, source row), keeping row-major order inside each
-  // bucket, so that every destination pixel sums its splats in a fixed order (determinism).
-  const auto uh = static_cast<std::size_t>(h);
+// Pass 2 (per block or pixel): the points. §5.3's reduced point array: an r x r block becomes one
+// point (mean colour, mean B, weight r^2 at the block centre) when all its pixels are blurred
+// (C >= max(4, 2 r), min_block_coc), lie in one depth group (B range <= δ min C, eq. 5.3's test), and
+// none is at a depth edge or has a hidden pixel. Blocks are splatted onto the full-resolution
+// layers, so the per-pixel layer decomposition stays exact.
+void build_points(const Frame& fr, Workspace& ws) {
+  ws.slots.assign(2 * fr.in.pixels(), Point{});
+  if (fr.reduce > 1) reduced_block_points(fr, ws);
+  pixel_points(fr, ws);
+}
+
+struct Buckets {
+  std::size_t npts = 0;                            // points in all buckets
+  std::array<std::size_t, kClasses> class_size{};  // points per radius class
+};
+
+// Pass 3: bucket the points by (radius class, source row), keeping row-major order inside each
+// bucket, so that every destination pixel sums its splats in a fixed order (determinism).
+Buckets bucket_points(const Frame& fr, Workspace& ws) {
+  const int h = fr.h;
+  const std::size_t uw = fr.uw, uh = fr.uh;
   ws.row_count.assign(kClasses * uh, 0);
   tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y < rows.end(); ++y) {
@@ -429,9 +481,9 @@ void lee_splat(const DofInput& in, const LeeSplatSettings& s, RgbImage& out, Lee
   });
   ws.offset.assign(kClasses * uh + 1, 0);
   for (std::size_t k = 0; k < kClasses * uh; ++k) ws.offset[k + 1] = ws.offset[k] + ws.row_count[k];
-  const std::size_t npts = ws.offset.back();
-  st.splats = npts;
-  ws.sorted.resize(npts);
+  Buckets bk;
+  bk.npts = ws.offset.back();
+  ws.sorted.resize(bk.npts);
   tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
     std::array<std::size_t, kClasses> at{};
     for (int y = rows.begin(); y < rows.end(); ++y) {
@@ -441,103 +493,172 @@ void lee_splat(const DofInput& in, const LeeSplatSettings& s, RgbImage& out, Lee
       }
     }
   });
-  std::array<std::size_t, kClasses> class_size{};
-  for (std::size_t k = 0; k < kClasses; ++k) class_size[k] = ws.offset[(k + 1) * uh] - ws.offset[k * uh];
+  for (std::size_t k = 0; k < kClasses; ++k) bk.class_size[k] = ws.offset[(k + 1) * uh] - ws.offset[k * uh];
+  return bk;
+}
 
-  // Pass 4 (per band of destination rows): splat onto the per-pixel layers, then compose.
-  ws.acc.resize(3 * n);
-  glm::vec4* const acc = ws.acc.data();
-  const float* const bv = ws.bv.data();
-  const float* const tv = ws.tv.data();
-  const int bands = (h + kBandRows - 1) / kBandRows;
-  tbb::parallel_for(tbb::blocked_range<int>(0, bands, 1), [&](const tbb::blocked_range<int>& br) {
-    std::vector<double> gx;
-    std::vector<float> wrow(uw);
-    for (int band = br.begin(); band < br.end(); ++band) {
-      const int y0 = band * kBandRows, y1 = std::min(h, y0 + kBandRows);
-      const std::size_t o0 = std::size_t(y0) * uw, o1 = std::size_t(y1) * uw;
-      std::fill(acc + 3 * o0, acc + 3 * o1, glm::vec4(0));
+// One TBB task of pass 4: the destination rows [y0, y1) of its current band, the per-pixel layers
+// and depth tests it splats against, and the task's scratch rows.
+struct BandSplat {
+  const Frame& fr;
+  glm::vec4* acc;           // per pixel L^0, L^1, L^2 (Workspace::acc)
+  const float* bv;          // B_v per pixel
+  const float* tv;          // δ C_v per pixel
+  std::vector<double> gx;   // Gaussian IDF along x of the point being splatted
+  std::vector<float> wrow;  // its weights over one footprint row
+  int y0 = 0, y1 = 0;
+};
 
-      const auto splat = [&](const Point& p) {
-        const Footprint f{s.aperture, double{p.cx}, double{p.cy}, double{p.r}};
-        const int qlo = std::max(y0, f.row_lo()), qhi = std::min(y1 - 1, f.row_hi());
-        if (qlo > qhi) return;
-        const bool gauss = s.aperture == Aperture::Gaussian;
-        const double a = gauss_a(f.r);
-        int gx0 = 0;
-        if (gauss) {
-          gx0 = std::max(0, ceil_int(f.cx - f.r - kRim));
-          const int gx1 = std::min(w - 1, floor_int(f.cx + f.r + kRim));
-          if (gx1 < gx0) return;
-          gx.resize(static_cast<std::size_t>(gx1 - gx0 + 1));
-          gauss_row(gx0 - f.cx, gx1 - gx0 + 1, a, gx.data());
-        }
-        // Hidden pixels never occlude (M^0 is not defined, §5.1.4): a hidden splat that would fall
-        // in front of q is kept in the same-depth layer.
-        const int lmin = p.hidden ? 1 : 0;
-        const float b = p.b;
-        const glm::vec4 cw(p.c * p.w, p.w);  // premultiplied colour and alpha of eq. 5.2
-        for (int qy = qlo; qy <= qhi; ++qy) {
-          int xa = 0, xb = 0;
-          if (!f.span(qy, xa, xb)) continue;
-          xa = std::max(xa, 0);
-          xb = std::min(xb, w - 1);
-          if (xa > xb) continue;
-          const std::size_t o = std::size_t(qy) * uw;
-          glm::vec4* const acc_row = acc + 3 * o;
-          if (gauss) {
-            const double dy = qy - f.cy;
-            const double gy = std::exp(-dy * dy * a);
-            for (int x = xa; x <= xb; ++x) wrow[std::size_t(x)] = static_cast<float>(gy * gx[std::size_t(x - gx0)]);
-            splat_row<true>(acc_row, bv + o, tv + o, wrow.data(), xa, xb, b, cw, lmin);
-          } else {
-            splat_row<false>(acc_row, bv + o, tv + o, nullptr, xa, xb, b, cw, lmin);
-          }
-        }
-      };
+// One point onto the band's rows of the layers: eq. 5.2's footprint, eq. 5.3's layer (splat_row).
+void splat_point(BandSplat& bd, const Point& p) {
+  const LeeSplatSettings& s = bd.fr.s;
+  const int w = bd.fr.w, y0 = bd.y0, y1 = bd.y1;
+  const std::size_t uw = bd.fr.uw;
+  std::vector<double>& gx = bd.gx;
+  std::vector<float>& wrow = bd.wrow;
+  const Footprint f{s.aperture, double{p.cx}, double{p.cy}, double{p.r}};
+  const int qlo = std::max(y0, f.row_lo()), qhi = std::min(y1 - 1, f.row_hi());
+  if (qlo > qhi) return;
+  const bool gauss = s.aperture == Aperture::Gaussian;
+  const double a = gauss_a(f.r);
+  int gx0 = 0;
+  if (gauss) {
+    gx0 = std::max(0, ceil_int(f.cx - f.r - kRim));
+    const int gx1 = std::min(w - 1, floor_int(f.cx + f.r + kRim));
+    if (gx1 < gx0) return;
+    gx.resize(static_cast<std::size_t>(gx1 - gx0 + 1));
+    gauss_row(gx0 - f.cx, gx1 - gx0 + 1, a, gx.data());
+  }
+  // Hidden pixels never occlude (M^0 is not defined, §5.1.4): a hidden splat that would fall
+  // in front of q is kept in the same-depth layer.
+  const int lmin = p.hidden ? 1 : 0;
+  const float b = p.b;
+  const glm::vec4 cw(p.c * p.w, p.w);  // premultiplied colour and alpha of eq. 5.2
+  for (int qy = qlo; qy <= qhi; ++qy) {
+    int xa = 0, xb = 0;
+    if (!f.span(qy, xa, xb)) continue;
+    xa = std::max(xa, 0);
+    xb = std::min(xb, w - 1);
+    if (xa > xb) continue;
+    const std::size_t o = std::size_t(qy) * uw;
+    glm::vec4* const acc_row = bd.acc + 3 * o;
+    if (gauss) {
+      const double dy = qy - f.cy;
+      const double gy = std::exp(-dy * dy * a);
+      for (int x = xa; x <= xb; ++x) wrow[std::size_t(x)] = static_cast<float>(gy * gx[std::size_t(x - gx0)]);
+      splat_row<true>(acc_row, bd.bv + o, bd.tv + o, wrow.data(), xa, xb, b, cw, lmin);
+    } else {
+      splat_row<false>(acc_row, bd.bv + o, bd.tv + o, nullptr, xa, xb, b, cw, lmin);
+    }
+  }
+}
 
-      for (std::size_t k = 0; k < kClasses; ++k) {
-        if (class_size[k] == 0) continue;
-        const int margin = (1 << k) + reduce + 1;
-        const int ylo = std::max(0, y0 - margin), yhi = std::min(h - 1, y1 - 1 + margin);
-        const std::size_t beg = ws.offset[k * uh + std::size_t(ylo)], end = ws.offset[k * uh + std::size_t(yhi) + 1];
-        for (std::size_t j = beg; j < end; ++j) splat(ws.sorted[j]);
-      }
+// Every point whose footprint can reach the band, class by class in bucket order (determinism).
+void splat_band(BandSplat& bd, const Workspace& ws, const Buckets& bk) {
+  const int h = bd.fr.h, y0 = bd.y0, y1 = bd.y1;
+  const std::size_t uh = bd.fr.uh;
+  for (std::size_t k = 0; k < kClasses; ++k) {
+    if (bk.class_size[k] == 0) continue;
+    const int margin = (1 << k) + bd.fr.reduce + 1;
+    const int ylo = std::max(0, y0 - margin), yhi = std::min(h - 1, y1 - 1 + margin);
+    const std::size_t beg = ws.offset[k * uh + std::size_t(ylo)], end = ws.offset[k * uh + std::size_t(yhi) + 1];
+    for (std::size_t j = beg; j < end; ++j) splat_point(bd, ws.sorted[j]);
+  }
+}
 
-      // Lee 2009, eq. 5.4: D <- L^2; D <- L^1 + (1 - L^1_a) D; D <- L^0 + (1 - L^0_a) D, with M^1, M^2
-      // already added into L^1, L^2 (they were splatted there). Each D is divided by its alpha
-      // (hyper/hypo intensities of overlapping CoCs); a layer's alpha above one (overlap) is taken
-      // as opaque in (1 - L_a) so that nothing behind it is subtracted. A pixel whose every layer is
-      // empty keeps its source colour (cannot happen: its own splat always lands on it).
-      for (std::size_t i = o0; i < o1; ++i) {
-        const glm::vec4* l = acc + 3 * i;
-        glm::vec3 d(l[2]);
-        float da = l[2].w;
-        if (da > kMinAlpha) {
-          d /= da;
-          da = 1;
-        } else {
-          d = glm::vec3(0);
-          da = 0;
-        }
-        for (const int k : {1, 0}) {
-          const float la = l[k].w;
-          const float keep = 1.0f - std::min(std::max(la, 0.0f), 1.0f);
-          d = glm::vec3(l[k]) + keep * d;
-          da = la + keep * da;
-          if (da > kMinAlpha) {
-            d /= da;
-            da = 1;
-          } else {
-            d = glm::vec3(0);
-            da = 0;
-          }
-        }
-        glm::vec3 r = da > 0 ? d : ws.col[i];
-        out[i] = {finite_or_zero(r.x), finite_or_zero(r.y), finite_or_zero(r.z)};
+// Lee 2009, eq. 5.4: D <- L^2; D <- L^1 + (1 - L^1_a) D; D <- L^0 + (1 - L^0_a) D, with M^1, M^2
+// already added into L^1, L^2 (they were splatted there). Each D is divided by its alpha
+// (hyper/hypo intensities of overlapping CoCs); a layer's alpha above one (overlap) is taken
+// as opaque in (1 - L_a) so that nothing behind it is subtracted. A pixel whose every layer is
+// empty keeps its source colour (cannot happen: its own splat always lands on it).
+void compose_layers(const glm::vec4* acc, const Workspace& ws, std::size_t o0, std::size_t o1, RgbImage& out) {
+  for (std::size_t i = o0; i < o1; ++i) {
+    const glm::vec4* l = acc + 3 * i;
+    glm::vec3 d(l[2]);
+    float da = l[2].w;
+    if (da > kMinAlpha) {
+      d /= da;
+      da = 1;
+    } else {
+      d = glm::vec3(0);
+      da = 0;
+    }
+    for (const int k : {1, 0}) {
+      const float la = l[k].w;
+      const float keep = 1.0f - std::min(std::max(la, 0.0f), 1.0f);
+      d = glm::vec3(l[k]) + keep * d;
+      da = la + keep * da;
+      if (da > kMinAlpha) {
+        d /= da;
+        da = 1;
+      } else {
+        d = glm::vec3(0);
+        da = 0;
       }
     }
+    glm::vec3 r = da > 0 ? d : ws.col[i];
+    out[i] = {finite_or_zero(r.x), finite_or_zero(r.y), finite_or_zero(r.z)};
+  }
+}
+
+// Pass 4 (per band of destination rows): splat onto the per-pixel layers, then compose.
+void splat_and_compose(const Frame& fr, Workspace& ws, const Buckets& bk, RgbImage& out) {
+  const int h = fr.h;
+  const std::size_t uw = fr.uw;
+  ws.acc.resize(3 * fr.in.pixels());
+  glm::vec4* const acc = ws.acc.data();
+  const int bands = (h + kBandRows - 1) / kBandRows;
+  tbb::parallel_for(tbb::blocked_range<int>(0, bands, 1), [&](const tbb::blocked_range<int>& br) {
+    BandSplat bd{fr, acc, ws.bv.data(), ws.tv.data(), {}, std::vector<float>(uw), 0, 0};
+    for (int band = br.begin(); band < br.end(); ++band) {
+      bd.y0 = band * kBandRows;
+      bd.y1 = std::min(h, bd.y0 + kBandRows);
+      const std::size_t o0 = std::size_t(bd.y0) * uw, o1 = std::size_t(bd.y1) * uw;
+      std::fill(acc + 3 * o0, acc + 3 * o1, glm::vec4(0));
+      splat_band(bd, ws, bk);
+      compose_layers(acc, ws, o0, o1, out);
+    }
   });
+}
+
+}  // namespace
+
+void lee_splat(const DofInput& in, const LeeSplatSettings& s, RgbImage& out, LeeSplatStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::size_t n = in.pixels();
+  out.assign(n, glm::vec3(0));
+  LeeSplatStats st;
+  const auto finish = [&] {
+    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (stats) *stats = st;
+  };
+  if (n == 0 || !in.color) return finish();
+  if (!in.depth) {  // no depth: nothing can be defocused
+    copy_input_finite(in, out);
+    return finish();
+  }
+
+  // The calling thread's buffers; the TBB workers in the stages reach them through this reference
+  // (a thread_local named inside a lambda would be the worker's own, empty, instance).
+  thread_local Workspace tls_workspace;
+  Workspace& ws = tls_workspace;
+  prepare_workspace(ws, n);
+  const Frame fr = make_frame(in, s);
+
+  const PixelSummary px = classify_pixels(fr, ws);
+  st.hidden_used = px.hidden_used;
+  // Every footprint is the pixel itself (C < 1 px everywhere, e.g. a pinhole): the result is the
+  // input, exactly (eq. 5.4 with one unit-weight splat per pixel is the identity).
+  if (px.max_c < 1.0f) {
+    copy_input_finite(in, out);
+    st.splats = n + st.hidden_used;
+    return finish();
+  }
+
+  build_points(fr, ws);
+  const Buckets bk = bucket_points(fr, ws);
+  st.splats = bk.npts;
+  splat_and_compose(fr, ws, bk, out);
   finish();
 }
 
