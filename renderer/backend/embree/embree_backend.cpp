@@ -594,36 +594,47 @@ void EmbreeBackend::set_scene(const Scene& scene) {
   im.has_scene = true;
 }
 
-void EmbreeBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
-  Impl& im = *impl_;
-  const Camera& cam = im.scene.camera;
+namespace {
+
+// The G-buffer's size: BackendSettings' override, else the camera's.
+struct ImageSize {
+  std::uint32_t width = 0, height = 0;
+};
+
+// Sizes `out` for the frame.
+ImageSize fit_gbuffer(const Camera& cam, const BackendSettings& settings, GBuffer& out) {
   const std::uint32_t width = settings.width > 0 ? settings.width : cam.width;
   const std::uint32_t height = settings.height > 0 ? settings.height : cam.height;
-  // Every texel is written below, so a buffer of the right size is reused without clearing.
+  // render() writes every texel, so a buffer of the right size is reused without clearing.
   const std::size_t texels = std::size_t{width} * height;
   if (out.width != width || out.height != height || out.color.size() != texels || out.depth.size() != texels ||
       out.object_id.size() != texels || out.normal.size() != texels || out.motion.size() != texels) {
     out.resize(width, height);
   }
-  im.stats = {};
-  im.shadow_rays = 0;
-  if (out.size() == 0) return;
+  return {width, height};
+}
 
-  const Scene& s = im.scene;
-  const glm::vec3 background = finite(s.background) ? s.background : glm::vec3(0.0f);
-  auto fill_background = [&](std::size_t i) {
+// A texel no object covers: the background at the far plane, no object, normal or motion.
+struct BackgroundTexel {
+  GBuffer& out;
+  const Camera& cam;
+  glm::vec3 background;
+  void operator()(std::size_t i) const {
     out.color[i] = background;
     out.depth[i] = std::isfinite(cam.far_m) ? cam.far_m : std::numeric_limits<float>::max();
     out.object_id[i] = 0;
     out.normal[i] = glm::vec3(0.0f);
     out.motion[i] = glm::vec2(0.0f);
-  };
+  }
+};
 
-  // Camera frame. A degenerate camera (up parallel to the view axis, bad FOV) renders background.
-  Frame f;
-  f.width = width;
-  f.height = height;
-  const glm::mat4 view = cam.view_at(time.now_s);
+// Camera frame: eye and axes from the inverse view matrix, image-plane half-extents at view depth 1,
+// clip range and thin lens. False for a degenerate camera (up parallel to the view axis, bad FOV),
+// which renders background.
+bool camera_frame(const Camera& cam, const glm::mat4& view, const BackendSettings& settings, ImageSize size,
+                  Frame& f) {
+  f.width = size.width;
+  f.height = size.height;
   const glm::mat4 cam_to_world = glm::inverse(view);
   const float tan_half = std::tan(glm::radians(cam.vertical_fov_deg) * 0.5f);
   const float aspect = static_cast<float>(cam.width) / static_cast<float>(cam.height);
@@ -639,15 +650,13 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   f.lens_on = settings.lens.active();
   f.lens_radius = static_cast<float>(settings.lens.aperture_radius_m);
   f.focus = static_cast<float>(settings.lens.focus_m);
-  const bool camera_ok = finite(view) && finite(cam_to_world) && std::isfinite(tan_half) && tan_half > 0 &&
-                         std::isfinite(f.tan_x) && std::isfinite(f.far_m) && f.far_m > f.near_m;
-  if (!im.has_scene || !camera_ok) {
-    for (std::size_t i = 0; i < out.size(); ++i) fill_background(i);
-    im.stats.primary_rays = 0;
-    return;
-  }
+  return finite(view) && finite(cam_to_world) && std::isfinite(tan_half) && tan_half > 0 && std::isfinite(f.tan_x) &&
+         std::isfinite(f.far_m) && f.far_m > f.near_m;
+}
 
-  // The levels of detail asked for: one geometry per object enabled.
+// The levels of detail asked for (BackendSettings::lod_levels): one geometry per object enabled.
+void select_lods(EmbreeBackend::Impl& im, const BackendSettings& settings, EmbreeGeometry geometry) {
+  const Scene& s = im.scene;
   bool lod_changed = false;
   for (ObjectRecord& r : im.records) {
     const Object& o = s.objects[r.object];
@@ -658,7 +667,7 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
     if (active == r.lod_active) continue;
     r.lod_active = active;
     lod_changed = true;
-    if (active && (options_.geometry != EmbreeGeometry::Instanced || r.enabled)) rtcEnableGeometry(r.geometry);
+    if (active && (geometry != EmbreeGeometry::Instanced || r.enabled)) rtcEnableGeometry(r.geometry);
     if (!active) rtcDisableGeometry(r.geometry);
     rtcCommitGeometry(r.geometry);
   }
@@ -666,9 +675,13 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
     rtcCommitScene(im.top);
     im.check("switching levels of detail");
   }
-  // Move animated objects to now_s (see the geometry note above set_scene).
-  set_time(time.now_s);
-  const bool instanced = options_.geometry == EmbreeGeometry::Instanced;
+}
+
+// Per-object matrices of the frame (ObjectFrame): the committed model matrix and its cofactor, and
+// for motion vectors object -> clip now and at the previous frame's time.
+void object_frames(const EmbreeBackend::Impl& im, const Camera& cam, const glm::mat4& view, const FrameTime& time,
+                   Frame& f) {
+  const Scene& s = im.scene;
   f.motion = time.previous_s != time.now_s;
   const glm::mat4 proj = cam.projection();
   f.view_proj_now = proj * view;
@@ -687,117 +700,189 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
       of.moves = of.clip_now != of.clip_prev && finite(of.clip_prev) && finite(of.clip_now);
     }
   }
+}
 
-  const bool shade = options_.shading;
-  const VisibilityFn visibility = settings.shadows ? &shadow_visible : nullptr;
-  const EmbreeTraversal traversal = options_.traversal;
-  const std::uint32_t peel = settings.peel;
-  RTCScene top = im.top;
+// What the tile pass reads, fixed for the frame; only `out`, im.shadow_rays and the per-task
+// ShadowContext are written.
+struct TilePass {
+  EmbreeBackend::Impl& im;
+  const Frame& f;
+  GBuffer& out;
+  const BackgroundTexel& fill_background;
+  const std::vector<std::uint8_t>& pixel_mask;
+  bool masked = false;  // pixel_mask covers the image: tiles without a marked pixel get background
+  RTCScene top = nullptr;
+  EmbreeTraversal traversal = EmbreeTraversal::Single;
+  std::uint32_t peel = 0;
+  bool instanced = false;
+  bool shade = true;
+  VisibilityFn visibility = nullptr;
+};
 
-  // Turns one traced hit into G-buffer texels.
-  auto resolve = [&](const Hit& h, std::uint32_t x, std::uint32_t y, ShadowContext& shadow) {
-    const std::size_t i = out.index(x, y);
-    const unsigned id = instanced ? h.inst : h.geom;
-    if (h.geom == kInvalidId || id >= im.records.size() || !std::isfinite(h.t)) {
-      fill_background(i);
-      return;
+// True if the tile [x0, x1) x [y0, y1) has a pixel marked in BackendSettings::pixel_mask.
+inline bool tile_marked(const TilePass& pass, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1) {
+  for (std::uint32_t y = y0; y < y1; ++y)
+    for (std::uint32_t x = x0; x < x1; ++x)
+      if (pass.pixel_mask[pass.out.index(x, y)] != 0) return true;
+  return false;
+}
+
+// The tile's primary hits with the chosen traversal, or the peeled layer when peel > 0.
+inline void trace_tile(const TilePass& pass, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1,
+                       TileHits& hits) {
+  const RTCScene top = pass.top;
+  const Frame& f = pass.f;
+  if (pass.peel > 0) {
+    trace_peeled(top, f, x0, y0, x1, y1, pass.instanced, pass.peel, hits);
+  } else {
+    switch (pass.traversal) {
+    case EmbreeTraversal::Single: trace_single(top, f, x0, y0, x1, y1, hits); break;
+    case EmbreeTraversal::Packet4: trace_packets<4>(top, f, x0, y0, x1, y1, hits); break;
+    case EmbreeTraversal::Packet8: trace_packets<8>(top, f, x0, y0, x1, y1, hits); break;
+    case EmbreeTraversal::Packet16: trace_packets<16>(top, f, x0, y0, x1, y1, hits); break;
+    case EmbreeTraversal::Stream: trace_stream(top, f, x0, y0, x1, y1, hits); break;
     }
-    const ObjectRecord& r = im.records[id];
-    const PreparedMesh& m = *r.mesh;
-    if (h.prim >= m.triangle_count()) {
-      fill_background(i);
-      return;
-    }
-    const ObjectFrame& of = f.objects[id];
-    const std::uint32_t i0 = m.indices[3 * std::size_t{h.prim}], i1 = m.indices[3 * std::size_t{h.prim} + 1],
-                        i2 = m.indices[3 * std::size_t{h.prim} + 2];
-    const float u = h.u, v = h.v, w = 1.0f - u - v;
-    glm::vec3 origin, dir;
-    f.ray(x, y, origin, dir);
+  }
+}
 
-    // The hit in object space, from the barycentrics: exact on the triangle, and the same point
-    // the motion vector follows back in time.
-    const glm::vec3 p_obj = w * m.positions[i0] + u * m.positions[i1] + v * m.positions[i2];
-    glm::vec3 p = transform_point(of.model_now, p_obj);
-    if (!finite(p)) p = origin + h.t * dir;
+// Turns one traced hit into G-buffer texels.
+inline void resolve_hit(const TilePass& pass, const Hit& h, std::uint32_t x, std::uint32_t y, ShadowContext& shadow) {
+  const EmbreeBackend::Impl& im = pass.im;
+  const Scene& s = im.scene;
+  const Frame& f = pass.f;
+  GBuffer& out = pass.out;
+  const std::size_t i = out.index(x, y);
+  const unsigned id = pass.instanced ? h.inst : h.geom;
+  if (h.geom == kInvalidId || id >= im.records.size() || !std::isfinite(h.t)) {
+    pass.fill_background(i);
+    return;
+  }
+  const ObjectRecord& r = im.records[id];
+  const PreparedMesh& m = *r.mesh;
+  if (h.prim >= m.triangle_count()) {
+    pass.fill_background(i);
+    return;
+  }
+  const ObjectFrame& of = f.objects[id];
+  const std::uint32_t i0 = m.indices[3 * std::size_t{h.prim}], i1 = m.indices[3 * std::size_t{h.prim} + 1],
+                      i2 = m.indices[3 * std::size_t{h.prim} + 2];
+  const float u = h.u, v = h.v, w = 1.0f - u - v;
+  glm::vec3 origin, dir;
+  f.ray(x, y, origin, dir);
 
-    // Shading normal: interpolated vertex normals, else the face normal, else towards the eye.
-    glm::vec3 n_obj = m.normals.empty() ? glm::vec3(0.0f) : w * m.normals[i0] + u * m.normals[i1] + v * m.normals[i2];
-    if (!normalize_checked(n_obj)) {
-      n_obj = glm::cross(m.positions[i1] - m.positions[i0], m.positions[i2] - m.positions[i0]);
-      if (!normalize_checked(n_obj)) n_obj = glm::vec3(0.0f);
-    }
-    glm::vec3 n = transform_vector(of.normal_now, n_obj);
-    if (!normalize_checked(n)) {
-      n = -dir;
-      if (!normalize_checked(n)) n = f.back;
-    }
-    if (glm::dot(n, dir) > 0.0f) n = -n;  // face the eye
+  // The hit in object space, from the barycentrics: exact on the triangle, and the same point
+  // the motion vector follows back in time.
+  const glm::vec3 p_obj = w * m.positions[i0] + u * m.positions[i1] + v * m.positions[i2];
+  glm::vec3 p = transform_point(of.model_now, p_obj);
+  if (!finite(p)) p = origin + h.t * dir;
 
-    out.depth[i] = h.t;  // view-axis depth: the ray direction has unit length along the view axis
-    out.object_id[i] = s.objects[r.object].id;
-    out.normal[i] = n;
-    glm::vec3 color(0.0f);
-    if (shade) {
-      // Push shadow-ray origins off the surface by a distance relative to the coordinates' size
-      // (float spacing grows with magnitude).
-      const float scale = std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
-      shadow.epsilon = 1e-4f * scale;
-      shadow.offset = n * shadow.epsilon;
-      color = shade_local(s, *r.material, p, n, origin, visibility, &shadow);
-    }
-    out.color[i] = finite(color) ? color : glm::vec3(0.0f);
+  // Shading normal: interpolated vertex normals, else the face normal, else towards the eye.
+  glm::vec3 n_obj = m.normals.empty() ? glm::vec3(0.0f) : w * m.normals[i0] + u * m.normals[i1] + v * m.normals[i2];
+  if (!normalize_checked(n_obj)) {
+    n_obj = glm::cross(m.positions[i1] - m.positions[i0], m.positions[i2] - m.positions[i0]);
+    if (!normalize_checked(n_obj)) n_obj = glm::vec3(0.0f);
+  }
+  glm::vec3 n = transform_vector(of.normal_now, n_obj);
+  if (!normalize_checked(n)) {
+    n = -dir;
+    if (!normalize_checked(n)) n = f.back;
+  }
+  if (glm::dot(n, dir) > 0.0f) n = -n;  // face the eye
 
-    glm::vec2 motion(0.0f);
-    if (of.moves) {
-      glm::vec2 now_px, prev_px;
-      if (to_pixels(of.clip_now, p_obj, f, now_px) && to_pixels(of.clip_prev, p_obj, f, prev_px)) {
-        motion = now_px - prev_px;
-        if (!std::isfinite(motion.x) || !std::isfinite(motion.y)) motion = glm::vec2(0.0f);
-      }
-    }
-    out.motion[i] = motion;
-  };
+  out.depth[i] = h.t;  // view-axis depth: the ray direction has unit length along the view axis
+  out.object_id[i] = s.objects[r.object].id;
+  out.normal[i] = n;
+  glm::vec3 color(0.0f);
+  if (pass.shade) {
+    // Push shadow-ray origins off the surface by a distance relative to the coordinates' size
+    // (float spacing grows with magnitude).
+    const float scale = std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+    shadow.epsilon = 1e-4f * scale;
+    shadow.offset = n * shadow.epsilon;
+    color = shade_local(s, *r.material, p, n, origin, pass.visibility, &shadow);
+  }
+  out.color[i] = finite(color) ? color : glm::vec3(0.0f);
 
-  const bool masked = settings.pixel_mask.size() == out.size();
-  const auto tile_marked = [&](std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1) {
-    for (std::uint32_t y = y0; y < y1; ++y)
-      for (std::uint32_t x = x0; x < x1; ++x)
-        if (settings.pixel_mask[out.index(x, y)] != 0) return true;
-    return false;
-  };
+  glm::vec2 motion(0.0f);
+  if (of.moves) {
+    glm::vec2 now_px, prev_px;
+    if (to_pixels(of.clip_now, p_obj, f, now_px) && to_pixels(of.clip_prev, p_obj, f, prev_px)) {
+      motion = now_px - prev_px;
+      if (!std::isfinite(motion.x) || !std::isfinite(motion.y)) motion = glm::vec2(0.0f);
+    }
+  }
+  out.motion[i] = motion;
+}
+
+// The image in kTile x kTile tiles, one TBB task each: trace a tile's primary rays, then resolve its
+// hits into texels. Counts the shadow rays into im.shadow_rays.
+void render_tiles(const TilePass& pass) {
+  const Frame& f = pass.f;
+  GBuffer& out = pass.out;
   const std::uint32_t tiles_x = (f.width + kTile - 1) / kTile, tiles_y = (f.height + kTile - 1) / kTile;
   const std::size_t tile_count = std::size_t{tiles_x} * tiles_y;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& range) {
     TileHits hits;
     ShadowContext shadow;
-    shadow.scene = top;
+    shadow.scene = pass.top;
     for (std::size_t t = range.begin(); t != range.end(); ++t) {
       const auto tx = static_cast<std::uint32_t>(t % tiles_x), ty = static_cast<std::uint32_t>(t / tiles_x);
       const std::uint32_t x0 = tx * kTile, y0 = ty * kTile;
       const std::uint32_t x1 = std::min(x0 + kTile, f.width), y1 = std::min(y0 + kTile, f.height);
-      if (masked && !tile_marked(x0, y0, x1, y1)) {
+      if (pass.masked && !tile_marked(pass, x0, y0, x1, y1)) {
         for (std::uint32_t y = y0; y < y1; ++y)
-          for (std::uint32_t x = x0; x < x1; ++x) fill_background(out.index(x, y));
+          for (std::uint32_t x = x0; x < x1; ++x) pass.fill_background(out.index(x, y));
         continue;
       }
-      if (peel > 0) {
-        trace_peeled(top, f, x0, y0, x1, y1, instanced, peel, hits);
-      } else {
-        switch (traversal) {
-        case EmbreeTraversal::Single: trace_single(top, f, x0, y0, x1, y1, hits); break;
-        case EmbreeTraversal::Packet4: trace_packets<4>(top, f, x0, y0, x1, y1, hits); break;
-        case EmbreeTraversal::Packet8: trace_packets<8>(top, f, x0, y0, x1, y1, hits); break;
-        case EmbreeTraversal::Packet16: trace_packets<16>(top, f, x0, y0, x1, y1, hits); break;
-        case EmbreeTraversal::Stream: trace_stream(top, f, x0, y0, x1, y1, hits); break;
-        }
-      }
+      trace_tile(pass, x0, y0, x1, y1, hits);
       for (std::uint32_t y = y0; y < y1; ++y) {
-        for (std::uint32_t x = x0; x < x1; ++x) resolve(hits[tile_slot(x - x0, y - y0)], x, y, shadow);
+        for (std::uint32_t x = x0; x < x1; ++x) resolve_hit(pass, hits[tile_slot(x - x0, y - y0)], x, y, shadow);
       }
     }
-    im.shadow_rays.fetch_add(shadow.rays, std::memory_order_relaxed);
+    pass.im.shadow_rays.fetch_add(shadow.rays, std::memory_order_relaxed);
   });
+}
+
+}  // namespace
+
+void EmbreeBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+  Impl& im = *impl_;
+  const Camera& cam = im.scene.camera;
+  const ImageSize size = fit_gbuffer(cam, settings, out);
+  im.stats = {};
+  im.shadow_rays = 0;
+  if (out.size() == 0) return;
+
+  const Scene& s = im.scene;
+  const BackgroundTexel fill_background{out, cam, finite(s.background) ? s.background : glm::vec3(0.0f)};
+
+  Frame f;
+  const glm::mat4 view = cam.view_at(time.now_s);
+  const bool camera_ok = camera_frame(cam, view, settings, size, f);
+  if (!im.has_scene || !camera_ok) {
+    for (std::size_t i = 0; i < out.size(); ++i) fill_background(i);
+    im.stats.primary_rays = 0;
+    return;
+  }
+
+  select_lods(im, settings, options_.geometry);
+  // Move animated objects to now_s (see the geometry note above set_scene).
+  set_time(time.now_s);
+  object_frames(im, cam, view, time, f);
+
+  const TilePass pass{.im = im,
+                      .f = f,
+                      .out = out,
+                      .fill_background = fill_background,
+                      .pixel_mask = settings.pixel_mask,
+                      .masked = settings.pixel_mask.size() == out.size(),
+                      .top = im.top,
+                      .traversal = options_.traversal,
+                      .peel = settings.peel,
+                      .instanced = options_.geometry == EmbreeGeometry::Instanced,
+                      .shade = options_.shading,
+                      .visibility = settings.shadows ? &shadow_visible : nullptr};
+  render_tiles(pass);
   im.stats.primary_rays = out.size();
   im.stats.shadow_rays = im.shadow_rays.load();
 }
