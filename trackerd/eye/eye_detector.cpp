@@ -163,23 +163,14 @@ struct Blob {
   double inner = 0, surround = 0;
 };
 
-// Świrski 2012 §3.1: pupil candidates as the strongest dark-centre / bright-surround box responses
-// over positions and radii. Keeps the best `count` candidates that do not overlap (greedy
-// non-maximum suppression), best first: the fit decides among them.
-std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, int downscale, double rmin, double rmax,
-                                  std::size_t count, cv::Mat& small, cv::Mat& integral) {
-  const cv::Mat region = grey(window);
-  if (downscale > 1 && region.cols >= 2 * downscale && region.rows >= 2 * downscale) {
-    cv::resize(region, small, cv::Size(region.cols / downscale, region.rows / downscale), 0, 0, cv::INTER_AREA);
-  } else {
-    small = region;
-  }
-  cv::integral(small, integral, CV_64F);
-  const double sx = static_cast<double>(region.cols) / small.cols, sy = static_cast<double>(region.rows) / small.rows;
-  const double k = (sx + sy) / 2;
+// The best `count` non-overlapping candidates offered so far (greedy non-maximum suppression): a
+// candidate overlapping a kept one replaces it only when it scores higher.
+struct TopBlobs {
+  std::size_t count = 0;
   std::vector<Blob> top;
   std::vector<double> top_score;
-  const auto offer = [&](const Blob& b, double score) {
+
+  void offer(const Blob& b, double score) {
     std::size_t worst = 0;
     bool overlapped = false;
     for (std::size_t i = 0; i < top.size(); ++i) {
@@ -210,7 +201,34 @@ std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, i
       top[worst] = b;
       top_score[worst] = score;
     }
-  };
+  }
+
+  std::vector<Blob> best_first() const {
+    std::vector<std::size_t> order(top.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return top_score[a] > top_score[b]; });
+    std::vector<Blob> sorted;
+    for (std::size_t i : order) sorted.push_back(top[i]);
+    return sorted;
+  }
+};
+
+// Świrski 2012 §3.1: pupil candidates as the strongest dark-centre / bright-surround box responses
+// over positions and radii. Keeps the best `count` candidates that do not overlap (greedy
+// non-maximum suppression), best first: the fit decides among them.
+std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, int downscale, double rmin, double rmax,
+                                  std::size_t count, cv::Mat& small, cv::Mat& integral) {
+  const cv::Mat region = grey(window);
+  if (downscale > 1 && region.cols >= 2 * downscale && region.rows >= 2 * downscale) {
+    cv::resize(region, small, cv::Size(region.cols / downscale, region.rows / downscale), 0, 0, cv::INTER_AREA);
+  } else {
+    small = region;
+  }
+  cv::integral(small, integral, CV_64F);
+  const double sx = static_cast<double>(region.cols) / small.cols, sy = static_cast<double>(region.rows) / small.rows;
+  const double k = (sx + sy) / 2;
+  TopBlobs top;
+  top.count = count;
   for (double r_full = rmin; r_full <= rmax * 1.0001; r_full *= 1.3) {
     const int inner = std::max(1, static_cast<int>(std::lround(0.8 * r_full / k)));  // half-size of the inner box
     const int outer = std::max(inner + 1, static_cast<int>(std::lround(1.8 * r_full / k)));
@@ -232,23 +250,18 @@ std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, i
         // Contrast alone prefers the iris (a larger dark disc with a brighter surround); the pupil
         // is also the darkest disc, so its inner level counts against a candidate.
         const double score = response - inner_mean;
-        if (top.size() == count && score <= *std::min_element(top_score.begin(), top_score.end())) continue;
+        if (top.top.size() == count && score <= *std::min_element(top.top_score.begin(), top.top_score.end())) continue;
         Blob b;
         b.centre = {window.x + (x + 0.5) * sx - 0.5, window.y + (y + 0.5) * sy - 0.5};
         b.radius = r_full;
         b.response = response;
         b.inner = inner_mean;
         b.surround = ring_mean;
-        offer(b, score);
+        top.offer(b, score);
       }
     }
   }
-  std::vector<std::size_t> order(top.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return top_score[a] > top_score[b]; });
-  std::vector<Blob> sorted;
-  for (std::size_t i : order) sorted.push_back(top[i]);
-  return sorted;
+  return top.best_first();
 }
 
 // A percentile of the pixels in `roi` (8-bit).
@@ -512,64 +525,72 @@ struct FitResult {
   double rms = 0;
 };
 
-std::optional<FitResult> fit_pupil(const std::vector<EdgePoint>& edges, FitMethod method, const cv::Point2d& origin,
-                                   double rmin, double rmax, std::mt19937& rng) {
-  const std::size_t n = edges.size();
-  if (n < 6) return std::nullopt;
-  std::vector<cv::Point2d> pts(n);
-  for (std::size_t i = 0; i < n; ++i) pts[i] = edges[i].p;
-  const auto plausible = [&](const Ellipse& e) {
+// The sizes and places a pupil ellipse may have: radius within [rmin, rmax] (with slack for
+// foreshortening) and centre near where the search started.
+struct PupilBounds {
+  cv::Point2d origin;
+  double rmin = 0, rmax = 0;
+
+  bool plausible(const Ellipse& e) const {
     return e.major / 2 <= rmax * 1.6 && e.major / 2 >= rmin && e.minor / 2 >= rmin * 0.6 && e.minor / e.major > 0.2 &&
            std::hypot(e.centre.x - origin.x, e.centre.y - origin.y) < rmax * 1.5;
-  };
-  const double tolerance = std::max(0.8, 0.03 * rmin * 2);
+  }
+};
+
+// Świrski 2012 §3.3 (Fischler & Bolles 1981): conics through random five-point samples, scored by
+// the MSAC cost; returns the inliers of the cheapest plausible ellipse (empty when none).
+std::vector<std::size_t> ransac_inliers(const std::vector<cv::Point2d>& pts, const PupilBounds& bounds,
+                                        double tolerance, std::mt19937& rng) {
+  const std::size_t n = pts.size();
+  const cv::Point2d& origin = bounds.origin;
   std::vector<std::size_t> best_inliers;
-  if (method == FitMethod::Ransac) {
-    double scale = 0;
-    for (const auto& p : pts) scale += std::hypot(p.x - origin.x, p.y - origin.y);
-    scale = std::max(1.0, scale / static_cast<double>(n));
-    std::uniform_int_distribution<std::size_t> pick(0, n - 1);
-    double best_cost = 1e300;
-    const int iterations = 60;
-    for (int it = 0; it < iterations; ++it) {
-      std::array<std::size_t, 5> idx{};
-      for (std::size_t k = 0; k < 5; ++k) {
-        bool fresh = false;
-        while (!fresh) {
-          idx[k] = pick(rng);
-          fresh = std::find(idx.begin(), idx.begin() + static_cast<std::ptrdiff_t>(k), idx[k]) == idx.begin() + static_cast<std::ptrdiff_t>(k);
-        }
-      }
-      std::array<cv::Point2d, 5> sample;
-      for (std::size_t k = 0; k < 5; ++k) sample[k] = pts[idx[k]];
-      const auto conic = conic_through(sample, origin, scale);
-      if (!conic) continue;
-      const auto e = ellipse_of(*conic);
-      if (!e || !plausible(*e)) continue;
-      // MSAC cost: inliers cost their squared distance, outliers a constant.
-      double cost = 0;
-      std::vector<std::size_t> inliers;
-      for (std::size_t i = 0; i < n; ++i) {
-        const double d = conic->distance(pts[i]);
-        if (d < tolerance) {
-          cost += d * d;
-          inliers.push_back(i);
-        } else {
-          cost += tolerance * tolerance;
-        }
-      }
-      if (cost < best_cost) {
-        best_cost = cost;
-        best_inliers.swap(inliers);
-        if (best_inliers.size() >= n * 95 / 100) break;
+  double scale = 0;
+  for (const auto& p : pts) scale += std::hypot(p.x - origin.x, p.y - origin.y);
+  scale = std::max(1.0, scale / static_cast<double>(n));
+  std::uniform_int_distribution<std::size_t> pick(0, n - 1);
+  double best_cost = 1e300;
+  const int iterations = 60;
+  for (int it = 0; it < iterations; ++it) {
+    std::array<std::size_t, 5> idx{};
+    for (std::size_t k = 0; k < 5; ++k) {
+      bool fresh = false;
+      while (!fresh) {
+        idx[k] = pick(rng);
+        fresh = std::find(idx.begin(), idx.begin() + static_cast<std::ptrdiff_t>(k), idx[k]) == idx.begin() + static_cast<std::ptrdiff_t>(k);
       }
     }
-    if (best_inliers.size() < 6) return std::nullopt;
-  } else {
-    best_inliers.resize(n);
-    std::iota(best_inliers.begin(), best_inliers.end(), std::size_t{0});
+    std::array<cv::Point2d, 5> sample;
+    for (std::size_t k = 0; k < 5; ++k) sample[k] = pts[idx[k]];
+    const auto conic = conic_through(sample, origin, scale);
+    if (!conic) continue;
+    const auto e = ellipse_of(*conic);
+    if (!e || !bounds.plausible(*e)) continue;
+    // MSAC cost: inliers cost their squared distance, outliers a constant.
+    double cost = 0;
+    std::vector<std::size_t> inliers;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double d = conic->distance(pts[i]);
+      if (d < tolerance) {
+        cost += d * d;
+        inliers.push_back(i);
+      } else {
+        cost += tolerance * tolerance;
+      }
+    }
+    if (cost < best_cost) {
+      best_cost = cost;
+      best_inliers.swap(inliers);
+      if (best_inliers.size() >= n * 95 / 100) break;
+    }
   }
-  // Least-squares refit on the inliers, then once more with the points it explains.
+  return best_inliers;
+}
+
+// Least-squares refit on the inliers, then (after RANSAC) once more with the points it explains;
+// `inliers` ends as the points the returned ellipse was fitted to.
+std::optional<Ellipse> refit_on_inliers(const std::vector<cv::Point2d>& pts, FitMethod method, double tolerance,
+                                        std::vector<std::size_t>& best_inliers) {
+  const std::size_t n = pts.size();
   std::optional<Ellipse> e;
   for (int round = 0; round < (method == FitMethod::Ransac ? 2 : 1); ++round) {
     std::vector<cv::Point2d> in;
@@ -585,7 +606,27 @@ std::optional<FitResult> fit_pupil(const std::vector<EdgePoint>& edges, FitMetho
     if (again.size() < 6) break;
     best_inliers.swap(again);
   }
-  if (!e || !plausible(*e)) return std::nullopt;
+  return e;
+}
+
+std::optional<FitResult> fit_pupil(const std::vector<EdgePoint>& edges, FitMethod method, const cv::Point2d& origin,
+                                   double rmin, double rmax, std::mt19937& rng) {
+  const std::size_t n = edges.size();
+  if (n < 6) return std::nullopt;
+  std::vector<cv::Point2d> pts(n);
+  for (std::size_t i = 0; i < n; ++i) pts[i] = edges[i].p;
+  const PupilBounds bounds{origin, rmin, rmax};
+  const double tolerance = std::max(0.8, 0.03 * rmin * 2);
+  std::vector<std::size_t> best_inliers;
+  if (method == FitMethod::Ransac) {
+    best_inliers = ransac_inliers(pts, bounds, tolerance, rng);
+    if (best_inliers.size() < 6) return std::nullopt;
+  } else {
+    best_inliers.resize(n);
+    std::iota(best_inliers.begin(), best_inliers.end(), std::size_t{0});
+  }
+  const std::optional<Ellipse> e = refit_on_inliers(pts, method, tolerance, best_inliers);
+  if (!e || !bounds.plausible(*e)) return std::nullopt;
   FitResult result;
   result.ellipse = *e;
   result.inliers = best_inliers;
@@ -692,19 +733,21 @@ struct Pairing {
   int matches = 0;
 };
 
-Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layout, double tolerance,
-                         double last_scale, const std::optional<cv::Point2d>& last_reference) {
-  Pairing best;
-  best.led_of.assign(glints.size(), -1);
-  const auto& leds = layout.positions_mm;
-  const std::size_t m = leds.size(), g = glints.size();
-  if (m == 0 || g == 0) return best;
+// The search over placements (scale s, translation t) of the layout onto the glints; keeps the best so far.
+struct LayoutSearch {
+  const std::vector<Glint>& glints;
+  const std::vector<cv::Point2d>& leds;
   cv::Point2d layout_centroid;
-  for (const auto& l : leds) layout_centroid += l;
-  layout_centroid *= 1.0 / static_cast<double>(m);
+  double tolerance = 0;
+  double last_scale = 0;
+  Pairing best;
   int best_matches = 0;
   double best_cost = 1e300;
-  const auto evaluate = [&](double s, const cv::Point2d& t, double extra_cost) {
+
+  // Each LED takes the nearest unused glint within the tolerance; more matches win, then the lower
+  // cost (residual, `extra_cost`, and the scale's distance from the last one).
+  void evaluate(double s, const cv::Point2d& t, double extra_cost) {
+    const std::size_t m = leds.size(), g = glints.size();
     std::vector<int> led_of(g, -1);
     int matches = 0;
     double residual = 0;
@@ -735,36 +778,61 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
       best.scale = s;
       best.reference = s * layout_centroid + t;
     }
-  };
-  if (m >= 2) {
-    for (std::size_t a = 0; a < m; ++a)
-      for (std::size_t b = 0; b < m; ++b) {
-        if (a == b) continue;
-        const cv::Point2d dl = leds[b] - leds[a];
-        const double dl2 = dl.dot(dl);
-        if (dl2 <= 0) continue;
-        for (std::size_t i = 0; i < g; ++i)
-          for (std::size_t j = 0; j < g; ++j) {
-            if (i == j) continue;
-            const cv::Point2d dg = glints[j].centre - glints[i].centre;
-            const double s = dg.dot(dl) / dl2;
-            if (!(s > 0)) continue;
-            const double cross = std::abs(dg.x * dl.y - dg.y * dl.x) / std::sqrt(dl2);
-            if (cross > 0.35 * std::hypot(dg.x, dg.y) + tolerance) continue;  // rotated by more than ~20 deg
-            evaluate(s, glints[i].centre - s * leds[a], 0.0);
-          }
-      }
   }
-  if (best_matches < 2 && last_scale > 0) {
-    // One glint: place the layout by the scale seen in earlier frames, trying each LED for it; every
-    // choice fits that glint exactly, so the one keeping the reference nearest the last frame's wins.
-    for (std::size_t a = 0; a < m; ++a)
-      for (std::size_t i = 0; i < g; ++i) {
-        const cv::Point2d t = glints[i].centre - last_scale * leds[a];
-        const cv::Point2d reference = last_scale * layout_centroid + t;
-        evaluate(last_scale, t, last_reference ? std::hypot(reference.x - last_reference->x, reference.y - last_reference->y) : 0.0);
-      }
-  }
+};
+
+// Every ordered glint pair taken as the image of every ordered LED pair fixes a scale and translation.
+void place_by_glint_pairs(LayoutSearch& search) {
+  const auto& leds = search.leds;
+  const auto& glints = search.glints;
+  const std::size_t m = leds.size(), g = glints.size();
+  for (std::size_t a = 0; a < m; ++a)
+    for (std::size_t b = 0; b < m; ++b) {
+      if (a == b) continue;
+      const cv::Point2d dl = leds[b] - leds[a];
+      const double dl2 = dl.dot(dl);
+      if (dl2 <= 0) continue;
+      for (std::size_t i = 0; i < g; ++i)
+        for (std::size_t j = 0; j < g; ++j) {
+          if (i == j) continue;
+          const cv::Point2d dg = glints[j].centre - glints[i].centre;
+          const double s = dg.dot(dl) / dl2;
+          if (!(s > 0)) continue;
+          const double cross = std::abs(dg.x * dl.y - dg.y * dl.x) / std::sqrt(dl2);
+          if (cross > 0.35 * std::hypot(dg.x, dg.y) + search.tolerance) continue;  // rotated by more than ~20 deg
+          search.evaluate(s, glints[i].centre - s * leds[a], 0.0);
+        }
+    }
+}
+
+// One glint: place the layout by the scale seen in earlier frames, trying each LED for it; every
+// choice fits that glint exactly, so the one keeping the reference nearest the last frame's wins.
+void place_by_last_scale(LayoutSearch& search, const std::optional<cv::Point2d>& last_reference) {
+  const double last_scale = search.last_scale;
+  for (std::size_t a = 0; a < search.leds.size(); ++a)
+    for (std::size_t i = 0; i < search.glints.size(); ++i) {
+      const cv::Point2d t = search.glints[i].centre - last_scale * search.leds[a];
+      const cv::Point2d reference = last_scale * search.layout_centroid + t;
+      search.evaluate(last_scale, t,
+                      last_reference ? std::hypot(reference.x - last_reference->x, reference.y - last_reference->y)
+                                     : 0.0);
+    }
+}
+
+Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layout, double tolerance,
+                         double last_scale, const std::optional<cv::Point2d>& last_reference) {
+  LayoutSearch search{glints, layout.positions_mm, {}, tolerance, last_scale, {}};
+  Pairing& best = search.best;
+  best.led_of.assign(glints.size(), -1);
+  const auto& leds = layout.positions_mm;
+  const std::size_t m = leds.size(), g = glints.size();
+  if (m == 0 || g == 0) return best;
+  cv::Point2d layout_centroid;
+  for (const auto& l : leds) layout_centroid += l;
+  layout_centroid *= 1.0 / static_cast<double>(m);
+  search.layout_centroid = layout_centroid;
+  if (m >= 2) place_by_glint_pairs(search);
+  if (search.best_matches < 2 && last_scale > 0) place_by_last_scale(search, last_reference);
   if (m == 1 && g >= 1) {
     best.led_of.assign(g, -1);
     best.led_of[0] = 0;  // the caller sorted glints nearest the pupil first
@@ -772,9 +840,281 @@ Pairing pair_with_layout(const std::vector<Glint>& glints, const LedLayout& layo
     best.valid = true;
     return best;
   }
-  best.valid = best_matches >= 2 || (best_matches == 1 && last_scale > 0);
-  best.matches = best_matches;
+  best.valid = search.best_matches >= 2 || (search.best_matches == 1 && last_scale > 0);
+  best.matches = search.best_matches;
   return best;
+}
+
+// What every pupil search in one frame shares: the frame, its scale, the detector's reused buffers
+// and the random stream.
+struct FrameSearch {
+  const DetectorSettings& settings;
+  const cv::Mat& grey;
+  cv::Mat& smooth;         // reused: the blurred work windows
+  cv::Mat& small;          // reused: the downscaled search window
+  cv::Mat& integral;       // reused: its integral image
+  double size = 0;         // the image's smaller side, px
+  double rmin = 0, rmax = 0;  // pupil radius range, px
+  cv::Rect frame;
+  std::vector<EyeDetector::CandidateFit>* candidates = nullptr;  // every fitted candidate, when asked for
+  std::mt19937 rng{12345};  // deterministic RANSAC: the same frame gives the same answer
+};
+
+// One search's outcome: the best pupil fit (or why there is none) and the glints of the window.
+struct PupilAttempt {
+  bool ok = false;
+  Ellipse ellipse;
+  double confidence = 0;
+  PupilEvidence evidence;
+  std::string why;
+  GlintCandidates glints;
+};
+
+// One candidate blob's grey levels and the blurred window its edge search reads.
+struct CandidateWindow {
+  double pupil_level = 0;  // grey level inside the pupil
+  double contrast = 0;     // surround minus pupil level
+  double reach = 0;        // px: how far rays walk
+  cv::Rect work;
+};
+
+// The pupil's grey level: a low percentile of the blob's inner box (robust to glints in it).
+// False (with `a.why`) when the blob has no inside or no contrast.
+bool measure_pupil_level(const FrameSearch& search, const Blob& blob, CandidateWindow& w, PupilAttempt& a) {
+  const double r0 = blob.radius;
+  const cv::Rect inner_box =
+      cv::Rect(static_cast<int>(blob.centre.x - 0.7 * r0), static_cast<int>(blob.centre.y - 0.7 * r0),
+               std::max(1, static_cast<int>(1.4 * r0)), std::max(1, static_cast<int>(1.4 * r0))) &
+      search.frame;
+  if (inner_box.area() < 1) {
+    a.why = "no dark blob";
+    return false;
+  }
+  w.pupil_level = percentile(search.grey(inner_box), 0.3);
+  w.contrast = blob.surround - w.pupil_level;
+  if (w.contrast < 10) {
+    a.why = "no contrast around the dark blob";
+    return false;
+  }
+  return true;
+}
+
+// Blurs only the part of the frame the edge search around this blob can reach.
+void blur_work_window(FrameSearch& search, const Blob& blob, CandidateWindow& w) {
+  w.reach = std::max(1.2 * search.rmax, 8.0);  // rays stop at the first edge: reaching far is cheap
+  const double margin = 1.5 * w.reach + 3;  // the second Starburst round may start from a moved centre
+  w.work = cv::Rect(static_cast<int>(blob.centre.x - margin), static_cast<int>(blob.centre.y - margin),
+                    static_cast<int>(2 * margin) + 1, static_cast<int>(2 * margin) + 1) & search.frame;
+  if (search.smooth.size() != search.grey.size()) search.smooth.create(search.grey.size(), CV_8U);
+  cv::GaussianBlur(search.grey(w.work), search.smooth(w.work), cv::Size(3, 3), 0.8);
+}
+
+struct StarburstFit {
+  std::optional<FitResult> fit;
+  std::vector<EdgePoint> edges;  // of the last round
+};
+
+// Starburst (Li et al. 2005 §2.3): edge points around the blob, eyelid runs removed, the ellipse
+// fitted; with rays, a second round from the fitted centre.
+StarburstFit starburst_fit(FrameSearch& search, const Blob& blob, const GlintCandidates& glints,
+                           const CandidateWindow& w) {
+  const DetectorSettings& settings = search.settings;
+  const cv::Mat& smooth = search.smooth;
+  const double min_step = std::max(6.0, 0.3 * w.contrast);
+  cv::Point2d from = blob.centre;
+  StarburstFit out;
+  for (int round = 0; round < 2; ++round) {
+    out.edges = settings.edges == EdgeMethod::Rays
+                    ? ray_edges(smooth, w.work, glints, from, w.pupil_level, min_step, w.reach, settings.rays)
+                    : canny_edges(smooth, glints, from, w.contrast, std::max(3.0 * blob.radius, 8.0));
+    remove_eyelid_lines(out.edges, blob.radius, search.rng);
+    out.fit = fit_pupil(out.edges, settings.fit, from, search.rmin, search.rmax, search.rng);
+    if (!out.fit) break;
+    const cv::Point2d moved = out.fit->ellipse.centre - from;
+    // Starburst iterates from the new centre: rays from near the true centre sample the outline evenly.
+    if (std::hypot(moved.x, moved.y) < 0.5 || settings.edges != EdgeMethod::Rays) break;
+    if (!out.fit->ellipse.centre.inside(cv::Rect2d(w.work.x, w.work.y, w.work.width - 1, w.work.height - 1))) break;
+    if (bilinear(smooth, out.fit->ellipse.centre.x, out.fit->ellipse.centre.y) > w.pupil_level + min_step) break;
+    from = out.fit->ellipse.centre;
+  }
+  return out;
+}
+
+// PuRe-style evidence (Santini 2018 §3.4) and the calibrated confidence of a fitted ellipse.
+void score_fit(const FrameSearch& search, const CandidateWindow& w, const StarburstFit& sb, PupilAttempt& a) {
+  const FitResult& fit = *sb.fit;
+  const Ellipse& e = fit.ellipse;
+  const double support = search.settings.edges == EdgeMethod::Rays
+                             ? static_cast<double>(fit.inliers.size()) / search.settings.rays
+                             : std::min(1.0, static_cast<double>(fit.inliers.size()) /
+                                                 std::max(1.0, kPi * (e.major + e.minor) / 2));
+  const double outline = outline_contrast(search.smooth, w.work, e, 0.3 * w.contrast);
+  a.evidence = {support, outline, fit.rms, w.contrast, e.aspect()};
+  // The calibration frames never cut the pupil at the image border; a pupil mostly outside the
+  // frame is scaled down by the share of its outline that is inside.
+  // Likewise an arc covering less than half the outline barely constrains the centre.
+  a.confidence = confidence_of(a.evidence) * outline_inside(search.frame, e) *
+                 std::min(1.0, 2.0 * arc_coverage(sb.edges, fit.inliers, e.centre));
+  a.ellipse = e;
+  a.ok = a.confidence >= search.settings.min_confidence;
+  if (!a.ok) a.why = "pupil candidate below the confidence threshold";
+}
+
+// Fits the pupil around one candidate blob.
+PupilAttempt fit_candidate(FrameSearch& search, const Blob& blob, const GlintCandidates& glints) {
+  PupilAttempt a;
+  CandidateWindow w;
+  if (!measure_pupil_level(search, blob, w, a)) return a;
+  blur_work_window(search, blob, w);
+  const StarburstFit sb = starburst_fit(search, blob, glints, w);
+  if (!sb.fit) {
+    a.why = sb.edges.size() < 6 ? "too few edge points" : "no ellipse fits the edge points";
+    return a;
+  }
+  score_fit(search, w, sb, a);
+  return a;
+}
+
+// Candidates in the window, best blob response first; the most confident fit wins (a clear
+// pupil ends the search early).
+PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
+  PupilAttempt best;
+  best.glints = find_glints(search.grey, window, search.size);
+  const auto blobs = find_dark_blobs(search.grey, window, search.settings.coarse_downscale, search.rmin, search.rmax,
+                                     kCandidates, search.small, search.integral);
+  best.why = "no dark blob";
+  for (const Blob& blob : blobs) {
+    PupilAttempt a = fit_candidate(search, blob, best.glints);
+    if (search.candidates && a.confidence > 0)
+      search.candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
+                                            a.ellipse.minor, a.ellipse.angle_deg},
+                                    a.evidence, a.confidence});
+    if (a.confidence > best.confidence || (best.confidence == 0 && best.why == "no dark blob")) {
+      a.glints = std::move(best.glints);
+      best = std::move(a);
+    }
+    if (best.confidence >= kClearPupil) break;
+  }
+  return best;
+}
+
+// Searches near the last pupil first (`used_roi` tells whether that found it); recovery: the whole frame.
+PupilAttempt find_pupil(FrameSearch& search, bool roi_tracking, const std::optional<Ellipse>& last_pupil,
+                        bool& used_roi) {
+  PupilAttempt found;
+  if (roi_tracking && last_pupil) {
+    const double half = 1.2 * last_pupil->major + 0.08 * search.size;
+    const cv::Rect roi =
+        cv::Rect(static_cast<int>(last_pupil->centre.x - half), static_cast<int>(last_pupil->centre.y - half),
+                 static_cast<int>(2 * half), static_cast<int>(2 * half)) &
+        search.frame;
+    if (roi.width >= 8 && roi.height >= 8) {
+      found = search_window(search, roi);
+      used_roi = found.ok;
+    }
+  }
+  if (!found.ok) found = search_window(search, search.frame);
+  return found;
+}
+
+// Lee 2009 §3.5.2: minor/major below 0.7 is a blink. Lee's camera faced the eye; an eye camera
+// below the eye sees an open eye looking up at about 0.7 already, so the threshold applies
+// relative to this eye's recent open aspect (1 until one is known), learnt from clear open pupils.
+void report_pupil(const PupilAttempt& found, double blink_aspect, double& open_aspect, EyeMeasurement& result) {
+  result.pupil_found = found.ok;
+  result.evidence = found.evidence;
+  result.why = found.ok ? std::string() : found.why;
+  if (found.ok) {
+    result.pupil = found.ellipse;
+    result.confidence = found.confidence;
+    const double reference = open_aspect > 0 ? open_aspect : 1.0;
+    result.blink = found.ellipse.aspect() < blink_aspect * reference;
+    if (!result.blink && found.confidence >= kClearPupil)
+      open_aspect = open_aspect > 0 ? 0.95 * open_aspect + 0.05 * found.ellipse.aspect() : found.ellipse.aspect();
+  } else {
+    result.blink = true;  // no pupil: the eye is closed or the pupil is hidden
+  }
+}
+
+// Glints on the cornea: near the pupil (within about the iris), nearest first; at most 8.
+std::vector<Glint> corneal_glints(const PupilAttempt& found, double size) {
+  std::vector<Glint> glints = found.glints.glints;
+  if (found.ok) {
+    const double reach = std::max(3.5 * found.ellipse.major / 2, 0.12 * size);
+    const cv::Point2d c = found.ellipse.centre;
+    glints.erase(std::remove_if(glints.begin(), glints.end(),
+                                [&](const Glint& g) { return std::hypot(g.centre.x - c.x, g.centre.y - c.y) > reach; }),
+                 glints.end());
+    std::sort(glints.begin(), glints.end(), [&](const Glint& a, const Glint& b) {
+      return std::hypot(a.centre.x - c.x, a.centre.y - c.y) < std::hypot(b.centre.x - c.x, b.centre.y - c.y);
+    });
+  }
+  if (glints.size() > 8) glints.resize(8);
+  return glints;
+}
+
+// The glint point the pupil–glint vector is measured from.
+struct GlintReference {
+  cv::Point2d point;
+  bool valid = false;
+};
+
+// With an LED layout: the image of the layout's centroid from the pairing (which also labels each
+// glint with its LED and teaches the scale prior); without one: the glints' centroid.
+GlintReference glint_reference(std::vector<Glint>& glints, const LedLayout& leds, double size, double& last_glint_scale,
+                               std::optional<cv::Point2d>& last_reference) {
+  GlintReference reference;
+  if (!leds.positions_mm.empty() && !glints.empty()) {
+    const double tolerance = std::max(1.5, 0.012 * size);
+    const Pairing pairing = pair_with_layout(glints, leds, tolerance, last_glint_scale, last_reference);
+    for (std::size_t i = 0; i < glints.size(); ++i) glints[i].led = pairing.led_of[i];
+    if (pairing.valid) {
+      reference.point = pairing.reference;
+      reference.valid = true;
+      last_reference = pairing.reference;
+      // The scale prior learns from unambiguous pairings (three or more glints), or from two when
+      // it has nothing yet or they agree with it.
+      const bool learn = pairing.matches >= 3 ||
+                         (pairing.matches == 2 && (last_glint_scale <= 0 ||
+                                                   std::abs(std::log(pairing.scale / last_glint_scale)) < 0.2));
+      if (pairing.scale > 0 && leds.positions_mm.size() >= 2 && learn) {
+        last_glint_scale = last_glint_scale > 0 ? 0.8 * last_glint_scale + 0.2 * pairing.scale : pairing.scale;
+      }
+    }
+  } else if (!glints.empty()) {
+    for (const auto& g : glints) reference.point += g.centre;
+    reference.point *= 1.0 / static_cast<double>(glints.size());
+    reference.valid = true;
+  }
+  return reference;
+}
+
+// Glints and pupil move into Ellipse's pixel convention; the pupil–glint vector is a difference of
+// internal positions (only for an open eye).
+void report_glints(std::vector<Glint>& glints, const GlintReference& reference, const PupilAttempt& found,
+                   EyeMeasurement& result) {
+  for (auto& g : glints) g.centre += cv::Point2d(kToPublic, kToPublic);
+  result.glints = glints;
+  if (found.ok) {
+    result.pupil.centre += cv::Point2d(kToPublic, kToPublic);
+    if (reference.valid && !result.blink) {
+      result.pupil_glint = found.ellipse.centre - reference.point;
+      result.pupil_glint_valid = finite(result.pupil_glint);
+    }
+  }
+}
+
+bool finite_measurement(const EyeMeasurement& result) {
+  return finite(result.pupil.centre) && std::isfinite(result.pupil.major) && std::isfinite(result.pupil.minor) &&
+         std::isfinite(result.pupil.angle_deg) && std::isfinite(result.confidence);
+}
+
+// A measurement without a pupil (the eye counts as closed) saying why.
+EyeMeasurement no_pupil(std::string why) {
+  EyeMeasurement result;
+  result.why = std::move(why);
+  result.blink = true;
+  return result;
 }
 
 }  // namespace
@@ -783,208 +1123,32 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
   EyeMeasurement result;
   try {
     grey_ = to_grey8(image);
-    if (grey_.empty()) {
-      result.why = "empty or unsupported image";
-      result.blink = true;
-      return result;
-    }
+    if (grey_.empty()) return no_pupil("empty or unsupported image");
     const double size = std::min(grey_.cols, grey_.rows);
-    if (size < 12) {
-      result.why = "image too small (" + std::to_string(grey_.cols) + "x" + std::to_string(grey_.rows) + ")";
-      result.blink = true;
-      return result;
-    }
+    if (size < 12)
+      return no_pupil("image too small (" + std::to_string(grey_.cols) + "x" + std::to_string(grey_.rows) + ")");
     const double rmin = std::max(2.0, settings_.min_pupil_radius * size);
     const double rmax = std::max(rmin * 1.5, settings_.max_pupil_radius * size);
     const cv::Rect frame(0, 0, grey_.cols, grey_.rows);
+    FrameSearch search{settings_, grey_, smooth_, small_, integral_, size, rmin, rmax, frame, candidates};
 
-    struct Attempt {
-      bool ok = false;
-      Ellipse ellipse;
-      double confidence = 0;
-      PupilEvidence evidence;
-      std::string why;
-      GlintCandidates glints;
-    };
-    std::mt19937 rng(12345);  // deterministic RANSAC: the same frame gives the same answer
-
-    // Fits the pupil around one candidate blob.
-    const auto fit_candidate = [&](const Blob& blob, const GlintCandidates& glints) {
-      Attempt a;
-      // The pupil's grey level: a low percentile of the blob's inner box (robust to glints in it).
-      const double r0 = blob.radius;
-      const cv::Rect inner_box = cv::Rect(static_cast<int>(blob.centre.x - 0.7 * r0), static_cast<int>(blob.centre.y - 0.7 * r0),
-                                          std::max(1, static_cast<int>(1.4 * r0)), std::max(1, static_cast<int>(1.4 * r0))) & frame;
-      if (inner_box.area() < 1) {
-        a.why = "no dark blob";
-        return a;
-      }
-      const double pupil_level = percentile(grey_(inner_box), 0.3);
-      const double contrast = blob.surround - pupil_level;
-      if (contrast < 10) {
-        a.why = "no contrast around the dark blob";
-        return a;
-      }
-      const double reach = std::max(1.2 * rmax, 8.0);  // rays stop at the first edge: reaching far is cheap
-      const double margin = 1.5 * reach + 3;  // the second Starburst round may start from a moved centre
-      const cv::Rect work = cv::Rect(static_cast<int>(blob.centre.x - margin), static_cast<int>(blob.centre.y - margin),
-                                     static_cast<int>(2 * margin) + 1, static_cast<int>(2 * margin) + 1) & frame;
-      if (smooth_.size() != grey_.size()) smooth_.create(grey_.size(), CV_8U);
-      cv::GaussianBlur(grey_(work), smooth_(work), cv::Size(3, 3), 0.8);
-      const cv::Mat& smooth = smooth_;
-      cv::Point2d from = blob.centre;
-      std::optional<FitResult> fit;
-      std::vector<EdgePoint> edges;
-      const double min_step = std::max(6.0, 0.3 * contrast);
-      for (int round = 0; round < 2; ++round) {
-        edges = settings_.edges == EdgeMethod::Rays
-                    ? ray_edges(smooth, work, glints, from, pupil_level, min_step, reach, settings_.rays)
-                    : canny_edges(smooth, glints, from, contrast, std::max(3.0 * r0, 8.0));
-        remove_eyelid_lines(edges, r0, rng);
-        fit = fit_pupil(edges, settings_.fit, from, rmin, rmax, rng);
-        if (!fit) break;
-        const cv::Point2d moved = fit->ellipse.centre - from;
-        // Starburst iterates from the new centre: rays from near the true centre sample the outline evenly.
-        if (std::hypot(moved.x, moved.y) < 0.5 || settings_.edges != EdgeMethod::Rays) break;
-        if (!fit->ellipse.centre.inside(cv::Rect2d(work.x, work.y, work.width - 1, work.height - 1))) break;
-        if (bilinear(smooth, fit->ellipse.centre.x, fit->ellipse.centre.y) > pupil_level + min_step) break;
-        from = fit->ellipse.centre;
-      }
-      if (!fit) {
-        a.why = edges.size() < 6 ? "too few edge points" : "no ellipse fits the edge points";
-        return a;
-      }
-      const Ellipse& e = fit->ellipse;
-      const double support = settings_.edges == EdgeMethod::Rays
-                                 ? static_cast<double>(fit->inliers.size()) / settings_.rays
-                                 : std::min(1.0, static_cast<double>(fit->inliers.size()) /
-                                                     std::max(1.0, kPi * (e.major + e.minor) / 2));
-      const double outline = outline_contrast(smooth, work, e, 0.3 * contrast);
-      a.evidence = {support, outline, fit->rms, contrast, e.aspect()};
-      // The calibration frames never cut the pupil at the image border; a pupil mostly outside the
-      // frame is scaled down by the share of its outline that is inside.
-      // Likewise an arc covering less than half the outline barely constrains the centre.
-      a.confidence = confidence_of(a.evidence) * outline_inside(frame, e) *
-                     std::min(1.0, 2.0 * arc_coverage(edges, fit->inliers, e.centre));
-      a.ellipse = e;
-      a.ok = a.confidence >= settings_.min_confidence;
-      if (!a.ok) a.why = "pupil candidate below the confidence threshold";
-      return a;
-    };
-
-    // Candidates in the window, best blob response first; the most confident fit wins (a clear
-    // pupil ends the search early).
-    const auto attempt = [&](const cv::Rect& window) {
-      Attempt best;
-      best.glints = find_glints(grey_, window, size);
-      const auto blobs = find_dark_blobs(grey_, window, settings_.coarse_downscale, rmin, rmax, kCandidates, small_, integral_);
-      best.why = "no dark blob";
-      for (const Blob& blob : blobs) {
-        Attempt a = fit_candidate(blob, best.glints);
-        if (candidates && a.confidence > 0)
-          candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
-                                         a.ellipse.minor, a.ellipse.angle_deg},
-                                 a.evidence, a.confidence});
-        if (a.confidence > best.confidence || (best.confidence == 0 && best.why == "no dark blob")) {
-          a.glints = std::move(best.glints);
-          best = std::move(a);
-        }
-        if (best.confidence >= kClearPupil) break;
-      }
-      return best;
-    };
-
-    Attempt found;
-    if (settings_.roi_tracking && last_pupil_) {
-      const double half = 1.2 * last_pupil_->major + 0.08 * size;
-      const cv::Rect roi = cv::Rect(static_cast<int>(last_pupil_->centre.x - half), static_cast<int>(last_pupil_->centre.y - half),
-                                    static_cast<int>(2 * half), static_cast<int>(2 * half)) & frame;
-      if (roi.width >= 8 && roi.height >= 8) {
-        found = attempt(roi);
-        result.used_roi = found.ok;
-      }
-    }
-    if (!found.ok) found = attempt(frame);  // recovery: search the whole frame
-
+    const PupilAttempt found = find_pupil(search, settings_.roi_tracking, last_pupil_, result.used_roi);
     if (found.ok) {
       last_pupil_ = found.ellipse;
     } else {
       last_pupil_.reset();
     }
-    result.pupil_found = found.ok;
-    result.evidence = found.evidence;
-    result.why = found.ok ? std::string() : found.why;
-    if (found.ok) {
-      result.pupil = found.ellipse;
-      result.confidence = found.confidence;
-      // Lee 2009 §3.5.2: minor/major below 0.7 is a blink. Lee's camera faced the eye; an eye
-      // camera below the eye sees an open eye looking up at about 0.7 already, so the threshold
-      // applies relative to this eye's recent open aspect (1 until one is known).
-      const double reference = open_aspect_ > 0 ? open_aspect_ : 1.0;
-      result.blink = found.ellipse.aspect() < settings_.blink_aspect * reference;
-      if (!result.blink && found.confidence >= kClearPupil)
-        open_aspect_ = open_aspect_ > 0 ? 0.95 * open_aspect_ + 0.05 * found.ellipse.aspect() : found.ellipse.aspect();
-    } else {
-      result.blink = true;  // no pupil: the eye is closed or the pupil is hidden
-    }
+    report_pupil(found, settings_.blink_aspect, open_aspect_, result);
 
-    // Glints on the cornea: near the pupil (within about the iris), nearest first.
-    std::vector<Glint> glints = found.glints.glints;
-    if (found.ok) {
-      const double reach = std::max(3.5 * found.ellipse.major / 2, 0.12 * size);
-      const cv::Point2d c = found.ellipse.centre;
-      glints.erase(std::remove_if(glints.begin(), glints.end(),
-                                  [&](const Glint& g) { return std::hypot(g.centre.x - c.x, g.centre.y - c.y) > reach; }),
-                   glints.end());
-      std::sort(glints.begin(), glints.end(), [&](const Glint& a, const Glint& b) {
-        return std::hypot(a.centre.x - c.x, a.centre.y - c.y) < std::hypot(b.centre.x - c.x, b.centre.y - c.y);
-      });
-    }
-    if (glints.size() > 8) glints.resize(8);
-    cv::Point2d reference;
-    bool reference_valid = false;
-    if (!settings_.leds.positions_mm.empty() && !glints.empty()) {
-      const double tolerance = std::max(1.5, 0.012 * size);
-      const Pairing pairing = pair_with_layout(glints, settings_.leds, tolerance, last_glint_scale_, last_reference_);
-      for (std::size_t i = 0; i < glints.size(); ++i) glints[i].led = pairing.led_of[i];
-      if (pairing.valid) {
-        reference = pairing.reference;
-        reference_valid = true;
-        last_reference_ = pairing.reference;
-        // The scale prior learns from unambiguous pairings (three or more glints), or from two when
-        // it has nothing yet or they agree with it.
-        const bool learn = pairing.matches >= 3 ||
-                           (pairing.matches == 2 && (last_glint_scale_ <= 0 ||
-                                                     std::abs(std::log(pairing.scale / last_glint_scale_)) < 0.2));
-        if (pairing.scale > 0 && settings_.leds.positions_mm.size() >= 2 && learn) {
-          last_glint_scale_ = last_glint_scale_ > 0 ? 0.8 * last_glint_scale_ + 0.2 * pairing.scale : pairing.scale;
-        }
-      }
-    } else if (!glints.empty()) {
-      for (const auto& g : glints) reference += g.centre;
-      reference *= 1.0 / static_cast<double>(glints.size());
-      reference_valid = true;
-    }
-    for (auto& g : glints) g.centre += cv::Point2d(kToPublic, kToPublic);
-    result.glints = glints;
-    if (found.ok) {
-      result.pupil.centre += cv::Point2d(kToPublic, kToPublic);
-      if (reference_valid && !result.blink) {
-        result.pupil_glint = found.ellipse.centre - reference;
-        result.pupil_glint_valid = finite(result.pupil_glint);
-      }
-    }
-    if (!finite(result.pupil.centre) || !std::isfinite(result.pupil.major) || !std::isfinite(result.pupil.minor) ||
-        !std::isfinite(result.pupil.angle_deg) || !std::isfinite(result.confidence)) {
-      result = EyeMeasurement{};
-      result.why = "numerical failure";
-      result.blink = true;
+    std::vector<Glint> glints = corneal_glints(found, size);
+    const GlintReference reference = glint_reference(glints, settings_.leds, size, last_glint_scale_, last_reference_);
+    report_glints(glints, reference, found, result);
+    if (!finite_measurement(result)) {
+      result = no_pupil("numerical failure");
       last_pupil_.reset();
     }
   } catch (const std::exception& e) {
-    result = EyeMeasurement{};
-    result.why = std::string("detector error: ") + e.what();
-    result.blink = true;
+    result = no_pupil(std::string("detector error: ") + e.what());
     last_pupil_.reset();
   }
   return result;
