@@ -498,6 +498,33 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
 // ---------------------------------------------------------------------------------------------
 // One frame's geometry: everything project() reports and render() draws.
 
+namespace {
+
+struct GlintContext {
+  const Camera& cam;
+  V3 cornea, d;
+  double cornea_r;
+  double cap_cos;  // cos of the limbus angle at the cornea centre, asin(iris radius / cornea radius)
+};
+
+// What frame() fixes before it chooses the pupil radius: the inputs of every project_for_pupil_radius.
+struct FrameSetup {
+  const SyntheticEyeOptions& o;
+  double pitch;                           // radians, clamped
+  double openness;                        // clamped to 0..1
+  double lid_skew_upper, lid_skew_lower;  // the instance's look
+  GlintContext gctx;
+};
+
+// The glint nearest to the pupil boundary, as the pupil radius whose boundary passes through it.
+struct NearestGlint {
+  int led = -1;    // -1: none
+  double r = 0;    // mm
+  cv::Point2d ab;  // the glint back-projected onto the pupil plane, mm
+};
+
+}  // namespace
+
 struct SyntheticEye::Frame {
   Camera cam;
   V3 d, u, v, cornea, pupil_centre;
@@ -510,19 +537,22 @@ struct SyntheticEye::Frame {
   LedLayout leds;
   std::vector<GlintGeom> glints;  // one per LED
   EyeTruth truth;
+
+  // frame()'s stages, in the order it calls them; members because each fills some of the fields above.
+  void place_eye(const SyntheticEyeOptions& o, double yaw, double pitch);
+  cv::Matx33d map_pupil_plane();
+  void project_for_pupil_radius(const FrameSetup& s, double radius);
+  void put_glint_on_pupil_edge(const FrameSetup& s, const cv::Matx33d& hom);
+  NearestGlint glint_nearest_pupil_edge(double pupil_radius_mm) const;
+  void move_led_onto_pupil_edge(const FrameSetup& s, const cv::Matx33d& hom, const NearestGlint& best,
+                                double radius);
+  void fill_truth(const GlintContext& gctx, double yaw_deg, double pitch_deg, double openness);
 };
 
 namespace {
 
 // LED k's position: in the lens plane, offset along the camera's image axes.
 V3 led_position(const Camera& cam, cv::Point2d offset) { return cam.pos + offset.x * cam.right + offset.y * cam.down; }
-
-struct GlintContext {
-  const Camera& cam;
-  V3 cornea, d;
-  double cornea_r;
-  double cap_cos;  // cos of the limbus angle at the cornea centre, asin(iris radius / cornea radius)
-};
 
 GlintGeom glint_for(const GlintContext& g, cv::Point2d offset) {
   GlintGeom out;
@@ -621,6 +651,32 @@ double visible_fraction(const Conic& e, const Lids& lids) {
   return total ? static_cast<double>(seen) / total : 0.0;
 }
 
+// Moves the LED at `led` (lens-plane mm) until its glint lands on `target` (pixels): Newton's method with a
+// forward-difference Jacobian; the glint moves smoothly with its LED. False when it does not get there.
+bool place_glint(const GlintContext& gctx, cv::Point2d target, cv::Point2d& led) {
+  for (int it = 0; it < 40; ++it) {
+    const GlintGeom g = glint_for(gctx, led);
+    if (!g.projected) return false;
+    const cv::Point2d err = g.image - target;
+    if (std::hypot(err.x, err.y) < 1e-8) return true;
+    constexpr double step = 1e-4;  // mm
+    const GlintGeom gx = glint_for(gctx, led + cv::Point2d(step, 0));
+    const GlintGeom gy = glint_for(gctx, led + cv::Point2d(0, step));
+    if (!gx.projected || !gy.projected) return false;
+    const double j00 = (gx.image.x - g.image.x) / step, j10 = (gx.image.y - g.image.y) / step;
+    const double j01 = (gy.image.x - g.image.x) / step, j11 = (gy.image.y - g.image.y) / step;
+    const double jd = j00 * j11 - j01 * j10;
+    if (!(std::abs(jd) > 1e-300)) return false;
+    cv::Point2d delta((j11 * err.x - j01 * err.y) / jd, (-j10 * err.x + j00 * err.y) / jd);
+    const double dn = std::hypot(delta.x, delta.y);
+    if (dn > 20) delta *= 20 / dn;  // keeps early steps sane
+    led -= delta;
+    if (!std::isfinite(led.x) || !std::isfinite(led.y) || std::abs(led.x) > 1000 || std::abs(led.y) > 1000)
+      return false;
+  }
+  return false;
+}
+
 }  // namespace
 
 SyntheticEye::SyntheticEye(SyntheticEyeOptions options)
@@ -629,150 +685,132 @@ SyntheticEye::SyntheticEye(SyntheticEyeOptions options)
   look_ = std::make_shared<const Look>(options_);
 }
 
-SyntheticEye::Frame SyntheticEye::frame(double yaw_deg, double pitch_deg, double openness) const {
-  yaw_deg = checked_angle("yaw_deg", yaw_deg);
-  pitch_deg = checked_angle("pitch_deg", pitch_deg);
-  if (!std::isfinite(openness))
-    throw std::invalid_argument("SyntheticEye: openness = " + num(openness) + ": allowed 0..1");
-  openness = clamp01(openness);
-  const SyntheticEyeOptions& o = options_;
+// The optical axis d(yaw, pitch) of synthetic_eye.h, the pupil-plane axes and the cornea and pupil centres.
+void SyntheticEye::Frame::place_eye(const SyntheticEyeOptions& o, double yaw, double pitch) {
   const EyeModel& eye = o.eye;
+  cam = Camera::make(o.camera, o.width, o.height);
+  d = V3(std::sin(yaw) * std::cos(pitch), std::sin(pitch), std::cos(yaw) * std::cos(pitch));
+  u = V3(std::cos(yaw), 0, -std::sin(yaw));  // pupil-plane axes: u (eye's right), v = d x u (eye's down)
+  v = d.cross(u);
+  cornea = eye.rotation_to_cornea_mm * d;
+  pupil_centre = cornea + eye.cornea_to_pupil_mm * d;
+  px_per_mm = cam.f / std::max(len(pupil_centre - cam.pos), 1e-3);
+}
 
-  Frame fr;
-  fr.cam = Camera::make(o.camera, o.width, o.height);
-  const double yaw = yaw_deg * kDeg, pitch = pitch_deg * kDeg;
-  fr.d = V3(std::sin(yaw) * std::cos(pitch), std::sin(pitch), std::cos(yaw) * std::cos(pitch));
-  fr.u = V3(std::cos(yaw), 0, -std::sin(yaw));  // pupil-plane axes: u (eye's right), v = d x u (eye's down)
-  fr.v = fr.d.cross(fr.u);
-  fr.cornea = eye.rotation_to_cornea_mm * fr.d;
-  fr.pupil_centre = fr.cornea + eye.cornea_to_pupil_mm * fr.d;
-  fr.px_per_mm = fr.cam.f / std::max(len(fr.pupil_centre - fr.cam.pos), 1e-3);
-
-  // Homography from pupil-plane millimetres (a, b) -> X = P + a u + b v -> pixels.
-  const cv::Vec3d h0 = fr.cam.image_direction(fr.u), h1 = fr.cam.image_direction(fr.v);
-  const cv::Vec3d h2 = fr.cam.image_direction(fr.pupil_centre - fr.cam.pos);
+// Homography from pupil-plane millimetres (a, b) -> X = P + a u + b v -> pixels, returned; hinv is its
+// inverse, set (with plane_ok) only when the camera sees the front of the disc.
+cv::Matx33d SyntheticEye::Frame::map_pupil_plane() {
+  const cv::Vec3d h0 = cam.image_direction(u), h1 = cam.image_direction(v);
+  const cv::Vec3d h2 = cam.image_direction(pupil_centre - cam.pos);
   const cv::Matx33d hom(h0[0], h1[0], h2[0], h0[1], h1[1], h2[1], h0[2], h1[2], h2[2]);
-  const bool facing = (fr.cam.pos - fr.pupil_centre).dot(fr.d) > 1e-6;  // the camera sees the front of the disc
+  const bool facing = (cam.pos - pupil_centre).dot(d) > 1e-6;  // the camera sees the front of the disc
   const double det = cv::determinant(hom);
   if (facing && std::isfinite(det) && std::abs(det) > 1e-12) {
-    fr.hinv = hom.inv();
-    fr.plane_ok = true;
+    hinv = hom.inv();
+    plane_ok = true;
   }
+  return hom;
+}
 
-  fr.leds = o.leds;
-  const GlintContext gctx{fr.cam, fr.cornea, fr.d, eye.cornea_radius_mm,
-                          std::cos(std::asin(std::min(eye.iris_radius_mm / eye.cornea_radius_mm, 1.0)))};
-  const auto compute = [&](double radius) {
-    fr.pupil_r = radius;
-    fr.pupil = fr.plane_ok ? image_conic(fr.hinv, radius) : Conic{};
-    fr.iris = fr.plane_ok ? image_conic(fr.hinv, eye.iris_radius_mm) : Conic{};
-    if (!fr.iris.valid) fr.pupil = Conic{};
-    fr.lids = make_lids(fr.cam, eye, pitch, openness, o.eyelid_cover, fr.pupil, look_->lid_skew_upper,
-                        look_->lid_skew_lower);
-    fr.glints.clear();
-    for (const cv::Point2d& led : fr.leds.positions_mm) {
-      GlintGeom g = glint_for(gctx, led);
-      g.visible = g.on_cap && g.image.x >= 0 && g.image.y >= 0 && g.image.x < o.width && g.image.y < o.height &&
-                  fr.lids.inside(g.image);
-      fr.glints.push_back(g);
-    }
-  };
-  compute(eye.pupil_radius_mm);
+// Everything that depends on the pupil radius: the pupil and iris image conics, the lids (which may
+// cover a share of the pupil) and each LED's glint with its visibility.
+void SyntheticEye::Frame::project_for_pupil_radius(const FrameSetup& s, double radius) {
+  const SyntheticEyeOptions& o = s.o;
+  const EyeModel& eye = o.eye;
+  pupil_r = radius;
+  pupil = plane_ok ? image_conic(hinv, radius) : Conic{};
+  iris = plane_ok ? image_conic(hinv, eye.iris_radius_mm) : Conic{};
+  if (!iris.valid) pupil = Conic{};
+  lids = make_lids(cam, eye, s.pitch, s.openness, o.eyelid_cover, pupil, s.lid_skew_upper, s.lid_skew_lower);
+  glints.clear();
+  for (const cv::Point2d& led : leds.positions_mm) {
+    GlintGeom g = glint_for(s.gctx, led);
+    g.visible = g.on_cap && g.image.x >= 0 && g.image.y >= 0 && g.image.x < o.width && g.image.y < o.height &&
+                lids.inside(g.image);
+    glints.push_back(g);
+  }
+}
 
-  if (o.glint_on_pupil_edge && fr.plane_ok && fr.pupil.valid) {
-    // The glint nearest to the pupil boundary, measured as a pupil radius in the pupil plane
-    // (back-projecting a glint onto the plane gives the radius whose boundary passes through it).
-    // Visible glints first; when none is visible, any reflection (its LED will be moved).
-    int best = -1;
-    double best_r = 0;
-    cv::Point2d best_ab;
-    for (const bool need_visible : {true, false}) {
-      double best_gap = std::numeric_limits<double>::infinity();
-      for (std::size_t k = 0; k < fr.glints.size(); ++k) {
-        const GlintGeom& g = fr.glints[k];
-        if (!g.projected || (need_visible && !g.visible)) continue;
-        const cv::Vec3d q = fr.hinv * cv::Vec3d(g.image.x, g.image.y, 1.0);
-        if (!(std::abs(q[2]) > 1e-300)) continue;
-        const cv::Point2d ab(q[0] / q[2], q[1] / q[2]);
-        const double r = std::hypot(ab.x, ab.y), gap = std::abs(r - eye.pupil_radius_mm);
-        if (std::isfinite(r) && gap < best_gap) {
-          best = static_cast<int>(k);
-          best_gap = gap;
-          best_r = r;
-          best_ab = ab;
-        }
-      }
-      if (best >= 0) break;
-    }
-    if (best >= 0) {
-      const std::size_t kb = static_cast<std::size_t>(best);
-      const double radius = std::clamp(best_r, 1.0, 4.0);
-      compute(radius);
-      if (radius != best_r || !fr.glints[kb].visible) {
-        // No allowed radius reaches this glint (or it is hidden): move its LED in the lens plane
-        // until its glint lands on the boundary of the nearest allowed pupil, at the glint's own
-        // angle or, if that point is hidden, the nearest visible angle. Newton's method with a
-        // forward-difference Jacobian; the glint moves smoothly with its LED.
-        const auto place = [&](cv::Point2d target, cv::Point2d& led) {
-          for (int it = 0; it < 40; ++it) {
-            const GlintGeom g = glint_for(gctx, led);
-            if (!g.projected) return false;
-            const cv::Point2d err = g.image - target;
-            if (std::hypot(err.x, err.y) < 1e-8) return true;
-            constexpr double step = 1e-4;  // mm
-            const GlintGeom gx = glint_for(gctx, led + cv::Point2d(step, 0));
-            const GlintGeom gy = glint_for(gctx, led + cv::Point2d(0, step));
-            if (!gx.projected || !gy.projected) return false;
-            const double j00 = (gx.image.x - g.image.x) / step, j10 = (gx.image.y - g.image.y) / step;
-            const double j01 = (gy.image.x - g.image.x) / step, j11 = (gy.image.y - g.image.y) / step;
-            const double jd = j00 * j11 - j01 * j10;
-            if (!(std::abs(jd) > 1e-300)) return false;
-            cv::Point2d delta((j11 * err.x - j01 * err.y) / jd, (-j10 * err.x + j00 * err.y) / jd);
-            const double dn = std::hypot(delta.x, delta.y);
-            if (dn > 20) delta *= 20 / dn;  // keeps early steps sane
-            led -= delta;
-            if (!std::isfinite(led.x) || !std::isfinite(led.y) || std::abs(led.x) > 1000 || std::abs(led.y) > 1000)
-              return false;
-          }
-          return false;
-        };
-        const double phi0 = best_r > 1e-9 ? std::atan2(best_ab.y, best_ab.x) : 0.0;
-        for (int attempt = 0; attempt < 12; ++attempt) {
-          const double phi = phi0 + (attempt % 2 ? 1 : -1) * ((attempt + 1) / 2) * 30 * kDeg;
-          const cv::Vec3d th = hom * cv::Vec3d(radius * std::cos(phi), radius * std::sin(phi), 1.0);
-          const cv::Point2d target(th[0] / th[2], th[1] / th[2]);
-          cv::Point2d led = fr.leds.positions_mm[kb];
-          if (!place(target, led)) continue;
-          const GlintGeom g = glint_for(gctx, led);
-          if (!g.on_cap || g.image.x < 0 || g.image.y < 0 || g.image.x >= o.width || g.image.y >= o.height ||
-              !fr.lids.inside(g.image))
-            continue;
-          fr.leds.positions_mm[kb] = led;
-          compute(radius);
-          break;
-        }
+// SyntheticEyeOptions::glint_on_pupil_edge: the pupil radius (within 1..4 mm) whose boundary passes
+// through the glint nearest to it, or, when none does or that glint is hidden, that glint's LED moved.
+void SyntheticEye::Frame::put_glint_on_pupil_edge(const FrameSetup& s, const cv::Matx33d& hom) {
+  const NearestGlint best = glint_nearest_pupil_edge(s.o.eye.pupil_radius_mm);
+  if (best.led >= 0) {
+    const std::size_t kb = static_cast<std::size_t>(best.led);
+    const double radius = std::clamp(best.r, 1.0, 4.0);
+    project_for_pupil_radius(s, radius);
+    if (radius != best.r || !glints[kb].visible) move_led_onto_pupil_edge(s, hom, best, radius);
+  }
+}
+
+// The glint nearest to the pupil boundary, measured as a pupil radius in the pupil plane
+// (back-projecting a glint onto the plane gives the radius whose boundary passes through it).
+// Visible glints first; when none is visible, any reflection (its LED will be moved).
+NearestGlint SyntheticEye::Frame::glint_nearest_pupil_edge(double pupil_radius_mm) const {
+  NearestGlint best;
+  for (const bool need_visible : {true, false}) {
+    double best_gap = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < glints.size(); ++k) {
+      const GlintGeom& g = glints[k];
+      if (!g.projected || (need_visible && !g.visible)) continue;
+      const cv::Vec3d q = hinv * cv::Vec3d(g.image.x, g.image.y, 1.0);
+      if (!(std::abs(q[2]) > 1e-300)) continue;
+      const cv::Point2d ab(q[0] / q[2], q[1] / q[2]);
+      const double r = std::hypot(ab.x, ab.y), gap = std::abs(r - pupil_radius_mm);
+      if (std::isfinite(r) && gap < best_gap) {
+        best.led = static_cast<int>(k);
+        best_gap = gap;
+        best.r = r;
+        best.ab = ab;
       }
     }
+    if (best.led >= 0) break;
   }
+  return best;
+}
 
-  // Truth.
-  EyeTruth& t = fr.truth;
+// No allowed radius reaches this glint (or it is hidden): move its LED in the lens plane until its
+// glint lands on the boundary of the nearest allowed pupil, at the glint's own angle or, if that
+// point is hidden, the nearest visible angle (place_glint). The LED stays put when no angle works.
+void SyntheticEye::Frame::move_led_onto_pupil_edge(const FrameSetup& s, const cv::Matx33d& hom,
+                                                   const NearestGlint& best, double radius) {
+  const std::size_t kb = static_cast<std::size_t>(best.led);
+  const double phi0 = best.r > 1e-9 ? std::atan2(best.ab.y, best.ab.x) : 0.0;
+  for (int attempt = 0; attempt < 12; ++attempt) {
+    const double phi = phi0 + (attempt % 2 ? 1 : -1) * ((attempt + 1) / 2) * 30 * kDeg;
+    const cv::Vec3d th = hom * cv::Vec3d(radius * std::cos(phi), radius * std::sin(phi), 1.0);
+    const cv::Point2d target(th[0] / th[2], th[1] / th[2]);
+    cv::Point2d led = leds.positions_mm[kb];
+    if (!place_glint(s.gctx, target, led)) continue;
+    const GlintGeom g = glint_for(s.gctx, led);
+    if (!g.on_cap || g.image.x < 0 || g.image.y < 0 || g.image.x >= s.o.width || g.image.y >= s.o.height ||
+        !lids.inside(g.image))
+      continue;
+    leds.positions_mm[kb] = led;
+    project_for_pupil_radius(s, radius);
+    break;
+  }
+}
+
+// EyeTruth from the final geometry; the glint centroid counts every LED's reflection, visible or not.
+void SyntheticEye::Frame::fill_truth(const GlintContext& gctx, double yaw_deg, double pitch_deg, double openness) {
+  EyeTruth& t = truth;
   t.yaw_deg = yaw_deg;
   t.pitch_deg = pitch_deg;
   t.openness = openness;
-  t.pupil = fr.pupil.ellipse();
-  if (!fr.pupil.valid) {
+  t.pupil = pupil.ellipse();
+  if (!pupil.valid) {
     cv::Point2d c;
-    if (fr.cam.project(fr.pupil_centre, c)) t.pupil.centre = c;
+    if (cam.project(pupil_centre, c)) t.pupil.centre = c;
   }
-  t.pupil_visible_fraction = visible_fraction(fr.pupil, fr.lids);
+  t.pupil_visible_fraction = visible_fraction(pupil, lids);
   t.closed = !(t.pupil_visible_fraction > 0);
-  t.pupil_radius_mm = fr.pupil_r;
-  t.leds_used = fr.leds;
+  t.pupil_radius_mm = pupil_r;
+  t.leds_used = leds;
   cv::Point2d sum(0, 0);
   int counted = 0;
-  for (std::size_t k = 0; k < fr.glints.size(); ++k) {
-    const GlintGeom& g = fr.glints[k];
+  for (std::size_t k = 0; k < glints.size(); ++k) {
+    const GlintGeom& g = glints[k];
     if (!g.projected) continue;
     sum += g.image;
     ++counted;
@@ -789,6 +827,28 @@ SyntheticEye::Frame SyntheticEye::frame(double yaw_deg, double pitch_deg, double
     t.glint_centroid = g.projected ? g.image : t.pupil.centre;
   }
   t.pupil_glint = t.pupil.centre - t.glint_centroid;
+}
+
+SyntheticEye::Frame SyntheticEye::frame(double yaw_deg, double pitch_deg, double openness) const {
+  yaw_deg = checked_angle("yaw_deg", yaw_deg);
+  pitch_deg = checked_angle("pitch_deg", pitch_deg);
+  if (!std::isfinite(openness))
+    throw std::invalid_argument("SyntheticEye: openness = " + num(openness) + ": allowed 0..1");
+  openness = clamp01(openness);
+  const SyntheticEyeOptions& o = options_;
+  const EyeModel& eye = o.eye;
+
+  Frame fr;
+  const double yaw = yaw_deg * kDeg, pitch = pitch_deg * kDeg;
+  fr.place_eye(o, yaw, pitch);
+  const cv::Matx33d hom = fr.map_pupil_plane();
+  fr.leds = o.leds;
+  const FrameSetup setup{o, pitch, openness, look_->lid_skew_upper, look_->lid_skew_lower,
+                         GlintContext{fr.cam, fr.cornea, fr.d, eye.cornea_radius_mm,
+                                      std::cos(std::asin(std::min(eye.iris_radius_mm / eye.cornea_radius_mm, 1.0)))}};
+  fr.project_for_pupil_radius(setup, eye.pupil_radius_mm);
+  if (o.glint_on_pupil_edge && fr.plane_ok && fr.pupil.valid) fr.put_glint_on_pupil_edge(setup, hom);
+  fr.fill_truth(setup.gctx, yaw_deg, pitch_deg, openness);
   return fr;
 }
 
@@ -917,242 +977,377 @@ cv::Mat1f line_kernel(double length, double angle_deg) {
   return k;
 }
 
-}  // namespace
-
-cv::Mat SyntheticEye::render(double yaw_deg, double pitch_deg, double openness, EyeTruth* truth) {
-  const Frame fr = frame(yaw_deg, pitch_deg, openness);
-  const std::uint64_t noise_seed = rng_();  // one draw per frame, whatever the options
-  const Look& look = *look_;
-  const SyntheticEyeOptions& o = options_;
-  const int width = o.width, height = o.height;
-  const std::size_t w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
-  const Lids& lids = fr.lids;
-  const double ppm = std::max(fr.px_per_mm, 1e-3);
-
-  // Glints: every reflection on the corneal cap is drawn (masked by the lids per pixel); the
-  // truth lists those whose centre is inside the image and the lid opening.
+// Glints: every reflection on the corneal cap is drawn (masked by the lids per pixel); the
+// truth lists those whose centre is inside the image and the lid opening.
+std::vector<GlintSplat> glint_splats(const std::vector<GlintGeom>& glints, int width, int height) {
   const double sigma = std::clamp(std::sqrt(static_cast<double>(width) * height / (320.0 * 240.0)), 0.8, 2.5);
   std::vector<GlintSplat> splats;
-  for (const GlintGeom& g : fr.glints)
+  for (const GlintGeom& g : glints)
     if (g.on_cap) {
       GlintSplat s = make_splat(g.image, sigma, 700.0, width, height);
       if (s.x0 < s.x1 && s.y0 < s.y1) splats.push_back(std::move(s));
     }
+  return splats;
+}
 
-  // Per-frame constants of the pixel loop.
+// Per-frame constants of the pixel loop. The frame's geometry is small and copied; the look's
+// textures are pointed to.
+struct Shading {
+  int width = 0, height = 0;
+  std::size_t w = 0, h = 0;
+  Camera cam;
+  Lids lids;
+  Conic pc, ic;      // pupil, iris
+  cv::Matx33d hinv;  // image -> pupil plane (mm)
+  struct {
+    double skin = 0, sclera = 0, pupil = 0, lash = 0, iris_inner = 0;  // grey levels
+    const float* iris = nullptr;                                      // Look::kRho rows of Look::kTheta
+    const float *wave_cx = nullptr, *wave_sx = nullptr, *wave_cy = nullptr, *wave_sy = nullptr;
+    std::size_t nw = 0;  // skin waves
+  } look;
+  bool iris_on = false;
+  double ix0 = 0, ix1 = 0, iy0 = 0, iy1 = 0;  // the iris's bounding box, 2 px wider
+  double px0 = 0, px1 = 0, py0 = 0, py1 = 0;  // the pupil's
+  double pupil_r = 0;                         // mm
+  double flat0 = 0, flat1 = 0;                // mm past the pupil: the iris is flat, then fades into its texture
+  double rho_scale = 0, theta_scale = 0;      // pupil-plane polar coordinates -> iris texture bins
+  double ox = 0, oy = 0, oz = 0, o2 = 0, rb2 = 0;  // camera -> eyeball centre in camera axes; its |.|^2; radius^2
+  double lash_line_w = 0, lower_line_w = 0, crease_w = 0, socket_w = 0, shadow_w = 0;  // pixels
+  double inv_half = 0;
+  double band = 0, band2 = 0;  // margin features lie within this
+  double crease0 = 0, crease1 = 0;
+};
+
+// What every pixel of row y shares.
+struct RowShading {
+  int y = 0;
+  double py = 0, yn = 0, dy = 0;
+  float cy[8]{}, sy[8]{};  // the skin waves' factors for this row
+  std::array<const GlintSplat*, 8> active{};  // the glints that reach this row
+  std::size_t n_active = 0;
+  bool in_iris = false, in_pupil = false;
+};
+
+RowShading row_shading(const Shading& c, const std::vector<GlintSplat>& splats, int y) {
+  RowShading r;
+  r.y = y;
+  r.py = y + 0.5;
+  r.yn = (r.py - c.cam.cy) / c.cam.f;
+  r.dy = r.py - c.lids.mid.y;
+  for (std::size_t k = 0; k < c.look.nw; ++k) {
+    r.cy[k] = c.look.wave_cy[k * c.h + static_cast<std::size_t>(y)];
+    r.sy[k] = c.look.wave_sy[k * c.h + static_cast<std::size_t>(y)];
+  }
+  for (const GlintSplat& s : splats)
+    if (y >= s.y0 && y < s.y1 && r.n_active < r.active.size()) r.active[r.n_active++] = &s;
+  r.in_iris = c.iris_on && r.py >= c.iy0 && r.py <= c.iy1;
+  r.in_pupil = c.pc.valid && r.py >= c.py0 && r.py <= c.py1;
+  return r;
+}
+
+// A pixel's place in the lid frame (s, hh) and its distances inside the upper and lower margins.
+struct LidDistances {
+  double s, hh;
+  double raw_u, raw_l;  // along n
+  double du, dl;        // perpendicular to the margin within `band` of it, else raw
+};
+
+// Distances from the lid margins: vertical (along n) everywhere, made perpendicular only
+// near the margins, where the coverage and the margin lines need them.
+LidDistances lid_distances(const Shading& c, double dx, double dy) {
+  const Lids& lids = c.lids;
+  const double s = (dx * lids.t.x + dy * lids.t.y) * c.inv_half;
+  const double hh = dx * lids.n.x + dy * lids.n.y;
+  const double omsq = 1 - s * s;
+  const double raw_u = hh - omsq * (lids.u0 + lids.u1 * s), raw_l = omsq * (lids.l0 + lids.l1 * s) - hh;
+  double du = raw_u, dl = raw_l;
+  const double su = Lids::slope(lids.u0, lids.u1, s) * c.inv_half, sl = Lids::slope(lids.l0, lids.l1, s) * c.inv_half;
+  if (raw_u * raw_u < c.band2 * (1 + su * su)) du = raw_u / std::sqrt(1 + su * su);
+  if (raw_l * raw_l < c.band2 * (1 + sl * sl)) dl = raw_l / std::sqrt(1 + sl * sl);
+  return {s, hh, raw_u, raw_l, du, dl};
+}
+
+// The skin's soft waves at pixel x of the row: sum of amp cos(kx x + phi + ky y), separable per wave.
+double skin_wave(const Shading& c, const RowShading& r, int x) {
+  double wave = 0;
+  for (std::size_t k = 0; k < c.look.nw; ++k)
+    wave += static_cast<double>(c.look.wave_cx[k * c.w + static_cast<std::size_t>(x)] * r.cy[k] -
+                                c.look.wave_sx[k * c.w + static_cast<std::size_t>(x)] * r.sy[k]);
+  return wave;
+}
+
+// Skin: base level, soft waves, socket shading near the opening, the lash line along the
+// upper margin, a fainter line along the lower margin and the upper-lid crease.
+double skin_level(const Shading& c, const LidDistances& ld, double wave, double corner) {
+  double skin = c.look.skin + wave;
+  const double outside = std::max(-ld.raw_u, -ld.raw_l);
+  if (outside > 0) {
+    const double q = 1 + outside / c.socket_w;
+    skin *= 1 - 0.12 / (q * q);
+  }
+  const double crease_d = (ld.hh - Lids::curve(c.crease0, c.crease1, ld.s)) / c.crease_w;
+  if (std::abs(crease_d) < 3.5) skin *= 1 - 0.14 * c.lids.open * corner * std::exp(-crease_d * crease_d);
+  if (ld.du > -c.band && ld.du < 1.5) {  // above the upper margin: the lash line
+    const double xu = -ld.du;
+    const double mu = xu < 0.5 * c.lash_line_w ? 1.0 : bump((xu - 0.5 * c.lash_line_w) / (0.5 * c.lash_line_w));
+    skin += (c.look.lash - skin) * 0.92 * mu * corner;
+  }
+  if (ld.dl > -c.band && ld.dl < 1.5) {  // below the lower margin
+    const double xl = -ld.dl;
+    const double ml = xl < 0.3 * c.lower_line_w ? 1.0 : bump((xl - 0.3 * c.lower_line_w) / (0.7 * c.lower_line_w));
+    skin += (95.0 - skin) * 0.5 * ml * corner;
+  }
+  return skin;
+}
+
+}  // namespace
+
+// render()'s stages that read the instance's Look (a private type, hence members); the others are
+// file-local functions. Their order in render() is the order of the image effects.
+struct SyntheticEye::RenderStages {
+  static Shading shading(const Frame& fr, const Look& look, const SyntheticEyeOptions& o, double ppm);
+  static cv::Mat1f shade_pixels(const Shading& c, const std::vector<GlintSplat>& splats);
+  static double eye_level(const Shading& c, const RowShading& r, const LidDistances& ld, int x, double px,
+                          double wave);
+  static double iris_level(const Shading& c, double px, double py);
+  static void draw_eyelashes(cv::Mat1f& img, const Lids& lids, const Look& look, double ppm);
+  static void add_spectacle_reflections(cv::Mat1f& img, const Look& look);
+};
+
+Shading SyntheticEye::RenderStages::shading(const Frame& fr, const Look& look, const SyntheticEyeOptions& o,
+                                            double ppm) {
+  Shading c;
+  c.width = o.width;
+  c.height = o.height;
+  c.w = static_cast<std::size_t>(c.width);
+  c.h = static_cast<std::size_t>(c.height);
+  c.cam = fr.cam;
+  c.lids = fr.lids;
+  c.pc = fr.pupil;
+  c.ic = fr.iris;
+  c.hinv = fr.hinv;
+  c.look.skin = look.skin;
+  c.look.sclera = look.sclera;
+  c.look.pupil = look.pupil;
+  c.look.lash = look.lash;
+  c.look.iris_inner = look.iris_inner;
+  c.look.iris = look.iris.data();
+  c.look.wave_cx = look.wave_cx.data();
+  c.look.wave_sx = look.wave_sx.data();
+  c.look.wave_cy = look.wave_cy.data();
+  c.look.wave_sy = look.wave_sy.data();
+  c.look.nw = look.waves.size();
+
   const Conic& pc = fr.pupil;
   const Conic& ic = fr.iris;
-  const bool iris_on = ic.valid;
-  const double ix0 = ic.c.x - ic.half_w - 2, ix1 = ic.c.x + ic.half_w + 2;
-  const double iy0 = ic.c.y - ic.half_h - 2, iy1 = ic.c.y + ic.half_h + 2;
-  const double px0 = pc.c.x - pc.half_w - 2, px1 = pc.c.x + pc.half_w + 2;
-  const double py0 = pc.c.y - pc.half_h - 2, py1 = pc.c.y + pc.half_h + 2;
-  const double iris_r = o.eye.iris_radius_mm, pupil_r = fr.pupil_r;
+  c.iris_on = ic.valid;
+  c.ix0 = ic.c.x - ic.half_w - 2;
+  c.ix1 = ic.c.x + ic.half_w + 2;
+  c.iy0 = ic.c.y - ic.half_h - 2;
+  c.iy1 = ic.c.y + ic.half_h + 2;
+  c.px0 = pc.c.x - pc.half_w - 2;
+  c.px1 = pc.c.x + pc.half_w + 2;
+  c.py0 = pc.c.y - pc.half_h - 2;
+  c.py1 = pc.c.y + pc.half_h + 2;
+  const double iris_r = o.eye.iris_radius_mm;
+  c.pupil_r = fr.pupil_r;
   // The iris is flat for a few pixels outside the pupil so the pupil edge has the same contrast
   // all round (an unbiased edge for centre measurements), then fades into its texture.
-  const double flat0 = std::max(0.15, 2.5 / ppm), flat1 = flat0 + std::max(0.3, 3.0 / ppm);
-  const double rho_scale = (Look::kRho - 1) / std::max(iris_r - pupil_r, 1e-6);
-  const double theta_scale = Look::kTheta / (2 * kPi);
+  c.flat0 = std::max(0.15, 2.5 / ppm);
+  c.flat1 = c.flat0 + std::max(0.3, 3.0 / ppm);
+  c.rho_scale = (Look::kRho - 1) / std::max(iris_r - c.pupil_r, 1e-6);
+  c.theta_scale = Look::kTheta / (2 * kPi);
   // Sclera shading: cosine of incidence on the eyeball sphere from the ray's distance to its centre.
   const V3 oc = -fr.cam.pos;  // camera -> eyeball centre
-  const double ox = oc.dot(fr.cam.right), oy = oc.dot(fr.cam.down), oz = oc.dot(fr.cam.fwd);
-  const double o2 = oc.dot(oc), rb2 = o.eye.eyeball_radius_mm * o.eye.eyeball_radius_mm;
-  const double lash_line_w = std::max(1.2, 0.22 * ppm), lower_line_w = std::max(0.8, 0.12 * ppm);
-  const double crease_w = std::max(1.5, 0.9 * ppm), socket_w = std::max(2.0, 2.0 * ppm);
-  const double shadow_w = std::max(0.8, 0.5 * ppm);
-  const double inv_half = 1.0 / lids.half;
-  const double band = lash_line_w + 2.0, band2 = band * band;  // margin features lie within this
-  const double crease0 = lids.uo0 * 1.6, crease1 = lids.uo1 * 1.6;
-  const std::size_t nw = look.waves.size();
+  c.ox = oc.dot(fr.cam.right);
+  c.oy = oc.dot(fr.cam.down);
+  c.oz = oc.dot(fr.cam.fwd);
+  c.o2 = oc.dot(oc);
+  c.rb2 = o.eye.eyeball_radius_mm * o.eye.eyeball_radius_mm;
+  c.lash_line_w = std::max(1.2, 0.22 * ppm);
+  c.lower_line_w = std::max(0.8, 0.12 * ppm);
+  c.crease_w = std::max(1.5, 0.9 * ppm);
+  c.socket_w = std::max(2.0, 2.0 * ppm);
+  c.shadow_w = std::max(0.8, 0.5 * ppm);
+  c.inv_half = 1.0 / fr.lids.half;
+  c.band = c.lash_line_w + 2.0;
+  c.band2 = c.band * c.band;
+  c.crease0 = fr.lids.uo0 * 1.6;
+  c.crease1 = fr.lids.uo1 * 1.6;
+  return c;
+}
 
-  cv::Mat1f img(height, width);
-  for (int y = 0; y < height; ++y) {
+// Skin, eye and glints pixel by pixel, the eye blended over the skin by the pixel's coverage of the
+// lid opening.
+cv::Mat1f SyntheticEye::RenderStages::shade_pixels(const Shading& c, const std::vector<GlintSplat>& splats) {
+  cv::Mat1f img(c.height, c.width);
+  for (int y = 0; y < c.height; ++y) {
     float* row = img.ptr<float>(y);
-    const double py = y + 0.5;
-    const double yn = (py - fr.cam.cy) / fr.cam.f;
-    const double dy = py - lids.mid.y;
-    float cy[8], sy[8];
-    for (std::size_t k = 0; k < nw; ++k) {
-      cy[k] = look.wave_cy[k * h + static_cast<std::size_t>(y)];
-      sy[k] = look.wave_sy[k * h + static_cast<std::size_t>(y)];
-    }
-    std::array<const GlintSplat*, 8> active{};
-    std::size_t n_active = 0;
-    for (const GlintSplat& s : splats)
-      if (y >= s.y0 && y < s.y1 && n_active < active.size()) active[n_active++] = &s;
-    const bool row_in_iris = iris_on && py >= iy0 && py <= iy1;
-    const bool row_in_pupil = pc.valid && py >= py0 && py <= py1;
-
-    for (int x = 0; x < width; ++x) {
+    const RowShading r = row_shading(c, splats, y);
+    for (int x = 0; x < c.width; ++x) {
       const double px = x + 0.5;
-      const double dx = px - lids.mid.x;
-      const double s = (dx * lids.t.x + dy * lids.t.y) * inv_half;
-      const double hh = dx * lids.n.x + dy * lids.n.y;
-      // Distances from the lid margins: vertical (along n) everywhere, made perpendicular only
-      // near the margins, where the coverage and the margin lines need them.
-      const double omsq = 1 - s * s;
-      const double raw_u = hh - omsq * (lids.u0 + lids.u1 * s), raw_l = omsq * (lids.l0 + lids.l1 * s) - hh;
-      double du = raw_u, dl = raw_l;
-      const double su = Lids::slope(lids.u0, lids.u1, s) * inv_half, sl = Lids::slope(lids.l0, lids.l1, s) * inv_half;
-      if (raw_u * raw_u < band2 * (1 + su * su)) du = raw_u / std::sqrt(1 + su * su);
-      if (raw_l * raw_l < band2 * (1 + sl * sl)) dl = raw_l / std::sqrt(1 + sl * sl);
-      const double open = opening_coverage(du, dl);
-      const double corner = clamp01((1.06 - std::abs(s)) / 0.12);  // lid-margin features fade at the corners
-
-      // Skin: base level, soft waves, socket shading near the opening, the lash line along the
-      // upper margin, a fainter line along the lower margin and the upper-lid crease.
-      double wave = 0;
-      for (std::size_t k = 0; k < nw; ++k)
-        wave += static_cast<double>(look.wave_cx[k * w + static_cast<std::size_t>(x)] * cy[k] -
-                                    look.wave_sx[k * w + static_cast<std::size_t>(x)] * sy[k]);
-      double skin = look.skin + wave;
-      const double outside = std::max(-raw_u, -raw_l);
-      if (outside > 0) {
-        const double q = 1 + outside / socket_w;
-        skin *= 1 - 0.12 / (q * q);
-      }
-      const double crease_d = (hh - Lids::curve(crease0, crease1, s)) / crease_w;
-      if (std::abs(crease_d) < 3.5) skin *= 1 - 0.14 * lids.open * corner * std::exp(-crease_d * crease_d);
-      if (du > -band && du < 1.5) {  // above the upper margin: the lash line
-        const double xu = -du;
-        const double mu = xu < 0.5 * lash_line_w ? 1.0 : bump((xu - 0.5 * lash_line_w) / (0.5 * lash_line_w));
-        skin += (look.lash - skin) * 0.92 * mu * corner;
-      }
-      if (dl > -band && dl < 1.5) {  // below the lower margin
-        const double xl = -dl;
-        const double ml = xl < 0.3 * lower_line_w ? 1.0 : bump((xl - 0.3 * lower_line_w) / (0.7 * lower_line_w));
-        skin += (95.0 - skin) * 0.5 * ml * corner;
-      }
-
+      const LidDistances ld = lid_distances(c, px - c.lids.mid.x, r.dy);
+      const double open = opening_coverage(ld.du, ld.dl);
+      const double corner = clamp01((1.06 - std::abs(ld.s)) / 0.12);  // lid-margin features fade at the corners
+      const double wave = skin_wave(c, r, x);
+      const double skin = skin_level(c, ld, wave, corner);
       double value = skin;
       if (open > 0) {
-        const double xn = (px - fr.cam.cx) / fr.cam.f;
-        const double od = ox * xn + oy * yn + oz;
-        const double dist2 = o2 - od * od / (xn * xn + yn * yn + 1);
-        const double cosi = std::sqrt(std::max(0.0, 1 - dist2 / rb2));
-        double eye = look.sclera * (0.6 + 0.4 * cosi) + 0.3 * wave;
-        if (row_in_iris && px >= ix0 && px <= ix1) {
-          const double ai = ic.coverage(px, py);
-          if (ai > 0) {
-            double ap = 0;
-            if (row_in_pupil && px >= px0 && px <= px1) ap = std::min(pc.coverage(px, py), ai);
-            double iris_v = look.iris_inner;
-            if (ai - ap > 0) {
-              const double qa = fr.hinv(0, 0) * px + fr.hinv(0, 1) * py + fr.hinv(0, 2);
-              const double qb = fr.hinv(1, 0) * px + fr.hinv(1, 1) * py + fr.hinv(1, 2);
-              const double qw = fr.hinv(2, 0) * px + fr.hinv(2, 1) * py + fr.hinv(2, 2);
-              const double a = qa / qw, b = qb / qw;
-              const double rho = std::sqrt(a * a + b * b);
-              const double blend = smoothstep(flat0, flat1, rho - pupil_r);
-              if (blend > 0 && std::isfinite(rho)) {
-                const double tr = std::clamp((rho - pupil_r) * rho_scale, 0.0, Look::kRho - 1.0);
-                double tt = (fast_atan2(b, a) + kPi) * theta_scale;
-                const int r0 = std::min(static_cast<int>(tr), Look::kRho - 2);
-                int t0 = static_cast<int>(tt);
-                const double fr_r = tr - r0, fr_t = tt - t0;
-                t0 %= Look::kTheta;
-                const int t1 = (t0 + 1) % Look::kTheta;
-                const float* r0p = &look.iris[static_cast<std::size_t>(r0 * Look::kTheta)];
-                const float* r1p = r0p + Look::kTheta;
-                const double tex = (1 - fr_r) * ((1 - fr_t) * static_cast<double>(r0p[t0]) + fr_t * static_cast<double>(r0p[t1])) +
-                                   fr_r * ((1 - fr_t) * static_cast<double>(r1p[t0]) + fr_t * static_cast<double>(r1p[t1]));
-                iris_v += (tex - look.iris_inner) * blend;
-              }
-            }
-            eye = eye * (1 - ai) + iris_v * (ai - ap) + look.pupil * ap;
-          }
-        }
-        const double shadow_x = std::max(raw_u, 0.0) / shadow_w;
-        if (shadow_x < 8) eye *= 1 - 0.3 * std::exp(-shadow_x);  // the upper lid's shadow
-        for (std::size_t k = 0; k < n_active; ++k) {
-          const GlintSplat& g = *active[k];
-          if (x >= g.x0 && x < g.x1)
-            eye += static_cast<double>(g.gx[static_cast<std::size_t>(x - g.x0)] * g.gy[static_cast<std::size_t>(y - g.y0)]);
-        }
+        const double eye = eye_level(c, r, ld, x, px, wave);
         value = skin + (eye - skin) * open;
       }
       row[x] = static_cast<float>(value);
     }
   }
+  return img;
+}
 
-  // Eyelashes over everything (they are in front of the eye), darkening towards their level.
-  if (o.eyelashes && !look.lashes.empty()) {
-    cv::Mat1f cover(height, width, 0.0f);
-    std::vector<cv::Point2d> pts(8);
-    for (const Look::Lash& l : look.lashes) {
-      const double hb = Lids::curve(lids.u0, lids.u1, l.s);
-      const cv::Point2d base = lids.point(l.s, hb);
-      // Direction: image "down" of the lid frame, turned towards the corners.
-      const double ct = std::cos(l.tilt), st = std::sin(l.tilt);
-      const cv::Point2d d0 = lids.n * ct + lids.t * st;
-      const double cc = std::cos(l.tilt + l.curl), sc = std::sin(l.tilt + l.curl);
-      const cv::Point2d d1 = lids.n * cc + lids.t * sc;
-      const double length = l.length_mm * ppm;
-      const cv::Point2d p1 = base + d0 * (0.55 * length), p2 = p1 + d1 * (0.55 * length);
-      for (std::size_t i = 0; i < pts.size(); ++i) {  // quadratic Bezier
-        const double t = static_cast<double>(i) / static_cast<double>(pts.size() - 1);
-        pts[i] = base * ((1 - t) * (1 - t)) + p1 * (2 * t * (1 - t)) + p2 * (t * t);
-      }
-      draw_stroke(cover, pts, std::max(0.7, l.width_mm * ppm), l.opacity);
+// The eye in the lid opening at pixel (px, r.py): the sclera shaded by the cosine of incidence, the
+// iris and the pupil by their area coverage, the upper lid's shadow and the glints.
+double SyntheticEye::RenderStages::eye_level(const Shading& c, const RowShading& r, const LidDistances& ld, int x,
+                                             double px, double wave) {
+  const double py = r.py;
+  const double xn = (px - c.cam.cx) / c.cam.f;
+  const double od = c.ox * xn + c.oy * r.yn + c.oz;
+  const double dist2 = c.o2 - od * od / (xn * xn + r.yn * r.yn + 1);
+  const double cosi = std::sqrt(std::max(0.0, 1 - dist2 / c.rb2));
+  double eye = c.look.sclera * (0.6 + 0.4 * cosi) + 0.3 * wave;
+  if (r.in_iris && px >= c.ix0 && px <= c.ix1) {
+    const double ai = c.ic.coverage(px, py);
+    if (ai > 0) {
+      double ap = 0;
+      if (r.in_pupil && px >= c.px0 && px <= c.px1) ap = std::min(c.pc.coverage(px, py), ai);
+      double iris_v = c.look.iris_inner;
+      if (ai - ap > 0) iris_v = iris_level(c, px, py);
+      eye = eye * (1 - ai) + iris_v * (ai - ap) + c.look.pupil * ap;
     }
-    const float level = static_cast<float>(look.lash);
-    for (int y = 0; y < height; ++y) {
+  }
+  const double shadow_x = std::max(ld.raw_u, 0.0) / c.shadow_w;
+  if (shadow_x < 8) eye *= 1 - 0.3 * std::exp(-shadow_x);  // the upper lid's shadow
+  for (std::size_t k = 0; k < r.n_active; ++k) {
+    const GlintSplat& g = *r.active[k];
+    if (x >= g.x0 && x < g.x1)
+      eye += static_cast<double>(g.gx[static_cast<std::size_t>(x - g.x0)] * g.gy[static_cast<std::size_t>(r.y - g.y0)]);
+  }
+  return eye;
+}
+
+// The iris at pixel (px, py): the pixel mapped onto the pupil plane (hinv), its polar coordinates
+// looked up bilinearly in the look's iris texture, faded in from iris_inner past the flat ring.
+double SyntheticEye::RenderStages::iris_level(const Shading& c, double px, double py) {
+  double iris_v = c.look.iris_inner;
+  const double qa = c.hinv(0, 0) * px + c.hinv(0, 1) * py + c.hinv(0, 2);
+  const double qb = c.hinv(1, 0) * px + c.hinv(1, 1) * py + c.hinv(1, 2);
+  const double qw = c.hinv(2, 0) * px + c.hinv(2, 1) * py + c.hinv(2, 2);
+  const double a = qa / qw, b = qb / qw;
+  const double rho = std::sqrt(a * a + b * b);
+  const double blend = smoothstep(c.flat0, c.flat1, rho - c.pupil_r);
+  if (blend > 0 && std::isfinite(rho)) {
+    const double tr = std::clamp((rho - c.pupil_r) * c.rho_scale, 0.0, Look::kRho - 1.0);
+    double tt = (fast_atan2(b, a) + kPi) * c.theta_scale;
+    const int r0 = std::min(static_cast<int>(tr), Look::kRho - 2);
+    int t0 = static_cast<int>(tt);
+    const double fr_r = tr - r0, fr_t = tt - t0;
+    t0 %= Look::kTheta;
+    const int t1 = (t0 + 1) % Look::kTheta;
+    const float* r0p = &c.look.iris[static_cast<std::size_t>(r0 * Look::kTheta)];
+    const float* r1p = r0p + Look::kTheta;
+    const double tex = (1 - fr_r) * ((1 - fr_t) * static_cast<double>(r0p[t0]) + fr_t * static_cast<double>(r0p[t1])) +
+                       fr_r * ((1 - fr_t) * static_cast<double>(r1p[t0]) + fr_t * static_cast<double>(r1p[t1]));
+    iris_v += (tex - c.look.iris_inner) * blend;
+  }
+  return iris_v;
+}
+
+// Eyelashes over everything (they are in front of the eye), darkening towards their level.
+void SyntheticEye::RenderStages::draw_eyelashes(cv::Mat1f& img, const Lids& lids, const Look& look, double ppm) {
+  const int width = img.cols, height = img.rows;
+  cv::Mat1f cover(height, width, 0.0f);
+  std::vector<cv::Point2d> pts(8);
+  for (const Look::Lash& l : look.lashes) {
+    const double hb = Lids::curve(lids.u0, lids.u1, l.s);
+    const cv::Point2d base = lids.point(l.s, hb);
+    // Direction: image "down" of the lid frame, turned towards the corners.
+    const double ct = std::cos(l.tilt), st = std::sin(l.tilt);
+    const cv::Point2d d0 = lids.n * ct + lids.t * st;
+    const double cc = std::cos(l.tilt + l.curl), sc = std::sin(l.tilt + l.curl);
+    const cv::Point2d d1 = lids.n * cc + lids.t * sc;
+    const double length = l.length_mm * ppm;
+    const cv::Point2d p1 = base + d0 * (0.55 * length), p2 = p1 + d1 * (0.55 * length);
+    for (std::size_t i = 0; i < pts.size(); ++i) {  // quadratic Bezier
+      const double t = static_cast<double>(i) / static_cast<double>(pts.size() - 1);
+      pts[i] = base * ((1 - t) * (1 - t)) + p1 * (2 * t * (1 - t)) + p2 * (t * t);
+    }
+    draw_stroke(cover, pts, std::max(0.7, l.width_mm * ppm), l.opacity);
+  }
+  const float level = static_cast<float>(look.lash);
+  for (int y = 0; y < height; ++y) {
+    float* row = img.ptr<float>(y);
+    const float* c = cover.ptr<float>(y);
+    for (int x = 0; x < width; ++x)
+      if (c[x] > 0) row[x] += (std::min(row[x], level) - row[x]) * c[x];
+  }
+}
+
+// Spectacle reflections: soft, flat-topped, semi-transparent (screen blend).
+void SyntheticEye::RenderStages::add_spectacle_reflections(cv::Mat1f& img, const Look& look) {
+  const int width = img.cols, height = img.rows;
+  for (const Look::Reflection& r : look.reflections) {
+    const double ca = std::cos(r.angle), sa = std::sin(r.angle);
+    const double reach = std::max(r.a, r.b) * 1.6 + 1;
+    const int x0 = std::max(0, static_cast<int>(r.centre.x - reach));
+    const int x1 = std::min(width, static_cast<int>(r.centre.x + reach) + 1);
+    const int y0 = std::max(0, static_cast<int>(r.centre.y - reach));
+    const int y1 = std::min(height, static_cast<int>(r.centre.y + reach) + 1);
+    for (int y = y0; y < y1; ++y) {
       float* row = img.ptr<float>(y);
-      const float* c = cover.ptr<float>(y);
-      for (int x = 0; x < width; ++x)
-        if (c[x] > 0) row[x] += (std::min(row[x], level) - row[x]) * c[x];
-    }
-  }
-
-  // Uneven illumination: a tilted gradient times a vignette.
-  if (o.illumination_gradient > 0) {
-    const double g = o.illumination_gradient;
-    const double cx = width / 2.0, cyy = height / 2.0, rd = std::max(std::hypot(cx, cyy), 1e-9);
-    for (int y = 0; y < height; ++y) {
-      float* row = img.ptr<float>(y);
-      const double ry = (y + 0.5 - cyy) / rd;
-      for (int x = 0; x < width; ++x) {
-        const double rx = (x + 0.5 - cx) / rd;
-        const double tilt = 1 + 0.5 * g * (rx * look.gradient_dir.x + ry * look.gradient_dir.y);
-        const double vignette = 1 - 0.45 * g * (rx * rx + ry * ry);
-        row[x] = static_cast<float>(static_cast<double>(row[x]) * std::max(0.0, tilt * vignette));
+      for (int x = x0; x < x1; ++x) {
+        const double ex = x + 0.5 - r.centre.x, ey = y + 0.5 - r.centre.y;
+        const double u = (ex * ca + ey * sa) / r.a, v = (-ex * sa + ey * ca) / r.b;
+        const double q2 = u * u + v * v;
+        if (q2 > 2.6) continue;
+        const double a = r.strength * std::exp(-q2 * q2);
+        const double val = static_cast<double>(row[x]);
+        row[x] = static_cast<float>(val + (255.0 - val) * a);
       }
     }
   }
+}
 
-  // Spectacle reflections: soft, flat-topped, semi-transparent (screen blend).
-  if (o.glasses_reflection) {
-    for (const Look::Reflection& r : look.reflections) {
-      const double ca = std::cos(r.angle), sa = std::sin(r.angle);
-      const double reach = std::max(r.a, r.b) * 1.6 + 1;
-      const int x0 = std::max(0, static_cast<int>(r.centre.x - reach)), x1 = std::min(width, static_cast<int>(r.centre.x + reach) + 1);
-      const int y0 = std::max(0, static_cast<int>(r.centre.y - reach)), y1 = std::min(height, static_cast<int>(r.centre.y + reach) + 1);
-      for (int y = y0; y < y1; ++y) {
-        float* row = img.ptr<float>(y);
-        for (int x = x0; x < x1; ++x) {
-          const double ex = x + 0.5 - r.centre.x, ey = y + 0.5 - r.centre.y;
-          const double u = (ex * ca + ey * sa) / r.a, v = (-ex * sa + ey * ca) / r.b;
-          const double q2 = u * u + v * v;
-          if (q2 > 2.6) continue;
-          const double a = r.strength * std::exp(-q2 * q2);
-          const double val = static_cast<double>(row[x]);
-          row[x] = static_cast<float>(val + (255.0 - val) * a);
-        }
-      }
+namespace {
+
+// Uneven illumination: a tilted gradient times a vignette.
+void apply_uneven_illumination(cv::Mat1f& img, double g, cv::Point2d gradient_dir) {
+  const int width = img.cols, height = img.rows;
+  const double cx = width / 2.0, cyy = height / 2.0, rd = std::max(std::hypot(cx, cyy), 1e-9);
+  for (int y = 0; y < height; ++y) {
+    float* row = img.ptr<float>(y);
+    const double ry = (y + 0.5 - cyy) / rd;
+    for (int x = 0; x < width; ++x) {
+      const double rx = (x + 0.5 - cx) / rd;
+      const double tilt = 1 + 0.5 * g * (rx * gradient_dir.x + ry * gradient_dir.y);
+      const double vignette = 1 - 0.45 * g * (rx * rx + ry * ry);
+      row[x] = static_cast<float>(static_cast<double>(row[x]) * std::max(0.0, tilt * vignette));
     }
   }
+}
 
-  // Optics: defocus (disc), then motion (line).
+// Optics: defocus (disc), then motion (line).
+void apply_optics(cv::Mat1f& img, const SyntheticEyeOptions& o) {
   if (o.defocus_px >= 0.3) cv::filter2D(img, img, CV_32F, disc_kernel(o.defocus_px), {-1, -1}, 0, cv::BORDER_REPLICATE);
   if (o.motion_blur_px >= 0.5)
     cv::filter2D(img, img, CV_32F, line_kernel(o.motion_blur_px, o.motion_blur_angle_deg), {-1, -1}, 0,
                  cv::BORDER_REPLICATE);
+}
 
-  // Sensor: Gaussian noise, rounding, clipping.
+// Sensor: Gaussian noise, rounding, clipping. The noise comes from its own generator, seeded by the
+// frame's one draw from the instance's, 16 bits a pixel in row-major order.
+cv::Mat sensor_readout(const cv::Mat1f& img, double noise_sigma, std::uint64_t noise_seed) {
+  const int width = img.cols, height = img.rows;
   cv::Mat out(height, width, CV_8U);
   const auto& table = normal_table();
   SplitMix noise{noise_seed};
-  const float ns = static_cast<float>(o.noise_sigma);
+  const float ns = static_cast<float>(noise_sigma);
   std::uint64_t bits = 0;
   int left = 0;
   for (int y = 0; y < height; ++y) {
@@ -1173,6 +1368,25 @@ cv::Mat SyntheticEye::render(double yaw_deg, double pitch_deg, double openness, 
       dst[x] = static_cast<std::uint8_t>(std::clamp(v, 0.0f, 255.0f));
     }
   }
+  return out;
+}
+
+}  // namespace
+
+cv::Mat SyntheticEye::render(double yaw_deg, double pitch_deg, double openness, EyeTruth* truth) {
+  const Frame fr = frame(yaw_deg, pitch_deg, openness);
+  const std::uint64_t noise_seed = rng_();  // one draw per frame, whatever the options
+  const Look& look = *look_;
+  const SyntheticEyeOptions& o = options_;
+  const double ppm = std::max(fr.px_per_mm, 1e-3);
+
+  const std::vector<GlintSplat> splats = glint_splats(fr.glints, o.width, o.height);
+  cv::Mat1f img = RenderStages::shade_pixels(RenderStages::shading(fr, look, o, ppm), splats);
+  if (o.eyelashes && !look.lashes.empty()) RenderStages::draw_eyelashes(img, fr.lids, look, ppm);
+  if (o.illumination_gradient > 0) apply_uneven_illumination(img, o.illumination_gradient, look.gradient_dir);
+  if (o.glasses_reflection) RenderStages::add_spectacle_reflections(img, look);
+  apply_optics(img, o);
+  cv::Mat out = sensor_readout(img, o.noise_sigma, noise_seed);
   if (truth) *truth = fr.truth;
   return out;
 }

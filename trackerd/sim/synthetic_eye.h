@@ -104,6 +104,7 @@ class SyntheticEye {
   struct Look;   // the instance's fixed appearance (iris texture, skin, lashes, reflections), from the seed
   struct Frame;  // one frame's geometry
   Frame frame(double yaw_deg, double pitch_deg, double openness) const;
+  struct RenderStages;  // render()'s stages that read Look (synthetic_eye.cpp)
 
   SyntheticEyeOptions options_;
   std::mt19937_64 rng_;
