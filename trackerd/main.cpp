@@ -7,6 +7,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -15,6 +16,10 @@
 #include "sources/source_table.h"
 
 namespace {
+namespace protocol = fovea::protocol;
+namespace trackerd = fovea::trackerd;
+namespace svc = fovea::trackerd::service;
+
 std::atomic<bool> g_stop{false};
 std::atomic<bool> g_reload{false};
 // Signal handlers only set flags; the publishing loop does the work.
@@ -24,217 +29,256 @@ void on_hangup(int) { g_reload.store(true); }
 // Exit status for an unusable configuration file (sysexits.h EX_CONFIG); the service unit does not
 // restart on it (RestartPreventExitStatus=78): a restart would fail the same way.
 constexpr int kExitConfig = 78;
-}  // namespace
 
-int main(int argc, char** argv) {
-  using namespace fovea;
-  namespace svc = trackerd::service;
-  CLI::App app{
-      "fovea-trackerd: reads an eye tracker (or a synthetic or recorded gaze stream) and streams gaze samples and\n"
-      "events over UDP to subscribed clients (protocol: protocol/PROTOCOL.md). Settings come from --config FILE\n"
-      "(TOML, documented in deploy/trackerd.toml) and the flags below, which override the file.\n"
-      "SIGINT/SIGTERM stop it cleanly; SIGHUP reloads the configuration and calibration without dropping subscribers."};
-  app.set_version_flag("--version", "fovea-trackerd 0.1.0");
-
+// Where CLI11 writes the flag values (it holds references: this must not move once options are added),
+// and the options whose count() says whether a flag was given.
+struct Flags {
   const svc::DaemonConfig defaults;
   svc::DaemonConfig d = defaults;  // receives the flag values; only flags given on the command line count
   std::string config_path, display, multicast, log_level = defaults.log_level, record_path, calibration, classifier;
   std::vector<std::string> control_allow;
   bool check_config = false, loop = false, append = false;
   trackerd::RunOptions run;
-
-  app.add_option("--config", config_path,
-                 std::string("TOML configuration file (the service uses ") + svc::kDefaultConfigPath +
-                     "); flags override its values");
-  app.add_flag(
-      "--check-config", check_config,
-      std::string("validate the configuration (--config FILE, default ") + svc::kDefaultConfigPath +
-          ") with the flags applied, print the effective configuration and exit 0, or the problems and exit 1");
-  auto* o_source =
-      app.add_option("--source", d.source.spec, trackerd::source_help())
-          ->capture_default_str();
-  auto* o_port = app.add_option("--port", d.network.port, "UDP port to serve on")->capture_default_str();
-  auto* o_listen =
-      app.add_option("--listen", d.network.listen, "local IPv4 address to bind (0.0.0.0 to serve other machines)")
-          ->capture_default_str();
-  auto* o_multicast = app.add_option("--multicast", multicast,
-                                     "also publish samples and events to GROUP:PORT (e.g. 239.255.47.80:47801)");
-  auto* o_ttl = app.add_option("--multicast-ttl", d.network.multicast_ttl, "multicast TTL (1: this LAN segment)")
-                    ->check(CLI::Range(0, 255))
-                    ->capture_default_str();
-  auto* o_record =
-      app.add_option("--record", record_path, "record everything published to this .fgr file (refuses to overwrite)");
-  auto* o_append =
-      app.add_flag("--append", append, "with --record: append to an existing recording of the same display");
-  auto* o_rate = app.add_option("--rate", d.source.rate_hz,
-                                "synthetic sources: sample (frame) rate in Hz; synthetic 1..10000 (default 250), "
-                                "synthetic-eye 1..1000 (default 120)")
-                     ->check(CLI::Range(1.0, 10000.0));
-  auto* o_seed =
-      app.add_option("--seed", d.source.seed, "synthetic sources: random seed (same seed, same gaze)")
-          ->capture_default_str();
   // The eye pipeline (camera:, video:, synthetic-eye).
   std::string eye_side = defaults.eye.side, leds, eye_size, eye_script, eye_head_offset;
   bool no_pupil_roi = false, eye_hard = false;
-  auto* o_eye = app.add_option("--eye", eye_side, "eye pipeline: which eye the camera sees (fills that eye's data)")
-                    ->check(CLI::IsMember(svc::kEyeSides))
-                    ->capture_default_str();
-  auto* o_leds = app.add_option("--leds", leds,
-                                "eye pipeline: infrared LED layout around the camera lens, a preset 0..5 or "
-                                "\"x,y;x,y;...\" in mm (default: synthetic-eye 2, cameras and videos unknown)");
-  auto* o_downscale = app.add_option("--pupil-downscale", d.eye.pupil_downscale,
-                                     "eye pipeline: coarse pupil search on an image 1, 2 or 4 times smaller")
-                          ->check(CLI::IsMember({1, 2, 4}))
-                          ->capture_default_str();
-  auto* o_no_roi =
-      app.add_flag("--no-pupil-roi", no_pupil_roi, "eye pipeline: search the whole frame every time (no tracking ROI)");
-  auto* o_eye_size =
-      app.add_option("--eye-size", eye_size, "synthetic-eye: eye camera image size WxH (default 320x240)");
-  auto* o_eye_hard = app.add_flag("--eye-hard", eye_hard,
-                                  "synthetic-eye: hard imaging conditions (sensor noise 10, 2 px motion blur, upper "
-                                  "lid over 30% of the pupil, spectacle reflections, uneven illumination)");
-  auto* o_eye_script = app.add_option(
-      "--eye-script", eye_script,
+
+  CLI::Option *o_source = nullptr, *o_port = nullptr, *o_listen = nullptr, *o_multicast = nullptr, *o_ttl = nullptr,
+              *o_record = nullptr, *o_append = nullptr, *o_rate = nullptr, *o_seed = nullptr;
+  CLI::Option *o_eye = nullptr, *o_leds = nullptr, *o_downscale = nullptr, *o_no_roi = nullptr, *o_eye_size = nullptr,
+              *o_eye_hard = nullptr, *o_eye_script = nullptr, *o_eye_head_offset = nullptr;
+  CLI::Option *o_speed = nullptr, *o_loop = nullptr, *o_display = nullptr, *o_lease = nullptr, *o_max = nullptr,
+              *o_allow = nullptr, *o_calibration = nullptr, *o_classifier = nullptr, *o_log = nullptr;
+};
+
+// The option groups below are added in --help order; keep it when moving an option.
+
+// --config and --check-config.
+void add_config_options(CLI::App& app, Flags& f) {
+  app.add_option("--config", f.config_path,
+                 std::string("TOML configuration file (the service uses ") + svc::kDefaultConfigPath +
+                     "); flags override its values");
+  app.add_flag(
+      "--check-config", f.check_config,
+      std::string("validate the configuration (--config FILE, default ") + svc::kDefaultConfigPath +
+          ") with the flags applied, print the effective configuration and exit 0, or the problems and exit 1");
+}
+
+// The source, where to serve and record, and the synthetic sources' rate and seed.
+void add_source_network_and_record_options(CLI::App& app, Flags& f) {
+  svc::DaemonConfig& d = f.d;
+  f.o_source =
+      app.add_option("--source", d.source.spec, trackerd::source_help())
+          ->capture_default_str();
+  f.o_port = app.add_option("--port", d.network.port, "UDP port to serve on")->capture_default_str();
+  f.o_listen =
+      app.add_option("--listen", d.network.listen, "local IPv4 address to bind (0.0.0.0 to serve other machines)")
+          ->capture_default_str();
+  f.o_multicast = app.add_option("--multicast", f.multicast,
+                                 "also publish samples and events to GROUP:PORT (e.g. 239.255.47.80:47801)");
+  f.o_ttl = app.add_option("--multicast-ttl", d.network.multicast_ttl, "multicast TTL (1: this LAN segment)")
+                ->check(CLI::Range(0, 255))
+                ->capture_default_str();
+  f.o_record =
+      app.add_option("--record", f.record_path, "record everything published to this .fgr file (refuses to overwrite)");
+  f.o_append =
+      app.add_flag("--append", f.append, "with --record: append to an existing recording of the same display");
+  f.o_rate = app.add_option("--rate", d.source.rate_hz,
+                            "synthetic sources: sample (frame) rate in Hz; synthetic 1..10000 (default 250), "
+                            "synthetic-eye 1..1000 (default 120)")
+                 ->check(CLI::Range(1.0, 10000.0));
+  f.o_seed =
+      app.add_option("--seed", d.source.seed, "synthetic sources: random seed (same seed, same gaze)")
+          ->capture_default_str();
+}
+
+// The eye pipeline (camera:, video:, synthetic-eye).
+void add_eye_options(CLI::App& app, Flags& f) {
+  f.o_eye = app.add_option("--eye", f.eye_side, "eye pipeline: which eye the camera sees (fills that eye's data)")
+                ->check(CLI::IsMember(svc::kEyeSides))
+                ->capture_default_str();
+  f.o_leds = app.add_option("--leds", f.leds,
+                            "eye pipeline: infrared LED layout around the camera lens, a preset 0..5 or "
+                            "\"x,y;x,y;...\" in mm (default: synthetic-eye 2, cameras and videos unknown)");
+  f.o_downscale = app.add_option("--pupil-downscale", f.d.eye.pupil_downscale,
+                                 "eye pipeline: coarse pupil search on an image 1, 2 or 4 times smaller")
+                      ->check(CLI::IsMember({1, 2, 4}))
+                      ->capture_default_str();
+  f.o_no_roi = app.add_flag("--no-pupil-roi", f.no_pupil_roi,
+                            "eye pipeline: search the whole frame every time (no tracking ROI)");
+  f.o_eye_size =
+      app.add_option("--eye-size", f.eye_size, "synthetic-eye: eye camera image size WxH (default 320x240)");
+  f.o_eye_hard = app.add_flag("--eye-hard", f.eye_hard,
+                              "synthetic-eye: hard imaging conditions (sensor noise 10, 2 px motion blur, upper "
+                              "lid over 30% of the pupil, spectacle reflections, uneven illumination)");
+  f.o_eye_script = app.add_option(
+      "--eye-script", f.eye_script,
       "synthetic-eye: calibration:POINTS[:SEED[:VALIDATION]] makes the viewer follow the targets that "
       "'fovea-calibrate run --points POINTS --seed SEED --validation-points VALIDATION' shows (defaults 1 "
       "and 4), starting with the first frame: a whole calibration without a person");
-  auto* o_eye_head_offset = app.add_option(
-      "--eye-head-offset", eye_head_offset,
+  f.o_eye_head_offset = app.add_option(
+      "--eye-head-offset", f.eye_head_offset,
       "synthetic-eye: X,Y,Z mm, the viewer's head moved from where the factory calibration assumes it "
       "(x right, y down, z towards the screen)");
-  auto* o_speed = app.add_option("--speed", d.source.speed, "replay source: speed factor (2 = twice as fast)")
-                      ->capture_default_str();
-  auto* o_loop = app.add_flag("--loop", loop, "replay source: start again at the end");
-  auto* o_display = app.add_option(
-      "--display", display,
+}
+
+// The replay source, the display geometry and what subscribers may do.
+void add_replay_display_and_subscriber_options(CLI::App& app, Flags& f) {
+  svc::DaemonConfig& d = f.d;
+  f.o_speed = app.add_option("--speed", d.source.speed, "replay source: speed factor (2 = twice as fast)")
+                  ->capture_default_str();
+  f.o_loop = app.add_flag("--loop", f.loop, "replay source: start again at the end");
+  f.o_display = app.add_option(
+      "--display", f.display,
       "display geometry WxH@WMMxHMMmm,DISTmm (default: the recording's, or 1920x1080@531.3x298.9mm,650mm)");
-  auto* o_lease =
+  f.o_lease =
       app.add_option("--lease-ms", d.network.lease_ms, "lease granted to subscribers that do not ask for one")
           ->check(CLI::Range(200u, 600000u))
           ->capture_default_str();
-  auto* o_max = app.add_option("--max-subscribers", d.network.max_subscribers, "refuse subscriptions beyond this many")
-                    ->capture_default_str();
-  auto* o_allow = app.add_option("--control-allow", control_allow,
-                                 "networks allowed to send control commands (reload, record-start/stop), A.B.C.D/N; "
-                                 "repeat or separate with commas (default 127.0.0.0/8)")
-                      ->delimiter(',');
-  auto* o_calibration = app.add_option("--calibration", calibration, "calibration file (JSON)");
-  auto* o_classifier = app.add_option("--classifier", classifier,
-                                       "online classifier: ivvt (default), ivt, idt, lee2009, or 'source' to pass "
-                                       "the source's own labels and events (trackerd/CLASSIFY.md)");
-  app.add_option("--duration", run.duration_s, "stop after this many seconds (0: run until signalled)")
-      ->capture_default_str();
-  app.add_flag("--exit-at-end", run.exit_when_source_ends, "exit when the source ends (default: keep serving status)");
-  app.add_option("--wait-subscribers", run.wait_subscribers,
-                 "start the source only once this many clients have subscribed (regression tests)");
-  auto* o_log = app.add_option("--log-level", log_level, "log verbosity")
-                    ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
-                    ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  f.o_max = app.add_option("--max-subscribers", d.network.max_subscribers, "refuse subscriptions beyond this many")
+                ->capture_default_str();
+  f.o_allow = app.add_option("--control-allow", f.control_allow,
+                             "networks allowed to send control commands (reload, record-start/stop), A.B.C.D/N; "
+                             "repeat or separate with commas (default 127.0.0.0/8)")
+                  ->delimiter(',');
+}
 
+// Calibration, classifier, how long to run, and the log level.
+void add_processing_and_run_options(CLI::App& app, Flags& f) {
+  f.o_calibration = app.add_option("--calibration", f.calibration, "calibration file (JSON)");
+  f.o_classifier = app.add_option("--classifier", f.classifier,
+                                  "online classifier: ivvt (default), ivt, idt, lee2009, or 'source' to pass "
+                                  "the source's own labels and events (trackerd/CLASSIFY.md)");
+  app.add_option("--duration", f.run.duration_s, "stop after this many seconds (0: run until signalled)")
+      ->capture_default_str();
+  app.add_flag("--exit-at-end", f.run.exit_when_source_ends,
+               "exit when the source ends (default: keep serving status)");
+  app.add_option("--wait-subscribers", f.run.wait_subscribers,
+                 "start the source only once this many clients have subscribed (regression tests)");
+  f.o_log = app.add_option("--log-level", f.log_level, "log verbosity")
+                ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
+                ->capture_default_str();
+}
+
+void set_up_logging(const std::string& log_level) {
   auto logger = spdlog::stderr_color_mt("fovea-trackerd");
   // Under systemd the journal stamps every line itself.
   logger->set_pattern(std::getenv("JOURNAL_STREAM") != nullptr ? "%^%-5l%$ %v"
                                                                : "%Y-%m-%dT%H:%M:%S.%e %^%-5l%$ fovea-trackerd: %v");
   spdlog::set_default_logger(logger);
   spdlog::set_level(spdlog::level::from_str(log_level));
+}
 
-  // Flags given on the command line override the file, now and on every reload.
-  svc::CliOverrides cli;
-  try {
-    const auto given = [](const CLI::Option* o) { return o->count() > 0; };
-    if (given(o_source)) cli.source = d.source.spec;
-    if (given(o_rate)) cli.rate_hz = d.source.rate_hz;
-    if (given(o_seed)) cli.seed = d.source.seed;
-    if (given(o_speed)) cli.speed = d.source.speed;
-    if (given(o_loop)) cli.loop = loop;
-    if (given(o_display)) cli.display = protocol::parse_display_geometry(display);
-    if (given(o_listen)) cli.listen = d.network.listen;
-    if (given(o_port)) cli.port = d.network.port;
-    if (given(o_multicast)) {
-      if (!multicast.empty()) (void)protocol::parse_multicast(multicast);
-      cli.multicast = multicast;
-    }
-    if (given(o_ttl)) cli.multicast_ttl = d.network.multicast_ttl;
-    if (given(o_max)) cli.max_subscribers = d.network.max_subscribers;
-    if (given(o_lease)) cli.lease_ms = d.network.lease_ms;
-    if (given(o_allow)) {
-      std::vector<protocol::Ipv4Cidr> nets;
-      for (const auto& text : control_allow) nets.push_back(protocol::parse_cidr(text));
-      cli.control_allow = nets;
-    }
-    if (given(o_record)) cli.record_path = record_path;
-    if (given(o_append)) cli.record_append = append;
-    if (given(o_calibration)) cli.calibration_file = calibration;
-    if (given(o_classifier)) cli.classifier_method = classifier;
-    if (given(o_log)) cli.log_level = log_level;
-    if (given(o_eye)) cli.eye_side = eye_side;
-    if (given(o_leds)) cli.eye_leds = leds;
-    if (given(o_downscale)) cli.pupil_downscale = d.eye.pupil_downscale;
-    if (given(o_no_roi)) cli.pupil_roi = !no_pupil_roi;
-    if (given(o_eye_hard)) cli.synthetic_hard = eye_hard;
-    if (given(o_eye_script)) cli.synthetic_script = eye_script;
-    if (given(o_eye_head_offset)) cli.synthetic_head_offset_mm = eye_head_offset;
-    if (given(o_eye_size)) {
-      unsigned w = 0, h = 0;
-      char tail = 0;
-      if (std::sscanf(eye_size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
-        throw std::invalid_argument("--eye-size \"" + eye_size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
-      }
-      cli.synthetic_size = std::pair{std::uint32_t{w}, std::uint32_t{h}};
-    }
-    if (given(o_listen)) (void)protocol::parse_endpoint(d.network.listen, d.network.port);
-  } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+// --eye-size WxH; throws std::invalid_argument.
+std::pair<std::uint32_t, std::uint32_t> parse_eye_size(const std::string& eye_size) {
+  unsigned w = 0, h = 0;
+  char tail = 0;
+  if (std::sscanf(eye_size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
+    throw std::invalid_argument("--eye-size \"" + eye_size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
   }
+  return std::pair{std::uint32_t{w}, std::uint32_t{h}};
+}
 
-  if (check_config && config_path.empty()) config_path = svc::kDefaultConfigPath;
-  const trackerd::ConfigLoader load = [config_path, cli] {
+// The flags given on the command line, parsed and checked; throws on the first unusable value (checked in
+// this order, so the same flag is reported when several are wrong).
+svc::CliOverrides cli_overrides(const Flags& f) {
+  const svc::DaemonConfig& d = f.d;
+  svc::CliOverrides cli;
+  const auto given = [](const CLI::Option* o) { return o->count() > 0; };
+  if (given(f.o_source)) cli.source = d.source.spec;
+  if (given(f.o_rate)) cli.rate_hz = d.source.rate_hz;
+  if (given(f.o_seed)) cli.seed = d.source.seed;
+  if (given(f.o_speed)) cli.speed = d.source.speed;
+  if (given(f.o_loop)) cli.loop = f.loop;
+  if (given(f.o_display)) cli.display = protocol::parse_display_geometry(f.display);
+  if (given(f.o_listen)) cli.listen = d.network.listen;
+  if (given(f.o_port)) cli.port = d.network.port;
+  if (given(f.o_multicast)) {
+    if (!f.multicast.empty()) (void)protocol::parse_multicast(f.multicast);
+    cli.multicast = f.multicast;
+  }
+  if (given(f.o_ttl)) cli.multicast_ttl = d.network.multicast_ttl;
+  if (given(f.o_max)) cli.max_subscribers = d.network.max_subscribers;
+  if (given(f.o_lease)) cli.lease_ms = d.network.lease_ms;
+  if (given(f.o_allow)) {
+    std::vector<protocol::Ipv4Cidr> nets;
+    for (const auto& text : f.control_allow) nets.push_back(protocol::parse_cidr(text));
+    cli.control_allow = nets;
+  }
+  if (given(f.o_record)) cli.record_path = f.record_path;
+  if (given(f.o_append)) cli.record_append = f.append;
+  if (given(f.o_calibration)) cli.calibration_file = f.calibration;
+  if (given(f.o_classifier)) cli.classifier_method = f.classifier;
+  if (given(f.o_log)) cli.log_level = f.log_level;
+  if (given(f.o_eye)) cli.eye_side = f.eye_side;
+  if (given(f.o_leds)) cli.eye_leds = f.leds;
+  if (given(f.o_downscale)) cli.pupil_downscale = d.eye.pupil_downscale;
+  if (given(f.o_no_roi)) cli.pupil_roi = !f.no_pupil_roi;
+  if (given(f.o_eye_hard)) cli.synthetic_hard = f.eye_hard;
+  if (given(f.o_eye_script)) cli.synthetic_script = f.eye_script;
+  if (given(f.o_eye_head_offset)) cli.synthetic_head_offset_mm = f.eye_head_offset;
+  if (given(f.o_eye_size)) cli.synthetic_size = parse_eye_size(f.eye_size);
+  if (given(f.o_listen)) (void)protocol::parse_endpoint(d.network.listen, d.network.port);
+  return cli;
+}
+
+// The file (if any) with the command-line flags applied: at start and on every reload.
+trackerd::ConfigLoader config_loader(const std::string& config_path, const svc::CliOverrides& cli) {
+  return [config_path, cli] {
     svc::DaemonConfig c = config_path.empty() ? svc::DaemonConfig{} : svc::load_config(config_path);
     svc::apply_overrides(c, cli);
     return c;
   };
+}
 
-  if (check_config) {
+// --check-config: everything the daemon would refuse at start, reported at once; the exit status.
+int check_configuration(const trackerd::ConfigLoader& load, const std::string& config_path) {
+  try {
+    const svc::DaemonConfig c = load();
+    std::vector<std::string> problems;
+    if (const std::string p = trackerd::check_source_spec(c.source.spec); !p.empty())
+      problems.push_back("source.spec: " + p);
+    for (const std::string& p : trackerd::check_eye_config(c.eye)) problems.push_back(p);
     try {
-      const svc::DaemonConfig c = load();
-      std::vector<std::string> problems;
-      if (const std::string p = trackerd::check_source_spec(c.source.spec); !p.empty())
-        problems.push_back("source.spec: " + p);
-      for (const std::string& p : trackerd::check_eye_config(c.eye)) problems.push_back(p);
-      try {
-        (void)svc::server_options(c);
-      } catch (const std::exception& e) {
-        problems.push_back(std::string("network: ") + e.what());
-      }
-      if (!problems.empty()) throw svc::ConfigError(problems);
-      std::fputs(svc::to_toml(c).c_str(), stdout);
-      std::fprintf(stderr, "fovea-trackerd: configuration %s is valid\n", c.origin.c_str());
-      return 0;
+      (void)svc::server_options(c);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "fovea-trackerd: configuration %s is invalid:\n%s\n", config_path.c_str(), e.what());
-      return 1;
+      problems.push_back(std::string("network: ") + e.what());
     }
+    if (!problems.empty()) throw svc::ConfigError(problems);
+    std::fputs(svc::to_toml(c).c_str(), stdout);
+    std::fprintf(stderr, "fovea-trackerd: configuration %s is valid\n", c.origin.c_str());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-trackerd: configuration %s is invalid:\n%s\n", config_path.c_str(), e.what());
+    return 1;
   }
+}
 
+// The configuration to start with, or nothing (logged) when the file is invalid; other errors propagate.
+std::optional<svc::DaemonConfig> load_startup_config(const trackerd::ConfigLoader& load,
+                                                     const std::string& config_path) {
   svc::DaemonConfig config;
   try {
     config = load();
   } catch (const svc::ConfigError& e) {
     spdlog::error("configuration {} is invalid:\n{}", config_path, e.what());
-    return kExitConfig;
+    return std::nullopt;
   }
   spdlog::set_level(spdlog::level::from_str(config.log_level));  // the file's, unless --log-level
   if (!config_path.empty()) spdlog::info("configuration {}", config_path);
+  return config;
+}
 
-  // A scripted synthetic viewer follows the calibration from its first frame: hold the source until
-  // the calibration tool has subscribed, so that the script and the targets start together.
+// A scripted synthetic viewer follows the calibration from its first frame: hold the source until
+// the calibration tool has subscribed, so that the script and the targets start together.
+void hold_source_for_scripted_viewer(const svc::DaemonConfig& config, trackerd::RunOptions& run) {
   if (config.source.spec == "synthetic-eye" && !config.eye.synthetic_script.empty() && run.wait_subscribers == 0) {
     run.wait_subscribers = 1;
     spdlog::info("--eye-script: the source starts when the first client subscribes");
   }
+}
 
+void install_signal_handlers() {
   struct sigaction sa {};
   sigemptyset(&sa.sa_mask);
   sa.sa_handler = on_stop;
@@ -243,8 +287,46 @@ int main(int argc, char** argv) {
   sa.sa_handler = on_hangup;
   sigaction(SIGHUP, &sa, nullptr);
   std::signal(SIGPIPE, SIG_IGN);
+}
+}  // namespace
 
-  const int status = trackerd::run_daemon(config, run, trackerd::DaemonSignals{&g_stop, &g_reload}, load);
+int main(int argc, char** argv) {
+  CLI::App app{
+      "fovea-trackerd: reads an eye tracker (or a synthetic or recorded gaze stream) and streams gaze samples and\n"
+      "events over UDP to subscribed clients (protocol: protocol/PROTOCOL.md). Settings come from --config FILE\n"
+      "(TOML, documented in deploy/trackerd.toml) and the flags below, which override the file.\n"
+      "SIGINT/SIGTERM stop it cleanly; SIGHUP reloads the configuration and calibration without dropping subscribers."};
+  app.set_version_flag("--version", "fovea-trackerd 0.1.0");
+
+  Flags f;
+  add_config_options(app, f);
+  add_source_network_and_record_options(app, f);
+  add_eye_options(app, f);
+  add_replay_display_and_subscriber_options(app, f);
+  add_processing_and_run_options(app, f);
+  CLI11_PARSE(app, argc, argv);
+
+  set_up_logging(f.log_level);
+
+  // Flags given on the command line override the file, now and on every reload.
+  svc::CliOverrides cli;
+  try {
+    cli = cli_overrides(f);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  }
+
+  if (f.check_config && f.config_path.empty()) f.config_path = svc::kDefaultConfigPath;
+  const trackerd::ConfigLoader load = config_loader(f.config_path, cli);
+  if (f.check_config) return check_configuration(load, f.config_path);
+
+  std::optional<svc::DaemonConfig> config = load_startup_config(load, f.config_path);
+  if (!config) return kExitConfig;
+  hold_source_for_scripted_viewer(*config, f.run);
+
+  install_signal_handlers();
+  const int status = trackerd::run_daemon(*config, f.run, trackerd::DaemonSignals{&g_stop, &g_reload}, load);
   if (g_stop.load()) spdlog::info("signal received, shut down cleanly");
   return status;
 }
