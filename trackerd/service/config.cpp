@@ -210,194 +210,218 @@ void check_calibration_file(Checker& c, const toml::node& where, const std::stri
 
 const std::vector<std::string> kLogLevels = {"trace", "debug", "info", "warn", "error"};
 
+// [source]: the spec (replay paths resolved against the file's directory), rate, seed, speed, loop.
+void parse_source(Checker& c, const toml::table& t, SourceConfig& source) {
+  c.only(t, "source.", {"spec", "rate", "seed", "speed", "loop"});
+  const std::string kinds = source_kind_list();
+  c.string(t, "source.", "spec", source.spec, kinds.c_str());
+  if (source.spec.empty())
+    c.problem(t.get("spec")->source(), "source.spec", "is empty; allowed: " + kinds);
+  if (source.spec.rfind("replay:", 0) == 0 && source.spec.size() > 7) {
+    source.spec = "replay:" + c.path(source.spec.substr(7));
+  }
+  c.number(t, "source.", "rate", source.rate_hz, 1, 10000, false, "Hz");
+  c.integer(t, "source.", "seed", source.seed, 0, std::numeric_limits<std::int64_t>::max());
+  c.number(t, "source.", "speed", source.speed, 0, 1000, true, "(1 = real time)");
+  c.boolean(t, "source.", "loop", source.loop);
+}
+
+// [display]: all five keys or none; the geometry is kept only when complete and valid.
+void parse_display(Checker& c, const toml::table& t, std::optional<protocol::DisplayGeometry>& display) {
+  const std::vector<std::string> keys = {"width_px", "height_px", "width_mm", "height_mm", "distance_mm"};
+  c.only(t, "display.", keys);
+  bool complete = true;
+  for (const auto& k : keys) {
+    if (!t.contains(k)) {
+      c.problem(t.source(), "display." + k, "missing; a [display] table needs all of " + join(keys, ", "));
+      complete = false;
+    }
+  }
+  protocol::DisplayGeometry g;
+  double w = g.width_m * 1000, h = g.height_m * 1000, d = g.viewing_distance_m * 1000;
+  c.integer(t, "display.", "width_px", g.width_px, 1, 65536);
+  c.integer(t, "display.", "height_px", g.height_px, 1, 65536);
+  c.number(t, "display.", "width_mm", w, 0, 100000, true, "mm");
+  c.number(t, "display.", "height_mm", h, 0, 100000, true, "mm");
+  c.number(t, "display.", "distance_mm", d, 0, 100000, true, "mm");
+  g.width_m = w / 1000;
+  g.height_m = h / 1000;
+  g.viewing_distance_m = d / 1000;
+  if (complete) {
+    if (const std::string err = protocol::validate(g); !err.empty()) {
+      c.problem(t.source(), "display", err);
+    } else {
+      display = g;
+    }
+  }
+}
+
+// network.control_allow: an array of A.B.C.D/N; a present array replaces the default allow-list.
+void parse_control_allow(Checker& c, const toml::node& node, std::vector<protocol::Ipv4Cidr>& control_allow) {
+  const char* allowed =
+      "an array of IPv4 networks A.B.C.D/N, e.g. [\"127.0.0.0/8\", \"192.168.1.0/24\"]; [] allows none";
+  if (!node.is_array()) {
+    c.problem(node.source(), "network.control_allow",
+              std::string("must be an array, not ") + type_name(node) + "; allowed: " + allowed);
+  } else {
+    control_allow.clear();
+    std::size_t i = 0;
+    for (const toml::node& el : *node.as_array()) {
+      const std::string key = fmt::format("network.control_allow[{}]", i++);
+      if (!el.is_string()) {
+        c.problem(el.source(), key, std::string("must be a string, not ") + type_name(el) + "; allowed: " + allowed);
+        continue;
+      }
+      try {
+        control_allow.push_back(protocol::parse_cidr(el.as_string()->get()));
+      } catch (const std::exception& e) {
+        c.problem(el.source(), key, e.what());
+      }
+    }
+  }
+}
+
+// [network]: listen address and port, multicast group, subscriber limits, the control allow-list.
+void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
+  c.only(t, "network.",
+         {"listen", "port", "multicast", "multicast_ttl", "max_subscribers", "lease_ms", "control_allow"});
+  c.string(t, "network.", "listen", n.listen, "a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
+  if (const auto* node = t.get("listen"); node != nullptr && node->is_string()) {
+    try {
+      (void)protocol::parse_endpoint(n.listen, n.port);
+    } catch (const std::exception& e) {
+      c.problem(node->source(), "network.listen",
+                std::string(e.what()) + "; allowed: a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
+    }
+  }
+  c.integer(t, "network.", "port", n.port, 1, 65535);
+  c.string(t, "network.", "multicast", n.multicast, "GROUP:PORT with GROUP in 224.0.0.0/4, or \"\" for none");
+  if (const auto* node = t.get("multicast"); node != nullptr && node->is_string() && !n.multicast.empty()) {
+    try {
+      (void)protocol::parse_multicast(n.multicast);
+    } catch (const std::exception& e) {
+      c.problem(node->source(), "network.multicast", e.what());
+    }
+  }
+  c.integer(t, "network.", "multicast_ttl", n.multicast_ttl, 0, 255);
+  c.integer(t, "network.", "max_subscribers", n.max_subscribers, 1, 65536);
+  c.integer(t, "network.", "lease_ms", n.lease_ms, 200, 600000);
+  if (const toml::node* node = t.get("control_allow")) parse_control_allow(c, *node, n.control_allow);
+}
+
+// [record]: the recording path, resolved against the file's directory.
+void parse_record(Checker& c, const toml::table& t, RecordConfig& record) {
+  c.only(t, "record.", {"path", "append"});
+  c.string(t, "record.", "path", record.path, "a .fgr file name, or \"\" for none");
+  record.path = c.path(record.path);
+  c.boolean(t, "record.", "append", record.append);
+}
+
+// [calibration]: the calibration file, resolved against the file's directory and read now.
+void parse_calibration(Checker& c, const toml::table& t, CalibrationConfig& calibration) {
+  c.only(t, "calibration.", {"file"});
+  c.string(t, "calibration.", "file", calibration.file, "a calibration JSON file, or \"\" for none");
+  calibration.file = c.path(calibration.file);
+  if (!calibration.file.empty()) check_calibration_file(c, *t.get("file"), calibration.file);
+}
+
+// [classifier]: the method name; the classify module validates it.
+void parse_classifier(Checker& c, const toml::table& t, ClassifierConfig& classifier) {
+  c.only(t, "classifier.", {"method"});
+  c.string(t, "classifier.", "method", classifier.method, "a classifier name (fovea-ctl classify --list)");
+}
+
+// [eye]: the eye pipeline (side, LED layout, pupil search) and the synthetic eye's settings.
+void parse_eye(Checker& c, const toml::table& t, EyeConfig& eye) {
+  c.only(t, "eye.",
+         {"side", "leds", "pupil_downscale", "pupil_roi", "synthetic_width", "synthetic_height", "synthetic_hard",
+          "synthetic_script", "synthetic_head_offset_mm"});
+  c.string(t, "eye.", "side", eye.side, "left, right");
+  if (std::find(kEyeSides.begin(), kEyeSides.end(), eye.side) == kEyeSides.end()) {
+    c.problem(t.get("side")->source(), "eye.side",
+              "\"" + eye.side + "\" is not an eye; allowed: " + join(kEyeSides, ", "));
+    eye.side = "right";
+  }
+  // The layout's syntax is checked by the eye module when the source starts (and --check-config).
+  c.string(t, "eye.", "leds", eye.leds,
+           "a preset \"0\"..\"5\", \"x,y;x,y;...\" in mm, or \"\" for the source's default");
+  c.integer(t, "eye.", "pupil_downscale", eye.pupil_downscale, 1, 4);
+  if (eye.pupil_downscale == 3) {
+    c.problem(t.get("pupil_downscale")->source(), "eye.pupil_downscale", "3 is not allowed; allowed: 1, 2, 4");
+    eye.pupil_downscale = 2;
+  }
+  c.boolean(t, "eye.", "pupil_roi", eye.pupil_roi);
+  c.integer(t, "eye.", "synthetic_width", eye.synthetic_width, 32, 4096);
+  c.integer(t, "eye.", "synthetic_height", eye.synthetic_height, 32, 4096);
+  c.boolean(t, "eye.", "synthetic_hard", eye.synthetic_hard);
+  // Their syntax is checked by the daemon when the source starts (and --check-config).
+  c.string(t, "eye.", "synthetic_script", eye.synthetic_script, "\"\" or \"calibration:POINTS[:SEED[:VALIDATION]]\"");
+  c.string(t, "eye.", "synthetic_head_offset_mm", eye.synthetic_head_offset_mm, "\"x,y,z\" in mm");
+}
+
+// [log]: the log level; an unknown one falls back to info after the problem is noted.
+void parse_log(Checker& c, const toml::table& t, std::string& log_level) {
+  c.only(t, "log.", {"level"});
+  c.string(t, "log.", "level", log_level, "trace, debug, info, warn, error");
+  if (std::find(kLogLevels.begin(), kLogLevels.end(), log_level) == kLogLevels.end()) {
+    c.problem(t.get("level")->source(), "log.level",
+              "\"" + log_level + "\" is not a level; allowed: " + join(kLogLevels, ", "));
+    log_level = "info";
+  }
+}
+
+// One [[devices]] entry: vid, pid, kind and name, each required.
+DeviceEntry parse_device(Checker& c, const toml::table& t, const std::string& prefix) {
+  c.only(t, prefix, {"vid", "pid", "kind", "name"});
+  DeviceEntry d;
+  usb_id(c, t, prefix, "vid", d.vid);
+  usb_id(c, t, prefix, "pid", d.pid);
+  c.string(t, prefix, "kind", d.kind, "hid, camera");
+  if (!t.contains("kind")) {
+    c.problem(t.source(), prefix + "kind", "missing; allowed: " + join(kDeviceKinds, ", "));
+  } else if (t.get("kind")->is_string() &&
+             std::find(kDeviceKinds.begin(), kDeviceKinds.end(), d.kind) == kDeviceKinds.end()) {
+    c.problem(t.get("kind")->source(), prefix + "kind",
+              "\"" + d.kind + "\" is not a device kind; allowed: " + join(kDeviceKinds, ", "));
+  }
+  c.string(t, prefix, "name", d.name);
+  return d;
+}
+
+// [[devices]]: the known trackers and eye cameras, each vid:pid at most once.
+void parse_devices(Checker& c, const toml::node& node, std::vector<DeviceEntry>& devices) {
+  if (!node.is_array_of_tables()) {
+    c.problem(node.source(), "devices",
+              std::string("must be an array of tables ([[devices]] entries), not ") + type_name(node));
+  } else {
+    std::size_t i = 0;
+    for (const toml::node& el : *node.as_array()) {
+      const std::string prefix = fmt::format("devices[{}].", i++);
+      const toml::table& t = *el.as_table();
+      const DeviceEntry d = parse_device(c, t, prefix);
+      for (const auto& other : devices) {
+        if (other.vid == d.vid && other.pid == d.pid) {
+          c.problem(t.source(), prefix + "vid", fmt::format("{:04x}:{:04x} is listed twice", d.vid, d.pid));
+        }
+      }
+      devices.push_back(d);
+    }
+  }
+}
+
 DaemonConfig parse_table(const toml::table& doc, Checker& c) {
   DaemonConfig cfg;
   cfg.origin = c.origin_;
   c.only(doc, "", {"source", "display", "network", "record", "calibration", "classifier", "eye", "devices", "log"});
-
-  if (const auto* t = c.table(doc, "source")) {
-    c.only(*t, "source.", {"spec", "rate", "seed", "speed", "loop"});
-    const std::string kinds = source_kind_list();
-    c.string(*t, "source.", "spec", cfg.source.spec, kinds.c_str());
-    if (cfg.source.spec.empty())
-      c.problem(t->get("spec")->source(), "source.spec", "is empty; allowed: " + kinds);
-    if (cfg.source.spec.rfind("replay:", 0) == 0 && cfg.source.spec.size() > 7) {
-      cfg.source.spec = "replay:" + c.path(cfg.source.spec.substr(7));
-    }
-    c.number(*t, "source.", "rate", cfg.source.rate_hz, 1, 10000, false, "Hz");
-    c.integer(*t, "source.", "seed", cfg.source.seed, 0, std::numeric_limits<std::int64_t>::max());
-    c.number(*t, "source.", "speed", cfg.source.speed, 0, 1000, true, "(1 = real time)");
-    c.boolean(*t, "source.", "loop", cfg.source.loop);
-  }
-
-  if (const auto* t = c.table(doc, "display")) {
-    const std::vector<std::string> keys = {"width_px", "height_px", "width_mm", "height_mm", "distance_mm"};
-    c.only(*t, "display.", keys);
-    bool complete = true;
-    for (const auto& k : keys) {
-      if (!t->contains(k)) {
-        c.problem(t->source(), "display." + k, "missing; a [display] table needs all of " + join(keys, ", "));
-        complete = false;
-      }
-    }
-    protocol::DisplayGeometry g;
-    double w = g.width_m * 1000, h = g.height_m * 1000, d = g.viewing_distance_m * 1000;
-    c.integer(*t, "display.", "width_px", g.width_px, 1, 65536);
-    c.integer(*t, "display.", "height_px", g.height_px, 1, 65536);
-    c.number(*t, "display.", "width_mm", w, 0, 100000, true, "mm");
-    c.number(*t, "display.", "height_mm", h, 0, 100000, true, "mm");
-    c.number(*t, "display.", "distance_mm", d, 0, 100000, true, "mm");
-    g.width_m = w / 1000;
-    g.height_m = h / 1000;
-    g.viewing_distance_m = d / 1000;
-    if (complete) {
-      if (const std::string err = protocol::validate(g); !err.empty()) {
-        c.problem(t->source(), "display", err);
-      } else {
-        cfg.display = g;
-      }
-    }
-  }
-
-  if (const auto* t = c.table(doc, "network")) {
-    c.only(*t, "network.",
-           {"listen", "port", "multicast", "multicast_ttl", "max_subscribers", "lease_ms", "control_allow"});
-    auto& n = cfg.network;
-    c.string(*t, "network.", "listen", n.listen, "a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
-    if (const auto* node = t->get("listen"); node != nullptr && node->is_string()) {
-      try {
-        (void)protocol::parse_endpoint(n.listen, n.port);
-      } catch (const std::exception& e) {
-        c.problem(node->source(), "network.listen",
-                  std::string(e.what()) + "; allowed: a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
-      }
-    }
-    c.integer(*t, "network.", "port", n.port, 1, 65535);
-    c.string(*t, "network.", "multicast", n.multicast, "GROUP:PORT with GROUP in 224.0.0.0/4, or \"\" for none");
-    if (const auto* node = t->get("multicast"); node != nullptr && node->is_string() && !n.multicast.empty()) {
-      try {
-        (void)protocol::parse_multicast(n.multicast);
-      } catch (const std::exception& e) {
-        c.problem(node->source(), "network.multicast", e.what());
-      }
-    }
-    c.integer(*t, "network.", "multicast_ttl", n.multicast_ttl, 0, 255);
-    c.integer(*t, "network.", "max_subscribers", n.max_subscribers, 1, 65536);
-    c.integer(*t, "network.", "lease_ms", n.lease_ms, 200, 600000);
-    if (const toml::node* node = t->get("control_allow")) {
-      const char* allowed =
-          "an array of IPv4 networks A.B.C.D/N, e.g. [\"127.0.0.0/8\", \"192.168.1.0/24\"]; [] allows none";
-      if (!node->is_array()) {
-        c.problem(node->source(), "network.control_allow",
-                  std::string("must be an array, not ") + type_name(*node) + "; allowed: " + allowed);
-      } else {
-        n.control_allow.clear();
-        std::size_t i = 0;
-        for (const toml::node& el : *node->as_array()) {
-          const std::string key = fmt::format("network.control_allow[{}]", i++);
-          if (!el.is_string()) {
-            c.problem(el.source(), key,
-                      std::string("must be a string, not ") + type_name(el) + "; allowed: " + allowed);
-            continue;
-          }
-          try {
-            n.control_allow.push_back(protocol::parse_cidr(el.as_string()->get()));
-          } catch (const std::exception& e) {
-            c.problem(el.source(), key, e.what());
-          }
-        }
-      }
-    }
-  }
-
-  if (const auto* t = c.table(doc, "record")) {
-    c.only(*t, "record.", {"path", "append"});
-    c.string(*t, "record.", "path", cfg.record.path, "a .fgr file name, or \"\" for none");
-    cfg.record.path = c.path(cfg.record.path);
-    c.boolean(*t, "record.", "append", cfg.record.append);
-  }
-
-  if (const auto* t = c.table(doc, "calibration")) {
-    c.only(*t, "calibration.", {"file"});
-    c.string(*t, "calibration.", "file", cfg.calibration.file, "a calibration JSON file, or \"\" for none");
-    cfg.calibration.file = c.path(cfg.calibration.file);
-    if (!cfg.calibration.file.empty()) check_calibration_file(c, *t->get("file"), cfg.calibration.file);
-  }
-
-  if (const auto* t = c.table(doc, "classifier")) {
-    c.only(*t, "classifier.", {"method"});
-    c.string(*t, "classifier.", "method", cfg.classifier.method, "a classifier name (fovea-ctl classify --list)");
-  }
-
-  if (const auto* t = c.table(doc, "eye")) {
-    c.only(*t, "eye.",
-           {"side", "leds", "pupil_downscale", "pupil_roi", "synthetic_width", "synthetic_height", "synthetic_hard",
-            "synthetic_script", "synthetic_head_offset_mm"});
-    c.string(*t, "eye.", "side", cfg.eye.side, "left, right");
-    if (std::find(kEyeSides.begin(), kEyeSides.end(), cfg.eye.side) == kEyeSides.end()) {
-      c.problem(t->get("side")->source(), "eye.side",
-                "\"" + cfg.eye.side + "\" is not an eye; allowed: " + join(kEyeSides, ", "));
-      cfg.eye.side = "right";
-    }
-    // The layout's syntax is checked by the eye module when the source starts (and --check-config).
-    c.string(*t, "eye.", "leds", cfg.eye.leds,
-             "a preset \"0\"..\"5\", \"x,y;x,y;...\" in mm, or \"\" for the source's default");
-    c.integer(*t, "eye.", "pupil_downscale", cfg.eye.pupil_downscale, 1, 4);
-    if (cfg.eye.pupil_downscale == 3) {
-      c.problem(t->get("pupil_downscale")->source(), "eye.pupil_downscale", "3 is not allowed; allowed: 1, 2, 4");
-      cfg.eye.pupil_downscale = 2;
-    }
-    c.boolean(*t, "eye.", "pupil_roi", cfg.eye.pupil_roi);
-    c.integer(*t, "eye.", "synthetic_width", cfg.eye.synthetic_width, 32, 4096);
-    c.integer(*t, "eye.", "synthetic_height", cfg.eye.synthetic_height, 32, 4096);
-    c.boolean(*t, "eye.", "synthetic_hard", cfg.eye.synthetic_hard);
-    // Their syntax is checked by the daemon when the source starts (and --check-config).
-    c.string(*t, "eye.", "synthetic_script", cfg.eye.synthetic_script,
-             "\"\" or \"calibration:POINTS[:SEED[:VALIDATION]]\"");
-    c.string(*t, "eye.", "synthetic_head_offset_mm", cfg.eye.synthetic_head_offset_mm, "\"x,y,z\" in mm");
-  }
-
-  if (const auto* t = c.table(doc, "log")) {
-    c.only(*t, "log.", {"level"});
-    c.string(*t, "log.", "level", cfg.log_level, "trace, debug, info, warn, error");
-    if (std::find(kLogLevels.begin(), kLogLevels.end(), cfg.log_level) == kLogLevels.end()) {
-      c.problem(t->get("level")->source(), "log.level",
-                "\"" + cfg.log_level + "\" is not a level; allowed: " + join(kLogLevels, ", "));
-      cfg.log_level = "info";
-    }
-  }
-
-  if (const toml::node* node = doc.get("devices")) {
-    if (!node->is_array_of_tables()) {
-      c.problem(node->source(), "devices",
-                std::string("must be an array of tables ([[devices]] entries), not ") + type_name(*node));
-    } else {
-      std::size_t i = 0;
-      for (const toml::node& el : *node->as_array()) {
-        const std::string prefix = fmt::format("devices[{}].", i++);
-        const toml::table& t = *el.as_table();
-        c.only(t, prefix, {"vid", "pid", "kind", "name"});
-        DeviceEntry d;
-        usb_id(c, t, prefix, "vid", d.vid);
-        usb_id(c, t, prefix, "pid", d.pid);
-        c.string(t, prefix, "kind", d.kind, "hid, camera");
-        if (!t.contains("kind")) {
-          c.problem(t.source(), prefix + "kind", "missing; allowed: " + join(kDeviceKinds, ", "));
-        } else if (t.get("kind")->is_string() &&
-                   std::find(kDeviceKinds.begin(), kDeviceKinds.end(), d.kind) == kDeviceKinds.end()) {
-          c.problem(t.get("kind")->source(), prefix + "kind",
-                    "\"" + d.kind + "\" is not a device kind; allowed: " + join(kDeviceKinds, ", "));
-        }
-        c.string(t, prefix, "name", d.name);
-        for (const auto& other : cfg.devices) {
-          if (other.vid == d.vid && other.pid == d.pid) {
-            c.problem(t.source(), prefix + "vid", fmt::format("{:04x}:{:04x} is listed twice", d.vid, d.pid));
-          }
-        }
-        cfg.devices.push_back(d);
-      }
-    }
-  }
+  if (const auto* t = c.table(doc, "source")) parse_source(c, *t, cfg.source);
+  if (const auto* t = c.table(doc, "display")) parse_display(c, *t, cfg.display);
+  if (const auto* t = c.table(doc, "network")) parse_network(c, *t, cfg.network);
+  if (const auto* t = c.table(doc, "record")) parse_record(c, *t, cfg.record);
+  if (const auto* t = c.table(doc, "calibration")) parse_calibration(c, *t, cfg.calibration);
+  if (const auto* t = c.table(doc, "classifier")) parse_classifier(c, *t, cfg.classifier);
+  if (const auto* t = c.table(doc, "eye")) parse_eye(c, *t, cfg.eye);
+  if (const auto* t = c.table(doc, "log")) parse_log(c, *t, cfg.log_level);
+  if (const toml::node* node = doc.get("devices")) parse_devices(c, *node, cfg.devices);
   return cfg;
 }
 
