@@ -3,6 +3,7 @@
 #include <sys/random.h>
 
 #include <algorithm>
+#include <cassert>
 #include <cctype>
 #include <cstdio>
 #include <stdexcept>
@@ -163,9 +164,11 @@ std::vector<SubscriberInfo> GazeServer::subscribers() const {
   return out;
 }
 
-std::uint64_t GazeServer::send_stream(std::uint32_t stream_bit, std::uint64_t& sequence, std::int64_t origin_ns,
-                             const Payload& p) {
-  // Caller holds mutex_, so all subscribers see the same sequence numbers in the same order.
+std::uint64_t GazeServer::send_stream(const std::unique_lock<std::mutex>& held, std::uint32_t stream_bit,
+                                      std::uint64_t& sequence, std::int64_t origin_ns, const Payload& p) {
+  // The caller holds mutex_, so all subscribers see the same sequence numbers in the same order.
+  assert(held.owns_lock() && held.mutex() == &mutex_ && "send_stream: the caller must hold mutex_");
+  (void)held;
   targets_.clear();
   for (const auto& [id, s] : sessions_) {
     if ((s.streams & stream_bit) != 0) targets_.push_back(s.address);
@@ -191,15 +194,15 @@ std::uint64_t GazeServer::send_stream(std::uint32_t stream_bit, std::uint64_t& s
 }
 
 std::uint64_t GazeServer::publish(const GazeSample& sample) {
-  std::lock_guard lock(mutex_);
+  std::unique_lock lock(mutex_);
   ++stats_.samples_published;
-  return send_stream(kStreamSamples, next_sample_seq_, sample.tracker_time_ns, sample);
+  return send_stream(lock, kStreamSamples, next_sample_seq_, sample.tracker_time_ns, sample);
 }
 
 std::uint64_t GazeServer::publish(const GazeEvent& event) {
-  std::lock_guard lock(mutex_);
+  std::unique_lock lock(mutex_);
   ++stats_.events_published;
-  return send_stream(kStreamEvents, next_event_seq_, event.start_time_ns + event.duration_ns, event);
+  return send_stream(lock, kStreamEvents, next_event_seq_, event.start_time_ns + event.duration_ns, event);
 }
 
 void GazeServer::control_loop() {

@@ -4,6 +4,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 
@@ -72,6 +73,7 @@ void GiPass::set_scene(const Scene& scene) {
 
 const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
                                 const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out) {
+  assert(&out != &local && "GiPass::run: out may not alias local (gi_pass.h)");
   result_ = GiPassResult{};
   result_.strategy = s.strategy;
   backend_->set_time(now_s);

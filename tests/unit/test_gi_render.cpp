@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "backend/embree/embree_backend.h"
+#include "gi/gi_pass.h"
 #include "gi/gi_render.h"
 #include "scene/scene_loader.h"
 
@@ -163,6 +164,17 @@ TEST(GiRender, GazeAreaRadiusComesFromTheVisualAngle) {
   const float r5 = gaze_area(d, 640, 480, {0.5f, 0.5f}, 5.0).radius_px, r10 = gaze_area(d, 640, 480, {0.5f, 0.5f}, 10.0).radius_px;
   EXPECT_GT(r10, 2.0f * r5);
   EXPECT_LT(r10, 2.02f * r5);
+}
+
+// gi_pass.h's contract "out may not alias local" is checked in debug builds (the asan preset).
+TEST(GiPassDeathTest, OutAliasingLocalIsCaughtInDebugBuilds) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  const Scene scene = cornell(32, 24);
+  GiPass pass;
+  pass.set_scene(scene);
+  std::vector<glm::vec3> image(std::size_t{32} * 24, glm::vec3(0.5f));
+  const GazeArea area{{16.0f, 12.0f}, 6.0f};
+  EXPECT_DEBUG_DEATH(pass.run(scene.camera, 0.0, area, GiPassSettings{}, image, image), "may not alias");
 }
 
 }  // namespace

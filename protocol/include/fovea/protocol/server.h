@@ -123,7 +123,10 @@ class GazeServer {
   void refuse(const Endpoint& to, std::uint64_t sequence, MessageType request, ErrorCode code);
   void expire_leases(std::int64_t now_ns);
   std::uint32_t clamp_lease(std::uint32_t requested) const;
-  std::uint64_t send_stream(std::uint32_t stream_bit, std::uint64_t& sequence, std::int64_t origin_ns, const Payload& p);
+  // Sends one message of a stream to its subscribers. `held` is the caller's lock of mutex_ (checked in
+  // debug builds): sequence numbers and subscriber lists must not change while a message goes out.
+  std::uint64_t send_stream(const std::unique_lock<std::mutex>& held, std::uint32_t stream_bit, std::uint64_t& sequence,
+                            std::int64_t origin_ns, const Payload& p);
 
   ServerOptions options_;
   UdpSocket socket_;
