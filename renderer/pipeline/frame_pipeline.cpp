@@ -172,7 +172,6 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
     f.dof = &dof_color_;
     f.focal_depth_m = focus_m;
   }
-  // lod-select arrives with step 9; the plan says when it would run.
   if (f.plan.runs(PassId::Gi)) {
     auto t = timer.scope("gi");
     run_gi(f, *hdr, now_s, timer);

@@ -8,21 +8,19 @@ namespace fovea::render {
 const std::vector<PassDecl>& pass_declarations() {
   static const std::vector<PassDecl> kPasses = {
       {PassId::GBuffer, "gbuffer", "scene, camera, time", "colour, depth, id, normal, motion",
-       "always: every output starts from it", ""},
+       "always: every output starts from it"},
       {PassId::Attention, "attention", "gbuffer (colour, depth, id), scene (object and observer motion, task importance)",
        "per-object attention S_o, saliency maps",
-       "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it", ""},
+       "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it"},
       {PassId::Focus, "focus", "gaze, attention, depth, id", "focal depth",
-       "dof runs or overlay.focus shows it, and focus is not fixed", ""},
+       "dof runs or overlay.focus shows it, and focus is not fixed"},
       {PassId::LodSelect, "lod-select", "camera, last frame's attention and G-buffer, gaze", "LOD level per object",
-       "the scene has LOD chains and lod.enabled", ""},
-      {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
-       ""},
-      {PassId::Gi, "gi", "gbuffer, gaze (or attention)", "colour (hybrid composite)", "gi.enabled and the scene has lights",
-       ""},
-      {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image", ""},
+       "the scene has LOD chains and lod.enabled"},
+      {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled"},
+      {PassId::Gi, "gi", "gbuffer, gaze (or attention)", "colour (hybrid composite)", "gi.enabled and the scene has lights"},
+      {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image"},
       {PassId::Overlay, "overlay", "display image, gaze, maps", "display image",
-       "overlay.gaze with a gaze source, or overlay.map", ""},
+       "overlay.gaze with a gaze source, or overlay.map"},
   };
   return kPasses;
 }
@@ -37,11 +35,10 @@ std::string FramePlan::explain() const {
   std::string out;
   for (const PlannedPass& p : passes) {
     const PassDecl& d = declaration(p.id);
-    const char* verdict = p.runs ? "run " : (p.needed ? "later" : "skip");
     char line[512];
-    const bool unimplemented = p.needed && !p.runs && d.implemented_in[0] != '\0';
-    std::snprintf(line, sizeof line, "  %-5s %-10s %s%s%s\n", verdict, d.name, p.reason.c_str(),
-                  unimplemented ? " — needed, but not implemented until " : "", unimplemented ? d.implemented_in : "");
+    // "later": the output needs the pass but it cannot run with these settings (the reason says why).
+    const char* verdict = p.runs ? "run " : (p.needed ? "later" : "skip");
+    std::snprintf(line, sizeof line, "  %-5s %-10s %s\n", verdict, d.name, p.reason.c_str());
     out += line;
   }
   return out;
@@ -55,7 +52,7 @@ FramePlan plan_frame(const PlanContext& c) {
   const auto decide = [&](PassId id, bool needed, std::string reason) {
     PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
     p.needed = needed;
-    p.runs = needed && declaration(id).implemented_in[0] == '\0';
+    p.runs = needed;
     p.reason = std::move(reason);
   };
 

@@ -19,7 +19,6 @@ struct PassDecl {
   const char* reads;
   const char* writes;
   const char* needed_when;
-  const char* implemented_in;  // "" when this build runs it; else the step that brings it
 };
 // The passes in pipeline order.
 const std::vector<PassDecl>& pass_declarations();
@@ -28,7 +27,7 @@ const PassDecl& declaration(PassId id);
 struct PlannedPass {
   PassId id;
   bool needed = false;       // the requested output needs this pass's effect
-  bool runs = false;         // needed and implemented in this build
+  bool runs = false;         // runs this frame: needed, and able to run with these settings
   std::string reason;
 };
 
@@ -44,7 +43,7 @@ struct FramePlan {
   bool runs(PassId id) const;
   bool needed(PassId id) const;
   const PlannedPass& at(PassId id) const;
-  std::string explain() const;  // one line per pass: run / skip / needed-but-not-implemented, and why
+  std::string explain() const;  // one line per pass: run, skip, or later (needed but cannot run), and why
 };
 
 FramePlan plan_frame(const PlanContext& context);
