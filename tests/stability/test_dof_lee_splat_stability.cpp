@@ -10,6 +10,7 @@
 #include <random>
 
 #include "dof/lee_splat.h"
+#include "dof_test_image.h"
 #include "dof_lens.h"
 
 using namespace fovea::render::dof;
@@ -21,27 +22,10 @@ constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
 
 CocModel lens(double k_px, double focus_m = 2.0) { return test::lens_with_k(k_px, focus_m); }
 
-struct Img {
-  std::uint32_t w, h;
-  std::vector<glm::vec3> color, hcolor;
-  std::vector<float> depth, hdepth;
-  Img(std::uint32_t w_, std::uint32_t h_)
-      : w(w_), h(h_), color(std::size_t{w_} * h_, glm::vec3(0.5f)), hcolor(color),
-        depth(std::size_t{w_} * h_, 1.0f), hdepth(std::size_t{w_} * h_, kInf) {}
-  DofInput input(const CocModel& coc, bool hidden) const {
-    DofInput in;
-    in.width = w;
-    in.height = h;
-    in.color = color.data();
-    in.depth = depth.data();
-    in.coc = coc;
-    if (hidden) {
-      in.hidden_color = hcolor.data();
-      in.hidden_depth = hdepth.data();
-    }
-    return in;
-  }
-};
+using test::DofImage;
+
+// Grey (0.5) at 1 m; the hidden layer grey and empty.
+DofImage blank(std::uint32_t w, std::uint32_t h) { return DofImage(w, h, glm::vec3(0.5f), 1.0f); }
 
 float finite_max(const std::vector<glm::vec3>& v) {
   float m = 0;
@@ -69,7 +53,7 @@ void expect_sane(const RgbImage& out, std::size_t n, float bound) {
 }  // namespace
 
 TEST(LeeSplatStability, PinholeWithNonFiniteColourIsInputWithZeros) {
-  Img im(9, 7);
+  DofImage im = blank(9, 7);
   im.color[3] = glm::vec3(kNan, kInf, -kInf);
   im.color[4] = glm::vec3(1e6f, 0.0f, 3.0f);
   im.depth[5] = kNan;
@@ -89,15 +73,15 @@ TEST(LeeSplatStability, PinholeWithNonFiniteColourIsInputWithZeros) {
 }
 
 TEST(LeeSplatStability, HardDepthsAndColoursStayFinite) {
-  Img im(23, 17);
+  DofImage im = blank(23, 17);
   const float depths[] = {0.0f, -1.0f, kInf, -kInf, kNan, 1e-30f, 1e30f, 2.0f, 0.3f};
   const glm::vec3 colours[] = {glm::vec3(kNan), glm::vec3(kInf), glm::vec3(1e6f), glm::vec3(0.2f),
                                glm::vec3(-kInf, 1.0f, 0.0f), glm::vec3(3e38f)};
   for (std::size_t i = 0; i < im.color.size(); ++i) {
     im.depth[i] = depths[i % 9];
     im.color[i] = colours[i % 6];
-    im.hdepth[i] = depths[(i + 4) % 9];
-    im.hcolor[i] = colours[(i + 1) % 6];
+    im.hidden_depth[i] = depths[(i + 4) % 9];
+    im.hidden_color[i] = colours[(i + 1) % 6];
   }
   for (const Aperture ap : {Aperture::Disc, Aperture::Gaussian, Aperture::Hexagon}) {
     for (const int reduce : {1, 2, 3}) {
@@ -117,7 +101,7 @@ TEST(LeeSplatStability, HardDepthsAndColoursStayFinite) {
 }
 
 TEST(LeeSplatStability, Hdr1e6StaysFiniteAndBounded) {
-  Img im(31, 29);
+  DofImage im = blank(31, 29);
   const CocModel coc = lens(40.0);
   for (std::size_t i = 0; i < im.color.size(); ++i) {
     im.depth[i] = static_cast<float>(0.5 + 0.1 * double(i % 37));
@@ -131,7 +115,7 @@ TEST(LeeSplatStability, Hdr1e6StaysFiniteAndBounded) {
 TEST(LeeSplatStability, CocLargerThanImage) {
   // K = 1e5 px, clamped by max_coc_px = 1e4: every CoC is far beyond the 20 x 12 image. The
   // footprint is clamped to the image diagonal: every pixel covers the whole image.
-  Img im(20, 12);
+  DofImage im = blank(20, 12);
   CocModel coc = lens(1e5);
   for (std::size_t i = 0; i < im.depth.size(); ++i) im.depth[i] = i % 2 ? 0.5f : 50.0f;
   RgbImage out;
@@ -153,12 +137,12 @@ TEST(LeeSplatStability, CocLargerThanImage) {
 TEST(LeeSplatStability, DegenerateSizes) {
   const CocModel coc = lens(40.0);
   for (const auto& [w, h] : {std::pair{1u, 1u}, {1u, 37u}, {37u, 1u}, {2u, 1u}, {1u, 2u}, {0u, 5u}, {5u, 0u}}) {
-    Img im(w, h);
+    DofImage im = blank(w, h);
     for (std::size_t i = 0; i < im.depth.size(); ++i) {
       im.depth[i] = static_cast<float>(0.3 + 0.5 * double(i % 7));
       im.color[i] = glm::vec3(float(i % 3), 1.0f, 0.25f);
-      im.hcolor[i] = glm::vec3(0.0f, 1.0f, 2.0f);
-      im.hdepth[i] = im.depth[i] + 1.0f;
+      im.hidden_color[i] = glm::vec3(0.0f, 1.0f, 2.0f);
+      im.hidden_depth[i] = im.depth[i] + 1.0f;
     }
     for (const int reduce : {1, 2}) {
       LeeSplatSettings s;
@@ -170,7 +154,7 @@ TEST(LeeSplatStability, DegenerateSizes) {
     }
   }
   // Null colour: zeros; null depth: the (sanitised) colour.
-  Img im(4, 3);
+  DofImage im = blank(4, 3);
   DofInput in = im.input(coc, false);
   RgbImage out;
   in.depth = nullptr;
@@ -185,7 +169,7 @@ TEST(LeeSplatStability, DegenerateSizes) {
 
 TEST(LeeSplatStability, HiddenLayerAbsentOrEmpty) {
   const CocModel coc = lens(40.0);
-  Img im(33, 21);
+  DofImage im = blank(33, 21);
   for (std::size_t i = 0; i < im.depth.size(); ++i) {
     im.depth[i] = (i % 33) < 15 ? static_cast<float>(coc.depth_near_for_coc(12.0)) : 2.0f;
     im.color[i] = glm::vec3(float(i % 4) * 0.25f);
@@ -198,14 +182,14 @@ TEST(LeeSplatStability, HiddenLayerAbsentOrEmpty) {
   for (std::size_t i = 0; i < none.size(); ++i) ASSERT_EQ(none[i], empty[i]) << i;
   // Hidden layer full of NaN depth and colour.
   for (std::size_t i = 0; i < im.depth.size(); ++i) {
-    im.hdepth[i] = kNan;
-    im.hcolor[i] = glm::vec3(kNan);
+    im.hidden_depth[i] = kNan;
+    im.hidden_color[i] = glm::vec3(kNan);
   }
   lee_splat(im.input(coc, true), LeeSplatSettings{}, empty, &st);
   EXPECT_EQ(st.hidden_used, 0u);
   expect_sane(empty, im.color.size(), 0.75f);
   // Hidden colour NaN with valid depth: read as black, still finite.
-  for (std::size_t i = 0; i < im.depth.size(); ++i) im.hdepth[i] = 2.0f;
+  for (std::size_t i = 0; i < im.depth.size(); ++i) im.hidden_depth[i] = 2.0f;
   lee_splat(im.input(coc, true), LeeSplatSettings{}, empty, &st);
   EXPECT_GT(st.hidden_used, 0u);
   expect_sane(empty, im.color.size(), 0.75f);
@@ -219,15 +203,17 @@ TEST(LeeSplatStability, RandomInputsGiveFiniteBoundedResults) {
   const glm::vec3 wild_colours[] = {glm::vec3(kNan), glm::vec3(kInf), glm::vec3(1e6f), glm::vec3(0.0f, kNan, 2.0f)};
   for (int run = 0; run < 120; ++run) {
     const auto w = static_cast<std::uint32_t>(size(rng)), h = static_cast<std::uint32_t>(size(rng));
-    Img im(w, h);
+    DofImage im = blank(w, h);
     const double k = std::pow(10.0, 3.0 * double(u(rng)));  // K from 1 to 1000 px
     CocModel coc = lens(k, 0.5 + 4.0 * double(u(rng)));
     if (die(rng) == 0) coc.aperture_m = 0;
     for (std::size_t i = 0; i < im.color.size(); ++i) {
       im.depth[i] = die(rng) == 0 ? wild_depths[std::size_t(die(rng)) % 7] : 0.2f + 6.0f * u(rng);
       im.color[i] = die(rng) == 0 ? wild_colours[std::size_t(die(rng)) % 4] : glm::vec3(u(rng), 3 * u(rng), u(rng));
-      im.hdepth[i] = die(rng) < 3 ? kInf : (die(rng) == 0 ? wild_depths[std::size_t(die(rng)) % 7] : im.depth[i] + 3 * u(rng));
-      im.hcolor[i] = die(rng) == 0 ? wild_colours[std::size_t(die(rng)) % 4] : glm::vec3(u(rng), u(rng), 2 * u(rng));
+      im.hidden_depth[i] =
+          die(rng) < 3 ? kInf : (die(rng) == 0 ? wild_depths[std::size_t(die(rng)) % 7] : im.depth[i] + 3 * u(rng));
+      im.hidden_color[i] =
+          die(rng) == 0 ? wild_colours[std::size_t(die(rng)) % 4] : glm::vec3(u(rng), u(rng), 2 * u(rng));
     }
     LeeSplatSettings s;
     s.aperture = static_cast<Aperture>(apd(rng));
@@ -238,7 +224,7 @@ TEST(LeeSplatStability, RandomInputsGiveFiniteBoundedResults) {
     s.delta = double{wild_delta[std::size_t(die(rng)) % 5]};
     RgbImage out;
     lee_splat(im.input(coc, coin(rng) != 0), s, out);
-    float bound = std::max(finite_max(im.color), finite_max(im.hcolor));
+    float bound = std::max(finite_max(im.color), finite_max(im.hidden_color));
     if (s.ldr_highlights) bound *= static_cast<float>(s.highlight_gain);
     expect_sane(out, im.color.size(), bound);
     if (HasFatalFailure()) {

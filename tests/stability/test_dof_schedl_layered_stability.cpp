@@ -2,12 +2,14 @@
 // CoCs larger than the image, focus at the focal length: finite output within [0, max input].
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
 #include <vector>
 
 #include "dof/schedl_layered.h"
+#include "dof_test_image.h"
 #include "dof_lens.h"
 
 namespace fovea::render::dof {
@@ -26,54 +28,48 @@ void expect_bounded(const RgbImage& out, float max_in) {
   }
 }
 
-RgbImage run(std::uint32_t w, std::uint32_t h, const std::vector<glm::vec3>& color, const std::vector<float>& depth,
-             const CocModel& coc, const std::vector<PeeledLayer>& peeled = {}) {
-  DofInput in;
-  in.width = w;
-  in.height = h;
-  in.color = color.data();
-  in.depth = depth.data();
-  in.coc = coc;
+using test::DofImage;
+
+RgbImage run(const DofImage& im, const CocModel& coc, const std::vector<PeeledLayer>& peeled = {}) {
   RgbImage out;
-  schedl_layered(in, peeled, {}, out);
-  EXPECT_EQ(out.size(), std::size_t{w} * h);
+  schedl_layered(im.input(coc), peeled, {}, out);
+  EXPECT_EQ(out.size(), std::size_t{im.w} * im.h);
   return out;
 }
 
+// The image's hidden layer as Schedl's one peeled layer.
+std::vector<PeeledLayer> peeled(const DofImage& im) { return {{im.hidden_color.data(), im.hidden_depth.data()}}; }
+
 TEST(SchedlLayeredStability, NonFiniteAndExtremeDepthsAndColours) {
   const std::vector<float> depths = {0.0f, -1.0f, kInf, -kInf, kNaN, 1e-30f, 1e30f, 3e38f, 1.0f, 2.0f};
-  std::vector<glm::vec3> color;
-  std::vector<float> depth;
-  for (int i = 0; i < 400; ++i) {
-    depth.push_back(depths[static_cast<std::size_t>(i) % depths.size()]);
+  DofImage im(20, 20, glm::vec3(0.0f), 0.0f, glm::vec3(kNaN));
+  for (std::size_t i = 0; i < 400; ++i) {
+    im.depth[i] = depths[i % depths.size()];
     const float v = i % 7 == 0 ? kNaN : i % 11 == 0 ? kInf : i % 13 == 0 ? 1e6f : 0.25f * static_cast<float>(i % 5);
-    color.push_back(glm::vec3(v, 0.5f, -1.0f));
+    im.color[i] = glm::vec3(v, 0.5f, -1.0f);
   }
-  std::vector<glm::vec3> hc(color.size(), glm::vec3(kNaN));
-  std::vector<float> hd(color.size(), kNaN);
-  expect_bounded(run(20, 20, color, depth, test::lens_with_k(30), {{hc.data(), hd.data()}}), 1e6f);
+  std::fill(im.hidden_depth.begin(), im.hidden_depth.end(), kNaN);
+  expect_bounded(run(im, test::lens_with_k(30), peeled(im)), 1e6f);
 }
 
 TEST(SchedlLayeredStability, DegenerateSizes) {
   for (auto [w, h] : {std::pair{1u, 1u}, {1u, 37u}, {37u, 1u}, {2u, 1u}, {0u, 5u}}) {
-    std::vector<glm::vec3> color(std::size_t{w} * h, glm::vec3(0.4f));
-    std::vector<float> depth(color.size());
-    for (std::size_t i = 0; i < depth.size(); ++i) depth[i] = 0.5f + static_cast<float>(i);
-    expect_bounded(run(w, h, color, depth, test::lens_with_k(100)), 0.4f);
+    DofImage im(w, h, glm::vec3(0.4f), 0.0f);
+    for (std::size_t i = 0; i < im.depth.size(); ++i) im.depth[i] = 0.5f + static_cast<float>(i);
+    expect_bounded(run(im, test::lens_with_k(100)), 0.4f);
   }
 }
 
 TEST(SchedlLayeredStability, CocLargerThanTheImageAndOddFocus) {
-  std::vector<glm::vec3> color(24 * 16);
-  std::vector<float> depth(color.size());
-  for (std::size_t i = 0; i < color.size(); ++i) {
-    color[i] = glm::vec3(static_cast<float>(i % 3) * 0.5f);
-    depth[i] = 0.1f + static_cast<float>(i % 17);
+  DofImage im(24, 16, glm::vec3(0.0f), 0.0f);
+  for (std::size_t i = 0; i < im.color.size(); ++i) {
+    im.color[i] = glm::vec3(static_cast<float>(i % 3) * 0.5f);
+    im.depth[i] = 0.1f + static_cast<float>(i % 17);
   }
   for (double focus : {0.05, 0.0, -1.0, 1e9, static_cast<double>(kInf), static_cast<double>(kNaN)}) {
     CocModel m = test::lens_with_k(1e4, 2.0);
     m.focus_m = focus;
-    expect_bounded(run(24, 16, color, depth, m), 1.0f);
+    expect_bounded(run(im, m), 1.0f);
   }
 }
 
@@ -82,17 +78,16 @@ TEST(SchedlLayeredStability, RandomInputsStayFiniteAndBounded) {
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   for (int t = 0; t < 30; ++t) {
     const auto w = static_cast<std::uint32_t>(1 + rng() % 40), h = static_cast<std::uint32_t>(1 + rng() % 30);
-    std::vector<glm::vec3> color(std::size_t{w} * h), hc(color.size());
-    std::vector<float> depth(color.size()), hd(color.size());
+    DofImage im(w, h, glm::vec3(0.0f), 0.0f);
     float max_in = 0;
-    for (std::size_t i = 0; i < color.size(); ++i) {
-      color[i] = glm::vec3(u(rng), u(rng), u(rng)) * (t % 3 == 0 ? 100.0f : 1.0f);
-      hc[i] = glm::vec3(u(rng));
-      max_in = std::max({max_in, color[i].x, color[i].y, color[i].z, hc[i].x});
-      depth[i] = 0.2f + 30.0f * u(rng);
-      hd[i] = depth[i] + 5.0f * u(rng);
+    for (std::size_t i = 0; i < im.color.size(); ++i) {
+      im.color[i] = glm::vec3(u(rng), u(rng), u(rng)) * (t % 3 == 0 ? 100.0f : 1.0f);
+      im.hidden_color[i] = glm::vec3(u(rng));
+      max_in = std::max({max_in, im.color[i].x, im.color[i].y, im.color[i].z, im.hidden_color[i].x});
+      im.depth[i] = 0.2f + 30.0f * u(rng);
+      im.hidden_depth[i] = im.depth[i] + 5.0f * u(rng);
     }
-    expect_bounded(run(w, h, color, depth, test::lens_with_k(5.0 + 80.0 * static_cast<double>(u(rng)), 0.5 + 10.0 * static_cast<double>(u(rng))), {{hc.data(), hd.data()}}),
+    expect_bounded(run(im, test::lens_with_k(5.0 + 80.0 * static_cast<double>(u(rng)), 0.5 + 10.0 * static_cast<double>(u(rng))), peeled(im)),
                    max_in);
   }
 }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "dof/lee_mipmap.h"
+#include "dof_test_image.h"
 #include "dof_lens.h"
 
 namespace fovea::render::dof {
@@ -18,17 +19,9 @@ CocModel lens_k(double k_px, double focus_m = 2.0) { return test::lens_with_k(k_
 // The depth behind the focal plane whose CoC is c (c < K).
 float depth_for_coc(const CocModel& m, double c) { return static_cast<float>(m.depth_far_for_coc(c)); }
 
-struct Image {
-  std::uint32_t w = 0, h = 0;
-  std::vector<glm::vec3> c;
-  std::vector<float> z;
-  Image(std::uint32_t w_, std::uint32_t h_, glm::vec3 col, float depth)
-      : w(w_), h(h_), c(std::size_t{w_} * h_, col), z(std::size_t{w_} * h_, depth) {}
-  DofInput input(const CocModel& m) const { return DofInput{w, h, c.data(), z.data(), m, nullptr, nullptr}; }
-  std::size_t at(std::uint32_t x, std::uint32_t y) const { return std::size_t{y} * w + x; }
-};
+using test::DofImage;
 
-RgbImage run(const Image& im, const CocModel& m, const LeeMipmapSettings& s = {}) {
+RgbImage run(const DofImage& im, const CocModel& m, const LeeMipmapSettings& s = {}) {
   RgbImage out;
   lee_mipmap(im.input(m), s, out);
   return out;
@@ -37,19 +30,19 @@ RgbImage run(const Image& im, const CocModel& m, const LeeMipmapSettings& s = {}
 TEST(LeeMipmap, PinholeIsBitExact) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> col(0.0f, 50.0f), dep(0.1f, 100.0f);
-  Image im(97, 61, glm::vec3(0), 1);
-  for (auto& c : im.c) c = {col(rng), col(rng), col(rng)};
-  for (auto& z : im.z) z = dep(rng);
+  DofImage im(97, 61, glm::vec3(0), 1);
+  for (auto& c : im.color) c = {col(rng), col(rng), col(rng)};
+  for (auto& z : im.depth) z = dep(rng);
   CocModel pin = lens_k(200);
   pin.aperture_m = 0;
   const RgbImage out = run(im, pin);
-  ASSERT_EQ(out.size(), im.c.size());
-  EXPECT_EQ(0, std::memcmp(out.data(), im.c.data(), out.size() * sizeof(glm::vec3)));
+  ASSERT_EQ(out.size(), im.color.size());
+  EXPECT_EQ(0, std::memcmp(out.data(), im.color.data(), out.size() * sizeof(glm::vec3)));
   // C = 0 everywhere: every pixel exactly at the focus distance.
   const CocModel lens = lens_k(200, 3.0);
-  std::fill(im.z.begin(), im.z.end(), 3.0f);
+  std::fill(im.depth.begin(), im.depth.end(), 3.0f);
   const RgbImage out2 = run(im, lens);
-  EXPECT_EQ(0, std::memcmp(out2.data(), im.c.data(), out2.size() * sizeof(glm::vec3)));
+  EXPECT_EQ(0, std::memcmp(out2.data(), im.color.data(), out2.size() * sizeof(glm::vec3)));
 }
 
 TEST(LeeMipmap, ConstantImageStaysConstant) {
@@ -58,8 +51,8 @@ TEST(LeeMipmap, ConstantImageStaysConstant) {
   const CocModel lens = lens_k(400);
   std::uniform_real_distribution<double> coc(0.0, 120.0);
   for (int variant = 0; variant < 4; ++variant) {
-    Image im(160, 90, c, 2);
-    for (auto& z : im.z) z = rng() % 2 ? depth_for_coc(lens, coc(rng)) : static_cast<float>(lens.depth_near_for_coc(coc(rng)));
+    DofImage im(160, 90, c, 2);
+    for (auto& z : im.depth) z = rng() % 2 ? depth_for_coc(lens, coc(rng)) : static_cast<float>(lens.depth_near_for_coc(coc(rng)));
     LeeMipmapSettings s;
     s.anisotropic = variant & 1;
     s.circular = variant & 2;
@@ -77,9 +70,9 @@ struct EdgeProfile {
 };
 EdgeProfile step_edge(double coc_px, const LeeMipmapSettings& s = {}) {
   const CocModel lens = lens_k(400);
-  Image im(256, 48, glm::vec3(0.2f), depth_for_coc(lens, coc_px));
+  DofImage im(256, 48, glm::vec3(0.2f), depth_for_coc(lens, coc_px));
   for (std::uint32_t y = 0; y < im.h; ++y)
-    for (std::uint32_t x = 128; x < im.w; ++x) im.c[im.at(x, y)] = glm::vec3(1.0f);
+    for (std::uint32_t x = 128; x < im.w; ++x) im.color[im.at(x, y)] = glm::vec3(1.0f);
   const RgbImage out = run(im, lens, s);
   EdgeProfile e;
   for (std::uint32_t y : {20u, 23u, 24u, 31u}) {
@@ -148,8 +141,8 @@ TEST(LeeMipmap, FlatDepthMatchesGaussianReference) {
   }
   const CocModel lens = lens_k(400);
   for (double c : {4.0, 8.0, 16.0, 32.0}) {
-    Image im(w, h, glm::vec3(0), depth_for_coc(lens, c));
-    for (std::size_t i = 0; i < tex.size(); ++i) im.c[i] = glm::vec3(tex[i]);
+    DofImage im(w, h, glm::vec3(0), depth_for_coc(lens, c));
+    for (std::size_t i = 0; i < tex.size(); ++i) im.color[i] = glm::vec3(tex[i]);
     const RgbImage out = run(im, lens);
     std::vector<float> got(tex.size());
     for (std::size_t i = 0; i < got.size(); ++i) got[i] = out[i].x;
@@ -169,11 +162,11 @@ TEST(LeeMipmap, FlatDepthMatchesGaussianReference) {
 double leak(bool anisotropic) {
   const CocModel lens = lens_k(400);
   const std::uint32_t n = 160;
-  Image im(n, n, glm::vec3(0.1f), depth_for_coc(lens, 32.0));
+  DofImage im(n, n, glm::vec3(0.1f), depth_for_coc(lens, 32.0));
   for (std::uint32_t y = 64; y < 96; ++y)
     for (std::uint32_t x = 64; x < 96; ++x) {
-      im.c[im.at(x, y)] = glm::vec3(1.0f);
-      im.z[im.at(x, y)] = static_cast<float>(lens.focus_m);
+      im.color[im.at(x, y)] = glm::vec3(1.0f);
+      im.depth[im.at(x, y)] = static_cast<float>(lens.focus_m);
     }
   LeeMipmapSettings s;
   s.anisotropic = anisotropic;
@@ -204,15 +197,15 @@ TEST(LeeMipmap, AnisotropicMipmapLeaksLess) {
 TEST(LeeMipmap, FocusedSquareStaysSharp) {
   // The square's own pixels are in focus: output equals input inside it.
   const CocModel lens = lens_k(400);
-  Image im(64, 64, glm::vec3(0.1f), depth_for_coc(lens, 20.0));
+  DofImage im(64, 64, glm::vec3(0.1f), depth_for_coc(lens, 20.0));
   for (std::uint32_t y = 20; y < 40; ++y)
     for (std::uint32_t x = 20; x < 40; ++x) {
-      im.c[im.at(x, y)] = glm::vec3(1.0f, 0.5f, 0.25f);
-      im.z[im.at(x, y)] = static_cast<float>(lens.focus_m);
+      im.color[im.at(x, y)] = glm::vec3(1.0f, 0.5f, 0.25f);
+      im.depth[im.at(x, y)] = static_cast<float>(lens.focus_m);
     }
   const RgbImage out = run(im, lens);
   for (std::uint32_t y = 20; y < 40; ++y)
-    for (std::uint32_t x = 20; x < 40; ++x) EXPECT_EQ(out[im.at(x, y)], im.c[im.at(x, y)]);
+    for (std::uint32_t x = 20; x < 40; ++x) EXPECT_EQ(out[im.at(x, y)], im.color[im.at(x, y)]);
 }
 
 // Fig. 4.9: a blurred foreground object (left, in front of the focal plane) over a focused
@@ -226,12 +219,12 @@ struct Boundary {
 Boundary foreground_edge(bool smooth) {
   const CocModel lens = lens_k(400, 10.0);
   const std::uint32_t w = 256, h = 64;
-  Image im(w, h, glm::vec3(0.1f), static_cast<float>(lens.focus_m));
+  DofImage im(w, h, glm::vec3(0.1f), static_cast<float>(lens.focus_m));
   const float near = static_cast<float>(lens.depth_near_for_coc(32.0));
   for (std::uint32_t y = 0; y < h; ++y)
     for (std::uint32_t x = 0; x < 128; ++x) {
-      im.c[im.at(x, y)] = glm::vec3(0.8f);
-      im.z[im.at(x, y)] = near;
+      im.color[im.at(x, y)] = glm::vec3(0.8f);
+      im.depth[im.at(x, y)] = near;
     }
   LeeMipmapSettings s;
   s.smooth_foreground = smooth;
@@ -265,7 +258,7 @@ TEST(LeeMipmap, ForegroundSmoothingMakesBoundaryContinuous) {
 
 TEST(LeeMipmap, StatsAndLevels) {
   const CocModel lens = lens_k(400);
-  Image im(1024, 768, glm::vec3(0.5f), depth_for_coc(lens, 64.0));
+  DofImage im(1024, 768, glm::vec3(0.5f), depth_for_coc(lens, 64.0));
   LeeMipmapStats st;
   RgbImage out;
   lee_mipmap(im.input(lens), {}, out, &st);

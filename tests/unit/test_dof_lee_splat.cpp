@@ -7,48 +7,28 @@
 #include <tbb/task_arena.h>
 
 #include <cmath>
-#include <limits>
 #include <random>
 
 #include "dof/lee_splat.h"
+#include "dof_test_image.h"
 #include "dof_lens.h"
 
 using namespace fovea::render::dof;
 
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
+using test::DofImage;
 
 // A lens with K (eq. 5.3, pixels) = k_px, focused at focus_m.
 CocModel lens(double k_px, double focus_m = 2.0) { return test::lens_with_k(k_px, focus_m); }
 
-struct Scene {
-  std::uint32_t w = 0, h = 0;
-  std::vector<glm::vec3> color, hcolor;
-  std::vector<float> depth, hdepth;
-  CocModel coc;
-  Scene(std::uint32_t w_, std::uint32_t h_, const CocModel& c)
-      : w(w_), h(h_), color(std::size_t{w_} * h_, glm::vec3(0)), hcolor(color),
-        depth(std::size_t{w_} * h_, 2.0f), hdepth(std::size_t{w_} * h_, kInf), coc(c) {}
-  std::size_t at(std::uint32_t x, std::uint32_t y) const { return std::size_t{y} * w + x; }
-  DofInput input(bool with_hidden) const {
-    DofInput in;
-    in.width = w;
-    in.height = h;
-    in.color = color.data();
-    in.depth = depth.data();
-    in.coc = coc;
-    if (with_hidden) {
-      in.hidden_color = hcolor.data();
-      in.hidden_depth = hdepth.data();
-    }
-    return in;
-  }
-};
+// Black at 2 m (the focus distance of lens()); the hidden layer black and empty.
+DofImage blank(std::uint32_t w, std::uint32_t h) { return DofImage(w, h, glm::vec3(0), 2.0f); }
 
-RgbImage run(const Scene& sc, const LeeSplatSettings& s, bool with_hidden = true, LeeSplatStats* st = nullptr) {
+RgbImage run(const DofImage& sc, const CocModel& coc, const LeeSplatSettings& s, bool with_hidden = true,
+             LeeSplatStats* st = nullptr) {
   RgbImage out;
-  lee_splat(sc.input(with_hidden), s, out, st);
+  lee_splat(sc.input(coc, with_hidden), s, out, st);
   return out;
 }
 
@@ -78,26 +58,27 @@ glm::vec3 checker(std::uint32_t x, std::uint32_t y) {
 TEST(LeeSplat, PinholeIsExact) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(0.0f, 50.0f);
-  Scene sc(37, 23, lens(0.0));
-  sc.coc.aperture_m = 0;  // pinhole
+  DofImage sc = blank(37, 23);
+  CocModel pinhole = lens(0.0);
+  pinhole.aperture_m = 0;
   for (std::size_t i = 0; i < sc.color.size(); ++i) {
     sc.color[i] = {u(rng), u(rng) * 1e4f, u(rng) * 1e-3f};
     sc.depth[i] = 0.1f + u(rng);
-    sc.hcolor[i] = glm::vec3(1e3f);
-    sc.hdepth[i] = sc.depth[i] + 5.0f;
+    sc.hidden_color[i] = glm::vec3(1e3f);
+    sc.hidden_depth[i] = sc.depth[i] + 5.0f;
   }
   for (const Aperture ap : {Aperture::Disc, Aperture::Gaussian, Aperture::Hexagon}) {
     LeeSplatSettings s;
     s.aperture = ap;
     s.reduce = 2;
-    const RgbImage out = run(sc, s);
+    const RgbImage out = run(sc, pinhole, s);
     ASSERT_EQ(out.size(), sc.color.size());
     for (std::size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out[i], sc.color[i]) << i;
   }
   // Everything in focus with a real aperture: also exact.
-  Scene f(19, 11, lens(30.0));
+  DofImage f = blank(19, 11);
   for (std::size_t i = 0; i < f.color.size(); ++i) f.color[i] = {u(rng), u(rng), u(rng)};
-  const RgbImage out = run(f, LeeSplatSettings{});
+  const RgbImage out = run(f, lens(30.0), LeeSplatSettings{});
   for (std::size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out[i], f.color[i]) << i;
 }
 
@@ -106,21 +87,21 @@ TEST(LeeSplat, ConstantImageStaysConstantForAnyCoc) {
   const CocModel coc = lens(60.0);
   std::uniform_real_distribution<double> cd(0.0, 45.0);
   std::uniform_int_distribution<int> side(0, 1);
-  Scene sc(48, 40, coc);
+  DofImage sc = blank(48, 40);
   const glm::vec3 c(0.3f, 0.5f, 0.7f);
   for (std::size_t i = 0; i < sc.color.size(); ++i) {
     const double want = cd(rng);
     sc.depth[i] = static_cast<float>(side(rng) ? coc.depth_near_for_coc(want) : coc.depth_far_for_coc(want));
     sc.color[i] = c;
-    sc.hcolor[i] = c;
-    sc.hdepth[i] = sc.depth[i] * 1.5f;
+    sc.hidden_color[i] = c;
+    sc.hidden_depth[i] = sc.depth[i] * 1.5f;
   }
   for (const Aperture ap : {Aperture::Disc, Aperture::Gaussian, Aperture::Hexagon}) {
     for (const int reduce : {1, 2, 4}) {
       LeeSplatSettings s;
       s.aperture = ap;
       s.reduce = reduce;
-      const RgbImage out = run(sc, s);
+      const RgbImage out = run(sc, coc, s);
       for (std::size_t i = 0; i < out.size(); ++i) {
         ASSERT_NEAR(out[i].x, c.x, 1e-5) << i;
         ASSERT_NEAR(out[i].y, c.y, 1e-5) << i;
@@ -133,7 +114,7 @@ TEST(LeeSplat, ConstantImageStaysConstantForAnyCoc) {
 TEST(LeeSplat, BrightPixelSpreadsIntoApertureShapeConservingEnergy) {
   const CocModel coc = lens(40.0);
   const double cdiam = 15.0;  // R = 7.5
-  Scene sc(61, 61, coc);
+  DofImage sc = blank(61, 61);
   const float d = static_cast<float>(coc.depth_far_for_coc(cdiam));
   for (auto& z : sc.depth) z = d;
   const std::uint32_t cx = 30, cy = 30;
@@ -144,7 +125,7 @@ TEST(LeeSplat, BrightPixelSpreadsIntoApertureShapeConservingEnergy) {
   for (const Aperture ap : {Aperture::Disc, Aperture::Gaussian, Aperture::Hexagon}) {
     LeeSplatSettings s;
     s.aperture = ap;
-    const RgbImage out = run(sc, s);
+    const RgbImage out = run(sc, coc, s);
     const glm::dvec3 t = total(out);
     EXPECT_NEAR(t.x, 1000.0, 1e-3 * 1000.0);
     EXPECT_NEAR(t.y, 500.0, 1e-3 * 500.0);
@@ -194,21 +175,22 @@ namespace {
 // A focused checkered background at the focus distance and a blurred foreground bar (CoC `c_fg`) in
 // front of it, columns [x0, x1). The hidden layer holds the background under the bar.
 struct BarScene {
-  Scene sc;
+  DofImage sc;
+  CocModel coc = lens(40.0);
   RgbImage reference;
   std::uint32_t x0, x1;
   glm::vec3 fg{0.9f, 0.15f, 0.1f};
   BarScene(std::uint32_t w, std::uint32_t h, std::uint32_t bx0, std::uint32_t bx1, double c_fg)
-      : sc(w, h, lens(40.0)), x0(bx0), x1(bx1) {
-    const float zfg = static_cast<float>(sc.coc.depth_near_for_coc(c_fg));
+      : sc(blank(w, h)), x0(bx0), x1(bx1) {
+    const float zfg = static_cast<float>(coc.depth_near_for_coc(c_fg));
     for (std::uint32_t y = 0; y < h; ++y) {
       for (std::uint32_t x = 0; x < w; ++x) {
         const std::size_t i = sc.at(x, y);
         sc.depth[i] = 2.0f;
         sc.color[i] = checker(x, y);
         if (x >= x0 && x < x1) {
-          sc.hcolor[i] = sc.color[i];
-          sc.hdepth[i] = 2.0f;
+          sc.hidden_color[i] = sc.color[i];
+          sc.hidden_depth[i] = 2.0f;
           sc.color[i] = fg;
           sc.depth[i] = zfg;
         }
@@ -248,8 +230,8 @@ TEST(LeeSplat, HiddenLayerFillsPartialOcclusion) {
   BarScene bs(72, 40, 28, 44, 14.0);
   LeeSplatSettings s;
   LeeSplatStats with_stats, without_stats;
-  const RgbImage with = run(bs.sc, s, true, &with_stats);
-  const RgbImage without = run(bs.sc, s, false, &without_stats);
+  const RgbImage with = run(bs.sc, bs.coc, s, true, &with_stats);
+  const RgbImage without = run(bs.sc, bs.coc, s, false, &without_stats);
   // Only rows away from the top and bottom (where the bar's discs are cut by the image border).
   const auto rows = [&](const RgbImage& img) {
     RgbImage r;
@@ -279,7 +261,7 @@ TEST(LeeSplat, HiddenLayerFillsPartialOcclusion) {
 
 TEST(LeeSplat, FocusedBackgroundNextToBlurredForegroundIsNotSmeared) {
   BarScene bs(72, 40, 28, 44, 14.0);
-  const RgbImage out = run(bs.sc, LeeSplatSettings{}, false);
+  const RgbImage out = run(bs.sc, bs.coc, LeeSplatSettings{}, false);
   for (std::uint32_t y = 0; y < bs.sc.h; ++y) {
     for (std::uint32_t x = 0; x < bs.sc.w; ++x) {
       if (x >= bs.x0 && x < bs.x1) continue;
@@ -301,7 +283,7 @@ TEST(LeeSplat, FocusedObjectDoesNotLeakIntoBlurredBackground) {
   // is opaque in layer 1, the background's arrive behind it) and its colour does not reach the
   // background beyond its own pixels (its CoC is 0).
   const CocModel coc = lens(40.0);
-  Scene sc(50, 30, coc);
+  DofImage sc = blank(50, 30);
   const float zbg = static_cast<float>(coc.depth_far_for_coc(20.0));
   for (std::uint32_t y = 0; y < sc.h; ++y) {
     for (std::uint32_t x = 0; x < sc.w; ++x) {
@@ -314,7 +296,7 @@ TEST(LeeSplat, FocusedObjectDoesNotLeakIntoBlurredBackground) {
       }
     }
   }
-  const RgbImage out = run(sc, LeeSplatSettings{}, false);
+  const RgbImage out = run(sc, coc, LeeSplatSettings{}, false);
   for (std::uint32_t y = 0; y < sc.h; ++y) {
     for (std::uint32_t x = 0; x < sc.w; ++x) {
       const std::size_t i = sc.at(x, y);
@@ -330,7 +312,7 @@ TEST(LeeSplat, FocusedObjectDoesNotLeakIntoBlurredBackground) {
 
 TEST(LeeSplat, ReducedResolutionStaysCloseToFull) {
   const CocModel coc = lens(60.0);
-  Scene sc(96, 72, coc);
+  DofImage sc = blank(96, 72);
   for (std::uint32_t y = 0; y < sc.h; ++y) {
     for (std::uint32_t x = 0; x < sc.w; ++x) {
       const std::size_t i = sc.at(x, y);
@@ -340,8 +322,8 @@ TEST(LeeSplat, ReducedResolutionStaysCloseToFull) {
       sc.color[i] = 0.5f * checker(x, y) + glm::vec3(0.2f * std::sin(0.3f * float(x)));
       const double dx = double(x) - 30, dy = double(y) - 30;
       if (dx * dx + dy * dy < 100) {
-        sc.hcolor[i] = sc.color[i];
-        sc.hdepth[i] = sc.depth[i];
+        sc.hidden_color[i] = sc.color[i];
+        sc.hidden_depth[i] = sc.depth[i];
         sc.depth[i] = static_cast<float>(coc.depth_near_for_coc(16.0));
         sc.color[i] = glm::vec3(1.0f, 0.9f, 0.2f);
       }
@@ -350,8 +332,8 @@ TEST(LeeSplat, ReducedResolutionStaysCloseToFull) {
   LeeSplatSettings full, red;
   red.reduce = 2;
   LeeSplatStats sf, sr;
-  const RgbImage a = run(sc, full, true, &sf);
-  const RgbImage b = run(sc, red, true, &sr);
+  const RgbImage a = run(sc, coc, full, true, &sf);
+  const RgbImage b = run(sc, coc, red, true, &sr);
   const double p = psnr(a, b);
   std::printf("reduced vs full: %.2f dB, splats %zu vs %zu\n", p, sr.splats, sf.splats);
   EXPECT_GT(p, 35.0);
@@ -360,14 +342,14 @@ TEST(LeeSplat, ReducedResolutionStaysCloseToFull) {
 
 TEST(LeeSplat, LdrHighlightsExtrapolateBrightPixelsOnly) {
   const CocModel coc = lens(40.0);
-  Scene sc(41, 41, coc);
+  DofImage sc = blank(41, 41);
   const float d = static_cast<float>(coc.depth_far_for_coc(9.0));
   for (auto& z : sc.depth) z = d;
   sc.color[sc.at(10, 20)] = glm::vec3(0.98f);  // bright: extrapolated (eq. 5.5)
   sc.color[sc.at(30, 20)] = glm::vec3(0.5f);   // below λ_0 = 0.8: untouched
   LeeSplatSettings off, on;
   on.ldr_highlights = true;
-  const RgbImage a = run(sc, off), b = run(sc, on);
+  const RgbImage a = run(sc, coc, off), b = run(sc, coc, on);
   double bright_a = 0, bright_b = 0, dim_a = 0, dim_b = 0;
   for (std::uint32_t y = 0; y < sc.h; ++y) {
     for (std::uint32_t x = 0; x < sc.w; ++x) {
@@ -384,22 +366,22 @@ TEST(LeeSplat, LdrHighlightsExtrapolateBrightPixelsOnly) {
 
 TEST(LeeSplat, DeterministicAcrossRunsAndThreadCounts) {
   const CocModel coc = lens(50.0);
-  Scene sc(80, 57, coc);
+  DofImage sc = blank(80, 57);
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (std::size_t i = 0; i < sc.color.size(); ++i) {
     sc.color[i] = glm::vec3(float(u(rng)), float(u(rng)) * 100, float(u(rng)));
     sc.depth[i] = static_cast<float>(0.8 + 4 * u(rng));
-    sc.hcolor[i] = glm::vec3(float(u(rng)));
-    sc.hdepth[i] = sc.depth[i] + 1.0f;
+    sc.hidden_color[i] = glm::vec3(float(u(rng)));
+    sc.hidden_depth[i] = sc.depth[i] + 1.0f;
   }
   LeeSplatSettings s;
   s.aperture = Aperture::Gaussian;
-  const RgbImage a = run(sc, s);
-  const RgbImage b = run(sc, s);
+  const RgbImage a = run(sc, coc, s);
+  const RgbImage b = run(sc, coc, s);
   RgbImage c;
   tbb::task_arena one(1);
-  one.execute([&] { c = run(sc, s); });
+  one.execute([&] { c = run(sc, coc, s); });
   for (std::size_t i = 0; i < a.size(); ++i) {
     ASSERT_EQ(a[i], b[i]) << i;
     ASSERT_EQ(a[i], c[i]) << i;
@@ -415,7 +397,7 @@ TEST(LeeSplat, DeterministicAcrossRunsAndThreadCounts) {
 TEST(LeeSplat, DISABLED_Timing1024x768) {
   const CocModel coc = lens(200.0);
   for (const double mean : {MEANS}) {
-    Scene sc(1024, 768, coc);
+    DofImage sc = blank(1024, 768);
     double csum = 0;
     for (std::uint32_t y = 0; y < sc.h; ++y) {
       for (std::uint32_t x = 0; x < sc.w; ++x) {
@@ -426,8 +408,8 @@ TEST(LeeSplat, DISABLED_Timing1024x768) {
         sc.color[i] = checker(x, y) + glm::vec3((x * 7 + y * 13) % 101 == 0 ? 20.0f : 0.0f);
         const double dx = double(x % 256) - 128, dy = double(y % 256) - 128;
         if (dx * dx + dy * dy < 40 * 40) {  // foreground discs
-          sc.hcolor[i] = sc.color[i];
-          sc.hdepth[i] = sc.depth[i];
+          sc.hidden_color[i] = sc.color[i];
+          sc.hidden_depth[i] = sc.depth[i];
           c = 1.5 * mean;
           sc.depth[i] = static_cast<float>(coc.depth_near_for_coc(c));
           sc.color[i] = glm::vec3(1.0f, 0.5f, 0.2f);
@@ -441,11 +423,11 @@ TEST(LeeSplat, DISABLED_Timing1024x768) {
         s.reduce = reduce;
         RgbImage out;
         LeeSplatStats st;
-        lee_splat(sc.input(hidden), s, out, &st);  // warm-up (allocations)
+        lee_splat(sc.input(coc, hidden), s, out, &st);  // warm-up (allocations)
         double best = 1e9, sum = 0;
         constexpr int kRuns = 5;
         for (int r = 0; r < kRuns; ++r) {
-          lee_splat(sc.input(hidden), s, out, &st);
+          lee_splat(sc.input(coc, hidden), s, out, &st);
           best = std::min(best, st.seconds);
           sum += st.seconds;
         }

@@ -7,43 +7,33 @@
 #include <vector>
 
 #include "dof/schedl_layered.h"
+#include "dof_test_image.h"
 #include "dof_lens.h"
 
 namespace fovea::render::dof {
 namespace {
 
-struct Frame {
-  std::uint32_t w, h;
-  std::vector<glm::vec3> color, hidden_color;
-  std::vector<float> depth, hidden_depth;
-  Frame(std::uint32_t width, std::uint32_t height, glm::vec3 c, float d)
-      : w(width), h(height), color(std::size_t{width} * height, c), hidden_color(color.size(), glm::vec3(0.0f)),
-        depth(color.size(), d), hidden_depth(color.size(), std::numeric_limits<float>::infinity()) {}
-  DofInput input(const CocModel& coc) const {
-    DofInput in;
-    in.width = w;
-    in.height = h;
-    in.color = color.data();
-    in.depth = depth.data();
-    in.coc = coc;
-    return in;
-  }
-  std::vector<PeeledLayer> peeled() const { return {{hidden_color.data(), hidden_depth.data()}}; }
-};
+using test::DofImage;
+
+// Colour c at depth d everywhere; the peeled layer black and empty.
+DofImage frame(std::uint32_t w, std::uint32_t h, glm::vec3 c, float d) { return DofImage(w, h, c, d, glm::vec3(0.0f)); }
+
+// The image's hidden layer as Schedl's one peeled layer.
+std::vector<PeeledLayer> peeled(const DofImage& f) { return {{f.hidden_color.data(), f.hidden_depth.data()}}; }
 
 TEST(SchedlLayered, PinholeReturnsTheInputExactly) {
-  Frame f(40, 30, glm::vec3(0.3f, 0.5f, 0.7f), 2.0f);
+  DofImage f = frame(40, 30, glm::vec3(0.3f, 0.5f, 0.7f), 2.0f);
   for (std::size_t i = 0; i < f.depth.size(); ++i) f.depth[i] = 1.0f + static_cast<float>(i % 13);
   f.color[17] = glm::vec3(5.0f, 0.0f, 1.0f);
   CocModel pinhole = test::lens_with_k(20);
   pinhole.aperture_m = 0;
   RgbImage out;
-  schedl_layered(f.input(pinhole), f.peeled(), {}, out);
+  schedl_layered(f.input(pinhole), peeled(f), {}, out);
   for (std::size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out[i], f.color[i]) << i;
 }
 
 TEST(SchedlLayered, AConstantImageStaysConstantWhateverTheDepths) {
-  Frame f(64, 48, glm::vec3(0.2f, 0.4f, 0.8f), 2.0f);
+  DofImage f = frame(64, 48, glm::vec3(0.2f, 0.4f, 0.8f), 2.0f);
   for (std::size_t i = 0; i < f.depth.size(); ++i) f.depth[i] = 0.5f + static_cast<float>((i * 7919) % 97) * 0.2f;
   RgbImage out;
   SchedlStats st;
@@ -60,7 +50,7 @@ TEST(SchedlLayered, AConstantImageStaysConstantWhateverTheDepths) {
 // is all there is (Schedl & Wimmer's partial occlusion).
 TEST(SchedlLayered, ThePeeledLayerFillsPartialOcclusionAndTheFocusLayerStaysSharp) {
   const std::uint32_t w = 96, h = 32;
-  Frame f(w, h, glm::vec3(0.0f), 2.0f);
+  DofImage f = frame(w, h, glm::vec3(0.0f), 2.0f);
   for (std::uint32_t y = 0; y < h; ++y) {
     for (std::uint32_t x = 0; x < w; ++x) {
       const std::size_t i = std::size_t{y} * w + x;
@@ -75,7 +65,7 @@ TEST(SchedlLayered, ThePeeledLayerFillsPartialOcclusionAndTheFocusLayerStaysShar
   }
   const CocModel coc = test::lens_with_k(40);  // the bar's CoC: 40 px
   RgbImage with, without;
-  schedl_layered(f.input(coc), f.peeled(), {}, with);
+  schedl_layered(f.input(coc), peeled(f), {}, with);
   schedl_layered(f.input(coc), {}, {}, without);
   // The bar's centre: with the wall behind it, much of the wall shows (a thin lens would show ~3/4:
   // the 8 px bar covers ~1/4 of the 40 px disc; measured ~1/2), without it the bar's dark colour.
@@ -92,7 +82,7 @@ TEST(SchedlLayered, ThePeeledLayerFillsPartialOcclusionAndTheFocusLayerStaysShar
 }
 
 TEST(SchedlLayered, LayersCoverTheDepthRangeUpToTheCap) {
-  Frame f(32, 32, glm::vec3(0.5f), 2.0f);
+  DofImage f = frame(32, 32, glm::vec3(0.5f), 2.0f);
   for (std::size_t i = 0; i < f.depth.size(); ++i) f.depth[i] = i % 2 ? 0.3f : 50.0f;
   RgbImage out;
   SchedlStats st;
