@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "classify/classifier.h"
-#include "classify/synthetic_labelled.h"
 #include "classify/evaluate.h"
+#include "sim/synthetic_labelled.h"
 #include "sim/synthetic_gaze.h"
 
 using namespace fovea;

@@ -20,8 +20,8 @@
 #include <unistd.h>
 
 #include "classify/classifier.h"
-#include "classify/synthetic_labelled.h"
 #include "classify/evaluate.h"
+#include "sim/synthetic_labelled.h"
 #include "sim/synthetic_gaze.h"
 
 using namespace fovea;
