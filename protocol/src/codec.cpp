@@ -345,149 +345,180 @@ struct Reader {
     return static_cast<E>(v);
   }
 
+  // Payload layout: PROTOCOL.md §4.2
+  Hello read_hello() {
+    Hello m;
+    m.client_nonce = get<std::uint64_t>(0);
+    text(8, m.client_name);
+    zero(40, 8);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.3
+  Challenge read_challenge() {
+    Challenge m;
+    m.client_nonce = get<std::uint64_t>(0);
+    bytes(8, m.cookie);
+    m.cookie_lifetime_ms = get<std::uint32_t>(24);
+    zero(28, 4);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.4
+  Subscribe read_subscribe() {
+    Subscribe m;
+    bytes(0, m.cookie);
+    m.client_nonce = get<std::uint64_t>(16);
+    m.streams = get<std::uint32_t>(24);
+    if (m.streams == 0 || (m.streams & ~kStreamMask) != 0) fail(DecodeError::OutOfRange, 24);
+    m.requested_lease_ms = get<std::uint32_t>(28);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.5
+  Subscribed read_subscribed() {
+    Subscribed m;
+    m.session_id = get<std::uint64_t>(0);
+    m.streams = get<std::uint32_t>(8);
+    if ((m.streams & ~kStreamMask) != 0) fail(DecodeError::OutOfRange, 8);
+    m.lease_ms = get<std::uint32_t>(12);
+    m.nominal_rate_hz = f64(16);
+    if (m.nominal_rate_hz < 0) fail(DecodeError::OutOfRange, 16);
+    m.next_sample_sequence = get<std::uint64_t>(24);
+    m.next_event_sequence = get<std::uint64_t>(32);
+    m.display = display(40);
+    m.multicast.group_ipv4 = get<std::uint32_t>(72);
+    m.multicast.port = get<std::uint16_t>(76);
+    m.multicast.ttl = get<std::uint8_t>(78);
+    zero(79, 1);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.6
+  Heartbeat read_heartbeat() {
+    Heartbeat m;
+    m.session_id = get<std::uint64_t>(0);
+    m.lease_ms = get<std::uint32_t>(8);
+    zero(12, 4);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.7
+  Unsubscribe read_unsubscribe() {
+    Unsubscribe m;
+    m.session_id = get<std::uint64_t>(0);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.8
+  GazeSample read_gaze_sample() {
+    GazeSample m;
+    m.tracker_time_ns = get<std::int64_t>(0);
+    m.x = f32(8);
+    m.y = f32(12);
+    m.x_deg = f32(16);
+    m.y_deg = f32(20);
+    m.angular_velocity_deg_s = f32_at_least(24, 0.0f);
+    m.confidence = f32_at_least(28, 0.0f);
+    if (m.confidence > 1.0f) fail(DecodeError::OutOfRange, 28);
+    m.state = enumeration<EyeMovement>(32, 0, kMaxEyeMovement);
+    m.flags = flags(33, kGazeFlagMask);
+    m.left = eye(36, flags(34, kEyeFlagMask));
+    m.right = eye(56, flags(35, kEyeFlagMask));
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.9
+  GazeEvent read_gaze_event() {
+    GazeEvent m;
+    m.kind = enumeration<EyeMovement>(0, 1, kMaxEyeMovement);
+    m.phase = enumeration<EventPhase>(1, 1, 2);
+    zero(2, 6);
+    m.start_time_ns = get<std::int64_t>(8);
+    m.duration_ns = get<std::int64_t>(16);
+    if (m.duration_ns < 0) fail(DecodeError::OutOfRange, 16);
+    m.centroid_x = f32(24);
+    m.centroid_y = f32(28);
+    m.centroid_x_deg = f32(32);
+    m.centroid_y_deg = f32(36);
+    m.amplitude_deg = f32_at_least(40, 0.0f);
+    m.peak_velocity_deg_s = f32_at_least(44, 0.0f);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.10
+  StatusRequest read_status_request() {
+    zero(0, 128);
+    return StatusRequest{};
+  }
+  // Payload layout: PROTOCOL.md §4.11
+  StatusReply read_status_reply() {
+    StatusReply m;
+    text(0, m.source);
+    m.nominal_rate_hz = f64(48);
+    if (m.nominal_rate_hz < 0) fail(DecodeError::OutOfRange, 48);
+    m.uptime_ns = get<std::int64_t>(56);
+    if (m.uptime_ns < 0) fail(DecodeError::OutOfRange, 56);
+    m.samples_published = get<std::uint64_t>(64);
+    m.events_published = get<std::uint64_t>(72);
+    m.datagrams_rejected = get<std::uint64_t>(80);
+    m.subscribers = get<std::uint32_t>(88);
+    m.source_state = enumeration<SourceState>(92, 0, kMaxSourceState);
+    zero(93, 3);
+    m.display = display(96);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.12
+  TimeSyncRequest read_time_sync_request() {
+    TimeSyncRequest m;
+    m.client_send_ns = get<std::int64_t>(0);
+    zero(8, 16);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.13
+  TimeSyncReply read_time_sync_reply() {
+    TimeSyncReply m;
+    m.client_send_ns = get<std::int64_t>(0);
+    m.server_receive_ns = get<std::int64_t>(8);
+    m.server_send_ns = get<std::int64_t>(16);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.14
+  Error read_error() {
+    Error m;
+    m.code = enumeration<ErrorCode>(0, 1, kMaxErrorCode);
+    m.request_type = enumeration<MessageType>(2, 1, kMaxMessageType);
+    m.supported_version = get<std::uint8_t>(3);
+    zero(4, 4);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.15
+  ControlRequest read_control_request() {
+    ControlRequest m;
+    m.command = enumeration<ControlCommand>(0, 1, kMaxControlCommand);
+    zero(1, 7);
+    text(8, m.argument);
+    return m;
+  }
+  // Payload layout: PROTOCOL.md §4.16
+  ControlReply read_control_reply() {
+    ControlReply m;
+    m.command = enumeration<ControlCommand>(0, 1, kMaxControlCommand);
+    m.result = enumeration<ControlResult>(1, 0, kMaxControlResult);
+    zero(2, 6);
+    text(8, m.message);
+    return m;
+  }
+
   Payload read(MessageType t) {
     switch (t) {
-      case MessageType::Hello: {
-        Hello m;
-        m.client_nonce = get<std::uint64_t>(0);
-        text(8, m.client_name);
-        zero(40, 8);
-        return m;
-      }
-      case MessageType::Challenge: {
-        Challenge m;
-        m.client_nonce = get<std::uint64_t>(0);
-        bytes(8, m.cookie);
-        m.cookie_lifetime_ms = get<std::uint32_t>(24);
-        zero(28, 4);
-        return m;
-      }
-      case MessageType::Subscribe: {
-        Subscribe m;
-        bytes(0, m.cookie);
-        m.client_nonce = get<std::uint64_t>(16);
-        m.streams = get<std::uint32_t>(24);
-        if (m.streams == 0 || (m.streams & ~kStreamMask) != 0) fail(DecodeError::OutOfRange, 24);
-        m.requested_lease_ms = get<std::uint32_t>(28);
-        return m;
-      }
-      case MessageType::Subscribed: {
-        Subscribed m;
-        m.session_id = get<std::uint64_t>(0);
-        m.streams = get<std::uint32_t>(8);
-        if ((m.streams & ~kStreamMask) != 0) fail(DecodeError::OutOfRange, 8);
-        m.lease_ms = get<std::uint32_t>(12);
-        m.nominal_rate_hz = f64(16);
-        if (m.nominal_rate_hz < 0) fail(DecodeError::OutOfRange, 16);
-        m.next_sample_sequence = get<std::uint64_t>(24);
-        m.next_event_sequence = get<std::uint64_t>(32);
-        m.display = display(40);
-        m.multicast.group_ipv4 = get<std::uint32_t>(72);
-        m.multicast.port = get<std::uint16_t>(76);
-        m.multicast.ttl = get<std::uint8_t>(78);
-        zero(79, 1);
-        return m;
-      }
-      case MessageType::Heartbeat: {
-        Heartbeat m;
-        m.session_id = get<std::uint64_t>(0);
-        m.lease_ms = get<std::uint32_t>(8);
-        zero(12, 4);
-        return m;
-      }
-      case MessageType::Unsubscribe: {
-        Unsubscribe m;
-        m.session_id = get<std::uint64_t>(0);
-        return m;
-      }
-      case MessageType::GazeSample: {
-        GazeSample m;
-        m.tracker_time_ns = get<std::int64_t>(0);
-        m.x = f32(8);
-        m.y = f32(12);
-        m.x_deg = f32(16);
-        m.y_deg = f32(20);
-        m.angular_velocity_deg_s = f32_at_least(24, 0.0f);
-        m.confidence = f32_at_least(28, 0.0f);
-        if (m.confidence > 1.0f) fail(DecodeError::OutOfRange, 28);
-        m.state = enumeration<EyeMovement>(32, 0, kMaxEyeMovement);
-        m.flags = flags(33, kGazeFlagMask);
-        m.left = eye(36, flags(34, kEyeFlagMask));
-        m.right = eye(56, flags(35, kEyeFlagMask));
-        return m;
-      }
-      case MessageType::GazeEvent: {
-        GazeEvent m;
-        m.kind = enumeration<EyeMovement>(0, 1, kMaxEyeMovement);
-        m.phase = enumeration<EventPhase>(1, 1, 2);
-        zero(2, 6);
-        m.start_time_ns = get<std::int64_t>(8);
-        m.duration_ns = get<std::int64_t>(16);
-        if (m.duration_ns < 0) fail(DecodeError::OutOfRange, 16);
-        m.centroid_x = f32(24);
-        m.centroid_y = f32(28);
-        m.centroid_x_deg = f32(32);
-        m.centroid_y_deg = f32(36);
-        m.amplitude_deg = f32_at_least(40, 0.0f);
-        m.peak_velocity_deg_s = f32_at_least(44, 0.0f);
-        return m;
-      }
-      case MessageType::StatusRequest: {
-        zero(0, 128);
-        return StatusRequest{};
-      }
-      case MessageType::StatusReply: {
-        StatusReply m;
-        text(0, m.source);
-        m.nominal_rate_hz = f64(48);
-        if (m.nominal_rate_hz < 0) fail(DecodeError::OutOfRange, 48);
-        m.uptime_ns = get<std::int64_t>(56);
-        if (m.uptime_ns < 0) fail(DecodeError::OutOfRange, 56);
-        m.samples_published = get<std::uint64_t>(64);
-        m.events_published = get<std::uint64_t>(72);
-        m.datagrams_rejected = get<std::uint64_t>(80);
-        m.subscribers = get<std::uint32_t>(88);
-        m.source_state = enumeration<SourceState>(92, 0, kMaxSourceState);
-        zero(93, 3);
-        m.display = display(96);
-        return m;
-      }
-      case MessageType::TimeSyncRequest: {
-        TimeSyncRequest m;
-        m.client_send_ns = get<std::int64_t>(0);
-        zero(8, 16);
-        return m;
-      }
-      case MessageType::TimeSyncReply: {
-        TimeSyncReply m;
-        m.client_send_ns = get<std::int64_t>(0);
-        m.server_receive_ns = get<std::int64_t>(8);
-        m.server_send_ns = get<std::int64_t>(16);
-        return m;
-      }
-      case MessageType::Error: {
-        Error m;
-        m.code = enumeration<ErrorCode>(0, 1, kMaxErrorCode);
-        m.request_type = enumeration<MessageType>(2, 1, kMaxMessageType);
-        m.supported_version = get<std::uint8_t>(3);
-        zero(4, 4);
-        return m;
-      }
-      case MessageType::ControlRequest: {
-        ControlRequest m;
-        m.command = enumeration<ControlCommand>(0, 1, kMaxControlCommand);
-        zero(1, 7);
-        text(8, m.argument);
-        return m;
-      }
-      case MessageType::ControlReply: {
-        ControlReply m;
-        m.command = enumeration<ControlCommand>(0, 1, kMaxControlCommand);
-        m.result = enumeration<ControlResult>(1, 0, kMaxControlResult);
-        zero(2, 6);
-        text(8, m.message);
-        return m;
-      }
+      case MessageType::Hello: return read_hello();
+      case MessageType::Challenge: return read_challenge();
+      case MessageType::Subscribe: return read_subscribe();
+      case MessageType::Subscribed: return read_subscribed();
+      case MessageType::Heartbeat: return read_heartbeat();
+      case MessageType::Unsubscribe: return read_unsubscribe();
+      case MessageType::GazeSample: return read_gaze_sample();
+      case MessageType::GazeEvent: return read_gaze_event();
+      case MessageType::StatusRequest: return read_status_request();
+      case MessageType::StatusReply: return read_status_reply();
+      case MessageType::TimeSyncRequest: return read_time_sync_request();
+      case MessageType::TimeSyncReply: return read_time_sync_reply();
+      case MessageType::Error: return read_error();
+      case MessageType::ControlRequest: return read_control_request();
+      case MessageType::ControlReply: return read_control_reply();
     }
     fail(DecodeError::UnknownType, 0);
     return StatusRequest{};

@@ -96,6 +96,84 @@ void write_eye(std::ostream& out, const EyeData& e) {
       << fmt_float(e.pupil_glint_y_px);
 }
 
+// A "# key: value" comment line carries a header field (as write_csv writes them); other comments are ignored.
+void apply_header_comment(RecordingHeader& header, const std::string& line, const std::string& source,
+                          std::size_t line_no) {
+  const auto colon = line.find(':');
+  if (colon == std::string::npos) return;
+  std::string key = line.substr(1, colon - 1);
+  std::string value = line.substr(colon + 1);
+  while (!key.empty() && key.front() == ' ') key.erase(key.begin());
+  while (!value.empty() && value.front() == ' ') value.erase(value.begin());
+  try {
+    if (key == "device") {
+      header.device = value.substr(0, 63);
+    } else if (key == "display") {
+      header.display = parse_display_geometry(value);
+    } else if (key == "sample_rate_hz") {
+      std::size_t used = 0;
+      const double hz = std::stod(value, &used);
+      if (used != value.size() || !std::isfinite(hz) || hz < 0 || hz > 100000) {
+        throw std::invalid_argument("sample_rate_hz \"" + value + "\" is not a number in [0, 100000]");
+      }
+      header.nominal_rate_hz = hz;
+    }
+  } catch (const std::exception& e) {
+    throw std::runtime_error(source + ":" + std::to_string(line_no) + ": " + e.what());
+  }
+}
+
+// The column line must name exactly kColumns in order: a file of another layout is refused, not misread.
+void check_column_line(const std::vector<std::string>& fields, const std::string& source, std::size_t line_no) {
+  if (fields.size() != kColumnCount) {
+    throw std::runtime_error(source + ":" + std::to_string(line_no) + ": expected the " +
+                             std::to_string(kColumnCount) + "-column header starting \"sequence,tracker_time_ns,\"" +
+                             ", found " + std::to_string(fields.size()) + " columns");
+  }
+  for (std::size_t i = 0; i < kColumnCount; ++i) {
+    if (fields[i] != kColumns[i]) {
+      throw std::runtime_error(source + ":" + std::to_string(line_no) + ": column " + std::to_string(i + 1) +
+                               " is \"" + fields[i] + "\", expected \"" + kColumns[i] + "\"");
+    }
+  }
+}
+
+// Columns 1..21 in column order, so the error names the first bad column of the line.
+GazeSample parse_sample(const LineParser& p) {
+  GazeSample s;
+  s.tracker_time_ns = p.integer<std::int64_t>(1, INT64_MIN, INT64_MAX);
+  s.x = p.real(2);
+  s.y = p.real(3);
+  s.x_deg = p.real(4, -180, 180);
+  s.y_deg = p.real(5, -180, 180);
+  s.angular_velocity_deg_s = p.real(6, 0.0);
+  s.confidence = p.real(7, 0.0, 1.0);
+  s.state = p.state(8);
+  s.flags = p.integer<std::uint8_t>(9, 0, 1) ? kGazeValid : 0;
+  s.left = p.eye(10);
+  s.right = p.eye(16);
+  return s;
+}
+
+// Samples must arrive in time order (as a recording holds them); a line that goes back in time is an error.
+void append_sample_line(Recording& rec, const std::vector<std::string>& fields, const std::string& source,
+                        std::size_t line_no) {
+  if (fields.size() != kColumnCount) {
+    throw std::runtime_error(source + ":" + std::to_string(line_no) + ": expected " + std::to_string(kColumnCount) +
+                             " columns, found " + std::to_string(fields.size()));
+  }
+  const LineParser p{source, line_no, fields};
+  Record r;
+  r.sequence = p.integer<std::uint64_t>(0, 0, UINT64_MAX);
+  const GazeSample s = parse_sample(p);
+  if (!rec.records.empty() && s.tracker_time_ns < rec.records.back().time_ns()) {
+    throw std::runtime_error(source + ":" + std::to_string(line_no) +
+                             ": tracker_time_ns goes backwards (samples must be in time order)");
+  }
+  r.item = s;
+  rec.records.push_back(r);
+}
+
 }  // namespace
 
 std::size_t write_csv(std::ostream& out, const Recording& rec) {
@@ -140,71 +218,16 @@ Recording read_csv(std::istream& in, const std::string& source) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty()) continue;
     if (line[0] == '#') {
-      const auto colon = line.find(':');
-      if (colon == std::string::npos) continue;
-      std::string key = line.substr(1, colon - 1);
-      std::string value = line.substr(colon + 1);
-      while (!key.empty() && key.front() == ' ') key.erase(key.begin());
-      while (!value.empty() && value.front() == ' ') value.erase(value.begin());
-      try {
-        if (key == "device") {
-          rec.header.device = value.substr(0, 63);
-        } else if (key == "display") {
-          rec.header.display = parse_display_geometry(value);
-        } else if (key == "sample_rate_hz") {
-          std::size_t used = 0;
-          const double hz = std::stod(value, &used);
-          if (used != value.size() || !std::isfinite(hz) || hz < 0 || hz > 100000) {
-            throw std::invalid_argument("sample_rate_hz \"" + value + "\" is not a number in [0, 100000]");
-          }
-          rec.header.nominal_rate_hz = hz;
-        }
-      } catch (const std::exception& e) {
-        throw std::runtime_error(source + ":" + std::to_string(line_no) + ": " + e.what());
-      }
+      apply_header_comment(rec.header, line, source, line_no);
       continue;
     }
     const std::vector<std::string> fields = split(line);
     if (!have_columns) {
-      if (fields.size() != kColumnCount) {
-        throw std::runtime_error(source + ":" + std::to_string(line_no) + ": expected the " +
-                                 std::to_string(kColumnCount) + "-column header starting \"sequence,tracker_time_ns,\"" +
-                                 ", found " + std::to_string(fields.size()) + " columns");
-      }
-      for (std::size_t i = 0; i < kColumnCount; ++i) {
-        if (fields[i] != kColumns[i]) {
-          throw std::runtime_error(source + ":" + std::to_string(line_no) + ": column " + std::to_string(i + 1) +
-                                   " is \"" + fields[i] + "\", expected \"" + kColumns[i] + "\"");
-        }
-      }
+      check_column_line(fields, source, line_no);
       have_columns = true;
       continue;
     }
-    if (fields.size() != kColumnCount) {
-      throw std::runtime_error(source + ":" + std::to_string(line_no) + ": expected " + std::to_string(kColumnCount) +
-                               " columns, found " + std::to_string(fields.size()));
-    }
-    const LineParser p{source, line_no, fields};
-    Record r;
-    r.sequence = p.integer<std::uint64_t>(0, 0, UINT64_MAX);
-    GazeSample s;
-    s.tracker_time_ns = p.integer<std::int64_t>(1, INT64_MIN, INT64_MAX);
-    s.x = p.real(2);
-    s.y = p.real(3);
-    s.x_deg = p.real(4, -180, 180);
-    s.y_deg = p.real(5, -180, 180);
-    s.angular_velocity_deg_s = p.real(6, 0.0);
-    s.confidence = p.real(7, 0.0, 1.0);
-    s.state = p.state(8);
-    s.flags = p.integer<std::uint8_t>(9, 0, 1) ? kGazeValid : 0;
-    s.left = p.eye(10);
-    s.right = p.eye(16);
-    if (!rec.records.empty() && s.tracker_time_ns < rec.records.back().time_ns()) {
-      throw std::runtime_error(source + ":" + std::to_string(line_no) +
-                               ": tracker_time_ns goes backwards (samples must be in time order)");
-    }
-    r.item = s;
-    rec.records.push_back(r);
+    append_sample_line(rec, fields, source, line_no);
   }
   if (!have_columns) throw std::runtime_error(source + ": no column header line found (is this a fovea gaze CSV?)");
   rec.report.records = rec.records.size();

@@ -301,6 +301,103 @@ void GazeServer::handle_control(const Message& m, const Endpoint& from) {
   reply(from, seq, answer);
 }
 
+// PROTOCOL.md §4.5: session ids are random and non-zero; a draw that is already in use is redrawn.
+SubscriberInfo& GazeServer::new_session(const Endpoint& from) {
+  std::uint64_t id = random_u64();
+  while (sessions_.contains(id)) id = random_u64();
+  SubscriberInfo& session = sessions_[id];
+  session.session_id = id;
+  session.address = from;
+  return session;
+}
+
+// PROTOCOL.md §4.5: the next sequence numbers let the client tell a late start from a lost datagram.
+Subscribed GazeServer::subscribed_reply(const SubscriberInfo& session) const {
+  Subscribed reply_msg;
+  reply_msg.session_id = session.session_id;
+  reply_msg.streams = session.streams;
+  reply_msg.lease_ms = session.lease_ms;
+  reply_msg.nominal_rate_hz = options_.nominal_rate_hz;
+  reply_msg.next_sample_sequence = next_sample_seq_;
+  reply_msg.next_event_sequence = next_event_seq_;
+  reply_msg.display = options_.display;
+  if (options_.multicast) {
+    reply_msg.multicast = {options_.multicast->group.ip, options_.multicast->group.port, options_.multicast->ttl};
+  }
+  return reply_msg;
+}
+
+// PROTOCOL.md §4.4: a valid cookie proves the client receives at `from` before a session is made for it.
+void GazeServer::handle_subscribe(const Subscribe& sub, std::uint64_t seq, const Endpoint& from,
+                                  std::int64_t received_ns) {
+  switch (cookies_.check(sub.cookie, from, sub.client_nonce, received_ns)) {
+    case CookieCheck::Forged: refuse(from, seq, MessageType::Subscribe, ErrorCode::BadCookie); return;
+    case CookieCheck::Expired: refuse(from, seq, MessageType::Subscribe, ErrorCode::CookieExpired); return;
+    case CookieCheck::Valid: break;
+  }
+  // One session per address: a repeated SUBSCRIBE (its SUBSCRIBED was lost) renews the same one.
+  SubscriberInfo* session = nullptr;
+  for (auto& [id, s] : sessions_) {
+    if (s.address == from) session = &s;
+  }
+  const char* what = "renewed";
+  if (session == nullptr) {
+    if (sessions_.size() >= options_.max_subscribers) {
+      refuse(from, seq, MessageType::Subscribe, ErrorCode::TooManySubscribers);
+      return;
+    }
+    session = &new_session(from);
+    what = "subscribed";
+  }
+  session->streams = sub.streams;
+  session->lease_ms = clamp_lease(sub.requested_lease_ms);
+  session->expires_ns = received_ns + std::int64_t{session->lease_ms} * 1'000'000;
+  reply(from, seq, subscribed_reply(*session));
+  if (on_change_) on_change_(*session, what);
+}
+
+// PROTOCOL.md §4.6: only the address that subscribed may renew; lease 0 keeps the current lease.
+void GazeServer::handle_heartbeat(const Heartbeat& hb, std::uint64_t seq, const Endpoint& from,
+                                  std::int64_t received_ns) {
+  const auto it = sessions_.find(hb.session_id);
+  if (it == sessions_.end()) {
+    refuse(from, seq, MessageType::Heartbeat, ErrorCode::UnknownSession);
+    return;
+  }
+  if (!(it->second.address == from)) {
+    refuse(from, seq, MessageType::Heartbeat, ErrorCode::AddressMismatch);
+    return;
+  }
+  if (hb.lease_ms != 0) it->second.lease_ms = clamp_lease(hb.lease_ms);
+  it->second.expires_ns = received_ns + std::int64_t{it->second.lease_ms} * 1'000'000;
+  reply(from, seq, Heartbeat{hb.session_id, it->second.lease_ms});
+}
+
+// PROTOCOL.md §4.7: never answered, and ignored unless it comes from the session's own address.
+void GazeServer::handle_unsubscribe(const Unsubscribe& un, const Endpoint& from) {
+  const auto it = sessions_.find(un.session_id);
+  if (it != sessions_.end() && it->second.address == from) {
+    const SubscriberInfo gone = it->second;
+    sessions_.erase(it);
+    if (on_change_) on_change_(gone, "unsubscribed");
+  }
+}
+
+// PROTOCOL.md §4.11; read under mutex_ so the counters agree with each other.
+StatusReply GazeServer::status_reply(std::int64_t received_ns) const {
+  StatusReply s;
+  s.source.value = options_.source_name.substr(0, decltype(s.source)::capacity - 1);
+  s.nominal_rate_hz = options_.nominal_rate_hz;
+  s.uptime_ns = received_ns - started_ns_;
+  s.samples_published = stats_.samples_published;
+  s.events_published = stats_.events_published;
+  s.datagrams_rejected = rejected_.rejected();
+  s.subscribers = static_cast<std::uint32_t>(sessions_.size());
+  s.source_state = source_state_.load();
+  s.display = options_.display;
+  return s;
+}
+
 void GazeServer::handle(const Message& m, const Endpoint& from, std::int64_t received_ns) {
   if (m.header.type == MessageType::ControlRequest) {
     handle_control(m, from);
@@ -315,89 +412,10 @@ void GazeServer::handle(const Message& m, const Endpoint& from, std::int64_t rec
                                  cookies_.lifetime_ms()});
       return;
     }
-    case MessageType::Subscribe: {
-      const auto& sub = std::get<Subscribe>(m.payload);
-      switch (cookies_.check(sub.cookie, from, sub.client_nonce, received_ns)) {
-        case CookieCheck::Forged: refuse(from, seq, m.header.type, ErrorCode::BadCookie); return;
-        case CookieCheck::Expired: refuse(from, seq, m.header.type, ErrorCode::CookieExpired); return;
-        case CookieCheck::Valid: break;
-      }
-      // One session per address: a repeated SUBSCRIBE (its SUBSCRIBED was lost) renews the same one.
-      SubscriberInfo* session = nullptr;
-      for (auto& [id, s] : sessions_) {
-        if (s.address == from) session = &s;
-      }
-      const char* what = "renewed";
-      if (session == nullptr) {
-        if (sessions_.size() >= options_.max_subscribers) {
-          refuse(from, seq, m.header.type, ErrorCode::TooManySubscribers);
-          return;
-        }
-        std::uint64_t id = random_u64();
-        while (sessions_.contains(id)) id = random_u64();
-        session = &sessions_[id];
-        session->session_id = id;
-        session->address = from;
-        what = "subscribed";
-      }
-      session->streams = sub.streams;
-      session->lease_ms = clamp_lease(sub.requested_lease_ms);
-      session->expires_ns = received_ns + std::int64_t{session->lease_ms} * 1'000'000;
-      Subscribed reply_msg;
-      reply_msg.session_id = session->session_id;
-      reply_msg.streams = session->streams;
-      reply_msg.lease_ms = session->lease_ms;
-      reply_msg.nominal_rate_hz = options_.nominal_rate_hz;
-      reply_msg.next_sample_sequence = next_sample_seq_;
-      reply_msg.next_event_sequence = next_event_seq_;
-      reply_msg.display = options_.display;
-      if (options_.multicast) {
-        reply_msg.multicast = {options_.multicast->group.ip, options_.multicast->group.port, options_.multicast->ttl};
-      }
-      reply(from, seq, reply_msg);
-      if (on_change_) on_change_(*session, what);
-      return;
-    }
-    case MessageType::Heartbeat: {
-      const auto& hb = std::get<Heartbeat>(m.payload);
-      const auto it = sessions_.find(hb.session_id);
-      if (it == sessions_.end()) {
-        refuse(from, seq, m.header.type, ErrorCode::UnknownSession);
-        return;
-      }
-      if (!(it->second.address == from)) {
-        refuse(from, seq, m.header.type, ErrorCode::AddressMismatch);
-        return;
-      }
-      if (hb.lease_ms != 0) it->second.lease_ms = clamp_lease(hb.lease_ms);
-      it->second.expires_ns = received_ns + std::int64_t{it->second.lease_ms} * 1'000'000;
-      reply(from, seq, Heartbeat{hb.session_id, it->second.lease_ms});
-      return;
-    }
-    case MessageType::Unsubscribe: {
-      const auto& un = std::get<Unsubscribe>(m.payload);
-      const auto it = sessions_.find(un.session_id);
-      if (it != sessions_.end() && it->second.address == from) {
-        const SubscriberInfo gone = it->second;
-        sessions_.erase(it);
-        if (on_change_) on_change_(gone, "unsubscribed");
-      }
-      return;
-    }
-    case MessageType::StatusRequest: {
-      StatusReply s;
-      s.source.value = options_.source_name.substr(0, decltype(s.source)::capacity - 1);
-      s.nominal_rate_hz = options_.nominal_rate_hz;
-      s.uptime_ns = received_ns - started_ns_;
-      s.samples_published = stats_.samples_published;
-      s.events_published = stats_.events_published;
-      s.datagrams_rejected = rejected_.rejected();
-      s.subscribers = static_cast<std::uint32_t>(sessions_.size());
-      s.source_state = source_state_.load();
-      s.display = options_.display;
-      reply(from, seq, s);
-      return;
-    }
+    case MessageType::Subscribe: handle_subscribe(std::get<Subscribe>(m.payload), seq, from, received_ns); return;
+    case MessageType::Heartbeat: handle_heartbeat(std::get<Heartbeat>(m.payload), seq, from, received_ns); return;
+    case MessageType::Unsubscribe: handle_unsubscribe(std::get<Unsubscribe>(m.payload), from); return;
+    case MessageType::StatusRequest: reply(from, seq, status_reply(received_ns)); return;
     case MessageType::TimeSyncRequest: {
       const auto& req = std::get<TimeSyncRequest>(m.payload);
       reply(from, seq, TimeSyncReply{req.client_send_ns, received_ns, monotonic_ns()});

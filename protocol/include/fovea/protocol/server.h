@@ -119,6 +119,13 @@ class GazeServer {
   void control_loop();
   void handle(const Message& m, const Endpoint& from, std::int64_t received_ns);
   void handle_control(const Message& m, const Endpoint& from);
+  // The per-request stages of handle(); all run with mutex_ held by handle().
+  void handle_subscribe(const Subscribe& sub, std::uint64_t seq, const Endpoint& from, std::int64_t received_ns);
+  void handle_heartbeat(const Heartbeat& hb, std::uint64_t seq, const Endpoint& from, std::int64_t received_ns);
+  void handle_unsubscribe(const Unsubscribe& un, const Endpoint& from);
+  SubscriberInfo& new_session(const Endpoint& from);
+  Subscribed subscribed_reply(const SubscriberInfo& session) const;
+  StatusReply status_reply(std::int64_t received_ns) const;
   void reply(const Endpoint& to, std::uint64_t sequence, Payload payload, std::int64_t origin_ns = 0);
   void refuse(const Endpoint& to, std::uint64_t sequence, MessageType request, ErrorCode code);
   void expire_leases(std::int64_t now_ns);
