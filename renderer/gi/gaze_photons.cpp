@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <utility>
 
 #include "backend/embree/embree_backend.h"
 #include "gi/eye_rays.h"
@@ -81,40 +82,49 @@ void GazePhotonMapper::finish_frame(PhotonTraceResult&& rendered, const GiStats&
   gaze_flux_ = render.gaze_flux;
 }
 
-PhotonTraceResult GazePhotonMapper::trace(const EmbreeBackend& backend, const GazeDirectedSettings& s, GazeFrameStats* stats) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const Scene& scene = backend.scene();
-  GazeFrameStats st;
-  ++frame_;
-  TraceSettings ts;
-  ts.stored_photons = s.max_photons;
-  ts.max_depth = s.trace_depth;
-  ts.seed = hash_seed(s.seed, frame_, 0x7ad);
-  last_scale_.resize(scene.lights.size(), 1.0);
-  // Without a labelled map from the last frame: traditional photon mapping (§8.4.3).
-  if (inactive_.photons.empty() || scene.lights.empty() || s.max_photons == 0) {
-    PhotonTraceResult r = trace_photons(backend, ts);
-    last_emitted_ = r.emitted;
-    last_traditional_ = r.emitted_per_light;
-    last_gaze_emitted_.assign(r.emitted_per_light.size(), 0);
-    applied_scale_.assign(r.emitted_per_light.size(), 1.0);
-    st.traditional = r.emitted;
-    st.note = "traditional emission (no gaze-labelled map from the last frame yet)";
-    if (stats) *stats = st;
-    return r;
-  }
+// This frame's emissions: N in all, r N from the emission map (and its fill bin), the rest traditional.
+struct GazePhotonMapper::EmissionPlan {
+  std::uint64_t n_total = 1, n_gaze = 0, n_trad = 0;
+  double ratio = 0.5;  // emissionRatio, within [0, 1]
+  std::vector<EmittedPhoton> emissions;
+  std::vector<std::uint64_t> trad_per_light, gaze_per_light;
+};
 
-  // The emission map and the per-light counts of the last frame's gaze photons.
-  emission_map_ = build_emission_map(inactive_.photons, scene, st);
-  st.emission_map = emission_map_.size();
-  const std::size_t lights = scene.lights.size();
+namespace {
+
+// Powers (eq. 7.23): Phi_l / N_l for every photon of light l, gaze photons times s_l.
+void scale_photon_powers(PhotonTraceResult& r, std::size_t lights, const std::vector<double>& last_scale) {
+  for (Photon& p : r.photons) {
+    const std::uint64_t n_l = p.light < lights ? r.emitted_per_light[p.light] : 0;
+    const double scale = p.kind == EmissionKind::Traditional ? 1.0 : last_scale[p.light];
+    p.power = n_l > 0 ? p.power * static_cast<float>(scale / static_cast<double>(n_l)) : glm::vec3(0.0f);
+  }
+}
+
+}  // namespace
+
+// Without a labelled map from the last frame: traditional photon mapping (§8.4.3).
+PhotonTraceResult GazePhotonMapper::trace_traditional(const EmbreeBackend& backend, const TraceSettings& ts,
+                                                      GazeFrameStats& st, GazeFrameStats* stats) {
+  PhotonTraceResult r = trace_photons(backend, ts);
+  last_emitted_ = r.emitted;
+  last_traditional_ = r.emitted_per_light;
+  last_gaze_emitted_.assign(r.emitted_per_light.size(), 0);
+  applied_scale_.assign(r.emitted_per_light.size(), 1.0);
+  st.traditional = r.emitted;
+  st.note = "traditional emission (no gaze-labelled map from the last frame yet)";
+  if (stats) *stats = st;
+  return r;
+}
+
+// Photon power scaling: s_l = r F_t / ((1 - r) F_g) with the last frame's r and fluxes (see the header).
+void GazePhotonMapper::measure_power_scales(std::size_t lights, GazeFrameStats& st) {
   std::vector<double> last_trad(lights, 0), last_gaze(lights, 0);
   // The inactive map's emissions per light (its r), recorded when it was traced.
   for (std::size_t l = 0; l < lights; ++l) {
     last_trad[l] = l < last_traditional_.size() ? static_cast<double>(last_traditional_[l]) : 0.0;
     last_gaze[l] = l < last_gaze_emitted_.size() ? static_cast<double>(last_gaze_emitted_[l]) : 0.0;
   }
-  // Photon power scaling: s_l = r F_t / ((1 - r) F_g) with the last frame's r and fluxes (see the header).
   st.scale_measured = true;
   for (std::size_t l = 0; l < lights; ++l) {
     const double total = last_trad[l] + last_gaze[l];
@@ -130,8 +140,11 @@ PhotonTraceResult GazePhotonMapper::trace(const EmbreeBackend& backend, const Ga
     }
   }
   st.scale = lights > 0 ? last_scale_[0] : 1.0;
+}
 
-  // Guided diffuse reflections (§8.4.7) from the photons on paths to the gaze region.
+// Guided diffuse reflections (§8.4.7) from the photons on paths to the gaze region: the guide
+// follows the nearest such photon of the inactive map (inactive_tree_, rebuilt here).
+DiffuseGuide GazePhotonMapper::diffuse_guide(const GazeDirectedSettings& s) {
   std::vector<std::uint32_t> on_path;
   for (std::size_t i = 0; i < inactive_.photons.size(); ++i) {
     const Photon& p = inactive_.photons[i];
@@ -142,11 +155,10 @@ PhotonTraceResult GazePhotonMapper::trace(const EmbreeBackend& backend, const Ga
   } else {
     inactive_tree_.build(inactive_.photons, on_path);
   }
-  const PhotonMap& guide_tree = inactive_tree_;
   const float radius = s.nn_reflect_radius, noise = s.noise_scale;
   const bool guide_traditional = s.gaze_directed_reflections;
-  const DiffuseGuide guide = [&guide_tree, radius, noise, guide_traditional](const Photon& stored, const glm::vec3& n,
-                                                                            Pcg32& rng) -> std::optional<glm::vec3> {
+  return [&guide_tree = std::as_const(inactive_tree_), radius, noise, guide_traditional](
+             const Photon& stored, const glm::vec3& n, Pcg32& rng) -> std::optional<glm::vec3> {
     if (guide_tree.empty() || (stored.kind == EmissionKind::Traditional && !guide_traditional)) return std::nullopt;
     thread_local Neighbours nb;
     guide_tree.nearest(stored.position, 1, radius, nb, [&n](const Photon& p) { return glm::dot(p.normal, n) > 0.5f; });
@@ -155,18 +167,14 @@ PhotonTraceResult GazePhotonMapper::trace(const EmbreeBackend& backend, const Ga
     // Case 2: its child reached the gaze region: spread the new photon around it (eqs. 8.8-8.9).
     return (q.flags & kChildInGaze) ? add_noise(q.outgoing, noise, rng) : q.outgoing;  // case 1: the same way
   };
+}
 
-  // This frame's emissions: N in all (the last frame's, adjusted towards maxPhotons stored), r N
-  // from the emission map, newest first, filled up with noisy map directions; the rest traditional.
-  const std::uint64_t n_total = std::max<std::uint64_t>(1, last_emitted_);
-  const double ratio = std::isfinite(s.emission_ratio) ? std::clamp(s.emission_ratio, 0.0, 1.0) : 0.5;
-  const auto n_gaze = emission_map_.empty() ? 0 : static_cast<std::uint64_t>(std::llround(ratio * static_cast<double>(n_total)));
-  const std::uint64_t n_trad = n_total - n_gaze;
-  std::vector<EmittedPhoton> emissions;
-  emissions.reserve(n_total);
-  std::vector<std::uint64_t> per_light(lights, 0), trad_per_light(lights, 0), gaze_per_light(lights, 0);
+// The gaze bins: r N emissions from the emission map, newest first, along the stored origins,
+// directions and seeds (§8.4.6: the same path again); past the map's end the fill bin.
+void GazePhotonMapper::emit_gaze_photons(const Scene& scene, const GazeDirectedSettings& s, std::uint64_t trace_seed,
+                                         EmissionPlan& plan, GazeFrameStats& st) const {
   Pcg32 fill_rng(hash_seed(s.seed, frame_, 0xf111));
-  for (std::uint64_t k = 0; k < n_gaze; ++k) {
+  for (std::uint64_t k = 0; k < plan.n_gaze; ++k) {
     EmittedPhoton e;
     if (k < emission_map_.size()) {
       const EmissionDirection& d = emission_map_[k];
@@ -184,44 +192,88 @@ PhotonTraceResult GazePhotonMapper::trace(const EmbreeBackend& backend, const Ga
       e.direction = add_noise(d.direction, s.noise_scale, fill_rng);
       e.power = emitted_power(scene.lights[d.light], e.direction);
       e.light = d.light;
-      e.seed = hash_seed(ts.seed, 0xf111, k);
+      e.seed = hash_seed(trace_seed, 0xf111, k);
       e.kind = EmissionKind::OldGaze;
       ++st.fill;
     }
-    emissions.push_back(e);
-    ++gaze_per_light[e.light];
+    plan.emissions.push_back(e);
+    ++plan.gaze_per_light[e.light];
   }
+}
+
+// This frame's emissions: N in all (the last frame's, adjusted towards maxPhotons stored), r N
+// from the emission map, newest first, filled up with noisy map directions; the rest traditional.
+GazePhotonMapper::EmissionPlan GazePhotonMapper::plan_emissions(const Scene& scene, const GazeDirectedSettings& s,
+                                                                std::uint64_t trace_seed, GazeFrameStats& st) const {
+  const std::size_t lights = scene.lights.size();
+  EmissionPlan plan;
+  plan.n_total = std::max<std::uint64_t>(1, last_emitted_);
+  plan.ratio = std::isfinite(s.emission_ratio) ? std::clamp(s.emission_ratio, 0.0, 1.0) : 0.5;
+  plan.n_gaze =
+      emission_map_.empty() ? 0 : static_cast<std::uint64_t>(std::llround(plan.ratio * static_cast<double>(plan.n_total)));
+  plan.n_trad = plan.n_total - plan.n_gaze;
+  plan.emissions.reserve(plan.n_total);
+  plan.trad_per_light.assign(lights, 0);
+  plan.gaze_per_light.assign(lights, 0);
+  emit_gaze_photons(scene, s, trace_seed, plan, st);
+  // The traditional bin: each light's share of the rest, uniform directions, fresh seeds.
   const std::vector<double> share = light_shares(scene);
   for (std::size_t l = 0; l < lights; ++l) {
-    const auto n_l = static_cast<std::uint64_t>(std::llround(share[l] * static_cast<double>(n_trad)));
-    for (std::uint64_t k = 0; k < n_l; ++k) emissions.push_back(emit_from_light(scene, l, hash_seed(ts.seed, l, k)));
-    trad_per_light[l] = n_l;
+    const auto n_l = static_cast<std::uint64_t>(std::llround(share[l] * static_cast<double>(plan.n_trad)));
+    for (std::uint64_t k = 0; k < n_l; ++k) plan.emissions.push_back(emit_from_light(scene, l, hash_seed(trace_seed, l, k)));
+    plan.trad_per_light[l] = n_l;
   }
-  st.traditional = n_trad;
+  st.traditional = plan.n_trad;
+  return plan;
+}
 
-  PhotonTraceResult r;
-  r.rays = trace_emitted(backend, ts, emissions, r.photons, guide);
-  r.emitted = emissions.size();
-  r.emitted_per_light.assign(lights, 0);
-  for (std::size_t l = 0; l < lights; ++l) r.emitted_per_light[l] = trad_per_light[l] + gaze_per_light[l];
-  // Powers (eq. 7.23): Phi_l / N_l for every photon of light l, gaze photons times s_l.
-  for (Photon& p : r.photons) {
-    const std::uint64_t n_l = p.light < lights ? r.emitted_per_light[p.light] : 0;
-    const double scale = p.kind == EmissionKind::Traditional ? 1.0 : last_scale_[p.light];
-    p.power = n_l > 0 ? p.power * static_cast<float>(scale / static_cast<double>(n_l)) : glm::vec3(0.0f);
-  }
-  last_traditional_ = trad_per_light;
-  last_gaze_emitted_ = gaze_per_light;
+// What the next frame needs of this one: its emissions per light (its r), the s its gaze photons
+// carry, and an N aimed at maxPhotons stored.
+void GazePhotonMapper::remember_emissions(const EmissionPlan& plan, const PhotonTraceResult& r,
+                                          const GazeDirectedSettings& s) {
+  last_traditional_ = plan.trad_per_light;
+  last_gaze_emitted_ = plan.gaze_per_light;
   applied_scale_ = last_scale_;
   // Aim the next frame's emission at maxPhotons stored.
   if (!r.photons.empty()) {
     const double adjust = static_cast<double>(s.max_photons) / static_cast<double>(r.photons.size());
-    last_emitted_ = static_cast<std::uint64_t>(std::clamp(static_cast<double>(n_total) * adjust, 1.0,
-                                                          static_cast<double>(n_total) * 4.0));
+    last_emitted_ = static_cast<std::uint64_t>(std::clamp(static_cast<double>(plan.n_total) * adjust, 1.0,
+                                                          static_cast<double>(plan.n_total) * 4.0));
   }
+}
+
+PhotonTraceResult GazePhotonMapper::trace(const EmbreeBackend& backend, const GazeDirectedSettings& s, GazeFrameStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Scene& scene = backend.scene();
+  GazeFrameStats st;
+  ++frame_;
+  TraceSettings ts;
+  ts.stored_photons = s.max_photons;
+  ts.max_depth = s.trace_depth;
+  ts.seed = hash_seed(s.seed, frame_, 0x7ad);
+  last_scale_.resize(scene.lights.size(), 1.0);
+  if (inactive_.photons.empty() || scene.lights.empty() || s.max_photons == 0) {
+    return trace_traditional(backend, ts, st, stats);  // no labelled map from the last frame yet
+  }
+
+  // The emission map and the per-light counts of the last frame's gaze photons.
+  emission_map_ = build_emission_map(inactive_.photons, scene, st);
+  st.emission_map = emission_map_.size();
+  const std::size_t lights = scene.lights.size();
+  measure_power_scales(lights, st);
+  const DiffuseGuide guide = diffuse_guide(s);
+  const EmissionPlan plan = plan_emissions(scene, s, ts.seed, st);
+
+  PhotonTraceResult r;
+  r.rays = trace_emitted(backend, ts, plan.emissions, r.photons, guide);
+  r.emitted = plan.emissions.size();
+  r.emitted_per_light.assign(lights, 0);
+  for (std::size_t l = 0; l < lights; ++l) r.emitted_per_light[l] = plan.trad_per_light[l] + plan.gaze_per_light[l];
+  scale_photon_powers(r, lights, last_scale_);
+  remember_emissions(plan, r, s);
   if (!st.scale_measured) {
     st.note = "photon power scaling held from an earlier frame: no traditional or no gaze-emitted photon shaded the last "
-              "gaze area (emissionRatio " + std::to_string(ratio) + ")";
+              "gaze area (emissionRatio " + std::to_string(plan.ratio) + ")";
   }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (stats) *stats = st;

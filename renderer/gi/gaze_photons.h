@@ -104,6 +104,17 @@ class GazePhotonMapper {
   bool has_inactive() const { return !inactive_.photons.empty(); }
 
  private:
+  struct EmissionPlan;  // this frame's emissions, per bin and light (gaze_photons.cpp)
+  PhotonTraceResult trace_traditional(const EmbreeBackend& backend, const TraceSettings& ts, GazeFrameStats& st,
+                                      GazeFrameStats* stats);
+  void measure_power_scales(std::size_t lights, GazeFrameStats& st);
+  DiffuseGuide diffuse_guide(const GazeDirectedSettings& s);
+  EmissionPlan plan_emissions(const Scene& scene, const GazeDirectedSettings& s, std::uint64_t trace_seed,
+                              GazeFrameStats& st) const;
+  void emit_gaze_photons(const Scene& scene, const GazeDirectedSettings& s, std::uint64_t trace_seed,
+                         EmissionPlan& plan, GazeFrameStats& st) const;
+  void remember_emissions(const EmissionPlan& plan, const PhotonTraceResult& r, const GazeDirectedSettings& s);
+
   PhotonTraceResult inactive_;
   PhotonMap inactive_tree_;  // over inactive_ photons on a path to the gaze region
   std::vector<EmissionDirection> emission_map_;

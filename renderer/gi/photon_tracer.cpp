@@ -140,114 +140,182 @@ EmittedPhoton emit_from_light(const Scene& scene, std::size_t light_index, std::
   return e;
 }
 
+namespace {
+
+// One trace's state between surface interactions: its random numbers (one stream per trace seed),
+// where it goes next with what power, and what its path has been (stored photons record it).
+struct PhotonPath {
+  explicit PhotonPath(const EmittedPhoton& start)
+      : rng(start.seed), origin(start.origin), dir(start.direction), power(start.power) {}
+  Pcg32 rng;
+  glm::vec3 origin, dir, power;
+  std::uint32_t parent = kNoParent;  // the trace's last stored photon
+  std::uint8_t diffuse_bounces = 0;
+  bool via_specular = false;
+};
+
+// A hit as the photon met it: the side it arrived at and what the material offers there.
+struct Arrival {
+  const SurfaceHit& hit;
+  const Material& m;
+  bool from_front;
+  glm::vec3 n_face;  // shading normal on the arrival side
+  float eps;
+  bool diffuse;
+  glm::vec3 kd;
+};
+
+// Where a photon that survived Russian roulette leaves the surface.
+struct Scatter {
+  glm::vec3 dir{0.0f}, origin{0.0f};
+};
+
+// The hit seen from the photon's side: arrival normal, offset and diffuse reflectance.
+Arrival arrival_side(const SurfaceHit& hit, const glm::vec3& dir) {
+  const Material& m = *hit.material;
+  // The side the photon arrived at (glass is entered from outside, left from inside).
+  const bool from_front = glm::dot(dir, hit.geometric_normal) < 0.0f;
+  const glm::vec3 n_face = from_front ? hit.normal : -hit.normal;  // shading normal on the arrival side
+  const float eps = surface_epsilon(hit.position);
+  const bool diffuse = m.type == MaterialType::Lambertian || m.type == MaterialType::BlinnPhong;
+  const glm::vec3 kd = diffuse ? clamp01(m.kd) : glm::vec3(0.0f);
+  return {hit, m, from_front, n_face, eps, diffuse, kd};
+}
+
+// Store at diffuse surfaces (§6.2.3), black ones too (their irradiance is real; they reflect
+// none of it): every hit in the global map; a caustic map keeps only the
+// diffuse end of light -> specular+ -> diffuse paths. Returns the stored photon's index in `out`,
+// kNoParent where nothing was stored; links it to the trace's previous stored photon.
+std::uint32_t store_diffuse_hit(const Arrival& a, const EmittedPhoton& start, const TraceSettings& s, PhotonPath& path,
+                                std::vector<Photon>& out) {
+  const bool keep = (s.mode == TraceMode::Global || (path.via_specular && path.diffuse_bounces == 0)) &&
+                    (!s.store_if || s.store_if(a.hit.position, a.n_face));
+  if (!keep) return kNoParent;
+  Photon p;
+  p.position = a.hit.position;
+  p.power = path.power;
+  p.incoming = path.dir;
+  p.normal = a.n_face;
+  p.emission_origin = start.origin;
+  p.emission_direction = start.direction;
+  p.parent = path.parent;
+  p.seed = start.seed;
+  p.light = start.light;
+  p.diffuse_bounces = path.diffuse_bounces;
+  p.via_specular = path.via_specular;
+  p.kind = start.kind;
+  p.flags = start.kind == EmissionKind::Traditional ? kTraditional : 0;
+  const auto stored = static_cast<std::uint32_t>(out.size());
+  if (path.parent != kNoParent) out[path.parent].outgoing = path.dir;
+  out.push_back(p);
+  path.parent = stored;
+  return stored;
+}
+
+// Eq. 6.3 at a diffuse or glossy (modified Blinn-Phong) surface: diffuse with probability max(kd)
+// (guided by `guide` from the photon just stored, §8.4.7, else the cosine lobe), glossy with
+// max(ks) in the Phong lobe, else absorbed.
+std::optional<Scatter> scatter_diffuse_or_glossy(float u, const Arrival& a, std::uint32_t stored,
+                                                 const std::vector<Photon>& out, const DiffuseGuide& guide,
+                                                 PhotonPath& path) {
+  const Material& m = a.m;
+  const glm::vec3 ks = m.type == MaterialType::BlinnPhong ? clamp01(m.ks) : glm::vec3(0.0f);
+  float pd = max3(a.kd), ps = max3(ks);
+  if (pd + ps > 1.0f) {  // a material reflecting more than it receives: keep the ratio, total 1
+    const float t = pd + ps;
+    pd /= t;
+    ps /= t;
+  }
+  Scatter next;
+  if (u < pd) {
+    std::optional<glm::vec3> guided;
+    if (guide && stored != kNoParent) guided = guide(out[stored], a.n_face, path.rng);
+    next.dir = guided && glm::dot(*guided, a.n_face) > 0 ? *guided
+                                                         : cosine_direction(a.n_face, path.rng.uniform(), path.rng.uniform());
+    path.power *= a.kd / pd;
+    ++path.diffuse_bounces;
+  } else if (u < pd + ps) {
+    next.dir =
+        lobe_direction(reflect(path.dir, a.n_face), std::max(0.0f, m.shininess), path.rng.uniform(), path.rng.uniform());
+    if (glm::dot(next.dir, a.n_face) <= 0) return std::nullopt;  // the lobe dipped below the surface: absorbed
+    path.power *= ks / ps;
+  } else {
+    return std::nullopt;  // absorbed
+  }
+  next.origin = a.hit.position + a.n_face * a.eps;
+  return next;
+}
+
+// Eq. 6.3 at a mirror: reflected with probability max(reflectance), else absorbed.
+std::optional<Scatter> scatter_mirror(float u, const Arrival& a, PhotonPath& path) {
+  const glm::vec3 r = clamp01(a.m.reflectance);
+  const float pr = max3(r);
+  if (!(u < pr)) return std::nullopt;
+  Scatter next;
+  next.dir = reflect(path.dir, a.n_face);
+  next.origin = a.hit.position + a.n_face * a.eps;
+  path.power *= r / pr;
+  path.via_specular = true;
+  return next;
+}
+
+// Eq. 6.3 at glass: on with probability max(tint), else absorbed; reflected or refracted by Fresnel.
+std::optional<Scatter> scatter_glass(float u, const Arrival& a, PhotonPath& path) {
+  const Material& m = a.m;
+  const glm::vec3 tint = clamp01(m.reflectance);
+  const float pt = max3(tint);
+  if (!(u < pt)) return std::nullopt;
+  const float ior = std::isfinite(m.ior) && m.ior > 0 ? m.ior : 1.5f;
+  const float eta = a.from_front ? 1.0f / ior : ior;
+  glm::vec3 refracted(0.0f);
+  const float f = fresnel_dielectric(path.dir, a.n_face, eta, refracted);
+  Scatter next;
+  if (path.rng.uniform() < f) {
+    next.dir = reflect(path.dir, a.n_face);
+    next.origin = a.hit.position + a.n_face * a.eps;
+  } else {
+    next.dir = refracted;
+    next.origin = a.hit.position - a.n_face * a.eps;
+  }
+  path.power *= tint / pt;
+  path.via_specular = true;
+  return next;
+}
+
+// Russian roulette (eq. 6.3): reflect, transmit or absorb with the material's probabilities;
+// the surviving photon's power is scaled by reflectance / probability per channel. Nothing: absorbed.
+std::optional<Scatter> russian_roulette(const Arrival& a, std::uint32_t stored, const std::vector<Photon>& out,
+                                        const DiffuseGuide& guide, PhotonPath& path) {
+  const float u = path.rng.uniform();
+  if (a.diffuse) return scatter_diffuse_or_glossy(u, a, stored, out, guide, path);
+  if (a.m.type == MaterialType::Mirror) return scatter_mirror(u, a, path);
+  if (a.m.type == MaterialType::Glass) return scatter_glass(u, a, path);
+  return std::nullopt;  // emissive (photon rays skip emitters; kept for safety)
+}
+
+}  // namespace
+
 std::uint32_t trace_photon(const EmbreeBackend& backend, const EmittedPhoton& start, const TraceSettings& s,
                            std::vector<Photon>& out, const DiffuseGuide& guide) {
   if (!(mean(start.power) > 0) || s.max_depth == 0) return 0;
-  Pcg32 rng(start.seed);
-  glm::vec3 origin = start.origin, dir = start.direction, power = start.power;
-  std::uint32_t parent = kNoParent;
-  std::uint8_t diffuse_bounces = 0;
-  bool via_specular = false;
+  PhotonPath path(start);
   std::uint32_t rays = 0;
   SurfaceHit hit;
   for (std::uint32_t depth = 0; depth < s.max_depth; ++depth) {
     ++rays;
-    if (!backend.intersect(origin, dir, 0.0f, std::numeric_limits<float>::infinity(), RayVisibility::ShadowCasters, hit)) break;
-    const Material& m = *hit.material;
-    // The side the photon arrived at (glass is entered from outside, left from inside).
-    const bool from_front = glm::dot(dir, hit.geometric_normal) < 0.0f;
-    const glm::vec3 n_face = from_front ? hit.normal : -hit.normal;  // shading normal on the arrival side
-    const float eps = surface_epsilon(hit.position);
-    const bool diffuse = m.type == MaterialType::Lambertian || m.type == MaterialType::BlinnPhong;
-    const glm::vec3 kd = diffuse ? clamp01(m.kd) : glm::vec3(0.0f);
-    // Store at diffuse surfaces (§6.2.3), black ones too (their irradiance is real; they reflect
-    // none of it): every hit in the global map; a caustic map keeps only the
-    // diffuse end of light -> specular+ -> diffuse paths and ends the trace there.
+    const float t_far = std::numeric_limits<float>::infinity();
+    if (!backend.intersect(path.origin, path.dir, 0.0f, t_far, RayVisibility::ShadowCasters, hit)) break;
+    const Arrival a = arrival_side(hit, path.dir);
     std::uint32_t stored = kNoParent;
-    if (diffuse) {
-      const bool keep = (s.mode == TraceMode::Global || (via_specular && diffuse_bounces == 0)) &&
-                        (!s.store_if || s.store_if(hit.position, n_face));
-      if (keep) {
-        Photon p;
-        p.position = hit.position;
-        p.power = power;
-        p.incoming = dir;
-        p.normal = n_face;
-        p.emission_origin = start.origin;
-        p.emission_direction = start.direction;
-        p.parent = parent;
-        p.seed = start.seed;
-        p.light = start.light;
-        p.diffuse_bounces = diffuse_bounces;
-        p.via_specular = via_specular;
-        p.kind = start.kind;
-        p.flags = start.kind == EmissionKind::Traditional ? kTraditional : 0;
-        stored = static_cast<std::uint32_t>(out.size());
-        if (parent != kNoParent) out[parent].outgoing = dir;
-        out.push_back(p);
-        parent = stored;
-      }
-      if (s.mode == TraceMode::Caustic) break;
+    if (a.diffuse) {
+      stored = store_diffuse_hit(a, start, s, path, out);
+      if (s.mode == TraceMode::Caustic) break;  // a caustic map ends the trace at its first diffuse surface
     }
-    if (s.mode == TraceMode::Caustic && !(m.type == MaterialType::Mirror || m.type == MaterialType::Glass)) break;
-
-    // Russian roulette (eq. 6.3): reflect, transmit or absorb with the material's probabilities;
-    // the surviving photon's power is scaled by reflectance / probability per channel.
-    const float u = rng.uniform();
-    glm::vec3 next_dir(0.0f), next_origin(0.0f);
-    if (diffuse) {
-      const glm::vec3 ks = m.type == MaterialType::BlinnPhong ? clamp01(m.ks) : glm::vec3(0.0f);
-      float pd = max3(kd), ps = max3(ks);
-      if (pd + ps > 1.0f) {  // a material reflecting more than it receives: keep the ratio, total 1
-        const float t = pd + ps;
-        pd /= t;
-        ps /= t;
-      }
-      if (u < pd) {
-        std::optional<glm::vec3> guided;
-        if (guide && stored != kNoParent) guided = guide(out[stored], n_face, rng);
-        next_dir = guided && glm::dot(*guided, n_face) > 0 ? *guided : cosine_direction(n_face, rng.uniform(), rng.uniform());
-        power *= kd / pd;
-        ++diffuse_bounces;
-      } else if (u < pd + ps) {
-        next_dir = lobe_direction(reflect(dir, n_face), std::max(0.0f, m.shininess), rng.uniform(), rng.uniform());
-        if (glm::dot(next_dir, n_face) <= 0) break;  // the lobe dipped below the surface: absorbed
-        power *= ks / ps;
-      } else {
-        break;  // absorbed
-      }
-      next_origin = hit.position + n_face * eps;
-    } else if (m.type == MaterialType::Mirror) {
-      const glm::vec3 r = clamp01(m.reflectance);
-      const float pr = max3(r);
-      if (!(u < pr)) break;
-      next_dir = reflect(dir, n_face);
-      next_origin = hit.position + n_face * eps;
-      power *= r / pr;
-      via_specular = true;
-    } else if (m.type == MaterialType::Glass) {
-      const glm::vec3 tint = clamp01(m.reflectance);
-      const float pt = max3(tint);
-      if (!(u < pt)) break;
-      const float ior = std::isfinite(m.ior) && m.ior > 0 ? m.ior : 1.5f;
-      const float eta = from_front ? 1.0f / ior : ior;
-      glm::vec3 refracted(0.0f);
-      const float f = fresnel_dielectric(dir, n_face, eta, refracted);
-      if (rng.uniform() < f) {
-        next_dir = reflect(dir, n_face);
-        next_origin = hit.position + n_face * eps;
-      } else {
-        next_dir = refracted;
-        next_origin = hit.position - n_face * eps;
-      }
-      power *= tint / pt;
-      via_specular = true;
-    } else {
-      break;  // emissive (photon rays skip emitters; kept for safety)
-    }
-    if (!finite3(power) || !finite3(next_dir) || !(mean(power) > 0)) break;
-    origin = next_origin;
-    dir = next_dir;
+    if (s.mode == TraceMode::Caustic && !(a.m.type == MaterialType::Mirror || a.m.type == MaterialType::Glass)) break;
+    const std::optional<Scatter> next = russian_roulette(a, stored, out, guide, path);
+    if (!next || !finite3(path.power) || !finite3(next->dir) || !(mean(path.power) > 0)) break;
+    path.origin = next->origin;
+    path.dir = next->dir;
   }
   return rays;
 }
