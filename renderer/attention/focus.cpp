@@ -264,20 +264,19 @@ double FocusTracker::resolve(const FrameView& f, Target& t, bool* visible) const
   return t.depth_m;
 }
 
-const FocusResult& FocusTracker::update(double time_s, const GBuffer& g, const Scene& scene,
-                                        const AttentionFrame* attention, const FocusGaze& gaze,
-                                        const protocol::DisplayGeometry& display) {
-  const FrameView f(g, scene, attention, display);
-  // The frame gap; a time going backwards (or not a number) holds the transition.
+// The frame gap; a time going backwards (or not a number) holds the transition.
+double FocusTracker::advance_clock(double time_s) {
   double dt = 0;
   if (started_ && std::isfinite(time_s) && time_s > last_time_s_) dt = time_s - last_time_s_;
   if (std::isfinite(time_s)) last_time_s_ = time_s;
   if (!std::isfinite(dt)) dt = 0;  // an overflowing gap
   transition_elapsed_s_ = std::min(transition_elapsed_s_ + dt, 1e9);
+  return dt;
+}
 
-  // 1. The target this frame.
+// 1. The target this frame, by mode (Lee 2009 §6.1); `held` when a saccade or blink keeps the last one.
+FocusTracker::Target FocusTracker::pick_target(const FrameView& f, const FocusGaze& gaze, bool& held) {
   Target next = target_;
-  bool held = false;
   switch (settings_.mode) {
     case FocusMode::Fixed:
       next = Target{};
@@ -286,39 +285,47 @@ const FocusResult& FocusTracker::update(double time_s, const GBuffer& g, const S
       break;
     case FocusMode::Attention: next = pick_attention(f); break;
     case FocusMode::Gaze:
-    case FocusMode::GazeAndAttention: {
-      const bool with_attention = settings_.mode == FocusMode::GazeAndAttention;
-      const bool can_look = gaze.available && gaze.valid && !gaze.saccade_or_blink;
-      const bool visible = !gaze_target_ || target_.kind != Target::Kind::Object || f.object_depth(target_.object);
-      const bool onset = gaze.fixations != last_fixations_;
-      if (can_look && (!gaze_target_ || onset || !visible)) {
-        // Refocus: the first gaze, a fixation onset, or the focused object has gone.
-        next = pick_gaze(f, gaze.x, gaze.y, with_attention);
-        gaze_target_ = true;
-        last_fixations_ = gaze.fixations;
-      } else if (gaze_target_ && !visible) {
-        // The focused object went during a saccade or blink: whatever is now where the fixation was.
-        next = pick_gaze(f, target_.x, target_.y, with_attention);
-      } else if (!gaze_target_) {
-        // No gaze yet (no source, blink at start-up): attention alone, or the screen centre.
-        if (with_attention) {
-          next = pick_attention(f);
-        } else {
-          next = Target{};
-          next.kind = Target::Kind::Centre;
-          next.why = gaze.available ? "gaze: no valid gaze yet, screen centre" : "gaze: no gaze source, screen centre";
-        }
-      } else {
-        held = gaze.available && (gaze.saccade_or_blink || !gaze.valid);
-      }
-      break;
-    }
+    case FocusMode::GazeAndAttention: next = follow_gaze(f, gaze, held); break;
   }
+  return next;
+}
 
-  // 2. A new target starts a transition (eq. 6.1) from where the old one is now.
+// The gaze modes: refocus at a fixation onset, hold the target through saccades and blinks.
+FocusTracker::Target FocusTracker::follow_gaze(const FrameView& f, const FocusGaze& gaze, bool& held) {
+  Target next = target_;
+  const bool with_attention = settings_.mode == FocusMode::GazeAndAttention;
+  const bool can_look = gaze.available && gaze.valid && !gaze.saccade_or_blink;
+  const bool visible = !gaze_target_ || target_.kind != Target::Kind::Object || f.object_depth(target_.object);
+  const bool onset = gaze.fixations != last_fixations_;
+  if (can_look && (!gaze_target_ || onset || !visible)) {
+    // Refocus: the first gaze, a fixation onset, or the focused object has gone.
+    next = pick_gaze(f, gaze.x, gaze.y, with_attention);
+    gaze_target_ = true;
+    last_fixations_ = gaze.fixations;
+  } else if (gaze_target_ && !visible) {
+    // The focused object went during a saccade or blink: whatever is now where the fixation was.
+    next = pick_gaze(f, target_.x, target_.y, with_attention);
+  } else if (!gaze_target_) {
+    // No gaze yet (no source, blink at start-up): attention alone, or the screen centre.
+    if (with_attention) {
+      next = pick_attention(f);
+    } else {
+      next = Target{};
+      next.kind = Target::Kind::Centre;
+      next.why = gaze.available ? "gaze: no valid gaze yet, screen centre" : "gaze: no gaze source, screen centre";
+    }
+  } else {
+    held = gaze.available && (gaze.saccade_or_blink || !gaze.valid);
+  }
+  return next;
+}
+
+// 2. A new target starts a transition (eq. 6.1) from where the old one is now. Reads last frame's
+// result_ (update() overwrites it only at the end).
+void FocusTracker::start_transition_if_changed(const Target& next) {
   const bool changed = next.kind != target_.kind || next.object != target_.object ||
                        (next.kind == Target::Kind::Point && (next.x != target_.x || next.y != target_.y));
-  const double focal_before = result_.focal_depth_m, target_before = result_.target_depth_m;
+  const double focal_before = result_.focal_depth_m;
   const bool lerp_running = result_.in_transition && settings_.transition == FocusTransition::Lerp;
   if (started_ && changed) {
     if (lerp_running) {
@@ -332,12 +339,11 @@ const FocusResult& FocusTracker::update(double time_s, const GBuffer& g, const S
     }
     transition_elapsed_s_ = 0;
   }
-  target_ = std::move(next);
-  const double zn = resolve(f, target_);
+}
 
-  // 3. The focal depth.
-  double focal = zn;
-  bool in_transition = false;
+// 3. The focal depth on the way to the target's depth zn.
+FocusTracker::FocalDepth FocusTracker::focal_depth(const FrameView& f, double zn, double dt) {
+  FocalDepth focal{zn, false};
   if (!started_ || settings_.mode == FocusMode::Fixed) {
     // Nothing to move from: the first target is in focus at once, and no transition is running
     // (the lerp below would otherwise start one from a default target on the next frame).
@@ -345,43 +351,70 @@ const FocusResult& FocusTracker::update(double time_s, const GBuffer& g, const S
     transition_elapsed_s_ = 1e9;
     from_ = target_;
   } else if (settings_.transition == FocusTransition::Lerp) {
-    // Lee 2009, eq. 6.1: Z_f(t) = lerp(Z_p(t), Z_n(t), t / tau), both depths followed as they move.
-    const double s =
-        settings_.transition_s > 0 ? std::clamp(transition_elapsed_s_ / settings_.transition_s, 0.0, 1.0) : 1.0;
-    if (s < 1 - 1e-9) {  // (frame times summed may fall an ulp short of tau)
-      const double zp = resolve(f, from_);
-      focal = zp + (zn - zp) * s;
-      in_transition = true;
-    }
+    focal = lerp_focal_depth(f, zn);
   } else {
-    // Low-pass alternative (Lee 2009 §6.1, cut-off <= 2 Hz): a critically damped second-order filter
-    // x'' = w^2 (z - x) - 2 w x', solved exactly over the frame gap for the target held since the last
-    // frame (sample and hold), so any gap is stable. w puts the -3 dB point at cutoff_hz: for a
-    // critically damped pair |H(f)| = 1 / (1 + (f/f0)^2), so f_-3dB = f0 sqrt(sqrt(2) - 1).
-    // Lee reports overshoot at the end of the transition with his filter; critically damped, a step
-    // never overshoots (it still lags behind a moving target).
-    const double w = 2 * std::numbers::pi * settings_.cutoff_hz / std::sqrt(std::sqrt(2.0) - 1.0);
-    const double e0 = focal_before - target_before, v0 = filter_velocity_;
-    const double decay = std::exp(-w * dt);
-    const double b = v0 + w * e0;
-    double e = (e0 + b * dt) * decay;
-    double v = (v0 - w * b * dt) * decay;
-    if (!std::isfinite(e) || !std::isfinite(v)) e = v = 0;
-    focal = target_before + e;
-    filter_velocity_ = v;
-    const double tolerance = 1e-3 * std::max(1.0, std::abs(zn));
-    in_transition = std::abs(focal - zn) > tolerance || std::abs(v) > tolerance;
+    focal = low_pass_focal_depth(zn, dt);
   }
-  if (!std::isfinite(focal) || focal <= 0) {
-    focal = zn;
+  if (!std::isfinite(focal.depth_m) || focal.depth_m <= 0) {
+    focal.depth_m = zn;
     filter_velocity_ = 0;
   }
+  return focal;
+}
+
+// Lee 2009, eq. 6.1: Z_f(t) = lerp(Z_p(t), Z_n(t), t / tau), both depths followed as they move.
+FocusTracker::FocalDepth FocusTracker::lerp_focal_depth(const FrameView& f, double zn) {
+  FocalDepth focal{zn, false};
+  const double s =
+      settings_.transition_s > 0 ? std::clamp(transition_elapsed_s_ / settings_.transition_s, 0.0, 1.0) : 1.0;
+  if (s < 1 - 1e-9) {  // (frame times summed may fall an ulp short of tau)
+    const double zp = resolve(f, from_);
+    focal.depth_m = zp + (zn - zp) * s;
+    focal.in_transition = true;
+  }
+  return focal;
+}
+
+// Low-pass alternative (Lee 2009 §6.1, cut-off <= 2 Hz): a critically damped second-order filter
+// x'' = w^2 (z - x) - 2 w x', solved exactly over the frame gap for the target held since the last
+// frame (sample and hold), so any gap is stable. w puts the -3 dB point at cutoff_hz: for a
+// critically damped pair |H(f)| = 1 / (1 + (f/f0)^2), so f_-3dB = f0 sqrt(sqrt(2) - 1).
+// Lee reports overshoot at the end of the transition with his filter; critically damped, a step
+// never overshoots (it still lags behind a moving target). Starts from last frame's result_.
+FocusTracker::FocalDepth FocusTracker::low_pass_focal_depth(double zn, double dt) {
+  const double focal_before = result_.focal_depth_m, target_before = result_.target_depth_m;
+  const double w = 2 * std::numbers::pi * settings_.cutoff_hz / std::sqrt(std::sqrt(2.0) - 1.0);
+  const double e0 = focal_before - target_before, v0 = filter_velocity_;
+  const double decay = std::exp(-w * dt);
+  const double b = v0 + w * e0;
+  double e = (e0 + b * dt) * decay;
+  double v = (v0 - w * b * dt) * decay;
+  if (!std::isfinite(e) || !std::isfinite(v)) e = v = 0;
+  FocalDepth focal{zn, false};
+  focal.depth_m = target_before + e;
+  filter_velocity_ = v;
+  const double tolerance = 1e-3 * std::max(1.0, std::abs(zn));
+  focal.in_transition = std::abs(focal.depth_m - zn) > tolerance || std::abs(v) > tolerance;
+  return focal;
+}
+
+const FocusResult& FocusTracker::update(double time_s, const GBuffer& g, const Scene& scene,
+                                        const AttentionFrame* attention, const FocusGaze& gaze,
+                                        const protocol::DisplayGeometry& display) {
+  const FrameView f(g, scene, attention, display);
+  const double dt = advance_clock(time_s);
+  bool held = false;
+  Target next = pick_target(f, gaze, held);
+  start_transition_if_changed(next);
+  target_ = std::move(next);
+  const double zn = resolve(f, target_);
+  const FocalDepth focal = focal_depth(f, zn, dt);
 
   started_ = true;
-  result_.focal_depth_m = focal;
+  result_.focal_depth_m = focal.depth_m;
   result_.target_depth_m = zn;
   result_.object = target_.kind == Target::Kind::Object ? target_.object : 0;
-  result_.in_transition = in_transition;
+  result_.in_transition = focal.in_transition;
   result_.why = target_.why + (held ? " (held: saccade or blink)" : "");
   return result_;
 }

@@ -77,6 +77,18 @@ class FocusTracker {
   Target pick_attention(const FrameView& f) const;
   Target pick_gaze(const FrameView& f, double x, double y, bool with_attention) const;
   double resolve(const FrameView& f, Target& t, bool* visible = nullptr) const;
+  // update()'s stages (focus.cpp).
+  struct FocalDepth {
+    double depth_m;
+    bool in_transition;
+  };
+  double advance_clock(double time_s);
+  Target pick_target(const FrameView& f, const FocusGaze& gaze, bool& held);
+  Target follow_gaze(const FrameView& f, const FocusGaze& gaze, bool& held);
+  void start_transition_if_changed(const Target& next);
+  FocalDepth focal_depth(const FrameView& f, double zn, double dt);
+  FocalDepth lerp_focal_depth(const FrameView& f, double zn);
+  FocalDepth low_pass_focal_depth(double zn, double dt);
 
   FocusSettings settings_;
   FocusResult result_;

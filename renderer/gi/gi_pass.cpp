@@ -51,6 +51,62 @@ std::size_t photons_seen_in_area(const EmbreeBackend& backend, const Camera& cam
       std::plus<>());
 }
 
+// The caustic map (light -> specular -> diffuse) for scenes with specular or refractive surfaces.
+PhotonTraceResult trace_caustic_map(const EmbreeBackend& backend, const GiPassSettings& s) {
+  TraceSettings cs;
+  cs.mode = TraceMode::Caustic;
+  cs.stored_photons = s.caustic_photons;
+  cs.max_depth = std::max<std::uint32_t>(s.trace_depth, 2);  // light -> specular -> diffuse at least
+  cs.seed = hash_seed(s.seed, 0xca05, 0);
+  return trace_photons(backend, cs);
+}
+
+// The periphery by CSF-driven ray casting (Murphy 2007): rays where the eye can resolve them, shaded
+// with the same local illumination and shadows as the G-buffer.
+CsfReconstruction csf_periphery(const EmbreeBackend& backend, const Camera& camera, double now_s, const GazeArea& area,
+                                const GiPassSettings& s) {
+  const Scene& scene = backend.scene();
+  const EyeRays eye(camera, now_s);
+  const bool shadows = s.render.shadows;
+  const auto cast = [&](glm::vec2 px, SurfaceHit& hit) {
+    return eye.ok && backend.intersect(eye.eye, eye.direction_at(px.x, px.y), 0.0f,
+                                       std::numeric_limits<float>::infinity(), RayVisibility::All, hit);
+  };
+  const ObjectAt object_at = [&](glm::vec2 px) -> std::uint32_t {
+    SurfaceHit hit;
+    return cast(px, hit) ? hit.object_id : 0u;
+  };
+  const ColourAt colour_at = [&](glm::vec2 px, std::uint32_t) -> glm::vec3 {
+    SurfaceHit hit;
+    if (!cast(px, hit)) return scene.background;
+    const glm::vec3 dir = eye.direction_at(px.x, px.y);
+    const glm::vec3 n = glm::dot(dir, hit.geometric_normal) < 0.0f ? hit.normal : -hit.normal;
+    struct Shadow {
+      const EmbreeBackend* backend;
+      glm::vec3 offset;
+    } shadow{&backend, n * optics::surface_epsilon(hit.position)};
+    const VisibilityFn visible = [](void* c, const glm::vec3& from, const glm::vec3& to) {
+      const auto* sh = static_cast<const Shadow*>(c);
+      return !sh->backend->occluded(from + sh->offset, to);
+    };
+    const glm::vec3 c =
+        shade_local(scene, *hit.material, hit.position, n, eye.eye, shadows ? visible : nullptr, &shadow);
+    return optics::finite3(c) ? c : glm::vec3(0.0f);
+  };
+  const glm::vec2 gaze = area.center_px;
+  return render_csf(scene.display, camera.width, camera.height, gaze, s.csf, object_at, colour_at);
+}
+
+// The maps' sizes and the first note (fewer photons than asked, or power scaling held) for the result.
+void record_map_stats(const PhotonMaps& maps, GiPassResult& r) {
+  r.photons = maps.global.photons.size();
+  r.caustic_photons = maps.caustic.photons.size();
+  r.emitted = maps.global.emitted + maps.caustic.emitted;
+  r.note = !maps.global.note.empty() ? maps.global.note
+           : !r.gaze.note.empty()    ? r.gaze.note
+                                     : maps.caustic.note;
+}
+
 }  // namespace
 
 const char* to_string(Strategy s) {
@@ -71,23 +127,14 @@ void GiPass::set_scene(const Scene& scene) {
   gaze_mapper_.reset();  // last frame's paths belong to the old scene
 }
 
-const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
-                                const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out) {
-  assert(&out != &local && "GiPass::run: out may not alias local (gi_pass.h)");
-  result_ = GiPassResult{};
-  result_.strategy = s.strategy;
-  backend_->set_time(now_s);
-  const Scene& scene = backend_->scene();
-  const bool gaze_directed = s.strategy == Strategy::GazeDirected;
-  if (!gaze_directed) gaze_mapper_.reset();
-
-  // The first pass: the global map by strategy, and the caustic map for specular or refractive surfaces.
-  auto t0 = std::chrono::steady_clock::now();
+// The global map by strategy: traditional, gaze-directed (steered by last frame's labelled map), or
+// emitted towards the importons the gaze area sees.
+void GiPass::trace_global_map(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s) {
   TraceSettings ts;
   ts.stored_photons = s.photons;
   ts.max_depth = s.trace_depth;
   ts.seed = s.seed;
-  if (gaze_directed) {
+  if (s.strategy == Strategy::GazeDirected) {
     GazeDirectedSettings gs = s.gaze;
     gs.max_photons = s.photons;
     gs.trace_depth = s.trace_depth;
@@ -105,14 +152,24 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   } else {
     maps_.global = trace_photons(*backend_, ts);
   }
+}
+
+const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
+                                const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out) {
+  assert(&out != &local && "GiPass::run: out may not alias local (gi_pass.h)");
+  result_ = GiPassResult{};
+  result_.strategy = s.strategy;
+  backend_->set_time(now_s);
+  const Scene& scene = backend_->scene();
+  const bool gaze_directed = s.strategy == Strategy::GazeDirected;
+  if (!gaze_directed) gaze_mapper_.reset();
+
+  // The first pass: the global map by strategy, and the caustic map for specular or refractive surfaces.
+  auto t0 = std::chrono::steady_clock::now();
+  trace_global_map(camera, now_s, area, s);
   maps_.caustic = {};
   if (s.caustics && scene.has_specular_or_refractive() && s.caustic_photons > 0) {
-    TraceSettings cs;
-    cs.mode = TraceMode::Caustic;
-    cs.stored_photons = s.caustic_photons;
-    cs.max_depth = std::max<std::uint32_t>(s.trace_depth, 2);  // light -> specular -> diffuse at least
-    cs.seed = hash_seed(s.seed, 0xca05, 0);
-    maps_.caustic = trace_photons(*backend_, cs);
+    maps_.caustic = trace_caustic_map(*backend_, s);
   }
   result_.photons_ms = ms_since(t0);
 
@@ -129,34 +186,7 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   const std::vector<glm::vec3>* base = &local;
   if (s.csf_periphery) {
     t0 = std::chrono::steady_clock::now();
-    const EyeRays eye(camera, now_s);
-    const bool shadows = s.render.shadows;
-    const auto cast = [&](glm::vec2 px, SurfaceHit& hit) {
-      return eye.ok && backend_->intersect(eye.eye, eye.direction_at(px.x, px.y), 0.0f,
-                                           std::numeric_limits<float>::infinity(), RayVisibility::All, hit);
-    };
-    const ObjectAt object_at = [&](glm::vec2 px) -> std::uint32_t {
-      SurfaceHit hit;
-      return cast(px, hit) ? hit.object_id : 0u;
-    };
-    const ColourAt colour_at = [&](glm::vec2 px, std::uint32_t) -> glm::vec3 {
-      SurfaceHit hit;
-      if (!cast(px, hit)) return scene.background;
-      const glm::vec3 dir = eye.direction_at(px.x, px.y);
-      const glm::vec3 n = glm::dot(dir, hit.geometric_normal) < 0.0f ? hit.normal : -hit.normal;
-      struct Shadow {
-        const EmbreeBackend* backend;
-        glm::vec3 offset;
-      } shadow{backend_.get(), n * optics::surface_epsilon(hit.position)};
-      const VisibilityFn visible = [](void* c, const glm::vec3& from, const glm::vec3& to) {
-        const auto* sh = static_cast<const Shadow*>(c);
-        return !sh->backend->occluded(from + sh->offset, to);
-      };
-      const glm::vec3 c = shade_local(scene, *hit.material, hit.position, n, eye.eye, shadows ? visible : nullptr, &shadow);
-      return optics::finite3(c) ? c : glm::vec3(0.0f);
-    };
-    const glm::vec2 gaze = area.center_px;
-    CsfReconstruction rec = render_csf(scene.display, camera.width, camera.height, gaze, s.csf, object_at, colour_at);
+    CsfReconstruction rec = csf_periphery(*backend_, camera, now_s, area, s);
     periphery_ = std::move(rec.colours);
     result_.csf = rec.stats;
     base = &periphery_;
@@ -174,12 +204,7 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   result_.composite_ms = ms_since(t0);
 
   if (s.count_area_photons) result_.area_photons = photons_seen_in_area(*backend_, camera, now_s, area, maps_.global.photons);
-  result_.photons = maps_.global.photons.size();
-  result_.caustic_photons = maps_.caustic.photons.size();
-  result_.emitted = maps_.global.emitted + maps_.caustic.emitted;
-  result_.note = !maps_.global.note.empty() ? maps_.global.note
-                 : !result_.gaze.note.empty() ? result_.gaze.note
-                                              : maps_.caustic.note;
+  record_map_stats(maps_, result_);
   // The labelled map steers the next frame (it is not read again this frame).
   if (gaze_directed) gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
   return result_;

@@ -76,6 +76,8 @@ class GiPass {
   const EmbreeBackend& backend() const { return *backend_; }
 
  private:
+  void trace_global_map(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s);
+
   std::unique_ptr<EmbreeBackend> backend_;
   bool has_scene_ = false;
   PhotonMaps maps_;
