@@ -14,6 +14,8 @@ namespace fovea::render {
 
 namespace {
 
+namespace fs = std::filesystem;
+
 void progress(std::uint64_t done, std::uint64_t total, double ms_per_frame) {
   constexpr int kWidth = 30;
   const int filled = static_cast<int>(static_cast<double>(kWidth) * static_cast<double>(done) / static_cast<double>(total));
@@ -30,150 +32,220 @@ std::string frame_name(const std::string& dir, std::uint64_t i, const char* ext)
   return (std::filesystem::path(dir) / buf).string();
 }
 
-}  // namespace
+// The run's CSV files, in the order they were always declared (and so closed in reverse).
+struct CsvLogs {
+  std::ofstream gaze, focus, gi, lod, governor;
+};
 
-int run_headless(const RenderOptions& o) {
-  namespace fs = std::filesystem;
+// Refuses a run without frames or an output directory before anything is loaded.
+bool headless_options_given(const RenderOptions& o) {
   if (o.frames == 0) {
     std::fprintf(stderr, "fovea-render: --headless needs --frames N (N >= 1)\n");
-    return 2;
+    return false;
   }
   if (o.out_dir.empty()) {
     std::fprintf(stderr, "fovea-render: --headless needs --out DIR\n");
-    return 2;
+    return false;
   }
-  // The governor's fronts are read (and refused) before anything is written.
-  std::unique_ptr<Governor> governor = make_governor(o);
+  return true;
+}
+
+// Refuses a directory that already holds files (nothing is overwritten), else creates it.
+bool prepare_output_dir(const RenderOptions& o) {
   std::error_code ec;
   if (fs::exists(o.out_dir) && !fs::is_empty(o.out_dir, ec)) {
     std::fprintf(stderr, "fovea-render: output directory %s is not empty; choose a new one (nothing is overwritten)\n",
                  o.out_dir.c_str());
-    return 2;
+    return false;
   }
   fs::create_directories(o.out_dir, ec);
   if (ec) {
     std::fprintf(stderr, "fovea-render: cannot create %s: %s\n", o.out_dir.c_str(), ec.message().c_str());
-    return 2;
+    return false;
   }
+  return true;
+}
+
+// plan.txt: what the run renders with, so a directory of frames explains itself.
+void write_plan(const RenderOptions& o, const FramePipeline& pipeline, const GazeInput& gaze) {
+  std::ofstream plan(fs::path(o.out_dir) / "plan.txt");
+  plan << "scene " << o.scene_path << "\nbackend " << pipeline.backend().name() << "\ngaze " << gaze.description()
+       << "\n" << pipeline.plan().explain();
+}
+
+// gaze.csv always; governor.csv with a governor. The per-pass files open on the first frame their pass runs.
+void open_csv_logs(CsvLogs& logs, const std::string& out_dir, bool with_governor) {
+  logs.gaze.open(fs::path(out_dir) / "gaze.csv");
+  logs.gaze << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
+  if (with_governor) {
+    logs.governor.open(fs::path(out_dir) / "governor.csv");
+    logs.governor << "frame,budget_ms,frame_ms,predicted_ms,other_ms,cannot_meet,replans,choices\n";
+  }
+}
+
+// The frame's clock: its scheduled time i / fps, or, paced in real time, the wall clock after sleeping until then.
+double frame_clock_s(std::uint64_t i, double fps, bool realtime, std::chrono::steady_clock::time_point start) {
+  const double scheduled = static_cast<double>(i) / fps;
+  double clock = scheduled;
+  if (realtime) {
+    std::this_thread::sleep_until(start + std::chrono::duration<double>(scheduled));
+    clock = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return clock;
+}
+
+// The governor picks the frame's settings, the pipeline renders it (motion vectors from the previous frame's
+// time), and the governor sees what it cost before anything else is timed.
+FramePipeline::Frame render_one_frame(FramePipeline& pipeline, Governor* governor, PassTimer& timer, std::uint64_t i,
+                                      double clock, double& previous) {
+  const double now = clock;
+  if (governor)
+    governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width,
+                    pipeline.scene().camera.height, pipeline.settings());
+  FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, clock, timer);
+  previous = now;
+  if (governor) governor->observe(timer);
+  return f;
+}
+
+// governor.csv: the budget, what the frame took and what the governor chose and expects.
+void write_governor_row(std::ofstream& governor_log, const Governor::State& g, std::uint64_t i) {
+  std::string choices;
+  for (const Governor::Choice& c : g.choices) {
+    char item[200];
+    std::snprintf(item, sizeof item, "%s%s=%s (%.4g %s)", choices.empty() ? "" : "; ", c.effect.c_str(),
+                  c.label.c_str(), c.accuracy, c.metric.c_str());
+    choices += item;
+  }
+  char gl[160];
+  std::snprintf(gl, sizeof gl, "%llu,%.2f,%.3f,%.3f,%.3f,%d,%llu,", static_cast<unsigned long long>(i), g.budget_ms,
+                g.measured_ms, g.predicted_ms, g.other_ms, g.cannot_meet ? 1 : 0,
+                static_cast<unsigned long long>(g.replans));
+  governor_log << gl << '"' << choices << "\"\n";
+}
+
+// The frame's PNG, and its HDR colour as EXR when asked for (or when there is no PNG), timed as "write".
+void write_frame_images(const RenderOptions& o, std::uint64_t i, const FramePipeline::Frame& f, PassTimer& timer) {
+  auto t = timer.scope("write");
+  if (f.image != nullptr) write_png(frame_name(o.out_dir, i, "png"), *f.image);
+  if (o.exr || f.image == nullptr) {
+    write_exr(frame_name(o.out_dir, i, "exr"), f.gbuffer->width, f.gbuffer->height, f.gbuffer->color);
+  }
+}
+
+// gaze.csv: the gaze sample the frame was rendered with.
+void write_gaze_row(std::ofstream& gaze_log, std::uint64_t i, double clock, const GazeState& gaze) {
+  char line[256];
+  std::snprintf(line, sizeof line, "%llu,%.6f,%.5f,%.5f,%d,%s,%.3f,%llu,%llu\n", static_cast<unsigned long long>(i),
+                clock, gaze.x, gaze.y, gaze.valid ? 1 : 0, protocol::to_string(gaze.movement), gaze.age_ms,
+                static_cast<unsigned long long>(gaze.received), static_cast<unsigned long long>(gaze.lost));
+  gaze_log << line;
+}
+
+// focus.csv: what the focus pass decided each frame (only when it ran).
+void write_focus_row(std::ofstream& focus_log, const std::string& out_dir, std::uint64_t i,
+                     const attention::FocusResult& focus) {
+  if (!focus_log.is_open()) {
+    focus_log.open(fs::path(out_dir) / "focus.csv");
+    focus_log << "frame,focal_depth_m,target_depth_m,object,in_transition,why\n";
+  }
+  std::string why = focus.why;
+  for (char& ch : why) if (ch == '"') ch = '\'';
+  char fl[128];
+  std::snprintf(fl, sizeof fl, "%llu,%.4f,%.4f,%u,%d,", static_cast<unsigned long long>(i), focus.focal_depth_m,
+                focus.target_depth_m, focus.object, focus.in_transition ? 1 : 0);
+  focus_log << fl << '"' << why << "\"\n";
+}
+
+// gi.csv: where the gi pass ray traced and with how many photons (only when it ran).
+void write_gi_row(std::ofstream& gi_log, const std::string& out_dir, std::uint64_t i,
+                  const FramePipeline::Frame::Gi& gi) {
+  if (!gi_log.is_open()) {
+    gi_log.open(fs::path(out_dir) / "gi.csv");
+    gi_log << "frame,strategy,follows,center_x_px,center_y_px,radius_px,photons,caustic_photons,emitted,pixels,rays,"
+              "photons_used,emission_map,power_scale,importons,periphery_rays,full_resolution_rays,note\n";
+  }
+  char gl[320];
+  std::snprintf(gl, sizeof gl, "%llu,%s,%s,%.1f,%.1f,%.1f,%zu,%zu,%llu,%llu,%llu,%llu,%zu,%.4f,%zu,%llu,%llu,",
+                static_cast<unsigned long long>(i), gi.strategy, gi.follows, static_cast<double>(gi.area.center_px.x),
+                static_cast<double>(gi.area.center_px.y), static_cast<double>(gi.area.radius_px), gi.photons,
+                gi.caustic_photons,
+                static_cast<unsigned long long>(gi.emitted), static_cast<unsigned long long>(gi.render.pixels),
+                static_cast<unsigned long long>(gi.render.rays),
+                static_cast<unsigned long long>(gi.render.photons_used), gi.gaze.emission_map,
+                gi.gaze.scale, gi.importons, static_cast<unsigned long long>(gi.csf.rays_cast),
+                static_cast<unsigned long long>(gi.csf.full_resolution_rays));
+  gi_log << gl << '"' << gi.note << "\"\n";
+}
+
+// lod.csv: the levels drawn this frame (only when lod-select ran).
+void write_lod_row(std::ofstream& lod_log, const std::string& out_dir, std::uint64_t i,
+                   const FramePipeline::Frame::Lod& lod) {
+  if (!lod_log.is_open()) {
+    lod_log.open(fs::path(out_dir) / "lod.csv");
+    lod_log << "frame,policy,objects,triangles,full_triangles,budget_bias,cannot_meet,levels\n";
+  }
+  std::string levels;
+  for (const lod::Selection& sel : lod.selection) {
+    char item[48];
+    std::snprintf(item, sizeof item, "%s%u:%d", levels.empty() ? "" : " ", sel.id, sel.drawn);
+    levels += item;
+  }
+  char ll[160];
+  std::snprintf(ll, sizeof ll, "%llu,%s,%zu,%llu,%llu,%.2f,%d,", static_cast<unsigned long long>(i), lod.policy,
+                lod.selection.size(), static_cast<unsigned long long>(lod.triangles),
+                static_cast<unsigned long long>(lod.full_triangles), lod.budget.bias,
+                lod.budget.cannot_meet ? 1 : 0);
+  lod_log << ll << '"' << levels << "\"\n";
+}
+
+// One frame's files: its images, then its rows in gaze.csv and in the per-pass CSVs whose pass ran.
+void write_frame_files(const RenderOptions& o, std::uint64_t i, double clock, const FramePipeline::Frame& f,
+                       PassTimer& timer, CsvLogs& logs) {
+  write_frame_images(o, i, f, timer);
+  write_gaze_row(logs.gaze, i, clock, f.gaze);
+  if (f.focus != nullptr) write_focus_row(logs.focus, o.out_dir, i, *f.focus);
+  if (f.gi != nullptr) write_gi_row(logs.gi, o.out_dir, i, *f.gi);
+  if (f.lod != nullptr) write_lod_row(logs.lod, o.out_dir, i, *f.lod);
+}
+
+// stdout: what was rendered where, the per-pass timing table and the governor's last state.
+void print_summary(const RenderOptions& o, const FramePipeline& pipeline, const GazeInput& gaze, const PassTimer& timer,
+                   const Governor* governor) {
+  std::printf("fovea-render: %llu frames of %s with %s (gaze %s) -> %s\n", static_cast<unsigned long long>(o.frames),
+              o.scene_path.c_str(), pipeline.backend().name().c_str(), gaze.description().c_str(), o.out_dir.c_str());
+  std::printf("%s", timer.summary_table().c_str());
+  if (governor) std::printf("governor: %s\n", governor->state().summary().c_str());
+}
+
+}  // namespace
+
+int run_headless(const RenderOptions& o) {
+  if (!headless_options_given(o)) return 2;
+  // The governor's fronts are read (and refused) before anything is written.
+  std::unique_ptr<Governor> governor = make_governor(o);
+  if (!prepare_output_dir(o)) return 2;
 
   Scene scene = load_render_scene(o);
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
-  {
-    std::ofstream plan(fs::path(o.out_dir) / "plan.txt");
-    plan << "scene " << o.scene_path << "\nbackend " << pipeline.backend().name() << "\ngaze " << gaze->description()
-         << "\n" << pipeline.plan().explain();
-  }
+  write_plan(o, pipeline, *gaze);
   PassTimer timer((fs::path(o.out_dir) / "timings.csv").string());
   const bool tty = isatty(STDERR_FILENO) != 0;
   const bool realtime = o.realtime || o.gaze.rfind("udp://", 0) == 0;
   const auto start = std::chrono::steady_clock::now();
   double previous = 0;
-  std::ofstream gaze_log(fs::path(o.out_dir) / "gaze.csv");
-  gaze_log << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
-  std::ofstream focus_log, gi_log, lod_log, governor_log;
-  if (governor) {
-    governor_log.open(fs::path(o.out_dir) / "governor.csv");
-    governor_log << "frame,budget_ms,frame_ms,predicted_ms,other_ms,cannot_meet,replans,choices\n";
-  }
+  CsvLogs logs;
+  open_csv_logs(logs, o.out_dir, governor != nullptr);
   for (std::uint64_t i = 0; i < o.frames; ++i) {
-    const double scheduled = static_cast<double>(i) / o.fps;
-    double clock = scheduled;
-    if (realtime) {
-      std::this_thread::sleep_until(start + std::chrono::duration<double>(scheduled));
-      clock = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    }
-    const double now = clock;
-    if (governor)
-      governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width, pipeline.scene().camera.height,
-                      pipeline.settings());
-    const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, clock, timer);
-    previous = now;
-    if (governor) {
-      // governor.csv: the budget, what the frame took and what the governor chose and expects.
-      governor->observe(timer);
-      const Governor::State& g = governor->state();
-      std::string choices;
-      for (const Governor::Choice& c : g.choices) {
-        char item[200];
-        std::snprintf(item, sizeof item, "%s%s=%s (%.4g %s)", choices.empty() ? "" : "; ", c.effect.c_str(), c.label.c_str(),
-                      c.accuracy, c.metric.c_str());
-        choices += item;
-      }
-      char gl[160];
-      std::snprintf(gl, sizeof gl, "%llu,%.2f,%.3f,%.3f,%.3f,%d,%llu,", static_cast<unsigned long long>(i), g.budget_ms,
-                    g.measured_ms, g.predicted_ms, g.other_ms, g.cannot_meet ? 1 : 0, static_cast<unsigned long long>(g.replans));
-      governor_log << gl << '"' << choices << "\"\n";
-    }
-    {
-      auto t = timer.scope("write");
-      if (f.image != nullptr) write_png(frame_name(o.out_dir, i, "png"), *f.image);
-      if (o.exr || f.image == nullptr) {
-        write_exr(frame_name(o.out_dir, i, "exr"), f.gbuffer->width, f.gbuffer->height, f.gbuffer->color);
-      }
-    }
-    char line[256];
-    std::snprintf(line, sizeof line, "%llu,%.6f,%.5f,%.5f,%d,%s,%.3f,%llu,%llu\n", static_cast<unsigned long long>(i),
-                  clock, f.gaze.x, f.gaze.y, f.gaze.valid ? 1 : 0, protocol::to_string(f.gaze.movement), f.gaze.age_ms,
-                  static_cast<unsigned long long>(f.gaze.received), static_cast<unsigned long long>(f.gaze.lost));
-    gaze_log << line;
-    if (f.focus != nullptr) {
-      // focus.csv: what the focus pass decided each frame (only when it ran).
-      if (!focus_log.is_open()) {
-        focus_log.open(fs::path(o.out_dir) / "focus.csv");
-        focus_log << "frame,focal_depth_m,target_depth_m,object,in_transition,why\n";
-      }
-      std::string why = f.focus->why;
-      for (char& ch : why) if (ch == '"') ch = '\'';
-      char fl[128];
-      std::snprintf(fl, sizeof fl, "%llu,%.4f,%.4f,%u,%d,", static_cast<unsigned long long>(i), f.focus->focal_depth_m,
-                    f.focus->target_depth_m, f.focus->object, f.focus->in_transition ? 1 : 0);
-      focus_log << fl << '"' << why << "\"\n";
-    }
-    if (f.gi != nullptr) {
-      // gi.csv: where the gi pass ray traced and with how many photons (only when it ran).
-      if (!gi_log.is_open()) {
-        gi_log.open(fs::path(o.out_dir) / "gi.csv");
-        gi_log << "frame,strategy,follows,center_x_px,center_y_px,radius_px,photons,caustic_photons,emitted,pixels,rays,"
-                  "photons_used,emission_map,power_scale,importons,periphery_rays,full_resolution_rays,note\n";
-      }
-      char gl[320];
-      std::snprintf(gl, sizeof gl, "%llu,%s,%s,%.1f,%.1f,%.1f,%zu,%zu,%llu,%llu,%llu,%llu,%zu,%.4f,%zu,%llu,%llu,",
-                    static_cast<unsigned long long>(i), f.gi->strategy, f.gi->follows, static_cast<double>(f.gi->area.center_px.x), static_cast<double>(f.gi->area.center_px.y),
-                    static_cast<double>(f.gi->area.radius_px), f.gi->photons, f.gi->caustic_photons,
-                    static_cast<unsigned long long>(f.gi->emitted), static_cast<unsigned long long>(f.gi->render.pixels),
-                    static_cast<unsigned long long>(f.gi->render.rays),
-                    static_cast<unsigned long long>(f.gi->render.photons_used), f.gi->gaze.emission_map,
-                    f.gi->gaze.scale, f.gi->importons, static_cast<unsigned long long>(f.gi->csf.rays_cast),
-                    static_cast<unsigned long long>(f.gi->csf.full_resolution_rays));
-      gi_log << gl << '"' << f.gi->note << "\"\n";
-    }
-    if (f.lod != nullptr) {
-      // lod.csv: the levels drawn this frame (only when lod-select ran).
-      if (!lod_log.is_open()) {
-        lod_log.open(fs::path(o.out_dir) / "lod.csv");
-        lod_log << "frame,policy,objects,triangles,full_triangles,budget_bias,cannot_meet,levels\n";
-      }
-      std::string levels;
-      for (const lod::Selection& sel : f.lod->selection) {
-        char item[48];
-        std::snprintf(item, sizeof item, "%s%u:%d", levels.empty() ? "" : " ", sel.id, sel.drawn);
-        levels += item;
-      }
-      char ll[160];
-      std::snprintf(ll, sizeof ll, "%llu,%s,%zu,%llu,%llu,%.2f,%d,", static_cast<unsigned long long>(i), f.lod->policy,
-                    f.lod->selection.size(), static_cast<unsigned long long>(f.lod->triangles),
-                    static_cast<unsigned long long>(f.lod->full_triangles), f.lod->budget.bias,
-                    f.lod->budget.cannot_meet ? 1 : 0);
-      lod_log << ll << '"' << levels << "\"\n";
-    }
+    const double clock = frame_clock_s(i, o.fps, realtime, start);
+    const FramePipeline::Frame f = render_one_frame(pipeline, governor.get(), timer, i, clock, previous);
+    if (governor) write_governor_row(logs.governor, governor->state(), i);
+    write_frame_files(o, i, clock, f, timer, logs);
     if (tty) progress(i + 1, o.frames, timer.last_ms("frame"));
   }
   if (tty) std::fputc('\n', stderr);
-  std::printf("fovea-render: %llu frames of %s with %s (gaze %s) -> %s\n", static_cast<unsigned long long>(o.frames),
-              o.scene_path.c_str(), pipeline.backend().name().c_str(), gaze->description().c_str(), o.out_dir.c_str());
-  std::printf("%s", timer.summary_table().c_str());
-  if (governor) std::printf("governor: %s\n", governor->state().summary().c_str());
+  print_summary(o, pipeline, *gaze, timer, governor.get());
   return 0;
 }
 
