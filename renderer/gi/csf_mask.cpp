@@ -213,43 +213,44 @@ double foveal_radius(const CsfSamplingField& field, const AngularWindow& window,
   return lo;
 }
 
-}  // namespace
+// How far the screen reaches from the gaze: its farthest corner, and its nearest point (0 when the gaze is on it).
+struct ScreenReach {
+  double r_far = 0, r_near = 0;
+};
 
-RingMesh ring_mesh(const protocol::DisplayGeometry& display, std::uint32_t width, std::uint32_t height,
-                   glm::vec2 gaze_px, const CsfSettings& settings) {
-  const CsfSamplingField field(display, width, height, glm::dvec2(gaze_px), settings);
-  RingMesh mesh;
-  mesh.width = width;
-  mesh.height = height;
-  const glm::dvec2 gaze = field.gaze_px();
-  mesh.gaze_px = glm::vec2(gaze);
-  if (width == 0 || height == 0) return mesh;
-
-  const double w = width, h = height;
-  double r_far = 0;
+ScreenReach screen_reach(glm::dvec2 gaze, double w, double h) {
+  ScreenReach reach;
   for (glm::dvec2 corner : {glm::dvec2{0, 0}, glm::dvec2{w, 0}, glm::dvec2{0, h}, glm::dvec2{w, h}})
-    r_far = std::max(r_far, glm::length(corner - gaze));
-  const double r_near = glm::length(gaze - glm::clamp(gaze, glm::dvec2{0, 0}, glm::dvec2{w, h}));
-  const AngularWindow window = screen_window(gaze, w, h);
+    reach.r_far = std::max(reach.r_far, glm::length(corner - gaze));
+  reach.r_near = glm::length(gaze - glm::clamp(gaze, glm::dvec2{0, 0}, glm::dvec2{w, h}));
+  return reach;
+}
 
-  const double r_fovea = foveal_radius(field, window, r_far);
-  mesh.foveal_radius_px = static_cast<float>(r_fovea);
-  if (r_fovea >= r_far) return mesh;  // every pixel needs its own ray
+// s_k, the spacing at ring radius r (Murphy 4.4.4): the smallest over directions, clamped to the settings' range.
+double clamped_ring_spacing(const CsfSamplingField& field, const AngularWindow& window, const CsfSettings& settings,
+                            double r) {
+  return std::clamp(ring_spacing_raw(field, window, r), settings.min_ring_spacing_px, settings.max_ring_spacing_px);
+}
 
-  auto clamped_spacing = [&](double r) {
-    return std::clamp(ring_spacing_raw(field, window, r), settings.min_ring_spacing_px, settings.max_ring_spacing_px);
-  };
-
-  // Radii: from the foveal disc (or the gaze point) outwards by the spacing at each ring, until a ring
-  // lies a full spacing beyond the farthest corner (its chords then clear the screen). Rings wholly
-  // inside r_near are skipped; once the spacing is at its maximum it stays there (it grows with
-  // eccentricity), so those are stepped over in one go.
+// The rings' radii and spacings, inner to outer.
+struct RingRadii {
   std::vector<std::pair<double, double>> rings;  // radius, spacing
+  bool fan_from_gaze = false;                    // no foveal disc: join the first ring to a vertex at the gaze
+};
+
+// Radii: from the foveal disc (or the gaze point) outwards by the spacing at each ring, until a ring
+// lies a full spacing beyond the farthest corner (its chords then clear the screen). Rings wholly
+// inside r_near are skipped; once the spacing is at its maximum it stays there (it grows with
+// eccentricity), so those are stepped over in one go.
+RingRadii ring_radii(const CsfSamplingField& field, const AngularWindow& window, const CsfSettings& settings,
+                     double r_fovea, const ScreenReach& reach) {
+  auto clamped_spacing = [&](double r) { return clamped_ring_spacing(field, window, settings, r); };
+  RingRadii radii;
   double r = r_fovea;
   double spacing = clamped_spacing(r);
-  while (r + spacing < r_near) {
+  while (r + spacing < reach.r_near) {
     if (spacing >= settings.max_ring_spacing_px) {
-      const double steps = std::floor((r_near - r) / spacing) - 1;
+      const double steps = std::floor((reach.r_near - r) / spacing) - 1;
       if (steps >= 1) {
         r += steps * spacing;
         spacing = clamped_spacing(r);
@@ -259,60 +260,83 @@ RingMesh ring_mesh(const protocol::DisplayGeometry& display, std::uint32_t width
     r += spacing;
     spacing = clamped_spacing(r);
   }
-  const bool fan_from_gaze = r <= 0;  // no foveal disc: join the first ring to a vertex at the gaze
-  if (r > 0) rings.emplace_back(r, spacing);
+  radii.fan_from_gaze = r <= 0;
+  if (r > 0) radii.rings.emplace_back(r, spacing);
   do {
     r += spacing;
     spacing = clamped_spacing(r);
-    rings.emplace_back(r, spacing);
-  } while (r < r_far + spacing);
+    radii.rings.emplace_back(r, spacing);
+  } while (r < reach.r_far + spacing);
+  return radii;
+}
 
-  VertexSet vertex_set(mesh.vertices, width, height,
+// One ring's vertices, `full_count` = ceil(2 pi r_k / s_k) around the full circle (Murphy 4.4.4), or
+// only those that see the screen when the gaze is off it.
+RingVertices place_ring(glm::dvec2 gaze, double radius, double full_count, const AngularWindow& window,
+                        VertexSet& vertex_set) {
+  RingVertices ring;
+  ring.step = kTwoPi / full_count;
+  std::int64_t first = 0, last = static_cast<std::int64_t>(full_count) - 1;
+  if (!window.full) {
+    // One vertex beyond the window on either side, so the quads at its edges still cover the screen.
+    const auto a = static_cast<std::int64_t>(std::floor(window.begin / ring.step)) - 1;
+    const auto b = static_cast<std::int64_t>(std::ceil(window.end / ring.step)) + 1;
+    if (b - a + 1 < static_cast<std::int64_t>(full_count)) {
+      first = a;
+      last = b;
+      ring.closed = false;
+    }
+  }
+  for (std::int64_t i = first; i <= last; ++i) {
+    const double angle = static_cast<double>(i) * ring.step;
+    ring.angle.push_back(angle);
+    ring.index.push_back(vertex_set.at_pixel_of(gaze + radius * glm::dvec2{std::cos(angle), std::sin(angle)}));
+  }
+  return ring;
+}
+
+// Joins a ring to the one inside it (Murphy 5.2.2): the zipper, or the fan from the gaze vertex.
+void join_rings(const RingVertices& previous, const RingVertices& ring, bool fan_from_gaze,
+                std::vector<std::uint32_t>& quads) {
+  if (previous.index.empty()) return;
+  if (fan_from_gaze && previous.index.size() == 1) {
+    // The fan: the gaze vertex with every consecutive pair of the first ring.
+    const std::size_t n = ring.index.size(), end = ring.closed ? n : n - 1;
+    for (std::size_t j = 0; j < end; ++j)
+      quads.insert(quads.end(), {previous.index[0], previous.index[0], ring.index[(j + 1) % n], ring.index[j]});
+  } else {
+    zip_rings(previous, ring, quads);
+  }
+}
+
+// The intermediate mesh before culling (Murphy 4.4.4, 5.2.2): every ring's vertices (into
+// mesh.vertices, merged per pixel) and the quads joining consecutive rings, which it returns.
+std::vector<std::uint32_t> connect_rings(RingMesh& mesh, const RingRadii& radii, glm::dvec2 gaze,
+                                         const AngularWindow& window, const CsfSettings& settings) {
+  VertexSet vertex_set(mesh.vertices, mesh.width, mesh.height,
                        static_cast<std::int64_t>(std::ceil(2 * settings.max_ring_spacing_px)) + 2);
   std::vector<std::uint32_t> quads;
   RingVertices previous;
-  if (fan_from_gaze) {
+  if (radii.fan_from_gaze) {
     previous.index.push_back(vertex_set.at_pixel_of(gaze));
     previous.angle.push_back(0);
     previous.step = kTwoPi;
     previous.closed = window.full;
   }
-  for (const auto& [radius, ring_spacing] : rings) {
+  for (const auto& [radius, ring_spacing] : radii.rings) {
     const double full_count = std::max(3.0, std::ceil(kTwoPi * radius / ring_spacing));
-    RingVertices ring;
-    ring.step = kTwoPi / full_count;
-    std::int64_t first = 0, last = static_cast<std::int64_t>(full_count) - 1;
-    if (!window.full) {
-      // One vertex beyond the window on either side, so the quads at its edges still cover the screen.
-      const auto a = static_cast<std::int64_t>(std::floor(window.begin / ring.step)) - 1;
-      const auto b = static_cast<std::int64_t>(std::ceil(window.end / ring.step)) + 1;
-      if (b - a + 1 < static_cast<std::int64_t>(full_count)) {
-        first = a;
-        last = b;
-        ring.closed = false;
-      }
-    }
-    for (std::int64_t i = first; i <= last; ++i) {
-      const double angle = static_cast<double>(i) * ring.step;
-      ring.angle.push_back(angle);
-      ring.index.push_back(vertex_set.at_pixel_of(gaze + radius * glm::dvec2{std::cos(angle), std::sin(angle)}));
-    }
-    if (!previous.index.empty()) {
-      if (fan_from_gaze && previous.index.size() == 1) {
-        // The fan: the gaze vertex with every consecutive pair of the first ring.
-        const std::size_t n = ring.index.size(), end = ring.closed ? n : n - 1;
-        for (std::size_t j = 0; j < end; ++j)
-          quads.insert(quads.end(), {previous.index[0], previous.index[0], ring.index[(j + 1) % n], ring.index[j]});
-      } else {
-        zip_rings(previous, ring, quads);
-      }
-    }
+    RingVertices ring = place_ring(gaze, radius, full_count, window, vertex_set);
+    join_rings(previous, ring, radii.fan_from_gaze, quads);
     mesh.ring_radii_px.push_back(static_cast<float>(radius));
     mesh.ring_vertex_counts.push_back(static_cast<std::uint32_t>(full_count));
     previous = std::move(ring);
   }
+  return quads;
+}
 
-  // Drop quads that cover no part of the screen, then the vertices only they used.
+// Drop quads that cover no part of the screen, then the vertices only they used.
+void keep_onscreen_quads(RingMesh& mesh, const std::vector<std::uint32_t>& quads) {
+  const double w = mesh.width, h = mesh.height;
   std::vector<std::uint32_t> remap(mesh.vertices.size(), std::numeric_limits<std::uint32_t>::max());
   std::vector<glm::vec2> kept_vertices;
   for (std::size_t q = 0; q + 3 < quads.size(); q += 4) {
@@ -332,6 +356,31 @@ RingMesh ring_mesh(const protocol::DisplayGeometry& display, std::uint32_t width
     }
   }
   mesh.vertices = std::move(kept_vertices);
+}
+
+}  // namespace
+
+RingMesh ring_mesh(const protocol::DisplayGeometry& display, std::uint32_t width, std::uint32_t height,
+                   glm::vec2 gaze_px, const CsfSettings& settings) {
+  const CsfSamplingField field(display, width, height, glm::dvec2(gaze_px), settings);
+  RingMesh mesh;
+  mesh.width = width;
+  mesh.height = height;
+  const glm::dvec2 gaze = field.gaze_px();
+  mesh.gaze_px = glm::vec2(gaze);
+  if (width == 0 || height == 0) return mesh;
+
+  const double w = width, h = height;
+  const ScreenReach reach = screen_reach(gaze, w, h);
+  const AngularWindow window = screen_window(gaze, w, h);
+
+  const double r_fovea = foveal_radius(field, window, reach.r_far);
+  mesh.foveal_radius_px = static_cast<float>(r_fovea);
+  if (r_fovea >= reach.r_far) return mesh;  // every pixel needs its own ray
+
+  const RingRadii radii = ring_radii(field, window, settings, r_fovea, reach);
+  const std::vector<std::uint32_t> quads = connect_rings(mesh, radii, gaze, window, settings);
+  keep_onscreen_quads(mesh, quads);
   return mesh;
 }
 
@@ -554,14 +603,12 @@ void rasterize_piece(const std::array<glm::dvec2, 4>& p, std::uint32_t width, st
 
 enum PixelState : std::uint8_t { kUnset = 0, kInterpolated = 1, kRayCast = 2 };
 
-}  // namespace
-
-CsfReconstruction reconstruct(const RingMesh& mesh, const SilhouetteRefinement& refinement, const ObjectAt& object_at,
-                              const ColourAt& colour_at) {
+// The output with its size and the counts known before any pixel is filled: the mesh's and the refinement's.
+CsfReconstruction sized_reconstruction(const RingMesh& mesh, const SilhouetteRefinement& refinement,
+                                       std::size_t pixels) {
   CsfReconstruction out;
   out.width = mesh.width;
   out.height = mesh.height;
-  const std::size_t pixels = std::size_t{mesh.width} * mesh.height;
   out.object_ids.assign(pixels, 0);
   out.colours.assign(pixels, glm::vec3(0.0f));
   CsfStats& stats = out.stats;
@@ -572,10 +619,33 @@ CsfReconstruction reconstruct(const RingMesh& mesh, const SilhouetteRefinement& 
   stats.disagreeing_quads = refinement.disagreeing_quads;
   stats.mesh_rays = std::min<std::uint64_t>(mesh.vertices.size(), refinement.rays_cast);
   stats.refinement_rays = refinement.rays_cast - stats.mesh_rays;
-  if (pixels == 0) return out;
+  return out;
+}
 
-  std::vector<std::uint8_t> state(pixels, kUnset);
-  auto cast_pixel = [&](std::uint32_t x, std::uint32_t y, std::uint64_t& counter) {
+// Working state of the reconstruction: what each pixel holds so far, and the samples' colours.
+struct Reconstructor {
+  const RingMesh& mesh;
+  const SilhouetteRefinement& refinement;
+  const ObjectAt& object_at;
+  const ColourAt& colour_at;
+  CsfReconstruction& out;
+  std::vector<std::uint8_t> state;
+  // Colours of the samples, shaded on first use (the hit is already known: no new ray).
+  std::vector<glm::vec3> sample_colour;
+  std::vector<std::uint8_t> sample_shaded;
+
+  Reconstructor(const RingMesh& m, const SilhouetteRefinement& r, const ObjectAt& object, const ColourAt& colour,
+                CsfReconstruction& o, std::size_t pixels)
+      : mesh(m),
+        refinement(r),
+        object_at(object),
+        colour_at(colour),
+        out(o),
+        state(pixels, kUnset),
+        sample_colour(r.sample_px.size()),
+        sample_shaded(r.sample_px.size(), 0) {}
+
+  void cast_pixel(std::uint32_t x, std::uint32_t y, std::uint64_t& counter) {
     const std::size_t i = std::size_t{y} * mesh.width + x;
     if (state[i] == kRayCast) return;
     const glm::vec2 centre{static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f};
@@ -583,61 +653,97 @@ CsfReconstruction reconstruct(const RingMesh& mesh, const SilhouetteRefinement& 
     out.colours[i] = colour_at(centre, out.object_ids[i]);
     state[i] = kRayCast;
     ++counter;
-  };
+  }
 
-  // Colours of the samples, shaded on first use (the hit is already known: no new ray).
-  std::vector<glm::vec3> sample_colour(refinement.sample_px.size());
-  std::vector<std::uint8_t> sample_shaded(refinement.sample_px.size(), 0);
-  auto colour_of = [&](std::uint32_t s) {
+  glm::vec3 colour_of(std::uint32_t s) {
     if (!sample_shaded[s]) {
       sample_colour[s] = colour_at(refinement.sample_px[s], refinement.sample_object[s]);
       sample_shaded[s] = 1;
     }
     return sample_colour[s];
-  };
-
-  // Mesh vertices sit on pixel centres: their rays are those pixels' rays.
-  for (std::uint32_t v = 0; v < mesh.vertices.size() && v < refinement.sample_px.size(); ++v) {
-    if (!on_image(mesh, mesh.vertices[v])) continue;
-    const std::size_t i = pixel_index(mesh, mesh.vertices[v]);
-    out.object_ids[i] = refinement.sample_object[v];
-    out.colours[i] = colour_of(v);
-    state[i] = kRayCast;
   }
-  for_each_foveal_pixel(mesh, [&](std::uint32_t x, std::uint32_t y) { cast_pixel(x, y, stats.foveal_rays); });
 
-  auto corner_positions = [&](const RefinedPiece& piece) {
+  std::array<glm::dvec2, 4> corner_positions(const RefinedPiece& piece) const {
     std::array<glm::dvec2, 4> p;
     for (std::size_t k = 0; k < 4; ++k) p[k] = glm::dvec2(refinement.sample_px[piece.corners[k]]);
     return p;
-  };
-  for (const RefinedPiece& piece : refinement.pieces) {
+  }
+};
+
+// Mesh vertices sit on pixel centres: their rays are those pixels' rays.
+void take_vertex_rays(Reconstructor& rec) {
+  const RingMesh& mesh = rec.mesh;
+  for (std::uint32_t v = 0; v < mesh.vertices.size() && v < rec.refinement.sample_px.size(); ++v) {
+    if (!on_image(mesh, mesh.vertices[v])) continue;
+    const std::size_t i = pixel_index(mesh, mesh.vertices[v]);
+    rec.out.object_ids[i] = rec.refinement.sample_object[v];
+    rec.out.colours[i] = rec.colour_of(v);
+    rec.state[i] = kRayCast;
+  }
+}
+
+// Every pixel of the foveal disc gets its own ray (Murphy 4.4.4: f_c >= N there).
+void cast_foveal_disc(Reconstructor& rec) {
+  for_each_foveal_pixel(rec.mesh,
+                        [&](std::uint32_t x, std::uint32_t y) { rec.cast_pixel(x, y, rec.out.stats.foveal_rays); });
+}
+
+// Every pixel centre a pixel-level piece covers gets its own ray (Murphy 5.2.3).
+void cast_pixel_level_pieces(Reconstructor& rec) {
+  CsfStats& stats = rec.out.stats;
+  for (const RefinedPiece& piece : rec.refinement.pieces) {
     if (!piece.pixel_level) continue;
     ++stats.pixel_level_pieces;
-    rasterize_piece(corner_positions(piece), mesh.width, mesh.height,
+    rasterize_piece(rec.corner_positions(piece), rec.mesh.width, rec.mesh.height,
                     [&](std::uint32_t x, std::uint32_t y, const std::array<double, 4>&) {
-                      cast_pixel(x, y, stats.pixel_level_rays);
+                      rec.cast_pixel(x, y, stats.pixel_level_rays);
                     });
   }
-  for (const RefinedPiece& piece : refinement.pieces) {
+}
+
+// Pixels of pieces whose corners agree, not yet ray cast, take that object and the colour
+// interpolated barycentrically from the corners.
+void interpolate_uniform_pieces(Reconstructor& rec) {
+  for (const RefinedPiece& piece : rec.refinement.pieces) {
     if (piece.pixel_level) continue;
-    const std::uint32_t id = refinement.sample_object[piece.corners[0]];
-    rasterize_piece(corner_positions(piece), mesh.width, mesh.height,
+    const std::uint32_t id = rec.refinement.sample_object[piece.corners[0]];
+    rasterize_piece(rec.corner_positions(piece), rec.mesh.width, rec.mesh.height,
                     [&](std::uint32_t x, std::uint32_t y, const std::array<double, 4>& weights) {
-                      const std::size_t i = std::size_t{y} * mesh.width + x;
-                      if (state[i] != kUnset) return;
+                      const std::size_t i = std::size_t{y} * rec.mesh.width + x;
+                      if (rec.state[i] != kUnset) return;
                       glm::dvec3 colour(0.0);
                       for (std::size_t k = 0; k < 4; ++k)
-                        if (weights[k] != 0) colour += weights[k] * glm::dvec3(colour_of(piece.corners[k]));
-                      out.object_ids[i] = id;
-                      out.colours[i] = glm::vec3(colour);
-                      state[i] = kInterpolated;
+                        if (weights[k] != 0) colour += weights[k] * glm::dvec3(rec.colour_of(piece.corners[k]));
+                      rec.out.object_ids[i] = id;
+                      rec.out.colours[i] = glm::vec3(colour);
+                      rec.state[i] = kInterpolated;
                     });
   }
-  for (std::uint32_t y = 0; y < mesh.height; ++y)
-    for (std::uint32_t x = 0; x < mesh.width; ++x)
-      if (state[std::size_t{y} * mesh.width + x] == kUnset) cast_pixel(x, y, stats.gap_rays);
+}
 
+// Any pixel no piece covered gets its own ray.
+void cast_gaps(Reconstructor& rec) {
+  for (std::uint32_t y = 0; y < rec.mesh.height; ++y)
+    for (std::uint32_t x = 0; x < rec.mesh.width; ++x)
+      if (rec.state[std::size_t{y} * rec.mesh.width + x] == kUnset) rec.cast_pixel(x, y, rec.out.stats.gap_rays);
+}
+
+}  // namespace
+
+CsfReconstruction reconstruct(const RingMesh& mesh, const SilhouetteRefinement& refinement, const ObjectAt& object_at,
+                              const ColourAt& colour_at) {
+  const std::size_t pixels = std::size_t{mesh.width} * mesh.height;
+  CsfReconstruction out = sized_reconstruction(mesh, refinement, pixels);
+  if (pixels == 0) return out;
+
+  Reconstructor rec(mesh, refinement, object_at, colour_at, out, pixels);
+  take_vertex_rays(rec);
+  cast_foveal_disc(rec);
+  cast_pixel_level_pieces(rec);
+  interpolate_uniform_pieces(rec);
+  cast_gaps(rec);
+
+  CsfStats& stats = out.stats;
   stats.rays_cast = refinement.rays_cast + stats.foveal_rays + stats.pixel_level_rays + stats.gap_rays;
   return out;
 }
