@@ -417,84 +417,116 @@ void save_calibration(const Calibration& cal, const std::filesystem::path& path,
   }
 }
 
-Calibration load_calibration(const std::filesystem::path& path) {
-  const std::string name = path.string();
+namespace {
+
+std::string read_text(const std::filesystem::path& path, const std::string& name) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(name + ": cannot open: " + std::strerror(errno));
   std::stringstream ss;
   ss << in.rdbuf();
+  return ss.str();
+}
+
+json parse_json(const std::string& text, const std::string& name) {
   json j;
   try {
-    j = json::parse(ss.str());
+    j = json::parse(text);
   } catch (const json::parse_error& e) {
     throw std::runtime_error(name + ": not valid JSON: " + e.what());
   }
-  try {
-    if (!j.is_object()) throw std::invalid_argument(name + ": must be a JSON object (a fovea calibration file)");
-    const json& format = member(j, name, "format");
-    if (!format.is_string() || format.get<std::string>() != "fovea-calibration") {
-      bad(name, "format", "must be \"fovea-calibration\" (this is not a fovea calibration file)");
-    }
-    const json& version = member(j, name, "version");
-    if (!version.is_number_integer()) bad(name, "version", "must be an integer");
-    const auto v = version.get<long long>();
-    if (v > kCalibrationFileVersion) {
-      throw std::invalid_argument(name + ": written by a newer fovea (version " + std::to_string(v) +
-                                  "); this build reads version " + std::to_string(kCalibrationFileVersion));
-    }
-    if (v < 1) bad(name, "version", "is " + std::to_string(v) + "; versions start at 1");
+  return j;
+}
 
+// The file says it is a fovea calibration, of a version this build reads.
+void check_format_and_version(const json& j, const std::string& name) {
+  if (!j.is_object()) throw std::invalid_argument(name + ": must be a JSON object (a fovea calibration file)");
+  const json& format = member(j, name, "format");
+  if (!format.is_string() || format.get<std::string>() != "fovea-calibration") {
+    bad(name, "format", "must be \"fovea-calibration\" (this is not a fovea calibration file)");
+  }
+  const json& version = member(j, name, "version");
+  if (!version.is_number_integer()) bad(name, "version", "must be an integer");
+  const auto v = version.get<long long>();
+  if (v > kCalibrationFileVersion) {
+    throw std::invalid_argument(name + ": written by a newer fovea (version " + std::to_string(v) +
+                                "); this build reads version " + std::to_string(kCalibrationFileVersion));
+  }
+  if (v < 1) bad(name, "version", "is " + std::to_string(v) + "; versions start at 1");
+}
+
+// The model(s) and the fit's figures, which every version has, and the display.
+void read_fit(const json& j, const std::string& name, Calibration& cal) {
+  cal.model = model_from_json(member(j, name, "model"), name + ": model");
+  if (j.contains("on_top_of")) cal.on_top_of = model_from_json(j["on_top_of"], name + ": on_top_of");
+  const json& pu = member(j, name, "points_used");
+  if (!pu.is_number_unsigned()) bad(name, "points_used", "must be a non-negative integer");
+  cal.points_used = pu.get<std::size_t>();
+  cal.rms_residual = number(member(j, name, "rms_residual"), name, "rms_residual");
+  const json& cond = member(j, name, "condition");
+  cal.condition = cond.is_null() ? std::numeric_limits<double>::quiet_NaN() : number(cond, name, "condition");
+  const json& created = member(j, name, "created");
+  if (!created.is_string()) bad(name, "created", "must be an ISO-8601 string");
+  cal.created = created.get<std::string>();
+  if (j.contains("display")) cal.display = display_from_json(j["display"], name + ": display");
+}
+
+// What the model maps from and to: the input, the eye and the target space (optional fields).
+void read_spaces(const json& j, const std::string& name, Calibration& cal) {
+  // Files written before "input" existed were fitted from CSV on screen points.
+  if (j.contains("input")) {
+    const json& input = j["input"];
+    if (!input.is_string() ||
+        (input.get<std::string>() != kInputScreen && input.get<std::string>() != kInputPupilGlint)) {
+      bad(name, "input", "must be \"screen\" or \"pupil-glint\"");
+    }
+    cal.input = input.get<std::string>();
+  }
+  if (j.contains("eye")) {
+    const json& e = j["eye"];
+    if (!e.is_string() || (e.get<std::string>() != "left" && e.get<std::string>() != "right")) {
+      bad(name, "eye", "must be \"left\" or \"right\"");
+    }
+    cal.eye = e.get<std::string>();
+  }
+  if (j.contains("target_space")) {
+    const json& t = j["target_space"];
+    if (!t.is_string() || (t.get<std::string>() != kTargetPixels && t.get<std::string>() != kTargetFickDegrees)) {
+      bad(name, "target_space", "must be \"px\" or \"fick-deg\"");
+    }
+    cal.target_space = t.get<std::string>();
+    if (cal.target_space == kTargetFickDegrees && !cal.display) {
+      bad(name, "display", "is required when target_space is \"fick-deg\"");
+    }
+  }
+}
+
+// The robust fit's rejections and the validation summary (optional fields).
+void read_outliers_and_validation(const json& j, const std::string& name, Calibration& cal) {
+  if (j.contains("outliers_rejected")) {
+    if (!j["outliers_rejected"].is_number_unsigned()) bad(name, "outliers_rejected", "must be a non-negative integer");
+    cal.outliers_rejected = j["outliers_rejected"].get<std::size_t>();
+  }
+  if (j.contains("validation")) {
+    if (!j["validation"].is_object()) bad(name, "validation", "must be an object");
+    cal.validation = j["validation"];
+    if (cal.validation.contains("accuracy_deg") && !cal.validation["accuracy_deg"].is_null()) {
+      const double a = number(cal.validation["accuracy_deg"], name + ": validation", "accuracy_deg");
+      if (a < 0) bad(name + ": validation", "accuracy_deg", "must be >= 0");
+    }
+  }
+}
+
+}  // namespace
+
+Calibration load_calibration(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  const json j = parse_json(read_text(path, name), name);
+  try {
+    check_format_and_version(j, name);
     Calibration cal;
-    cal.model = model_from_json(member(j, name, "model"), name + ": model");
-    if (j.contains("on_top_of")) cal.on_top_of = model_from_json(j["on_top_of"], name + ": on_top_of");
-    const json& pu = member(j, name, "points_used");
-    if (!pu.is_number_unsigned()) bad(name, "points_used", "must be a non-negative integer");
-    cal.points_used = pu.get<std::size_t>();
-    cal.rms_residual = number(member(j, name, "rms_residual"), name, "rms_residual");
-    const json& cond = member(j, name, "condition");
-    cal.condition = cond.is_null() ? std::numeric_limits<double>::quiet_NaN() : number(cond, name, "condition");
-    const json& created = member(j, name, "created");
-    if (!created.is_string()) bad(name, "created", "must be an ISO-8601 string");
-    cal.created = created.get<std::string>();
-    if (j.contains("display")) cal.display = display_from_json(j["display"], name + ": display");
-    // Files written before "input" existed were fitted from CSV on screen points.
-    if (j.contains("input")) {
-      const json& input = j["input"];
-      if (!input.is_string() ||
-          (input.get<std::string>() != kInputScreen && input.get<std::string>() != kInputPupilGlint)) {
-        bad(name, "input", "must be \"screen\" or \"pupil-glint\"");
-      }
-      cal.input = input.get<std::string>();
-    }
-    if (j.contains("eye")) {
-      const json& e = j["eye"];
-      if (!e.is_string() || (e.get<std::string>() != "left" && e.get<std::string>() != "right")) {
-        bad(name, "eye", "must be \"left\" or \"right\"");
-      }
-      cal.eye = e.get<std::string>();
-    }
-    if (j.contains("target_space")) {
-      const json& t = j["target_space"];
-      if (!t.is_string() || (t.get<std::string>() != kTargetPixels && t.get<std::string>() != kTargetFickDegrees)) {
-        bad(name, "target_space", "must be \"px\" or \"fick-deg\"");
-      }
-      cal.target_space = t.get<std::string>();
-      if (cal.target_space == kTargetFickDegrees && !cal.display) {
-        bad(name, "display", "is required when target_space is \"fick-deg\"");
-      }
-    }
-    if (j.contains("outliers_rejected")) {
-      if (!j["outliers_rejected"].is_number_unsigned()) bad(name, "outliers_rejected", "must be a non-negative integer");
-      cal.outliers_rejected = j["outliers_rejected"].get<std::size_t>();
-    }
-    if (j.contains("validation")) {
-      if (!j["validation"].is_object()) bad(name, "validation", "must be an object");
-      cal.validation = j["validation"];
-      if (cal.validation.contains("accuracy_deg") && !cal.validation["accuracy_deg"].is_null()) {
-        const double a = number(cal.validation["accuracy_deg"], name + ": validation", "accuracy_deg");
-        if (a < 0) bad(name + ": validation", "accuracy_deg", "must be >= 0");
-      }
-    }
+    read_fit(j, name, cal);
+    read_spaces(j, name, cal);
+    read_outliers_and_validation(j, name, cal);
     return cal;
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(e.what());

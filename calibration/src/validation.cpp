@@ -176,71 +176,104 @@ ValidationResult validate(std::span<const ValidationSample> samples, const Displ
   return r;
 }
 
-std::string format_table(const ValidationResult& result) {
-  const bool with_before = result.before.has_value();
-  const std::vector<std::string> stat_names{"n", "lost", "acc deg", "acc mm", "RMS deg", "STD deg", "min deg", "max deg"};
-  // Column groups: target, [before], after.
+namespace {
+
+// The table's columns: the groups (target, [before], after) with their column counts, and every column's name.
+struct TableColumns {
+  std::vector<std::pair<std::string, std::size_t>> groups;
+  std::vector<std::string> names;
+};
+
+TableColumns table_columns(bool with_before) {
+  const std::vector<std::string> stat_names{"n",       "lost",    "acc deg", "acc mm",
+                                            "RMS deg", "STD deg", "min deg", "max deg"};
   std::vector<std::pair<std::string, std::size_t>> groups{{"target px", 2}};
   if (with_before) groups.push_back({"before", stat_names.size()});
   groups.push_back({with_before ? "after" : "accuracy and precision", stat_names.size()});
   std::vector<std::string> names{"x", "y"};
   if (with_before) names.insert(names.end(), stat_names.begin(), stat_names.end());
   names.insert(names.end(), stat_names.begin(), stat_names.end());
+  return {std::move(groups), std::move(names)};
+}
 
-  std::vector<std::vector<std::string>> rows;
+void append_stat_cells(std::vector<std::string>& row, const ErrorStats& s) {
+  const auto c = stat_cells(s);
+  row.insert(row.end(), c.begin(), c.end());
+}
+
+// The table's cells: a row per target, then the overall row.
+struct TableRows {
+  std::vector<std::vector<std::string>> targets;
+  std::vector<std::string> overall;
+};
+
+TableRows table_rows(const ValidationResult& result, bool with_before) {
+  TableRows rows;
   for (const auto& t : result.targets) {
     std::vector<std::string> row{fixed(t.target_px.x, 1), fixed(t.target_px.y, 1)};
-    if (with_before) {
-      const auto c = stat_cells(t.before ? *t.before : ErrorStats{});
-      row.insert(row.end(), c.begin(), c.end());
-    }
-    const auto c = stat_cells(t.after);
-    row.insert(row.end(), c.begin(), c.end());
-    rows.push_back(std::move(row));
+    if (with_before) append_stat_cells(row, t.before ? *t.before : ErrorStats{});
+    append_stat_cells(row, t.after);
+    rows.targets.push_back(std::move(row));
   }
-  std::vector<std::string> overall{"overall", ""};
-  if (with_before) {
-    const auto c = stat_cells(*result.before);
-    overall.insert(overall.end(), c.begin(), c.end());
-  }
-  const auto c = stat_cells(result.after);
-  overall.insert(overall.end(), c.begin(), c.end());
+  rows.overall = {"overall", ""};
+  if (with_before) append_stat_cells(rows.overall, *result.before);
+  append_stat_cells(rows.overall, result.after);
+  return rows;
+}
 
+// Width of the columns [first, first + count) with their separators.
+std::size_t group_width(const std::vector<std::size_t>& width, std::size_t first, std::size_t count) {
+  std::size_t w = 0;
+  for (std::size_t k = first; k < first + count; ++k) w += width[k] + (k > first ? 2 : 0);
+  return w;
+}
+
+// Each column as wide as its widest cell.
+std::vector<std::size_t> column_widths(const TableColumns& columns, const TableRows& rows) {
+  const std::vector<std::string>& names = columns.names;
   std::vector<std::size_t> width(names.size());
   for (std::size_t k = 0; k < names.size(); ++k) {
     width[k] = names[k].size();
-    for (const auto& row : rows) width[k] = std::max(width[k], row[k].size());
-    width[k] = std::max(width[k], overall[k].size());
+    for (const auto& row : rows.targets) width[k] = std::max(width[k], row[k].size());
+    width[k] = std::max(width[k], rows.overall[k].size());
   }
   // Widen a group's last column when its label is longer than the group.
   std::size_t first = 0;
-  for (const auto& [label, count] : groups) {
-    std::size_t w = 0;
-    for (std::size_t k = first; k < first + count; ++k) w += width[k] + (k > first ? 2 : 0);
+  for (const auto& [label, count] : columns.groups) {
+    const std::size_t w = group_width(width, first, count);
     if (label.size() > w) width[first + count - 1] += label.size() - w;
     first += count;
   }
-  const auto line = [&](const std::vector<std::string>& cells) {
-    std::string out;
-    std::size_t k = 0;
-    for (std::size_t g = 0; g < groups.size(); ++g) {
-      if (g > 0) out += " | ";
-      for (std::size_t i = 0; i < groups[g].second; ++i, ++k) {
-        if (i > 0) out += "  ";
-        // "overall" is left-aligned; everything else right-aligned.
-        const bool left = k == 0 && cells[k] == "overall";
-        const std::string pad(width[k] - cells[k].size(), ' ');
-        out += left ? cells[k] + pad : pad + cells[k];
-      }
-    }
-    while (!out.empty() && out.back() == ' ') out.pop_back();
-    return out + "\n";
-  };
-  std::string header;
-  first = 0;
+  return width;
+}
+
+// One line of cells under their columns, groups split by " | ", with no trailing spaces.
+std::string table_line(const TableColumns& columns, const std::vector<std::size_t>& width,
+                       const std::vector<std::string>& cells) {
+  const auto& groups = columns.groups;
+  std::string out;
+  std::size_t k = 0;
   for (std::size_t g = 0; g < groups.size(); ++g) {
-    std::size_t w = 0;
-    for (std::size_t k = first; k < first + groups[g].second; ++k) w += width[k] + (k > first ? 2 : 0);
+    if (g > 0) out += " | ";
+    for (std::size_t i = 0; i < groups[g].second; ++i, ++k) {
+      if (i > 0) out += "  ";
+      // "overall" is left-aligned; everything else right-aligned.
+      const bool left = k == 0 && cells[k] == "overall";
+      const std::string pad(width[k] - cells[k].size(), ' ');
+      out += left ? cells[k] + pad : pad + cells[k];
+    }
+  }
+  while (!out.empty() && out.back() == ' ') out.pop_back();
+  return out + "\n";
+}
+
+// The group labels, each centred over its columns.
+std::string table_header(const TableColumns& columns, const std::vector<std::size_t>& width) {
+  const auto& groups = columns.groups;
+  std::string header;
+  std::size_t first = 0;
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    const std::size_t w = group_width(width, first, groups[g].second);
     const std::string& label = groups[g].first;
     const std::size_t left = (w - label.size()) / 2;
     if (g > 0) header += " | ";
@@ -248,17 +281,14 @@ std::string format_table(const ValidationResult& result) {
     first += groups[g].second;
   }
   while (!header.empty() && header.back() == ' ') header.pop_back();
-  std::string out = header + "\n" + line(names);
-  std::string rule = line(names);
-  for (char& ch : rule) {
-    if (ch != '|' && ch != '\n') ch = '-';
-  }
-  out += rule;
-  for (const auto& row : rows) out += line(row);
-  out += rule + line(overall);
+  return header + "\n";
+}
+
+// The legend under the table: what the figures are, and how many targets the overall row averages.
+std::string table_notes(const ValidationResult& result) {
   std::size_t with_data = 0;
   for (const auto& t : result.targets) if (t.after.has_data()) ++with_data;
-  out += "accuracy: mean angle between sample and target (deg) and on-screen distance (mm); precision: RMS of\n"
+  return "accuracy: mean angle between sample and target (deg) and on-screen distance (mm); precision: RMS of\n"
          "successive sample-to-sample angles and STD (RMS angle to the samples' mean); min/max: sample errors.\n"
          "overall: mean over the " +
          std::to_string(with_data) + " target(s) with data, each weighing the same" +
@@ -266,6 +296,24 @@ std::string format_table(const ValidationResult& result) {
               ? " (" + std::to_string(result.targets.size() - with_data) + " target(s) had only lost samples)"
               : std::string()) +
          "; min/max over all samples.\n";
+}
+
+}  // namespace
+
+std::string format_table(const ValidationResult& result) {
+  const bool with_before = result.before.has_value();
+  const TableColumns columns = table_columns(with_before);
+  const TableRows rows = table_rows(result, with_before);
+  const std::vector<std::size_t> width = column_widths(columns, rows);
+  std::string out = table_header(columns, width) + table_line(columns, width, columns.names);
+  std::string rule = table_line(columns, width, columns.names);
+  for (char& ch : rule) {
+    if (ch != '|' && ch != '\n') ch = '-';
+  }
+  out += rule;
+  for (const auto& row : rows.targets) out += table_line(columns, width, row);
+  out += rule + table_line(columns, width, rows.overall);
+  out += table_notes(result);
   return out;
 }
 
