@@ -281,6 +281,160 @@ void V4l2Camera::apply_controls() {
   notes_.push_back(offered.empty() ? "no exposure/gain controls" : offered);
 }
 
+// The node must be a V4L2 capture device with streaming I/O; otherwise a CameraError says what it
+// is instead (a UVC camera's metadata node is the usual mistake).
+void V4l2Camera::query_capabilities() {
+  v4l2_capability cap{};
+  if (const int r = device_->ioctl(fd_, VIDIOC_QUERYCAP, &cap); r < 0) {
+    if (r == -ENOTTY || r == -EINVAL) {
+      throw CameraError(CameraError::Kind::not_capture,
+                        "camera " + options_.device + " is not a V4L2 device (VIDIOC_QUERYCAP: " + errno_text(-r) +
+                            "); video devices present: " + describe_video_nodes(nodes_->list()));
+    }
+    fail(-r, "VIDIOC_QUERYCAP");
+  }
+  card_.assign(reinterpret_cast<const char*>(cap.card),
+               strnlen(reinterpret_cast<const char*>(cap.card), sizeof cap.card));
+  const std::uint32_t caps = (cap.capabilities & V4L2_CAP_DEVICE_CAPS) != 0 ? cap.device_caps : cap.capabilities;
+  if ((caps & V4L2_CAP_VIDEO_CAPTURE) == 0) {
+    throw CameraError(CameraError::Kind::not_capture,
+                      "camera " + options_.device + " (" + card_ +
+                          ") is not a video capture device (a UVC camera's second node carries metadata); video "
+                          "devices present: " +
+                          describe_video_nodes(nodes_->list()));
+  }
+  if ((caps & V4L2_CAP_STREAMING) == 0) {
+    throw CameraError(CameraError::Kind::not_capture,
+                      "camera " + options_.device + " (" + card_ + ") does not support streaming (mmap) capture");
+  }
+}
+
+// The mode the options ask for among those the device lists (modes_), or a CameraError naming
+// what was wanted and what the device offers.
+void V4l2Camera::choose_listed_mode() {
+  modes_ = enumerate_modes();
+  const auto chosen = choose_mode(modes_, options_);
+  if (!chosen) {
+    std::string wanted;
+    if (options_.width != 0 || options_.height != 0) {
+      wanted = (options_.width ? std::to_string(options_.width) : "*") + "x" +
+               (options_.height ? std::to_string(options_.height) : "*");
+    }
+    if (options_.fps > 0) wanted += (wanted.empty() ? "" : "@") + format_fps(options_.fps) + " fps";
+    const bool any_readable =
+        std::any_of(modes_.begin(), modes_.end(), [](const CameraMode& m) { return readable_format(m.fourcc); });
+    std::string message = "camera " + options_.device + " (" + card_ + "): ";
+    message += any_readable ? "no GREY, YUYV or MJPG mode matches " + (wanted.empty() ? "the request" : wanted)
+                            : "offers no format fovea can read (fovea reads GREY, YUYV, MJPG)";
+    message += "; it supports: " + describe_modes(modes_);
+    throw CameraError(CameraError::Kind::unsupported, message);
+  }
+  mode_ = *chosen;
+}
+
+// S_FMT with the chosen mode: the driver may adjust the size (noted; mode_ follows it) but not the
+// pixel format. The row stride is kept at least one row of pixels whatever bytesperline it reports.
+void V4l2Camera::set_format() {
+  v4l2_format fmt{};
+  fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  fmt.fmt.pix.width = mode_.width;
+  fmt.fmt.pix.height = mode_.height;
+  fmt.fmt.pix.pixelformat = mode_.fourcc;
+  fmt.fmt.pix.field = V4L2_FIELD_NONE;
+  if (const int r = device_->ioctl(fd_, VIDIOC_S_FMT, &fmt); r < 0) fail(-r, "VIDIOC_S_FMT");
+  if (fmt.fmt.pix.pixelformat != mode_.fourcc) {
+    throw CameraError(CameraError::Kind::unsupported,
+                      "camera " + options_.device + " (" + card_ + "): asked for " + describe_mode(mode_) +
+                          ", the driver gave " + fourcc_name(fmt.fmt.pix.pixelformat) +
+                          "; it supports: " + describe_modes(modes_));
+  }
+  if (fmt.fmt.pix.width != mode_.width || fmt.fmt.pix.height != mode_.height) {
+    notes_.push_back("asked for " + std::to_string(mode_.width) + "x" + std::to_string(mode_.height) +
+                     ", the driver gave " + std::to_string(fmt.fmt.pix.width) + "x" +
+                     std::to_string(fmt.fmt.pix.height));
+    mode_.width = fmt.fmt.pix.width;
+    mode_.height = fmt.fmt.pix.height;
+  }
+  const std::uint32_t min_bpl = mode_.fourcc == V4L2_PIX_FMT_YUYV ? 2 * mode_.width : mode_.width;
+  bytes_per_line_ = std::max(fmt.fmt.pix.bytesperline, min_bpl);
+  image_size_ = fmt.fmt.pix.sizeimage;
+}
+
+// Frame rate: only when the driver allows it (V4L2_CAP_TIMEPERFRAME); read back what it chose.
+void V4l2Camera::set_frame_rate() {
+  v4l2_streamparm parm{};
+  parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  if (device_->ioctl(fd_, VIDIOC_G_PARM, &parm) == 0 && (parm.parm.capture.capability & V4L2_CAP_TIMEPERFRAME) != 0 &&
+      mode_.interval_num != 0) {
+    parm.parm.capture.timeperframe.numerator = mode_.interval_num;
+    parm.parm.capture.timeperframe.denominator = mode_.interval_den;
+    if (const int r = device_->ioctl(fd_, VIDIOC_S_PARM, &parm); r < 0) fail(-r, "VIDIOC_S_PARM");
+    const auto& tpf = parm.parm.capture.timeperframe;
+    if (tpf.numerator != 0 && tpf.denominator != 0) {
+      mode_.interval_num = tpf.numerator;
+      mode_.interval_den = tpf.denominator;
+    }
+  } else if (mode_.interval_num != 0) {
+    notes_.push_back("the driver does not let fovea set the frame rate");
+  }
+}
+
+// REQBUFS for options_.buffers mmap buffers; returns how many the driver gave (it may give fewer
+// or more, never 0 here).
+std::uint32_t V4l2Camera::request_buffers() {
+  v4l2_requestbuffers req{};
+  req.count = options_.buffers;
+  req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  req.memory = V4L2_MEMORY_MMAP;
+  if (const int r = device_->ioctl(fd_, VIDIOC_REQBUFS, &req); r < 0) fail(-r, "VIDIOC_REQBUFS");
+  if (req.count == 0) {
+    throw CameraError(CameraError::Kind::io, "camera " + options_.device + " (" + card_ +
+                                                 "): the driver gave no capture buffers (out of memory?)");
+  }
+  return req.count;
+}
+
+// Each buffer into buffers_ as soon as it is mapped, so close_device() unmaps what a failure leaves.
+void V4l2Camera::map_buffers(std::uint32_t count) {
+  for (std::uint32_t i = 0; i < count; ++i) {
+    v4l2_buffer b{};
+    b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    b.memory = V4L2_MEMORY_MMAP;
+    b.index = i;
+    if (const int r = device_->ioctl(fd_, VIDIOC_QUERYBUF, &b); r < 0) fail(-r, "VIDIOC_QUERYBUF");
+    Buffer buffer;
+    buffer.length = b.length;
+    if (const int r = device_->mmap(fd_, b.length, b.m.offset, &buffer.data); r < 0) fail(-r, "mmap");
+    buffers_.push_back(buffer);
+  }
+}
+
+// Every buffer queued before STREAMON, so the driver has somewhere to capture into from the start.
+void V4l2Camera::start_streaming(std::uint32_t count) {
+  for (std::uint32_t i = 0; i < count; ++i) {
+    v4l2_buffer b{};
+    b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    b.memory = V4L2_MEMORY_MMAP;
+    b.index = i;
+    if (const int r = device_->ioctl(fd_, VIDIOC_QBUF, &b); r < 0) fail(-r, "VIDIOC_QBUF");
+  }
+  int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  if (const int r = device_->ioctl(fd_, VIDIOC_STREAMON, &type); r < 0) fail(-r, "VIDIOC_STREAMON");
+  streaming_ = true;
+}
+
+// What the camera streams, as status() describes it; healthy again after a reconnect.
+void V4l2Camera::report_streaming() {
+  std::string description = "camera:" + options_.device + " " + std::to_string(mode_.width) + "x" +
+                            std::to_string(mode_.height) + " " + fourcc_name(mode_.fourcc);
+  if (mode_.fps() > 0) description += " " + format_fps(mode_.fps()) + " fps";
+  if (!card_.empty()) description += " (" + card_ + ")";
+  std::lock_guard lock(status_mutex_);
+  status_.description = description;
+  status_.healthy = true;
+  status_.problem.clear();
+}
+
 void V4l2Camera::open_device() {
   card_.clear();
   notes_.clear();
@@ -290,134 +444,19 @@ void V4l2Camera::open_device() {
   if (fd < 0) fail(-fd, "open");
   fd_ = fd;
   try {
-    v4l2_capability cap{};
-    if (const int r = device_->ioctl(fd_, VIDIOC_QUERYCAP, &cap); r < 0) {
-      if (r == -ENOTTY || r == -EINVAL) {
-        throw CameraError(CameraError::Kind::not_capture,
-                          "camera " + options_.device + " is not a V4L2 device (VIDIOC_QUERYCAP: " + errno_text(-r) +
-                              "); video devices present: " + describe_video_nodes(nodes_->list()));
-      }
-      fail(-r, "VIDIOC_QUERYCAP");
-    }
-    card_.assign(reinterpret_cast<const char*>(cap.card), strnlen(reinterpret_cast<const char*>(cap.card), sizeof cap.card));
-    const std::uint32_t caps = (cap.capabilities & V4L2_CAP_DEVICE_CAPS) != 0 ? cap.device_caps : cap.capabilities;
-    if ((caps & V4L2_CAP_VIDEO_CAPTURE) == 0) {
-      throw CameraError(CameraError::Kind::not_capture,
-                        "camera " + options_.device + " (" + card_ +
-                            ") is not a video capture device (a UVC camera's second node carries metadata); video "
-                            "devices present: " +
-                            describe_video_nodes(nodes_->list()));
-    }
-    if ((caps & V4L2_CAP_STREAMING) == 0) {
-      throw CameraError(CameraError::Kind::not_capture,
-                        "camera " + options_.device + " (" + card_ + ") does not support streaming (mmap) capture");
-    }
-
-    modes_ = enumerate_modes();
-    const auto chosen = choose_mode(modes_, options_);
-    if (!chosen) {
-      std::string wanted;
-      if (options_.width != 0 || options_.height != 0) {
-        wanted = (options_.width ? std::to_string(options_.width) : "*") + "x" +
-                 (options_.height ? std::to_string(options_.height) : "*");
-      }
-      if (options_.fps > 0) wanted += (wanted.empty() ? "" : "@") + format_fps(options_.fps) + " fps";
-      const bool any_readable =
-          std::any_of(modes_.begin(), modes_.end(), [](const CameraMode& m) { return readable_format(m.fourcc); });
-      std::string message = "camera " + options_.device + " (" + card_ + "): ";
-      message += any_readable ? "no GREY, YUYV or MJPG mode matches " + (wanted.empty() ? "the request" : wanted)
-                              : "offers no format fovea can read (fovea reads GREY, YUYV, MJPG)";
-      message += "; it supports: " + describe_modes(modes_);
-      throw CameraError(CameraError::Kind::unsupported, message);
-    }
-    mode_ = *chosen;
-
-    v4l2_format fmt{};
-    fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    fmt.fmt.pix.width = mode_.width;
-    fmt.fmt.pix.height = mode_.height;
-    fmt.fmt.pix.pixelformat = mode_.fourcc;
-    fmt.fmt.pix.field = V4L2_FIELD_NONE;
-    if (const int r = device_->ioctl(fd_, VIDIOC_S_FMT, &fmt); r < 0) fail(-r, "VIDIOC_S_FMT");
-    if (fmt.fmt.pix.pixelformat != mode_.fourcc) {
-      throw CameraError(CameraError::Kind::unsupported,
-                        "camera " + options_.device + " (" + card_ + "): asked for " + describe_mode(mode_) +
-                            ", the driver gave " + fourcc_name(fmt.fmt.pix.pixelformat) +
-                            "; it supports: " + describe_modes(modes_));
-    }
-    if (fmt.fmt.pix.width != mode_.width || fmt.fmt.pix.height != mode_.height) {
-      notes_.push_back("asked for " + std::to_string(mode_.width) + "x" + std::to_string(mode_.height) +
-                       ", the driver gave " + std::to_string(fmt.fmt.pix.width) + "x" +
-                       std::to_string(fmt.fmt.pix.height));
-      mode_.width = fmt.fmt.pix.width;
-      mode_.height = fmt.fmt.pix.height;
-    }
-    const std::uint32_t min_bpl = mode_.fourcc == V4L2_PIX_FMT_YUYV ? 2 * mode_.width : mode_.width;
-    bytes_per_line_ = std::max(fmt.fmt.pix.bytesperline, min_bpl);
-    image_size_ = fmt.fmt.pix.sizeimage;
-
-    // Frame rate: only when the driver allows it (V4L2_CAP_TIMEPERFRAME); read back what it chose.
-    v4l2_streamparm parm{};
-    parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    if (device_->ioctl(fd_, VIDIOC_G_PARM, &parm) == 0 && (parm.parm.capture.capability & V4L2_CAP_TIMEPERFRAME) != 0 &&
-        mode_.interval_num != 0) {
-      parm.parm.capture.timeperframe.numerator = mode_.interval_num;
-      parm.parm.capture.timeperframe.denominator = mode_.interval_den;
-      if (const int r = device_->ioctl(fd_, VIDIOC_S_PARM, &parm); r < 0) fail(-r, "VIDIOC_S_PARM");
-      const auto& tpf = parm.parm.capture.timeperframe;
-      if (tpf.numerator != 0 && tpf.denominator != 0) {
-        mode_.interval_num = tpf.numerator;
-        mode_.interval_den = tpf.denominator;
-      }
-    } else if (mode_.interval_num != 0) {
-      notes_.push_back("the driver does not let fovea set the frame rate");
-    }
-
+    query_capabilities();
+    choose_listed_mode();
+    set_format();
+    set_frame_rate();
     apply_controls();
-
-    v4l2_requestbuffers req{};
-    req.count = options_.buffers;
-    req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    req.memory = V4L2_MEMORY_MMAP;
-    if (const int r = device_->ioctl(fd_, VIDIOC_REQBUFS, &req); r < 0) fail(-r, "VIDIOC_REQBUFS");
-    if (req.count == 0) {
-      throw CameraError(CameraError::Kind::io, "camera " + options_.device + " (" + card_ +
-                                                   "): the driver gave no capture buffers (out of memory?)");
-    }
-    for (std::uint32_t i = 0; i < req.count; ++i) {
-      v4l2_buffer b{};
-      b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-      b.memory = V4L2_MEMORY_MMAP;
-      b.index = i;
-      if (const int r = device_->ioctl(fd_, VIDIOC_QUERYBUF, &b); r < 0) fail(-r, "VIDIOC_QUERYBUF");
-      Buffer buffer;
-      buffer.length = b.length;
-      if (const int r = device_->mmap(fd_, b.length, b.m.offset, &buffer.data); r < 0) fail(-r, "mmap");
-      buffers_.push_back(buffer);
-    }
-    for (std::uint32_t i = 0; i < req.count; ++i) {
-      v4l2_buffer b{};
-      b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-      b.memory = V4L2_MEMORY_MMAP;
-      b.index = i;
-      if (const int r = device_->ioctl(fd_, VIDIOC_QBUF, &b); r < 0) fail(-r, "VIDIOC_QBUF");
-    }
-    int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    if (const int r = device_->ioctl(fd_, VIDIOC_STREAMON, &type); r < 0) fail(-r, "VIDIOC_STREAMON");
-    streaming_ = true;
+    const std::uint32_t count = request_buffers();
+    map_buffers(count);
+    start_streaming(count);
   } catch (...) {
     close_device();
     throw;
   }
-
-  std::string description = "camera:" + options_.device + " " + std::to_string(mode_.width) + "x" +
-                            std::to_string(mode_.height) + " " + fourcc_name(mode_.fourcc);
-  if (mode_.fps() > 0) description += " " + format_fps(mode_.fps()) + " fps";
-  if (!card_.empty()) description += " (" + card_ + ")";
-  std::lock_guard lock(status_mutex_);
-  status_.description = description;
-  status_.healthy = true;
-  status_.problem.clear();
+  report_streaming();
 }
 
 void V4l2Camera::close_device() {
@@ -469,36 +508,44 @@ std::optional<EyeFrame> V4l2Camera::next(int timeout_ms) {
   return try_dequeue(timeout_ms);
 }
 
-std::optional<EyeFrame> V4l2Camera::try_dequeue(int timeout_ms) {
-  const auto label = [&] { return "camera " + options_.device + (card_.empty() ? "" : " (" + card_ + ")"); };
+// "camera /dev/video0 (Card)": how the lost-device problems in status() name the camera.
+std::string V4l2Camera::camera_label() const {
+  return "camera " + options_.device + (card_.empty() ? "" : " (" + card_ + ")");
+}
+
+// Waits up to timeout_ms for a filled buffer and dequeues it into `b`; false when none came, or
+// when the device was lost (lose_device() has then recorded why).
+bool V4l2Camera::dequeue_buffer(int timeout_ms, v4l2_buffer& b) {
   const int revents = device_->poll(fd_, POLLIN, timeout_ms);
-  if (revents == 0 || revents == -EINTR) return std::nullopt;
+  if (revents == 0 || revents == -EINTR) return false;
   if (revents < 0) {
-    lose_device(label() + ": poll failed: " + errno_text(-revents));
-    return std::nullopt;
+    lose_device(camera_label() + ": poll failed: " + errno_text(-revents));
+    return false;
   }
-  v4l2_buffer b{};
   b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   b.memory = V4L2_MEMORY_MMAP;
   if (const int r = device_->ioctl(fd_, VIDIOC_DQBUF, &b); r < 0) {
-    if (r == -EAGAIN && (revents & (POLLERR | POLLHUP | POLLNVAL)) == 0) return std::nullopt;
+    if (r == -EAGAIN && (revents & (POLLERR | POLLHUP | POLLNVAL)) == 0) return false;
     const int error = r == -EAGAIN ? ENODEV : -r;  // POLLERR with nothing to dequeue: the device is gone
     if (error == ENODEV || error == ENXIO) {
-      lose_device(label() + ": device disconnected (" + errno_text(error) + " at VIDIOC_DQBUF)");
+      lose_device(camera_label() + ": device disconnected (" + errno_text(error) + " at VIDIOC_DQBUF)");
     } else {
-      lose_device(label() + ": VIDIOC_DQBUF failed: " + errno_text(error));
+      lose_device(camera_label() + ": VIDIOC_DQBUF failed: " + errno_text(error));
     }
-    return std::nullopt;
+    return false;
   }
   if (b.index >= buffers_.size()) {
-    lose_device(label() + ": the driver returned buffer " + std::to_string(b.index) + " of " +
+    lose_device(camera_label() + ": the driver returned buffer " + std::to_string(b.index) + " of " +
                 std::to_string(buffers_.size()));
-    return std::nullopt;
+    return false;
   }
+  return true;
+}
 
-  // Sequence: gaps are frames the driver dropped; a restart (re-open) continues our numbering.
+// Sequence: gaps are frames the driver dropped; a restart (re-open) continues our numbering.
+// Returns the frames dropped just before this one; last_sequence_ becomes this frame's number.
+std::uint64_t V4l2Camera::continue_sequence(std::uint32_t seq) {
   std::uint64_t dropped = 0;
-  const std::uint32_t seq = b.sequence;
   if (!have_sequence_ || seq <= last_driver_sequence_) {
     // Unsigned wrap-around is intended: base + seq is the continued number.
     sequence_base_ = (sequence_started_ ? last_sequence_ + 1 : seq) - seq;
@@ -509,7 +556,12 @@ std::optional<EyeFrame> V4l2Camera::try_dequeue(int timeout_ms) {
   }
   last_driver_sequence_ = seq;
   last_sequence_ = sequence_base_ + seq;
+  return dropped;
+}
 
+// Frame time on CLOCK_MONOTONIC: the driver's buffer timestamp when it is a monotonic one, else the
+// arrival time (noted once per open).
+std::int64_t V4l2Camera::frame_time_ns(const v4l2_buffer& b) {
   std::int64_t time_ns = 0;
   const bool monotonic = (b.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC &&
                          (b.timestamp.tv_sec != 0 || b.timestamp.tv_usec != 0);
@@ -522,11 +574,16 @@ std::optional<EyeFrame> V4l2Camera::try_dequeue(int timeout_ms) {
       notes_.push_back("the driver gives no monotonic buffer timestamps; frames are stamped on arrival");
     }
   }
+  return time_ns;
+}
 
+// The dequeued buffer's luminance as an 8-bit image of its own (the buffer goes back to the driver);
+// false when the frame is corrupt: flagged by the driver, an undecodable JPEG, or shorter than the
+// negotiated rows.
+bool V4l2Camera::decode_luminance(const v4l2_buffer& b, cv::Mat& image) const {
   const Buffer& buffer = buffers_[b.index];
   const std::size_t used = std::min<std::size_t>(b.bytesused != 0 ? b.bytesused : buffer.length, buffer.length);
   const int w = static_cast<int>(mode_.width), h = static_cast<int>(mode_.height);
-  cv::Mat image;
   bool corrupt = (b.flags & V4L2_BUF_FLAG_ERROR) != 0;
   if (!corrupt) {
     if (mode_.fourcc == V4L2_PIX_FMT_MJPEG) {
@@ -553,10 +610,20 @@ std::optional<EyeFrame> V4l2Camera::try_dequeue(int timeout_ms) {
       }
     }
   }
+  return !corrupt;
+}
+
+std::optional<EyeFrame> V4l2Camera::try_dequeue(int timeout_ms) {
+  v4l2_buffer b{};
+  if (!dequeue_buffer(timeout_ms, b)) return std::nullopt;
+  const std::uint64_t dropped = continue_sequence(b.sequence);
+  const std::int64_t time_ns = frame_time_ns(b);
+  cv::Mat image;
+  const bool corrupt = !decode_luminance(b, image);
 
   if (const int r = device_->ioctl(fd_, VIDIOC_QBUF, &b); r < 0) {
-    lose_device(r == -ENODEV ? label() + ": device disconnected (" + errno_text(ENODEV) + " at VIDIOC_QBUF)"
-                             : label() + ": VIDIOC_QBUF failed: " + errno_text(-r));
+    lose_device(r == -ENODEV ? camera_label() + ": device disconnected (" + errno_text(ENODEV) + " at VIDIOC_QBUF)"
+                             : camera_label() + ": VIDIOC_QBUF failed: " + errno_text(-r));
     std::lock_guard lock(status_mutex_);
     status_.dropped += dropped;
     return std::nullopt;

@@ -18,6 +18,8 @@
 #include "sources/frame_source.h"
 #include "sources/v4l2_device.h"
 
+struct v4l2_buffer;  // <linux/videodev2.h>
+
 namespace fovea::trackerd {
 
 class CameraError : public std::runtime_error {
@@ -97,9 +99,24 @@ class V4l2Camera final : public FrameSource {
     std::size_t length = 0;
   };
   void open_device();   // throws CameraError; on success the camera is streaming
+  // open_device()'s stages, in order; a failing stage throws CameraError.
+  void query_capabilities();
+  void choose_listed_mode();
+  void set_format();
+  void set_frame_rate();
+  std::uint32_t request_buffers();
+  void map_buffers(std::uint32_t count);
+  void start_streaming(std::uint32_t count);
+  void report_streaming();
   void close_device();  // unmaps, STREAMOFF, closes; never throws
   void lose_device(const std::string& problem);
   std::optional<EyeFrame> try_dequeue(int timeout_ms);
+  // try_dequeue()'s stages.
+  std::string camera_label() const;
+  bool dequeue_buffer(int timeout_ms, v4l2_buffer& b);
+  std::uint64_t continue_sequence(std::uint32_t seq);
+  std::int64_t frame_time_ns(const v4l2_buffer& b);
+  bool decode_luminance(const v4l2_buffer& b, cv::Mat& image) const;
   [[noreturn]] void fail(int error, const std::string& during);
   std::vector<CameraMode> enumerate_modes();
   void apply_controls();

@@ -105,6 +105,110 @@ std::span<const std::uint8_t> feature_data(const ValueLocation& loc, std::span<c
   return report.subspan(1);
 }
 
+// The index of the Eye Tracker application collection (page 0x12, usage 0x01); NotAnEyeTracker
+// naming what the descriptor describes instead when it has none.
+int find_eye_tracker_application(const ReportDescriptor& d) {
+  int app = -1;
+  for (std::size_t i = 0; i < d.collections.size(); ++i) {
+    const auto& c = d.collections[i];
+    if (c.kind == static_cast<std::uint8_t>(CollectionKind::Application) && c.usage == eht::EyeTracker) {
+      app = static_cast<int>(i);
+      break;
+    }
+  }
+  if (app < 0) {
+    std::string apps;
+    for (Usage u : d.application_usages()) apps += (apps.empty() ? "" : ", ") + describe_usage(u);
+    throw NotAnEyeTracker(
+        "the report descriptor has no Eye Tracker application collection (usage page 0x12 \"Eye and Head "
+        "Trackers\", usage 0x01); it describes " +
+        (apps.empty() ? std::string("no application collection") : apps) + " with " + usages_present(d));
+  }
+  return app;
+}
+
+// The gaze report: the first Input report with both gaze point coordinates, which must be lengths.
+void find_gaze_point(const ReportDescriptor& d, int app, EyeTrackerLayout& out) {
+  bool found = false;
+  for (const auto& r : d.reports) {
+    if (r.type != ReportType::Input) continue;
+    auto x = find_value(d, app, ReportType::Input, r.id, eht::PositionX, eht::GazePoint);
+    auto y = find_value(d, app, ReportType::Input, r.id, eht::PositionY, eht::GazePoint);
+    if (!x || !y) continue;
+    out.gaze_report_id = r.id;
+    out.gaze_report_size = r.wire_size(d.uses_report_ids);
+    out.gaze_x = *x;
+    out.gaze_y = *y;
+    found = true;
+    break;
+  }
+  if (!found) {
+    throw NotAnEyeTracker("the Eye Tracker collection (descriptor byte " +
+                          std::to_string(d.collections[static_cast<std::size_t>(app)].offset) +
+                          ") has no Gaze Point (0x12:0x24) with Position X and Y (0x21, 0x22) in an Input report; "
+                          "it has " + usages_present(d));
+  }
+  require_length(out.gaze_x, "Gaze Point X");
+  require_length(out.gaze_y, "Gaze Point Y");
+}
+
+// The sensor timestamp in the gaze report `id`: join the elements that repeat its usage (up to 64
+// bits), with its tick, which must be a time.
+void find_sensor_timestamp(const ReportDescriptor& d, int app, std::uint8_t id, EyeTrackerLayout& out) {
+  for (const auto& r : d.reports) {
+    if (r.type != ReportType::Input || r.id != id || out.timestamp) continue;
+    for (const auto& f : r.fields) {
+      if (!f.is_variable()) continue;  // Constant+Variable with a usage is a static value
+      const auto index = f.index_of(eht::SensorTimestamp);
+      if (!index || !inside(d, f, app)) continue;
+      std::uint32_t n = 1;
+      while (*index + n < f.count && (n + 1) * f.bit_size <= 64 && f.usage_of(*index + n) == eht::SensorTimestamp) ++n;
+      out.timestamp = locate(f, *index, n);
+      out.timestamp->is_signed = false;  // a counter
+      break;
+    }
+  }
+  if (out.timestamp) {
+    const auto tick = tick_seconds(*out.timestamp);
+    if (!tick || !(*tick > 0) || !std::isfinite(*tick)) {
+      throw NotAnEyeTracker("Sensor Timestamp (descriptor byte " + std::to_string(out.timestamp->descriptor_offset) +
+                            ") has unit " + hex(out.timestamp->unit, 4) + ", which is not a time");
+    }
+    out.timestamp_tick_s = *tick;
+  }
+}
+
+// One eye's position (X, Y and Z inside the collection `which`) in the gaze report `id`; all three
+// must be lengths.
+std::optional<EyeLocations> find_eye(const ReportDescriptor& d, int app, std::uint8_t id, Usage which,
+                                     const char* name) {
+  auto x = find_value(d, app, ReportType::Input, id, eht::PositionX, which);
+  auto y = find_value(d, app, ReportType::Input, id, eht::PositionY, which);
+  auto z = find_value(d, app, ReportType::Input, id, eht::PositionZ, which);
+  if (!x || !y || !z) return std::nullopt;
+  require_length(*x, name);
+  require_length(*y, name);
+  require_length(*z, name);
+  return EyeLocations{*x, *y, *z};
+}
+
+// The calibrated screen size from the Feature reports: both in one report and lengths, or neither.
+void find_calibrated_screen(const ReportDescriptor& d, int app, EyeTrackerLayout& out) {
+  out.screen_width = find_value(d, app, ReportType::Feature, std::nullopt, eht::CalibratedScreenWidth);
+  out.screen_height = find_value(d, app, ReportType::Feature, std::nullopt, eht::CalibratedScreenHeight);
+  if (out.screen_width && out.screen_height &&
+      (out.screen_width->report_id != out.screen_height->report_id ||
+       (out.screen_width->unit != 0 && !is_length_unit(out.screen_width->unit)) ||
+       (out.screen_height->unit != 0 && !is_length_unit(out.screen_height->unit)))) {
+    out.screen_width.reset();  // not usable; the configured display geometry applies
+    out.screen_height.reset();
+  }
+  if (!out.screen_width || !out.screen_height) {
+    out.screen_width.reset();
+    out.screen_height.reset();
+  }
+}
+
 }  // namespace
 
 std::optional<std::int64_t> ValueLocation::raw(std::span<const std::uint8_t> data) const {
@@ -153,22 +257,7 @@ std::string EyeTrackerLayout::summary() const {
 }
 
 EyeTrackerLayout map_eye_tracker(const ReportDescriptor& d) {
-  int app = -1;
-  for (std::size_t i = 0; i < d.collections.size(); ++i) {
-    const auto& c = d.collections[i];
-    if (c.kind == static_cast<std::uint8_t>(CollectionKind::Application) && c.usage == eht::EyeTracker) {
-      app = static_cast<int>(i);
-      break;
-    }
-  }
-  if (app < 0) {
-    std::string apps;
-    for (Usage u : d.application_usages()) apps += (apps.empty() ? "" : ", ") + describe_usage(u);
-    throw NotAnEyeTracker(
-        "the report descriptor has no Eye Tracker application collection (usage page 0x12 \"Eye and Head "
-        "Trackers\", usage 0x01); it describes " +
-        (apps.empty() ? std::string("no application collection") : apps) + " with " + usages_present(d));
-  }
+  const int app = find_eye_tracker_application(d);
 
   EyeTrackerLayout out;
   out.uses_report_ids = d.uses_report_ids;
@@ -176,80 +265,14 @@ EyeTrackerLayout map_eye_tracker(const ReportDescriptor& d) {
     if (r.type == ReportType::Input) out.input_reports.emplace_back(r.id, r.wire_size(d.uses_report_ids));
   }
 
-  // The gaze report: the first Input report with both gaze point coordinates.
-  bool found = false;
-  for (const auto& r : d.reports) {
-    if (r.type != ReportType::Input) continue;
-    auto x = find_value(d, app, ReportType::Input, r.id, eht::PositionX, eht::GazePoint);
-    auto y = find_value(d, app, ReportType::Input, r.id, eht::PositionY, eht::GazePoint);
-    if (!x || !y) continue;
-    out.gaze_report_id = r.id;
-    out.gaze_report_size = r.wire_size(d.uses_report_ids);
-    out.gaze_x = *x;
-    out.gaze_y = *y;
-    found = true;
-    break;
-  }
-  if (!found) {
-    throw NotAnEyeTracker("the Eye Tracker collection (descriptor byte " +
-                          std::to_string(d.collections[static_cast<std::size_t>(app)].offset) +
-                          ") has no Gaze Point (0x12:0x24) with Position X and Y (0x21, 0x22) in an Input report; "
-                          "it has " + usages_present(d));
-  }
-  require_length(out.gaze_x, "Gaze Point X");
-  require_length(out.gaze_y, "Gaze Point Y");
-
+  find_gaze_point(d, app, out);
   const std::uint8_t id = out.gaze_report_id;
-  // The sensor timestamp: join the elements that repeat its usage (up to 64 bits).
-  for (const auto& r : d.reports) {
-    if (r.type != ReportType::Input || r.id != id || out.timestamp) continue;
-    for (const auto& f : r.fields) {
-      if (!f.is_variable()) continue;  // Constant+Variable with a usage is a static value
-      const auto index = f.index_of(eht::SensorTimestamp);
-      if (!index || !inside(d, f, app)) continue;
-      std::uint32_t n = 1;
-      while (*index + n < f.count && (n + 1) * f.bit_size <= 64 && f.usage_of(*index + n) == eht::SensorTimestamp) ++n;
-      out.timestamp = locate(f, *index, n);
-      out.timestamp->is_signed = false;  // a counter
-      break;
-    }
-  }
-  if (out.timestamp) {
-    const auto tick = tick_seconds(*out.timestamp);
-    if (!tick || !(*tick > 0) || !std::isfinite(*tick)) {
-      throw NotAnEyeTracker("Sensor Timestamp (descriptor byte " + std::to_string(out.timestamp->descriptor_offset) +
-                            ") has unit " + hex(out.timestamp->unit, 4) + ", which is not a time");
-    }
-    out.timestamp_tick_s = *tick;
-  }
-
-  const auto eye = [&](Usage which, const char* name) -> std::optional<EyeLocations> {
-    auto x = find_value(d, app, ReportType::Input, id, eht::PositionX, which);
-    auto y = find_value(d, app, ReportType::Input, id, eht::PositionY, which);
-    auto z = find_value(d, app, ReportType::Input, id, eht::PositionZ, which);
-    if (!x || !y || !z) return std::nullopt;
-    require_length(*x, name);
-    require_length(*y, name);
-    require_length(*z, name);
-    return EyeLocations{*x, *y, *z};
-  };
-  out.left_eye = eye(eht::LeftEyePosition, "Left Eye Position");
-  out.right_eye = eye(eht::RightEyePosition, "Right Eye Position");
+  find_sensor_timestamp(d, app, id, out);
+  out.left_eye = find_eye(d, app, id, eht::LeftEyePosition, "Left Eye Position");
+  out.right_eye = find_eye(d, app, id, eht::RightEyePosition, "Right Eye Position");
   out.input_status = find_value(d, app, ReportType::Input, id, eht::ConfigurationStatus);
 
-  out.screen_width = find_value(d, app, ReportType::Feature, std::nullopt, eht::CalibratedScreenWidth);
-  out.screen_height = find_value(d, app, ReportType::Feature, std::nullopt, eht::CalibratedScreenHeight);
-  if (out.screen_width && out.screen_height &&
-      (out.screen_width->report_id != out.screen_height->report_id ||
-       (out.screen_width->unit != 0 && !is_length_unit(out.screen_width->unit)) ||
-       (out.screen_height->unit != 0 && !is_length_unit(out.screen_height->unit)))) {
-    out.screen_width.reset();  // not usable; the configured display geometry applies
-    out.screen_height.reset();
-  }
-  if (!out.screen_width || !out.screen_height) {
-    out.screen_width.reset();
-    out.screen_height.reset();
-  }
+  find_calibrated_screen(d, app, out);
   out.sampling_frequency = find_value(d, app, ReportType::Feature, std::nullopt, eht::SamplingFrequency);
   out.configuration_status = find_value(d, app, ReportType::Feature, std::nullopt, eht::ConfigurationStatus);
   out.tracker_quality = find_value(d, app, ReportType::Feature, std::nullopt, eht::TrackerQuality);
