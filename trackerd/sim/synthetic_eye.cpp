@@ -366,6 +366,20 @@ struct SyntheticEye::Look {
   cv::Point2d gradient_dir{1, 0};
 
   explicit Look(const SyntheticEyeOptions& o);
+
+ private:
+  // Look()'s stages, in the order it calls them (the order of the random draws); members because
+  // each fills some of the fields above.
+  float& iris_at(int ir, int it);
+  void draw_iris_texture(SplitMix& rng);
+  static std::vector<double> iris_low_frequency(SplitMix& rng);
+  void add_collarette_and_limbal_ring(const std::vector<double>& low, const std::vector<double>& col_phase);
+  void add_iris_fibres(SplitMix& rng);
+  void add_iris_crypts(SplitMix& rng);
+  void draw_skin_waves(SplitMix& rng, const SyntheticEyeOptions& o);
+  void tabulate_skin_waves(std::size_t w, std::size_t h);
+  void draw_lashes(SplitMix& rng);
+  void draw_spectacle_reflections(SplitMix& rng, const SyntheticEyeOptions& o);
 };
 
 SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
@@ -374,32 +388,71 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
   sclera = rng.uniform(192, 206);
   pupil = rng.uniform(17, 27);
   lash = rng.uniform(44, 56);
+  draw_iris_texture(rng);
+  draw_skin_waves(rng, o);
+  lid_skew_upper = rng.uniform(-0.18, 0.18);
+  lid_skew_lower = rng.uniform(-0.15, 0.15);
+  draw_lashes(rng);
+  draw_spectacle_reflections(rng, o);
+  const double ga = rng.uniform(0, 2 * kPi);
+  gradient_dir = {std::cos(ga), std::sin(ga)};
+}
 
-  // Iris texture in (angle, normalised radius 0 = pupil edge .. 1 = limbus): radial fibres,
-  // crypts, a collarette ring and a darker limbal ring, as the iris looks in near infrared.
+// The iris texel at (radius row ir, angle column it), the angle wrapping around.
+float& SyntheticEye::Look::iris_at(int ir, int it) {
+  return iris[static_cast<std::size_t>(ir * kTheta + ((it % kTheta) + kTheta) % kTheta)];
+}
+
+// Iris texture in (angle, normalised radius 0 = pupil edge .. 1 = limbus): radial fibres,
+// crypts, a collarette ring and a darker limbal ring, as the iris looks in near infrared.
+void SyntheticEye::Look::draw_iris_texture(SplitMix& rng) {
   const double base = rng.uniform(98, 112);
   iris.assign(static_cast<std::size_t>(kTheta * kRho), static_cast<float>(base));
-  auto at = [&](int ir, int it) -> float& {
-    return iris[static_cast<std::size_t>(ir * kTheta + ((it % kTheta) + kTheta) % kTheta)];
-  };
+  const std::vector<double> low = iris_low_frequency(rng);
+  std::vector<double> col_phase(4);
+  for (double& p : col_phase) p = rng.uniform(0, 2 * kPi);
+  add_collarette_and_limbal_ring(low, col_phase);
+  add_iris_fibres(rng);
+  add_iris_crypts(rng);
+  for (float& v : iris) v = std::clamp(v, 82.0f, 130.0f);
+  double inner = 0;
+  for (int it = 0; it < kTheta; ++it)
+    inner += static_cast<double>(iris_at(0, it)) + static_cast<double>(iris_at(1, it));
+  iris_inner = inner / (2.0 * kTheta);
+}
+
+// Angular variation shared by every radius: six harmonics with amplitude falling as 1/sqrt(k).
+std::vector<double> SyntheticEye::Look::iris_low_frequency(SplitMix& rng) {
   std::vector<double> low(kTheta, 0.0);
   for (int k = 1; k <= 6; ++k) {
     const double amp = rng.uniform(0.5, 2.5) / std::sqrt(k), ph = rng.uniform(0, 2 * kPi);
-    for (int it = 0; it < kTheta; ++it) low[static_cast<std::size_t>(it)] += amp * std::cos(k * 2 * kPi * it / kTheta + ph);
+    for (int it = 0; it < kTheta; ++it)
+      low[static_cast<std::size_t>(it)] += amp * std::cos(k * 2 * kPi * it / kTheta + ph);
   }
-  std::vector<double> col_phase(4);
-  for (double& p : col_phase) p = rng.uniform(0, 2 * kPi);
+  return low;
+}
+
+// The low-frequency pattern, a wavy bright collarette near a third of the radius and the darker
+// limbal ring towards the outer edge.
+void SyntheticEye::Look::add_collarette_and_limbal_ring(const std::vector<double>& low,
+                                                        const std::vector<double>& col_phase) {
   for (int ir = 0; ir < kRho; ++ir) {
     const double rho = ir / (kRho - 1.0);
     for (int it = 0; it < kTheta; ++it) {
       const double th = 2 * kPi * it / kTheta;
-      const double collarette_r = 0.33 + 0.04 * std::sin(3 * th + col_phase[0]) + 0.02 * std::sin(7 * th + col_phase[1]);
+      const double collarette_r =
+          0.33 + 0.04 * std::sin(3 * th + col_phase[0]) + 0.02 * std::sin(7 * th + col_phase[1]);
       double v = low[static_cast<std::size_t>(it)];
       v += 6.0 * std::exp(-std::pow((rho - collarette_r) / 0.06, 2));
       v -= 16.0 * smoothstep(0.72, 1.0, rho);
-      at(ir, it) += static_cast<float>(v);
+      iris_at(ir, it) += static_cast<float>(v);
     }
   }
+}
+
+// Radial fibres, bright or dark, each a Gaussian in angle that swirls slightly from its inner to
+// its outer end and fades in and out along the radius.
+void SyntheticEye::Look::add_iris_fibres(SplitMix& rng) {
   const int fibres = 220;
   for (int j = 0; j < fibres; ++j) {
     const double th0 = rng.uniform(0, kTheta);
@@ -412,13 +465,17 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
       const double wr = smoothstep(r0, r0 + 0.08, rho) * (1 - smoothstep(r1 - 0.08, r1, rho));
       if (wr <= 0) continue;
       const double centre = th0 + swirl * rho;
-      const int lo = static_cast<int>(std::floor(centre - 3 * width)), hi = static_cast<int>(std::ceil(centre + 3 * width));
+      const int lo = static_cast<int>(std::floor(centre - 3 * width));
+      const int hi = static_cast<int>(std::ceil(centre + 3 * width));
       for (int it = lo; it <= hi; ++it) {
         const double z = (it - centre) / width;
-        at(ir, it) += static_cast<float>(amp * wr * std::exp(-z * z));
+        iris_at(ir, it) += static_cast<float>(amp * wr * std::exp(-z * z));
       }
     }
   }
+}
+
+void SyntheticEye::Look::add_iris_crypts(SplitMix& rng) {
   for (int j = 0; j < 12; ++j) {  // crypts: dark lacunae
     const double th0 = rng.uniform(0, kTheta), r0 = rng.uniform(0.15, 0.7);
     const double wt = rng.uniform(4, 12), wr = rng.uniform(0.04, 0.1), amp = rng.uniform(8, 16);
@@ -427,16 +484,14 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
       if (std::abs(dr) > 3) continue;
       for (int it = static_cast<int>(th0 - 3 * wt); it <= static_cast<int>(th0 + 3 * wt); ++it) {
         const double dt = (it - th0) / wt;
-        at(ir, it) -= static_cast<float>(amp * std::exp(-dr * dr - dt * dt));
+        iris_at(ir, it) -= static_cast<float>(amp * std::exp(-dr * dr - dt * dt));
       }
     }
   }
-  for (float& v : iris) v = std::clamp(v, 82.0f, 130.0f);
-  double inner = 0;
-  for (int it = 0; it < kTheta; ++it) inner += static_cast<double>(at(0, it)) + static_cast<double>(at(1, it));
-  iris_inner = inner / (2.0 * kTheta);
+}
 
-  // Skin waves, wavelengths relative to the image so the look does not depend on resolution.
+// Skin waves, wavelengths relative to the image so the look does not depend on resolution.
+void SyntheticEye::Look::draw_skin_waves(SplitMix& rng, const SyntheticEyeOptions& o) {
   const double size = std::max(o.width, o.height);
   const std::size_t w = static_cast<std::size_t>(o.width), h = static_cast<std::size_t>(o.height);
   for (int k = 0; k < 4; ++k) {
@@ -444,6 +499,12 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
     waves.push_back({2 * kPi / lambda * std::cos(dir), 2 * kPi / lambda * std::sin(dir), rng.uniform(0, 2 * kPi),
                      rng.uniform(1.5, 4.0)});
   }
+  tabulate_skin_waves(w, h);
+}
+
+// Per-column and per-row factors of each wave, so that render() gets amp cos(kx x + phi + ky y) as
+// cx cy - sx sy at pixel centres without evaluating a cosine per pixel.
+void SyntheticEye::Look::tabulate_skin_waves(std::size_t w, std::size_t h) {
   wave_cx.resize(waves.size() * w);
   wave_sx.resize(waves.size() * w);
   wave_cy.resize(waves.size() * h);
@@ -460,11 +521,10 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
       wave_sy[k * h + y] = static_cast<float>(std::sin(arg));
     }
   }
+}
 
-  lid_skew_upper = rng.uniform(-0.18, 0.18);
-  lid_skew_lower = rng.uniform(-0.15, 0.15);
-
-  // Upper lashes: hang from the upper lid margin over the eye, fanning out towards the corners.
+// Upper lashes: hang from the upper lid margin over the eye, fanning out towards the corners.
+void SyntheticEye::Look::draw_lashes(SplitMix& rng) {
   const int n_lashes = 70;
   for (int j = 0; j < n_lashes; ++j) {
     Lash l;
@@ -477,8 +537,10 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
     l.opacity = rng.uniform(0.55, 0.95);
     lashes.push_back(l);
   }
+}
 
-  // Spectacle reflections: 1-3 large soft ellipses or streaks, fixed to the headset (and camera).
+// Spectacle reflections: 1-3 large soft ellipses or streaks, fixed to the headset (and camera).
+void SyntheticEye::Look::draw_spectacle_reflections(SplitMix& rng, const SyntheticEyeOptions& o) {
   const int n_refl = rng.integer(1, 3);
   const double wd = o.width, ht = o.height, small = std::min(wd, ht);
   for (int j = 0; j < n_refl; ++j) {
@@ -491,8 +553,6 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
     r.strength = rng.uniform(0.3, 0.65);
     reflections.push_back(r);
   }
-  const double ga = rng.uniform(0, 2 * kPi);
-  gradient_dir = {std::cos(ga), std::sin(ga)};
 }
 
 // ---------------------------------------------------------------------------------------------

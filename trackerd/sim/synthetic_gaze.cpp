@@ -209,6 +209,16 @@ void SyntheticGaze::step() {
                     static_cast<std::int64_t>(std::llround(static_cast<double>(sample_index_) * 1e9 * dt));
   ++sample_index_;
 
+  const double t = advance_segments_to(t_ns);
+  const Vec2 eye = true_eye_position(t, t_ns, dt);
+  const double velocity = track_true_eye(eye, dt);
+  GazeSample s = measured_sample(t_ns, eye, velocity);
+  add_pupil_and_eye_cameras(s, eye, dt);
+  pending_.push_back(s);
+}
+
+// Ends every segment that is over by t_ns and plans the next; returns t_ns's time into the current one, s.
+double SyntheticGaze::advance_segments_to(std::int64_t t_ns) {
   double t = static_cast<double>(t_ns - segment_start_ns_) * 1e-9;
   while (t >= segment_.duration_s) {
     const std::int64_t end_ns = segment_start_ns_ + static_cast<std::int64_t>(std::llround(segment_.duration_s * 1e9));
@@ -217,9 +227,12 @@ void SyntheticGaze::step() {
     start_segment(plan_after(finished), end_ns);
     t = static_cast<double>(t_ns - segment_start_ns_) * 1e-9;
   }
+  return t;
+}
 
-  // Fixational eye movements: slow drift (random walk, ~0.1 deg/s^0.5) and tremor (~90 Hz, a few
-  // arc seconds, far below tracker noise but present).
+// Fixational eye movements: slow drift (random walk, ~0.1 deg/s^0.5) and tremor (~90 Hz, a few
+// arc seconds, far below tracker noise but present).
+SyntheticGaze::Vec2 SyntheticGaze::true_eye_position(double t, std::int64_t t_ns, double dt) {
   if (segment_.phase == Phase::Fixation) {
     const double drift_sigma = 0.1 * std::sqrt(dt);
     drift_.x += drift_sigma * gauss_(rng_);
@@ -230,7 +243,12 @@ void SyntheticGaze::step() {
   eye.y += drift_.y;
   const double tremor = 0.003 * std::sin(2 * kPi * 90 * static_cast<double>(t_ns) * 1e-9);
   eye.x += tremor;
+  return eye;
+}
 
+// The noise-free angular velocity, deg/s, and the segment's running peak velocity and centroid
+// that its End event reports.
+double SyntheticGaze::track_true_eye(const Vec2& eye, double dt) {
   double velocity = 0;
   if (have_last_) velocity = angle_between_deg(last_true_.x, last_true_.y, eye.x, eye.y) / dt;
   last_true_ = eye;
@@ -239,10 +257,14 @@ void SyntheticGaze::step() {
   sum_pos_.x += eye.x;
   sum_pos_.y += eye.y;
   ++sum_count_;
+  return velocity;
+}
 
+// The tracker's gaze estimate: the true position plus noise, doubled during saccades, labelled with
+// the movement that produced it.
+GazeSample SyntheticGaze::measured_sample(std::int64_t t_ns, const Vec2& eye, double velocity) {
   GazeSample s;
   s.tracker_time_ns = t_ns;
-  const bool blinking = segment_.phase == Phase::Blink;
   const double noise = segment_.phase == Phase::Saccade ? 2 * options_.noise_deg : options_.noise_deg;
   const Vec2 measured{eye.x + noise * gauss_(rng_), eye.y + noise * gauss_(rng_)};
   const auto n = protocol::degrees_to_normalized(options_.display, Degrees{measured.x, measured.y});
@@ -257,6 +279,13 @@ void SyntheticGaze::step() {
     case Phase::Pursuit: s.state = EyeMovement::Pursuit; break;
     case Phase::Blink: s.state = EyeMovement::Blink; break;
   }
+  return s;
+}
+
+// Validity, confidence and per-eye data; a blink invalidates the sample. The pupil and confidence
+// draws happen during blinks too, so the random sequence does not depend on them.
+void SyntheticGaze::add_pupil_and_eye_cameras(GazeSample& s, const Vec2& eye, double dt) {
+  const bool blinking = segment_.phase == Phase::Blink;
   // Pupil diameter wanders slowly between about 3 and 4.4 mm (hippus and luminance changes).
   pupil_phase_ += dt * 2 * kPi * 0.1;
   const double pupil_mm = 3.7 + 0.5 * std::sin(pupil_phase_) + 0.05 * gauss_(rng_);
@@ -269,22 +298,22 @@ void SyntheticGaze::step() {
   } else {
     s.flags = protocol::kGazeValid;
     s.confidence = static_cast<float>(confidence);
-    // A 640x480 eye camera per eye; the pupil moves ~4 px per degree and the pupil-glint vector
-    // ~0.9 px per degree, roughly linear in gaze angle as in video trackers.
-    const auto eye_data = [&](double vergence_px) {
-      protocol::EyeData e;
-      e.flags = protocol::kEyePupilValid | protocol::kEyeGlintValid;
-      e.pupil_x_px = static_cast<float>(320 + 4.0 * eye.x + vergence_px + 0.3 * gauss_(rng_));
-      e.pupil_y_px = static_cast<float>(240 + 4.0 * eye.y + 0.3 * gauss_(rng_));
-      e.pupil_diameter_mm = static_cast<float>(std::max(0.5, pupil_mm));
-      e.pupil_glint_x_px = static_cast<float>(0.9 * eye.x + 0.05 * gauss_(rng_));
-      e.pupil_glint_y_px = static_cast<float>(0.9 * eye.y + 0.05 * gauss_(rng_));
-      return e;
-    };
-    s.left = eye_data(+3.0);
-    s.right = eye_data(-3.0);
+    s.left = eye_camera_data(eye, pupil_mm, +3.0);
+    s.right = eye_camera_data(eye, pupil_mm, -3.0);
   }
-  pending_.push_back(s);
+}
+
+// A 640x480 eye camera per eye; the pupil moves ~4 px per degree and the pupil-glint vector
+// ~0.9 px per degree, roughly linear in gaze angle as in video trackers.
+protocol::EyeData SyntheticGaze::eye_camera_data(const Vec2& eye, double pupil_mm, double vergence_px) {
+  protocol::EyeData e;
+  e.flags = protocol::kEyePupilValid | protocol::kEyeGlintValid;
+  e.pupil_x_px = static_cast<float>(320 + 4.0 * eye.x + vergence_px + 0.3 * gauss_(rng_));
+  e.pupil_y_px = static_cast<float>(240 + 4.0 * eye.y + 0.3 * gauss_(rng_));
+  e.pupil_diameter_mm = static_cast<float>(std::max(0.5, pupil_mm));
+  e.pupil_glint_x_px = static_cast<float>(0.9 * eye.x + 0.05 * gauss_(rng_));
+  e.pupil_glint_y_px = static_cast<float>(0.9 * eye.y + 0.05 * gauss_(rng_));
+  return e;
 }
 
 std::optional<GazeItem> SyntheticGaze::next() {

@@ -46,6 +46,13 @@ class SyntheticGaze final : public GazeSource {
   };
 
   void step();  // generates the next sample and any events due before it
+  // step()'s stages, in the order it calls them (the order of the random draws).
+  double advance_segments_to(std::int64_t t_ns);
+  Vec2 true_eye_position(double t, std::int64_t t_ns, double dt);
+  double track_true_eye(const Vec2& eye, double dt);
+  protocol::GazeSample measured_sample(std::int64_t t_ns, const Vec2& eye, double velocity);
+  void add_pupil_and_eye_cameras(protocol::GazeSample& s, const Vec2& eye, double dt);
+  protocol::EyeData eye_camera_data(const Vec2& eye, double pupil_mm, double vergence_px);
   void start_segment(Segment s, std::int64_t t_ns);
   void end_segment(std::int64_t t_ns);
   Segment plan_after(const Segment& finished);
