@@ -9,6 +9,9 @@
 
 namespace fovea::render {
 
+// One table, one row per setting (name, default, allowed values, help): long, and kept whole so that
+// --help, --set's checks and the docs read the settings from one place (a typed per-pass split is
+// issue 21's pass graph).
 const std::vector<SettingSpec>& Settings::specs() {
   static const std::vector<SettingSpec> kSpecs = {
       {"output", "final", "final|gbuffer", "what the frame is built for: the tone-mapped image, or the G-buffer alone"},
