@@ -96,6 +96,9 @@ void require_finite_attention(const attention::AttentionFrame& a) {
 
 }  // namespace
 
+// The passes in pipeline order, each run only when the plan says so. The ULOD policy moves the
+// attention pass before lod-select and the G-buffer (step_attention_on_proxy); the HDR colour is
+// handed from the G-buffer through dof and gi to tonemap.
 FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now_s, double previous_s,
                                            double frame_clock_s, PassTimer& timer) {
   timer.begin_frame(frame_index, now_s);
@@ -103,116 +106,140 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   Frame f;
   f.plan = plan();
   const bool check = settings_.flag("debug.finite_checks");
-  {
-    auto t = timer.scope("gaze");
-    f.gaze = gaze_.at(frame_clock_s);
-  }
+  step_gaze(f, frame_clock_s, timer);
   lod_levels_.clear();
-  // Lee 2009 §7.2: when attention chooses the levels (ULOD), the attention pass runs first, on a
-  // G-buffer of every object's coarsest level (its proxy: the attention values barely change, Fig.
-  // 7.1), so the levels follow this frame's attention (cost model eq. 7.2: T_n + T_a + t (a + r)).
-  bool attention_done = false;
-  if (f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && settings_.is("lod.policy", "ulod")) {
-    {
-      auto t = timer.scope("attention.proxy");
-      BackendSettings ps;
-      ps.shadows = settings_.flag("shadows");
-      ps.lod_levels.assign(scene_.objects.size(), 255);  // clamped to each object's coarsest level
-      if (settings_.is("lod.proxy_resolution", "map"))
-        lod::proxy_size(scene_.camera.width, scene_.camera.height, static_cast<int>(settings_.number("attention.map_size")),
-                        ps.width, ps.height);
-      backend_->render(FrameTime{now_s, previous_s}, ps, proxy_);
-      if (check) require_finite_gbuffer("attention.proxy", proxy_);
-    }
-    auto t = timer.scope("attention");
-    f.attention = &run_attention(proxy_, now_s, previous_s, check);
-    attention_done = true;
-  }
-  if (f.plan.runs(PassId::LodSelect)) {
-    const double last_frame_ms = timer.last_ms("frame");
-    auto t = timer.scope("lod-select");
-    run_lod_select(f.gaze, now_s, previous_s, last_frame_ms);
-    f.lod = &lod_frame_;
-  }
-  {
-    auto t = timer.scope("gbuffer");
-    BackendSettings bs;
-    bs.shadows = settings_.flag("shadows");
-    bs.lod_levels = lod_levels_;
-    backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
-    if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
-    if (check) require_finite_gbuffer("gbuffer", gbuffer_);
-  }
+  const bool attention_first =
+      f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && settings_.is("lod.policy", "ulod");
+  if (attention_first) step_attention_on_proxy(f, now_s, previous_s, check, timer);
+  if (f.plan.runs(PassId::LodSelect)) step_lod_select(f, now_s, previous_s, timer);
+  step_gbuffer(f, now_s, previous_s, check, timer);
   f.gbuffer = &gbuffer_;
-  if (f.plan.runs(PassId::Attention) && !attention_done) {
-    auto t = timer.scope("attention");
-    f.attention = &run_attention(gbuffer_, now_s, previous_s, check);
-  }
-  if (f.plan.runs(PassId::Focus)) {
-    auto t = timer.scope("focus");
-    const attention::FocusSettings wanted = focus_settings(settings_, scene_.camera.lens);
-    if (!same(wanted, focus_settings_)) {  // a changed setting starts the focus afresh
-      focus_settings_ = wanted;
-      focus_ = attention::FocusTracker(wanted);
-    }
-    // On the frame clock (the gaze's clock): transitions are perceptual time, even with the scene paused.
-    focus_.update(frame_clock_s, gbuffer_, scene_, f.attention, attention::focus_gaze_from(f.gaze, gaze_.available()),
-                  scene_.display);
-    f.focus = &focus_.last();
-    if (check) require_finite("focus", "focal depth", std::vector<double>{f.focus->focal_depth_m, f.focus->target_depth_m});
-  }
+  if (f.plan.runs(PassId::Attention) && !attention_first) step_attention(f, now_s, previous_s, check, timer);
+  if (f.plan.runs(PassId::Focus)) step_focus(f, frame_clock_s, check, timer);
   const std::vector<glm::vec3>* hdr = &gbuffer_.color;
-  if (f.plan.runs(PassId::Dof)) {
-    auto t = timer.scope("dof");
-    // The focus pass's depth; with focus.mode=fixed (focus not run) the lens's own focus distance.
-    const double focus_m = f.focus != nullptr ? f.focus->focal_depth_m : scene_.camera.lens.focus_distance_m;
-    run_dof(focus_m, now_s, previous_s);
-    hdr = &dof_color_;
-    if (check) require_finite("dof", "colour", dof_color_, gbuffer_.width);
-    f.dof = &dof_color_;
-    f.focal_depth_m = focus_m;
-  }
-  if (f.plan.runs(PassId::Gi)) {
-    auto t = timer.scope("gi");
-    run_gi(f, *hdr, now_s, timer);
-    hdr = &hybrid_;
-    if (check) require_finite("gi", "hybrid colour", hybrid_, gbuffer_.width);
-    f.gi = &gi_frame_;
-  }
-  if (f.plan.runs(PassId::Tonemap)) {
-    auto t = timer.scope("tonemap");
-    TonemapParams p;
-    p.exposure = static_cast<float>(settings_.number("tonemap.exposure"));
-    p.op = settings_.text("tonemap.operator");
-    p.exact = settings_.flag("tonemap.exact");
-    tonemap(*hdr, gbuffer_.width, gbuffer_.height, p, image_);
-    f.image = &image_;
-  }
-  if (f.plan.runs(PassId::Overlay)) {
-    auto t = timer.scope("overlay");
-    const std::string& map = settings_.text("overlay.map");
-    if (is_attention_map(map)) {
-      if (f.attention != nullptr) {
-        draw_attention_map(image_, *f.attention, map);
-        draw_attention_mark(image_, *f.attention);
-      }
-    } else if (map == "coc") {
-      const double focus_m = f.dof != nullptr   ? f.focal_depth_m
-                             : f.focus != nullptr ? f.focus->focal_depth_m
-                                                  : scene_.camera.lens.focus_distance_m;
-      draw_coc_map(image_, gbuffer_, coc_model(focus_m));
-    } else if (map != "none") {
-      draw_gbuffer_map(image_, gbuffer_, map, scene_.camera.far_m);
-    }
-    if (f.focus != nullptr && settings_.flag("overlay.focus")) {
-      draw_focus(image_, gbuffer_, f.focus->object, f.focus->focal_depth_m, f.focus->in_transition, f.focus->why);
-    }
-    if (settings_.flag("overlay.gaze") && gaze_.available()) {
-      const double area = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
-      draw_gaze(image_, scene_.display, GazeMark{f.gaze.x, f.gaze.y, f.gaze.valid}, area);
-    }
-  }
+  if (f.plan.runs(PassId::Dof)) hdr = &step_dof(f, now_s, previous_s, check, timer);
+  if (f.plan.runs(PassId::Gi)) hdr = &step_gi(f, *hdr, now_s, check, timer);
+  if (f.plan.runs(PassId::Tonemap)) step_tonemap(f, *hdr, timer);
+  if (f.plan.runs(PassId::Overlay)) step_overlay(f, timer);
   return f;
+}
+
+void FramePipeline::step_gaze(Frame& f, double frame_clock_s, PassTimer& timer) {
+  auto t = timer.scope("gaze");
+  f.gaze = gaze_.at(frame_clock_s);
+}
+
+// Lee 2009 §7.2: when attention chooses the levels (ULOD), the attention pass runs first, on a
+// G-buffer of every object's coarsest level (its proxy: the attention values barely change, Fig.
+// 7.1), so the levels follow this frame's attention (cost model eq. 7.2: T_n + T_a + t (a + r)).
+void FramePipeline::step_attention_on_proxy(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
+  {
+    auto t = timer.scope("attention.proxy");
+    BackendSettings ps;
+    ps.shadows = settings_.flag("shadows");
+    ps.lod_levels.assign(scene_.objects.size(), 255);  // clamped to each object's coarsest level
+    if (settings_.is("lod.proxy_resolution", "map"))
+      lod::proxy_size(scene_.camera.width, scene_.camera.height,
+                      static_cast<int>(settings_.number("attention.map_size")), ps.width, ps.height);
+    backend_->render(FrameTime{now_s, previous_s}, ps, proxy_);
+    if (check) require_finite_gbuffer("attention.proxy", proxy_);
+  }
+  auto t = timer.scope("attention");
+  f.attention = &run_attention(proxy_, now_s, previous_s, check);
+}
+
+void FramePipeline::step_lod_select(Frame& f, double now_s, double previous_s, PassTimer& timer) {
+  const double last_frame_ms = timer.last_ms("frame");
+  auto t = timer.scope("lod-select");
+  run_lod_select(f.gaze, now_s, previous_s, last_frame_ms);
+  f.lod = &lod_frame_;
+}
+
+void FramePipeline::step_gbuffer(const Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
+  auto t = timer.scope("gbuffer");
+  BackendSettings bs;
+  bs.shadows = settings_.flag("shadows");
+  bs.lod_levels = lod_levels_;
+  backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
+  if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
+  if (check) require_finite_gbuffer("gbuffer", gbuffer_);
+}
+
+void FramePipeline::step_attention(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
+  auto t = timer.scope("attention");
+  f.attention = &run_attention(gbuffer_, now_s, previous_s, check);
+}
+
+void FramePipeline::step_focus(Frame& f, double frame_clock_s, bool check, PassTimer& timer) {
+  auto t = timer.scope("focus");
+  const attention::FocusSettings wanted = focus_settings(settings_, scene_.camera.lens);
+  if (!same(wanted, focus_settings_)) {  // a changed setting starts the focus afresh
+    focus_settings_ = wanted;
+    focus_ = attention::FocusTracker(wanted);
+  }
+  // On the frame clock (the gaze's clock): transitions are perceptual time, even with the scene paused.
+  focus_.update(frame_clock_s, gbuffer_, scene_, f.attention, attention::focus_gaze_from(f.gaze, gaze_.available()),
+                scene_.display);
+  f.focus = &focus_.last();
+  if (check) {
+    require_finite("focus", "focal depth", std::vector<double>{f.focus->focal_depth_m, f.focus->target_depth_m});
+  }
+}
+
+const std::vector<glm::vec3>& FramePipeline::step_dof(Frame& f, double now_s, double previous_s, bool check,
+                                                      PassTimer& timer) {
+  auto t = timer.scope("dof");
+  // The focus pass's depth; with focus.mode=fixed (focus not run) the lens's own focus distance.
+  const double focus_m = f.focus != nullptr ? f.focus->focal_depth_m : scene_.camera.lens.focus_distance_m;
+  run_dof(focus_m, now_s, previous_s);
+  if (check) require_finite("dof", "colour", dof_color_, gbuffer_.width);
+  f.dof = &dof_color_;
+  f.focal_depth_m = focus_m;
+  return dof_color_;
+}
+
+const std::vector<glm::vec3>& FramePipeline::step_gi(Frame& f, const std::vector<glm::vec3>& hdr, double now_s,
+                                                     bool check, PassTimer& timer) {
+  auto t = timer.scope("gi");
+  run_gi(f, hdr, now_s, timer);
+  if (check) require_finite("gi", "hybrid colour", hybrid_, gbuffer_.width);
+  f.gi = &gi_frame_;
+  return hybrid_;
+}
+
+void FramePipeline::step_tonemap(Frame& f, const std::vector<glm::vec3>& hdr, PassTimer& timer) {
+  auto t = timer.scope("tonemap");
+  TonemapParams p;
+  p.exposure = static_cast<float>(settings_.number("tonemap.exposure"));
+  p.op = settings_.text("tonemap.operator");
+  p.exact = settings_.flag("tonemap.exact");
+  tonemap(hdr, gbuffer_.width, gbuffer_.height, p, image_);
+  f.image = &image_;
+}
+
+void FramePipeline::step_overlay(const Frame& f, PassTimer& timer) {
+  auto t = timer.scope("overlay");
+  const std::string& map = settings_.text("overlay.map");
+  if (is_attention_map(map)) {
+    if (f.attention != nullptr) {
+      draw_attention_map(image_, *f.attention, map);
+      draw_attention_mark(image_, *f.attention);
+    }
+  } else if (map == "coc") {
+    const double focus_m = f.dof != nullptr   ? f.focal_depth_m
+                           : f.focus != nullptr ? f.focus->focal_depth_m
+                                                : scene_.camera.lens.focus_distance_m;
+    draw_coc_map(image_, gbuffer_, coc_model(focus_m));
+  } else if (map != "none") {
+    draw_gbuffer_map(image_, gbuffer_, map, scene_.camera.far_m);
+  }
+  if (f.focus != nullptr && settings_.flag("overlay.focus")) {
+    draw_focus(image_, gbuffer_, f.focus->object, f.focus->focal_depth_m, f.focus->in_transition, f.focus->why);
+  }
+  if (settings_.flag("overlay.gaze") && gaze_.available()) {
+    const double area = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
+    draw_gaze(image_, scene_.display, GazeMark{f.gaze.x, f.gaze.y, f.gaze.valid}, area);
+  }
 }
 
 void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer) {

@@ -100,6 +100,20 @@ class FramePipeline {
   // Runs dof.method on the G-buffer with the lens focused at focus_m into dof_color_.
   void run_dof(double focus_m, double now_s, double previous_s);
   dof::CocModel coc_model(double focus_m) const;
+  // render()'s steps, in pipeline order: each times its pass under its timings.csv name, runs it,
+  // checks what it wrote when debug.finite_checks (`check`), and records it in the Frame.
+  void step_gaze(Frame& f, double frame_clock_s, PassTimer& timer);
+  void step_attention_on_proxy(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer);
+  void step_lod_select(Frame& f, double now_s, double previous_s, PassTimer& timer);
+  void step_gbuffer(const Frame& f, double now_s, double previous_s, bool check, PassTimer& timer);
+  void step_attention(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer);
+  void step_focus(Frame& f, double frame_clock_s, bool check, PassTimer& timer);
+  // dof and gi return the HDR colour they wrote, for the next pass.
+  const std::vector<glm::vec3>& step_dof(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer);
+  const std::vector<glm::vec3>& step_gi(Frame& f, const std::vector<glm::vec3>& hdr, double now_s, bool check,
+                                        PassTimer& timer);
+  void step_tonemap(Frame& f, const std::vector<glm::vec3>& hdr, PassTimer& timer);
+  void step_overlay(const Frame& f, PassTimer& timer);
 };
 
 }  // namespace fovea::render

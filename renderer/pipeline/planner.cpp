@@ -44,23 +44,40 @@ std::string FramePlan::explain() const {
   return out;
 }
 
-FramePlan plan_frame(const PlanContext& c) {
-  const Scene& scene = c.scene;
-  const Settings& s = c.settings;
-  FramePlan plan;
-  for (const PassDecl& d : pass_declarations()) plan.passes.push_back({d.id, false, false, ""});
-  const auto decide = [&](PassId id, bool needed, std::string reason) {
-    PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
-    p.needed = needed;
-    p.runs = needed;
-    p.reason = std::move(reason);
-  };
+namespace {
 
-  const bool image = s.is("output", "final");
-  // Backwards from the output: the display image needs tonemap; overlays go on top of it.
-  decide(PassId::Tonemap, image, image ? "output=final is a display image" : "output=gbuffer: no display image");
+// What the per-pass decisions share: the inputs, the plan they fill in, and the facts a later
+// decision reads from an earlier one (decisions run backwards from the output, consumers first).
+struct Planning {
+  const PlanContext& c;
+  const Scene& scene;
+  const Settings& s;
+  FramePlan& plan;
+  bool image = false;                 // output=final: a display image
+  bool shows_focus = false;           // decide_focus: the focus overlay draws the focal depth
+  bool lod_uses_attention = false;    // decide_attention: lod.policy=ulod reads attention
+  bool gi_follows_attention = false;  // decide_attention: no gaze source, the gaze area follows attention
+};
+
+void decide(FramePlan& plan, PassId id, bool needed, std::string reason) {
+  PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
+  p.needed = needed;
+  p.runs = needed;
+  p.reason = std::move(reason);
+}
+
+// Backwards from the output: the display image needs tonemap.
+void decide_tonemap(Planning& p) {
+  decide(p.plan, PassId::Tonemap, p.image,
+         p.image ? "output=final is a display image" : "output=gbuffer: no display image");
+}
+
+// Overlays go on top of the display image.
+void decide_overlay(Planning& p) {
+  const Settings& s = p.s;
+  const bool image = p.image;
   const bool map_overlay = image && !s.is("overlay.map", "none");
-  const bool gaze_overlay = image && s.flag("overlay.gaze") && c.gaze_available;
+  const bool gaze_overlay = image && s.flag("overlay.gaze") && p.c.gaze_available;
   const bool focus_overlay = image && s.flag("overlay.focus") && !s.is("focus.mode", "fixed");
   std::string overlay_reason;
   if (!image) {
@@ -75,28 +92,31 @@ FramePlan plan_frame(const PlanContext& c) {
     overlay_reason = !s.flag("overlay.gaze") ? "overlay.gaze=false and overlay.map=none"
                                              : "no gaze source (--gaze none) and overlay.map=none";
   }
-  decide(PassId::Overlay, map_overlay || gaze_overlay || focus_overlay, overlay_reason);
+  decide(p.plan, PassId::Overlay, map_overlay || gaze_overlay || focus_overlay, overlay_reason);
+}
 
-  // Global illumination: only with light to carry; the caustic map only with specular/refractive
-  // surfaces to focus it.
-  if (!image) {
-    decide(PassId::Gi, false, "output=gbuffer");
+// Global illumination: only with light to carry; the caustic map only with specular/refractive
+// surfaces to focus it.
+void decide_gi(Planning& p) {
+  const Settings& s = p.s;
+  if (!p.image) {
+    decide(p.plan, PassId::Gi, false, "output=gbuffer");
   } else if (!s.flag("gi.enabled")) {
-    decide(PassId::Gi, false, "gi.enabled=false");
-  } else if (scene.lights.empty()) {
-    decide(PassId::Gi, false, "the scene has no lights: no light to bounce");
+    decide(p.plan, PassId::Gi, false, "gi.enabled=false");
+  } else if (p.scene.lights.empty()) {
+    decide(p.plan, PassId::Gi, false, "the scene has no lights: no light to bounce");
   } else {
-    std::string why = "gi.enabled=true, " + std::to_string(scene.lights.size()) + " light(s); caustic map: ";
+    std::string why = "gi.enabled=true, " + std::to_string(p.scene.lights.size()) + " light(s); caustic map: ";
     if (!s.flag("gi.caustics")) {
       why += "off (gi.caustics=false)";
-    } else if (scene.has_specular_or_refractive()) {
+    } else if (p.scene.has_specular_or_refractive()) {
       why += "yes (specular or refractive surfaces)";
     } else {
       why += "no (no specular or refractive surface)";
     }
     if (s.is("gi.area", "full")) {
       why += "; gi.area=full: the whole screen is ray traced";
-    } else if (c.gaze_available) {
+    } else if (p.c.gaze_available) {
       why += "; the " + s.text("gi.gaze_area_deg") + " deg gaze area follows the gaze";
     } else if (s.flag("attention.enabled")) {
       why += "; no gaze source: the gaze area follows the most attended object";
@@ -106,103 +126,149 @@ FramePlan plan_frame(const PlanContext& c) {
     if (s.is("gi.periphery", "csf") && !s.is("gi.area", "full")) {
       why += "; periphery by CSF-driven ray casting (Murphy 2007)";
     }
-    decide(PassId::Gi, true, why);
+    decide(p.plan, PassId::Gi, true, why);
   }
+}
 
-  // Depth of field: a pinhole lens keeps everything in focus.
-  const Lens& lens = scene.camera.lens;
-  if (!image) {
-    decide(PassId::Dof, false, "output=gbuffer");
+// Depth of field: a pinhole lens keeps everything in focus.
+void decide_dof(Planning& p) {
+  const Settings& s = p.s;
+  const Lens& lens = p.scene.camera.lens;
+  if (!p.image) {
+    decide(p.plan, PassId::Dof, false, "output=gbuffer");
   } else if (!s.flag("dof.enabled")) {
-    decide(PassId::Dof, false, "dof.enabled=false");
+    decide(p.plan, PassId::Dof, false, "dof.enabled=false");
   } else if (lens.is_pinhole()) {
-    decide(PassId::Dof, false, "pinhole lens: nothing is out of focus");
+    decide(p.plan, PassId::Dof, false, "pinhole lens: nothing is out of focus");
   } else {
     char why[160];
     const std::string& method = s.text("dof.method");
     std::snprintf(why, sizeof why, "thin lens F=%.1f mm, aperture %.2f mm, method %s", lens.focal_length_m * 1000,
                   lens.aperture_m * 1000, method.c_str());
-    decide(PassId::Dof, true, why);
-    PlannedPass& dof = plan.passes[static_cast<std::size_t>(PassId::Dof)];
-    if (method == "reference" && !c.backend_traces_rays) {
+    decide(p.plan, PassId::Dof, true, why);
+    PlannedPass& dof = p.plan.passes[static_cast<std::size_t>(PassId::Dof)];
+    if (method == "reference" && !p.c.backend_traces_rays) {
       dof.runs = false;
       dof.reason += " — the ray-traced reference needs --backend embree (per-pixel lens rays); accum is the raster "
                     "backend's reference";
     }
   }
+}
 
-  // LOD selection: only objects with LOD chains can change detail.
+// LOD selection: only objects with LOD chains can change detail.
+void decide_lod_select(Planning& p) {
+  const Settings& s = p.s;
   if (!s.flag("lod.enabled")) {
-    decide(PassId::LodSelect, false, "lod.enabled=false");
-  } else if (!scene.has_lods()) {
-    decide(PassId::LodSelect, false, "no object has an LOD chain");
+    decide(p.plan, PassId::LodSelect, false, "lod.enabled=false");
+  } else if (!p.scene.has_lods()) {
+    decide(p.plan, PassId::LodSelect, false, "no object has an LOD chain");
   } else {
     std::string why = "objects with LOD chains; lod.policy=" + s.text("lod.policy");
-    if (s.is("lod.policy", "gaze") && !c.gaze_available) why += " without a gaze source: eccentricity from the screen centre";
+    if (s.is("lod.policy", "gaze") && !p.c.gaze_available) {
+      why += " without a gaze source: eccentricity from the screen centre";
+    }
     if (s.number("lod.budget_ms") > 0) why += "; frame budget " + s.text("lod.budget_ms") + " ms";
-    decide(PassId::LodSelect, true, why);
+    decide(p.plan, PassId::LodSelect, true, why);
   }
+}
 
-  // Focus: consumed by DOF, and shown by the focus overlay (which lands before DOF, step 7).
+// Focus: consumed by DOF, and shown by the focus overlay (which lands before DOF, step 7).
+void decide_focus(Planning& p) {
+  const Settings& s = p.s;
+  const FramePlan& plan = p.plan;
   const std::string& mode = s.text("focus.mode");
-  const bool shows_focus = image && s.flag("overlay.focus");
-  if (!plan.needed(PassId::Dof) && !shows_focus) {
-    decide(PassId::Focus, false,
-           image ? "nothing consumes a focal depth (dof not planned, overlay.focus=false)"
-                 : "nothing consumes a focal depth (dof not planned)");
+  p.shows_focus = p.image && s.flag("overlay.focus");
+  if (!plan.needed(PassId::Dof) && !p.shows_focus) {
+    decide(p.plan, PassId::Focus, false,
+           p.image ? "nothing consumes a focal depth (dof not planned, overlay.focus=false)"
+                   : "nothing consumes a focal depth (dof not planned)");
   } else if (mode == "fixed") {
-    decide(PassId::Focus, false, "focus.mode=fixed: the lens focus distance is used");
+    decide(p.plan, PassId::Focus, false, "focus.mode=fixed: the lens focus distance is used");
   } else {
     std::string why = plan.needed(PassId::Dof) ? "dof needs a focal depth" : "overlay.focus shows the focal depth";
-    if (plan.needed(PassId::Dof) && shows_focus) why += " (overlay.focus shows it)";
+    if (plan.needed(PassId::Dof) && p.shows_focus) why += " (overlay.focus shows it)";
     why += "; focus.mode=" + mode;
-    if ((mode == "gaze") && !c.gaze_available) why += " without a gaze source: the screen centre is used";
-    decide(PassId::Focus, true, why);
+    if ((mode == "gaze") && !p.c.gaze_available) why += " without a gaze source: the screen centre is used";
+    decide(p.plan, PassId::Focus, true, why);
   }
+}
 
-  // Attention: computed only when something consumes it.
+// Attention: computed only when something consumes it.
+void decide_attention(Planning& p) {
+  const Settings& s = p.s;
+  const FramePlan& plan = p.plan;
+  const std::string& mode = s.text("focus.mode");
   std::vector<std::string> consumers;
   if (plan.needed(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")) consumers.push_back("focus");
-  const bool lod_uses_attention = plan.needed(PassId::LodSelect) && s.is("lod.policy", "ulod");
-  if (lod_uses_attention) consumers.push_back("lod-select (lod.policy=ulod)");
-  const bool gi_follows_attention = plan.needed(PassId::Gi) && !c.gaze_available && !s.is("gi.area", "full");
-  if (gi_follows_attention) consumers.push_back("gi (no gaze source: its gaze area)");
+  p.lod_uses_attention = plan.needed(PassId::LodSelect) && s.is("lod.policy", "ulod");
+  if (p.lod_uses_attention) consumers.push_back("lod-select (lod.policy=ulod)");
+  p.gi_follows_attention = plan.needed(PassId::Gi) && !p.c.gaze_available && !s.is("gi.area", "full");
+  if (p.gi_follows_attention) consumers.push_back("gi (no gaze source: its gaze area)");
   const std::string& overlay_map = s.text("overlay.map");
-  if (image && (overlay_map == "saliency" || overlay_map == "spatial" || overlay_map == "temporal" ||
-                overlay_map == "attention")) {
+  if (p.image && (overlay_map == "saliency" || overlay_map == "spatial" || overlay_map == "temporal" ||
+                  overlay_map == "attention")) {
     consumers.push_back("overlay (overlay.map=" + overlay_map + ")");
   }
   if (consumers.empty()) {
-    decide(PassId::Attention, false, "nothing consumes attention");
+    decide(p.plan, PassId::Attention, false, "nothing consumes attention");
   } else if (!s.flag("attention.enabled")) {
-    decide(PassId::Attention, false, "attention.enabled=false (consumers fall back to gaze or defaults)");
+    decide(p.plan, PassId::Attention, false, "attention.enabled=false (consumers fall back to gaze or defaults)");
   } else {
     std::string list;
     for (const auto& k : consumers) list += (list.empty() ? "" : ", ") + k;
-    decide(PassId::Attention, true, "consumed by " + list);
+    decide(p.plan, PassId::Attention, true, "consumed by " + list);
   }
+}
 
-  decide(PassId::GBuffer, true, "every output starts from the G-buffer");
+// An implemented pass whose consumers are all needed-but-not-implemented would compute something
+// nobody reads: it waits (needed, not run) until a consumer runs.
+void wait_unless(FramePlan& plan, PassId id, bool consumer_runs, const std::string& why) {
+  PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
+  if (p.runs && !consumer_runs) {
+    p.runs = false;
+    p.reason += "; waits: " + why;
+  }
+}
 
-  // An implemented pass whose consumers are all needed-but-not-implemented would compute something
-  // nobody reads: it waits (needed, not run) until a consumer runs. Focus feeds dof (and the focus
-  // overlay); attention feeds focus, lod-select and the attention overlays.
-  const auto wait_unless = [&](PassId id, bool consumer_runs, const std::string& why) {
-    PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
-    if (p.runs && !consumer_runs) {
-      p.runs = false;
-      p.reason += "; waits: " + why;
-    }
-  };
-  wait_unless(PassId::Focus, plan.runs(PassId::Dof) || shows_focus,
+// Focus feeds dof (and the focus overlay).
+void wait_focus(Planning& p) {
+  wait_unless(p.plan, PassId::Focus, p.plan.runs(PassId::Dof) || p.shows_focus,
               "dof does not run with this method (overlay.focus=true shows the focus meanwhile)");
-  const bool attention_overlay = image && (s.is("overlay.map", "saliency") || s.is("overlay.map", "spatial") ||
-                                           s.is("overlay.map", "temporal") || s.is("overlay.map", "attention"));
-  wait_unless(PassId::Attention,
-              attention_overlay || (lod_uses_attention && plan.runs(PassId::LodSelect)) ||
-                  (gi_follows_attention && plan.runs(PassId::Gi)) ||
+}
+
+// Attention feeds focus, lod-select and the attention overlays; runs after wait_focus, whose verdict it reads.
+void wait_attention(Planning& p) {
+  const Settings& s = p.s;
+  const FramePlan& plan = p.plan;
+  const std::string& mode = s.text("focus.mode");
+  const bool attention_overlay = p.image && (s.is("overlay.map", "saliency") || s.is("overlay.map", "spatial") ||
+                                             s.is("overlay.map", "temporal") || s.is("overlay.map", "attention"));
+  wait_unless(p.plan, PassId::Attention,
+              attention_overlay || (p.lod_uses_attention && plan.runs(PassId::LodSelect)) ||
+                  (p.gi_follows_attention && plan.runs(PassId::Gi)) ||
                   (plan.runs(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")),
               "none of its consumers runs yet");
+}
+
+}  // namespace
+
+// Each decision may read the ones before it (focus reads dof, attention reads focus, lod-select and
+// gi), so the order below is the order of the reasoning, not the pipeline order.
+FramePlan plan_frame(const PlanContext& c) {
+  FramePlan plan;
+  for (const PassDecl& d : pass_declarations()) plan.passes.push_back({d.id, false, false, ""});
+  Planning p{c, c.scene, c.settings, plan};
+  p.image = c.settings.is("output", "final");
+  decide_tonemap(p);
+  decide_overlay(p);
+  decide_gi(p);
+  decide_dof(p);
+  decide_lod_select(p);
+  decide_focus(p);
+  decide_attention(p);
+  decide(plan, PassId::GBuffer, true, "every output starts from the G-buffer");
+  wait_focus(p);
+  wait_attention(p);
   return plan;
 }
 
