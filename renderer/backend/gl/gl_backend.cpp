@@ -54,6 +54,105 @@ std::string object_label(const Scene& scene, const Object& o) {
          std::to_string(o.id) + ")";
 }
 
+// Throws std::invalid_argument unless mesh (level 0 or one LOD level of o) can be drawn: one normal per
+// position, whole triangles, an index count GLsizei can hold, every index a position.
+void validate_drawable_mesh(const Scene& scene, const Object& o, const Mesh& m) {
+  if (m.normals.size() != m.positions.size()) {
+    throw std::invalid_argument(object_label(scene, o) + ": mesh has " + std::to_string(m.normals.size()) +
+                                " normals for " + std::to_string(m.positions.size()) +
+                                " positions (must be one per position)");
+  }
+  if (m.indices.size() % 3 != 0) {
+    throw std::invalid_argument(object_label(scene, o) + ": mesh index count " + std::to_string(m.indices.size()) +
+                                " is not a multiple of 3");
+  }
+  if (m.indices.size() > static_cast<std::size_t>(std::numeric_limits<GLsizei>::max())) {
+    throw std::invalid_argument(object_label(scene, o) + ": mesh has too many indices for OpenGL");
+  }
+  for (const std::uint32_t i : m.indices) {
+    if (i >= m.positions.size()) {
+      throw std::invalid_argument(object_label(scene, o) + ": mesh index " + std::to_string(i) +
+                                  " out of range [0, " + std::to_string(m.positions.size()) + ")");
+    }
+  }
+}
+
+// Throws std::invalid_argument for the first object with a mesh the raster backend cannot draw.
+void validate_drawable_objects(const Scene& scene) {
+  for (const Object& o : scene.objects) {
+    if (!o.mesh) continue;  // nothing to draw (as in the Embree backend)
+    if (o.material >= scene.materials.size()) {
+      throw std::invalid_argument(object_label(scene, o) + ": material index " + std::to_string(o.material) +
+                                  " out of range [0, " + std::to_string(scene.materials.size()) + ")");
+    }
+    for (std::size_t level = 0; level <= o.lods.size(); ++level) {
+      const Mesh* level_mesh = level == 0 ? o.mesh.get() : o.lods[level - 1].mesh.get();
+      if (level_mesh == nullptr) continue;
+      validate_drawable_mesh(scene, o, *level_mesh);
+    }
+  }
+}
+
+// The scene's lights expanded to samples in the std140 layout of the LightSamples block; throws
+// std::runtime_error past gl::kMaxLightSamples (the block's fixed size).
+std::vector<LightSampleStd140> pack_light_samples(const Scene& scene) {
+  std::vector<LightSampleStd140> packed;
+  std::vector<LightSample> samples;
+  for (const Light& light : scene.lights) {
+    light_samples(light, samples);
+    for (const LightSample& s : samples) {
+      packed.push_back({{s.position.x, s.position.y, s.position.z, static_cast<float>(s.kind)},
+                        {s.power.x, s.power.y, s.power.z, s.cos_cutoff},
+                        {s.direction.x, s.direction.y, s.direction.z, s.cos_falloff_start}});
+    }
+  }
+  if (packed.size() > static_cast<std::size_t>(gl::kMaxLightSamples)) {
+    throw std::runtime_error((scene.source.empty() ? scene.name : scene.source.string()) + ": the lights expand to " +
+                             std::to_string(packed.size()) + " light samples; the OpenGL backend supports at most " +
+                             std::to_string(gl::kMaxLightSamples) +
+                             " (an area light counts area_samples^2: lower area_samples or use fewer lights)");
+  }
+  return packed;
+}
+
+void upload_light_samples(GLuint light_ubo, const std::vector<LightSampleStd140>& packed) {
+  glBindBuffer(GL_UNIFORM_BUFFER, light_ubo);
+  if (!packed.empty()) {
+    glBufferSubData(GL_UNIFORM_BUFFER, 0, static_cast<GLsizeiptr>(packed.size() * sizeof(LightSampleStd140)),
+                    packed.data());
+  }
+  glBindBuffer(GL_UNIFORM_BUFFER, 0);
+}
+
+// Targets the image's lower-left corner of the G-buffer with the z test on and no culling or blending.
+void begin_gbuffer_pass(GLuint fbo, std::uint32_t width, std::uint32_t height) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glViewport(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+  glEnable(GL_SCISSOR_TEST);  // clears only the image's corner of the framebuffer
+  glScissor(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);  // surfaces are seen from both sides, as by the ray caster
+  glDisable(GL_BLEND);
+}
+
+// What a pixel no object covers reads back as: the background, depth at the far plane, id 0.
+void clear_gbuffer(const Scene& scene) {
+  const GLfloat background[4] = {finite_or(scene.background.r, 0), finite_or(scene.background.g, 0),
+                                 finite_or(scene.background.b, 0), 1.0f};
+  const GLfloat far_depth[4] = {scene.camera.far_m, 0, 0, 0};
+  const GLfloat zero[4] = {0, 0, 0, 0};
+  const GLuint zero_id[4] = {0, 0, 0, 0};
+  const GLfloat one = 1.0f;
+  glClearBufferfv(GL_COLOR, 0, background);
+  glClearBufferfv(GL_COLOR, 1, far_depth);
+  glClearBufferuiv(GL_COLOR, 2, zero_id);
+  glClearBufferfv(GL_COLOR, 3, zero);
+  glClearBufferfv(GL_COLOR, 4, zero);
+  glClearBufferfv(GL_DEPTH, 0, &one);
+}
+
 }  // namespace
 
 GlBackend::GlBackend() : context_(GlContextOptions{.visible = false, .title = "fovea-gl-backend", .width = 16,
@@ -124,86 +223,55 @@ void GlBackend::release_framebuffer() {
 
 void GlBackend::set_scene(const Scene& scene) {
   // Validate everything before touching GL state, so a bad scene leaves the previous one usable.
-  for (const Object& o : scene.objects) {
-    if (!o.mesh) continue;  // nothing to draw (as in the Embree backend)
-    if (o.material >= scene.materials.size()) {
-      throw std::invalid_argument(object_label(scene, o) + ": material index " + std::to_string(o.material) +
-                                  " out of range [0, " + std::to_string(scene.materials.size()) + ")");
-    }
-    for (std::size_t level = 0; level <= o.lods.size(); ++level) {
-      const Mesh* level_mesh = level == 0 ? o.mesh.get() : o.lods[level - 1].mesh.get();
-      if (level_mesh == nullptr) continue;
-      const Mesh& m = *level_mesh;
-      if (m.normals.size() != m.positions.size()) {
-        throw std::invalid_argument(object_label(scene, o) + ": mesh has " + std::to_string(m.normals.size()) +
-                                    " normals for " + std::to_string(m.positions.size()) +
-                                    " positions (must be one per position)");
-      }
-      if (m.indices.size() % 3 != 0) {
-        throw std::invalid_argument(object_label(scene, o) + ": mesh index count " + std::to_string(m.indices.size()) +
-                                    " is not a multiple of 3");
-      }
-      if (m.indices.size() > static_cast<std::size_t>(std::numeric_limits<GLsizei>::max())) {
-        throw std::invalid_argument(object_label(scene, o) + ": mesh has too many indices for OpenGL");
-      }
-      for (const std::uint32_t i : m.indices) {
-        if (i >= m.positions.size()) {
-          throw std::invalid_argument(object_label(scene, o) + ": mesh index " + std::to_string(i) +
-                                      " out of range [0, " + std::to_string(m.positions.size()) + ")");
-        }
-      }
-    }
-  }
-  std::vector<LightSampleStd140> packed;
-  std::vector<LightSample> samples;
-  for (const Light& light : scene.lights) {
-    light_samples(light, samples);
-    for (const LightSample& s : samples) {
-      packed.push_back({{s.position.x, s.position.y, s.position.z, static_cast<float>(s.kind)},
-                        {s.power.x, s.power.y, s.power.z, s.cos_cutoff},
-                        {s.direction.x, s.direction.y, s.direction.z, s.cos_falloff_start}});
-    }
-  }
-  if (packed.size() > static_cast<std::size_t>(gl::kMaxLightSamples)) {
-    throw std::runtime_error((scene.source.empty() ? scene.name : scene.source.string()) + ": the lights expand to " +
-                             std::to_string(packed.size()) + " light samples; the OpenGL backend supports at most " +
-                             std::to_string(gl::kMaxLightSamples) +
-                             " (an area light counts area_samples^2: lower area_samples or use fewer lights)");
-  }
+  validate_drawable_objects(scene);
+  const std::vector<LightSampleStd140> packed = pack_light_samples(scene);
 
   context_.make_current();
   release_meshes();
+  upload_draw_items(scene);
+  upload_light_samples(light_ubo_, packed);
+  light_sample_count_ = static_cast<int>(packed.size());
+  scene_ = scene;
+  check_gl("GlBackend::set_scene");
+}
+
+GlBackend::GpuMesh GlBackend::upload_interleaved_mesh(const Mesh& mesh, std::vector<float>& interleaved) {
+  GpuMesh gpu;
+  gpu.index_count = static_cast<std::int32_t>(mesh.indices.size());
+  interleaved.resize(mesh.positions.size() * 6);
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    std::memcpy(&interleaved[6 * i], &mesh.positions[i], 3 * sizeof(float));
+    std::memcpy(&interleaved[6 * i + 3], &mesh.normals[i], 3 * sizeof(float));
+  }
+  glGenVertexArrays(1, &gpu.vao);
+  glGenBuffers(1, &gpu.vbo);
+  glGenBuffers(1, &gpu.ibo);
+  glBindVertexArray(gpu.vao);
+  glBindBuffer(GL_ARRAY_BUFFER, gpu.vbo);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(interleaved.size() * sizeof(float)), interleaved.data(),
+               GL_STATIC_DRAW);
+  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, gpu.ibo);
+  glBufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh.indices.size() * sizeof(std::uint32_t)),
+               mesh.indices.data(), GL_STATIC_DRAW);
+  constexpr GLsizei kStride = 6 * sizeof(float);
+  glEnableVertexAttribArray(0);
+  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, kStride, nullptr);
+  glEnableVertexAttribArray(1);
+  // The classic buffer-offset idiom of glVertexAttribPointer.
+  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, kStride,
+                        reinterpret_cast<const void*>(static_cast<std::uintptr_t>(3 * sizeof(float))));
+  glBindVertexArray(0);
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  return gpu;
+}
+
+void GlBackend::upload_draw_items(const Scene& scene) {
   std::unordered_map<const Mesh*, std::size_t> uploaded;  // shared meshes are uploaded once
   std::vector<float> interleaved;
   const auto upload = [&](const Mesh* mesh) -> std::size_t {
     const auto found = uploaded.find(mesh);
     if (found != uploaded.end()) return found->second;
-    GpuMesh gpu;
-    gpu.index_count = static_cast<std::int32_t>(mesh->indices.size());
-    interleaved.resize(mesh->positions.size() * 6);
-    for (std::size_t i = 0; i < mesh->positions.size(); ++i) {
-      std::memcpy(&interleaved[6 * i], &mesh->positions[i], 3 * sizeof(float));
-      std::memcpy(&interleaved[6 * i + 3], &mesh->normals[i], 3 * sizeof(float));
-    }
-    glGenVertexArrays(1, &gpu.vao);
-    glGenBuffers(1, &gpu.vbo);
-    glGenBuffers(1, &gpu.ibo);
-    glBindVertexArray(gpu.vao);
-    glBindBuffer(GL_ARRAY_BUFFER, gpu.vbo);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(interleaved.size() * sizeof(float)), interleaved.data(),
-                 GL_STATIC_DRAW);
-    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, gpu.ibo);
-    glBufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh->indices.size() * sizeof(std::uint32_t)),
-                 mesh->indices.data(), GL_STATIC_DRAW);
-    constexpr GLsizei kStride = 6 * sizeof(float);
-    glEnableVertexAttribArray(0);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, kStride, nullptr);
-    glEnableVertexAttribArray(1);
-    // The classic buffer-offset idiom of glVertexAttribPointer.
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, kStride,
-                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(3 * sizeof(float))));
-    glBindVertexArray(0);
-    glBindBuffer(GL_ARRAY_BUFFER, 0);
+    const GpuMesh gpu = upload_interleaved_mesh(*mesh, interleaved);
     uploaded.emplace(mesh, meshes_.size());
     meshes_.push_back(gpu);
     return meshes_.size() - 1;
@@ -217,15 +285,6 @@ void GlBackend::set_scene(const Scene& scene) {
     for (const LodLevel& l : o.lods) item.lods.push_back(l.mesh ? upload(l.mesh.get()) : item.mesh);
     draws_.push_back(std::move(item));
   }
-  glBindBuffer(GL_UNIFORM_BUFFER, light_ubo_);
-  if (!packed.empty()) {
-    glBufferSubData(GL_UNIFORM_BUFFER, 0, static_cast<GLsizeiptr>(packed.size() * sizeof(LightSampleStd140)),
-                    packed.data());
-  }
-  glBindBuffer(GL_UNIFORM_BUFFER, 0);
-  light_sample_count_ = static_cast<int>(packed.size());
-  scene_ = scene;
-  check_gl("GlBackend::set_scene");
 }
 
 void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
@@ -274,61 +333,58 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   if (width == 0) width = cam.width;
   if (height == 0) height = cam.height;
   ensure_framebuffer(std::max(std::max(cam.width, width), fb_width_), std::max(std::max(cam.height, height), fb_height_));
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  glViewport(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
-  glEnable(GL_SCISSOR_TEST);  // clears only the image's corner of the framebuffer
-  glScissor(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
-  glEnable(GL_DEPTH_TEST);
-  glDepthFunc(GL_LESS);
-  glDepthMask(GL_TRUE);
-  glDisable(GL_CULL_FACE);  // surfaces are seen from both sides, as by the ray caster
-  glDisable(GL_BLEND);
+  begin_gbuffer_pass(fbo_, width, height);
+  clear_gbuffer(scene);
 
-  const GLfloat background[4] = {finite_or(scene.background.r, 0), finite_or(scene.background.g, 0),
-                                 finite_or(scene.background.b, 0), 1.0f};
-  const GLfloat far_depth[4] = {cam.far_m, 0, 0, 0};
-  const GLfloat zero[4] = {0, 0, 0, 0};
-  const GLuint zero_id[4] = {0, 0, 0, 0};
-  const GLfloat one = 1.0f;
-  glClearBufferfv(GL_COLOR, 0, background);
-  glClearBufferfv(GL_COLOR, 1, far_depth);
-  glClearBufferuiv(GL_COLOR, 2, zero_id);
-  glClearBufferfv(GL_COLOR, 3, zero);
-  glClearBufferfv(GL_COLOR, 4, zero);
-  glClearBufferfv(GL_DEPTH, 0, &one);
+  const FrameView frame = frame_view(cam, time, lens);
+  const bool camera_moved = frame.view != frame.view_prev;
+  set_frame_uniforms(frame, scene.ambient, width, height);
+  draw_objects(scene, time, lod_levels, camera_moved);
+  glBindVertexArray(0);
+  glUseProgram(0);
+  glDisable(GL_SCISSOR_TEST);
+  check_gl("GlBackend::render (draw)");
+}
 
-  glm::mat4 view = cam.view_at(time.now_s);
-  glm::mat4 view_prev = cam.view_at(time.previous_s);
-  glm::mat4 proj = cam.projection();
-  glm::vec3 eye = cam.position_at(time.now_s);
-  if (lens.active()) {
-    // One view of an accumulation buffer: the eye moved to lens point p (camera right/up) and the
-    // frustum sheared so the plane in focus projects where the pinhole projects it: at the near
-    // plane n the window shifts by -p n / focus (view-space z, hence linear depth, is unchanged).
-    const glm::vec2 p = lens.disc * static_cast<float>(lens.aperture_radius_m);
-    const float n = cam.near_m, focus = static_cast<float>(lens.focus_m);
-    const float ty = n * std::tan(glm::radians(cam.vertical_fov_deg) * 0.5f);
-    const float tx = ty * static_cast<float>(cam.width) / static_cast<float>(cam.height);
-    const float sx = p.x * n / focus, sy = p.y * n / focus;
-    proj = glm::frustum(-tx - sx, tx - sx, -ty - sy, ty - sy, n, cam.far_m);
-    const glm::mat4 shift = glm::translate(glm::mat4(1.0f), glm::vec3(-p.x, -p.y, 0.0f));
-    const glm::mat4 cam_to_world = glm::inverse(view);
-    eye = glm::vec3(cam_to_world * glm::vec4(p.x, p.y, 0.0f, 1.0f));
-    view = shift * view;
-    view_prev = shift * view_prev;
-  }
-  const bool camera_moved = view != view_prev;
+GlBackend::FrameView GlBackend::frame_view(const Camera& cam, const FrameTime& time, const LensSample& lens) {
+  FrameView frame{cam.view_at(time.now_s), cam.view_at(time.previous_s), cam.projection(), cam.position_at(time.now_s)};
+  if (lens.active()) move_eye_to_lens_point(cam, lens, frame);
+  return frame;
+}
 
+// One view of an accumulation buffer: the eye moved to lens point p (camera right/up) and the
+// frustum sheared so the plane in focus projects where the pinhole projects it: at the near
+// plane n the window shifts by -p n / focus (view-space z, hence linear depth, is unchanged).
+void GlBackend::move_eye_to_lens_point(const Camera& cam, const LensSample& lens, FrameView& frame) {
+  const glm::vec2 p = lens.disc * static_cast<float>(lens.aperture_radius_m);
+  const float n = cam.near_m, focus = static_cast<float>(lens.focus_m);
+  const float ty = n * std::tan(glm::radians(cam.vertical_fov_deg) * 0.5f);
+  const float tx = ty * static_cast<float>(cam.width) / static_cast<float>(cam.height);
+  const float sx = p.x * n / focus, sy = p.y * n / focus;
+  frame.proj = glm::frustum(-tx - sx, tx - sx, -ty - sy, ty - sy, n, cam.far_m);
+  const glm::mat4 shift = glm::translate(glm::mat4(1.0f), glm::vec3(-p.x, -p.y, 0.0f));
+  const glm::mat4 cam_to_world = glm::inverse(frame.view);
+  frame.eye = glm::vec3(cam_to_world * glm::vec4(p.x, p.y, 0.0f, 1.0f));
+  frame.view = shift * frame.view;
+  frame.view_prev = shift * frame.view_prev;
+}
+
+// Binds the program and sets the uniforms shared by every object of the frame.
+void GlBackend::set_frame_uniforms(const FrameView& frame, const glm::vec3& ambient, std::uint32_t width,
+                                   std::uint32_t height) {
   glUseProgram(program_);
   glBindBufferBase(GL_UNIFORM_BUFFER, 0, light_ubo_);
-  glUniformMatrix4fv(loc_view_, 1, GL_FALSE, glm::value_ptr(view));
-  glUniformMatrix4fv(loc_view_prev_, 1, GL_FALSE, glm::value_ptr(view_prev));
-  glUniformMatrix4fv(loc_proj_, 1, GL_FALSE, glm::value_ptr(proj));
+  glUniformMatrix4fv(loc_view_, 1, GL_FALSE, glm::value_ptr(frame.view));
+  glUniformMatrix4fv(loc_view_prev_, 1, GL_FALSE, glm::value_ptr(frame.view_prev));
+  glUniformMatrix4fv(loc_proj_, 1, GL_FALSE, glm::value_ptr(frame.proj));
   glUniform1i(loc_light_count_, light_sample_count_);
-  glUniform3fv(loc_eye_, 1, glm::value_ptr(eye));
-  glUniform3fv(loc_ambient_, 1, glm::value_ptr(scene.ambient));
+  glUniform3fv(loc_eye_, 1, glm::value_ptr(frame.eye));
+  glUniform3fv(loc_ambient_, 1, glm::value_ptr(ambient));
   glUniform2f(loc_viewport_, static_cast<float>(width), static_cast<float>(height));
+}
 
+void GlBackend::draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
+                             bool camera_moved) {
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const Object& o = scene.objects[i];
     if (draws_[i].mesh == kNoMesh) continue;
@@ -336,29 +392,29 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
     const std::size_t level = i < lod_levels.size() ? std::min<std::size_t>(lod_levels[i], draws_[i].lods.size()) : 0;
     const GpuMesh& gpu = meshes_[level == 0 ? draws_[i].mesh : draws_[i].lods[level - 1]];
     if (gpu.index_count == 0) continue;
-    const Material& m = scene.materials[o.material];
-    const glm::mat4 model = o.transform_at(time.now_s).matrix();
-    const glm::mat4 model_prev = o.transform_at(time.previous_s).matrix();
-    const glm::mat3 normal_matrix = glm::transpose(glm::inverse(glm::mat3(model)));
-    glUniformMatrix4fv(loc_model_, 1, GL_FALSE, glm::value_ptr(model));
-    glUniformMatrix4fv(loc_model_prev_, 1, GL_FALSE, glm::value_ptr(model_prev));
-    glUniformMatrix3fv(loc_normal_matrix_, 1, GL_FALSE, glm::value_ptr(normal_matrix));
-    // Exactly zero motion for what did not move (the shader's two projections would differ by
-    // rounding, ~1e-5 px).
-    glUniform1i(loc_moved_, camera_moved || model != model_prev ? 1 : 0);
-    glUniform1ui(loc_object_id_, o.id);
-    glUniform1i(loc_emissive_, m.type == MaterialType::Emissive ? 1 : 0);
-    glUniform3fv(loc_kd_, 1, glm::value_ptr(m.kd));
-    glUniform3fv(loc_ks_, 1, glm::value_ptr(m.ks));
-    glUniform3fv(loc_emission_, 1, glm::value_ptr(m.emission));
-    glUniform1f(loc_shininess_, m.shininess);
+    set_object_uniforms(o, scene.materials[o.material], time, camera_moved);
     glBindVertexArray(gpu.vao);
     glDrawElements(GL_TRIANGLES, gpu.index_count, GL_UNSIGNED_INT, nullptr);
   }
-  glBindVertexArray(0);
-  glUseProgram(0);
-  glDisable(GL_SCISSOR_TEST);
-  check_gl("GlBackend::render (draw)");
+}
+
+// The object's transform now and at the previous frame (for motion), and its material.
+void GlBackend::set_object_uniforms(const Object& o, const Material& m, const FrameTime& time, bool camera_moved) {
+  const glm::mat4 model = o.transform_at(time.now_s).matrix();
+  const glm::mat4 model_prev = o.transform_at(time.previous_s).matrix();
+  const glm::mat3 normal_matrix = glm::transpose(glm::inverse(glm::mat3(model)));
+  glUniformMatrix4fv(loc_model_, 1, GL_FALSE, glm::value_ptr(model));
+  glUniformMatrix4fv(loc_model_prev_, 1, GL_FALSE, glm::value_ptr(model_prev));
+  glUniformMatrix3fv(loc_normal_matrix_, 1, GL_FALSE, glm::value_ptr(normal_matrix));
+  // Exactly zero motion for what did not move (the shader's two projections would differ by
+  // rounding, ~1e-5 px).
+  glUniform1i(loc_moved_, camera_moved || model != model_prev ? 1 : 0);
+  glUniform1ui(loc_object_id_, o.id);
+  glUniform1i(loc_emissive_, m.type == MaterialType::Emissive ? 1 : 0);
+  glUniform3fv(loc_kd_, 1, glm::value_ptr(m.kd));
+  glUniform3fv(loc_ks_, 1, glm::value_ptr(m.ks));
+  glUniform3fv(loc_emission_, 1, glm::value_ptr(m.emission));
+  glUniform1f(loc_shininess_, m.shininess);
 }
 
 void GlBackend::render_without_readback(const FrameTime& time) {

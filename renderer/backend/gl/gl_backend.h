@@ -62,6 +62,21 @@ class GlBackend final : public Backend {
   // width/height 0: the camera's resolution.
   void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {},
             std::uint32_t width = 0, std::uint32_t height = 0);
+  // The camera's view (now and at the previous frame), projection and eye for one render.
+  struct FrameView {
+    glm::mat4 view, view_prev, proj;
+    glm::vec3 eye;
+  };
+  static FrameView frame_view(const Camera& cam, const FrameTime& time, const LensSample& lens);
+  static void move_eye_to_lens_point(const Camera& cam, const LensSample& lens, FrameView& frame);
+  void set_frame_uniforms(const FrameView& frame, const glm::vec3& ambient, std::uint32_t width, std::uint32_t height);
+  void draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
+                    bool camera_moved);
+  void set_object_uniforms(const Object& o, const Material& m, const FrameTime& time, bool camera_moved);
+  // Uploads one mesh as an interleaved position/normal vertex buffer and an index buffer.
+  static GpuMesh upload_interleaved_mesh(const Mesh& mesh, std::vector<float>& interleaved);
+  // Fills meshes_ and draws_ (one per object, LOD levels included).
+  void upload_draw_items(const Scene& scene);
   void ensure_framebuffer(std::uint32_t width, std::uint32_t height);
   void release_framebuffer();
   void release_meshes();
