@@ -154,55 +154,65 @@ bool tell_daemon(const RunArgs& a, const std::string& file) {
 
 // --- the analysis shared by live and headless runs ---
 
-int analyse(const RunArgs& a, const Session& s, bool live) {
-  if (s.samples.empty()) throw std::runtime_error("no gaze samples were received or recorded");
-  const InputChoice in = choose_input(a, s.samples);
-  const std::vector<RawSample> raw = raw_samples(s, in);
-  const std::vector<TargetCollection> collected = collect(raw, s.targets);
-  std::printf("input: %s%s, %zu samples, %zu targets\n", in.input.c_str(),
-              in.eye.empty() ? "" : (" (" + in.eye + " eye)").c_str(), raw.size(), s.targets.size());
-  print_collection(collected);
+// The model to fit and the space it is fitted in, from what the collection kept.
+struct ModelChoice {
+  std::size_t used = 0;                 // calibration targets with enough fixation samples
+  std::size_t calibration_targets = 0;  // all calibration targets shown
+  std::string kind;                     // fit_calibration's kind, or "poly2+bilinear-grid"
+  bool fick = false;                    // fitted to Fick angles rather than screen pixels
+};
 
-  const std::vector<Correspondence> corr = correspondences(collected, TargetPhase::Calibrate);
-  std::size_t used = 0, calibration_targets = 0;
+ModelChoice choose_model(const RunArgs& a, const InputChoice& in, const std::vector<TargetCollection>& collected) {
+  ModelChoice m;
   for (const auto& c : collected) {
     if (c.target.phase != TargetPhase::Calibrate) continue;
-    ++calibration_targets;
-    used += c.used ? 1u : 0u;
+    ++m.calibration_targets;
+    m.used += c.used ? 1u : 0u;
   }
-  if (used == 0) throw std::runtime_error("no calibration target has enough fixation samples; nothing to fit");
-  const bool full_grid = used == calibration_targets && (calibration_targets == 9 || calibration_targets == 16 ||
-                                                         calibration_targets == 64);
-  const std::string kind = a.model == "auto" ? auto_model(in, used, full_grid) : a.model;
-  const Display display = to_calib_display(s.display);
-  const bool grid = kind == "bilinear-grid" || kind == "poly2+bilinear-grid";
-  const bool fick = a.target_space == kTargetFickDegrees ||
-                    (a.target_space == "auto" && in.input == kInputPupilGlint && !grid);
-  if (fick && grid) throw std::runtime_error(kind + " corrects screen pixels: use --target-space px");
+  if (m.used == 0) throw std::runtime_error("no calibration target has enough fixation samples; nothing to fit");
+  const bool full_grid = m.used == m.calibration_targets &&
+                         (m.calibration_targets == 9 || m.calibration_targets == 16 || m.calibration_targets == 64);
+  m.kind = a.model == "auto" ? auto_model(in, m.used, full_grid) : a.model;
+  const bool grid = m.kind == "bilinear-grid" || m.kind == "poly2+bilinear-grid";
+  m.fick = a.target_space == kTargetFickDegrees ||
+           (a.target_space == "auto" && in.input == kInputPupilGlint && !grid);
+  if (m.fick && grid) throw std::runtime_error(m.kind + " corrects screen pixels: use --target-space px");
+  return m;
+}
+
+// Fits the chosen model to the calibration targets (poly2+bilinear-grid: J&P's grid correcting a
+// poly2 fit) and records what it calibrates.
+Calibration fit_model(const ModelChoice& m, const InputChoice& in, const std::vector<Correspondence>& corr,
+                      const Display& display) {
   Calibration cal;
   try {
-    if (kind == "poly2+bilinear-grid") {
+    if (m.kind == "poly2+bilinear-grid") {
       const Calibration base = fit_calibration("poly2", corr);
       cal = fit_calibration("bilinear-grid", corr, &base);
       cal.outliers_rejected = base.outliers_rejected;
     } else {
-      cal = fit_calibration(kind, corr, nullptr, {}, fick ? &display : nullptr);
+      cal = fit_calibration(m.kind, corr, nullptr, {}, m.fick ? &display : nullptr);
     }
   } catch (const std::invalid_argument& e) {
-    throw std::runtime_error("fitting " + kind + " to " + std::to_string(used) + " of " +
-                             std::to_string(calibration_targets) + " calibration targets: " + e.what());
+    throw std::runtime_error("fitting " + m.kind + " to " + std::to_string(m.used) + " of " +
+                             std::to_string(m.calibration_targets) + " calibration targets: " + e.what());
   }
   cal.input = in.input;
   cal.eye = in.eye;
   cal.display = display;
-  std::printf("model: %s in %s, %zu samples (%zu rejected as outliers), rms residual %.3f %s\n", kind.c_str(),
-              fick ? "Fick angles" : "pixels", cal.points_used, cal.outliers_rejected, cal.rms_residual,
-              fick ? "deg" : "px");
+  std::printf("model: %s in %s, %zu samples (%zu rejected as outliers), rms residual %.3f %s\n", m.kind.c_str(),
+              m.fick ? "Fick angles" : "pixels", cal.points_used, cal.outliers_rejected, cal.rms_residual,
+              m.fick ? "deg" : "px");
+  return cal;
+}
 
-  // Validation on the separate targets: every valid sample in the window that is not in a saccade
-  // or blink (no off-target filtering: the figures must include what a user would get).
+// Validation on the separate targets: every valid sample in the window that is not in a saccade
+// or blink (no off-target filtering: the figures must include what a user would get).
+std::vector<ValidationSample> validation_samples(const std::vector<TargetWindow>& targets,
+                                                 const std::vector<RawSample>& raw, const Calibration& cal,
+                                                 const InputChoice& in) {
   std::vector<ValidationSample> vs;
-  for (const TargetWindow& t : s.targets) {
+  for (const TargetWindow& t : targets) {
     if (t.phase != TargetPhase::Validate) continue;
     for (const RawSample& r : raw) {
       if (r.time_ns < t.collect_from_ns || r.time_ns >= t.collect_to_ns || !r.valid) continue;
@@ -217,6 +227,11 @@ int analyse(const RunArgs& a, const Session& s, bool live) {
       vs.push_back(v);
     }
   }
+  return vs;
+}
+
+// Prints the validation table and records its overall figures in the calibration (none without samples).
+std::optional<ValidationResult> validate_calibration(const std::vector<ValidationSample>& vs, Calibration& cal) {
   std::optional<ValidationResult> result;
   if (vs.empty()) {
     std::printf("validation: none (no validation targets, or no usable samples on them)\n");
@@ -229,11 +244,17 @@ int analyse(const RunArgs& a, const Session& s, bool live) {
     cal.validation["targets"] = vt;
     cal.validation["date"] = utc_now_iso8601();
   }
+  return result;
+}
+
+// Writes the calibration file and the report, then has the daemon load it when asked; 1 when it did not.
+int write_results(const RunArgs& a, const Calibration& cal, const std::optional<ValidationResult>& result,
+                  const std::vector<ValidationSample>& vs, const ModelChoice& m, const InputChoice& in, bool live) {
   save_calibration(cal, a.out, a.force);
   std::printf("wrote %s: %s\n", a.out.c_str(), cal.describe().c_str());
   if (!a.report_dir.empty() && result) {
     write_validation_report(a.report_dir, *result, vs, *cal.display,
-                            "fovea-calibrate run: " + kind + " on " + in.input + ", " + std::to_string(used) +
+                            "fovea-calibrate run: " + m.kind + " on " + in.input + ", " + std::to_string(m.used) +
                                 " calibration targets");
     std::printf("wrote the validation report to %s\n", a.report_dir.c_str());
   }
@@ -241,6 +262,24 @@ int analyse(const RunArgs& a, const Session& s, bool live) {
     if (!tell_daemon(a, fs::absolute(a.out).lexically_normal().string())) return 1;
   }
   return 0;
+}
+
+int analyse(const RunArgs& a, const Session& s, bool live) {
+  if (s.samples.empty()) throw std::runtime_error("no gaze samples were received or recorded");
+  const InputChoice in = choose_input(a, s.samples);
+  const std::vector<RawSample> raw = raw_samples(s, in);
+  const std::vector<TargetCollection> collected = collect(raw, s.targets);
+  std::printf("input: %s%s, %zu samples, %zu targets\n", in.input.c_str(),
+              in.eye.empty() ? "" : (" (" + in.eye + " eye)").c_str(), raw.size(), s.targets.size());
+  print_collection(collected);
+
+  const std::vector<Correspondence> corr = correspondences(collected, TargetPhase::Calibrate);
+  const ModelChoice m = choose_model(a, in, collected);
+  const Display display = to_calib_display(s.display);
+  Calibration cal = fit_model(m, in, corr, display);
+  const std::vector<ValidationSample> vs = validation_samples(s.targets, raw, cal, in);
+  const std::optional<ValidationResult> result = validate_calibration(vs, cal);
+  return write_results(a, cal, result, vs, m, in, live);
 }
 
 // --- live: the target window ---
@@ -344,19 +383,28 @@ class TargetWindowGl {
   GLFWwindow* window_ = nullptr;
 };
 
-int run_live(const RunArgs& a) {
-  const proto::Endpoint server = proto::parse_endpoint(a.server, proto::kDefaultPort);
-  const ScheduleOptions so = schedule_options(a);
-  const auto size = parse_window(a.window);
+// --- live: collecting the session ---
+
+// The files --save-session writes; empty without it.
+struct SessionFiles {
+  std::string fgr, targets;
+};
+
+// Refuses, before anything is shown, to replace the calibration file or a saved session.
+SessionFiles check_outputs_free(const RunArgs& a) {
   if (!a.force && fs::exists(a.out)) throw std::runtime_error(a.out + ": exists; refusing to overwrite it (use --force)");
-  const std::string session_fgr = a.save_session.empty() ? "" : a.save_session + ".fgr";
-  const std::string session_targets = a.save_session.empty() ? "" : a.save_session + ".targets.csv";
-  for (const std::string& p : {session_fgr, session_targets}) {
+  SessionFiles f;
+  f.fgr = a.save_session.empty() ? "" : a.save_session + ".fgr";
+  f.targets = a.save_session.empty() ? "" : a.save_session + ".targets.csv";
+  for (const std::string& p : {f.fgr, f.targets}) {
     if (!p.empty() && fs::exists(p)) throw std::runtime_error(p + ": exists; not replaced (--save-session)");
   }
+  return f;
+}
 
-  // The display geometry comes with the subscription; a first short subscription would cost a
-  // synthetic viewer its script, so the window opens at the daemon's STATUS display instead.
+// The display geometry comes with the subscription; a first short subscription would cost a
+// synthetic viewer its script, so the window opens at the daemon's STATUS display instead.
+Session session_from_status(const RunArgs& a, const proto::Endpoint& server) {
   const auto status = proto::GazeClient::query_status(server, a.connect_timeout_ms);
   if (!status) {
     throw std::runtime_error("no answer from fovea-trackerd at " + server.to_string() + " within " +
@@ -366,90 +414,124 @@ int run_live(const RunArgs& a) {
   s.display = status->display;
   s.nominal_rate_hz = status->nominal_rate_hz;
   s.device = status->source.value;
-  const std::vector<ScheduledTarget> schedule =
-      make_schedule(s.display.width_px, s.display.height_px, so);
-  TargetWindowGl window(size, s.display);
-  window.draw(schedule, so, -1);
+  return s;
+}
 
+proto::ClientOptions sample_stream_options(const proto::Endpoint& server) {
   proto::ClientOptions co;
   co.server = server;
   co.streams = proto::kStreamSamples;
   co.name = "fovea-calibrate";
   co.queue_capacity = 1 << 18;
-  proto::GazeClient client(co);
+  return co;
+}
+
+void subscribe(proto::GazeClient& client, const RunArgs& a, const proto::Endpoint& server) {
   client.start();
   if (!client.wait_subscribed(a.connect_timeout_ms)) {
     throw std::runtime_error("could not subscribe to fovea-trackerd at " + server.to_string());
   }
-  // Screen input is calibrated on the tracker's own gaze: the daemon's current calibration must be
-  // off while we collect, and is restored if we do not finish.
-  const bool screen_input = a.input == "screen";
-  if (screen_input) {
-    proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
-    req.argument.value = "none";
-    const auto r = proto::GazeClient::send_control(server, req, 4000);
-    if (!r || r->result != proto::ControlResult::Ok) {
-      throw std::runtime_error("could not switch the daemon's calibration off for collection: " + control_reply_text(r));
-    }
-  }
-  auto restore = [&] {
-    if (!screen_input) return;
-    proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
-    req.argument.value = "configured";
-    (void)proto::GazeClient::send_control(server, req, 2000);
-  };
+}
 
+// Screen input is calibrated on the tracker's own gaze: the daemon's current calibration must be
+// off while we collect, and is restored if we do not finish.
+void switch_daemon_calibration_off(const proto::Endpoint& server) {
+  proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
+  req.argument.value = "none";
+  const auto r = proto::GazeClient::send_control(server, req, 4000);
+  if (!r || r->result != proto::ControlResult::Ok) {
+    throw std::runtime_error("could not switch the daemon's calibration off for collection: " + control_reply_text(r));
+  }
+}
+
+void restore_daemon_calibration(const proto::Endpoint& server) {
+  proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
+  req.argument.value = "configured";
+  (void)proto::GazeClient::send_control(server, req, 2000);
+}
+
+// Shows the schedule while the stream is recorded into s.samples, until a sample's tracker time
+// passes the schedule's end; returns the tracker time of the first sample, which started the schedule.
+std::int64_t record_schedule(proto::GazeClient& client, TargetWindowGl& window,
+                             const std::vector<ScheduledTarget>& schedule, const ScheduleOptions& so, Session& s) {
   std::vector<std::pair<proto::GazeSample, proto::Arrival>> batch;
   std::optional<std::int64_t> start_ns;  // tracker clock: the first sample received starts the schedule
   std::int64_t last_arrival = proto::monotonic_ns();
   const double end_s = schedule_end_s(schedule) + 0.2;
-  try {
-    while (true) {
-      batch.clear();
-      client.poll(batch);
-      for (const auto& [sample, arrival] : batch) {
-        if (!start_ns) start_ns = sample.tracker_time_ns;
-        s.samples.push_back(proto::Record{arrival.sequence, sample});
-        last_arrival = arrival.receive_ns;
-      }
-      const std::int64_t now = proto::monotonic_ns();
-      if (now - last_arrival > 3000 * kMs) {
-        throw std::runtime_error("the gaze stream stopped for 3 s (" + std::to_string(s.samples.size()) +
-                                 " samples so far); calibration abandoned");
-      }
-      if (window.wants_close()) throw std::runtime_error("abandoned by the user (Esc or window closed); nothing written");
-      const double t_s =
-          start_ns ? static_cast<double>(now + client.stats().clock_offset_ns - *start_ns) * 1e-9 : -1.0;
-      if (start_ns && !s.samples.empty() &&
-          static_cast<double>(sample_of(s.samples.back()).tracker_time_ns - *start_ns) * 1e-9 >= end_s) {
-        break;
-      }
-      window.draw(schedule, so, t_s);
+  while (true) {
+    batch.clear();
+    client.poll(batch);
+    for (const auto& [sample, arrival] : batch) {
+      if (!start_ns) start_ns = sample.tracker_time_ns;
+      s.samples.push_back(proto::Record{arrival.sequence, sample});
+      last_arrival = arrival.receive_ns;
     }
+    const std::int64_t now = proto::monotonic_ns();
+    if (now - last_arrival > 3000 * kMs) {
+      throw std::runtime_error("the gaze stream stopped for 3 s (" + std::to_string(s.samples.size()) +
+                               " samples so far); calibration abandoned");
+    }
+    if (window.wants_close()) throw std::runtime_error("abandoned by the user (Esc or window closed); nothing written");
+    const double t_s =
+        start_ns ? static_cast<double>(now + client.stats().clock_offset_ns - *start_ns) * 1e-9 : -1.0;
+    if (start_ns && !s.samples.empty() &&
+        static_cast<double>(sample_of(s.samples.back()).tracker_time_ns - *start_ns) * 1e-9 >= end_s) {
+      return *start_ns;
+    }
+    window.draw(schedule, so, t_s);
+  }
+}
+
+// Keeps the session (--save-session) for headless runs: the recording and its targets file.
+void save_session(const Session& s, const SessionFiles& f, const proto::GazeClient& client) {
+  proto::RecordingHeader h;
+  h.device = ("calibration session: " + s.device).substr(0, 63);
+  h.display = s.display;
+  h.nominal_rate_hz = s.nominal_rate_hz;
+  h.clock = proto::RecordingClock::Monotonic;
+  h.created_unix_ns = proto::realtime_ns();
+  h.created_clock_ns = proto::monotonic_ns() + client.stats().clock_offset_ns;
+  {
+    proto::RecordingWriter w(f.fgr, h);
+    for (const auto& r : s.samples) w.append(r);
+    w.sync();
+  }
+  write_target_windows(f.targets, s.targets);
+  std::printf("saved the session to %s and %s\n", f.fgr.c_str(), f.targets.c_str());
+}
+
+int run_live(const RunArgs& a) {
+  const proto::Endpoint server = proto::parse_endpoint(a.server, proto::kDefaultPort);
+  const ScheduleOptions so = schedule_options(a);
+  const auto size = parse_window(a.window);
+  const SessionFiles files = check_outputs_free(a);
+
+  Session s = session_from_status(a, server);
+  const std::vector<ScheduledTarget> schedule =
+      make_schedule(s.display.width_px, s.display.height_px, so);
+  TargetWindowGl window(size, s.display);
+  window.draw(schedule, so, -1);
+
+  proto::GazeClient client(sample_stream_options(server));
+  subscribe(client, a, server);
+  const bool screen_input = a.input == "screen";
+  if (screen_input) switch_daemon_calibration_off(server);
+  auto restore = [&] {
+    if (screen_input) restore_daemon_calibration(server);
+  };
+
+  std::int64_t start_ns = 0;
+  try {
+    start_ns = record_schedule(client, window, schedule, so, s);
   } catch (...) {
     restore();
     throw;
   }
   client.stop();
-  s.targets = place_schedule(schedule, *start_ns);
+  s.targets = place_schedule(schedule, start_ns);
   std::stable_sort(s.samples.begin(), s.samples.end(),
                    [](const proto::Record& x, const proto::Record& y) { return x.time_ns() < y.time_ns(); });
-  if (!session_fgr.empty()) {
-    proto::RecordingHeader h;
-    h.device = ("calibration session: " + s.device).substr(0, 63);
-    h.display = s.display;
-    h.nominal_rate_hz = s.nominal_rate_hz;
-    h.clock = proto::RecordingClock::Monotonic;
-    h.created_unix_ns = proto::realtime_ns();
-    h.created_clock_ns = proto::monotonic_ns() + client.stats().clock_offset_ns;
-    {
-      proto::RecordingWriter w(session_fgr, h);
-      for (const auto& r : s.samples) w.append(r);
-      w.sync();
-    }
-    write_target_windows(session_targets, s.targets);
-    std::printf("saved the session to %s and %s\n", session_fgr.c_str(), session_targets.c_str());
-  }
+  if (!files.fgr.empty()) save_session(s, files, client);
   try {
     return analyse(a, s, true);
   } catch (...) {

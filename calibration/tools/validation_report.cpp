@@ -332,28 +332,24 @@ void draw_panel(cv::Mat& img, const Layout& L, const Display& d, int panel_x, co
   text(img, counts, {tx, 88}, 0.45, kGrey);
 }
 
-}  // namespace
-
-std::vector<unsigned char> render_error_figure_png(const ValidationResult& r, const std::vector<ValidationSample>& samples,
-                                                   const Display& d, const std::string& title) {
+Layout figure_layout(const Display& d) {
   Layout L;
   L.scale = 1000.0 / d.width_px;
   L.screen_w = 1000;
   L.screen_h = std::clamp(static_cast<int>(std::lround(d.height_px * L.scale)), 50, 4000);
   L.panel_w = L.screen_w + 2 * L.margin;
   L.panel_h = L.top + L.screen_h + 30;
-  const bool before = r.before.has_value();
-  const int panels = before ? 2 : 1;
-  cv::Mat img(L.panel_h + L.footer + (panels == 1 ? 50 : 0), panels * L.panel_w, CV_8UC3, kWhite);
+  return L;
+}
 
-  // One magnification for both panels: the largest mean error vector becomes 1/8 of the width.
+// One magnification for both panels: the largest mean error vector becomes `want` (screen px) long.
+double magnification(const ValidationResult& r, const Layout& L, const Display& d, double want) {
   double largest = 0;
   for (const auto& t : r.targets) {
     if (t.after.has_data()) largest = std::max(largest, std::hypot(t.after.mean_error_px.x, t.after.mean_error_px.y));
     if (t.before && t.before->has_data())
       largest = std::max(largest, std::hypot(t.before->mean_error_px.x, t.before->mean_error_px.y));
   }
-  const double want = d.width_px / 8;
   double factor = 1.0;
   if (largest > 0 && std::isfinite(largest)) {
     // Smaller, if need be, so that no vector leaves the panel; but not below a quarter of that.
@@ -367,19 +363,13 @@ std::vector<unsigned char> render_error_figure_png(const ValidationResult& r, co
     const double f = std::max(std::min(want / largest, fits), want / largest / 4);
     factor = nice_floor(f, {8.0, 6.0, 5.0, 4.0, 3.0, 2.5, 2.0, 1.5, 1.0});
   }
+  return factor;
+}
 
-  text(img, title, {L.margin, 30}, 0.65, kBlack, 1);
-  if (before) draw_panel(img, L, d, 0, "before", true, r, samples, factor);
-  draw_panel(img, L, d, before ? L.panel_w : 0, "after", false, r, samples, factor);
-
-  // Footer: magnification, scale bar, legend.
-  const int fy = L.panel_h + 20;
-  int x = L.margin;
-  const std::string mag = "vectors x " + factor_text(factor);
-  text(img, mag, {x, fy + 6}, 0.7, kBlack, 2);
-  x += text_width(mag, 0.7, 2) + 30;
-  // Scale bar: a round number of degrees (at the screen centre), magnified like the vectors, about
-  // as long as the largest vector.
+// Scale bar: a round number of degrees (at the screen centre), magnified like the vectors, about
+// as long as the largest vector. Drawn from x, which it advances past the bar; returns its label.
+std::string draw_scale_bar(cv::Mat& img, const Layout& L, const Display& d, double factor, double want, int fy,
+                           int& x) {
   const double px_per_deg = 1.0 / deg_per_px_at_centre(d);  // screen px per degree at the centre
   const double bar_target = want * L.scale;                 // panel px
   double bar_deg = nice_floor(std::max(bar_target / (px_per_deg * factor * L.scale), 1e-6));
@@ -392,7 +382,12 @@ std::vector<unsigned char> render_error_figure_png(const ValidationResult& r, co
   const std::string bar_text = factor_text(bar_deg) + " deg";
   text(img, bar_text, {x + bar_px / 2 - text_width(bar_text, 0.6, 2) / 2, fy - 12}, 0.6, kBlack, 2);
   x += bar_px + 30;
-  // Legend, wrapped onto a second row when the image is narrow (one panel).
+  return bar_text;
+}
+
+// Legend from x on row fy, wrapped onto a second row when the image is narrow (one panel); returns
+// the y of the row it ended on.
+int draw_legend(cv::Mat& img, const Layout& L, bool before, int x, int fy) {
   int row_y = fy;
   const auto place = [&](int w) {
     if (x + w > img.cols - L.margin) {
@@ -418,6 +413,12 @@ std::vector<unsigned char> render_error_figure_png(const ValidationResult& r, co
   at = place(18 + text_width("target with only lost samples", 0.5));
   draw_lost_target(img, at + 6, row_y);
   text(img, "target with only lost samples", {at + 18, row_y + 5}, 0.5, kGrey);
+  return row_y;
+}
+
+// The notes under the legend, on two lines when one is too narrow.
+void draw_notes(cv::Mat& img, const Layout& L, const Display& d, double factor, const std::string& bar_text,
+                int row_y) {
   const std::string note1 = "errors and samples drawn " + factor_text(factor) + " times their size about each target; ";
   const std::string note2 = "the bar is " + bar_text + " at the screen centre, magnified alike (" + to_string(d) + ")";
   if (L.margin + text_width(note1 + note2, 0.45) <= img.cols - L.margin) {
@@ -426,6 +427,35 @@ std::vector<unsigned char> render_error_figure_png(const ValidationResult& r, co
     text(img, note1, {L.margin, row_y + 36}, 0.45, kGrey);
     text(img, note2, {L.margin, row_y + 56}, 0.45, kGrey);
   }
+}
+
+// Footer: magnification, scale bar, legend, notes.
+void draw_footer(cv::Mat& img, const Layout& L, const Display& d, double factor, double want, bool before) {
+  const int fy = L.panel_h + 20;
+  int x = L.margin;
+  const std::string mag = "vectors x " + factor_text(factor);
+  text(img, mag, {x, fy + 6}, 0.7, kBlack, 2);
+  x += text_width(mag, 0.7, 2) + 30;
+  const std::string bar_text = draw_scale_bar(img, L, d, factor, want, fy, x);
+  const int row_y = draw_legend(img, L, before, x, fy);
+  draw_notes(img, L, d, factor, bar_text, row_y);
+}
+
+}  // namespace
+
+std::vector<unsigned char> render_error_figure_png(const ValidationResult& r, const std::vector<ValidationSample>& samples,
+                                                   const Display& d, const std::string& title) {
+  const Layout L = figure_layout(d);
+  const bool before = r.before.has_value();
+  const int panels = before ? 2 : 1;
+  cv::Mat img(L.panel_h + L.footer + (panels == 1 ? 50 : 0), panels * L.panel_w, CV_8UC3, kWhite);
+  const double want = d.width_px / 8;  // the largest mean error vector's magnified length, screen px
+  const double factor = magnification(r, L, d, want);
+
+  text(img, title, {L.margin, 30}, 0.65, kBlack, 1);
+  if (before) draw_panel(img, L, d, 0, "before", true, r, samples, factor);
+  draw_panel(img, L, d, before ? L.panel_w : 0, "after", false, r, samples, factor);
+  draw_footer(img, L, d, factor, want, before);
 
   std::vector<unsigned char> png;
   if (!cv::imencode(".png", img, png)) throw std::runtime_error("errors.png: PNG encoding failed");
