@@ -201,85 +201,143 @@ int cmd_synth_eye(const std::string& dir, int count, const std::string& size, bo
 
 // --- synth-calibration: a recorded calibration session of the synthetic viewer ---
 
+// An eye image size from --eye-size.
+struct EyeImageSize {
+  unsigned w = 0, h = 0;
+};
+
+// Parses --eye-size WxH, each side 32..4096.
+EyeImageSize parse_eye_image_size(const std::string& size) {
+  unsigned w = 0, h = 0;
+  char tail = 0;
+  if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
+    throw std::runtime_error("--eye-size \"" + size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
+  }
+  return {w, h};
+}
+
+// Where the viewer sits: --head-offset and --display, the message naming the flag whose text is wrong.
+void set_viewer_placement(eye::CalibrationSessionOptions& o, const std::string& head_offset,
+                          const std::string& display_text) {
+  try {
+    o.head_offset_mm = eye::parse_head_offset(head_offset);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("--head-offset: ") + e.what());
+  }
+  if (!display_text.empty()) {
+    try {
+      o.display = parse_display_geometry(display_text);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("--display: ") + e.what());
+    }
+  }
+}
+
+// The targets shown, checked here so that a bad combination is reported as the flags' fault.
+void set_target_schedule(fovea::calib::ScheduleOptions& schedule, int points, int validation_points,
+                         std::uint64_t seed) {
+  schedule.points = points;
+  schedule.validation_points = validation_points;
+  schedule.seed = seed;
+  try {
+    schedule.check();
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("--points/--validation-points: ") + e.what());
+  }
+}
+
+// The synthetic eye's image size, look (the seed) and imaging conditions.
+void set_eye_imaging(eye::SyntheticEyeOptions& e, EyeImageSize size, std::uint64_t seed, bool hard) {
+  e.width = static_cast<int>(size.w);
+  e.height = static_cast<int>(size.h);
+  e.seed = seed;
+  if (hard) e = eye::with_hard_conditions(e);
+}
+
+// SESSION.fgr and SESSION.targets.csv.
+struct SessionFiles {
+  std::string fgr, targets;
+};
+
+// The session's two files for --out (with or without .fgr); refused when either exists, so that both
+// are new or neither is written.
+SessionFiles new_session_files(const std::string& out) {
+  const std::string base = ends_with(out, ".fgr") ? out.substr(0, out.size() - 4) : out;
+  const std::string fgr = base + ".fgr", targets = base + ".targets.csv";
+  std::error_code ec;
+  for (const std::string& p : {fgr, targets}) {
+    if (std::filesystem::exists(p, ec) || std::filesystem::is_symlink(p, ec)) {
+      throw std::runtime_error(p + " already exists (synth-calibration never overwrites; it writes " + fgr +
+                               " and " + targets + " together)");
+    }
+  }
+  return {fgr, targets};
+}
+
+// The recording's header: the monotonic clock the daemon records on, frame 0 at o.start_time_ns.
+RecordingHeader session_recording_header(const eye::CalibrationSessionOptions& o, std::uint64_t seed,
+                                         std::int64_t created_unix) {
+  RecordingHeader header;
+  header.device = ("synthetic-eye calibration seed " + std::to_string(seed)).substr(0, 63);
+  header.display = o.display;
+  header.nominal_rate_hz = o.rate_hz;
+  header.clock = RecordingClock::Monotonic;
+  header.created_unix_ns = created_unix;
+  header.created_clock_ns = o.start_time_ns;
+  return header;
+}
+
+// Writes SESSION.fgr, then SESSION.targets.csv; the .fgr is removed again if either fails.
+void write_session_files(const SessionFiles& files, const RecordingHeader& header,
+                         const eye::CalibrationSession& session) {
+  std::error_code ec;
+  try {
+    RecordingWriter writer(files.fgr, header, RecordingWriter::Mode::CreateNew);
+    std::uint64_t sequence = 0;
+    for (const auto& item : session.published) {
+      std::visit([&](const auto& v) { writer.append(Record{sequence++, v}); }, item);
+    }
+    writer.sync();
+  } catch (...) {
+    std::filesystem::remove(files.fgr, ec);
+    throw;
+  }
+  try {
+    fovea::calib::write_target_windows(files.targets, session.targets);
+  } catch (...) {
+    std::filesystem::remove(files.fgr, ec);
+    throw;
+  }
+}
+
+// The tool's one-line summary on stdout.
+void print_session_summary(const SessionFiles& files, const eye::CalibrationSession& session,
+                           const eye::CalibrationSessionOptions& o, EyeImageSize size, bool hard, std::uint64_t seed) {
+  std::size_t calibrate = 0;
+  for (const auto& t : session.targets) calibrate += t.phase == fovea::calib::TargetPhase::Calibrate ? 1 : 0;
+  std::printf("synth-calibration: %s (%zu samples, %zu events, %.1f s at %.0f Hz, eye %ux%u%s, seed %llu, head "
+              "offset %g,%g,%g mm) and %s (%zu calibration + %zu validation targets)\n",
+              files.fgr.c_str(), session.samples.size(), session.events.size(), session.session_s, o.rate_hz, size.w,
+              size.h, hard ? " hard" : "", static_cast<unsigned long long>(seed), o.head_offset_mm.x,
+              o.head_offset_mm.y, o.head_offset_mm.z, files.targets.c_str(), calibrate,
+              session.targets.size() - calibrate);
+}
+
 int cmd_synth_calibration(const std::string& out, int points, int validation_points, std::uint64_t seed, bool hard,
                           const std::string& head_offset, const std::string& display_text, const std::string& size) {
   try {
-    unsigned w = 0, h = 0;
-    char tail = 0;
-    if (std::sscanf(size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 32 || h < 32 || w > 4096 || h > 4096) {
-      throw std::runtime_error("--eye-size \"" + size + "\": expected WxH, each 32..4096 (e.g. 320x240)");
-    }
+    const EyeImageSize eye_size = parse_eye_image_size(size);
     eye::CalibrationSessionOptions o;
-    try {
-      o.head_offset_mm = eye::parse_head_offset(head_offset);
-    } catch (const std::invalid_argument& e) {
-      throw std::runtime_error(std::string("--head-offset: ") + e.what());
-    }
-    if (!display_text.empty()) {
-      try {
-        o.display = parse_display_geometry(display_text);
-      } catch (const std::invalid_argument& e) {
-        throw std::runtime_error(std::string("--display: ") + e.what());
-      }
-    }
-    o.schedule.points = points;
-    o.schedule.validation_points = validation_points;
-    o.schedule.seed = seed;
-    try {
-      o.schedule.check();
-    } catch (const std::invalid_argument& e) {
-      throw std::runtime_error(std::string("--points/--validation-points: ") + e.what());
-    }
-    o.eye.width = static_cast<int>(w);
-    o.eye.height = static_cast<int>(h);
-    o.eye.seed = seed;
-    if (hard) o.eye = eye::with_hard_conditions(o.eye);
-    // SESSION.fgr and SESSION.targets.csv: both new, or neither is written.
-    const std::string base = ends_with(out, ".fgr") ? out.substr(0, out.size() - 4) : out;
-    const std::string fgr = base + ".fgr", targets = base + ".targets.csv";
-    std::error_code ec;
-    for (const std::string& p : {fgr, targets}) {
-      if (std::filesystem::exists(p, ec) || std::filesystem::is_symlink(p, ec)) {
-        throw std::runtime_error(p + " already exists (synth-calibration never overwrites; it writes " + fgr +
-                                 " and " + targets + " together)");
-      }
-    }
+    set_viewer_placement(o, head_offset, display_text);
+    set_target_schedule(o.schedule, points, validation_points, seed);
+    set_eye_imaging(o.eye, eye_size, seed, hard);
+    const SessionFiles files = new_session_files(out);
     spdlog::set_level(spdlog::level::warn);  // the pipeline's start-up lines: not this tool's one-line summary
     o.start_time_ns = monotonic_ns();  // frame 0 on this machine's monotonic clock, as the daemon records
     const std::int64_t created_unix = realtime_ns();
     const eye::CalibrationSession session = eye::simulate_calibration_session(o);
-
-    RecordingHeader header;
-    header.device = ("synthetic-eye calibration seed " + std::to_string(seed)).substr(0, 63);
-    header.display = o.display;
-    header.nominal_rate_hz = o.rate_hz;
-    header.clock = RecordingClock::Monotonic;
-    header.created_unix_ns = created_unix;
-    header.created_clock_ns = o.start_time_ns;
-    try {
-      RecordingWriter writer(fgr, header, RecordingWriter::Mode::CreateNew);
-      std::uint64_t sequence = 0;
-      for (const auto& item : session.published) {
-        std::visit([&](const auto& v) { writer.append(Record{sequence++, v}); }, item);
-      }
-      writer.sync();
-    } catch (...) {
-      std::filesystem::remove(fgr, ec);
-      throw;
-    }
-    try {
-      fovea::calib::write_target_windows(targets, session.targets);
-    } catch (...) {
-      std::filesystem::remove(fgr, ec);
-      throw;
-    }
-    std::size_t calibrate = 0;
-    for (const auto& t : session.targets) calibrate += t.phase == fovea::calib::TargetPhase::Calibrate ? 1 : 0;
-    std::printf("synth-calibration: %s (%zu samples, %zu events, %.1f s at %.0f Hz, eye %ux%u%s, seed %llu, head "
-                "offset %g,%g,%g mm) and %s (%zu calibration + %zu validation targets)\n",
-                fgr.c_str(), session.samples.size(), session.events.size(), session.session_s, o.rate_hz, w, h,
-                hard ? " hard" : "", static_cast<unsigned long long>(seed), o.head_offset_mm.x, o.head_offset_mm.y,
-                o.head_offset_mm.z, targets.c_str(), calibrate, session.targets.size() - calibrate);
+    write_session_files(files, session_recording_header(o, seed, created_unix), session);
+    print_session_summary(files, session, o, eye_size, hard, seed);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fovea-ctl synth-calibration: %s\n", e.what());
@@ -287,58 +345,68 @@ int cmd_synth_calibration(const std::string& out, int points, int validation_poi
   }
 }
 
-}  // namespace
-
-std::vector<Command> add_eye_commands(CLI::App& app) {
+// detect-pupil: the eye pipeline's detector on image files.
+Command add_detect_pupil_command(CLI::App& app) {
   struct Options {
-    std::vector<std::string> dp_images;
-    std::string dp_out, dp_leds;
-    int dp_downscale = eye::DetectorSettings{}.coarse_downscale;
-    bool dp_track = false, dp_force = false;
-    std::string se_dir, se_size = "320x240", se_leds = "2";
-    int se_count = 20;
-    bool se_hard = false;
-    std::uint64_t se_seed = 1;
-    std::string sc_out, sc_offset = "0,0,0", sc_display, sc_size = "320x240";
-    int sc_points = 9, sc_validation = 4;
-    std::uint64_t sc_seed = 1;
-    bool sc_hard = false;
+    std::vector<std::string> images;
+    std::string out, leds;
+    int downscale = eye::DetectorSettings{}.coarse_downscale;
+    bool track = false, force = false;
   };
   auto o = std::make_shared<Options>();
-  auto& [dp_images, dp_out, dp_leds, dp_downscale, dp_track, dp_force, se_dir, se_size, se_leds, se_count, se_hard,
-         se_seed, sc_out, sc_offset, sc_display, sc_size, sc_points, sc_validation, sc_seed, sc_hard] = *o;
-  // detect-pupil / synth-eye: the eye pipeline's detector on image files, and test images for it
   auto* detect_pupil = app.add_subcommand(
       "detect-pupil", "find the pupil and corneal glints in eye images (PNG, JPEG, ... 8 or 16 bit); one CSV row "
                       "per image: file,pupil_x,pupil_y,major,minor,angle_deg,confidence,glint_count,glints (pixels from "
                       "the top-left corner; confidence = probability that the centre is within 1 px; method: "
                       "trackerd/eye/EYE.md)");
-  detect_pupil->add_option("IMAGE", dp_images, "eye images")->required();
-  detect_pupil->add_option("--out", dp_out, "also write the CSV to this file (refuses to overwrite)");
-  detect_pupil->add_flag("--force", dp_force, "with --out: replace the file if it exists");
-  detect_pupil->add_option("--leds", dp_leds,
+  detect_pupil->add_option("IMAGE", o->images, "eye images")->required();
+  detect_pupil->add_option("--out", o->out, "also write the CSV to this file (refuses to overwrite)");
+  detect_pupil->add_flag("--force", o->force, "with --out: replace the file if it exists");
+  detect_pupil->add_option("--leds", o->leds,
                            "LED layout to pair glints with: a preset 0..5 or \"x,y;x,y;...\" in mm (default: "
                            "unknown, glints unpaired)");
-  detect_pupil->add_option("--downscale", dp_downscale, "coarse pupil search on an image 1, 2 or 4 times smaller")
+  detect_pupil->add_option("--downscale", o->downscale, "coarse pupil search on an image 1, 2 or 4 times smaller")
       ->check(CLI::IsMember({1, 2, 4}))
       ->capture_default_str();
-  detect_pupil->add_flag("--track", dp_track,
+  detect_pupil->add_flag("--track", o->track,
                          "treat the images as consecutive video frames: search near the last pupil first "
                          "(default: every image on its own)");
+  return {detect_pupil, [o] { return cmd_detect_pupil(o->images, o->out, o->force, o->leds, o->downscale, o->track); }};
+}
 
+// synth-eye: test images for the detector, with their exact truth.
+Command add_synth_eye_command(CLI::App& app) {
+  struct Options {
+    std::string dir, size = "320x240", leds = "2";
+    int count = 20;
+    bool hard = false;
+    std::uint64_t seed = 1;
+  };
+  auto o = std::make_shared<Options>();
   auto* synth_eye = app.add_subcommand(
       "synth-eye", "write synthetic infrared eye images (eye_0000.png, ...) with their exact truth (truth.csv) "
                    "for gazes drawn uniformly within +-20 degrees");
-  synth_eye->add_option("--out", se_dir, "new or empty directory to write into")->required();
-  synth_eye->add_option("--count", se_count, "number of images")->capture_default_str();
-  synth_eye->add_option("--size", se_size, "image size WxH")->capture_default_str();
-  synth_eye->add_flag("--hard", se_hard,
+  synth_eye->add_option("--out", o->dir, "new or empty directory to write into")->required();
+  synth_eye->add_option("--count", o->count, "number of images")->capture_default_str();
+  synth_eye->add_option("--size", o->size, "image size WxH")->capture_default_str();
+  synth_eye->add_flag("--hard", o->hard,
                       "hard conditions: sensor noise 10, 2 px motion blur, upper lid over 30% of the pupil, "
                       "spectacle reflections, uneven illumination");
-  synth_eye->add_option("--seed", se_seed, "random seed (same seed, same images)")->capture_default_str();
-  synth_eye->add_option("--leds", se_leds, "LED layout: a preset 0..5 or \"x,y;x,y;...\" in mm")
+  synth_eye->add_option("--seed", o->seed, "random seed (same seed, same images)")->capture_default_str();
+  synth_eye->add_option("--leds", o->leds, "LED layout: a preset 0..5 or \"x,y;x,y;...\" in mm")
       ->capture_default_str();
+  return {synth_eye, [o] { return cmd_synth_eye(o->dir, o->count, o->size, o->hard, o->seed, o->leds); }};
+}
 
+// synth-calibration: a recorded calibration session of the synthetic viewer.
+Command add_synth_calibration_command(CLI::App& app) {
+  struct Options {
+    std::string out, offset = "0,0,0", display, size = "320x240";
+    int points = 9, validation = 4;
+    std::uint64_t seed = 1;
+    bool hard = false;
+  };
+  auto o = std::make_shared<Options>();
   auto* synth_calibration = app.add_subcommand(
       "synth-calibration",
       "write a recorded calibration session of the synthetic viewer, for fovea-calibrate run --headless --from: "
@@ -346,38 +414,38 @@ std::vector<Command> add_eye_commands(CLI::App& app) {
       "correction, fixation jitter, blinks) and goes through the daemon's eye pipeline and classifier, as "
       "fovea-trackerd --source synthetic-eye --eye-script calibration:POINTS[:SEED] publishes; writes SESSION.fgr "
       "and the targets shown, on the recording's clock, as SESSION.targets.csv");
-  synth_calibration->add_option("--out", sc_out, "SESSION.fgr to write (with SESSION.targets.csv beside it; refuses "
+  synth_calibration->add_option("--out", o->out, "SESSION.fgr to write (with SESSION.targets.csv beside it; refuses "
                                                  "to overwrite either)")
       ->required();
-  synth_calibration->add_option("--points", sc_points, "calibration targets: 5, 9, 16 or 64")
+  synth_calibration->add_option("--points", o->points, "calibration targets: 5, 9, 16 or 64")
       ->check(CLI::IsMember({5, 9, 16, 64}))
       ->capture_default_str();
-  synth_calibration->add_option("--validation-points", sc_validation, "validation targets after them: 0, 4 or 9")
+  synth_calibration->add_option("--validation-points", o->validation, "validation targets after them: 0, 4 or 9")
       ->check(CLI::IsMember({0, 4, 9}))
       ->capture_default_str();
-  synth_calibration->add_option("--seed", sc_seed, "the viewer, its eye's look and the target order")
+  synth_calibration->add_option("--seed", o->seed, "the viewer, its eye's look and the target order")
       ->capture_default_str();
-  synth_calibration->add_flag("--eye-hard", sc_hard,
+  synth_calibration->add_flag("--eye-hard", o->hard,
                               "hard imaging conditions: sensor noise 10, 2 px motion blur, upper lid over 30% of "
                               "the pupil, spectacle reflections, uneven illumination");
-  synth_calibration->add_option("--head-offset", sc_offset,
+  synth_calibration->add_option("--head-offset", o->offset,
                                 "X,Y,Z mm: the eye displaced from the position the tracker's factory calibration "
                                 "assumes (x right, y down, z towards the screen; camera fixed to the screen)")
       ->capture_default_str();
-  synth_calibration->add_option("--display", sc_display,
+  synth_calibration->add_option("--display", o->display,
                                 "display geometry WxH@WMMxHMMmm,DISTmm (default " + to_string(DisplayGeometry{}) + ")");
-  synth_calibration->add_option("--eye-size", sc_size, "eye image size WxH")->capture_default_str();
+  synth_calibration->add_option("--eye-size", o->size, "eye image size WxH")->capture_default_str();
+  return {synth_calibration, [o] {
+            return cmd_synth_calibration(o->out, o->points, o->validation, o->seed, o->hard, o->offset, o->display,
+                                         o->size);
+          }};
+}
 
-  return {
-      {detect_pupil,
-       [o] { return cmd_detect_pupil(o->dp_images, o->dp_out, o->dp_force, o->dp_leds, o->dp_downscale, o->dp_track); }},
-      {synth_eye, [o] { return cmd_synth_eye(o->se_dir, o->se_count, o->se_size, o->se_hard, o->se_seed, o->se_leds); }},
-      {synth_calibration,
-       [o] {
-         return cmd_synth_calibration(o->sc_out, o->sc_points, o->sc_validation, o->sc_seed, o->sc_hard, o->sc_offset,
-                                      o->sc_display, o->sc_size);
-       }},
-  };
+}  // namespace
+
+std::vector<Command> add_eye_commands(CLI::App& app) {
+  // Braced initializers run left to right: the subcommands are added (and listed by --help) in this order.
+  return {add_detect_pupil_command(app), add_synth_eye_command(app), add_synth_calibration_command(app)};
 }
 
 }  // namespace fovea::ctl

@@ -122,6 +122,113 @@ double classify_field(const std::string& text, const char* name, bool nan_ok, co
   return v;
 }
 
+// The screen the gaze pixels are on, from the command line's RATE_HZ and screen arguments; throws
+// when the rate or the geometry is out of range.
+DisplayGeometry checked_classify_screen(double rate_hz, std::uint32_t w_px, std::uint32_t h_px, double w_mm,
+                                        double h_mm, double dist_mm) {
+  if (!std::isfinite(rate_hz) || rate_hz <= 0 || rate_hz > 100000) {
+    throw std::runtime_error("RATE_HZ " + std::to_string(rate_hz) + " is out of range (0, 100000]");
+  }
+  DisplayGeometry g;
+  g.width_px = w_px;
+  g.height_px = h_px;
+  g.width_m = w_mm / 1000.0;
+  g.height_m = h_mm / 1000.0;
+  g.viewing_distance_m = dist_mm / 1000.0;
+  if (const std::string err = validate(g); !err.empty()) throw std::runtime_error("screen geometry: " + err);
+  return g;
+}
+
+// The comma-separated fields of one row (no quoting: the classify input holds numbers only).
+std::vector<std::string> split_classify_row(const std::string& line) {
+  std::vector<std::string> f;
+  std::size_t start = 0;
+  for (std::size_t comma; (comma = line.find(',', start)) != std::string::npos; start = comma + 1) {
+    f.push_back(line.substr(start, comma - start));
+  }
+  f.push_back(line.substr(start));
+  return f;
+}
+
+// The classify input: one sample per data row, and its t_ms exactly as written (echoed to OUT).
+struct ClassifyInput {
+  std::vector<fovea::trackerd::classify::Sample> samples;
+  std::vector<std::string> times;
+};
+
+// One gaze point in degrees from the screen centre, or invalid where x or y is nan.
+fovea::trackerd::classify::Sample classify_sample(const DisplayGeometry& g, double t_ms, double x_px, double y_px) {
+  fovea::trackerd::classify::Sample s;
+  s.t_s = t_ms / 1000.0;
+  s.valid = std::isfinite(x_px) && std::isfinite(y_px);
+  if (s.valid) {
+    // Pixels (origin top-left) to normalized, then to degrees from the centre: atan(offset / d).
+    const Degrees d = normalized_to_degrees(
+        g, Normalized{x_px / static_cast<double>(g.width_px), y_px / static_cast<double>(g.height_px)});
+    s.x_deg = d.x;
+    s.y_deg = d.y;
+  }
+  return s;
+}
+
+// Reads the CSV t_ms,x_px,y_px (trackerd/CLASSIFY.md), naming the file and line of the first bad row.
+ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeometry& g) {
+  std::ifstream in(in_path);
+  if (!in) throw std::runtime_error("cannot open " + in_path);
+  ClassifyInput input;
+  auto& [samples, times] = input;
+  std::string line;
+  std::size_t line_no = 0;
+  double last_t = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const std::string where = in_path + ":" + std::to_string(line_no);
+    if (line_no == 1) {
+      if (line.size() >= 3 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // UTF-8 BOM
+      if (line != "t_ms,x_px,y_px") {
+        throw std::runtime_error(where + ": header is \"" + line + "\", expected \"t_ms,x_px,y_px\"");
+      }
+      continue;
+    }
+    if (line.empty()) throw std::runtime_error(where + ": empty line (expected t_ms,x_px,y_px)");
+    const std::vector<std::string> f = split_classify_row(line);
+    if (f.size() != 3) {
+      throw std::runtime_error(where + ": " + std::to_string(f.size()) + " fields, expected 3 (t_ms,x_px,y_px)");
+    }
+    const double t_ms = classify_field(f[0], "t_ms", false, where);
+    const double x_px = classify_field(f[1], "x_px", true, where);
+    const double y_px = classify_field(f[2], "y_px", true, where);
+    if (!samples.empty() && !(t_ms > last_t)) {
+      throw std::runtime_error(where + ": t_ms " + f[0] + " is not after the previous row's " + times.back() +
+                               " (times must strictly increase)");
+    }
+    last_t = t_ms;
+    samples.push_back(classify_sample(g, t_ms, x_px, y_px));
+    times.push_back(f[0]);
+  }
+  if (in.bad()) throw std::runtime_error("error reading " + in_path);
+  if (line_no == 0) throw std::runtime_error(in_path + ": empty file (expected the header t_ms,x_px,y_px)");
+  return input;
+}
+
+// Writes t_ms,label, one row per input row, to `tmp`; returns how many samples got each label.
+std::map<std::string, std::size_t> write_classify_labels(const std::string& tmp, const ClassifyInput& input,
+                                                         const std::vector<fovea::trackerd::classify::Label>& labels) {
+  namespace cl = fovea::trackerd::classify;
+  std::map<std::string, std::size_t> counts;
+  std::ofstream out(tmp);
+  if (!out) throw std::runtime_error("cannot create " + tmp);
+  out << "t_ms,label\n";
+  for (std::size_t i = 0; i < input.samples.size(); ++i) {
+    out << input.times[i] << ',' << cl::to_string(labels[i]) << '\n';
+    ++counts[cl::to_string(labels[i])];
+  }
+  out.close();
+  if (!out) throw std::runtime_error("cannot write " + tmp);
+  return counts;
+}
+
 int cmd_classify(const std::string& in_path, const std::string& out_path, double rate_hz, std::uint32_t w_px,
                  std::uint32_t h_px, double w_mm, double h_mm, double dist_mm, const std::string& method, bool force) {
   namespace cl = fovea::trackerd::classify;
@@ -130,88 +237,17 @@ int cmd_classify(const std::string& in_path, const std::string& out_path, double
     if (!force && std::filesystem::exists(out_path)) {
       throw std::runtime_error(out_path + " already exists (use --force to replace it)");
     }
-    if (!std::isfinite(rate_hz) || rate_hz <= 0 || rate_hz > 100000) {
-      throw std::runtime_error("RATE_HZ " + std::to_string(rate_hz) + " is out of range (0, 100000]");
-    }
-    DisplayGeometry g;
-    g.width_px = w_px;
-    g.height_px = h_px;
-    g.width_m = w_mm / 1000.0;
-    g.height_m = h_mm / 1000.0;
-    g.viewing_distance_m = dist_mm / 1000.0;
-    if (const std::string err = validate(g); !err.empty()) throw std::runtime_error("screen geometry: " + err);
-
-    std::ifstream in(in_path);
-    if (!in) throw std::runtime_error("cannot open " + in_path);
-    std::vector<cl::Sample> samples;
-    std::vector<std::string> times;  // t_ms exactly as written, echoed to OUT
-    std::string line;
-    std::size_t line_no = 0;
-    double last_t = 0;
-    while (std::getline(in, line)) {
-      ++line_no;
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      const std::string where = in_path + ":" + std::to_string(line_no);
-      if (line_no == 1) {
-        if (line.size() >= 3 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // UTF-8 BOM
-        if (line != "t_ms,x_px,y_px") {
-          throw std::runtime_error(where + ": header is \"" + line + "\", expected \"t_ms,x_px,y_px\"");
-        }
-        continue;
-      }
-      if (line.empty()) throw std::runtime_error(where + ": empty line (expected t_ms,x_px,y_px)");
-      std::vector<std::string> f;
-      std::size_t start = 0;
-      for (std::size_t comma; (comma = line.find(',', start)) != std::string::npos; start = comma + 1) {
-        f.push_back(line.substr(start, comma - start));
-      }
-      f.push_back(line.substr(start));
-      if (f.size() != 3) {
-        throw std::runtime_error(where + ": " + std::to_string(f.size()) + " fields, expected 3 (t_ms,x_px,y_px)");
-      }
-      const double t_ms = classify_field(f[0], "t_ms", false, where);
-      const double x_px = classify_field(f[1], "x_px", true, where);
-      const double y_px = classify_field(f[2], "y_px", true, where);
-      if (!samples.empty() && !(t_ms > last_t)) {
-        throw std::runtime_error(where + ": t_ms " + f[0] + " is not after the previous row's " + times.back() +
-                                 " (times must strictly increase)");
-      }
-      last_t = t_ms;
-      cl::Sample s;
-      s.t_s = t_ms / 1000.0;
-      s.valid = std::isfinite(x_px) && std::isfinite(y_px);
-      if (s.valid) {
-        // Pixels (origin top-left) to normalized, then to degrees from the centre: atan(offset / d).
-        const Degrees d = normalized_to_degrees(
-            g, Normalized{x_px / static_cast<double>(w_px), y_px / static_cast<double>(h_px)});
-        s.x_deg = d.x;
-        s.y_deg = d.y;
-      }
-      samples.push_back(s);
-      times.push_back(f[0]);
-    }
-    if (in.bad()) throw std::runtime_error("error reading " + in_path);
-    if (line_no == 0) throw std::runtime_error(in_path + ": empty file (expected the header t_ms,x_px,y_px)");
+    const DisplayGeometry g = checked_classify_screen(rate_hz, w_px, h_px, w_mm, h_mm, dist_mm);
+    const ClassifyInput input = read_classify_input(in_path, g);
 
     cl::ClassifierOptions options;
     options.nominal_rate_hz = rate_hz;
     options.display = g;
-    const std::vector<cl::Label> labels = cl::classify_all(method, options, samples);
+    const std::vector<cl::Label> labels = cl::classify_all(method, options, input.samples);
 
-    std::map<std::string, std::size_t> counts;
-    {
-      std::ofstream out(tmp);
-      if (!out) throw std::runtime_error("cannot create " + tmp);
-      out << "t_ms,label\n";
-      for (std::size_t i = 0; i < samples.size(); ++i) {
-        out << times[i] << ',' << cl::to_string(labels[i]) << '\n';
-        ++counts[cl::to_string(labels[i])];
-      }
-      out.close();
-      if (!out) throw std::runtime_error("cannot write " + tmp);
-    }
+    const std::map<std::string, std::size_t> counts = write_classify_labels(tmp, input, labels);
     std::filesystem::rename(tmp, out_path);  // atomic: OUT is either absent/old or complete
-    std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", samples.size(),
+    std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", input.samples.size(),
                  method.c_str(), cl::make_classifier(method, options)->latency_s() * 1000);
     for (const auto& [k, n] : counts) std::fprintf(stderr, " %zu %s", n, k.c_str());
     std::fprintf(stderr, "\nfovea-ctl classify: wrote %s\n", out_path.c_str());
