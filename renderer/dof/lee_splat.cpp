@@ -566,6 +566,17 @@ void splat_band(BandSplat& bd, const Workspace& ws, const Buckets& bk) {
   }
 }
 
+// A composite divided by its alpha (1 afterwards), or empty (0) when nothing covers the pixel.
+inline void unit_alpha(glm::vec3& d, float& da) {
+  if (da > kMinAlpha) {
+    d /= da;
+    da = 1;
+  } else {
+    d = glm::vec3(0);
+    da = 0;
+  }
+}
+
 // Lee 2009, eq. 5.4: D <- L^2; D <- L^1 + (1 - L^1_a) D; D <- L^0 + (1 - L^0_a) D, with M^1, M^2
 // already added into L^1, L^2 (they were splatted there). Each D is divided by its alpha
 // (hyper/hypo intensities of overlapping CoCs); a layer's alpha above one (overlap) is taken
@@ -576,25 +587,13 @@ void compose_layers(const glm::vec4* acc, const Workspace& ws, std::size_t o0, s
     const glm::vec4* l = acc + 3 * i;
     glm::vec3 d(l[2]);
     float da = l[2].w;
-    if (da > kMinAlpha) {
-      d /= da;
-      da = 1;
-    } else {
-      d = glm::vec3(0);
-      da = 0;
-    }
+    unit_alpha(d, da);
     for (const int k : {1, 0}) {
       const float la = l[k].w;
       const float keep = 1.0f - std::min(std::max(la, 0.0f), 1.0f);
       d = glm::vec3(l[k]) + keep * d;
       da = la + keep * da;
-      if (da > kMinAlpha) {
-        d /= da;
-        da = 1;
-      } else {
-        d = glm::vec3(0);
-        da = 0;
-      }
+      unit_alpha(d, da);
     }
     glm::vec3 r = da > 0 ? d : ws.col[i];
     out[i] = {finite_or_zero(r.x), finite_or_zero(r.y), finite_or_zero(r.z)};

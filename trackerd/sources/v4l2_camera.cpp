@@ -60,6 +60,15 @@ std::pair<std::uint32_t, std::uint32_t> interval_for_fps(double fps) {
   return {num / g, den / g};
 }
 
+// Buffer `index` of the capture queue, memory-mapped: what QUERYBUF and QBUF are asked about.
+v4l2_buffer mmap_capture_buffer(std::uint32_t index) {
+  v4l2_buffer b{};
+  b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  b.memory = V4L2_MEMORY_MMAP;
+  b.index = index;
+  return b;
+}
+
 }  // namespace
 
 std::string fourcc_name(std::uint32_t fourcc) {
@@ -397,10 +406,7 @@ std::uint32_t V4l2Camera::request_buffers() {
 // Each buffer into buffers_ as soon as it is mapped, so close_device() unmaps what a failure leaves.
 void V4l2Camera::map_buffers(std::uint32_t count) {
   for (std::uint32_t i = 0; i < count; ++i) {
-    v4l2_buffer b{};
-    b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    b.memory = V4L2_MEMORY_MMAP;
-    b.index = i;
+    v4l2_buffer b = mmap_capture_buffer(i);
     if (const int r = device_->ioctl(fd_, VIDIOC_QUERYBUF, &b); r < 0) fail(-r, "VIDIOC_QUERYBUF");
     Buffer buffer;
     buffer.length = b.length;
@@ -412,10 +418,7 @@ void V4l2Camera::map_buffers(std::uint32_t count) {
 // Every buffer queued before STREAMON, so the driver has somewhere to capture into from the start.
 void V4l2Camera::start_streaming(std::uint32_t count) {
   for (std::uint32_t i = 0; i < count; ++i) {
-    v4l2_buffer b{};
-    b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    b.memory = V4L2_MEMORY_MMAP;
-    b.index = i;
+    v4l2_buffer b = mmap_capture_buffer(i);
     if (const int r = device_->ioctl(fd_, VIDIOC_QBUF, &b); r < 0) fail(-r, "VIDIOC_QBUF");
   }
   int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
