@@ -10,7 +10,7 @@
 
 #include "classify/classifier.h"
 #include "fovea/protocol/display_geometry.h"
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd {
 

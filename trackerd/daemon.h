@@ -11,7 +11,7 @@
 
 #include "fovea/protocol/server.h"
 #include "service/config.h"
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd {
 

@@ -1,5 +1,5 @@
 #include "eye/eye_detector.h"
-#include "sources/grey8.h"
+#include "source_api/grey8.h"
 
 #include <algorithm>
 #include <array>

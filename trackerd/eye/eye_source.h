@@ -19,8 +19,8 @@
 #include <opencv2/core.hpp>
 
 #include "eye/eye_detector.h"
-#include "sources/frame_source.h"
-#include "sources/gaze_source.h"
+#include "source_api/frame_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd::eye {
 

@@ -16,7 +16,7 @@
 #include <string>
 
 #include "fovea/protocol/display_geometry.h"
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd::service {
 

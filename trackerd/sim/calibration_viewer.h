@@ -38,7 +38,7 @@
 #include "fovea/calib/session.h"
 #include "fovea/protocol/display_geometry.h"
 #include "fovea/protocol/messages.h"
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd::eye {
 

@@ -40,7 +40,7 @@
 #include "sim/synthetic_eye.h"
 #include "fovea/calib/poly2.h"
 #include "fovea/calib/session.h"
-#include "sources/frame_source.h"
+#include "source_api/frame_source.h"
 #include "sim/synthetic_gaze.h"
 
 namespace fovea::trackerd::eye {

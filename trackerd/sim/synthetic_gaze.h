@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "sources/frame_source.h"
+#include "source_api/frame_source.h"
 #include "sources/usb_hotplug.h"
 
 namespace fovea::trackerd {

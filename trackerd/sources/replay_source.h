@@ -4,7 +4,7 @@
 #include <memory>
 
 #include "fovea/protocol/recording.h"
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd {
 

@@ -2,7 +2,7 @@
 // The kinds of gaze source fovea-trackerd can open, as one table: gpsd keeps its drivers in one
 // array (drivers/drivers.c) and so do we. `--source`'s help, `--check-config`, the configuration's
 // messages and the daemon all read this table; adding a source kind is one row in
-// source_table.cpp plus the files that implement it.
+// source_table.cpp plus the files that implement it (a GazeSource, source_api/gaze_source.h).
 //
 // A spec names its kind by its start: "synthetic", "replay:demo.fgr", "hid", "hid:046d:c52b",
 // "camera:/dev/video0", "camera:usb:046d:0825", "video:eye.mp4". When several rows' prefixes fit a
@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "service/config.h"
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 
 namespace fovea::trackerd {
 

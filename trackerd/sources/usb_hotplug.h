@@ -24,7 +24,7 @@
 #include <thread>
 #include <vector>
 
-#include "sources/frame_source.h"
+#include "source_api/frame_source.h"
 #include "sources/v4l2_camera.h"
 #include "sources/v4l2_device.h"
 

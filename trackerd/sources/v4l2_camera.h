@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "sources/frame_source.h"
+#include "source_api/frame_source.h"
 #include "sources/v4l2_device.h"
 
 struct v4l2_buffer;  // <linux/videodev2.h>

@@ -1,6 +1,6 @@
 #include "sources/video_file.h"
 
-#include "sources/grey8.h"
+#include "source_api/grey8.h"
 
 #include <fcntl.h>
 #include <unistd.h>

@@ -14,7 +14,7 @@
 
 #include <opencv2/videoio.hpp>
 
-#include "sources/frame_source.h"
+#include "source_api/frame_source.h"
 
 namespace fovea::trackerd {
 

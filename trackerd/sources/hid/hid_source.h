@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "sources/gaze_source.h"
+#include "source_api/gaze_source.h"
 #include "sources/hid/eye_tracker.h"
 #include "sources/hid/report_descriptor.h"
 #include "sources/hid/tracker_clock.h"

@@ -1,4 +1,4 @@
-#include "sources/grey8.h"
+#include "source_api/grey8.h"
 
 #include <cmath>
 #include <limits>
