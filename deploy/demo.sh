@@ -49,7 +49,8 @@ RENDER_ARGS=(--scene "$SCENE" --headless --frames "$FRAMES" --fps "$FPS" --gaze 
 "$RENDER" "${RENDER_ARGS[@]}" --backend embree --out "$OUT/render-embree" >"$OUT/render-embree.log" 2>&1 &
 RENDER_EMBREE=$!
 PIDS+=("$RENDER_EMBREE")
-deploy/with-xvfb.sh "$RENDER" "${RENDER_ARGS[@]}" --backend gl --out "$OUT/render-gl" \
+# The OpenGL client renders headless through EGL: no X server, DISPLAY unset.
+env -u DISPLAY "$RENDER" "${RENDER_ARGS[@]}" --backend gl --out "$OUT/render-gl" \
   >"$OUT/render-gl.log" 2>&1 &
 RENDER_GL=$!
 PIDS+=("$RENDER_GL")

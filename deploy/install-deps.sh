@@ -20,7 +20,8 @@ PACKAGES=(
   libembree-dev libtbb-dev libglfw3-dev libgl-dev libgl1-mesa-dri libglm-dev
   libassimp-dev libmeshoptimizer-dev libnanoflann-dev libopenexr-dev
   libepoxy-dev                        # OpenGL function loading for the core profile
-  xvfb xauth                          # headless OpenGL (Mesa llvmpipe) for tests
+  libegl-dev libegl1 libegl-mesa0     # headless OpenGL through EGL (Mesa's surfaceless platform, llvmpipe)
+  xvfb xauth                          # an X server for the tests of the GLFW window (the viewer)
   # tests, benchmarks, report plots
   libgtest-dev libgmock-dev googletest libbenchmark-dev python3 python3-matplotlib
 )

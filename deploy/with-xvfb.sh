@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Runs a command with its own Xvfb server (Mesa llvmpipe OpenGL, no GPU or real display needed).
+# Runs a command with its own Xvfb server, for what opens an X window (fovea-render's viewer,
+# fovea-calibrate's target window): Mesa llvmpipe OpenGL, no GPU or real display needed. Headless
+# OpenGL (fovea-render --headless, the GL tests and benchmarks) needs no X server: it uses EGL.
 # Unlike `xvfb-run -a`, the server picks a free display number itself (-displayfd), so several of
-# these can start at the same moment (parallel tests, the demo's render clients) without racing.
+# these can start at the same moment (parallel tests) without racing.
 # Usage: deploy/with-xvfb.sh COMMAND [ARGS...]
 set -u
 if ! command -v Xvfb >/dev/null 2>&1; then

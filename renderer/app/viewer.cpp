@@ -8,6 +8,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "app/render_options.h"
+#include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_context.h"
 #include "pipeline/frame_pipeline.h"
 
@@ -143,7 +144,11 @@ int run_viewer(const RenderOptions& o) {
   co.height = static_cast<int>(scene.camera.height);
   GlContext window(co);
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
-  FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
+  // The raster backend's context uses the window's platform (GLFW): the viewer never mixes EGL and
+  // GLX contexts in one process.
+  FramePipeline pipeline(std::move(scene), o.settings,
+                         o.backend == BackendKind::OpenGL ? make_gl_backend(GlPlatform::Glfw) : make_backend(o.backend),
+                         *gaze);
   KeyState keys{&pipeline.settings(), &pipeline};
   glfwSetWindowUserPointer(window.window(), &keys);
   glfwSetKeyCallback(window.window(), on_key);

@@ -154,7 +154,8 @@ TEST_F(GlBackendTest, NameAndFactory) {
   EXPECT_EQ(backend_->name(), "gl");
   const auto made = make_backend(BackendKind::OpenGL);
   EXPECT_EQ(made->name(), "gl");
-  std::cout << "GL renderer: " << backend_->context().renderer() << "\n";
+  std::cout << "GL renderer: " << backend_->context().renderer() << " (" << backend_->context().platform_description()
+            << ")\n";
 }
 
 TEST_F(GlBackendTest, EmptySceneIsBackgroundEverywhere) {
@@ -543,14 +544,17 @@ TEST(GlBackendCoexistence, TwoBackendsAndTheFactoryInOneProcess) {
   b->render({}, {}, gb);
   EXPECT_EQ(gb.object_id[gb.index(50, 25)], 1u);
   b.reset();
-  auto c = std::make_unique<GlBackend>();  // GLFW initialised again after the last one went
+  auto c = std::make_unique<GlBackend>();  // a context again after the last one went (the display stays)
   c->set_scene(s);
   c->render({}, {}, gb);
   EXPECT_EQ(gb.object_id[gb.index(50, 25)], 1u);
 }
 
-TEST(GlContext, PresentDrawsRowZeroAtTheTop) {
-  GlContext ctx(GlContextOptions{.visible = false, .title = "present", .width = 64, .height = 32, .vsync = false});
+// The GLFW window's own tests (GlWindow.*): ctest runs them under Xvfb, everything else without DISPLAY.
+TEST(GlWindow, PresentDrawsRowZeroAtTheTop) {
+  GlContext ctx(GlContextOptions{
+      .visible = false, .platform = GlPlatform::Glfw, .title = "present", .width = 64, .height = 32, .vsync = false});
+  EXPECT_TRUE(ctx.windowed());
   const glm::ivec2 fb = ctx.framebuffer_size();
   ASSERT_EQ(fb, glm::ivec2(64, 32));
   // 4 x 2 image, same aspect ratio as the window: top row red, bottom row blue (linear -> sRGB8).
@@ -571,13 +575,13 @@ TEST(GlContext, PresentDrawsRowZeroAtTheTop) {
   EXPECT_THROW(ctx.present(std::vector<std::uint8_t>(7), 1, 2), std::invalid_argument);
 }
 
-TEST(GlContextDeathTest, NoDisplayGivesAClearError) {
+TEST(GlWindowDeathTest, NoDisplayGivesAClearError) {
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
       {
         unsetenv("DISPLAY");
         try {
-          GlBackend b;
+          GlBackend b(GlPlatform::Glfw);
           std::exit(2);
         } catch (const std::runtime_error& e) {
           const std::string what = e.what();
@@ -586,6 +590,40 @@ TEST(GlContextDeathTest, NoDisplayGivesAClearError) {
         }
       },
       ::testing::ExitedWithCode(0), "no X display");
+}
+
+// Headless contexts need no window system: EGL, with DISPLAY unset (ctest also runs this whole
+// binary, except GlWindow.*, without DISPLAY).
+TEST(GlContextDeathTest, HeadlessRendersWithoutAnXDisplay) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  EXPECT_EXIT(
+      {
+        unsetenv("DISPLAY");
+        Scene s = base_scene();
+        s.objects.push_back(facing_plane(s, {2, 2}, 0.0f));
+        GlBackend b;
+        b.set_scene(s);
+        GBuffer g;
+        b.render({}, {}, g);
+        const bool egl = b.context().platform_description().rfind("EGL ", 0) == 0 && !b.context().windowed();
+        std::cerr << b.context().platform_description() << "\n";
+        std::exit(egl && g.object_id[g.index(g.width / 2, g.height / 2)] == 1u ? 0 : 1);
+      },
+      ::testing::ExitedWithCode(0), "EGL");
+}
+
+TEST(GlContext, AnEglContextHasNoWindowToPresentTo) {
+  GlContext ctx;
+  EXPECT_FALSE(ctx.windowed());
+  EXPECT_EQ(ctx.framebuffer_size(), glm::ivec2(0, 0));
+  ctx.swap_buffers();  // nothing to swap: no effect
+  EXPECT_FALSE(ctx.should_close());
+  try {
+    ctx.present(std::vector<glm::vec3>(8, glm::vec3(1)), 4, 2);
+    ADD_FAILURE() << "present on an EGL context did not throw";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("no window to present to"), std::string::npos) << e.what();
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

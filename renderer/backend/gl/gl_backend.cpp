@@ -155,8 +155,9 @@ void clear_gbuffer(const Scene& scene) {
 
 }  // namespace
 
-GlBackend::GlBackend() : context_(GlContextOptions{.visible = false, .title = "fovea-gl-backend", .width = 16,
-                                                   .height = 16, .vsync = false}) {
+GlBackend::GlBackend(GlPlatform platform)
+    : context_(GlContextOptions{.visible = false, .platform = platform, .title = "fovea-gl-backend", .width = 16,
+                                .height = 16, .vsync = false}) {
   context_.make_current();
   program_ = gl::link_program(gl::kGBufferVertex, gl::kGBufferFragment, "GlBackend G-buffer program");
   const auto loc = [this](const char* name) { return glGetUniformLocation(program_, name); };
@@ -492,6 +493,6 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
   check_gl("GlBackend::render (read back)");
 }
 
-std::unique_ptr<Backend> make_gl_backend() { return std::make_unique<GlBackend>(); }
+std::unique_ptr<Backend> make_gl_backend(GlPlatform platform) { return std::make_unique<GlBackend>(platform); }
 
 }  // namespace fovea::render

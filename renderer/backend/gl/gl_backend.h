@@ -26,9 +26,10 @@ namespace fovea::render {
 
 class GlBackend final : public Backend {
  public:
-  // Creates its own invisible OpenGL 3.3 core context. Throws std::runtime_error with the reason
-  // (no X display, no GL 3.3 core context, shader compilation failure).
-  GlBackend();
+  // Creates its own invisible OpenGL 3.3 core context on `platform` (EGL: no window system needed;
+  // GLFW: beside a viewer's window). Throws std::runtime_error with the reason (no EGL display, no X
+  // display for GLFW, no GL 3.3 core context, shader compilation failure).
+  explicit GlBackend(GlPlatform platform = GlPlatform::Egl);
   ~GlBackend() override;
   GlBackend(const GlBackend&) = delete;
   GlBackend& operator=(const GlBackend&) = delete;
@@ -102,6 +103,6 @@ class GlBackend final : public Backend {
   std::vector<std::uint32_t> scratch_id_;
 };
 
-std::unique_ptr<Backend> make_gl_backend();
+std::unique_ptr<Backend> make_gl_backend(GlPlatform platform = GlPlatform::Egl);
 
 }  // namespace fovea::render

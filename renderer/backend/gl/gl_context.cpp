@@ -1,5 +1,6 @@
 #include "backend/gl/gl_context.h"
 
+#include <epoxy/egl.h>
 #include <epoxy/gl.h>
 // GLFW after epoxy: epoxy provides the GL declarations, GLFW must not include the system GL header.
 #define GLFW_INCLUDE_NONE
@@ -14,8 +15,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <mutex>
+#include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -100,6 +104,7 @@ void pin_gl_driver_libraries() {
       [](dl_phdr_info* info, std::size_t, void* data) {
         const std::string name = info->dlpi_name != nullptr ? info->dlpi_name : "";
         if (name.find("_dri.so") != std::string::npos || name.find("libGLX_mesa") != std::string::npos ||
+            name.find("libEGL_mesa") != std::string::npos ||
             name.find("libgallium") != std::string::npos || name.find("libLLVM") != std::string::npos) {
           static_cast<std::vector<std::string>*>(data)->push_back(name);
         }
@@ -110,6 +115,117 @@ void pin_gl_driver_libraries() {
     // RTLD_NOLOAD: only take a reference to what is already loaded; never load anything new.
     static_cast<void>(dlopen(name.c_str(), RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE));
   }
+}
+
+// The context current on this thread, as far as GlContext knows: GLFW's own bookkeeping does not
+// see EGL switches (nor EGL GLFW's), so make_current compares against this.
+thread_local const void* t_current_context = nullptr;
+
+bool has_token(const char* list, std::string_view token) {
+  if (list == nullptr) return false;
+  std::string_view rest(list);
+  while (!rest.empty()) {
+    const std::size_t end = rest.find(' ');
+    if (rest.substr(0, end) == token) return true;
+    if (end == std::string_view::npos) break;
+    rest.remove_prefix(end + 1);
+  }
+  return false;
+}
+
+std::string egl_error_text() {
+  char hex[16];
+  std::snprintf(hex, sizeof hex, "0x%04X", static_cast<unsigned>(eglGetError()));
+  return std::string("EGL error ") + hex;
+}
+
+// One EGL display per process, opened on first use and never terminated: eglTerminate would end
+// every context on it (several backends share it), and re-initialising the driver costs seconds.
+struct EglDisplay {
+  EGLDisplay display = EGL_NO_DISPLAY;
+  std::string description;  // "EGL 1.5, surfaceless platform"
+  bool surfaceless = false;  // EGL_KHR_surfaceless_context: contexts need no surface
+};
+
+std::optional<EglDisplay> try_initialise(EGLDisplay d, const std::string& platform, std::ostringstream& why) {
+  EGLint major = 0, minor = 0;
+  if (d == EGL_NO_DISPLAY) {
+    why << platform << ": no display (" << egl_error_text() << "); ";
+    return std::nullopt;
+  }
+  if (eglInitialize(d, &major, &minor) != EGL_TRUE) {
+    why << platform << ": eglInitialize failed (" << egl_error_text() << "); ";
+    return std::nullopt;
+  }
+  const char* extensions = eglQueryString(d, EGL_EXTENSIONS);
+  if (!has_token(eglQueryString(d, EGL_CLIENT_APIS), "OpenGL") || !has_token(extensions, "EGL_KHR_create_context")) {
+    const char* apis = eglQueryString(d, EGL_CLIENT_APIS);
+    why << platform << ": no desktop OpenGL (client APIs: " << (apis != nullptr ? apis : "none") << "); ";
+    eglTerminate(d);
+    return std::nullopt;
+  }
+  EglDisplay out;
+  out.display = d;
+  out.description = "EGL " + std::to_string(major) + "." + std::to_string(minor) + ", " + platform;
+  out.surfaceless = has_token(extensions, "EGL_KHR_surfaceless_context");
+  return out;
+}
+
+// The devices EGL_EXT_platform_device lists; `software` picks Mesa's software device (llvmpipe)
+// instead of the GPUs.
+std::optional<EglDisplay> try_devices(bool software, std::ostringstream& why) {
+  EGLint count = 0;
+  if (eglQueryDevicesEXT(0, nullptr, &count) != EGL_TRUE || count <= 0) {
+    if (!software) why << "device platform: no devices (" << egl_error_text() << "); ";
+    return std::nullopt;
+  }
+  std::vector<EGLDeviceEXT> devices(static_cast<std::size_t>(count));
+  if (eglQueryDevicesEXT(count, devices.data(), &count) != EGL_TRUE) return std::nullopt;
+  for (EGLint i = 0; i < count; ++i) {
+    const auto device = devices[static_cast<std::size_t>(i)];
+    const bool is_software = has_token(eglQueryDeviceStringEXT(device, EGL_EXTENSIONS), "EGL_MESA_device_software");
+    if (is_software != software) continue;
+    const std::string name = software ? "software device" : "device " + std::to_string(i);
+    if (auto d = try_initialise(eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, device, nullptr), name, why)) return d;
+  }
+  return std::nullopt;
+}
+
+EglDisplay open_egl_display() {
+  std::ostringstream why;
+  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  const bool devices = has_token(client, "EGL_EXT_platform_device") && has_token(client, "EGL_EXT_device_enumeration");
+  const bool surfaceless = has_token(client, "EGL_MESA_platform_surfaceless");
+  if (devices) {
+    if (auto d = try_devices(false, why)) return *d;
+  } else {
+    why << "device platform: not offered; ";
+  }
+  if (surfaceless) {
+    if (auto d = try_initialise(eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr),
+                                "surfaceless platform", why)) {
+      return *d;
+    }
+  } else {
+    why << "surfaceless platform: not offered; ";
+  }
+  if (devices) {
+    if (auto d = try_devices(true, why)) return *d;
+  }
+  // The default display may be X11 or Wayland; it needs that server, but costs nothing to try last.
+  if (auto d = try_initialise(eglGetDisplay(EGL_DEFAULT_DISPLAY), "default display", why)) return *d;
+  std::string text = why.str();
+  if (text.size() >= 2) text.resize(text.size() - 2);
+  throw std::runtime_error("no EGL display for headless OpenGL (" + text +
+                           "); install libegl1 and libegl-mesa0 (Mesa) or a GPU driver with EGL");
+}
+
+const EglDisplay& egl_display() {
+  static std::mutex mutex;
+  static std::optional<EglDisplay> display;
+  const std::lock_guard lock(mutex);
+  if (!display) display = open_egl_display();
+  return *display;
 }
 
 std::uint8_t encode_srgb8(float linear) {
@@ -126,6 +242,21 @@ GlContext::GlContext(const GlContextOptions& options) {
     throw std::invalid_argument("GlContext: window size " + std::to_string(options.width) + "x" +
                                 std::to_string(options.height) + " must be positive");
   }
+  if (options.visible || options.platform == GlPlatform::Glfw) {
+    create_glfw_window(options);
+  } else {
+    create_egl_context();
+  }
+  t_current_context = this;
+  const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  renderer_ = renderer != nullptr ? renderer : "unknown";
+  {
+    const std::lock_guard lock(g_glfw_mutex);
+    pin_gl_driver_libraries();
+  }
+}
+
+void GlContext::create_glfw_window(const GlContextOptions& options) {
   acquire_glfw();
   glfwDefaultWindowHints();
   glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
@@ -142,12 +273,53 @@ GlContext::GlContext(const GlContextOptions& options) {
   }
   glfwMakeContextCurrent(window_);
   glfwSwapInterval(options.visible && options.vsync ? 1 : 0);
-  const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-  renderer_ = renderer != nullptr ? renderer : "unknown";
-  {
-    const std::lock_guard lock(g_glfw_mutex);
-    pin_gl_driver_libraries();
+  const char* display = std::getenv("DISPLAY");
+  platform_ = std::string("GLFW (X display ") + (display != nullptr ? display : "?") + ")";
+}
+
+void GlContext::create_egl_context() {
+  const EglDisplay& d = egl_display();
+  // Desktop OpenGL, not GLES; the API is per thread, so bind it before every create/make-current.
+  if (eglBindAPI(EGL_OPENGL_API) != EGL_TRUE) {
+    throw std::runtime_error("cannot create an OpenGL 3.3 core context through EGL: eglBindAPI(OpenGL) failed (" +
+                             egl_error_text() + ", " + d.description + ")");
   }
+  const EGLint config_attributes[] = {EGL_SURFACE_TYPE, d.surfaceless ? 0 : EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE,
+                                      EGL_OPENGL_BIT, EGL_NONE};
+  EGLConfig config = nullptr;
+  EGLint configs = 0;
+  if (eglChooseConfig(d.display, config_attributes, &config, 1, &configs) != EGL_TRUE || configs < 1) {
+    throw std::runtime_error("cannot create an OpenGL 3.3 core context through EGL: no OpenGL config (" +
+                             egl_error_text() + ", " + d.description + ")");
+  }
+  const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION_KHR, 3, EGL_CONTEXT_MINOR_VERSION_KHR, 3,
+                                       EGL_CONTEXT_OPENGL_PROFILE_MASK_KHR, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT_KHR,
+                                       EGL_CONTEXT_FLAGS_KHR, EGL_CONTEXT_OPENGL_FORWARD_COMPATIBLE_BIT_KHR, EGL_NONE};
+  EGLContext context = eglCreateContext(d.display, config, EGL_NO_CONTEXT, context_attributes);
+  if (context == EGL_NO_CONTEXT) {
+    throw std::runtime_error("cannot create an OpenGL 3.3 core context through EGL (" + egl_error_text() + ", " +
+                             d.description + ")");
+  }
+  EGLSurface surface = EGL_NO_SURFACE;
+  if (!d.surfaceless) {  // a 1x1 pbuffer to be current on; rendering goes to framebuffer objects
+    const EGLint pbuffer_attributes[] = {EGL_WIDTH, 1, EGL_HEIGHT, 1, EGL_NONE};
+    surface = eglCreatePbufferSurface(d.display, config, pbuffer_attributes);
+    if (surface == EGL_NO_SURFACE) {
+      const std::string error = egl_error_text();
+      eglDestroyContext(d.display, context);
+      throw std::runtime_error("cannot create an EGL pbuffer for the OpenGL context (" + error + ", " +
+                               d.description + ")");
+    }
+  }
+  if (eglMakeCurrent(d.display, surface, surface, context) != EGL_TRUE) {
+    const std::string error = egl_error_text();
+    if (surface != EGL_NO_SURFACE) eglDestroySurface(d.display, surface);
+    eglDestroyContext(d.display, context);
+    throw std::runtime_error("cannot make the EGL OpenGL context current (" + error + ", " + d.description + ")");
+  }
+  egl_context_ = context;
+  egl_surface_ = surface;
+  platform_ = d.description;
 }
 
 GlContext::~GlContext() {
@@ -155,24 +327,47 @@ GlContext::~GlContext() {
   if (present_program_ != 0) glDeleteProgram(present_program_);
   if (present_vao_ != 0) glDeleteVertexArrays(1, &present_vao_);
   if (present_texture_ != 0) glDeleteTextures(1, &present_texture_);
-  glfwMakeContextCurrent(nullptr);
-  glfwDestroyWindow(window_);
-  release_glfw();
+  t_current_context = nullptr;
+  if (window_ != nullptr) {
+    glfwMakeContextCurrent(nullptr);
+    glfwDestroyWindow(window_);
+    release_glfw();
+    return;
+  }
+  const EglDisplay& d = egl_display();
+  eglMakeCurrent(d.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  if (egl_surface_ != EGL_NO_SURFACE) eglDestroySurface(d.display, egl_surface_);
+  eglDestroyContext(d.display, egl_context_);
 }
 
 void GlContext::make_current() {
-  if (glfwGetCurrentContext() != window_) glfwMakeContextCurrent(window_);
+  if (t_current_context == this) return;
+  if (window_ != nullptr) {
+    glfwMakeContextCurrent(window_);
+  } else {
+    const EglDisplay& d = egl_display();
+    eglBindAPI(EGL_OPENGL_API);
+    if (eglMakeCurrent(d.display, egl_surface_, egl_surface_, egl_context_) != EGL_TRUE) {
+      throw std::runtime_error("cannot make the EGL OpenGL context current (" + egl_error_text() + ")");
+    }
+  }
+  t_current_context = this;
 }
 
-void GlContext::swap_buffers() { glfwSwapBuffers(window_); }
+void GlContext::swap_buffers() {
+  if (window_ != nullptr) glfwSwapBuffers(window_);
+}
 
-bool GlContext::should_close() const { return glfwWindowShouldClose(window_) == GLFW_TRUE; }
+bool GlContext::should_close() const { return window_ != nullptr && glfwWindowShouldClose(window_) == GLFW_TRUE; }
 
-void GlContext::poll_events() { glfwPollEvents(); }
+void GlContext::poll_events() {
+  const std::lock_guard lock(g_glfw_mutex);
+  if (g_glfw_users > 0) glfwPollEvents();
+}
 
 glm::ivec2 GlContext::framebuffer_size() const {
   int w = 0, h = 0;
-  glfwGetFramebufferSize(window_, &w, &h);
+  if (window_ != nullptr) glfwGetFramebufferSize(window_, &w, &h);
   return {w, h};
 }
 
@@ -192,6 +387,9 @@ void GlContext::present(std::span<const std::uint8_t> rgba, std::uint32_t width,
     throw std::invalid_argument("GlContext::present: " + std::to_string(rgba.size()) + " bytes for a " +
                                 std::to_string(width) + "x" + std::to_string(height) +
                                 " RGBA image (expected width*height*4, both positive)");
+  }
+  if (window_ == nullptr) {
+    throw std::logic_error("GlContext::present: an EGL context has no window to present to (" + platform_ + ")");
   }
   make_current();
   if (present_program_ == 0) create_present_resources();

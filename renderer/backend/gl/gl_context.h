@@ -1,12 +1,18 @@
 #pragma once
-// An OpenGL 3.3 core context owned together with its GLFW window. Used invisible by GlBackend
-// (headless rendering into framebuffer objects; the window is only there to own the context) and
-// visible by the interactive viewer, which also gets swap_buffers, should_close, the framebuffer
-// size and present() to show an image.
+// An OpenGL 3.3 core context. Two platforms:
+//  - EGL, without any window system (the default for invisible contexts: GlBackend, --headless, the
+//    tests and the benchmarks). The display is the first that works of: a GPU through
+//    EGL_EXT_platform_device (NVIDIA's headless path), Mesa's surfaceless platform
+//    (EGL_MESA_platform_surfaceless; llvmpipe on a machine without a GPU), Mesa's software device,
+//    the default display. DISPLAY is not needed. Rendering goes to framebuffer objects: there is no
+//    default framebuffer.
+//  - GLFW, an X window (visible for the interactive viewer; invisible where a context must share
+//    the viewer's window system). Needs DISPLAY.
 //
-// GLFW is initialised when the first GlContext is created and terminated when the last one is
-// destroyed, so several contexts (and backends) can coexist in one process. GLFW and every
-// GlContext must be used from the main thread only (a GLFW rule).
+// GLFW is initialised when the first GLFW context is created and terminated when the last one is
+// destroyed, so several contexts (and backends) can coexist in one process. The EGL display is
+// opened once per process and kept. Contexts must be used from the main thread only (a GLFW rule;
+// make_current tracks the current context per thread).
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <span>
@@ -17,8 +23,14 @@ struct GLFWwindow;
 
 namespace fovea::render {
 
+enum class GlPlatform {
+  Egl,   // no window system (see above)
+  Glfw,  // an X window through GLFW
+};
+
 struct GlContextOptions {
-  bool visible = false;        // false: headless (GLFW_VISIBLE false); true: an interactive window
+  bool visible = false;        // true: an interactive window (always GLFW)
+  GlPlatform platform = GlPlatform::Egl;  // for invisible contexts
   std::string title = "fovea";
   int width = 640, height = 480;  // window size in screen coordinates
   bool vsync = true;           // visible windows only: swap interval 1 (else 0)
@@ -26,8 +38,9 @@ struct GlContextOptions {
 
 class GlContext {
  public:
-  // Throws std::runtime_error when there is no display ("no X display: run under xvfb-run or set
-  // DISPLAY") or when the window/context cannot be created (with GLFW's error text).
+  // Throws std::runtime_error when the context cannot be created: GLFW without an X display ("no X
+  // display: run under xvfb-run or set DISPLAY"), no EGL display or no OpenGL 3.3 core context
+  // through EGL (naming each platform tried and why it failed), GLFW's error text otherwise.
   explicit GlContext(const GlContextOptions& options = {});
   ~GlContext();
   GlContext(const GlContext&) = delete;
@@ -37,9 +50,13 @@ class GlContext {
 
   // Makes this context current on the calling thread (cheap when it already is).
   void make_current();
-  GLFWwindow* window() const { return window_; }
+  GLFWwindow* window() const { return window_; }  // nullptr for EGL contexts
+  bool windowed() const { return window_ != nullptr; }
+  // How the context was made, e.g. "EGL 1.5, surfaceless platform" or "GLFW (X display :1)".
+  const std::string& platform_description() const { return platform_; }
 
-  // Viewer helpers.
+  // Viewer helpers: they need a window (GLFW); on an EGL context present() throws
+  // std::logic_error, swap_buffers() does nothing and framebuffer_size() is {0, 0}.
   void swap_buffers();
   bool should_close() const;
   static void poll_events();
@@ -58,9 +75,13 @@ class GlContext {
 
  private:
   void create_present_resources();
+  void create_glfw_window(const GlContextOptions& options);
+  void create_egl_context();
 
   GLFWwindow* window_ = nullptr;
-  std::string renderer_;
+  void* egl_context_ = nullptr;  // EGLContext (EGL_NO_CONTEXT when GLFW)
+  void* egl_surface_ = nullptr;  // EGLSurface: a 1x1 pbuffer where the display lacks surfaceless contexts
+  std::string renderer_, platform_;
   // present() resources, created on first use.
   unsigned present_program_ = 0, present_vao_ = 0, present_texture_ = 0;
   std::vector<std::uint8_t> srgb_scratch_;
