@@ -44,10 +44,20 @@ struct BackendSettings {
   bool color_and_id_only = false;
 };
 
+// What a backend can do beyond the G-buffer every backend renders. Passes ask this, never the
+// backend's name.
+struct BackendCapabilities {
+  bool shadow_rays = false;     // honours BackendSettings::shadows
+  bool per_pixel_lens = false;  // BackendSettings::lens with a lens point per pixel (the ray-traced DOF reference)
+  bool peeling = false;         // BackendSettings::peel > 0 (Lee's hidden image, Schedl & Wimmer's layers)
+  bool operator==(const BackendCapabilities&) const = default;
+};
+
 class Backend {
  public:
   virtual ~Backend() = default;
-  virtual std::string name() const = 0;
+  virtual std::string name() const = 0;  // for people: logs, file names, --explain
+  virtual BackendCapabilities capabilities() const = 0;
   // Builds acceleration structures / uploads meshes. Called again when the scene changes.
   virtual void set_scene(const Scene& scene) = 0;
   // Renders the scene set last at the given time into `out` (resized to the camera's resolution).

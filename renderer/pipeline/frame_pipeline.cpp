@@ -73,7 +73,7 @@ void FramePipeline::scene_changed() {
 }
 
 FramePlan FramePipeline::plan() const {
-  return plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->name() == "embree"});
+  return plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->capabilities().per_pixel_lens});
 }
 
 namespace {
@@ -401,8 +401,9 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
   in.depth = gbuffer_.depth.data();
   in.coc = coc_model(focus_m);
   if (method == "schedl-layered") {
-    // M depth-peeled layers (Embree; the raster backend peels nothing yet: M = 1).
-    const auto m = backend_->name() == "embree" ? static_cast<std::uint32_t>(std::lround(settings_.number("dof.layers"))) : 1u;
+    // M depth-peeled layers where the backend peels (Embree; the raster backend does not yet: M = 1).
+    const auto m = backend_->capabilities().peeling ? static_cast<std::uint32_t>(std::lround(settings_.number("dof.layers")))
+                                                    : 1u;
     peeled_.resize(m > 0 ? m - 1 : 0);
     std::vector<dof::PeeledLayer> layers;
     for (std::uint32_t k = 0; k < peeled_.size(); ++k) {
@@ -418,8 +419,8 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
   }
   if (method == "lee-splat") {
     dof::LeeSplatSettings s;
-    // The hidden image H (Lee §5.1.2): a second render, peeled by object (Embree only).
-    s.use_hidden = settings_.flag("dof.hidden") && backend_->name() == "embree";
+    // The hidden image H (Lee §5.1.2): a second render, peeled by object, where the backend peels.
+    s.use_hidden = settings_.flag("dof.hidden") && backend_->capabilities().peeling;
     if (s.use_hidden) {
       BackendSettings bs;
       bs.shadows = settings_.flag("shadows");

@@ -154,6 +154,7 @@ TEST_F(GlBackendTest, NameAndFactory) {
   EXPECT_EQ(backend_->name(), "gl");
   const auto made = make_backend(BackendKind::OpenGL);
   EXPECT_EQ(made->name(), "gl");
+  EXPECT_EQ(made->capabilities(), BackendCapabilities{});  // a raster G-buffer: none of the extras
   std::cout << "GL renderer: " << backend_->context().renderer() << " (" << backend_->context().platform_description()
             << ")\n";
 }

@@ -111,6 +111,13 @@ TEST(EmbreeBackend, NameAndFactory) {
   EXPECT_EQ(make_embree_backend(EmbreeOptions{EmbreeTraversal::Stream, EmbreeGeometry::Instanced, true})->name(), "embree");
 }
 
+// Passes ask the capabilities, not the name: Embree traces shadow rays, a lens point per pixel, and
+// peels by object.
+TEST(EmbreeBackend, CapabilitiesSayWhatItTraces) {
+  EXPECT_EQ(EmbreeBackend().capabilities(),
+            (BackendCapabilities{.shadow_rays = true, .per_pixel_lens = true, .peeling = true}));
+}
+
 TEST(EmbreeBackend, FrontoParallelPlaneHasConstantViewAxisDepth) {
   Scene s = base_scene();
   s.objects.push_back(facing_plane(7, {0, 0, 0}));

@@ -69,6 +69,7 @@ Scene one_quad_scene(float kd) {  // a lit quad filling the view
 class NanAtOnePixel : public Backend {
  public:
   std::string name() const override { return "nan-at-one-pixel"; }
+  BackendCapabilities capabilities() const override { return inner_.capabilities(); }
   void set_scene(const Scene& scene) override { inner_.set_scene(scene); }
   void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override {
     inner_.render(time, settings, out);

@@ -82,6 +82,9 @@ class EmbreeBackend final : public Backend {
   EmbreeBackend& operator=(const EmbreeBackend&) = delete;
 
   std::string name() const override { return "embree"; }
+  BackendCapabilities capabilities() const override {
+    return {.shadow_rays = true, .per_pixel_lens = true, .peeling = true};
+  }
   // Copies the scene (meshes are shared, not copied) and builds the acceleration structures.
   // Throws std::runtime_error naming the object if Embree rejects its geometry.
   void set_scene(const Scene& scene) override;

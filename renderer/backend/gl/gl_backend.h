@@ -35,6 +35,8 @@ class GlBackend final : public Backend {
   GlBackend& operator=(const GlBackend&) = delete;
 
   std::string name() const override { return "gl"; }
+  // A raster G-buffer: no shadow rays, one lens point per frame (an off-axis frustum), no peeling.
+  BackendCapabilities capabilities() const override { return {}; }
   // Uploads every mesh once (shared meshes once) and the expanded light samples. Throws
   // std::invalid_argument for an object the raster backend cannot draw (normals not one per
   // position, index out of range, material index out of range; an object without a mesh is
