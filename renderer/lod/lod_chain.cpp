@@ -86,15 +86,6 @@ ChainSettings settings_for(const LodChainRequest& r) {
   return cs;
 }
 
-bool finite(const Mesh& m) {
-  for (const auto* points : {&m.positions, &m.normals}) {
-    for (const glm::vec3& p : *points) {
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
-    }
-  }
-  return true;
-}
-
 // The chain's levels below the full mesh that are coarser than the one before them.
 std::vector<LodLevel> chain_levels(const Chain& chain, std::size_t full_triangles) {
   std::vector<LodLevel> out;
@@ -125,7 +116,7 @@ void attach_chains(Scene& scene) {
     }
     for (const LodLevel& l : o.lods) {
       // A chain read back from a damaged cache must not carry NaN into the backends.
-      if (!finite(*l.mesh) || !std::isfinite(l.max_error_m)) {
+      if (!all_finite(*l.mesh) || !std::isfinite(l.max_error_m)) {
         throw SceneError(o.lod_chain->where + ": internal error: non-finite level of detail");
       }
     }

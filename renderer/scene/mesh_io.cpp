@@ -16,8 +16,6 @@ glm::mat4 to_glm(const aiMatrix4x4& m) {
   return glm::mat4(m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2, m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4);
 }
 
-bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
-
 // Normals that are missing, zero or non-finite (degenerate faces) are replaced by the area-weighted
 // average of the incident face normals, or +Y where even that is zero.
 void repair_normals(Mesh& m) {
@@ -28,13 +26,13 @@ void repair_normals(Mesh& m) {
     const glm::vec3& b = m.positions[m.indices[i + 1]];
     const glm::vec3& c = m.positions[m.indices[i + 2]];
     const glm::vec3 n = glm::cross(b - a, c - a);  // length = twice the area
-    if (!finite(n)) continue;
+    if (!all_finite(n)) continue;
     for (std::size_t k = 0; k < 3; ++k) acc[m.indices[i + k]] += n;
   }
   for (std::size_t v = 0; v < m.normals.size(); ++v) {
     glm::vec3& n = m.normals[v];
     const float len = glm::length(n);
-    if (finite(n) && len > 1e-12f && std::isfinite(len)) {
+    if (all_finite(n) && len > 1e-12f && std::isfinite(len)) {
       n /= len;
       continue;
     }
@@ -91,7 +89,7 @@ Mesh read_mesh_file(const std::filesystem::path& path) {
   append_node(*s, *s->mRootNode, glm::mat4(1.0f), mesh);
   if (mesh.indices.empty()) throw SceneError("degenerate mesh: " + path.string() + " contains no triangles");
   for (const glm::vec3& p : mesh.positions) {
-    if (!finite(p)) throw SceneError("mesh " + path.string() + " has a non-finite vertex position");
+    if (!all_finite(p)) throw SceneError("mesh " + path.string() + " has a non-finite vertex position");
   }
   repair_normals(mesh);
   return mesh;

@@ -6,6 +6,12 @@
 
 namespace fovea::render {
 
+bool all_finite(const Mesh& m) {
+  const auto finite = [](const glm::vec3& v) { return all_finite(v); };
+  return std::all_of(m.positions.begin(), m.positions.end(), finite) &&
+         std::all_of(m.normals.begin(), m.normals.end(), finite);
+}
+
 glm::mat4 Transform::matrix() const {
   glm::mat4 m = glm::translate(glm::mat4(1.0f), translation);
   m = glm::rotate(m, glm::radians(rotation_deg.z), glm::vec3(0, 0, 1));

@@ -1,6 +1,7 @@
 #pragma once
 // The scene model shared by every backend and pass. Units: metres, seconds, watts; colours are
 // linear RGB. Loaded from JSON by scene_loader.h (format in renderer/SCENES.md).
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <glm/glm.hpp>
@@ -21,6 +22,10 @@ struct Mesh {
   std::vector<std::uint32_t> indices;  // 3 per triangle
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
+
+// No NaN or Inf in any component: what the scene's readers promise of all they hand on.
+inline bool all_finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool all_finite(const Mesh& m);  // positions and normals
 
 struct Transform {
   glm::vec3 translation{0.0f};

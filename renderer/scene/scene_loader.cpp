@@ -26,8 +26,6 @@ using namespace schema;
 
 constexpr double kMaxCoordinate = 1e6;  // metres; larger values lose float precision in the backends
 
-bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
-
 // The scene's sections, read through json::Reader (errors by path) against the schema.
 class Loader : private json::Reader {
  public:
@@ -542,7 +540,7 @@ protocol::DisplayGeometry Loader::display(const Node& n) {
 void Loader::check_finite(const Scene& s) const {
   const auto bad = [&](const std::string& what) { throw SceneError(source_ + ": internal error: non-finite " + what); };
   const auto v3 = [&](const glm::vec3& v, const std::string& what) {
-    if (!finite(v)) bad(what);
+    if (!all_finite(v)) bad(what);
   };
   const auto tr = [&](const Transform& t, const std::string& what) {
     v3(t.translation, what + " translation");
