@@ -420,7 +420,7 @@ int main(int argc, char** argv) {
             BackendSettings next_settings;
             next_settings.lod_levels = next_levels;
             lod::ulod_pixel_mask(g, chosen, next_settings.pixel_mask);
-            next_settings.color_and_id_only = true;
+            next_settings.readback = {.color = true, .object_id = true};
             r.blend = render_with(next_settings, next);
             const auto b0 = Clock::now();
             lod::ulod_blend(g, next, chosen);

@@ -76,7 +76,7 @@ void write_plan(const RenderOptions& o, const FramePipeline& pipeline, const Gaz
 // gaze.csv always; governor.csv with a governor. The per-pass files open on the first frame their pass runs.
 void open_csv_logs(CsvLogs& logs, const std::string& out_dir, bool with_governor) {
   logs.gaze.open(fs::path(out_dir) / "gaze.csv");
-  logs.gaze << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost\n";
+  logs.gaze << "frame,frame_clock_s,gaze_x,gaze_y,valid,movement,age_ms,received,lost,age_at_completion_ms\n";
   if (with_governor) {
     logs.governor.open(fs::path(out_dir) / "governor.csv");
     logs.governor << "frame,budget_ms,frame_ms,predicted_ms,other_ms,cannot_meet,replans,choices\n";
@@ -97,12 +97,12 @@ double frame_clock_s(std::uint64_t i, double fps, bool realtime, std::chrono::st
 // The governor picks the frame's settings, the pipeline renders it (motion vectors from the previous frame's
 // time), and the governor sees what it cost before anything else is timed.
 FramePipeline::Frame render_one_frame(FramePipeline& pipeline, Governor* governor, PassTimer& timer, std::uint64_t i,
-                                      double clock, double& previous) {
+                                      double clock, double& previous, bool realtime) {
   const double now = clock;
   if (governor)
     governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width,
                     pipeline.scene().camera.height, pipeline.settings());
-  FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, clock, timer);
+  FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, clock, timer, realtime);
   previous = now;
   if (governor) governor->observe(timer);
   return f;
@@ -125,20 +125,33 @@ void write_governor_row(std::ofstream& governor_log, const Governor::State& g, s
 }
 
 // The frame's PNG, and its HDR colour as EXR when asked for (or when there is no PNG), timed as "write".
-void write_frame_images(const RenderOptions& o, std::uint64_t i, const FramePipeline::Frame& f, PassTimer& timer) {
+void write_frame_images(const RenderOptions& o, std::uint64_t i, FramePipeline& pipeline, const FramePipeline::Frame& f,
+                        PassTimer& timer) {
   auto t = timer.scope("write");
+  if (f.on_gpu) {
+    const Image8* image = nullptr;
+    {
+      auto r = timer.scope("readback.display");  // the display image's one trip to the CPU, for the PNG
+      image = &pipeline.read_display();
+    }
+    write_png(frame_name(o.out_dir, i, "png"), *image);
+    return;
+  }
   if (f.image != nullptr) write_png(frame_name(o.out_dir, i, "png"), *f.image);
   if (o.exr || f.image == nullptr) {
     write_exr(frame_name(o.out_dir, i, "exr"), f.gbuffer->width, f.gbuffer->height, f.gbuffer->color);
   }
 }
 
-// gaze.csv: the gaze sample the frame was rendered with.
-void write_gaze_row(std::ofstream& gaze_log, std::uint64_t i, double clock, const GazeState& gaze) {
-  char line[256];
-  std::snprintf(line, sizeof line, "%llu,%.6f,%.5f,%.5f,%d,%s,%.3f,%llu,%llu\n", static_cast<unsigned long long>(i),
+// gaze.csv: the gaze sample the frame was rendered with (the overlay's, after the late latches), and
+// its age when the frame was complete.
+void write_gaze_row(std::ofstream& gaze_log, std::uint64_t i, double clock, const FramePipeline::Frame& f) {
+  const GazeState& gaze = f.gaze;
+  char line[288];
+  std::snprintf(line, sizeof line, "%llu,%.6f,%.5f,%.5f,%d,%s,%.3f,%llu,%llu,%.3f\n", static_cast<unsigned long long>(i),
                 clock, gaze.x, gaze.y, gaze.valid ? 1 : 0, protocol::to_string(gaze.movement), gaze.age_ms,
-                static_cast<unsigned long long>(gaze.received), static_cast<unsigned long long>(gaze.lost));
+                static_cast<unsigned long long>(gaze.received), static_cast<unsigned long long>(gaze.lost),
+                f.gaze_age_at_completion_ms);
   gaze_log << line;
 }
 
@@ -200,10 +213,10 @@ void write_lod_row(std::ofstream& lod_log, const std::string& out_dir, std::uint
 }
 
 // One frame's files: its images, then its rows in gaze.csv and in the per-pass CSVs whose pass ran.
-void write_frame_files(const RenderOptions& o, std::uint64_t i, double clock, const FramePipeline::Frame& f,
-                       PassTimer& timer, CsvLogs& logs) {
-  write_frame_images(o, i, f, timer);
-  write_gaze_row(logs.gaze, i, clock, f.gaze);
+void write_frame_files(const RenderOptions& o, std::uint64_t i, double clock, FramePipeline& pipeline,
+                       const FramePipeline::Frame& f, PassTimer& timer, CsvLogs& logs) {
+  write_frame_images(o, i, pipeline, f, timer);
+  write_gaze_row(logs.gaze, i, clock, f);
   if (f.focus != nullptr) write_focus_row(logs.focus, o.out_dir, i, *f.focus);
   if (f.gi != nullptr) write_gi_row(logs.gi, o.out_dir, i, *f.gi);
   if (f.lod != nullptr) write_lod_row(logs.lod, o.out_dir, i, *f.lod);
@@ -229,6 +242,7 @@ int run_headless(const RenderOptions& o) {
   Scene scene = load_render_scene(o);
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
+  pipeline.require_cpu_gbuffer(o.exr);  // the EXR is the G-buffer's colour
   write_plan(o, pipeline, *gaze);
   PassTimer timer((fs::path(o.out_dir) / "timings.csv").string());
   const bool tty = isatty(STDERR_FILENO) != 0;
@@ -239,9 +253,9 @@ int run_headless(const RenderOptions& o) {
   open_csv_logs(logs, o.out_dir, governor != nullptr);
   for (std::uint64_t i = 0; i < o.frames; ++i) {
     const double clock = frame_clock_s(i, o.fps, realtime, start);
-    const FramePipeline::Frame f = render_one_frame(pipeline, governor.get(), timer, i, clock, previous);
+    const FramePipeline::Frame f = render_one_frame(pipeline, governor.get(), timer, i, clock, previous, realtime);
     if (governor) write_governor_row(logs.governor, governor->state(), i);
-    write_frame_files(o, i, clock, f, timer, logs);
+    write_frame_files(o, i, clock, pipeline, f, timer, logs);
     if (tty) progress(i + 1, o.frames, timer.last_ms("frame"));
   }
   if (tty) std::fputc('\n', stderr);

@@ -133,6 +133,33 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
   std::fflush(stdout);
 }
 
+// Puts the frame on the window and swaps: from the GPU where it lies (Frame::on_gpu), else the CPU
+// image uploaded. Records the gaze's age when the swap returned ("gaze-age.swap").
+void show(GlContext& window, const FramePipeline::Frame& f, FramePipeline& pipeline, std::vector<std::uint8_t>& rgba,
+          PassTimer& timer) {
+  {
+    auto t = timer.scope("display");
+    window.make_current();
+    if (f.on_gpu) {
+      const GpuFrame::Texture d = pipeline.gpu_frame()->display_texture();
+      if (d.id != 0) window.present_texture(d.id, d.width, d.height, d.texture_width, d.texture_height);
+    } else if (f.image != nullptr) {
+      rgba.resize(std::size_t{f.image->width} * f.image->height * 4);
+      for (std::size_t p = 0; p < std::size_t{f.image->width} * f.image->height; ++p) {
+        rgba[4 * p + 0] = f.image->rgb[3 * p + 0];
+        rgba[4 * p + 1] = f.image->rgb[3 * p + 1];
+        rgba[4 * p + 2] = f.image->rgb[3 * p + 2];
+        rgba[4 * p + 3] = 255;
+      }
+      window.present(rgba, f.image->width, f.image->height);
+    }
+    window.swap_buffers();
+  }
+  const double swapped =
+      std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  timer.record("gaze-age.swap", f.gaze_age_at_completion_ms + (swapped - f.completed_wall_s) * 1000.0);
+}
+
 }  // namespace
 
 int run_viewer(const RenderOptions& o) {
@@ -145,9 +172,11 @@ int run_viewer(const RenderOptions& o) {
   GlContext window(co);
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
   // The raster backend's context uses the window's platform (GLFW): the viewer never mixes EGL and
-  // GLX contexts in one process.
+  // GLX contexts in one process. It shares the window's textures, so a frame kept on the GPU is
+  // shown from where it lies.
   FramePipeline pipeline(std::move(scene), o.settings,
-                         o.backend == BackendKind::OpenGL ? make_gl_backend(GlPlatform::Glfw) : make_backend(o.backend),
+                         o.backend == BackendKind::OpenGL ? make_gl_backend(GlPlatform::Glfw, &window)
+                                                          : make_backend(o.backend),
                          *gaze);
   KeyState keys{&pipeline.settings(), &pipeline};
   glfwSetWindowUserPointer(window.window(), &keys);
@@ -176,28 +205,18 @@ int run_viewer(const RenderOptions& o) {
     if (governor)
       governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width, pipeline.scene().camera.height,
                       pipeline.settings());
-    const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer);
+    const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer, true);
     if (governor) governor->observe(timer);
     previous = now;
-    window.make_current();
-    if (f.image != nullptr) {
-      rgba.resize(std::size_t{f.image->width} * f.image->height * 4);
-      for (std::size_t p = 0; p < std::size_t{f.image->width} * f.image->height; ++p) {
-        rgba[4 * p + 0] = f.image->rgb[3 * p + 0];
-        rgba[4 * p + 1] = f.image->rgb[3 * p + 1];
-        rgba[4 * p + 2] = f.image->rgb[3 * p + 2];
-        rgba[4 * p + 3] = 255;
-      }
-      window.present(rgba, f.image->width, f.image->height);
-    }
-    window.swap_buffers();
+    show(window, f, pipeline, rgba, timer);
     if (i % 10 == 0) {
       char title[256];
-      std::snprintf(title, sizeof title, "fovea-render %s | %.1f ms/frame | gaze %s (%.3f, %.3f) %s | age %.1f ms | "
-                    "lost %llu",
-                    pipeline.backend().name().c_str(), timer.last_ms("frame"), gaze->description().c_str(), f.gaze.x,
-                    f.gaze.y, f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
-                    static_cast<unsigned long long>(f.gaze.lost));
+      std::snprintf(title, sizeof title, "fovea-render %s%s | %.1f ms/frame | gaze %s (%.3f, %.3f) %s | age %.1f ms, "
+                    "%.1f ms on screen | lost %llu",
+                    pipeline.backend().name().c_str(), f.on_gpu ? " (frame on the GPU)" : "", timer.last_ms("frame"),
+                    gaze->description().c_str(), f.gaze.x, f.gaze.y,
+                    f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
+                    timer.last_ms("gaze-age.swap"), static_cast<unsigned long long>(f.gaze.lost));
       std::string full = title;
       if (governor) full += " | " + governor->state().summary();
       glfwSetWindowTitle(window.window(), full.c_str());

@@ -39,9 +39,11 @@ struct BackendSettings {
   // Embree backend skips 16x16 tiles with none marked (background there). ULOD's second pass reads only
   // the pixels of objects between levels. The raster backend draws everything regardless.
   std::vector<std::uint8_t> pixel_mask;
-  // Only colour and object id are wanted (ULOD's second pass): the raster backend skips reading back
-  // depth, normal and motion (left at 0); the Embree backend writes them anyway.
-  bool color_and_id_only = false;
+  // The planes the caller reads. The raster backend reads back only these from the GPU (the others
+  // keep what GBuffer::resize() leaves: depth at the far plane, the rest 0); the Embree backend
+  // writes every plane anyway. ULOD's second pass reads colour and id; the GPU-resident frame
+  // reads what its CPU passes read, or nothing.
+  GBufferPlanes readback = GBufferPlanes::all();
 };
 
 // What a backend can do beyond the G-buffer every backend renders. Passes ask this, never the
@@ -53,6 +55,8 @@ struct BackendCapabilities {
   bool operator==(const BackendCapabilities&) const = default;
 };
 
+class GpuFrame;
+
 class Backend {
  public:
   virtual ~Backend() = default;
@@ -62,6 +66,9 @@ class Backend {
   virtual void set_scene(const Scene& scene) = 0;
   // Renders the scene set last at the given time into `out` (resized to the camera's resolution).
   virtual void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) = 0;
+  // The GPU-resident frame (backend/gpu_frame.h), or null where the backend has none (Embree). Owned
+  // by the backend; check its unavailable_reason() before use.
+  virtual GpuFrame* gpu_frame() { return nullptr; }
 };
 
 enum class BackendKind { Embree, OpenGL };

@@ -7,6 +7,19 @@
 
 namespace fovea::render {
 
+// Which planes of a G-buffer a pass reads: what the raster backend reads back from the GPU
+// (BackendSettings::readback) and what the frame's passes declare.
+struct GBufferPlanes {
+  bool color = false, depth = false, object_id = false, normal = false, motion = false;
+  static constexpr GBufferPlanes all() { return {true, true, true, true, true}; }
+  static constexpr GBufferPlanes none() { return {}; }
+  bool any() const { return color || depth || object_id || normal || motion; }
+  GBufferPlanes operator|(const GBufferPlanes& o) const {
+    return {color || o.color, depth || o.depth, object_id || o.object_id, normal || o.normal, motion || o.motion};
+  }
+  bool operator==(const GBufferPlanes&) const = default;
+};
+
 struct GBuffer {
   std::uint32_t width = 0, height = 0;
   std::vector<glm::vec3> color;          // HDR local illumination, linear RGB radiance

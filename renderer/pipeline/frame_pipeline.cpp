@@ -1,6 +1,8 @@
 #include "pipeline/frame_pipeline.h"
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <unordered_map>
 
 #include "attention/focus_input.h"
@@ -60,11 +62,42 @@ bool same(const attention::FocusSettings& a, const attention::FocusSettings& b) 
 bool is_attention_map(const std::string& map) {
   return map == "saliency" || map == "spatial" || map == "temporal" || map == "attention";
 }
+
+double steady_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string plane_list(const GBufferPlanes& p) {
+  std::string out;
+  const auto add = [&](bool on, const char* name) {
+    if (on) out += (out.empty() ? "" : ", ") + std::string(name);
+  };
+  add(p.color, "colour");
+  add(p.depth, "depth");
+  add(p.object_id, "id");
+  add(p.normal, "normal");
+  add(p.motion, "motion");
+  return out.empty() ? "nothing" : out;
+}
+
+GpuTonemap::Op gpu_operator(const std::string& op) {
+  return op == "reinhard" ? GpuTonemap::Op::Reinhard
+         : op == "exponential" ? GpuTonemap::Op::Exponential
+                               : GpuTonemap::Op::Clamp;
+}
 }  // namespace
 
 FramePipeline::FramePipeline(Scene scene, Settings settings, std::unique_ptr<Backend> backend, GazeInput& gaze)
     : scene_(std::move(scene)), settings_(std::move(settings)), backend_(std::move(backend)), gaze_(gaze) {
   backend_->set_scene(scene_);
+  GpuFrame* gpu = backend_->gpu_frame();
+  if (gpu != nullptr && gpu->unavailable_reason().empty()) {
+    gpu_ = gpu;
+  } else if (gpu != nullptr) {
+    // One line, once: the device cannot run the GPU passes, so every frame takes the readback path.
+    std::fprintf(stderr, "fovea-render: GPU passes off (%s): the frame is read back and every pass runs on the CPU\n",
+                 gpu->unavailable_reason().c_str());
+  }
 }
 
 void FramePipeline::scene_changed() {
@@ -73,7 +106,47 @@ void FramePipeline::scene_changed() {
 }
 
 FramePlan FramePipeline::plan() const {
-  return plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->capabilities().per_pixel_lens});
+  FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->capabilities().per_pixel_lens});
+  plan.placement = placement(plan);
+  return plan;
+}
+
+std::string FramePipeline::gpu_refusal() const {
+  if (gpu_ == nullptr) {
+    GpuFrame* gpu = backend_->gpu_frame();
+    return gpu != nullptr ? "GPU passes unavailable: " + gpu->unavailable_reason()
+                          : "the " + backend_->name() + " backend renders on the CPU";
+  }
+  if (!settings_.flag("frame.gpu")) return "frame.gpu=false";
+  if (!settings_.is("output", "final")) return "output=" + settings_.text("output") + " reads the whole G-buffer";
+  if (!settings_.is("overlay.map", "none")) return "overlay.map=" + settings_.text("overlay.map") + " is drawn on the CPU";
+  if (cpu_gbuffer_required_) return "the G-buffer is written out (--exr)";
+  return "";
+}
+
+// What each pass that runs on the CPU reads of the frame's G-buffer (the rest stays on the GPU).
+GBufferPlanes FramePipeline::cpu_reads(const FramePlan& plan) const {
+  GBufferPlanes r;
+  const bool ulod = settings_.is("lod.policy", "ulod");
+  const bool attention_first = plan.runs(PassId::LodSelect) && plan.runs(PassId::Attention) && ulod;
+  // Saliency (luminance, hue), depth and object id; motion comes from the objects' transforms.
+  if (plan.runs(PassId::Attention) && !attention_first) r = r | GBufferPlanes{.color = true, .depth = true, .object_id = true};
+  if (plan.runs(PassId::Focus)) r = r | GBufferPlanes{.depth = true, .object_id = true};
+  // LOD selection reads the last frame's colour and ids (screen coverage); ULOD blends colour by id.
+  if (plan.runs(PassId::LodSelect)) r = r | GBufferPlanes{.color = true, .object_id = true};
+  if (plan.runs(PassId::Dof)) {
+    const std::string& m = settings_.text("dof.method");
+    if (m != "reference" && m != "accum") r = r | GBufferPlanes{.color = true, .depth = true};  // the references render again
+  }
+  if (plan.runs(PassId::Gi)) r = r | GBufferPlanes{.color = true};  // the local colour the inset is composited over
+  return r;
+}
+
+std::string FramePipeline::placement(const FramePlan& plan) const {
+  const std::string refusal = gpu_refusal();
+  if (!refusal.empty()) return "cpu        every plane read back, every pass on the CPU: " + refusal;
+  return "gpu        " + gpu_->description() + ": G-buffer, tone map, overlay on the GPU; read back: " +
+         plane_list(cpu_reads(plan));
 }
 
 namespace {
@@ -98,35 +171,150 @@ void require_finite_attention(const attention::AttentionFrame& a) {
 
 // The passes in pipeline order, each run only when the plan says so. The ULOD policy moves the
 // attention pass before lod-select and the G-buffer (step_attention_on_proxy); the HDR colour is
-// handed from the G-buffer through dof and gi to tonemap.
+// handed from the G-buffer through dof and gi to tonemap. On the GPU-resident path the G-buffer, the
+// tone map and the overlay run on the GPU and the CPU passes read what was read back of it.
 FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now_s, double previous_s,
-                                           double frame_clock_s, PassTimer& timer) {
+                                           double frame_clock_s, PassTimer& timer, bool frame_clock_is_wall) {
   timer.begin_frame(frame_index, now_s);
   auto whole = timer.scope("frame");
+  frame_start_wall_s_ = steady_seconds();
+  frame_clock_s_ = frame_clock_s;
+  clock_is_wall_ = frame_clock_is_wall;
   Frame f;
   f.plan = plan();
+  f.on_gpu = gpu_refusal().empty();
   const bool check = settings_.flag("debug.finite_checks");
   step_gaze(f, frame_clock_s, timer);
   lod_levels_.clear();
+  ulod_blended_ = false;
   const bool attention_first =
       f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && settings_.is("lod.policy", "ulod");
   if (attention_first) step_attention_on_proxy(f, now_s, previous_s, check, timer);
   if (f.plan.runs(PassId::LodSelect)) step_lod_select(f, now_s, previous_s, timer);
-  step_gbuffer(f, now_s, previous_s, check, timer);
+  if (f.on_gpu) {
+    step_gbuffer_on_gpu(f, now_s, previous_s, check, timer);
+  } else {
+    step_gbuffer(f, now_s, previous_s, check, timer);
+  }
   f.gbuffer = &gbuffer_;
   if (f.plan.runs(PassId::Attention) && !attention_first) step_attention(f, now_s, previous_s, check, timer);
-  if (f.plan.runs(PassId::Focus)) step_focus(f, frame_clock_s, check, timer);
+  if (f.plan.runs(PassId::Focus)) {
+    late_latch(f, timer);
+    step_focus(f, f.gaze_clock_s, check, timer);
+  }
   const std::vector<glm::vec3>* hdr = &gbuffer_.color;
   if (f.plan.runs(PassId::Dof)) hdr = &step_dof(f, now_s, previous_s, check, timer);
   if (f.plan.runs(PassId::Gi)) hdr = &step_gi(f, *hdr, now_s, check, timer);
-  if (f.plan.runs(PassId::Tonemap)) step_tonemap(f, *hdr, timer);
-  if (f.plan.runs(PassId::Overlay)) step_overlay(f, timer);
+  if (f.on_gpu) {
+    if (f.plan.runs(PassId::Tonemap)) step_tonemap_on_gpu(f, *hdr, hdr != &gbuffer_.color || ulod_blended_, timer);
+    if (f.plan.runs(PassId::Overlay)) {
+      late_latch(f, timer);
+      step_overlay_on_gpu(f, timer);
+    }
+  } else {
+    if (f.plan.runs(PassId::Tonemap)) step_tonemap(f, *hdr, timer);
+    if (f.plan.runs(PassId::Overlay)) {
+      late_latch(f, timer);
+      step_overlay(f, timer);
+    }
+  }
+  step_complete(f, timer);
   return f;
+}
+
+void FramePipeline::late_latch(Frame& f, PassTimer& timer) {
+  if (!clock_is_wall_) return;  // frames on a schedule: the frame's sample stays (deterministic output)
+  auto t = timer.scope("gaze");
+  const double now_wall = steady_seconds();
+  f.gaze_clock_s = frame_clock_s_ + (now_wall - frame_start_wall_s_);
+  f.gaze = gaze_.at(f.gaze_clock_s);
+  latch_wall_s_ = now_wall;
+}
+
+void FramePipeline::step_complete(Frame& f, PassTimer& timer) {
+  if (f.on_gpu) {
+    GpuCompletion done;
+    {
+      auto t = timer.scope("gpu.wait");
+      done = gpu_->finish();
+    }
+    for (const auto& [pass, ms] : done.pass_ms) timer.record(pass, ms);
+    f.completed_wall_s = done.wall_s;
+  } else {
+    f.completed_wall_s = steady_seconds();
+  }
+  // Not a pass: how old the gaze the overlay drew was when the frame was complete.
+  f.gaze_age_at_completion_ms = f.gaze.age_ms + (f.completed_wall_s - latch_wall_s_) * 1000.0;
+  timer.record("gaze-age", f.gaze_age_at_completion_ms);
+}
+
+void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
+  auto t = timer.scope("gbuffer");
+  BackendSettings bs;
+  bs.shadows = settings_.flag("shadows");
+  bs.lod_levels = lod_levels_;
+  gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, gbuffer_);
+  f.read_back = cpu_reads(f.plan);
+  {
+    auto r = timer.scope("gbuffer.readback");
+    gpu_->read_back(f.read_back, gbuffer_);
+  }
+  if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) {
+    blend_ulod(FrameTime{now_s, previous_s}, bs);
+    ulod_blended_ = true;
+  }
+  if (check) require_finite_gbuffer("gbuffer", gbuffer_);
+}
+
+void FramePipeline::step_tonemap_on_gpu(const Frame& f, const std::vector<glm::vec3>& hdr, bool hdr_from_cpu,
+                                        PassTimer& timer) {
+  auto t = timer.scope("tonemap");
+  if (hdr_from_cpu) gpu_->upload_hdr(hdr, f.gbuffer->width, f.gbuffer->height);
+  gpu_->tonemap(GpuTonemap{gpu_operator(settings_.text("tonemap.operator")),
+                           static_cast<float>(settings_.number("tonemap.exposure"))});
+}
+
+// draw_focus and draw_gaze's marks (passes/overlay.h) as the GPU pass draws them.
+void FramePipeline::step_overlay_on_gpu(const Frame& f, PassTimer& timer) {
+  auto t = timer.scope("overlay");
+  GpuOverlay o;
+  if (f.focus != nullptr && settings_.flag("overlay.focus")) {
+    const std::uint32_t id = f.focus->object;
+    const bool seen = id != 0 && std::find(gbuffer_.object_id.begin(), gbuffer_.object_id.end(), id) != gbuffer_.object_id.end();
+    o.focus = seen ? GpuOverlay::Focus::Outline
+              : std::isfinite(f.focus->focal_depth_m) ? GpuOverlay::Focus::IsoDepth
+                                                      : GpuOverlay::Focus::None;
+    o.focus_object = id;
+    o.focal_depth_m = f.focus->focal_depth_m;
+    o.focus_in_transition = f.focus->in_transition;
+  }
+  if (settings_.flag("overlay.gaze") && gaze_.available()) {
+    const std::uint32_t w = f.gbuffer->width;
+    o.gaze = true;
+    o.gaze_x = f.gaze.x;
+    o.gaze_y = f.gaze.y;
+    o.gaze_valid = f.gaze.valid;
+    o.ring_diameter_px = std::max(3.0, degrees_to_pixels(scene_.display, w, 1.0));
+    const double area = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
+    o.area_diameter_px = area > 0 ? degrees_to_pixels(scene_.display, w, area) : 0.0;
+  }
+  gpu_->overlay(o);
+}
+
+const Image8& FramePipeline::read_display() {
+  if (gpu_ == nullptr) throw std::logic_error("FramePipeline::read_display: the frame is not on the GPU");
+  std::uint32_t w = 0, h = 0;
+  gpu_->read_display(display_.rgb, w, h);
+  display_.width = w;
+  display_.height = h;
+  return display_;
 }
 
 void FramePipeline::step_gaze(Frame& f, double frame_clock_s, PassTimer& timer) {
   auto t = timer.scope("gaze");
+  f.gaze_clock_s = frame_clock_s;
   f.gaze = gaze_.at(frame_clock_s);
+  latch_wall_s_ = steady_seconds();
 }
 
 // Lee 2009 §7.2: when attention chooses the levels (ULOD), the attention pass runs first, on a
@@ -332,7 +520,7 @@ void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& dra
   BackendSettings next = drawn;
   if (!lod::ulod_next_levels(scene_, lod_frame_.selection, next.lod_levels)) return;
   lod::ulod_pixel_mask(gbuffer_, lod_frame_.selection, next.pixel_mask);
-  next.color_and_id_only = true;  // the blend reads nothing else
+  next.readback = {.color = true, .object_id = true};  // the blend reads nothing else
   backend_->render(time, next, ulod_next_);
   lod::ulod_blend(gbuffer_, ulod_next_, lod_frame_.selection);
 }

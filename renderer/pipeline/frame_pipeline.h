@@ -1,11 +1,23 @@
 #pragma once
 // Runs one frame: plan the passes, run those that are needed and implemented, time each through
 // the PassTimer. Owns the backend and the frame's buffers.
+//
+// Two paths. The readback path renders the G-buffer, brings every plane to the CPU and runs every
+// pass there (the reference; the Embree backend's only path). The GPU-resident path (a backend with
+// a GpuFrame, frame.gpu=true) keeps the G-buffer in GPU textures, reads back only the planes the
+// CPU passes of this frame read (attention, focus, LOD selection, DOF, GI), uploads the HDR colour
+// they made, and runs the tone map and the overlay on the GPU; the display image stays there.
+//
+// Gaze is latched as late as each pass allows: at the frame's start (LOD selection), again before
+// the focus pass and again before the overlay. Every frame records the age of the gaze sample the
+// overlay drew at the moment the frame was complete (the GPU's fence, or the CPU image done) as
+// "gaze-age" in the timings, and the GPU passes' own times as "gpu.*".
 #include <memory>
 
 #include "attention/attention.h"
 #include "attention/focus.h"
 #include "backend/backend.h"
+#include "backend/gpu_frame.h"
 #include "dof/dof_image.h"
 #include "dof/lee_mipmap.h"
 #include "gaze/gaze_input.h"
@@ -26,7 +38,8 @@ class FramePipeline {
 
   struct Frame {
     FramePlan plan;
-    GazeState gaze;
+    GazeState gaze;            // the last latched sample (the overlay's)
+    double gaze_clock_s = 0;   // the frame clock it was read at
     const GBuffer* gbuffer = nullptr;
     const Image8* image = nullptr;  // null when output=gbuffer
     const attention::AttentionFrame* attention = nullptr;  // null when the attention pass did not run
@@ -53,11 +66,29 @@ class FramePipeline {
       lod::BudgetState budget;
     };
     const Lod* lod = nullptr;  // null when lod-select did not run
+    // The display image lies on the GPU (image is null): read_display() brings it to the CPU, the
+    // viewer shows gpu_frame()->display_texture().
+    bool on_gpu = false;
+    GBufferPlanes read_back;  // on_gpu: the planes of `gbuffer` that are this frame's (the rest are stale)
+    double gaze_age_at_completion_ms = 0;  // the overlay's gaze sample's age when the frame was complete
+    double completed_wall_s = 0;           // when it was complete (steady_clock seconds)
   };
   // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
-  // with gaze sampled at `frame_clock_s` on the gaze input.
+  // with gaze sampled at `frame_clock_s` on the gaze input. `frame_clock_is_wall`: the frame clock
+  // runs with the wall clock (the viewer, --realtime), so a late latch reads the gaze input at the
+  // frame clock plus the time spent since the frame began; otherwise (frames on a schedule) the
+  // sample stays the one of frame_clock_s, and its age at completion counts the frame's wall time.
   Frame render(std::uint64_t frame_index, double scene_time_s, double previous_time_s, double frame_clock_s,
-               PassTimer& timer);
+               PassTimer& timer, bool frame_clock_is_wall = false);
+
+  // The last frame's display image when it was made on the GPU (Frame::on_gpu), read back once.
+  const Image8& read_display();
+  // The backend's GPU-resident frame when this pipeline uses it (null otherwise).
+  GpuFrame* gpu_frame() const { return gpu_; }
+  // Why the frame takes the readback path with the current settings ("" when it stays on the GPU).
+  std::string gpu_refusal() const;
+  // Keep every plane of the G-buffer on the CPU (headless --exr writes its colour): the readback path.
+  void require_cpu_gbuffer(bool required) { cpu_gbuffer_required_ = required; }
 
   FramePlan plan() const;
   const Scene& scene() const { return scene_; }
@@ -114,6 +145,26 @@ class FramePipeline {
                                         PassTimer& timer);
   void step_tonemap(Frame& f, const std::vector<glm::vec3>& hdr, PassTimer& timer);
   void step_overlay(const Frame& f, PassTimer& timer);
+  // The GPU-resident path's steps (Frame::on_gpu).
+  void step_gbuffer_on_gpu(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer);
+  void step_tonemap_on_gpu(const Frame& f, const std::vector<glm::vec3>& hdr, bool hdr_from_cpu, PassTimer& timer);
+  void step_overlay_on_gpu(const Frame& f, PassTimer& timer);
+  // Ends the frame: waits for the GPU (on_gpu), records the GPU times and the gaze's age then.
+  void step_complete(Frame& f, PassTimer& timer);
+  // Reads the gaze input again (the frame clock advanced by the wall time spent when it is the wall
+  // clock); timed as "gaze".
+  void late_latch(Frame& f, PassTimer& timer);
+  // The planes of this frame's G-buffer the passes that run on the CPU read.
+  GBufferPlanes cpu_reads(const FramePlan& plan) const;
+  std::string placement(const FramePlan& plan) const;
+
+  GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run
+  bool cpu_gbuffer_required_ = false;
+  bool ulod_blended_ = false;    // this frame's G-buffer colour was changed on the CPU
+  double frame_clock_s_ = 0;     // this frame's
+  bool clock_is_wall_ = false;
+  double frame_start_wall_s_ = 0, latch_wall_s_ = 0;  // steady_clock seconds
+  Image8 display_;               // read_display()'s
 };
 
 }  // namespace fovea::render

@@ -41,6 +41,7 @@ std::string FramePlan::explain() const {
     std::snprintf(line, sizeof line, "  %-5s %-10s %s\n", verdict, d.name, p.reason.c_str());
     out += line;
   }
+  if (!placement.empty()) out += "  where " + placement + "\n";
   return out;
 }
 

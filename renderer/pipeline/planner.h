@@ -40,6 +40,9 @@ struct PlanContext {
 
 struct FramePlan {
   std::vector<PlannedPass> passes;  // pipeline order
+  // Where the frame runs, for people (FramePipeline fills it in: the GPU-resident path and what it
+  // reads back, or why the frame takes the readback path). Empty: not said.
+  std::string placement;
   bool runs(PassId id) const;
   bool needed(PassId id) const;
   const PlannedPass& at(PassId id) const;

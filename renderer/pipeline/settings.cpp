@@ -16,6 +16,10 @@ const std::vector<SettingSpec>& Settings::specs() {
   static const std::vector<SettingSpec> kSpecs = {
       {"output", "final", "final|gbuffer", "what the frame is built for: the tone-mapped image, or the G-buffer alone"},
       {"shadows", "false", "bool", "shadow rays for direct light in local illumination (Embree backend only)"},
+      {"frame.gpu", "true", "bool",
+       "OpenGL backend: keep the frame on the GPU (G-buffer, tone map, overlay and display run there; only the planes "
+       "the CPU passes read are read back); false: read the whole G-buffer back and run every pass on the CPU (the "
+       "reference path)"},
       {"attention.enabled", "true", "bool", "allow the visual attention pass (Lee 2009 ch. 3) when something consumes it"},
       {"attention.map_size", "256", "number in [64, 512]",
        "side of the square saliency map in pixels (rounded); the G-buffer is resampled to it (Lee 2009 §3.5.4: 64-512)"},

@@ -889,7 +889,7 @@ TEST_F(GlBackendTest, SmallerResolutionIsTheCameraAtThatResolutionAndColourOnlyS
   for (std::size_t i = 0; i < direct.size(); ++i) differ += direct.object_id[i] != small.object_id[i] ? 1u : 0u;
   EXPECT_EQ(differ, 0u);
   BackendSettings colour_only;
-  colour_only.color_and_id_only = true;
+  colour_only.readback = {.color = true, .object_id = true};
   GBuffer c;
   backend_->render({}, colour_only, c);
   EXPECT_EQ(c.object_id, direct.object_id);

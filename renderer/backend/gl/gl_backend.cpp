@@ -13,6 +13,7 @@
 #include <string>
 #include <unordered_map>
 
+#include "backend/gl/gl_frame.h"
 #include "backend/gl/gl_program.h"
 #include "backend/gl/shaders.h"
 
@@ -20,7 +21,7 @@ namespace fovea::render {
 
 namespace {
 
-enum Attachment : std::size_t { kColor = 0, kDepth = 1, kId = 2, kNormal = 3, kMotion = 4, kZ = 5 };
+enum Attachment : std::size_t { kColor = 0, kDepth = 1, kId = 2, kNormal = 3, kMotion = 4 };
 constexpr std::size_t kNoMesh = static_cast<std::size_t>(-1);  // DrawItem of an object without a mesh
 constexpr GLenum kDrawBuffers[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
                                     GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
@@ -155,9 +156,9 @@ void clear_gbuffer(const Scene& scene) {
 
 }  // namespace
 
-GlBackend::GlBackend(GlPlatform platform)
+GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
     : context_(GlContextOptions{.visible = false, .platform = platform, .title = "fovea-gl-backend", .width = 16,
-                                .height = 16, .vsync = false}) {
+                                .height = 16, .vsync = false, .share = share}) {
   context_.make_current();
   program_ = gl::link_program(gl::kGBufferVertex, gl::kGBufferFragment, "GlBackend G-buffer program");
   const auto loc = [this](const char* name) { return glGetUniformLocation(program_, name); };
@@ -197,6 +198,7 @@ GlBackend::GlBackend(GlPlatform platform)
 }
 
 GlBackend::~GlBackend() {
+  gpu_frame_.reset();  // its GL objects go while the context lives
   context_.make_current();
   release_meshes();
   release_framebuffer();
@@ -216,9 +218,11 @@ void GlBackend::release_meshes() {
 
 void GlBackend::release_framebuffer() {
   if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
-  glDeleteRenderbuffers(6, renderbuffers_);
+  glDeleteTextures(5, textures_);
+  if (z_buffer_ != 0) glDeleteRenderbuffers(1, &z_buffer_);
   fbo_ = 0;
-  std::fill(std::begin(renderbuffers_), std::end(renderbuffers_), 0u);
+  z_buffer_ = 0;
+  std::fill(std::begin(textures_), std::end(textures_), 0u);
   fb_width_ = fb_height_ = 0;
 }
 
@@ -302,15 +306,28 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   }
   release_framebuffer();
   glGenFramebuffers(1, &fbo_);
-  glGenRenderbuffers(6, renderbuffers_);
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  const GLenum formats[6] = {GL_RGBA32F, GL_R32F, GL_R32UI, GL_RGBA32F, GL_RG32F, GL_DEPTH_COMPONENT32F};
-  for (std::size_t i = 0; i < 6; ++i) {
-    glBindRenderbuffer(GL_RENDERBUFFER, renderbuffers_[i]);
-    glRenderbufferStorage(GL_RENDERBUFFER, formats[i], static_cast<GLsizei>(width), static_cast<GLsizei>(height));
-    const GLenum attachment = i == kZ ? GL_DEPTH_ATTACHMENT : kDrawBuffers[i];
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, attachment, GL_RENDERBUFFER, renderbuffers_[i]);
+  // Textures, not renderbuffers: the GPU passes (GlFramePasses) sample them where they lie.
+  glGenTextures(5, textures_);
+  // glTexImage2D, not glTexStorage2D: the G-buffer keeps to OpenGL 3.3.
+  const GLenum formats[5][3] = {{GL_RGBA32F, GL_RGBA, GL_FLOAT},
+                                {GL_R32F, GL_RED, GL_FLOAT},
+                                {GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT},
+                                {GL_RGBA32F, GL_RGBA, GL_FLOAT},
+                                {GL_RG32F, GL_RG, GL_FLOAT}};
+  for (std::size_t i = 0; i < 5; ++i) {
+    glBindTexture(GL_TEXTURE_2D, textures_[i]);
+    glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(formats[i][0]), static_cast<GLsizei>(width),
+                 static_cast<GLsizei>(height), 0, formats[i][1], formats[i][2], nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, kDrawBuffers[i], GL_TEXTURE_2D, textures_[i], 0);
   }
+  glBindTexture(GL_TEXTURE_2D, 0);
+  glGenRenderbuffers(1, &z_buffer_);
+  glBindRenderbuffer(GL_RENDERBUFFER, z_buffer_);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, z_buffer_);
   glBindRenderbuffer(GL_RENDERBUFFER, 0);
   glDrawBuffers(5, kDrawBuffers);
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
@@ -423,7 +440,8 @@ void GlBackend::render_without_readback(const FrameTime& time) {
   glFinish();
 }
 
-void GlBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+// The settings the raster backend cannot honour, refused with the reason.
+void GlBackend::check_settings(const BackendSettings& settings) {
   // settings.shadows is not supported by the raster backend in this step (no shadow maps yet):
   // shading is unshadowed local illumination regardless. The Embree backend honours it.
   if (settings.lens.active() && settings.lens.per_pixel) {
@@ -436,11 +454,26 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
         "OpenGL backend: the hidden layer (depth peeling) is not implemented for the raster backend yet; use "
         "--backend embree");
   }
+}
+
+void GlBackend::render_on_gpu(const FrameTime& time, const BackendSettings& settings) {
+  check_settings(settings);
   draw(time, settings.lens, settings.lod_levels, settings.width, settings.height);
-  const std::uint32_t w = settings.width > 0 ? settings.width : scene_->camera.width;
-  const std::uint32_t h = settings.height > 0 ? settings.height : scene_->camera.height;
-  out.resize(w, h);
+  image_width_ = settings.width > 0 ? settings.width : scene_->camera.width;
+  image_height_ = settings.height > 0 ? settings.height : scene_->camera.height;
+}
+
+void GlBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+  render_on_gpu(time, settings);
+  out.resize(image_width_, image_height_);
+  read_back(settings.readback, out);
+}
+
+void GlBackend::read_back(const GBufferPlanes& planes, GBuffer& out) {
+  const std::uint32_t w = out.width, h = out.height;
   if (w == 0 || h == 0) return;
+  context_.make_current();
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
   const auto gw = static_cast<GLsizei>(w), gh = static_cast<GLsizei>(h);
   const float far_m = scene_->camera.far_m;
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
@@ -455,20 +488,24 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
   // GL rows start at the bottom; the G-buffer's row 0 is the top.
   const auto src = [&](std::uint32_t x, std::uint32_t y) { return std::size_t{h - 1 - y} * w + x; };
 
-  read_float(kColor, GL_RGBA, 4);
-  for (std::uint32_t y = 0; y < h; ++y) {
-    for (std::uint32_t x = 0; x < w; ++x) {
-      const float* p = &scratch_[4 * src(x, y)];
-      out.color[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
+  if (planes.color) {
+    read_float(kColor, GL_RGBA, 4);
+    for (std::uint32_t y = 0; y < h; ++y) {
+      for (std::uint32_t x = 0; x < w; ++x) {
+        const float* p = &scratch_[4 * src(x, y)];
+        out.color[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
+      }
     }
   }
-  if (settings.color_and_id_only) {
-    std::fill(out.depth.begin(), out.depth.end(), far_m);
-  } else {
+  if (planes.depth) {
     read_float(kDepth, GL_RED, 1);
     for (std::uint32_t y = 0; y < h; ++y) {
       for (std::uint32_t x = 0; x < w; ++x) out.depth[out.index(x, y)] = finite_or(scratch_[src(x, y)], far_m);
     }
+  } else {
+    std::fill(out.depth.begin(), out.depth.end(), far_m);
+  }
+  if (planes.normal) {
     read_float(kNormal, GL_RGBA, 4);
     for (std::uint32_t y = 0; y < h; ++y) {
       for (std::uint32_t x = 0; x < w; ++x) {
@@ -476,6 +513,8 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
         out.normal[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
       }
     }
+  }
+  if (planes.motion) {
     read_float(kMotion, GL_RG, 2);
     for (std::uint32_t y = 0; y < h; ++y) {
       for (std::uint32_t x = 0; x < w; ++x) {
@@ -484,15 +523,30 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
       }
     }
   }
-  scratch_id_.resize(n);
-  glReadBuffer(kDrawBuffers[kId]);
-  glReadPixels(0, 0, gw, gh, GL_RED_INTEGER, GL_UNSIGNED_INT, scratch_id_.data());
-  for (std::uint32_t y = 0; y < h; ++y) {
-    std::memcpy(&out.object_id[out.index(0, y)], &scratch_id_[src(0, y)], std::size_t{w} * sizeof(std::uint32_t));
+  if (planes.object_id) {
+    scratch_id_.resize(n);
+    glReadBuffer(kDrawBuffers[kId]);
+    glReadPixels(0, 0, gw, gh, GL_RED_INTEGER, GL_UNSIGNED_INT, scratch_id_.data());
+    for (std::uint32_t y = 0; y < h; ++y) {
+      std::memcpy(&out.object_id[out.index(0, y)], &scratch_id_[src(0, y)], std::size_t{w} * sizeof(std::uint32_t));
+    }
   }
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
   check_gl("GlBackend::render (read back)");
 }
 
-std::unique_ptr<Backend> make_gl_backend(GlPlatform platform) { return std::make_unique<GlBackend>(platform); }
+GlGBufferTextures GlBackend::textures() const {
+  return {textures_[kColor], textures_[kDepth], textures_[kId], textures_[kNormal], textures_[kMotion],
+          image_width_,      image_height_,     fb_width_,      fb_height_};
+}
+
+GpuFrame* GlBackend::gpu_frame() {
+  if (!gpu_frame_) gpu_frame_ = std::make_unique<GlFrame>(*this);
+  return gpu_frame_.get();
+}
+
+std::unique_ptr<Backend> make_gl_backend(GlPlatform platform, const GlContext* share) {
+  return std::make_unique<GlBackend>(platform, share);
+}
 
 }  // namespace fovea::render

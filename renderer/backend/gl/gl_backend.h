@@ -6,9 +6,11 @@
 //   2 R32UI    object id
 //   3 RGBA32F  world normal facing the camera
 //   4 RG32F    screen-space motion in pixels (now minus previous, y down)
-// plus a 32-bit float depth attachment for the z test, then reads everything back with
-// glReadPixels (rows flipped so row 0 is the top). Runs headless in an invisible GLFW window; needs
-// an X display (Xvfb is fine: Mesa llvmpipe).
+// plus a 32-bit float depth renderbuffer for the z test. The five planes are textures: render() reads
+// back the planes BackendSettings::readback asks for (glReadPixels, rows flipped so row 0 is the
+// top); render_on_gpu() leaves them on the GPU for the frame's GPU passes (gl_frame.h), which sample
+// them through textures(). Runs in an invisible EGL context (no window system), or beside a viewer's
+// GLFW window sharing its textures.
 //
 // Not supported in this step: shadows (BackendSettings::shadows is ignored; the Embree backend
 // casts shadow rays), LOD levels (the full mesh is drawn, as by the Embree backend).
@@ -20,16 +22,27 @@
 
 #include "backend/backend.h"
 #include "backend/gl/gl_context.h"
+#include "backend/gpu_frame.h"
 #include "scene/shading.h"
 
 namespace fovea::render {
+
+// The G-buffer's planes as textures, the image in their lower-left width x height texels (rows
+// bottom-up, as OpenGL renders them).
+struct GlGBufferTextures {
+  unsigned color = 0, depth = 0, object_id = 0, normal = 0, motion = 0;
+  std::uint32_t width = 0, height = 0;                  // the image
+  std::uint32_t texture_width = 0, texture_height = 0;  // the textures
+};
 
 class GlBackend final : public Backend {
  public:
   // Creates its own invisible OpenGL 3.3 core context on `platform` (EGL: no window system needed;
   // GLFW: beside a viewer's window). Throws std::runtime_error with the reason (no EGL display, no X
   // display for GLFW, no GL 3.3 core context, shader compilation failure).
-  explicit GlBackend(GlPlatform platform = GlPlatform::Egl);
+  // `share` (GLFW only): a window whose context sees this backend's textures (the viewer shows the
+  // GPU-resident frame from there).
+  explicit GlBackend(GlPlatform platform = GlPlatform::Egl, const GlContext* share = nullptr);
   ~GlBackend() override;
   GlBackend(const GlBackend&) = delete;
   GlBackend& operator=(const GlBackend&) = delete;
@@ -50,7 +63,19 @@ class GlBackend final : public Backend {
   // Renders without reading back: for benchmarks of the GPU side alone (ends with glFinish).
   void render_without_readback(const FrameTime& time);
 
+  // Renders into the G-buffer textures and reads nothing back (the GPU-resident frame); the same
+  // checks as render(). Does not wait for the GPU.
+  void render_on_gpu(const FrameTime& time, const BackendSettings& settings);
+  // Reads `planes` of the last render into `out`, which must already have the render's size.
+  void read_back(const GBufferPlanes& planes, GBuffer& out);
+  // The G-buffer textures of the last render (0 before the first).
+  GlGBufferTextures textures() const;
+
+  // The GPU-resident frame (gl_frame.h) on this backend's context, made on first use.
+  GpuFrame* gpu_frame() override;
+
   GlContext& context() { return context_; }
+  const GlContext& context() const { return context_; }
 
  private:
   struct GpuMesh {
@@ -81,6 +106,7 @@ class GlBackend final : public Backend {
   // Fills meshes_ and draws_ (one per object, LOD levels included).
   void upload_draw_items(const Scene& scene);
   void ensure_framebuffer(std::uint32_t width, std::uint32_t height);
+  static void check_settings(const BackendSettings& settings);
   void release_framebuffer();
   void release_meshes();
 
@@ -93,8 +119,10 @@ class GlBackend final : public Backend {
       loc_object_id_ = -1, loc_emissive_ = -1, loc_kd_ = -1, loc_ks_ = -1, loc_emission_ = -1, loc_shininess_ = -1, loc_moved_ = -1;
 
   unsigned fbo_ = 0;
-  unsigned renderbuffers_[6] = {};  // colour, depth, id, normal, motion, z
+  unsigned textures_[5] = {};  // colour, depth, id, normal, motion
+  unsigned z_buffer_ = 0;
   std::uint32_t fb_width_ = 0, fb_height_ = 0;
+  std::uint32_t image_width_ = 0, image_height_ = 0;  // of the last render
 
   std::optional<Scene> scene_;
   std::vector<GpuMesh> meshes_;
@@ -103,8 +131,9 @@ class GlBackend final : public Backend {
 
   std::vector<float> scratch_;
   std::vector<std::uint32_t> scratch_id_;
+  std::unique_ptr<GpuFrame> gpu_frame_;
 };
 
-std::unique_ptr<Backend> make_gl_backend(GlPlatform platform = GlPlatform::Egl);
+std::unique_ptr<Backend> make_gl_backend(GlPlatform platform = GlPlatform::Egl, const GlContext* share = nullptr);
 
 }  // namespace fovea::render

@@ -71,14 +71,19 @@ void release_glfw() {
 }
 
 constexpr const char* kPresentVertex = R"(#version 330 core
+uniform vec2 u_extent;     // the image's part of the texture (1, 1: all of it)
+uniform bool u_top_first;  // the texture's row 0 is the image's top (uploaded images): flip
 out vec2 v_uv;
 void main() {
-  // One triangle covering the viewport; uv.y flipped because the image's row 0 is its top.
+  // One triangle covering the viewport.
   vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-  v_uv = vec2(p.x, 1.0 - p.y);
+  v_uv = vec2(p.x, u_top_first ? 1.0 - p.y : p.y) * u_extent;
   gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
 }
 )";
+
+// Context versions asked for, newest first: the GPU passes want 4.3 (compute), the G-buffer 3.3.
+constexpr int kVersions[][2] = {{4, 6}, {4, 5}, {4, 3}, {3, 3}};
 
 constexpr const char* kPresentFragment = R"(#version 330 core
 in vec2 v_uv;
@@ -250,6 +255,7 @@ GlContext::GlContext(const GlContextOptions& options) {
   t_current_context = this;
   const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   renderer_ = renderer != nullptr ? renderer : "unknown";
+  read_features();
   {
     const std::lock_guard lock(g_glfw_mutex);
     pin_gl_driver_libraries();
@@ -258,14 +264,22 @@ GlContext::GlContext(const GlContextOptions& options) {
 
 void GlContext::create_glfw_window(const GlContextOptions& options) {
   acquire_glfw();
-  glfwDefaultWindowHints();
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
-  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
-  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-  glfwWindowHint(GLFW_VISIBLE, options.visible ? GLFW_TRUE : GLFW_FALSE);
-  glfwWindowHint(GLFW_RESIZABLE, options.visible ? GLFW_TRUE : GLFW_FALSE);
-  window_ = glfwCreateWindow(options.width, options.height, options.title.c_str(), nullptr, nullptr);
+  GLFWwindow* share = options.share != nullptr ? options.share->window() : nullptr;
+  if (options.share != nullptr && share == nullptr) {
+    release_glfw();
+    throw std::logic_error("GlContext: a GLFW context can share only with another GLFW context");
+  }
+  for (const auto& version : kVersions) {
+    glfwDefaultWindowHints();
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, version[0]);
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, version[1]);
+    glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+    glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+    glfwWindowHint(GLFW_VISIBLE, options.visible ? GLFW_TRUE : GLFW_FALSE);
+    glfwWindowHint(GLFW_RESIZABLE, options.visible ? GLFW_TRUE : GLFW_FALSE);
+    window_ = glfwCreateWindow(options.width, options.height, options.title.c_str(), nullptr, share);
+    if (window_ != nullptr) break;
+  }
   if (window_ == nullptr) {
     const std::string error = glfw_error_text();
     release_glfw();
@@ -292,10 +306,15 @@ void GlContext::create_egl_context() {
     throw std::runtime_error("cannot create an OpenGL 3.3 core context through EGL: no OpenGL config (" +
                              egl_error_text() + ", " + d.description + ")");
   }
-  const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION_KHR, 3, EGL_CONTEXT_MINOR_VERSION_KHR, 3,
-                                       EGL_CONTEXT_OPENGL_PROFILE_MASK_KHR, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT_KHR,
-                                       EGL_CONTEXT_FLAGS_KHR, EGL_CONTEXT_OPENGL_FORWARD_COMPATIBLE_BIT_KHR, EGL_NONE};
-  EGLContext context = eglCreateContext(d.display, config, EGL_NO_CONTEXT, context_attributes);
+  EGLContext context = EGL_NO_CONTEXT;
+  for (const auto& version : kVersions) {
+    const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION_KHR, version[0], EGL_CONTEXT_MINOR_VERSION_KHR,
+                                         version[1], EGL_CONTEXT_OPENGL_PROFILE_MASK_KHR,
+                                         EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT_KHR, EGL_CONTEXT_FLAGS_KHR,
+                                         EGL_CONTEXT_OPENGL_FORWARD_COMPATIBLE_BIT_KHR, EGL_NONE};
+    context = eglCreateContext(d.display, config, EGL_NO_CONTEXT, context_attributes);
+    if (context != EGL_NO_CONTEXT) break;
+  }
   if (context == EGL_NO_CONTEXT) {
     throw std::runtime_error("cannot create an OpenGL 3.3 core context through EGL (" + egl_error_text() + ", " +
                              d.description + ")");
@@ -393,29 +412,64 @@ void GlContext::present(std::span<const std::uint8_t> rgba, std::uint32_t width,
   }
   make_current();
   if (present_program_ == 0) create_present_resources();
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  const glm::ivec2 fb = framebuffer_size();
-  glDisable(GL_DEPTH_TEST);
-  glViewport(0, 0, fb.x, fb.y);
-  glClearColor(0, 0, 0, 1);
-  glClear(GL_COLOR_BUFFER_BIT);
-  // Letterbox: the largest viewport of the image's aspect ratio that fits, centred.
-  const double scale = std::min(static_cast<double>(fb.x) / width, static_cast<double>(fb.y) / height);
-  const int vw = std::max(1, static_cast<int>(std::lround(width * scale)));
-  const int vh = std::max(1, static_cast<int>(std::lround(height * scale)));
-  glViewport((fb.x - vw) / 2, (fb.y - vh) / 2, vw, vh);
-
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, present_texture_);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, static_cast<GLsizei>(width), static_cast<GLsizei>(height), 0, GL_RGBA,
                GL_UNSIGNED_BYTE, rgba.data());
+  draw_present_quad(width, height, 1.0f, 1.0f, true);
+}
+
+void GlContext::present_texture(unsigned texture, std::uint32_t width, std::uint32_t height,
+                                std::uint32_t texture_width, std::uint32_t texture_height) {
+  if (width == 0 || height == 0 || width > texture_width || height > texture_height) {
+    throw std::invalid_argument("GlContext::present_texture: a " + std::to_string(width) + "x" +
+                                std::to_string(height) + " image in a " + std::to_string(texture_width) + "x" +
+                                std::to_string(texture_height) + " texture");
+  }
+  if (window_ == nullptr) {
+    throw std::logic_error("GlContext::present_texture: an EGL context has no window to present to (" + platform_ + ")");
+  }
+  make_current();
+  if (present_program_ == 0) create_present_resources();
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, texture);
+  draw_present_quad(width, height, static_cast<float>(width) / static_cast<float>(texture_width),
+                    static_cast<float>(height) / static_cast<float>(texture_height), false);
+}
+
+// The bound texture to the default framebuffer, letterboxed (the largest viewport of the image's
+// aspect ratio that fits, centred).
+void GlContext::draw_present_quad(std::uint32_t width, std::uint32_t height, float u_max, float v_max,
+                                  bool top_row_first) {
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  const glm::ivec2 fb = framebuffer_size();
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_SCISSOR_TEST);
+  glDisable(GL_BLEND);
+  glViewport(0, 0, fb.x, fb.y);
+  glClearColor(0, 0, 0, 1);
+  glClear(GL_COLOR_BUFFER_BIT);
+  const double scale = std::min(static_cast<double>(fb.x) / width, static_cast<double>(fb.y) / height);
+  const int vw = std::max(1, static_cast<int>(std::lround(width * scale)));
+  const int vh = std::max(1, static_cast<int>(std::lround(height * scale)));
+  glViewport((fb.x - vw) / 2, (fb.y - vh) / 2, vw, vh);
   glUseProgram(present_program_);
   glUniform1i(glGetUniformLocation(present_program_, "u_image"), 0);
+  glUniform2f(glGetUniformLocation(present_program_, "u_extent"), u_max, v_max);
+  glUniform1i(glGetUniformLocation(present_program_, "u_top_first"), top_row_first ? 1 : 0);
   glBindVertexArray(present_vao_);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   glBindVertexArray(0);
   glUseProgram(0);
+}
+
+void GlContext::read_features() {
+  glGetIntegerv(GL_MAJOR_VERSION, &features_.major);
+  glGetIntegerv(GL_MINOR_VERSION, &features_.minor);
+  features_.timer_query = features_.at_least(3, 3) || epoxy_has_gl_extension("GL_ARB_timer_query");
+  features_.sync = features_.at_least(3, 2) || epoxy_has_gl_extension("GL_ARB_sync");
+  features_.compute = features_.at_least(4, 3) || epoxy_has_gl_extension("GL_ARB_compute_shader");
 }
 
 void GlContext::present(const std::vector<glm::vec3>& linear_rgb, std::uint32_t width, std::uint32_t height) {

@@ -1,5 +1,6 @@
 #pragma once
-// An OpenGL 3.3 core context. Two platforms:
+// An OpenGL core context, the newest the driver gives of 4.6, 4.5, 4.3 and 3.3 (3.3 is what the
+// G-buffer needs; the GPU passes need more: GlFeatures). Two platforms:
 //  - EGL, without any window system (the default for invisible contexts: GlBackend, --headless, the
 //    tests and the benchmarks). The display is the first that works of: a GPU through
 //    EGL_EXT_platform_device (NVIDIA's headless path), Mesa's surfaceless platform
@@ -34,6 +35,21 @@ struct GlContextOptions {
   std::string title = "fovea";
   int width = 640, height = 480;  // window size in screen coordinates
   bool vsync = true;           // visible windows only: swap interval 1 (else 0)
+  // GLFW only: share textures and buffers with this context (the viewer's window shows the frame
+  // the backend's invisible context rendered, without a copy through the CPU).
+  const class GlContext* share = nullptr;
+};
+
+// What the context can do, read once when it is created.
+struct GlFeatures {
+  int major = 0, minor = 0;  // GL_MAJOR_VERSION / GL_MINOR_VERSION of the context
+  bool timer_query = false;  // GL_TIMESTAMP queries (core in 3.3; ARB_timer_query)
+  bool sync = false;         // fences (core in 3.2; ARB_sync)
+  bool compute = false;      // compute shaders (core in 4.3; ARB_compute_shader)
+  bool at_least(int want_major, int want_minor) const {
+    return major > want_major || (major == want_major && minor >= want_minor);
+  }
+  std::string version() const { return std::to_string(major) + "." + std::to_string(minor); }
 };
 
 class GlContext {
@@ -70,8 +86,15 @@ class GlContext {
   // Tone mapping belongs to the tonemap pass; this does none.
   void present(const std::vector<glm::vec3>& linear_rgb, std::uint32_t width, std::uint32_t height);
 
+  // Draws `texture` (RGBA8, rows bottom-up as OpenGL renders them, width x height texels used from
+  // its lower-left corner) to the default framebuffer like present(). The texture must be visible in
+  // this context (made here or in a context given as GlContextOptions::share). Does not swap buffers.
+  void present_texture(unsigned texture, std::uint32_t width, std::uint32_t height, std::uint32_t texture_width,
+                       std::uint32_t texture_height);
+
   // The renderer string of the context (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)").
   std::string renderer() const { return renderer_; }
+  const GlFeatures& features() const { return features_; }
 
  private:
   void create_present_resources();
@@ -82,6 +105,9 @@ class GlContext {
   void* egl_context_ = nullptr;  // EGLContext (EGL_NO_CONTEXT when GLFW)
   void* egl_surface_ = nullptr;  // EGLSurface: a 1x1 pbuffer where the display lacks surfaceless contexts
   std::string renderer_, platform_;
+  GlFeatures features_;
+  void read_features();
+  void draw_present_quad(std::uint32_t width, std::uint32_t height, float u_max, float v_max, bool top_row_first);
   // present() resources, created on first use.
   unsigned present_program_ = 0, present_vao_ = 0, present_texture_ = 0;
   std::vector<std::uint8_t> srgb_scratch_;

@@ -1,0 +1,391 @@
+#include "backend/gl/gl_frame.h"
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+#include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_program.h"
+
+namespace fovea::render {
+
+namespace {
+
+// One triangle over the viewport; the fragment shaders address texels with gl_FragCoord.
+constexpr const char* kFullscreenVertex = R"(#version 330 core
+void main() {
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+)";
+
+// passes/tonemap.cpp on the GPU: exposure, the operator, the sRGB transfer function (the exact
+// formula, as tonemap.exact=true), rounded to 8 bits here so the RGBA8 store is exact.
+constexpr const char* kTonemapFragment = R"(#version 330 core
+uniform sampler2D u_hdr;
+uniform bool u_top_first;   // the uploaded HDR image has row 0 at the top
+uniform int u_height;
+uniform float u_exposure;
+uniform int u_op;           // 0 reinhard, 1 clamp, 2 exponential
+out vec4 o_color;
+float map_operator(float v) {
+  v = (isnan(v) || isinf(v)) ? 0.0 : max(v, 0.0);
+  if (u_op == 0) return v / (1.0 + v);
+  if (u_op == 2) return 1.0 - exp(-v);  // Jensen & Pedersen 2009, eq. 8.7
+  return min(v, 1.0);
+}
+float srgb(float v) {
+  v = clamp(v, 0.0, 1.0);
+  return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
+}
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  if (u_top_first) p.y = u_height - 1 - p.y;
+  vec3 c = texelFetch(u_hdr, p, 0).rgb * u_exposure;
+  vec3 s = vec3(srgb(map_operator(c.r)), srgb(map_operator(c.g)), srgb(map_operator(c.b)));
+  o_color = vec4(floor(s * 255.0 + 0.5) / 255.0, 1.0);
+}
+)";
+
+// passes/overlay.cpp's draw_focus and draw_gaze on the GPU, in their order (the gaze-area ring over
+// the gaze ring over the focus outline); pixels with nothing to draw are discarded. Coordinates are
+// the image's (row 0 at the top, pixel centres at +0.5).
+constexpr const char* kOverlayFragment = R"(#version 330 core
+uniform usampler2D u_id;
+uniform sampler2D u_depth;
+uniform ivec2 u_size;
+uniform bool u_gaze;
+uniform vec2 u_gaze_px;
+uniform vec3 u_gaze_colour;
+uniform float u_ring_radius, u_area_radius;  // u_area_radius 0: none
+uniform int u_focus;                          // 0 none, 1 outline u_object, 2 iso-depth line
+uniform uint u_object;
+uniform float u_focal_depth;
+uniform vec3 u_focus_colour;
+out vec4 o_color;
+
+ivec2 texel_of(ivec2 p) { return ivec2(p.x, u_size.y - 1 - p.y); }
+bool inside(ivec2 p) { return p.x >= 0 && p.y >= 0 && p.x < u_size.x && p.y < u_size.y; }
+bool is_object(ivec2 p) { return inside(p) && texelFetch(u_id, texel_of(p), 0).r == u_object; }
+int side(ivec2 p) {
+  if (!inside(p)) return 0;
+  float d = texelFetch(u_depth, texel_of(p), 0).r;
+  if (texelFetch(u_id, texel_of(p), 0).r == 0u || isnan(d) || isinf(d)) return 0;
+  return d < u_focal_depth ? -1 : 1;
+}
+bool ring(vec2 q, float radius, float thickness) {
+  float r_out = radius + thickness / 2.0, r_in = max(0.0, radius - thickness / 2.0);
+  float d = length(q - u_gaze_px);
+  return d <= r_out && d >= r_in;
+}
+void main() {
+  ivec2 p = ivec2(int(gl_FragCoord.x), u_size.y - 1 - int(gl_FragCoord.y));
+  vec2 q = vec2(p) + 0.5;
+  bool drawn = false;
+  vec3 c = vec3(0.0);
+  if (u_focus == 1 && is_object(p)) {
+    bool edge = false;
+    for (int d = 1; d <= 2 && !edge; ++d)
+      edge = !is_object(p + ivec2(-d, 0)) || !is_object(p + ivec2(d, 0)) || !is_object(p + ivec2(0, -d)) ||
+             !is_object(p + ivec2(0, d));
+    if (edge) { c = u_focus_colour; drawn = true; }
+  } else if (u_focus == 2) {
+    int here = side(p);
+    if (here != 0) {
+      int right = side(p + ivec2(1, 0)), below = side(p + ivec2(0, 1));
+      if ((right != 0 && right != here) || (below != 0 && below != here)) { c = u_focus_colour; drawn = true; }
+    }
+  }
+  if (u_gaze && ring(q, u_ring_radius, 2.0)) { c = u_gaze_colour; drawn = true; }
+  if (u_gaze && u_area_radius > 0.0 && ring(q, u_area_radius, 1.0)) { c = u_gaze_colour * 0.8; drawn = true; }
+  if (!drawn) discard;
+  o_color = vec4(floor(clamp(c, 0.0, 1.0) * 255.0 + 0.5) / 255.0, 1.0);
+}
+)";
+
+double steady_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+void check(const char* where) {
+  const GLenum e = glGetError();
+  if (e == GL_NO_ERROR) return;
+  while (glGetError() != GL_NO_ERROR) {
+  }
+  throw std::runtime_error(std::string("GlFrame: OpenGL error ") + std::to_string(e) + " in " + where);
+}
+
+// The features the GPU passes need of the context, or "" when it has them all.
+std::string missing_features(const GlFeatures& f) {
+  if (!f.at_least(3, 3)) return "OpenGL " + f.version() + " < 3.3";
+  if (!f.timer_query) return "no timer queries (GL_ARB_timer_query)";
+  if (!f.sync) return "no fences (GL_ARB_sync)";
+  return "";
+}
+
+}  // namespace
+
+GlFrame::GlFrame(GlBackend& backend) : backend_(backend) {
+  GlContext& context = backend_.context();
+  context.make_current();
+  unavailable_ = missing_features(context.features());
+  if (!unavailable_.empty()) return;
+  tonemap_program_ = gl::link_program(kFullscreenVertex, kTonemapFragment, "GlFrame tone map");
+  overlay_program_ = gl::link_program(kFullscreenVertex, kOverlayFragment, "GlFrame overlay");
+  glGenVertexArrays(1, &vao_);
+  check("GlFrame()");
+}
+
+GlFrame::~GlFrame() {
+  backend_.context().make_current();
+  if (!query_pool_.empty()) glDeleteQueries(static_cast<GLsizei>(query_pool_.size()), query_pool_.data());
+  for (const Timed& t : timed_) {
+    glDeleteQueries(1, &t.start);
+    if (t.end != 0) glDeleteQueries(1, &t.end);
+  }
+  if (display_fbo_ != 0) glDeleteFramebuffers(1, &display_fbo_);
+  if (display_texture_ != 0) glDeleteTextures(1, &display_texture_);
+  if (hdr_texture_ != 0) glDeleteTextures(1, &hdr_texture_);
+  if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
+  if (tonemap_program_ != 0) glDeleteProgram(tonemap_program_);
+  if (overlay_program_ != 0) glDeleteProgram(overlay_program_);
+}
+
+std::string GlFrame::description() const {
+  const GlContext& c = backend_.context();
+  return "OpenGL " + c.features().version() + " (" + c.renderer() + ")";
+}
+
+unsigned GlFrame::pooled_query() {
+  unsigned query = 0;
+  if (query_pool_.empty()) {
+    glGenQueries(1, &query);
+  } else {
+    query = query_pool_.back();
+    query_pool_.pop_back();
+  }
+  return query;
+}
+
+// GPU timestamps at the pass's start and end (glQueryCounter), not GL_TIME_ELAPSED: Mesa's llvmpipe
+// answers an elapsed-time query begun before the frame's first framebuffer exists with garbage.
+void GlFrame::begin_timed(const char* pass) {
+  const unsigned start = pooled_query();
+  glQueryCounter(start, GL_TIMESTAMP);
+  timed_.push_back({pass, start, 0});
+}
+
+void GlFrame::end_timed() {
+  const unsigned end = pooled_query();
+  glQueryCounter(end, GL_TIMESTAMP);
+  timed_.back().end = end;
+}
+
+void GlFrame::render_gbuffer(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+  backend_.context().make_current();
+  hdr_uploaded_ = false;
+  begin_timed("gpu.gbuffer");
+  try {
+    backend_.render_on_gpu(time, settings);
+  } catch (...) {
+    end_timed();
+    throw;
+  }
+  end_timed();
+  const GlGBufferTextures t = backend_.textures();
+  if (out.width != t.width || out.height != t.height) out.resize(t.width, t.height);
+}
+
+void GlFrame::read_back(const GBufferPlanes& planes, GBuffer& out) {
+  if (planes.any()) backend_.read_back(planes, out);
+}
+
+void GlFrame::upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) {
+  if (hdr.size() != std::size_t{width} * height) {
+    throw std::invalid_argument("GlFrame::upload_hdr: " + std::to_string(hdr.size()) + " pixels for " +
+                                std::to_string(width) + "x" + std::to_string(height));
+  }
+  backend_.context().make_current();
+  if (hdr_texture_ == 0) {
+    glGenTextures(1, &hdr_texture_);
+    glBindTexture(GL_TEXTURE_2D, hdr_texture_);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  }
+  glBindTexture(GL_TEXTURE_2D, hdr_texture_);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  begin_timed("gpu.upload");
+  if (width != hdr_w_ || height != hdr_h_) {
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height), 0, GL_RGB,
+                 GL_FLOAT, hdr.data());
+    hdr_w_ = width;
+    hdr_h_ = height;
+  } else {
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height), GL_RGB,
+                    GL_FLOAT, hdr.data());
+  }
+  end_timed();
+  hdr_uploaded_ = true;
+  check("GlFrame::upload_hdr");
+}
+
+void GlFrame::ensure_display(std::uint32_t tw, std::uint32_t th) {
+  if (display_texture_ != 0 && tw == display_tw_ && th == display_th_) return;
+  if (display_fbo_ == 0) glGenFramebuffers(1, &display_fbo_);
+  if (display_texture_ != 0) glDeleteTextures(1, &display_texture_);
+  glGenTextures(1, &display_texture_);
+  glBindTexture(GL_TEXTURE_2D, display_texture_);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, static_cast<GLsizei>(tw), static_cast<GLsizei>(th), 0, GL_RGBA,
+               GL_UNSIGNED_BYTE, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glBindFramebuffer(GL_FRAMEBUFFER, display_fbo_);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, display_texture_, 0);
+  const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+  if (status != GL_FRAMEBUFFER_COMPLETE) {
+    throw std::runtime_error("GlFrame: display framebuffer incomplete (status " + std::to_string(status) + ")");
+  }
+  display_tw_ = tw;
+  display_th_ = th;
+}
+
+// Binds the display image's framebuffer over the image's part of it, with `program`.
+void GlFrame::begin_fullscreen_pass(unsigned program) {
+  const GlGBufferTextures t = backend_.textures();
+  ensure_display(t.texture_width, t.texture_height);
+  glBindFramebuffer(GL_FRAMEBUFFER, display_fbo_);
+  glViewport(0, 0, static_cast<GLsizei>(t.width), static_cast<GLsizei>(t.height));
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_SCISSOR_TEST);
+  glDisable(GL_BLEND);
+  glUseProgram(program);
+  glBindVertexArray(vao_);
+}
+
+void GlFrame::tonemap(const GpuTonemap& params) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  if (t.color == 0) throw std::logic_error("GlFrame::tonemap before the G-buffer was rendered");
+  if (hdr_uploaded_ && (hdr_w_ != t.width || hdr_h_ != t.height)) {
+    throw std::invalid_argument("GlFrame::tonemap: the uploaded HDR image is " + std::to_string(hdr_w_) + "x" +
+                                std::to_string(hdr_h_) + ", the G-buffer " + std::to_string(t.width) + "x" +
+                                std::to_string(t.height));
+  }
+  begin_timed("gpu.tonemap");
+  begin_fullscreen_pass(tonemap_program_);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, hdr_uploaded_ ? hdr_texture_ : t.color);
+  glUniform1i(glGetUniformLocation(tonemap_program_, "u_hdr"), 0);
+  glUniform1i(glGetUniformLocation(tonemap_program_, "u_top_first"), hdr_uploaded_ ? 1 : 0);
+  glUniform1i(glGetUniformLocation(tonemap_program_, "u_height"), static_cast<GLint>(t.height));
+  glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), params.exposure);
+  glUniform1i(glGetUniformLocation(tonemap_program_, "u_op"), static_cast<GLint>(params.op));
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  end_timed();
+  check("GlFrame::tonemap");
+}
+
+void GlFrame::overlay(const GpuOverlay& o) {
+  if (!o.any()) return;
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  begin_timed("gpu.overlay");
+  begin_fullscreen_pass(overlay_program_);
+  const unsigned p = overlay_program_;
+  const auto loc = [p](const char* name) { return glGetUniformLocation(p, name); };
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, t.object_id);
+  glUniform1i(loc("u_id"), 0);
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_2D, t.depth);
+  glUniform1i(loc("u_depth"), 1);
+  glActiveTexture(GL_TEXTURE0);
+  glUniform2i(loc("u_size"), static_cast<GLint>(t.width), static_cast<GLint>(t.height));
+  glUniform1i(loc("u_gaze"), o.gaze ? 1 : 0);
+  glUniform2f(loc("u_gaze_px"), static_cast<float>(o.gaze_x * t.width), static_cast<float>(o.gaze_y * t.height));
+  const glm::vec3 gaze_colour = o.gaze_valid ? glm::vec3(1.0f, 0.15f, 0.1f) : glm::vec3(0.6f);
+  glUniform3f(loc("u_gaze_colour"), gaze_colour.r, gaze_colour.g, gaze_colour.b);
+  glUniform1f(loc("u_ring_radius"), static_cast<float>(o.ring_diameter_px / 2));
+  glUniform1f(loc("u_area_radius"), static_cast<float>(o.area_diameter_px / 2));
+  glUniform1i(loc("u_focus"), static_cast<GLint>(o.focus));
+  glUniform1ui(loc("u_object"), o.focus_object);
+  glUniform1f(loc("u_focal_depth"), static_cast<float>(o.focal_depth_m));
+  const glm::vec3 focus_colour = o.focus_in_transition ? glm::vec3(0.2f, 0.85f, 1.0f) : glm::vec3(1.0f, 0.85f, 0.1f);
+  glUniform3f(loc("u_focus_colour"), focus_colour.r, focus_colour.g, focus_colour.b);
+  if (o.focus == GpuOverlay::Focus::None) {
+    // Only the rings: shade their bounding box, not the whole image (as draw_gaze's loops do).
+    const double r = std::max(o.ring_diameter_px / 2 + 1.0, o.area_diameter_px / 2 + 0.5) + 1.0;
+    const double cx = o.gaze_x * t.width, cy = o.gaze_y * t.height;
+    const auto clampi = [](double v, std::uint32_t hi) {
+      return static_cast<GLint>(std::clamp(v, 0.0, static_cast<double>(hi)));
+    };
+    const GLint x0 = clampi(std::floor(cx - r), t.width), x1 = clampi(std::ceil(cx + r), t.width);
+    const GLint y0 = clampi(std::floor(t.height - (cy + r)), t.height), y1 = clampi(std::ceil(t.height - (cy - r)), t.height);
+    glEnable(GL_SCISSOR_TEST);
+    glScissor(x0, y0, x1 - x0, y1 - y0);
+  }
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glDisable(GL_SCISSOR_TEST);
+  end_timed();
+  check("GlFrame::overlay");
+}
+
+GpuCompletion GlFrame::finish() {
+  backend_.context().make_current();
+  glBindVertexArray(0);
+  glUseProgram(0);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  GpuCompletion done;
+  GLenum waited = GL_TIMEOUT_EXPIRED;
+  while (waited == GL_TIMEOUT_EXPIRED) waited = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, 100'000'000);
+  done.wall_s = steady_seconds();
+  glDeleteSync(fence);
+  if (waited == GL_WAIT_FAILED) throw std::runtime_error("GlFrame::finish: glClientWaitSync failed");
+  for (const Timed& t : timed_) {
+    GLuint64 start = 0, end = 0;
+    glGetQueryObjectui64v(t.start, GL_QUERY_RESULT, &start);
+    glGetQueryObjectui64v(t.end, GL_QUERY_RESULT, &end);
+    done.pass_ms.emplace_back(t.pass, end >= start ? static_cast<double>(end - start) * 1e-6 : 0.0);
+    query_pool_.push_back(t.start);
+    query_pool_.push_back(t.end);
+  }
+  timed_.clear();
+  check("GlFrame::finish");
+  return done;
+}
+
+void GlFrame::read_display(std::vector<std::uint8_t>& rgb, std::uint32_t& width, std::uint32_t& height) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  width = t.width;
+  height = t.height;
+  rgb.resize(std::size_t{width} * height * 3);
+  if (display_fbo_ == 0 || width == 0 || height == 0) return;
+  rgba_scratch_.resize(std::size_t{width} * height * 4);
+  glBindFramebuffer(GL_FRAMEBUFFER, display_fbo_);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height), GL_RGBA, GL_UNSIGNED_BYTE,
+               rgba_scratch_.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  for (std::uint32_t y = 0; y < height; ++y) {
+    const std::uint8_t* src = &rgba_scratch_[std::size_t{height - 1 - y} * width * 4];
+    std::uint8_t* dst = &rgb[std::size_t{y} * width * 3];
+    for (std::uint32_t x = 0; x < width; ++x) std::memcpy(dst + 3 * x, src + 4 * x, 3);
+  }
+  check("GlFrame::read_display");
+}
+
+GpuFrame::Texture GlFrame::display_texture() const {
+  const GlGBufferTextures t = backend_.textures();
+  return {display_texture_, t.width, t.height, display_tw_, display_th_};
+}
+
+}  // namespace fovea::render

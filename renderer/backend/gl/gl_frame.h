@@ -1,0 +1,59 @@
+#pragma once
+// The GPU-resident frame on OpenGL (backend/gpu_frame.h): the G-buffer pass without readback, the
+// tone map and the overlay as fragment-shader passes on the G-buffer's textures, an RGBA8 display
+// image, GPU timestamp queries around each pass and a fence for the frame's completion. Shares the
+// backend's context. Needs OpenGL 3.3 with timer queries and fences (core there); a context without
+// them leaves unavailable_reason() set and the pipeline on the readback path.
+#include <string>
+#include <vector>
+
+#include "backend/gpu_frame.h"
+
+namespace fovea::render {
+
+class GlBackend;
+
+class GlFrame final : public GpuFrame {
+ public:
+  explicit GlFrame(GlBackend& backend);
+  ~GlFrame() override;
+  GlFrame(const GlFrame&) = delete;
+  GlFrame& operator=(const GlFrame&) = delete;
+
+  const std::string& unavailable_reason() const override { return unavailable_; }
+  std::string description() const override;
+  void render_gbuffer(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override;
+  void read_back(const GBufferPlanes& planes, GBuffer& out) override;
+  void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) override;
+  void tonemap(const GpuTonemap& params) override;
+  void overlay(const GpuOverlay& overlay) override;
+  GpuCompletion finish() override;
+  void read_display(std::vector<std::uint8_t>& rgb, std::uint32_t& width, std::uint32_t& height) override;
+  Texture display_texture() const override;
+
+ private:
+  // GPU timestamps around one pass; queries are pooled and read once the frame's fence signalled.
+  void begin_timed(const char* pass);
+  void end_timed();
+  unsigned pooled_query();
+  void ensure_display(std::uint32_t texture_width, std::uint32_t texture_height);
+  void begin_fullscreen_pass(unsigned program);
+
+  GlBackend& backend_;
+  std::string unavailable_;
+  unsigned tonemap_program_ = 0, overlay_program_ = 0, vao_ = 0;
+  unsigned display_fbo_ = 0, display_texture_ = 0;
+  std::uint32_t display_tw_ = 0, display_th_ = 0;
+  unsigned hdr_texture_ = 0;
+  std::uint32_t hdr_w_ = 0, hdr_h_ = 0;
+  bool hdr_uploaded_ = false;  // this frame's tone map reads the upload, not the G-buffer's colour
+  std::vector<unsigned> query_pool_;
+  struct Timed {
+    std::string pass;
+    unsigned start = 0, end = 0;
+  };
+  std::vector<Timed> timed_;  // this frame's passes and their timestamp queries
+  std::vector<std::uint8_t> rgba_scratch_;
+};
+
+}  // namespace fovea::render

@@ -1,0 +1,75 @@
+#pragma once
+// The frame kept on the GPU: what a backend that rasterises on a GPU (the OpenGL backend) offers
+// the frame pipeline beyond Backend::render(). The G-buffer stays in GPU textures; only the planes
+// the CPU passes read come back; the tone map, the overlay and the display image are made on the
+// GPU; the display image is shown from there (the viewer) or read back once (headless PNGs).
+// No graphics API types here: the pipeline and its tests stay free of OpenGL.
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "backend/backend.h"
+
+namespace fovea::render {
+
+// The tone map's parameters as the GPU pass takes them (passes/tonemap.h: same operators).
+struct GpuTonemap {
+  enum class Op { Reinhard, Clamp, Exponential };
+  Op op = Op::Reinhard;
+  float exposure = 1.0f;
+};
+
+// What the overlay pass draws, in the display image's pixels (passes/overlay.h draws the same on the
+// CPU): the gaze ring, the gaze area's ring, and the focused object's outline or iso-depth line.
+struct GpuOverlay {
+  bool gaze = false;
+  double gaze_x = 0.5, gaze_y = 0.5;  // normalized screen coordinates
+  bool gaze_valid = false;
+  double ring_diameter_px = 0;        // the 1 deg ring (at least 3 px)
+  double area_diameter_px = 0;        // 0: no gaze-area ring
+  enum class Focus { None, Outline, IsoDepth };
+  Focus focus = Focus::None;
+  std::uint32_t focus_object = 0;     // Outline: the object whose pixels are outlined
+  double focal_depth_m = 0;           // IsoDepth: where the scene crosses this depth
+  bool focus_in_transition = false;   // cyan during a transition, yellow when settled
+  bool any() const { return gaze || focus != Focus::None; }
+};
+
+// When the GPU finished the frame, and what each GPU pass took (timer queries).
+struct GpuCompletion {
+  double wall_s = 0;  // steady_clock seconds (time_since_epoch) when the fence signalled
+  std::vector<std::pair<std::string, double>> pass_ms;  // "gpu.gbuffer", "gpu.tonemap", ... in order
+};
+
+class GpuFrame {
+ public:
+  virtual ~GpuFrame() = default;
+  // "" when the GPU passes can run on this device; else why not (one line, for the log and --explain).
+  virtual const std::string& unavailable_reason() const = 0;
+  // The device, for people: "OpenGL 4.5 (llvmpipe ...)".
+  virtual std::string description() const = 0;
+  // Renders the G-buffer into GPU textures (Backend::render's settings; readback is ignored) and
+  // makes `out` the render's size without touching its planes.
+  virtual void render_gbuffer(const FrameTime& time, const BackendSettings& settings, GBuffer& out) = 0;
+  // Reads `planes` of the G-buffer rendered last into `out` (sized by render_gbuffer).
+  virtual void read_back(const GBufferPlanes& planes, GBuffer& out) = 0;
+  // The HDR colour a CPU pass made (row 0 at the top, the G-buffer's size) replaces the G-buffer's
+  // colour as the tone map's input for this frame.
+  virtual void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) = 0;
+  // HDR colour (the G-buffer's, or the upload of this frame) to the 8-bit display image (sRGB).
+  virtual void tonemap(const GpuTonemap& params) = 0;
+  virtual void overlay(const GpuOverlay& overlay) = 0;
+  // Waits until the GPU has finished everything the frame submitted; collects the passes' GPU times.
+  virtual GpuCompletion finish() = 0;
+  // The display image, 8-bit sRGB RGB, row 0 at the top.
+  virtual void read_display(std::vector<std::uint8_t>& rgb, std::uint32_t& width, std::uint32_t& height) = 0;
+  // The display image where it lies, for a window sharing the backend's textures.
+  struct Texture {
+    unsigned id = 0;
+    std::uint32_t width = 0, height = 0, texture_width = 0, texture_height = 0;
+  };
+  virtual Texture display_texture() const = 0;
+};
+
+}  // namespace fovea::render
