@@ -1,0 +1,259 @@
+// The GPU-resident frame on OpenGL (backend/gl/gl_frame.h) against the CPU passes it replaces, on
+// the bundled scenes: the tone map (every operator; exact formula and table), the upload of a CPU
+// pass's HDR colour, the overlay (gaze rings, focus outline, iso-depth line), the partial readback,
+// and whole frames of the pipeline on both paths. Runs through EGL with DISPLAY unset.
+//
+// Tolerances. The tone map and the overlay's colours use the CPU's formulas, in float: 1/255 (one
+// 8-bit level) everywhere, from pow() and the table differing at a rounding boundary. The rings
+// test a pixel's distance to the gaze point against the ring's radii in float on the GPU and in
+// double on the CPU, so a pixel centre within a float ulp of a radius may fall on either side: a
+// few such pixels per ring are allowed (kRingEdgePixels), and no other difference.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "backend/gl/gl_backend.h"
+#include "gaze/gaze_input.h"
+#include "passes/overlay.h"
+#include "passes/tonemap.h"
+#include "pipeline/frame_pipeline.h"
+#include "scene/scene_loader.h"
+
+namespace fovea::render {
+namespace {
+
+constexpr int kRingEdgePixels = 8;
+
+Scene bundled(const char* name, std::uint32_t w = 200, std::uint32_t h = 150) {
+  Scene s = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes" / name);
+  s.camera.width = w;
+  s.camera.height = h;
+  return s;
+}
+
+struct Difference {
+  int max_level = 0;        // the largest difference of a channel, in 8-bit levels
+  std::size_t pixels = 0;   // pixels differing by more than one level
+};
+
+Difference compare(const Image8& a, const Image8& b) {
+  EXPECT_EQ(a.width, b.width);
+  EXPECT_EQ(a.height, b.height);
+  Difference d;
+  for (std::size_t p = 0; p < std::size_t{a.width} * a.height; ++p) {
+    int worst = 0;
+    for (std::size_t k = 0; k < 3; ++k) worst = std::max(worst, std::abs(int{a.rgb[3 * p + k]} - int{b.rgb[3 * p + k]}));
+    d.max_level = std::max(d.max_level, worst);
+    if (worst > 1) ++d.pixels;
+  }
+  return d;
+}
+
+Image8 gpu_image(GpuFrame& gpu) {
+  Image8 out;
+  gpu.read_display(out.rgb, out.width, out.height);
+  return out;
+}
+
+GpuTonemap::Op gpu_op(const std::string& op) {
+  return op == "reinhard" ? GpuTonemap::Op::Reinhard : op == "clamp" ? GpuTonemap::Op::Clamp : GpuTonemap::Op::Exponential;
+}
+
+class GlFrameTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    backend_ = std::make_unique<GlBackend>();
+    gpu_ = backend_->gpu_frame();
+    ASSERT_TRUE(gpu_->unavailable_reason().empty()) << gpu_->unavailable_reason();
+  }
+  // The scene's G-buffer on the CPU (every plane read back) and the same render left on the GPU.
+  GBuffer render_both(const Scene& s) {
+    backend_->set_scene(s);
+    GBuffer cpu;
+    backend_->render({}, {}, cpu);
+    GBuffer on_gpu;
+    gpu_->render_gbuffer({}, {}, on_gpu);
+    EXPECT_EQ(on_gpu.width, cpu.width);
+    return cpu;
+  }
+  std::unique_ptr<GlBackend> backend_;
+  GpuFrame* gpu_ = nullptr;
+};
+
+TEST_F(GlFrameTest, ToneMapAgreesWithTheCpuPassOnTheBundledScenes) {
+  for (const char* name : {"attention.json", "cornell.json", "occlusion.json"}) {
+    const GBuffer g = render_both(bundled(name));
+    for (const char* op : {"reinhard", "clamp", "exponential"}) {
+      for (const float exposure : {1.0f, 4.0f}) {
+        SCOPED_TRACE(std::string(name) + " " + op + " exposure " + std::to_string(exposure));
+        gpu_->tonemap({gpu_op(op), exposure});
+        gpu_->finish();
+        const Image8 gpu = gpu_image(*gpu_);
+        for (const bool exact : {true, false}) {
+          Image8 cpu;
+          tonemap(g.color, g.width, g.height, TonemapParams{exposure, op, exact}, cpu);
+          const Difference d = compare(gpu, cpu);
+          EXPECT_LE(d.max_level, 1) << (exact ? "pow()" : "table");
+        }
+      }
+    }
+  }
+}
+
+TEST_F(GlFrameTest, AnUploadedHdrImageIsToneMappedWithItsTopRowFirst) {
+  const Scene s = bundled("cornell.json", 64, 48);
+  render_both(s);
+  // Rows that differ from each other, and the values the CPU pass maps to 0: NaN, Inf, negative.
+  std::vector<glm::vec3> hdr(64 * 48);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x)
+      hdr[static_cast<std::size_t>(y * 64 + x)] =
+          glm::vec3(0.02f * static_cast<float>(y), 0.1f * static_cast<float>(x), x == y ? 3.0f : 0.0f);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  hdr[5] = {nan, -1.0f, inf};
+  gpu_->upload_hdr(hdr, 64, 48);
+  gpu_->tonemap({GpuTonemap::Op::Reinhard, 1.0f});
+  gpu_->finish();
+  Image8 cpu;
+  tonemap(hdr, 64, 48, TonemapParams{1.0f, "reinhard", true}, cpu);
+  const Image8 gpu = gpu_image(*gpu_);
+  EXPECT_LE(compare(gpu, cpu).max_level, 1);
+  EXPECT_EQ(gpu.rgb[15], 0);  // NaN -> 0
+  EXPECT_EQ(gpu.rgb[16], 0);  // negative -> 0
+}
+
+TEST_F(GlFrameTest, TheOverlayAgreesWithTheCpuDrawing) {
+  const Scene s = bundled("cornell.json");
+  const GBuffer g = render_both(s);
+  std::uint32_t some_object = 0;
+  for (const std::uint32_t id : g.object_id) some_object = std::max(some_object, id);
+  ASSERT_NE(some_object, 0u);
+  struct Case {
+    const char* name;
+    GazeMark gaze;
+    double area_deg;
+    GpuOverlay::Focus focus;
+    bool in_transition;
+  };
+  const Case cases[] = {
+      {"valid gaze, gaze-area ring, focus outline", {0.3, 0.6, true}, 10.0, GpuOverlay::Focus::Outline, false},
+      {"invalid gaze at the corner, outline in transition", {0.99, 0.02, false}, 0.0, GpuOverlay::Focus::Outline, true},
+      {"gaze off the image, iso-depth line", {1.2, -0.1, true}, 5.0, GpuOverlay::Focus::IsoDepth, false},
+      {"rings only", {0.5, 0.5, true}, 20.0, GpuOverlay::Focus::None, false},
+  };
+  const double focal_depth = [&] {
+    double lo = 1e9, hi = 0;
+    for (std::size_t i = 0; i < g.size(); ++i)
+      if (g.object_id[i] != 0) lo = std::min<double>(lo, g.depth[i]), hi = std::max<double>(hi, g.depth[i]);
+    return 0.5 * (lo + hi);
+  }();
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    GpuOverlay o;
+    o.gaze = true;
+    o.gaze_x = c.gaze.x;
+    o.gaze_y = c.gaze.y;
+    o.gaze_valid = c.gaze.valid;
+    o.ring_diameter_px = std::max(3.0, degrees_to_pixels(s.display, g.width, 1.0));
+    o.area_diameter_px = c.area_deg > 0 ? degrees_to_pixels(s.display, g.width, c.area_deg) : 0.0;
+    o.focus = c.focus;
+    o.focus_object = c.focus == GpuOverlay::Focus::Outline ? some_object : 0;
+    o.focal_depth_m = focal_depth;
+    o.focus_in_transition = c.in_transition;
+    gpu_->tonemap({GpuTonemap::Op::Reinhard, 1.0f});
+    gpu_->overlay(o);
+    gpu_->finish();
+
+    Image8 cpu;
+    tonemap(g.color, g.width, g.height, TonemapParams{1.0f, "reinhard", true}, cpu);
+    const Image8 without_overlay = cpu;
+    if (c.focus != GpuOverlay::Focus::None)
+      draw_focus(cpu, g, o.focus_object, focal_depth, c.in_transition, "");
+    draw_gaze(cpu, s.display, c.gaze, c.area_deg);
+    const Image8 gpu = gpu_image(*gpu_);
+    const Difference d = compare(gpu, cpu);
+    EXPECT_LE(d.pixels, static_cast<std::size_t>(kRingEdgePixels * (c.area_deg > 0 ? 2 : 1)));
+    // The case draws something (else agreement would say nothing), and so does the GPU.
+    const std::size_t drawn = compare(cpu, without_overlay).pixels;
+    EXPECT_GT(drawn, 20u);
+    EXPECT_GT(compare(gpu, without_overlay).pixels, drawn - d.pixels - 1);
+  }
+}
+
+TEST_F(GlFrameTest, ReadBackBringsOnlyThePlanesAskedFor) {
+  const Scene s = bundled("occlusion.json", 96, 72);
+  const GBuffer full = render_both(s);
+  GBuffer partial;
+  gpu_->render_gbuffer({}, {}, partial);
+  ASSERT_EQ(partial.size(), full.size());
+  std::fill(partial.color.begin(), partial.color.end(), glm::vec3(-7.0f));  // must stay as it is
+  gpu_->read_back({.depth = true, .object_id = true}, partial);
+  EXPECT_EQ(partial.depth, full.depth);
+  EXPECT_EQ(partial.object_id, full.object_id);
+  EXPECT_EQ(partial.color[0], glm::vec3(-7.0f));
+}
+
+TEST_F(GlFrameTest, FinishWaitsForTheGpuAndTimesEachPass) {
+  render_both(bundled("attention.json", 128, 96));
+  gpu_->tonemap({});
+  GpuOverlay o;
+  o.gaze = true;
+  o.ring_diameter_px = 10;
+  gpu_->overlay(o);
+  const double before =
+      std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  const GpuCompletion done = gpu_->finish();
+  EXPECT_GE(done.wall_s, before);
+  std::vector<std::string> names;
+  for (const auto& [pass, ms] : done.pass_ms) {
+    names.push_back(pass);
+    EXPECT_TRUE(std::isfinite(ms) && ms >= 0 && ms < 60'000) << pass << " " << ms;
+  }
+  // render_both's G-buffer, then the tone map and the overlay of this frame.
+  EXPECT_EQ(names, (std::vector<std::string>{"gpu.gbuffer", "gpu.tonemap", "gpu.overlay"}));
+  EXPECT_TRUE(gpu_->finish().pass_ms.empty());  // each pass is reported once
+}
+
+// Whole frames: the pipeline on the GPU-resident path and on the readback path, same settings.
+TEST(GlFramePipeline, BothPathsMakeTheSameFramesOnTheBundledScenes) {
+  struct Row {
+    const char* scene;
+    std::vector<std::string> settings;
+  };
+  const Row rows[] = {
+      {"attention.json", {"overlay.focus=true"}},  // attention, focus, LOD, lee-mipmap on the CPU
+      {"cornell.json", {"gi.enabled=true", "gi.photons=4000", "gi.caustic_photons=0"}},  // the GI inset uploaded
+      {"occlusion.json", {"tonemap.operator=exponential", "tonemap.exposure=2"}},
+  };
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.scene);
+    Image8 images[2];
+    for (const bool gpu : {true, false}) {
+      Settings s;
+      for (const std::string& a : row.settings) s.set_assignment(a);
+      s.set("frame.gpu", gpu ? "true" : "false");
+      s.set("tonemap.exact", "true");
+      std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
+      gaze->set_cursor(0.4, 0.55);
+      FramePipeline pipeline(bundled(row.scene, 160, 120), s, std::make_unique<GlBackend>(), *gaze);
+      PassTimer timer;
+      for (std::uint64_t i = 0; i < 2; ++i) {
+        const double t = 0.1 * static_cast<double>(i);
+        const FramePipeline::Frame f = pipeline.render(i, t, i == 0 ? 0.0 : t - 0.1, t, timer);
+        ASSERT_EQ(f.on_gpu, gpu) << f.plan.explain();
+        images[gpu ? 0 : 1] = gpu ? pipeline.read_display() : *f.image;
+      }
+      EXPECT_TRUE(timer.summary().count("gaze-age"));
+      EXPECT_EQ(timer.summary().count("gpu.gbuffer"), gpu ? 1u : 0u);
+    }
+    const Difference d = compare(images[0], images[1]);
+    EXPECT_LE(d.pixels, static_cast<std::size_t>(2 * kRingEdgePixels));
+  }
+}
+
+}  // namespace
+}  // namespace fovea::render
