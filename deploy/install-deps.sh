@@ -19,6 +19,7 @@ PACKAGES=(
   # renderer
   libembree-dev libtbb-dev libglfw3-dev libgl-dev libgl1-mesa-dri libglm-dev
   libassimp-dev libmeshoptimizer-dev libnanoflann-dev libopenexr-dev
+  libpng-dev                          # the renderer's PNG frames
   libepoxy-dev                        # OpenGL function loading for the core profile
   libegl-dev libegl1 libegl-mesa0     # headless OpenGL through EGL (Mesa's surfaceless platform, llvmpipe)
   xvfb xauth                          # an X server for the tests of the GLFW window (the viewer)

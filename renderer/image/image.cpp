@@ -4,7 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgcodecs.hpp>
+#include <png.h>
+
+#include <cerrno>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
 namespace fovea::render {
@@ -27,24 +32,61 @@ float linear_to_srgb(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
+namespace {
+
+// libpng reports errors through longjmp; this C-style writer holds nothing with a destructor across
+// it and returns libpng's message (empty on success).
+std::string write_png_rows(std::FILE* file, const Image8& image, std::vector<png_bytep>& rows) {
+  static thread_local char message[256];
+  message[0] = '\0';
+  png_structp png = png_create_write_struct(
+      PNG_LIBPNG_VER_STRING, nullptr,
+      [](png_structp p, png_const_charp text) {
+        std::snprintf(message, sizeof message, "%s", text);
+        png_longjmp(p, 1);
+      },
+      nullptr);
+  if (png == nullptr) return "out of memory";
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return message[0] != '\0' ? message : "libpng failed";
+  }
+  png_init_io(png, file);
+  // Level 1: frames are written every frame; the deflate levels above it cost several times the
+  // time for a few percent of size.
+  png_set_compression_level(png, 1);
+  png_set_IHDR(png, info, image.width, image.height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+  png_write_info(png, info);
+  png_write_image(png, rows.data());
+  png_write_end(png, info);
+  png_destroy_write_struct(&png, &info);
+  return "";
+}
+
+}  // namespace
+
+// libpng directly (not OpenCV's imgcodecs, which brings GDAL, Poppler, HDF5 and video codecs with it
+// into a renderer that must be carried, with its libraries, to machines without a package registry).
 void write_png(const std::string& path, const Image8& image) {
-  cv::Mat bgr(static_cast<int>(image.height), static_cast<int>(image.width), CV_8UC3);
+  if (image.width == 0 || image.height == 0 || image.rgb.size() != std::size_t{image.width} * image.height * 3) {
+    throw std::runtime_error("cannot write PNG " + path + ": the image is " + std::to_string(image.width) + "x" +
+                             std::to_string(image.height) + " with " + std::to_string(image.rgb.size()) + " bytes");
+  }
+  std::vector<png_bytep> rows(image.height);
   for (std::uint32_t y = 0; y < image.height; ++y) {
-    auto* row = bgr.ptr<std::uint8_t>(static_cast<int>(y));
-    for (std::uint32_t x = 0; x < image.width; ++x) {
-      const std::size_t i = (std::size_t{y} * image.width + x) * 3;
-      row[3 * x + 0] = image.rgb[i + 2];
-      row[3 * x + 1] = image.rgb[i + 1];
-      row[3 * x + 2] = image.rgb[i + 0];
-    }
+    rows[y] = const_cast<png_bytep>(&image.rgb[std::size_t{y} * image.width * 3]);  // libpng only reads them
   }
-  bool ok = false;
-  try {
-    ok = cv::imwrite(path, bgr);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("cannot write PNG " + path + ": " + e.what());
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  if (file == nullptr) throw std::runtime_error("cannot write PNG " + path + ": " + std::strerror(errno));
+  const std::string error = write_png_rows(file, image, rows);
+  const bool closed = std::fclose(file) == 0;
+  if (!error.empty() || !closed) {
+    std::remove(path.c_str());  // no half-written frame is left behind
+    throw std::runtime_error("cannot write PNG " + path + ": " + (error.empty() ? std::string(std::strerror(errno)) : error));
   }
-  if (!ok) throw std::runtime_error("cannot write PNG " + path);
 }
 
 void write_exr(const std::string& path, std::uint32_t width, std::uint32_t height, const std::vector<glm::vec3>& rgb) {
