@@ -127,6 +127,7 @@ void write_governor_row(std::ofstream& governor_log, const Governor::State& g, s
 // The frame's PNG, and its HDR colour as EXR when asked for (or when there is no PNG), timed as "write".
 void write_frame_images(const RenderOptions& o, std::uint64_t i, FramePipeline& pipeline, const FramePipeline::Frame& f,
                         PassTimer& timer) {
+  if (o.no_images) return;
   auto t = timer.scope("write");
   if (f.on_gpu) {
     const Image8* image = nullptr;

@@ -27,7 +27,11 @@ int main(int argc, char** argv) {
   app.add_option("--frames", o.frames, "frames to render (headless: required; viewer: close after N)");
   app.add_option("--fps", o.fps, "frame rate of the frame clock")->check(CLI::Range(0.1, 1000.0))->capture_default_str();
   app.add_option("--out", o.out_dir, "headless output directory (created; must be empty)");
-  app.add_flag("--exr", o.exr, "headless: also write HDR colour as OpenEXR");
+  CLI::Option* exr = app.add_flag("--exr", o.exr, "headless: also write HDR colour as OpenEXR");
+  app.add_flag("--no-images", o.no_images,
+               "headless: write no frame images, only the CSVs and plan.txt (benchmarks: a frame kept on the GPU is "
+               "then never read back)")
+      ->excludes(exr);
   app.add_flag("--realtime", o.realtime, "headless: pace frames on the wall clock (default with udp:// gaze)");
   app.add_option("--budget-ms", o.budget_ms,
                  "frame-time budget: the governor picks each running effect's settings (DOF method, GI photons and "

@@ -24,6 +24,7 @@ struct RenderOptions {
   double fps = 30;
   std::string out_dir;
   bool exr = false;
+  bool no_images = false;  // headless: CSVs and plan.txt only
   bool realtime = false;  // pace frames on the wall clock (default with live gaze)
   double budget_ms = 0;   // > 0: the governor picks effect settings to hold this frame time
   std::string fronts_path;  // the governor's fronts (empty: the built-in ones)

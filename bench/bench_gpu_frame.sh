@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# The frame kept on the GPU against the readback path, side by side in one run: fovea-render headless
+# with the OpenGL backend through EGL (no X), each configuration rendered by both paths one after the
+# other (frame.gpu=false: the G-buffer read back and every pass on the CPU; frame.gpu=true: G-buffer,
+# tone map and overlay on the GPU, only the planes the CPU passes read come back). No frame images
+# are written (--no-images), so the display image never leaves the GPU, as on a screen.
+#
+# Reports per configuration, from each run's timings.csv (first WARMUP frames dropped: shader
+# compilation, first-touch allocations): the whole frame's p50/p99 in ms, the gaze age at completion
+# p50/p99 (the overlay's gaze sample's age when the GPU's fence signalled, or the CPU image was done),
+# and readback/gpu, the ratio of the frame p50s.
+#
+# Effects: "base" = G-buffer, tone map, gaze overlay only (dof, LOD and so attention and focus off);
+# "scene" = the scene's own effects (attention.json: attention, focus, LOD selection and DOF on the
+# CPU from a readback of colour, depth and ids).
+#
+# Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
+#   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
+#   FRAMES   frames per run (default 30; WARMUP=3 of them dropped)
+#   SIZES    default "640x480 1280x720 1920x1080"
+#   SCENES   default "attention cornell" (renderer/scenes/NAME.json)
+#   EFFECTS  default "base scene"
+# OUT=DIR keeps the runs' folders (default: a temporary folder, removed).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+RENDER=${1:-build/default/renderer/fovea-render}
+FRAMES=${2:-30}
+SIZES=${3:-640x480 1280x720 1920x1080}
+SCENES=${4:-attention cornell}
+EFFECTS=${5:-base scene}
+WARMUP=${WARMUP:-3}
+GAZE=file:tests/data/recordings/synthetic-250hz-62s.fgr
+if [ -n "${OUT:-}" ]; then RUNS=$OUT/runs; mkdir -p "$RUNS"; else RUNS=$(mktemp -d); trap 'rm -rf "$RUNS"' EXIT; fi
+[ -x "$RENDER" ] || { echo "bench_gpu_frame: $RENDER is not an executable (build first)" >&2; exit 2; }
+
+echo "# bench/bench_gpu_frame.sh $RENDER $FRAMES \"$SIZES\" \"$SCENES\" \"$EFFECTS\"  ($(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores)"
+for scene in $SCENES; do
+  for size in $SIZES; do
+    w=${size%x*} h=${size#*x}
+    for effects in $EFFECTS; do
+      extra=()
+      [ "$effects" = base ] && extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false)
+      for gpu in false true; do
+        dir=$RUNS/$scene-$size-$effects-$([ $gpu = true ] && echo gpu || echo readback)
+        env -u DISPLAY "$RENDER" --scene "renderer/scenes/$scene.json" --backend gl --headless --no-images \
+          --frames "$FRAMES" --gaze "$GAZE" --scene-set camera.width="$w" --scene-set camera.height="$h" \
+          --set frame.gpu=$gpu "${extra[@]}" --out "$dir" >/dev/null 2>"$dir.log" ||
+          { echo "bench_gpu_frame: $dir failed:" >&2; cat "$dir.log" >&2; exit 1; }
+      done
+    done
+  done
+done
+
+python3 - "$RUNS" "$WARMUP" <<'PY'
+import csv, glob, os, re, statistics, sys
+runs, warmup = sys.argv[1], int(sys.argv[2])
+
+def pct(v, q):
+    v = sorted(v)
+    return v[min(len(v) - 1, max(0, round(q / 100 * (len(v) - 1))))]
+
+def load(path):
+    by = {}
+    for r in csv.DictReader(open(os.path.join(path, "timings.csv"))):
+        if int(r["frame"]) >= warmup:
+            by.setdefault(r["pass"], []).append(float(r["ms"]))
+    return by
+
+renderer = ""
+for d in sorted(glob.glob(os.path.join(runs, "*-gpu"))):
+    for line in open(os.path.join(d, "plan.txt")):
+        if "where gpu" in line:
+            renderer = line.split("gpu", 1)[1].split(":")[0].strip()
+print(f"device: {renderer or 'no GPU path ran'}")
+print()
+print("| scene | size | effects | readback frame p50/p99 ms | gpu frame p50/p99 ms | readback/gpu | "
+      "gaze age readback p50/p99 ms | gaze age gpu p50/p99 ms | gpu-side ms (G-buffer, tone map, overlay) |")
+print("|---|---|---|---|---|---|---|---|---|")
+for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
+    name = os.path.basename(d)[: -len("-readback")]
+    scene, size, effects = re.match(r"(.+)-(\d+x\d+)-(\w+)$", name).groups()
+    a, b = load(d), load(os.path.join(runs, name + "-gpu"))
+    fa, fb = a["frame"], b["frame"]
+    ga, gb = a["gaze-age"], b["gaze-age"]
+    gpu_side = ", ".join(f'{statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.tonemap", "gpu.overlay") if p in b)
+    print(f"| {scene} | {size} | {effects} | {pct(fa, 50):.2f} / {pct(fa, 99):.2f} | {pct(fb, 50):.2f} / {pct(fb, 99):.2f} | "
+          f"{pct(fa, 50) / pct(fb, 50):.2f} | {pct(ga, 50):.2f} / {pct(ga, 99):.2f} | {pct(gb, 50):.2f} / {pct(gb, 99):.2f} | {gpu_side} |")
+PY

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# The frame benchmark on a machine with an NVIDIA GPU, in one command, from the bundle that
+# bench/device/make-bundle.sh made here (.gpu-bundle, carried): unpacks fovea-render and its
+# libraries, makes EGL find the NVIDIA driver, and runs bench/bench_gpu_frame.sh (readback path and
+# GPU-resident path side by side, same run, same card). Results: stdout and $OUT/gpu-frame.md, the
+# runs' timings in $OUT/gpu-frame-runs.tar.xz.
+#
+# Here:   bench/device/make-bundle.sh build/default
+# There:  the device tool's run with carry [".gpu-bundle"] and command
+#         bash bench/device/gpu-frame.sh [FRAMES]        (default 60)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+FRAMES=${1:-60}
+OUT=${OUT:-$(mktemp -d)}
+mkdir -p "$OUT"
+[ -f .gpu-bundle/bundle.tar.xz ] || { echo "gpu-frame: .gpu-bundle/bundle.tar.xz missing: run bench/device/make-bundle.sh here and carry .gpu-bundle" >&2; exit 2; }
+run=$(mktemp -d)
+tar -C "$run" -xJf .gpu-bundle/bundle.tar.xz
+
+# EGL through libglvnd: the machine's own, else the carried Debian packages.
+if ! ldconfig -p | grep -q 'libEGL.so.1 '; then
+  echo "gpu-frame: no libEGL.so.1 here: unpacking the carried libglvnd"
+  for f in .gpu-bundle/glvnd/*.deb; do dpkg -x "$f" /; done
+  ldconfig
+fi
+for json in /usr/share/glvnd/egl_vendor.d/10_nvidia.json /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json; do
+  if [ -f "$json" ]; then export __EGL_VENDOR_LIBRARY_FILENAMES=$json; break; fi
+done
+echo "gpu-frame: $(nvidia-smi -L 2>/dev/null || echo 'nvidia-smi: none'); driver $(nvidia-smi --query-gpu=driver_version --format=csv,noheader 2>/dev/null || echo '?'); EGL vendor ${__EGL_VENDOR_LIBRARY_FILENAMES:-default}"
+echo "gpu-frame: $(nproc) CPU cores"
+
+# One frame first: does the GPU path run, and on which device?
+probe=$(mktemp -d)/probe
+env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/cornell.json --backend gl --headless --frames 2 \
+  --gaze none --out "$probe" >/dev/null
+grep "where" "$probe/plan.txt"
+
+OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" | tee "$OUT/gpu-frame.md"
+tar -C "$OUT" -cJf "$OUT/gpu-frame-runs.tar.xz" runs && rm -rf "$OUT/runs"

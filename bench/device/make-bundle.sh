@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Packs fovea-render and the shared libraries it needs (from ldd) into .gpu-bundle/bundle.tar.xz, for
+# the GPU machine, which has no package registry: bench/device/gpu-frame.sh unpacks and runs it there.
+# Left out: glibc (the machine's own is newer), libstdc++/libgcc_s (likewise), and the OpenGL/EGL
+# dispatch libraries (libglvnd), which must be the machine's so that its NVIDIA driver is found. For
+# a machine without libglvnd, its Debian packages travel beside the tarball (.gpu-bundle/glvnd/) and
+# gpu-frame.sh unpacks them only where libEGL.so.1 is missing.
+# Usage: bench/device/make-bundle.sh [BUILD_DIR]   (default build/default)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+BUILD=${1:-build/default}
+BIN=$BUILD/renderer/fovea-render
+DEST=.gpu-bundle
+[ -x "$BIN" ] || { echo "make-bundle: $BIN not built" >&2; exit 2; }
+grep -qx '/.gpu-bundle/' .git/info/exclude 2>/dev/null || echo '/.gpu-bundle/' >>.git/info/exclude
+rm -rf "$DEST" && mkdir -p "$DEST/glvnd"
+stage=$(mktemp -d)
+trap 'rm -rf "$stage"' EXIT
+mkdir -p "$stage/lib"
+strip --strip-debug -o "$stage/fovea-render.bin" "$BIN"
+ldd "$BIN" | awk '$3 ~ /^\// {print $3}' |
+  grep -vE '/(libc|libm|libpthread|libdl|librt|libresolv|ld-linux-x86-64|libstdc\+\+|libgcc_s|libGL|libEGL|libGLX|libGLdispatch|libOpenGL)[.-]' |
+  while read -r lib; do cp -L "$lib" "$stage/lib/"; done
+cat >"$stage/fovea-render" <<'W'
+#!/bin/sh
+# The carried fovea-render with its carried libraries (only for this process: the machine's own
+# programs keep theirs).
+here=$(dirname "$(readlink -f "$0")")
+LD_LIBRARY_PATH="$here/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" exec "$here/fovea-render.bin" "$@"
+W
+chmod +x "$stage/fovea-render"
+tar -C "$stage" -cf - . | xz -T0 -6 >"$DEST/bundle.tar.xz"
+(cd "$DEST/glvnd" && apt-get download libegl1 libglvnd0 libopengl0 libgl1 libglx0 >/dev/null 2>&1) ||
+  echo "make-bundle: could not download libglvnd's packages (apt-get update first?); the machine's own must do" >&2
+du -sh "$DEST"/* | sed 's/^/make-bundle: /'
