@@ -50,14 +50,25 @@ class GpuFrame {
   // The device, for people: "OpenGL 4.5 (llvmpipe ...)".
   virtual std::string description() const = 0;
   // Renders the G-buffer into GPU textures (Backend::render's settings; readback is ignored) and
-  // makes `out` the render's size without touching its planes.
-  virtual void render_gbuffer(const FrameTime& time, const BackendSettings& settings, GBuffer& out) = 0;
+  // makes `out` the render's size without touching its planes. Only `planes` are written: the planes
+  // this frame's passes read, on the CPU and on the GPU (the others are culled, as a frame graph
+  // culls what nobody reads); colour always.
+  virtual void render_gbuffer(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes,
+                              GBuffer& out) = 0;
   // Reads `planes` of the G-buffer rendered last into `out` (sized by render_gbuffer).
   virtual void read_back(const GBufferPlanes& planes, GBuffer& out) = 0;
   // The HDR colour a CPU pass made (row 0 at the top, the G-buffer's size) replaces the G-buffer's
   // colour as the tone map's input for this frame.
   virtual void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) = 0;
-  // HDR colour (the G-buffer's, or the upload of this frame) to the 8-bit display image (sRGB).
+  // The hybrid renderer's GI inset (Jensen & Pedersen 2009, Algorithm 8.4, steps 7-8: GI inside the
+  // fovea, a linear ramp to local illumination at the radius; gi/gi_render.h hybrid_composite on the
+  // CPU): `gi` is the area's GI, full image size, row 0 at the top, read only inside the circle of
+  // `radius_px` around `centre_px` (image pixels, y down). Only the circle's bounding box goes up;
+  // this frame's tone map blends it over its HDR input.
+  virtual void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height,
+                            glm::vec2 centre_px, float radius_px, float fovea_fraction) = 0;
+  // HDR colour (the G-buffer's, or the upload of this frame; with this frame's inset composited) to
+  // the 8-bit display image (sRGB).
   virtual void tonemap(const GpuTonemap& params) = 0;
   virtual void overlay(const GpuOverlay& overlay) = 0;
   // Waits until the GPU has finished everything the frame submitted; collects the passes' GPU times.

@@ -199,9 +199,11 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   render_gaze_area(*backend_, camera, now_s, maps_, area, s.render, gi_color_, &result_.render,
                    gaze_directed || s.label_gaze_photons);
   result_.render_ms = ms_since(t0);
-  t0 = std::chrono::steady_clock::now();
-  hybrid_composite(*base, gi_color_, camera.width, camera.height, area, s.fovea, out);
-  result_.composite_ms = ms_since(t0);
+  if (s.composite) {
+    t0 = std::chrono::steady_clock::now();
+    hybrid_composite(*base, gi_color_, camera.width, camera.height, area, s.fovea, out);
+    result_.composite_ms = ms_since(t0);
+  }
 
   if (s.count_area_photons) result_.area_photons = photons_seen_in_area(*backend_, camera, now_s, area, maps_.global.photons);
   record_map_stats(maps_, result_);

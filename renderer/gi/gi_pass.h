@@ -33,6 +33,10 @@ struct GiPassSettings {
   GazeDirectedSettings gaze;              // strategy GazeDirected (max_photons, trace_depth, seed taken from above)
   std::uint32_t importons = 10000;        // strategy Importon (reach: render.estimate.max_radius)
   float fovea = 0.7f;                     // Algorithm 8.4's share of the radius shown as pure GI
+  // Algorithm 8.4's composite here (out = local with the area's GI blended in); false: the caller
+  // composites gi_image() itself (the GPU-resident frame, on the GPU), `local` is not read and `out`
+  // is left as it is.
+  bool composite = true;
   // The periphery (outside the gaze area): the caller's local image, or Murphy 2007's CSF-driven ray
   // casting (csf_mask.h: rays where the eye can resolve them, interpolated elsewhere, with the same
   // local illumination and shadows as the G-buffer), which then replaces `local`.
@@ -66,8 +70,8 @@ class GiPass {
   GiPass& operator=(const GiPass&) = delete;
 
   void set_scene(const Scene& scene);
-  // One frame at scene time now_s: out = local with the GI of `area` blended in. local and out are
-  // camera.width x camera.height; out may not alias local.
+  // One frame at scene time now_s: out = local with the GI of `area` blended in (unless
+  // s.composite is false). local and out are camera.width x camera.height; out may not alias local.
   const GiPassResult& run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
                           const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out);
   // The GI of the area alone (HDR, 0 outside it) from the last run.

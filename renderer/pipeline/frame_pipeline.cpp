@@ -138,15 +138,23 @@ GBufferPlanes FramePipeline::cpu_reads(const FramePlan& plan) const {
     const std::string& m = settings_.text("dof.method");
     if (m != "reference" && m != "accum") r = r | GBufferPlanes{.color = true, .depth = true};  // the references render again
   }
-  if (plan.runs(PassId::Gi)) r = r | GBufferPlanes{.color = true};  // the local colour the inset is composited over
+  // GI reads nothing of the G-buffer here: it traces its own rays, and its inset is composited on the
+  // GPU (or, with the CSF periphery, over the periphery it ray casts itself).
   return r;
+}
+
+// What the GPU passes read of the G-buffer beyond its colour (the tone map's input).
+GBufferPlanes FramePipeline::gpu_reads(const FramePlan& plan) const {
+  const bool focus_drawn = plan.runs(PassId::Overlay) && plan.runs(PassId::Focus) && settings_.flag("overlay.focus");
+  return focus_drawn ? GBufferPlanes{.depth = true, .object_id = true} : GBufferPlanes{};
 }
 
 std::string FramePipeline::placement(const FramePlan& plan) const {
   const std::string refusal = gpu_refusal();
   if (!refusal.empty()) return "cpu        every plane read back, every pass on the CPU: " + refusal;
-  return "gpu        " + gpu_->description() + ": G-buffer, tone map, overlay on the GPU; read back: " +
-         plane_list(cpu_reads(plan));
+  const GBufferPlanes read = cpu_reads(plan);
+  return "gpu        " + gpu_->description() + ": G-buffer, tone map, overlay on the GPU; G-buffer planes written: " +
+         plane_list(read | gpu_reads(plan) | GBufferPlanes{.color = true}) + "; read back: " + plane_list(read);
 }
 
 namespace {
@@ -187,6 +195,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   step_gaze(f, frame_clock_s, timer);
   lod_levels_.clear();
   ulod_blended_ = false;
+  gi_inset_on_gpu_ = false;
   const bool attention_first =
       f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && settings_.is("lod.policy", "ulod");
   if (attention_first) step_attention_on_proxy(f, now_s, previous_s, check, timer);
@@ -253,8 +262,9 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   BackendSettings bs;
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
-  gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, gbuffer_);
   f.read_back = cpu_reads(f.plan);
+  f.written = f.read_back | gpu_reads(f.plan) | GBufferPlanes{.color = true};
+  gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
   {
     auto r = timer.scope("gbuffer.readback");
     gpu_->read_back(f.read_back, gbuffer_);
@@ -270,6 +280,10 @@ void FramePipeline::step_tonemap_on_gpu(const Frame& f, const std::vector<glm::v
                                         PassTimer& timer) {
   auto t = timer.scope("tonemap");
   if (hdr_from_cpu) gpu_->upload_hdr(hdr, f.gbuffer->width, f.gbuffer->height);
+  if (f.gi != nullptr && gi_inset_on_gpu_) {
+    gpu_->upload_inset(gi_pass_->gi_image(), f.gbuffer->width, f.gbuffer->height, f.gi->area.center_px,
+                       f.gi->area.radius_px, gi_fovea_);
+  }
   gpu_->tonemap(GpuTonemap{gpu_operator(settings_.text("tonemap.operator")),
                            static_cast<float>(settings_.number("tonemap.exposure"))});
 }
@@ -390,8 +404,12 @@ const std::vector<glm::vec3>& FramePipeline::step_gi(Frame& f, const std::vector
                                                      bool check, PassTimer& timer) {
   auto t = timer.scope("gi");
   run_gi(f, hdr, now_s, timer);
-  if (check) require_finite("gi", "hybrid colour", hybrid_, gbuffer_.width);
   f.gi = &gi_frame_;
+  if (gi_inset_on_gpu_) {  // the GPU's tone map composites the inset over `hdr`
+    if (check) require_finite("gi", "GI of the gaze area", gi_pass_->gi_image(), gbuffer_.width);
+    return hdr;
+  }
+  if (check) require_finite("gi", "hybrid colour", hybrid_, gbuffer_.width);
   return hybrid_;
 }
 
@@ -485,6 +503,11 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gs.importons = count("gi.importons");
   gs.fovea = full ? 1.0f : static_cast<float>(s.number("gi.fovea"));
   gs.csf_periphery = s.is("gi.periphery", "csf") && !full;
+  // On the GPU-resident path the inset is composited on the GPU (the tone map's input), unless the
+  // CSF periphery replaces the local image, which is then made on the CPU anyway.
+  gi_inset_on_gpu_ = f.on_gpu && !gs.csf_periphery;
+  gs.composite = !gi_inset_on_gpu_;
+  gi_fovea_ = gs.fovea;
   gs.csf.quality = s.number("gi.csf_quality");
   const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_);
   timer.record("gi.photons", r.photons_ms);

@@ -70,6 +70,7 @@ class FramePipeline {
     // viewer shows gpu_frame()->display_texture().
     bool on_gpu = false;
     GBufferPlanes read_back;  // on_gpu: the planes of `gbuffer` that are this frame's (the rest are stale)
+    GBufferPlanes written;    // on_gpu: the planes the G-buffer pass wrote on the GPU (the others are culled)
     double gaze_age_at_completion_ms = 0;  // the overlay's gaze sample's age when the frame was complete
     double completed_wall_s = 0;           // when it was complete (steady_clock seconds)
   };
@@ -156,11 +157,14 @@ class FramePipeline {
   void late_latch(Frame& f, PassTimer& timer);
   // The planes of this frame's G-buffer the passes that run on the CPU read.
   GBufferPlanes cpu_reads(const FramePlan& plan) const;
+  GBufferPlanes gpu_reads(const FramePlan& plan) const;
   std::string placement(const FramePlan& plan) const;
 
   GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run
   bool cpu_gbuffer_required_ = false;
   bool ulod_blended_ = false;    // this frame's G-buffer colour was changed on the CPU
+  bool gi_inset_on_gpu_ = false; // this frame's GI inset is composited by the GPU's tone map
+  float gi_fovea_ = 0.7f;        // its fovea fraction (Algorithm 8.4)
   double frame_clock_s_ = 0;     // this frame's
   bool clock_is_wall_ = false;
   double frame_start_wall_s_ = 0, latch_wall_s_ = 0;  // steady_clock seconds

@@ -18,6 +18,7 @@
 
 #include "backend/gl/gl_backend.h"
 #include "gaze/gaze_input.h"
+#include "gi/gi_render.h"
 #include "passes/overlay.h"
 #include "passes/tonemap.h"
 #include "pipeline/frame_pipeline.h"
@@ -76,7 +77,7 @@ class GlFrameTest : public ::testing::Test {
     GBuffer cpu;
     backend_->render({}, {}, cpu);
     GBuffer on_gpu;
-    gpu_->render_gbuffer({}, {}, on_gpu);
+    gpu_->render_gbuffer({}, {}, GBufferPlanes::all(), on_gpu);
     EXPECT_EQ(on_gpu.width, cpu.width);
     return cpu;
   }
@@ -124,6 +125,40 @@ TEST_F(GlFrameTest, AnUploadedHdrImageIsToneMappedWithItsTopRowFirst) {
   EXPECT_LE(compare(gpu, cpu).max_level, 1);
   EXPECT_EQ(gpu.rgb[15], 0);  // NaN -> 0
   EXPECT_EQ(gpu.rgb[16], 0);  // negative -> 0
+}
+
+TEST_F(GlFrameTest, TheGiInsetIsCompositedAsTheCpuCompositesIt) {
+  const Scene s = bundled("cornell.json", 120, 90);
+  const GBuffer g = render_both(s);
+  std::vector<glm::vec3> gi(g.size(), glm::vec3(0.0f));
+  for (std::size_t i = 0; i < gi.size(); ++i) gi[i] = glm::vec3(2.0f, 0.3f * static_cast<float>(i % 7), 0.5f);
+  struct Case {
+    glm::vec2 centre;
+    float radius, fovea;
+  };
+  // Inside; cut by the image's corner; a fovea of 0 (a ramp from the centre) and of 1 (no ramp).
+  for (const Case& c : {Case{{60, 45}, 30, 0.7f}, Case{{3, 88}, 25, 0.5f}, Case{{80, 20}, 15, 0.0f},
+                        Case{{40, 50}, 12, 1.0f}}) {
+    SCOPED_TRACE(std::to_string(c.centre.x) + "," + std::to_string(c.centre.y));
+    gpu_->upload_inset(gi, g.width, g.height, c.centre, c.radius, c.fovea);
+    gpu_->tonemap({GpuTonemap::Op::Reinhard, 1.0f});
+    gpu_->finish();
+    std::vector<glm::vec3> hybrid;
+    gi::hybrid_composite(g.color, gi, g.width, g.height, gi::GazeArea{c.centre, c.radius}, c.fovea, hybrid);
+    Image8 cpu, local;
+    tonemap(hybrid, g.width, g.height, TonemapParams{1.0f, "reinhard", true}, cpu);
+    tonemap(g.color, g.width, g.height, TonemapParams{1.0f, "reinhard", true}, local);
+    const Image8 gpu = gpu_image(*gpu_);
+    EXPECT_LE(compare(gpu, cpu).max_level, 1);
+    EXPECT_GT(compare(cpu, local).pixels, 50u);  // the inset shows
+  }
+  // The next frame has no inset unless it uploads one.
+  render_both(s);
+  gpu_->tonemap({GpuTonemap::Op::Reinhard, 1.0f});
+  gpu_->finish();
+  Image8 local;
+  tonemap(g.color, g.width, g.height, TonemapParams{1.0f, "reinhard", true}, local);
+  EXPECT_LE(compare(gpu_image(*gpu_), local).max_level, 1);
 }
 
 TEST_F(GlFrameTest, TheOverlayAgreesWithTheCpuDrawing) {
@@ -188,13 +223,27 @@ TEST_F(GlFrameTest, ReadBackBringsOnlyThePlanesAskedFor) {
   const Scene s = bundled("occlusion.json", 96, 72);
   const GBuffer full = render_both(s);
   GBuffer partial;
-  gpu_->render_gbuffer({}, {}, partial);
+  gpu_->render_gbuffer({}, {}, GBufferPlanes::all(), partial);
   ASSERT_EQ(partial.size(), full.size());
   std::fill(partial.color.begin(), partial.color.end(), glm::vec3(-7.0f));  // must stay as it is
   gpu_->read_back({.depth = true, .object_id = true}, partial);
   EXPECT_EQ(partial.depth, full.depth);
   EXPECT_EQ(partial.object_id, full.object_id);
   EXPECT_EQ(partial.color[0], glm::vec3(-7.0f));
+}
+
+TEST_F(GlFrameTest, PlanesNobodyReadsAreNeitherClearedNorWritten) {
+  const GBuffer full = render_both(bundled("occlusion.json", 96, 72));
+  // An empty scene, colour only: the colour becomes the background, the depth keeps the last frame's.
+  Scene empty = bundled("occlusion.json", 96, 72);
+  empty.objects.clear();
+  backend_->set_scene(empty);
+  GBuffer g;
+  gpu_->render_gbuffer({}, {}, GBufferPlanes{.color = true}, g);
+  gpu_->read_back(GBufferPlanes::all(), g);
+  EXPECT_EQ(g.depth, full.depth);
+  EXPECT_EQ(g.object_id, full.object_id);
+  for (const glm::vec3& c : g.color) ASSERT_EQ(c, empty.background);
 }
 
 TEST_F(GlFrameTest, FinishWaitsForTheGpuAndTimesEachPass) {

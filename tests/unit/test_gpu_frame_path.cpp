@@ -40,8 +40,9 @@ class FakeGpuFrame final : public GpuFrame {
   explicit FakeGpuFrame(std::string unavailable) : unavailable_(std::move(unavailable)) {}
   const std::string& unavailable_reason() const override { return unavailable_; }
   std::string description() const override { return "fake GPU"; }
-  void render_gbuffer(const FrameTime&, const BackendSettings& s, GBuffer& out) override {
+  void render_gbuffer(const FrameTime&, const BackendSettings& s, const GBufferPlanes& planes, GBuffer& out) override {
     calls.push_back("gbuffer");
+    written = planes;
     fill(*scene, s, rendered_);
     if (out.width != rendered_.width || out.height != rendered_.height) out.resize(rendered_.width, rendered_.height);
   }
@@ -51,6 +52,12 @@ class FakeGpuFrame final : public GpuFrame {
     if (planes.color) out.color = rendered_.color;
     if (planes.depth) out.depth = rendered_.depth;
     if (planes.object_id) out.object_id = rendered_.object_id;
+  }
+  void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t w, std::uint32_t h, glm::vec2, float radius,
+                    float) override {
+    calls.push_back("inset");
+    EXPECT_EQ(gi.size(), std::size_t{w} * h);
+    EXPECT_GT(radius, 0.0f);
   }
   void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t w, std::uint32_t h) override {
     calls.push_back("upload");
@@ -74,7 +81,7 @@ class FakeGpuFrame final : public GpuFrame {
 
   const Scene* scene = nullptr;
   std::vector<std::string> calls;
-  GBufferPlanes read_back_planes;
+  GBufferPlanes read_back_planes, written;
   GpuOverlay last_overlay;
 
  private:
@@ -155,21 +162,26 @@ struct PathRow {
   GBufferPlanes read_back;  // on_gpu only
   bool upload;              // the CPU's HDR colour goes up for the tone map
   const char* where;        // in --explain's "where" line
+  GBufferPlanes gpu_reads = {};  // what the GPU's overlay reads besides colour (the focus outline: depth, ids)
 };
 
 const std::vector<PathRow> kPaths = {
-    {"pinhole: nothing runs on the CPU, nothing comes back", false, {}, true, {}, false, "read back: nothing"},
+    {"pinhole: nothing runs on the CPU, nothing comes back; only colour is written", false, {}, true, {}, false,
+     "written: colour; read back: nothing"},
     {"thin lens: attention, focus and lee-mipmap read colour, depth and ids; DOF's colour goes up", true, {}, true,
      {.color = true, .depth = true, .object_id = true}, true, "read back: colour, depth, id"},
     {"fixed focus: only DOF runs on the CPU", true, {"focus.mode=fixed"}, true, {.color = true, .depth = true}, true,
      "read back: colour, depth"},
-    {"gaze focus without DOF shown: focus reads depth and ids", true, {"focus.mode=gaze", "dof.enabled=false",
-                                                                    "overlay.focus=true"},
-     true, {.depth = true, .object_id = true}, false, "read back: depth, id"},
+    {"gaze focus without DOF shown: focus reads depth and ids, so does the outline", true,
+     {"focus.mode=gaze", "dof.enabled=false", "overlay.focus=true"}, true, {.depth = true, .object_id = true}, false,
+     "written: colour, depth, id; read back: depth, id", {.depth = true, .object_id = true}},
     {"the reference DOF renders again: nothing of the G-buffer comes back for it", true,
      {"focus.mode=fixed", "dof.method=accum", "dof.samples=2"}, true, {}, true, "read back: nothing"},
-    {"gi reads the local colour", false, {"gi.enabled=true", "gi.photons=200", "gi.caustic_photons=0"}, true,
-     {.color = true}, true, "read back: colour"},
+    {"gi: the inset is composited on the GPU, nothing comes back for it", false,
+     {"gi.enabled=true", "gi.photons=200", "gi.caustic_photons=0"}, true, {}, false, "read back: nothing"},
+    {"gi with the CSF periphery: the hybrid image is made on the CPU and goes up", false,
+     {"gi.enabled=true", "gi.photons=200", "gi.caustic_photons=0", "gi.periphery=csf"}, true, {}, true,
+     "read back: nothing"},
     {"frame.gpu=false: the readback path", true, {"frame.gpu=false"}, false, {}, false, "frame.gpu=false"},
     {"a G-buffer map is drawn on the CPU", false, {"overlay.map=depth"}, false, {}, false,
      "overlay.map=depth is drawn on the CPU"},
@@ -189,6 +201,9 @@ TEST(GpuFramePath, EachSettingTakesItsPathAndReadsBackWhatItsCpuPassesRead) {
       continue;
     }
     EXPECT_EQ(gpu.read_back_planes, row.read_back);
+    // The G-buffer pass writes what is read (colour always for the tone map); the rest is culled.
+    EXPECT_EQ(gpu.written, row.read_back | GBufferPlanes{.color = true} | row.gpu_reads);
+    EXPECT_EQ(run->frame.written, gpu.written);
     const bool uploaded = std::find(gpu.calls.begin(), gpu.calls.end(), "upload") != gpu.calls.end();
     EXPECT_EQ(uploaded, row.upload);
     EXPECT_EQ(run->frame.image, nullptr);  // the display image stays on the GPU

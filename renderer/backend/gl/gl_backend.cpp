@@ -125,9 +125,15 @@ void upload_light_samples(GLuint light_ubo, const std::vector<LightSampleStd140>
   glBindBuffer(GL_UNIFORM_BUFFER, 0);
 }
 
-// Targets the image's lower-left corner of the G-buffer with the z test on and no culling or blending.
-void begin_gbuffer_pass(GLuint fbo, std::uint32_t width, std::uint32_t height) {
+// Targets the image's lower-left corner of the G-buffer with the z test on and no culling or blending,
+// writing only the planes asked for: a plane nobody reads is neither cleared nor written (the raster
+// pass is bound by what it writes per pixel on GPUs with few graphics units, bench/RESULTS.md).
+void begin_gbuffer_pass(GLuint fbo, std::uint32_t width, std::uint32_t height, const GBufferPlanes& planes) {
   glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  const bool written[5] = {planes.color, planes.depth, planes.object_id, planes.normal, planes.motion};
+  GLenum buffers[5];
+  for (std::size_t i = 0; i < 5; ++i) buffers[i] = written[i] ? kDrawBuffers[i] : GL_NONE;
+  glDrawBuffers(5, buffers);
   glViewport(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
   glEnable(GL_SCISSOR_TEST);  // clears only the image's corner of the framebuffer
   glScissor(0, 0, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
@@ -341,7 +347,7 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
 }
 
 void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels,
-                     std::uint32_t width, std::uint32_t height) {
+                     std::uint32_t width, std::uint32_t height, const GBufferPlanes& planes) {
   if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
   const Scene& scene = *scene_;
   const Camera& cam = scene.camera;
@@ -351,8 +357,8 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   if (width == 0) width = cam.width;
   if (height == 0) height = cam.height;
   ensure_framebuffer(std::max(std::max(cam.width, width), fb_width_), std::max(std::max(cam.height, height), fb_height_));
-  begin_gbuffer_pass(fbo_, width, height);
-  clear_gbuffer(scene);
+  begin_gbuffer_pass(fbo_, width, height, planes);
+  clear_gbuffer(scene);  // a draw buffer of GL_NONE ignores its clear
 
   const FrameView frame = frame_view(cam, time, lens);
   const bool camera_moved = frame.view != frame.view_prev;
@@ -456,15 +462,15 @@ void GlBackend::check_settings(const BackendSettings& settings) {
   }
 }
 
-void GlBackend::render_on_gpu(const FrameTime& time, const BackendSettings& settings) {
+void GlBackend::render_on_gpu(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes) {
   check_settings(settings);
-  draw(time, settings.lens, settings.lod_levels, settings.width, settings.height);
+  draw(time, settings.lens, settings.lod_levels, settings.width, settings.height, planes);
   image_width_ = settings.width > 0 ? settings.width : scene_->camera.width;
   image_height_ = settings.height > 0 ? settings.height : scene_->camera.height;
 }
 
 void GlBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
-  render_on_gpu(time, settings);
+  render_on_gpu(time, settings, GBufferPlanes::all());
   out.resize(image_width_, image_height_);
   read_back(settings.readback, out);
 }

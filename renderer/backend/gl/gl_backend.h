@@ -64,8 +64,8 @@ class GlBackend final : public Backend {
   void render_without_readback(const FrameTime& time);
 
   // Renders into the G-buffer textures and reads nothing back (the GPU-resident frame); the same
-  // checks as render(). Does not wait for the GPU.
-  void render_on_gpu(const FrameTime& time, const BackendSettings& settings);
+  // checks as render(). Writes only `planes` (the others keep what they held). Does not wait for the GPU.
+  void render_on_gpu(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes);
   // Reads `planes` of the last render into `out`, which must already have the render's size.
   void read_back(const GBufferPlanes& planes, GBuffer& out);
   // The G-buffer textures of the last render (0 before the first).
@@ -89,7 +89,7 @@ class GlBackend final : public Backend {
 
   // width/height 0: the camera's resolution.
   void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {},
-            std::uint32_t width = 0, std::uint32_t height = 0);
+            std::uint32_t width = 0, std::uint32_t height = 0, const GBufferPlanes& planes = GBufferPlanes::all());
   // The camera's view (now and at the previous frame), projection and eye for one render.
   struct FrameView {
     glm::mat4 view, view_prev, proj;

@@ -31,6 +31,13 @@ uniform bool u_top_first;   // the uploaded HDR image has row 0 at the top
 uniform int u_height;
 uniform float u_exposure;
 uniform int u_op;           // 0 reinhard, 1 clamp, 2 exponential
+// The GI inset (GpuFrame::upload_inset), blended over the HDR input first: gi/gi_render.cpp's
+// hybrid_composite, Algorithm 8.4 steps 7-8.
+uniform bool u_inset;
+uniform sampler2D u_inset_gi;  // its box, row 0 at the top
+uniform ivec2 u_inset_origin, u_inset_size;
+uniform vec2 u_inset_centre;
+uniform float u_inset_radius, u_inset_fovea;
 out vec4 o_color;
 float map_operator(float v) {
   v = (isnan(v) || isinf(v)) ? 0.0 : max(v, 0.0);
@@ -42,10 +49,23 @@ float srgb(float v) {
   v = clamp(v, 0.0, 1.0);
   return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
 }
+vec3 composite(vec3 local, ivec2 image_px) {
+  vec2 q = vec2(image_px) + 0.5 - u_inset_centre;
+  float d = sqrt(q.x * q.x + q.y * q.y);
+  if (d >= u_inset_radius) return local;  // step 7: local illumination
+  ivec2 t = image_px - u_inset_origin;
+  if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_inset_size))) return local;
+  float alpha = d >= u_inset_fovea && u_inset_radius > u_inset_fovea
+                    ? (d - u_inset_fovea) / (u_inset_radius - u_inset_fovea) : 0.0;  // step 8
+  return alpha * local + (1.0 - alpha) * texelFetch(u_inset_gi, t, 0).rgb;
+}
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
+  ivec2 image_px = ivec2(p.x, u_height - 1 - p.y);
   if (u_top_first) p.y = u_height - 1 - p.y;
-  vec3 c = texelFetch(u_hdr, p, 0).rgb * u_exposure;
+  vec3 hdr = texelFetch(u_hdr, p, 0).rgb;
+  if (u_inset) hdr = composite(hdr, image_px);
+  vec3 c = hdr * u_exposure;
   vec3 s = vec3(srgb(map_operator(c.r)), srgb(map_operator(c.g)), srgb(map_operator(c.b)));
   o_color = vec4(floor(s * 255.0 + 0.5) / 255.0, 1.0);
 }
@@ -150,6 +170,7 @@ GlFrame::~GlFrame() {
   if (display_fbo_ != 0) glDeleteFramebuffers(1, &display_fbo_);
   if (display_texture_ != 0) glDeleteTextures(1, &display_texture_);
   if (hdr_texture_ != 0) glDeleteTextures(1, &hdr_texture_);
+  if (inset_.texture != 0) glDeleteTextures(1, &inset_.texture);
   if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
   if (tonemap_program_ != 0) glDeleteProgram(tonemap_program_);
   if (overlay_program_ != 0) glDeleteProgram(overlay_program_);
@@ -185,12 +206,14 @@ void GlFrame::end_timed() {
   timed_.back().end = end;
 }
 
-void GlFrame::render_gbuffer(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+void GlFrame::render_gbuffer(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes,
+                             GBuffer& out) {
   backend_.context().make_current();
   hdr_uploaded_ = false;
+  inset_.active = false;
   begin_timed("gpu.gbuffer");
   try {
-    backend_.render_on_gpu(time, settings);
+    backend_.render_on_gpu(time, settings, planes | GBufferPlanes{.color = true});
   } catch (...) {
     end_timed();
     throw;
@@ -231,6 +254,47 @@ void GlFrame::upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width,
   end_timed();
   hdr_uploaded_ = true;
   check("GlFrame::upload_hdr");
+}
+
+void GlFrame::upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height,
+                           glm::vec2 centre_px, float radius_px, float fovea_fraction) {
+  if (gi.size() != std::size_t{width} * height) {
+    throw std::invalid_argument("GlFrame::upload_inset: " + std::to_string(gi.size()) + " pixels for " +
+                                std::to_string(width) + "x" + std::to_string(height));
+  }
+  inset_.active = false;
+  // hybrid_composite's guards: no area, nothing to blend.
+  if (!(radius_px > 0) || !std::isfinite(radius_px) || !std::isfinite(centre_px.x) || !std::isfinite(centre_px.y)) return;
+  const auto clamp_to = [](double v, std::uint32_t hi) {
+    return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(hi)));
+  };
+  const int x0 = clamp_to(static_cast<double>(std::floor(centre_px.x - radius_px)), width);
+  const int x1 = clamp_to(static_cast<double>(std::ceil(centre_px.x + radius_px) + 1.0f), width);
+  const int y0 = clamp_to(static_cast<double>(std::floor(centre_px.y - radius_px)), height);
+  const int y1 = clamp_to(static_cast<double>(std::ceil(centre_px.y + radius_px) + 1.0f), height);
+  if (x1 <= x0 || y1 <= y0) return;
+  backend_.context().make_current();
+  if (inset_.texture == 0) {
+    glGenTextures(1, &inset_.texture);
+    glBindTexture(GL_TEXTURE_2D, inset_.texture);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  }
+  glBindTexture(GL_TEXTURE_2D, inset_.texture);
+  begin_timed("gpu.upload");
+  // The box alone, straight from the full image: rows of `width` pixels, starting at (x0, y0).
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glPixelStorei(GL_UNPACK_ROW_LENGTH, static_cast<GLint>(width));
+  glPixelStorei(GL_UNPACK_SKIP_PIXELS, x0);
+  glPixelStorei(GL_UNPACK_SKIP_ROWS, y0);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, x1 - x0, y1 - y0, 0, GL_RGB, GL_FLOAT, gi.data());
+  glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+  glPixelStorei(GL_UNPACK_SKIP_PIXELS, 0);
+  glPixelStorei(GL_UNPACK_SKIP_ROWS, 0);
+  end_timed();
+  check("GlFrame::upload_inset");
+  const float fovea = std::clamp(std::isfinite(fovea_fraction) ? fovea_fraction : 0.7f, 0.0f, 1.0f) * radius_px;
+  inset_ = Inset{true, inset_.texture, {x0, y0}, {x1 - x0, y1 - y0}, centre_px, radius_px, fovea};
 }
 
 void GlFrame::ensure_display(std::uint32_t tw, std::uint32_t th) {
@@ -286,6 +350,19 @@ void GlFrame::tonemap(const GpuTonemap& params) {
   glUniform1i(glGetUniformLocation(tonemap_program_, "u_height"), static_cast<GLint>(t.height));
   glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), params.exposure);
   glUniform1i(glGetUniformLocation(tonemap_program_, "u_op"), static_cast<GLint>(params.op));
+  const auto loc = [this](const char* name) { return glGetUniformLocation(tonemap_program_, name); };
+  glUniform1i(loc("u_inset"), inset_.active ? 1 : 0);
+  if (inset_.active) {
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, inset_.texture);
+    glUniform1i(loc("u_inset_gi"), 1);
+    glActiveTexture(GL_TEXTURE0);
+    glUniform2i(loc("u_inset_origin"), inset_.origin.x, inset_.origin.y);
+    glUniform2i(loc("u_inset_size"), inset_.size.x, inset_.size.y);
+    glUniform2f(loc("u_inset_centre"), inset_.centre.x, inset_.centre.y);
+    glUniform1f(loc("u_inset_radius"), inset_.radius);
+    glUniform1f(loc("u_inset_fovea"), inset_.fovea);
+  }
   glDrawArrays(GL_TRIANGLES, 0, 3);
   end_timed();
   check("GlFrame::tonemap");

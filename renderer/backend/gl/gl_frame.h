@@ -22,9 +22,12 @@ class GlFrame final : public GpuFrame {
 
   const std::string& unavailable_reason() const override { return unavailable_; }
   std::string description() const override;
-  void render_gbuffer(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override;
+  void render_gbuffer(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes,
+                      GBuffer& out) override;
   void read_back(const GBufferPlanes& planes, GBuffer& out) override;
   void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) override;
+  void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
+                    float radius_px, float fovea_fraction) override;
   void tonemap(const GpuTonemap& params) override;
   void overlay(const GpuOverlay& overlay) override;
   GpuCompletion finish() override;
@@ -47,6 +50,13 @@ class GlFrame final : public GpuFrame {
   unsigned hdr_texture_ = 0;
   std::uint32_t hdr_w_ = 0, hdr_h_ = 0;
   bool hdr_uploaded_ = false;  // this frame's tone map reads the upload, not the G-buffer's colour
+  struct Inset {
+    bool active = false;  // this frame has one
+    unsigned texture = 0;
+    glm::ivec2 origin{0}, size{0};  // its box in image pixels (y down)
+    glm::vec2 centre{0.0f};
+    float radius = 0, fovea = 0;    // pixels
+  } inset_;
   std::vector<unsigned> query_pool_;
   struct Timed {
     std::string pass;
