@@ -12,7 +12,10 @@
 #
 # Effects: "base" = G-buffer, tone map, gaze overlay only (dof, LOD and so attention and focus off);
 # "scene" = the scene's own effects (attention.json: attention, focus, LOD selection and DOF on the
-# CPU from a readback of colour, depth and ids).
+# CPU from a readback of colour, depth and ids); "base-allplanes" = base with every G-buffer plane
+# written on the GPU path too (debug.gbuffer_planes=all: what culling the unread planes saves);
+# "gi" = base with the hybrid renderer (20k photons traced by Embree on the CPU, the inset
+# composited on the GPU).
 #
 # Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
 #   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
@@ -39,7 +42,13 @@ for scene in $SCENES; do
     w=${size%x*} h=${size#*x}
     for effects in $EFFECTS; do
       extra=()
-      [ "$effects" = base ] && extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false)
+      case $effects in
+        base) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false) ;;
+        base-allplanes) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+                               --set debug.gbuffer_planes=all) ;;
+        gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
+                   --set gi.caustic_photons=0) ;;
+      esac
       for gpu in false true; do
         dir=$RUNS/$scene-$size-$effects-$([ $gpu = true ] && echo gpu || echo readback)
         env -u DISPLAY "$RENDER" --scene "renderer/scenes/$scene.json" --backend gl --headless --no-images \
@@ -78,7 +87,7 @@ print("| scene | size | effects | readback frame p50/p99 ms | gpu frame p50/p99 
 print("|---|---|---|---|---|---|---|---|---|")
 for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
     name = os.path.basename(d)[: -len("-readback")]
-    scene, size, effects = re.match(r"(.+)-(\d+x\d+)-(\w+)$", name).groups()
+    scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w-]+)$", name).groups()
     a, b = load(d), load(os.path.join(runs, name + "-gpu"))
     fa, fb = a["frame"], b["frame"]
     ga, gb = a["gaze-age"], b["gaze-age"]

@@ -35,5 +35,6 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/cornell.json --backen
   --gaze none --out "$probe" >/dev/null
 grep "where" "$probe/plan.txt"
 
-OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" | tee "$OUT/gpu-frame.md"
+OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "640x480 1280x720 1920x1080" \
+  "attention cornell" "base base-allplanes scene gi" | tee "$OUT/gpu-frame.md"
 tar -C "$OUT" -cJf "$OUT/gpu-frame-runs.tar.xz" runs && rm -rf "$OUT/runs"

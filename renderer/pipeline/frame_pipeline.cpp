@@ -263,7 +263,8 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
   f.read_back = cpu_reads(f.plan);
-  f.written = f.read_back | gpu_reads(f.plan) | GBufferPlanes{.color = true};
+  f.written = settings_.is("debug.gbuffer_planes", "all") ? GBufferPlanes::all()
+                                                           : f.read_back | gpu_reads(f.plan) | GBufferPlanes{.color = true};
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
   {
     auto r = timer.scope("gbuffer.readback");

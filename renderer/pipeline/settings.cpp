@@ -119,6 +119,9 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"debug.finite_checks", kFiniteChecksByDefault ? "true" : "false", "bool",
        "scan every pass's output for NaN/Inf and stop the frame naming the pass, buffer and pixel (on by default "
        "in debug builds)"},
+      {"debug.gbuffer_planes", "read", "read|all",
+       "GPU-resident frame: the G-buffer pass writes the planes some pass reads (read), or every plane (all: "
+       "measures what culling the unread ones saves, bench/bench_gpu_frame.sh)"},
       {"overlay.gaze", "true", "bool", "draw the gaze point (and the gaze area when GI is on)"},
       {"overlay.focus", "false", "bool",
        "outline the focused object (or mark the focal depth) on the display image; plans the focus pass (and "

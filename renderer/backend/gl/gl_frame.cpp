@@ -219,6 +219,9 @@ void GlFrame::render_gbuffer(const FrameTime& time, const BackendSettings& setti
     throw;
   }
   end_timed();
+  // Submit now: the GPU renders the G-buffer while the CPU runs its passes (GI traces, DOF) instead
+  // of when the next command happens to flush.
+  glFlush();
   const GlGBufferTextures t = backend_.textures();
   if (out.width != t.width || out.height != t.height) out.resize(t.width, t.height);
 }
