@@ -118,11 +118,12 @@ const char* to_string(Strategy s) {
   return "traditional";
 }
 
-GiPass::GiPass() : backend_(std::make_unique<EmbreeBackend>()) {}
+GiPass::GiPass() : own_(std::make_unique<EmbreeBackend>()), backend_(own_.get()) {}
+GiPass::GiPass(EmbreeBackend& shared) : backend_(&shared), has_scene_(true) {}
 GiPass::~GiPass() = default;
 
 void GiPass::set_scene(const Scene& scene) {
-  backend_->set_scene(scene);
+  if (own_) own_->set_scene(scene);  // a shared backend has the scene from its owner
   has_scene_ = true;
   gaze_mapper_.reset();  // last frame's paths belong to the old scene
 }

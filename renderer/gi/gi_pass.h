@@ -2,7 +2,8 @@
 // One frame of gaze-directed hybrid rendering (Jensen & Pedersen 2009, ch. 7-8) as one object: the
 // photon maps by the chosen strategy, the GI of the gaze area, and the composite into the local
 // image (Algorithm 8.4). The frame pipeline's gi pass and bench_gi both run it. It ray traces with
-// its own Embree backend, whatever renders the G-buffer.
+// the frame's own Embree backend when the frame has one (one BVH of the scene, at the frame's
+// levels of detail), else with an Embree backend of its own (beside the raster backend).
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -64,7 +65,11 @@ struct GiPassResult {
 
 class GiPass {
  public:
+  // An Embree backend of its own; set_scene() gives it the scene.
   GiPass();
+  // Traces with `shared` (the frame's backend, which outlives this pass): its scene, its time and the
+  // levels of detail of its last render. set_scene() then only starts the pass afresh.
+  explicit GiPass(EmbreeBackend& shared);
   ~GiPass();
   GiPass(const GiPass&) = delete;
   GiPass& operator=(const GiPass&) = delete;
@@ -82,7 +87,8 @@ class GiPass {
  private:
   void trace_global_map(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s);
 
-  std::unique_ptr<EmbreeBackend> backend_;
+  std::unique_ptr<EmbreeBackend> own_;  // null when tracing with the frame's backend
+  EmbreeBackend* backend_ = nullptr;    // own_ or the frame's
   bool has_scene_ = false;
   PhotonMaps maps_;
   GazePhotonMapper gaze_mapper_;

@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "attention/focus_input.h"
+#include "backend/embree/embree_backend.h"
 #include "dof/lee_splat.h"
 #include "dof/reference.h"
 #include "dof/schedl_layered.h"
@@ -451,9 +452,18 @@ void FramePipeline::step_overlay(const Frame& f, PassTimer& timer) {
 
 void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer) {
   if (!gi_pass_) {
-    gi_pass_ = std::make_unique<gi::GiPass>();
-    gi_pass_->set_scene(scene_);
+    // One instance of the scene in Embree: the frame's own when it ray traces (its BVH, its levels of
+    // detail), else a ray tracer beside the raster backend.
+    gi_tracer_ = dynamic_cast<EmbreeBackend*>(backend_.get());
+    if (gi_tracer_ != nullptr) {
+      gi_pass_ = std::make_unique<gi::GiPass>(*gi_tracer_);
+    } else {
+      gi_pass_ = std::make_unique<gi::GiPass>();
+      gi_pass_->set_scene(scene_);
+    }
   }
+  // The frame's levels, whatever the backend rendered last (ULOD's next-coarser levels, a peeled layer).
+  if (gi_tracer_ != nullptr) gi_tracer_->set_lod_levels(lod_levels_);
   const Settings& s = settings_;
   const auto count = [&](const char* key) { return static_cast<std::uint32_t>(std::lround(s.number(key))); };
   gi_frame_ = Frame::Gi{};

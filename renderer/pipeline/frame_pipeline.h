@@ -32,6 +32,8 @@
 
 namespace fovea::render {
 
+class EmbreeBackend;
+
 class FramePipeline {
  public:
   FramePipeline(Scene scene, Settings settings, std::unique_ptr<Backend> backend, GazeInput& gaze);
@@ -114,6 +116,7 @@ class FramePipeline {
   std::vector<GBuffer> peeled_;  // schedl-layered's depth-peeled layers behind the visible one
   dof::LeeMipmap lee_mipmap_;
   std::unique_ptr<gi::GiPass> gi_pass_;  // created on the first frame that runs gi
+  EmbreeBackend* gi_tracer_ = nullptr;   // the frame's backend when it is Embree: gi traces with it
   lod::LodSelector lod_selector_;
   lod::BoundsCache lod_bounds_;
   Frame::Lod lod_frame_;

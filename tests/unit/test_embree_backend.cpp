@@ -613,6 +613,33 @@ fovea::render::Scene lod_scene(fovea::render::EmbreeGeometry) {
 
 }  // namespace
 
+// set_lod_levels: what intersect() sees after a render at other levels (the GI pass tracing the
+// frame's geometry after ULOD's next-coarser render).
+TEST(EmbreeBackend, SetLodLevelsChoosesWhatRaysHit) {
+  using namespace fovea::render;
+  EmbreeBackend b;
+  b.set_scene(lod_scene(EmbreeGeometry::Flattened));
+  const auto depth_along = [&](glm::vec3 dir) {
+    SurfaceHit hit;
+    EXPECT_TRUE(b.intersect({0, 0, 3}, glm::normalize(dir), 0.0f, 100.0f, RayVisibility::All, hit));
+    return hit.t;
+  };
+  // A ray between the coarsest level's vertices: the full sphere and the coarse mesh differ there.
+  const glm::vec3 dir(0.13f, 0.07f, -1.0f);
+  GBuffer g;
+  b.render({}, {}, g);
+  const float full = depth_along(dir);
+  BackendSettings coarse;
+  coarse.lod_levels = {2};
+  b.render({}, coarse, g);
+  const float at_coarse = depth_along(dir);
+  EXPECT_NE(full, at_coarse);
+  b.set_lod_levels({});
+  EXPECT_EQ(depth_along(dir), full);
+  b.set_lod_levels({2});
+  EXPECT_EQ(depth_along(dir), at_coarse);
+}
+
 // BackendSettings::lod_levels switches the drawn mesh per object, per frame, in both geometry
 // modes; levels beyond the chain clamp to its coarsest; the object keeps its id.
 TEST(EmbreeBackend, LevelsOfDetailSwitchPerFrame) {

@@ -179,3 +179,41 @@ TEST(GiPassDeathTest, OutAliasingLocalIsCaughtInDebugBuilds) {
 
 }  // namespace
 }  // namespace fovea::render::gi
+
+namespace fovea::render::gi {
+namespace {
+
+// One instance of the scene in Embree: a GiPass tracing with the frame's backend gives the image a
+// GiPass with a backend of its own gives (same BVH, same seeds), and leaves `out` alone when the
+// caller composites (GiPassSettings::composite = false, the GPU-resident frame).
+TEST(GiPass, TracingWithTheFramesBackendGivesTheSameImage) {
+  const Scene scene = cornell(64, 48);
+  GiPassSettings s;
+  s.photons = 3000;
+  s.caustic_photons = 0;
+  const GazeArea area{{32.0f, 24.0f}, 14.0f};
+  const std::vector<glm::vec3> local(std::size_t{64} * 48, glm::vec3(0.25f));
+  GiPass own;
+  own.set_scene(scene);
+  std::vector<glm::vec3> a, b;
+  own.run(scene.camera, 0.0, area, s, local, a);
+  EmbreeBackend frame;
+  frame.set_scene(scene);
+  GBuffer g;
+  frame.render({}, {}, g);  // the frame rendered its G-buffer first
+  GiPass shared(frame);
+  shared.set_scene(scene);  // only starts the pass afresh: the frame's backend has the scene
+  shared.run(scene.camera, 0.0, area, s, local, b);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(own.gi_image(), shared.gi_image());
+
+  s.composite = false;
+  std::vector<glm::vec3> untouched(local.size(), glm::vec3(-1.0f));
+  shared.run(scene.camera, 0.0, area, s, local, untouched);
+  EXPECT_EQ(untouched, std::vector<glm::vec3>(local.size(), glm::vec3(-1.0f)));
+  EXPECT_EQ(shared.gi_image(), own.gi_image());
+  EXPECT_EQ(shared.last().composite_ms, 0.0);
+}
+
+}  // namespace
+}  // namespace fovea::render::gi

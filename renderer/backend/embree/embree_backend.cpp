@@ -887,6 +887,13 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
   im.stats.shadow_rays = im.shadow_rays.load();
 }
 
+void EmbreeBackend::set_lod_levels(const std::vector<std::uint8_t>& levels) {
+  if (!impl_->has_scene) return;
+  BackendSettings settings;
+  settings.lod_levels = levels;
+  select_lods(*impl_, settings, options_.geometry);
+}
+
 void EmbreeBackend::set_time(double now_s) {
   Impl& im = *impl_;
   if (!im.has_scene) return;

@@ -101,6 +101,9 @@ class EmbreeBackend final : public Backend {
   bool occluded(const glm::vec3& from, const glm::vec3& to) const;
   // Moves animated objects to scene time now_s (render() does this itself) for intersect().
   void set_time(double now_s);
+  // The levels of detail intersect() and occluded() see until the next render() (what
+  // BackendSettings::lod_levels means): a pass tracing the frame's geometry after another render.
+  void set_lod_levels(const std::vector<std::uint8_t>& levels);
   // The backend's copy of the scene (materials of hits point into it).
   const Scene& scene() const;
 
