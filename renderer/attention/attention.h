@@ -31,6 +31,7 @@ struct FeatureGroups {
   bool image = true;    // B: luminance and hue
   bool object = true;   // E: depth, size, motion
   bool context = true;  // T: spatial and temporal context (off: S_o = S^_o)
+  bool operator==(const FeatureGroups&) const = default;
 };
 
 // How the G-buffer becomes the map's input: the mean of the source pixels under each map pixel
@@ -50,6 +51,7 @@ struct AttentionSettings {
   double kalman_process_noise = 1e-3, kalman_measurement_noise = 1e-2;
   // Throws std::invalid_argument naming the bad field.
   void check() const;
+  bool operator==(const AttentionSettings&) const = default;
 };
 
 // One visible object with task importance T_i > 0 (background objects, T_i = 0, are never attended).

@@ -35,6 +35,7 @@ struct FocusSettings {
   double min_attention = 1e-3;   // below: no foreground object is attended (screen-centre depth)
   double fixed_depth_m = 2.0;    // FocusMode::Fixed (the lens' focus distance)
   void check() const;            // std::invalid_argument naming the bad field
+  bool operator==(const FocusSettings&) const = default;
 };
 
 // What the focus pass knows about the gaze this frame.

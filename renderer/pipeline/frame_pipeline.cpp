@@ -31,13 +31,6 @@ attention::AttentionSettings attention_settings(const Settings& s) {
   return a;
 }
 
-bool same(const attention::AttentionSettings& a, const attention::AttentionSettings& b) {
-  return a.map_size == b.map_size && a.resample == b.resample && a.groups.image == b.groups.image && a.groups.object == b.groups.object &&
-         a.groups.context == b.groups.context && a.preferred_distance_m == b.preferred_distance_m && a.c_y == b.c_y &&
-         a.temporal_window == b.temporal_window && a.kalman == b.kalman &&
-         a.kalman_process_noise == b.kalman_process_noise && a.kalman_measurement_noise == b.kalman_measurement_noise;
-}
-
 attention::FocusSettings focus_settings(const Settings& s, const Lens& lens) {
   attention::FocusSettings f;
   const std::string& mode = s.text("focus.mode");
@@ -52,12 +45,6 @@ attention::FocusSettings focus_settings(const Settings& s, const Lens& lens) {
   f.gaze_radius_deg = s.number("focus.gaze_radius_deg");
   if (std::isfinite(lens.focus_distance_m) && lens.focus_distance_m > 0) f.fixed_depth_m = lens.focus_distance_m;
   return f;
-}
-
-bool same(const attention::FocusSettings& a, const attention::FocusSettings& b) {
-  return a.mode == b.mode && a.transition == b.transition && a.transition_s == b.transition_s &&
-         a.cutoff_hz == b.cutoff_hz && a.gaze_radius_deg == b.gaze_radius_deg && a.min_attention == b.min_attention &&
-         a.fixed_depth_m == b.fixed_depth_m;
 }
 
 bool is_attention_map(const std::string& map) {
@@ -377,7 +364,7 @@ void FramePipeline::step_attention(Frame& f, double now_s, double previous_s, bo
 void FramePipeline::step_focus(Frame& f, double frame_clock_s, bool check, PassTimer& timer) {
   auto t = timer.scope("focus");
   const attention::FocusSettings wanted = focus_settings(settings_, scene_.camera.lens);
-  if (!same(wanted, focus_settings_)) {  // a changed setting starts the focus afresh
+  if (wanted != focus_settings_) {  // a changed setting starts the focus afresh
     focus_settings_ = wanted;
     focus_ = attention::FocusTracker(wanted);
   }
@@ -541,7 +528,7 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
 const attention::AttentionFrame& FramePipeline::run_attention(const GBuffer& g, double now_s, double previous_s,
                                                               bool check) {
   const attention::AttentionSettings wanted = attention_settings(settings_);
-  if (!same(wanted, attention_.settings())) attention_.set_settings(wanted);
+  if (wanted != attention_.settings()) attention_.set_settings(wanted);
   const attention::AttentionFrame& a = attention_.update(g, scene_, now_s, previous_s);
   if (check) require_finite_attention(a);
   return a;
