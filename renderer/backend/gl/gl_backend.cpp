@@ -300,11 +300,12 @@ void GlBackend::upload_draw_items(const Scene& scene) {
 
 void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   if (fbo_ != 0 && width == fb_width_ && height == fb_height_) return;
-  GLint max_size = 0;
+  GLint max_size = 0, max_texture = 0;
   glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);  // the planes are textures, the z-buffer a renderbuffer
   GLint max_viewport[2] = {0, 0};
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, max_viewport);
-  const auto limit = static_cast<std::uint32_t>(std::min({max_size, max_viewport[0], max_viewport[1]}));
+  const auto limit = static_cast<std::uint32_t>(std::min({max_size, max_texture, max_viewport[0], max_viewport[1]}));
   if (width > limit || height > limit) {
     throw std::invalid_argument("GlBackend: camera resolution " + std::to_string(width) + "x" +
                                 std::to_string(height) + " exceeds the OpenGL limit of " + std::to_string(limit) +
