@@ -576,6 +576,43 @@ TEST(GlWindow, PresentDrawsRowZeroAtTheTop) {
   EXPECT_THROW(ctx.present(std::vector<std::uint8_t>(7), 1, 2), std::invalid_argument);
 }
 
+// The viewer's path: a backend whose context shares the window's textures renders the frame on the
+// GPU, and the window shows its display image without a trip through the CPU.
+TEST(GlWindow, PresentTextureShowsTheFrameKeptOnTheGpu) {
+  GlContext window(GlContextOptions{
+      .visible = false, .platform = GlPlatform::Glfw, .title = "present", .width = 64, .height = 32, .vsync = false});
+  ASSERT_EQ(window.framebuffer_size(), glm::ivec2(64, 32));
+  GlBackend backend(GlPlatform::Glfw, &window);
+  Scene s = base_scene();
+  s.camera.width = 64;
+  s.camera.height = 32;
+  s.objects.push_back(facing_plane(s, {1.5f, 1.5f}, 0.0f, 2));  // the emissive lamp in the middle
+  backend.set_scene(s);
+  GpuFrame* gpu = backend.gpu_frame();
+  ASSERT_TRUE(gpu->unavailable_reason().empty());
+  GBuffer g;
+  gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);
+  gpu->tonemap({});
+  gpu->finish();
+  std::vector<std::uint8_t> rgb;
+  std::uint32_t w = 0, h = 0;
+  gpu->read_display(rgb, w, h);
+  ASSERT_EQ(w, 64u);
+  const GpuFrame::Texture d = gpu->display_texture();
+  window.present_texture(d.id, d.width, d.height, d.texture_width, d.texture_height);
+  glFinish();
+  glReadBuffer(GL_BACK);
+  for (const glm::ivec2 p : {glm::ivec2(32, 16), glm::ivec2(2, 2), glm::ivec2(60, 29)}) {
+    std::uint8_t shown[4] = {};
+    glReadPixels(p.x, p.y, 1, 1, GL_RGBA, GL_UNSIGNED_BYTE, shown);  // GL rows count from the bottom
+    const std::size_t i = (std::size_t{h - 1 - static_cast<std::uint32_t>(p.y)} * w + static_cast<std::uint32_t>(p.x)) * 3;
+    EXPECT_EQ(shown[0], rgb[i]) << p.x << "," << p.y;
+    EXPECT_EQ(shown[2], rgb[i + 2]) << p.x << "," << p.y;
+  }
+  EXPECT_NE(rgb[(16 * 64 + 32) * 3], rgb[(2 * 64 + 2) * 3]);  // the lamp against the background
+  EXPECT_THROW(window.present_texture(d.id, 65, 32, 64, 32), std::invalid_argument);
+}
+
 TEST(GlWindowDeathTest, NoDisplayGivesAClearError) {
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
