@@ -12,8 +12,9 @@
 // them through textures(). Runs in an invisible EGL context (no window system), or beside a viewer's
 // GLFW window sharing its textures.
 //
-// Not supported in this step: shadows (BackendSettings::shadows is ignored; the Embree backend
-// casts shadow rays), LOD levels (the full mesh is drawn, as by the Embree backend).
+// Levels of detail are drawn as asked (BackendSettings::lod_levels). Not supported: shadows
+// (BackendSettings::shadows is ignored; the Embree backend casts shadow rays), a lens point per
+// pixel, depth peeling (both refused with the reason).
 #include <cstdint>
 #include <memory>
 #include <optional>
