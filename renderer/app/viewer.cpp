@@ -210,12 +210,16 @@ int run_viewer(const RenderOptions& o) {
     previous = now;
     show(window, f, pipeline, rgba, timer);
     if (i % 10 == 0) {
-      char title[256];
-      std::snprintf(title, sizeof title, "fovea-render %s%s | %.1f ms/frame | gaze %s (%.3f, %.3f) %s | age %.1f ms, "
-                    "%.1f ms on screen | lost %llu",
-                    pipeline.backend().name().c_str(), f.on_gpu ? " (frame on the GPU)" : "", timer.last_ms("frame"),
-                    gaze->description().c_str(), f.gaze.x, f.gaze.y,
-                    f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
+      // The GPU's own time for the frame's passes (timestamp queries), beside the CPU's frame time.
+      double gpu_ms = 0;
+      for (const char* pass : {"gpu.gbuffer", "gpu.upload", "gpu.tonemap", "gpu.overlay"}) gpu_ms += timer.frame_ms(pass);
+      char gpu[48] = "";
+      if (f.on_gpu) std::snprintf(gpu, sizeof gpu, " (frame on the GPU: %.2f ms there)", gpu_ms);
+      char title[320];
+      std::snprintf(title, sizeof title, "fovea-render %s | %.1f ms/frame%s | gaze %s (%.3f, %.3f) %s | age %.1f ms, "
+                    "%.1f ms when shown | lost %llu",
+                    pipeline.backend().name().c_str(), timer.last_ms("frame"), gpu, gaze->description().c_str(), f.gaze.x,
+                    f.gaze.y, f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
                     timer.last_ms("gaze-age.swap"), static_cast<unsigned long long>(f.gaze.lost));
       std::string full = title;
       if (governor) full += " | " + governor->state().summary();
