@@ -219,6 +219,25 @@ TEST_F(GlFrameTest, TheOverlayAgreesWithTheCpuDrawing) {
   }
 }
 
+TEST_F(GlFrameTest, ANonFiniteGazePointDrawsNoRing) {
+  const GBuffer g = render_both(bundled("cornell.json", 64, 48));
+  gpu_->tonemap({GpuTonemap::Op::Reinhard, 1.0f});
+  gpu_->finish();
+  const Image8 plain = gpu_image(*gpu_);
+  for (const double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(), 1e300}) {
+    GpuOverlay o;
+    o.gaze = true;
+    o.gaze_x = bad;
+    o.gaze_y = 0.5;
+    o.ring_diameter_px = 10;
+    o.area_diameter_px = 20;
+    gpu_->tonemap({GpuTonemap::Op::Reinhard, 1.0f});
+    gpu_->overlay(o);
+    gpu_->finish();
+    EXPECT_EQ(compare(gpu_image(*gpu_), plain).max_level, 0) << bad;
+  }
+}
+
 TEST_F(GlFrameTest, ReadBackBringsOnlyThePlanesAskedFor) {
   const Scene s = bundled("occlusion.json", 96, 72);
   const GBuffer full = render_both(s);

@@ -402,8 +402,9 @@ void GlFrame::overlay(const GpuOverlay& o) {
     // Only the rings: shade their bounding box, not the whole image (as draw_gaze's loops do).
     const double r = std::max(o.ring_diameter_px / 2 + 1.0, o.area_diameter_px / 2 + 0.5) + 1.0;
     const double cx = o.gaze_x * t.width, cy = o.gaze_y * t.height;
+    // A non-finite gaze point (never sent by the decoder, but not this pass's to assume) draws nothing.
     const auto clampi = [](double v, std::uint32_t hi) {
-      return static_cast<GLint>(std::clamp(v, 0.0, static_cast<double>(hi)));
+      return std::isfinite(v) ? static_cast<GLint>(std::clamp(v, 0.0, static_cast<double>(hi))) : 0;
     };
     const GLint x0 = clampi(std::floor(cx - r), t.width), x1 = clampi(std::ceil(cx + r), t.width);
     const GLint y0 = clampi(std::floor(t.height - (cy + r)), t.height), y1 = clampi(std::ceil(t.height - (cy - r)), t.height);
