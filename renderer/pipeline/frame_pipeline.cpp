@@ -112,37 +112,18 @@ std::string FramePipeline::gpu_refusal() const {
   return "";
 }
 
-// What each pass that runs on the CPU reads of the frame's G-buffer (the rest stays on the GPU).
-GBufferPlanes FramePipeline::cpu_reads(const FramePlan& plan) const {
-  GBufferPlanes r;
-  const bool ulod = settings_.is("lod.policy", "ulod");
-  const bool attention_first = plan.runs(PassId::LodSelect) && plan.runs(PassId::Attention) && ulod;
-  // Saliency (luminance, hue), depth and object id; motion comes from the objects' transforms.
-  if (plan.runs(PassId::Attention) && !attention_first) r = r | GBufferPlanes{.color = true, .depth = true, .object_id = true};
-  if (plan.runs(PassId::Focus)) r = r | GBufferPlanes{.depth = true, .object_id = true};
-  // LOD selection reads the last frame's colour and ids (screen coverage); ULOD blends colour by id.
-  if (plan.runs(PassId::LodSelect)) r = r | GBufferPlanes{.color = true, .object_id = true};
-  if (plan.runs(PassId::Dof)) {
-    const std::string& m = settings_.text("dof.method");
-    if (m != "reference" && m != "accum") r = r | GBufferPlanes{.color = true, .depth = true};  // the references render again
-  }
-  // GI reads nothing of the G-buffer here: it traces its own rays, and its inset is composited on the
-  // GPU (or, with the CSF periphery, over the periphery it ray casts itself).
-  return r;
-}
-
-// What the GPU passes read of the G-buffer beyond its colour (the tone map's input).
-GBufferPlanes FramePipeline::gpu_reads(const FramePlan& plan) const {
-  const bool focus_drawn = plan.runs(PassId::Overlay) && plan.runs(PassId::Focus) && settings_.flag("overlay.focus");
-  return focus_drawn ? GBufferPlanes{.depth = true, .object_id = true} : GBufferPlanes{};
+// What the G-buffer pass writes on the GPU: what some pass of this frame reads (colour always: the
+// tone map's input), or every plane with debug.gbuffer_planes=all.
+GBufferPlanes FramePipeline::planes_written(const FramePlan& plan) const {
+  if (settings_.is("debug.gbuffer_planes", "all")) return GBufferPlanes::all();
+  return planes_read(plan, settings_) | GBufferPlanes{.color = true};
 }
 
 std::string FramePipeline::placement(const FramePlan& plan) const {
   const std::string refusal = gpu_refusal();
   if (!refusal.empty()) return "cpu        every plane read back, every pass on the CPU: " + refusal;
-  const GBufferPlanes read = cpu_reads(plan);
   return "gpu        " + gpu_->description() + ": G-buffer, tone map, overlay on the GPU; G-buffer planes written: " +
-         plane_list(read | gpu_reads(plan) | GBufferPlanes{.color = true}) + "; read back: " + plane_list(read);
+         plane_list(planes_written(plan)) + "; read back: " + plane_list(planes_read_on_cpu(plan, settings_));
 }
 
 namespace {
@@ -250,9 +231,8 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   BackendSettings bs;
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
-  f.read_back = cpu_reads(f.plan);
-  f.written = settings_.is("debug.gbuffer_planes", "all") ? GBufferPlanes::all()
-                                                           : f.read_back | gpu_reads(f.plan) | GBufferPlanes{.color = true};
+  f.read_back = planes_read_on_cpu(f.plan, settings_);
+  f.written = planes_written(f.plan);
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
   {
     auto r = timer.scope("gbuffer.readback");

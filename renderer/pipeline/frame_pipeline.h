@@ -158,9 +158,7 @@ class FramePipeline {
   // Reads the gaze input again (the frame clock advanced by the wall time spent when it is the wall
   // clock); timed as "gaze".
   void late_latch(Frame& f, PassTimer& timer);
-  // The planes of this frame's G-buffer the passes that run on the CPU read.
-  GBufferPlanes cpu_reads(const FramePlan& plan) const;
-  GBufferPlanes gpu_reads(const FramePlan& plan) const;
+  GBufferPlanes planes_written(const FramePlan& plan) const;
   std::string placement(const FramePlan& plan) const;
 
   GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run

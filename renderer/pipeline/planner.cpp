@@ -5,22 +5,57 @@
 
 namespace fovea::render {
 
+namespace {
+
+// What each pass reads of the frame's G-buffer (PassDecl::gbuffer_reads).
+bool ulod_attention_first(const FramePlan& plan, const Settings& s) {
+  return plan.runs(PassId::LodSelect) && plan.runs(PassId::Attention) && s.is("lod.policy", "ulod");
+}
+// Saliency (luminance, hue), depth and ids; motion comes from the objects' transforms. With ULOD the
+// pass reads its own proxy render instead (Lee 2009 §7.2).
+GBufferPlanes attention_reads(const FramePlan& plan, const Settings& s) {
+  return ulod_attention_first(plan, s) ? GBufferPlanes{} : GBufferPlanes{.color = true, .depth = true, .object_id = true};
+}
+GBufferPlanes focus_reads(const FramePlan&, const Settings&) { return {.depth = true, .object_id = true}; }
+// The last frame's colour and ids (screen coverage); ULOD blends colour by id.
+GBufferPlanes lod_reads(const FramePlan&, const Settings&) { return {.color = true, .object_id = true}; }
+// The image-space methods filter colour by depth; the references render the scene again.
+GBufferPlanes dof_reads(const FramePlan&, const Settings& s) {
+  return s.is("dof.method", "reference") || s.is("dof.method", "accum") ? GBufferPlanes{}
+                                                                        : GBufferPlanes{.color = true, .depth = true};
+}
+// gi: nothing. It traces its own rays; its inset is composited over the HDR colour where that lies.
+GBufferPlanes tonemap_reads(const FramePlan&, const Settings&) { return {.color = true}; }
+// The focus outline (ids) or iso-depth line (depth); G-buffer maps read every plane.
+GBufferPlanes overlay_reads(const FramePlan& plan, const Settings& s) {
+  GBufferPlanes r;
+  if (!s.is("overlay.map", "none")) r = GBufferPlanes::all();
+  if (plan.runs(PassId::Focus) && s.flag("overlay.focus")) r = r | GBufferPlanes{.depth = true, .object_id = true};
+  return r;
+}
+
+}  // namespace
+
 const std::vector<PassDecl>& pass_declarations() {
   static const std::vector<PassDecl> kPasses = {
       {PassId::GBuffer, "gbuffer", "scene, camera, time", "colour, depth, id, normal, motion",
-       "always: every output starts from it"},
+       "always: every output starts from it", nullptr, true},
       {PassId::Attention, "attention", "gbuffer (colour, depth, id), scene (object and observer motion, task importance)",
        "per-object attention S_o, saliency maps",
-       "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it"},
+       "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it",
+       attention_reads},
       {PassId::Focus, "focus", "gaze, attention, depth, id", "focal depth",
-       "dof runs or overlay.focus shows it, and focus is not fixed"},
+       "dof runs or overlay.focus shows it, and focus is not fixed", focus_reads},
       {PassId::LodSelect, "lod-select", "camera, last frame's attention and G-buffer, gaze", "LOD level per object",
-       "the scene has LOD chains and lod.enabled"},
-      {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled"},
-      {PassId::Gi, "gi", "gbuffer, gaze (or attention)", "colour (hybrid composite)", "gi.enabled and the scene has lights"},
-      {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image"},
+       "the scene has LOD chains and lod.enabled", lod_reads},
+      {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
+       dof_reads},
+      {PassId::Gi, "gi", "scene (its own rays), gaze (or attention)", "colour (hybrid composite)",
+       "gi.enabled and the scene has lights"},
+      {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image", tonemap_reads,
+       true},
       {PassId::Overlay, "overlay", "display image, gaze, maps", "display image",
-       "overlay.gaze with a gaze source, or overlay.map"},
+       "overlay.gaze with a gaze source, or overlay.map", overlay_reads, true},
   };
   return kPasses;
 }
@@ -271,6 +306,22 @@ FramePlan plan_frame(const PlanContext& c) {
   wait_focus(p);
   wait_attention(p);
   return plan;
+}
+
+GBufferPlanes planes_read_on_cpu(const FramePlan& plan, const Settings& settings) {
+  GBufferPlanes r;
+  for (const PassDecl& d : pass_declarations()) {
+    if (!d.on_gpu && d.gbuffer_reads != nullptr && plan.runs(d.id)) r = r | d.gbuffer_reads(plan, settings);
+  }
+  return r;
+}
+
+GBufferPlanes planes_read(const FramePlan& plan, const Settings& settings) {
+  GBufferPlanes r;
+  for (const PassDecl& d : pass_declarations()) {
+    if (d.gbuffer_reads != nullptr && plan.runs(d.id)) r = r | d.gbuffer_reads(plan, settings);
+  }
+  return r;
 }
 
 }  // namespace fovea::render

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "backend/gbuffer.h"
 #include "pipeline/settings.h"
 #include "scene/scene.h"
 
@@ -13,12 +14,20 @@ namespace fovea::render {
 enum class PassId { GBuffer, Attention, Focus, LodSelect, Dof, Gi, Tonemap, Overlay };
 inline constexpr int kPassCount = 8;
 
+struct FramePlan;
+
 struct PassDecl {
   PassId id;
   const char* name;
   const char* reads;
   const char* writes;
   const char* needed_when;
+  // Typed: the planes of this frame's G-buffer the pass reads, with these settings and this plan
+  // (null: none). What the GPU-resident frame writes and reads back is derived from these.
+  GBufferPlanes (*gbuffer_reads)(const FramePlan& plan, const Settings& settings) = nullptr;
+  // The pass has a GPU implementation that runs where the G-buffer lies (the GPU-resident frame);
+  // the others run on the CPU from a readback of what they read.
+  bool on_gpu = false;
 };
 // The passes in pipeline order.
 const std::vector<PassDecl>& pass_declarations();
@@ -50,5 +59,11 @@ struct FramePlan {
 };
 
 FramePlan plan_frame(const PlanContext& context);
+
+// The GPU-resident frame's planes (from the declarations of the passes that run): what the passes
+// without a GPU implementation read (the readback), and what every pass reads (what the G-buffer
+// pass must write; the rest is culled).
+GBufferPlanes planes_read_on_cpu(const FramePlan& plan, const Settings& settings);
+GBufferPlanes planes_read(const FramePlan& plan, const Settings& settings);
 
 }  // namespace fovea::render

@@ -125,6 +125,45 @@ TEST(Planner, EveryPassHasADeclaration) {
   }
 }
 
+// The typed declarations of what each pass reads of the G-buffer, and what the GPU-resident frame
+// derives from them: the planes read back for the passes without a GPU implementation, and the
+// planes the G-buffer pass must write (the others are culled).
+TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
+  struct Row {
+    const char* name;
+    SceneFeatures scene;
+    std::vector<std::string> settings;
+    GBufferPlanes on_cpu, all;
+  };
+  const GBufferPlanes cdi{.color = true, .depth = true, .object_id = true};
+  const Row rows[] = {
+      {"pinhole: only the tone map reads (colour), on the GPU", {}, {}, {}, {.color = true}},
+      {"thin lens: attention (colour, depth, ids), focus, lee-mipmap", {.thin_lens = true}, {}, cdi, cdi},
+      {"the accumulation reference renders again: DOF reads nothing", {.thin_lens = true},
+       {"dof.method=accum", "focus.mode=fixed"}, {}, {.color = true}},
+      {"LOD: the last frame's colour and ids", {.lods = true}, {}, {.color = true, .object_id = true},
+       {.color = true, .object_id = true}},
+      {"ULOD: attention reads its proxy, LOD colour and ids", {.lods = true}, {"lod.policy=ulod"},
+       {.color = true, .object_id = true}, {.color = true, .object_id = true}},
+      {"the focus outline reads depth and ids on the GPU", {.thin_lens = true},
+       {"dof.enabled=false", "focus.mode=gaze", "overlay.focus=true"}, {.depth = true, .object_id = true},
+       {.color = true, .depth = true, .object_id = true}},
+      {"gi reads nothing", {}, {"gi.enabled=true"}, {}, {.color = true}},
+  };
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.name);
+    const Scene scene = make_scene(row.scene);
+    Settings settings;
+    for (const std::string& a : row.settings) settings.set_assignment(a);
+    const FramePlan plan = plan_frame(PlanContext{scene, settings, true});
+    EXPECT_EQ(planes_read_on_cpu(plan, settings), row.on_cpu) << plan.explain();
+    EXPECT_EQ(planes_read(plan, settings), row.all) << plan.explain();
+  }
+  // The passes with a GPU implementation: the G-buffer, the tone map, the overlay.
+  for (const PassDecl& d : pass_declarations())
+    EXPECT_EQ(d.on_gpu, d.id == PassId::GBuffer || d.id == PassId::Tonemap || d.id == PassId::Overlay) << d.name;
+}
+
 TEST(Settings, RejectUnknownKeysAndBadValuesNamingWhatIsAllowed) {
   Settings s;
   EXPECT_FALSE(s.flag("gi.enabled"));
