@@ -64,13 +64,12 @@ int main(int argc, char** argv) {
       o.scene_overrides.push_back({s.substr(0, eq), s.substr(eq + 1)});
     }
     if (o.explain) {
-      const Scene scene = load_render_scene(o);
+      // The backend starts too: where the frame runs (the GPU path, what it reads back) is its answer.
       const auto gaze = make_gaze_input(o.gaze);
+      FramePipeline pipeline(load_render_scene(o), o.settings, make_backend(o.backend), *gaze);
       std::printf("frame plan for %s (%s backend, gaze %s):\n", o.scene_path.c_str(), backend.c_str(),
                   gaze->description().c_str());
-      std::printf("%s", plan_frame(PlanContext{scene, o.settings, gaze->available(), o.backend == BackendKind::Embree})
-                            .explain()
-                            .c_str());
+      std::printf("%s", pipeline.plan().explain().c_str());
       return 0;
     }
     return o.headless ? run_headless(o) : run_viewer(o);

@@ -3,6 +3,7 @@
 // image, pixel (x, y) covers [x, x+1) x [y, y+1) and is sampled at its centre.
 #include <cstdint>
 #include <glm/glm.hpp>
+#include <string>
 #include <vector>
 
 namespace fovea::render {
@@ -19,6 +20,20 @@ struct GBufferPlanes {
   }
   bool operator==(const GBufferPlanes&) const = default;
 };
+
+// "colour, depth, id", or "nothing": for people (--explain).
+inline std::string to_string(const GBufferPlanes& p) {
+  std::string out;
+  const auto add = [&](bool on, const char* name) {
+    if (on) out += (out.empty() ? "" : ", ") + std::string(name);
+  };
+  add(p.color, "colour");
+  add(p.depth, "depth");
+  add(p.object_id, "id");
+  add(p.normal, "normal");
+  add(p.motion, "motion");
+  return out.empty() ? "nothing" : out;
+}
 
 struct GBuffer {
   std::uint32_t width = 0, height = 0;

@@ -55,19 +55,6 @@ double steady_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-std::string plane_list(const GBufferPlanes& p) {
-  std::string out;
-  const auto add = [&](bool on, const char* name) {
-    if (on) out += (out.empty() ? "" : ", ") + std::string(name);
-  };
-  add(p.color, "colour");
-  add(p.depth, "depth");
-  add(p.object_id, "id");
-  add(p.normal, "normal");
-  add(p.motion, "motion");
-  return out.empty() ? "nothing" : out;
-}
-
 GpuTonemap::Op gpu_operator(const std::string& op) {
   return op == "reinhard" ? GpuTonemap::Op::Reinhard
          : op == "exponential" ? GpuTonemap::Op::Exponential
@@ -116,14 +103,14 @@ std::string FramePipeline::gpu_refusal() const {
 // tone map's input), or every plane with debug.gbuffer_planes=all.
 GBufferPlanes FramePipeline::planes_written(const FramePlan& plan) const {
   if (settings_.is("debug.gbuffer_planes", "all")) return GBufferPlanes::all();
-  return planes_read(plan, settings_) | GBufferPlanes{.color = true};
+  return planes_read(plan) | GBufferPlanes{.color = true};
 }
 
 std::string FramePipeline::placement(const FramePlan& plan) const {
   const std::string refusal = gpu_refusal();
   if (!refusal.empty()) return "cpu        every plane read back, every pass on the CPU: " + refusal;
   return "gpu        " + gpu_->description() + ": G-buffer, tone map, overlay on the GPU; G-buffer planes written: " +
-         plane_list(planes_written(plan)) + "; read back: " + plane_list(planes_read_on_cpu(plan, settings_));
+         to_string(planes_written(plan)) + "; read back: " + to_string(planes_read_on_cpu(plan));
 }
 
 namespace {
@@ -231,7 +218,7 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   BackendSettings bs;
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
-  f.read_back = planes_read_on_cpu(f.plan, settings_);
+  f.read_back = planes_read_on_cpu(f.plan);
   f.written = planes_written(f.plan);
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
   {

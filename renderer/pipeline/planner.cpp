@@ -40,19 +40,20 @@ const std::vector<PassDecl>& pass_declarations() {
   static const std::vector<PassDecl> kPasses = {
       {PassId::GBuffer, "gbuffer", "scene, camera, time", "colour, depth, id, normal, motion",
        "always: every output starts from it", nullptr, true},
-      {PassId::Attention, "attention", "gbuffer (colour, depth, id), scene (object and observer motion, task importance)",
+      {PassId::Attention, "attention", "scene (object and observer motion, task importance)",
        "per-object attention S_o, saliency maps",
        "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it",
        attention_reads},
-      {PassId::Focus, "focus", "gaze, attention, depth, id", "focal depth",
+      {PassId::Focus, "focus", "gaze, attention", "focal depth",
        "dof runs or overlay.focus shows it, and focus is not fixed", focus_reads},
-      {PassId::LodSelect, "lod-select", "camera, last frame's attention and G-buffer, gaze", "LOD level per object",
+      {PassId::LodSelect, "lod-select", "camera, gaze, the last frame's attention (and its G-buffer)", "LOD level per object",
        "the scene has LOD chains and lod.enabled", lod_reads},
-      {PassId::Dof, "dof", "colour, depth, focal depth", "colour", "a thin lens with an aperture and dof.enabled",
+      {PassId::Dof, "dof", "focal depth", "HDR colour", "a thin lens with an aperture and dof.enabled",
        dof_reads},
-      {PassId::Gi, "gi", "scene (its own rays), gaze (or attention)", "colour (hybrid composite)",
+      {PassId::Gi, "gi", "scene (its own rays), gaze (or attention)", "the gaze area's GI (composited over the HDR colour)",
        "gi.enabled and the scene has lights"},
-      {PassId::Tonemap, "tonemap", "colour (HDR)", "display image (sRGB 8-bit)", "the output is an image", tonemap_reads,
+      {PassId::Tonemap, "tonemap", "HDR colour (the G-buffer's, dof's), the GI inset", "display image (sRGB 8-bit)",
+       "the output is an image", tonemap_reads,
        true},
       {PassId::Overlay, "overlay", "display image, gaze, maps", "display image",
        "overlay.gaze with a gaze source, or overlay.map", overlay_reads, true},
@@ -75,6 +76,13 @@ std::string FramePlan::explain() const {
     const char* verdict = p.runs ? "run " : (p.needed ? "later" : "skip");
     std::snprintf(line, sizeof line, "  %-5s %-10s %s\n", verdict, d.name, p.reason.c_str());
     out += line;
+  }
+  out += "  graph      (the passes that run: what each reads -> what it writes)\n";
+  for (const PlannedPass& p : passes) {
+    if (!p.runs) continue;
+    const PassDecl& d = declaration(p.id);
+    const std::string gbuffer = p.gbuffer_reads.any() ? "G-buffer " + to_string(p.gbuffer_reads) + "; " : "";
+    out += "    " + std::string(d.name) + ": " + gbuffer + d.reads + " -> " + d.writes + "\n";
   }
   if (!placement.empty()) out += "  where " + placement + "\n";
   return out;
@@ -292,7 +300,7 @@ void wait_attention(Planning& p) {
 // gi), so the order below is the order of the reasoning, not the pipeline order.
 FramePlan plan_frame(const PlanContext& c) {
   FramePlan plan;
-  for (const PassDecl& d : pass_declarations()) plan.passes.push_back({d.id, false, false, ""});
+  for (const PassDecl& d : pass_declarations()) plan.passes.push_back({d.id, false, false, "", {}});
   Planning p{c, c.scene, c.settings, plan};
   p.image = c.settings.is("output", "final");
   decide_tonemap(p);
@@ -305,21 +313,25 @@ FramePlan plan_frame(const PlanContext& c) {
   decide(plan, PassId::GBuffer, true, "every output starts from the G-buffer");
   wait_focus(p);
   wait_attention(p);
+  for (PlannedPass& pass : plan.passes) {
+    const PassDecl& d = declaration(pass.id);
+    if (pass.runs && d.gbuffer_reads != nullptr) pass.gbuffer_reads = d.gbuffer_reads(plan, c.settings);
+  }
   return plan;
 }
 
-GBufferPlanes planes_read_on_cpu(const FramePlan& plan, const Settings& settings) {
+GBufferPlanes planes_read_on_cpu(const FramePlan& plan) {
   GBufferPlanes r;
-  for (const PassDecl& d : pass_declarations()) {
-    if (!d.on_gpu && d.gbuffer_reads != nullptr && plan.runs(d.id)) r = r | d.gbuffer_reads(plan, settings);
+  for (const PlannedPass& p : plan.passes) {
+    if (p.runs && !declaration(p.id).on_gpu) r = r | p.gbuffer_reads;
   }
   return r;
 }
 
-GBufferPlanes planes_read(const FramePlan& plan, const Settings& settings) {
+GBufferPlanes planes_read(const FramePlan& plan) {
   GBufferPlanes r;
-  for (const PassDecl& d : pass_declarations()) {
-    if (d.gbuffer_reads != nullptr && plan.runs(d.id)) r = r | d.gbuffer_reads(plan, settings);
+  for (const PlannedPass& p : plan.passes) {
+    if (p.runs) r = r | p.gbuffer_reads;
   }
   return r;
 }

@@ -38,6 +38,7 @@ struct PlannedPass {
   bool needed = false;       // the requested output needs this pass's effect
   bool runs = false;         // runs this frame: needed, and able to run with these settings
   std::string reason;
+  GBufferPlanes gbuffer_reads;  // what it reads of the G-buffer when it runs (PassDecl::gbuffer_reads)
 };
 
 struct PlanContext {
@@ -55,7 +56,9 @@ struct FramePlan {
   bool runs(PassId id) const;
   bool needed(PassId id) const;
   const PlannedPass& at(PassId id) const;
-  std::string explain() const;  // one line per pass: run, skip, or later (needed but cannot run), and why
+  // One line per pass: run, skip, or later (needed but cannot run), and why; then the graph of the
+  // passes that run: what each reads (the G-buffer's planes typed) and writes.
+  std::string explain() const;
 };
 
 FramePlan plan_frame(const PlanContext& context);
@@ -63,7 +66,7 @@ FramePlan plan_frame(const PlanContext& context);
 // The GPU-resident frame's planes (from the declarations of the passes that run): what the passes
 // without a GPU implementation read (the readback), and what every pass reads (what the G-buffer
 // pass must write; the rest is culled).
-GBufferPlanes planes_read_on_cpu(const FramePlan& plan, const Settings& settings);
-GBufferPlanes planes_read(const FramePlan& plan, const Settings& settings);
+GBufferPlanes planes_read_on_cpu(const FramePlan& plan);
+GBufferPlanes planes_read(const FramePlan& plan);
 
 }  // namespace fovea::render

@@ -156,8 +156,8 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
     Settings settings;
     for (const std::string& a : row.settings) settings.set_assignment(a);
     const FramePlan plan = plan_frame(PlanContext{scene, settings, true});
-    EXPECT_EQ(planes_read_on_cpu(plan, settings), row.on_cpu) << plan.explain();
-    EXPECT_EQ(planes_read(plan, settings), row.all) << plan.explain();
+    EXPECT_EQ(planes_read_on_cpu(plan), row.on_cpu) << plan.explain();
+    EXPECT_EQ(planes_read(plan), row.all) << plan.explain();
   }
   // The passes with a GPU implementation: the G-buffer, the tone map, the overlay.
   for (const PassDecl& d : pass_declarations())
