@@ -2,6 +2,7 @@
 // toggles, and gaze, latency and loss in the title bar.
 #include <GLFW/glfw3.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -87,10 +88,12 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
     }
     case GLFW_KEY_F: toggle(s, "overlay.focus"); break;
     case GLFW_KEY_P: {
-      static const char* maps[] = {"none", "saliency", "spatial", "temporal", "attention"};
-      std::size_t i = 0;
-      while (i < 5 && !s.is("overlay.map", maps[i])) ++i;
-      s.set("overlay.map", maps[(i + 1) % 5]);
+      // none, then the attention maps in their order; from any other map, the first attention map.
+      std::vector<std::string> cycle{"none"};
+      cycle.insert(cycle.end(), attention::kMaps.begin(), attention::kMaps.end());
+      const auto at = std::find(cycle.begin(), cycle.end(), s.text("overlay.map"));
+      const std::size_t i = at == cycle.end() ? 0 : static_cast<std::size_t>(at - cycle.begin());
+      s.set("overlay.map", cycle[(i + 1) % cycle.size()]);
       std::printf("overlay.map=%s\n", s.text("overlay.map").c_str());
       break;
     }

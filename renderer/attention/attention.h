@@ -15,16 +15,24 @@
 //   S_o(k) = (T_s(k) + T_t(k)) S^_o(k)                                       (3.8)
 //   T_s(k) = 0 if v.w > 0 and dx > 0, else c_s (x/c_x) e^{-(x/c_x)^2} e^{-c_y y^2}   (3.9)
 //   T_t(k) = 1/lambda sum of the last lambda T_s(k)                          (3.10)
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "backend/gbuffer.h"
 #include "scene/scene.h"
 
 namespace fovea::render::attention {
+
+// The attention pass's maps an overlay shows (overlay.map; Lee 2009 Fig. 3.4), in the viewer's
+// cycling order: the one list the planner, the pipeline, the overlay and the viewer read.
+inline constexpr std::array<std::string_view, 4> kMaps = {"saliency", "spatial", "temporal", "attention"};
+inline bool is_map(std::string_view name) { return std::find(kMaps.begin(), kMaps.end(), name) != kMaps.end(); }
 
 // The feature groups of Lee 2009 §3.5.2 / Table 3.2, switchable for the ablation.
 struct FeatureGroups {

@@ -151,7 +151,7 @@ void draw_coc_map(Image8& img, const GBuffer& g, const dof::CocModel& coc) {
 }
 
 bool draw_attention_map(Image8& img, const attention::AttentionFrame& f, const std::string& map) {
-  if (map != "saliency" && map != "spatial" && map != "temporal" && map != "attention") return false;
+  if (!attention::is_map(map)) return false;
   const std::size_t n = static_cast<std::size_t>(std::max(0, f.map_width)) * static_cast<std::size_t>(std::max(0, f.map_height));
   if (img.width == 0 || img.height == 0) return true;
   if (n == 0 || f.saliency.size() < n || f.ids.size() < n) {

@@ -47,10 +47,6 @@ attention::FocusSettings focus_settings(const Settings& s, const Lens& lens) {
   return f;
 }
 
-bool is_attention_map(const std::string& map) {
-  return map == "saliency" || map == "spatial" || map == "temporal" || map == "attention";
-}
-
 double steady_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -382,7 +378,7 @@ void FramePipeline::step_tonemap(Frame& f, const std::vector<glm::vec3>& hdr, Pa
 void FramePipeline::step_overlay(const Frame& f, PassTimer& timer) {
   auto t = timer.scope("overlay");
   const std::string& map = settings_.text("overlay.map");
-  if (is_attention_map(map)) {
+  if (attention::is_map(map)) {
     if (f.attention != nullptr) {
       draw_attention_map(image_, *f.attention, map);
       draw_attention_mark(image_, *f.attention);

@@ -1,5 +1,7 @@
 #include "pipeline/planner.h"
 
+#include "attention/attention.h"
+
 #include <cstdio>
 #include <stdexcept>
 
@@ -249,8 +251,7 @@ void decide_attention(Planning& p) {
   p.gi_follows_attention = plan.needed(PassId::Gi) && !p.c.gaze_available && !s.is("gi.area", "full");
   if (p.gi_follows_attention) consumers.push_back("gi (no gaze source: its gaze area)");
   const std::string& overlay_map = s.text("overlay.map");
-  if (p.image && (overlay_map == "saliency" || overlay_map == "spatial" || overlay_map == "temporal" ||
-                  overlay_map == "attention")) {
+  if (p.image && attention::is_map(overlay_map)) {
     consumers.push_back("overlay (overlay.map=" + overlay_map + ")");
   }
   if (consumers.empty()) {
@@ -285,8 +286,7 @@ void wait_attention(Planning& p) {
   const Settings& s = p.s;
   const FramePlan& plan = p.plan;
   const std::string& mode = s.text("focus.mode");
-  const bool attention_overlay = p.image && (s.is("overlay.map", "saliency") || s.is("overlay.map", "spatial") ||
-                                             s.is("overlay.map", "temporal") || s.is("overlay.map", "attention"));
+  const bool attention_overlay = p.image && attention::is_map(s.text("overlay.map"));
   wait_unless(p.plan, PassId::Attention,
               attention_overlay || (p.lod_uses_attention && plan.runs(PassId::LodSelect)) ||
                   (p.gi_follows_attention && plan.runs(PassId::Gi)) ||

@@ -2,6 +2,7 @@
 // the passes that must (not) be planned.
 #include <gtest/gtest.h>
 
+#include "attention/attention.h"
 #include "pipeline/planner.h"
 #include "scene/geometry.h"
 
@@ -162,6 +163,19 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
   // The passes with a GPU implementation: the G-buffer, the tone map, the overlay.
   for (const PassDecl& d : pass_declarations())
     EXPECT_EQ(d.on_gpu, d.id == PassId::GBuffer || d.id == PassId::Tonemap || d.id == PassId::Overlay) << d.name;
+}
+
+// The attention maps (one list, attention::kMaps) are overlay.map values and make the planner run
+// the attention pass.
+TEST(Planner, EveryAttentionMapIsAnOverlayValueAndNeedsAttention) {
+  const Scene scene = make_scene({});
+  for (const std::string_view map : attention::kMaps) {
+    Settings settings;
+    ASSERT_NO_THROW(settings.set("overlay.map", std::string(map))) << map;
+    const FramePlan plan = plan_frame(PlanContext{scene, settings, true});
+    EXPECT_TRUE(plan.runs(PassId::Attention)) << map << "\n" << plan.explain();
+  }
+  EXPECT_FALSE(attention::is_map("depth"));
 }
 
 TEST(Settings, RejectUnknownKeysAndBadValuesNamingWhatIsAllowed) {
