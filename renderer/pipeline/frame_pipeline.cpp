@@ -47,6 +47,58 @@ attention::FocusSettings focus_settings(const Settings& s, const Lens& lens) {
   return f;
 }
 
+// The gi.* settings (and shadows) as the gi pass's; gi.area=full shows GI everywhere (fovea 1, no CSF
+// periphery).
+gi::GiPassSettings gi_pass_settings(const Settings& s) {
+  const auto count = [&](const char* key) { return static_cast<std::uint32_t>(std::lround(s.number(key))); };
+  const bool full = s.is("gi.area", "full");
+  gi::GiPassSettings gs;
+  const std::string& strategy = s.text("gi.strategy");
+  gs.strategy = strategy == "gaze-directed" ? gi::Strategy::GazeDirected
+                : strategy == "importon"    ? gi::Strategy::Importon
+                                            : gi::Strategy::Traditional;
+  gs.photons = count("gi.photons");
+  gs.caustic_photons = count("gi.caustic_photons");
+  gs.caustics = s.flag("gi.caustics");
+  gs.trace_depth = count("gi.trace_depth");
+  gs.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
+  gs.render.estimate.nearest = count("gi.nnn");
+  gs.render.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
+  gs.render.estimate.filter = s.is("gi.filter", "disc") ? gi::EstimateFilter::Disc : gi::EstimateFilter::Cone;
+  gs.render.caustic_estimate.filter = gs.render.estimate.filter;
+  gs.render.indirect_estimate =
+      s.is("gi.estimate", "precomputed") ? gi::IndirectEstimate::Precomputed : gi::IndirectEstimate::Nearest;
+  gs.render.ray_depth = count("gi.ray_depth");
+  gs.render.shadows = s.flag("shadows");
+  gs.precompute_stride = count("gi.precompute_stride");
+  gs.gaze.emission_ratio = s.number("gi.emission_ratio");
+  gs.gaze.gaze_directed_reflections = s.flag("gi.guided_reflections");
+  gs.gaze.nn_reflect_radius = static_cast<float>(s.number("gi.nn_reflect_radius"));
+  gs.gaze.noise_scale = static_cast<float>(s.number("gi.noise_scale"));
+  gs.importons = count("gi.importons");
+  gs.fovea = full ? 1.0f : static_cast<float>(s.number("gi.fovea"));
+  gs.csf_periphery = s.is("gi.periphery", "csf") && !full;
+  gs.csf.quality = s.number("gi.csf_quality");
+  return gs;
+}
+
+lod::PolicySettings lod_policy_settings(const Settings& s) {
+  lod::PolicySettings ps;
+  ps.policy = lod::parse_policy(s.text("lod.policy"));
+  ps.tolerance_px = s.number("lod.tolerance_px");
+  ps.distance_ref_m = s.number("lod.distance_ref_m");
+  ps.hysteresis = s.number("lod.hysteresis");
+  return ps;
+}
+
+TonemapParams tonemap_params(const Settings& s) {
+  TonemapParams p;
+  p.exposure = static_cast<float>(s.number("tonemap.exposure"));
+  p.op = s.text("tonemap.operator");
+  p.exact = s.flag("tonemap.exact");
+  return p;
+}
+
 double steady_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -71,7 +123,21 @@ FramePipeline::FramePipeline(Scene scene, Settings settings, std::unique_ptr<Bac
   }
 }
 
+const FramePipeline::PassSettings& FramePipeline::pass_settings() {
+  if (parsed_valid_ && parsed_version_ == settings_.version()) return parsed_;
+  parsed_.attention = attention_settings(settings_);
+  parsed_.focus = focus_settings(settings_, scene_.camera.lens);
+  parsed_.gi = gi_pass_settings(settings_);
+  parsed_.lod = lod_policy_settings(settings_);
+  parsed_.lod_budget_ms = settings_.number("lod.budget_ms");
+  parsed_.tonemap = tonemap_params(settings_);
+  parsed_version_ = settings_.version();
+  parsed_valid_ = true;
+  return parsed_;
+}
+
 void FramePipeline::scene_changed() {
+  parsed_valid_ = false;  // the focus settings read the lens
   backend_->set_scene(scene_);
   if (gi_pass_) gi_pass_->set_scene(scene_);
 }
@@ -236,8 +302,8 @@ void FramePipeline::step_tonemap_on_gpu(const Frame& f, const std::vector<glm::v
     gpu_->upload_inset(gi_pass_->gi_image(), f.gbuffer->width, f.gbuffer->height, f.gi->area.center_px,
                        f.gi->area.radius_px, gi_fovea_);
   }
-  gpu_->tonemap(GpuTonemap{gpu_operator(settings_.text("tonemap.operator")),
-                           static_cast<float>(settings_.number("tonemap.exposure"))});
+  const TonemapParams& p = pass_settings().tonemap;
+  gpu_->tonemap(GpuTonemap{gpu_operator(p.op), p.exposure});
 }
 
 // draw_focus and draw_gaze's marks (passes/overlay.h) as the GPU pass draws them.
@@ -326,7 +392,7 @@ void FramePipeline::step_attention(Frame& f, double now_s, double previous_s, bo
 
 void FramePipeline::step_focus(Frame& f, double frame_clock_s, bool check, PassTimer& timer) {
   auto t = timer.scope("focus");
-  const attention::FocusSettings wanted = focus_settings(settings_, scene_.camera.lens);
+  const attention::FocusSettings& wanted = pass_settings().focus;
   if (wanted != focus_settings_) {  // a changed setting starts the focus afresh
     focus_settings_ = wanted;
     focus_ = attention::FocusTracker(wanted);
@@ -367,11 +433,7 @@ const std::vector<glm::vec3>& FramePipeline::step_gi(Frame& f, const std::vector
 
 void FramePipeline::step_tonemap(Frame& f, const std::vector<glm::vec3>& hdr, PassTimer& timer) {
   auto t = timer.scope("tonemap");
-  TonemapParams p;
-  p.exposure = static_cast<float>(settings_.number("tonemap.exposure"));
-  p.op = settings_.text("tonemap.operator");
-  p.exact = settings_.flag("tonemap.exact");
-  tonemap(hdr, gbuffer_.width, gbuffer_.height, p, image_);
+  tonemap(hdr, gbuffer_.width, gbuffer_.height, pass_settings().tonemap, image_);
   f.image = &image_;
 }
 
@@ -415,7 +477,6 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   // The frame's levels, whatever the backend rendered last (ULOD's next-coarser levels, a peeled layer).
   if (gi_tracer_ != nullptr) gi_tracer_->set_lod_levels(lod_levels_);
   const Settings& s = settings_;
-  const auto count = [&](const char* key) { return static_cast<std::uint32_t>(std::lround(s.number(key))); };
   gi_frame_ = Frame::Gi{};
   // Where: the gaze point, else the most attended object, else the screen centre; or everything.
   const Camera& cam = scene_.camera;
@@ -438,38 +499,12 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   } else {
     gi_frame_.area = gi::gaze_area(scene_.display, cam.width, cam.height, centre, s.number("gi.gaze_area_deg"));
   }
-  gi::GiPassSettings gs;
-  const std::string& strategy = s.text("gi.strategy");
-  gs.strategy = strategy == "gaze-directed" ? gi::Strategy::GazeDirected
-                : strategy == "importon"    ? gi::Strategy::Importon
-                                            : gi::Strategy::Traditional;
-  gs.photons = count("gi.photons");
-  gs.caustic_photons = count("gi.caustic_photons");
-  gs.caustics = s.flag("gi.caustics");
-  gs.trace_depth = count("gi.trace_depth");
-  gs.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
-  gs.render.estimate.nearest = count("gi.nnn");
-  gs.render.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
-  gs.render.estimate.filter = s.is("gi.filter", "disc") ? gi::EstimateFilter::Disc : gi::EstimateFilter::Cone;
-  gs.render.caustic_estimate.filter = gs.render.estimate.filter;
-  gs.render.indirect_estimate =
-      s.is("gi.estimate", "precomputed") ? gi::IndirectEstimate::Precomputed : gi::IndirectEstimate::Nearest;
-  gs.render.ray_depth = count("gi.ray_depth");
-  gs.render.shadows = s.flag("shadows");
-  gs.precompute_stride = count("gi.precompute_stride");
-  gs.gaze.emission_ratio = s.number("gi.emission_ratio");
-  gs.gaze.gaze_directed_reflections = s.flag("gi.guided_reflections");
-  gs.gaze.nn_reflect_radius = static_cast<float>(s.number("gi.nn_reflect_radius"));
-  gs.gaze.noise_scale = static_cast<float>(s.number("gi.noise_scale"));
-  gs.importons = count("gi.importons");
-  gs.fovea = full ? 1.0f : static_cast<float>(s.number("gi.fovea"));
-  gs.csf_periphery = s.is("gi.periphery", "csf") && !full;
+  gi::GiPassSettings gs = pass_settings().gi;
   // On the GPU-resident path the inset is composited on the GPU (the tone map's input), unless the
   // CSF periphery replaces the local image, which is then made on the CPU anyway.
   gi_inset_on_gpu_ = f.on_gpu && !gs.csf_periphery;
   gs.composite = !gi_inset_on_gpu_;
   gi_fovea_ = gs.fovea;
-  gs.csf.quality = s.number("gi.csf_quality");
   const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_);
   timer.record("gi.photons", r.photons_ms);
   timer.record("gi.index", r.index_ms);
@@ -490,7 +525,7 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
 
 const attention::AttentionFrame& FramePipeline::run_attention(const GBuffer& g, double now_s, double previous_s,
                                                               bool check) {
-  const attention::AttentionSettings wanted = attention_settings(settings_);
+  const attention::AttentionSettings& wanted = pass_settings().attention;
   if (wanted != attention_.settings()) attention_.set_settings(wanted);
   const attention::AttentionFrame& a = attention_.update(g, scene_, now_s, previous_s);
   if (check) require_finite_attention(a);
@@ -510,14 +545,10 @@ void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& dra
 }
 
 void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms) {
-  const Settings& s = settings_;
-  lod::PolicySettings ps;
-  ps.policy = lod::parse_policy(s.text("lod.policy"));
-  ps.tolerance_px = s.number("lod.tolerance_px");
-  ps.distance_ref_m = s.number("lod.distance_ref_m");
-  ps.hysteresis = s.number("lod.hysteresis");
+  const PassSettings& parsed = pass_settings();
+  const lod::PolicySettings& ps = parsed.lod;
   lod_selector_.set_settings(ps);
-  if (lod_selector_.budget().target_ms != s.number("lod.budget_ms")) lod_selector_.set_budget_ms(s.number("lod.budget_ms"));
+  if (lod_selector_.budget().target_ms != parsed.lod_budget_ms) lod_selector_.set_budget_ms(parsed.lod_budget_ms);
   lod_frame_ = Frame::Lod{};
   lod_frame_.policy = lod::to_string(ps.policy);
   const attention::AttentionFrame& att = attention_.last();

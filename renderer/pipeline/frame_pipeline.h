@@ -26,6 +26,7 @@
 #include "lod/lod_policy.h"
 #include "image/image.h"
 #include "passes/overlay.h"
+#include "passes/tonemap.h"
 #include "pipeline/pass_timer.h"
 #include "pipeline/planner.h"
 #include "pipeline/settings.h"
@@ -160,6 +161,21 @@ class FramePipeline {
   void late_latch(Frame& f, PassTimer& timer);
   GBufferPlanes planes_written(const FramePlan& plan) const;
   std::string placement(const FramePlan& plan) const;
+
+  // The passes' typed settings, parsed from settings_ once per change (Settings::version) or scene
+  // change, not from strings every frame.
+  struct PassSettings {
+    attention::AttentionSettings attention;
+    attention::FocusSettings focus;
+    gi::GiPassSettings gi;
+    lod::PolicySettings lod;
+    double lod_budget_ms = 0;
+    TonemapParams tonemap;
+  };
+  const PassSettings& pass_settings();
+  PassSettings parsed_;
+  std::uint64_t parsed_version_ = 0;
+  bool parsed_valid_ = false;
 
   GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run
   bool cpu_gbuffer_required_ = false;

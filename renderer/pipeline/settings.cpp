@@ -185,7 +185,10 @@ void Settings::set(const std::string& key, const std::string& value) {
   const SettingSpec* spec = find_spec(key);
   if (spec == nullptr) throw std::invalid_argument("unknown setting \"" + key + "\"; known: " + all_keys());
   check_value(*spec, value);
-  values_[key] = value;
+  std::string& held = values_[key];
+  if (held == value) return;
+  held = value;
+  ++version_;
 }
 
 void Settings::set_assignment(const std::string& assignment) {

@@ -2,6 +2,7 @@
 // Render settings: every quality knob and effect switch of fovea-render, with its default, allowed
 // values and meaning. `--set key=value` on the command line and the viewer's toggles change them;
 // unknown keys and bad values are errors that list what is allowed.
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -31,9 +32,13 @@ class Settings {
   bool is(const std::string& key, const std::string& value) const { return text(key) == value; }
   // Keys whose value differs from the default, for reports.
   std::map<std::string, std::string> changed() const;
+  // Grows with every set() that changes a value: the passes parse their typed settings again only
+  // when it moved.
+  std::uint64_t version() const { return version_; }
 
  private:
   std::map<std::string, std::string> values_;
+  std::uint64_t version_ = 0;
 };
 
 }  // namespace fovea::render
