@@ -178,6 +178,22 @@ TEST(Planner, EveryAttentionMapIsAnOverlayValueAndNeedsAttention) {
   EXPECT_FALSE(attention::is_map("depth"));
 }
 
+// The passes parse their typed settings again only when the version moved: every change moves it,
+// setting a value a key already holds does not, and a refused value leaves it (and the value) alone.
+TEST(Settings, VersionMovesWithEveryChangeAndOnlyThen) {
+  Settings s;
+  const std::uint64_t v0 = s.version();
+  s.set("dof.method", "lee-splat");
+  EXPECT_EQ(s.version(), v0 + 1);
+  s.set("dof.method", "lee-splat");
+  EXPECT_EQ(s.version(), v0 + 1);
+  EXPECT_THROW(s.set("dof.method", "nonsense"), std::invalid_argument);
+  EXPECT_EQ(s.version(), v0 + 1);
+  EXPECT_EQ(s.text("dof.method"), "lee-splat");
+  s.set_assignment("dof.method=lee-mipmap");
+  EXPECT_EQ(s.version(), v0 + 2);
+}
+
 TEST(Settings, RejectUnknownKeysAndBadValuesNamingWhatIsAllowed) {
   Settings s;
   EXPECT_FALSE(s.flag("gi.enabled"));
