@@ -494,16 +494,18 @@ void GlBackend::read_back(const GBufferPlanes& planes, GBuffer& out) {
   };
   // GL rows start at the bottom; the G-buffer's row 0 is the top.
   const auto src = [&](std::uint32_t x, std::uint32_t y) { return std::size_t{h - 1 - y} * w + x; };
-
-  if (planes.color) {
-    read_float(kColor, GL_RGBA, 4);
+  // An RGBA32F attachment's RGB into a vec3 plane, non-finite values as 0.
+  const auto read_vec3 = [&](std::size_t index, std::vector<glm::vec3>& plane) {
+    read_float(index, GL_RGBA, 4);
     for (std::uint32_t y = 0; y < h; ++y) {
       for (std::uint32_t x = 0; x < w; ++x) {
         const float* p = &scratch_[4 * src(x, y)];
-        out.color[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
+        plane[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
       }
     }
-  }
+  };
+
+  if (planes.color) read_vec3(kColor, out.color);
   if (planes.depth) {
     read_float(kDepth, GL_RED, 1);
     for (std::uint32_t y = 0; y < h; ++y) {
@@ -512,15 +514,7 @@ void GlBackend::read_back(const GBufferPlanes& planes, GBuffer& out) {
   } else {
     std::fill(out.depth.begin(), out.depth.end(), far_m);
   }
-  if (planes.normal) {
-    read_float(kNormal, GL_RGBA, 4);
-    for (std::uint32_t y = 0; y < h; ++y) {
-      for (std::uint32_t x = 0; x < w; ++x) {
-        const float* p = &scratch_[4 * src(x, y)];
-        out.normal[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
-      }
-    }
-  }
+  if (planes.normal) read_vec3(kNormal, out.normal);
   if (planes.motion) {
     read_float(kMotion, GL_RG, 2);
     for (std::uint32_t y = 0; y < h; ++y) {

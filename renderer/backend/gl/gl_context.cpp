@@ -407,12 +407,7 @@ void GlContext::present(std::span<const std::uint8_t> rgba, std::uint32_t width,
                                 std::to_string(width) + "x" + std::to_string(height) +
                                 " RGBA image (expected width*height*4, both positive)");
   }
-  if (window_ == nullptr) {
-    throw std::logic_error("GlContext::present: an EGL context has no window to present to (" + platform_ + ")");
-  }
-  make_current();
-  if (present_program_ == 0) create_present_resources();
-  glActiveTexture(GL_TEXTURE0);
+  begin_present("GlContext::present");  // creates present_texture_ on first use
   glBindTexture(GL_TEXTURE_2D, present_texture_);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, static_cast<GLsizei>(width), static_cast<GLsizei>(height), 0, GL_RGBA,
@@ -427,15 +422,20 @@ void GlContext::present_texture(unsigned texture, std::uint32_t width, std::uint
                                 std::to_string(height) + " image in a " + std::to_string(texture_width) + "x" +
                                 std::to_string(texture_height) + " texture");
   }
+  begin_present("GlContext::present_texture");
+  glBindTexture(GL_TEXTURE_2D, texture);
+  draw_present_quad(width, height, static_cast<float>(width) / static_cast<float>(texture_width),
+                    static_cast<float>(height) / static_cast<float>(texture_height), false);
+}
+
+// What both presents need first: a window, this context current, the present resources, unit 0.
+void GlContext::begin_present(const char* who) {
   if (window_ == nullptr) {
-    throw std::logic_error("GlContext::present_texture: an EGL context has no window to present to (" + platform_ + ")");
+    throw std::logic_error(std::string(who) + ": an EGL context has no window to present to (" + platform_ + ")");
   }
   make_current();
   if (present_program_ == 0) create_present_resources();
   glActiveTexture(GL_TEXTURE0);
-  glBindTexture(GL_TEXTURE_2D, texture);
-  draw_present_quad(width, height, static_cast<float>(width) / static_cast<float>(texture_width),
-                    static_cast<float>(height) / static_cast<float>(texture_height), false);
 }
 
 // The bound texture to the default framebuffer, letterboxed (the largest viewport of the image's

@@ -107,6 +107,7 @@ class GlContext {
   std::string renderer_, platform_;
   GlFeatures features_;
   void read_features();
+  void begin_present(const char* who);
   void draw_present_quad(std::uint32_t width, std::uint32_t height, float u_max, float v_max, bool top_row_first);
   // present() resources, created on first use.
   unsigned present_program_ = 0, present_vao_ = 0, present_texture_ = 0;
