@@ -2,14 +2,139 @@
 
 #include "attention/attention.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 
 namespace fovea::render {
 
+const char* to_string(Resource r) {
+  switch (r) {
+    case Resource::LodLevels: return "LOD levels";
+    case Resource::GBuffer: return "G-buffer";
+    case Resource::Attention: return "attention";
+    case Resource::FocalDepth: return "focal depth";
+    case Resource::HdrColor: return "HDR colour";
+    case Resource::GiInset: return "GI inset";
+    case Resource::Display: return "display image";
+  }
+  return "?";
+}
+
+Resource PlanContext::output() const { return settings.is("output", "final") ? Resource::Display : Resource::GBuffer; }
+
 namespace {
 
-// What each pass reads of the frame's G-buffer (PassDecl::gbuffer_reads).
+bool has(const std::vector<Resource>& set, Resource r) { return std::find(set.begin(), set.end(), r) != set.end(); }
+
+// --- When a pass reads an edge (ReadDecl::active) ---------------------------------------------
+
+// Lee 2009 §7.2: with ULOD the attention pass reads its own proxy render, before the G-buffer.
+bool lod_ulod(const PlanContext& c) {
+  return c.settings.flag("lod.enabled") && c.scene.has_lods() && c.settings.is("lod.policy", "ulod");
+}
+bool not_lod_ulod(const PlanContext& c) { return !lod_ulod(c); }
+bool focus_uses_attention(const PlanContext& c) {
+  return c.settings.is("focus.mode", "attention") || c.settings.is("focus.mode", "gaze+attention");
+}
+bool gi_area_follows_attention(const PlanContext& c) { return !c.gaze_available && !c.settings.is("gi.area", "full"); }
+bool overlay_draws_attention(const PlanContext& c) { return attention::is_map(c.settings.text("overlay.map")); }
+bool overlay_draws_focus(const PlanContext& c) { return c.settings.flag("overlay.focus"); }
+bool dof_filters_the_image(const PlanContext& c) {
+  return !c.settings.is("dof.method", "reference") && !c.settings.is("dof.method", "accum");
+}
+
+PassRule yes(std::string why) { return {true, std::move(why), true, ""}; }
+PassRule no(std::string why) { return {false, std::move(why), true, ""}; }
+
+// --- Each pass's rule: is its effect visible in this scene with these settings ----------------
+
+PassRule gbuffer_rule(const PlanContext&) { return yes("every output starts from the G-buffer"); }
+
+PassRule attention_rule(const PlanContext& c) {
+  if (!c.settings.flag("attention.enabled"))
+    return no("attention.enabled=false (consumers fall back to gaze or defaults)");
+  return yes("");
+}
+
+PassRule focus_rule(const PlanContext& c) {
+  const std::string& mode = c.settings.text("focus.mode");
+  if (mode == "fixed") return no("focus.mode=fixed: the lens focus distance is used");
+  std::string why = "focus.mode=" + mode;
+  if (mode == "gaze" && !c.gaze_available) why += " without a gaze source: the screen centre is used";
+  return yes(why);
+}
+
+// Only objects with LOD chains can change detail.
+PassRule lod_rule(const PlanContext& c) {
+  const Settings& s = c.settings;
+  if (!s.flag("lod.enabled")) return no("lod.enabled=false");
+  if (!c.scene.has_lods()) return no("no object has an LOD chain");
+  std::string why = "objects with LOD chains; lod.policy=" + s.text("lod.policy");
+  if (s.is("lod.policy", "gaze") && !c.gaze_available) why += " without a gaze source: eccentricity from the screen centre";
+  if (s.number("lod.budget_ms") > 0) why += "; frame budget " + s.text("lod.budget_ms") + " ms";
+  return yes(why);
+}
+
+// A pinhole lens keeps everything in focus.
+PassRule dof_rule(const PlanContext& c) {
+  const Settings& s = c.settings;
+  const Lens& lens = c.scene.camera.lens;
+  if (!s.flag("dof.enabled")) return no("dof.enabled=false");
+  if (lens.is_pinhole()) return no("pinhole lens: nothing is out of focus");
+  char why[160];
+  const std::string& method = s.text("dof.method");
+  std::snprintf(why, sizeof why, "thin lens F=%.1f mm, aperture %.2f mm, method %s", lens.focal_length_m * 1000,
+                lens.aperture_m * 1000, method.c_str());
+  PassRule rule = yes(why);
+  if (method == "reference" && !c.backend_traces_rays) {
+    rule.able = false;
+    rule.unable = "the ray-traced reference needs --backend embree (per-pixel lens rays); accum is the raster "
+                  "backend's reference";
+  }
+  return rule;
+}
+
+// Only with light to carry; the caustic map only with specular or refractive surfaces to focus it.
+PassRule gi_rule(const PlanContext& c) {
+  const Settings& s = c.settings;
+  if (!s.flag("gi.enabled")) return no("gi.enabled=false");
+  if (c.scene.lights.empty()) return no("the scene has no lights: no light to bounce");
+  std::string why = "gi.enabled=true, " + std::to_string(c.scene.lights.size()) + " light(s); caustic map: ";
+  if (!s.flag("gi.caustics")) {
+    why += "off (gi.caustics=false)";
+  } else if (c.scene.has_specular_or_refractive()) {
+    why += "yes (specular or refractive surfaces)";
+  } else {
+    why += "no (no specular or refractive surface)";
+  }
+  if (s.is("gi.area", "full")) {
+    why += "; gi.area=full: the whole screen is ray traced";
+  } else if (c.gaze_available) {
+    why += "; the " + s.text("gi.gaze_area_deg") + " deg gaze area follows the gaze";
+  } else if (s.flag("attention.enabled")) {
+    why += "; no gaze source: the gaze area follows the most attended object";
+  } else {
+    why += "; no gaze source and attention.enabled=false: the gaze area stays at the screen centre";
+  }
+  if (s.is("gi.periphery", "csf") && !s.is("gi.area", "full")) why += "; periphery by CSF-driven ray casting (Murphy 2007)";
+  return yes(why);
+}
+
+PassRule tonemap_rule(const PlanContext&) { return yes("output=final is a display image"); }
+
+// Something to draw on top of the display image.
+PassRule overlay_rule(const PlanContext& c) {
+  const Settings& s = c.settings;
+  if (!s.is("overlay.map", "none")) return yes("overlay.map=" + s.text("overlay.map"));
+  if (s.flag("overlay.gaze") && c.gaze_available) return yes("overlay.gaze=true and a gaze source is connected");
+  if (s.flag("overlay.focus") && !s.is("focus.mode", "fixed")) return yes("overlay.focus=true");
+  return no(!s.flag("overlay.gaze") ? "overlay.gaze=false and overlay.map=none"
+                                         : "no gaze source (--gaze none) and overlay.map=none");
+}
+
+// --- What each pass reads of the frame's G-buffer (PassDecl::gbuffer_reads) --------------------
+
 bool ulod_attention_first(const FramePlan& plan, const Settings& s) {
   return plan.runs(PassId::LodSelect) && plan.runs(PassId::Attention) && s.is("lod.policy", "ulod");
 }
@@ -38,27 +163,43 @@ GBufferPlanes overlay_reads(const FramePlan& plan, const Settings& s) {
 
 }  // namespace
 
+// "overlay.map=saliency|spatial|temporal|attention", from the one list of attention maps.
+const char* attention_overlay_values() {
+  static const std::string kWhen = [] {
+    std::string out = "overlay.map=";
+    for (std::size_t i = 0; i < attention::kMaps.size(); ++i) out += (i ? "|" : "") + std::string(attention::kMaps[i]);
+    return out;
+  }();
+  return kWhen.c_str();
+}
+
 const std::vector<PassDecl>& pass_declarations() {
+  using R = Resource;
   static const std::vector<PassDecl> kPasses = {
-      {PassId::GBuffer, "gbuffer", "scene, camera, time", "colour, depth, id, normal, motion",
-       "always: every output starts from it", nullptr, true},
-      {PassId::Attention, "attention", "scene (object and observer motion, task importance)",
-       "per-object attention S_o, saliency maps",
-       "focus, lod-select or an attention overlay (overlay.map=saliency|spatial|temporal|attention) consume it",
-       attention_reads},
-      {PassId::Focus, "focus", "gaze, attention", "focal depth",
-       "dof runs or overlay.focus shows it, and focus is not fixed", focus_reads},
-      {PassId::LodSelect, "lod-select", "camera, gaze, the last frame's attention (and its G-buffer)", "LOD level per object",
-       "the scene has LOD chains and lod.enabled", lod_reads},
-      {PassId::Dof, "dof", "focal depth", "HDR colour", "a thin lens with an aperture and dof.enabled",
-       dof_reads},
-      {PassId::Gi, "gi", "scene (its own rays), gaze (or attention)", "the gaze area's GI (composited over the HDR colour)",
-       "gi.enabled and the scene has lights"},
-      {PassId::Tonemap, "tonemap", "HDR colour (the G-buffer's, dof's), the GI inset", "display image (sRGB 8-bit)",
-       "the output is an image", tonemap_reads,
-       true},
-      {PassId::Overlay, "overlay", "display image, gaze, maps", "display image",
-       "overlay.gaze with a gaze source, or overlay.map", overlay_reads, true},
+      {PassId::GBuffer, "gbuffer", {{R::LodLevels}}, {R::GBuffer, R::HdrColor}, "scene, camera, time", gbuffer_rule,
+       nullptr, true},
+      {PassId::Attention, "attention",
+       {{R::GBuffer, "unless lod.policy=ulod (then its own proxy render)", not_lod_ulod}}, {R::Attention},
+       "scene (object and observer motion, task importance)", attention_rule, attention_reads, false, true},
+      {PassId::Focus, "focus",
+       {{R::GBuffer}, {R::Attention, "focus.mode=attention|gaze+attention", focus_uses_attention}}, {R::FocalDepth},
+       "gaze", focus_rule, focus_reads, false, true},
+      {PassId::LodSelect, "lod-select", {{R::Attention, "lod.policy=ulod", lod_ulod}}, {R::LodLevels},
+       "camera, gaze, the last frame's G-buffer", lod_rule, lod_reads},
+      {PassId::Dof, "dof",
+       {{R::HdrColor}, {R::FocalDepth}, {R::GBuffer, "an image-space dof.method", dof_filters_the_image}},
+       {R::HdrColor}, "the lens", dof_rule, dof_reads},
+      {PassId::Gi, "gi",
+       {{R::HdrColor}, {R::Attention, "no gaze source (its gaze area)", gi_area_follows_attention}}, {R::GiInset},
+       "scene (its own rays), gaze", gi_rule},
+      {PassId::Tonemap, "tonemap", {{R::HdrColor}, {R::GiInset}}, {R::Display}, "tonemap.*", tonemap_rule,
+       tonemap_reads, true},
+      {PassId::Overlay, "overlay",
+       {{R::Display},
+        {R::GBuffer},
+        {R::Attention, attention_overlay_values(), overlay_draws_attention},
+        {R::FocalDepth, "overlay.focus=true", overlay_draws_focus}},
+       {R::Display}, "gaze", overlay_rule, overlay_reads, true},
   };
   return kPasses;
 }
@@ -69,255 +210,184 @@ bool FramePlan::runs(PassId id) const { return at(id).runs; }
 bool FramePlan::needed(PassId id) const { return at(id).needed; }
 const PlannedPass& FramePlan::at(PassId id) const { return passes.at(static_cast<std::size_t>(id)); }
 
-std::string FramePlan::explain() const {
+namespace {
+
+std::string join(const std::vector<std::string>& parts, const char* sep = ", ") {
   std::string out;
-  for (const PlannedPass& p : passes) {
-    const PassDecl& d = declaration(p.id);
-    char line[512];
-    // "later": the output needs the pass but it cannot run with these settings (the reason says why).
-    const char* verdict = p.runs ? "run " : (p.needed ? "later" : "skip");
-    std::snprintf(line, sizeof line, "  %-5s %-10s %s\n", verdict, d.name, p.reason.c_str());
-    out += line;
-  }
-  out += "  graph      (the passes that run: what each reads -> what it writes)\n";
-  for (const PlannedPass& p : passes) {
-    if (!p.runs) continue;
-    const PassDecl& d = declaration(p.id);
-    const std::string gbuffer = p.gbuffer_reads.any() ? "G-buffer " + to_string(p.gbuffer_reads) + "; " : "";
-    out += "    " + std::string(d.name) + ": " + gbuffer + d.reads + " -> " + d.writes + "\n";
-  }
-  if (!placement.empty()) out += "  where " + placement + "\n";
+  for (const std::string& p : parts) out += (out.empty() ? "" : sep) + p;
   return out;
 }
 
-namespace {
+std::string names(const std::vector<Resource>& resources) {
+  std::vector<std::string> parts;
+  for (Resource r : resources) parts.emplace_back(to_string(r));
+  return join(parts);
+}
 
-// What the per-pass decisions share: the inputs, the plan they fill in, and the facts a later
-// decision reads from an earlier one (decisions run backwards from the output, consumers first).
-struct Planning {
-  const PlanContext& c;
-  const Scene& scene;
-  const Settings& s;
-  FramePlan& plan;
-  bool image = false;                 // output=final: a display image
-  bool shows_focus = false;           // decide_focus: the focus overlay draws the focal depth
-  bool lod_uses_attention = false;    // decide_attention: lod.policy=ulod reads attention
-  bool gi_follows_attention = false;  // decide_attention: no gaze source, the gaze area follows attention
+// One edge of the graph as built: `consumer` reads `resource`, which `producer` writes.
+struct Edge {
+  PassId producer, consumer;
+  const ReadDecl* read;
 };
 
-void decide(FramePlan& plan, PassId id, bool needed, std::string reason) {
-  PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
-  p.needed = needed;
-  p.runs = needed;
-  p.reason = std::move(reason);
-}
-
-// Backwards from the output: the display image needs tonemap.
-void decide_tonemap(Planning& p) {
-  decide(p.plan, PassId::Tonemap, p.image,
-         p.image ? "output=final is a display image" : "output=gbuffer: no display image");
-}
-
-// Overlays go on top of the display image.
-void decide_overlay(Planning& p) {
-  const Settings& s = p.s;
-  const bool image = p.image;
-  const bool map_overlay = image && !s.is("overlay.map", "none");
-  const bool gaze_overlay = image && s.flag("overlay.gaze") && p.c.gaze_available;
-  const bool focus_overlay = image && s.flag("overlay.focus") && !s.is("focus.mode", "fixed");
-  std::string overlay_reason;
-  if (!image) {
-    overlay_reason = "output=gbuffer: nothing to draw on";
-  } else if (map_overlay) {
-    overlay_reason = "overlay.map=" + s.text("overlay.map");
-  } else if (gaze_overlay) {
-    overlay_reason = "overlay.gaze=true and a gaze source is connected";
-  } else if (focus_overlay) {
-    overlay_reason = "overlay.focus=true";
-  } else {
-    overlay_reason = !s.flag("overlay.gaze") ? "overlay.gaze=false and overlay.map=none"
-                                             : "no gaze source (--gaze none) and overlay.map=none";
+// Every edge out of `p` with these settings (a pass reading what it writes itself, as dof and the
+// overlay do, is not its own consumer).
+std::vector<Edge> edges_out(const PassDecl& p, const PlanContext& c) {
+  std::vector<Edge> out;
+  for (const PassDecl& q : pass_declarations()) {
+    if (q.id == p.id) continue;
+    for (const ReadDecl& r : q.reads)
+      if (has(p.writes, r.resource) && r.reads(c)) {
+        out.push_back({p.id, q.id, &r});
+        break;
+      }
   }
-  decide(p.plan, PassId::Overlay, map_overlay || gaze_overlay || focus_overlay, overlay_reason);
+  return out;
 }
 
-// Global illumination: only with light to carry; the caustic map only with specular/refractive
-// surfaces to focus it.
-void decide_gi(Planning& p) {
-  const Settings& s = p.s;
-  if (!p.image) {
-    decide(p.plan, PassId::Gi, false, "output=gbuffer");
-  } else if (!s.flag("gi.enabled")) {
-    decide(p.plan, PassId::Gi, false, "gi.enabled=false");
-  } else if (p.scene.lights.empty()) {
-    decide(p.plan, PassId::Gi, false, "the scene has no lights: no light to bounce");
-  } else {
-    std::string why = "gi.enabled=true, " + std::to_string(p.scene.lights.size()) + " light(s); caustic map: ";
-    if (!s.flag("gi.caustics")) {
-      why += "off (gi.caustics=false)";
-    } else if (p.scene.has_specular_or_refractive()) {
-      why += "yes (specular or refractive surfaces)";
-    } else {
-      why += "no (no specular or refractive surface)";
-    }
-    if (s.is("gi.area", "full")) {
-      why += "; gi.area=full: the whole screen is ray traced";
-    } else if (p.c.gaze_available) {
-      why += "; the " + s.text("gi.gaze_area_deg") + " deg gaze area follows the gaze";
-    } else if (s.flag("attention.enabled")) {
-      why += "; no gaze source: the gaze area follows the most attended object";
-    } else {
-      why += "; no gaze source and attention.enabled=false: the gaze area stays at the screen centre";
-    }
-    if (s.is("gi.periphery", "csf") && !s.is("gi.area", "full")) {
-      why += "; periphery by CSF-driven ray casting (Murphy 2007)";
-    }
-    decide(p.plan, PassId::Gi, true, why);
-  }
-}
-
-// Depth of field: a pinhole lens keeps everything in focus.
-void decide_dof(Planning& p) {
-  const Settings& s = p.s;
-  const Lens& lens = p.scene.camera.lens;
-  if (!p.image) {
-    decide(p.plan, PassId::Dof, false, "output=gbuffer");
-  } else if (!s.flag("dof.enabled")) {
-    decide(p.plan, PassId::Dof, false, "dof.enabled=false");
-  } else if (lens.is_pinhole()) {
-    decide(p.plan, PassId::Dof, false, "pinhole lens: nothing is out of focus");
-  } else {
-    char why[160];
-    const std::string& method = s.text("dof.method");
-    std::snprintf(why, sizeof why, "thin lens F=%.1f mm, aperture %.2f mm, method %s", lens.focal_length_m * 1000,
-                  lens.aperture_m * 1000, method.c_str());
-    decide(p.plan, PassId::Dof, true, why);
-    PlannedPass& dof = p.plan.passes[static_cast<std::size_t>(PassId::Dof)];
-    if (method == "reference" && !p.c.backend_traces_rays) {
-      dof.runs = false;
-      dof.reason += " — the ray-traced reference needs --backend embree (per-pixel lens rays); accum is the raster "
-                    "backend's reference";
+// The least fixed point of "keep(p) = admit(p) and (p writes the output, or a kept pass reads what p
+// writes)": from the output backwards, so a chain of passes that only feed each other is culled.
+std::vector<bool> keep_from_output(const PlanContext& c, const std::vector<bool>& admit) {
+  std::vector<bool> keep(pass_declarations().size(), false);
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (const PassDecl& p : pass_declarations()) {
+      const auto i = static_cast<std::size_t>(p.id);
+      if (keep[i] || !admit[i]) continue;
+      bool consumed = has(p.writes, c.output());
+      for (const Edge& e : edges_out(p, c)) consumed = consumed || keep[static_cast<std::size_t>(e.consumer)];
+      if (consumed) keep[i] = changed = true;
     }
   }
+  return keep;
 }
 
-// LOD selection: only objects with LOD chains can change detail.
-void decide_lod_select(Planning& p) {
-  const Settings& s = p.s;
-  if (!s.flag("lod.enabled")) {
-    decide(p.plan, PassId::LodSelect, false, "lod.enabled=false");
-  } else if (!p.scene.has_lods()) {
-    decide(p.plan, PassId::LodSelect, false, "no object has an LOD chain");
-  } else {
-    std::string why = "objects with LOD chains; lod.policy=" + s.text("lod.policy");
-    if (s.is("lod.policy", "gaze") && !p.c.gaze_available) {
-      why += " without a gaze source: eccentricity from the screen centre";
+// Why nothing consumes what `p` writes: each pass that could read it, and why it does not here.
+std::string unconsumed(const PassDecl& p, const PlanContext& c) {
+  std::vector<std::string> why;
+  const bool could_be_output = has(p.writes, Resource::Display) || has(p.writes, Resource::GBuffer);
+  if (could_be_output && !has(p.writes, c.output())) why.push_back("output=" + c.settings.text("output"));
+  for (const PassDecl& q : pass_declarations()) {
+    if (q.id == p.id) continue;
+    for (const ReadDecl& r : q.reads) {
+      if (!has(p.writes, r.resource)) continue;
+      why.push_back(!r.reads(c) ? std::string(q.name) + " reads it only with " + r.when
+                                : std::string(q.name) + " is not needed");
+      break;
     }
-    if (s.number("lod.budget_ms") > 0) why += "; frame budget " + s.text("lod.budget_ms") + " ms";
-    decide(p.plan, PassId::LodSelect, true, why);
   }
+  return "nothing consumes " + names(p.writes) + (why.empty() ? "" : ": " + join(why));
 }
 
-// Focus: consumed by DOF, and shown by the focus overlay (which lands before DOF, step 7).
-void decide_focus(Planning& p) {
-  const Settings& s = p.s;
-  const FramePlan& plan = p.plan;
-  const std::string& mode = s.text("focus.mode");
-  p.shows_focus = p.image && s.flag("overlay.focus");
-  if (!plan.needed(PassId::Dof) && !p.shows_focus) {
-    decide(p.plan, PassId::Focus, false,
-           p.image ? "nothing consumes a focal depth (dof not planned, overlay.focus=false)"
-                   : "nothing consumes a focal depth (dof not planned)");
-  } else if (mode == "fixed") {
-    decide(p.plan, PassId::Focus, false, "focus.mode=fixed: the lens focus distance is used");
-  } else {
-    std::string why = plan.needed(PassId::Dof) ? "dof needs a focal depth" : "overlay.focus shows the focal depth";
-    if (plan.needed(PassId::Dof) && p.shows_focus) why += " (overlay.focus shows it)";
-    why += "; focus.mode=" + mode;
-    if ((mode == "gaze") && !p.c.gaze_available) why += " without a gaze source: the screen centre is used";
-    decide(p.plan, PassId::Focus, true, why);
+// "dof, overlay (overlay.focus=true)": the needed passes that read what `p` writes.
+std::string consumers(const PassDecl& p, const PlanContext& c, const FramePlan& plan) {
+  std::vector<std::string> parts;
+  for (const Edge& e : edges_out(p, c)) {
+    if (!plan.needed(e.consumer)) continue;
+    const std::string when = *e.read->when != '\0' && e.read->active != nullptr ? " (" + std::string(e.read->when) + ")" : "";
+    parts.push_back(declaration(e.consumer).name + when);
   }
+  return join(parts);
 }
 
-// Attention: computed only when something consumes it.
-void decide_attention(Planning& p) {
-  const Settings& s = p.s;
-  const FramePlan& plan = p.plan;
-  const std::string& mode = s.text("focus.mode");
-  std::vector<std::string> consumers;
-  if (plan.needed(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")) consumers.push_back("focus");
-  p.lod_uses_attention = plan.needed(PassId::LodSelect) && s.is("lod.policy", "ulod");
-  if (p.lod_uses_attention) consumers.push_back("lod-select (lod.policy=ulod)");
-  p.gi_follows_attention = plan.needed(PassId::Gi) && !p.c.gaze_available && !s.is("gi.area", "full");
-  if (p.gi_follows_attention) consumers.push_back("gi (no gaze source: its gaze area)");
-  const std::string& overlay_map = s.text("overlay.map");
-  if (p.image && attention::is_map(overlay_map)) {
-    consumers.push_back("overlay (overlay.map=" + overlay_map + ")");
-  }
-  if (consumers.empty()) {
-    decide(p.plan, PassId::Attention, false, "nothing consumes attention");
-  } else if (!s.flag("attention.enabled")) {
-    decide(p.plan, PassId::Attention, false, "attention.enabled=false (consumers fall back to gaze or defaults)");
-  } else {
-    std::string list;
-    for (const auto& k : consumers) list += (list.empty() ? "" : ", ") + k;
-    decide(p.plan, PassId::Attention, true, "consumed by " + list);
-  }
-}
-
-// An implemented pass whose consumers are all needed-but-not-implemented would compute something
-// nobody reads: it waits (needed, not run) until a consumer runs.
-void wait_unless(FramePlan& plan, PassId id, bool consumer_runs, const std::string& why) {
-  PlannedPass& p = plan.passes[static_cast<std::size_t>(id)];
-  if (p.runs && !consumer_runs) {
-    p.runs = false;
-    p.reason += "; waits: " + why;
-  }
-}
-
-// Focus feeds dof (and the focus overlay).
-void wait_focus(Planning& p) {
-  wait_unless(p.plan, PassId::Focus, p.plan.runs(PassId::Dof) || p.shows_focus,
-              "dof does not run with this method (overlay.focus=true shows the focus meanwhile)");
-}
-
-// Attention feeds focus, lod-select and the attention overlays; runs after wait_focus, whose verdict it reads.
-void wait_attention(Planning& p) {
-  const Settings& s = p.s;
-  const FramePlan& plan = p.plan;
-  const std::string& mode = s.text("focus.mode");
-  const bool attention_overlay = p.image && attention::is_map(s.text("overlay.map"));
-  wait_unless(p.plan, PassId::Attention,
-              attention_overlay || (p.lod_uses_attention && plan.runs(PassId::LodSelect)) ||
-                  (p.gi_follows_attention && plan.runs(PassId::Gi)) ||
-                  (plan.runs(PassId::Focus) && (mode == "attention" || mode == "gaze+attention")),
-              "none of its consumers runs yet");
+// Needed passes whose outputs no running pass reads yet ("dof does not run yet").
+std::string waiting_on(const PassDecl& p, const PlanContext& c, const FramePlan& plan) {
+  std::vector<std::string> parts;
+  for (const Edge& e : edges_out(p, c))
+    if (plan.needed(e.consumer) && !plan.runs(e.consumer)) parts.emplace_back(declaration(e.consumer).name);
+  return join(parts) + (parts.size() == 1 ? " does not run yet" : " do not run yet");
 }
 
 }  // namespace
 
-// Each decision may read the ones before it (focus reads dof, attention reads focus, lod-select and
-// gi), so the order below is the order of the reasoning, not the pipeline order.
+// The graph, built from the declarations: each pass's rule says whether its effect is visible and
+// whether it can run; a pass is needed when its effect is wanted and the output depends on what it
+// writes through needed passes; it runs when it is needed, able, and some pass that runs (or the
+// output) reads what it writes. Needed passes that cannot run are "later"; needed passes whose
+// consumers cannot run wait.
 FramePlan plan_frame(const PlanContext& c) {
+  const std::vector<PassDecl>& decls = pass_declarations();
   FramePlan plan;
-  for (const PassDecl& d : pass_declarations()) plan.passes.push_back({d.id, false, false, "", {}});
-  Planning p{c, c.scene, c.settings, plan};
-  p.image = c.settings.is("output", "final");
-  decide_tonemap(p);
-  decide_overlay(p);
-  decide_gi(p);
-  decide_dof(p);
-  decide_lod_select(p);
-  decide_focus(p);
-  decide_attention(p);
-  decide(plan, PassId::GBuffer, true, "every output starts from the G-buffer");
-  wait_focus(p);
-  wait_attention(p);
+  plan.output = c.output();
+  std::vector<PassRule> rules;
+  std::vector<bool> wanted, runnable;
+  for (const PassDecl& d : decls) {
+    rules.push_back(d.rule(c));
+    wanted.push_back(rules.back().wanted);
+    runnable.push_back(rules.back().wanted && rules.back().able);
+  }
+  const std::vector<bool> needed = keep_from_output(c, wanted);
+  const std::vector<bool> runs = keep_from_output(c, runnable);
+  for (const PassDecl& d : decls) {
+    const auto i = static_cast<std::size_t>(d.id);
+    PlannedPass p{d.id, needed[i], runs[i], "", {}, {}};
+    for (const ReadDecl& r : d.reads)
+      if (r.reads(c)) p.reads.push_back(r.resource);
+    plan.passes.push_back(std::move(p));
+  }
+  for (const PassDecl& d : decls) {
+    const auto i = static_cast<std::size_t>(d.id);
+    PlannedPass& p = plan.passes[i];
+    const PassRule& rule = rules[i];
+    bool consumed = has(d.writes, c.output());
+    for (const Edge& e : edges_out(d, c)) consumed = consumed || needed[static_cast<std::size_t>(e.consumer)];
+    if (!consumed) {
+      p.reason = unconsumed(d, c);
+    } else if (!rule.wanted) {
+      p.reason = rule.reason;
+    } else {
+      p.reason = rule.reason;
+      if (d.names_consumers) {
+        const std::string by = consumers(d, c, plan);
+        if (!by.empty()) p.reason = "consumed by " + by + (rule.reason.empty() ? "" : "; " + rule.reason);
+      }
+      if (!rule.able) {
+        p.reason += " — " + rule.unable;
+      } else if (!p.runs) {
+        p.reason += "; waits: " + waiting_on(d, c, plan);
+      }
+    }
+  }
   for (PlannedPass& pass : plan.passes) {
     const PassDecl& d = declaration(pass.id);
     if (pass.runs && d.gbuffer_reads != nullptr) pass.gbuffer_reads = d.gbuffer_reads(plan, c.settings);
   }
   return plan;
+}
+
+std::string FramePlan::explain() const {
+  std::string out;
+  for (const PlannedPass& p : passes) {
+    const PassDecl& d = declaration(p.id);
+    char line[768];
+    // "later": the output needs the pass but it cannot run with these settings (the reason says why).
+    const char* verdict = p.runs ? "run " : (p.needed ? "later" : "skip");
+    std::snprintf(line, sizeof line, "  %-5s %-10s %s\n", verdict, d.name, p.reason.c_str());
+    out += line;
+  }
+  out += "  graph      (the passes that run: what each reads -> what it writes; the output: ";
+  out += to_string(output);
+  out += ")\n";
+  std::vector<Resource> made;  // by a pass that runs: only these edges exist this frame
+  for (const PlannedPass& p : passes)
+    if (p.runs) made.insert(made.end(), declaration(p.id).writes.begin(), declaration(p.id).writes.end());
+  for (const PlannedPass& p : passes) {
+    if (!p.runs) continue;
+    const PassDecl& d = declaration(p.id);
+    std::vector<std::string> in;
+    for (Resource r : p.reads) {
+      if (!has(made, r)) continue;
+      if (r != Resource::GBuffer) {
+        in.emplace_back(to_string(r));
+      } else if (p.gbuffer_reads.any()) {
+        in.push_back("G-buffer " + to_string(p.gbuffer_reads));
+      }
+    }
+    in.emplace_back(d.inputs);
+    out += "    " + std::string(d.name) + ": " + join(in, "; ") + " -> " + names(d.writes) + "\n";
+  }
+  if (!placement.empty()) out += "  where " + placement + "\n";
+  return out;
 }
 
 GBufferPlanes planes_read_on_cpu(const FramePlan& plan) {

@@ -1,7 +1,10 @@
 #pragma once
-// The effect planner: builds each frame's pass list backwards from the requested output and leaves
-// out every pass whose effect the scene and settings cannot show, with the reason for each
-// decision (`fovea-render --explain`).
+// The effect planner: a typed pass graph built each frame from the passes' declarations (Filament's
+// FrameGraph is the model). Each pass declares the resources it reads (some only with certain
+// settings) and writes, and a rule: whether its effect is visible in this scene with these settings,
+// and whether it can run. The planner keeps a pass when the frame's output depends on what it
+// writes, through passes that are kept, and culls the rest; every decision carries its reason
+// (`fovea-render --explain` prints them and the graph).
 #include <string>
 #include <vector>
 
@@ -14,20 +17,58 @@ namespace fovea::render {
 enum class PassId { GBuffer, Attention, Focus, LodSelect, Dof, Gi, Tonemap, Overlay };
 inline constexpr int kPassCount = 8;
 
+// What flows between the passes of one frame. The G-buffer's planes are typed further
+// (GBufferPlanes); HdrColor is the colour the tone map reads (the G-buffer's colour plane, replaced
+// by dof's), GiInset the gaze area's global illumination composited over it.
+enum class Resource { LodLevels, GBuffer, Attention, FocalDepth, HdrColor, GiInset, Display };
+inline constexpr int kResourceCount = 7;
+const char* to_string(Resource r);
+
 struct FramePlan;
+
+struct PlanContext {
+  const Scene& scene;
+  const Settings& settings;
+  bool gaze_available = false;  // a gaze source other than "none"
+  bool backend_traces_rays = true;  // the backend takes per-pixel lens rays (Embree; not the raster backend)
+  // What the frame hands out: the display image (output=final) or the G-buffer (output=gbuffer).
+  Resource output() const;
+};
+
+// A pass's own verdict, before the graph: is its effect visible in this scene with these settings
+// (`wanted`), and can it run here (`able`; e.g. the ray-traced DOF reference on the raster backend
+// cannot). `reason` says why, for people; `unable` says what is missing.
+struct PassRule {
+  bool wanted = false;
+  std::string reason;
+  bool able = true;
+  std::string unable;
+};
+
+// One edge into a pass: the resource, and when the pass reads it (null `active`: always).
+struct ReadDecl {
+  ReadDecl(Resource r, const char* w = "", bool (*a)(const PlanContext&) = nullptr) : resource(r), when(w), active(a) {}
+  Resource resource;
+  const char* when;  // the settings that make the pass read it, for people ("lod.policy=ulod")
+  bool (*active)(const PlanContext&);
+  bool reads(const PlanContext& c) const { return active == nullptr || active(c); }
+};
 
 struct PassDecl {
   PassId id;
   const char* name;
-  const char* reads;
-  const char* writes;
-  const char* needed_when;
+  std::vector<ReadDecl> reads;
+  std::vector<Resource> writes;
+  const char* inputs;  // what it reads from outside the graph (scene, camera, gaze), for people
+  PassRule (*rule)(const PlanContext&);
   // Typed: the planes of this frame's G-buffer the pass reads, with these settings and this plan
   // (null: none). What the GPU-resident frame writes and reads back is derived from these.
   GBufferPlanes (*gbuffer_reads)(const FramePlan& plan, const Settings& settings) = nullptr;
   // The pass has a GPU implementation that runs where the G-buffer lies (the GPU-resident frame);
   // the others run on the CPU from a readback of what they read.
   bool on_gpu = false;
+  // Its reason starts with who consumes it (attention, focus: their only purpose is their consumers).
+  bool names_consumers = false;
 };
 // The passes in pipeline order.
 const std::vector<PassDecl>& pass_declarations();
@@ -35,21 +76,16 @@ const PassDecl& declaration(PassId id);
 
 struct PlannedPass {
   PassId id;
-  bool needed = false;       // the requested output needs this pass's effect
-  bool runs = false;         // runs this frame: needed, and able to run with these settings
+  bool needed = false;       // the requested output depends on this pass's effect
+  bool runs = false;         // runs this frame: needed, able, and what it writes is read by a pass that runs
   std::string reason;
   GBufferPlanes gbuffer_reads;  // what it reads of the G-buffer when it runs (PassDecl::gbuffer_reads)
-};
-
-struct PlanContext {
-  const Scene& scene;
-  const Settings& settings;
-  bool gaze_available = false;  // a gaze source other than "none"
-  bool backend_traces_rays = true;  // the backend takes per-pixel lens rays (Embree; not the raster backend)
+  std::vector<Resource> reads;  // the resources it reads with these settings (the graph's edges in)
 };
 
 struct FramePlan {
   std::vector<PlannedPass> passes;  // pipeline order
+  Resource output = Resource::Display;
   // Where the frame runs, for people (FramePipeline fills it in: the GPU-resident path and what it
   // reads back, or why the frame takes the readback path). Empty: not said.
   std::string placement;

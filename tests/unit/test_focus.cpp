@@ -690,12 +690,12 @@ TEST(FocusPlanner, TheFocusOverlayNeedsTheFocusPassBeforeDofExists) {
   const FramePlan shown = plan({"overlay.focus=true"});
   EXPECT_TRUE(shown.needed(PassId::Focus));
   EXPECT_TRUE(shown.needed(PassId::Overlay));
-  EXPECT_NE(shown.at(PassId::Focus).reason.find("overlay.focus shows the focal depth"), std::string::npos)
+  EXPECT_NE(shown.at(PassId::Focus).reason.find("consumed by overlay (overlay.focus=true)"), std::string::npos)
       << shown.at(PassId::Focus).reason;
   EXPECT_TRUE(shown.needed(PassId::Attention)) << "focus.mode=gaze+attention consumes attention";
   const FramePlan hidden = plan({"overlay.focus=false"});
   EXPECT_FALSE(hidden.needed(PassId::Focus));
-  EXPECT_NE(hidden.at(PassId::Focus).reason.find("overlay.focus=false"), std::string::npos);
+  EXPECT_NE(hidden.at(PassId::Focus).reason.find("overlay reads it only with overlay.focus=true"), std::string::npos);
   EXPECT_FALSE(plan({"overlay.focus=true", "output=gbuffer"}).needed(PassId::Focus));
   EXPECT_FALSE(plan({"overlay.focus=true", "focus.mode=fixed"}).needed(PassId::Focus));
   EXPECT_FALSE(plan({"overlay.focus=true", "focus.mode=gaze"}).needed(PassId::Attention));
@@ -705,7 +705,7 @@ TEST(FocusPlanner, TheFocusOverlayNeedsTheFocusPassBeforeDofExists) {
   Settings s;
   s.set_assignment("overlay.focus=true");
   const FramePlan both = plan_frame(PlanContext{thin, s, true});
-  EXPECT_NE(both.at(PassId::Focus).reason.find("dof needs a focal depth (overlay.focus shows it)"), std::string::npos)
+  EXPECT_NE(both.at(PassId::Focus).reason.find("consumed by dof, overlay (overlay.focus=true)"), std::string::npos)
       << both.at(PassId::Focus).reason;
 }
 

@@ -2,6 +2,8 @@
 // the passes that must (not) be planned.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "attention/attention.h"
 #include "pipeline/planner.h"
 #include "scene/geometry.h"
@@ -121,8 +123,8 @@ TEST(Planner, EveryPassHasADeclaration) {
   for (std::size_t i = 0; i < pass_declarations().size(); ++i) {
     const PassDecl& d = pass_declarations()[i];
     EXPECT_EQ(static_cast<std::size_t>(d.id), i) << d.name << " out of pipeline order";
-    EXPECT_NE(std::string(d.reads), "");
-    EXPECT_NE(std::string(d.writes), "");
+    EXPECT_FALSE(d.writes.empty()) << d.name << " writes nothing: the graph would always cull it";
+    EXPECT_NE(d.rule, nullptr) << d.name;
   }
 }
 
@@ -163,6 +165,124 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
   // The passes with a GPU implementation: the G-buffer, the tone map, the overlay.
   for (const PassDecl& d : pass_declarations())
     EXPECT_EQ(d.on_gpu, d.id == PassId::GBuffer || d.id == PassId::Tonemap || d.id == PassId::Overlay) << d.name;
+}
+
+// The graph's declarations are closed: every resource a pass reads is written by some pass, and
+// every resource written is read by some pass or is a frame output (else the writer is always culled).
+TEST(PlannerGraph, EveryEdgeHasAProducerAndEveryProductAConsumer) {
+  for (int i = 0; i < kResourceCount; ++i) {
+    const auto r = static_cast<Resource>(i);
+    bool written = false, read = false;
+    for (const PassDecl& d : pass_declarations()) {
+      written = written || std::find(d.writes.begin(), d.writes.end(), r) != d.writes.end();
+      for (const ReadDecl& e : d.reads) read = read || e.resource == r;
+    }
+    EXPECT_TRUE(written) << to_string(r) << " is read but no pass writes it";
+    EXPECT_TRUE(read || r == Resource::Display || r == Resource::GBuffer) << to_string(r) << " is written, never read";
+  }
+}
+
+// The culling, checked on every combination of a grid of scenes and settings against what the
+// graph promises: the G-buffer always runs; a pass runs only when needed; every pass that runs
+// writes the output or something a running pass reads this frame; and a pass that wants to run and
+// can is culled only when no running pass reads what it writes.
+TEST(PlannerGraph, CullingKeepsExactlyThePassesTheOutputDependsOn) {
+  int plans = 0;
+  for (const bool thin : {false, true})
+    for (const bool lods : {false, true})
+      for (const bool gaze : {false, true})
+        for (const bool rays : {false, true})
+          for (const char* output : {"final", "gbuffer"})
+            for (const char* mode : {"fixed", "gaze", "gaze+attention"})
+              for (const char* method : {"lee-mipmap", "reference"})
+                for (const char* policy : {"screen-size", "ulod"})
+                  for (const char* map : {"none", "attention", "depth"})
+                    for (const char* focus_overlay : {"false", "true"})
+                      for (const char* gi : {"false", "true"}) {
+                        const Scene scene = make_scene({.thin_lens = thin, .lods = lods});
+                        Settings s;
+                        for (const std::string& a :
+                             {std::string("output=") + output, std::string("focus.mode=") + mode,
+                              std::string("dof.method=") + method, std::string("lod.policy=") + policy,
+                              std::string("overlay.map=") + map, std::string("overlay.focus=") + focus_overlay,
+                              std::string("gi.enabled=") + gi})
+                          s.set_assignment(a);
+                        const PlanContext c{scene, s, gaze, rays};
+                        const FramePlan plan = plan_frame(c);
+                        ++plans;
+                        SCOPED_TRACE(plan.explain());
+                        ASSERT_TRUE(plan.runs(PassId::GBuffer));
+                        for (const PassDecl& p : pass_declarations()) {
+                          const bool writes_output =
+                              std::find(p.writes.begin(), p.writes.end(), c.output()) != p.writes.end();
+                          bool read_by_a_running_pass = false;
+                          for (const PassDecl& q : pass_declarations()) {
+                            if (q.id == p.id || !plan.runs(q.id)) continue;
+                            for (const ReadDecl& r : q.reads)
+                              read_by_a_running_pass =
+                                  read_by_a_running_pass ||
+                                  (r.reads(c) &&
+                                   std::find(p.writes.begin(), p.writes.end(), r.resource) != p.writes.end());
+                          }
+                          const PassRule rule = p.rule(c);
+                          if (plan.runs(p.id)) {
+                            EXPECT_TRUE(plan.needed(p.id)) << p.name;
+                            EXPECT_TRUE(rule.wanted && rule.able) << p.name;
+                            EXPECT_TRUE(writes_output || read_by_a_running_pass) << p.name << " runs for nobody";
+                          } else if (rule.wanted && rule.able) {
+                            EXPECT_FALSE(writes_output || read_by_a_running_pass) << p.name << " culled but read";
+                          }
+                        }
+                      }
+  EXPECT_EQ(plans, 2 * 2 * 2 * 2 * 2 * 3 * 2 * 2 * 3 * 2 * 2);
+}
+
+// The edges follow the settings (table-driven), and a culled pass says which reader does not read it.
+TEST(PlannerGraph, EdgesFollowTheSettingsAndCulledPassesNameTheirReaders) {
+  struct Row {
+    const char* name;
+    SceneFeatures scene;
+    std::vector<std::string> settings;
+    bool gaze;
+    PassId pass;
+    Resource resource;
+    bool reads;
+  };
+  const Row rows[] = {
+      {"focus reads attention with gaze+attention", {.thin_lens = true}, {}, true, PassId::Focus, Resource::Attention, true},
+      {"not with gaze alone", {.thin_lens = true}, {"focus.mode=gaze"}, true, PassId::Focus, Resource::Attention, false},
+      {"lod-select reads attention with ULOD", {.lods = true}, {"lod.policy=ulod"}, true, PassId::LodSelect,
+       Resource::Attention, true},
+      {"and then attention reads its proxy, not the G-buffer", {.lods = true}, {"lod.policy=ulod"}, true,
+       PassId::Attention, Resource::GBuffer, false},
+      {"gi's gaze area follows attention without a gaze source", {}, {"gi.enabled=true"}, false, PassId::Gi,
+       Resource::Attention, true},
+      {"not with one", {}, {"gi.enabled=true"}, true, PassId::Gi, Resource::Attention, false},
+      {"nor with gi.area=full", {}, {"gi.enabled=true", "gi.area=full"}, false, PassId::Gi, Resource::Attention, false},
+      {"the overlay reads the focal depth it draws", {}, {"overlay.focus=true"}, true, PassId::Overlay,
+       Resource::FocalDepth, true},
+      {"the accumulation reference reads nothing of the G-buffer", {.thin_lens = true}, {"dof.method=accum"}, true,
+       PassId::Dof, Resource::GBuffer, false},
+  };
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.name);
+    const Scene scene = make_scene(row.scene);
+    Settings settings;
+    for (const std::string& a : row.settings) settings.set_assignment(a);
+    const FramePlan plan = plan_frame(PlanContext{scene, settings, row.gaze});
+    const std::vector<Resource>& reads = plan.at(row.pass).reads;
+    EXPECT_EQ(std::find(reads.begin(), reads.end(), row.resource) != reads.end(), row.reads) << plan.explain();
+  }
+  const Scene scene = make_scene({});
+  const FramePlan plan = plan_frame(PlanContext{scene, Settings{}, true});
+  const std::string& why = plan.at(PassId::Attention).reason;
+  EXPECT_NE(why.find("nothing consumes attention"), std::string::npos) << why;
+  EXPECT_NE(why.find("lod-select reads it only with lod.policy=ulod"), std::string::npos) << why;
+  EXPECT_NE(why.find("focus is not needed"), std::string::npos) << why;
+  EXPECT_NE(why.find("overlay reads it only with overlay.map=saliency|spatial|temporal|attention"), std::string::npos)
+      << why;
+  // The graph printed lists only the edges that exist this frame: no GI inset without gi.
+  EXPECT_EQ(plan.explain().find("GI inset"), std::string::npos) << plan.explain();
 }
 
 // The attention maps (one list, attention::kMaps) are overlay.map values and make the planner run
