@@ -14,6 +14,8 @@
 # "scene" = the scene's own effects (attention.json: attention, focus, LOD selection and DOF on the
 # CPU from a readback of colour, depth and ids); "base-allplanes" = base with every G-buffer plane
 # written on the GPU path too (debug.gbuffer_planes=all: what culling the unread planes saves);
+# "base-noprepass" = base shading every surface drawn (frame.depth_prepass=false: what the depth
+# pre-pass saves);
 # "gi" = base with the hybrid renderer (20k photons traced by Embree on the CPU, the inset
 # composited on the GPU).
 #
@@ -46,6 +48,8 @@ for scene in $SCENES; do
         base) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false) ;;
         base-allplanes) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                                --set debug.gbuffer_planes=all) ;;
+        base-noprepass) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+                               --set frame.depth_prepass=false) ;;
         gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac

@@ -8,6 +8,7 @@
 # Here:   bench/device/make-bundle.sh build/default
 # There:  the device tool's run with carry [".gpu-bundle"] and command
 #         bash bench/device/gpu-frame.sh [FRAMES]        (default 60)
+#         EFFECTS="base scene" picks effects (default: every one bench_gpu_frame.sh has)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 FRAMES=${1:-60}
@@ -36,5 +37,5 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/cornell.json --backen
 grep "where" "$probe/plan.txt"
 
 OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "640x480 1280x720 1920x1080" \
-  "attention cornell" "base base-allplanes scene gi" | tee "$OUT/gpu-frame.md"
+  "attention cornell" "${EFFECTS:-base base-noprepass base-allplanes scene gi}" | tee "$OUT/gpu-frame.md"
 tar -C "$OUT" -cJf "$OUT/gpu-frame-runs.tar.xz" runs && rm -rf "$OUT/runs"

@@ -44,6 +44,11 @@ struct BackendSettings {
   // writes every plane anyway. ULOD's second pass reads colour and id; the GPU-resident frame
   // reads what its CPU passes read, or nothing.
   GBufferPlanes readback = GBufferPlanes::all();
+  // Raster backend: lay down the z-buffer first with a position-only pass, then shade with the z
+  // test at equal, so every pixel is shaded once however many surfaces cover it (the G-buffer pass is
+  // bound by fragment shading and writes, bench/RESULTS.md). The image is the same but where two
+  // surfaces lie at exactly one depth: the later-drawn wins instead of the first. Embree ignores it.
+  bool depth_prepass = false;
 };
 
 // What a backend can do beyond the G-buffer every backend renders. Passes ask this, never the

@@ -280,6 +280,7 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   BackendSettings bs;
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
+  bs.depth_prepass = settings_.flag("frame.depth_prepass");
   f.read_back = planes_read_on_cpu(f.plan);
   f.written = planes_written(f.plan);
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
@@ -380,6 +381,7 @@ void FramePipeline::step_gbuffer(const Frame& f, double now_s, double previous_s
   BackendSettings bs;
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
+  bs.depth_prepass = settings_.flag("frame.depth_prepass");
   backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
   if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
   if (check) require_finite_gbuffer("gbuffer", gbuffer_);

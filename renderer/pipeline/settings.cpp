@@ -119,6 +119,9 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"debug.finite_checks", kFiniteChecksByDefault ? "true" : "false", "bool",
        "scan every pass's output for NaN/Inf and stop the frame naming the pass, buffer and pixel (on by default "
        "in debug builds)"},
+      {"frame.depth_prepass", "true", "bool",
+       "OpenGL backend: draw the z-buffer first, then shade each pixel once (z test at equal) instead of every "
+       "surface drawn over it (bench/bench_gpu_frame.sh measures both)"},
       {"debug.gbuffer_planes", "read", "read|all",
        "GPU-resident frame: the G-buffer pass writes the planes some pass reads (read), or every plane (all: "
        "measures what culling the unread ones saves, bench/bench_gpu_frame.sh)"},

@@ -833,6 +833,39 @@ TEST_F(BackendAgreementTest, BundledScenes) {
   if (compared == 0) GTEST_SKIP() << "no bundled scene in " << dir << " loads" << skipped;
 }
 
+// The depth pre-pass (BackendSettings::depth_prepass, the frame's default) shades each pixel once
+// and must not change the G-buffer: every plane of every bundled scene, two times (one moving), is
+// the same with and without it. Where two surfaces lie at exactly one depth the later-drawn one wins
+// with the pre-pass; the bundled scenes have no such pixels, so the planes are compared exactly.
+TEST_F(BackendAgreementTest, DepthPrepassLeavesTheGBufferUnchanged) {
+  const std::filesystem::path dir = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes";
+  std::size_t compared = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".json") continue;
+    SCOPED_TRACE(entry.path().string());
+    Scene s = load_scene(entry.path());
+    s.camera.width = 320;
+    s.camera.height = 240;
+    gl_->set_scene(s);
+    for (const FrameTime t : {FrameTime{0.0, 0.0}, FrameTime{1.0, 1.0 - 1.0 / 30}}) {
+      GBuffer plain, prepassed;
+      BackendSettings bs;
+      gl_->render(t, bs, plain);
+      bs.depth_prepass = true;
+      gl_->render(t, bs, prepassed);
+      std::size_t differ = 0;
+      for (std::size_t i = 0; i < plain.depth.size(); ++i) {
+        differ += plain.color[i] != prepassed.color[i] || plain.depth[i] != prepassed.depth[i] ||
+                  plain.object_id[i] != prepassed.object_id[i] || plain.normal[i] != prepassed.normal[i] ||
+                  plain.motion[i] != prepassed.motion[i];
+      }
+      EXPECT_EQ(differ, 0u) << "pixels that differ at t=" << t.now_s;
+      ++compared;
+    }
+  }
+  EXPECT_GE(compared, 6u);
+}
+
 }  // namespace
 }  // namespace fovea::render
 

@@ -185,6 +185,10 @@ GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
   loc_emission_ = loc("u_emission");
   loc_shininess_ = loc("u_shininess");
   loc_moved_ = loc("u_moved");
+  depth_program_ = gl::link_program(gl::kDepthVertex, gl::kDepthFragment, "GlBackend depth pre-pass program");
+  loc_depth_model_ = glGetUniformLocation(depth_program_, "u_model");
+  loc_depth_view_ = glGetUniformLocation(depth_program_, "u_view");
+  loc_depth_proj_ = glGetUniformLocation(depth_program_, "u_proj");
 
   const GLuint block = glGetUniformBlockIndex(program_, "LightSamples");
   if (block == GL_INVALID_INDEX) throw std::runtime_error("GlBackend: uniform block LightSamples not found");
@@ -210,6 +214,7 @@ GlBackend::~GlBackend() {
   release_framebuffer();
   if (light_ubo_ != 0) glDeleteBuffers(1, &light_ubo_);
   if (program_ != 0) glDeleteProgram(program_);
+  if (depth_program_ != 0) glDeleteProgram(depth_program_);
 }
 
 void GlBackend::release_meshes() {
@@ -348,7 +353,7 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
 }
 
 void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels,
-                     std::uint32_t width, std::uint32_t height, const GBufferPlanes& planes) {
+                     std::uint32_t width, std::uint32_t height, const GBufferPlanes& planes, bool depth_prepass) {
   if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
   const Scene& scene = *scene_;
   const Camera& cam = scene.camera;
@@ -363,8 +368,15 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
 
   const FrameView frame = frame_view(cam, time, lens);
   const bool camera_moved = frame.view != frame.view_prev;
+  if (depth_prepass) {
+    draw_depth(scene, time, lod_levels, frame);
+    glDepthFunc(GL_EQUAL);  // shade only the surface the pre-pass kept, once per pixel
+    glDepthMask(GL_FALSE);
+  }
   set_frame_uniforms(frame, scene.ambient, width, height);
   draw_objects(scene, time, lod_levels, camera_moved);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
   glBindVertexArray(0);
   glUseProgram(0);
   glDisable(GL_SCISSOR_TEST);
@@ -408,19 +420,41 @@ void GlBackend::set_frame_uniforms(const FrameView& frame, const glm::vec3& ambi
   glUniform2f(loc_viewport_, static_cast<float>(width), static_cast<float>(height));
 }
 
+const GlBackend::GpuMesh* GlBackend::mesh_for(std::size_t i, const std::vector<std::uint8_t>& lod_levels) const {
+  if (draws_[i].mesh == kNoMesh) return nullptr;
+  // The level of detail asked for (BackendSettings::lod_levels), clamped to what the object has.
+  const std::size_t level = i < lod_levels.size() ? std::min<std::size_t>(lod_levels[i], draws_[i].lods.size()) : 0;
+  const GpuMesh& gpu = meshes_[level == 0 ? draws_[i].mesh : draws_[i].lods[level - 1]];
+  return gpu.index_count == 0 ? nullptr : &gpu;
+}
+
 void GlBackend::draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                              bool camera_moved) {
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const GpuMesh* gpu = mesh_for(i, lod_levels);
+    if (gpu == nullptr) continue;
     const Object& o = scene.objects[i];
-    if (draws_[i].mesh == kNoMesh) continue;
-    // The level of detail asked for (BackendSettings::lod_levels), clamped to what the object has.
-    const std::size_t level = i < lod_levels.size() ? std::min<std::size_t>(lod_levels[i], draws_[i].lods.size()) : 0;
-    const GpuMesh& gpu = meshes_[level == 0 ? draws_[i].mesh : draws_[i].lods[level - 1]];
-    if (gpu.index_count == 0) continue;
     set_object_uniforms(o, scene.materials[o.material], time, camera_moved);
-    glBindVertexArray(gpu.vao);
-    glDrawElements(GL_TRIANGLES, gpu.index_count, GL_UNSIGNED_INT, nullptr);
+    glBindVertexArray(gpu->vao);
+    glDrawElements(GL_TRIANGLES, gpu->index_count, GL_UNSIGNED_INT, nullptr);
   }
+}
+
+void GlBackend::draw_depth(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
+                           const FrameView& frame) {
+  glUseProgram(depth_program_);
+  glUniformMatrix4fv(loc_depth_view_, 1, GL_FALSE, glm::value_ptr(frame.view));
+  glUniformMatrix4fv(loc_depth_proj_, 1, GL_FALSE, glm::value_ptr(frame.proj));
+  glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const GpuMesh* gpu = mesh_for(i, lod_levels);
+    if (gpu == nullptr) continue;
+    const glm::mat4 model = scene.objects[i].transform_at(time.now_s).matrix();
+    glUniformMatrix4fv(loc_depth_model_, 1, GL_FALSE, glm::value_ptr(model));
+    glBindVertexArray(gpu->vao);
+    glDrawElements(GL_TRIANGLES, gpu->index_count, GL_UNSIGNED_INT, nullptr);
+  }
+  glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
 }
 
 // The object's transform now and at the previous frame (for motion), and its material.
@@ -465,7 +499,7 @@ void GlBackend::check_settings(const BackendSettings& settings) {
 
 void GlBackend::render_on_gpu(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes) {
   check_settings(settings);
-  draw(time, settings.lens, settings.lod_levels, settings.width, settings.height, planes);
+  draw(time, settings.lens, settings.lod_levels, settings.width, settings.height, planes, settings.depth_prepass);
   image_width_ = settings.width > 0 ? settings.width : scene_->camera.width;
   image_height_ = settings.height > 0 ? settings.height : scene_->camera.height;
 }

@@ -90,7 +90,8 @@ class GlBackend final : public Backend {
 
   // width/height 0: the camera's resolution.
   void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {},
-            std::uint32_t width = 0, std::uint32_t height = 0, const GBufferPlanes& planes = GBufferPlanes::all());
+            std::uint32_t width = 0, std::uint32_t height = 0, const GBufferPlanes& planes = GBufferPlanes::all(),
+            bool depth_prepass = false);
   // The camera's view (now and at the previous frame), projection and eye for one render.
   struct FrameView {
     glm::mat4 view, view_prev, proj;
@@ -102,6 +103,11 @@ class GlBackend final : public Backend {
   void draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                     bool camera_moved);
   void set_object_uniforms(const Object& o, const Material& m, const FrameTime& time, bool camera_moved);
+  // BackendSettings::depth_prepass: the z-buffer of every object, nothing else.
+  void draw_depth(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
+                  const FrameView& frame);
+  // Object i's mesh at the level asked for (clamped to what it has); null when there is nothing to draw.
+  const GpuMesh* mesh_for(std::size_t i, const std::vector<std::uint8_t>& lod_levels) const;
   // Uploads one mesh as an interleaved position/normal vertex buffer and an index buffer.
   static GpuMesh upload_interleaved_mesh(const Mesh& mesh, std::vector<float>& interleaved);
   // Fills meshes_ and draws_ (one per object, LOD levels included).
@@ -113,6 +119,8 @@ class GlBackend final : public Backend {
 
   GlContext context_;
   unsigned program_ = 0;
+  unsigned depth_program_ = 0;  // the depth pre-pass
+  int loc_depth_model_ = -1, loc_depth_view_ = -1, loc_depth_proj_ = -1;
   unsigned light_ubo_ = 0;
   // Uniform locations.
   int loc_model_ = -1, loc_model_prev_ = -1, loc_normal_matrix_ = -1, loc_view_ = -1, loc_view_prev_ = -1,

@@ -23,6 +23,9 @@ out vec3 v_world;
 out vec3 v_normal;
 out float v_view_depth;
 out vec4 v_clip_prev;
+// The depth pre-pass (kDepthVertex) computes gl_Position the same way: both invariant, so the
+// shading pass's z test at equal meets exactly the depths the pre-pass wrote.
+invariant gl_Position;
 
 void main() {
   vec4 world = u_model * vec4(a_position, 1.0);
@@ -35,6 +38,23 @@ void main() {
   v_clip_prev = u_proj * (u_view_prev * (u_model_prev * vec4(a_position, 1.0)));
   gl_Position = u_proj * view;
 }
+)";
+
+// The depth pre-pass: kGBufferVertex's position, nothing else.
+inline constexpr const char* kDepthVertex = R"(#version 330 core
+layout(location = 0) in vec3 a_position;
+uniform mat4 u_model;
+uniform mat4 u_view, u_proj;
+invariant gl_Position;
+void main() {
+  vec4 world = u_model * vec4(a_position, 1.0);
+  vec4 view = u_view * world;
+  gl_Position = u_proj * view;
+}
+)";
+
+inline constexpr const char* kDepthFragment = R"(#version 330 core
+void main() {}
 )";
 
 inline constexpr const char* kGBufferFragment = R"(#version 330 core
