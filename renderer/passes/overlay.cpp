@@ -70,20 +70,24 @@ void draw_focus(Image8& image, const GBuffer& g, std::uint32_t focused_object, d
   }
   if (object_seen || !std::isfinite(focal_depth_m)) return;
   // No object: the iso-depth line, where the depth of hit pixels crosses the focal depth between
-  // neighbours (NaN and Inf depths are skipped).
+  // neighbours, and the pixels at the focal depth (within kIsoDepthTolerance of it: a surface lying
+  // along the contour, as a floor row seen level at the focal depth, would otherwise be dotted by
+  // the depth's last bit, differently by each G-buffer pass). NaN and Inf depths are skipped.
   const auto side = [&](long i) -> int {
     if (i < 0) return 0;
     const auto k = static_cast<std::size_t>(i);
     const double d = static_cast<double>(g.depth[k]);
     if (g.object_id[k] == 0 || !std::isfinite(d)) return 0;
+    if (std::abs(d - focal_depth_m) <= kIsoDepthTolerance * focal_depth_m) return 2;
     return d < focal_depth_m ? -1 : 1;
   };
+  const auto across = [](int here, int there) { return (there == -1 || there == 1) && there != here; };
   for (long y = 0; y < static_cast<long>(image.height); ++y) {
     for (long x = 0; x < static_cast<long>(image.width); ++x) {
       const int here = side(at(x, y));
       if (here == 0) continue;
       const int right = side(at(x + 1, y)), below = side(at(x, y + 1));
-      if ((right != 0 && right != here) || (below != 0 && below != here)) {
+      if (here == 2 || across(here, right) || across(here, below)) {
         image.set(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y), colour);
       }
     }

@@ -27,6 +27,10 @@ inline double degrees_to_pixels(const protocol::DisplayGeometry& display, std::u
 // last valid point is shown), and, if area_deg > 0, a thin ring of that diameter (the gaze area).
 void draw_gaze(Image8& image, const protocol::DisplayGeometry& display, const GazeMark& gaze, double area_deg);
 
+// draw_focus's iso-depth line takes depths within this fraction of the focal depth as on it: above
+// the float depth's rounding (the G-buffer passes agree within 1e-5, tests/gl/test_gl_backend.cpp).
+inline constexpr double kIsoDepthTolerance = 2e-5;
+
 // Shows the focus pass's result: outlines the focused object's pixels (yellow when settled, cyan
 // during a focus transition); for a focal depth without an object (screen centre, depth under the
 // gaze point) it draws the iso-depth line where the scene crosses the focal depth instead. The image

@@ -674,6 +674,33 @@ TEST(FocusOverlay, OutlinesTheFocusedObjectOrTheFocalDepthLine) {
   draw_focus(half, w.g, 0, kNaN, false, "");
 }
 
+// A floor seen level: every pixel of a row at one depth. When the focal depth is that row's depth,
+// the row is the iso-depth line: drawn whole, however the depth's last bit falls (the forward and the
+// visibility-buffer G-buffers round it differently), not dotted by it.
+TEST(FocusOverlay, TheIsoDepthLineAlongARowAtTheFocalDepthIsWholeWhateverItsRounding) {
+  GBuffer g;
+  g.resize(64, 8);
+  const float focal = 4.0f;
+  for (std::uint32_t y = 0; y < g.height; ++y) {
+    for (std::uint32_t x = 0; x < g.width; ++x) {
+      // Row 4 at the focal depth, one ulp above or below by pixel; rows above nearer, below farther.
+      const float on_row = (x * 7 + 3) % 3 == 0 ? std::nextafter(focal, 0.0f)
+                           : (x % 2 == 0)        ? std::nextafter(focal, 10.0f)
+                                                 : focal;
+      g.depth[g.index(x, y)] = y == 4 ? on_row : focal + 0.1f * (static_cast<float>(y) - 4.0f);
+      g.object_id[g.index(x, y)] = 7;
+    }
+  }
+  Image8 image;
+  image.resize(g.width, g.height);
+  draw_focus(image, g, 0, focal, false, "");
+  for (std::uint32_t x = 0; x < g.width; ++x) {
+    EXPECT_NE(image.get(x, 4), glm::vec3(0.0f)) << "x=" << x;
+    EXPECT_EQ(image.get(x, 1), glm::vec3(0.0f)) << "x=" << x;
+    EXPECT_EQ(image.get(x, 6), glm::vec3(0.0f)) << "x=" << x;
+  }
+}
+
 // --- the planner's focus decision -----------------------------------------------------------------
 
 TEST(FocusPlanner, TheFocusOverlayNeedsTheFocusPassBeforeDofExists) {

@@ -1,5 +1,7 @@
 #include "backend/gl/gl_frame.h"
 
+#include "passes/overlay.h"
+
 #include <epoxy/gl.h>
 
 #include <algorithm>
@@ -85,6 +87,7 @@ uniform float u_ring_radius, u_area_radius;  // u_area_radius 0: none
 uniform int u_focus;                          // 0 none, 1 outline u_object, 2 iso-depth line
 uniform uint u_object;
 uniform float u_focal_depth;
+uniform float u_iso_tolerance;  // passes/overlay.h kIsoDepthTolerance
 uniform vec3 u_focus_colour;
 out vec4 o_color;
 
@@ -95,8 +98,10 @@ int side(ivec2 p) {
   if (!inside(p)) return 0;
   float d = texelFetch(u_depth, texel_of(p), 0).r;
   if (texelFetch(u_id, texel_of(p), 0).r == 0u || isnan(d) || isinf(d)) return 0;
+  if (abs(d - u_focal_depth) <= u_iso_tolerance * u_focal_depth) return 2;  // on the contour
   return d < u_focal_depth ? -1 : 1;
 }
+bool across(int here, int there) { return (there == -1 || there == 1) && there != here; }
 bool ring(vec2 q, float radius, float thickness) {
   float r_out = radius + thickness / 2.0, r_in = max(0.0, radius - thickness / 2.0);
   float d = length(q - u_gaze_px);
@@ -117,7 +122,7 @@ void main() {
     int here = side(p);
     if (here != 0) {
       int right = side(p + ivec2(1, 0)), below = side(p + ivec2(0, 1));
-      if ((right != 0 && right != here) || (below != 0 && below != here)) { c = u_focus_colour; drawn = true; }
+      if (here == 2 || across(here, right) || across(here, below)) { c = u_focus_colour; drawn = true; }
     }
   }
   if (u_gaze && ring(q, u_ring_radius, 2.0)) { c = u_gaze_colour; drawn = true; }
@@ -396,6 +401,7 @@ void GlFrame::overlay(const GpuOverlay& o) {
   glUniform1i(loc("u_focus"), static_cast<GLint>(o.focus));
   glUniform1ui(loc("u_object"), o.focus_object);
   glUniform1f(loc("u_focal_depth"), static_cast<float>(o.focal_depth_m));
+  glUniform1f(loc("u_iso_tolerance"), static_cast<float>(kIsoDepthTolerance));
   const glm::vec3 focus_colour = o.focus_in_transition ? glm::vec3(0.2f, 0.85f, 1.0f) : glm::vec3(1.0f, 0.85f, 0.1f);
   glUniform3f(loc("u_focus_colour"), focus_colour.r, focus_colour.g, focus_colour.b);
   if (o.focus == GpuOverlay::Focus::None) {
