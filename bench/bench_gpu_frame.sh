@@ -14,8 +14,9 @@
 # "scene" = the scene's own effects (attention.json: attention, focus, LOD selection and DOF on the
 # CPU from a readback of colour, depth and ids); "base-allplanes" = base with every G-buffer plane
 # written on the GPU path too (debug.gbuffer_planes=all: what culling the unread planes saves);
-# "base-noprepass" = base shading every surface drawn (frame.depth_prepass=false: what the depth
-# pre-pass saves);
+# "base-forward" / "base-visibility" = base with the G-buffer shaded in the raster pass / by the
+# visibility buffer's compute pass (frame.gbuffer_pass); "base-noprepass" = base-forward shading
+# every surface drawn (frame.depth_prepass=false: what the depth pre-pass saves);
 # "gi" = base with the hybrid renderer (20k photons traced by Embree on the CPU, the inset
 # composited on the GPU).
 #
@@ -49,7 +50,11 @@ for scene in $SCENES; do
         base-allplanes) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                                --set debug.gbuffer_planes=all) ;;
         base-noprepass) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
-                               --set frame.depth_prepass=false) ;;
+                               --set frame.gbuffer_pass=forward --set frame.depth_prepass=false) ;;
+        base-forward) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+                             --set frame.gbuffer_pass=forward) ;;
+        base-visibility) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+                                --set frame.gbuffer_pass=visibility) ;;
         gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac

@@ -168,10 +168,26 @@ GBufferPlanes FramePipeline::planes_written(const FramePlan& plan) const {
   return planes_read(plan) | GBufferPlanes{.color = true};
 }
 
+// frame.gbuffer_pass: auto takes the visibility buffer where the backend says it is the faster.
+bool FramePipeline::visibility_buffer() const {
+  return settings_.is("frame.gbuffer_pass", "visibility") ||
+         (settings_.is("frame.gbuffer_pass", "auto") && backend_->capabilities().visibility_buffer_faster);
+}
+
 std::string FramePipeline::placement(const FramePlan& plan) const {
   const std::string refusal = gpu_refusal();
   if (!refusal.empty()) return "cpu        every plane read back, every pass on the CPU: " + refusal;
-  return "gpu        " + gpu_->description() + ": G-buffer, tone map, overlay on the GPU; G-buffer planes written: " +
+  const BackendCapabilities can = backend_->capabilities();
+  const bool visibility = visibility_buffer() && can.visibility_buffer;
+  const bool automatic = settings_.is("frame.gbuffer_pass", "auto");
+  const std::string how =
+      visibility ? "visibility buffer + compute shading"
+      : !can.visibility_buffer && !settings_.is("frame.gbuffer_pass", "forward")
+          ? "forward raster shading: no compute shaders (OpenGL 4.3)"
+          : automatic ? "forward raster shading: frame.gbuffer_pass=auto on a software rasteriser"
+                      : "forward raster shading";
+  return "gpu        " + gpu_->description() + ": G-buffer (" + how +
+         "), tone map, overlay on the GPU; G-buffer planes written: " +
          to_string(planes_written(plan)) + "; read back: " + to_string(planes_read_on_cpu(plan));
 }
 
@@ -281,6 +297,7 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
   bs.depth_prepass = settings_.flag("frame.depth_prepass");
+  bs.visibility_buffer = visibility_buffer();
   f.read_back = planes_read_on_cpu(f.plan);
   f.written = planes_written(f.plan);
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
@@ -382,6 +399,7 @@ void FramePipeline::step_gbuffer(const Frame& f, double now_s, double previous_s
   bs.shadows = settings_.flag("shadows");
   bs.lod_levels = lod_levels_;
   bs.depth_prepass = settings_.flag("frame.depth_prepass");
+  bs.visibility_buffer = visibility_buffer();
   backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
   if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
   if (check) require_finite_gbuffer("gbuffer", gbuffer_);

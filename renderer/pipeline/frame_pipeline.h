@@ -161,6 +161,7 @@ class FramePipeline {
   void late_latch(Frame& f, PassTimer& timer);
   GBufferPlanes planes_written(const FramePlan& plan) const;
   std::string placement(const FramePlan& plan) const;
+  bool visibility_buffer() const;  // the G-buffer pass asked of the backend (frame.gbuffer_pass)
 
   // The passes' typed settings, parsed from settings_ once per change (Settings::version) or scene
   // change, not from strings every frame.

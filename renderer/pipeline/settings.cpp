@@ -122,6 +122,11 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"frame.depth_prepass", "true", "bool",
        "OpenGL backend: draw the z-buffer first, then shade each pixel once (z test at equal) instead of every "
        "surface drawn over it (bench/bench_gpu_frame.sh measures both)"},
+      {"frame.gbuffer_pass", "auto", "auto|visibility|forward",
+       "OpenGL backend: visibility = rasterise triangle ids only, then rebuild the G-buffer and shade each pixel "
+       "once in a compute pass (GL 4.3; falls back to forward with one log line where compute is missing); forward "
+       "= shade in the raster pass's fragment shader (GL 3.3); auto = visibility on a GPU with compute shaders, "
+       "forward on a software rasteriser (llvmpipe), where it is the faster (bench/RESULTS.md)"},
       {"debug.gbuffer_planes", "read", "read|all",
        "GPU-resident frame: the G-buffer pass writes the planes some pass reads (read), or every plane (all: "
        "measures what culling the unread ones saves, bench/bench_gpu_frame.sh)"},

@@ -60,6 +60,14 @@ echo "== headless gl through EGL, DISPLAY unset"
 "${HEADLESS_GL[@]}" "$RENDER" --scene "$SCENES/cornell.json" "${SMALL[@]}" --backend gl --headless --frames 3 --gaze none \
   --out "$WORK/gl" >/dev/null 2>"$WORK/gl.err" || fail "headless gl: $(cat "$WORK/gl.err")"
 [ "$(ls "$WORK/gl"/frame-*.png | wc -l)" -eq 3 ] || fail "expected 3 GL frames"
+echo "== the visibility buffer asked of a context without compute shaders: forward, one log line, the plan says why"
+"${HEADLESS_GL[@]}" env MESA_GL_VERSION_OVERRIDE=3.3 "$RENDER" --scene "$SCENES/cornell.json" "${SMALL[@]}" --backend gl \
+  --headless --frames 3 --gaze none --set frame.gbuffer_pass=visibility --out "$WORK/gl33" >/dev/null 2>"$WORK/gl33.err" \
+  || fail "gl 3.3: $(cat "$WORK/gl33.err")"
+[ "$(grep -c 'visibility buffer off (no compute shaders (OpenGL 3.3' "$WORK/gl33.err")" -eq 1 ] \
+  || fail "expected one line saying why the visibility buffer is off: $(cat "$WORK/gl33.err")"
+grep -q "forward raster shading: no compute shaders" "$WORK/gl33/plan.txt" || fail "gl 3.3 plan: $(cat "$WORK/gl33/plan.txt")"
+[ "$(ls "$WORK/gl33"/frame-*.png | wc -l)" -eq 3 ] || fail "expected 3 GL 3.3 frames"
 out=$(env -u DISPLAY "$RENDER" --scene "$SCENES/cornell.json" "${SMALL[@]}" --backend gl --frames 1 --gaze none 2>&1) \
   && fail "the viewer without a display succeeded"
 grep -q "no X display" <<<"$out" || fail "the viewer's no-display message: $out"

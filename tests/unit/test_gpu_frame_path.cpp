@@ -43,6 +43,7 @@ class FakeGpuFrame final : public GpuFrame {
   void render_gbuffer(const FrameTime&, const BackendSettings& s, const GBufferPlanes& planes, GBuffer& out) override {
     calls.push_back("gbuffer");
     written = planes;
+    visibility_buffer = s.visibility_buffer;
     fill(*scene, s, rendered_);
     if (out.width != rendered_.width || out.height != rendered_.height) out.resize(rendered_.width, rendered_.height);
   }
@@ -82,6 +83,7 @@ class FakeGpuFrame final : public GpuFrame {
   const Scene* scene = nullptr;
   std::vector<std::string> calls;
   GBufferPlanes read_back_planes, written;
+  bool visibility_buffer = false;  // what the last G-buffer was asked to be drawn with
   GpuOverlay last_overlay;
 
  private:
@@ -95,7 +97,8 @@ class FakeBackend final : public Backend {
     if (with_gpu) gpu_ = std::make_unique<FakeGpuFrame>(std::move(unavailable));
   }
   std::string name() const override { return "fake"; }
-  BackendCapabilities capabilities() const override { return {}; }
+  BackendCapabilities capabilities() const override { return capabilities_; }
+  BackendCapabilities capabilities_;
   void set_scene(const Scene& scene) override {
     scene_ = scene;
     if (gpu_) gpu_->scene = &scene_;
@@ -207,6 +210,43 @@ TEST(GpuFramePath, EachSettingTakesItsPathAndReadsBackWhatItsCpuPassesRead) {
     const bool uploaded = std::find(gpu.calls.begin(), gpu.calls.end(), "upload") != gpu.calls.end();
     EXPECT_EQ(uploaded, row.upload);
     EXPECT_EQ(run->frame.image, nullptr);  // the display image stays on the GPU
+  }
+}
+
+// frame.gbuffer_pass: which G-buffer pass the backend is asked for, by what it can do and what is
+// faster on it, and what the "where" line says.
+TEST(GpuFramePath, TheGBufferPassFollowsTheSettingAndWhatTheDeviceCanDo) {
+  struct Row {
+    const char* name;
+    BackendCapabilities can;
+    const char* setting;
+    bool visibility;  // asked of the backend
+    const char* where;
+  };
+  const BackendCapabilities none{}, software{.visibility_buffer = true},
+      gpu{.visibility_buffer = true, .visibility_buffer_faster = true};
+  const Row rows[] = {
+      {"auto on a GPU: the visibility buffer", gpu, "auto", true, "visibility buffer + compute shading"},
+      {"auto on a software rasteriser: forward", software, "auto", false, "auto on a software rasteriser"},
+      {"asked for where it runs but is slower: visibility", software, "visibility", true, "visibility buffer"},
+      // The backend draws forward then, and logs why once (GlBackend::ensure_visibility).
+      {"asked for without compute shaders: asked, and the where line says why", none, "visibility", true,
+       "no compute shaders"},
+      {"auto without compute shaders: forward, and why", none, "auto", false, "no compute shaders"},
+      {"forward asked for", gpu, "forward", false, "(forward raster shading)"},
+  };
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.name);
+    auto run = std::make_unique<struct Run>();
+    Settings s;
+    s.set("frame.gbuffer_pass", row.setting);
+    auto backend = std::make_unique<FakeBackend>(true);
+    backend->capabilities_ = row.can;
+    run->backend = backend.get();
+    run->pipeline = std::make_unique<FramePipeline>(scene(false), s, std::move(backend), *run->gaze);
+    run->frame = run->pipeline->render(0, 0, 0, 0, run->timer);
+    EXPECT_EQ(run->backend->gpu_->visibility_buffer, row.visibility);
+    EXPECT_NE(run->frame.plan.explain().find(row.where), std::string::npos) << run->frame.plan.explain();
   }
 }
 

@@ -166,7 +166,8 @@ GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
     : context_(GlContextOptions{.visible = false, .platform = platform, .title = "fovea-gl-backend", .width = 16,
                                 .height = 16, .vsync = false, .share = share}) {
   context_.make_current();
-  program_ = gl::link_program(gl::kGBufferVertex, gl::kGBufferFragment, "GlBackend G-buffer program");
+  const std::string fragment = std::string("#version 330 core\n") + gl::kShadingGlsl + gl::kGBufferFragment;
+  program_ = gl::link_program(gl::kGBufferVertex, fragment.c_str(), "GlBackend G-buffer program");
   const auto loc = [this](const char* name) { return glGetUniformLocation(program_, name); };
   loc_model_ = loc("u_model");
   loc_model_prev_ = loc("u_model_prev");
@@ -210,6 +211,7 @@ GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
 GlBackend::~GlBackend() {
   gpu_frame_.reset();  // its GL objects go while the context lives
   context_.make_current();
+  visibility_.reset();
   release_meshes();
   release_framebuffer();
   if (light_ubo_ != 0) glDeleteBuffers(1, &light_ubo_);
@@ -225,6 +227,8 @@ void GlBackend::release_meshes() {
   }
   meshes_.clear();
   draws_.clear();
+  mesh_sources_.clear();
+  visibility_meshes_stale_ = true;
 }
 
 void GlBackend::release_framebuffer() {
@@ -290,6 +294,7 @@ void GlBackend::upload_draw_items(const Scene& scene) {
     const GpuMesh gpu = upload_interleaved_mesh(*mesh, interleaved);
     uploaded.emplace(mesh, meshes_.size());
     meshes_.push_back(gpu);
+    mesh_sources_.push_back(mesh);
     return meshes_.size() - 1;
   };
   for (const Object& o : scene.objects) {
@@ -353,7 +358,8 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
 }
 
 void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels,
-                     std::uint32_t width, std::uint32_t height, const GBufferPlanes& planes, bool depth_prepass) {
+                     std::uint32_t width, std::uint32_t height, const GBufferPlanes& planes, bool depth_prepass,
+                     bool visibility_buffer) {
   if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
   const Scene& scene = *scene_;
   const Camera& cam = scene.camera;
@@ -363,6 +369,12 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   if (width == 0) width = cam.width;
   if (height == 0) height = cam.height;
   ensure_framebuffer(std::max(std::max(cam.width, width), fb_width_), std::max(std::max(cam.height, height), fb_height_));
+  if (visibility_buffer && ensure_visibility()) {
+    const FrameView frame = frame_view(cam, time, lens);
+    draw_visibility(scene, time, lod_levels, frame, frame.view != frame.view_prev, width, height, planes);
+    check_gl("GlBackend::render (visibility buffer)");
+    return;
+  }
   begin_gbuffer_pass(fbo_, width, height, planes);
   clear_gbuffer(scene);  // a draw buffer of GL_NONE ignores its clear
 
@@ -381,6 +393,60 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   glUseProgram(0);
   glDisable(GL_SCISSOR_TEST);
   check_gl("GlBackend::render (draw)");
+}
+
+BackendCapabilities GlBackend::capabilities() const {
+  const bool visibility = GlVisibilityPass::unavailable_reason(context_.features()).empty();
+  return {.shadow_rays = false, .per_pixel_lens = false, .peeling = false, .visibility_buffer = visibility,
+          .visibility_buffer_faster = visibility && !context_.features().software};
+}
+
+bool GlBackend::ensure_visibility() {
+  if (!visibility_refusal_.empty()) return false;
+  try {
+    const std::string missing = GlVisibilityPass::unavailable_reason(context_.features());
+    if (!missing.empty()) throw std::runtime_error(missing);
+    if (!visibility_) visibility_ = std::make_unique<GlVisibilityPass>(light_ubo_);
+    if (visibility_meshes_stale_) {
+      visibility_->set_meshes(mesh_sources_);
+      visibility_meshes_stale_ = false;
+    }
+    return true;
+  } catch (const std::runtime_error& e) {
+    visibility_.reset();
+    visibility_refusal_ = e.what();
+    std::fprintf(stderr, "fovea-render: visibility buffer off (%s): the G-buffer is shaded in the raster pass\n",
+                 visibility_refusal_.c_str());
+    return false;
+  }
+}
+
+// The objects of this frame (their chosen levels) as the visibility pass's draws.
+void GlBackend::draw_visibility(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
+                                const FrameView& frame, bool camera_moved, std::uint32_t width, std::uint32_t height,
+                                const GBufferPlanes& planes) {
+  std::vector<GlVisibilityPass::Draw> draws;
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const GpuMesh* gpu = mesh_for(i, lod_levels);
+    if (gpu == nullptr) continue;
+    const Object& o = scene.objects[i];
+    const glm::mat4 model = o.transform_at(time.now_s).matrix();
+    const glm::mat4 model_prev = o.transform_at(time.previous_s).matrix();
+    draws.push_back({static_cast<std::size_t>(gpu - meshes_.data()), gpu->vao, gpu->index_count, model, model_prev,
+                     o.id, &scene.materials[o.material], camera_moved || model != model_prev});
+  }
+  const GlVisibilityPass::View view{frame.view,
+                                    frame.view_prev,
+                                    frame.proj,
+                                    frame.eye,
+                                    width,
+                                    height,
+                                    {finite_or(scene.background.r, 0), finite_or(scene.background.g, 0),
+                                     finite_or(scene.background.b, 0)},
+                                    scene.camera.far_m,
+                                    scene.ambient,
+                                    light_sample_count_};
+  visibility_->render(view, draws, z_buffer_, fb_width_, fb_height_, textures_, planes);
 }
 
 GlBackend::FrameView GlBackend::frame_view(const Camera& cam, const FrameTime& time, const LensSample& lens) {
@@ -499,7 +565,8 @@ void GlBackend::check_settings(const BackendSettings& settings) {
 
 void GlBackend::render_on_gpu(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes) {
   check_settings(settings);
-  draw(time, settings.lens, settings.lod_levels, settings.width, settings.height, planes, settings.depth_prepass);
+  draw(time, settings.lens, settings.lod_levels, settings.width, settings.height, planes, settings.depth_prepass,
+       settings.visibility_buffer);
   image_width_ = settings.width > 0 ? settings.width : scene_->camera.width;
   image_height_ = settings.height > 0 ? settings.height : scene_->camera.height;
 }

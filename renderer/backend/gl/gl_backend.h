@@ -23,6 +23,7 @@
 
 #include "backend/backend.h"
 #include "backend/gl/gl_context.h"
+#include "backend/gl/gl_visibility.h"
 #include "backend/gpu_frame.h"
 #include "scene/shading.h"
 
@@ -50,7 +51,7 @@ class GlBackend final : public Backend {
 
   std::string name() const override { return "gl"; }
   // A raster G-buffer: no shadow rays, one lens point per frame (an off-axis frustum), no peeling.
-  BackendCapabilities capabilities() const override { return {}; }
+  BackendCapabilities capabilities() const override;
   // Uploads every mesh once (shared meshes once) and the expanded light samples. Throws
   // std::invalid_argument for an object the raster backend cannot draw (normals not one per
   // position, index out of range, material index out of range; an object without a mesh is
@@ -91,7 +92,8 @@ class GlBackend final : public Backend {
   // width/height 0: the camera's resolution.
   void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {},
             std::uint32_t width = 0, std::uint32_t height = 0, const GBufferPlanes& planes = GBufferPlanes::all(),
-            bool depth_prepass = false);
+            bool depth_prepass = false, bool visibility_buffer = false);
+
   // The camera's view (now and at the previous frame), projection and eye for one render.
   struct FrameView {
     glm::mat4 view, view_prev, proj;
@@ -103,6 +105,12 @@ class GlBackend final : public Backend {
   void draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                     bool camera_moved);
   void set_object_uniforms(const Object& o, const Material& m, const FrameTime& time, bool camera_moved);
+  // The visibility-buffer pass, built on first use; false (and one stderr line, once) where the
+  // context or the scene cannot have it.
+  bool ensure_visibility();
+  void draw_visibility(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
+                       const FrameView& frame, bool camera_moved, std::uint32_t width, std::uint32_t height,
+                       const GBufferPlanes& planes);
   // BackendSettings::depth_prepass: the z-buffer of every object, nothing else.
   void draw_depth(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                   const FrameView& frame);
@@ -120,6 +128,10 @@ class GlBackend final : public Backend {
   GlContext context_;
   unsigned program_ = 0;
   unsigned depth_program_ = 0;  // the depth pre-pass
+  std::unique_ptr<GlVisibilityPass> visibility_;
+  std::string visibility_refusal_;          // why it cannot run here ("" : not refused)
+  std::vector<const Mesh*> mesh_sources_;   // meshes_' meshes (the visibility pass copies them)
+  bool visibility_meshes_stale_ = true;
   int loc_depth_model_ = -1, loc_depth_view_ = -1, loc_depth_proj_ = -1;
   unsigned light_ubo_ = 0;
   // Uniform locations.

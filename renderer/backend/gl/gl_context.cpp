@@ -470,6 +470,10 @@ void GlContext::read_features() {
   features_.timer_query = features_.at_least(3, 3) || epoxy_has_gl_extension("GL_ARB_timer_query");
   features_.sync = features_.at_least(3, 2) || epoxy_has_gl_extension("GL_ARB_sync");
   features_.compute = features_.at_least(4, 3) || epoxy_has_gl_extension("GL_ARB_compute_shader");
+  const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  const std::string renderer = name != nullptr ? name : "";
+  for (const char* software : {"llvmpipe", "softpipe", "SwiftShader", "Software Rasterizer"})
+    features_.software = features_.software || renderer.find(software) != std::string::npos;
 }
 
 void GlContext::present(const std::vector<glm::vec3>& linear_rgb, std::uint32_t width, std::uint32_t height) {

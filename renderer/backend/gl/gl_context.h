@@ -46,6 +46,9 @@ struct GlFeatures {
   bool timer_query = false;  // GL_TIMESTAMP queries (core in 3.3; ARB_timer_query)
   bool sync = false;         // fences (core in 3.2; ARB_sync)
   bool compute = false;      // compute shaders (core in 4.3; ARB_compute_shader)
+  // A software rasteriser (Mesa's llvmpipe/softpipe, SwiftShader): fragment and compute shaders run
+  // on the same CPU cores, so moving shading to compute buys nothing (bench/RESULTS.md).
+  bool software = false;
   bool at_least(int want_major, int want_minor) const {
     return major > want_major || (major == want_major && minor >= want_minor);
   }

@@ -56,4 +56,25 @@ inline GLuint link_program(const char* vertex_source, const char* fragment_sourc
   return program;
 }
 
+// Compiles and links a compute program (GL 4.3); the shader is deleted after linking.
+inline GLuint link_compute_program(const char* source, const char* what) {
+  const GLuint cs = compile_shader(GL_COMPUTE_SHADER, source, what);
+  const GLuint program = glCreateProgram();
+  glAttachShader(program, cs);
+  glLinkProgram(program);
+  glDetachShader(program, cs);
+  glDeleteShader(cs);
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint length = 0;
+    glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
+    std::string log(static_cast<std::size_t>(length > 0 ? length : 1), '\0');
+    glGetProgramInfoLog(program, length, nullptr, log.data());
+    glDeleteProgram(program);
+    throw std::runtime_error(std::string(what) + ": program link failed: " + log.c_str());
+  }
+  return program;
+}
+
 }  // namespace fovea::render::gl
