@@ -154,7 +154,13 @@ TEST_F(GlBackendTest, NameAndFactory) {
   EXPECT_EQ(backend_->name(), "gl");
   const auto made = make_backend(BackendKind::OpenGL);
   EXPECT_EQ(made->name(), "gl");
-  EXPECT_EQ(made->capabilities(), BackendCapabilities{});  // a raster G-buffer: none of the extras
+  // A raster G-buffer: no shadow rays, lens rays or peeling; the visibility buffer where the context
+  // has compute shaders (GL 4.3), and it is the faster only on a GPU, not on a software rasteriser.
+  const BackendCapabilities can = made->capabilities();
+  EXPECT_FALSE(can.shadow_rays || can.per_pixel_lens || can.peeling);
+  const GlFeatures& f = backend_->context().features();
+  EXPECT_EQ(can.visibility_buffer, f.at_least(4, 3));
+  EXPECT_EQ(can.visibility_buffer_faster, f.at_least(4, 3) && !f.software);
   std::cout << "GL renderer: " << backend_->context().renderer() << " (" << backend_->context().platform_description()
             << ")\n";
 }
