@@ -18,6 +18,10 @@ struct GpuTonemap {
   enum class Op { Reinhard, Clamp, Exponential };
   Op op = Op::Reinhard;
   float exposure = 1.0f;
+  // Fragment or compute pass (same formula, same bytes); Auto: compute where it is the faster (a GPU
+  // with compute shaders, not a software rasteriser). Compute without compute shaders is refused.
+  enum class Pass { Auto, Fragment, Compute };
+  Pass pass = Pass::Auto;
 };
 
 // What the overlay pass draws, in the display image's pixels (passes/overlay.h draws the same on the

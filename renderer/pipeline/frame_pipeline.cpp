@@ -321,7 +321,7 @@ void FramePipeline::step_tonemap_on_gpu(const Frame& f, const std::vector<glm::v
                        f.gi->area.radius_px, gi_fovea_);
   }
   const TonemapParams& p = pass_settings().tonemap;
-  gpu_->tonemap(GpuTonemap{gpu_operator(p.op), p.exposure});
+  gpu_->tonemap(GpuTonemap{gpu_operator(p.op), p.exposure, GpuTonemap::Pass::Auto});
 }
 
 // draw_focus and draw_gaze's marks (passes/overlay.h) as the GPU pass draws them.

@@ -105,6 +105,36 @@ TEST_F(GlFrameTest, ToneMapAgreesWithTheCpuPassOnTheBundledScenes) {
   }
 }
 
+// The compute tone map (GL 4.3, taken on GPUs) writes the same bytes as the fragment pass: the
+// G-buffer's colour, an uploaded HDR image (rows top first, NaN, Inf, negatives), and a GI inset.
+TEST_F(GlFrameTest, TheComputeToneMapWritesTheFragmentPassesBytes) {
+  if (!backend_->context().features().at_least(4, 3)) GTEST_SKIP() << "no compute shaders in this context";
+  const auto both = [&](const GpuTonemap& base) {
+    Image8 out[2];
+    for (const GpuTonemap::Pass pass : {GpuTonemap::Pass::Fragment, GpuTonemap::Pass::Compute}) {
+      GpuTonemap t = base;
+      t.pass = pass;
+      gpu_->tonemap(t);
+      gpu_->finish();
+      out[pass == GpuTonemap::Pass::Compute ? 1 : 0] = gpu_image(*gpu_);
+    }
+    EXPECT_EQ(out[0].rgb, out[1].rgb);
+  };
+  for (const char* name : {"attention.json", "cornell.json"}) {
+    SCOPED_TRACE(name);
+    const GBuffer g = render_both(bundled(name, 97, 61));  // odd sizes: partial 8x8 groups
+    for (const char* op : {"reinhard", "clamp", "exponential"}) both({gpu_op(op), 2.0f, GpuTonemap::Pass::Auto});
+    std::vector<glm::vec3> hdr(g.size());
+    for (std::size_t i = 0; i < hdr.size(); ++i) hdr[i] = glm::vec3(0.01f * static_cast<float>(i % 300), 0.5f, 3.0f);
+    hdr[3] = {std::numeric_limits<float>::quiet_NaN(), -1.0f, std::numeric_limits<float>::infinity()};
+    gpu_->upload_hdr(hdr, g.width, g.height);
+    both({GpuTonemap::Op::Reinhard, 1.0f, GpuTonemap::Pass::Auto});
+    gpu_->upload_inset(std::vector<glm::vec3>(g.size(), glm::vec3(2.0f, 0.1f, 0.4f)), g.width, g.height, {40, 30}, 20,
+                       0.5f);
+    both({GpuTonemap::Op::Reinhard, 1.0f, GpuTonemap::Pass::Auto});
+  }
+}
+
 TEST_F(GlFrameTest, AnUploadedHdrImageIsToneMappedWithItsTopRowFirst) {
   const Scene s = bundled("cornell.json", 64, 48);
   render_both(s);

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -26,8 +27,10 @@ void main() {
 )";
 
 // passes/tonemap.cpp on the GPU: exposure, the operator, the sRGB transfer function (the exact
-// formula, as tonemap.exact=true), rounded to 8 bits here so the RGBA8 store is exact.
-constexpr const char* kTonemapFragment = R"(#version 330 core
+// formula, as tonemap.exact=true), rounded to 8 bits here so the RGBA8 store is exact. One body for
+// the fragment pass (kTonemapFragment) and the compute pass (kTonemapCompute, GL 4.3), after their
+// #version line.
+constexpr const char* kTonemapCommon = R"(
 uniform sampler2D u_hdr;
 uniform bool u_top_first;   // the uploaded HDR image has row 0 at the top
 uniform int u_height;
@@ -40,7 +43,6 @@ uniform sampler2D u_inset_gi;  // its box, row 0 at the top
 uniform ivec2 u_inset_origin, u_inset_size;
 uniform vec2 u_inset_centre;
 uniform float u_inset_radius, u_inset_fovea;
-out vec4 o_color;
 float map_operator(float v) {
   v = (isnan(v) || isinf(v)) ? 0.0 : max(v, 0.0);
   if (u_op == 0) return v / (1.0 + v);
@@ -61,15 +63,33 @@ vec3 composite(vec3 local, ivec2 image_px) {
                     ? (d - u_inset_fovea) / (u_inset_radius - u_inset_fovea) : 0.0;  // step 8
   return alpha * local + (1.0 - alpha) * texelFetch(u_inset_gi, t, 0).rgb;
 }
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+// The display pixel p (row 0 at the bottom) as stored.
+vec4 display_pixel(ivec2 p) {
   ivec2 image_px = ivec2(p.x, u_height - 1 - p.y);
   if (u_top_first) p.y = u_height - 1 - p.y;
   vec3 hdr = texelFetch(u_hdr, p, 0).rgb;
   if (u_inset) hdr = composite(hdr, image_px);
   vec3 c = hdr * u_exposure;
   vec3 s = vec3(srgb(map_operator(c.r)), srgb(map_operator(c.g)), srgb(map_operator(c.b)));
-  o_color = vec4(floor(s * 255.0 + 0.5) / 255.0, 1.0);
+  return vec4(floor(s * 255.0 + 0.5) / 255.0, 1.0);
+}
+)";
+
+constexpr const char* kTonemapFragment = R"(
+out vec4 o_color;
+void main() { o_color = display_pixel(ivec2(gl_FragCoord.xy)); }
+)";
+
+// Every core of the GPU instead of its graphics ones (bench/RESULTS.md); the RGBA8 image store of
+// k/255 is exact, as the fragment pass's.
+constexpr const char* kTonemapCompute = R"(
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(rgba8, binding = 0) uniform writeonly image2D u_display;
+uniform int u_width;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_width || p.y >= u_height) return;
+  imageStore(u_display, p, display_pixel(p));
 }
 )";
 
@@ -159,7 +179,18 @@ GlFrame::GlFrame(GlBackend& backend) : backend_(backend) {
   context.make_current();
   unavailable_ = missing_features(context.features());
   if (!unavailable_.empty()) return;
-  tonemap_program_ = gl::link_program(kFullscreenVertex, kTonemapFragment, "GlFrame tone map");
+  const std::string tonemap = std::string("#version 330 core\n") + kTonemapCommon + kTonemapFragment;
+  tonemap_program_ = gl::link_program(kFullscreenVertex, tonemap.c_str(), "GlFrame tone map");
+  const GlFeatures& features = backend_.context().features();
+  if (features.at_least(4, 3)) {
+    const std::string compute = std::string("#version 430 core\n") + kTonemapCommon + kTonemapCompute;
+    try {
+      tonemap_compute_ = gl::link_compute_program(compute.c_str(), "GlFrame tone map (compute)");
+    } catch (const std::runtime_error& e) {  // the fragment pass does the same; say so once
+      std::fprintf(stderr, "fovea-render: the compute tone map is off (%s): the fragment pass is used\n", e.what());
+    }
+  }
+  compute_faster_ = tonemap_compute_ != 0 && !features.software;
   overlay_program_ = gl::link_program(kFullscreenVertex, kOverlayFragment, "GlFrame overlay");
   glGenVertexArrays(1, &vao_);
   check("GlFrame()");
@@ -178,6 +209,7 @@ GlFrame::~GlFrame() {
   if (inset_.texture != 0) glDeleteTextures(1, &inset_.texture);
   if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
   if (tonemap_program_ != 0) glDeleteProgram(tonemap_program_);
+  if (tonemap_compute_ != 0) glDeleteProgram(tonemap_compute_);
   if (overlay_program_ != 0) glDeleteProgram(overlay_program_);
 }
 
@@ -349,16 +381,24 @@ void GlFrame::tonemap(const GpuTonemap& params) {
                                 std::to_string(hdr_h_) + ", the G-buffer " + std::to_string(t.width) + "x" +
                                 std::to_string(t.height));
   }
+  const bool compute = params.pass == GpuTonemap::Pass::Compute ? tonemap_compute_ != 0
+                       : params.pass == GpuTonemap::Pass::Auto  ? compute_faster_
+                                                                : false;
+  if (params.pass == GpuTonemap::Pass::Compute && !compute) {
+    throw std::invalid_argument("GlFrame::tonemap: a compute pass needs OpenGL 4.3, this context is " +
+                                backend_.context().features().version());
+  }
+  const unsigned program = compute ? tonemap_compute_ : tonemap_program_;
   begin_timed("gpu.tonemap");
-  begin_fullscreen_pass(tonemap_program_);
+  begin_fullscreen_pass(program);
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, hdr_uploaded_ ? hdr_texture_ : t.color);
-  glUniform1i(glGetUniformLocation(tonemap_program_, "u_hdr"), 0);
-  glUniform1i(glGetUniformLocation(tonemap_program_, "u_top_first"), hdr_uploaded_ ? 1 : 0);
-  glUniform1i(glGetUniformLocation(tonemap_program_, "u_height"), static_cast<GLint>(t.height));
-  glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), params.exposure);
-  glUniform1i(glGetUniformLocation(tonemap_program_, "u_op"), static_cast<GLint>(params.op));
-  const auto loc = [this](const char* name) { return glGetUniformLocation(tonemap_program_, name); };
+  const auto loc = [program](const char* name) { return glGetUniformLocation(program, name); };
+  glUniform1i(loc("u_hdr"), 0);
+  glUniform1i(loc("u_top_first"), hdr_uploaded_ ? 1 : 0);
+  glUniform1i(loc("u_height"), static_cast<GLint>(t.height));
+  glUniform1f(loc("u_exposure"), params.exposure);
+  glUniform1i(loc("u_op"), static_cast<GLint>(params.op));
   glUniform1i(loc("u_inset"), inset_.active ? 1 : 0);
   if (inset_.active) {
     glActiveTexture(GL_TEXTURE1);
@@ -371,7 +411,17 @@ void GlFrame::tonemap(const GpuTonemap& params) {
     glUniform1f(loc("u_inset_radius"), inset_.radius);
     glUniform1f(loc("u_inset_fovea"), inset_.fovea);
   }
-  glDrawArrays(GL_TRIANGLES, 0, 3);
+  if (compute) {
+    glUniform1i(loc("u_width"), static_cast<GLint>(t.width));
+    glBindImageTexture(0, display_texture_, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
+    glDispatchCompute((t.width + 7) / 8, (t.height + 7) / 8, 1);
+    // The overlay draws into the display image next, the viewer samples it, read_display reads it.
+    glMemoryBarrier(GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT |
+                    GL_TEXTURE_UPDATE_BARRIER_BIT);
+    glBindImageTexture(0, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA8);
+  } else {
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
   end_timed();
   check("GlFrame::tonemap");
 }

@@ -1,6 +1,7 @@
 #pragma once
 // The GPU-resident frame on OpenGL (backend/gpu_frame.h): the G-buffer pass without readback, the
-// tone map and the overlay as fragment-shader passes on the G-buffer's textures, an RGBA8 display
+// tone map (a compute pass on GL 4.3 GPUs) and the overlay as fragment-shader passes on the
+// G-buffer's textures, an RGBA8 display
 // image, GPU timestamp queries around each pass and a fence for the frame's completion. Shares the
 // backend's context. Needs OpenGL 3.3 with timer queries and fences (core there); a context without
 // them leaves unavailable_reason() set and the pipeline on the readback path.
@@ -45,6 +46,8 @@ class GlFrame final : public GpuFrame {
   GlBackend& backend_;
   std::string unavailable_;
   unsigned tonemap_program_ = 0, overlay_program_ = 0, vao_ = 0;
+  unsigned tonemap_compute_ = 0;  // GL 4.3: the tone map as a compute pass
+  bool compute_faster_ = false;   // ... on a GPU, not a software rasteriser (GpuTonemap::Pass::Auto)
   unsigned display_fbo_ = 0, display_texture_ = 0;
   std::uint32_t display_tw_ = 0, display_th_ = 0;
   unsigned hdr_texture_ = 0;
