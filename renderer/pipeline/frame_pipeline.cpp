@@ -123,7 +123,7 @@ FramePipeline::FramePipeline(Scene scene, Settings settings, std::unique_ptr<Bac
   }
 }
 
-const FramePipeline::PassSettings& FramePipeline::pass_settings() {
+const FramePipeline::PassSettings& FramePipeline::pass_settings() const {
   if (parsed_valid_ && parsed_version_ == settings_.version()) return parsed_;
   parsed_.attention = attention_settings(settings_);
   parsed_.focus = focus_settings(settings_, scene_.camera.lens);
@@ -131,6 +131,25 @@ const FramePipeline::PassSettings& FramePipeline::pass_settings() {
   parsed_.lod = lod_policy_settings(settings_);
   parsed_.lod_budget_ms = settings_.number("lod.budget_ms");
   parsed_.tonemap = tonemap_params(settings_);
+  parsed_.plan = plan_settings(settings_);
+  PassSettings::Dof& d = parsed_.dof;
+  d.projection = settings_.is("dof.projection", "display") ? dof::CocProjection::Display : dof::CocProjection::Sensor;
+  d.samples = static_cast<std::uint32_t>(std::lround(settings_.number("dof.samples")));
+  d.layers = static_cast<std::uint32_t>(std::lround(settings_.number("dof.layers")));
+  d.seed = static_cast<std::uint64_t>(settings_.number("dof.seed"));
+  d.hidden = settings_.flag("dof.hidden");
+  const std::string& aperture = settings_.text("dof.aperture");
+  d.aperture = aperture == "gaussian"  ? dof::Aperture::Gaussian
+               : aperture == "hexagon" ? dof::Aperture::Hexagon
+                                       : dof::Aperture::Disc;
+  d.mipmap.anisotropic = settings_.flag("dof.anisotropic");
+  d.mipmap.smooth_foreground = settings_.flag("dof.smooth_foreground");
+  d.mipmap.dob_per_coc = settings_.number("dof.sigma_per_coc");
+  parsed_.shadows = settings_.flag("shadows");
+  parsed_.depth_prepass = settings_.flag("frame.depth_prepass");
+  parsed_.visibility_buffer = visibility_buffer();
+  parsed_.finite_checks = settings_.flag("debug.finite_checks");
+  parsed_.gaze_area_deg = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
   parsed_version_ = settings_.version();
   parsed_valid_ = true;
   return parsed_;
@@ -143,7 +162,8 @@ void FramePipeline::scene_changed() {
 }
 
 FramePlan FramePipeline::plan() const {
-  FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->capabilities().per_pixel_lens});
+  FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->capabilities().per_pixel_lens,
+                                          &pass_settings().plan});
   plan.placement = placement(plan);
   return plan;
 }
@@ -225,13 +245,14 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   Frame f;
   f.plan = plan();
   f.on_gpu = gpu_refusal().empty();
-  const bool check = settings_.flag("debug.finite_checks");
+  const PassSettings& ps = pass_settings();
+  const bool check = ps.finite_checks;
   step_gaze(f, frame_clock_s, timer);
   lod_levels_.clear();
   ulod_blended_ = false;
   gi_inset_on_gpu_ = false;
   const bool attention_first =
-      f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && settings_.is("lod.policy", "ulod");
+      f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && ps.plan.lod_policy == lod::Policy::Ulod;
   if (attention_first) step_attention_on_proxy(f, now_s, previous_s, check, timer);
   if (f.plan.runs(PassId::LodSelect)) step_lod_select(f, now_s, previous_s, timer);
   if (f.on_gpu) {
@@ -293,11 +314,12 @@ void FramePipeline::step_complete(Frame& f, PassTimer& timer) {
 
 void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
   auto t = timer.scope("gbuffer");
+  const PassSettings& ps = pass_settings();
   BackendSettings bs;
-  bs.shadows = settings_.flag("shadows");
+  bs.shadows = ps.shadows;
   bs.lod_levels = lod_levels_;
-  bs.depth_prepass = settings_.flag("frame.depth_prepass");
-  bs.visibility_buffer = visibility_buffer();
+  bs.depth_prepass = ps.depth_prepass;
+  bs.visibility_buffer = ps.visibility_buffer;
   f.read_back = planes_read_on_cpu(f.plan);
   f.written = planes_written(f.plan);
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
@@ -305,7 +327,7 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
     auto r = timer.scope("gbuffer.readback");
     gpu_->read_back(f.read_back, gbuffer_);
   }
-  if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) {
+  if (f.lod != nullptr && ps.plan.lod_policy == lod::Policy::Ulod) {
     blend_ulod(FrameTime{now_s, previous_s}, bs);
     ulod_blended_ = true;
   }
@@ -328,7 +350,8 @@ void FramePipeline::step_tonemap_on_gpu(const Frame& f, const std::vector<glm::v
 void FramePipeline::step_overlay_on_gpu(const Frame& f, PassTimer& timer) {
   auto t = timer.scope("overlay");
   GpuOverlay o;
-  if (f.focus != nullptr && settings_.flag("overlay.focus")) {
+  const PassSettings& ps = pass_settings();
+  if (f.focus != nullptr && ps.plan.overlay_focus) {
     const std::uint32_t id = f.focus->object;
     const bool seen = id != 0 && std::find(gbuffer_.object_id.begin(), gbuffer_.object_id.end(), id) != gbuffer_.object_id.end();
     o.focus = seen ? GpuOverlay::Focus::Outline
@@ -338,14 +361,14 @@ void FramePipeline::step_overlay_on_gpu(const Frame& f, PassTimer& timer) {
     o.focal_depth_m = f.focus->focal_depth_m;
     o.focus_in_transition = f.focus->in_transition;
   }
-  if (settings_.flag("overlay.gaze") && gaze_.available()) {
+  if (ps.plan.overlay_gaze && gaze_.available()) {
     const std::uint32_t w = f.gbuffer->width;
     o.gaze = true;
     o.gaze_x = f.gaze.x;
     o.gaze_y = f.gaze.y;
     o.gaze_valid = f.gaze.valid;
     o.ring_diameter_px = std::max(3.0, degrees_to_pixels(scene_.display, w, 1.0));
-    const double area = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
+    const double area = ps.gaze_area_deg;
     o.area_diameter_px = area > 0 ? degrees_to_pixels(scene_.display, w, area) : 0.0;
   }
   gpu_->overlay(o);
@@ -395,13 +418,14 @@ void FramePipeline::step_lod_select(Frame& f, double now_s, double previous_s, P
 
 void FramePipeline::step_gbuffer(const Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
   auto t = timer.scope("gbuffer");
+  const PassSettings& ps = pass_settings();
   BackendSettings bs;
-  bs.shadows = settings_.flag("shadows");
+  bs.shadows = ps.shadows;
   bs.lod_levels = lod_levels_;
-  bs.depth_prepass = settings_.flag("frame.depth_prepass");
-  bs.visibility_buffer = visibility_buffer();
+  bs.depth_prepass = ps.depth_prepass;
+  bs.visibility_buffer = ps.visibility_buffer;
   backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
-  if (f.lod != nullptr && settings_.is("lod.policy", "ulod")) blend_ulod(FrameTime{now_s, previous_s}, bs);
+  if (f.lod != nullptr && ps.plan.lod_policy == lod::Policy::Ulod) blend_ulod(FrameTime{now_s, previous_s}, bs);
   if (check) require_finite_gbuffer("gbuffer", gbuffer_);
 }
 
@@ -459,7 +483,8 @@ void FramePipeline::step_tonemap(Frame& f, const std::vector<glm::vec3>& hdr, Pa
 
 void FramePipeline::step_overlay(const Frame& f, PassTimer& timer) {
   auto t = timer.scope("overlay");
-  const std::string& map = settings_.text("overlay.map");
+  const PassSettings& ps = pass_settings();
+  const std::string& map = ps.plan.overlay_map;
   if (attention::is_map(map)) {
     if (f.attention != nullptr) {
       draw_attention_map(image_, *f.attention, map);
@@ -473,12 +498,11 @@ void FramePipeline::step_overlay(const Frame& f, PassTimer& timer) {
   } else if (map != "none") {
     draw_gbuffer_map(image_, gbuffer_, map, scene_.camera.far_m);
   }
-  if (f.focus != nullptr && settings_.flag("overlay.focus")) {
+  if (f.focus != nullptr && ps.plan.overlay_focus) {
     draw_focus(image_, gbuffer_, f.focus->object, f.focus->focal_depth_m, f.focus->in_transition, f.focus->why);
   }
-  if (settings_.flag("overlay.gaze") && gaze_.available()) {
-    const double area = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
-    draw_gaze(image_, scene_.display, GazeMark{f.gaze.x, f.gaze.y, f.gaze.valid}, area);
+  if (ps.plan.overlay_gaze && gaze_.available()) {
+    draw_gaze(image_, scene_.display, GazeMark{f.gaze.x, f.gaze.y, f.gaze.valid}, ps.gaze_area_deg);
   }
 }
 
@@ -600,20 +624,20 @@ void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double p
 }
 
 dof::CocModel FramePipeline::coc_model(double focus_m) const {
-  return dof::coc_model(scene_.camera, scene_.display, focus_m,
-                        settings_.is("dof.projection", "display") ? dof::CocProjection::Display
-                                                                   : dof::CocProjection::Sensor);
+  return dof::coc_model(scene_.camera, scene_.display, focus_m, pass_settings().dof.projection);
 }
 
 void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
-  const std::string& method = settings_.text("dof.method");
-  if (method == "reference" || method == "accum") {
+  const PassSettings& ps = pass_settings();
+  const DofMethod method = ps.plan.dof_method;
+  const PassSettings::Dof& d = ps.dof;
+  if (method == DofMethod::Reference || method == DofMethod::Accum) {
     BackendSettings bs;
-    bs.shadows = settings_.flag("shadows");
+    bs.shadows = ps.shadows;
     dof::DofReference ref(*backend_, FrameTime{now_s, previous_s}, bs, scene_.camera.lens, focus_m,
-                          method == "reference" ? dof::ReferenceKind::RayTraced : dof::ReferenceKind::Accumulation,
-                          static_cast<std::uint64_t>(settings_.number("dof.seed")));
-    ref.add_samples(static_cast<std::uint32_t>(std::lround(settings_.number("dof.samples"))));
+                          method == DofMethod::Reference ? dof::ReferenceKind::RayTraced : dof::ReferenceKind::Accumulation,
+                          d.seed);
+    ref.add_samples(d.samples);
     dof_color_ = ref.image();
     return;
   }
@@ -623,15 +647,14 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
   in.color = gbuffer_.color.data();
   in.depth = gbuffer_.depth.data();
   in.coc = coc_model(focus_m);
-  if (method == "schedl-layered") {
+  if (method == DofMethod::SchedlLayered) {
     // M depth-peeled layers where the backend peels (Embree; the raster backend does not yet: M = 1).
-    const auto m = backend_->capabilities().peeling ? static_cast<std::uint32_t>(std::lround(settings_.number("dof.layers")))
-                                                    : 1u;
+    const std::uint32_t m = backend_->capabilities().peeling ? d.layers : 1u;
     peeled_.resize(m > 0 ? m - 1 : 0);
     std::vector<dof::PeeledLayer> layers;
     for (std::uint32_t k = 0; k < peeled_.size(); ++k) {
       BackendSettings bs;
-      bs.shadows = settings_.flag("shadows");
+      bs.shadows = ps.shadows;
       bs.peel = k + 1;
       bs.lod_levels = lod_levels_;
       backend_->render(FrameTime{now_s, previous_s}, bs, peeled_[k]);
@@ -640,31 +663,24 @@ void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
     dof::schedl_layered(in, layers, dof::SchedlSettings{}, dof_color_);
     return;
   }
-  if (method == "lee-splat") {
+  if (method == DofMethod::LeeSplat) {
     dof::LeeSplatSettings s;
     // The hidden image H (Lee §5.1.2): a second render, peeled by object, where the backend peels.
-    s.use_hidden = settings_.flag("dof.hidden") && backend_->capabilities().peeling;
+    s.use_hidden = d.hidden && backend_->capabilities().peeling;
     if (s.use_hidden) {
       BackendSettings bs;
-      bs.shadows = settings_.flag("shadows");
+      bs.shadows = ps.shadows;
       bs.peel = 1;
       bs.lod_levels = lod_levels_;
       backend_->render(FrameTime{now_s, previous_s}, bs, hidden_);
       in.hidden_color = hidden_.color.data();
       in.hidden_depth = hidden_.depth.data();
     }
-    const std::string& aperture = settings_.text("dof.aperture");
-    s.aperture = aperture == "gaussian"  ? dof::Aperture::Gaussian
-                 : aperture == "hexagon" ? dof::Aperture::Hexagon
-                                         : dof::Aperture::Disc;
+    s.aperture = d.aperture;
     dof::lee_splat(in, s, dof_color_);
     return;
   }
-  dof::LeeMipmapSettings s;
-  s.anisotropic = settings_.flag("dof.anisotropic");
-  s.smooth_foreground = settings_.flag("dof.smooth_foreground");
-  s.dob_per_coc = settings_.number("dof.sigma_per_coc");
-  lee_mipmap_.run(in, s, dof_color_);
+  lee_mipmap_.run(in, d.mipmap, dof_color_);
 }
 
 }  // namespace fovea::render

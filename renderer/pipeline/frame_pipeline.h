@@ -20,6 +20,7 @@
 #include "backend/gpu_frame.h"
 #include "dof/dof_image.h"
 #include "dof/lee_mipmap.h"
+#include "dof/lee_splat.h"
 #include "gaze/gaze_input.h"
 #include "gi/gi_pass.h"
 #include "lod/lod_frame.h"
@@ -172,11 +173,23 @@ class FramePipeline {
     lod::PolicySettings lod;
     double lod_budget_ms = 0;
     TonemapParams tonemap;
+    PlanSettings plan;  // what the planner's rules decide on
+    struct Dof {  // dof.* (the method is plan.dof_method)
+      dof::CocProjection projection = dof::CocProjection::Sensor;
+      std::uint32_t samples = 0, layers = 1;
+      std::uint64_t seed = 0;
+      bool hidden = true;
+      dof::Aperture aperture = dof::Aperture::Disc;
+      dof::LeeMipmapSettings mipmap;
+    } dof;
+    bool shadows = false, depth_prepass = true, visibility_buffer = false, finite_checks = false;
+    double gaze_area_deg = 0;  // gi.gaze_area_deg when gi.enabled (the overlay's area ring), else 0
   };
-  const PassSettings& pass_settings();
-  PassSettings parsed_;
-  std::uint64_t parsed_version_ = 0;
-  bool parsed_valid_ = false;
+  // Parsed again only when the settings' version moved or the scene changed (a cache: const).
+  const PassSettings& pass_settings() const;
+  mutable PassSettings parsed_;
+  mutable std::uint64_t parsed_version_ = 0;
+  mutable bool parsed_valid_ = false;
 
   GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run
   bool cpu_gbuffer_required_ = false;

@@ -21,7 +21,39 @@ const char* to_string(Resource r) {
   return "?";
 }
 
-Resource PlanContext::output() const { return settings.is("output", "final") ? Resource::Display : Resource::GBuffer; }
+const PlanSettings& PlanContext::typed() const {
+  if (parsed == nullptr) throw std::logic_error("PlanContext: the plan settings were not parsed (plan_settings)");
+  return *parsed;
+}
+
+PlanSettings plan_settings(const Settings& s) {
+  PlanSettings p;
+  p.output = s.is("output", "final") ? Resource::Display : Resource::GBuffer;
+  p.attention = s.flag("attention.enabled");
+  const std::string& mode = s.text("focus.mode");
+  p.focus_mode = mode == "fixed"       ? attention::FocusMode::Fixed
+                 : mode == "gaze"      ? attention::FocusMode::Gaze
+                 : mode == "attention" ? attention::FocusMode::Attention
+                                       : attention::FocusMode::GazeAndAttention;
+  p.lod = s.flag("lod.enabled");
+  p.lod_policy = lod::parse_policy(s.text("lod.policy"));
+  p.lod_budget_ms = s.number("lod.budget_ms");
+  p.dof = s.flag("dof.enabled");
+  const std::string& method = s.text("dof.method");
+  p.dof_method = method == "reference"        ? DofMethod::Reference
+                 : method == "accum"          ? DofMethod::Accum
+                 : method == "lee-splat"      ? DofMethod::LeeSplat
+                 : method == "schedl-layered" ? DofMethod::SchedlLayered
+                                              : DofMethod::LeeMipmap;
+  p.gi = s.flag("gi.enabled");
+  p.gi_caustics = s.flag("gi.caustics");
+  p.gi_full_area = s.is("gi.area", "full");
+  p.gi_csf_periphery = s.is("gi.periphery", "csf") && !p.gi_full_area;
+  p.overlay_gaze = s.flag("overlay.gaze");
+  p.overlay_focus = s.flag("overlay.focus");
+  p.overlay_map = s.text("overlay.map");
+  return p;
+}
 
 namespace {
 
@@ -31,17 +63,18 @@ bool has(const std::vector<Resource>& set, Resource r) { return std::find(set.be
 
 // Lee 2009 §7.2: with ULOD the attention pass reads its own proxy render, before the G-buffer.
 bool lod_ulod(const PlanContext& c) {
-  return c.settings.flag("lod.enabled") && c.scene.has_lods() && c.settings.is("lod.policy", "ulod");
+  return c.typed().lod && c.scene.has_lods() && c.typed().lod_policy == lod::Policy::Ulod;
 }
 bool not_lod_ulod(const PlanContext& c) { return !lod_ulod(c); }
 bool focus_uses_attention(const PlanContext& c) {
-  return c.settings.is("focus.mode", "attention") || c.settings.is("focus.mode", "gaze+attention");
+  return c.typed().focus_mode == attention::FocusMode::Attention ||
+         c.typed().focus_mode == attention::FocusMode::GazeAndAttention;
 }
-bool gi_area_follows_attention(const PlanContext& c) { return !c.gaze_available && !c.settings.is("gi.area", "full"); }
-bool overlay_draws_attention(const PlanContext& c) { return attention::is_map(c.settings.text("overlay.map")); }
-bool overlay_draws_focus(const PlanContext& c) { return c.settings.flag("overlay.focus"); }
+bool gi_area_follows_attention(const PlanContext& c) { return !c.gaze_available && !c.typed().gi_full_area; }
+bool overlay_draws_attention(const PlanContext& c) { return attention::is_map(c.typed().overlay_map); }
+bool overlay_draws_focus(const PlanContext& c) { return c.typed().overlay_focus; }
 bool dof_filters_the_image(const PlanContext& c) {
-  return !c.settings.is("dof.method", "reference") && !c.settings.is("dof.method", "accum");
+  return c.typed().dof_method != DofMethod::Reference && c.typed().dof_method != DofMethod::Accum;
 }
 
 PassRule yes(std::string why) { return {true, std::move(why), true, ""}; }
@@ -52,27 +85,28 @@ PassRule no(std::string why) { return {false, std::move(why), true, ""}; }
 PassRule gbuffer_rule(const PlanContext&) { return yes("every output starts from the G-buffer"); }
 
 PassRule attention_rule(const PlanContext& c) {
-  if (!c.settings.flag("attention.enabled"))
+  if (!c.typed().attention)
     return no("attention.enabled=false (consumers fall back to gaze or defaults)");
   return yes("");
 }
 
 PassRule focus_rule(const PlanContext& c) {
-  const std::string& mode = c.settings.text("focus.mode");
-  if (mode == "fixed") return no("focus.mode=fixed: the lens focus distance is used");
-  std::string why = "focus.mode=" + mode;
-  if (mode == "gaze" && !c.gaze_available) why += " without a gaze source: the screen centre is used";
+  const attention::FocusMode mode = c.typed().focus_mode;
+  if (mode == attention::FocusMode::Fixed) return no("focus.mode=fixed: the lens focus distance is used");
+  std::string why = "focus.mode=" + c.settings.text("focus.mode");
+  if (mode == attention::FocusMode::Gaze && !c.gaze_available) why += " without a gaze source: the screen centre is used";
   return yes(why);
 }
 
 // Only objects with LOD chains can change detail.
 PassRule lod_rule(const PlanContext& c) {
   const Settings& s = c.settings;
-  if (!s.flag("lod.enabled")) return no("lod.enabled=false");
+  const PlanSettings& t = c.typed();
+  if (!t.lod) return no("lod.enabled=false");
   if (!c.scene.has_lods()) return no("no object has an LOD chain");
-  std::string why = "objects with LOD chains; lod.policy=" + s.text("lod.policy");
-  if (s.is("lod.policy", "gaze") && !c.gaze_available) why += " without a gaze source: eccentricity from the screen centre";
-  if (s.number("lod.budget_ms") > 0) why += "; frame budget " + s.text("lod.budget_ms") + " ms";
+  std::string why = std::string("objects with LOD chains; lod.policy=") + lod::to_string(t.lod_policy);
+  if (t.lod_policy == lod::Policy::Gaze && !c.gaze_available) why += " without a gaze source: eccentricity from the screen centre";
+  if (t.lod_budget_ms > 0) why += "; frame budget " + s.text("lod.budget_ms") + " ms";
   return yes(why);
 }
 
@@ -80,14 +114,14 @@ PassRule lod_rule(const PlanContext& c) {
 PassRule dof_rule(const PlanContext& c) {
   const Settings& s = c.settings;
   const Lens& lens = c.scene.camera.lens;
-  if (!s.flag("dof.enabled")) return no("dof.enabled=false");
+  if (!c.typed().dof) return no("dof.enabled=false");
   if (lens.is_pinhole()) return no("pinhole lens: nothing is out of focus");
   char why[160];
   const std::string& method = s.text("dof.method");
   std::snprintf(why, sizeof why, "thin lens F=%.1f mm, aperture %.2f mm, method %s", lens.focal_length_m * 1000,
                 lens.aperture_m * 1000, method.c_str());
   PassRule rule = yes(why);
-  if (method == "reference" && !c.backend_traces_rays) {
+  if (c.typed().dof_method == DofMethod::Reference && !c.backend_traces_rays) {
     rule.able = false;
     rule.unable = "the ray-traced reference needs --backend embree (per-pixel lens rays); accum is the raster "
                   "backend's reference";
@@ -98,26 +132,27 @@ PassRule dof_rule(const PlanContext& c) {
 // Only with light to carry; the caustic map only with specular or refractive surfaces to focus it.
 PassRule gi_rule(const PlanContext& c) {
   const Settings& s = c.settings;
-  if (!s.flag("gi.enabled")) return no("gi.enabled=false");
+  const PlanSettings& t = c.typed();
+  if (!t.gi) return no("gi.enabled=false");
   if (c.scene.lights.empty()) return no("the scene has no lights: no light to bounce");
   std::string why = "gi.enabled=true, " + std::to_string(c.scene.lights.size()) + " light(s); caustic map: ";
-  if (!s.flag("gi.caustics")) {
+  if (!t.gi_caustics) {
     why += "off (gi.caustics=false)";
   } else if (c.scene.has_specular_or_refractive()) {
     why += "yes (specular or refractive surfaces)";
   } else {
     why += "no (no specular or refractive surface)";
   }
-  if (s.is("gi.area", "full")) {
+  if (t.gi_full_area) {
     why += "; gi.area=full: the whole screen is ray traced";
   } else if (c.gaze_available) {
     why += "; the " + s.text("gi.gaze_area_deg") + " deg gaze area follows the gaze";
-  } else if (s.flag("attention.enabled")) {
+  } else if (t.attention) {
     why += "; no gaze source: the gaze area follows the most attended object";
   } else {
     why += "; no gaze source and attention.enabled=false: the gaze area stays at the screen centre";
   }
-  if (s.is("gi.periphery", "csf") && !s.is("gi.area", "full")) why += "; periphery by CSF-driven ray casting (Murphy 2007)";
+  if (t.gi_csf_periphery) why += "; periphery by CSF-driven ray casting (Murphy 2007)";
   return yes(why);
 }
 
@@ -125,39 +160,39 @@ PassRule tonemap_rule(const PlanContext&) { return yes("output=final is a displa
 
 // Something to draw on top of the display image.
 PassRule overlay_rule(const PlanContext& c) {
-  const Settings& s = c.settings;
-  if (!s.is("overlay.map", "none")) return yes("overlay.map=" + s.text("overlay.map"));
-  if (s.flag("overlay.gaze") && c.gaze_available) return yes("overlay.gaze=true and a gaze source is connected");
-  if (s.flag("overlay.focus") && !s.is("focus.mode", "fixed")) return yes("overlay.focus=true");
-  return no(!s.flag("overlay.gaze") ? "overlay.gaze=false and overlay.map=none"
+  const PlanSettings& t = c.typed();
+  if (t.overlay_map != "none") return yes("overlay.map=" + t.overlay_map);
+  if (t.overlay_gaze && c.gaze_available) return yes("overlay.gaze=true and a gaze source is connected");
+  if (t.overlay_focus && t.focus_mode != attention::FocusMode::Fixed) return yes("overlay.focus=true");
+  return no(!t.overlay_gaze ? "overlay.gaze=false and overlay.map=none"
                                          : "no gaze source (--gaze none) and overlay.map=none");
 }
 
 // --- What each pass reads of the frame's G-buffer (PassDecl::gbuffer_reads) --------------------
 
-bool ulod_attention_first(const FramePlan& plan, const Settings& s) {
-  return plan.runs(PassId::LodSelect) && plan.runs(PassId::Attention) && s.is("lod.policy", "ulod");
+bool ulod_attention_first(const FramePlan& plan, const PlanSettings& s) {
+  return plan.runs(PassId::LodSelect) && plan.runs(PassId::Attention) && s.lod_policy == lod::Policy::Ulod;
 }
 // Saliency (luminance, hue), depth and ids; motion comes from the objects' transforms. With ULOD the
 // pass reads its own proxy render instead (Lee 2009 §7.2).
-GBufferPlanes attention_reads(const FramePlan& plan, const Settings& s) {
+GBufferPlanes attention_reads(const FramePlan& plan, const PlanSettings& s) {
   return ulod_attention_first(plan, s) ? GBufferPlanes{} : GBufferPlanes{.color = true, .depth = true, .object_id = true};
 }
-GBufferPlanes focus_reads(const FramePlan&, const Settings&) { return {.depth = true, .object_id = true}; }
+GBufferPlanes focus_reads(const FramePlan&, const PlanSettings&) { return {.depth = true, .object_id = true}; }
 // The last frame's colour and ids (screen coverage); ULOD blends colour by id.
-GBufferPlanes lod_reads(const FramePlan&, const Settings&) { return {.color = true, .object_id = true}; }
+GBufferPlanes lod_reads(const FramePlan&, const PlanSettings&) { return {.color = true, .object_id = true}; }
 // The image-space methods filter colour by depth; the references render the scene again.
-GBufferPlanes dof_reads(const FramePlan&, const Settings& s) {
-  return s.is("dof.method", "reference") || s.is("dof.method", "accum") ? GBufferPlanes{}
+GBufferPlanes dof_reads(const FramePlan&, const PlanSettings& s) {
+  return s.dof_method == DofMethod::Reference || s.dof_method == DofMethod::Accum ? GBufferPlanes{}
                                                                         : GBufferPlanes{.color = true, .depth = true};
 }
 // gi: nothing. It traces its own rays; its inset is composited over the HDR colour where that lies.
-GBufferPlanes tonemap_reads(const FramePlan&, const Settings&) { return {.color = true}; }
+GBufferPlanes tonemap_reads(const FramePlan&, const PlanSettings&) { return {.color = true}; }
 // The focus outline (ids) or iso-depth line (depth); G-buffer maps read every plane.
-GBufferPlanes overlay_reads(const FramePlan& plan, const Settings& s) {
+GBufferPlanes overlay_reads(const FramePlan& plan, const PlanSettings& s) {
   GBufferPlanes r;
-  if (!s.is("overlay.map", "none")) r = GBufferPlanes::all();
-  if (plan.runs(PassId::Focus) && s.flag("overlay.focus")) r = r | GBufferPlanes{.depth = true, .object_id = true};
+  if (s.overlay_map != "none") r = GBufferPlanes::all();
+  if (plan.runs(PassId::Focus) && s.overlay_focus) r = r | GBufferPlanes{.depth = true, .object_id = true};
   return r;
 }
 
@@ -266,7 +301,8 @@ std::vector<bool> keep_from_output(const PlanContext& c, const std::vector<bool>
 std::string unconsumed(const PassDecl& p, const PlanContext& c) {
   std::vector<std::string> why;
   const bool could_be_output = has(p.writes, Resource::Display) || has(p.writes, Resource::GBuffer);
-  if (could_be_output && !has(p.writes, c.output())) why.push_back("output=" + c.settings.text("output"));
+  if (could_be_output && !has(p.writes, c.output()))
+    why.push_back(c.output() == Resource::GBuffer ? "output=gbuffer" : "output=final");
   for (const PassDecl& q : pass_declarations()) {
     if (q.id == p.id) continue;
     for (const ReadDecl& r : q.reads) {
@@ -305,7 +341,13 @@ std::string waiting_on(const PassDecl& p, const PlanContext& c, const FramePlan&
 // writes through needed passes; it runs when it is needed, able, and some pass that runs (or the
 // output) reads what it writes. Needed passes that cannot run are "later"; needed passes whose
 // consumers cannot run wait.
-FramePlan plan_frame(const PlanContext& c) {
+FramePlan plan_frame(const PlanContext& given) {
+  PlanSettings parsed;
+  PlanContext c = given;
+  if (c.parsed == nullptr) {  // a caller that does not keep them parsed (tests, one-off plans)
+    parsed = plan_settings(given.settings);
+    c.parsed = &parsed;
+  }
   const std::vector<PassDecl>& decls = pass_declarations();
   FramePlan plan;
   plan.output = c.output();
@@ -350,7 +392,7 @@ FramePlan plan_frame(const PlanContext& c) {
   }
   for (PlannedPass& pass : plan.passes) {
     const PassDecl& d = declaration(pass.id);
-    if (pass.runs && d.gbuffer_reads != nullptr) pass.gbuffer_reads = d.gbuffer_reads(plan, c.settings);
+    if (pass.runs && d.gbuffer_reads != nullptr) pass.gbuffer_reads = d.gbuffer_reads(plan, c.typed());
   }
   return plan;
 }

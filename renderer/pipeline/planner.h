@@ -8,7 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "attention/focus.h"
 #include "backend/gbuffer.h"
+#include "lod/lod_policy.h"
 #include "pipeline/settings.h"
 #include "scene/scene.h"
 
@@ -26,13 +28,37 @@ const char* to_string(Resource r);
 
 struct FramePlan;
 
+enum class DofMethod { Reference, Accum, LeeMipmap, LeeSplat, SchedlLayered };
+
+// The settings the passes' rules and edges decide on, typed: parsed once per settings change
+// (FramePipeline keeps them with Settings::version), not looked up as strings by every rule of every
+// frame. The reasons for people still quote the settings' text.
+struct PlanSettings {
+  Resource output = Resource::Display;  // output=final: the display image; output=gbuffer: the G-buffer
+  bool attention = true;
+  attention::FocusMode focus_mode = attention::FocusMode::GazeAndAttention;
+  bool lod = true;
+  lod::Policy lod_policy = lod::Policy::ScreenSize;
+  double lod_budget_ms = 0;
+  bool dof = true;
+  DofMethod dof_method = DofMethod::LeeMipmap;
+  bool gi = false, gi_caustics = true, gi_full_area = false, gi_csf_periphery = false;
+  bool overlay_gaze = true, overlay_focus = false;
+  std::string overlay_map = "none";
+  bool operator==(const PlanSettings&) const = default;
+};
+PlanSettings plan_settings(const Settings& settings);
+
 struct PlanContext {
   const Scene& scene;
-  const Settings& settings;
+  const Settings& settings;  // for the reasons' text
   bool gaze_available = false;  // a gaze source other than "none"
   bool backend_traces_rays = true;  // the backend takes per-pixel lens rays (Embree; not the raster backend)
+  // plan_settings(settings), when the caller keeps them parsed; null: plan_frame parses them.
+  const PlanSettings* parsed = nullptr;
+  const PlanSettings& typed() const;  // *parsed; throws std::logic_error when unset
   // What the frame hands out: the display image (output=final) or the G-buffer (output=gbuffer).
-  Resource output() const;
+  Resource output() const { return typed().output; }
 };
 
 // A pass's own verdict, before the graph: is its effect visible in this scene with these settings
@@ -63,7 +89,7 @@ struct PassDecl {
   PassRule (*rule)(const PlanContext&);
   // Typed: the planes of this frame's G-buffer the pass reads, with these settings and this plan
   // (null: none). What the GPU-resident frame writes and reads back is derived from these.
-  GBufferPlanes (*gbuffer_reads)(const FramePlan& plan, const Settings& settings) = nullptr;
+  GBufferPlanes (*gbuffer_reads)(const FramePlan& plan, const PlanSettings& settings) = nullptr;
   // The pass has a GPU implementation that runs where the G-buffer lies (the GPU-resident frame);
   // the others run on the CPU from a readback of what they read.
   bool on_gpu = false;

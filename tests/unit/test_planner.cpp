@@ -207,7 +207,8 @@ TEST(PlannerGraph, CullingKeepsExactlyThePassesTheOutputDependsOn) {
                               std::string("overlay.map=") + map, std::string("overlay.focus=") + focus_overlay,
                               std::string("gi.enabled=") + gi})
                           s.set_assignment(a);
-                        const PlanContext c{scene, s, gaze, rays};
+                        const PlanSettings typed = plan_settings(s);
+                        const PlanContext c{scene, s, gaze, rays, &typed};
                         const FramePlan plan = plan_frame(c);
                         ++plans;
                         SCOPED_TRACE(plan.explain());
