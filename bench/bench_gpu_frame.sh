@@ -26,7 +26,8 @@
 #   SIZES    default "640x480 1280x720 1920x1080"
 #   SCENES   default "attention cornell" (renderer/scenes/NAME.json)
 #   EFFECTS  default "base scene"
-# OUT=DIR keeps the runs' folders (default: a temporary folder, removed).
+# OUT=DIR keeps the runs' folders (default: a temporary folder, removed). EMBREE=1 also renders each
+# configuration with the Embree backend (no GPU: the frame on the CPU alone) in a second table.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 RENDER=${1:-build/default/renderer/fovea-render}
@@ -35,6 +36,7 @@ SIZES=${3:-640x480 1280x720 1920x1080}
 SCENES=${4:-attention cornell}
 EFFECTS=${5:-base scene}
 WARMUP=${WARMUP:-3}
+EMBREE=${EMBREE:-0}
 GAZE=file:tests/data/recordings/synthetic-250hz-62s.fgr
 if [ -n "${OUT:-}" ]; then RUNS=$OUT/runs; mkdir -p "$RUNS"; else RUNS=$(mktemp -d); trap 'rm -rf "$RUNS"' EXIT; fi
 [ -x "$RENDER" ] || { echo "bench_gpu_frame: $RENDER is not an executable (build first)" >&2; exit 2; }
@@ -65,6 +67,13 @@ for scene in $SCENES; do
           --set frame.gpu=$gpu "${extra[@]}" --out "$dir" >/dev/null 2>"$dir.log" ||
           { echo "bench_gpu_frame: $dir failed:" >&2; cat "$dir.log" >&2; exit 1; }
       done
+      if [ "$EMBREE" = 1 ]; then  # the ray-tracing backend, the same frame on the CPU alone
+        dir=$RUNS/$scene-$size-$effects-embree
+        "$RENDER" --scene "renderer/scenes/$scene.json" --backend embree --headless --no-images \
+          --frames "$FRAMES" --gaze "$GAZE" --scene-set camera.width="$w" --scene-set camera.height="$h" \
+          "${extra[@]}" --out "$dir" >/dev/null 2>"$dir.log" ||
+          { echo "bench_gpu_frame: $dir failed:" >&2; cat "$dir.log" >&2; exit 1; }
+      fi
     done
   done
 done
@@ -103,4 +112,14 @@ for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
     gpu_side = ", ".join(f'{statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.tonemap", "gpu.overlay") if p in b)
     print(f"| {scene} | {size} | {effects} | {pct(fa, 50):.2f} / {pct(fa, 99):.2f} | {pct(fb, 50):.2f} / {pct(fb, 99):.2f} | "
           f"{pct(fa, 50) / pct(fb, 50):.2f} | {pct(ga, 50):.2f} / {pct(ga, 99):.2f} | {pct(gb, 50):.2f} / {pct(gb, 99):.2f} | {gpu_side} |")
+embree = sorted(glob.glob(os.path.join(runs, "*-embree")))
+if embree:
+    print()
+    print("| scene | size | effects | embree frame p50/p99 ms | gaze age embree p50/p99 ms |")
+    print("|---|---|---|---|---|")
+    for d in embree:
+        scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w-]+)$", os.path.basename(d)[: -len("-embree")]).groups()
+        e = load(d)
+        print(f"| {scene} | {size} | {effects} | {pct(e['frame'], 50):.2f} / {pct(e['frame'], 99):.2f} | "
+              f"{pct(e['gaze-age'], 50):.2f} / {pct(e['gaze-age'], 99):.2f} |")
 PY
