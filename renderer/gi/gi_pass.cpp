@@ -156,7 +156,8 @@ void GiPass::trace_global_map(const Camera& camera, double now_s, const GazeArea
 }
 
 const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
-                                const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out) {
+                                const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out,
+                                const GBuffer* primary) {
   assert(&out != &local && "GiPass::run: out may not alias local (gi_pass.h)");
   result_ = GiPassResult{};
   result_.strategy = s.strategy;
@@ -198,7 +199,7 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   t0 = std::chrono::steady_clock::now();
   gi_color_.assign(base->size(), glm::vec3(0.0f));
   render_gaze_area(*backend_, camera, now_s, maps_, area, s.render, gi_color_, &result_.render,
-                   gaze_directed || s.label_gaze_photons);
+                   gaze_directed || s.label_gaze_photons, primary);
   result_.render_ms = ms_since(t0);
   if (s.composite) {
     t0 = std::chrono::steady_clock::now();

@@ -77,8 +77,11 @@ class GiPass {
   void set_scene(const Scene& scene);
   // One frame at scene time now_s: out = local with the GI of `area` blended in (unless
   // s.composite is false). local and out are camera.width x camera.height; out may not alias local.
+  // `primary`: the frame's G-buffer when it holds this camera's first hits exactly (the frame's
+  // Embree backend's): the area's eye rays are not traced again (render_gaze_area).
   const GiPassResult& run(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s,
-                          const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out);
+                          const std::vector<glm::vec3>& local, std::vector<glm::vec3>& out,
+                          const GBuffer* primary = nullptr);
   // The GI of the area alone (HDR, 0 outside it) from the last run.
   const std::vector<glm::vec3>& gi_image() const { return gi_color_; }
   const GiPassResult& last() const { return result_; }

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <unordered_map>
 #include <chrono>
 #include <cmath>
 
@@ -70,6 +71,12 @@ struct Tracer {
     if (!backend.intersect(origin, dir, 0.0f, std::numeric_limits<float>::infinity(), RayVisibility::All, hit)) {
       return lights.background;
     }
+    return shade(origin, dir, hit, depth, local, mark);
+  }
+
+  // The radiance leaving `hit` towards `origin` (along -dir).
+  glm::vec3 shade(const glm::vec3& origin, const glm::vec3& dir, const SurfaceHit& hit, std::uint32_t depth,
+                  Local& local, bool mark) const {
     const Material& m = *hit.material;
     const bool from_front = glm::dot(dir, hit.geometric_normal) < 0.0f;
     const glm::vec3 n = from_front ? hit.normal : -hit.normal;
@@ -268,7 +275,7 @@ std::size_t PhotonMaps::precomputed_count() const {
 
 void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,
                       const GazeArea& area, const GiRenderSettings& s, std::vector<glm::vec3>& hdr, GiStats* stats,
-                      bool mark) {
+                      bool mark, const GBuffer* primary) {
   const auto t0 = std::chrono::steady_clock::now();
   GiStats st;
   const EyeRays eye(camera, now_s);
@@ -293,6 +300,19 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
     lights.ambient = s.ambient ? backend.scene().ambient : glm::vec3(0.0f);
     std::vector<std::uint8_t> seen_indirect(mark ? maps.global.photons.size() : 0), seen_caustic(mark ? maps.caustic.photons.size() : 0);
     const Tracer tracer{backend, lights, maps, s, seen_indirect.data(), seen_caustic.data()};
+    // The G-buffer's first hits, where they are exactly this camera's (same size, every plane read).
+    const bool reuse = primary != nullptr && primary->width == camera.width && primary->height == camera.height &&
+                       primary->depth.size() == n && primary->normal.size() == n && primary->object_id.size() == n;
+    std::unordered_map<std::uint32_t, const Material*> material_of;
+    if (reuse) {
+      const Scene& scene = backend.scene();
+      for (const Object& o : scene.objects) {
+        const Material* m = o.material < scene.materials.size() ? &scene.materials[o.material] : nullptr;
+        const auto [at, added] = material_of.emplace(o.id, m);
+        if (!added && at->second != m) at->second = nullptr;  // an id shared by materials: traced instead
+      }
+    }
+    std::atomic<std::uint64_t> reused{0};
     tbb::enumerable_thread_specific<Tracer::Local> locals;
     std::atomic<std::uint64_t> pixels{0};
     if (y1 > y0 && x1 > x0) {
@@ -300,18 +320,48 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
         Tracer::Local& local = locals.local();
         local.traditional_flux.resize(lights.lights.size(), 0.0);
         local.gaze_flux.resize(lights.lights.size(), 0.0);
-        std::uint64_t count = 0;
+        std::uint64_t count = 0, from_gbuffer = 0;
         for (std::uint32_t y = rows.begin(); y < rows.end(); ++y) {
           for (std::uint32_t x = x0; x < x1; ++x) {
             if (!area.contains(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f)) continue;
-            hdr[std::size_t{y} * camera.width + x] = tracer.radiance(eye.eye, eye.direction(x, y), 0, local, mark);
+            const std::size_t i = std::size_t{y} * camera.width + x;
+            const glm::vec3 dir = eye.direction(x, y);
             ++count;
+            if (reuse) {
+              const std::uint32_t id = primary->object_id[i];
+              const float depth = primary->depth[i];
+              if (id == 0) {  // the ray tracer's own miss
+                ++local.rays;
+                hdr[i] = lights.background;
+                ++from_gbuffer;
+                continue;
+              }
+              const auto found = material_of.find(id);
+              const Material* m = found != material_of.end() ? found->second : nullptr;
+              if (m != nullptr && (m->type == MaterialType::Lambertian || m->type == MaterialType::BlinnPhong) &&
+                  std::isfinite(depth) && depth > 0) {
+                SurfaceHit hit;
+                hit.t = depth;
+                hit.position = eye.eye + dir * depth;
+                hit.normal = primary->normal[i];  // faces the camera: the side the ray arrives on
+                hit.geometric_normal = hit.normal;
+                hit.object_id = id;
+                hit.material = m;
+                ++local.rays;  // the eye ray, answered by the G-buffer
+                hdr[i] = tracer.shade(eye.eye, dir, hit, 0, local, mark);
+                ++from_gbuffer;
+                continue;
+              }
+            }
+            hdr[i] = tracer.radiance(eye.eye, dir, 0, local, mark);
           }
         }
         pixels.fetch_add(count, std::memory_order_relaxed);
+        reused.fetch_add(from_gbuffer, std::memory_order_relaxed);
       });
     }
     st.pixels = pixels.load();
+    st.primary_from_gbuffer = reused.load();
     st.traditional_flux.assign(lights.lights.size(), 0.0);
     st.gaze_flux.assign(lights.lights.size(), 0.0);
     for (const Tracer::Local& local : locals) {

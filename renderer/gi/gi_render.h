@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "fovea/protocol/display_geometry.h"
+#include "backend/gbuffer.h"
 #include "gi/photon_map.h"
 #include "gi/photon_tracer.h"
 #include "scene/scene.h"
@@ -99,6 +100,7 @@ struct GiRenderSettings {
 struct GiStats {
   std::uint64_t pixels = 0;           // shaded inside the area
   std::uint64_t rays = 0;             // eye, reflection and refraction rays (shadow rays not counted)
+  std::uint64_t primary_from_gbuffer = 0;  // first hits read from the frame's G-buffer, not traced
   std::uint64_t photons_used = 0;     // distinct photons that shaded the area (the gaze photons of §8.4.4)
   // With marking: per light, the indirect flux density the area's shading points gathered from
   // traditionally emitted photons and from gaze-emitted ones (sum over points of sum Phi / r^2, same
@@ -112,9 +114,16 @@ struct GiStats {
 // `area` are written. When mark is true the photons that shaded the area get kInGazeRegion in their
 // flags, as §8.4.4's ray-tracing step labels them (with precomputed irradiance: the precomputed
 // photon each shading point used).
+//
+// `primary`: the frame's G-buffer when it holds exactly the hits of these eye rays (the Embree
+// backend's, same camera, time and levels of detail): the area's first hits on diffuse and glossy
+// surfaces, and its background pixels, are then read from its depth, normal and id planes instead of
+// being ray traced again (position = eye + direction x depth: EyeRays' directions have unit
+// forward component, the depth is along it). Mirrors, glass and emitters are traced as before (a
+// refraction needs the geometric normal's side, which the G-buffer does not keep).
 void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,
                       const GazeArea& area, const GiRenderSettings& s, std::vector<glm::vec3>& hdr,
-                      GiStats* stats = nullptr, bool mark = false);
+                      GiStats* stats = nullptr, bool mark = false, const GBuffer* primary = nullptr);
 
 // Algorithm 8.4: inside the fovea (fovea_fraction x radius) the GI image, outside the area the
 // local one, a linear ramp between. out may alias local. Pixels outside the area are copied.

@@ -549,7 +549,9 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_inset_on_gpu_ = f.on_gpu && !gs.csf_periphery;
   gs.composite = !gi_inset_on_gpu_;
   gi_fovea_ = gs.fovea;
-  const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_);
+  // The frame's G-buffer holds the area's first hits when the frame's backend is the GI's ray tracer.
+  const GBuffer* primary = gi_tracer_ != nullptr && !f.on_gpu ? &gbuffer_ : nullptr;
+  const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_, primary);
   timer.record("gi.photons", r.photons_ms);
   timer.record("gi.index", r.index_ms);
   if (gs.render.indirect_estimate == gi::IndirectEstimate::Precomputed) timer.record("gi.precompute", r.precompute_ms);

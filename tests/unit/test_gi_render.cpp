@@ -1,6 +1,7 @@
 // The GI render and the hybrid composite (renderer/gi/gi_render.h).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "backend/embree/embree_backend.h"
@@ -43,6 +44,50 @@ double mean(const std::vector<glm::vec3>& img, const GazeArea& a, std::uint32_t 
     ++n;
   }
   return n ? sum / static_cast<double>(n) : 0.0;
+}
+
+// The frame's Embree G-buffer holds the gaze area's first hits: reading them instead of tracing the
+// eye rays again gives the same GI image (the hit point from depth differs from the traced one by
+// float rounding: within 1e-3 relative, photon neighbourhoods barely move), with the same rays
+// counted; mirrors and glass are still traced (attention.json has chrome, cornell.json glass).
+TEST(GiRender, FirstHitsFromTheFramesGBufferGiveTheTracedImage) {
+  for (const char* name : {"cornell.json", "attention.json"}) {
+    SCOPED_TRACE(name);
+    Scene scene = load_scene(std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/" + name);
+    scene.camera.width = 160;
+    scene.camera.height = 120;
+    EmbreeBackend backend;
+    backend.set_scene(scene);
+    GBuffer g;
+    backend.render({}, BackendSettings{}, g);
+    PhotonMaps maps = trace(backend, 20000, 2000);
+    GiRenderSettings s;
+    const GazeArea area{{70.0f, 65.0f}, 60.0f};
+    std::vector<glm::vec3> traced, reused;
+    GiStats a, b;
+    render_gaze_area(backend, scene.camera, 0, maps, area, s, traced, &a);
+    render_gaze_area(backend, scene.camera, 0, maps, area, s, reused, &b, false, &g);
+    EXPECT_EQ(a.pixels, b.pixels);
+    EXPECT_EQ(a.rays, b.rays);
+    EXPECT_EQ(a.primary_from_gbuffer, 0u);
+    EXPECT_GT(b.primary_from_gbuffer, b.pixels / 2);
+    std::size_t off = 0;
+    double worst = 0;
+    for (std::size_t i = 0; i < traced.size(); ++i) {
+      const glm::vec3 d = glm::abs(traced[i] - reused[i]);
+      const float scale = std::max({traced[i].x, traced[i].y, traced[i].z, 1e-3f});
+      const double rel = static_cast<double>(std::max({d.x, d.y, d.z}) / scale);
+      worst = std::max(worst, rel);
+      off += rel > 1e-3;
+    }
+    EXPECT_LE(off, traced.size() / 1000) << "worst relative difference " << worst;
+    // A G-buffer of another size is not taken for this camera's hits.
+    GBuffer small;
+    small.resize(8, 8);
+    GiStats c;
+    render_gaze_area(backend, scene.camera, 0, maps, area, s, reused, &c, false, &small);
+    EXPECT_EQ(c.primary_from_gbuffer, 0u);
+  }
 }
 
 // Without photon terms and with ambient kept, the GI image is the raster image: the two halves of
