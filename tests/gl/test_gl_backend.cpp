@@ -858,6 +858,34 @@ TEST_F(BackendAgreementTest, VisibilityBufferAgreesWithTheRayTracer) {
                    visibility);
 }
 
+// Renders every bundled scene at 320x240 and two times (the second with objects and camera moving)
+// with the forward pass's settings and with `changed` applied to them, and hands both G-buffers to
+// `compare`; returns how many pairs it compared.
+template <class Compare>
+std::size_t for_each_bundled_pair(Backend& gl, void (*changed)(BackendSettings&), Compare compare) {
+  const std::filesystem::path dir = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes";
+  std::size_t compared = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".json") continue;
+    SCOPED_TRACE(entry.path().string());
+    Scene s = load_scene(entry.path());
+    s.camera.width = 320;
+    s.camera.height = 240;
+    gl.set_scene(s);
+    for (const FrameTime t : {FrameTime{0.0, 0.0}, FrameTime{1.0, 1.0 - 1.0 / 30}}) {
+      SCOPED_TRACE("t=" + std::to_string(t.now_s));
+      GBuffer base, other;
+      BackendSettings bs;
+      gl.render(t, bs, base);
+      changed(bs);
+      gl.render(t, bs, other);
+      compare(base, other);
+      ++compared;
+    }
+  }
+  return compared;
+}
+
 // The visibility buffer (BackendSettings::visibility_buffer) against the forward G-buffer pass, on
 // every bundled scene at two times (objects and camera moving, so motion is not trivially 0):
 // the same triangle covers each pixel (ids exact: both raster passes compute gl_Position alike), and
@@ -868,40 +896,27 @@ TEST_F(BackendAgreementTest, VisibilityBufferAgreesWithTheRayTracer) {
 // context has no compute shaders the test says so and skips.
 TEST_F(BackendAgreementTest, VisibilityBufferAgreesWithTheForwardPass) {
   if (!gl_->capabilities().visibility_buffer) GTEST_SKIP() << "no compute shaders in this context";
-  const std::filesystem::path dir = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes";
-  std::size_t compared = 0, covered = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
-    if (entry.path().extension() != ".json") continue;
-    SCOPED_TRACE(entry.path().string());
-    Scene s = load_scene(entry.path());
-    s.camera.width = 320;
-    s.camera.height = 240;
-    gl_->set_scene(s);
-    for (const FrameTime t : {FrameTime{0.0, 0.0}, FrameTime{1.0, 1.0 - 1.0 / 30}}) {
-      GBuffer forward, visibility;
-      BackendSettings bs;
-      gl_->render(t, bs, forward);
-      bs.visibility_buffer = true;
-      gl_->render(t, bs, visibility);
-      std::size_t ids = 0, depth = 0, normal = 0, color = 0, motion = 0;
-      for (std::size_t i = 0; i < forward.depth.size(); ++i) {
-        ids += forward.object_id[i] != visibility.object_id[i];
-        covered += forward.object_id[i] != 0;
-        depth += !(std::abs(forward.depth[i] - visibility.depth[i]) <= 1e-5f * std::abs(forward.depth[i]));
-        normal += !(glm::length(forward.normal[i] - visibility.normal[i]) <= 5e-4f);
-        const glm::vec3 dc = glm::abs(forward.color[i] - visibility.color[i]);
-        const glm::vec3 bound = glm::max(1e-2f * glm::abs(forward.color[i]), glm::vec3(1e-4f));
-        color += !(dc.x <= bound.x && dc.y <= bound.y && dc.z <= bound.z);
-        motion += !(glm::length(forward.motion[i] - visibility.motion[i]) <= 1e-3f);
-      }
-      EXPECT_EQ(ids, 0u) << "t=" << t.now_s;
-      EXPECT_EQ(depth, 0u) << "t=" << t.now_s;
-      EXPECT_EQ(normal, 0u) << "t=" << t.now_s;
-      EXPECT_EQ(color, 0u) << "t=" << t.now_s;
-      EXPECT_EQ(motion, 0u) << "t=" << t.now_s;
-      ++compared;
-    }
-  }
+  std::size_t covered = 0;
+  const std::size_t compared = for_each_bundled_pair(
+      *gl_, [](BackendSettings& bs) { bs.visibility_buffer = true; },
+      [&](const GBuffer& forward, const GBuffer& visibility) {
+        std::size_t ids = 0, depth = 0, normal = 0, color = 0, motion = 0;
+        for (std::size_t i = 0; i < forward.depth.size(); ++i) {
+          ids += forward.object_id[i] != visibility.object_id[i];
+          covered += forward.object_id[i] != 0;
+          depth += !(std::abs(forward.depth[i] - visibility.depth[i]) <= 1e-5f * std::abs(forward.depth[i]));
+          normal += !(glm::length(forward.normal[i] - visibility.normal[i]) <= 5e-4f);
+          const glm::vec3 dc = glm::abs(forward.color[i] - visibility.color[i]);
+          const glm::vec3 bound = glm::max(1e-2f * glm::abs(forward.color[i]), glm::vec3(1e-4f));
+          color += !(dc.x <= bound.x && dc.y <= bound.y && dc.z <= bound.z);
+          motion += !(glm::length(forward.motion[i] - visibility.motion[i]) <= 1e-3f);
+        }
+        EXPECT_EQ(ids, 0u);
+        EXPECT_EQ(depth, 0u);
+        EXPECT_EQ(normal, 0u);
+        EXPECT_EQ(color, 0u);
+        EXPECT_EQ(motion, 0u);
+      });
   EXPECT_GE(compared, 6u);
   EXPECT_GT(covered, compared * 320 * 240 / 4) << "the scenes must cover the image for this to mean anything";
 }
@@ -911,31 +926,17 @@ TEST_F(BackendAgreementTest, VisibilityBufferAgreesWithTheForwardPass) {
 // the same with and without it. Where two surfaces lie at exactly one depth the later-drawn one wins
 // with the pre-pass; the bundled scenes have no such pixels, so the planes are compared exactly.
 TEST_F(BackendAgreementTest, DepthPrepassLeavesTheGBufferUnchanged) {
-  const std::filesystem::path dir = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes";
-  std::size_t compared = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
-    if (entry.path().extension() != ".json") continue;
-    SCOPED_TRACE(entry.path().string());
-    Scene s = load_scene(entry.path());
-    s.camera.width = 320;
-    s.camera.height = 240;
-    gl_->set_scene(s);
-    for (const FrameTime t : {FrameTime{0.0, 0.0}, FrameTime{1.0, 1.0 - 1.0 / 30}}) {
-      GBuffer plain, prepassed;
-      BackendSettings bs;
-      gl_->render(t, bs, plain);
-      bs.depth_prepass = true;
-      gl_->render(t, bs, prepassed);
-      std::size_t differ = 0;
-      for (std::size_t i = 0; i < plain.depth.size(); ++i) {
-        differ += plain.color[i] != prepassed.color[i] || plain.depth[i] != prepassed.depth[i] ||
-                  plain.object_id[i] != prepassed.object_id[i] || plain.normal[i] != prepassed.normal[i] ||
-                  plain.motion[i] != prepassed.motion[i];
-      }
-      EXPECT_EQ(differ, 0u) << "pixels that differ at t=" << t.now_s;
-      ++compared;
-    }
-  }
+  const std::size_t compared = for_each_bundled_pair(
+      *gl_, [](BackendSettings& bs) { bs.depth_prepass = true; },
+      [](const GBuffer& plain, const GBuffer& prepassed) {
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < plain.depth.size(); ++i) {
+          differ += plain.color[i] != prepassed.color[i] || plain.depth[i] != prepassed.depth[i] ||
+                    plain.object_id[i] != prepassed.object_id[i] || plain.normal[i] != prepassed.normal[i] ||
+                    plain.motion[i] != prepassed.motion[i];
+        }
+        EXPECT_EQ(differ, 0u) << "pixels that differ";
+      });
   EXPECT_GE(compared, 6u);
 }
 

@@ -25,6 +25,21 @@ inline GLuint compile_shader(GLenum stage, const char* source, const char* what)
   return shader;
 }
 
+// Returns `program` when it linked; else deletes it and throws with the driver's info log.
+inline GLuint checked_link(GLuint program, const char* what) {
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint length = 0;
+    glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
+    std::string log(static_cast<std::size_t>(length > 0 ? length : 1), '\0');
+    glGetProgramInfoLog(program, length, nullptr, log.data());
+    glDeleteProgram(program);
+    throw std::runtime_error(std::string(what) + ": program link failed: " + log.c_str());
+  }
+  return program;
+}
+
 // Compiles and links a vertex + fragment program; the shaders are deleted after linking.
 inline GLuint link_program(const char* vertex_source, const char* fragment_source, const char* what) {
   const GLuint vs = compile_shader(GL_VERTEX_SHADER, vertex_source, what);
@@ -43,17 +58,7 @@ inline GLuint link_program(const char* vertex_source, const char* fragment_sourc
   glDetachShader(program, fs);
   glDeleteShader(vs);
   glDeleteShader(fs);
-  GLint ok = GL_FALSE;
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (ok != GL_TRUE) {
-    GLint length = 0;
-    glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
-    std::string log(static_cast<std::size_t>(length > 0 ? length : 1), '\0');
-    glGetProgramInfoLog(program, length, nullptr, log.data());
-    glDeleteProgram(program);
-    throw std::runtime_error(std::string(what) + ": program link failed: " + log.c_str());
-  }
-  return program;
+  return checked_link(program, what);
 }
 
 // Compiles and links a compute program (GL 4.3); the shader is deleted after linking.
@@ -64,17 +69,7 @@ inline GLuint link_compute_program(const char* source, const char* what) {
   glLinkProgram(program);
   glDetachShader(program, cs);
   glDeleteShader(cs);
-  GLint ok = GL_FALSE;
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (ok != GL_TRUE) {
-    GLint length = 0;
-    glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
-    std::string log(static_cast<std::size_t>(length > 0 ? length : 1), '\0');
-    glGetProgramInfoLog(program, length, nullptr, log.data());
-    glDeleteProgram(program);
-    throw std::runtime_error(std::string(what) + ": program link failed: " + log.c_str());
-  }
-  return program;
+  return checked_link(program, what);
 }
 
 }  // namespace fovea::render::gl
