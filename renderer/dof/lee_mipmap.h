@@ -55,6 +55,7 @@ struct LeeMipmapSettings {
   // standard deviation of C / 4 per axis, so 1/4 matches the variance of the ray-traced reference.
   double dob_per_coc = 0.5;
   int max_level = 0;  // 0: as many levels as the largest DoB needs (capped at the image's top level)
+  bool operator==(const LeeMipmapSettings&) const = default;
 };
 
 struct LeeMipmapStats {

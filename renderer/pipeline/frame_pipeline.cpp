@@ -132,19 +132,7 @@ const FramePipeline::PassSettings& FramePipeline::pass_settings() const {
   parsed_.lod_budget_ms = settings_.number("lod.budget_ms");
   parsed_.tonemap = tonemap_params(settings_);
   parsed_.plan = plan_settings(settings_);
-  PassSettings::Dof& d = parsed_.dof;
-  d.projection = settings_.is("dof.projection", "display") ? dof::CocProjection::Display : dof::CocProjection::Sensor;
-  d.samples = static_cast<std::uint32_t>(std::lround(settings_.number("dof.samples")));
-  d.layers = static_cast<std::uint32_t>(std::lround(settings_.number("dof.layers")));
-  d.seed = static_cast<std::uint64_t>(settings_.number("dof.seed"));
-  d.hidden = settings_.flag("dof.hidden");
-  const std::string& aperture = settings_.text("dof.aperture");
-  d.aperture = aperture == "gaussian"  ? dof::Aperture::Gaussian
-               : aperture == "hexagon" ? dof::Aperture::Hexagon
-                                       : dof::Aperture::Disc;
-  d.mipmap.anisotropic = settings_.flag("dof.anisotropic");
-  d.mipmap.smooth_foreground = settings_.flag("dof.smooth_foreground");
-  d.mipmap.dob_per_coc = settings_.number("dof.sigma_per_coc");
+  parsed_.dof = dof_pass_settings(settings_);
   parsed_.shadows = settings_.flag("shadows");
   parsed_.depth_prepass = settings_.flag("frame.depth_prepass");
   parsed_.visibility_buffer = visibility_buffer();
@@ -247,6 +235,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   f.on_gpu = gpu_refusal().empty();
   const PassSettings& ps = pass_settings();
   const bool check = ps.finite_checks;
+  if (dof_.settings() != ps.dof) dof_.set_settings(ps.dof);  // the coc map draws with them too
   step_gaze(f, frame_clock_s, timer);
   lod_levels_.clear();
   ulod_blended_ = false;
@@ -455,11 +444,11 @@ const std::vector<glm::vec3>& FramePipeline::step_dof(Frame& f, double now_s, do
   auto t = timer.scope("dof");
   // The focus pass's depth; with focus.mode=fixed (focus not run) the lens's own focus distance.
   const double focus_m = f.focus != nullptr ? f.focus->focal_depth_m : scene_.camera.lens.focus_distance_m;
-  run_dof(focus_m, now_s, previous_s);
-  if (check) require_finite("dof", "colour", dof_color_, gbuffer_.width);
-  f.dof = &dof_color_;
+  const dof::RgbImage& color = dof_.run(*backend_, scene_, gbuffer_, lod_levels_, focus_m, FrameTime{now_s, previous_s});
+  if (check) require_finite("dof", "colour", color, gbuffer_.width);
+  f.dof = &color;
   f.focal_depth_m = focus_m;
-  return dof_color_;
+  return color;
 }
 
 const std::vector<glm::vec3>& FramePipeline::step_gi(Frame& f, const std::vector<glm::vec3>& hdr, double now_s,
@@ -494,7 +483,7 @@ void FramePipeline::step_overlay(const Frame& f, PassTimer& timer) {
     const double focus_m = f.dof != nullptr   ? f.focal_depth_m
                            : f.focus != nullptr ? f.focus->focal_depth_m
                                                 : scene_.camera.lens.focus_distance_m;
-    draw_coc_map(image_, gbuffer_, coc_model(focus_m));
+    draw_coc_map(image_, gbuffer_, dof_.coc_model(scene_, focus_m));
   } else if (map != "none") {
     draw_gbuffer_map(image_, gbuffer_, map, scene_.camera.far_m);
   }
@@ -623,66 +612,6 @@ void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double p
   }
   lod_frame_.selection = sel;
   lod_frame_.budget = lod_selector_.budget();
-}
-
-dof::CocModel FramePipeline::coc_model(double focus_m) const {
-  return dof::coc_model(scene_.camera, scene_.display, focus_m, pass_settings().dof.projection);
-}
-
-void FramePipeline::run_dof(double focus_m, double now_s, double previous_s) {
-  const PassSettings& ps = pass_settings();
-  const DofMethod method = ps.plan.dof_method;
-  const PassSettings::Dof& d = ps.dof;
-  if (method == DofMethod::Reference || method == DofMethod::Accum) {
-    BackendSettings bs;
-    bs.shadows = ps.shadows;
-    dof::DofReference ref(*backend_, FrameTime{now_s, previous_s}, bs, scene_.camera.lens, focus_m,
-                          method == DofMethod::Reference ? dof::ReferenceKind::RayTraced : dof::ReferenceKind::Accumulation,
-                          d.seed);
-    ref.add_samples(d.samples);
-    dof_color_ = ref.image();
-    return;
-  }
-  dof::DofInput in;
-  in.width = gbuffer_.width;
-  in.height = gbuffer_.height;
-  in.color = gbuffer_.color.data();
-  in.depth = gbuffer_.depth.data();
-  in.coc = coc_model(focus_m);
-  if (method == DofMethod::SchedlLayered) {
-    // M depth-peeled layers where the backend peels (Embree; the raster backend does not yet: M = 1).
-    const std::uint32_t m = backend_->capabilities().peeling ? d.layers : 1u;
-    peeled_.resize(m > 0 ? m - 1 : 0);
-    std::vector<dof::PeeledLayer> layers;
-    for (std::uint32_t k = 0; k < peeled_.size(); ++k) {
-      BackendSettings bs;
-      bs.shadows = ps.shadows;
-      bs.peel = k + 1;
-      bs.lod_levels = lod_levels_;
-      backend_->render(FrameTime{now_s, previous_s}, bs, peeled_[k]);
-      layers.push_back({peeled_[k].color.data(), peeled_[k].depth.data()});
-    }
-    dof::schedl_layered(in, layers, dof::SchedlSettings{}, dof_color_);
-    return;
-  }
-  if (method == DofMethod::LeeSplat) {
-    dof::LeeSplatSettings s;
-    // The hidden image H (Lee §5.1.2): a second render, peeled by object, where the backend peels.
-    s.use_hidden = d.hidden && backend_->capabilities().peeling;
-    if (s.use_hidden) {
-      BackendSettings bs;
-      bs.shadows = ps.shadows;
-      bs.peel = 1;
-      bs.lod_levels = lod_levels_;
-      backend_->render(FrameTime{now_s, previous_s}, bs, hidden_);
-      in.hidden_color = hidden_.color.data();
-      in.hidden_depth = hidden_.depth.data();
-    }
-    s.aperture = d.aperture;
-    dof::lee_splat(in, s, dof_color_);
-    return;
-  }
-  lee_mipmap_.run(in, d.mipmap, dof_color_);
 }
 
 }  // namespace fovea::render

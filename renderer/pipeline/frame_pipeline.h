@@ -19,13 +19,12 @@
 #include "backend/backend.h"
 #include "backend/gpu_frame.h"
 #include "dof/dof_image.h"
-#include "dof/lee_mipmap.h"
-#include "dof/lee_splat.h"
 #include "gaze/gaze_input.h"
 #include "gi/gi_pass.h"
 #include "lod/lod_frame.h"
 #include "lod/lod_policy.h"
 #include "image/image.h"
+#include "passes/dof_pass.h"
 #include "passes/overlay.h"
 #include "passes/tonemap.h"
 #include "pipeline/pass_timer.h"
@@ -113,10 +112,7 @@ class FramePipeline {
   attention::AttentionTracker attention_;  // settings from attention.* each frame it runs
   attention::FocusSettings focus_settings_;  // what focus_ was built with (focus.* and the lens)
   attention::FocusTracker focus_;
-  dof::RgbImage dof_color_;
-  GBuffer hidden_;  // lee-splat's hidden image (the layer behind the visible surfaces)
-  std::vector<GBuffer> peeled_;  // schedl-layered's depth-peeled layers behind the visible one
-  dof::LeeMipmap lee_mipmap_;
+  DofPass dof_;
   std::unique_ptr<gi::GiPass> gi_pass_;  // created on the first frame that runs gi
   EmbreeBackend* gi_tracer_ = nullptr;   // the frame's backend when it is Embree: gi traces with it
   lod::LodSelector lod_selector_;
@@ -134,9 +130,6 @@ class FramePipeline {
   Frame::Gi gi_frame_;
   // Places the gaze area, runs the gi pass over `local` into hybrid_, records its stage times.
   void run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer);
-  // Runs dof.method on the G-buffer with the lens focused at focus_m into dof_color_.
-  void run_dof(double focus_m, double now_s, double previous_s);
-  dof::CocModel coc_model(double focus_m) const;
   // render()'s steps, in pipeline order: each times its pass under its timings.csv name, runs it,
   // checks what it wrote when debug.finite_checks (`check`), and records it in the Frame.
   void step_gaze(Frame& f, double frame_clock_s, PassTimer& timer);
@@ -174,14 +167,7 @@ class FramePipeline {
     double lod_budget_ms = 0;
     TonemapParams tonemap;
     PlanSettings plan;  // what the planner's rules decide on
-    struct Dof {  // dof.* (the method is plan.dof_method)
-      dof::CocProjection projection = dof::CocProjection::Sensor;
-      std::uint32_t samples = 0, layers = 1;
-      std::uint64_t seed = 0;
-      bool hidden = true;
-      dof::Aperture aperture = dof::Aperture::Disc;
-      dof::LeeMipmapSettings mipmap;
-    } dof;
+    DofPassSettings dof;
     bool shadows = false, depth_prepass = true, visibility_buffer = false, finite_checks = false;
     double gaze_area_deg = 0;  // gi.gaze_area_deg when gi.enabled (the overlay's area ring), else 0
   };

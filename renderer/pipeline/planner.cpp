@@ -39,12 +39,7 @@ PlanSettings plan_settings(const Settings& s) {
   p.lod_policy = lod::parse_policy(s.text("lod.policy"));
   p.lod_budget_ms = s.number("lod.budget_ms");
   p.dof = s.flag("dof.enabled");
-  const std::string& method = s.text("dof.method");
-  p.dof_method = method == "reference"        ? DofMethod::Reference
-                 : method == "accum"          ? DofMethod::Accum
-                 : method == "lee-splat"      ? DofMethod::LeeSplat
-                 : method == "schedl-layered" ? DofMethod::SchedlLayered
-                                              : DofMethod::LeeMipmap;
+  p.dof_method = parse_dof_method(s.text("dof.method"));
   p.gi = s.flag("gi.enabled");
   p.gi_caustics = s.flag("gi.caustics");
   p.gi_full_area = s.is("gi.area", "full");

@@ -11,6 +11,7 @@
 #include "attention/focus.h"
 #include "backend/gbuffer.h"
 #include "lod/lod_policy.h"
+#include "passes/dof_pass.h"
 #include "pipeline/settings.h"
 #include "scene/scene.h"
 
@@ -27,8 +28,6 @@ inline constexpr int kResourceCount = 7;
 const char* to_string(Resource r);
 
 struct FramePlan;
-
-enum class DofMethod { Reference, Accum, LeeMipmap, LeeSplat, SchedlLayered };
 
 // The settings the passes' rules and edges decide on, typed: parsed once per settings change
 // (FramePipeline keeps them with Settings::version), not looked up as strings by every rule of every
