@@ -539,7 +539,8 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gs.composite = !gi_inset_on_gpu_;
   gi_fovea_ = gs.fovea;
   // The frame's G-buffer holds the area's first hits when the frame's backend is the GI's ray tracer.
-  const GBuffer* primary = gi_tracer_ != nullptr && !f.on_gpu ? &gbuffer_ : nullptr;
+  const GBuffer* primary =
+      gi_tracer_ != nullptr && !f.on_gpu && settings_.is("debug.gi_first_hits", "gbuffer") ? &gbuffer_ : nullptr;
   const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_, primary);
   timer.record("gi.photons", r.photons_ms);
   timer.record("gi.index", r.index_ms);

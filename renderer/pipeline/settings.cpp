@@ -127,6 +127,9 @@ const std::vector<SettingSpec>& Settings::specs() {
        "once in a compute pass (GL 4.3; falls back to forward with one log line where compute is missing); forward "
        "= shade in the raster pass's fragment shader (GL 3.3); auto = visibility on a GPU with compute shaders, "
        "forward on a software rasteriser (llvmpipe), where it is the faster (bench/RESULTS.md)"},
+      {"debug.gi_first_hits", "gbuffer", "gbuffer|trace",
+       "Embree backend with GI: the gaze area's first hits read from the frame's G-buffer (gbuffer), or traced "
+       "again (trace: measures what reading them saves)"},
       {"debug.gbuffer_planes", "read", "read|all",
        "GPU-resident frame: the G-buffer pass writes the planes some pass reads (read), or every plane (all: "
        "measures what culling the unread ones saves, bench/bench_gpu_frame.sh)"},
