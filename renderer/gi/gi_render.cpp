@@ -273,6 +273,64 @@ std::size_t PhotonMaps::precomputed_count() const {
   return n;
 }
 
+namespace {
+
+// render_gaze_area's `primary`: the eye rays' first hits as the frame's G-buffer holds them, where it
+// is exactly this camera's (same size, the depth, normal and id planes filled).
+class GBufferFirstHits {
+ public:
+  enum class Kind { Trace, Miss, Hit };
+  GBufferFirstHits(const GBuffer* g, const Camera& camera, const Scene& scene) {
+    const std::size_t n = std::size_t{camera.width} * camera.height;
+    if (g == nullptr || g->width != camera.width || g->height != camera.height || g->depth.size() != n ||
+        g->normal.size() != n || g->object_id.size() != n)
+      return;
+    g_ = g;
+    for (const Object& o : scene.objects) {
+      const Material* m = o.material < scene.materials.size() ? &scene.materials[o.material] : nullptr;
+      const auto [at, added] = material_of_.emplace(o.id, m);
+      if (!added && at->second != m) at->second = nullptr;  // an id shared by materials: traced instead
+    }
+  }
+  // Pixel i's first hit along `dir` from `eye`: a miss, a diffuse or glossy hit (filled in), or Trace
+  // (no G-buffer, or a mirror, glass or emitter: a refraction needs the geometric normal's side).
+  Kind at(std::size_t i, const glm::vec3& eye, const glm::vec3& dir, SurfaceHit& hit) const {
+    if (g_ == nullptr) return Kind::Trace;
+    const std::uint32_t id = g_->object_id[i];
+    if (id == 0) return Kind::Miss;  // the ray tracer's own miss
+    const auto found = material_of_.find(id);
+    const Material* m = found != material_of_.end() ? found->second : nullptr;
+    const float depth = g_->depth[i];
+    if (m == nullptr || (m->type != MaterialType::Lambertian && m->type != MaterialType::BlinnPhong) ||
+        !std::isfinite(depth) || !(depth > 0))
+      return Kind::Trace;
+    hit.t = depth;
+    hit.position = eye + dir * depth;  // EyeRays' directions have a unit forward component
+    hit.normal = g_->normal[i];        // faces the camera: the side the ray arrives on
+    hit.geometric_normal = hit.normal;
+    hit.object_id = id;
+    hit.material = m;
+    return Kind::Hit;
+  }
+
+ private:
+  const GBuffer* g_ = nullptr;
+  std::unordered_map<std::uint32_t, const Material*> material_of_;
+};
+
+// §8.4.4: the photons that shaded the gaze area get kInGazeRegion; returns how many.
+std::uint64_t label_in_gaze_region(std::vector<Photon>& photons, const std::vector<std::uint8_t>& seen) {
+  std::uint64_t n = 0;
+  for (std::size_t i = 0; i < seen.size(); ++i)
+    if (seen[i]) {
+      photons[i].flags |= kInGazeRegion;
+      ++n;
+    }
+  return n;
+}
+
+}  // namespace
+
 void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,
                       const GazeArea& area, const GiRenderSettings& s, std::vector<glm::vec3>& hdr, GiStats* stats,
                       bool mark, const GBuffer* primary) {
@@ -300,18 +358,7 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
     lights.ambient = s.ambient ? backend.scene().ambient : glm::vec3(0.0f);
     std::vector<std::uint8_t> seen_indirect(mark ? maps.global.photons.size() : 0), seen_caustic(mark ? maps.caustic.photons.size() : 0);
     const Tracer tracer{backend, lights, maps, s, seen_indirect.data(), seen_caustic.data()};
-    // The G-buffer's first hits, where they are exactly this camera's (same size, every plane read).
-    const bool reuse = primary != nullptr && primary->width == camera.width && primary->height == camera.height &&
-                       primary->depth.size() == n && primary->normal.size() == n && primary->object_id.size() == n;
-    std::unordered_map<std::uint32_t, const Material*> material_of;
-    if (reuse) {
-      const Scene& scene = backend.scene();
-      for (const Object& o : scene.objects) {
-        const Material* m = o.material < scene.materials.size() ? &scene.materials[o.material] : nullptr;
-        const auto [at, added] = material_of.emplace(o.id, m);
-        if (!added && at->second != m) at->second = nullptr;  // an id shared by materials: traced instead
-      }
-    }
+    const GBufferFirstHits first_hits(primary, camera, backend.scene());
     std::atomic<std::uint64_t> reused{0};
     tbb::enumerable_thread_specific<Tracer::Local> locals;
     std::atomic<std::uint64_t> pixels{0};
@@ -327,33 +374,20 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
             const std::size_t i = std::size_t{y} * camera.width + x;
             const glm::vec3 dir = eye.direction(x, y);
             ++count;
-            if (reuse) {
-              const std::uint32_t id = primary->object_id[i];
-              const float depth = primary->depth[i];
-              if (id == 0) {  // the ray tracer's own miss
+            SurfaceHit hit;
+            switch (first_hits.at(i, eye.eye, dir, hit)) {
+              case GBufferFirstHits::Kind::Trace: hdr[i] = tracer.radiance(eye.eye, dir, 0, local, mark); break;
+              case GBufferFirstHits::Kind::Miss:  // the eye ray, answered by the G-buffer
                 ++local.rays;
+                ++from_gbuffer;
                 hdr[i] = lights.background;
+                break;
+              case GBufferFirstHits::Kind::Hit:
+                ++local.rays;
                 ++from_gbuffer;
-                continue;
-              }
-              const auto found = material_of.find(id);
-              const Material* m = found != material_of.end() ? found->second : nullptr;
-              if (m != nullptr && (m->type == MaterialType::Lambertian || m->type == MaterialType::BlinnPhong) &&
-                  std::isfinite(depth) && depth > 0) {
-                SurfaceHit hit;
-                hit.t = depth;
-                hit.position = eye.eye + dir * depth;
-                hit.normal = primary->normal[i];  // faces the camera: the side the ray arrives on
-                hit.geometric_normal = hit.normal;
-                hit.object_id = id;
-                hit.material = m;
-                ++local.rays;  // the eye ray, answered by the G-buffer
                 hdr[i] = tracer.shade(eye.eye, dir, hit, 0, local, mark);
-                ++from_gbuffer;
-                continue;
-              }
+                break;
             }
-            hdr[i] = tracer.radiance(eye.eye, dir, 0, local, mark);
           }
         }
         pixels.fetch_add(count, std::memory_order_relaxed);
@@ -371,16 +405,8 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
         st.gaze_flux[l] += local.gaze_flux[l];
       }
     }
-    for (std::size_t i = 0; i < seen_indirect.size(); ++i)
-      if (seen_indirect[i]) {
-        maps.global.photons[i].flags |= kInGazeRegion;
-        ++st.photons_used;
-      }
-    for (std::size_t i = 0; i < seen_caustic.size(); ++i)
-      if (seen_caustic[i]) {
-        maps.caustic.photons[i].flags |= kInGazeRegion;
-        ++st.photons_used;
-      }
+    st.photons_used += label_in_gaze_region(maps.global.photons, seen_indirect);
+    st.photons_used += label_in_gaze_region(maps.caustic.photons, seen_caustic);
   }
   st.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (stats) *stats = st;

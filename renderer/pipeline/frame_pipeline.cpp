@@ -186,7 +186,7 @@ std::string FramePipeline::placement(const FramePlan& plan) const {
   const std::string refusal = gpu_refusal();
   if (!refusal.empty()) return "cpu        every plane read back, every pass on the CPU: " + refusal;
   const BackendCapabilities can = backend_->capabilities();
-  const bool visibility = visibility_buffer() && can.visibility_buffer;
+  const bool visibility = pass_settings().visibility_buffer && can.visibility_buffer;
   const bool automatic = settings_.is("frame.gbuffer_pass", "auto");
   const std::string how =
       visibility ? "visibility buffer + compute shading"

@@ -398,7 +398,7 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
 BackendCapabilities GlBackend::capabilities() const {
   const bool visibility = GlVisibilityPass::unavailable_reason(context_.features()).empty();
   return {.shadow_rays = false, .per_pixel_lens = false, .peeling = false, .visibility_buffer = visibility,
-          .visibility_buffer_faster = visibility && !context_.features().software};
+          .visibility_buffer_faster = visibility && context_.features().compute_pays()};
 }
 
 bool GlBackend::ensure_visibility() {

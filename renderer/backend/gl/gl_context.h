@@ -49,6 +49,9 @@ struct GlFeatures {
   // A software rasteriser (Mesa's llvmpipe/softpipe, SwiftShader): fragment and compute shaders run
   // on the same CPU cores, so moving shading to compute buys nothing (bench/RESULTS.md).
   bool software = false;
+  // Compute passes pay here: compute shaders (GL 4.3) on a GPU, not a software rasteriser. The
+  // visibility buffer and the compute tone map follow this one rule (bench/RESULTS.md).
+  bool compute_pays() const { return at_least(4, 3) && !software; }
   bool at_least(int want_major, int want_minor) const {
     return major > want_major || (major == want_major && minor >= want_minor);
   }

@@ -190,7 +190,7 @@ GlFrame::GlFrame(GlBackend& backend) : backend_(backend) {
       std::fprintf(stderr, "fovea-render: the compute tone map is off (%s): the fragment pass is used\n", e.what());
     }
   }
-  compute_faster_ = tonemap_compute_ != 0 && !features.software;
+  compute_faster_ = tonemap_compute_ != 0 && features.compute_pays();
   overlay_program_ = gl::link_program(kFullscreenVertex, kOverlayFragment, "GlFrame overlay");
   glGenVertexArrays(1, &vao_);
   check("GlFrame()");
