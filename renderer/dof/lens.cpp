@@ -24,24 +24,35 @@ double CocModel::k_px() const {
   return std::isfinite(k) ? std::min(k, max_coc_px) : max_coc_px;
 }
 
-double CocModel::signed_coc_px(double depth_m) const {
-  if (pinhole() || !std::isfinite(aperture_m) || !std::isfinite(px_per_image_m) || !(focal_length_m > 0)) return 0;
-  const double cap = std::max(0.0, max_coc_px);
-  double b = 0;
+CocModel::Terms CocModel::terms() const {
+  Terms t;
+  t.cap = std::max(0.0, max_coc_px);
+  if (pinhole() || !std::isfinite(aperture_m) || !std::isfinite(px_per_image_m) || !(focal_length_m > 0)) return t;
   if (std::isinf(focus_m) && focus_m > 0) {
-    // Focus at infinity: everything nearer is in front of the focal plane; R = E F / d.
+    t.form = Terms::Form::FocusAtInfinity;  // everything nearer is in front of the focal plane: R = E F / d
+    t.ef_px = aperture_m * focal_length_m * px_per_image_m;
+    return t;
+  }
+  t.form = Terms::Form::Regular;
+  t.k = aperture_m * focal_length_m / focus_gap(focus_m, focal_length_m) * px_per_image_m;
+  t.df = std::isfinite(focus_m) ? std::max(focus_m, 0.0) : 0.0;
+  return t;
+}
+
+double CocModel::signed_coc_px(double depth_m) const {
+  const Terms t = terms();
+  const double cap = t.cap;
+  double b = 0;
+  if (t.form == Terms::Form::Zero) return 0;
+  if (t.form == Terms::Form::FocusAtInfinity) {
     const double d = std::isnan(depth_m) ? std::numeric_limits<double>::infinity() : depth_m;
-    b = d > 0 ? -aperture_m * focal_length_m / d * px_per_image_m : -cap;
+    b = d > 0 ? -t.ef_px / d : -cap;
+  } else if (std::isnan(depth_m) || std::isinf(depth_m)) {
+    b = depth_m < 0 ? -cap : t.k;  // d -> +inf: (d - d_f) / d -> 1
+  } else if (depth_m <= 0) {
+    b = t.df > 0 ? -cap : 0;  // at the lens: an unbounded CoC in front of the focal plane
   } else {
-    const double k = aperture_m * focal_length_m / focus_gap(focus_m, focal_length_m) * px_per_image_m;
-    const double df = std::isfinite(focus_m) ? std::max(focus_m, 0.0) : 0.0;
-    if (std::isnan(depth_m) || std::isinf(depth_m)) {
-      b = depth_m < 0 ? -cap : k;  // d -> +inf: (d - d_f) / d -> 1
-    } else if (depth_m <= 0) {
-      b = df > 0 ? -cap : 0;  // at the lens: an unbounded CoC in front of the focal plane
-    } else {
-      b = k * (depth_m - df) / depth_m;
-    }
+    b = t.k * (depth_m - t.df) / depth_m;
   }
   if (!std::isfinite(b)) b = b > 0 ? cap : -cap;
   return std::clamp(b, -cap, cap);
@@ -62,8 +73,8 @@ void CocModel::scaled_coc_px(const float* depth, std::size_t n, double scale, fl
     return;
   }
   // signed_coc_px's regular branch: B = K (d - d_f) / d, clamped to the cap (eq. 5.3).
-  const double k = aperture_m * focal_length_m / focus_gap(focus_m, focal_length_m) * px_per_image_m;
-  const double df = std::max(focus_m, 0.0), cap = std::max(0.0, max_coc_px);
+  const Terms t = terms();
+  const double k = t.k, df = t.df, cap = t.cap;
   if (!std::isfinite(k)) {
     for (std::size_t i = 0; i < n; ++i) out[i] = slow(depth[i]);
     return;

@@ -36,6 +36,18 @@ struct CocModel {
   double px_per_image_m = 0;     // pixels per metre on the image plane: DPI d_s / d_r, or H / (2 d_r tan(fov/2))
   double max_coc_px = 1e4;       // every CoC is clamped to this diameter (the image's diagonal by default)
 
+  // signed_coc_px's constants, for code that evaluates eq. 5.3 elsewhere (the GPU passes' shaders):
+  // Zero: C = 0 (a pinhole); Regular: B = K (d - d_f) / d; FocusAtInfinity: B = -E F px / d. Depth
+  // NaN or +inf: B = K (Regular) or 0; depth <= 0 or -inf: |B| = cap (Regular with d_f = 0: 0 at d = 0).
+  struct Terms {
+    enum class Form { Zero, Regular, FocusAtInfinity };
+    Form form = Form::Zero;
+    double k = 0;      // K of eq. 5.3 in pixels, unclamped (may be +inf for a focus at F)
+    double df = 0;     // d_f, >= 0
+    double ef_px = 0;  // E F px_per_image_m (FocusAtInfinity)
+    double cap = 0;    // max_coc_px, >= 0
+  };
+  Terms terms() const;
   // K of eq. 5.3 in pixels: C(d) = K |d - d_f| / d. 0 for a pinhole; finite always.
   double k_px() const;
   // Unsigned CoC diameter in pixels (eqs. 4.3-4.4), in [0, max_coc_px]; NaN/inf depth: the far limit.

@@ -1,0 +1,280 @@
+// Lee 2009 ch. 4 on the GPU (backend/gl/gl_lee_mipmap.h) against its CPU reference (dof/lee_mipmap.h):
+// the bundled scenes' G-buffers at several apertures and every setting, and the CPU's stability
+// catalogue (tests/stability/test_dof_lee_mipmap_stability.cpp) run through the GPU: pinhole and
+// in-focus images copied exactly, focus at F / 0 / infinity, depth 0 / infinity / NaN, a CoC larger
+// than the image, 1x1 and 1xN images, HDR 1e6. Runs through EGL with DISPLAY unset.
+//
+// Tolerance: PSNR >= 40 dB against the CPU reference (the goal), measured on the colour
+// clamped to [0, 1] (what a display shows of it). The GPU differs by design in its bilinear filter
+// weights (8-bit on most GPUs; float on llvmpipe), in GLSL's exp2/log2 and in the order of a few
+// float sums; where the images are exactly defined (pinhole, everything in focus) they are equal.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_lee_mipmap.h"
+#include "dof/lee_mipmap.h"
+#include "dof_lens.h"
+#include "dof_test_image.h"
+#include "scene/scene_loader.h"
+
+namespace fovea::render {
+namespace {
+
+using dof::CocModel;
+using dof::LeeMipmapSettings;
+using dof::RgbImage;
+using dof::test::DofImage;
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr double kMinPsnrDb = 40.0;
+
+// PSNR of the colour clamped to [0, 1] (non-finite as 0), peak 1; +inf when equal.
+double psnr(const RgbImage& a, const RgbImage& b) {
+  EXPECT_EQ(a.size(), b.size());
+  const auto shown = [](float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; };
+  double se = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double d = static_cast<double>(shown(a[i][c])) - static_cast<double>(shown(b[i][c]));
+      se += d * d;
+    }
+  if (se == 0) return std::numeric_limits<double>::infinity();
+  return 10.0 * std::log10(1.0 / (se / (3.0 * static_cast<double>(a.size()))));
+}
+
+float clean(float v) { return std::isfinite(v) ? std::max(v, 0.0f) : 0.0f; }
+
+// Finite, non-negative and per channel no brighter than the brightest finite input.
+void expect_bounded(const dof::DofInput& in, const RgbImage& out, const char* what) {
+  ASSERT_EQ(out.size(), in.pixels()) << what;
+  glm::vec3 mx(0.0f);
+  for (std::size_t i = 0; i < in.pixels(); ++i) {
+    const glm::vec3 c = in.color[i];
+    mx = glm::max(mx, glm::vec3(clean(c.x), clean(c.y), clean(c.z)));
+  }
+  for (std::size_t i = 0; i < out.size(); ++i)
+    for (int ch = 0; ch < 3; ++ch) {
+      const float v = out[i][ch];
+      ASSERT_TRUE(std::isfinite(v)) << what << " pixel " << i;
+      ASSERT_GE(v, 0.0f) << what << " pixel " << i;
+      ASSERT_LE(v, mx[ch] * (1.0f + 1e-6f)) << what << " pixel " << i;
+    }
+}
+
+class GlLeeMipmapTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    backend_ = std::make_unique<GlBackend>();
+    backend_->context().make_current();
+    gl_ = std::make_unique<GlLeeMipmap>();
+  }
+  RgbImage on_gpu(const dof::DofInput& in, const LeeMipmapSettings& s = {}) {
+    RgbImage out;
+    gl_->run_image(in, s, out);
+    return out;
+  }
+  static RgbImage on_cpu(const dof::DofInput& in, const LeeMipmapSettings& s = {}) {
+    RgbImage out;
+    dof::lee_mipmap(in, s, out);
+    return out;
+  }
+  // Both bounded, and the GPU within the tolerance of the CPU.
+  void expect_agree(const dof::DofInput& in, const LeeMipmapSettings& s, const char* what) {
+    const RgbImage cpu = on_cpu(in, s), gpu = on_gpu(in, s);
+    expect_bounded(in, gpu, what);
+    EXPECT_GE(psnr(gpu, cpu), kMinPsnrDb) << what << " " << in.width << "x" << in.height;
+  }
+  std::unique_ptr<GlBackend> backend_;
+  std::unique_ptr<GlLeeMipmap> gl_;
+};
+
+// The G-buffer of a bundled scene, and a lens whose CoC is `coc_px` at the far plane.
+struct SceneImage {
+  GBuffer g;
+  CocModel lens;
+  dof::DofInput input() const {
+    dof::DofInput in;
+    in.width = g.width;
+    in.height = g.height;
+    in.color = g.color.data();
+    in.depth = g.depth.data();
+    in.coc = lens;
+    return in;
+  }
+};
+
+SceneImage scene_image(GlBackend& backend, const char* name, double focus_m, double k_px) {
+  Scene s = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes" / name);
+  s.camera.width = 256;
+  s.camera.height = 192;
+  backend.set_scene(s);
+  SceneImage out;
+  backend.render({}, {}, out.g);
+  out.lens = dof::test::lens_with_k(k_px, focus_m);
+  return out;
+}
+
+TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceOnTheBundledScenes) {
+  struct Case {
+    const char* scene;
+    double focus_m;
+  };
+  for (const Case& c : {Case{"attention.json", 2.9}, Case{"attention.json", 14.0}, Case{"occlusion.json", 6.0},
+                        Case{"cornell.json", 1.0}}) {
+    for (double k : {4.0, 16.0, 64.0}) {
+      const SceneImage im = scene_image(*backend_, c.scene, c.focus_m, k);
+      const RgbImage cpu = on_cpu(im.input()), gpu = on_gpu(im.input());
+      const double db = psnr(gpu, cpu);
+      EXPECT_GE(db, kMinPsnrDb) << c.scene << " focus " << c.focus_m << " K " << k;
+      std::printf("%-15s focus %5.1f m K %3.0f px: GL vs CPU %.1f dB\n", c.scene, c.focus_m, k, db);
+    }
+  }
+}
+
+TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceWithEverySetting) {
+  const SceneImage im = scene_image(*backend_, "attention.json", 2.9, 32.0);
+  for (int variant = 0; variant < 7; ++variant) {
+    LeeMipmapSettings s;
+    s.anisotropic = variant != 1;
+    s.smooth_foreground = variant != 2;
+    s.circular = variant != 3;
+    s.geometric = variant != 4;
+    if (variant == 5) s.dob_per_coc = 0.25;
+    if (variant == 6) s.max_level = 2;
+    expect_agree(im.input(), s, "setting variant");
+  }
+  // Foreground blur: the DoN smoothing (eqs. 4.10-4.11) does the work.
+  const SceneImage fg = scene_image(*backend_, "attention.json", 14.0, 32.0);
+  expect_agree(fg.input(), {}, "foreground blur");
+}
+
+TEST_F(GlLeeMipmapTest, PinholeAndInFocusImagesAreCopiedExactly) {
+  DofImage im(31, 17, glm::vec3(0.25f, 3.0f, 1e6f), 1.0f);
+  im.color[5] = {kNaN, kInf, -kInf};
+  im.color[6] = {-1.0f, 2.0f, 0.0f};
+  im.depth[7] = kNaN;
+  CocModel pin = dof::test::lens_with_k(300);
+  pin.aperture_m = 0;
+  const RgbImage out = on_gpu(im.input(pin));
+  const RgbImage cpu = on_cpu(im.input(pin));
+  for (std::size_t i = 0; i < out.size(); ++i) EXPECT_EQ(0, std::memcmp(&out[i], &cpu[i], sizeof(glm::vec3))) << i;
+  EXPECT_EQ(out[5], glm::vec3(0.0f));
+  EXPECT_EQ(out[6], glm::vec3(-1.0f, 2.0f, 0.0f));  // as the CPU: a pinhole changes nothing finite
+  DofImage focused(40, 30, glm::vec3(0.5f), 4.0f);
+  focused.color[3] = {9.0f, 0.0f, 1.0f};
+  const RgbImage f = on_gpu(focused.input(dof::test::lens_with_k(300, 4.0)));
+  EXPECT_EQ(0, std::memcmp(f.data(), focused.color.data(), f.size() * sizeof(glm::vec3)));
+}
+
+TEST_F(GlLeeMipmapTest, StabilityCatalogueSpecialDepths) {
+  const CocModel lens = dof::test::lens_with_k(300);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float specials[] = {0.0f, -0.0f, kInf, -kInf, kNaN, -1.0f, 1e-30f, 1e30f, 2.0f, 0.05f};
+  DofImage im(64, 48, glm::vec3(0.0f), 1.0f);
+  for (std::size_t i = 0; i < im.color.size(); ++i) {
+    im.color[i] = {u(rng), u(rng), u(rng)};
+    im.depth[i] = specials[rng() % std::size(specials)];
+  }
+  for (bool smooth : {false, true})
+    for (bool aniso : {false, true}) {
+      LeeMipmapSettings s;
+      s.smooth_foreground = smooth;
+      s.anisotropic = aniso;
+      expect_agree(im.input(lens), s, "special depths");
+    }
+  for (float d : specials) {
+    DofImage flat(33, 21, glm::vec3(0.3f, 0.6f, 0.9f), d);
+    flat.color[100] = glm::vec3(5.0f);
+    expect_agree(flat.input(lens), {}, "flat special depth");
+  }
+}
+
+TEST_F(GlLeeMipmapTest, StabilityCatalogueColoursAndLenses) {
+  const CocModel lens = dof::test::lens_with_k(300);
+  DofImage dirty(50, 40, glm::vec3(0.5f), static_cast<float>(lens.depth_far_for_coc(20.0)));
+  dirty.color[10] = {kNaN, kInf, -kInf};
+  dirty.color[500] = {kInf, kInf, kInf};
+  expect_agree(dirty.input(lens), {}, "non-finite colour");
+  DofImage hdr(80, 60, glm::vec3(0.01f), static_cast<float>(lens.depth_far_for_coc(30.0)));
+  hdr.color[30 * 80 + 40] = glm::vec3(1e6f);
+  hdr.color[31 * 80 + 40] = glm::vec3(1e6f, 0.0f, 3e5f);
+  for (bool geometric : {true, false}) {
+    LeeMipmapSettings s;
+    s.geometric = geometric;
+    expect_agree(hdr.input(lens), s, "HDR 1e6");
+  }
+  CocModel huge = dof::test::lens_with_k(1e5);
+  DofImage bars(24, 16, glm::vec3(0.2f), 50.0f);
+  for (std::size_t i = 0; i < bars.color.size(); i += 3) bars.color[i] = glm::vec3(1.0f, 0.0f, 0.5f);
+  expect_agree(bars.input(huge), {}, "CoC larger than the image");
+  huge.max_coc_px = 1e30;
+  expect_agree(bars.input(huge), {}, "unclamped CoC");
+  for (double focus : {0.05, 0.04, 0.0, -1.0, 1e-9, std::numeric_limits<double>::infinity(),
+                       std::numeric_limits<double>::quiet_NaN()}) {
+    CocModel odd = dof::test::lens_with_k(300);
+    odd.focus_m = focus;
+    DofImage im(40, 30, glm::vec3(0.3f), 1.0f);
+    for (std::size_t i = 0; i < im.depth.size(); ++i) im.depth[i] = 0.02f * static_cast<float>(i % 200);
+    for (std::size_t i = 0; i < im.color.size(); i += 7) im.color[i] = glm::vec3(2.0f);
+    const std::string what = "focus at F, 0, infinity, NaN: " + std::to_string(focus);
+    // Focus inside the focal length: K ~ 1e10 px, so a depth a float ulp from d_f (which the GPU
+    // holds as a float, the CPU as a double) is in focus on one and capped on the other. Bounded only.
+    if (odd.terms().k > 1e6) {
+      expect_bounded(im.input(odd), on_gpu(im.input(odd)), what.c_str());
+    } else {
+      expect_agree(im.input(odd), {}, what.c_str());
+    }
+  }
+}
+
+TEST_F(GlLeeMipmapTest, StabilityCatalogueTinyAndDegenerateSizes) {
+  const CocModel lens = dof::test::lens_with_k(300);
+  for (auto [w, h] : {std::pair{1u, 1u}, {1u, 2u}, {2u, 1u}, {1u, 37u}, {53u, 1u}, {2u, 2u}, {3u, 5u}, {1u, 1024u}}) {
+    DofImage im(w, h, glm::vec3(0.4f), 100.0f);
+    for (std::size_t i = 0; i < im.color.size(); i += 2) im.color[i] = glm::vec3(1.0f, 0.1f, 0.0f);
+    for (std::size_t i = 1; i < im.depth.size(); i += 3) im.depth[i] = 0.3f;
+    expect_agree(im.input(lens), {}, "tiny");
+    if (w * h == 1) {
+      EXPECT_EQ(on_gpu(im.input(lens))[0], im.color[0]);
+    }
+  }
+}
+
+TEST_F(GlLeeMipmapTest, RandomInputsAgreeAndReuseTheirTargets) {
+  std::mt19937 rng(1234);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::uniform_real_distribution<double> ud(0.0, 1.0);
+  const float specials[] = {kNaN, kInf, -kInf, 0.0f, 1e6f, -3.0f};
+  for (int trial = 0; trial < 30; ++trial) {
+    const auto w = 1 + static_cast<std::uint32_t>(rng() % 90), h = 1 + static_cast<std::uint32_t>(rng() % 70);
+    DofImage im(w, h, glm::vec3(0), 1);
+    const bool dirty = trial % 3 == 0;
+    for (std::size_t i = 0; i < im.color.size(); ++i) {
+      im.color[i] = {u(rng), u(rng), u(rng) * u(rng)};
+      im.depth[i] = 0.1f + 30.0f * u(rng) * u(rng);
+      if (dirty && rng() % 10 == 0) im.color[i][static_cast<int>(rng() % 3)] = specials[rng() % std::size(specials)];
+      if (dirty && rng() % 10 == 0) im.depth[i] = specials[rng() % std::size(specials)];
+    }
+    const CocModel lens = dof::test::lens_with_k(5.0 + 400.0 * ud(rng), 0.2 + 10.0 * ud(rng));
+    LeeMipmapSettings s;
+    s.anisotropic = rng() % 2;
+    s.smooth_foreground = rng() % 4 != 0;
+    s.circular = rng() % 4 != 0;
+    s.geometric = rng() % 4 != 0;
+    s.delta = 2.0 * ud(rng);
+    s.max_level = static_cast<int>(rng() % 3);
+    expect_agree(im.input(lens), s, "random");
+  }
+}
+
+}  // namespace
+}  // namespace fovea::render
