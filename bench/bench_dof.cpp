@@ -16,6 +16,11 @@
 //          (C < 1 px): where a focused object's colour would leak into the blur (Lee §4.2);
 //   edge   pixels within the foreground's mean C/2 of a blurred foreground pixel (in front, C > 2):
 //          the blurred foreground boundary (Lee §4.3, Schedl & Wimmer's partial occlusion).
+//
+// The "... gl" rows run the method's OpenGL implementation (backend/gl/gl_lee_mipmap.h) on the same
+// G-buffer through EGL (llvmpipe here, a GPU where there is one): ms/frame is the wall time with the
+// upload and the readback a GPU-resident frame does not do; gpu_ms the passes alone (timestamp
+// queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -35,6 +40,8 @@
 #include <vector>
 
 #include "backend/embree/embree_backend.h"
+#include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_lee_mipmap.h"
 #include "dof/lee_mipmap.h"
 #include "dof/lee_splat.h"
 #include "dof/lens.h"
@@ -232,10 +239,25 @@ int main(int argc, char** argv) {
       return 1;
     }
     csv << "scene,mean_coc_px,method,psnr_db,ssim,leak_rmse,edge_rmse,ms_per_frame,reference_samples,"
-           "reference_seconds\n";
+           "reference_seconds,gpu_ms,vs_cpu_db\n";
   }
-  std::printf("%-18s %6s %-24s %8s %7s %9s %9s %10s\n", "scene", "coc", "method", "psnr_db", "ssim", "leak_rmse",
-              "edge_rmse", "ms/frame");
+  // The OpenGL implementations' context (EGL): their rows are skipped, with the reason, without one.
+  std::unique_ptr<GlBackend> gl_context;
+  std::unique_ptr<GlLeeMipmap> gl_mipmap;
+  std::string gl_device;
+  if (method_selected("lee-mipmap gl")) {
+    try {
+      gl_context = std::make_unique<GlBackend>();
+      gl_context->context().make_current();
+      gl_mipmap = std::make_unique<GlLeeMipmap>();
+      gl_device = "OpenGL " + gl_context->context().features().version() + " (" + gl_context->context().renderer() + ")";
+      std::printf("gl rows on %s\n", gl_device.c_str());
+    } catch (const std::exception& e) {
+      std::printf("gl rows skipped: %s\n", e.what());
+    }
+  }
+  std::printf("%-18s %6s %-24s %8s %7s %9s %9s %10s %8s %9s\n", "scene", "coc", "method", "psnr_db", "ssim",
+              "leak_rmse", "edge_rmse", "ms/frame", "gpu_ms", "vs_cpu_db");
 
   for (const Case& cs : cases) {
     Scene scene = load_scene(cs.file);
@@ -297,7 +319,11 @@ int main(int argc, char** argv) {
       struct Method {
         std::string name;
         std::function<void(RgbImage&)> run;
+        // The OpenGL rows: their GPU time of the last run, and the CPU implementation they mirror.
+        double* gpu_ms = nullptr;
+        std::function<void(RgbImage&)> cpu_twin = nullptr;
       };
+      double gl_ms = 0;
       LeeMipmap mip;
       std::vector<Method> methods;
       methods.push_back({"pinhole (no dof)", [&](RgbImage& out) { out.assign(g.color.begin(), g.color.end()); }});
@@ -322,6 +348,15 @@ int main(int argc, char** argv) {
                            ls.dob_per_coc = 0.25;
                            mip.run(in, ls, out);
                          }});
+      if (gl_mipmap) {
+        for (const double dob : {0.5, 0.25}) {
+          LeeMipmapSettings ls;
+          ls.dob_per_coc = dob;
+          methods.push_back({dob == 0.5 ? "lee-mipmap gl" : "lee-mipmap gl sigma=C/4",
+                             [&, ls](RgbImage& out) { gl_mipmap->run_image(in, ls, out, &gl_ms); }, &gl_ms,
+                             [&, ls](RgbImage& out) { mip.run(in, ls, out); }});
+        }
+      }
       methods.push_back({"lee-splat no hidden", [&](RgbImage& out) {
                            LeeSplatSettings ls;
                            ls.use_hidden = false;
@@ -375,12 +410,28 @@ int main(int argc, char** argv) {
         const cv::Mat ldr = as_mat(to_ldr(out, w, h));
         const double p = psnr(ldr, ref_ldr), q = ssim(ldr, ref_ldr);
         const double leak = masked_rmse(ldr, ref_ldr, masks.leak), edge = masked_rmse(ldr, ref_ldr, masks.edge);
-        std::printf("%-18s %6.1f %-24s %8.2f %7.4f %9.2f %9.2f %10.2f\n", cs.name.c_str(), target, m.name.c_str(), p, q,
-                    leak, edge, median(ms));
+        // The OpenGL rows: the GPU time (median over the runs) and the agreement with the CPU twin.
+        std::vector<double> gpu;
+        double vs_cpu = std::nan("");
+        if (m.gpu_ms != nullptr) {
+          for (std::uint32_t r = 0; r < runs; ++r) {
+            RgbImage again;
+            m.run(again);
+            gpu.push_back(*m.gpu_ms);
+          }
+          RgbImage twin;
+          m.cpu_twin(twin);
+          vs_cpu = psnr(ldr, as_mat(to_ldr(twin, w, h)));
+        }
+        std::printf("%-18s %6.1f %-24s %8.2f %7.4f %9.2f %9.2f %10.2f %8.2f %9.2f\n", cs.name.c_str(), target,
+                    m.name.c_str(), p, q, leak, edge, median(ms), median(gpu), vs_cpu);
         std::fflush(stdout);
         if (csv) {
           csv << cs.name << "," << target << "," << m.name << "," << p << "," << q << "," << leak << "," << edge << ","
-              << median(ms) << "," << samples << "," << ref.seconds() << "\n";
+              << median(ms) << "," << samples << "," << ref.seconds() << ",";
+          if (m.gpu_ms != nullptr) csv << median(gpu) << "," << vs_cpu;
+          else csv << ",";
+          csv << "\n";
         }
         if (!png_dir.empty()) {
           cv::Mat bgr;

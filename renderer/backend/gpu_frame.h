@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "backend/backend.h"
+#include "dof/lee_mipmap.h"
+#include "dof/lens.h"
 
 namespace fovea::render {
 
@@ -64,6 +66,13 @@ class GpuFrame {
   // The HDR colour a CPU pass made (row 0 at the top, the G-buffer's size) replaces the G-buffer's
   // colour as the tone map's input for this frame.
   virtual void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) = 0;
+  // Lee 2009 ch. 4's depth of field (dof/lee_mipmap.h's method, the same settings) on the G-buffer's
+  // colour and depth where they lie; its result replaces the G-buffer's colour as the tone map's input
+  // for this frame.
+  virtual void dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings& settings) = 0;
+  // The HDR colour the tone map reads now (the G-buffer's, the GPU dof's or the upload), linear, row
+  // 0 at the top: for tests and for writing the frame out. Waits for the GPU.
+  virtual void read_hdr(std::vector<glm::vec3>& hdr) = 0;
   // The hybrid renderer's GI inset (Jensen & Pedersen 2009, Algorithm 8.4, steps 7-8: GI inside the
   // fovea, a linear ramp to local illumination at the radius; gi/gi_render.h hybrid_composite on the
   // CPU): `gi` is the area's GI, full image size, row 0 at the top, read only inside the circle of

@@ -15,6 +15,8 @@ DofMethod parse_dof_method(const std::string& name) {
                                     : DofMethod::LeeMipmap;
 }
 
+bool has_gpu_implementation(DofMethod method) { return method == DofMethod::LeeMipmap; }
+
 DofPassSettings dof_pass_settings(const Settings& s) {
   DofPassSettings d;
   d.method = parse_dof_method(s.text("dof.method"));

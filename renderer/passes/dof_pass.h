@@ -17,6 +17,12 @@ namespace fovea::render {
 
 enum class DofMethod { Reference, Accum, LeeMipmap, LeeSplat, SchedlLayered };
 DofMethod parse_dof_method(const std::string& name);
+// The methods with a GPU implementation (GpuFrame), which runs where the frame's G-buffer lies:
+// lee-mipmap (backend/gl/gl_lee_mipmap.h). The others run on the CPU from a readback.
+bool has_gpu_implementation(DofMethod method);
+// dof.device: where an image-space method runs. Auto: on the GPU where the frame lies there and
+// the method has a GPU implementation; Gpu: there or not at all (the planner says why).
+enum class DofDevice { Auto, Cpu, Gpu };
 
 struct DofPassSettings {
   DofMethod method = DofMethod::LeeMipmap;

@@ -151,7 +151,7 @@ void FramePipeline::scene_changed() {
 
 FramePlan FramePipeline::plan() const {
   FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->capabilities().per_pixel_lens,
-                                          &pass_settings().plan});
+                                          &pass_settings().plan, gpu_refusal().empty()});
   plan.placement = placement(plan);
   return plan;
 }
@@ -194,8 +194,12 @@ std::string FramePipeline::placement(const FramePlan& plan) const {
           ? "forward raster shading: no compute shaders (OpenGL 4.3)"
           : automatic ? "forward raster shading: frame.gbuffer_pass=auto on a software rasteriser"
                       : "forward raster shading";
-  return "gpu        " + gpu_->description() + ": G-buffer (" + how +
-         "), tone map, overlay on the GPU; G-buffer planes written: " +
+  // The passes of this frame that run where the G-buffer lies, after it.
+  std::string on_gpu;
+  for (const PlannedPass& p : plan.passes)
+    if (p.runs && p.on_gpu && p.id != PassId::GBuffer) on_gpu += std::string(", ") + declaration(p.id).name;
+  return "gpu        " + gpu_->description() + ": G-buffer (" + how + ")" + on_gpu +
+         " on the GPU; G-buffer planes written: " +
          to_string(planes_written(plan)) + "; read back: " + to_string(planes_read_on_cpu(plan));
 }
 
@@ -444,10 +448,15 @@ const std::vector<glm::vec3>& FramePipeline::step_dof(Frame& f, double now_s, do
   auto t = timer.scope("dof");
   // The focus pass's depth; with focus.mode=fixed (focus not run) the lens's own focus distance.
   const double focus_m = f.focus != nullptr ? f.focus->focal_depth_m : scene_.camera.lens.focus_distance_m;
+  f.focal_depth_m = focus_m;
+  if (f.on_gpu && f.plan.at(PassId::Dof).on_gpu) {
+    // Where the G-buffer lies; the tone map reads its result there (the CPU's colour is unchanged).
+    gpu_->dof_lee_mipmap(dof_.coc_model(scene_, focus_m), dof_.settings().mipmap);
+    return gbuffer_.color;
+  }
   const dof::RgbImage& color = dof_.run(*backend_, scene_, gbuffer_, lod_levels_, focus_m, FrameTime{now_s, previous_s});
   if (check) require_finite("dof", "colour", color, gbuffer_.width);
   f.dof = &color;
-  f.focal_depth_m = focus_m;
   return color;
 }
 

@@ -40,6 +40,8 @@ PlanSettings plan_settings(const Settings& s) {
   p.lod_budget_ms = s.number("lod.budget_ms");
   p.dof = s.flag("dof.enabled");
   p.dof_method = parse_dof_method(s.text("dof.method"));
+  const std::string& device = s.text("dof.device");
+  p.dof_device = device == "cpu" ? DofDevice::Cpu : device == "gpu" ? DofDevice::Gpu : DofDevice::Auto;
   p.gi = s.flag("gi.enabled");
   p.gi_caustics = s.flag("gi.caustics");
   p.gi_full_area = s.is("gi.area", "full");
@@ -105,6 +107,25 @@ PassRule lod_rule(const PlanContext& c) {
   return yes(why);
 }
 
+// What keeps dof off the GPU in a GPU-resident frame ("" : nothing): a method without a GPU
+// implementation, or a CPU pass that must see the DOF colour before the tone map (dof would have to
+// be read back, which costs what running it on the GPU saves).
+std::string dof_gpu_blocker(const PlanContext& c) {
+  const PlanSettings& t = c.typed();
+  if (!has_gpu_implementation(t.dof_method)) return "dof.method=" + c.settings.text("dof.method") + " has no GPU implementation yet";
+  if (t.gi && t.gi_csf_periphery) return "gi.periphery=csf composites GI over the DOF colour on the CPU";
+  if (t.lod && t.lod_policy == lod::Policy::Ulod && c.scene.has_lods()) {
+    return "lod.policy=ulod blends the levels' colours on the CPU before dof";
+  }
+  return "";
+}
+
+bool dof_on_gpu(const PlanContext& c) {
+  return c.gpu_resident && c.typed().dof_device != DofDevice::Cpu && dof_gpu_blocker(c).empty();
+}
+
+bool always(const PlanContext&) { return true; }
+
 // A pinhole lens keeps everything in focus.
 PassRule dof_rule(const PlanContext& c) {
   const Settings& s = c.settings;
@@ -120,6 +141,16 @@ PassRule dof_rule(const PlanContext& c) {
     rule.able = false;
     rule.unable = "the ray-traced reference needs --backend embree (per-pixel lens rays); accum is the raster "
                   "backend's reference";
+    return rule;
+  }
+  const std::string blocker = dof_gpu_blocker(c);
+  if (c.typed().dof_device == DofDevice::Gpu && (!c.gpu_resident || !blocker.empty())) {
+    rule.able = false;
+    rule.unable = "dof.device=gpu: " + (c.gpu_resident ? blocker : std::string("the frame is not on the GPU (see where)"));
+  } else if (dof_on_gpu(c)) {
+    rule.reason += ", on the GPU";
+  } else if (c.gpu_resident && dof_filters_the_image(c)) {
+    rule.reason += ", on the CPU: " + (blocker.empty() ? std::string("dof.device=cpu") : blocker);
   }
   return rule;
 }
@@ -207,29 +238,29 @@ const std::vector<PassDecl>& pass_declarations() {
   using R = Resource;
   static const std::vector<PassDecl> kPasses = {
       {PassId::GBuffer, "gbuffer", {{R::LodLevels}}, {R::GBuffer, R::HdrColor}, "scene, camera, time", gbuffer_rule,
-       nullptr, true},
+       nullptr, always},
       {PassId::Attention, "attention",
        {{R::GBuffer, "unless lod.policy=ulod (then its own proxy render)", not_lod_ulod}}, {R::Attention},
-       "scene (object and observer motion, task importance)", attention_rule, attention_reads, false, true},
+       "scene (object and observer motion, task importance)", attention_rule, attention_reads, nullptr, true},
       {PassId::Focus, "focus",
        {{R::GBuffer}, {R::Attention, "focus.mode=attention|gaze+attention", focus_uses_attention}}, {R::FocalDepth},
-       "gaze", focus_rule, focus_reads, false, true},
+       "gaze", focus_rule, focus_reads, nullptr, true},
       {PassId::LodSelect, "lod-select", {{R::Attention, "lod.policy=ulod", lod_ulod}}, {R::LodLevels},
        "camera, gaze, the last frame's G-buffer", lod_rule, lod_reads},
       {PassId::Dof, "dof",
        {{R::HdrColor}, {R::FocalDepth}, {R::GBuffer, "an image-space dof.method", dof_filters_the_image}},
-       {R::HdrColor}, "the lens", dof_rule, dof_reads},
+       {R::HdrColor}, "the lens", dof_rule, dof_reads, dof_on_gpu},
       {PassId::Gi, "gi",
        {{R::HdrColor}, {R::Attention, "no gaze source (its gaze area)", gi_area_follows_attention}}, {R::GiInset},
        "scene (its own rays), gaze", gi_rule},
       {PassId::Tonemap, "tonemap", {{R::HdrColor}, {R::GiInset}}, {R::Display}, "tonemap.*", tonemap_rule,
-       tonemap_reads, true},
+       tonemap_reads, always},
       {PassId::Overlay, "overlay",
        {{R::Display},
         {R::GBuffer},
         {R::Attention, attention_overlay_values(), overlay_draws_attention},
         {R::FocalDepth, "overlay.focus=true", overlay_draws_focus}},
-       {R::Display}, "gaze", overlay_rule, overlay_reads, true},
+       {R::Display}, "gaze", overlay_rule, overlay_reads, always},
   };
   return kPasses;
 }
@@ -357,7 +388,7 @@ FramePlan plan_frame(const PlanContext& given) {
   const std::vector<bool> runs = keep_from_output(c, runnable);
   for (const PassDecl& d : decls) {
     const auto i = static_cast<std::size_t>(d.id);
-    PlannedPass p{d.id, needed[i], runs[i], "", {}, {}};
+    PlannedPass p{d.id, needed[i], runs[i], "", {}, c.gpu_resident && d.on_gpu != nullptr && d.on_gpu(c), {}};
     for (const ReadDecl& r : d.reads)
       if (r.reads(c)) p.reads.push_back(r.resource);
     plan.passes.push_back(std::move(p));
@@ -430,7 +461,7 @@ std::string FramePlan::explain() const {
 GBufferPlanes planes_read_on_cpu(const FramePlan& plan) {
   GBufferPlanes r;
   for (const PlannedPass& p : plan.passes) {
-    if (p.runs && !declaration(p.id).on_gpu) r = r | p.gbuffer_reads;
+    if (p.runs && !p.on_gpu) r = r | p.gbuffer_reads;
   }
   return r;
 }

@@ -41,6 +41,7 @@ struct PlanSettings {
   double lod_budget_ms = 0;
   bool dof = true;
   DofMethod dof_method = DofMethod::LeeMipmap;
+  DofDevice dof_device = DofDevice::Auto;
   bool gi = false, gi_caustics = true, gi_full_area = false, gi_csf_periphery = false;
   bool overlay_gaze = true, overlay_focus = false;
   std::string overlay_map = "none";
@@ -55,6 +56,9 @@ struct PlanContext {
   bool backend_traces_rays = true;  // the backend takes per-pixel lens rays (Embree; not the raster backend)
   // plan_settings(settings), when the caller keeps them parsed; null: plan_frame parses them.
   const PlanSettings* parsed = nullptr;
+  // The frame's G-buffer lies on the GPU (FramePipeline's GPU-resident path): passes with a GPU
+  // implementation run there.
+  bool gpu_resident = false;
   const PlanSettings& typed() const;  // *parsed; throws std::logic_error when unset
   // What the frame hands out: the display image (output=final) or the G-buffer (output=gbuffer).
   Resource output() const { return typed().output; }
@@ -89,9 +93,10 @@ struct PassDecl {
   // Typed: the planes of this frame's G-buffer the pass reads, with these settings and this plan
   // (null: none). What the GPU-resident frame writes and reads back is derived from these.
   GBufferPlanes (*gbuffer_reads)(const FramePlan& plan, const PlanSettings& settings) = nullptr;
-  // The pass has a GPU implementation that runs where the G-buffer lies (the GPU-resident frame);
-  // the others run on the CPU from a readback of what they read.
-  bool on_gpu = false;
+  // With these settings the pass has a GPU implementation that runs where the G-buffer lies (the
+  // GPU-resident frame); null: it has none. Passes that do not run on the GPU run on the CPU from a
+  // readback of what they read.
+  bool (*on_gpu)(const PlanContext&) = nullptr;
   // Its reason starts with who consumes it (attention, focus: their only purpose is their consumers).
   bool names_consumers = false;
 };
@@ -105,6 +110,7 @@ struct PlannedPass {
   bool runs = false;         // runs this frame: needed, able, and what it writes is read by a pass that runs
   std::string reason;
   GBufferPlanes gbuffer_reads;  // what it reads of the G-buffer when it runs (PassDecl::gbuffer_reads)
+  bool on_gpu = false;          // runs on the GPU: the frame is GPU-resident and PassDecl::on_gpu says so
   std::vector<Resource> reads;  // the resources it reads with these settings (the graph's edges in)
 };
 

@@ -10,6 +10,7 @@
 // few such pixels per ring are allowed (kRingEdgePixels), and no other difference.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -355,6 +356,39 @@ TEST(GlFramePipeline, BothPathsMakeTheSameFramesOnTheBundledScenes) {
     const Difference d = compare(images[0], images[1]);
     EXPECT_LE(d.pixels, static_cast<std::size_t>(2 * kRingEdgePixels)) << "max " << d.max_level;
   }
+}
+
+// dof.method=lee-mipmap in a GPU-resident frame runs on the GPU (gpu.dof timed, nothing read back for
+// it) and its colour is the CPU pass's within the GPU's tolerance (tests/gl/test_gl_lee_mipmap.cpp):
+// the HDR colour the tone map reads, with dof.device=gpu against dof.device=cpu in the same frame.
+TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
+  std::vector<glm::vec3> hdr[2];
+  for (const char* device : {"gpu", "cpu"}) {
+    Settings s;
+    s.set("dof.device", device);
+    s.set("focus.mode", "fixed");
+    s.set("lod.enabled", "false");  // lod-select reads the last frame's colour and ids back
+    std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
+    FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
+    PassTimer timer;
+    const FramePipeline::Frame f = pipeline.render(0, 0.0, 0.0, 0.0, timer);
+    ASSERT_TRUE(f.on_gpu) << f.plan.explain();
+    ASSERT_TRUE(f.plan.runs(PassId::Dof)) << f.plan.explain();
+    const bool gpu = std::string(device) == "gpu";
+    EXPECT_EQ(f.plan.at(PassId::Dof).on_gpu, gpu);
+    EXPECT_EQ(timer.summary().count("gpu.dof"), gpu ? 1u : 0u);
+    EXPECT_EQ(f.read_back.any(), !gpu) << "focus.mode=fixed: only a CPU dof reads the G-buffer back";
+    pipeline.gpu_frame()->read_hdr(hdr[gpu ? 0 : 1]);
+  }
+  ASSERT_EQ(hdr[0].size(), hdr[1].size());
+  double se = 0;
+  for (std::size_t i = 0; i < hdr[0].size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double d = std::clamp(static_cast<double>(hdr[0][i][c]), 0.0, 1.0) - std::clamp(static_cast<double>(hdr[1][i][c]), 0.0, 1.0);
+      se += d * d;
+    }
+  const double psnr = se == 0 ? 1e9 : 10.0 * std::log10(3.0 * static_cast<double>(hdr[0].size()) / se);
+  EXPECT_GE(psnr, 40.0);
 }
 
 }  // namespace

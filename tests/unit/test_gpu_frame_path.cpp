@@ -64,6 +64,11 @@ class FakeGpuFrame final : public GpuFrame {
     calls.push_back("upload");
     EXPECT_EQ(hdr.size(), std::size_t{w} * h);
   }
+  void dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings&) override {
+    calls.push_back("dof");
+    EXPECT_FALSE(coc.pinhole());
+  }
+  void read_hdr(std::vector<glm::vec3>& hdr) override { hdr = rendered_.color; }
   void tonemap(const GpuTonemap&) override { calls.push_back("tonemap"); }
   void overlay(const GpuOverlay& o) override {
     calls.push_back("overlay");
@@ -171,9 +176,14 @@ struct PathRow {
 const std::vector<PathRow> kPaths = {
     {"pinhole: nothing runs on the CPU, nothing comes back; only colour is written", false, {}, true, {}, false,
      "written: colour; read back: nothing"},
-    {"thin lens: attention, focus and lee-mipmap read colour, depth and ids; DOF's colour goes up", true, {}, true,
-     {.color = true, .depth = true, .object_id = true}, true, "read back: colour, depth, id"},
-    {"fixed focus: only DOF runs on the CPU", true, {"focus.mode=fixed"}, true, {.color = true, .depth = true}, true,
+    {"thin lens: attention and focus read colour, depth and ids; lee-mipmap runs on the GPU, nothing goes up", true,
+     {}, true, {.color = true, .depth = true, .object_id = true}, false, "read back: colour, depth, id"},
+    {"fixed focus: lee-mipmap on the GPU, nothing comes back", true, {"focus.mode=fixed"}, true, {}, false,
+     "written: colour, depth; read back: nothing", {.depth = true}},
+    {"dof.device=cpu: DOF reads colour and depth back, its colour goes up", true, {"focus.mode=fixed", "dof.device=cpu"},
+     true, {.color = true, .depth = true}, true, "read back: colour, depth"},
+    {"a method without a GPU implementation runs on the CPU", true,
+     {"focus.mode=fixed", "dof.method=lee-splat", "dof.hidden=false"}, true, {.color = true, .depth = true}, true,
      "read back: colour, depth"},
     {"gaze focus without DOF shown: focus reads depth and ids, so does the outline", true,
      {"focus.mode=gaze", "dof.enabled=false", "overlay.focus=true"}, true, {.depth = true, .object_id = true}, false,
@@ -252,7 +262,7 @@ TEST(GpuFramePath, TheGBufferPassFollowsTheSettingAndWhatTheDeviceCanDo) {
 
 TEST(GpuFramePath, GpuPassesRunInPipelineOrderAndEndWithTheFence) {
   const auto run = render_one(true, {});
-  const std::vector<std::string> want = {"gbuffer", "read_back", "upload", "tonemap", "overlay", "finish"};
+  const std::vector<std::string> want = {"gbuffer", "read_back", "dof", "tonemap", "overlay", "finish"};
   EXPECT_EQ(run->backend->gpu_->calls, want);
   EXPECT_EQ(run->backend->cpu_renders, 0);  // no second render of the G-buffer on the CPU path
 }

@@ -158,13 +158,61 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
     const Scene scene = make_scene(row.scene);
     Settings settings;
     for (const std::string& a : row.settings) settings.set_assignment(a);
-    const FramePlan plan = plan_frame(PlanContext{scene, settings, true});
+    PlanContext c{scene, settings, true};
+    c.gpu_resident = true;
+    const FramePlan plan = plan_frame(c);
     EXPECT_EQ(planes_read_on_cpu(plan), row.on_cpu) << plan.explain();
     EXPECT_EQ(planes_read(plan), row.all) << plan.explain();
   }
-  // The passes with a GPU implementation: the G-buffer, the tone map, the overlay.
-  for (const PassDecl& d : pass_declarations())
-    EXPECT_EQ(d.on_gpu, d.id == PassId::GBuffer || d.id == PassId::Tonemap || d.id == PassId::Overlay) << d.name;
+  // The passes with a GPU implementation: the G-buffer, the tone map, the overlay, and dof for some methods.
+  for (const PassDecl& d : pass_declarations()) {
+    EXPECT_EQ(d.on_gpu != nullptr,
+              d.id == PassId::GBuffer || d.id == PassId::Tonemap || d.id == PassId::Overlay || d.id == PassId::Dof)
+        << d.name;
+  }
+}
+
+// dof.device and the methods with a GPU implementation: where dof runs in a GPU-resident frame, what
+// comes back for it, and what the plan says.
+TEST(Planner, DofRunsOnTheGpuWhereItsMethodCanAndSaysWhyNot) {
+  struct Row {
+    const char* name;
+    std::vector<std::string> settings;
+    bool resident;
+    bool runs, on_gpu;
+    const char* says;
+  };
+  const Row rows[] = {
+      {"lee-mipmap in a GPU-resident frame", {}, true, true, true, "lee-mipmap, on the GPU"},
+      {"the readback path: on the CPU, nothing said", {}, false, true, false, "method lee-mipmap"},
+      {"dof.device=cpu", {"dof.device=cpu"}, true, true, false, "on the CPU: dof.device=cpu"},
+      {"lee-splat has no GPU implementation", {"dof.method=lee-splat"}, true, true, false,
+       "on the CPU: dof.method=lee-splat has no GPU implementation yet"},
+      {"the CSF periphery composites GI on the CPU", {"gi.enabled=true", "gi.periphery=csf"}, true, true, false,
+       "gi.periphery=csf composites GI over the DOF colour on the CPU"},
+      {"dof.device=gpu without a GPU-resident frame: later", {"dof.device=gpu"}, false, false, false,
+       "dof.device=gpu: the frame is not on the GPU"},
+      {"dof.device=gpu with a CPU-only method: later", {"dof.device=gpu", "dof.method=schedl-layered"}, true, false,
+       false, "dof.device=gpu: dof.method=schedl-layered has no GPU implementation yet"},
+  };
+  const Scene scene = make_scene({.thin_lens = true});
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.name);
+    Settings settings;
+    settings.set("focus.mode", "fixed");
+    for (const std::string& a : row.settings) settings.set_assignment(a);
+    PlanContext c{scene, settings, true};
+    c.gpu_resident = row.resident;
+    const FramePlan plan = plan_frame(c);
+    EXPECT_EQ(plan.runs(PassId::Dof), row.runs) << plan.explain();
+    EXPECT_TRUE(plan.needed(PassId::Dof));
+    EXPECT_EQ(plan.at(PassId::Dof).on_gpu, row.on_gpu) << plan.explain();
+    EXPECT_NE(plan.at(PassId::Dof).reason.find(row.says), std::string::npos) << plan.at(PassId::Dof).reason;
+    // In a GPU-resident frame what dof reads comes back only when it runs on the CPU.
+    if (row.resident) {
+      EXPECT_EQ(planes_read_on_cpu(plan).color, row.runs && !row.on_gpu) << plan.explain();
+    }
+  }
 }
 
 // The graph's declarations are closed: every resource a pass reads is written by some pass, and

@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_lee_mipmap.h"
 #include "backend/gl/gl_program.h"
 
 namespace fovea::render {
@@ -246,7 +247,7 @@ void GlFrame::end_timed() {
 void GlFrame::render_gbuffer(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes,
                              GBuffer& out) {
   backend_.context().make_current();
-  hdr_uploaded_ = false;
+  hdr_source_ = HdrSource::GBuffer;
   inset_.active = false;
   begin_timed("gpu.gbuffer");
   try {
@@ -292,8 +293,53 @@ void GlFrame::upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width,
                     GL_FLOAT, hdr.data());
   }
   end_timed();
-  hdr_uploaded_ = true;
+  hdr_source_ = HdrSource::Upload;
   check("GlFrame::upload_hdr");
+}
+
+void GlFrame::dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings& settings) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  if (t.color == 0) throw std::logic_error("GlFrame::dof_lee_mipmap before the G-buffer was rendered");
+  if (!lee_mipmap_) lee_mipmap_ = std::make_unique<GlLeeMipmap>();
+  begin_timed("gpu.dof");
+  lee_mipmap_->run(GlDofInput{t.color, t.depth, t.width, t.height}, coc, settings);
+  end_timed();
+  hdr_source_ = HdrSource::Dof;
+  check("GlFrame::dof_lee_mipmap");
+}
+
+unsigned GlFrame::hdr_input() const {
+  switch (hdr_source_) {
+    case HdrSource::Upload: return hdr_texture_;
+    case HdrSource::Dof: return lee_mipmap_->output();
+    case HdrSource::GBuffer: break;
+  }
+  return backend_.textures().color;
+}
+
+void GlFrame::read_hdr(std::vector<glm::vec3>& hdr) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  hdr.assign(std::size_t{t.width} * t.height, glm::vec3(0.0f));
+  if (t.color == 0 || hdr.empty()) return;
+  // The whole texture (the G-buffer's may be larger than the image), then its lower-left image.
+  GLint tw = 0, th = 0;
+  glBindTexture(GL_TEXTURE_2D, hdr_input());
+  glGetTexLevelParameteriv(GL_TEXTURE_2D, 0, GL_TEXTURE_WIDTH, &tw);
+  glGetTexLevelParameteriv(GL_TEXTURE_2D, 0, GL_TEXTURE_HEIGHT, &th);
+  std::vector<float> texels(static_cast<std::size_t>(tw) * static_cast<std::size_t>(th) * 4);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_FLOAT, texels.data());
+  const bool top_first = hdr_source_ == HdrSource::Upload;
+  for (std::uint32_t y = 0; y < t.height; ++y) {
+    const std::uint32_t row = top_first ? y : t.height - 1 - y;
+    for (std::uint32_t x = 0; x < t.width; ++x) {
+      const float* p = &texels[(std::size_t{row} * static_cast<std::size_t>(tw) + x) * 4];
+      hdr[std::size_t{y} * t.width + x] = {p[0], p[1], p[2]};
+    }
+  }
+  check("GlFrame::read_hdr");
 }
 
 void GlFrame::upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height,
@@ -376,7 +422,8 @@ void GlFrame::tonemap(const GpuTonemap& params) {
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::tonemap before the G-buffer was rendered");
-  if (hdr_uploaded_ && (hdr_w_ != t.width || hdr_h_ != t.height)) {
+  const bool uploaded = hdr_source_ == HdrSource::Upload;
+  if (uploaded && (hdr_w_ != t.width || hdr_h_ != t.height)) {
     throw std::invalid_argument("GlFrame::tonemap: the uploaded HDR image is " + std::to_string(hdr_w_) + "x" +
                                 std::to_string(hdr_h_) + ", the G-buffer " + std::to_string(t.width) + "x" +
                                 std::to_string(t.height));
@@ -392,10 +439,10 @@ void GlFrame::tonemap(const GpuTonemap& params) {
   begin_timed("gpu.tonemap");
   begin_fullscreen_pass(program);
   glActiveTexture(GL_TEXTURE0);
-  glBindTexture(GL_TEXTURE_2D, hdr_uploaded_ ? hdr_texture_ : t.color);
+  glBindTexture(GL_TEXTURE_2D, hdr_input());
   const auto loc = [program](const char* name) { return glGetUniformLocation(program, name); };
   glUniform1i(loc("u_hdr"), 0);
-  glUniform1i(loc("u_top_first"), hdr_uploaded_ ? 1 : 0);
+  glUniform1i(loc("u_top_first"), uploaded ? 1 : 0);
   glUniform1i(loc("u_height"), static_cast<GLint>(t.height));
   glUniform1f(loc("u_exposure"), params.exposure);
   glUniform1i(loc("u_op"), static_cast<GLint>(params.op));

@@ -5,6 +5,7 @@
 // image, GPU timestamp queries around each pass and a fence for the frame's completion. Shares the
 // backend's context. Needs OpenGL 3.3 with timer queries and fences (core there); a context without
 // them leaves unavailable_reason() set and the pipeline on the readback path.
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 namespace fovea::render {
 
 class GlBackend;
+class GlLeeMipmap;
 
 class GlFrame final : public GpuFrame {
  public:
@@ -27,6 +29,8 @@ class GlFrame final : public GpuFrame {
                       GBuffer& out) override;
   void read_back(const GBufferPlanes& planes, GBuffer& out) override;
   void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) override;
+  void dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings& settings) override;
+  void read_hdr(std::vector<glm::vec3>& hdr) override;
   void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
                     float radius_px, float fovea_fraction) override;
   void tonemap(const GpuTonemap& params) override;
@@ -42,6 +46,7 @@ class GlFrame final : public GpuFrame {
   unsigned pooled_query();
   void ensure_display(std::uint32_t texture_width, std::uint32_t texture_height);
   void begin_fullscreen_pass(unsigned program);
+  unsigned hdr_input() const;  // the texture this frame's tone map reads (hdr_source_)
 
   GlBackend& backend_;
   std::string unavailable_;
@@ -52,7 +57,11 @@ class GlFrame final : public GpuFrame {
   std::uint32_t display_tw_ = 0, display_th_ = 0;
   unsigned hdr_texture_ = 0;
   std::uint32_t hdr_w_ = 0, hdr_h_ = 0;
-  bool hdr_uploaded_ = false;  // this frame's tone map reads the upload, not the G-buffer's colour
+  // What this frame's tone map reads: the G-buffer's colour, the upload of a CPU pass (row 0 at the
+  // top), or the GPU dof's output.
+  enum class HdrSource { GBuffer, Upload, Dof };
+  HdrSource hdr_source_ = HdrSource::GBuffer;
+  std::unique_ptr<GlLeeMipmap> lee_mipmap_;  // made on first use
   struct Inset {
     bool active = false;  // this frame has one
     unsigned texture = 0;
