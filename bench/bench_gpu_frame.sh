@@ -18,7 +18,12 @@
 # visibility buffer's compute pass (frame.gbuffer_pass); "base-noprepass" = base-forward shading
 # every surface drawn (frame.depth_prepass=false: what the depth pre-pass saves);
 # "gi" = base with the hybrid renderer (20k photons traced by Embree on the CPU, the inset
-# composited on the GPU).
+# composited on the GPU); "dof" = base with the scene's lens and lee-mipmap focused at the lens's own
+# distance (focus.mode=fixed: the DOF alone; on the GPU path it runs on the GPU, nothing is read
+# back); "dof-cpu" = dof with dof.device=cpu (the GPU path reads colour and depth back for the CPU's
+# lee-mipmap and uploads its colour: what running it on the GPU saves). The scene's own effects
+# ("scene") run lee-mipmap on the GPU path's GPU too. "dof-fN" = dof with the lens at f-number N
+# (attention.json: 2.8; 0.7 blurs 4x as much, 11.2 a quarter as much): the DOF's cost against its CoC.
 #
 # Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
 #   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
@@ -57,6 +62,10 @@ for scene in $SCENES; do
                              --set frame.gbuffer_pass=forward) ;;
         base-visibility) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                                 --set frame.gbuffer_pass=visibility) ;;
+        dof) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed) ;;
+        dof-f*) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
+                       --scene-set camera.lens.f_number="${effects#dof-f}") ;;
+        dof-cpu) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed --set dof.device=cpu) ;;
         gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac
@@ -101,15 +110,15 @@ for d in sorted(glob.glob(os.path.join(runs, "*-gpu"))):
 print(f"device: {renderer or 'no GPU path ran'}")
 print()
 print("| scene | size | effects | readback frame p50/p99 ms | gpu frame p50/p99 ms | readback/gpu | "
-      "gaze age readback p50/p99 ms | gaze age gpu p50/p99 ms | gpu-side ms (G-buffer, tone map, overlay) |")
+      "gaze age readback p50/p99 ms | gaze age gpu p50/p99 ms | gpu-side ms per pass (p50) |")
 print("|---|---|---|---|---|---|---|---|---|")
 for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
     name = os.path.basename(d)[: -len("-readback")]
-    scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w-]+)$", name).groups()
+    scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w.-]+)$", name).groups()
     a, b = load(d), load(os.path.join(runs, name + "-gpu"))
     fa, fb = a["frame"], b["frame"]
     ga, gb = a["gaze-age"], b["gaze-age"]
-    gpu_side = ", ".join(f'{statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.tonemap", "gpu.overlay") if p in b)
+    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
     print(f"| {scene} | {size} | {effects} | {pct(fa, 50):.2f} / {pct(fa, 99):.2f} | {pct(fb, 50):.2f} / {pct(fb, 99):.2f} | "
           f"{pct(fa, 50) / pct(fb, 50):.2f} | {pct(ga, 50):.2f} / {pct(ga, 99):.2f} | {pct(gb, 50):.2f} / {pct(gb, 99):.2f} | {gpu_side} |")
 embree = sorted(glob.glob(os.path.join(runs, "*-embree")))
@@ -118,7 +127,7 @@ if embree:
     print("| scene | size | effects | embree frame p50/p99 ms | gaze age embree p50/p99 ms |")
     print("|---|---|---|---|---|")
     for d in embree:
-        scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w-]+)$", os.path.basename(d)[: -len("-embree")]).groups()
+        scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w.-]+)$", os.path.basename(d)[: -len("-embree")]).groups()
         e = load(d)
         print(f"| {scene} | {size} | {effects} | {pct(e['frame'], 50):.2f} / {pct(e['frame'], 99):.2f} | "
               f"{pct(e['gaze-age'], 50):.2f} / {pct(e['gaze-age'], 99):.2f} |")

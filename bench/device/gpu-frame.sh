@@ -2,7 +2,8 @@
 # The frame benchmark on a machine with an NVIDIA GPU, in one command, from the bundle that
 # bench/device/make-bundle.sh made here (.gpu-bundle, carried): unpacks fovea-render and its
 # libraries, makes EGL find the NVIDIA driver, and runs bench/bench_gpu_frame.sh (readback path and
-# GPU-resident path side by side, same run, same card). Results: stdout and $OUT/gpu-frame.md, the
+# GPU-resident path side by side, same run, same card). bench/device/gpu-effects.sh measures the
+# GPU effects (issue 22). Results: stdout and $OUT/gpu-frame.md, the
 # runs' timings in $OUT/gpu-frame-runs.tar.xz.
 #
 # Here:   bench/device/make-bundle.sh build/default
@@ -14,21 +15,7 @@ cd "$(dirname "$0")/../.."
 FRAMES=${1:-60}
 OUT=${OUT:-$(mktemp -d)}
 mkdir -p "$OUT"
-[ -f .gpu-bundle/bundle.tar.xz ] || { echo "gpu-frame: .gpu-bundle/bundle.tar.xz missing: run bench/device/make-bundle.sh here and carry .gpu-bundle" >&2; exit 2; }
-run=$(mktemp -d)
-tar -C "$run" -xJf .gpu-bundle/bundle.tar.xz
-
-# EGL through libglvnd: the machine's own, else the carried Debian packages.
-if ! ldconfig -p | grep -q 'libEGL.so.1 '; then
-  echo "gpu-frame: no libEGL.so.1 here: unpacking the carried libglvnd"
-  for f in .gpu-bundle/glvnd/*.deb; do dpkg -x "$f" /; done
-  ldconfig
-fi
-for json in /usr/share/glvnd/egl_vendor.d/10_nvidia.json /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json; do
-  if [ -f "$json" ]; then export __EGL_VENDOR_LIBRARY_FILENAMES=$json; break; fi
-done
-echo "gpu-frame: $(nvidia-smi -L 2>/dev/null || echo 'nvidia-smi: none'); driver $(nvidia-smi --query-gpu=driver_version --format=csv,noheader 2>/dev/null || echo '?'); EGL vendor ${__EGL_VENDOR_LIBRARY_FILENAMES:-default}"
-echo "gpu-frame: $(nproc) CPU cores"
+. bench/device/unpack.sh
 
 # One frame first: does the GPU path run, and on which device?
 probe=$(mktemp -d)/probe

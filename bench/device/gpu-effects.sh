@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# The perceptual effects on a machine with an NVIDIA GPU, in one command (issue 22's targets at
+# 1920x1080), whole attention.json frames on the GPU path against the readback path, same run, same
+# card (bench/bench_gpu_frame.sh; gpu-side ms per pass from timer queries):
+#   dof-f11.2, dof-f2.8, dof-f0.7   lee-mipmap alone at a quarter, 1x and 4x the scene's aperture
+#                                   (gpu.dof: target <= 1 ms, independent of the CoC)
+#   dof-cpu                         the same DOF with dof.device=cpu (read back, CPU, upload)
+#   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
+# Results: stdout and $OUT/gpu-effects.md, the runs in $OUT/gpu-effects-runs.tar.xz. The agreement
+# of the GL passes with the CPU implementation does not depend on the card's speed and is tested
+# here (tests/gl/test_gl_lee_mipmap.cpp); the frames' plan.txt files carry the where line.
+#
+# Here:   cmake --build --preset default && bench/device/make-bundle.sh build/default
+# There:  the device tool's run with carry [".gpu-bundle"] and command
+#         OUT=$OUT bash bench/device/gpu-effects.sh [FRAMES]     (default 100)
+# SIZE=WxH overrides 1920x1080 (a quick check here: SIZE=320x240 bash bench/device/gpu-effects.sh 8).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+FRAMES=${1:-100}
+SIZE=${SIZE:-1920x1080}
+OUT=${OUT:-$(mktemp -d)}
+mkdir -p "$OUT"
+. bench/device/unpack.sh
+
+# One frame first: does the DOF run on the GPU, and on which device?
+probe=$(mktemp -d)/probe
+env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --backend gl --headless --frames 2 \
+  --gaze none --out "$probe" >/dev/null
+grep -E "where|  run   dof" "$probe/plan.txt"
+
+OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
+  "base dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu scene" | tee "$OUT/gpu-effects.md"
+tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs && rm -rf "$OUT/runs"
