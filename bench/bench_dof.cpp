@@ -20,7 +20,9 @@
 // The "... gl" rows run the method's OpenGL implementation (backend/gl/gl_lee_mipmap.h) on the same
 // G-buffer through EGL (llvmpipe here, a GPU where there is one): ms/frame is the wall time with the
 // upload and the readback a GPU-resident frame does not do; gpu_ms the passes alone (timestamp
-// queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's.
+// queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's. The CSV's
+// device column names where each row ran ("cpu", or the OpenGL renderer): bench/make_fronts.py
+// builds the governor's per-device fronts from it.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -239,7 +241,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     csv << "scene,mean_coc_px,method,psnr_db,ssim,leak_rmse,edge_rmse,ms_per_frame,reference_samples,"
-           "reference_seconds,gpu_ms,vs_cpu_db\n";
+           "reference_seconds,gpu_ms,vs_cpu_db,device\n";
   }
   // The OpenGL implementations' context (EGL): their rows are skipped, with the reason, without one.
   std::unique_ptr<GlBackend> gl_context;
@@ -429,8 +431,11 @@ int main(int argc, char** argv) {
         if (csv) {
           csv << cs.name << "," << target << "," << m.name << "," << p << "," << q << "," << leak << "," << edge << ","
               << median(ms) << "," << samples << "," << ref.seconds() << ",";
-          if (m.gpu_ms != nullptr) csv << median(gpu) << "," << vs_cpu;
-          else csv << ",";
+          if (m.gpu_ms != nullptr) {
+            csv << median(gpu) << "," << vs_cpu << ",\"" << gl_device << "\"";
+          } else {
+            csv << ",,cpu";
+          }
           csv << "\n";
         }
         if (!png_dir.empty()) {

@@ -7,8 +7,10 @@ other option is both at least as fast and at least as accurate).
 Usage: make_fronts.py [RESULTS_DIR] [OUT_JSON]   (defaults bench/results, renderer/governor/fronts.json)
 """
 import csv
+import glob
 import json
 import os
+import re
 import sys
 from collections import defaultdict
 
@@ -44,6 +46,56 @@ def dof_front(path):
             "reference": "64-sample thin-lens ray tracing, mean CoC 16 px, bench_dof's three scenes",
             "pixels": 1024 * 768, "scales_with_pixels": True, "source": "bench/results/bench_dof.csv",
             "options": pareto(options, True)}
+
+
+def device_token(renderer):
+    """The part of an OpenGL renderer's description a front is matched by (FramePipeline::device()
+    contains it): "OpenGL 4.5 (llvmpipe (LLVM 15.0.6, 256 bits))" -> "llvmpipe",
+    "OpenGL 4.6 (NVIDIA H200/PCIe/SSE2)" -> "NVIDIA H200/PCIe/SSE2"."""
+    m = re.match(r"OpenGL [\d.]+ \((.*)\)$", renderer)
+    name = m.group(1) if m else renderer
+    return name.split(" (")[0]
+
+
+def dof_device_fronts(results):
+    """The dof fronts of the OpenGL backend on the devices bench_dof's GL rows ran on: every
+    bench_dof_gl.csv under RESULTS (this machine's, and any copied from another machine's run of
+    bench_dof --methods "lee-mipmap,lee-mipmap sigma=C/4,lee-mipmap gl"). Options: the CPU methods
+    (dof.device=cpu: read back, filtered, uploaded) at their wall time, and the GL implementations
+    (dof.device=gpu) at their GPU time, the pass's cost in a GPU-resident frame; one reference for both."""
+    cpu = {"lee-mipmap": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.5"},
+           "lee-mipmap sigma=C/4": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.25"}}
+    gpu = {"lee-mipmap gl": cpu["lee-mipmap"], "lee-mipmap gl sigma=C/4": cpu["lee-mipmap sigma=C/4"]}
+    fronts = []
+    for path in sorted(glob.glob(os.path.join(results, "**", "bench_dof_gl.csv"), recursive=True)):
+        rows = [r for r in csv.DictReader(open(path)) if r["mean_coc_px"] == "16"]
+        devices = {r["device"] for r in rows if r["method"] in gpu}
+        if len(devices) != 1:
+            sys.exit(f"make_fronts: {path}: expected the GL rows of one device, found {sorted(devices) or 'none'}")
+        device = devices.pop()
+        acc, ms = defaultdict(list), defaultdict(list)
+        for r in rows:
+            if r["method"] in cpu:
+                ms[r["method"]].append(float(r["ms_per_frame"]))
+            elif r["method"] in gpu:
+                ms[r["method"]].append(float(r["gpu_ms"]))
+            else:
+                continue
+            acc[r["method"]].append(float(r["psnr_db"]))
+        options = []
+        for m in acc:
+            settings = dict(cpu.get(m) or gpu[m])
+            settings["dof.device"] = "gpu" if m in gpu else "cpu"
+            options.append({"label": m, "settings": settings, "ms": sum(ms[m]) / len(ms[m]),
+                            "accuracy": sum(acc[m]) / len(acc[m])})
+        samples = rows[0]["reference_samples"]
+        fronts.append({"effect": "dof", "backend": "gl", "device": device_token(device), "passes": ["dof", "gpu.dof"],
+                       "metric": "PSNR dB", "higher_better": True,
+                       "reference": f"{samples}-sample thin-lens ray tracing, mean CoC 16 px, bench_dof's three scenes; "
+                                    f"GL rows on {device}",
+                       "pixels": 1024 * 768, "scales_with_pixels": True, "source": os.path.relpath(path),
+                       "options": pareto(options, True)})
+    return fronts
 
 
 def gi_front(results):
@@ -120,7 +172,9 @@ def lod_fronts(path):
 def main():
     results = sys.argv[1] if len(sys.argv) > 1 else "bench/results"
     out = sys.argv[2] if len(sys.argv) > 2 else "renderer/governor/fronts.json"
-    fronts = [dof_front(os.path.join(results, "bench_dof.csv")),
+    # Device fronts first: the governor takes the first front of an effect that matches.
+    fronts = dof_device_fronts(results)
+    fronts += [dof_front(os.path.join(results, "bench_dof.csv")),
               gi_front(results),
               attention_front(os.path.join(results, "eval_attention.csv"))]
     fronts += lod_fronts(os.path.join(results, "bench_lod.csv"))

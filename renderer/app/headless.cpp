@@ -100,7 +100,7 @@ FramePipeline::Frame render_one_frame(FramePipeline& pipeline, Governor* governo
                                       double clock, double& previous, bool realtime) {
   const double now = clock;
   if (governor)
-    governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width,
+    governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(), pipeline.scene().camera.width,
                     pipeline.scene().camera.height, pipeline.settings());
   FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, clock, timer, realtime);
   previous = now;

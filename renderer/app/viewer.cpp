@@ -206,8 +206,8 @@ int run_viewer(const RenderOptions& o) {
     glfwGetWindowSize(window.window(), &ww, &wh);
     gaze->set_cursor(cx / std::max(1, ww), cy / std::max(1, wh));
     if (governor)
-      governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.scene().camera.width, pipeline.scene().camera.height,
-                      pipeline.settings());
+      governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(), pipeline.scene().camera.width,
+                      pipeline.scene().camera.height, pipeline.settings());
     const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer, true);
     if (governor) governor->observe(timer);
     previous = now;

@@ -84,6 +84,7 @@ std::vector<Front> parse_fronts(const std::string& json_text, const std::string&
     if (f.effect != "dof" && f.effect != "gi" && f.effect != "attention" && f.effect != "lod")
       throw std::invalid_argument(where + ".effect: \"" + f.effect + "\" is not one of dof, gi, attention, lod");
     if (j.contains("backend")) f.backend = text(j, "backend", where);
+    if (j.contains("device")) f.device = text(j, "device", where);
     const Json& passes = field(j, "passes", where);
     if (!passes.is_array() || passes.empty()) throw std::invalid_argument(where + ".passes: must be a non-empty list of pass names");
     for (const Json& p : passes) {
@@ -154,12 +155,13 @@ double Governor::predicted(const Front& f, const FrontOption& o) const {
   return o.ms * scale * (it == correction_.end() ? 1.0 : it->second);
 }
 
-void Governor::apply(const FramePlan& plan, const std::string& backend, std::uint32_t width, std::uint32_t height,
-                     Settings& settings) {
+void Governor::apply(const FramePlan& plan, const std::string& backend, const std::string& device, std::uint32_t width,
+                     std::uint32_t height, Settings& settings) {
   std::vector<const Front*> active;
   for (const Front& f : fronts_) {
     if (!plan.runs(pass_of(f.effect))) continue;
     if (!f.backend.empty() && f.backend != backend) continue;
+    if (!f.device.empty() && device.find(f.device) == std::string::npos) continue;
     const bool seen = std::any_of(active.begin(), active.end(), [&](const Front* a) { return a->effect == f.effect; });
     if (!seen) active.push_back(&f);
   }

@@ -34,6 +34,10 @@ struct FrontOption {
 struct Front {
   std::string effect;   // dof, gi, attention, lod
   std::string backend;  // empty: any backend
+  // Where its times were measured, as a part of FramePipeline::device() ("llvmpipe", "NVIDIA H200";
+  // "cpu": no GPU-resident frame); empty: any. The first front of an effect that matches the
+  // backend and the device is used, so device fronts come before the general one.
+  std::string device;
   std::vector<std::string> passes;  // the PassTimer names its time is measured by
   std::string metric, reference, source;
   bool higher_better = true;
@@ -68,8 +72,10 @@ class Governor {
     std::string summary() const;  // one line: "budget 50 ms, predicted 47.1: dof lee-mipmap ... (33.2 PSNR dB)"
   };
 
-  // Before a frame: chooses (when due) and writes the chosen options into `settings`.
-  void apply(const FramePlan& plan, const std::string& backend, std::uint32_t width, std::uint32_t height, Settings& settings);
+  // Before a frame: chooses (when due) and writes the chosen options into `settings`. `device`:
+  // FramePipeline::device(), matched against Front::device.
+  void apply(const FramePlan& plan, const std::string& backend, const std::string& device, std::uint32_t width,
+             std::uint32_t height, Settings& settings);
   // After the frame: the passes' measured times update the corrections and the other passes' time.
   void observe(const PassTimer& timer);
   const State& state() const { return state_; }

@@ -156,6 +156,8 @@ FramePlan FramePipeline::plan() const {
   return plan;
 }
 
+std::string FramePipeline::device() const { return gpu_refusal().empty() ? gpu_->description() : "cpu"; }
+
 std::string FramePipeline::gpu_refusal() const {
   if (gpu_ == nullptr) {
     GpuFrame* gpu = backend_->gpu_frame();
@@ -452,6 +454,10 @@ const std::vector<glm::vec3>& FramePipeline::step_dof(Frame& f, double now_s, do
   if (f.on_gpu && f.plan.at(PassId::Dof).on_gpu) {
     // Where the G-buffer lies; the tone map reads its result there (the CPU's colour is unchanged).
     gpu_->dof_lee_mipmap(dof_.coc_model(scene_, focus_m), dof_.settings().mipmap);
+    if (check) {  // the module boundary's check, at the cost of a readback (debug.finite_checks)
+      gpu_->read_hdr(gpu_checked_);
+      require_finite("dof", "colour (GPU)", gpu_checked_, gbuffer_.width);
+    }
     return gbuffer_.color;
   }
   const dof::RgbImage& color = dof_.run(*backend_, scene_, gbuffer_, lod_levels_, focus_m, FrameTime{now_s, previous_s});

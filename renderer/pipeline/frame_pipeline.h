@@ -89,6 +89,9 @@ class FramePipeline {
   const Image8& read_display();
   // The backend's GPU-resident frame when this pipeline uses it (null otherwise).
   GpuFrame* gpu_frame() const { return gpu_; }
+  // Where the frame's GPU passes run, for the governor's per-device fronts: the GPU's description
+  // ("OpenGL 4.6 (NVIDIA H200/PCIe/SSE2)") when the frame is GPU-resident, else "cpu".
+  std::string device() const;
   // Why the frame takes the readback path with the current settings ("" when it stays on the GPU).
   std::string gpu_refusal() const;
   // Keep every plane of the G-buffer on the CPU (headless --exr writes its colour): the readback path.
@@ -127,6 +130,7 @@ class FramePipeline {
   // The attention pass on `g` (the proxy or the frame's G-buffer) with attention.* applied.
   const attention::AttentionFrame& run_attention(const GBuffer& g, double now_s, double previous_s, bool check);
   std::vector<glm::vec3> hybrid_;
+  std::vector<glm::vec3> gpu_checked_;  // a GPU pass's colour read back for the finite check (debug only)
   Frame::Gi gi_frame_;
   // Places the gaze area, runs the gi pass over `local` into hybrid_, records its stage times.
   void run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer);

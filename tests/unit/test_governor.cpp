@@ -37,25 +37,55 @@ void frame(PassTimer& t, std::uint64_t i, double frame_ms, double dof_ms, double
 TEST(Governor, TakesTheMostAccurateCombinationWithinTheBudget) {
   Governor g(60, parse_fronts(kFronts, "test"));
   Settings s;
-  g.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", 100, 100, s);
+  g.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", "cpu", 100, 100, s);
   // 60 ms: mid + 5k (35 ms, utility 0.36 + 0) loses to cheap + 40k (50 ms, 0 + 1); mid + 40k is 70.
   EXPECT_EQ(s.text("dof.method"), "lee-mipmap");
   EXPECT_EQ(s.text("gi.photons"), "40000");
   EXPECT_FALSE(g.state().cannot_meet);
   EXPECT_NEAR(g.state().predicted_ms, 50, 1e-9);
   Governor roomy(200, parse_fronts(kFronts, "test"));
-  roomy.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", 100, 100, s);
+  roomy.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", "cpu", 100, 100, s);
   EXPECT_EQ(s.text("dof.method"), "accum");
   // Image-space times scale with the pixel count: at 4x the pixels the best DOF no longer fits.
   Governor bigger(200, parse_fronts(kFronts, "test"));
-  bigger.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", 200, 200, s);
+  bigger.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", "cpu", 200, 200, s);
   EXPECT_EQ(s.text("dof.method"), "schedl-layered");
+}
+
+// A front measured on a device (Front::device) is used only where the frame runs on that device; the
+// general front elsewhere. Here the GPU's lee-mipmap fits a budget the CPU's does not.
+TEST(Governor, DeviceFrontsApplyOnlyOnTheirDevice) {
+  const char* fronts = R"({"fronts": [
+   {"effect": "dof", "backend": "gl", "device": "NVIDIA", "passes": ["dof", "gpu.dof"], "metric": "PSNR dB",
+    "reference": "ray traced", "higher_better": true, "scales_with_pixels": true, "pixels": 10000,
+    "options": [{"label": "gpu", "settings": {"dof.method": "lee-mipmap", "dof.device": "gpu"}, "ms": 1, "accuracy": 28},
+                {"label": "gpu sigma=C/4", "settings": {"dof.method": "lee-mipmap", "dof.device": "gpu",
+                 "dof.sigma_per_coc": "0.25"}, "ms": 1.1, "accuracy": 31}]},
+   {"effect": "dof", "passes": ["dof"], "metric": "PSNR dB", "reference": "ray traced", "higher_better": true,
+    "scales_with_pixels": true, "pixels": 10000,
+    "options": [{"label": "cpu", "settings": {"dof.method": "lee-mipmap"}, "ms": 50, "accuracy": 28}]}
+  ]})";
+  const FramePlan plan = plan_running({PassId::Dof});
+  Governor on_gpu(10, parse_fronts(fronts, "test"));
+  Settings s;
+  on_gpu.apply(plan, "gl", "OpenGL 4.6 (NVIDIA H200/PCIe/SSE2)", 100, 100, s);
+  EXPECT_EQ(on_gpu.state().choices.at(0).label, "gpu sigma=C/4");
+  EXPECT_EQ(s.text("dof.device"), "gpu");
+  EXPECT_FALSE(on_gpu.state().cannot_meet);
+  for (const auto& [backend, device] : {std::pair{"gl", "OpenGL 4.5 (llvmpipe (LLVM 15.0.6, 256 bits))"},
+                                        std::pair{"gl", "cpu"}, std::pair{"embree", "cpu"}}) {
+    Governor elsewhere(10, parse_fronts(fronts, "test"));
+    Settings t;
+    elsewhere.apply(plan, backend, device, 100, 100, t);
+    EXPECT_EQ(elsewhere.state().choices.at(0).label, "cpu") << backend << " on " << device;
+    EXPECT_TRUE(elsewhere.state().cannot_meet);
+  }
 }
 
 TEST(Governor, OnlyEffectsThePlanRunsAreGoverned) {
   Governor g(60, parse_fronts(kFronts, "test"));
   Settings s;
-  g.apply(plan_running({PassId::Gi}), "embree", 100, 100, s);
+  g.apply(plan_running({PassId::Gi}), "embree", "cpu", 100, 100, s);
   ASSERT_EQ(g.state().choices.size(), 1u);
   EXPECT_EQ(g.state().choices[0].effect, "gi");
   EXPECT_EQ(s.text("dof.method"), Settings().text("dof.method"));
@@ -67,7 +97,7 @@ TEST(Governor, AdaptsWhenMeasuredTimesDrift) {
   Settings s;
   PassTimer t;
   const FramePlan plan = plan_running({PassId::Dof, PassId::Gi});
-  g.apply(plan, "embree", 100, 100, s);
+  g.apply(plan, "embree", "cpu", 100, 100, s);
   ASSERT_EQ(s.text("gi.photons"), "40000");
   // GI takes twice what the front says on this machine, and the rest of the frame 5 ms.
   for (int i = 0; i < 20; ++i) {
@@ -76,7 +106,7 @@ TEST(Governor, AdaptsWhenMeasuredTimesDrift) {
     const double gi = big ? 80 : 10;
     frame(t, static_cast<std::uint64_t>(i), dof + gi + 5, dof, gi);
     g.observe(t);
-    g.apply(plan, "embree", 100, 100, s);
+    g.apply(plan, "embree", "cpu", 100, 100, s);
   }
   EXPECT_EQ(s.text("gi.photons"), "5000");
   EXPECT_EQ(s.text("dof.method"), "schedl-layered");  // 30 + 10 + 5 fits; 100 + 10 + 5 does not
@@ -87,7 +117,7 @@ TEST(Governor, AdaptsWhenMeasuredTimesDrift) {
 TEST(Governor, SaysWhenNoCombinationMeetsTheBudget) {
   Governor g(12, parse_fronts(kFronts, "test"));
   Settings s;
-  g.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", 100, 100, s);
+  g.apply(plan_running({PassId::Dof, PassId::Gi}), "embree", "cpu", 100, 100, s);
   EXPECT_TRUE(g.state().cannot_meet);
   EXPECT_EQ(s.text("dof.method"), "lee-mipmap");
   EXPECT_EQ(s.text("gi.photons"), "5000");
