@@ -25,7 +25,8 @@ struct BackendSettings {
   // Depth peeling by object (Lee 2009 §5.1.2's hidden image H; Schedl & Wimmer's M layers): with
   // peel = n each pixel shows the surface of the n-th object met behind the visible one along its
   // ray (background where there is none); an object's own back faces and other parts are skipped
-  // (each object counts once). 0: the visible surface. Embree only; the raster backend refuses it.
+  // (each object counts once). 0: the visible surface. Both backends (the raster one by depth peeling,
+  // backend/gl/gl_peel.h; render() only: the layer is read back).
   std::uint32_t peel = 0;
   // Level of detail per scene object (index into Scene::objects): 0 the full mesh, k the object's
   // lods[k - 1], clamped to what it has. Empty (or shorter than the object list): full detail.

@@ -62,7 +62,7 @@ const dof::RgbImage& DofPass::run(Backend& backend, const Scene& scene, const GB
   in.coc = coc_model(scene, focus_m);
   const bool peels = backend.capabilities().peeling;
   if (d.method == DofMethod::SchedlLayered) {
-    // M depth-peeled layers where the backend peels (Embree; the raster backend does not yet: M = 1).
+    // M depth-peeled layers where the backend peels (both do; a backend that cannot: M = 1).
     const std::uint32_t m = peels ? d.layers : 1u;
     peeled_.resize(m > 0 ? m - 1 : 0);
     std::vector<dof::PeeledLayer> layers;

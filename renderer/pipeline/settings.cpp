@@ -63,10 +63,10 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"dof.smooth_foreground", "true", "bool", "lee-mipmap: DoN smoothing of blurred foreground boundaries (eqs. 4.10-4.11)"},
       {"dof.hidden", "true", "bool",
        "lee-splat: render the hidden image (the surfaces behind the visible ones, Lee 2009 §5.1.2) for partial "
-       "occlusion: a second render per frame (Embree only; the raster backend runs without it)"},
+       "occlusion: a second render per frame (depth peeling on the raster backend: a few scene draws)"},
       {"dof.layers", "3", "number in [1, 8]",
        "schedl-layered: depth-peeled input layers M (the visible one and M - 1 objects behind it: M - 1 extra renders; "
-       "Embree only, the raster backend uses 1)"},
+       "the raster backend peels with a scene draw per surface met)"},
       {"dof.aperture", "disc", "disc|gaussian|hexagon", "lee-splat: aperture shape of the splats (the IDF image)"},
       {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
       {"lod.proxy_resolution", "map", "map|full",

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "backend/backend.h"
 #include "backend/gl/gl_backend.h"
 #include "gaze/gaze_input.h"
 #include "gi/gi_render.h"
@@ -389,6 +390,36 @@ TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
     }
   const double psnr = se == 0 ? 1e9 : 10.0 * std::log10(3.0 * static_cast<double>(hdr[0].size()) / se);
   EXPECT_GE(psnr, 40.0);
+}
+
+// The layered DOF methods on the raster backend peel their layers (gl_peel.h) as the ray tracer does:
+// occlusion.json's bars over the checkerboard (partial occlusion, what the peeled layers are for),
+// the frame through the OpenGL backend against the same frame through Embree.
+TEST(GlFramePipeline, TheLayeredDofMethodsPeelOnTheRasterBackendAsOnTheRayTracer) {
+  for (const char* method : {"schedl-layered", "lee-splat"}) {
+    SCOPED_TRACE(method);
+    Image8 images[2];
+    for (const BackendKind kind : {BackendKind::OpenGL, BackendKind::Embree}) {
+      Settings s;
+      s.set("dof.method", method);
+      s.set("focus.mode", "fixed");
+      s.set("tonemap.exact", "true");
+      std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
+      FramePipeline pipeline(bundled("occlusion.json", 160, 120), s, make_backend(kind), *gaze);
+      PassTimer timer;
+      const FramePipeline::Frame f = pipeline.render(0, 0.0, 0.0, 0.0, timer);
+      ASSERT_TRUE(f.plan.runs(PassId::Dof)) << f.plan.explain();
+      images[kind == BackendKind::OpenGL ? 0 : 1] = f.on_gpu ? pipeline.read_display() : *f.image;
+    }
+    double se = 0;
+    for (std::size_t i = 0; i < images[0].rgb.size(); ++i) {
+      const double d = static_cast<double>(images[0].rgb[i]) - static_cast<double>(images[1].rgb[i]);
+      se += d * d;
+    }
+    const double psnr = se == 0 ? 1e9 : 10.0 * std::log10(255.0 * 255.0 * static_cast<double>(images[0].rgb.size()) / se);
+    std::printf("%s: raster backend vs ray tracer %.1f dB\n", method, psnr);
+    EXPECT_GE(psnr, 40.0);
+  }
 }
 
 }  // namespace

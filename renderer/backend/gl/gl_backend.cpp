@@ -23,6 +23,8 @@ namespace {
 
 enum Attachment : std::size_t { kColor = 0, kDepth = 1, kId = 2, kNormal = 3, kMotion = 4 };
 constexpr std::size_t kNoMesh = static_cast<std::size_t>(-1);  // DrawItem of an object without a mesh
+// The texture units of the G-buffer program's depth-peeling samplers (gl_peel.h).
+constexpr int kPeelDepthUnit = 6, kPeelStateUnit = 7;
 constexpr GLenum kDrawBuffers[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
                                     GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
 
@@ -186,6 +188,12 @@ GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
   loc_emission_ = loc("u_emission");
   loc_shininess_ = loc("u_shininess");
   loc_moved_ = loc("u_moved");
+  loc_peel_ = loc("u_peel");
+  // Units of their own: the program's two samplers of different types must never share one.
+  glUseProgram(program_);
+  glUniform1i(loc("u_peel_depth"), kPeelDepthUnit);
+  glUniform1i(loc("u_peel_state"), kPeelStateUnit);
+  glUseProgram(0);
   depth_program_ = gl::link_program(gl::kDepthVertex, gl::kDepthFragment, "GlBackend depth pre-pass program");
   loc_depth_model_ = glGetUniformLocation(depth_program_, "u_model");
   loc_depth_view_ = glGetUniformLocation(depth_program_, "u_view");
@@ -211,6 +219,7 @@ GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
 GlBackend::~GlBackend() {
   gpu_frame_.reset();  // its GL objects go while the context lives
   context_.make_current();
+  peeling_.reset();
   visibility_.reset();
   release_meshes();
   release_framebuffer();
@@ -325,22 +334,7 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   glGenFramebuffers(1, &fbo_);
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
   // Textures, not renderbuffers: the GPU passes (GlFramePasses) sample them where they lie.
-  glGenTextures(5, textures_);
-  // glTexImage2D, not glTexStorage2D: the G-buffer keeps to OpenGL 3.3.
-  const GLenum formats[5][3] = {{GL_RGBA32F, GL_RGBA, GL_FLOAT},
-                                {GL_R32F, GL_RED, GL_FLOAT},
-                                {GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT},
-                                {GL_RGBA32F, GL_RGBA, GL_FLOAT},
-                                {GL_RG32F, GL_RG, GL_FLOAT}};
-  for (std::size_t i = 0; i < 5; ++i) {
-    glBindTexture(GL_TEXTURE_2D, textures_[i]);
-    glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(formats[i][0]), static_cast<GLsizei>(width),
-                 static_cast<GLsizei>(height), 0, formats[i][1], formats[i][2], nullptr);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, kDrawBuffers[i], GL_TEXTURE_2D, textures_[i], 0);
-  }
-  glBindTexture(GL_TEXTURE_2D, 0);
+  attach_gbuffer_textures(textures_, width, height);
   glGenRenderbuffers(1, &z_buffer_);
   glBindRenderbuffer(GL_RENDERBUFFER, z_buffer_);
   glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
@@ -355,6 +349,25 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   fb_width_ = width;
   fb_height_ = height;
   check_gl("GlBackend::ensure_framebuffer");
+}
+
+void GlBackend::attach_gbuffer_textures(unsigned (&textures)[5], std::uint32_t width, std::uint32_t height) {
+  glGenTextures(5, textures);
+  // glTexImage2D, not glTexStorage2D: the G-buffer keeps to OpenGL 3.3.
+  const GLenum formats[5][3] = {{GL_RGBA32F, GL_RGBA, GL_FLOAT},
+                                {GL_R32F, GL_RED, GL_FLOAT},
+                                {GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT},
+                                {GL_RGBA32F, GL_RGBA, GL_FLOAT},
+                                {GL_RG32F, GL_RG, GL_FLOAT}};
+  for (std::size_t i = 0; i < 5; ++i) {
+    glBindTexture(GL_TEXTURE_2D, textures[i]);
+    glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(formats[i][0]), static_cast<GLsizei>(width),
+                 static_cast<GLsizei>(height), 0, formats[i][1], formats[i][2], nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, kDrawBuffers[i], GL_TEXTURE_2D, textures[i], 0);
+  }
+  glBindTexture(GL_TEXTURE_2D, 0);
 }
 
 void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels,
@@ -397,7 +410,7 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
 
 BackendCapabilities GlBackend::capabilities() const {
   const bool visibility = GlVisibilityPass::unavailable_reason(context_.features()).empty();
-  return {.shadow_rays = false, .per_pixel_lens = false, .peeling = false, .visibility_buffer = visibility,
+  return {.shadow_rays = false, .per_pixel_lens = false, .peeling = true, .visibility_buffer = visibility,
           .visibility_buffer_faster = visibility && context_.features().compute_pays()};
 }
 
@@ -556,15 +569,14 @@ void GlBackend::check_settings(const BackendSettings& settings) {
         "OpenGL backend: a lens sample per pixel needs the ray tracer (--backend embree); the raster backend takes "
         "one lens point per render (an accumulation-buffer view)");
   }
-  if (settings.peel > 0) {
-    throw std::invalid_argument(
-        "OpenGL backend: the hidden layer (depth peeling) is not implemented for the raster backend yet; use "
-        "--backend embree");
-  }
 }
 
 void GlBackend::render_on_gpu(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes) {
   check_settings(settings);
+  if (settings.peel > 0) {
+    throw std::invalid_argument("GlBackend::render_on_gpu: a peeled layer is rendered into targets of its own and "
+                                "read back (render()), not left as the frame's G-buffer");
+  }
   draw(time, settings.lens, settings.lod_levels, settings.width, settings.height, planes, settings.depth_prepass,
        settings.visibility_buffer);
   image_width_ = settings.width > 0 ? settings.width : scene_->camera.width;
@@ -572,16 +584,57 @@ void GlBackend::render_on_gpu(const FrameTime& time, const BackendSettings& sett
 }
 
 void GlBackend::render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+  if (settings.peel > 0) {
+    render_peeled(time, settings, out);
+    return;
+  }
   render_on_gpu(time, settings, GBufferPlanes::all());
   out.resize(image_width_, image_height_);
   read_back(settings.readback, out);
 }
 
-void GlBackend::read_back(const GBufferPlanes& planes, GBuffer& out) {
+void GlBackend::render_peeled(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+  check_settings(settings);
+  if (!scene_) set_scene(Scene{});
+  const Scene& scene = *scene_;
+  const Camera& cam = scene.camera;
+  context_.make_current();
+  const std::uint32_t width = settings.width > 0 ? settings.width : cam.width;
+  const std::uint32_t height = settings.height > 0 ? settings.height : cam.height;
+  if (!peeling_) peeling_ = std::make_unique<GlPeeling>();
+  const FrameView frame = frame_view(cam, time, settings.lens);
+  const auto clear = [&](unsigned fbo) {
+    begin_gbuffer_pass(fbo, width, height, GBufferPlanes::all());
+    clear_gbuffer(scene);
+  };
+  const auto draw_layer = [&](unsigned fbo, const GlPeeling::Against* against) {
+    clear(fbo);
+    set_frame_uniforms(frame, scene.ambient, width, height);
+    glUniform1i(loc_peel_, against != nullptr ? 1 : 0);
+    if (against != nullptr) {
+      glActiveTexture(GL_TEXTURE0 + kPeelDepthUnit);
+      glBindTexture(GL_TEXTURE_2D, against->depth);
+      glActiveTexture(GL_TEXTURE0 + kPeelStateUnit);
+      glBindTexture(GL_TEXTURE_2D, against->state);
+      glActiveTexture(GL_TEXTURE0);
+    }
+    draw_objects(scene, time, settings.lod_levels, frame.view != frame.view_prev);
+    glUniform1i(loc_peel_, 0);
+    glDisable(GL_SCISSOR_TEST);
+  };
+  peeling_->run(width, height, settings.peel, draw_layer, clear);
+  out.resize(width, height);
+  read_back_from(peeling_->result_fbo(), settings.readback, out);
+  check_gl("GlBackend::render (peeled)");
+}
+
+void GlBackend::read_back(const GBufferPlanes& planes, GBuffer& out) { read_back_from(fbo_, planes, out); }
+
+void GlBackend::read_back_from(unsigned fbo, const GBufferPlanes& planes, GBuffer& out) {
   const std::uint32_t w = out.width, h = out.height;
   if (w == 0 || h == 0) return;
   context_.make_current();
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
   const auto gw = static_cast<GLsizei>(w), gh = static_cast<GLsizei>(h);
   const float far_m = scene_->camera.far_m;
   glPixelStorei(GL_PACK_ALIGNMENT, 1);

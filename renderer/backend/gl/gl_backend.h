@@ -12,9 +12,10 @@
 // them through textures(). Runs in an invisible EGL context (no window system), or beside a viewer's
 // GLFW window sharing its textures.
 //
-// Levels of detail are drawn as asked (BackendSettings::lod_levels). Not supported: shadows
-// (BackendSettings::shadows is ignored; the Embree backend casts shadow rays), a lens point per
-// pixel, depth peeling (both refused with the reason).
+// Levels of detail are drawn as asked (BackendSettings::lod_levels); depth peeling by object
+// (BackendSettings::peel, gl_peel.h) into targets of its own, read back by render(). Not supported:
+// shadows (BackendSettings::shadows is ignored; the Embree backend casts shadow rays) and a lens point
+// per pixel (refused with the reason).
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -23,6 +24,7 @@
 
 #include "backend/backend.h"
 #include "backend/gl/gl_context.h"
+#include "backend/gl/gl_peel.h"
 #include "backend/gl/gl_visibility.h"
 #include "backend/gpu_frame.h"
 #include "scene/shading.h"
@@ -50,7 +52,7 @@ class GlBackend final : public Backend {
   GlBackend& operator=(const GlBackend&) = delete;
 
   std::string name() const override { return "gl"; }
-  // A raster G-buffer: no shadow rays, one lens point per frame (an off-axis frustum), no peeling.
+  // A raster G-buffer: no shadow rays, one lens point per frame (an off-axis frustum), peeling.
   BackendCapabilities capabilities() const override;
   // Uploads every mesh once (shared meshes once) and the expanded light samples. Throws
   // std::invalid_argument for an object the raster backend cannot draw (normals not one per
@@ -72,6 +74,9 @@ class GlBackend final : public Backend {
   void read_back(const GBufferPlanes& planes, GBuffer& out);
   // The G-buffer textures of the last render (0 before the first).
   GlGBufferTextures textures() const;
+  // Makes the G-buffer's five plane textures (colour RGBA32F, depth R32F, id R32UI, normal RGBA32F,
+  // motion RG32F) at width x height and attaches them to the bound framebuffer's colour attachments 0-4.
+  static void attach_gbuffer_textures(unsigned (&textures)[5], std::uint32_t width, std::uint32_t height);
 
   // The GPU-resident frame (gl_frame.h) on this backend's context, made on first use.
   GpuFrame* gpu_frame() override;
@@ -124,6 +129,10 @@ class GlBackend final : public Backend {
   static void check_settings(const BackendSettings& settings);
   void release_framebuffer();
   void release_meshes();
+  // BackendSettings::peel > 0: the peeled layer into `out` (its own targets: the G-buffer textures
+  // keep the frame's render).
+  void render_peeled(const FrameTime& time, const BackendSettings& settings, GBuffer& out);
+  void read_back_from(unsigned fbo, const GBufferPlanes& planes, GBuffer& out);
 
   GlContext context_;
   unsigned program_ = 0;
@@ -153,6 +162,8 @@ class GlBackend final : public Backend {
   std::vector<float> scratch_;
   std::vector<std::uint32_t> scratch_id_;
   std::unique_ptr<GpuFrame> gpu_frame_;
+  std::unique_ptr<GlPeeling> peeling_;  // made on the first peeled render
+  int loc_peel_ = -1;
 };
 
 std::unique_ptr<Backend> make_gl_backend(GlPlatform platform = GlPlatform::Egl, const GlContext* share = nullptr);

@@ -130,6 +130,11 @@ uniform uint u_object_id;
 uniform int u_emissive;
 uniform vec3 u_kd, u_ks, u_emission;
 uniform float u_shininess;
+// Depth peeling (gl_peel.h): keep only fragments farther than the last layer's, by the Embree
+// backend's epsilon, at pixels not yet resolved.
+uniform bool u_peel;
+uniform sampler2D u_peel_depth;
+uniform usampler2D u_peel_state;
 
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out float o_depth;
@@ -150,6 +155,14 @@ void main() {
     float glen = length(geometric);
     n = glen > 0.0 ? geometric / glen : vec3(0.0, 0.0, 1.0);
     if (dot(n, u_eye - v_world) < 0.0) n = -n;
+  }
+  if (u_peel) {  // after the derivatives: they need every fragment of the quad
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    // Embree's step past the last hit along the ray, max(1e-4, 1e-5 t) in distance t, in view depth.
+    float last = texelFetch(u_peel_depth, p, 0).r;
+    float cos_view = clamp(v_view_depth / max(length(v_world - u_eye), 1e-30), 0.0, 1.0);
+    if (v_view_depth <= last + max(1e-4 * cos_view, 1e-5 * last) || texelFetch(u_peel_state, p, 0).y >= 0x80000000u)
+      discard;
   }
 
   o_color = vec4(shade_local(v_world, n, u_eye, u_kd, u_ks, u_emission, u_shininess, u_emissive != 0), 1.0);

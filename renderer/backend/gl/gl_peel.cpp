@@ -1,0 +1,250 @@
+#include "backend/gl/gl_peel.h"
+
+#include <epoxy/gl.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_program.h"
+
+namespace fovea::render {
+
+namespace {
+
+constexpr const char* kFullscreenVertex = R"(#version 330 core
+void main() {
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+)";
+
+// The state per pixel: .x the object met last, .y the objects met behind the visible one (low 16
+// bits), kChosen when this step's layer is the one asked for, kDone once resolved.
+constexpr const char* kStateBits = R"(#version 330 core
+const uint kDone = 0x80000000u, kChosen = 0x40000000u, kMet = 0xffffu;
+)";
+
+// After a draw: the new state from the layer drawn (its depth and id; id 0: no fragment beyond).
+constexpr const char* kResolve = R"(
+uniform sampler2D u_layer_depth, u_last_depth;
+uniform usampler2D u_layer_id, u_state;
+uniform uint u_peel;
+uniform bool u_first;  // the unpeeled layer: the visible object, nothing met yet
+layout(location = 0) out float o_depth;
+layout(location = 1) out uvec2 o_state;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  float d = texelFetch(u_layer_depth, p, 0).r;
+  uint id = texelFetch(u_layer_id, p, 0).r;
+  if (u_first) {
+    o_depth = d;
+    o_state = uvec2(id, id == 0u ? kDone : 0u);  // a miss stays the background
+    return;
+  }
+  uvec2 s = texelFetch(u_state, p, 0).xy;
+  o_depth = texelFetch(u_last_depth, p, 0).r;
+  o_state = uvec2(s.x, s.y & ~kChosen);
+  if ((s.y & kDone) != 0u) return;
+  if (id == 0u) {  // nothing farther along this ray
+    o_state.y |= kDone;
+    return;
+  }
+  uint met = s.y & kMet;
+  if (id != s.x) met += 1u;  // another object: its first fragment
+  o_depth = d;
+  o_state = uvec2(id, met | (met == u_peel ? kDone | kChosen : 0u));
+}
+)";
+
+// The layer's planes where this step resolved the pixel.
+constexpr const char* kCopy = R"(
+uniform sampler2D u_color, u_depth, u_normal, u_motion;
+uniform usampler2D u_id, u_state;
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out float o_depth;
+layout(location = 2) out uint o_id;
+layout(location = 3) out vec4 o_normal;
+layout(location = 4) out vec2 o_motion;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  if ((texelFetch(u_state, p, 0).y & kChosen) == 0u) discard;
+  o_color = texelFetch(u_color, p, 0);
+  o_depth = texelFetch(u_depth, p, 0).r;
+  o_id = texelFetch(u_id, p, 0).r;
+  o_normal = texelFetch(u_normal, p, 0);
+  o_motion = texelFetch(u_motion, p, 0).rg;
+}
+)";
+
+constexpr GLenum kBuffers[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
+                                GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
+
+void check(const char* where) {
+  const GLenum e = glGetError();
+  if (e == GL_NO_ERROR) return;
+  while (glGetError() != GL_NO_ERROR) {
+  }
+  throw std::runtime_error(std::string("GlPeeling: OpenGL error ") + std::to_string(e) + " in " + where);
+}
+
+void complete(const char* what) {
+  const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+  if (status != GL_FRAMEBUFFER_COMPLETE) {
+    throw std::runtime_error(std::string("GlPeeling: ") + what + " framebuffer incomplete (status " +
+                             std::to_string(status) + ")");
+  }
+}
+
+unsigned texture(GLenum format, GLenum channels, GLenum type, std::uint32_t w, std::uint32_t h) {
+  unsigned t = 0;
+  glGenTextures(1, &t);
+  glBindTexture(GL_TEXTURE_2D, t);
+  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(format), static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0,
+               channels, type, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  return t;
+}
+
+void bind(int unit, unsigned texture, unsigned program, const char* name) {
+  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
+  glBindTexture(GL_TEXTURE_2D, texture);
+  glUniform1i(glGetUniformLocation(program, name), unit);
+}
+
+unsigned link(const char* body, const char* what) {
+  const std::string source = std::string(kStateBits) + body;
+  return gl::link_program(kFullscreenVertex, source.c_str(), what);
+}
+
+}  // namespace
+
+GlPeeling::GlPeeling() {
+  resolve_program_ = link(kResolve, "GlPeeling resolve");
+  copy_program_ = link(kCopy, "GlPeeling copy");
+  glGenVertexArrays(1, &vao_);
+  glGenQueries(1, &query_);
+  check("GlPeeling()");
+}
+
+GlPeeling::~GlPeeling() {
+  release();
+  if (query_ != 0) glDeleteQueries(1, &query_);
+  if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
+  if (resolve_program_ != 0) glDeleteProgram(resolve_program_);
+  if (copy_program_ != 0) glDeleteProgram(copy_program_);
+}
+
+void GlPeeling::release() {
+  for (Targets* t : {&layer_, &result_}) {
+    if (t->fbo != 0) glDeleteFramebuffers(1, &t->fbo);
+    glDeleteTextures(5, t->textures);
+    if (t->z != 0) glDeleteRenderbuffers(1, &t->z);
+    *t = Targets{};
+  }
+  for (State& s : state_) {
+    if (s.fbo != 0) glDeleteFramebuffers(1, &s.fbo);
+    if (s.depth != 0) glDeleteTextures(1, &s.depth);
+    if (s.ids != 0) glDeleteTextures(1, &s.ids);
+    s = State{};
+  }
+  width_ = height_ = 0;
+}
+
+void GlPeeling::ensure(std::uint32_t width, std::uint32_t height) {
+  if (width == width_ && height == height_ && layer_.fbo != 0) return;
+  release();
+  for (Targets* t : {&layer_, &result_}) {
+    glGenFramebuffers(1, &t->fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, t->fbo);
+    GlBackend::attach_gbuffer_textures(t->textures, width, height);
+    glGenRenderbuffers(1, &t->z);
+    glBindRenderbuffer(GL_RENDERBUFFER, t->z);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->z);
+    glDrawBuffers(5, kBuffers);
+    complete("layer");
+  }
+  for (State& s : state_) {
+    glGenFramebuffers(1, &s.fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, s.fbo);
+    s.depth = texture(GL_R32F, GL_RED, GL_FLOAT, width, height);
+    s.ids = texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, width, height);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, s.depth, 0);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, s.ids, 0);
+    glDrawBuffers(2, kBuffers);
+    complete("state");
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  width_ = width;
+  height_ = height;
+  check("GlPeeling::ensure");
+}
+
+void GlPeeling::resolve(const State& from, const State& to, std::uint32_t peel, bool first) {
+  const unsigned p = resolve_program_;
+  glBindFramebuffer(GL_FRAMEBUFFER, to.fbo);
+  glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
+  glUseProgram(p);
+  bind(0, layer_.textures[1], p, "u_layer_depth");
+  bind(1, layer_.textures[2], p, "u_layer_id");
+  bind(2, from.depth, p, "u_last_depth");
+  bind(3, from.ids, p, "u_state");
+  glUniform1ui(glGetUniformLocation(p, "u_peel"), peel);
+  glUniform1i(glGetUniformLocation(p, "u_first"), first ? 1 : 0);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+}
+
+void GlPeeling::copy_chosen(const State& state) {
+  const unsigned p = copy_program_;
+  glBindFramebuffer(GL_FRAMEBUFFER, result_.fbo);
+  glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
+  glUseProgram(p);
+  bind(0, layer_.textures[0], p, "u_color");
+  bind(1, layer_.textures[1], p, "u_depth");
+  bind(2, layer_.textures[2], p, "u_id");
+  bind(3, layer_.textures[3], p, "u_normal");
+  bind(4, layer_.textures[4], p, "u_motion");
+  bind(5, state.ids, p, "u_state");
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+}
+
+void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t peel, const DrawLayer& draw,
+                    const Clear& clear) {
+  if (peel == 0) throw std::invalid_argument("GlPeeling::run: peel 0 is the visible layer, not a peeled one");
+  ensure(width, height);
+  clear(result_.fbo);
+  draw(layer_.fbo, nullptr);
+  steps_ = 1;
+  const auto fullscreen = [&] {
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_SCISSOR_TEST);
+    glDisable(GL_BLEND);
+    glBindVertexArray(vao_);
+  };
+  fullscreen();
+  resolve(state_[1], state_[0], peel, true);
+  int current = 0;
+  while (steps_ < kMaxSteps) {
+    const Against against{state_[current].depth, state_[current].ids};
+    glBeginQuery(GL_ANY_SAMPLES_PASSED, query_);
+    draw(layer_.fbo, &against);
+    glEndQuery(GL_ANY_SAMPLES_PASSED);
+    ++steps_;
+    GLuint any = 0;
+    glGetQueryObjectuiv(query_, GL_QUERY_RESULT, &any);
+    if (any == 0) break;  // no pixel has a surface farther along: every pixel is resolved
+    fullscreen();
+    resolve(state_[current], state_[1 - current], peel, false);
+    current = 1 - current;
+    copy_chosen(state_[current]);
+  }
+  glBindVertexArray(0);
+  glUseProgram(0);
+  glActiveTexture(GL_TEXTURE0);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  check("GlPeeling::run");
+}
+
+}  // namespace fovea::render

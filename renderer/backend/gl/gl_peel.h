@@ -1,0 +1,65 @@
+#pragma once
+// Depth peeling by object on the raster backend (BackendSettings::peel): the same layers as the
+// Embree backend's trace_peeled. Along each pixel's ray, the n-th object met behind the visible one;
+// an object's own back faces and other parts are skipped (consecutive fragments of one object count
+// once); the background where there is none.
+//
+// Classic depth peeling (Everitt 2001) finds the fragments in depth order, one per scene draw: draw
+// k keeps, per pixel, the nearest fragment farther than draw k - 1's (by Embree's epsilon,
+// max(1e-4 m, 1e-5 d)). A resolve pass counts per pixel the changes of object id along that order
+// and copies the layer's planes where the count reaches n. Draws stop when no pixel got a fragment
+// (an occlusion query) or after kMaxSteps (Embree's loop stops at 256 hits; a pixel still unresolved
+// then keeps the background).
+//
+// Needs a current OpenGL 3.3 context; the scene is drawn by the caller (GlBackend), into targets of
+// its own, so the frame's G-buffer textures are left as they were.
+#include <cstdint>
+#include <functional>
+
+namespace fovea::render {
+
+class GlPeeling {
+ public:
+  static constexpr int kMaxSteps = 64;
+
+  GlPeeling();
+  ~GlPeeling();
+  GlPeeling(const GlPeeling&) = delete;
+  GlPeeling& operator=(const GlPeeling&) = delete;
+
+  // What a peeling draw discards against: per pixel the last layer's depth (R32F) and the state
+  // (RG32UI: .y bit 31 set when the pixel is resolved).
+  struct Against {
+    unsigned depth = 0, state = 0;
+  };
+  // draw(fbo, against): clear `fbo` (its five G-buffer planes) to the background and draw every
+  // object into it, discarding fragments against `against` (null: the first, unpeeled layer).
+  using DrawLayer = std::function<void(unsigned fbo, const Against* against)>;
+  // clear(fbo): the background G-buffer (what a pixel without a peeled surface shows).
+  using Clear = std::function<void(unsigned fbo)>;
+
+  // Peels layer `peel` (>= 1) of a width x height image; the result is in result_fbo()'s five planes.
+  void run(std::uint32_t width, std::uint32_t height, std::uint32_t peel, const DrawLayer& draw, const Clear& clear);
+  unsigned result_fbo() const { return result_.fbo; }
+  int steps() const { return steps_; }  // scene draws of the last run (the unpeeled one included)
+
+ private:
+  struct Targets {  // the G-buffer's five planes and a z-buffer
+    unsigned fbo = 0, textures[5] = {0, 0, 0, 0, 0}, z = 0;
+  };
+  struct State {  // one side of the ping-pong state
+    unsigned fbo = 0, depth = 0, ids = 0;
+  };
+  void ensure(std::uint32_t width, std::uint32_t height);
+  void release();
+  void resolve(const State& from, const State& to, std::uint32_t peel, bool first);
+  void copy_chosen(const State& state);
+
+  unsigned resolve_program_ = 0, copy_program_ = 0, vao_ = 0, query_ = 0;
+  Targets layer_, result_;
+  State state_[2];
+  std::uint32_t width_ = 0, height_ = 0;
+  int steps_ = 0;
+};
+
+}  // namespace fovea::render
