@@ -624,7 +624,7 @@ void GlBackend::render_peeled(const FrameTime& time, const BackendSettings& sett
   };
   peeling_->run(width, height, settings.peel, draw_layer, clear);
   out.resize(width, height);
-  read_back_from(peeling_->result_fbo(), settings.readback, out);
+  read_back_from(peeling_->result_fbo(settings.peel), settings.readback, out);
   check_gl("GlBackend::render (peeled)");
 }
 

@@ -29,7 +29,7 @@ const uint kDone = 0x80000000u, kChosen = 0x40000000u, kMet = 0xffffu;
 constexpr const char* kResolve = R"(
 uniform sampler2D u_layer_depth, u_last_depth;
 uniform usampler2D u_layer_id, u_state;
-uniform uint u_peel;
+uniform uint u_layers;  // the deepest layer asked for: a pixel is resolved when it has been met
 uniform bool u_first;  // the unpeeled layer: the visible object, nothing met yet
 layout(location = 0) out float o_depth;
 layout(location = 1) out uvec2 o_state;
@@ -53,14 +53,16 @@ void main() {
   uint met = s.y & kMet;
   if (id != s.x) met += 1u;  // another object: its first fragment
   o_depth = d;
-  o_state = uvec2(id, met | (met == u_peel ? kDone | kChosen : 0u));
+  // kChosen: this step met a new object, whose planes are layer `met`.
+  o_state = uvec2(id, met | (id != s.x && met <= u_layers ? kChosen : 0u) | (met >= u_layers ? kDone : 0u));
 }
 )";
 
-// The layer's planes where this step resolved the pixel.
+// The layer's planes where this step met the object of layer u_layer.
 constexpr const char* kCopy = R"(
 uniform sampler2D u_color, u_depth, u_normal, u_motion;
 uniform usampler2D u_id, u_state;
+uniform uint u_layer;
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out float o_depth;
 layout(location = 2) out uint o_id;
@@ -68,7 +70,8 @@ layout(location = 3) out vec4 o_normal;
 layout(location = 4) out vec2 o_motion;
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
-  if ((texelFetch(u_state, p, 0).y & kChosen) == 0u) discard;
+  uint s = texelFetch(u_state, p, 0).y;
+  if ((s & kChosen) == 0u || (s & kMet) != u_layer) discard;
   o_color = texelFetch(u_color, p, 0);
   o_depth = texelFetch(u_depth, p, 0).r;
   o_id = texelFetch(u_id, p, 0).r;
@@ -137,12 +140,13 @@ GlPeeling::~GlPeeling() {
 }
 
 void GlPeeling::release() {
-  for (Targets* t : {&layer_, &result_}) {
+  for (Targets* t : targets()) {
     if (t->fbo != 0) glDeleteFramebuffers(1, &t->fbo);
     glDeleteTextures(5, t->textures);
     if (t->z != 0) glDeleteRenderbuffers(1, &t->z);
     *t = Targets{};
   }
+  results_.clear();
   for (State& s : state_) {
     if (s.fbo != 0) glDeleteFramebuffers(1, &s.fbo);
     if (s.depth != 0) glDeleteTextures(1, &s.depth);
@@ -152,10 +156,17 @@ void GlPeeling::release() {
   width_ = height_ = 0;
 }
 
-void GlPeeling::ensure(std::uint32_t width, std::uint32_t height) {
-  if (width == width_ && height == height_ && layer_.fbo != 0) return;
+std::vector<GlPeeling::Targets*> GlPeeling::targets() {
+  std::vector<Targets*> all{&layer_};
+  for (Targets& t : results_) all.push_back(&t);
+  return all;
+}
+
+void GlPeeling::ensure(std::uint32_t width, std::uint32_t height, std::uint32_t layers) {
+  if (width == width_ && height == height_ && layer_.fbo != 0 && results_.size() == layers) return;
   release();
-  for (Targets* t : {&layer_, &result_}) {
+  results_.resize(layers);
+  for (Targets* t : targets()) {
     glGenFramebuffers(1, &t->fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, t->fbo);
     GlBackend::attach_gbuffer_textures(t->textures, width, height);
@@ -182,7 +193,7 @@ void GlPeeling::ensure(std::uint32_t width, std::uint32_t height) {
   check("GlPeeling::ensure");
 }
 
-void GlPeeling::resolve(const State& from, const State& to, std::uint32_t peel, bool first) {
+void GlPeeling::resolve(const State& from, const State& to, std::uint32_t layers, bool first) {
   const unsigned p = resolve_program_;
   glBindFramebuffer(GL_FRAMEBUFFER, to.fbo);
   glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
@@ -191,14 +202,14 @@ void GlPeeling::resolve(const State& from, const State& to, std::uint32_t peel, 
   bind(1, layer_.textures[2], p, "u_layer_id");
   bind(2, from.depth, p, "u_last_depth");
   bind(3, from.ids, p, "u_state");
-  glUniform1ui(glGetUniformLocation(p, "u_peel"), peel);
+  glUniform1ui(glGetUniformLocation(p, "u_layers"), layers);
   glUniform1i(glGetUniformLocation(p, "u_first"), first ? 1 : 0);
   glDrawArrays(GL_TRIANGLES, 0, 3);
 }
 
-void GlPeeling::copy_chosen(const State& state) {
+void GlPeeling::copy_chosen(const State& state, std::uint32_t layer) {
   const unsigned p = copy_program_;
-  glBindFramebuffer(GL_FRAMEBUFFER, result_.fbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, results_[layer - 1].fbo);
   glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
   glUseProgram(p);
   bind(0, layer_.textures[0], p, "u_color");
@@ -207,14 +218,15 @@ void GlPeeling::copy_chosen(const State& state) {
   bind(3, layer_.textures[3], p, "u_normal");
   bind(4, layer_.textures[4], p, "u_motion");
   bind(5, state.ids, p, "u_state");
+  glUniform1ui(glGetUniformLocation(p, "u_layer"), layer);
   glDrawArrays(GL_TRIANGLES, 0, 3);
 }
 
-void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t peel, const DrawLayer& draw,
+void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t layers, const DrawLayer& draw,
                     const Clear& clear) {
-  if (peel == 0) throw std::invalid_argument("GlPeeling::run: peel 0 is the visible layer, not a peeled one");
-  ensure(width, height);
-  clear(result_.fbo);
+  if (layers == 0) throw std::invalid_argument("GlPeeling::run: no layer behind the visible one asked for");
+  ensure(width, height, layers);
+  for (const Targets& t : results_) clear(t.fbo);
   draw(layer_.fbo, nullptr);
   steps_ = 1;
   const auto fullscreen = [&] {
@@ -224,7 +236,7 @@ void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t pee
     glBindVertexArray(vao_);
   };
   fullscreen();
-  resolve(state_[1], state_[0], peel, true);
+  resolve(state_[1], state_[0], layers, true);
   int current = 0;
   while (steps_ < kMaxSteps) {
     const Against against{state_[current].depth, state_[current].ids};
@@ -236,9 +248,9 @@ void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t pee
     glGetQueryObjectuiv(query_, GL_QUERY_RESULT, &any);
     if (any == 0) break;  // no pixel has a surface farther along: every pixel is resolved
     fullscreen();
-    resolve(state_[current], state_[1 - current], peel, false);
+    resolve(state_[current], state_[1 - current], layers, false);
     current = 1 - current;
-    copy_chosen(state_[current]);
+    for (std::uint32_t n = 1; n <= layers; ++n) copy_chosen(state_[current], n);
   }
   glBindVertexArray(0);
   glUseProgram(0);

@@ -7,7 +7,7 @@
 // Classic depth peeling (Everitt 2001) finds the fragments in depth order, one per scene draw: draw
 // k keeps, per pixel, the nearest fragment farther than draw k - 1's (by Embree's epsilon,
 // max(1e-4 m, 1e-5 d)). A resolve pass counts per pixel the changes of object id along that order
-// and copies the layer's planes where the count reaches n. Draws stop when no pixel got a fragment
+// and copies each layer's planes where the count reaches its number. Draws stop when no pixel got a fragment
 // (an occlusion query) or after kMaxSteps (Embree's loop stops at 256 hits; a pixel still unresolved
 // then keeps the background).
 //
@@ -15,6 +15,7 @@
 // its own, so the frame's G-buffer textures are left as they were.
 #include <cstdint>
 #include <functional>
+#include <vector>
 
 namespace fovea::render {
 
@@ -38,9 +39,13 @@ class GlPeeling {
   // clear(fbo): the background G-buffer (what a pixel without a peeled surface shows).
   using Clear = std::function<void(unsigned fbo)>;
 
-  // Peels layer `peel` (>= 1) of a width x height image; the result is in result_fbo()'s five planes.
-  void run(std::uint32_t width, std::uint32_t height, std::uint32_t peel, const DrawLayer& draw, const Clear& clear);
-  unsigned result_fbo() const { return result_.fbo; }
+  // Peels layers 1..`layers` (>= 1) of a width x height image in one loop (layer n costs what
+  // layers 1..n do); layer n is in result_fbo(n)'s five planes.
+  void run(std::uint32_t width, std::uint32_t height, std::uint32_t layers, const DrawLayer& draw, const Clear& clear);
+  unsigned result_fbo(std::uint32_t layer) const { return results_.at(layer - 1).fbo; }
+  // Layer n's colour (RGBA32F) and depth (R32F) textures, for GPU passes that read the layers.
+  unsigned result_color(std::uint32_t layer) const { return results_.at(layer - 1).textures[0]; }
+  unsigned result_depth(std::uint32_t layer) const { return results_.at(layer - 1).textures[1]; }
   int steps() const { return steps_; }  // scene draws of the last run (the unpeeled one included)
 
  private:
@@ -50,13 +55,15 @@ class GlPeeling {
   struct State {  // one side of the ping-pong state
     unsigned fbo = 0, depth = 0, ids = 0;
   };
-  void ensure(std::uint32_t width, std::uint32_t height);
+  void ensure(std::uint32_t width, std::uint32_t height, std::uint32_t layers);
   void release();
-  void resolve(const State& from, const State& to, std::uint32_t peel, bool first);
-  void copy_chosen(const State& state);
+  std::vector<Targets*> targets();  // the draw's and the results'
+  void resolve(const State& from, const State& to, std::uint32_t layers, bool first);
+  void copy_chosen(const State& state, std::uint32_t layer);
 
   unsigned resolve_program_ = 0, copy_program_ = 0, vao_ = 0, query_ = 0;
-  Targets layer_, result_;
+  Targets layer_;
+  std::vector<Targets> results_;  // layer n in results_[n - 1]
   State state_[2];
   std::uint32_t width_ = 0, height_ = 0;
   int steps_ = 0;
