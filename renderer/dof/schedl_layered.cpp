@@ -19,9 +19,11 @@ using Rgba = std::vector<glm::vec4>;  // premultiplied colour and alpha
 
 float finite_or_zero(float v) { return std::isfinite(v) ? v : 0.0f; }
 
+}  // namespace
+
 // Three box blurs whose variances add up to sigma^2 approximate a Gaussian (Wells 1986): box
 // widths wl (odd) for the first m passes and wl + 2 for the rest.
-std::vector<int> box_radii(double sigma) {
+std::vector<int> schedl_box_radii(double sigma) {
   constexpr int n = 3;
   const double ideal = std::sqrt(12.0 * sigma * sigma / n + 1.0);
   int wl = static_cast<int>(std::floor(ideal));
@@ -33,6 +35,8 @@ std::vector<int> box_radii(double sigma) {
   for (int i = 0; i < n; ++i) r.push_back(((i < m ? wl : wl + 2) - 1) / 2);
   return r;
 }
+
+namespace {
 
 // One box pass of radius r along rows (horizontal) with clamped edges: a running sum per row.
 void box_rows(const Rgba& src, Rgba& dst, int w, int h, int r) {
@@ -81,7 +85,7 @@ void box_columns(const Rgba& src, Rgba& dst, int w, int h, int r) {
 // Gaussian blur of standard deviation sigma (px), in place (eq. 11 with H^_k).
 void gaussian(Rgba& img, Rgba& tmp, int w, int h, double sigma) {
   if (!(sigma > 0.3)) return;
-  for (const int r : box_radii(sigma)) {
+  for (const int r : schedl_box_radii(sigma)) {
     if (r <= 0) continue;
     box_rows(img, tmp, w, h, r);
     box_columns(tmp, img, w, h, r);
@@ -162,18 +166,7 @@ double layer_coc(int j) {
   return 4.0 * std::sqrt(var);
 }
 
-// The boundaries between the K layers and the focus layer's index kf.
-struct LayerAnchors {
-  std::vector<double> z;  // z[k], k = 0..K-2: the boundary between layers k and k+1, front to back
-  int kf = 0;
-  int K = 1;
-  // z_k, with z_k = -inf in front of the front layer and +inf behind the back layer.
-  double anchor(int kk) const {
-    if (kk < 0) return -kInf;
-    if (kk >= K - 1) return kInf;
-    return z[static_cast<std::size_t>(kk)];
-  }
-};
+using LayerAnchors = SchedlAnchors;
 
 // z_k, front to back, from the boundaries in front of and behind the focus layer (nearest-to-focus first).
 LayerAnchors anchors_front_to_back(const std::vector<double>& front, const std::vector<double>& back) {
@@ -305,6 +298,19 @@ void composite_and_normalise(const CascadeBuffers& buf, float max_in, RgbImage& 
 
 }  // namespace
 
+double SchedlAnchors::anchor(int kk) const {
+  if (kk < 0) return -kInf;
+  if (kk >= K - 1) return kInf;
+  return z[static_cast<std::size_t>(kk)];
+}
+
+std::optional<SchedlAnchors> schedl_anchors(const CocModel& coc, double zmin, double zmax, int max_layers) {
+  const double k = coc.k_px();
+  const DepthRange range{zmin, zmax};
+  if (nothing_blurs(coc, k, range)) return std::nullopt;
+  return layer_anchors(coc, k, range, max_layers);
+}
+
 void schedl_layered(const DofInput& in, const std::vector<PeeledLayer>& peeled, const SchedlSettings& s,
                     RgbImage& out, SchedlStats* stats) {
   const auto start = std::chrono::steady_clock::now();
@@ -316,15 +322,14 @@ void schedl_layered(const DofInput& in, const std::vector<PeeledLayer>& peeled, 
   }
   const int w = static_cast<int>(in.width), h = static_cast<int>(in.height);
   const float max_in = copy_sanitized_input(in.color, np, out);
-  const double k = in.coc.k_px();
   const std::vector<PeeledLayer> layers_in = input_layers(in, peeled);
   const DepthRange range = frame_depth_range(layers_in, np);
-  if (nothing_blurs(in.coc, k, range)) {
+  const std::optional<SchedlAnchors> chosen = schedl_anchors(in.coc, range.zmin, range.zmax, s.max_layers);
+  if (!chosen) {
     if (stats != nullptr) *stats = {1, 0, seconds_since(start)};
     return;  // nothing blurs by half a pixel: the input
   }
-
-  const LayerAnchors anchors = layer_anchors(in.coc, k, range, s.max_layers);
+  const LayerAnchors& anchors = *chosen;
   const LayerStack stack{layers_in, out, anchors, np, w, h};
   CascadeBuffers buf(np);
   blur_front_layers(stack, buf);

@@ -22,6 +22,7 @@
 //   (the last one reaches infinity).
 // - The front layer L_0 has z_{-2} = z_{-1} = -inf, the back layer z_{K-1} = z_K = +inf.
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "dof/dof_image.h"
@@ -43,6 +44,22 @@ struct SchedlStats {
   int focus_layer = 0;  // k_focus
   double seconds = 0;
 };
+
+// The K layers' boundaries (eqs. 5-9), front to back, and the focus layer kf: what the GPU
+// implementation (backend/gl/gl_schedl_layered.h) takes from the CPU's own choice.
+struct SchedlAnchors {
+  std::vector<double> z;  // z[k], k = 0..K-2: the boundary between layers k and k+1
+  int kf = 0;
+  int K = 1;
+  // z_k, with -inf in front of the front layer and +inf behind the back layer.
+  double anchor(int k) const;
+};
+// The anchors for a frame whose finite depths (every input layer's) span [zmin, zmax] (zmin = +inf:
+// none), at most max_layers layers; nullopt when no depth blurs by half a pixel (the output is then
+// the input).
+std::optional<SchedlAnchors> schedl_anchors(const CocModel& coc, double zmin, double zmax, int max_layers);
+// The radii of three box blurs whose variances add up to sigma^2 (Wells 1986): eq. 11's H^_k.
+std::vector<int> schedl_box_radii(double sigma);
 
 // `peeled` are the layers behind the visible image of `in` (in.hidden_* is ignored: pass it here).
 // out is resized to in.pixels(); finite, >= 0 and at most the inputs' largest channel. A pinhole

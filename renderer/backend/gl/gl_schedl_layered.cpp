@@ -1,0 +1,464 @@
+#include "backend/gl/gl_schedl_layered.h"
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "backend/gl/gl_program.h"
+
+namespace fovea::render {
+
+namespace {
+
+constexpr const char* kFullscreenVertex = R"(#version 330 core
+void main() {
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+)";
+
+constexpr const char* kCommon = R"(#version 330 core
+const float kInf = uintBitsToFloat(0x7f800000u);
+float finite_or_zero(float v) { return (isnan(v) || isinf(v)) ? 0.0 : v; }
+// schedl_layered.cpp's sanitized(): NaN, Inf and negative light read as 0.
+vec3 sanitized(vec3 c) { return vec3(max(0.0, finite_or_zero(c.r)), max(0.0, finite_or_zero(c.g)), max(0.0, finite_or_zero(c.b))); }
+vec4 over(vec4 a, vec4 b) { return a + (1.0 - a.a) * b; }  // premultiplied A over B
+)";
+
+// Each input layer once: its sanitised colour and its depth (NaN or none: +inf; negative: 0), so the
+// matting reads one texture per layer (eight layers and the accumulator fit 16 texture units).
+constexpr const char* kPack = R"(
+uniform sampler2D u_color, u_depth;
+uniform bool u_has_depth;
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  float z = u_has_depth ? texelFetch(u_depth, p, 0).r : kInf;
+  o = vec4(sanitized(texelFetch(u_color, p, 0).rgb), isnan(z) ? kInf : max(z, 0.0));
+}
+)";
+
+// The packed layers 0..7 (u_inputs of them) by index; a sampler array could not be indexed so in 3.30.
+constexpr const char* kLayers = R"(
+uniform sampler2D u_l0, u_l1, u_l2, u_l3, u_l4, u_l5, u_l6, u_l7;
+uniform int u_inputs;
+vec4 layer(int l, ivec2 p) {
+  if (l == 0) return texelFetch(u_l0, p, 0);
+  if (l == 1) return texelFetch(u_l1, p, 0);
+  if (l == 2) return texelFetch(u_l2, p, 0);
+  if (l == 3) return texelFetch(u_l3, p, 0);
+  if (l == 4) return texelFetch(u_l4, p, 0);
+  if (l == 5) return texelFetch(u_l5, p, 0);
+  if (l == 6) return texelFetch(u_l6, p, 0);
+  return texelFetch(u_l7, p, 0);
+}
+)";
+
+// Step 1: per pixel (nearest finite depth, farthest finite depth, largest visible channel), then
+// halving 2x2 to one texel.
+constexpr const char* kReduceFirst = R"(
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  float zmin = kInf, zmax = 0.0;
+  for (int l = 0; l < 8; ++l) {
+    if (l >= u_inputs) break;
+    float z = layer(l, p).a;
+    if (!isinf(z)) { zmin = min(zmin, z); zmax = max(zmax, z); }
+  }
+  vec3 c = layer(0, p).rgb;
+  o = vec4(zmin, zmax, max(c.r, max(c.g, c.b)), 0.0);
+}
+)";
+constexpr const char* kReduceNext = R"(
+uniform sampler2D u_src;
+uniform ivec2 u_src_size;
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy) * 2;
+  vec4 r = texelFetch(u_src, p, 0);
+  for (int k = 1; k < 4; ++k) {
+    vec4 q = texelFetch(u_src, min(p + ivec2(k & 1, k >> 1), u_src_size - 1), 0);
+    r = vec4(min(r.x, q.x), max(r.y, q.y), max(r.z, q.z), 0.0);
+  }
+  o = r;
+}
+)";
+
+// Step 2: L_k (eq. 2) with the mattes of eqs. 3-4, then the cascade's over (eqs. 12-13).
+constexpr const char* kMatte = R"(
+uniform sampler2D u_acc;
+uniform int u_mode;                // 0: L_k; 1: acc over L_k (front cascade); 2: L_k over acc (back)
+uniform float u_a, u_b, u_c, u_e;  // z_{k-2}, z_{k-1}, z_k, z_{k+1} (+-inf beyond the front and back layers)
+uniform bool u_a_finite, u_e_finite;
+out vec4 o;
+float w_dot(float d) {  // eq. 3
+  if (d >= u_b && d <= u_c) return 1.0;
+  if (d > u_a && d < u_b && u_a_finite && u_b > u_a) return (d - u_a) / (u_b - u_a);
+  return 0.0;
+}
+float w_full(float d) {  // eq. 4
+  if (d > u_c && d < u_e && u_e_finite && u_e > u_c) return (u_e - d) / (u_e - u_c);
+  return w_dot(d);
+}
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 acc = vec4(0.0);
+  for (int l = 0; l < 8; ++l) {
+    if (l >= u_inputs) break;
+    vec4 in_l = layer(l, p);
+    float a = l == 0 ? w_full(in_l.a) : w_dot(in_l.a);
+    if (a > 0.0) acc = over(acc, vec4(in_l.rgb * a, a));
+  }
+  vec4 prev = texelFetch(u_acc, p, 0);
+  o = u_mode == 1 ? over(prev, acc) : u_mode == 2 ? over(acc, prev) : acc;
+}
+)";
+
+// Step 3: one box of radius u_r along u_dir, edges clamped.
+constexpr const char* kBox = R"(
+uniform sampler2D u_src;
+uniform ivec2 u_size, u_dir;
+uniform int u_r;
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 sum = vec4(0.0);
+  for (int j = -u_r; j <= u_r; ++j) sum += texelFetch(u_src, clamp(p + j * u_dir, ivec2(0), u_size - 1), 0);
+  o = sum * (1.0 / float(2 * u_r + 1));
+}
+)";
+
+// Step 4: I' = L^_{kf-1} over (L_kf over L^_{kf+1}) (eq. 13), normalised (§3.3.1).
+constexpr const char* kComposite = R"(
+uniform sampler2D u_front, u_layer, u_back;
+uniform bool u_has_front, u_has_back, u_copy;
+uniform float u_max_in;
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec3 result = layer(0, p).rgb;  // no coverage (or nothing blurs): the input
+  if (!u_copy) {
+    vec4 r = texelFetch(u_layer, p, 0);
+    if (u_has_back) r = over(r, texelFetch(u_back, p, 0));
+    if (u_has_front) r = over(texelFetch(u_front, p, 0), r);
+    if (r.a > 1e-6 && !isinf(r.a)) {
+      vec3 c = r.rgb / r.a;
+      result = clamp(vec3(finite_or_zero(c.r), finite_or_zero(c.g), finite_or_zero(c.b)), 0.0, u_max_in);
+    }
+  }
+  o = vec4(result, 1.0);
+}
+)";
+
+void check(const char* where) {
+  const GLenum e = glGetError();
+  if (e == GL_NO_ERROR) return;
+  while (glGetError() != GL_NO_ERROR) {
+  }
+  throw std::runtime_error(std::string("GlSchedlLayered: OpenGL error ") + std::to_string(e) + " in " + where);
+}
+
+unsigned link(std::initializer_list<const char*> parts, const char* what) {
+  std::string source = kCommon;
+  for (const char* p : parts) source += p;
+  return gl::link_program(kFullscreenVertex, source.c_str(), what);
+}
+
+unsigned rgba32f(std::uint32_t w, std::uint32_t h) {
+  unsigned t = 0;
+  glGenTextures(1, &t);
+  glBindTexture(GL_TEXTURE_2D, t);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0, GL_RGBA, GL_FLOAT,
+               nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  return t;
+}
+
+void bind(int unit, unsigned texture, unsigned program, const char* name) {
+  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
+  glBindTexture(GL_TEXTURE_2D, texture);
+  glUniform1i(glGetUniformLocation(program, name), unit);
+}
+
+void del(unsigned& t) {
+  if (t != 0) glDeleteTextures(1, &t);
+  t = 0;
+}
+
+}  // namespace
+
+GlSchedlLayered::GlSchedlLayered() {
+  pack_program_ = link({kPack}, "GlSchedlLayered pack");
+  reduce_first_ = link({kLayers, kReduceFirst}, "GlSchedlLayered reduction");
+  reduce_next_ = link({kReduceNext}, "GlSchedlLayered reduction (halving)");
+  matte_program_ = link({kLayers, kMatte}, "GlSchedlLayered matting");
+  box_program_ = link({kBox}, "GlSchedlLayered box blur");
+  composite_program_ = link({kLayers, kComposite}, "GlSchedlLayered composite");
+  glGenVertexArrays(1, &vao_);
+  glGenFramebuffers(1, &fbo_);
+  glGenQueries(2, queries_);
+  check("GlSchedlLayered()");
+}
+
+GlSchedlLayered::~GlSchedlLayered() {
+  release();
+  for (unsigned& t : upload_color_) del(t);
+  for (unsigned& t : upload_depth_) del(t);
+  glDeleteQueries(2, queries_);
+  if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
+  if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
+  for (unsigned p : {pack_program_, reduce_first_, reduce_next_, matte_program_, box_program_, composite_program_})
+    if (p != 0) glDeleteProgram(p);
+}
+
+void GlSchedlLayered::release() {
+  for (unsigned* t : {&front_[0], &front_[1], &back_[0], &back_[1], &layer_, &scratch_, &output_}) del(*t);
+  for (unsigned& t : packed_) del(t);
+  for (unsigned& t : reduction_) del(t);
+  reduction_.clear();
+  reduction_sizes_.clear();
+  width_ = height_ = 0;
+}
+
+void GlSchedlLayered::ensure(std::uint32_t width, std::uint32_t height) {
+  if (width == width_ && height == height_ && output_ != 0) return;
+  release();
+  for (unsigned* t : {&front_[0], &front_[1], &back_[0], &back_[1], &layer_, &scratch_, &output_})
+    *t = rgba32f(width, height);
+  for (unsigned& t : packed_) t = rgba32f(width, height);
+  std::uint32_t w = width, h = height;
+  reduction_.push_back(rgba32f(w, h));
+  reduction_sizes_.emplace_back(w, h);
+  while (w > 1 || h > 1) {
+    w = (w + 1) / 2;
+    h = (h + 1) / 2;
+    reduction_.push_back(rgba32f(w, h));
+    reduction_sizes_.emplace_back(w, h);
+  }
+  width_ = width;
+  height_ = height;
+  check("GlSchedlLayered::ensure");
+}
+
+void GlSchedlLayered::draw_into(unsigned texture, std::uint32_t w, std::uint32_t h) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, texture, 0);
+  glDrawBuffer(GL_COLOR_ATTACHMENT0);
+  glViewport(0, 0, static_cast<GLsizei>(w), static_cast<GLsizei>(h));
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+}
+
+void GlSchedlLayered::bind_layers(unsigned program) const {
+  const char* names[kMaxInputLayers] = {"u_l0", "u_l1", "u_l2", "u_l3", "u_l4", "u_l5", "u_l6", "u_l7"};
+  for (int l = 0; l < kMaxInputLayers; ++l) bind(l, packed_[static_cast<std::size_t>(l)], program, names[l]);
+  glUniform1i(glGetUniformLocation(program, "u_inputs"), inputs_);
+}
+
+void GlSchedlLayered::pack(const GlDofInput& visible, const std::vector<GlDofInput>& peeled) {
+  const unsigned p = pack_program_;
+  glUseProgram(p);
+  for (int l = 0; l < inputs_; ++l) {
+    const GlDofInput& in = l == 0 ? visible : peeled[static_cast<std::size_t>(l - 1)];
+    bind(0, in.color, p, "u_color");
+    bind(1, in.depth, p, "u_depth");
+    glUniform1i(glGetUniformLocation(p, "u_has_depth"), in.depth != 0 ? 1 : 0);
+    draw_into(packed_[static_cast<std::size_t>(l)], width_, height_);
+  }
+}
+
+GlSchedlLayered::Range GlSchedlLayered::reduce() {
+  glUseProgram(reduce_first_);
+  bind_layers(reduce_first_);
+  draw_into(reduction_[0], width_, height_);
+  glUseProgram(reduce_next_);
+  for (std::size_t i = 1; i < reduction_.size(); ++i) {
+    bind(0, reduction_[i - 1], reduce_next_, "u_src");
+    glUniform2i(glGetUniformLocation(reduce_next_, "u_src_size"), static_cast<GLint>(reduction_sizes_[i - 1].first),
+                static_cast<GLint>(reduction_sizes_[i - 1].second));
+    draw_into(reduction_[i], reduction_sizes_[i].first, reduction_sizes_[i].second);
+  }
+  float texel[4] = {0, 0, 0, 0};
+  glReadBuffer(GL_COLOR_ATTACHMENT0);  // the last level, still attached
+  glReadPixels(0, 0, 1, 1, GL_RGBA, GL_FLOAT, texel);
+  return {texel[0], texel[1], texel[2]};
+}
+
+void GlSchedlLayered::matte(const dof::SchedlAnchors& an, int k, int mode, unsigned acc, unsigned to) {
+  const unsigned p = matte_program_;
+  glUseProgram(p);
+  bind_layers(p);
+  bind(kMaxInputLayers, acc, p, "u_acc");
+  glUniform1i(glGetUniformLocation(p, "u_mode"), mode);
+  const auto f = [](double v) { return static_cast<float>(v); };  // +-inf stay infinite
+  glUniform1f(glGetUniformLocation(p, "u_a"), f(an.anchor(k - 2)));
+  glUniform1f(glGetUniformLocation(p, "u_b"), f(an.anchor(k - 1)));
+  glUniform1f(glGetUniformLocation(p, "u_c"), f(an.anchor(k)));
+  glUniform1f(glGetUniformLocation(p, "u_e"), f(an.anchor(k + 1)));
+  glUniform1i(glGetUniformLocation(p, "u_a_finite"), std::isfinite(an.anchor(k - 2)) ? 1 : 0);
+  glUniform1i(glGetUniformLocation(p, "u_e_finite"), std::isfinite(an.anchor(k + 1)) ? 1 : 0);
+  draw_into(to, width_, height_);
+}
+
+void GlSchedlLayered::gaussian(unsigned image, double sigma) {
+  if (!(sigma > 0.3)) return;
+  const unsigned p = box_program_;
+  glUseProgram(p);
+  glUniform2i(glGetUniformLocation(p, "u_size"), static_cast<GLint>(width_), static_cast<GLint>(height_));
+  for (const int r : dof::schedl_box_radii(sigma)) {
+    if (r <= 0) continue;
+    glUniform1i(glGetUniformLocation(p, "u_r"), r);
+    bind(0, image, p, "u_src");
+    glUniform2i(glGetUniformLocation(p, "u_dir"), 1, 0);
+    draw_into(scratch_, width_, height_);
+    bind(0, scratch_, p, "u_src");
+    glUniform2i(glGetUniformLocation(p, "u_dir"), 0, 1);
+    draw_into(image, width_, height_);
+  }
+}
+
+void GlSchedlLayered::composite(unsigned front, unsigned back, bool copy, float max_in) {
+  const unsigned p = composite_program_;
+  glUseProgram(p);
+  bind_layers(p);
+  bind(kMaxInputLayers, front != 0 ? front : layer_, p, "u_front");
+  bind(kMaxInputLayers + 1, layer_, p, "u_layer");
+  bind(kMaxInputLayers + 2, back != 0 ? back : layer_, p, "u_back");
+  glUniform1i(glGetUniformLocation(p, "u_has_front"), front != 0 ? 1 : 0);
+  glUniform1i(glGetUniformLocation(p, "u_has_back"), back != 0 ? 1 : 0);
+  glUniform1i(glGetUniformLocation(p, "u_copy"), copy ? 1 : 0);
+  glUniform1f(glGetUniformLocation(p, "u_max_in"), max_in);
+  draw_into(output_, width_, height_);
+}
+
+dof::SchedlStats GlSchedlLayered::run(const GlDofInput& visible, const std::vector<GlDofInput>& peeled,
+                                      const dof::CocModel& coc, const dof::SchedlSettings& s) {
+  const auto start = std::chrono::steady_clock::now();
+  if (visible.width == 0 || visible.height == 0) throw std::invalid_argument("GlSchedlLayered::run: an empty image");
+  ensure(visible.width, visible.height);
+  // The peeled layers that carry colour and depth, as the CPU's input_layers keeps them.
+  std::vector<GlDofInput> layers;
+  for (const GlDofInput& l : peeled)
+    if (l.color != 0 && l.depth != 0) layers.push_back(l);
+  if (layers.size() + 1 > static_cast<std::size_t>(kMaxInputLayers)) {
+    throw std::invalid_argument("GlSchedlLayered::run: " + std::to_string(layers.size() + 1) + " input layers, at most " +
+                                std::to_string(kMaxInputLayers));
+  }
+  inputs_ = static_cast<int>(layers.size()) + 1;
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_SCISSOR_TEST);
+  glDisable(GL_BLEND);
+  glBindVertexArray(vao_);
+  pack(visible, layers);
+  const Range range = reduce();
+  const std::optional<dof::SchedlAnchors> chosen =
+      dof::schedl_anchors(coc, static_cast<double>(range.zmin), static_cast<double>(range.zmax), s.max_layers);
+  dof::SchedlStats stats;
+  if (!chosen) {
+    composite(0, 0, true, range.max_in);
+    stats.layers = 1;
+  } else {
+    const dof::SchedlAnchors& an = *chosen;
+    const int kf = an.kf, K = an.K;
+    unsigned front = 0, back = 0;
+    if (kf > 0) {  // eqs. 12-13 in front of the focus layer: L^_k = (L^_{k-1} over L_k) * H^_k
+      int cur = 0;
+      matte(an, 0, 0, front_[1], front_[0]);
+      gaussian(front_[0], kf);
+      for (int k = 1; k < kf; ++k) {
+        matte(an, k, 1, front_[cur], front_[1 - cur]);
+        cur = 1 - cur;
+        gaussian(front_[cur], kf - k);
+      }
+      front = front_[cur];
+    }
+    if (kf < K - 1) {  // behind it: L^_k = (L_k over L^_{k+1}) * H^_k
+      int cur = 0;
+      matte(an, K - 1, 0, back_[1], back_[0]);
+      gaussian(back_[0], K - 1 - kf);
+      for (int k = K - 2; k > kf; --k) {
+        matte(an, k, 2, back_[cur], back_[1 - cur]);
+        cur = 1 - cur;
+        gaussian(back_[cur], k - kf);
+      }
+      back = back_[cur];
+    }
+    matte(an, kf, 0, scratch_, layer_);  // (mode 0 reads no accumulator; scratch_ is not written here)
+    composite(front, back, false, range.max_in);
+    stats.layers = K;
+    stats.focus_layer = kf;
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindVertexArray(0);
+  glUseProgram(0);
+  glActiveTexture(GL_TEXTURE0);
+  check("GlSchedlLayered::run");
+  stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+dof::SchedlStats GlSchedlLayered::run_image(const dof::DofInput& in, const std::vector<dof::PeeledLayer>& peeled,
+                                            const dof::SchedlSettings& s, dof::RgbImage& out, double* gpu_ms) {
+  const std::uint32_t w = in.width, h = in.height;
+  out.assign(in.pixels(), glm::vec3(0.0f));
+  if (in.pixels() == 0 || in.color == nullptr) return {};
+  const std::size_t n = 1 + peeled.size();
+  upload_color_.resize(n, 0);
+  upload_depth_.resize(n, 0);
+  // Up, rows flipped to OpenGL's bottom-up order.
+  const auto upload = [&](unsigned& texture, GLenum format, GLenum channels, const float* data, std::size_t per_pixel) {
+    if (data == nullptr) return 0u;
+    if (texture == 0) glGenTextures(1, &texture);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, texture);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    staging_.resize(in.pixels() * per_pixel);
+    const std::size_t row = std::size_t{w} * per_pixel;
+    for (std::uint32_t y = 0; y < h; ++y) std::memcpy(&staging_[std::size_t{h - 1 - y} * row], data + y * row, row * sizeof(float));
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(format), static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0,
+                 channels, GL_FLOAT, staging_.data());
+    return texture;
+  };
+  const auto as_gl = [&](std::size_t l, const glm::vec3* color, const float* depth) {
+    return GlDofInput{upload(upload_color_[l], GL_RGB32F, GL_RGB, color != nullptr ? &color[0].x : nullptr, 3),
+                      upload(upload_depth_[l], GL_R32F, GL_RED, depth, 1), w, h};
+  };
+  const GlDofInput visible = as_gl(0, in.color, in.depth);
+  std::vector<GlDofInput> layers;
+  for (std::size_t l = 0; l < peeled.size(); ++l) layers.push_back(as_gl(l + 1, peeled[l].color, peeled[l].depth));
+  glQueryCounter(queries_[0], GL_TIMESTAMP);
+  const dof::SchedlStats stats = run(visible, layers, in.coc, s);
+  glQueryCounter(queries_[1], GL_TIMESTAMP);
+  // Back, RGBA to RGB, rows flipped to top-down.
+  staging_.resize(in.pixels() * 4);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, output_, 0);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, static_cast<GLsizei>(w), static_cast<GLsizei>(h), GL_RGBA, GL_FLOAT, staging_.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  for (std::uint32_t y = 0; y < h; ++y)
+    for (std::uint32_t x = 0; x < w; ++x) {
+      const float* src = &staging_[(std::size_t{h - 1 - y} * w + x) * 4];
+      out[std::size_t{y} * w + x] = {src[0], src[1], src[2]};
+    }
+  if (gpu_ms != nullptr) {
+    GLuint64 t0 = 0, t1 = 0;
+    glGetQueryObjectui64v(queries_[0], GL_QUERY_RESULT, &t0);
+    glGetQueryObjectui64v(queries_[1], GL_QUERY_RESULT, &t1);
+    *gpu_ms = t1 >= t0 ? static_cast<double>(t1 - t0) * 1e-6 : 0.0;
+  }
+  check("GlSchedlLayered::run_image");
+  return stats;
+}
+
+}  // namespace fovea::render

@@ -1,0 +1,182 @@
+// Schedl & Wimmer's layered DOF on the GPU (backend/gl/gl_schedl_layered.h) against its CPU reference
+// (dof/schedl_layered.h) on the same inputs: the bundled scenes' visible and depth-peeled layers
+// (M = 1, 2, 3) at several apertures, and the CPU's stability catalogue
+// (tests/stability/test_dof_schedl_layered_stability.cpp) through the GPU: non-finite and extreme
+// depths and colours, degenerate sizes, a CoC larger than the image, focus at F / 0 / infinity / NaN.
+// Runs through EGL with DISPLAY unset.
+//
+// Tolerance: PSNR >= 40 dB against the CPU (the goal) on the colour clamped to [0, 1]. The
+// GPU sums each box blur's taps where the CPU keeps a running sum, and compares depths with the
+// anchors in float: the same K layers (checked), float rounding apart.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "backend/backend.h"
+#include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_schedl_layered.h"
+#include "dof/schedl_layered.h"
+#include "dof_lens.h"
+#include "dof_test_image.h"
+#include "scene/scene_loader.h"
+
+namespace fovea::render {
+namespace {
+
+using dof::CocModel;
+using dof::PeeledLayer;
+using dof::RgbImage;
+using dof::test::DofImage;
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+double psnr(const RgbImage& a, const RgbImage& b) {
+  EXPECT_EQ(a.size(), b.size());
+  const auto shown = [](float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; };
+  double se = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double d = static_cast<double>(shown(a[i][c])) - static_cast<double>(shown(b[i][c]));
+      se += d * d;
+    }
+  return se == 0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(3.0 * static_cast<double>(a.size()) / se);
+}
+
+void expect_bounded(const RgbImage& out, float max_in, const std::string& what) {
+  for (const glm::vec3& c : out)
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_TRUE(std::isfinite(c[k])) << what;
+      ASSERT_GE(c[k], 0.0f) << what;
+      ASSERT_LE(c[k], max_in * (1 + 1e-5f) + 1e-6f) << what;
+    }
+}
+
+class GlSchedlLayeredTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    backend_ = std::make_unique<GlBackend>();
+    backend_->context().make_current();
+    gl_ = std::make_unique<GlSchedlLayered>();
+  }
+  // The GPU within the tolerance of the CPU, with the same layers cut; both bounded by max_in.
+  // Returns the PSNR against the CPU.
+  double expect_agree(const dof::DofInput& in, const std::vector<PeeledLayer>& peeled, float max_in,
+                      const std::string& what) {
+    RgbImage cpu, gpu;
+    dof::SchedlStats cs, gs;
+    dof::schedl_layered(in, peeled, {}, cpu, &cs);
+    backend_->context().make_current();
+    gs = gl_->run_image(in, peeled, {}, gpu);
+    expect_bounded(gpu, max_in, what);
+    EXPECT_EQ(gs.layers, cs.layers) << what;
+    EXPECT_EQ(gs.focus_layer, cs.focus_layer) << what;
+    const double db = psnr(gpu, cpu);
+    EXPECT_GE(db, 40.0) << what << " " << in.width << "x" << in.height;
+    return db;
+  }
+  std::unique_ptr<GlBackend> backend_;
+  std::unique_ptr<GlSchedlLayered> gl_;
+};
+
+TEST_F(GlSchedlLayeredTest, AgreesWithTheCpuReferenceOnTheBundledScenesPeeledLayers) {
+  std::unique_ptr<Backend> embree = make_backend(BackendKind::Embree);
+  struct Case {
+    const char* scene;
+    double focus_m;
+  };
+  for (const Case& c : {Case{"occlusion.json", 6.0}, Case{"attention.json", 2.9}, Case{"attention.json", 14.0}}) {
+    Scene s = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes" / c.scene);
+    s.camera.width = 200;
+    s.camera.height = 150;
+    embree->set_scene(s);
+    GBuffer visible, p1, p2;
+    embree->render({}, {}, visible);
+    BackendSettings peel;
+    peel.peel = 1;
+    embree->render({}, peel, p1);
+    peel.peel = 2;
+    embree->render({}, peel, p2);
+    const std::vector<PeeledLayer> all = {{p1.color.data(), p1.depth.data()}, {p2.color.data(), p2.depth.data()}};
+    for (double k : {4.0, 16.0, 64.0}) {
+      for (std::size_t m = 0; m <= all.size(); ++m) {
+        dof::DofInput in;
+        in.width = visible.width;
+        in.height = visible.height;
+        in.color = visible.color.data();
+        in.depth = visible.depth.data();
+        in.coc = dof::test::lens_with_k(k, c.focus_m);
+        float max_in = 0;
+        for (const glm::vec3& v : visible.color) max_in = std::max({max_in, v.x, v.y, v.z});
+        const std::vector<PeeledLayer> peeled(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(m));
+        const std::string what = std::string(c.scene) + " focus " + std::to_string(c.focus_m) + " K " +
+                                 std::to_string(k) + " M " + std::to_string(m + 1);
+        std::printf("%s: GL vs CPU %.1f dB\n", what.c_str(), expect_agree(in, peeled, max_in, what));
+      }
+    }
+  }
+}
+
+TEST_F(GlSchedlLayeredTest, StabilityCatalogueNonFiniteAndExtremeDepthsAndColours) {
+  const std::vector<float> depths = {0.0f, -1.0f, kInf, -kInf, kNaN, 1e-30f, 1e30f, 3e38f, 1.0f, 2.0f};
+  DofImage im(20, 20, glm::vec3(0.0f), 0.0f, glm::vec3(kNaN));
+  for (std::size_t i = 0; i < 400; ++i) {
+    im.depth[i] = depths[i % depths.size()];
+    const float v = i % 7 == 0 ? kNaN : i % 11 == 0 ? kInf : i % 13 == 0 ? 1e6f : 0.25f * static_cast<float>(i % 5);
+    im.color[i] = glm::vec3(v, 0.5f, -1.0f);
+  }
+  std::fill(im.hidden_depth.begin(), im.hidden_depth.end(), kNaN);
+  expect_agree(im.input(dof::test::lens_with_k(30)), {{im.hidden_color.data(), im.hidden_depth.data()}}, 1e6f,
+               "non-finite and extreme");
+}
+
+TEST_F(GlSchedlLayeredTest, StabilityCatalogueDegenerateSizesAndLenses) {
+  for (auto [w, h] : {std::pair{1u, 1u}, {1u, 37u}, {37u, 1u}, {2u, 1u}}) {
+    DofImage im(w, h, glm::vec3(0.4f), 0.0f);
+    for (std::size_t i = 0; i < im.depth.size(); ++i) im.depth[i] = 0.5f + static_cast<float>(i);
+    expect_agree(im.input(dof::test::lens_with_k(100)), {}, 0.4f, "size " + std::to_string(w) + "x" + std::to_string(h));
+  }
+  DofImage im(24, 16, glm::vec3(0.0f), 0.0f);
+  for (std::size_t i = 0; i < im.color.size(); ++i) {
+    im.color[i] = glm::vec3(static_cast<float>(i % 3) * 0.5f);
+    im.depth[i] = 0.1f + static_cast<float>(i % 17);
+  }
+  for (double focus : {0.05, 0.0, -1.0, 1e9, static_cast<double>(kInf), static_cast<double>(kNaN)}) {
+    CocModel m = dof::test::lens_with_k(1e4, 2.0);  // a CoC larger than the image
+    m.focus_m = focus;
+    expect_agree(im.input(m), {}, 1.0f, "focus " + std::to_string(focus));
+  }
+  CocModel pinhole = dof::test::lens_with_k(100);
+  pinhole.aperture_m = 0;
+  DofImage flat(16, 12, glm::vec3(0.3f, -1.0f, kNaN), 2.0f);
+  RgbImage out;
+  gl_->run_image(flat.input(pinhole), {}, {}, out);
+  for (const glm::vec3& c : out) EXPECT_EQ(c, glm::vec3(0.3f, 0.0f, 0.0f));  // the input, sanitised
+}
+
+TEST_F(GlSchedlLayeredTest, RandomInputsAgree) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int t = 0; t < 20; ++t) {
+    const auto w = static_cast<std::uint32_t>(1 + rng() % 40), h = static_cast<std::uint32_t>(1 + rng() % 30);
+    DofImage im(w, h, glm::vec3(0.0f), 0.0f);
+    float max_in = 0;
+    for (std::size_t i = 0; i < im.color.size(); ++i) {
+      im.color[i] = glm::vec3(u(rng), u(rng), u(rng)) * (t % 3 == 0 ? 100.0f : 1.0f);
+      im.hidden_color[i] = glm::vec3(u(rng));
+      max_in = std::max({max_in, im.color[i].x, im.color[i].y, im.color[i].z, im.hidden_color[i].x});
+      im.depth[i] = 0.2f + 30.0f * u(rng);
+      im.hidden_depth[i] = im.depth[i] + 5.0f * u(rng);
+    }
+    const CocModel lens =
+        dof::test::lens_with_k(5.0 + 80.0 * static_cast<double>(u(rng)), 0.5 + 10.0 * static_cast<double>(u(rng)));
+    expect_agree(im.input(lens), {{im.hidden_color.data(), im.hidden_depth.data()}}, max_in, "random " + std::to_string(t));
+  }
+}
+
+}  // namespace
+}  // namespace fovea::render
