@@ -17,7 +17,8 @@
 //   edge   pixels within the foreground's mean C/2 of a blurred foreground pixel (in front, C > 2):
 //          the blurred foreground boundary (Lee §4.3, Schedl & Wimmer's partial occlusion).
 //
-// The "... gl" rows run the method's OpenGL implementation (backend/gl/gl_lee_mipmap.h) on the same
+// The "... gl" rows run the method's OpenGL implementation (backend/gl/gl_lee_mipmap.h,
+// gl_schedl_layered.h: on the ray tracer's peeled layers, the peeling not timed) on the same
 // G-buffer through EGL (llvmpipe here, a GPU where there is one): ms/frame is the wall time with the
 // upload and the readback a GPU-resident frame does not do; gpu_ms the passes alone (timestamp
 // queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's. The CSV's
@@ -44,6 +45,7 @@
 #include "backend/embree/embree_backend.h"
 #include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_lee_mipmap.h"
+#include "backend/gl/gl_schedl_layered.h"
 #include "dof/lee_mipmap.h"
 #include "dof/lee_splat.h"
 #include "dof/lens.h"
@@ -246,12 +248,14 @@ int main(int argc, char** argv) {
   // The OpenGL implementations' context (EGL): their rows are skipped, with the reason, without one.
   std::unique_ptr<GlBackend> gl_context;
   std::unique_ptr<GlLeeMipmap> gl_mipmap;
+  std::unique_ptr<GlSchedlLayered> gl_schedl;
   std::string gl_device;
-  if (method_selected("lee-mipmap gl")) {
+  if (method_selected("lee-mipmap gl") || method_selected("schedl-layered gl")) {
     try {
       gl_context = std::make_unique<GlBackend>();
       gl_context->context().make_current();
       gl_mipmap = std::make_unique<GlLeeMipmap>();
+      gl_schedl = std::make_unique<GlSchedlLayered>();
       gl_device = "OpenGL " + gl_context->context().features().version() + " (" + gl_context->context().renderer() + ")";
       std::printf("gl rows on %s\n", gl_device.c_str());
     } catch (const std::exception& e) {
@@ -385,6 +389,26 @@ int main(int argc, char** argv) {
                                           SchedlSettings{}, out);
                          }});
       methods.push_back({"schedl-layered M=1", [&](RgbImage& out) { schedl_layered(in, {}, SchedlSettings{}, out); }});
+      // The GL passes on the ray tracer's peeled layers (rendered once here, uploaded each run): gpu_ms
+      // is the passes alone, without the peeling (on the GPU path: gpu.peel, bench_gpu_frame.sh).
+      if (gl_schedl) {
+        BackendSettings p1, p2;
+        p1.peel = 1;
+        p2.peel = 2;
+        backend.render({}, p1, peel1);
+        backend.render({}, p2, peel2);
+        methods.push_back({"schedl-layered gl M=3",
+                           [&](RgbImage& out) {
+                             gl_schedl->run_image(in, {{peel1.color.data(), peel1.depth.data()},
+                                                       {peel2.color.data(), peel2.depth.data()}},
+                                                  SchedlSettings{}, out, &gl_ms);
+                           },
+                           &gl_ms, [&](RgbImage& out) {
+                             schedl_layered(in, {{peel1.color.data(), peel1.depth.data()},
+                                                 {peel2.color.data(), peel2.depth.data()}},
+                                            SchedlSettings{}, out);
+                           }});
+      }
       methods.push_back({"accum (embree 16 views)", [&](RgbImage& out) {
                            DofReference a(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::Accumulation, 1);
                            a.add_samples(16);

@@ -12,6 +12,7 @@
 #include "backend/backend.h"
 #include "dof/lee_mipmap.h"
 #include "dof/lens.h"
+#include "dof/schedl_layered.h"
 
 namespace fovea::render {
 
@@ -70,6 +71,12 @@ class GpuFrame {
   // colour and depth where they lie; its result replaces the G-buffer's colour as the tone map's input
   // for this frame.
   virtual void dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings& settings) = 0;
+  // Schedl & Wimmer's layered depth of field (dof/schedl_layered.h) on the G-buffer and `layers` - 1
+  // layers peeled behind it where they lie (rendered at `time` with `peel_settings`' lens and LOD
+  // levels); the same result's use as dof_lee_mipmap's. Waits for the GPU (the peeling's occlusion
+  // queries, the depth range the layers are cut by).
+  virtual dof::SchedlStats dof_schedl_layered(const FrameTime& time, const BackendSettings& peel_settings,
+                                              const dof::CocModel& coc, std::uint32_t layers) = 0;
   // The HDR colour the tone map reads now (the G-buffer's, the GPU dof's or the upload), linear, row
   // 0 at the top: for tests and for writing the frame out. Waits for the GPU.
   virtual void read_hdr(std::vector<glm::vec3>& hdr) = 0;

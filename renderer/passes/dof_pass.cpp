@@ -15,7 +15,9 @@ DofMethod parse_dof_method(const std::string& name) {
                                     : DofMethod::LeeMipmap;
 }
 
-bool has_gpu_implementation(DofMethod method) { return method == DofMethod::LeeMipmap; }
+bool has_gpu_implementation(DofMethod method) {
+  return method == DofMethod::LeeMipmap || method == DofMethod::SchedlLayered;
+}
 
 DofPassSettings dof_pass_settings(const Settings& s) {
   DofPassSettings d;

@@ -18,7 +18,8 @@ namespace fovea::render {
 enum class DofMethod { Reference, Accum, LeeMipmap, LeeSplat, SchedlLayered };
 DofMethod parse_dof_method(const std::string& name);
 // The methods with a GPU implementation (GpuFrame), which runs where the frame's G-buffer lies:
-// lee-mipmap (backend/gl/gl_lee_mipmap.h). The others run on the CPU from a readback.
+// lee-mipmap (backend/gl/gl_lee_mipmap.h) and schedl-layered (backend/gl/gl_schedl_layered.h, its
+// layers peeled there too). The others run on the CPU from a readback.
 bool has_gpu_implementation(DofMethod method);
 // dof.device: where an image-space method runs. Auto: on the GPU where the frame lies there and
 // the method has a GPU implementation; Gpu: there or not at all (the planner says why).

@@ -453,7 +453,15 @@ const std::vector<glm::vec3>& FramePipeline::step_dof(Frame& f, double now_s, do
   f.focal_depth_m = focus_m;
   if (f.on_gpu && f.plan.at(PassId::Dof).on_gpu) {
     // Where the G-buffer lies; the tone map reads its result there (the CPU's colour is unchanged).
-    gpu_->dof_lee_mipmap(dof_.coc_model(scene_, focus_m), dof_.settings().mipmap);
+    const DofPassSettings& d = dof_.settings();
+    if (d.method == DofMethod::SchedlLayered) {
+      BackendSettings peel;
+      peel.lod_levels = lod_levels_;
+      gpu_->dof_schedl_layered(FrameTime{now_s, previous_s}, peel, dof_.coc_model(scene_, focus_m),
+                               backend_->capabilities().peeling ? d.layers : 1u);
+    } else {
+      gpu_->dof_lee_mipmap(dof_.coc_model(scene_, focus_m), d.mipmap);
+    }
     if (check) {  // the module boundary's check, at the cost of a readback (debug.finite_checks)
       gpu_->read_hdr(gpu_checked_);
       require_finite("dof", "colour (GPU)", gpu_checked_, gbuffer_.width);

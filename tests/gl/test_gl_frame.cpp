@@ -359,13 +359,17 @@ TEST(GlFramePipeline, BothPathsMakeTheSameFramesOnTheBundledScenes) {
   }
 }
 
-// dof.method=lee-mipmap in a GPU-resident frame runs on the GPU (gpu.dof timed, nothing read back for
-// it) and its colour is the CPU pass's within the GPU's tolerance (tests/gl/test_gl_lee_mipmap.cpp):
-// the HDR colour the tone map reads, with dof.device=gpu against dof.device=cpu in the same frame.
+// lee-mipmap and schedl-layered (M = 3, its layers peeled on the GPU) in a GPU-resident frame run on
+// the GPU (gpu.dof timed, nothing read back for them) and their colour is the CPU pass's within the
+// GPU's tolerance (tests/gl/test_gl_lee_mipmap.cpp, test_gl_schedl_layered.cpp): the HDR colour the
+// tone map reads, with dof.device=gpu against dof.device=cpu in the same frame.
 TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
+  for (const char* method : {"lee-mipmap", "schedl-layered"}) {
+  SCOPED_TRACE(method);
   std::vector<glm::vec3> hdr[2];
   for (const char* device : {"gpu", "cpu"}) {
     Settings s;
+    s.set("dof.method", method);
     s.set("dof.device", device);
     s.set("focus.mode", "fixed");
     s.set("lod.enabled", "false");  // lod-select reads the last frame's colour and ids back
@@ -378,6 +382,7 @@ TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
     const bool gpu = std::string(device) == "gpu";
     EXPECT_EQ(f.plan.at(PassId::Dof).on_gpu, gpu);
     EXPECT_EQ(timer.summary().count("gpu.dof"), gpu ? 1u : 0u);
+    EXPECT_EQ(timer.summary().count("gpu.peel"), gpu && std::string(method) == "schedl-layered" ? 1u : 0u);
     EXPECT_EQ(f.read_back.any(), !gpu) << "focus.mode=fixed: only a CPU dof reads the G-buffer back";
     pipeline.gpu_frame()->read_hdr(hdr[gpu ? 0 : 1]);
   }
@@ -389,7 +394,9 @@ TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
       se += d * d;
     }
   const double psnr = se == 0 ? 1e9 : 10.0 * std::log10(3.0 * static_cast<double>(hdr[0].size()) / se);
+  std::printf("%s in the frame: GPU vs CPU %.1f dB\n", method, psnr);
   EXPECT_GE(psnr, 40.0);
+  }
 }
 
 // The layered DOF methods on the raster backend peel their layers (gl_peel.h) as the ray tracer does:

@@ -68,6 +68,12 @@ class FakeGpuFrame final : public GpuFrame {
     calls.push_back("dof");
     EXPECT_FALSE(coc.pinhole());
   }
+  dof::SchedlStats dof_schedl_layered(const FrameTime&, const BackendSettings&, const dof::CocModel& coc,
+                                      std::uint32_t layers) override {
+    calls.push_back("dof layered " + std::to_string(layers));
+    EXPECT_FALSE(coc.pinhole());
+    return {};
+  }
   void read_hdr(std::vector<glm::vec3>& hdr) override { hdr = rendered_.color; }
   void tonemap(const GpuTonemap&) override { calls.push_back("tonemap"); }
   void overlay(const GpuOverlay& o) override {
@@ -265,6 +271,16 @@ TEST(GpuFramePath, GpuPassesRunInPipelineOrderAndEndWithTheFence) {
   const std::vector<std::string> want = {"gbuffer", "read_back", "dof", "tonemap", "overlay", "finish"};
   EXPECT_EQ(run->backend->gpu_->calls, want);
   EXPECT_EQ(run->backend->cpu_renders, 0);  // no second render of the G-buffer on the CPU path
+}
+
+TEST(GpuFramePath, SchedlLayeredRunsOnTheGpuWithItsLayers) {
+  const auto run = render_one(true, {"focus.mode=fixed", "dof.method=schedl-layered", "dof.layers=3"});
+  const std::vector<std::string>& calls = run->backend->gpu_->calls;
+  // The fake backend does not peel: one layer, as DofPass takes it on the CPU.
+  const bool peels = run->backend->capabilities().peeling;
+  EXPECT_NE(std::find(calls.begin(), calls.end(), peels ? "dof layered 3" : "dof layered 1"), calls.end());
+  EXPECT_FALSE(run->backend->gpu_->read_back_planes.any());
+  EXPECT_EQ(run->backend->cpu_renders, 0);
 }
 
 TEST(GpuFramePath, TimingsCarryTheGpuPassesAndTheGazeAgeAtCompletion) {

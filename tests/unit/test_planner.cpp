@@ -192,8 +192,10 @@ TEST(Planner, DofRunsOnTheGpuWhereItsMethodCanAndSaysWhyNot) {
        "gi.periphery=csf composites GI over the DOF colour on the CPU"},
       {"dof.device=gpu without a GPU-resident frame: later", {"dof.device=gpu"}, false, false, false,
        "dof.device=gpu: the frame is not on the GPU"},
-      {"dof.device=gpu with a CPU-only method: later", {"dof.device=gpu", "dof.method=schedl-layered"}, true, false,
-       false, "dof.device=gpu: dof.method=schedl-layered has no GPU implementation yet"},
+      {"dof.device=gpu with a CPU-only method: later", {"dof.device=gpu", "dof.method=lee-splat"}, true, false,
+       false, "dof.device=gpu: dof.method=lee-splat has no GPU implementation yet"},
+      {"schedl-layered in a GPU-resident frame", {"dof.method=schedl-layered"}, true, true, true,
+       "schedl-layered, on the GPU"},
   };
   const Scene scene = make_scene({.thin_lens = true});
   for (const Row& row : rows) {

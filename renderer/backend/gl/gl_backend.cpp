@@ -594,6 +594,14 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
 }
 
 void GlBackend::render_peeled(const FrameTime& time, const BackendSettings& settings, GBuffer& out) {
+  const GlPeeling& peeled = peel_on_gpu(time, settings, settings.peel);
+  const Camera& cam = scene_->camera;
+  out.resize(settings.width > 0 ? settings.width : cam.width, settings.height > 0 ? settings.height : cam.height);
+  read_back_from(peeled.result_fbo(settings.peel), settings.readback, out);
+  check_gl("GlBackend::render (peeled)");
+}
+
+const GlPeeling& GlBackend::peel_on_gpu(const FrameTime& time, const BackendSettings& settings, std::uint32_t layers) {
   check_settings(settings);
   if (!scene_) set_scene(Scene{});
   const Scene& scene = *scene_;
@@ -622,10 +630,9 @@ void GlBackend::render_peeled(const FrameTime& time, const BackendSettings& sett
     glUniform1i(loc_peel_, 0);
     glDisable(GL_SCISSOR_TEST);
   };
-  peeling_->run(width, height, settings.peel, draw_layer, clear);
-  out.resize(width, height);
-  read_back_from(peeling_->result_fbo(settings.peel), settings.readback, out);
-  check_gl("GlBackend::render (peeled)");
+  peeling_->run(width, height, layers, draw_layer, clear);
+  check_gl("GlBackend::peel_on_gpu");
+  return *peeling_;
 }
 
 void GlBackend::read_back(const GBufferPlanes& planes, GBuffer& out) { read_back_from(fbo_, planes, out); }

@@ -74,6 +74,9 @@ class GlBackend final : public Backend {
   void read_back(const GBufferPlanes& planes, GBuffer& out);
   // The G-buffer textures of the last render (0 before the first).
   GlGBufferTextures textures() const;
+  // Peels layers 1..`layers` behind the visible one (settings: time's lens, LOD levels; its peel is
+  // ignored) into targets of their own, left on the GPU; the frame's G-buffer textures are untouched.
+  const GlPeeling& peel_on_gpu(const FrameTime& time, const BackendSettings& settings, std::uint32_t layers);
   // Makes the G-buffer's five plane textures (colour RGBA32F, depth R32F, id R32UI, normal RGBA32F,
   // motion RG32F) at width x height and attaches them to the bound framebuffer's colour attachments 0-4.
   static void attach_gbuffer_textures(unsigned (&textures)[5], std::uint32_t width, std::uint32_t height);

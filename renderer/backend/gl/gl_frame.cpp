@@ -13,6 +13,7 @@
 
 #include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_lee_mipmap.h"
+#include "backend/gl/gl_schedl_layered.h"
 #include "backend/gl/gl_program.h"
 
 namespace fovea::render {
@@ -306,13 +307,36 @@ void GlFrame::dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSetti
   lee_mipmap_->run(GlDofInput{t.color, t.depth, t.width, t.height}, coc, settings);
   end_timed();
   hdr_source_ = HdrSource::Dof;
+  dof_output_ = lee_mipmap_->output();
   check("GlFrame::dof_lee_mipmap");
+}
+
+dof::SchedlStats GlFrame::dof_schedl_layered(const FrameTime& time, const BackendSettings& peel_settings,
+                                             const dof::CocModel& coc, std::uint32_t layers) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  if (t.color == 0) throw std::logic_error("GlFrame::dof_schedl_layered before the G-buffer was rendered");
+  if (!schedl_) schedl_ = std::make_unique<GlSchedlLayered>();
+  std::vector<GlDofInput> peeled;
+  if (layers > 1) {
+    begin_timed("gpu.peel");
+    const GlPeeling& p = backend_.peel_on_gpu(time, peel_settings, layers - 1);
+    end_timed();
+    for (std::uint32_t n = 1; n < layers; ++n) peeled.push_back({p.result_color(n), p.result_depth(n), t.width, t.height});
+  }
+  begin_timed("gpu.dof");
+  const dof::SchedlStats stats = schedl_->run(GlDofInput{t.color, t.depth, t.width, t.height}, peeled, coc, {});
+  end_timed();
+  hdr_source_ = HdrSource::Dof;
+  dof_output_ = schedl_->output();
+  check("GlFrame::dof_schedl_layered");
+  return stats;
 }
 
 unsigned GlFrame::hdr_input() const {
   switch (hdr_source_) {
     case HdrSource::Upload: return hdr_texture_;
-    case HdrSource::Dof: return lee_mipmap_->output();
+    case HdrSource::Dof: return dof_output_;
     case HdrSource::GBuffer: break;
   }
   return backend_.textures().color;

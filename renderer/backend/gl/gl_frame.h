@@ -15,6 +15,7 @@ namespace fovea::render {
 
 class GlBackend;
 class GlLeeMipmap;
+class GlSchedlLayered;
 
 class GlFrame final : public GpuFrame {
  public:
@@ -30,6 +31,8 @@ class GlFrame final : public GpuFrame {
   void read_back(const GBufferPlanes& planes, GBuffer& out) override;
   void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width, std::uint32_t height) override;
   void dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings& settings) override;
+  dof::SchedlStats dof_schedl_layered(const FrameTime& time, const BackendSettings& peel_settings,
+                                      const dof::CocModel& coc, std::uint32_t layers) override;
   void read_hdr(std::vector<glm::vec3>& hdr) override;
   void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
                     float radius_px, float fovea_fraction) override;
@@ -62,6 +65,8 @@ class GlFrame final : public GpuFrame {
   enum class HdrSource { GBuffer, Upload, Dof };
   HdrSource hdr_source_ = HdrSource::GBuffer;
   std::unique_ptr<GlLeeMipmap> lee_mipmap_;  // made on first use
+  std::unique_ptr<GlSchedlLayered> schedl_;  // made on first use
+  unsigned dof_output_ = 0;                  // the texture the last GPU dof wrote
   struct Inset {
     bool active = false;  // this frame has one
     unsigned texture = 0;
