@@ -5,6 +5,7 @@
 #   dof-f11.2, dof-f2.8, dof-f0.7   lee-mipmap alone at a quarter, 1x and 4x the scene's aperture
 #                                   (gpu.dof: target <= 1 ms, independent of the CoC)
 #   dof-cpu                         the same DOF with dof.device=cpu (read back, CPU, upload)
+#   dof-schedl                      schedl-layered, M = 3 (gpu.peel + gpu.dof: target <= 3 ms)
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
 # Results: stdout and $OUT/gpu-effects.md, the runs in $OUT/gpu-effects-runs.tar.xz. The agreement
 # of the GL passes with the CPU implementation does not depend on the card's speed and is tested
@@ -29,5 +30,5 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --back
 grep -E "where|  run   dof" "$probe/plan.txt"
 
 OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
-  "base dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu scene" | tee "$OUT/gpu-effects.md"
+  "base dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl scene" | tee "$OUT/gpu-effects.md"
 tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs && rm -rf "$OUT/runs"

@@ -17,8 +17,8 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"output", "final", "final|gbuffer", "what the frame is built for: the tone-mapped image, or the G-buffer alone"},
       {"shadows", "false", "bool", "shadow rays for direct light in local illumination (Embree backend only)"},
       {"frame.gpu", "true", "bool",
-       "OpenGL backend: keep the frame on the GPU (G-buffer, tone map, overlay, display and dof.method=lee-mipmap run "
-       "there; only the planes "
+       "OpenGL backend: keep the frame on the GPU (G-buffer, tone map, overlay, display and dof.method=lee-mipmap|"
+       "schedl-layered run there; only the planes "
        "the CPU passes read are read back); false: read the whole G-buffer back and run every pass on the CPU (the "
        "reference path)"},
       {"attention.enabled", "true", "bool", "allow the visual attention pass (Lee 2009 ch. 3) when something consumes it"},
@@ -50,7 +50,7 @@ const std::vector<SettingSpec>& Settings::specs() {
        "(Schedl & Wimmer, layered on depth-peeled input)"},
       {"dof.device", "auto", "auto|cpu|gpu",
        "where an image-space dof.method runs: auto = on the GPU when the frame's G-buffer lies there (--backend gl) "
-       "and the method has a GPU implementation (lee-mipmap), else on the CPU; gpu = there or not at all"},
+       "and the method has a GPU implementation (lee-mipmap, schedl-layered), else on the CPU; gpu = there or not at all"},
       {"dof.samples", "64", "number in [1, 4096]", "lens samples per frame of the reference and accum methods"},
       {"dof.seed", "1", "number in [0, 4294967295]", "seed of the reference's lens samples (same seed, same image)"},
       {"dof.projection", "sensor", "sensor|display",
