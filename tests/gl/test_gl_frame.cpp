@@ -21,6 +21,7 @@
 #include "backend/gl/gl_backend.h"
 #include "gaze/gaze_input.h"
 #include "gi/gi_render.h"
+#include "hdr_compare.h"
 #include "passes/overlay.h"
 #include "passes/tonemap.h"
 #include "pipeline/frame_pipeline.h"
@@ -386,14 +387,7 @@ TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
     EXPECT_EQ(f.read_back.any(), !gpu) << "focus.mode=fixed: only a CPU dof reads the G-buffer back";
     pipeline.gpu_frame()->read_hdr(hdr[gpu ? 0 : 1]);
   }
-  ASSERT_EQ(hdr[0].size(), hdr[1].size());
-  double se = 0;
-  for (std::size_t i = 0; i < hdr[0].size(); ++i)
-    for (int c = 0; c < 3; ++c) {
-      const double d = std::clamp(static_cast<double>(hdr[0][i][c]), 0.0, 1.0) - std::clamp(static_cast<double>(hdr[1][i][c]), 0.0, 1.0);
-      se += d * d;
-    }
-  const double psnr = se == 0 ? 1e9 : 10.0 * std::log10(3.0 * static_cast<double>(hdr[0].size()) / se);
+  const double psnr = test::psnr_shown(hdr[0], hdr[1]);
   std::printf("%s in the frame: GPU vs CPU %.1f dB\n", method, psnr);
   EXPECT_GE(psnr, 40.0);
   }

@@ -22,6 +22,7 @@
 #include "dof/lee_mipmap.h"
 #include "dof_lens.h"
 #include "dof_test_image.h"
+#include "hdr_compare.h"
 #include "scene/scene_loader.h"
 
 namespace fovea::render {
@@ -36,19 +37,7 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr double kMinPsnrDb = 40.0;
 
-// PSNR of the colour clamped to [0, 1] (non-finite as 0), peak 1; +inf when equal.
-double psnr(const RgbImage& a, const RgbImage& b) {
-  EXPECT_EQ(a.size(), b.size());
-  const auto shown = [](float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; };
-  double se = 0;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    for (int c = 0; c < 3; ++c) {
-      const double d = static_cast<double>(shown(a[i][c])) - static_cast<double>(shown(b[i][c]));
-      se += d * d;
-    }
-  if (se == 0) return std::numeric_limits<double>::infinity();
-  return 10.0 * std::log10(1.0 / (se / (3.0 * static_cast<double>(a.size()))));
-}
+using test::psnr_shown;
 
 float clean(float v) { return std::isfinite(v) ? std::max(v, 0.0f) : 0.0f; }
 
@@ -90,7 +79,7 @@ class GlLeeMipmapTest : public ::testing::Test {
   void expect_agree(const dof::DofInput& in, const LeeMipmapSettings& s, const char* what) {
     const RgbImage cpu = on_cpu(in, s), gpu = on_gpu(in, s);
     expect_bounded(in, gpu, what);
-    EXPECT_GE(psnr(gpu, cpu), kMinPsnrDb) << what << " " << in.width << "x" << in.height;
+    EXPECT_GE(psnr_shown(gpu, cpu), kMinPsnrDb) << what << " " << in.width << "x" << in.height;
   }
   std::unique_ptr<GlBackend> backend_;
   std::unique_ptr<GlLeeMipmap> gl_;
@@ -132,7 +121,7 @@ TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceOnTheBundledScenes) {
     for (double k : {4.0, 16.0, 64.0}) {
       const SceneImage im = scene_image(*backend_, c.scene, c.focus_m, k);
       const RgbImage cpu = on_cpu(im.input()), gpu = on_gpu(im.input());
-      const double db = psnr(gpu, cpu);
+      const double db = psnr_shown(gpu, cpu);
       EXPECT_GE(db, kMinPsnrDb) << c.scene << " focus " << c.focus_m << " K " << k;
       std::printf("%-15s focus %5.1f m K %3.0f px: GL vs CPU %.1f dB\n", c.scene, c.focus_m, k, db);
     }

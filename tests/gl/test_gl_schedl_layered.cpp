@@ -22,6 +22,7 @@
 #include "dof/schedl_layered.h"
 #include "dof_lens.h"
 #include "dof_test_image.h"
+#include "hdr_compare.h"
 #include "scene/scene_loader.h"
 
 namespace fovea::render {
@@ -35,17 +36,6 @@ using dof::test::DofImage;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-double psnr(const RgbImage& a, const RgbImage& b) {
-  EXPECT_EQ(a.size(), b.size());
-  const auto shown = [](float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; };
-  double se = 0;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    for (int c = 0; c < 3; ++c) {
-      const double d = static_cast<double>(shown(a[i][c])) - static_cast<double>(shown(b[i][c]));
-      se += d * d;
-    }
-  return se == 0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(3.0 * static_cast<double>(a.size()) / se);
-}
 
 void expect_bounded(const RgbImage& out, float max_in, const std::string& what) {
   for (const glm::vec3& c : out)
@@ -75,7 +65,7 @@ class GlSchedlLayeredTest : public ::testing::Test {
     expect_bounded(gpu, max_in, what);
     EXPECT_EQ(gs.layers, cs.layers) << what;
     EXPECT_EQ(gs.focus_layer, cs.focus_layer) << what;
-    const double db = psnr(gpu, cpu);
+    const double db = test::psnr_shown(gpu, cpu);
     EXPECT_GE(db, 40.0) << what << " " << in.width << "x" << in.height;
     return db;
   }

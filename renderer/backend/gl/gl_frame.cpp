@@ -21,12 +21,6 @@ namespace fovea::render {
 namespace {
 
 // One triangle over the viewport; the fragment shaders address texels with gl_FragCoord.
-constexpr const char* kFullscreenVertex = R"(#version 330 core
-void main() {
-  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-)";
 
 // passes/tonemap.cpp on the GPU: exposure, the operator, the sRGB transfer function (the exact
 // formula, as tonemap.exact=true), rounded to 8 bits here so the RGBA8 store is exact. One body for
@@ -158,13 +152,7 @@ double steady_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-void check(const char* where) {
-  const GLenum e = glGetError();
-  if (e == GL_NO_ERROR) return;
-  while (glGetError() != GL_NO_ERROR) {
-  }
-  throw std::runtime_error(std::string("GlFrame: OpenGL error ") + std::to_string(e) + " in " + where);
-}
+void check(const char* where) { gl::check_error("GlFrame", where); }
 
 // The features the GPU passes need of the context, or "" when it has them all.
 std::string missing_features(const GlFeatures& f) {
@@ -182,7 +170,7 @@ GlFrame::GlFrame(GlBackend& backend) : backend_(backend) {
   unavailable_ = missing_features(context.features());
   if (!unavailable_.empty()) return;
   const std::string tonemap = std::string("#version 330 core\n") + kTonemapCommon + kTonemapFragment;
-  tonemap_program_ = gl::link_program(kFullscreenVertex, tonemap.c_str(), "GlFrame tone map");
+  tonemap_program_ = gl::link_program(gl::kFullscreenVertex, tonemap.c_str(), "GlFrame tone map");
   const GlFeatures& features = backend_.context().features();
   if (features.at_least(4, 3)) {
     const std::string compute = std::string("#version 430 core\n") + kTonemapCommon + kTonemapCompute;
@@ -193,7 +181,7 @@ GlFrame::GlFrame(GlBackend& backend) : backend_(backend) {
     }
   }
   compute_faster_ = tonemap_compute_ != 0 && features.compute_pays();
-  overlay_program_ = gl::link_program(kFullscreenVertex, kOverlayFragment, "GlFrame overlay");
+  overlay_program_ = gl::link_program(gl::kFullscreenVertex, kOverlayFragment, "GlFrame overlay");
   glGenVertexArrays(1, &vao_);
   check("GlFrame()");
 }

@@ -16,12 +16,6 @@ namespace fovea::render {
 
 namespace {
 
-constexpr const char* kFullscreenVertex = R"(#version 330 core
-void main() {
-  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-)";
 
 // lee_mipmap.cpp's constants and eq. 4.6, shared by the passes.
 constexpr const char* kCommon = R"(#version 330 core
@@ -237,25 +231,17 @@ void main() {
 }
 )";
 
-void check(const char* where) {
-  const GLenum e = glGetError();
-  if (e == GL_NO_ERROR) return;
-  while (glGetError() != GL_NO_ERROR) {
-  }
-  throw std::runtime_error(std::string("GlLeeMipmap: OpenGL error ") + std::to_string(e) + " in " + where);
-}
+void check(const char* where) { gl::check_error("GlLeeMipmap", where); }
 
 unsigned link(const char* body, const char* what) {
   const std::string source = std::string(kCommon) + body;
-  return gl::link_program(kFullscreenVertex, source.c_str(), what);
+  return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
 }
 
 int mip_size(std::uint32_t n, int level) { return std::max(1, static_cast<int>(n >> level)); }
 
 void bind(int unit, GLenum target, unsigned texture, unsigned program, const char* name) {
-  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
-  glBindTexture(target, texture);
-  glUniform1i(glGetUniformLocation(program, name), unit);
+  gl::bind_sampler(unit, texture, program, name, target);
 }
 
 void delete_texture(unsigned& t) {
@@ -449,44 +435,13 @@ void GlLeeMipmap::run_image(const dof::DofInput& in, const dof::LeeMipmapSetting
   const std::uint32_t w = in.width, h = in.height;
   out.assign(in.pixels(), glm::vec3(0.0f));
   if (in.pixels() == 0 || in.color == nullptr) return;
-  // Up, rows flipped to OpenGL's bottom-up order.
-  const auto upload = [&](unsigned& texture, GLenum format, GLenum channels, const float* data, std::size_t per_pixel) {
-    if (texture == 0) glGenTextures(1, &texture);
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_2D, texture);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    staging_.resize(in.pixels() * per_pixel);
-    const std::size_t row = std::size_t{w} * per_pixel;
-    for (std::uint32_t y = 0; y < h; ++y) std::memcpy(&staging_[std::size_t{h - 1 - y} * row], data + y * row, row * sizeof(float));
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(format), static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0,
-                 channels, GL_FLOAT, staging_.data());
-  };
-  upload(upload_color_, GL_RGB32F, GL_RGB, &in.color[0].x, 3);
-  if (in.depth != nullptr) upload(upload_depth_, GL_R32F, GL_RED, in.depth, 1);
+  const unsigned color = gl::upload_top_first(upload_color_, GL_RGB32F, GL_RGB, &in.color[0].x, w, h, 3, staging_);
+  const unsigned depth = gl::upload_top_first(upload_depth_, GL_R32F, GL_RED, in.depth, w, h, 1, staging_);
   glQueryCounter(queries_[0], GL_TIMESTAMP);
-  run(GlDofInput{upload_color_, in.depth != nullptr ? upload_depth_ : 0u, w, h}, in.coc, s);
+  run(GlDofInput{color, depth, w, h}, in.coc, s);
   glQueryCounter(queries_[1], GL_TIMESTAMP);
-  // Back, RGBA to RGB, rows flipped to top-down.
-  staging_.resize(in.pixels() * 4);
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, output_, 0);
-  glReadBuffer(GL_COLOR_ATTACHMENT0);
-  glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glReadPixels(0, 0, static_cast<GLsizei>(w), static_cast<GLsizei>(h), GL_RGBA, GL_FLOAT, staging_.data());
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  for (std::uint32_t y = 0; y < h; ++y)
-    for (std::uint32_t x = 0; x < w; ++x) {
-      const float* src = &staging_[(std::size_t{h - 1 - y} * w + x) * 4];
-      out[std::size_t{y} * w + x] = {src[0], src[1], src[2]};
-    }
-  if (gpu_ms != nullptr) {
-    GLuint64 t0 = 0, t1 = 0;
-    glGetQueryObjectui64v(queries_[0], GL_QUERY_RESULT, &t0);
-    glGetQueryObjectui64v(queries_[1], GL_QUERY_RESULT, &t1);
-    *gpu_ms = t1 >= t0 ? static_cast<double>(t1 - t0) * 1e-6 : 0.0;
-  }
+  gl::read_rgb_top_first(fbo_, output_, w, h, out, staging_);
+  if (gpu_ms != nullptr) *gpu_ms = gl::elapsed_ms(queries_);
   check("GlLeeMipmap::run_image");
 }
 

@@ -12,12 +12,6 @@ namespace fovea::render {
 
 namespace {
 
-constexpr const char* kFullscreenVertex = R"(#version 330 core
-void main() {
-  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-)";
 
 // The state per pixel: .x the object met last, .y the objects met behind the visible one (low 16
 // bits), kChosen when this step's layer is the one asked for, kDone once resolved.
@@ -83,13 +77,7 @@ void main() {
 constexpr GLenum kBuffers[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
                                 GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
 
-void check(const char* where) {
-  const GLenum e = glGetError();
-  if (e == GL_NO_ERROR) return;
-  while (glGetError() != GL_NO_ERROR) {
-  }
-  throw std::runtime_error(std::string("GlPeeling: OpenGL error ") + std::to_string(e) + " in " + where);
-}
+void check(const char* where) { gl::check_error("GlPeeling", where); }
 
 void complete(const char* what) {
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
@@ -111,14 +99,12 @@ unsigned texture(GLenum format, GLenum channels, GLenum type, std::uint32_t w, s
 }
 
 void bind(int unit, unsigned texture, unsigned program, const char* name) {
-  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
-  glBindTexture(GL_TEXTURE_2D, texture);
-  glUniform1i(glGetUniformLocation(program, name), unit);
+  gl::bind_sampler(unit, texture, program, name);
 }
 
 unsigned link(const char* body, const char* what) {
   const std::string source = std::string(kStateBits) + body;
-  return gl::link_program(kFullscreenVertex, source.c_str(), what);
+  return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
 }
 
 }  // namespace

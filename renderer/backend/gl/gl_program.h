@@ -1,10 +1,16 @@
 #pragma once
-// Small helpers for GLSL programs: compile, link, and turn a failure into an exception carrying
-// the driver's info log. Header-only; needs a current context.
+// Small helpers for GLSL programs and the GPU passes: compile, link, and turn a failure into an
+// exception carrying the driver's info log; the full-screen triangle every image pass draws; GL
+// errors as exceptions; images with row 0 at the top up to and back from textures. Header-only;
+// needs a current context.
 #include <epoxy/gl.h>
 
+#include <cstring>
 #include <stdexcept>
 #include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
 
 namespace fovea::render::gl {
 
@@ -70,6 +76,78 @@ inline GLuint link_compute_program(const char* source, const char* what) {
   glDetachShader(program, cs);
   glDeleteShader(cs);
   return checked_link(program, what);
+}
+
+// One triangle over the viewport (draw 3 vertices, no buffers); the fragment shaders address texels
+// with gl_FragCoord.
+inline constexpr const char* kFullscreenVertex = R"(#version 330 core
+void main() {
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+)";
+
+// Throws std::runtime_error("<who>: OpenGL error N in <where>") when GL reports an error (and clears
+// the rest of the queue).
+inline void check_error(const char* who, const char* where) {
+  const GLenum e = glGetError();
+  if (e == GL_NO_ERROR) return;
+  while (glGetError() != GL_NO_ERROR) {
+  }
+  throw std::runtime_error(std::string(who) + ": OpenGL error " + std::to_string(e) + " in " + where);
+}
+
+// A 2D texture on texture unit `unit`, as `program`'s sampler `name` (the program in use).
+inline void bind_sampler(int unit, unsigned texture, unsigned program, const char* name, GLenum target = GL_TEXTURE_2D) {
+  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
+  glBindTexture(target, texture);
+  glUniform1i(glGetUniformLocation(program, name), unit);
+}
+
+// `data` (w x h pixels of `per_pixel` floats, row 0 at the top; null: nothing) into `texture` (made
+// on first use, nearest filtering), rows flipped to OpenGL's bottom-up order. Returns the texture, 0
+// for no data.
+inline unsigned upload_top_first(unsigned& texture, GLenum format, GLenum channels, const float* data, std::uint32_t w,
+                                 std::uint32_t h, std::size_t per_pixel, std::vector<float>& staging) {
+  if (data == nullptr) return 0u;
+  if (texture == 0) glGenTextures(1, &texture);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, texture);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  const std::size_t row = std::size_t{w} * per_pixel;
+  staging.resize(row * h);
+  for (std::uint32_t y = 0; y < h; ++y) std::memcpy(&staging[std::size_t{h - 1 - y} * row], data + y * row, row * sizeof(float));
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(format), static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0,
+               channels, GL_FLOAT, staging.data());
+  return texture;
+}
+
+// The lower-left w x h of an RGBA float texture, through `fbo`, as RGB with row 0 at the top.
+inline void read_rgb_top_first(unsigned fbo, unsigned texture, std::uint32_t w, std::uint32_t h,
+                               std::vector<glm::vec3>& out, std::vector<float>& staging) {
+  staging.resize(std::size_t{w} * h * 4);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, texture, 0);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, static_cast<GLsizei>(w), static_cast<GLsizei>(h), GL_RGBA, GL_FLOAT, staging.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  out.resize(std::size_t{w} * h);
+  for (std::uint32_t y = 0; y < h; ++y)
+    for (std::uint32_t x = 0; x < w; ++x) {
+      const float* src = &staging[(std::size_t{h - 1 - y} * w + x) * 4];
+      out[std::size_t{y} * w + x] = {src[0], src[1], src[2]};
+    }
+}
+
+// Milliseconds between two GL_TIMESTAMP queries (waits for their results).
+inline double elapsed_ms(const unsigned (&queries)[2]) {
+  GLuint64 t0 = 0, t1 = 0;
+  glGetQueryObjectui64v(queries[0], GL_QUERY_RESULT, &t0);
+  glGetQueryObjectui64v(queries[1], GL_QUERY_RESULT, &t1);
+  return t1 >= t0 ? static_cast<double>(t1 - t0) * 1e-6 : 0.0;
 }
 
 }  // namespace fovea::render::gl

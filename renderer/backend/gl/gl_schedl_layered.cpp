@@ -16,12 +16,6 @@ namespace fovea::render {
 
 namespace {
 
-constexpr const char* kFullscreenVertex = R"(#version 330 core
-void main() {
-  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-)";
 
 constexpr const char* kCommon = R"(#version 330 core
 const float kInf = uintBitsToFloat(0x7f800000u);
@@ -157,18 +151,12 @@ void main() {
 }
 )";
 
-void check(const char* where) {
-  const GLenum e = glGetError();
-  if (e == GL_NO_ERROR) return;
-  while (glGetError() != GL_NO_ERROR) {
-  }
-  throw std::runtime_error(std::string("GlSchedlLayered: OpenGL error ") + std::to_string(e) + " in " + where);
-}
+void check(const char* where) { gl::check_error("GlSchedlLayered", where); }
 
 unsigned link(std::initializer_list<const char*> parts, const char* what) {
   std::string source = kCommon;
   for (const char* p : parts) source += p;
-  return gl::link_program(kFullscreenVertex, source.c_str(), what);
+  return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
 }
 
 unsigned rgba32f(std::uint32_t w, std::uint32_t h) {
@@ -183,9 +171,7 @@ unsigned rgba32f(std::uint32_t w, std::uint32_t h) {
 }
 
 void bind(int unit, unsigned texture, unsigned program, const char* name) {
-  glActiveTexture(static_cast<GLenum>(GL_TEXTURE0 + unit));
-  glBindTexture(GL_TEXTURE_2D, texture);
-  glUniform1i(glGetUniformLocation(program, name), unit);
+  gl::bind_sampler(unit, texture, program, name);
 }
 
 void del(unsigned& t) {
@@ -412,25 +398,10 @@ dof::SchedlStats GlSchedlLayered::run_image(const dof::DofInput& in, const std::
   const std::size_t n = 1 + peeled.size();
   upload_color_.resize(n, 0);
   upload_depth_.resize(n, 0);
-  // Up, rows flipped to OpenGL's bottom-up order.
-  const auto upload = [&](unsigned& texture, GLenum format, GLenum channels, const float* data, std::size_t per_pixel) {
-    if (data == nullptr) return 0u;
-    if (texture == 0) glGenTextures(1, &texture);
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_2D, texture);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    staging_.resize(in.pixels() * per_pixel);
-    const std::size_t row = std::size_t{w} * per_pixel;
-    for (std::uint32_t y = 0; y < h; ++y) std::memcpy(&staging_[std::size_t{h - 1 - y} * row], data + y * row, row * sizeof(float));
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(format), static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0,
-                 channels, GL_FLOAT, staging_.data());
-    return texture;
-  };
   const auto as_gl = [&](std::size_t l, const glm::vec3* color, const float* depth) {
-    return GlDofInput{upload(upload_color_[l], GL_RGB32F, GL_RGB, color != nullptr ? &color[0].x : nullptr, 3),
-                      upload(upload_depth_[l], GL_R32F, GL_RED, depth, 1), w, h};
+    return GlDofInput{gl::upload_top_first(upload_color_[l], GL_RGB32F, GL_RGB, color != nullptr ? &color[0].x : nullptr,
+                                           w, h, 3, staging_),
+                      gl::upload_top_first(upload_depth_[l], GL_R32F, GL_RED, depth, w, h, 1, staging_), w, h};
   };
   const GlDofInput visible = as_gl(0, in.color, in.depth);
   std::vector<GlDofInput> layers;
@@ -438,25 +409,8 @@ dof::SchedlStats GlSchedlLayered::run_image(const dof::DofInput& in, const std::
   glQueryCounter(queries_[0], GL_TIMESTAMP);
   const dof::SchedlStats stats = run(visible, layers, in.coc, s);
   glQueryCounter(queries_[1], GL_TIMESTAMP);
-  // Back, RGBA to RGB, rows flipped to top-down.
-  staging_.resize(in.pixels() * 4);
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, output_, 0);
-  glReadBuffer(GL_COLOR_ATTACHMENT0);
-  glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glReadPixels(0, 0, static_cast<GLsizei>(w), static_cast<GLsizei>(h), GL_RGBA, GL_FLOAT, staging_.data());
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  for (std::uint32_t y = 0; y < h; ++y)
-    for (std::uint32_t x = 0; x < w; ++x) {
-      const float* src = &staging_[(std::size_t{h - 1 - y} * w + x) * 4];
-      out[std::size_t{y} * w + x] = {src[0], src[1], src[2]};
-    }
-  if (gpu_ms != nullptr) {
-    GLuint64 t0 = 0, t1 = 0;
-    glGetQueryObjectui64v(queries_[0], GL_QUERY_RESULT, &t0);
-    glGetQueryObjectui64v(queries_[1], GL_QUERY_RESULT, &t1);
-    *gpu_ms = t1 >= t0 ? static_cast<double>(t1 - t0) * 1e-6 : 0.0;
-  }
+  gl::read_rgb_top_first(fbo_, output_, w, h, out, staging_);
+  if (gpu_ms != nullptr) *gpu_ms = gl::elapsed_ms(queries_);
   check("GlSchedlLayered::run_image");
   return stats;
 }
