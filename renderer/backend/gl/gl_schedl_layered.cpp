@@ -115,7 +115,9 @@ void main() {
 }
 )";
 
-// Step 3: one box of radius u_r along u_dir, edges clamped.
+// Step 3: one box of radius u_r along u_dir, edges clamped. Its 2r + 1 texels are read as r bilinear
+// samples half-way between neighbours (the texture unit averages each pair, weight 1/2: exact in any
+// filter precision; GL_CLAMP_TO_EDGE clamps as the CPU's indices do) and the last one alone.
 constexpr const char* kBox = R"(
 uniform sampler2D u_src;
 uniform ivec2 u_size, u_dir;
@@ -123,8 +125,10 @@ uniform int u_r;
 out vec4 o;
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
+  vec2 centre = vec2(p) + 0.5, size = vec2(u_size), dir = vec2(u_dir);
   vec4 sum = vec4(0.0);
-  for (int j = -u_r; j <= u_r; ++j) sum += texelFetch(u_src, clamp(p + j * u_dir, ivec2(0), u_size - 1), 0);
+  for (int j = -u_r; j < u_r; j += 2) sum += 2.0 * texture(u_src, (centre + dir * (float(j) + 0.5)) / size);
+  sum += texelFetch(u_src, clamp(p + u_r * u_dir, ivec2(0), u_size - 1), 0);
   o = sum * (1.0 / float(2 * u_r + 1));
 }
 )";
@@ -165,8 +169,11 @@ unsigned rgba32f(std::uint32_t w, std::uint32_t h) {
   glBindTexture(GL_TEXTURE_2D, t);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0, GL_RGBA, GL_FLOAT,
                nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  // Bilinear for the box blur's paired reads (the other passes fetch texels); edges clamped.
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   return t;
 }
 

@@ -10,7 +10,8 @@
 //      per axis (schedl_box_radii), edges clamped;
 //   4. the composite (eq. 13) normalised by its alpha (§3.3.1), clamped to the largest input channel;
 //      where nothing covers a pixel, the input.
-// Differences from the CPU: each box blur sums its 2r + 1 taps (the CPU keeps a running sum), and
+// Differences from the CPU: each box blur sums its 2r + 1 taps, read in bilinear pairs (the CPU keeps
+// a running sum), and
 // anchors and depths are compared in float; tests/gl/test_gl_schedl_layered.cpp states the tolerance.
 // The input layers are packed (colour and depth in one texture each) so that eight of them and an
 // accumulator fit OpenGL 3.3's 16 texture units.
