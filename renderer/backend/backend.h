@@ -80,6 +80,16 @@ class Backend {
   virtual void set_scene(const Scene& scene) = 0;
   // Renders the scene set last at the given time into `out` (resized to the camera's resolution).
   virtual void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) = 0;
+  // The depth-peeled layers 1..out.size() behind the visible one (settings.peel is ignored), layer k
+  // into out[k - 1]. By default one render per layer; the raster backend finds them all in one
+  // peeling loop.
+  virtual void render_peeled_layers(const FrameTime& time, const BackendSettings& settings, std::vector<GBuffer>& out) {
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      BackendSettings layer = settings;
+      layer.peel = static_cast<std::uint32_t>(k + 1);
+      render(time, layer, out[k]);
+    }
+  }
   // The GPU-resident frame (backend/gpu_frame.h), or null where the backend has none (Embree). Owned
   // by the backend; check its unavailable_reason() before use.
   virtual GpuFrame* gpu_frame() { return nullptr; }

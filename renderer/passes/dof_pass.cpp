@@ -67,15 +67,12 @@ const dof::RgbImage& DofPass::run(Backend& backend, const Scene& scene, const GB
     // M depth-peeled layers where the backend peels (both do; a backend that cannot: M = 1).
     const std::uint32_t m = peels ? d.layers : 1u;
     peeled_.resize(m > 0 ? m - 1 : 0);
+    BackendSettings bs;
+    bs.shadows = d.shadows;
+    bs.lod_levels = lod_levels;
+    backend.render_peeled_layers(time, bs, peeled_);
     std::vector<dof::PeeledLayer> layers;
-    for (std::uint32_t k = 0; k < peeled_.size(); ++k) {
-      BackendSettings bs;
-      bs.shadows = d.shadows;
-      bs.peel = k + 1;
-      bs.lod_levels = lod_levels;
-      backend.render(time, bs, peeled_[k]);
-      layers.push_back({peeled_[k].color.data(), peeled_[k].depth.data()});
-    }
+    for (const GBuffer& p : peeled_) layers.push_back({p.color.data(), p.depth.data()});
     dof::schedl_layered(in, layers, dof::SchedlSettings{}, color_);
     return color_;
   }

@@ -876,6 +876,22 @@ TEST_F(BackendAgreementTest, PeeledLayersAgreeWithTheRayTracer) {
   }
 }
 
+// Several layers in one peeling loop are the layers rendered one at a time.
+TEST_F(GlBackendTest, PeeledLayersInOneLoopAreTheLayersRenderedOneByOne) {
+  backend_->set_scene(testing::many_objects(40, 96, 72));
+  std::vector<GBuffer> together(2);
+  backend_->render_peeled_layers({}, {}, together);
+  for (std::uint32_t n = 1; n <= 2; ++n) {
+    BackendSettings p;
+    p.peel = n;
+    GBuffer alone;
+    backend_->render({}, p, alone);
+    EXPECT_EQ(together[n - 1].object_id, alone.object_id) << "layer " << n;
+    EXPECT_EQ(together[n - 1].depth, alone.depth) << "layer " << n;
+    EXPECT_EQ(together[n - 1].color, alone.color) << "layer " << n;
+  }
+}
+
 TEST_F(GlBackendTest, APeeledRenderLeavesTheFramesGBufferTextures) {
   const Scene s = testing::cornell_box(64, 48);
   backend_->set_scene(s);

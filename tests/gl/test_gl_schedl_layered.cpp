@@ -36,7 +36,6 @@ using dof::test::DofImage;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-
 void expect_bounded(const RgbImage& out, float max_in, const std::string& what) {
   for (const glm::vec3& c : out)
     for (int k = 0; k < 3; ++k) {

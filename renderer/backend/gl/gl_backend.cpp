@@ -601,6 +601,19 @@ void GlBackend::render_peeled(const FrameTime& time, const BackendSettings& sett
   check_gl("GlBackend::render (peeled)");
 }
 
+void GlBackend::render_peeled_layers(const FrameTime& time, const BackendSettings& settings, std::vector<GBuffer>& out) {
+  if (out.empty()) return;
+  const auto layers = static_cast<std::uint32_t>(out.size());
+  const GlPeeling& peeled = peel_on_gpu(time, settings, layers);
+  const Camera& cam = scene_->camera;
+  for (std::uint32_t n = 1; n <= layers; ++n) {
+    GBuffer& g = out[n - 1];
+    g.resize(settings.width > 0 ? settings.width : cam.width, settings.height > 0 ? settings.height : cam.height);
+    read_back_from(peeled.result_fbo(n), settings.readback, g);
+  }
+  check_gl("GlBackend::render_peeled_layers");
+}
+
 const GlPeeling& GlBackend::peel_on_gpu(const FrameTime& time, const BackendSettings& settings, std::uint32_t layers) {
   check_settings(settings);
   if (!scene_) set_scene(Scene{});

@@ -63,6 +63,8 @@ class GlBackend final : public Backend {
   // settings.shadows is ignored: the raster backend has no shadows in this step. Renders the
   // background only (default camera) if no scene was set, like the Embree backend.
   void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override;
+  // Every layer in one peeling loop (layer n costs what layers 1..n do), each read back.
+  void render_peeled_layers(const FrameTime& time, const BackendSettings& settings, std::vector<GBuffer>& out) override;
 
   // Renders without reading back: for benchmarks of the GPU side alone (ends with glFinish).
   void render_without_readback(const FrameTime& time);
