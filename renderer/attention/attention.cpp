@@ -603,21 +603,23 @@ void count_object_pixels(const std::vector<std::uint32_t>& ids, std::size_t npix
   }
 }
 
-// B_s (eq. 3.2) and B_m (eq. 3.3) per visible object; `farthest_vertex` gives eq. 3.3's p of a mesh.
-template <class FarthestVertex>
-void measure_size_and_motion(std::vector<Slot>& slots, std::size_t npix, double time_s, double previous_time_s,
-                             const FarthestVertex& farthest_vertex) {
+// B_m (eq. 3.3): the displacement over the frame of the vertex `p` farthest from the object's
+// centre, so that self-rotation counts as well as translation. An animation yielding a non-finite
+// transform makes the object's motion 0 (it cannot be measured; it must not poison the maps).
+float measure_motion(const Object& o, glm::vec3 p, double time_s, double previous_time_s) {
+  const glm::mat4 now = o.transform_at(time_s).matrix();
+  const glm::mat4 before = o.transform_at(previous_time_s).matrix();
+  const glm::vec3 a = glm::vec3(now * glm::vec4(p, 1.0f)), b = glm::vec3(before * glm::vec4(p, 1.0f));
+  const float d = glm::length(a - b);
+  return (finite(a) && finite(b) && std::isfinite(d)) ? d : 0.0f;
+}
+
+// B_s (eq. 3.2) and B_m (eq. 3.3) per visible object; `motion` gives eq. 3.3's B_m of an object.
+template <class Motion>
+void measure_size_and_motion(std::vector<Slot>& slots, std::size_t npix, const Motion& motion) {
   for (Slot& s : slots) {
     s.size = static_cast<float>(static_cast<double>(s.full_pixels) / static_cast<double>(npix));
-    // B_m: the displacement over the frame of the vertex farthest from the object's centre, so that
-    // self-rotation counts as well as translation. An animation yielding a non-finite transform
-    // makes the object's motion 0 (it cannot be measured; it must not poison the maps).
-    const glm::vec3 p = farthest_vertex(s.object->mesh);
-    const glm::mat4 now = s.object->transform_at(time_s).matrix();
-    const glm::mat4 before = s.object->transform_at(previous_time_s).matrix();
-    const glm::vec3 a = glm::vec3(now * glm::vec4(p, 1.0f)), b = glm::vec3(before * glm::vec4(p, 1.0f));
-    const float d = glm::length(a - b);
-    s.motion = (finite(a) && finite(b) && std::isfinite(d)) ? d : 0.0f;
+    s.motion = motion(*s.object);
   }
 }
 
@@ -761,19 +763,31 @@ double kalman_time_step(double time_s, double previous_time_s) {
   return dt;
 }
 
+// The pixel stage's sums of the slots seen in the map, with each one's median depth.
+std::vector<ObjectPixels> object_pixels(std::vector<Slot>& slots) {
+  std::vector<ObjectPixels> out;
+  out.reserve(slots.size());
+  for (Slot& s : slots) {
+    if (s.n == 0) continue;
+    auto mid = s.depths.begin() + static_cast<std::ptrdiff_t>(s.depths.size() / 2);
+    std::nth_element(s.depths.begin(), mid, s.depths.end());
+    out.push_back(ObjectPixels{s.object->id, s.n, s.sum_saliency, s.sum_x, s.sum_y, static_cast<double>(*mid)});
+  }
+  return out;
+}
+
 // Eq. 3.7: S^_o = T_i / n sum S_p over the object's pixels, with their centroid and median depth.
-ObjectAttention object_saliency(const Object& o, Slot& s) {
+ObjectAttention object_saliency(const Object& o, const ObjectPixels& p, std::size_t npix, float motion) {
   ObjectAttention a;
   a.id = o.id;
-  a.pixels = s.n;
-  a.size = s.size;
-  a.motion = s.motion;
-  a.saliency = static_cast<double>(o.task_importance) * s.sum_saliency / static_cast<double>(s.n);  // eq. 3.7
-  a.screen_x = s.sum_x / static_cast<double>(s.n);
-  a.screen_y = s.sum_y / static_cast<double>(s.n);
-  auto mid = s.depths.begin() + static_cast<std::ptrdiff_t>(s.depths.size() / 2);
-  std::nth_element(s.depths.begin(), mid, s.depths.end());
-  a.depth_m = *mid;
+  a.pixels = p.pixels;
+  a.size = static_cast<double>(static_cast<float>(static_cast<double>(p.pixels) / static_cast<double>(npix)));
+  a.motion = motion;
+  const auto n = static_cast<double>(p.pixels);
+  a.saliency = static_cast<double>(o.task_importance) * p.sum_saliency / n;  // eq. 3.7
+  a.screen_x = p.sum_x / n;
+  a.screen_y = p.sum_y / n;
+  a.depth_m = p.depth_m;
   return a;
 }
 
@@ -800,16 +814,23 @@ void spatial_emphasis(const Object& o, const SpatialContext& ctx, double time_s,
   if (!std::isfinite(a.spatial)) a.spatial = 0;
 }
 
-// The objects eq. 3.7 lists (foreground, with pixels in the map), with S^_o and T_s; `spatial_now`
-// gets each one's T_s.
-void list_objects(std::vector<Slot>& slots, const SpatialContext& ctx, double time_s, double previous_time_s,
+// The objects eq. 3.7 lists (foreground objects of the scene with pixels in the map), with S^_o and
+// T_s; `spatial_now` gets each one's T_s. `motion` gives an object's B_m.
+template <class Motion>
+void list_objects(const std::vector<ObjectPixels>& pixels, const Scene& scene, std::size_t npix,
+                  const SpatialContext& ctx, double time_s, double previous_time_s, const Motion& motion,
                   std::vector<ObjectAttention>& objects, std::map<std::uint32_t, double>& spatial_now) {
-  for (Slot& s : slots) {
-    const Object& o = *s.object;
-    if (!(o.task_importance > 0) || s.n == 0) continue;  // background objects and invisible ones
-    ObjectAttention a = object_saliency(o, s);
-    spatial_emphasis(o, ctx, time_s, previous_time_s, a);
-    spatial_now[o.id] = a.spatial;
+  std::unordered_map<std::uint32_t, const Object*> by_id;
+  by_id.reserve(scene.objects.size() * 2);
+  for (const Object& o : scene.objects) by_id.emplace(o.id, &o);
+  for (const ObjectPixels& p : pixels) {
+    const auto it = p.id != 0 && p.pixels > 0 ? by_id.find(p.id) : by_id.end();
+    const Object* o = it != by_id.end() ? it->second : nullptr;
+    if (o == nullptr || !(o->task_importance > 0)) continue;  // not an object, invisible, or background
+    if (spatial_now.count(o->id) != 0) continue;               // listed twice: the first counts
+    ObjectAttention a = object_saliency(*o, p, npix, motion(*o));
+    spatial_emphasis(*o, ctx, time_s, previous_time_s, a);
+    spatial_now[o->id] = a.spatial;
     objects.push_back(a);
   }
 }
@@ -905,6 +926,24 @@ void AttentionTracker::filter_attention(std::vector<ObjectAttention>& objects, s
   }
 }
 
+float AttentionTracker::object_motion(const Object& o, double time_s, double previous_time_s) {
+  return measure_motion(o, farthest_vertex(o.mesh), time_s, previous_time_s);
+}
+
+void AttentionTracker::object_stage(const std::vector<ObjectPixels>& pixels, std::size_t npix, const Scene& scene,
+                                    double time_s, double previous_time_s) {
+  AttentionFrame& f = frame_;
+  const SpatialContext context = spatial_context(scene.camera, settings_, time_s, previous_time_s);
+  const auto lambda = static_cast<std::size_t>(settings_.temporal_window);
+  const double dt = kalman_time_step(time_s, previous_time_s);
+  std::map<std::uint32_t, double> spatial_now;  // T_s of this frame, per listed object
+  const auto motion = [&](const Object& o) { return object_motion(o, time_s, previous_time_s); };
+  list_objects(pixels, scene, npix, context, time_s, previous_time_s, motion, f.objects, spatial_now);
+  age_tracks(spatial_now, lambda);
+  filter_attention(f.objects, lambda, dt);
+  rank_by_attention(f);
+}
+
 const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& scene, double time_s,
                                                double previous_time_s) {
   const auto start = std::chrono::steady_clock::now();
@@ -923,8 +962,7 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
   resample_gbuffer(src, grid, n, settings_.resample, sc.planes, f.ids, sc.map_depth);
   f.resample_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   count_object_pixels(f.ids, npix, table, sc.map_slot);
-  measure_size_and_motion(table.slots, npix, time_s, previous_time_s,
-                          [this](const std::shared_ptr<const Mesh>& mesh) { return farthest_vertex(mesh); });
+  measure_size_and_motion(table.slots, npix, [&](const Object& o) { return object_motion(o, time_s, previous_time_s); });
   paint_object_planes(sc.map_slot, table.slots, npix, sc.planes);
   contrast_maps(sc.planes, sc.magnified, n, settings_.groups, f.contrast);
   saliency_map(f.contrast, settings_.groups, npix, sc.sbar, f.saliency);
@@ -932,15 +970,27 @@ const AttentionFrame& AttentionTracker::update(const GBuffer& g, const Scene& sc
 
   // Object attention (§3.2): eq. 3.7, the top-down contexts of eqs. 3.8-3.10, the Kalman filter.
   accumulate_object_pixels(sc.map_slot, f.saliency, sc.map_depth, n, table.slots);
-  const SpatialContext context = spatial_context(scene.camera, settings_, time_s, previous_time_s);
-  const auto lambda = static_cast<std::size_t>(settings_.temporal_window);
-  const double dt = kalman_time_step(time_s, previous_time_s);
-  std::map<std::uint32_t, double> spatial_now;  // T_s of this frame, per listed object
-  list_objects(table.slots, context, time_s, previous_time_s, f.objects, spatial_now);
-  age_tracks(spatial_now, lambda);
-  filter_attention(f.objects, lambda, dt);
-  rank_by_attention(f);
+  object_stage(object_pixels(table.slots), npix, scene, time_s, previous_time_s);
   f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return f;
+}
+
+const AttentionFrame& AttentionTracker::update_objects(const std::vector<ObjectPixels>& pixels, int map_size,
+                                                       const Scene& scene, double time_s, double previous_time_s,
+                                                       double pixel_seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  if (map_size < 1) throw std::invalid_argument("AttentionTracker::update_objects: map_size must be >= 1");
+  AttentionFrame& f = frame_;
+  f.map_width = f.map_height = map_size;
+  f.saliency.clear();
+  for (auto& c : f.contrast) c.clear();
+  f.ids.clear();
+  f.objects.clear();
+  f.most_attended = 0;
+  const auto un = static_cast<std::size_t>(map_size);
+  object_stage(pixels, un * un, scene, time_s, previous_time_s);
+  f.saliency_seconds = f.resample_seconds = pixel_seconds;
+  f.seconds = pixel_seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return f;
 }
 

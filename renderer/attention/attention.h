@@ -90,6 +90,17 @@ struct AttentionFrame {
   double resample_seconds = 0;   // of which the resampling of the G-buffer to the map (and HLS, eq. 3.1)
 };
 
+// What the pixel stage (§3.1 and eq. 3.7's sums) hands the object stage for one scene object seen
+// in the map: the CPU's update() makes it from its own maps, the GPU's pixel stage
+// (backend/gl/gl_attention.h) reads it back, a few values per object.
+struct ObjectPixels {
+  std::uint32_t id = 0;
+  std::size_t pixels = 0;       // n(k): its pixels in the map (the item buffer resampled nearest)
+  double sum_saliency = 0;      // the sum of S_p over them
+  double sum_x = 0, sum_y = 0;  // the sum of their centres, map coordinates normalised to [0, 1], y down
+  double depth_m = 0;           // the median of their view depths (nearest), clamped to [near, far]
+};
+
 class AttentionTracker {
  public:
   explicit AttentionTracker(AttentionSettings settings = {});
@@ -101,6 +112,15 @@ class AttentionTracker {
   // time_s on the first frame or after reset). Frames are expected in order; a gap of any length or
   // a time going backwards is handled (motion measured over the gap, never NaN).
   const AttentionFrame& update(const GBuffer& g, const Scene& scene, double time_s, double previous_time_s);
+  // The object stage alone (eqs. 3.7-3.10 and the Kalman filter, as update() runs it after its maps)
+  // on a pixel stage computed elsewhere: `pixels` for a map_size x map_size map, the objects in any
+  // order (ids that are not objects of `scene`, and objects without pixels, are not listed). The
+  // frame's maps stay empty; `pixel_seconds` is reported as the saliency and resampling time.
+  const AttentionFrame& update_objects(const std::vector<ObjectPixels>& pixels, int map_size, const Scene& scene,
+                                       double time_s, double previous_time_s, double pixel_seconds = 0);
+  // B_m of eq. 3.3 for `o` between the two times (0 when it cannot be measured): what the pixel
+  // stage paints into the motion plane.
+  float object_motion(const Object& o, double time_s, double previous_time_s);
   const AttentionFrame& last() const { return frame_; }
   const AttentionSettings& settings() const { return settings_; }
   void set_settings(const AttentionSettings& settings);  // resets the temporal state when needed
@@ -124,6 +144,9 @@ class AttentionTracker {
   };
   glm::vec3 farthest_vertex(const std::shared_ptr<const Mesh>& mesh);
   // The stages of update() that keep the per-object tracks (eqs. 3.8 and 3.10, the Kalman filter).
+  // The object stage of update() and update_objects(): eqs. 3.7-3.10, the filter, the ranking.
+  void object_stage(const std::vector<ObjectPixels>& pixels, std::size_t npix, const Scene& scene, double time_s,
+                    double previous_time_s);
   void age_tracks(const std::map<std::uint32_t, double>& spatial_now, std::size_t lambda);
   void filter_attention(std::vector<ObjectAttention>& objects, std::size_t lambda, double dt);
   static double temporal_context(Track& t, double spatial, std::size_t lambda);
