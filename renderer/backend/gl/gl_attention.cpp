@@ -1,0 +1,773 @@
+#include "backend/gl/gl_attention.h"
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <initializer_list>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+#include "backend/gl/gl_program.h"
+
+namespace fovea::render {
+
+namespace {
+
+using attention::AttentionSettings;
+using attention::FeatureGroups;
+using attention::ObjectPixels;
+
+// Per-object tables: slot s at texel (s % 1024, s / 1024); the sums' 16 bands of map rows at
+// ((s % 64) 16 + band, s / 64); the depth histograms' 256 bins at ((s % 4) 256 + bin, s / 4).
+constexpr int kSlotRow = 1024, kBands = 16, kBins = 256;
+constexpr int kReduceBlock = 8;
+
+constexpr const char* kSlotLayout = R"(
+ivec2 slot_texel(int s) { return ivec2(s & 1023, s >> 10); }
+// A float's bits as an unsigned integer in the float's order (the radix select's key).
+uint sortable(float v) {
+  uint b = floatBitsToUint(v);
+  return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
+}
+)";
+
+// 1. The G-buffer resampled to the map (resample_grid and resample_rows of attention.cpp): each map
+// pixel's box of source pixels (or the one under its centre), colour clamped to [0, 1] per source
+// pixel, summed per source column over the rows and then over the columns (the CPU's order), HLS and
+// eq. 3.1; ids and the per-object depth nearest. Map rows are stored top row first (texel row y is
+// map row y), as the CPU's; the G-buffer's rows are bottom-up.
+constexpr const char* kResample = R"(
+uniform sampler2D u_color, u_depth;
+uniform usampler2D u_ids, u_objects;
+uniform int u_n, u_objects_count;
+uniform ivec2 u_size;
+uniform bool u_nearest, u_has_image, u_has_color, u_has_depth, u_has_ids;
+uniform float u_near, u_far, u_inv_range;
+layout(location = 0) out vec4 o_image;   // L, hue a, hue b, B_d
+layout(location = 1) out uint o_slot;    // the object's slot + 1; 0: background or not an object
+layout(location = 2) out float o_depth;  // nearest view depth, for the median
+
+int ceil_div(int a, int b) { return a >= 0 ? (a + b - 1) / b : -((-a) / b); }
+// Source pixels [lo, hi) of map pixel k along an axis of s pixels: centres in [k, k + 1) s / n, so
+// lo = ceil(k s / n - 1/2) = ceil((2 k s - n) / 2 n); the centre pixel floor((k + 1/2) s / n).
+ivec3 source_range(int k, int s) {
+  int lo = clamp(ceil_div(2 * k * s - u_n, 2 * u_n), 0, s);
+  int hi = clamp(ceil_div(2 * (k + 1) * s - u_n, 2 * u_n), 0, s);
+  int centre = clamp(((2 * k + 1) * s) / (2 * u_n), 0, s - 1);
+  if (hi <= lo || u_nearest) { lo = centre; hi = centre + 1; }
+  return ivec3(lo, hi, centre);
+}
+ivec2 texel(int x, int y_top) { return ivec2(x, u_size.y - 1 - y_top); }
+float clamped(float c) { return isnan(c) ? 0.0 : clamp(c, 0.0, 1.0); }
+uint slot_of(uint id) {
+  if (id == 0u) return 0u;
+  int lo = 0, hi = u_objects_count;
+  while (lo < hi) {
+    int mid = (lo + hi) >> 1;
+    if (texelFetch(u_objects, slot_texel(mid), 0).r < id) lo = mid + 1; else hi = mid;
+  }
+  return (lo < u_objects_count && texelFetch(u_objects, slot_texel(lo), 0).r == id) ? uint(lo) + 1u : 0u;
+}
+// attention.cpp's hls(): lightness, and the hue vector (S cos H, S sin H).
+vec3 hls(vec3 c) {
+  float mx = max(c.r, max(c.g, c.b)), mn = min(c.r, min(c.g, c.b));
+  float l = 0.5 * (mx + mn), chroma = mx - mn;
+  if (!(chroma > 1e-6)) return vec3(l, 0.0, 0.0);
+  float sat = clamp(chroma / max(1e-6, 1.0 - abs(2.0 * l - 1.0)), 0.0, 1.0);
+  float h6;
+  if (mx == c.r) { h6 = (c.g - c.b) / chroma; if (h6 < 0.0) h6 += 6.0; }
+  else if (mx == c.g) h6 = (c.b - c.r) / chroma + 2.0;
+  else h6 = (c.r - c.g) / chroma + 4.0;
+  float a = clamp(h6, 0.0, 6.0) * 1.0471975511965976;  // 60 degrees
+  return vec3(l, sat * cos(a), sat * sin(a));
+}
+void main() {
+  ivec2 m = ivec2(gl_FragCoord.xy);
+  if (!u_has_image) { o_image = vec4(0.0); o_slot = 0u; o_depth = u_far; return; }
+  ivec3 cx = source_range(m.x, u_size.x), cy = source_range(m.y, u_size.y);
+  vec3 rgb = vec3(0.0);
+  float z = 0.0;
+  for (int sx = cx.x; sx < cx.y; ++sx) {
+    vec3 column = vec3(0.0);
+    float column_z = 0.0;
+    for (int sy = cy.x; sy < cy.y; ++sy) {
+      ivec2 t = texel(sx, sy);
+      if (u_has_color) {
+        vec3 c = texelFetch(u_color, t, 0).rgb;
+        column += vec3(clamped(c.r), clamped(c.g), clamped(c.b));
+      }
+      float d = u_far;  // background (id 0), NaN and no depth plane: the far plane
+      if (u_has_depth && (!u_has_ids || texelFetch(u_ids, t, 0).r != 0u)) {
+        float raw = texelFetch(u_depth, t, 0).r;
+        d = isnan(raw) ? u_far : clamp(raw, u_near, u_far);
+      }
+      column_z += d;
+    }
+    rgb += column;
+    z += column_z;
+  }
+  int count = (cx.y - cx.x) * (cy.y - cy.x);
+  float inv = count > 0 ? 1.0 / float(count) : 0.0;
+  rgb *= inv;
+  z = count > 0 ? z * inv : u_far;
+  o_image = vec4(hls(rgb), clamp((z - u_near) * u_inv_range, 0.0, 1.0));  // eq. 3.1
+  ivec2 t = texel(cx.z, cy.z);
+  uint id = u_has_ids ? texelFetch(u_ids, t, 0).r : 0u;
+  o_slot = slot_of(id);
+  float raw = texelFetch(u_depth, t, 0).r;
+  o_depth = (u_has_depth && id != 0u && !isnan(raw) && !isinf(raw)) ? clamp(raw, u_near, u_far) : u_far;
+}
+)";
+
+// 2, 7. One point per map pixel of an object, added into a per-object table (the GPU histogram):
+// mode 0 its pixel count, mode 1 (1, S_p, x, y) into its band of map rows, mode 2 one count into the
+// radix select's bin of its depth (u_shift: the bits below the digit).
+constexpr const char* kScatterVertex = R"(
+uniform usampler2D u_slots, u_select;
+uniform sampler2D u_saliency, u_map_depth;
+uniform int u_n, u_mode, u_shift;
+uniform ivec2 u_target;
+flat out vec4 v_value;
+void main() {
+  ivec2 p = ivec2(gl_VertexID % u_n, gl_VertexID / u_n);
+  uint slot1 = texelFetch(u_slots, p, 0).r;
+  gl_Position = vec4(2.0, 2.0, 0.0, 1.0);  // outside the viewport: clipped
+  v_value = vec4(1.0, 0.0, 0.0, 0.0);
+  if (slot1 == 0u) return;
+  int s = int(slot1) - 1;
+  ivec2 t;
+  if (u_mode == 0) {
+    t = slot_texel(s);
+  } else if (u_mode == 1) {
+    t = ivec2((s & 63) * 16 + p.y * 16 / u_n, s >> 6);
+    v_value = vec4(1.0, texelFetch(u_saliency, p, 0).r, (vec2(p) + 0.5) / float(u_n));
+  } else {
+    uvec2 st = texelFetch(u_select, slot_texel(s), 0).rg;
+    uint key = sortable(texelFetch(u_map_depth, p, 0).r);
+    if (key < st.x) return;
+    uint bin = (key - st.x) >> uint(u_shift);
+    if (bin >= 256u) return;
+    t = ivec2((s & 3) * 256 + int(bin), s >> 2);
+  }
+  gl_Position = vec4((vec2(t) + 0.5) / vec2(u_target) * 2.0 - 1.0, 0.0, 1.0);
+}
+)";
+constexpr const char* kScatterFragment = R"(#version 330 core
+flat in vec4 v_value;
+out vec4 o;
+void main() { o = v_value; }
+)";
+
+// 3. The size and motion planes: each object's B_s (its pixels over the map's) and B_m.
+constexpr const char* kPaint = R"(
+uniform usampler2D u_slots;
+uniform sampler2D u_counts, u_motion;
+uniform float u_pixels;
+out vec2 o;
+void main() {
+  uint slot1 = texelFetch(u_slots, ivec2(gl_FragCoord.xy), 0).r;
+  if (slot1 == 0u) { o = vec2(0.0); return; }
+  ivec2 t = slot_texel(int(slot1) - 1);
+  o = vec2(texelFetch(u_counts, t, 0).r / u_pixels, texelFetch(u_motion, t, 0).r);
+}
+)";
+
+// 4. One pyramid level from the one below (attention.cpp's downsample): 2x2 boxes, the rows
+// clamped at the bottom edge, an odd width's last texel the mean of its two rows.
+constexpr const char* kDown = R"(
+uniform sampler2D u_image, u_object;
+uniform ivec2 u_src;
+layout(location = 0) out vec4 o_image;
+layout(location = 1) out vec2 o_object;
+vec4 down(sampler2D t, ivec2 d) {
+  int y0 = min(2 * d.y, u_src.y - 1), y1 = min(2 * d.y + 1, u_src.y - 1), x0 = 2 * d.x;
+  if (x0 + 1 < u_src.x) {
+    return 0.25 * (texelFetch(t, ivec2(x0, y0), 0) + texelFetch(t, ivec2(x0 + 1, y0), 0) +
+                   texelFetch(t, ivec2(x0, y1), 0) + texelFetch(t, ivec2(x0 + 1, y1), 0));
+  }
+  return 0.5 * (texelFetch(t, ivec2(u_src.x - 1, y0), 0) + texelFetch(t, ivec2(u_src.x - 1, y1), 0));
+}
+void main() {
+  ivec2 d = ivec2(gl_FragCoord.xy);
+  o_image = down(u_image, d);
+  o_object = down(u_object, d).rg;
+}
+)";
+
+// 5. Eq. 3.4 per feature, every level at the map pixel; coarse levels magnified as attention.cpp's
+// Magnified (texel centres, clamp to edge; along rows first, then between rows).
+constexpr const char* kContrast = R"(
+uniform sampler2D u_i0, u_i1, u_i2, u_i3, u_i4, u_i5, u_i6, u_o0, u_o1, u_o2, u_o3, u_o4, u_o5, u_o6;
+uniform ivec2 u_dim[7];
+uniform int u_n;
+uniform bool u_image_group, u_object_group;
+layout(location = 0) out vec4 o_c0;  // C_l, C_h, C_d, C_s
+layout(location = 1) out vec4 o_c1;  // C_m
+vec4 magnified(sampler2D t, ivec2 m, ivec2 p) {
+  vec2 s = (vec2(p) + 0.5) * vec2(m) / float(u_n) - 0.5;
+  vec2 fl = floor(s), f = s - fl;
+  ivec2 j = ivec2(fl);
+  ivec2 i0 = clamp(j, ivec2(0), m - 1), i1 = clamp(j + 1, ivec2(0), m - 1);
+  vec4 a = texelFetch(t, i0, 0), b = texelFetch(t, ivec2(i1.x, i0.y), 0);
+  vec4 c = texelFetch(t, ivec2(i0.x, i1.y), 0), d = texelFetch(t, i1, 0);
+  vec4 top = a + f.x * (b - a), bottom = c + f.x * (d - c);
+  return top + f.y * (bottom - top);
+}
+float sane(float v) { return (isnan(v) || isinf(v) || v < 0.0) ? 0.0 : v; }
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 I[7], O[7];
+  I[0] = texelFetch(u_i0, p, 0);
+  O[0] = texelFetch(u_o0, p, 0);
+  I[1] = magnified(u_i1, u_dim[1], p); O[1] = magnified(u_o1, u_dim[1], p);
+  I[2] = magnified(u_i2, u_dim[2], p); O[2] = magnified(u_o2, u_dim[2], p);
+  I[3] = magnified(u_i3, u_dim[3], p); O[3] = magnified(u_o3, u_dim[3], p);
+  I[4] = magnified(u_i4, u_dim[4], p); O[4] = magnified(u_o4, u_dim[4], p);
+  I[5] = magnified(u_i5, u_dim[5], p); O[5] = magnified(u_o5, u_dim[5], p);
+  I[6] = magnified(u_i6, u_dim[6], p); O[6] = magnified(u_o6, u_dim[6], p);
+  // The six (centre, surround) pairs of eq. 3.4: (0, 3), (0, 4), (1, 4), (1, 5), (2, 5), (2, 6).
+  vec4 ci = abs(I[0] - I[3]) + abs(I[0] - I[4]) + abs(I[1] - I[4]) + abs(I[1] - I[5]) + abs(I[2] - I[5]) +
+            abs(I[2] - I[6]);
+  vec4 co = abs(O[0] - O[3]) + abs(O[0] - O[4]) + abs(O[1] - O[4]) + abs(O[1] - O[5]) + abs(O[2] - O[5]) +
+            abs(O[2] - O[6]);
+  float hue = distance(I[0].gb, I[3].gb) + distance(I[0].gb, I[4].gb) + distance(I[1].gb, I[4].gb) +
+              distance(I[1].gb, I[5].gb) + distance(I[2].gb, I[5].gb) + distance(I[2].gb, I[6].gb);
+  const float sixth = 1.0 / 6.0;
+  float l = u_image_group ? sane(ci.r * sixth) : 0.0, h = u_image_group ? sane(hue * sixth) : 0.0;
+  float d = u_object_group ? sane(ci.a * sixth) : 0.0, s = u_object_group ? sane(co.r * sixth) : 0.0;
+  float m = u_object_group ? sane(co.g * sixth) : 0.0;
+  o_c0 = vec4(l, h, d, s);
+  o_c1 = vec4(m, 0.0, 0.0, 0.0);
+}
+)";
+
+// 6. The largest value per channel of 8x8 blocks of two images (run until one texel is left).
+constexpr const char* kReduce = R"(
+uniform sampler2D u_in0, u_in1;
+uniform ivec2 u_src;
+layout(location = 0) out vec4 o0;
+layout(location = 1) out vec4 o1;
+void main() {
+  ivec2 b = ivec2(gl_FragCoord.xy) * 8, e = min(b + 8, u_src);
+  vec4 m0 = texelFetch(u_in0, b, 0), m1 = texelFetch(u_in1, b, 0);
+  for (int y = b.y; y < e.y; ++y)
+    for (int x = b.x; x < e.x; ++x) {
+      m0 = max(m0, texelFetch(u_in0, ivec2(x, y), 0));
+      m1 = max(m1, texelFetch(u_in1, ivec2(x, y), 0));
+    }
+  o0 = m0;
+  o1 = m1;
+}
+)";
+
+// 6. Eqs. 3.5-3.6 before the normalisation: sum w_f C_f with w_f = 1 / max C_f (a map without
+// contrast contributes nothing); stored with its negation, so one max reduction finds its range.
+constexpr const char* kWeigh = R"(
+uniform sampler2D u_c0, u_c1, u_max0, u_max1;
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 c0 = texelFetch(u_c0, p, 0), m0 = texelFetch(u_max0, ivec2(0), 0);
+  float c1 = texelFetch(u_c1, p, 0).r, m1 = texelFetch(u_max1, ivec2(0), 0).r;
+  float sb = 0.0;
+  if (m0.r > 0.0) sb += (1.0 / m0.r) * c0.r;
+  if (m0.g > 0.0) sb += (1.0 / m0.g) * c0.g;
+  if (m0.b > 0.0) sb += (1.0 / m0.b) * c0.b;
+  if (m0.a > 0.0) sb += (1.0 / m0.a) * c0.a;
+  if (m1 > 0.0) sb += (1.0 / m1) * c1;
+  o = vec4(sb, -sb, 0.0, 0.0);
+}
+)";
+
+// 6. S_p in [0, 1] by the weighted sum's range; an image whose pixels are all equal has no salient
+// pixel (0); with neither feature group every pixel counts alike (1).
+constexpr const char* kNormalise = R"(
+uniform sampler2D u_weighted, u_range;
+uniform bool u_all_off;
+out float o;
+void main() {
+  if (u_all_off) { o = 1.0; return; }
+  vec2 r = texelFetch(u_range, ivec2(0), 0).rg;
+  float hi = r.x, lo = -r.y, span = hi - lo;
+  float sb = texelFetch(u_weighted, ivec2(gl_FragCoord.xy), 0).r;
+  o = span > 1e-6 * max(1.0, hi) ? clamp((sb - lo) * (1.0 / span), 0.0, 1.0) : 0.0;
+}
+)";
+
+// 7. The radix select of each object's median depth: (the key's digits found so far, the rank
+// still to find among the keys that share them), the rank starting at count / 2 (attention.cpp
+// takes the element at n / 2 of the sorted depths).
+constexpr const char* kSelectInit = R"(
+uniform sampler2D u_counts;
+out uvec4 o;
+void main() { o = uvec4(0u, uint(texelFetch(u_counts, ivec2(gl_FragCoord.xy), 0).r) / 2u, 0u, 0u); }
+)";
+constexpr const char* kSelect = R"(
+uniform usampler2D u_select;
+uniform sampler2D u_histogram;
+uniform int u_shift, u_objects_count;
+out uvec4 o;
+void main() {
+  ivec2 q = ivec2(gl_FragCoord.xy);
+  int s = q.x + (q.y << 10);
+  uvec2 st = texelFetch(u_select, q, 0).rg;
+  o = uvec4(st, 0u, 0u);
+  if (s >= u_objects_count) return;
+  ivec2 row = ivec2((s & 3) * 256, s >> 2);
+  uint before = 0u;
+  for (int b = 0; b < 256; ++b) {
+    uint c = uint(texelFetch(u_histogram, row + ivec2(b, 0), 0).r);
+    if (before + c > st.y) {
+      o = uvec4(st.x + (uint(b) << uint(u_shift)), st.y - before, 0u, 0u);
+      return;
+    }
+    before += c;
+  }
+}
+)";
+
+std::string fragment(const char* body) { return std::string("#version 330 core\n") + kSlotLayout + body; }
+
+GLuint program(const char* body, const char* what) {
+  return gl::link_program(gl::kFullscreenVertex, fragment(body).c_str(), what);
+}
+
+unsigned make_texture(GLenum internal, GLenum format, GLenum type, int w, int h) {
+  unsigned t = 0;
+  glGenTextures(1, &t);
+  glBindTexture(GL_TEXTURE_2D, t);
+  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, type, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  return t;
+}
+
+void delete_texture(unsigned& t) {
+  if (t != 0) glDeleteTextures(1, &t);
+  t = 0;
+}
+
+int rows_for(std::size_t count, int per_row) {
+  return std::max(1, static_cast<int>((count + static_cast<std::size_t>(per_row) - 1) / static_cast<std::size_t>(per_row)));
+}
+
+void set_int(unsigned p, const char* name, int v) { glUniform1i(glGetUniformLocation(p, name), v); }
+void set_float(unsigned p, const char* name, double v) { glUniform1f(glGetUniformLocation(p, name), static_cast<float>(v)); }
+void set_ivec2(unsigned p, const char* name, int x, int y) { glUniform2i(glGetUniformLocation(p, name), x, y); }
+
+// From the radix select's key back to the float.
+float from_sortable(std::uint32_t key) {
+  const std::uint32_t bits = (key & 0x80000000u) != 0 ? (key & 0x7fffffffu) : ~key;
+  float v = 0;
+  std::memcpy(&v, &bits, sizeof v);
+  return v;
+}
+
+}  // namespace
+
+GlAttention::GlAttention() {
+  resample_program_ = program(kResample, "GlAttention resample");
+  const std::string scatter_vertex = std::string("#version 330 core\n") + kSlotLayout + kScatterVertex;
+  scatter_program_ = gl::link_program(scatter_vertex.c_str(), kScatterFragment, "GlAttention scatter");
+  paint_program_ = program(kPaint, "GlAttention paint");
+  down_program_ = program(kDown, "GlAttention pyramid");
+  contrast_program_ = program(kContrast, "GlAttention contrast");
+  reduce_program_ = program(kReduce, "GlAttention reduce");
+  weigh_program_ = program(kWeigh, "GlAttention weigh");
+  normalise_program_ = program(kNormalise, "GlAttention normalise");
+  select_init_program_ = program(kSelectInit, "GlAttention select init");
+  select_program_ = program(kSelect, "GlAttention select");
+  glGenVertexArrays(1, &vao_);
+  glGenFramebuffers(1, &fbo_);
+  glGenQueries(2, queries_);
+  gl::check_error("GlAttention", "construction");
+}
+
+GlAttention::~GlAttention() {
+  for (unsigned p : {resample_program_, scatter_program_, paint_program_, down_program_, contrast_program_,
+                     reduce_program_, weigh_program_, normalise_program_, select_init_program_, select_program_})
+    glDeleteProgram(p);
+  ensure_map(0);
+  object_capacity_ = 0;
+  for (unsigned* t : {&object_ids_, &object_motion_, &counts_, &sums_, &histogram_, &select_[0], &select_[1],
+                      &upload_color_, &upload_depth_, &upload_ids_})
+    delete_texture(*t);
+  glDeleteVertexArrays(1, &vao_);
+  glDeleteFramebuffers(1, &fbo_);
+  glDeleteQueries(2, queries_);
+}
+
+void GlAttention::ensure_map(int n) {
+  if (n == n_) return;
+  for (Level& l : levels_) {
+    delete_texture(l.image);
+    delete_texture(l.object);
+  }
+  for (unsigned* t : {&slots_, &map_depth_, &contrast_[0], &contrast_[1], &weighted_, &saliency_}) delete_texture(*t);
+  for (auto& chain : reduce_chain_) {
+    for (unsigned& t : chain) delete_texture(t);
+    chain.clear();
+  }
+  reduce_w_.clear();
+  reduce_h_.clear();
+  n_ = n;
+  if (n == 0) return;
+  int w = n, h = n;
+  for (int l = 0; l < kLevels; ++l) {
+    if (l > 0) {
+      w = std::max(1, (w + 1) / 2);
+      h = std::max(1, (h + 1) / 2);
+    }
+    levels_[l] = Level{make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, w, h), make_texture(GL_RG32F, GL_RG, GL_FLOAT, w, h), w, h};
+  }
+  slots_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, n, n);
+  map_depth_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, n, n);
+  for (unsigned& c : contrast_) c = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, n, n);
+  weighted_ = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, n, n);
+  saliency_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, n, n);
+  for (int rw = n, rh = n; rw > 1 || rh > 1;) {
+    rw = (rw + kReduceBlock - 1) / kReduceBlock;
+    rh = (rh + kReduceBlock - 1) / kReduceBlock;
+    for (auto& chain : reduce_chain_) chain.push_back(make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, rw, rh));
+    reduce_w_.push_back(rw);
+    reduce_h_.push_back(rh);
+  }
+}
+
+void GlAttention::ensure_objects(std::size_t count) {
+  if (count <= object_capacity_ && object_capacity_ != 0) return;
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  const std::size_t capacity = std::max<std::size_t>(count, 64);
+  if (rows_for(capacity, kSlotRow / kBins) > max_size) {
+    throw std::runtime_error("GlAttention: " + std::to_string(count) + " scene objects exceed what the per-object " +
+                             "tables hold on this device (" + std::to_string(std::size_t{4} * static_cast<std::size_t>(max_size)) + ")");
+  }
+  for (unsigned* t : {&object_ids_, &object_motion_, &counts_, &sums_, &histogram_, &select_[0], &select_[1]}) delete_texture(*t);
+  const int slot_rows = rows_for(capacity, kSlotRow);
+  object_ids_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, kSlotRow, slot_rows);
+  object_motion_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, slot_rows);
+  counts_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, slot_rows);
+  for (unsigned& s : select_) s = make_texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, kSlotRow, slot_rows);
+  sums_ = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, kSlotRow, rows_for(capacity, kSlotRow / kBands));
+  histogram_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, rows_for(capacity, kSlotRow / kBins));
+  object_capacity_ = capacity;
+}
+
+// The scene's object ids in ascending order (the first of a repeated id counts, as the CPU's slot
+// table), each with its B_m, up into the slot tables.
+void GlAttention::upload_objects(const GlAttentionObjects& objects) {
+  if (objects.motion.size() != objects.ids.size()) {
+    throw std::invalid_argument("GlAttention: " + std::to_string(objects.motion.size()) + " motion values for " +
+                                std::to_string(objects.ids.size()) + " object ids");
+  }
+  std::vector<std::size_t> order(objects.ids.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return objects.ids[a] < objects.ids[b]; });
+  sorted_ids_.clear();
+  sorted_motion_.clear();
+  for (std::size_t i : order) {
+    const std::uint32_t id = objects.ids[i];
+    if (id == 0 || (!sorted_ids_.empty() && sorted_ids_.back() == id)) continue;
+    sorted_ids_.push_back(id);
+    sorted_motion_.push_back(std::isfinite(objects.motion[i]) ? objects.motion[i] : 0.0f);
+  }
+  objects_ = sorted_ids_.size();
+  ensure_objects(objects_);
+  const int rows = rows_for(objects_, kSlotRow);
+  const std::size_t cells = static_cast<std::size_t>(rows) * kSlotRow;
+  std::vector<std::uint32_t> ids(cells, 0u);
+  std::vector<float> motion(cells, 0.0f);
+  std::copy(sorted_ids_.begin(), sorted_ids_.end(), ids.begin());
+  std::copy(sorted_motion_.begin(), sorted_motion_.end(), motion.begin());
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glBindTexture(GL_TEXTURE_2D, object_ids_);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, kSlotRow, rows, GL_RED_INTEGER, GL_UNSIGNED_INT, ids.data());
+  glBindTexture(GL_TEXTURE_2D, object_motion_);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, kSlotRow, rows, GL_RED, GL_FLOAT, motion.data());
+}
+
+void GlAttention::draw(std::initializer_list<unsigned> targets, int w, int h) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  GLenum buffers[4] = {GL_NONE, GL_NONE, GL_NONE, GL_NONE};
+  int i = 0;
+  for (unsigned t : targets) {
+    buffers[i] = static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, buffers[i], GL_TEXTURE_2D, t, 0);
+    ++i;
+  }
+  for (int k = i; k < 4; ++k)
+    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
+  glDrawBuffers(i, buffers);
+  glViewport(0, 0, w, h);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+}
+
+void GlAttention::resample(const GlAttentionInput& in, double near_m, double far_m, const AttentionSettings& s) {
+  // read_source of attention.cpp: the depth range of eq. 3.1 and what depths are clamped to.
+  const double z_range = (std::isfinite(far_m - near_m) && far_m > near_m) ? far_m - near_m : 1.0;
+  const float fnear = static_cast<float>(std::isfinite(near_m) ? near_m : 0.0);
+  const float ffar = static_cast<float>(std::isfinite(far_m) ? far_m : static_cast<double>(fnear) + 1.0);
+  const unsigned p = resample_program_;
+  glUseProgram(p);
+  gl::bind_sampler(0, in.color, p, "u_color");
+  gl::bind_sampler(1, in.depth, p, "u_depth");
+  gl::bind_sampler(2, in.object_id, p, "u_ids");
+  gl::bind_sampler(3, object_ids_, p, "u_objects");
+  set_int(p, "u_n", n_);
+  set_int(p, "u_objects_count", static_cast<int>(objects_));
+  set_ivec2(p, "u_size", static_cast<int>(in.width), static_cast<int>(in.height));
+  set_int(p, "u_nearest", s.resample == attention::Resample::Nearest);
+  set_int(p, "u_has_image", in.width > 0 && in.height > 0);
+  set_int(p, "u_has_color", in.color != 0);
+  set_int(p, "u_has_depth", in.depth != 0);
+  set_int(p, "u_has_ids", in.object_id != 0);
+  glUniform1f(glGetUniformLocation(p, "u_near"), fnear);
+  glUniform1f(glGetUniformLocation(p, "u_far"), ffar);
+  set_float(p, "u_inv_range", 1.0 / z_range);
+  draw({levels_[0].image, slots_, map_depth_}, n_, n_);
+}
+
+void GlAttention::scatter(int mode, unsigned target, int target_w, int target_h, int shift) {
+  const unsigned p = scatter_program_;
+  glUseProgram(p);
+  gl::bind_sampler(0, slots_, p, "u_slots");
+  gl::bind_sampler(1, select_[select_current_], p, "u_select");
+  gl::bind_sampler(2, saliency_, p, "u_saliency");
+  gl::bind_sampler(3, map_depth_, p, "u_map_depth");
+  set_int(p, "u_n", n_);
+  set_int(p, "u_mode", mode);
+  set_int(p, "u_shift", shift);
+  set_ivec2(p, "u_target", target_w, target_h);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target, 0);
+  for (int k = 1; k < 4; ++k)
+    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
+  glDrawBuffer(GL_COLOR_ATTACHMENT0);
+  glViewport(0, 0, target_w, target_h);
+  const float zero[4] = {0, 0, 0, 0};
+  glClearBufferfv(GL_COLOR, 0, zero);
+  // Additive blending in primitive order: the same sums every run.
+  glEnable(GL_BLEND);
+  glBlendEquation(GL_FUNC_ADD);
+  glBlendFunc(GL_ONE, GL_ONE);
+  glDrawArrays(GL_POINTS, 0, n_ * n_);
+  glDisable(GL_BLEND);
+}
+
+void GlAttention::paint_and_pyramids() {
+  const int slot_rows = rows_for(object_capacity_, kSlotRow);
+  scatter(0, counts_, kSlotRow, slot_rows, 0);
+  unsigned p = paint_program_;
+  glUseProgram(p);
+  gl::bind_sampler(0, slots_, p, "u_slots");
+  gl::bind_sampler(1, counts_, p, "u_counts");
+  gl::bind_sampler(2, object_motion_, p, "u_motion");
+  set_float(p, "u_pixels", static_cast<double>(n_) * n_);
+  draw({levels_[0].object}, n_, n_);
+  p = down_program_;
+  glUseProgram(p);
+  for (int l = 1; l < kLevels; ++l) {
+    gl::bind_sampler(0, levels_[l - 1].image, p, "u_image");
+    gl::bind_sampler(1, levels_[l - 1].object, p, "u_object");
+    set_ivec2(p, "u_src", levels_[l - 1].w, levels_[l - 1].h);
+    draw({levels_[l].image, levels_[l].object}, levels_[l].w, levels_[l].h);
+  }
+}
+
+void GlAttention::contrast(const FeatureGroups& groups) {
+  const unsigned p = contrast_program_;
+  glUseProgram(p);
+  static const char* kImage[kLevels] = {"u_i0", "u_i1", "u_i2", "u_i3", "u_i4", "u_i5", "u_i6"};
+  static const char* kObject[kLevels] = {"u_o0", "u_o1", "u_o2", "u_o3", "u_o4", "u_o5", "u_o6"};
+  GLint dims[2 * kLevels];
+  for (int l = 0; l < kLevels; ++l) {
+    gl::bind_sampler(l, levels_[l].image, p, kImage[l]);
+    gl::bind_sampler(kLevels + l, levels_[l].object, p, kObject[l]);
+    dims[2 * l] = levels_[l].w;
+    dims[2 * l + 1] = levels_[l].h;
+  }
+  glUniform2iv(glGetUniformLocation(p, "u_dim"), kLevels, dims);
+  set_int(p, "u_n", n_);
+  set_int(p, "u_image_group", groups.image);
+  set_int(p, "u_object_group", groups.object);
+  draw({contrast_[0], contrast_[1]}, n_, n_);
+}
+
+unsigned GlAttention::reduce_max(unsigned in0, unsigned in1) {
+  const unsigned p = reduce_program_;
+  glUseProgram(p);
+  int w = n_, h = n_;
+  for (std::size_t k = 0; k < reduce_chain_[0].size(); ++k) {
+    gl::bind_sampler(0, in0, p, "u_in0");
+    gl::bind_sampler(1, in1, p, "u_in1");
+    set_ivec2(p, "u_src", w, h);
+    draw({reduce_chain_[0][k], reduce_chain_[1][k]}, reduce_w_[k], reduce_h_[k]);
+    in0 = reduce_chain_[0][k];
+    in1 = reduce_chain_[1][k];
+    w = reduce_w_[k];
+    h = reduce_h_[k];
+  }
+  reduced_[0] = in0;
+  reduced_[1] = in1;
+  return in0;
+}
+
+void GlAttention::saliency(const FeatureGroups& groups) {
+  reduce_max(contrast_[0], contrast_[1]);
+  unsigned p = weigh_program_;
+  glUseProgram(p);
+  gl::bind_sampler(0, contrast_[0], p, "u_c0");
+  gl::bind_sampler(1, contrast_[1], p, "u_c1");
+  gl::bind_sampler(2, reduced_[0], p, "u_max0");
+  gl::bind_sampler(3, reduced_[1], p, "u_max1");
+  draw({weighted_}, n_, n_);
+  const unsigned range = reduce_max(weighted_, weighted_);
+  p = normalise_program_;
+  glUseProgram(p);
+  gl::bind_sampler(0, weighted_, p, "u_weighted");
+  gl::bind_sampler(1, range, p, "u_range");
+  set_int(p, "u_all_off", !groups.image && !groups.object);
+  draw({saliency_}, n_, n_);
+}
+
+// Four rounds of 8 bits, most significant first: after the last, each object's key is its median's.
+void GlAttention::median_depths() {
+  const int slot_rows = rows_for(object_capacity_, kSlotRow);
+  const int histogram_rows = rows_for(object_capacity_, kSlotRow / kBins);
+  select_current_ = 0;
+  unsigned p = select_init_program_;
+  glUseProgram(p);
+  gl::bind_sampler(0, counts_, p, "u_counts");
+  draw({select_[0]}, kSlotRow, slot_rows);
+  for (int shift = 24; shift >= 0; shift -= 8) {
+    scatter(2, histogram_, kSlotRow, histogram_rows, shift);
+    p = select_program_;
+    glUseProgram(p);
+    gl::bind_sampler(0, select_[select_current_], p, "u_select");
+    gl::bind_sampler(1, histogram_, p, "u_histogram");
+    set_int(p, "u_shift", shift);
+    set_int(p, "u_objects_count", static_cast<int>(objects_));
+    draw({select_[1 - select_current_]}, kSlotRow, slot_rows);
+    select_current_ = 1 - select_current_;
+  }
+}
+
+void GlAttention::read_objects(std::vector<ObjectPixels>& out) {
+  out.clear();
+  if (objects_ == 0) return;
+  const int sum_rows = rows_for(objects_, kSlotRow / kBands), slot_rows = rows_for(objects_, kSlotRow);
+  std::vector<float> sums(static_cast<std::size_t>(sum_rows) * kSlotRow * 4);
+  std::vector<std::uint32_t> select(static_cast<std::size_t>(slot_rows) * kSlotRow * 4);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, sums_, 0);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glReadPixels(0, 0, kSlotRow, sum_rows, GL_RGBA, GL_FLOAT, sums.data());
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, select_[select_current_], 0);
+  glReadPixels(0, 0, kSlotRow, slot_rows, GL_RGBA_INTEGER, GL_UNSIGNED_INT, select.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  for (std::size_t s = 0; s < objects_; ++s) {
+    double count = 0, sum_s = 0, sum_x = 0, sum_y = 0;
+    for (std::size_t b = 0; b < kBands; ++b) {
+      const float* v = &sums[((s / 64) * kSlotRow + (s % 64) * kBands + b) * 4];
+      count += static_cast<double>(v[0]);
+      sum_s += static_cast<double>(v[1]);
+      sum_x += static_cast<double>(v[2]);
+      sum_y += static_cast<double>(v[3]);
+    }
+    if (count < 0.5) continue;
+    const std::uint32_t key = select[s * 4];
+    out.push_back(ObjectPixels{sorted_ids_[s], static_cast<std::size_t>(std::llround(count)), sum_s, sum_x, sum_y,
+                               static_cast<double>(from_sortable(key))});
+  }
+}
+
+void GlAttention::run(const GlAttentionInput& in, double near_m, double far_m, const AttentionSettings& s,
+                      const GlAttentionObjects& objects, std::vector<ObjectPixels>& out) {
+  s.check();
+  GLint vao = 0;
+  glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vao);
+  glBindVertexArray(vao_);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_BLEND);
+  ensure_map(s.map_size);
+  upload_objects(objects);
+  resample(in, near_m, far_m, s);
+  paint_and_pyramids();
+  contrast(s.groups);
+  saliency(s.groups);
+  scatter(1, sums_, kSlotRow, rows_for(object_capacity_, kSlotRow / kBands), 0);
+  median_depths();
+  read_objects(out);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindVertexArray(static_cast<GLuint>(vao));
+  gl::check_error("GlAttention", "run");
+}
+
+void GlAttention::read_saliency(std::vector<float>& out) {
+  out.assign(static_cast<std::size_t>(n_) * static_cast<std::size_t>(n_), 0.0f);
+  if (n_ == 0) return;
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, saliency_, 0);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, n_, n_, GL_RED, GL_FLOAT, out.data());  // texel row y is map row y
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  gl::check_error("GlAttention", "read_saliency");
+}
+
+void GlAttention::read_contrast(std::vector<float> (&out)[5]) {
+  const std::size_t npix = static_cast<std::size_t>(n_) * static_cast<std::size_t>(n_);
+  std::vector<float> rgba[2];
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  for (int k = 0; k < 2; ++k) {
+    rgba[k].resize(npix * 4);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, contrast_[k], 0);
+    if (n_ > 0) glReadPixels(0, 0, n_, n_, GL_RGBA, GL_FLOAT, rgba[k].data());
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  for (int f = 0; f < 5; ++f) {
+    out[f].resize(npix);
+    for (std::size_t i = 0; i < npix; ++i) out[f][i] = f < 4 ? rgba[0][i * 4 + static_cast<std::size_t>(f)] : rgba[1][i * 4];
+  }
+  gl::check_error("GlAttention", "read_contrast");
+}
+
+void GlAttention::run_gbuffer(const GBuffer& g, double near_m, double far_m, const AttentionSettings& s,
+                              const GlAttentionObjects& objects, std::vector<ObjectPixels>& out, double* gpu_ms) {
+  const std::uint32_t w = g.width, h = g.height;
+  const std::size_t npix = std::size_t{w} * h;
+  const bool has_image = npix > 0;
+  GlAttentionInput in{0, 0, 0, w, h};
+  if (has_image && g.color.size() >= npix) {
+    static_assert(sizeof(glm::vec3) == 3 * sizeof(float), "the colour plane goes up as packed floats");
+    in.color = gl::upload_top_first(upload_color_, GL_RGBA32F, GL_RGB, &g.color[0].x, w, h, 3, staging_);
+  }
+  if (has_image && g.depth.size() >= npix) in.depth = gl::upload_top_first(upload_depth_, GL_R32F, GL_RED, g.depth.data(), w, h, 1, staging_);
+  if (has_image && g.object_id.size() >= npix) {
+    if (upload_ids_ == 0) upload_ids_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, 1, 1);
+    std::vector<std::uint32_t> flipped(npix);
+    for (std::uint32_t y = 0; y < h; ++y)
+      std::copy_n(g.object_id.begin() + static_cast<std::ptrdiff_t>(std::size_t{y} * w), w,
+                  flipped.begin() + static_cast<std::ptrdiff_t>(std::size_t{h - 1 - y} * w));
+    glBindTexture(GL_TEXTURE_2D, upload_ids_);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32UI, static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0, GL_RED_INTEGER,
+                 GL_UNSIGNED_INT, flipped.data());
+    in.object_id = upload_ids_;
+  }
+  glQueryCounter(queries_[0], GL_TIMESTAMP);
+  run(in, near_m, far_m, s, objects, out);
+  glQueryCounter(queries_[1], GL_TIMESTAMP);
+  if (gpu_ms != nullptr) *gpu_ms = gl::elapsed_ms(queries_);
+}
+
+}  // namespace fovea::render
