@@ -3,9 +3,12 @@
 // split into the pixel saliency map (resampling, features, pyramids, eqs. 3.1-3.6) and the object
 // stage (eq. 3.7, contexts 3.8-3.10, Kalman, sort); OpenCV's saliency module on the same frames at
 // the same map sizes as a peer baseline for the bottom-up map (spectral residual, Hou & Zhang 2007;
-// fine-grained, Montabone & Soto 2010); and the object stage alone for 256 synthetic objects.
+// fine-grained, Montabone & Soto 2010); the pixel stage as GL passes (backend/gl/gl_attention.h,
+// headless EGL: llvmpipe here, a GPU where there is one) at its GPU time, with the object stage after
+// it and its largest S_p difference from the CPU's map; and the object stage alone for 256 synthetic
+// objects.
 //
-// Usage: bench_attention [--frames N] [--csv FILE] [--sizes 512x512,960x540] [--maps 64,128,256,512]
+// Usage: bench_attention [--frames N] [--csv FILE] [--sizes 512x512,960x540] [--maps 64,128,256,512] [--no-gl]
 // Plain table on stdout (median and p95 over the frames; the first frame is a warm-up, not counted).
 #include <CLI/CLI.hpp>
 
@@ -27,6 +30,8 @@
 #include "bench_images.h"
 #include "attention/attention.h"
 #include "backend/embree/embree_backend.h"
+#include "backend/gl/gl_attention.h"
+#include "backend/gl/gl_backend.h"
 #include "scene/geometry.h"
 #include "scene/scene_loader.h"
 
@@ -69,7 +74,47 @@ struct Row {
   std::size_t frames = 0;
   Stats total, saliency, resample, object;
   std::size_t objects = 0;  // listed objects, last frame
+  double vs_cpu = -1;       // GL rows: the largest |S_p(GL) - S_p(CPU)| over the frames
+  std::string device = "cpu";
 };
+
+// The GL pixel stage and its context; absent (with the reason printed) where EGL has no context.
+struct GlRows {
+  std::unique_ptr<GlBackend> context;
+  std::unique_ptr<GlAttention> attention;
+  std::string device;
+  std::map<int, attention::AttentionTracker> trackers;  // per map size: the object stage after the GPU's
+  std::vector<float> saliency;
+  std::vector<attention::ObjectPixels> pixels;
+};
+
+// One frame's pixel stage on the GPU and the object stage after it into `r`; `cpu` is the CPU's frame
+// of the same settings (the map the GPU's is compared with).
+void time_gl(GlRows& gl, int map, const GBuffer& g, const Scene& scene, double t, double previous,
+             const attention::AttentionFrame& cpu, Row* r) {
+  attention::AttentionTracker& tracker = gl.trackers.at(map);
+  GlAttentionObjects objects;
+  for (const Object& o : scene.objects) {
+    objects.ids.push_back(o.id);
+    objects.motion.push_back(tracker.object_motion(o, t, previous));
+  }
+  double gpu_ms = 0;
+  gl.attention->run_gbuffer(g, scene.camera.near_m, scene.camera.far_m, tracker.settings(), objects, gl.pixels, &gpu_ms);
+  const auto start = Clock::now();
+  const attention::AttentionFrame& f = tracker.update_objects(gl.pixels, map, scene, t, previous, gpu_ms * 1e-3);
+  const double object_ms = ms_since(start);
+  if (r == nullptr) return;  // warm-up
+  r->total.ms.push_back(gpu_ms + object_ms);
+  r->saliency.ms.push_back(gpu_ms);
+  r->object.ms.push_back(object_ms);
+  r->objects = f.objects.size();
+  r->device = gl.device;
+  gl.attention->read_saliency(gl.saliency);
+  double worst = 0;
+  for (std::size_t i = 0; i < gl.saliency.size() && i < cpu.saliency.size(); ++i)
+    worst = std::max(worst, static_cast<double>(std::fabs(gl.saliency[i] - cpu.saliency[i])));
+  r->vs_cpu = std::max(r->vs_cpu, worst);
+}
 
 // 256 objects, each a 32x32 patch of its own colour and depth in a 512x512 G-buffer; the camera
 // moves forward and a quarter of the objects move.
@@ -141,7 +186,23 @@ int main(int argc, char** argv) {
   app.add_option("--sizes", sizes_text, "G-buffer resolutions, WxH comma-separated");
   app.add_option("--scene", scene_path, "scene file");
   app.add_option("--maps", maps_text, "saliency-map sizes, comma-separated (64..512)");
+  bool no_gl = false;
+  app.add_flag("--no-gl", no_gl, "skip the GL pixel stage's rows");
   CLI11_PARSE(app, argc, argv);
+
+  GlRows gl;
+  if (!no_gl) {
+    try {
+      gl.context = std::make_unique<GlBackend>();
+      gl.context->context().make_current();
+      gl.attention = std::make_unique<GlAttention>();
+      gl.device = "OpenGL " + gl.context->context().features().version() + " (" + gl.context->context().renderer() + ")";
+      std::printf("gl rows on %s\n", gl.device.c_str());
+    } catch (const std::exception& e) {
+      std::printf("gl rows skipped: %s\n", e.what());
+      gl.attention.reset();
+    }
+  }
 
   cv::setNumThreads(1);  // the tracker runs on one thread; compare like with like
   std::vector<Row> rows;
@@ -169,6 +230,7 @@ int main(int argc, char** argv) {
       attention::AttentionSettings s;
       s.map_size = m;
       trackers.emplace(m, attention::AttentionTracker(s));
+      gl.trackers.insert_or_assign(m, attention::AttentionTracker(s));
       s.resample = attention::Resample::Nearest;
       nearest.emplace(m, attention::AttentionTracker(s));
     }
@@ -199,6 +261,10 @@ int main(int argc, char** argv) {
           r.objects = fn.objects.size();
         }
         const auto& f = trackers.at(m).update(g, scene, t, previous);
+        if (gl.attention) {
+          gl.context->context().make_current();
+          time_gl(gl, m, g, scene, t, previous, f, k == 0 && round == 0 ? nullptr : &row_for("fovea gl (GPU pixel stage)", m));
+        }
         cv::Mat small, out;
         auto start = Clock::now();
         cv::resize(bgr, small, cv::Size(m, m), 0, 0, cv::INTER_AREA);
@@ -239,7 +305,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     csv << "input,method,map,frames,total_median_ms,total_p95_ms,saliency_median_ms,resample_median_ms,object_median_ms,"
-           "objects\n";
+           "objects,gl_vs_cpu_max_diff,device\n";
   }
   for (const Row& r : rows) {
     const bool ours = r.method.rfind("fovea", 0) == 0;
@@ -252,7 +318,8 @@ int main(int argc, char** argv) {
       csv << r.input << "," << r.method << "," << r.map << "," << r.frames << "," << r.total.median() << ","
           << r.total.p95() << "," << r.saliency.median() << "," << (ours ? std::to_string(r.resample.median()) : "") << ","
           << (ours ? std::to_string(r.object.median()) : "")
-          << "," << (ours ? std::to_string(r.objects) : "") << "\n";
+          << "," << (ours ? std::to_string(r.objects) : "") << "," << (r.vs_cpu >= 0 ? std::to_string(r.vs_cpu) : "")
+          << ",\"" << r.device << "\"\n";
     }
   }
   return 0;

@@ -25,6 +25,9 @@
 # ("scene") run lee-mipmap on the GPU path's GPU too. "dof-fN" = dof with the lens at f-number N
 # (attention.json: 2.8; 0.7 blurs 4x as much, 11.2 a quarter as much): the DOF's cost against its CoC.
 # "dof-schedl" = dof with schedl-layered, M = 3 (its two layers peeled on the GPU path's GPU).
+# "attention" = base with the attention pass and focus.mode=attention (on the GPU path attention's
+# pixel stage runs on the GPU, only depth and ids come back for focus); "attention-cpu" = the same
+# with attention.device=cpu (colour, depth and ids read back for the CPU's attention).
 #
 # Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
 #   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
@@ -69,6 +72,10 @@ for scene in $SCENES; do
         dof-cpu) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed --set dof.device=cpu) ;;
         dof-schedl) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
                            --set dof.method=schedl-layered) ;;
+        attention) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+                          --set focus.mode=attention) ;;
+        attention-cpu) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+                              --set focus.mode=attention --set attention.device=cpu) ;;
         gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac
@@ -121,7 +128,7 @@ for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
     a, b = load(d), load(os.path.join(runs, name + "-gpu"))
     fa, fb = a["frame"], b["frame"]
     ga, gb = a["gaze-age"], b["gaze-age"]
-    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
+    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
     print(f"| {scene} | {size} | {effects} | {pct(fa, 50):.2f} / {pct(fa, 99):.2f} | {pct(fb, 50):.2f} / {pct(fb, 99):.2f} | "
           f"{pct(fa, 50) / pct(fb, 50):.2f} | {pct(ga, 50):.2f} / {pct(ga, 99):.2f} | {pct(gb, 50):.2f} / {pct(gb, 99):.2f} | {gpu_side} |")
 embree = sorted(glob.glob(os.path.join(runs, "*-embree")))

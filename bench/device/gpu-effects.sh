@@ -6,6 +6,8 @@
 #                                   (gpu.dof: target <= 1 ms, independent of the CoC)
 #   dof-cpu                         the same DOF with dof.device=cpu (read back, CPU, upload)
 #   dof-schedl                      schedl-layered, M = 3 (gpu.peel + gpu.dof: target <= 3 ms)
+#   attention, attention-cpu        attention + focus, attention's pixel stage on the GPU (gpu.attention:
+#                                   target <= 0.5 ms) and with attention.device=cpu
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
 # Results: stdout and $OUT/gpu-effects.md, the runs in $OUT/gpu-effects-runs.tar.xz. The agreement
 # of the GL passes with the CPU implementation does not depend on the card's speed and is tested
@@ -27,8 +29,8 @@ mkdir -p "$OUT"
 probe=$(mktemp -d)/probe
 env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --backend gl --headless --frames 2 \
   --gaze none --out "$probe" >/dev/null
-grep -E "where|  run   dof" "$probe/plan.txt"
+grep -E "where|  run   (dof|attention)" "$probe/plan.txt"
 
 OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
-  "base dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl scene" | tee "$OUT/gpu-effects.md"
+  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl scene" | tee "$OUT/gpu-effects.md"
 tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs && rm -rf "$OUT/runs"

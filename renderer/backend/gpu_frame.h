@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "attention/attention.h"
 #include "backend/backend.h"
 #include "dof/lee_mipmap.h"
 #include "dof/lens.h"
@@ -77,6 +78,16 @@ class GpuFrame {
   // queries, the depth range the layers are cut by).
   virtual dof::SchedlStats dof_schedl_layered(const FrameTime& time, const BackendSettings& peel_settings,
                                               const dof::CocModel& coc, std::uint32_t layers) = 0;
+  // Lee 2009 ch. 3's pixel stage (attention/attention.h's update() up to eq. 3.7's sums; on GL
+  // backend/gl/gl_attention.h) on the G-buffer where it lies, with the camera's depth range of
+  // eq. 3.1: `out` gets the per-object values AttentionTracker::update_objects takes. `ids` and
+  // `motion`: the scene's objects and each one's B_m (eq. 3.3). Waits for the GPU (reads back a few
+  // values per object).
+  virtual void attention_pixels(const attention::AttentionSettings& settings, double near_m, double far_m,
+                                const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
+                                std::vector<attention::ObjectPixels>& out) = 0;
+  // The last attention_pixels' S_p, map_size^2, row 0 at the top (the finite check, tests). Waits.
+  virtual void read_saliency(std::vector<float>& saliency) = 0;
   // The HDR colour the tone map reads now (the G-buffer's, the GPU dof's or the upload), linear, row
   // 0 at the top: for tests and for writing the frame out. Waits for the GPU.
   virtual void read_hdr(std::vector<glm::vec3>& hdr) = 0;

@@ -21,9 +21,6 @@ DofMethod parse_dof_method(const std::string& name);
 // lee-mipmap (backend/gl/gl_lee_mipmap.h) and schedl-layered (backend/gl/gl_schedl_layered.h, its
 // layers peeled there too). The others run on the CPU from a readback.
 bool has_gpu_implementation(DofMethod method);
-// dof.device: where an image-space method runs. Auto: on the GPU where the frame lies there and
-// the method has a GPU implementation; Gpu: there or not at all (the planner says why).
-enum class DofDevice { Auto, Cpu, Gpu };
 
 struct DofPassSettings {
   DofMethod method = DofMethod::LeeMipmap;

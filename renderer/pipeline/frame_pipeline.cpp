@@ -426,7 +426,11 @@ void FramePipeline::step_gbuffer(const Frame& f, double now_s, double previous_s
 
 void FramePipeline::step_attention(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
   auto t = timer.scope("attention");
-  f.attention = &run_attention(gbuffer_, now_s, previous_s, check);
+  if (f.on_gpu && f.plan.at(PassId::Attention).on_gpu) {
+    f.attention = &run_attention_on_gpu(now_s, previous_s, check);
+  } else {
+    f.attention = &run_attention(gbuffer_, now_s, previous_s, check);
+  }
 }
 
 void FramePipeline::step_focus(Frame& f, double frame_clock_s, bool check, PassTimer& timer) {
@@ -580,6 +584,30 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_frame_.importons = r.importons;
   gi_frame_.emitted = r.emitted;
   gi_frame_.note = r.note;
+}
+
+// The pixel stage where the G-buffer lies, the object stage here (Lee 2009 §3.2: the top-down
+// contexts and the Kalman filter keep per-object state across frames).
+const attention::AttentionFrame& FramePipeline::run_attention_on_gpu(double now_s, double previous_s, bool check) {
+  const attention::AttentionSettings& wanted = pass_settings().attention;
+  if (wanted != attention_.settings()) attention_.set_settings(wanted);
+  const auto start = steady_seconds();
+  attention_ids_.clear();
+  attention_motion_.clear();
+  for (const Object& o : scene_.objects) {
+    attention_ids_.push_back(o.id);
+    attention_motion_.push_back(attention_.object_motion(o, now_s, previous_s));
+  }
+  gpu_->attention_pixels(wanted, scene_.camera.near_m, scene_.camera.far_m, attention_ids_, attention_motion_,
+                         attention_pixels_);
+  const attention::AttentionFrame& a = attention_.update_objects(attention_pixels_, wanted.map_size, scene_, now_s,
+                                                                  previous_s, steady_seconds() - start);
+  if (check) {  // the module boundary's check, at the cost of reading the map back (debug.finite_checks)
+    gpu_->read_saliency(gpu_saliency_);
+    require_finite("attention", "saliency map (GPU)", gpu_saliency_, static_cast<std::uint32_t>(wanted.map_size));
+    require_finite_attention(a);
+  }
+  return a;
 }
 
 const attention::AttentionFrame& FramePipeline::run_attention(const GBuffer& g, double now_s, double previous_s,

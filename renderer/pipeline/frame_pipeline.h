@@ -129,6 +129,12 @@ class FramePipeline {
   void blend_ulod(const FrameTime& time, const BackendSettings& drawn);
   // The attention pass on `g` (the proxy or the frame's G-buffer) with attention.* applied.
   const attention::AttentionFrame& run_attention(const GBuffer& g, double now_s, double previous_s, bool check);
+  // The attention pass with its pixel stage on the GPU (attention.device; the planner decides).
+  const attention::AttentionFrame& run_attention_on_gpu(double now_s, double previous_s, bool check);
+  std::vector<std::uint32_t> attention_ids_;      // the scene's objects, and
+  std::vector<float> attention_motion_;           // their B_m, for the GPU's pixel stage
+  std::vector<attention::ObjectPixels> attention_pixels_;
+  std::vector<float> gpu_saliency_;               // read back for the finite check (debug only)
   std::vector<glm::vec3> hybrid_;
   std::vector<glm::vec3> gpu_checked_;  // a GPU pass's colour read back for the finite check (debug only)
   Frame::Gi gi_frame_;

@@ -26,10 +26,15 @@ const PlanSettings& PlanContext::typed() const {
   return *parsed;
 }
 
+PassDevice parse_device(const std::string& text) {
+  return text == "cpu" ? PassDevice::Cpu : text == "gpu" ? PassDevice::Gpu : PassDevice::Auto;
+}
+
 PlanSettings plan_settings(const Settings& s) {
   PlanSettings p;
   p.output = s.is("output", "final") ? Resource::Display : Resource::GBuffer;
   p.attention = s.flag("attention.enabled");
+  p.attention_device = parse_device(s.text("attention.device"));
   const std::string& mode = s.text("focus.mode");
   p.focus_mode = mode == "fixed"       ? attention::FocusMode::Fixed
                  : mode == "gaze"      ? attention::FocusMode::Gaze
@@ -40,8 +45,7 @@ PlanSettings plan_settings(const Settings& s) {
   p.lod_budget_ms = s.number("lod.budget_ms");
   p.dof = s.flag("dof.enabled");
   p.dof_method = parse_dof_method(s.text("dof.method"));
-  const std::string& device = s.text("dof.device");
-  p.dof_device = device == "cpu" ? DofDevice::Cpu : device == "gpu" ? DofDevice::Gpu : DofDevice::Auto;
+  p.dof_device = parse_device(s.text("dof.device"));
   p.gi = s.flag("gi.enabled");
   p.gi_caustics = s.flag("gi.caustics");
   p.gi_full_area = s.is("gi.area", "full");
@@ -81,10 +85,41 @@ PassRule no(std::string why) { return {false, std::move(why), true, ""}; }
 
 PassRule gbuffer_rule(const PlanContext&) { return yes("every output starts from the G-buffer"); }
 
+// Where a pass with a GPU implementation runs, said in its rule: on the GPU; on the CPU and why
+// (where the frame lies on the GPU and `placement_matters`); or unable, for `setting`=gpu where it
+// cannot run there. `blocker`: what keeps it off the GPU ("" : nothing).
+void place(PassRule& rule, const PlanContext& c, PassDevice device, const char* setting, const std::string& blocker,
+           bool placement_matters) {
+  const auto say = [&](const std::string& where) { rule.reason += (rule.reason.empty() ? "" : ", ") + where; };
+  if (device == PassDevice::Gpu && (!c.gpu_resident || !blocker.empty())) {
+    rule.able = false;
+    rule.unable = std::string(setting) + "=gpu: " + (c.gpu_resident ? blocker : std::string("the frame is not on the GPU (see where)"));
+  } else if (c.gpu_resident && device != PassDevice::Cpu && blocker.empty()) {
+    say("on the GPU");
+  } else if (c.gpu_resident && placement_matters) {
+    say("on the CPU: " + (blocker.empty() ? std::string(setting) + "=cpu" : blocker));
+  }
+}
+
+// What keeps attention off the GPU in a GPU-resident frame ("" : nothing).
+std::string attention_gpu_blocker(const PlanContext& c) {
+  const PlanSettings& t = c.typed();
+  if (t.lod && t.lod_policy == lod::Policy::Ulod && c.scene.has_lods()) {
+    return "lod.policy=ulod runs attention first, on its own proxy render";
+  }
+  return "";
+}
+
+bool attention_on_gpu(const PlanContext& c) {
+  return c.gpu_resident && c.typed().attention_device != PassDevice::Cpu && attention_gpu_blocker(c).empty();
+}
+
 PassRule attention_rule(const PlanContext& c) {
   if (!c.typed().attention)
     return no("attention.enabled=false (consumers fall back to gaze or defaults)");
-  return yes("");
+  PassRule rule = yes("");
+  place(rule, c, c.typed().attention_device, "attention.device", attention_gpu_blocker(c), true);
+  return rule;
 }
 
 PassRule focus_rule(const PlanContext& c) {
@@ -121,7 +156,7 @@ std::string dof_gpu_blocker(const PlanContext& c) {
 }
 
 bool dof_on_gpu(const PlanContext& c) {
-  return c.gpu_resident && c.typed().dof_device != DofDevice::Cpu && dof_gpu_blocker(c).empty();
+  return c.gpu_resident && c.typed().dof_device != PassDevice::Cpu && dof_gpu_blocker(c).empty();
 }
 
 bool always(const PlanContext&) { return true; }
@@ -143,15 +178,7 @@ PassRule dof_rule(const PlanContext& c) {
                   "backend's reference";
     return rule;
   }
-  const std::string blocker = dof_gpu_blocker(c);
-  if (c.typed().dof_device == DofDevice::Gpu && (!c.gpu_resident || !blocker.empty())) {
-    rule.able = false;
-    rule.unable = "dof.device=gpu: " + (c.gpu_resident ? blocker : std::string("the frame is not on the GPU (see where)"));
-  } else if (dof_on_gpu(c)) {
-    rule.reason += ", on the GPU";
-  } else if (c.gpu_resident && dof_filters_the_image(c)) {
-    rule.reason += ", on the CPU: " + (blocker.empty() ? std::string("dof.device=cpu") : blocker);
-  }
+  place(rule, c, c.typed().dof_device, "dof.device", dof_gpu_blocker(c), dof_filters_the_image(c));
   return rule;
 }
 
@@ -241,7 +268,7 @@ const std::vector<PassDecl>& pass_declarations() {
        nullptr, always},
       {PassId::Attention, "attention",
        {{R::GBuffer, "unless lod.policy=ulod (then its own proxy render)", not_lod_ulod}}, {R::Attention},
-       "scene (object and observer motion, task importance)", attention_rule, attention_reads, nullptr, true},
+       "scene (object and observer motion, task importance)", attention_rule, attention_reads, attention_on_gpu, true},
       {PassId::Focus, "focus",
        {{R::GBuffer}, {R::Attention, "focus.mode=attention|gaze+attention", focus_uses_attention}}, {R::FocalDepth},
        "gaze", focus_rule, focus_reads, nullptr, true},

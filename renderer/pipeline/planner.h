@@ -32,22 +32,29 @@ struct FramePlan;
 // The settings the passes' rules and edges decide on, typed: parsed once per settings change
 // (FramePipeline keeps them with Settings::version), not looked up as strings by every rule of every
 // frame. The reasons for people still quote the settings' text.
+// attention.device, dof.device: where a pass with a GPU implementation runs. Auto: on the GPU where
+// the frame's G-buffer lies there and nothing keeps it off; Gpu: there or not at all (the planner
+// says why); Cpu: on the CPU, from a readback.
+enum class PassDevice { Auto, Cpu, Gpu };
+
 struct PlanSettings {
   Resource output = Resource::Display;  // output=final: the display image; output=gbuffer: the G-buffer
   bool attention = true;
+  PassDevice attention_device = PassDevice::Auto;
   attention::FocusMode focus_mode = attention::FocusMode::GazeAndAttention;
   bool lod = true;
   lod::Policy lod_policy = lod::Policy::ScreenSize;
   double lod_budget_ms = 0;
   bool dof = true;
   DofMethod dof_method = DofMethod::LeeMipmap;
-  DofDevice dof_device = DofDevice::Auto;
+  PassDevice dof_device = PassDevice::Auto;
   bool gi = false, gi_caustics = true, gi_full_area = false, gi_csf_periphery = false;
   bool overlay_gaze = true, overlay_focus = false;
   std::string overlay_map = "none";
   bool operator==(const PlanSettings&) const = default;
 };
 PlanSettings plan_settings(const Settings& settings);
+PassDevice parse_device(const std::string& text);  // "auto|cpu|gpu"; anything else: Auto
 
 struct PlanContext {
   const Scene& scene;

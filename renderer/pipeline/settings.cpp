@@ -22,6 +22,9 @@ const std::vector<SettingSpec>& Settings::specs() {
        "the CPU passes read are read back); false: read the whole G-buffer back and run every pass on the CPU (the "
        "reference path)"},
       {"attention.enabled", "true", "bool", "allow the visual attention pass (Lee 2009 ch. 3) when something consumes it"},
+      {"attention.device", "auto", "auto|cpu|gpu",
+       "where the attention pass's pixel stage runs: auto = on the GPU when the frame's G-buffer lies there "
+       "(--backend gl) and lod.policy is not ulod, only the per-object values read back; gpu = there or not at all"},
       {"attention.map_size", "256", "number in [64, 512]",
        "side of the square saliency map in pixels (rounded); the G-buffer is resampled to it (Lee 2009 §3.5.4: 64-512)"},
       {"attention.resample", "box", "box|nearest",

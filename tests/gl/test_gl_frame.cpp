@@ -364,6 +364,42 @@ TEST(GlFramePipeline, BothPathsMakeTheSameFramesOnTheBundledScenes) {
 // the GPU (gpu.dof timed, nothing read back for them) and their colour is the CPU pass's within the
 // GPU's tolerance (tests/gl/test_gl_lee_mipmap.cpp, test_gl_schedl_layered.cpp): the HDR colour the
 // tone map reads, with dof.device=gpu against dof.device=cpu in the same frame.
+// attention.device=gpu (backend/gl/gl_attention.h) against attention.device=cpu in the frame: the
+// same objects, pixel counts and depths, the same attention within float sums, over frames of an
+// animation (the Kalman filter and the temporal context see the same values), with the finite checks
+// on; colour stays on the GPU when attention runs there.
+TEST(GlFramePipeline, TheGpuAttentionIsTheCpuAttentionInTheFrame) {
+  std::vector<attention::ObjectAttention> objects[2];
+  for (const char* device : {"gpu", "cpu"}) {
+    Settings s;
+    s.set("attention.device", device);
+    s.set("focus.mode", "attention");
+    s.set("lod.enabled", "false");  // lod-select reads the last frame's colour and ids back
+    s.set("debug.finite_checks", "true");
+    std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
+    FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
+    PassTimer timer;
+    FramePipeline::Frame f;
+    for (int k = 0; k < 4; ++k) f = pipeline.render(static_cast<std::uint64_t>(k), 0.1 * k, 0.1 * (k - 1), 0.1 * k, timer);
+    ASSERT_TRUE(f.on_gpu) << f.plan.explain();
+    ASSERT_NE(f.attention, nullptr);
+    const bool gpu = std::string(device) == "gpu";
+    EXPECT_EQ(f.plan.at(PassId::Attention).on_gpu, gpu) << f.plan.explain();
+    EXPECT_EQ(timer.summary().count("gpu.attention"), gpu ? 1u : 0u);
+    EXPECT_EQ(f.read_back.color, !gpu) << "only a CPU attention reads the colour back";
+    objects[gpu ? 0 : 1] = f.attention->objects;
+  }
+  ASSERT_FALSE(objects[1].empty());
+  ASSERT_EQ(objects[0].size(), objects[1].size());
+  for (std::size_t i = 0; i < objects[0].size(); ++i) {
+    const attention::ObjectAttention &g = objects[0][i], &c = objects[1][i];
+    EXPECT_EQ(g.id, c.id) << "rank " << i;
+    EXPECT_EQ(g.pixels, c.pixels) << "object " << c.id;
+    EXPECT_EQ(g.depth_m, c.depth_m) << "object " << c.id;
+    EXPECT_NEAR(g.attention, c.attention, 1e-4 * std::max(1e-3, c.attention)) << "object " << c.id;
+  }
+}
+
 TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
   for (const char* method : {"lee-mipmap", "schedl-layered"}) {
   SCOPED_TRACE(method);

@@ -74,6 +74,19 @@ class FakeGpuFrame final : public GpuFrame {
     EXPECT_FALSE(coc.pinhole());
     return {};
   }
+  // The box's pixels, as one object with the map's every pixel salient.
+  void attention_pixels(const attention::AttentionSettings& s, double, double far_m, const std::vector<std::uint32_t>& ids,
+                        const std::vector<float>& motion, std::vector<attention::ObjectPixels>& out) override {
+    calls.push_back("attention");
+    EXPECT_EQ(ids.size(), motion.size());
+    const auto n = static_cast<std::size_t>(s.map_size);
+    out = {attention::ObjectPixels{1, n * n / 4, 0.5 * static_cast<double>(n * n / 4), 0.125 * static_cast<double>(n * n),
+                                   0.125 * static_cast<double>(n * n), far_m / 2}};
+    map_size = s.map_size;
+  }
+  void read_saliency(std::vector<float>& saliency) override {
+    saliency.assign(static_cast<std::size_t>(map_size) * static_cast<std::size_t>(map_size), 0.5f);
+  }
   void read_hdr(std::vector<glm::vec3>& hdr) override { hdr = rendered_.color; }
   void tonemap(const GpuTonemap&) override { calls.push_back("tonemap"); }
   void overlay(const GpuOverlay& o) override {
@@ -96,6 +109,7 @@ class FakeGpuFrame final : public GpuFrame {
   GBufferPlanes read_back_planes, written;
   bool visibility_buffer = false;  // what the last G-buffer was asked to be drawn with
   GpuOverlay last_overlay;
+  int map_size = 0;
 
  private:
   std::string unavailable_;
@@ -182,8 +196,11 @@ struct PathRow {
 const std::vector<PathRow> kPaths = {
     {"pinhole: nothing runs on the CPU, nothing comes back; only colour is written", false, {}, true, {}, false,
      "written: colour; read back: nothing"},
-    {"thin lens: attention and focus read colour, depth and ids; lee-mipmap runs on the GPU, nothing goes up", true,
-     {}, true, {.color = true, .depth = true, .object_id = true}, false, "read back: colour, depth, id"},
+    {"thin lens: attention runs on the GPU, focus reads depth and ids; lee-mipmap on the GPU, nothing goes up", true,
+     {}, true, {.depth = true, .object_id = true}, false, "written: colour, depth, id; read back: depth, id",
+     {.depth = true, .object_id = true}},
+    {"attention.device=cpu: attention reads colour, depth and ids back", true, {"attention.device=cpu"}, true,
+     {.color = true, .depth = true, .object_id = true}, false, "read back: colour, depth, id"},
     {"fixed focus: lee-mipmap on the GPU, nothing comes back", true, {"focus.mode=fixed"}, true, {}, false,
      "written: colour, depth; read back: nothing", {.depth = true}},
     {"dof.device=cpu: DOF reads colour and depth back, its colour goes up", true, {"focus.mode=fixed", "dof.device=cpu"},
@@ -268,7 +285,7 @@ TEST(GpuFramePath, TheGBufferPassFollowsTheSettingAndWhatTheDeviceCanDo) {
 
 TEST(GpuFramePath, GpuPassesRunInPipelineOrderAndEndWithTheFence) {
   const auto run = render_one(true, {});
-  const std::vector<std::string> want = {"gbuffer", "read_back", "dof", "tonemap", "overlay", "finish"};
+  const std::vector<std::string> want = {"gbuffer", "read_back", "attention", "dof", "tonemap", "overlay", "finish"};
   EXPECT_EQ(run->backend->gpu_->calls, want);
   EXPECT_EQ(run->backend->cpu_renders, 0);  // no second render of the G-buffer on the CPU path
 }

@@ -141,7 +141,10 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
   const GBufferPlanes cdi{.color = true, .depth = true, .object_id = true};
   const Row rows[] = {
       {"pinhole: only the tone map reads (colour), on the GPU", {}, {}, {}, {.color = true}},
-      {"thin lens: attention (colour, depth, ids), focus, lee-mipmap", {.thin_lens = true}, {}, cdi, cdi},
+      {"thin lens: attention (colour, depth, ids) and lee-mipmap on the GPU, focus (depth, ids) on the CPU",
+       {.thin_lens = true}, {}, {.depth = true, .object_id = true}, cdi},
+      {"attention.device=cpu: attention reads colour, depth and ids back", {.thin_lens = true},
+       {"attention.device=cpu"}, cdi, cdi},
       {"the accumulation reference renders again: DOF reads nothing", {.thin_lens = true},
        {"dof.method=accum", "focus.mode=fixed"}, {}, {.color = true}},
       {"LOD: the last frame's colour and ids", {.lods = true}, {}, {.color = true, .object_id = true},
@@ -164,16 +167,65 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
     EXPECT_EQ(planes_read_on_cpu(plan), row.on_cpu) << plan.explain();
     EXPECT_EQ(planes_read(plan), row.all) << plan.explain();
   }
-  // The passes with a GPU implementation: the G-buffer, the tone map, the overlay, and dof for some methods.
+  // The passes with a GPU implementation: the G-buffer, attention, the tone map, the overlay, and dof
+  // for some methods.
   for (const PassDecl& d : pass_declarations()) {
-    EXPECT_EQ(d.on_gpu != nullptr,
-              d.id == PassId::GBuffer || d.id == PassId::Tonemap || d.id == PassId::Overlay || d.id == PassId::Dof)
+    EXPECT_EQ(d.on_gpu != nullptr, d.id == PassId::GBuffer || d.id == PassId::Attention || d.id == PassId::Tonemap ||
+                                       d.id == PassId::Overlay || d.id == PassId::Dof)
         << d.name;
   }
 }
 
 // dof.device and the methods with a GPU implementation: where dof runs in a GPU-resident frame, what
 // comes back for it, and what the plan says.
+TEST(Planner, AttentionRunsOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
+  struct Row {
+    const char* name;
+    std::vector<std::string> settings;
+    bool resident;
+    bool runs, on_gpu;
+    const char* says;
+  };
+  const Row rows[] = {
+      {"a GPU-resident frame", {}, true, true, true, "on the GPU"},
+      {"the readback path: on the CPU, nothing said", {}, false, true, false, ""},
+      {"attention.device=cpu", {"attention.device=cpu"}, true, true, false, "on the CPU: attention.device=cpu"},
+      {"attention.device=gpu without a GPU-resident frame: later", {"attention.device=gpu"}, false, false, false,
+       "attention.device=gpu: the frame is not on the GPU"},
+      {"attention.device=gpu where it can", {"attention.device=gpu"}, true, true, true, "on the GPU"},
+  };
+  const Scene scene = make_scene({.thin_lens = true});
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.name);
+    Settings settings;
+    settings.set("focus.mode", "attention");
+    for (const std::string& a : row.settings) settings.set_assignment(a);
+    PlanContext c{scene, settings, true};
+    c.gpu_resident = row.resident;
+    const FramePlan plan = plan_frame(c);
+    EXPECT_EQ(plan.runs(PassId::Attention), row.runs) << plan.explain();
+    EXPECT_EQ(plan.at(PassId::Attention).on_gpu, row.on_gpu) << plan.explain();
+    const PlannedPass& p = plan.at(PassId::Attention);
+    EXPECT_NE(p.reason.find(row.says), std::string::npos) << p.reason;
+    // In a GPU-resident frame colour comes back for attention only when it runs on the CPU (focus
+    // reads depth and ids; dof runs on the GPU).
+    if (row.resident) {
+      EXPECT_EQ(planes_read_on_cpu(plan).color, row.runs && !row.on_gpu) << plan.explain();
+    }
+  }
+  // ULOD runs attention first, on its own proxy render: on the CPU, and it says so.
+  const Scene with_lods = make_scene({.thin_lens = true, .lods = true});
+  Settings settings;
+  settings.set("lod.policy", "ulod");
+  PlanContext c{with_lods, settings, true};
+  c.gpu_resident = true;
+  const FramePlan plan = plan_frame(c);
+  ASSERT_TRUE(plan.runs(PassId::Attention)) << plan.explain();
+  EXPECT_FALSE(plan.at(PassId::Attention).on_gpu);
+  EXPECT_NE(plan.at(PassId::Attention).reason.find("on the CPU: lod.policy=ulod runs attention first"), std::string::npos)
+      << plan.at(PassId::Attention).reason;
+}
+
 TEST(Planner, DofRunsOnTheGpuWhereItsMethodCanAndSaysWhyNot) {
   struct Row {
     const char* name;

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "backend/gl/gl_attention.h"
 #include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_lee_mipmap.h"
 #include "backend/gl/gl_schedl_layered.h"
@@ -284,6 +285,26 @@ void GlFrame::upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width,
   end_timed();
   hdr_source_ = HdrSource::Upload;
   check("GlFrame::upload_hdr");
+}
+
+void GlFrame::attention_pixels(const attention::AttentionSettings& settings, double near_m, double far_m,
+                               const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
+                               std::vector<attention::ObjectPixels>& out) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  if (t.color == 0) throw std::logic_error("GlFrame::attention_pixels before the G-buffer was rendered");
+  if (!attention_) attention_ = std::make_unique<GlAttention>();
+  begin_timed("gpu.attention");
+  attention_->run(GlAttentionInput{t.color, t.depth, t.object_id, t.width, t.height}, near_m, far_m, settings,
+                  GlAttentionObjects{ids, motion}, out);
+  end_timed();
+  check("GlFrame::attention_pixels");
+}
+
+void GlFrame::read_saliency(std::vector<float>& saliency) {
+  backend_.context().make_current();
+  if (!attention_) throw std::logic_error("GlFrame::read_saliency before attention_pixels");
+  attention_->read_saliency(saliency);
 }
 
 void GlFrame::dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings& settings) {

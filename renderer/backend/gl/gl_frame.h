@@ -13,6 +13,7 @@
 
 namespace fovea::render {
 
+class GlAttention;
 class GlBackend;
 class GlLeeMipmap;
 class GlSchedlLayered;
@@ -33,6 +34,10 @@ class GlFrame final : public GpuFrame {
   void dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSettings& settings) override;
   dof::SchedlStats dof_schedl_layered(const FrameTime& time, const BackendSettings& peel_settings,
                                       const dof::CocModel& coc, std::uint32_t layers) override;
+  void attention_pixels(const attention::AttentionSettings& settings, double near_m, double far_m,
+                        const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
+                        std::vector<attention::ObjectPixels>& out) override;
+  void read_saliency(std::vector<float>& saliency) override;
   void read_hdr(std::vector<glm::vec3>& hdr) override;
   void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
                     float radius_px, float fovea_fraction) override;
@@ -64,6 +69,7 @@ class GlFrame final : public GpuFrame {
   // top), or the GPU dof's output.
   enum class HdrSource { GBuffer, Upload, Dof };
   HdrSource hdr_source_ = HdrSource::GBuffer;
+  std::unique_ptr<GlAttention> attention_;   // made on first use
   std::unique_ptr<GlLeeMipmap> lee_mipmap_;  // made on first use
   std::unique_ptr<GlSchedlLayered> schedl_;  // made on first use
   unsigned dof_output_ = 0;                  // the texture the last GPU dof wrote
