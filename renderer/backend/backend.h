@@ -66,6 +66,8 @@ struct BackendCapabilities {
   // ... and it is the faster G-buffer here: a GPU, not a software rasteriser (bench/RESULTS.md: 3x
   // faster on an H200, 2-4x slower on llvmpipe). frame.gbuffer_pass=auto follows this.
   bool visibility_buffer_faster = false;
+  // The GPU passes run on a software rasteriser (Mesa's llvmpipe: the CPU's own cores).
+  bool software_rasteriser = false;
   bool operator==(const BackendCapabilities&) const = default;
 };
 

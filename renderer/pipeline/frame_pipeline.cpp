@@ -150,8 +150,9 @@ void FramePipeline::scene_changed() {
 }
 
 FramePlan FramePipeline::plan() const {
-  FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), backend_->capabilities().per_pixel_lens,
-                                          &pass_settings().plan, gpu_refusal().empty()});
+  const BackendCapabilities can = backend_->capabilities();
+  FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), can.per_pixel_lens,
+                                          &pass_settings().plan, gpu_refusal().empty(), can.software_rasteriser});
   plan.placement = placement(plan);
   return plan;
 }

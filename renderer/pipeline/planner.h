@@ -66,6 +66,10 @@ struct PlanContext {
   // The frame's G-buffer lies on the GPU (FramePipeline's GPU-resident path): passes with a GPU
   // implementation run there.
   bool gpu_resident = false;
+  // ... and the "GPU" is a software rasteriser on the CPU's own cores (llvmpipe): passes whose GPU
+  // version is much slower there than their CPU version (attention: ~20x, bench/RESULTS.md) stay on
+  // the CPU with device=auto.
+  bool gpu_is_software = false;
   const PlanSettings& typed() const;  // *parsed; throws std::logic_error when unset
   // What the frame hands out: the display image (output=final) or the G-buffer (output=gbuffer).
   Resource output() const { return typed().output; }

@@ -213,6 +213,22 @@ TEST(Planner, AttentionRunsOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
       EXPECT_EQ(planes_read_on_cpu(plan).color, row.runs && !row.on_gpu) << plan.explain();
     }
   }
+  // On a software rasteriser auto keeps it on the CPU; gpu still puts it there.
+  for (const char* device : {"auto", "gpu"}) {
+    Settings settings;
+    settings.set("attention.device", device);
+    PlanContext c{scene, settings, true};
+    c.gpu_resident = true;
+    c.gpu_is_software = true;
+    const FramePlan plan = plan_frame(c);
+    const bool gpu = std::string(device) == "gpu";
+    EXPECT_EQ(plan.at(PassId::Attention).on_gpu, gpu) << device;
+    if (!gpu) {
+      EXPECT_NE(plan.at(PassId::Attention).reason.find("on the CPU: attention.device=auto on a software rasteriser"),
+                std::string::npos)
+          << plan.at(PassId::Attention).reason;
+    }
+  }
   // ULOD runs attention first, on its own proxy render: on the CPU, and it says so.
   const Scene with_lods = make_scene({.thin_lens = true, .lods = true});
   Settings settings;

@@ -411,7 +411,8 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
 BackendCapabilities GlBackend::capabilities() const {
   const bool visibility = GlVisibilityPass::unavailable_reason(context_.features()).empty();
   return {.shadow_rays = false, .per_pixel_lens = false, .peeling = true, .visibility_buffer = visibility,
-          .visibility_buffer_faster = visibility && context_.features().compute_pays()};
+          .visibility_buffer_faster = visibility && context_.features().compute_pays(),
+          .software_rasteriser = context_.features().software};
 }
 
 bool GlBackend::ensure_visibility() {
