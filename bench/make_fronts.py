@@ -131,6 +131,45 @@ def gi_front(results):
             "options": pareto(options, False)}
 
 
+def attention_device_fronts(results):
+    """The attention fronts of the OpenGL backend on the devices bench_attention's GL rows ran on: every
+    bench_attention_gl.csv under RESULTS (this machine's, and any copied from another machine's run of
+    bench_attention). Options per map size: the CPU's pixel stage (attention.device=cpu) at its wall time
+    and the GL one (attention.device=gpu) at its GPU time, on the largest G-buffer of the run; accuracy
+    A1 from eval_attention.csv (the same maps on both: the GL map is the CPU's to 2e-6)."""
+    a1 = {r["map"]: float(r["A1"]) for r in csv.DictReader(open(os.path.join(results, "eval_attention.csv")))
+          if r["section"] == "map_size" and r["method"] == "fovea"}
+    fronts = []
+    for path in sorted(glob.glob(os.path.join(results, "**", "bench_attention_gl.csv"), recursive=True)):
+        rows = list(csv.DictReader(open(path)))
+        gl_rows = [r for r in rows if r["method"] == "fovea gl (GPU pixel stage)"]
+        devices = {r["device"] for r in gl_rows}
+        if len(devices) != 1:
+            sys.exit(f"make_fronts: {path}: expected the GL rows of one device, found {sorted(devices) or 'none'}")
+        device = devices.pop()
+        size = max({r["input"].split()[-1] for r in gl_rows}, key=lambda s: int(s.split("x")[0]) * int(s.split("x")[1]))
+        w, h = (int(v) for v in size.split("x"))
+        options = []
+        for r in rows:
+            if not r["input"].endswith(" " + size) or r["map"] not in a1:
+                continue
+            where = {"fovea (Lee 2009)": "cpu", "fovea gl (GPU pixel stage)": "gpu"}.get(r["method"])
+            if where is None:
+                continue
+            options.append({"label": f'{r["map"]}x{r["map"]} box, {where}',
+                            "settings": {"attention.map_size": r["map"], "attention.resample": "box",
+                                         "attention.device": where},
+                            "ms": float(r["total_median_ms"]), "accuracy": a1[r["map"]]})
+        fronts.append({"effect": "attention", "backend": "gl", "device": device_token(device),
+                       "passes": ["attention", "gpu.attention"],
+                       "metric": "A1 (share of frames the most attended object is the gazed one)", "higher_better": True,
+                       "reference": "a synthetic viewer's gaze on renderer/scenes/attention.json (fovea-eval-attention); "
+                                    f"times of {size} G-buffers, GL rows on {device}",
+                       "pixels": w * h, "scales_with_pixels": False, "source": os.path.relpath(path),
+                       "options": pareto(options, True)})
+    return fronts
+
+
 def attention_front(path):
     options = []
     for r in csv.DictReader(open(path)):
@@ -173,7 +212,7 @@ def main():
     results = sys.argv[1] if len(sys.argv) > 1 else "bench/results"
     out = sys.argv[2] if len(sys.argv) > 2 else "renderer/governor/fronts.json"
     # Device fronts first: the governor takes the first front of an effect that matches.
-    fronts = dof_device_fronts(results)
+    fronts = dof_device_fronts(results) + attention_device_fronts(results)
     fronts += [dof_front(os.path.join(results, "bench_dof.csv")),
               gi_front(results),
               attention_front(os.path.join(results, "eval_attention.csv"))]
