@@ -47,22 +47,44 @@ std::string g3(double v) {
 
 }  // namespace
 
-// This frame's inputs, with the G-buffer lookups the rules need. Every depth it returns is finite and
-// in [kMinDepthM, far]: NaN, Inf and non-positive depths in the G-buffer are skipped.
+GBufferPixels::GBufferPixels(const GBuffer& g) : g_(g) {
+  const std::size_t n = g.size();
+  if (n > 0 && g.depth.size() >= n && g.object_id.size() >= n) {
+    w_ = g.width;
+    h_ = g.height;
+  }
+}
+
+void GBufferPixels::read(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+                         std::vector<std::uint32_t>& ids) {
+  depth.clear();
+  ids.clear();
+  for (std::uint32_t y = y0; y < y1; ++y) {
+    const std::size_t row = g_.index(x0, y);
+    depth.insert(depth.end(), g_.depth.begin() + static_cast<std::ptrdiff_t>(row),
+                 g_.depth.begin() + static_cast<std::ptrdiff_t>(row + (x1 - x0)));
+    ids.insert(ids.end(), g_.object_id.begin() + static_cast<std::ptrdiff_t>(row),
+               g_.object_id.begin() + static_cast<std::ptrdiff_t>(row + (x1 - x0)));
+  }
+}
+
+// This frame's inputs, with the G-buffer lookups the rules need (through FocusPixels: each reads
+// only the pixels it looks at). Every depth it returns is finite and in [kMinDepthM, far]: NaN, Inf
+// and non-positive depths in the G-buffer are skipped.
 struct FocusTracker::FrameView {
-  const GBuffer& g;
+  FocusPixels& px;
   const Scene& scene;
   const AttentionFrame* attention;
   const protocol::DisplayGeometry& display;
   double far_m;
   bool pixels;  // the G-buffer has pixels and consistent buffers
+  std::uint32_t width, height;
 
-  FrameView(const GBuffer& gb, const Scene& s, const AttentionFrame* a, const protocol::DisplayGeometry& d)
-      : g(gb), scene(s), attention(a), display(d) {
+  FrameView(FocusPixels& p, const Scene& s, const AttentionFrame* a, const protocol::DisplayGeometry& d)
+      : px(p), scene(s), attention(a), display(d), width(p.width()), height(p.height()) {
     const double far = static_cast<double>(s.camera.far_m);
     far_m = std::isfinite(far) && far > kMinDepthM ? far : 100.0;
-    const std::size_t n = g.size();
-    pixels = n > 0 && g.depth.size() >= n && g.object_id.size() >= n;
+    pixels = width > 0 && height > 0;
   }
 
   std::optional<double> sane(double d) const {
@@ -71,28 +93,38 @@ struct FocusTracker::FrameView {
   }
 
   // The pixel under a normalised screen point (clamped to the image).
-  std::size_t pixel_at(double x, double y) const {
-    const auto px = static_cast<std::uint32_t>(std::min(clamp01(x) * g.width, g.width - 1.0));
-    const auto py = static_cast<std::uint32_t>(std::min(clamp01(y) * g.height, g.height - 1.0));
-    return g.index(px, py);
+  std::uint32_t column_at(double x) const { return static_cast<std::uint32_t>(std::min(clamp01(x) * width, width - 1.0)); }
+  std::uint32_t row_at(double y) const { return static_cast<std::uint32_t>(std::min(clamp01(y) * height, height - 1.0)); }
+  std::uint32_t id_at(double x, double y) const {
+    if (!pixels) return 0;
+    std::vector<float> depth;
+    std::vector<std::uint32_t> ids;
+    const std::uint32_t cx = column_at(x), cy = row_at(y);
+    px.read(cx, cy, cx + 1, cy + 1, depth, ids);
+    return ids[0];
   }
-  std::uint32_t id_at(double x, double y) const { return pixels ? g.object_id[pixel_at(x, y)] : 0; }
 
   // The depth under a normalised screen point: the pixel there, or, when its depth is not a number,
   // the nearest hit pixel with one within 2 pixels; the far plane where nothing is hit.
   double depth_at(double nx, double ny) const {
     if (!pixels) return far_m;
-    const std::size_t i = pixel_at(nx, ny);
-    if (g.object_id[i] == 0) return far_m;
-    if (auto d = sane(g.depth[i])) return *d;
-    const auto cx = static_cast<long>(i % g.width), cy = static_cast<long>(i / g.width);
-    const long w = static_cast<long>(g.width), h = static_cast<long>(g.height);
+    const long cx = column_at(nx), cy = row_at(ny);
+    const long w = static_cast<long>(width), h = static_cast<long>(height);
+    const long x0 = std::max(0L, cx - 2), y0 = std::max(0L, cy - 2);
+    const long x1 = std::min(w, cx + 3), y1 = std::min(h, cy + 3);
+    std::vector<float> depth;
+    std::vector<std::uint32_t> ids;
+    px.read(static_cast<std::uint32_t>(x0), static_cast<std::uint32_t>(y0), static_cast<std::uint32_t>(x1),
+            static_cast<std::uint32_t>(y1), depth, ids);
+    const auto at = [&](long x, long y) { return static_cast<std::size_t>((y - y0) * (x1 - x0) + (x - x0)); };
+    if (ids[at(cx, cy)] == 0) return far_m;
+    if (auto d = sane(depth[at(cx, cy)])) return *d;
     for (long r = 1; r <= 2; ++r) {
       for (long py = std::max(0L, cy - r); py <= std::min(h - 1, cy + r); ++py) {
-        for (long px = std::max(0L, cx - r); px <= std::min(w - 1, cx + r); ++px) {
-          const std::size_t j = g.index(static_cast<std::uint32_t>(px), static_cast<std::uint32_t>(py));
-          if (g.object_id[j] == 0) continue;
-          if (auto d = sane(g.depth[j])) return *d;
+        for (long qx = std::max(0L, cx - r); qx <= std::min(w - 1, cx + r); ++qx) {
+          const std::size_t j = at(qx, py);
+          if (ids[j] == 0) continue;
+          if (auto d = sane(depth[j])) return *d;
         }
       }
     }
@@ -108,12 +140,14 @@ struct FocusTracker::FrameView {
   }
 
   // An object's depth: ObjectAttention::depth_m when the attention pass has it, else the median depth
-  // of its G-buffer pixels. nullopt when the object is not visible (or none of its depths is a number).
+  // of its G-buffer pixels (the whole planes). nullopt when the object is not visible (or none of its
+  // depths is a number).
   std::optional<double> object_depth(std::uint32_t id) const {
     if (const ObjectAttention* a = attended(id)) {
       if (auto d = sane(a->depth_m)) return d;
     }
     if (!pixels || id == 0) return std::nullopt;
+    const GBuffer& g = px.whole();
     std::vector<float> depths;
     for (std::size_t i = 0; i < g.size(); ++i) {
       if (g.object_id[i] == id && std::isfinite(g.depth[i]) && g.depth[i] > 0) depths.push_back(g.depth[i]);
@@ -138,15 +172,21 @@ struct FocusTracker::FrameView {
     if (!pixels) return ids;
     ids.insert(id_at(x, y));
     // degrees_to_pixels gives the diameter of a circle subtending the angle: twice the radius in.
-    double r = protocol::degrees_to_image_pixels(display, g.width, 2.0 * radius_deg) / 2.0;
+    double r = protocol::degrees_to_image_pixels(display, width, 2.0 * radius_deg) / 2.0;
     if (!std::isfinite(r) || r < 0) r = 0;
-    r = std::min(r, static_cast<double>(g.width) + g.height);
-    const double cx = clamp01(x) * g.width, cy = clamp01(y) * g.height;
+    r = std::min(r, static_cast<double>(width) + height);
+    const double cx = clamp01(x) * width, cy = clamp01(y) * height;
     const auto lo = [](double v) { return static_cast<std::uint32_t>(std::max(0.0, std::floor(v))); };
     const auto hi = [](double v, std::uint32_t n) { return static_cast<std::uint32_t>(std::clamp(std::ceil(v), 0.0, n - 1.0)); };
-    for (std::uint32_t py = lo(cy - r); py <= hi(cy + r, g.height); ++py) {
-      for (std::uint32_t px = lo(cx - r); px <= hi(cx + r, g.width); ++px) {
-        if (std::hypot(px + 0.5 - cx, py + 0.5 - cy) <= r) ids.insert(g.object_id[g.index(px, py)]);
+    // The circle's bounding box, read in one piece.
+    const std::uint32_t x0 = lo(cx - r), y0 = lo(cy - r), x1 = hi(cx + r, width) + 1, y1 = hi(cy + r, height) + 1;
+    if (x0 >= x1 || y0 >= y1) return ids;
+    std::vector<float> depth;
+    std::vector<std::uint32_t> box;
+    px.read(x0, y0, x1, y1, depth, box);
+    for (std::uint32_t py = y0; py < y1; ++py) {
+      for (std::uint32_t qx = x0; qx < x1; ++qx) {
+        if (std::hypot(qx + 0.5 - cx, py + 0.5 - cy) <= r) ids.insert(box[std::size_t{py - y0} * (x1 - x0) + (qx - x0)]);
       }
     }
     ids.erase(0);
@@ -401,7 +441,14 @@ FocusTracker::FocalDepth FocusTracker::low_pass_focal_depth(double zn, double dt
 const FocusResult& FocusTracker::update(double time_s, const GBuffer& g, const Scene& scene,
                                         const AttentionFrame* attention, const FocusGaze& gaze,
                                         const protocol::DisplayGeometry& display) {
-  const FrameView f(g, scene, attention, display);
+  GBufferPixels pixels(g);
+  return update(time_s, pixels, scene, attention, gaze, display);
+}
+
+const FocusResult& FocusTracker::update(double time_s, FocusPixels& pixels, const Scene& scene,
+                                        const AttentionFrame* attention, const FocusGaze& gaze,
+                                        const protocol::DisplayGeometry& display) {
+  const FrameView f(pixels, scene, attention, display);
   const double dt = advance_clock(time_s);
   bool held = false;
   Target next = pick_target(f, gaze, held);

@@ -55,12 +55,46 @@ struct FocusResult {
   std::string why;               // "attention: red_ball (S_o 0.42)", "gaze+attention: ...", for --explain and overlays
 };
 
+// What the focus pass reads of the frame's G-buffer (row 0 at the top): small rectangles of depth
+// and object ids around the points it looks at, and the whole planes only when an object's depth is
+// not in the attention frame (its median over the image). GBufferPixels reads a G-buffer on the CPU;
+// the GPU-resident frame reads the rectangles back from where the G-buffer lies (FramePipeline).
+class FocusPixels {
+ public:
+  virtual ~FocusPixels() = default;
+  // The image's size; 0 x 0 when it has no depth or id plane.
+  virtual std::uint32_t width() const = 0;
+  virtual std::uint32_t height() const = 0;
+  // Depth and ids of the pixels [x0, x1) x [y0, y1) (inside the image), row-major.
+  virtual void read(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+                    std::vector<std::uint32_t>& ids) = 0;
+  // The whole image: its depth and object_id planes.
+  virtual const GBuffer& whole() = 0;
+};
+
+class GBufferPixels final : public FocusPixels {
+ public:
+  explicit GBufferPixels(const GBuffer& g);
+  std::uint32_t width() const override { return w_; }
+  std::uint32_t height() const override { return h_; }
+  void read(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+            std::vector<std::uint32_t>& ids) override;
+  const GBuffer& whole() override { return g_; }
+
+ private:
+  const GBuffer& g_;
+  std::uint32_t w_ = 0, h_ = 0;
+};
+
 class FocusTracker {
  public:
   explicit FocusTracker(FocusSettings settings = {});
   // `attention` may be null (attention not planned): gaze+attention then acts as gaze, attention as
   // the screen centre. `display` converts gaze_radius_deg to pixels of the G-buffer.
   const FocusResult& update(double time_s, const GBuffer& g, const Scene& scene, const AttentionFrame* attention,
+                            const FocusGaze& gaze, const protocol::DisplayGeometry& display);
+  // The same on a G-buffer read through `pixels` (only what the rules look at).
+  const FocusResult& update(double time_s, FocusPixels& pixels, const Scene& scene, const AttentionFrame* attention,
                             const FocusGaze& gaze, const protocol::DisplayGeometry& display);
   const FocusResult& last() const { return result_; }
   void reset();
