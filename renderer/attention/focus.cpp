@@ -454,13 +454,15 @@ const FocusResult& FocusTracker::update(double time_s, FocusPixels& pixels, cons
   Target next = pick_target(f, gaze, held);
   start_transition_if_changed(next);
   target_ = std::move(next);
-  const double zn = resolve(f, target_);
+  bool visible = true;
+  const double zn = resolve(f, target_, &visible);
   const FocalDepth focal = focal_depth(f, zn, dt);
 
   started_ = true;
   result_.focal_depth_m = focal.depth_m;
   result_.target_depth_m = zn;
   result_.object = target_.kind == Target::Kind::Object ? target_.object : 0;
+  result_.object_visible = result_.object != 0 && visible;
   result_.in_transition = focal.in_transition;
   result_.why = target_.why + (held ? " (held: saccade or blink)" : "");
   return result_;

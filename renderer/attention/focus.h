@@ -51,6 +51,7 @@ struct FocusResult {
   double focal_depth_m = 2.0;    // what the lens focuses at this frame (after the transition)
   double target_depth_m = 2.0;   // where the transition is heading
   std::uint32_t object = 0;      // the focused object (0: a depth without an object, e.g. screen centre)
+  bool object_visible = false;   // ... has pixels this frame (else it keeps the depth it last had)
   bool in_transition = false;
   std::string why;               // "attention: red_ball (S_o 0.42)", "gaze+attention: ...", for --explain and overlays
 };

@@ -78,6 +78,10 @@ class GpuFrame {
   // queries, the depth range the layers are cut by).
   virtual dof::SchedlStats dof_schedl_layered(const FrameTime& time, const BackendSettings& peel_settings,
                                               const dof::CocModel& coc, std::uint32_t layers) = 0;
+  // Depth and ids of the G-buffer rendered last, pixels [x0, x1) x [y0, y1) (row 0 at the top),
+  // row-major, as read_back converts them: what the focus pass looks at. Waits for the GPU.
+  virtual void read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+                         std::vector<std::uint32_t>& ids) = 0;
   // Lee 2009 ch. 3's pixel stage (attention/attention.h's update() up to eq. 3.7's sums; on GL
   // backend/gl/gl_attention.h) on the G-buffer where it lies, with the camera's depth range of
   // eq. 3.1: `out` gets the per-object values AttentionTracker::update_objects takes. `ids` and

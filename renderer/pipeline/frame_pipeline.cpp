@@ -201,9 +201,14 @@ std::string FramePipeline::placement(const FramePlan& plan) const {
   std::string on_gpu;
   for (const PlannedPass& p : plan.passes)
     if (p.runs && p.on_gpu && p.id != PassId::GBuffer) on_gpu += std::string(", ") + declaration(p.id).name;
+  // The CPU passes that read only the pixels they look at.
+  std::string looks;
+  for (const PlannedPass& p : plan.passes)
+    if (p.runs && !p.on_gpu && reads_pixels_where_they_lie(p, plan)) looks += std::string(looks.empty() ? "" : ", ") + declaration(p.id).name;
   return "gpu        " + gpu_->description() + ": G-buffer (" + how + ")" + on_gpu +
          " on the GPU; G-buffer planes written: " +
-         to_string(planes_written(plan)) + "; read back: " + to_string(planes_read_on_cpu(plan));
+         to_string(planes_written(plan)) + "; read back: " + to_string(planes_read_on_cpu(plan)) +
+         (looks.empty() ? "" : " (" + looks + ": only the pixels it looks at)");
 }
 
 namespace {
@@ -348,8 +353,9 @@ void FramePipeline::step_overlay_on_gpu(const Frame& f, PassTimer& timer) {
   GpuOverlay o;
   const PassSettings& ps = pass_settings();
   if (f.focus != nullptr && ps.plan.overlay_focus) {
+    // The focus pass knows whether its object has pixels; the ids are not read back for this.
     const std::uint32_t id = f.focus->object;
-    const bool seen = id != 0 && std::find(gbuffer_.object_id.begin(), gbuffer_.object_id.end(), id) != gbuffer_.object_id.end();
+    const bool seen = id != 0 && f.focus->object_visible;
     o.focus = seen ? GpuOverlay::Focus::Outline
               : std::isfinite(f.focus->focal_depth_m) ? GpuOverlay::Focus::IsoDepth
                                                       : GpuOverlay::Focus::None;
@@ -434,6 +440,44 @@ void FramePipeline::step_attention(Frame& f, double now_s, double previous_s, bo
   }
 }
 
+namespace {
+
+// The focus pass's view of a G-buffer that lies on the GPU: the rectangles it looks at are read back
+// as it looks (a few hundred pixels), the whole depth and id planes once, only when an object's
+// median depth is not in the attention frame.
+class GpuFocusPixels final : public attention::FocusPixels {
+ public:
+  GpuFocusPixels(GpuFrame& gpu, GBuffer& frame, bool planes_read_back) : gpu_(gpu), frame_(frame), whole_(planes_read_back) {}
+  std::uint32_t width() const override { return frame_.width; }
+  std::uint32_t height() const override { return frame_.height; }
+  void read(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+            std::vector<std::uint32_t>& ids) override {
+    if (whole_) {
+      attention::GBufferPixels(frame_).read(x0, y0, x1, y1, depth, ids);
+      return;
+    }
+    gpu_.read_rect(x0, y0, x1, y1, depth, ids);
+    pixels_read_ += std::size_t{x1 - x0} * (y1 - y0);
+  }
+  const GBuffer& whole() override {
+    if (!whole_) {
+      gpu_.read_back({.depth = true, .object_id = true}, frame_);
+      whole_ = true;
+      pixels_read_ += frame_.size();
+    }
+    return frame_;
+  }
+  std::size_t pixels_read() const { return pixels_read_; }
+
+ private:
+  GpuFrame& gpu_;
+  GBuffer& frame_;
+  bool whole_;  // the frame's depth and ids are on the CPU (read back for another pass, or by whole())
+  std::size_t pixels_read_ = 0;
+};
+
+}  // namespace
+
 void FramePipeline::step_focus(Frame& f, double frame_clock_s, bool check, PassTimer& timer) {
   auto t = timer.scope("focus");
   const attention::FocusSettings& wanted = pass_settings().focus;
@@ -442,8 +486,14 @@ void FramePipeline::step_focus(Frame& f, double frame_clock_s, bool check, PassT
     focus_ = attention::FocusTracker(wanted);
   }
   // On the frame clock (the gaze's clock): transitions are perceptual time, even with the scene paused.
-  focus_.update(frame_clock_s, gbuffer_, scene_, f.attention, attention::focus_gaze_from(f.gaze, gaze_.available()),
-                scene_.display);
+  const attention::FocusGaze gaze = attention::focus_gaze_from(f.gaze, gaze_.available());
+  if (f.on_gpu) {
+    GpuFocusPixels pixels(*gpu_, gbuffer_, f.read_back.depth && f.read_back.object_id);
+    focus_.update(frame_clock_s, pixels, scene_, f.attention, gaze, scene_.display);
+    f.focus_pixels_read = pixels.pixels_read();
+  } else {
+    focus_.update(frame_clock_s, gbuffer_, scene_, f.attention, gaze, scene_.display);
+  }
   f.focus = &focus_.last();
   if (check) {
     require_finite("focus", "focal depth", std::vector<double>{f.focus->focal_depth_m, f.focus->target_depth_m});

@@ -74,6 +74,7 @@ class FramePipeline {
     bool on_gpu = false;
     GBufferPlanes read_back;  // on_gpu: the planes of `gbuffer` that are this frame's (the rest are stale)
     GBufferPlanes written;    // on_gpu: the planes the G-buffer pass wrote on the GPU (the others are culled)
+    std::size_t focus_pixels_read = 0;  // on_gpu: G-buffer pixels (depth and id) the focus pass read back
     double gaze_age_at_completion_ms = 0;  // the overlay's gaze sample's age when the frame was complete
     double completed_wall_s = 0;           // when it was complete (steady_clock seconds)
   };

@@ -237,6 +237,9 @@ GBufferPlanes attention_reads(const FramePlan& plan, const PlanSettings& s) {
   return ulod_attention_first(plan, s) ? GBufferPlanes{} : GBufferPlanes{.color = true, .depth = true, .object_id = true};
 }
 GBufferPlanes focus_reads(const FramePlan&, const PlanSettings&) { return {.depth = true, .object_id = true}; }
+// With attention the objects' depths come from its frame, so focus reads only the pixels around the
+// points it looks at; without it an object's depth is the median of its pixels over the whole image.
+bool focus_looks_with_attention(const FramePlan& plan) { return plan.runs(PassId::Attention); }
 // The last frame's colour and ids (screen coverage); ULOD blends colour by id.
 GBufferPlanes lod_reads(const FramePlan&, const PlanSettings&) { return {.color = true, .object_id = true}; }
 // The image-space methods filter colour by depth; the references render the scene again.
@@ -276,7 +279,7 @@ const std::vector<PassDecl>& pass_declarations() {
        "scene (object and observer motion, task importance)", attention_rule, attention_reads, attention_on_gpu, true},
       {PassId::Focus, "focus",
        {{R::GBuffer}, {R::Attention, "focus.mode=attention|gaze+attention", focus_uses_attention}}, {R::FocalDepth},
-       "gaze", focus_rule, focus_reads, nullptr, true},
+       "gaze", focus_rule, focus_reads, nullptr, true, focus_looks_with_attention},
       {PassId::LodSelect, "lod-select", {{R::Attention, "lod.policy=ulod", lod_ulod}}, {R::LodLevels},
        "camera, gaze, the last frame's G-buffer", lod_rule, lod_reads},
       {PassId::Dof, "dof",
@@ -295,6 +298,11 @@ const std::vector<PassDecl>& pass_declarations() {
        {R::Display}, "gaze", overlay_rule, overlay_reads, always},
   };
   return kPasses;
+}
+
+bool reads_pixels_where_they_lie(const PlannedPass& p, const FramePlan& plan) {
+  const PassDecl& d = declaration(p.id);
+  return d.reads_pixels_where_they_lie != nullptr && d.reads_pixels_where_they_lie(plan);
 }
 
 const PassDecl& declaration(PassId id) { return pass_declarations().at(static_cast<std::size_t>(id)); }
@@ -493,7 +501,7 @@ std::string FramePlan::explain() const {
 GBufferPlanes planes_read_on_cpu(const FramePlan& plan) {
   GBufferPlanes r;
   for (const PlannedPass& p : plan.passes) {
-    if (p.runs && !p.on_gpu) r = r | p.gbuffer_reads;
+    if (p.runs && !p.on_gpu && !reads_pixels_where_they_lie(p, plan)) r = r | p.gbuffer_reads;
   }
   return r;
 }

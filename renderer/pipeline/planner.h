@@ -110,6 +110,10 @@ struct PassDecl {
   bool (*on_gpu)(const PlanContext&) = nullptr;
   // Its reason starts with who consumes it (attention, focus: their only purpose is their consumers).
   bool names_consumers = false;
+  // In this plan it runs on the CPU but reads only the pixels it looks at, from where the G-buffer
+  // lies (focus with attention: rectangles around the gaze point and the screen centre; the objects'
+  // depths come from attention): in a GPU-resident frame nothing is read back whole for it. Null: never.
+  bool (*reads_pixels_where_they_lie)(const FramePlan& plan) = nullptr;
 };
 // The passes in pipeline order.
 const std::vector<PassDecl>& pass_declarations();
@@ -138,6 +142,8 @@ struct FramePlan {
   // passes that run: what each reads (the G-buffer's planes typed) and writes.
   std::string explain() const;
 };
+// PassDecl::reads_pixels_where_they_lie of `p` in `plan`.
+bool reads_pixels_where_they_lie(const PlannedPass& p, const FramePlan& plan);
 
 FramePlan plan_frame(const PlanContext& context);
 

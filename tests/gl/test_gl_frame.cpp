@@ -400,6 +400,47 @@ TEST(GlFramePipeline, TheGpuAttentionIsTheCpuAttentionInTheFrame) {
   }
 }
 
+// With attention on the GPU the focus pass reads only the pixels it looks at (FocusPixels: rectangles
+// around the gaze point and the screen centre) and nothing of the G-buffer is read back whole; it
+// focuses where the readback path's focus pass does, frame by frame, in each mode that uses attention.
+TEST(GlFramePipeline, TheFocusPassReadsOnlyThePixelsItLooksAt) {
+  for (const char* mode : {"gaze+attention", "attention"}) {
+    SCOPED_TRACE(mode);
+    std::vector<attention::FocusResult> focus[2];
+    for (const bool gpu : {true, false}) {
+      Settings s;
+      s.set("frame.gpu", gpu ? "true" : "false");
+      s.set("attention.device", gpu ? "gpu" : "cpu");
+      s.set("focus.mode", mode);
+      s.set("lod.enabled", "false");  // lod-select reads the last frame's colour and ids back
+      std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
+      FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
+      PassTimer timer;
+      for (std::uint64_t i = 0; i < 12; ++i) {
+        gaze->set_cursor(i < 6 ? 0.3 : 0.62, 0.55);  // a fixation, a saccade, another fixation
+        const double t = 0.05 * static_cast<double>(i);
+        const FramePipeline::Frame f = pipeline.render(i, t, i == 0 ? 0.0 : t - 0.05, t, timer);
+        ASSERT_EQ(f.on_gpu, gpu) << f.plan.explain();
+        ASSERT_NE(f.focus, nullptr);
+        focus[gpu ? 0 : 1].push_back(*f.focus);
+        if (gpu) {
+          EXPECT_FALSE(f.read_back.any()) << f.plan.explain();
+          EXPECT_LT(f.focus_pixels_read, f.gbuffer->size() / 100) << "frame " << i;
+        }
+      }
+    }
+    ASSERT_EQ(focus[0].size(), focus[1].size());
+    for (std::size_t i = 0; i < focus[0].size(); ++i) {
+      const attention::FocusResult &g = focus[0][i], &c = focus[1][i];
+      EXPECT_EQ(g.object, c.object) << "frame " << i << ": " << g.why << " / " << c.why;
+      EXPECT_EQ(g.object_visible, c.object_visible) << "frame " << i;
+      EXPECT_NEAR(g.focal_depth_m, c.focal_depth_m, 1e-9 * c.focal_depth_m) << "frame " << i;
+      EXPECT_EQ(g.in_transition, c.in_transition) << "frame " << i;
+    }
+    std::printf("%s: focus %s, then %s\n", mode, focus[0][5].why.c_str(), focus[0].back().why.c_str());
+  }
+}
+
 TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
   for (const char* method : {"lee-mipmap", "schedl-layered"}) {
   SCOPED_TRACE(method);

@@ -84,6 +84,11 @@ class FakeGpuFrame final : public GpuFrame {
                                    0.125 * static_cast<double>(n * n), far_m / 2}};
     map_size = s.map_size;
   }
+  void read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+                 std::vector<std::uint32_t>& ids) override {
+    calls.push_back("rect");
+    attention::GBufferPixels(rendered_).read(x0, y0, x1, y1, depth, ids);
+  }
   void read_saliency(std::vector<float>& saliency) override {
     saliency.assign(static_cast<std::size_t>(map_size) * static_cast<std::size_t>(map_size), 0.5f);
   }
@@ -196,8 +201,8 @@ struct PathRow {
 const std::vector<PathRow> kPaths = {
     {"pinhole: nothing runs on the CPU, nothing comes back; only colour is written", false, {}, true, {}, false,
      "written: colour; read back: nothing"},
-    {"thin lens: attention runs on the GPU, focus reads depth and ids; lee-mipmap on the GPU, nothing goes up", true,
-     {}, true, {.depth = true, .object_id = true}, false, "written: colour, depth, id; read back: depth, id",
+    {"thin lens: attention and lee-mipmap on the GPU, focus reads what it looks at; nothing comes back whole", true,
+     {}, true, {}, false, "written: colour, depth, id; read back: nothing (focus: only the pixels it looks at)",
      {.depth = true, .object_id = true}},
     {"attention.device=cpu: attention reads colour, depth and ids back", true, {"attention.device=cpu"}, true,
      {.color = true, .depth = true, .object_id = true}, false, "read back: colour, depth, id"},
@@ -208,9 +213,10 @@ const std::vector<PathRow> kPaths = {
     {"a method without a GPU implementation runs on the CPU", true,
      {"focus.mode=fixed", "dof.method=lee-splat", "dof.hidden=false"}, true, {.color = true, .depth = true}, true,
      "read back: colour, depth"},
-    {"gaze focus without DOF shown: focus reads depth and ids, so does the outline", true,
-     {"focus.mode=gaze", "dof.enabled=false", "overlay.focus=true"}, true, {.depth = true, .object_id = true}, false,
-     "written: colour, depth, id; read back: depth, id", {.depth = true, .object_id = true}},
+    {"gaze focus without attention: focus reads depth and ids (an object's median depth), the outline its ids on "
+     "the GPU", true, {"focus.mode=gaze", "dof.enabled=false", "overlay.focus=true"}, true,
+     {.depth = true, .object_id = true}, false, "written: colour, depth, id; read back: depth, id",
+     {.depth = true, .object_id = true}},
     {"the reference DOF renders again: nothing of the G-buffer comes back for it", true,
      {"focus.mode=fixed", "dof.method=accum", "dof.samples=2"}, true, {}, true, "read back: nothing"},
     {"gi: the inset is composited on the GPU, nothing comes back for it", false,
@@ -285,7 +291,9 @@ TEST(GpuFramePath, TheGBufferPassFollowsTheSettingAndWhatTheDeviceCanDo) {
 
 TEST(GpuFramePath, GpuPassesRunInPipelineOrderAndEndWithTheFence) {
   const auto run = render_one(true, {});
-  const std::vector<std::string> want = {"gbuffer", "read_back", "attention", "dof", "tonemap", "overlay", "finish"};
+  // Focus reads rectangles of depth and ids (the screen centre's, the gaze points') as it looks.
+  const std::vector<std::string> want = {"gbuffer", "read_back", "attention", "rect", "rect", "rect",
+                                         "dof",     "tonemap",   "overlay",   "finish"};
   EXPECT_EQ(run->backend->gpu_->calls, want);
   EXPECT_EQ(run->backend->cpu_renders, 0);  // no second render of the G-buffer on the CPU path
 }

@@ -141,8 +141,8 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
   const GBufferPlanes cdi{.color = true, .depth = true, .object_id = true};
   const Row rows[] = {
       {"pinhole: only the tone map reads (colour), on the GPU", {}, {}, {}, {.color = true}},
-      {"thin lens: attention (colour, depth, ids) and lee-mipmap on the GPU, focus (depth, ids) on the CPU",
-       {.thin_lens = true}, {}, {.depth = true, .object_id = true}, cdi},
+      {"thin lens: attention (colour, depth, ids) and lee-mipmap on the GPU, focus reads what it looks at",
+       {.thin_lens = true}, {}, {}, cdi},
       {"attention.device=cpu: attention reads colour, depth and ids back", {.thin_lens = true},
        {"attention.device=cpu"}, cdi, cdi},
       {"the accumulation reference renders again: DOF reads nothing", {.thin_lens = true},
@@ -151,7 +151,7 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
        {.color = true, .object_id = true}},
       {"ULOD: attention reads its proxy, LOD colour and ids", {.lods = true}, {"lod.policy=ulod"},
        {.color = true, .object_id = true}, {.color = true, .object_id = true}},
-      {"the focus outline reads depth and ids on the GPU", {.thin_lens = true},
+      {"the focus outline reads depth and ids on the GPU; focus without attention reads them back", {.thin_lens = true},
        {"dof.enabled=false", "focus.mode=gaze", "overlay.focus=true"}, {.depth = true, .object_id = true},
        {.color = true, .depth = true, .object_id = true}},
       {"gi reads nothing", {}, {"gi.enabled=true"}, {}, {.color = true}},

@@ -711,6 +711,39 @@ void GlBackend::read_back_from(unsigned fbo, const GBufferPlanes& planes, GBuffe
   check_gl("GlBackend::render (read back)");
 }
 
+void GlBackend::read_back_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1,
+                               std::vector<float>& depth, std::vector<std::uint32_t>& ids) {
+  if (x1 > image_width_ || y1 > image_height_ || x0 > x1 || y0 > y1) {
+    throw std::invalid_argument("GlBackend::read_back_rect: [" + std::to_string(x0) + ", " + std::to_string(x1) + ") x [" +
+                                std::to_string(y0) + ", " + std::to_string(y1) + ") is not inside the " +
+                                std::to_string(image_width_) + "x" + std::to_string(image_height_) + " image");
+  }
+  const std::uint32_t w = x1 - x0, h = y1 - y0;
+  depth.resize(std::size_t{w} * h);
+  ids.resize(std::size_t{w} * h);
+  if (w == 0 || h == 0) return;
+  context_.make_current();
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  // GL rows start at the bottom: the rectangle's top row y0 is GL row image_height_ - 1 - y0.
+  const auto gx = static_cast<GLint>(x0), gy = static_cast<GLint>(image_height_ - y1);
+  const auto gw = static_cast<GLsizei>(w), gh = static_cast<GLsizei>(h);
+  scratch_.resize(std::size_t{w} * h);
+  scratch_id_.resize(std::size_t{w} * h);
+  glReadBuffer(kDrawBuffers[kDepth]);
+  glReadPixels(gx, gy, gw, gh, GL_RED, GL_FLOAT, scratch_.data());
+  glReadBuffer(kDrawBuffers[kId]);
+  glReadPixels(gx, gy, gw, gh, GL_RED_INTEGER, GL_UNSIGNED_INT, scratch_id_.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  const float far_m = scene_ ? scene_->camera.far_m : 100.0f;
+  for (std::uint32_t y = 0; y < h; ++y) {
+    const std::size_t from = std::size_t{h - 1 - y} * w, to = std::size_t{y} * w;
+    for (std::uint32_t x = 0; x < w; ++x) depth[to + x] = finite_or(scratch_[from + x], far_m);
+    std::memcpy(&ids[to], &scratch_id_[from], std::size_t{w} * sizeof(std::uint32_t));
+  }
+  check_gl("GlBackend::read_back_rect");
+}
+
 GlGBufferTextures GlBackend::textures() const {
   return {textures_[kColor], textures_[kDepth], textures_[kId], textures_[kNormal], textures_[kMotion],
           image_width_,      image_height_,     fb_width_,      fb_height_};

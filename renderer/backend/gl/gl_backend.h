@@ -74,6 +74,10 @@ class GlBackend final : public Backend {
   void render_on_gpu(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes);
   // Reads `planes` of the last render into `out`, which must already have the render's size.
   void read_back(const GBufferPlanes& planes, GBuffer& out);
+  // Depth and ids of the last render's pixels [x0, x1) x [y0, y1) (row 0 at the top), row-major, as
+  // read_back converts them (a non-finite depth reads as the far plane).
+  void read_back_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+                      std::vector<std::uint32_t>& ids);
   // The G-buffer textures of the last render (0 before the first).
   GlGBufferTextures textures() const;
   // Peels layers 1..`layers` behind the visible one (settings: time's lens, LOD levels; its peel is

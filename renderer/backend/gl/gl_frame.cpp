@@ -301,6 +301,11 @@ void GlFrame::attention_pixels(const attention::AttentionSettings& settings, dou
   check("GlFrame::attention_pixels");
 }
 
+void GlFrame::read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1,
+                        std::vector<float>& depth, std::vector<std::uint32_t>& ids) {
+  backend_.read_back_rect(x0, y0, x1, y1, depth, ids);
+}
+
 void GlFrame::read_saliency(std::vector<float>& saliency) {
   backend_.context().make_current();
   if (!attention_) throw std::logic_error("GlFrame::read_saliency before attention_pixels");

@@ -38,6 +38,8 @@ class GlFrame final : public GpuFrame {
                         const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
                         std::vector<attention::ObjectPixels>& out) override;
   void read_saliency(std::vector<float>& saliency) override;
+  void read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
+                 std::vector<std::uint32_t>& ids) override;
   void read_hdr(std::vector<glm::vec3>& hdr) override;
   void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
                     float radius_px, float fovea_fraction) override;
