@@ -695,7 +695,9 @@ void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double p
   in.previous_s = previous_s;
   in.gaze_x = gaze.x;
   in.gaze_y = gaze.y;
-  in.last_frame = &gbuffer_;
+  // Only Brown's policy reads the last frame (luminance contrast); the planner reads its colour and
+  // ids back for it on the GPU path, and only for it.
+  in.last_frame = ps.policy == lod::Policy::Brown ? &gbuffer_ : nullptr;
   in.attention = [&att](std::uint32_t id) {
     for (const attention::ObjectAttention& a : att.objects)
       if (a.id == id) return a.attention;

@@ -240,8 +240,13 @@ GBufferPlanes focus_reads(const FramePlan&, const PlanSettings&) { return {.dept
 // With attention the objects' depths come from its frame, so focus reads only the pixels around the
 // points it looks at; without it an object's depth is the median of its pixels over the whole image.
 bool focus_looks_with_attention(const FramePlan& plan) { return plan.runs(PassId::Attention); }
-// The last frame's colour and ids (screen coverage); ULOD blends colour by id.
-GBufferPlanes lod_reads(const FramePlan&, const PlanSettings&) { return {.color = true, .object_id = true}; }
+// Brown's policy: the last frame's colour and ids (each object's luminance contrast); ULOD blends
+// this frame's colour by id. The other policies read nothing of the G-buffer.
+GBufferPlanes lod_reads(const FramePlan&, const PlanSettings& s) {
+  return s.lod_policy == lod::Policy::Brown || s.lod_policy == lod::Policy::Ulod
+             ? GBufferPlanes{.color = true, .object_id = true}
+             : GBufferPlanes{};
+}
 // The image-space methods filter colour by depth; the references render the scene again.
 GBufferPlanes dof_reads(const FramePlan&, const PlanSettings& s) {
   return s.dof_method == DofMethod::Reference || s.dof_method == DofMethod::Accum ? GBufferPlanes{}

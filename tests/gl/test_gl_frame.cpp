@@ -374,7 +374,7 @@ TEST(GlFramePipeline, TheGpuAttentionIsTheCpuAttentionInTheFrame) {
     Settings s;
     s.set("attention.device", device);
     s.set("focus.mode", "attention");
-    s.set("lod.enabled", "false");  // lod-select reads the last frame's colour and ids back
+    s.set("lod.enabled", "false");  // the pass alone
     s.set("debug.finite_checks", "true");
     std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
     FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
@@ -401,8 +401,9 @@ TEST(GlFramePipeline, TheGpuAttentionIsTheCpuAttentionInTheFrame) {
 }
 
 // With attention on the GPU the focus pass reads only the pixels it looks at (FocusPixels: rectangles
-// around the gaze point and the screen centre) and nothing of the G-buffer is read back whole; it
-// focuses where the readback path's focus pass does, frame by frame, in each mode that uses attention.
+// around the gaze point and the screen centre) and, with lee-mipmap on the GPU and LOD by screen size,
+// nothing of the G-buffer is read back whole; it focuses where the readback path's focus pass does,
+// frame by frame, in each mode that uses attention.
 TEST(GlFramePipeline, TheFocusPassReadsOnlyThePixelsItLooksAt) {
   for (const char* mode : {"gaze+attention", "attention"}) {
     SCOPED_TRACE(mode);
@@ -411,8 +412,7 @@ TEST(GlFramePipeline, TheFocusPassReadsOnlyThePixelsItLooksAt) {
       Settings s;
       s.set("frame.gpu", gpu ? "true" : "false");
       s.set("attention.device", gpu ? "gpu" : "cpu");
-      s.set("focus.mode", mode);
-      s.set("lod.enabled", "false");  // lod-select reads the last frame's colour and ids back
+      s.set("focus.mode", mode);  // the scene's LOD (screen size) and lee-mipmap too: the whole frame
       std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
       FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
       PassTimer timer;
@@ -450,7 +450,7 @@ TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
     s.set("dof.method", method);
     s.set("dof.device", device);
     s.set("focus.mode", "fixed");
-    s.set("lod.enabled", "false");  // lod-select reads the last frame's colour and ids back
+    s.set("lod.enabled", "false");  // the pass alone
     std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
     FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
     PassTimer timer;
