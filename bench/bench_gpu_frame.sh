@@ -25,9 +25,10 @@
 # ("scene") run lee-mipmap on the GPU path's GPU too. "dof-fN" = dof with the lens at f-number N
 # (attention.json: 2.8; 0.7 blurs 4x as much, 11.2 a quarter as much): the DOF's cost against its CoC.
 # "dof-schedl" = dof with schedl-layered, M = 3 (its two layers peeled on the GPU path's GPU).
-# "attention" = base with the attention pass and focus.mode=attention (on the GPU path attention's
-# pixel stage runs on the GPU, only depth and ids come back for focus); "attention-cpu" = the same
-# with attention.device=cpu (colour, depth and ids read back for the CPU's attention).
+# "attention" = base with the attention pass, focus.mode=attention and its outline (overlay.focus),
+# attention.device=gpu (on the GPU path attention's pixel stage runs on the GPU and the focus pass
+# reads only the pixels it looks at: nothing is read back whole); "attention-cpu" = the same with
+# attention.device=cpu (colour, depth and ids read back for the CPU's attention).
 #
 # Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
 #   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
@@ -73,9 +74,9 @@ for scene in $SCENES; do
         dof-schedl) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
                            --set dof.method=schedl-layered) ;;
         attention) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
-                          --set focus.mode=attention) ;;
+                          --set focus.mode=attention --set overlay.focus=true --set attention.device=gpu) ;;
         attention-cpu) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
-                              --set focus.mode=attention --set attention.device=cpu) ;;
+                              --set focus.mode=attention --set overlay.focus=true --set attention.device=cpu) ;;
         gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac
