@@ -78,6 +78,12 @@ class GpuFrame {
   // queries, the depth range the layers are cut by).
   virtual dof::SchedlStats dof_schedl_layered(const FrameTime& time, const BackendSettings& peel_settings,
                                               const dof::CocModel& coc, std::uint32_t layers) = 0;
+  // ULOD's blend of adjacent levels where the frame lies (lod/lod_frame.h ulod_blend's arithmetic;
+  // on GL backend/gl/gl_ulod_blend.h): the scene drawn again at `next`'s LOD levels aside, and the
+  // G-buffer's colour blended towards it by `blend` per object of `ids` where both images show that
+  // object. The G-buffer's colour is the blended one afterwards.
+  virtual void ulod_blend(const FrameTime& time, const BackendSettings& next, const std::vector<std::uint32_t>& ids,
+                          const std::vector<float>& blend) = 0;
   // Depth and ids of the G-buffer rendered last, pixels [x0, x1) x [y0, y1) (row 0 at the top),
   // row-major, as read_back converts them: what the focus pass looks at. Waits for the GPU.
   virtual void read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,

@@ -201,14 +201,15 @@ std::string FramePipeline::placement(const FramePlan& plan) const {
   std::string on_gpu;
   for (const PlannedPass& p : plan.passes)
     if (p.runs && p.on_gpu && p.id != PassId::GBuffer) on_gpu += std::string(", ") + declaration(p.id).name;
-  // The CPU passes that read only the pixels they look at.
+  // The CPU passes that read the G-buffer where it lies, and how.
   std::string looks;
   for (const PlannedPass& p : plan.passes)
-    if (p.runs && !p.on_gpu && reads_pixels_where_they_lie(p, plan)) looks += std::string(looks.empty() ? "" : ", ") + declaration(p.id).name;
+    if (p.runs && !p.on_gpu && !p.reads_where_the_gbuffer_lies.empty())
+      looks += std::string(looks.empty() ? "" : "; ") + declaration(p.id).name + ": " + p.reads_where_the_gbuffer_lies;
   return "gpu        " + gpu_->description() + ": G-buffer (" + how + ")" + on_gpu +
          " on the GPU; G-buffer planes written: " +
          to_string(planes_written(plan)) + "; read back: " + to_string(planes_read_on_cpu(plan)) +
-         (looks.empty() ? "" : " (" + looks + ": only the pixels it looks at)");
+         (looks.empty() ? "" : " (" + looks + ")");
 }
 
 namespace {
@@ -250,7 +251,6 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   if (dof_.settings() != ps.dof) dof_.set_settings(ps.dof);  // the coc map draws with them too
   step_gaze(f, frame_clock_s, timer);
   lod_levels_.clear();
-  ulod_blended_ = false;
   gi_inset_on_gpu_ = false;
   const bool attention_first =
       f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && ps.plan.lod_policy == lod::Policy::Ulod;
@@ -271,7 +271,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   if (f.plan.runs(PassId::Dof)) hdr = &step_dof(f, now_s, previous_s, check, timer);
   if (f.plan.runs(PassId::Gi)) hdr = &step_gi(f, *hdr, now_s, check, timer);
   if (f.on_gpu) {
-    if (f.plan.runs(PassId::Tonemap)) step_tonemap_on_gpu(f, *hdr, hdr != &gbuffer_.color || ulod_blended_, timer);
+    if (f.plan.runs(PassId::Tonemap)) step_tonemap_on_gpu(f, *hdr, hdr != &gbuffer_.color, timer);
     if (f.plan.runs(PassId::Overlay)) {
       late_latch(f, timer);
       step_overlay_on_gpu(f, timer);
@@ -328,10 +328,7 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
     auto r = timer.scope("gbuffer.readback");
     gpu_->read_back(f.read_back, gbuffer_);
   }
-  if (f.lod != nullptr && ps.plan.lod_policy == lod::Policy::Ulod) {
-    blend_ulod(FrameTime{now_s, previous_s}, bs);
-    ulod_blended_ = true;
-  }
+  if (f.lod != nullptr && ps.plan.lod_policy == lod::Policy::Ulod) blend_ulod_on_gpu(FrameTime{now_s, previous_s}, bs);
   if (check) require_finite_gbuffer("gbuffer", gbuffer_);
 }
 
@@ -680,6 +677,21 @@ void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& dra
   next.readback = {.color = true, .object_id = true};  // the blend reads nothing else
   backend_->render(time, next, ulod_next_);
   lod::ulod_blend(gbuffer_, ulod_next_, lod_frame_.selection);
+}
+
+// blend_ulod where the frame lies: the next levels drawn aside on the GPU and blended there, so the
+// G-buffer's colour is the blended one for every later pass and nothing is read back or uploaded.
+void FramePipeline::blend_ulod_on_gpu(const FrameTime& time, const BackendSettings& drawn) {
+  BackendSettings next = drawn;
+  if (!lod::ulod_next_levels(scene_, lod_frame_.selection, next.lod_levels)) return;
+  ulod_ids_.clear();
+  ulod_factors_.clear();
+  for (const lod::Selection& sel : lod_frame_.selection) {
+    if (!(sel.blend > 0) || sel.blend_to == sel.drawn) continue;
+    ulod_ids_.push_back(sel.id);
+    ulod_factors_.push_back(static_cast<float>(std::clamp(sel.blend, 0.0, 1.0)));
+  }
+  gpu_->ulod_blend(time, next, ulod_ids_, ulod_factors_);
 }
 
 void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms) {

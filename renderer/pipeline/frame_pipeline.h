@@ -128,6 +128,9 @@ class FramePipeline {
   GBuffer ulod_next_;  // lod.policy=ulod: the next-coarser levels, blended into the colour
   GBuffer proxy_;      // lod.policy=ulod: every object at its coarsest level, for the attention pass
   void blend_ulod(const FrameTime& time, const BackendSettings& drawn);
+  void blend_ulod_on_gpu(const FrameTime& time, const BackendSettings& drawn);
+  std::vector<std::uint32_t> ulod_ids_;  // the objects blending this frame, and
+  std::vector<float> ulod_factors_;      // their factors (the GPU's blend)
   // The attention pass on `g` (the proxy or the frame's G-buffer) with attention.* applied.
   const attention::AttentionFrame& run_attention(const GBuffer& g, double now_s, double previous_s, bool check);
   // The attention pass with its pixel stage on the GPU (attention.device; the planner decides).
@@ -190,7 +193,6 @@ class FramePipeline {
 
   GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run
   bool cpu_gbuffer_required_ = false;
-  bool ulod_blended_ = false;    // this frame's G-buffer colour was changed on the CPU
   bool gi_inset_on_gpu_ = false; // this frame's GI inset is composited by the GPU's tone map
   float gi_fovea_ = 0.7f;        // its fovea fraction (Algorithm 8.4)
   double frame_clock_s_ = 0;     // this frame's

@@ -154,9 +154,6 @@ std::string dof_gpu_blocker(const PlanContext& c) {
   const PlanSettings& t = c.typed();
   if (!has_gpu_implementation(t.dof_method)) return "dof.method=" + c.settings.text("dof.method") + " has no GPU implementation yet";
   if (t.gi && t.gi_csf_periphery) return "gi.periphery=csf composites GI over the DOF colour on the CPU";
-  if (t.lod && t.lod_policy == lod::Policy::Ulod && c.scene.has_lods()) {
-    return "lod.policy=ulod blends the levels' colours on the CPU before dof";
-  }
   return "";
 }
 
@@ -239,13 +236,19 @@ GBufferPlanes attention_reads(const FramePlan& plan, const PlanSettings& s) {
 GBufferPlanes focus_reads(const FramePlan&, const PlanSettings&) { return {.depth = true, .object_id = true}; }
 // With attention the objects' depths come from its frame, so focus reads only the pixels around the
 // points it looks at; without it an object's depth is the median of its pixels over the whole image.
-bool focus_looks_with_attention(const FramePlan& plan) { return plan.runs(PassId::Attention); }
-// Brown's policy: the last frame's colour and ids (each object's luminance contrast); ULOD blends
-// this frame's colour by id. The other policies read nothing of the G-buffer.
+const char* focus_looks_with_attention(const FramePlan& plan, const PlanSettings&) {
+  return plan.runs(PassId::Attention) ? "only the pixels it looks at" : nullptr;
+}
+// Brown's policy: the last frame's colour and ids (each object's luminance contrast); ULOD's blend:
+// this frame's colour and ids (where they lie: lod_blends_where_the_gbuffer_lies). The other
+// policies read nothing of the G-buffer.
 GBufferPlanes lod_reads(const FramePlan&, const PlanSettings& s) {
   return s.lod_policy == lod::Policy::Brown || s.lod_policy == lod::Policy::Ulod
              ? GBufferPlanes{.color = true, .object_id = true}
              : GBufferPlanes{};
+}
+const char* lod_blends_where_the_gbuffer_lies(const FramePlan&, const PlanSettings& s) {
+  return s.lod_policy == lod::Policy::Ulod ? "ULOD's blend where the G-buffer lies" : nullptr;
 }
 // The image-space methods filter colour by depth; the references render the scene again.
 GBufferPlanes dof_reads(const FramePlan&, const PlanSettings& s) {
@@ -286,7 +289,7 @@ const std::vector<PassDecl>& pass_declarations() {
        {{R::GBuffer}, {R::Attention, "focus.mode=attention|gaze+attention", focus_uses_attention}}, {R::FocalDepth},
        "gaze", focus_rule, focus_reads, nullptr, true, focus_looks_with_attention},
       {PassId::LodSelect, "lod-select", {{R::Attention, "lod.policy=ulod", lod_ulod}}, {R::LodLevels},
-       "camera, gaze, the last frame's G-buffer", lod_rule, lod_reads},
+       "camera, gaze, the last frame's G-buffer", lod_rule, lod_reads, nullptr, false, lod_blends_where_the_gbuffer_lies},
       {PassId::Dof, "dof",
        {{R::HdrColor}, {R::FocalDepth}, {R::GBuffer, "an image-space dof.method", dof_filters_the_image}},
        {R::HdrColor}, "the lens", dof_rule, dof_reads, dof_on_gpu},
@@ -303,11 +306,6 @@ const std::vector<PassDecl>& pass_declarations() {
        {R::Display}, "gaze", overlay_rule, overlay_reads, always},
   };
   return kPasses;
-}
-
-bool reads_pixels_where_they_lie(const PlannedPass& p, const FramePlan& plan) {
-  const PassDecl& d = declaration(p.id);
-  return d.reads_pixels_where_they_lie != nullptr && d.reads_pixels_where_they_lie(plan);
 }
 
 const PassDecl& declaration(PassId id) { return pass_declarations().at(static_cast<std::size_t>(id)); }
@@ -433,7 +431,7 @@ FramePlan plan_frame(const PlanContext& given) {
   const std::vector<bool> runs = keep_from_output(c, runnable);
   for (const PassDecl& d : decls) {
     const auto i = static_cast<std::size_t>(d.id);
-    PlannedPass p{d.id, needed[i], runs[i], "", {}, c.gpu_resident && d.on_gpu != nullptr && d.on_gpu(c), {}};
+    PlannedPass p{d.id, needed[i], runs[i], "", {}, c.gpu_resident && d.on_gpu != nullptr && d.on_gpu(c), {}, ""};
     for (const ReadDecl& r : d.reads)
       if (r.reads(c)) p.reads.push_back(r.resource);
     plan.passes.push_back(std::move(p));
@@ -464,6 +462,10 @@ FramePlan plan_frame(const PlanContext& given) {
   for (PlannedPass& pass : plan.passes) {
     const PassDecl& d = declaration(pass.id);
     if (pass.runs && d.gbuffer_reads != nullptr) pass.gbuffer_reads = d.gbuffer_reads(plan, c.typed());
+    const char* where = pass.runs && d.reads_where_the_gbuffer_lies != nullptr
+                            ? d.reads_where_the_gbuffer_lies(plan, c.typed())
+                            : nullptr;
+    if (where != nullptr) pass.reads_where_the_gbuffer_lies = where;
   }
   return plan;
 }
@@ -506,7 +508,7 @@ std::string FramePlan::explain() const {
 GBufferPlanes planes_read_on_cpu(const FramePlan& plan) {
   GBufferPlanes r;
   for (const PlannedPass& p : plan.passes) {
-    if (p.runs && !p.on_gpu && !reads_pixels_where_they_lie(p, plan)) r = r | p.gbuffer_reads;
+    if (p.runs && !p.on_gpu && p.reads_where_the_gbuffer_lies.empty()) r = r | p.gbuffer_reads;
   }
   return r;
 }

@@ -110,10 +110,12 @@ struct PassDecl {
   bool (*on_gpu)(const PlanContext&) = nullptr;
   // Its reason starts with who consumes it (attention, focus: their only purpose is their consumers).
   bool names_consumers = false;
-  // In this plan it runs on the CPU but reads only the pixels it looks at, from where the G-buffer
-  // lies (focus with attention: rectangles around the gaze point and the screen centre; the objects'
-  // depths come from attention): in a GPU-resident frame nothing is read back whole for it. Null: never.
-  bool (*reads_pixels_where_they_lie)(const FramePlan& plan) = nullptr;
+  // With these settings and this plan it reads its G-buffer planes where the G-buffer lies rather than
+  // from a readback, though the pass itself runs on the CPU: returns how, for people ("only the
+  // pixels it looks at"), or null. Focus with attention reads rectangles around the points it looks
+  // at (the objects' depths come from attention); lod-select's ULOD blend runs on the GPU. In a
+  // GPU-resident frame nothing is read back whole for such a pass. Null function: never.
+  const char* (*reads_where_the_gbuffer_lies)(const FramePlan& plan, const PlanSettings& settings) = nullptr;
 };
 // The passes in pipeline order.
 const std::vector<PassDecl>& pass_declarations();
@@ -127,6 +129,8 @@ struct PlannedPass {
   GBufferPlanes gbuffer_reads;  // what it reads of the G-buffer when it runs (PassDecl::gbuffer_reads)
   bool on_gpu = false;          // runs on the GPU: the frame is GPU-resident and PassDecl::on_gpu says so
   std::vector<Resource> reads;  // the resources it reads with these settings (the graph's edges in)
+  // PassDecl::reads_where_the_gbuffer_lies in this plan ("" : it reads from a readback where it runs).
+  std::string reads_where_the_gbuffer_lies;
 };
 
 struct FramePlan {
@@ -142,8 +146,6 @@ struct FramePlan {
   // passes that run: what each reads (the G-buffer's planes typed) and writes.
   std::string explain() const;
 };
-// PassDecl::reads_pixels_where_they_lie of `p` in `plan`.
-bool reads_pixels_where_they_lie(const PlannedPass& p, const FramePlan& plan);
 
 FramePlan plan_frame(const PlanContext& context);
 

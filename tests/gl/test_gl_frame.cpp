@@ -441,6 +441,47 @@ TEST(GlFramePipeline, TheFocusPassReadsOnlyThePixelsItLooksAt) {
   }
 }
 
+// lod.policy=ulod in a GPU-resident frame: the next levels are drawn aside and blended where the
+// frame lies (gpu.ulod); nothing is read back or uploaded for the blend, and the blended colour is
+// the readback path's (lod::ulod_blend on the CPU) over frames of the scene's animation.
+TEST(GlFramePipeline, TheUlodBlendRunsOnTheGpuAsOnTheCpu) {
+  std::vector<glm::vec3> hdr[2];
+  for (const bool gpu : {true, false}) {
+    Settings s;
+    s.set("frame.gpu", gpu ? "true" : "false");
+    s.set("lod.policy", "ulod");
+    s.set("dof.enabled", "false");  // the blend alone reaches the tone map
+    std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
+    FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
+    PassTimer timer;
+    FramePipeline::Frame f;
+    std::size_t blending = 0;
+    for (std::uint64_t i = 0; i < 3; ++i) {
+      const double t = 0.5 * static_cast<double>(i);
+      f = pipeline.render(i, t, i == 0 ? 0.0 : t - 0.5, t, timer);
+      ASSERT_EQ(f.on_gpu, gpu) << f.plan.explain();
+      ASSERT_NE(f.lod, nullptr) << f.plan.explain();
+      blending = 0;
+      for (const lod::Selection& sel : f.lod->selection) blending += sel.blend > 0 && sel.blend_to != sel.drawn;
+    }
+    EXPECT_GT(blending, 0u) << "no object between two levels: the test would not blend";
+    if (gpu) {
+      EXPECT_EQ(timer.summary().count("gpu.ulod"), 1u);
+      EXPECT_FALSE(f.read_back.color) << f.plan.explain();
+      EXPECT_TRUE(f.written.object_id) << "the blend reads the ids where they lie";
+      pipeline.gpu_frame()->read_hdr(hdr[0]);
+    } else {
+      hdr[1] = f.gbuffer->color;
+    }
+  }
+  ASSERT_EQ(hdr[0].size(), hdr[1].size());
+  double worst = 0;
+  for (std::size_t i = 0; i < hdr[0].size(); ++i)
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, static_cast<double>(std::fabs(hdr[0][i][c] - hdr[1][i][c])));
+  std::printf("ulod blend GPU vs CPU: largest difference %.2e\n", worst);
+  EXPECT_LE(worst, 1e-5);
+}
+
 TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
   for (const char* method : {"lee-mipmap", "schedl-layered"}) {
   SCOPED_TRACE(method);

@@ -10,7 +10,7 @@ namespace {
 
 FramePlan plan_running(std::initializer_list<PassId> ids) {
   FramePlan p;
-  for (int i = 0; i < kPassCount; ++i) p.passes.push_back(PlannedPass{static_cast<PassId>(i), false, false, "", {}, false, {}});
+  for (int i = 0; i < kPassCount; ++i) p.passes.push_back(PlannedPass{static_cast<PassId>(i), false, false, "", {}, false, {}, ""});
   for (PassId id : ids) p.passes[static_cast<std::size_t>(id)].runs = p.passes[static_cast<std::size_t>(id)].needed = true;
   return p;
 }

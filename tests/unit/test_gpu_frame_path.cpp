@@ -84,6 +84,11 @@ class FakeGpuFrame final : public GpuFrame {
                                    0.125 * static_cast<double>(n * n), far_m / 2}};
     map_size = s.map_size;
   }
+  void ulod_blend(const FrameTime&, const BackendSettings&, const std::vector<std::uint32_t>& ids,
+                  const std::vector<float>& blend) override {
+    calls.push_back("ulod");
+    EXPECT_EQ(ids.size(), blend.size());
+  }
   void read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
                  std::vector<std::uint32_t>& ids) override {
     calls.push_back("rect");

@@ -223,6 +223,7 @@ GlBackend::~GlBackend() {
   visibility_.reset();
   release_meshes();
   release_framebuffer();
+  release_aside();
   if (light_ubo_ != 0) glDeleteBuffers(1, &light_ubo_);
   if (program_ != 0) glDeleteProgram(program_);
   if (depth_program_ != 0) glDeleteProgram(depth_program_);
@@ -248,6 +249,50 @@ void GlBackend::release_framebuffer() {
   z_buffer_ = 0;
   std::fill(std::begin(textures_), std::end(textures_), 0u);
   fb_width_ = fb_height_ = 0;
+}
+
+void GlBackend::release_aside() {
+  if (aside_.fbo != 0) glDeleteFramebuffers(1, &aside_.fbo);
+  glDeleteTextures(5, aside_.textures);
+  if (aside_.z != 0) glDeleteRenderbuffers(1, &aside_.z);
+  aside_ = Aside{};
+}
+
+GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSettings& settings) {
+  check_settings(settings);
+  if (!scene_) set_scene(Scene{});
+  const Scene& scene = *scene_;
+  const Camera& cam = scene.camera;
+  context_.make_current();
+  const std::uint32_t width = settings.width > 0 ? settings.width : cam.width;
+  const std::uint32_t height = settings.height > 0 ? settings.height : cam.height;
+  if (aside_.fbo == 0 || aside_.width != width || aside_.height != height) {
+    release_aside();
+    glGenFramebuffers(1, &aside_.fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, aside_.fbo);
+    attach_gbuffer_textures(aside_.textures, width, height);
+    glGenRenderbuffers(1, &aside_.z);
+    glBindRenderbuffer(GL_RENDERBUFFER, aside_.z);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, aside_.z);
+    glBindRenderbuffer(GL_RENDERBUFFER, 0);
+    glDrawBuffers(5, kDrawBuffers);
+    const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+    if (status != GL_FRAMEBUFFER_COMPLETE) {
+      release_aside();
+      throw std::runtime_error("GlBackend::render_aside: framebuffer incomplete (status " + hex(status) + ")");
+    }
+    aside_.width = width;
+    aside_.height = height;
+  }
+  // As the frame's forward pass draws (the same pre-pass), so that both images pick the same surface
+  // where two touch.
+  draw_forward(aside_.fbo, time, settings.lens, settings.lod_levels, width, height, GBufferPlanes::all(),
+               settings.depth_prepass);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  check_gl("GlBackend::render_aside");
+  return {aside_.textures[kColor], aside_.textures[kDepth], aside_.textures[kId], aside_.textures[kNormal],
+          aside_.textures[kMotion], width, height, width, height};
 }
 
 void GlBackend::set_scene(const Scene& scene) {
@@ -388,10 +433,17 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
     check_gl("GlBackend::render (visibility buffer)");
     return;
   }
-  begin_gbuffer_pass(fbo_, width, height, planes);
-  clear_gbuffer(scene);  // a draw buffer of GL_NONE ignores its clear
+  draw_forward(fbo_, time, lens, lod_levels, width, height, planes, depth_prepass);
+  check_gl("GlBackend::render (draw)");
+}
 
-  const FrameView frame = frame_view(cam, time, lens);
+void GlBackend::draw_forward(unsigned fbo, const FrameTime& time, const LensSample& lens,
+                             const std::vector<std::uint8_t>& lod_levels, std::uint32_t width, std::uint32_t height,
+                             const GBufferPlanes& planes, bool depth_prepass) {
+  const Scene& scene = *scene_;
+  begin_gbuffer_pass(fbo, width, height, planes);
+  clear_gbuffer(scene);  // a draw buffer of GL_NONE ignores its clear
+  const FrameView frame = frame_view(scene.camera, time, lens);
   const bool camera_moved = frame.view != frame.view_prev;
   if (depth_prepass) {
     draw_depth(scene, time, lod_levels, frame);
@@ -405,7 +457,6 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   glBindVertexArray(0);
   glUseProgram(0);
   glDisable(GL_SCISSOR_TEST);
-  check_gl("GlBackend::render (draw)");
 }
 
 BackendCapabilities GlBackend::capabilities() const {

@@ -83,6 +83,10 @@ class GlBackend final : public Backend {
   // Peels layers 1..`layers` behind the visible one (settings: time's lens, LOD levels; its peel is
   // ignored) into targets of their own, left on the GPU; the frame's G-buffer textures are untouched.
   const GlPeeling& peel_on_gpu(const FrameTime& time, const BackendSettings& settings, std::uint32_t layers);
+  // Renders the scene (settings' lens, LOD levels and size; forward shading) into targets of its
+  // own, left on the GPU: the frame's G-buffer textures are untouched (ULOD's next levels, blended
+  // where the frame lies). Valid until the next call.
+  GlGBufferTextures render_aside(const FrameTime& time, const BackendSettings& settings);
   // Makes the G-buffer's five plane textures (colour RGBA32F, depth R32F, id R32UI, normal RGBA32F,
   // motion RG32F) at width x height and attaches them to the bound framebuffer's colour attachments 0-4.
   static void attach_gbuffer_textures(unsigned (&textures)[5], std::uint32_t width, std::uint32_t height);
@@ -107,6 +111,9 @@ class GlBackend final : public Backend {
   void draw(const FrameTime& time, const LensSample& lens = {}, const std::vector<std::uint8_t>& lod_levels = {},
             std::uint32_t width = 0, std::uint32_t height = 0, const GBufferPlanes& planes = GBufferPlanes::all(),
             bool depth_prepass = false, bool visibility_buffer = false);
+  // The forward G-buffer pass into `fbo` (the frame's, or render_aside's).
+  void draw_forward(unsigned fbo, const FrameTime& time, const LensSample& lens, const std::vector<std::uint8_t>& lod_levels,
+                    std::uint32_t width, std::uint32_t height, const GBufferPlanes& planes, bool depth_prepass);
 
   // The camera's view (now and at the previous frame), projection and eye for one render.
   struct FrameView {
@@ -173,6 +180,11 @@ class GlBackend final : public Backend {
   std::unique_ptr<GpuFrame> gpu_frame_;
   std::unique_ptr<GlPeeling> peeling_;  // made on the first peeled render
   int loc_peel_ = -1;
+  struct Aside {  // render_aside's targets
+    unsigned fbo = 0, z = 0, textures[5] = {0, 0, 0, 0, 0};
+    std::uint32_t width = 0, height = 0;
+  } aside_;
+  void release_aside();
 };
 
 std::unique_ptr<Backend> make_gl_backend(GlPlatform platform = GlPlatform::Egl, const GlContext* share = nullptr);

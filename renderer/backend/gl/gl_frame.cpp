@@ -13,6 +13,7 @@
 
 #include "backend/gl/gl_attention.h"
 #include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_ulod_blend.h"
 #include "backend/gl/gl_lee_mipmap.h"
 #include "backend/gl/gl_schedl_layered.h"
 #include "backend/gl/gl_program.h"
@@ -299,6 +300,22 @@ void GlFrame::attention_pixels(const attention::AttentionSettings& settings, dou
                   GlAttentionObjects{ids, motion}, out);
   end_timed();
   check("GlFrame::attention_pixels");
+}
+
+void GlFrame::ulod_blend(const FrameTime& time, const BackendSettings& next, const std::vector<std::uint32_t>& ids,
+                         const std::vector<float>& blend) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  if (t.color == 0) throw std::logic_error("GlFrame::ulod_blend before the G-buffer was rendered");
+  if (!ulod_) ulod_ = std::make_unique<GlUlodBlend>();
+  BackendSettings aside = next;
+  aside.width = t.width;
+  aside.height = t.height;
+  begin_timed("gpu.ulod");
+  const GlGBufferTextures n = backend_.render_aside(time, aside);
+  ulod_->run({t.color, t.object_id, t.width, t.height}, {n.color, n.object_id, n.width, n.height}, ids, blend);
+  end_timed();
+  check("GlFrame::ulod_blend");
 }
 
 void GlFrame::read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1,

@@ -17,6 +17,7 @@ class GlAttention;
 class GlBackend;
 class GlLeeMipmap;
 class GlSchedlLayered;
+class GlUlodBlend;
 
 class GlFrame final : public GpuFrame {
  public:
@@ -38,6 +39,8 @@ class GlFrame final : public GpuFrame {
                         const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
                         std::vector<attention::ObjectPixels>& out) override;
   void read_saliency(std::vector<float>& saliency) override;
+  void ulod_blend(const FrameTime& time, const BackendSettings& next, const std::vector<std::uint32_t>& ids,
+                  const std::vector<float>& blend) override;
   void read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
                  std::vector<std::uint32_t>& ids) override;
   void read_hdr(std::vector<glm::vec3>& hdr) override;
@@ -74,6 +77,7 @@ class GlFrame final : public GpuFrame {
   std::unique_ptr<GlAttention> attention_;   // made on first use
   std::unique_ptr<GlLeeMipmap> lee_mipmap_;  // made on first use
   std::unique_ptr<GlSchedlLayered> schedl_;  // made on first use
+  std::unique_ptr<GlUlodBlend> ulod_;        // made on first use
   unsigned dof_output_ = 0;                  // the texture the last GPU dof wrote
   struct Inset {
     bool active = false;  // this frame has one

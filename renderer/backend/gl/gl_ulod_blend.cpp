@@ -1,0 +1,153 @@
+#include "backend/gl/gl_ulod_blend.h"
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+#include "backend/gl/gl_program.h"
+
+namespace fovea::render {
+
+namespace {
+
+// The blending objects sorted by id (a binary search per pixel), with their factors.
+constexpr const char* kBlend = R"(#version 330 core
+uniform sampler2D u_drawn, u_next, u_factors;
+uniform usampler2D u_drawn_ids, u_next_ids, u_ids;
+uniform int u_count;
+out vec4 o;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 drawn = texelFetch(u_drawn, p, 0);
+  o = drawn;
+  uint id = texelFetch(u_drawn_ids, p, 0).r;
+  if (id == 0u || texelFetch(u_next_ids, p, 0).r != id) return;
+  int lo = 0, hi = u_count;
+  while (lo < hi) {
+    int mid = (lo + hi) >> 1;
+    if (texelFetch(u_ids, ivec2(mid, 0), 0).r < id) lo = mid + 1; else hi = mid;
+  }
+  if (lo >= u_count || texelFetch(u_ids, ivec2(lo, 0), 0).r != id) return;
+  float f = texelFetch(u_factors, ivec2(lo, 0), 0).r;
+  o = vec4((1.0 - f) * drawn.rgb + f * texelFetch(u_next, p, 0).rgb, drawn.a);
+}
+)";
+
+unsigned make_texture(GLenum internal, GLenum format, GLenum type, GLsizei w, GLsizei h) {
+  unsigned t = 0;
+  glGenTextures(1, &t);
+  glBindTexture(GL_TEXTURE_2D, t);
+  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, type, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  return t;
+}
+
+void delete_texture(unsigned& t) {
+  if (t != 0) glDeleteTextures(1, &t);
+  t = 0;
+}
+
+}  // namespace
+
+GlUlodBlend::GlUlodBlend() {
+  program_ = gl::link_program(gl::kFullscreenVertex, kBlend, "GlUlodBlend");
+  glGenVertexArrays(1, &vao_);
+  glGenFramebuffers(1, &fbo_);
+  gl::check_error("GlUlodBlend", "construction");
+}
+
+GlUlodBlend::~GlUlodBlend() {
+  glDeleteProgram(program_);
+  glDeleteVertexArrays(1, &vao_);
+  glDeleteFramebuffers(1, &fbo_);
+  for (unsigned* t : {&result_, &table_ids_, &table_blend_}) delete_texture(*t);
+}
+
+void GlUlodBlend::ensure(std::uint32_t width, std::uint32_t height, std::size_t objects) {
+  if (width != width_ || height != height_ || result_ == 0) {
+    delete_texture(result_);
+    result_ = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+    width_ = width;
+    height_ = height;
+  }
+  if (objects > capacity_ || table_ids_ == 0) {
+    GLint max_size = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+    if (objects > static_cast<std::size_t>(max_size)) {
+      throw std::runtime_error("GlUlodBlend: " + std::to_string(objects) + " blending objects exceed the device's " +
+                               std::to_string(max_size) + "-texel table");
+    }
+    capacity_ = std::max<std::size_t>(objects, 64);
+    delete_texture(table_ids_);
+    delete_texture(table_blend_);
+    table_ids_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, static_cast<GLsizei>(capacity_), 1);
+    table_blend_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, static_cast<GLsizei>(capacity_), 1);
+  }
+}
+
+void GlUlodBlend::run(const Image& drawn, const Image& next, const std::vector<std::uint32_t>& ids,
+                      const std::vector<float>& blend) {
+  if (ids.size() != blend.size()) {
+    throw std::invalid_argument("GlUlodBlend: " + std::to_string(blend.size()) + " blend factors for " +
+                                std::to_string(ids.size()) + " objects");
+  }
+  if (drawn.width != next.width || drawn.height != next.height) {
+    throw std::invalid_argument("GlUlodBlend: the next levels' image is " + std::to_string(next.width) + "x" +
+                                std::to_string(next.height) + ", the drawn one " + std::to_string(drawn.width) + "x" +
+                                std::to_string(drawn.height));
+  }
+  if (drawn.width == 0 || drawn.height == 0 || ids.empty()) return;
+  // The table: ids ascending (the first of a repeated id), factors clamped to [0, 1] (NaN: 0).
+  std::vector<std::size_t> order(ids.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
+  std::vector<std::uint32_t> sorted;
+  std::vector<float> factors;
+  for (std::size_t i : order) {
+    if (ids[i] == 0 || (!sorted.empty() && sorted.back() == ids[i])) continue;
+    sorted.push_back(ids[i]);
+    factors.push_back(std::isfinite(blend[i]) ? std::clamp(blend[i], 0.0f, 1.0f) : 0.0f);
+  }
+  ensure(drawn.width, drawn.height, sorted.size());
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  const auto count = static_cast<GLsizei>(sorted.size());
+  glBindTexture(GL_TEXTURE_2D, table_ids_);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, count, 1, GL_RED_INTEGER, GL_UNSIGNED_INT, sorted.data());
+  glBindTexture(GL_TEXTURE_2D, table_blend_);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, count, 1, GL_RED, GL_FLOAT, factors.data());
+
+  const auto w = static_cast<GLsizei>(drawn.width), h = static_cast<GLsizei>(drawn.height);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, result_, 0);
+  glDrawBuffer(GL_COLOR_ATTACHMENT0);
+  glViewport(0, 0, w, h);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_BLEND);
+  glDisable(GL_SCISSOR_TEST);
+  glUseProgram(program_);
+  glBindVertexArray(vao_);
+  gl::bind_sampler(0, drawn.color, program_, "u_drawn");
+  gl::bind_sampler(1, next.color, program_, "u_next");
+  gl::bind_sampler(2, drawn.object_id, program_, "u_drawn_ids");
+  gl::bind_sampler(3, next.object_id, program_, "u_next_ids");
+  gl::bind_sampler(4, table_ids_, program_, "u_ids");
+  gl::bind_sampler(5, table_blend_, program_, "u_factors");
+  glUniform1i(glGetUniformLocation(program_, "u_count"), count);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  // The result replaces the drawn colour (a pass cannot read and write one texture).
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, drawn.color);
+  glCopyTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 0, 0, w, h);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindVertexArray(0);
+  glUseProgram(0);
+  gl::check_error("GlUlodBlend", "run");
+}
+
+}  // namespace fovea::render
