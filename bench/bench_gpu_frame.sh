@@ -28,7 +28,8 @@
 # "attention" = base with the attention pass, focus.mode=attention and its outline (overlay.focus),
 # attention.device=gpu (on the GPU path attention's pixel stage runs on the GPU and the focus pass
 # reads only the pixels it looks at: nothing is read back whole); "attention-cpu" = the same with
-# attention.device=cpu (colour, depth and ids read back for the CPU's attention).
+# attention.device=cpu (colour, depth and ids read back for the CPU's attention). "ulod" = the
+# scene's effects with lod.policy=ulod (its blend of levels on the GPU path's GPU, gpu.ulod).
 #
 # Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
 #   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
@@ -77,6 +78,7 @@ for scene in $SCENES; do
                           --set focus.mode=attention --set overlay.focus=true --set attention.device=gpu) ;;
         attention-cpu) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                               --set focus.mode=attention --set overlay.focus=true --set attention.device=cpu) ;;
+        ulod) extra=(--set gi.enabled=false --set lod.policy=ulod) ;;
         gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac
@@ -129,7 +131,7 @@ for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
     a, b = load(d), load(os.path.join(runs, name + "-gpu"))
     fa, fb = a["frame"], b["frame"]
     ga, gb = a["gaze-age"], b["gaze-age"]
-    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
+    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.ulod", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
     print(f"| {scene} | {size} | {effects} | {pct(fa, 50):.2f} / {pct(fa, 99):.2f} | {pct(fb, 50):.2f} / {pct(fb, 99):.2f} | "
           f"{pct(fa, 50) / pct(fb, 50):.2f} | {pct(ga, 50):.2f} / {pct(ga, 99):.2f} | {pct(gb, 50):.2f} / {pct(gb, 99):.2f} | {gpu_side} |")
 embree = sorted(glob.glob(os.path.join(runs, "*-embree")))

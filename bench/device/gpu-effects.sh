@@ -9,6 +9,7 @@
 #   attention, attention-cpu        attention + focus, attention's pixel stage on the GPU (gpu.attention:
 #                                   target <= 0.5 ms) and with attention.device=cpu
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
+#   ulod                            the scene with lod.policy=ulod (its blend on the GPU: gpu.ulod)
 # Results: stdout and $OUT/gpu-effects.md, the runs in $OUT/gpu-effects-runs.tar.xz. The agreement
 # of the GL passes with the CPU implementation does not depend on the card's speed and is tested
 # here (tests/gl/test_gl_lee_mipmap.cpp); the frames' plan.txt files carry the where line.
@@ -32,5 +33,5 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --back
 grep -E "where|  run   (dof|attention)" "$probe/plan.txt"
 
 OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
-  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl scene" | tee "$OUT/gpu-effects.md"
+  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl scene ulod" | tee "$OUT/gpu-effects.md"
 tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs && rm -rf "$OUT/runs"
