@@ -271,30 +271,10 @@ TEST(AttentionStability, SettingsChangesAndMapSizes) {
 TEST(AttentionStability, RandomGBuffersAndScenes) {
   std::mt19937 rng(1234);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  const float specials[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
-                            -std::numeric_limits<float>::infinity(), -1.0f, 1e30f, 0.0f};
   for (int trial = 0; trial < 12; ++trial) {
-    Scene scene = make_scene();
-    const auto objects = static_cast<std::uint32_t>(1 + rng() % 40);
-    for (std::uint32_t k = 1; k <= objects; ++k) {
-      Object& o = add_object(scene, k, {u(rng) * 20 - 10, u(rng) * 4 - 2, -u(rng) * 30}, u(rng) < 0.2f ? 0.0f : u(rng));
-      if (u(rng) < 0.3f) {
-        Animation a;
-        a.loop = u(rng) < 0.5f;
-        a.keys = {{0, {}, {}}, {1 + u(rng), {u(rng), u(rng), u(rng) * 5}, {0, u(rng) * 360, 0}}};
-        o.animation = a;
-      }
-    }
-    const auto w = 1 + rng() % 200, h = 1 + rng() % 150;
-    GBuffer g;
-    g.resize(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
-    for (std::size_t i = 0; i < g.size(); ++i) {
-      g.color[i] = glm::vec3(u(rng) * 3, u(rng), u(rng) * 0.5f);
-      g.depth[i] = u(rng) * 120;
-      g.object_id[i] = static_cast<std::uint32_t>(rng() % (objects + 3));  // some ids the scene does not know
-      if (u(rng) < 0.01f) g.color[i].y = specials[rng() % 6];
-      if (u(rng) < 0.01f) g.depth[i] = specials[rng() % 6];
-    }
+    test::RandomCase c = test::random_attention_case(rng);
+    const Scene& scene = c.scene;
+    const GBuffer& g = c.g;
     AttentionSettings s = small(64 + static_cast<int>(rng() % 200));
     s.groups = {u(rng) < 0.7f, u(rng) < 0.7f, u(rng) < 0.7f};
     s.temporal_window = 1 + static_cast<int>(rng() % 40);

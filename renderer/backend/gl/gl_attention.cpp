@@ -335,21 +335,11 @@ GLuint program(const char* body, const char* what) {
   return gl::link_program(gl::kFullscreenVertex, fragment(body).c_str(), what);
 }
 
-unsigned make_texture(GLenum internal, GLenum format, GLenum type, int w, int h) {
-  unsigned t = 0;
-  glGenTextures(1, &t);
-  glBindTexture(GL_TEXTURE_2D, t);
-  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, type, nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  return t;
-}
+using gl::delete_texture;
 
-void delete_texture(unsigned& t) {
-  if (t != 0) glDeleteTextures(1, &t);
-  t = 0;
+// The map's and the tables' sizes are ints here.
+unsigned texture(GLenum internal, GLenum format, GLenum type, int w, int h) {
+  return gl::make_texture(internal, format, type, static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
 }
 
 int rows_for(std::size_t count, int per_row) {
@@ -423,17 +413,17 @@ void GlAttention::ensure_map(int n) {
       w = std::max(1, (w + 1) / 2);
       h = std::max(1, (h + 1) / 2);
     }
-    levels_[l] = Level{make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, w, h), make_texture(GL_RG32F, GL_RG, GL_FLOAT, w, h), w, h};
+    levels_[l] = Level{texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, w, h), texture(GL_RG32F, GL_RG, GL_FLOAT, w, h), w, h};
   }
-  slots_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, n, n);
-  map_depth_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, n, n);
-  for (unsigned& c : contrast_) c = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, n, n);
-  weighted_ = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, n, n);
-  saliency_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, n, n);
+  slots_ = texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, n, n);
+  map_depth_ = texture(GL_R32F, GL_RED, GL_FLOAT, n, n);
+  for (unsigned& c : contrast_) c = texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, n, n);
+  weighted_ = texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, n, n);
+  saliency_ = texture(GL_R32F, GL_RED, GL_FLOAT, n, n);
   for (int rw = n, rh = n; rw > 1 || rh > 1;) {
     rw = (rw + kReduceBlock - 1) / kReduceBlock;
     rh = (rh + kReduceBlock - 1) / kReduceBlock;
-    for (auto& chain : reduce_chain_) chain.push_back(make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, rw, rh));
+    for (auto& chain : reduce_chain_) chain.push_back(texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, rw, rh));
     reduce_w_.push_back(rw);
     reduce_h_.push_back(rh);
   }
@@ -450,12 +440,12 @@ void GlAttention::ensure_objects(std::size_t count) {
   }
   for (unsigned* t : {&object_ids_, &object_motion_, &counts_, &sums_, &histogram_, &select_[0], &select_[1]}) delete_texture(*t);
   const int slot_rows = rows_for(capacity, kSlotRow);
-  object_ids_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, kSlotRow, slot_rows);
-  object_motion_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, slot_rows);
-  counts_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, slot_rows);
-  for (unsigned& s : select_) s = make_texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, kSlotRow, slot_rows);
-  sums_ = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, kSlotRow, rows_for(capacity, kSlotRow / kBands));
-  histogram_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, rows_for(capacity, kSlotRow / kBins));
+  object_ids_ = texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, kSlotRow, slot_rows);
+  object_motion_ = texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, slot_rows);
+  counts_ = texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, slot_rows);
+  for (unsigned& s : select_) s = texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, kSlotRow, slot_rows);
+  sums_ = texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, kSlotRow, rows_for(capacity, kSlotRow / kBands));
+  histogram_ = texture(GL_R32F, GL_RED, GL_FLOAT, kSlotRow, rows_for(capacity, kSlotRow / kBins));
   object_capacity_ = capacity;
 }
 
@@ -753,7 +743,7 @@ void GlAttention::run_gbuffer(const GBuffer& g, double near_m, double far_m, con
   }
   if (has_image && g.depth.size() >= npix) in.depth = gl::upload_top_first(upload_depth_, GL_R32F, GL_RED, g.depth.data(), w, h, 1, staging_);
   if (has_image && g.object_id.size() >= npix) {
-    if (upload_ids_ == 0) upload_ids_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, 1, 1);
+    if (upload_ids_ == 0) upload_ids_ = texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, 1, 1);
     std::vector<std::uint32_t> flipped(npix);
     for (std::uint32_t y = 0; y < h; ++y)
       std::copy_n(g.object_id.begin() + static_cast<std::ptrdiff_t>(std::size_t{y} * w), w,

@@ -268,16 +268,7 @@ GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSe
   const std::uint32_t height = settings.height > 0 ? settings.height : cam.height;
   if (aside_.fbo == 0 || aside_.width != width || aside_.height != height) {
     release_aside();
-    glGenFramebuffers(1, &aside_.fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, aside_.fbo);
-    attach_gbuffer_textures(aside_.textures, width, height);
-    glGenRenderbuffers(1, &aside_.z);
-    glBindRenderbuffer(GL_RENDERBUFFER, aside_.z);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, aside_.z);
-    glBindRenderbuffer(GL_RENDERBUFFER, 0);
-    glDrawBuffers(5, kDrawBuffers);
-    const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+    const GLenum status = make_gbuffer_target(aside_.fbo, aside_.textures, aside_.z, width, height);
     if (status != GL_FRAMEBUFFER_COMPLETE) {
       release_aside();
       throw std::runtime_error("GlBackend::render_aside: framebuffer incomplete (status " + hex(status) + ")");
@@ -376,17 +367,7 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
                                 " pixels per side");
   }
   release_framebuffer();
-  glGenFramebuffers(1, &fbo_);
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  // Textures, not renderbuffers: the GPU passes (GlFramePasses) sample them where they lie.
-  attach_gbuffer_textures(textures_, width, height);
-  glGenRenderbuffers(1, &z_buffer_);
-  glBindRenderbuffer(GL_RENDERBUFFER, z_buffer_);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, z_buffer_);
-  glBindRenderbuffer(GL_RENDERBUFFER, 0);
-  glDrawBuffers(5, kDrawBuffers);
-  const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+  const GLenum status = make_gbuffer_target(fbo_, textures_, z_buffer_, width, height);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
     release_framebuffer();
     throw std::runtime_error("GlBackend: G-buffer framebuffer incomplete (status " + hex(status) + ")");
@@ -394,6 +375,21 @@ void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
   fb_width_ = width;
   fb_height_ = height;
   check_gl("GlBackend::ensure_framebuffer");
+}
+
+unsigned GlBackend::make_gbuffer_target(unsigned& fbo, unsigned (&textures)[5], unsigned& z, std::uint32_t width,
+                                        std::uint32_t height) {
+  glGenFramebuffers(1, &fbo);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  // Textures, not renderbuffers: the GPU passes (GlFrame's) sample them where they lie.
+  attach_gbuffer_textures(textures, width, height);
+  glGenRenderbuffers(1, &z);
+  glBindRenderbuffer(GL_RENDERBUFFER, z);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, z);
+  glBindRenderbuffer(GL_RENDERBUFFER, 0);
+  glDrawBuffers(5, kDrawBuffers);
+  return glCheckFramebufferStatus(GL_FRAMEBUFFER);
 }
 
 void GlBackend::attach_gbuffer_textures(unsigned (&textures)[5], std::uint32_t width, std::uint32_t height) {

@@ -90,6 +90,10 @@ class GlBackend final : public Backend {
   // Makes the G-buffer's five plane textures (colour RGBA32F, depth R32F, id R32UI, normal RGBA32F,
   // motion RG32F) at width x height and attaches them to the bound framebuffer's colour attachments 0-4.
   static void attach_gbuffer_textures(unsigned (&textures)[5], std::uint32_t width, std::uint32_t height);
+  // A new framebuffer `fbo` of the planes (attach_gbuffer_textures) and a 32-bit float z-buffer `z`,
+  // width x height, bound; returns its glCheckFramebufferStatus.
+  static unsigned make_gbuffer_target(unsigned& fbo, unsigned (&textures)[5], unsigned& z, std::uint32_t width,
+                                      std::uint32_t height);
 
   // The GPU-resident frame (gl_frame.h) on this backend's context, made on first use.
   GpuFrame* gpu_frame() override;

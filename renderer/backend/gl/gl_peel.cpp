@@ -87,16 +87,6 @@ void complete(const char* what) {
   }
 }
 
-unsigned texture(GLenum format, GLenum channels, GLenum type, std::uint32_t w, std::uint32_t h) {
-  unsigned t = 0;
-  glGenTextures(1, &t);
-  glBindTexture(GL_TEXTURE_2D, t);
-  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(format), static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0,
-               channels, type, nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-  return t;
-}
 
 void bind(int unit, unsigned texture, unsigned program, const char* name) {
   gl::bind_sampler(unit, texture, program, name);
@@ -153,21 +143,14 @@ void GlPeeling::ensure(std::uint32_t width, std::uint32_t height, std::uint32_t 
   release();
   results_.resize(layers);
   for (Targets* t : targets()) {
-    glGenFramebuffers(1, &t->fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, t->fbo);
-    GlBackend::attach_gbuffer_textures(t->textures, width, height);
-    glGenRenderbuffers(1, &t->z);
-    glBindRenderbuffer(GL_RENDERBUFFER, t->z);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->z);
-    glDrawBuffers(5, kBuffers);
+    GlBackend::make_gbuffer_target(t->fbo, t->textures, t->z, width, height);
     complete("layer");
   }
   for (State& s : state_) {
     glGenFramebuffers(1, &s.fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, s.fbo);
-    s.depth = texture(GL_R32F, GL_RED, GL_FLOAT, width, height);
-    s.ids = texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, width, height);
+    s.depth = gl::make_texture(GL_R32F, GL_RED, GL_FLOAT, width, height);
+    s.ids = gl::make_texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, width, height);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, s.depth, 0);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, s.ids, 0);
     glDrawBuffers(2, kBuffers);

@@ -104,6 +104,27 @@ inline void bind_sampler(int unit, unsigned texture, unsigned program, const cha
   glUniform1i(glGetUniformLocation(program, name), unit);
 }
 
+// A w x h 2D texture of `internal` format (its data `format` and `type`: what an upload would pass),
+// uninitialised, nearest filtering, clamped at the edges.
+inline unsigned make_texture(GLenum internal, GLenum format, GLenum type, std::uint32_t w, std::uint32_t h) {
+  unsigned t = 0;
+  glGenTextures(1, &t);
+  glBindTexture(GL_TEXTURE_2D, t);
+  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), static_cast<GLsizei>(w), static_cast<GLsizei>(h), 0, format,
+               type, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  return t;
+}
+
+// Deletes `texture` (if any) and zeroes the name.
+inline void delete_texture(unsigned& texture) {
+  if (texture != 0) glDeleteTextures(1, &texture);
+  texture = 0;
+}
+
 // `data` (w x h pixels of `per_pixel` floats, row 0 at the top; null: nothing) into `texture` (made
 // on first use, nearest filtering), rows flipped to OpenGL's bottom-up order. Returns the texture, 0
 // for no data.

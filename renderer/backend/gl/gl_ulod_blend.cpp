@@ -37,20 +37,7 @@ void main() {
 }
 )";
 
-unsigned make_texture(GLenum internal, GLenum format, GLenum type, GLsizei w, GLsizei h) {
-  unsigned t = 0;
-  glGenTextures(1, &t);
-  glBindTexture(GL_TEXTURE_2D, t);
-  glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, type, nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-  return t;
-}
-
-void delete_texture(unsigned& t) {
-  if (t != 0) glDeleteTextures(1, &t);
-  t = 0;
-}
+using gl::delete_texture;
 
 }  // namespace
 
@@ -71,7 +58,7 @@ GlUlodBlend::~GlUlodBlend() {
 void GlUlodBlend::ensure(std::uint32_t width, std::uint32_t height, std::size_t objects) {
   if (width != width_ || height != height_ || result_ == 0) {
     delete_texture(result_);
-    result_ = make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, static_cast<GLsizei>(width), static_cast<GLsizei>(height));
+    result_ = gl::make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, width, height);
     width_ = width;
     height_ = height;
   }
@@ -85,8 +72,8 @@ void GlUlodBlend::ensure(std::uint32_t width, std::uint32_t height, std::size_t 
     capacity_ = std::max<std::size_t>(objects, 64);
     delete_texture(table_ids_);
     delete_texture(table_blend_);
-    table_ids_ = make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, static_cast<GLsizei>(capacity_), 1);
-    table_blend_ = make_texture(GL_R32F, GL_RED, GL_FLOAT, static_cast<GLsizei>(capacity_), 1);
+    table_ids_ = gl::make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, static_cast<std::uint32_t>(capacity_), 1);
+    table_blend_ = gl::make_texture(GL_R32F, GL_RED, GL_FLOAT, static_cast<std::uint32_t>(capacity_), 1);
   }
 }
 
