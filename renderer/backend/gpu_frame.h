@@ -96,6 +96,12 @@ class GpuFrame {
   virtual void attention_pixels(const attention::AttentionSettings& settings, double near_m, double far_m,
                                 const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
                                 std::vector<attention::ObjectPixels>& out) = 0;
+  // The same on a G-buffer of its own rendered first at `time` with `proxy`'s LOD levels and size
+  // (ULOD's proxy, Lee 2009 §7.2), left on the GPU; the frame's G-buffer is untouched.
+  virtual void attention_pixels_on(const FrameTime& time, const BackendSettings& proxy,
+                                   const attention::AttentionSettings& settings, double near_m, double far_m,
+                                   const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
+                                   std::vector<attention::ObjectPixels>& out) = 0;
   // The last attention_pixels' S_p, map_size^2, row 0 at the top (the finite check, tests). Waits.
   virtual void read_saliency(std::vector<float>& saliency) = 0;
   // The HDR colour the tone map reads now (the G-buffer's, the GPU dof's or the upload), linear, row

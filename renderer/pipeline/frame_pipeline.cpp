@@ -393,14 +393,19 @@ void FramePipeline::step_gaze(Frame& f, double frame_clock_s, PassTimer& timer) 
 // G-buffer of every object's coarsest level (its proxy: the attention values barely change, Fig.
 // 7.1), so the levels follow this frame's attention (cost model eq. 7.2: T_n + T_a + t (a + r)).
 void FramePipeline::step_attention_on_proxy(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
+  BackendSettings ps;
+  ps.shadows = settings_.flag("shadows");
+  ps.lod_levels.assign(scene_.objects.size(), 255);  // clamped to each object's coarsest level
+  if (settings_.is("lod.proxy_resolution", "map"))
+    lod::proxy_size(scene_.camera.width, scene_.camera.height,
+                    static_cast<int>(settings_.number("attention.map_size")), ps.width, ps.height);
+  if (f.on_gpu && f.plan.at(PassId::Attention).on_gpu) {  // the proxy and its pixel stage where the frame lies
+    auto t = timer.scope("attention");
+    f.attention = &run_attention_on_gpu(now_s, previous_s, check, &ps);
+    return;
+  }
   {
     auto t = timer.scope("attention.proxy");
-    BackendSettings ps;
-    ps.shadows = settings_.flag("shadows");
-    ps.lod_levels.assign(scene_.objects.size(), 255);  // clamped to each object's coarsest level
-    if (settings_.is("lod.proxy_resolution", "map"))
-      lod::proxy_size(scene_.camera.width, scene_.camera.height,
-                      static_cast<int>(settings_.number("attention.map_size")), ps.width, ps.height);
     backend_->render(FrameTime{now_s, previous_s}, ps, proxy_);
     if (check) require_finite_gbuffer("attention.proxy", proxy_);
   }
@@ -636,7 +641,8 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
 
 // The pixel stage where the G-buffer lies, the object stage here (Lee 2009 §3.2: the top-down
 // contexts and the Kalman filter keep per-object state across frames).
-const attention::AttentionFrame& FramePipeline::run_attention_on_gpu(double now_s, double previous_s, bool check) {
+const attention::AttentionFrame& FramePipeline::run_attention_on_gpu(double now_s, double previous_s, bool check,
+                                                                     const BackendSettings* proxy) {
   const attention::AttentionSettings& wanted = pass_settings().attention;
   if (wanted != attention_.settings()) attention_.set_settings(wanted);
   const auto start = steady_seconds();
@@ -646,8 +652,13 @@ const attention::AttentionFrame& FramePipeline::run_attention_on_gpu(double now_
     attention_ids_.push_back(o.id);
     attention_motion_.push_back(attention_.object_motion(o, now_s, previous_s));
   }
-  gpu_->attention_pixels(wanted, scene_.camera.near_m, scene_.camera.far_m, attention_ids_, attention_motion_,
-                         attention_pixels_);
+  const double near_m = scene_.camera.near_m, far_m = scene_.camera.far_m;
+  if (proxy != nullptr) {
+    gpu_->attention_pixels_on(FrameTime{now_s, previous_s}, *proxy, wanted, near_m, far_m, attention_ids_,
+                              attention_motion_, attention_pixels_);
+  } else {
+    gpu_->attention_pixels(wanted, near_m, far_m, attention_ids_, attention_motion_, attention_pixels_);
+  }
   const attention::AttentionFrame& a = attention_.update_objects(attention_pixels_, wanted.map_size, scene_, now_s,
                                                                   previous_s, steady_seconds() - start);
   if (check) {  // the module boundary's check, at the cost of reading the map back (debug.finite_checks)

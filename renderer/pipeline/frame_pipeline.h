@@ -133,8 +133,10 @@ class FramePipeline {
   std::vector<float> ulod_factors_;      // their factors (the GPU's blend)
   // The attention pass on `g` (the proxy or the frame's G-buffer) with attention.* applied.
   const attention::AttentionFrame& run_attention(const GBuffer& g, double now_s, double previous_s, bool check);
-  // The attention pass with its pixel stage on the GPU (attention.device; the planner decides).
-  const attention::AttentionFrame& run_attention_on_gpu(double now_s, double previous_s, bool check);
+  // The attention pass with its pixel stage on the GPU (attention.device; the planner decides), on
+  // the frame's G-buffer or, with `proxy`, on ULOD's proxy rendered there.
+  const attention::AttentionFrame& run_attention_on_gpu(double now_s, double previous_s, bool check,
+                                                        const BackendSettings* proxy = nullptr);
   std::vector<std::uint32_t> attention_ids_;      // the scene's objects, and
   std::vector<float> attention_motion_;           // their B_m, for the GPU's pixel stage
   std::vector<attention::ObjectPixels> attention_pixels_;

@@ -101,14 +101,12 @@ void place(PassRule& rule, const PlanContext& c, PassDevice device, const char* 
   }
 }
 
-// What keeps attention off the GPU in a GPU-resident frame ("" : nothing). With attention.device=auto
-// a software rasteriser too: its pixel stage is ~20x slower on llvmpipe than on the CPU's SIMD
-// kernels (bench/RESULTS.md), more than the readback of colour it saves.
+// What keeps attention off the GPU in a GPU-resident frame ("" : nothing): with attention.device=auto,
+// a software rasteriser (its pixel stage is ~20x slower on llvmpipe than the CPU's SIMD kernels,
+// bench/RESULTS.md, more than the readback of colour it saves). With ULOD its proxy is rendered on
+// the GPU too.
 std::string attention_gpu_blocker(const PlanContext& c) {
   const PlanSettings& t = c.typed();
-  if (t.lod && t.lod_policy == lod::Policy::Ulod && c.scene.has_lods()) {
-    return "lod.policy=ulod runs attention first, on its own proxy render";
-  }
   if (c.gpu_is_software && t.attention_device == PassDevice::Auto) {
     return "attention.device=auto on a software rasteriser, where the CPU's pixel stage is faster";
   }

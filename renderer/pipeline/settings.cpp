@@ -24,8 +24,8 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"attention.enabled", "true", "bool", "allow the visual attention pass (Lee 2009 ch. 3) when something consumes it"},
       {"attention.device", "auto", "auto|cpu|gpu",
        "where the attention pass's pixel stage runs: auto = on the GPU when the frame's G-buffer lies there "
-       "(--backend gl), the GPU is not a software rasteriser (llvmpipe: the CPU's pixel stage is faster) and "
-       "lod.policy is not ulod, only the per-object values read back; gpu = there or not at all"},
+       "(--backend gl) and the GPU is not a software rasteriser (llvmpipe: the CPU's pixel stage is faster), only "
+       "the per-object values read back (lod.policy=ulod: its proxy rendered there too); gpu = there or not at all"},
       {"attention.map_size", "256", "number in [64, 512]",
        "side of the square saliency map in pixels (rounded); the G-buffer is resampled to it (Lee 2009 §3.5.4: 64-512)"},
       {"attention.resample", "box", "box|nearest",

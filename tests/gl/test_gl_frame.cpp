@@ -482,6 +482,46 @@ TEST(GlFramePipeline, TheUlodBlendRunsOnTheGpuAsOnTheCpu) {
   EXPECT_LE(worst, 1e-5);
 }
 
+// With ULOD the attention pass runs first on a proxy (every object at its coarsest level); with
+// attention.device=gpu the proxy is rendered and its pixel stage runs on the GPU, and the objects'
+// attention and the levels chosen from it are the CPU's.
+TEST(GlFramePipeline, TheUlodProxyAttentionRunsOnTheGpuAsOnTheCpu) {
+  std::vector<attention::ObjectAttention> objects[2];
+  std::vector<lod::Selection> selection[2];
+  for (const char* device : {"gpu", "cpu"}) {
+    Settings s;
+    s.set("lod.policy", "ulod");
+    s.set("attention.device", device);
+    std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
+    FramePipeline pipeline(bundled("attention.json", 192, 144), s, std::make_unique<GlBackend>(), *gaze);
+    PassTimer timer;
+    FramePipeline::Frame f;
+    for (std::uint64_t i = 0; i < 3; ++i) f = pipeline.render(i, 0.4 * static_cast<double>(i), 0.4 * (static_cast<double>(i) - 1), 0.4 * static_cast<double>(i), timer);
+    const bool gpu = std::string(device) == "gpu";
+    ASSERT_TRUE(f.on_gpu) << f.plan.explain();
+    ASSERT_NE(f.attention, nullptr);
+    ASSERT_NE(f.lod, nullptr);
+    EXPECT_EQ(f.plan.at(PassId::Attention).on_gpu, gpu) << f.plan.explain();
+    EXPECT_EQ(timer.summary().count("gpu.attention"), gpu ? 1u : 0u);
+    EXPECT_EQ(timer.summary().count("attention.proxy"), gpu ? 0u : 1u);  // the CPU's proxy render and readback
+    objects[gpu ? 0 : 1] = f.attention->objects;
+    selection[gpu ? 0 : 1] = f.lod->selection;
+  }
+  ASSERT_FALSE(objects[1].empty());
+  ASSERT_EQ(objects[0].size(), objects[1].size());
+  for (std::size_t i = 0; i < objects[0].size(); ++i) {
+    EXPECT_EQ(objects[0][i].id, objects[1][i].id);
+    EXPECT_EQ(objects[0][i].pixels, objects[1][i].pixels);
+    EXPECT_NEAR(objects[0][i].attention, objects[1][i].attention, 1e-4 * std::max(1e-3, objects[1][i].attention));
+  }
+  ASSERT_EQ(selection[0].size(), selection[1].size());
+  for (std::size_t i = 0; i < selection[0].size(); ++i) {
+    EXPECT_EQ(selection[0][i].id, selection[1][i].id);
+    EXPECT_EQ(selection[0][i].drawn, selection[1][i].drawn);
+    EXPECT_NEAR(selection[0][i].blend, selection[1][i].blend, 1e-3);
+  }
+}
+
 TEST(GlFramePipeline, TheGpuDofIsTheCpuDofInTheFrame) {
   for (const char* method : {"lee-mipmap", "schedl-layered"}) {
   SCOPED_TRACE(method);

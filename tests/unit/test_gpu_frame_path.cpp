@@ -94,6 +94,12 @@ class FakeGpuFrame final : public GpuFrame {
     calls.push_back("rect");
     attention::GBufferPixels(rendered_).read(x0, y0, x1, y1, depth, ids);
   }
+  void attention_pixels_on(const FrameTime&, const BackendSettings&, const attention::AttentionSettings& s,
+                           double near_m, double far_m, const std::vector<std::uint32_t>& ids,
+                           const std::vector<float>& motion, std::vector<attention::ObjectPixels>& out) override {
+    attention_pixels(s, near_m, far_m, ids, motion, out);
+    calls.back() = "attention on proxy";
+  }
   void read_saliency(std::vector<float>& saliency) override {
     saliency.assign(static_cast<std::size_t>(map_size) * static_cast<std::size_t>(map_size), 0.5f);
   }

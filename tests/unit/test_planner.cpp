@@ -230,7 +230,7 @@ TEST(Planner, AttentionRunsOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
           << plan.at(PassId::Attention).reason;
     }
   }
-  // ULOD runs attention first, on its own proxy render: on the CPU, and it says so.
+  // ULOD runs attention first, on its own proxy render: on the GPU too (the proxy is rendered there).
   const Scene with_lods = make_scene({.thin_lens = true, .lods = true});
   Settings settings;
   settings.set("lod.policy", "ulod");
@@ -238,9 +238,8 @@ TEST(Planner, AttentionRunsOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
   c.gpu_resident = true;
   const FramePlan plan = plan_frame(c);
   ASSERT_TRUE(plan.runs(PassId::Attention)) << plan.explain();
-  EXPECT_FALSE(plan.at(PassId::Attention).on_gpu);
-  EXPECT_NE(plan.at(PassId::Attention).reason.find("on the CPU: lod.policy=ulod runs attention first"), std::string::npos)
-      << plan.at(PassId::Attention).reason;
+  EXPECT_TRUE(plan.at(PassId::Attention).on_gpu) << plan.at(PassId::Attention).reason;
+  EXPECT_FALSE(planes_read_on_cpu(plan).any()) << plan.explain();
 }
 
 TEST(Planner, DofRunsOnTheGpuWhereItsMethodCanAndSaysWhyNot) {

@@ -323,6 +323,20 @@ void GlFrame::read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, st
   backend_.read_back_rect(x0, y0, x1, y1, depth, ids);
 }
 
+void GlFrame::attention_pixels_on(const FrameTime& time, const BackendSettings& proxy,
+                                  const attention::AttentionSettings& settings, double near_m, double far_m,
+                                  const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
+                                  std::vector<attention::ObjectPixels>& out) {
+  backend_.context().make_current();
+  if (!attention_) attention_ = std::make_unique<GlAttention>();
+  begin_timed("gpu.attention");
+  const GlGBufferTextures t = backend_.render_aside(time, proxy);
+  attention_->run(GlAttentionInput{t.color, t.depth, t.object_id, t.width, t.height}, near_m, far_m, settings,
+                  GlAttentionObjects{ids, motion}, out);
+  end_timed();
+  check("GlFrame::attention_pixels_on");
+}
+
 void GlFrame::read_saliency(std::vector<float>& saliency) {
   backend_.context().make_current();
   if (!attention_) throw std::logic_error("GlFrame::read_saliency before attention_pixels");

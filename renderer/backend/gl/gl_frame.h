@@ -38,6 +38,10 @@ class GlFrame final : public GpuFrame {
   void attention_pixels(const attention::AttentionSettings& settings, double near_m, double far_m,
                         const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
                         std::vector<attention::ObjectPixels>& out) override;
+  void attention_pixels_on(const FrameTime& time, const BackendSettings& proxy,
+                           const attention::AttentionSettings& settings, double near_m, double far_m,
+                           const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
+                           std::vector<attention::ObjectPixels>& out) override;
   void read_saliency(std::vector<float>& saliency) override;
   void ulod_blend(const FrameTime& time, const BackendSettings& next, const std::vector<std::uint32_t>& ids,
                   const std::vector<float>& blend) override;
