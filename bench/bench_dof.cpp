@@ -18,7 +18,7 @@
 //          the blurred foreground boundary (Lee §4.3, Schedl & Wimmer's partial occlusion).
 //
 // The "... gl" rows run the method's OpenGL implementation (backend/gl/gl_lee_mipmap.h,
-// gl_schedl_layered.h: on the ray tracer's peeled layers, the peeling not timed) on the same
+// gl_schedl_layered.h, gl_lee_splat.h: on the ray tracer's peeled layers, the peeling not timed) on the same
 // G-buffer through EGL (llvmpipe here, a GPU where there is one): ms/frame is the wall time with the
 // upload and the readback a GPU-resident frame does not do; gpu_ms the passes alone (timestamp
 // queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's. The CSV's
@@ -45,6 +45,7 @@
 #include "backend/embree/embree_backend.h"
 #include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_lee_mipmap.h"
+#include "backend/gl/gl_lee_splat.h"
 #include "backend/gl/gl_schedl_layered.h"
 #include "dof/lee_mipmap.h"
 #include "dof/lee_splat.h"
@@ -249,13 +250,15 @@ int main(int argc, char** argv) {
   std::unique_ptr<GlBackend> gl_context;
   std::unique_ptr<GlLeeMipmap> gl_mipmap;
   std::unique_ptr<GlSchedlLayered> gl_schedl;
+  std::unique_ptr<GlLeeSplat> gl_splat;
   std::string gl_device;
-  if (method_selected("lee-mipmap gl") || method_selected("schedl-layered gl")) {
+  if (method_selected("lee-mipmap gl") || method_selected("schedl-layered gl") || method_selected("lee-splat gl")) {
     try {
       gl_context = std::make_unique<GlBackend>();
       gl_context->context().make_current();
       gl_mipmap = std::make_unique<GlLeeMipmap>();
       gl_schedl = std::make_unique<GlSchedlLayered>();
+      gl_splat = std::make_unique<GlLeeSplat>();
       gl_device = "OpenGL " + gl_context->context().features().version() + " (" + gl_context->context().renderer() + ")";
       std::printf("gl rows on %s\n", gl_device.c_str());
     } catch (const std::exception& e) {
@@ -376,6 +379,25 @@ int main(int argc, char** argv) {
                            with.hidden_depth = hidden.depth.data();
                            lee_splat(with, LeeSplatSettings{}, out);
                          }});
+      // The GL passes with the same hidden image (rendered once here, uploaded each run): gpu_ms is the
+      // passes alone, without the peeling (on the GPU path: gpu.peel).
+      GBuffer gl_hidden;
+      if (gl_splat) {
+        backend.render({}, peel, gl_hidden);
+        methods.push_back({"lee-splat gl",
+                           [&](RgbImage& out) {
+                             DofInput with = in;
+                             with.hidden_color = gl_hidden.color.data();
+                             with.hidden_depth = gl_hidden.depth.data();
+                             gl_splat->run_image(with, LeeSplatSettings{}, out, &gl_ms);
+                           },
+                           &gl_ms, [&](RgbImage& out) {
+                             DofInput with = in;
+                             with.hidden_color = gl_hidden.color.data();
+                             with.hidden_depth = gl_hidden.depth.data();
+                             lee_splat(with, LeeSplatSettings{}, out);
+                           }});
+      }
       // Schedl & Wimmer on M = 3 depth-peeled layers (the two peel renders are part of its time) and on
       // the visible layer alone (M = 1).
       GBuffer peel1, peel2;

@@ -12,6 +12,7 @@
 #include "attention/attention.h"
 #include "backend/backend.h"
 #include "dof/lee_mipmap.h"
+#include "dof/lee_splat.h"
 #include "dof/lens.h"
 #include "dof/schedl_layered.h"
 
@@ -104,6 +105,11 @@ class GpuFrame {
                                    std::vector<attention::ObjectPixels>& out) = 0;
   // The last attention_pixels' S_p, map_size^2, row 0 at the top (the finite check, tests). Waits.
   virtual void read_saliency(std::vector<float>& saliency) = 0;
+  // Lee 2009 ch. 5's point splatting (dof/lee_splat.h, reduce = 1) on the G-buffer where it lies,
+  // with the hidden image peeled there (rendered at `time` with `peel_settings`' lens and LOD
+  // levels) when settings.use_hidden; the same result's use as dof_lee_mipmap's.
+  virtual void dof_lee_splat(const FrameTime& time, const BackendSettings& peel_settings, const dof::CocModel& coc,
+                             const dof::LeeSplatSettings& settings) = 0;
   // The HDR colour the tone map reads now (the G-buffer's, the GPU dof's or the upload), linear, row
   // 0 at the top: for tests and for writing the frame out. Waits for the GPU.
   virtual void read_hdr(std::vector<glm::vec3>& hdr) = 0;

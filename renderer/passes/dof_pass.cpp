@@ -16,7 +16,15 @@ DofMethod parse_dof_method(const std::string& name) {
 }
 
 bool has_gpu_implementation(DofMethod method) {
-  return method == DofMethod::LeeMipmap || method == DofMethod::SchedlLayered;
+  return method == DofMethod::LeeMipmap || method == DofMethod::SchedlLayered || method == DofMethod::LeeSplat;
+}
+
+dof::LeeSplatSettings lee_splat_settings(const DofPassSettings& d, bool backend_peels) {
+  dof::LeeSplatSettings s;
+  // The hidden image H (Lee §5.1.2): a second render, peeled by object, where the backend peels.
+  s.use_hidden = d.hidden && backend_peels;
+  s.aperture = d.aperture;
+  return s;
 }
 
 DofPassSettings dof_pass_settings(const Settings& s) {
@@ -77,9 +85,7 @@ const dof::RgbImage& DofPass::run(Backend& backend, const Scene& scene, const GB
     return color_;
   }
   if (d.method == DofMethod::LeeSplat) {
-    dof::LeeSplatSettings s;
-    // The hidden image H (Lee §5.1.2): a second render, peeled by object, where the backend peels.
-    s.use_hidden = d.hidden && peels;
+    const dof::LeeSplatSettings s = lee_splat_settings(d, peels);
     if (s.use_hidden) {
       BackendSettings bs;
       bs.shadows = d.shadows;
@@ -89,7 +95,6 @@ const dof::RgbImage& DofPass::run(Backend& backend, const Scene& scene, const GB
       in.hidden_color = hidden_.color.data();
       in.hidden_depth = hidden_.depth.data();
     }
-    s.aperture = d.aperture;
     dof::lee_splat(in, s, color_);
     return color_;
   }

@@ -18,8 +18,9 @@ namespace fovea::render {
 enum class DofMethod { Reference, Accum, LeeMipmap, LeeSplat, SchedlLayered };
 DofMethod parse_dof_method(const std::string& name);
 // The methods with a GPU implementation (GpuFrame), which runs where the frame's G-buffer lies:
-// lee-mipmap (backend/gl/gl_lee_mipmap.h) and schedl-layered (backend/gl/gl_schedl_layered.h, its
-// layers peeled there too). The others run on the CPU from a readback.
+// lee-mipmap (backend/gl/gl_lee_mipmap.h), schedl-layered (backend/gl/gl_schedl_layered.h) and
+// lee-splat (backend/gl/gl_lee_splat.h), their peeled layers peeled there too. The references
+// (reference, accum) render the scene again through the backend.
 bool has_gpu_implementation(DofMethod method);
 
 struct DofPassSettings {
@@ -35,6 +36,8 @@ struct DofPassSettings {
 };
 // dof.* and shadows.
 DofPassSettings dof_pass_settings(const Settings& settings);
+// lee-splat's settings from the pass's (the hidden image only where the backend peels).
+dof::LeeSplatSettings lee_splat_settings(const DofPassSettings& d, bool backend_peels);
 
 class DofPass {
  public:

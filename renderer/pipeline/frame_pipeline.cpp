@@ -511,11 +511,13 @@ const std::vector<glm::vec3>& FramePipeline::step_dof(Frame& f, double now_s, do
   if (f.on_gpu && f.plan.at(PassId::Dof).on_gpu) {
     // Where the G-buffer lies; the tone map reads its result there (the CPU's colour is unchanged).
     const DofPassSettings& d = dof_.settings();
+    BackendSettings peel;
+    peel.lod_levels = lod_levels_;
+    const bool peels = backend_->capabilities().peeling;
     if (d.method == DofMethod::SchedlLayered) {
-      BackendSettings peel;
-      peel.lod_levels = lod_levels_;
-      gpu_->dof_schedl_layered(FrameTime{now_s, previous_s}, peel, dof_.coc_model(scene_, focus_m),
-                               backend_->capabilities().peeling ? d.layers : 1u);
+      gpu_->dof_schedl_layered(FrameTime{now_s, previous_s}, peel, dof_.coc_model(scene_, focus_m), peels ? d.layers : 1u);
+    } else if (d.method == DofMethod::LeeSplat) {
+      gpu_->dof_lee_splat(FrameTime{now_s, previous_s}, peel, dof_.coc_model(scene_, focus_m), lee_splat_settings(d, peels));
     } else {
       gpu_->dof_lee_mipmap(dof_.coc_model(scene_, focus_m), d.mipmap);
     }

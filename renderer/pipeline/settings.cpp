@@ -54,7 +54,7 @@ const std::vector<SettingSpec>& Settings::specs() {
        "(Schedl & Wimmer, layered on depth-peeled input)"},
       {"dof.device", "auto", "auto|cpu|gpu",
        "where an image-space dof.method runs: auto = on the GPU when the frame's G-buffer lies there (--backend gl) "
-       "and the method has a GPU implementation (lee-mipmap, schedl-layered), else on the CPU; gpu = there or not at all"},
+       "and the method has a GPU implementation (lee-mipmap, schedl-layered, lee-splat), else on the CPU; gpu = there or not at all"},
       {"dof.samples", "64", "number in [1, 4096]", "lens samples per frame of the reference and accum methods"},
       {"dof.seed", "1", "number in [0, 4294967295]", "seed of the reference's lens samples (same seed, same image)"},
       {"dof.projection", "sensor", "sensor|display",

@@ -103,6 +103,11 @@ class FakeGpuFrame final : public GpuFrame {
   void read_saliency(std::vector<float>& saliency) override {
     saliency.assign(static_cast<std::size_t>(map_size) * static_cast<std::size_t>(map_size), 0.5f);
   }
+  void dof_lee_splat(const FrameTime&, const BackendSettings&, const dof::CocModel& coc,
+                     const dof::LeeSplatSettings& s) override {
+    calls.push_back(std::string("dof splat") + (s.use_hidden ? " with hidden" : ""));
+    EXPECT_FALSE(coc.pinhole());
+  }
   void read_hdr(std::vector<glm::vec3>& hdr) override { hdr = rendered_.color; }
   void tonemap(const GpuTonemap&) override { calls.push_back("tonemap"); }
   void overlay(const GpuOverlay& o) override {
@@ -221,9 +226,11 @@ const std::vector<PathRow> kPaths = {
      "written: colour, depth; read back: nothing", {.depth = true}},
     {"dof.device=cpu: DOF reads colour and depth back, its colour goes up", true, {"focus.mode=fixed", "dof.device=cpu"},
      true, {.color = true, .depth = true}, true, "read back: colour, depth"},
-    {"a method without a GPU implementation runs on the CPU", true,
-     {"focus.mode=fixed", "dof.method=lee-splat", "dof.hidden=false"}, true, {.color = true, .depth = true}, true,
-     "read back: colour, depth"},
+    {"lee-splat on the GPU: nothing comes back", true, {"focus.mode=fixed", "dof.method=lee-splat"}, true, {}, false,
+     "written: colour, depth; read back: nothing", {.depth = true}},
+    {"lee-splat with dof.device=cpu reads colour and depth back, its colour goes up", true,
+     {"focus.mode=fixed", "dof.method=lee-splat", "dof.hidden=false", "dof.device=cpu"}, true,
+     {.color = true, .depth = true}, true, "read back: colour, depth"},
     {"gaze focus without attention: focus reads depth and ids (an object's median depth), the outline its ids on "
      "the GPU", true, {"focus.mode=gaze", "dof.enabled=false", "overlay.focus=true"}, true,
      {.depth = true, .object_id = true}, false, "written: colour, depth, id; read back: depth, id",

@@ -13,6 +13,7 @@
 
 #include "backend/gl/gl_attention.h"
 #include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_lee_splat.h"
 #include "backend/gl/gl_ulod_blend.h"
 #include "backend/gl/gl_lee_mipmap.h"
 #include "backend/gl/gl_schedl_layered.h"
@@ -376,6 +377,27 @@ dof::SchedlStats GlFrame::dof_schedl_layered(const FrameTime& time, const Backen
   dof_output_ = schedl_->output();
   check("GlFrame::dof_schedl_layered");
   return stats;
+}
+
+void GlFrame::dof_lee_splat(const FrameTime& time, const BackendSettings& peel_settings, const dof::CocModel& coc,
+                            const dof::LeeSplatSettings& settings) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  if (t.color == 0) throw std::logic_error("GlFrame::dof_lee_splat before the G-buffer was rendered");
+  if (!lee_splat_) lee_splat_ = std::make_unique<GlLeeSplat>();
+  GlDofInput hidden{};
+  if (settings.use_hidden) {  // Lee §5.1.2's hidden image: the first layer behind the visible one
+    begin_timed("gpu.peel");
+    const GlPeeling& p = backend_.peel_on_gpu(time, peel_settings, 1);
+    end_timed();
+    hidden = {p.result_color(1), p.result_depth(1), t.width, t.height};
+  }
+  begin_timed("gpu.dof");
+  lee_splat_->run(GlDofInput{t.color, t.depth, t.width, t.height}, settings.use_hidden ? &hidden : nullptr, coc, settings);
+  end_timed();
+  hdr_source_ = HdrSource::Dof;
+  dof_output_ = lee_splat_->output();
+  check("GlFrame::dof_lee_splat");
 }
 
 unsigned GlFrame::hdr_input() const {

@@ -16,6 +16,7 @@ namespace fovea::render {
 class GlAttention;
 class GlBackend;
 class GlLeeMipmap;
+class GlLeeSplat;
 class GlSchedlLayered;
 class GlUlodBlend;
 
@@ -47,6 +48,8 @@ class GlFrame final : public GpuFrame {
                   const std::vector<float>& blend) override;
   void read_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1, std::vector<float>& depth,
                  std::vector<std::uint32_t>& ids) override;
+  void dof_lee_splat(const FrameTime& time, const BackendSettings& peel_settings, const dof::CocModel& coc,
+                     const dof::LeeSplatSettings& settings) override;
   void read_hdr(std::vector<glm::vec3>& hdr) override;
   void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
                     float radius_px, float fovea_fraction) override;
@@ -80,6 +83,7 @@ class GlFrame final : public GpuFrame {
   HdrSource hdr_source_ = HdrSource::GBuffer;
   std::unique_ptr<GlAttention> attention_;   // made on first use
   std::unique_ptr<GlLeeMipmap> lee_mipmap_;  // made on first use
+  std::unique_ptr<GlLeeSplat> lee_splat_;    // made on first use
   std::unique_ptr<GlSchedlLayered> schedl_;  // made on first use
   std::unique_ptr<GlUlodBlend> ulod_;        // made on first use
   unsigned dof_output_ = 0;                  // the texture the last GPU dof wrote
