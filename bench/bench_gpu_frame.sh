@@ -24,7 +24,8 @@
 # lee-mipmap and uploads its colour: what running it on the GPU saves). The scene's own effects
 # ("scene") run lee-mipmap on the GPU path's GPU too. "dof-fN" = dof with the lens at f-number N
 # (attention.json: 2.8; 0.7 blurs 4x as much, 11.2 a quarter as much): the DOF's cost against its CoC.
-# "dof-schedl" = dof with schedl-layered, M = 3 (its two layers peeled on the GPU path's GPU).
+# "dof-schedl" = dof with schedl-layered, M = 3 (its two layers peeled on the GPU path's GPU);
+# "dof-splat" = dof with lee-splat (its hidden image peeled there).
 # "attention" = base with the attention pass, focus.mode=attention and its outline (overlay.focus),
 # attention.device=gpu (on the GPU path attention's pixel stage runs on the GPU and the focus pass
 # reads only the pixels it looks at: nothing is read back whole); "attention-cpu" = the same with
@@ -74,6 +75,8 @@ for scene in $SCENES; do
         dof-cpu) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed --set dof.device=cpu) ;;
         dof-schedl) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
                            --set dof.method=schedl-layered) ;;
+        dof-splat) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
+                          --set dof.method=lee-splat) ;;
         attention) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                           --set focus.mode=attention --set overlay.focus=true --set attention.device=gpu) ;;
         attention-cpu) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false

@@ -6,6 +6,8 @@
 #                                   (gpu.dof: target <= 1 ms, independent of the CoC)
 #   dof-cpu                         the same DOF with dof.device=cpu (read back, CPU, upload)
 #   dof-schedl                      schedl-layered, M = 3 (gpu.peel + gpu.dof: target <= 3 ms)
+#   dof-splat                       lee-splat with its hidden image (gpu.peel + gpu.dof: target <= 5 ms
+#                                   at mean CoC 16; the scene's lens gives its own CoC, see the table)
 #   attention, attention-cpu        attention + focus, attention's pixel stage on the GPU (gpu.attention:
 #                                   target <= 0.5 ms) and with attention.device=cpu
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
@@ -33,5 +35,5 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --back
 grep -E "where|  run   (dof|attention)" "$probe/plan.txt"
 
 OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
-  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl scene ulod" | tee "$OUT/gpu-effects.md"
+  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl dof-splat scene ulod" | tee "$OUT/gpu-effects.md"
 tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs && rm -rf "$OUT/runs"
