@@ -22,6 +22,7 @@
 #include "dof/lee_mipmap.h"
 #include "dof_lens.h"
 #include "dof_test_image.h"
+#include "gl_dof_scene.h"
 #include "hdr_compare.h"
 #include "scene/scene_loader.h"
 
@@ -85,30 +86,9 @@ class GlLeeMipmapTest : public ::testing::Test {
   std::unique_ptr<GlLeeMipmap> gl_;
 };
 
-// The G-buffer of a bundled scene, and a lens whose CoC is `coc_px` at the far plane.
-struct SceneImage {
-  GBuffer g;
-  CocModel lens;
-  dof::DofInput input() const {
-    dof::DofInput in;
-    in.width = g.width;
-    in.height = g.height;
-    in.color = g.color.data();
-    in.depth = g.depth.data();
-    in.coc = lens;
-    return in;
-  }
-};
-
+using SceneImage = test::DofSceneImage;
 SceneImage scene_image(GlBackend& backend, const char* name, double focus_m, double k_px) {
-  Scene s = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes" / name);
-  s.camera.width = 256;
-  s.camera.height = 192;
-  backend.set_scene(s);
-  SceneImage out;
-  backend.render({}, {}, out.g);
-  out.lens = dof::test::lens_with_k(k_px, focus_m);
-  return out;
+  return test::dof_scene_image(backend, name, focus_m, k_px, 256, 192);
 }
 
 TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceOnTheBundledScenes) {

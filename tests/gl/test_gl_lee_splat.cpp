@@ -23,6 +23,7 @@
 #include "dof/lee_splat.h"
 #include "dof_lens.h"
 #include "dof_test_image.h"
+#include "gl_dof_scene.h"
 #include "hdr_compare.h"
 #include "scene/scene_loader.h"
 
@@ -72,39 +73,10 @@ class GlLeeSplatTest : public ::testing::Test {
   std::unique_ptr<GlLeeSplat> gl_;
 };
 
-// A bundled scene's G-buffer and its first peeled layer (the hidden image), and a lens whose CoC is
-// `k_px` at the far plane.
-struct SceneImage {
-  GBuffer g, hidden;
-  CocModel lens;
-  dof::DofInput input(bool with_hidden = true) const {
-    dof::DofInput in;
-    in.width = g.width;
-    in.height = g.height;
-    in.color = g.color.data();
-    in.depth = g.depth.data();
-    if (with_hidden) {
-      in.hidden_color = hidden.color.data();
-      in.hidden_depth = hidden.depth.data();
-    }
-    in.coc = lens;
-    return in;
-  }
-};
-
+// A bundled scene's G-buffer with its hidden image (the first peeled layer).
+using SceneImage = test::DofSceneImage;
 SceneImage scene_image(GlBackend& backend, const char* name, double focus_m, double k_px) {
-  Scene s = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes" / name);
-  s.camera.width = 128;
-  s.camera.height = 96;
-  backend.set_scene(s);
-  SceneImage out;
-  backend.render({}, {}, out.g);
-  BackendSettings peel;
-  peel.peel = 1;
-  backend.render({}, peel, out.hidden);
-  backend.context().make_current();
-  out.lens = dof::test::lens_with_k(k_px, focus_m);
-  return out;
+  return test::dof_scene_image(backend, name, focus_m, k_px, 128, 96, true);
 }
 
 TEST_F(GlLeeSplatTest, AgreesWithTheCpuReferenceOnTheBundledScenesWithTheHiddenImage) {
@@ -116,9 +88,9 @@ TEST_F(GlLeeSplatTest, AgreesWithTheCpuReferenceOnTheBundledScenesWithTheHiddenI
                         Case{"cornell.json", 1.0}}) {
     for (double k : {4.0, 16.0}) {
       const SceneImage im = scene_image(*backend_, c.scene, c.focus_m, k);
-      const double db = expect_agree(im.input(), {}, std::string(c.scene) + " K " + std::to_string(k));
+      const double db = expect_agree(im.input(true), {}, std::string(c.scene) + " K " + std::to_string(k));
       // Something is defocused: the result is not the input.
-      const double blur_db = psnr_shown(on_gpu(im.input()), im.g.color);
+      const double blur_db = psnr_shown(on_gpu(im.input(true)), im.g.color);
       EXPECT_LT(blur_db, 45.0) << c.scene << " K " << k << ": nothing was blurred";
       std::printf("%-15s focus %5.1f m K %3.0f px: GL vs CPU %.1f dB (GL vs the sharp input %.1f dB)\n", c.scene,
                   c.focus_m, k, db, blur_db);
@@ -136,12 +108,12 @@ TEST_F(GlLeeSplatTest, AgreesWithTheCpuReferenceWithEverySetting) {
     if (variant == 4) s.delta = 0.3;
     if (variant == 5) s.ldr_highlights = true;
     if (variant == 6) s.laplacian_threshold = 0.0;
-    expect_agree(im.input(), s, "setting variant " + std::to_string(variant));
+    expect_agree(im.input(true), s, "setting variant " + std::to_string(variant));
   }
   LeeSplatSettings reduced;
   reduced.reduce = 2;
   RgbImage out;
-  EXPECT_THROW(gl_->run_image(im.input(), reduced, out), std::invalid_argument);  // §5.3 stays on the CPU
+  EXPECT_THROW(gl_->run_image(im.input(true), reduced, out), std::invalid_argument);  // §5.3 stays on the CPU
 }
 
 TEST_F(GlLeeSplatTest, APinholeCopiesTheInputExactly) {
