@@ -4,9 +4,11 @@
 //
 // Two paths. The readback path renders the G-buffer, brings every plane to the CPU and runs every
 // pass there (the reference; the Embree backend's only path). The GPU-resident path (a backend with
-// a GpuFrame, frame.gpu=true) keeps the G-buffer in GPU textures, reads back only the planes the
-// CPU passes of this frame read (attention, focus, LOD selection, DOF, GI), uploads the HDR colour
-// they made, and runs the tone map and the overlay on the GPU; the display image stays there.
+// a GpuFrame, frame.gpu=true) keeps the G-buffer in GPU textures and runs there what has a GPU
+// implementation (attention's pixel stage, the DOF methods, ULOD's blend, the tone map, the
+// overlay; the planner decides, PlannedPass::on_gpu), reads back only the planes this frame's CPU
+// passes read (focus reads only the pixels it looks at), uploads the HDR colour a CPU pass made;
+// the display image stays on the GPU.
 //
 // Gaze is latched as late as each pass allows: at the frame's start (LOD selection), again before
 // the focus pass and again before the overlay. Every frame records the age of the gaze sample the
