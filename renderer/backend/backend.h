@@ -54,6 +54,10 @@ struct BackendSettings {
   // triangle ids, then rebuild the planes and shade each pixel once in a compute pass
   // (GlVisibilityPass). Where the backend cannot, it draws the forward G-buffer and says so once.
   bool visibility_buffer = false;
+  // Raster backend: render() draws into targets of its own (forward shading) and reads back from
+  // there, so the G-buffer a GPU-resident frame keeps in the backend's textures stays as it is (the
+  // DOF references render the scene again mid-frame). Embree ignores it.
+  bool keep_frame = false;
 };
 
 // What a backend can do beyond the G-buffer every backend renders. Passes ask this, never the

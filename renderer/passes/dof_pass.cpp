@@ -56,6 +56,7 @@ const dof::RgbImage& DofPass::run(Backend& backend, const Scene& scene, const GB
   if (d.method == DofMethod::Reference || d.method == DofMethod::Accum) {
     BackendSettings bs;
     bs.shadows = d.shadows;
+    bs.keep_frame = true;  // the frame's G-buffer (the overlay's ids where it lies on the GPU) stays
     dof::DofReference ref(backend, time, bs, scene.camera.lens, focus_m,
                           d.method == DofMethod::Reference ? dof::ReferenceKind::RayTraced
                                                            : dof::ReferenceKind::Accumulation,

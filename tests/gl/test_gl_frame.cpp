@@ -328,7 +328,7 @@ TEST(GlFramePipeline, BothPathsMakeTheSameFramesOnTheBundledScenes) {
     std::vector<std::string> settings;
   };
   const Row rows[] = {
-      {"attention.json", {"overlay.focus=true"}},  // attention, focus, LOD, lee-mipmap on the CPU
+      {"attention.json", {"overlay.focus=true"}},  // attention, focus, LOD; lee-mipmap on the GPU
       {"cornell.json", {"gi.enabled=true", "gi.photons=4000", "gi.caustic_photons=0"}},  // the GI inset uploaded
       {"occlusion.json", {"tonemap.operator=exponential", "tonemap.exposure=2"}},
   };
@@ -516,6 +516,36 @@ TEST(GlFramePipeline, TheUlodProxyAttentionRunsOnTheGpuAsOnTheCpu) {
     EXPECT_EQ(selection[0][i].drawn, selection[1][i].drawn);
     EXPECT_NEAR(selection[0][i].blend, selection[1][i].blend, 1e-3);
   }
+}
+
+// The accumulation reference renders the scene again mid-frame, once per lens sample: aside
+// (BackendSettings::keep_frame), so the G-buffer the GPU-resident frame keeps (what the overlay's
+// focus outline reads) is still the frame's, the readback path's planes exactly.
+TEST(GlFramePipeline, TheDofReferencesLeaveTheFramesGBufferWhereItLies) {
+  GBuffer planes[2];
+  for (const bool gpu : {true, false}) {
+    Settings s;
+    s.set("frame.gpu", gpu ? "true" : "false");
+    s.set("dof.method", "accum");
+    s.set("dof.samples", "4");
+    s.set("focus.mode", "fixed");
+    s.set("debug.gbuffer_planes", "all");  // every plane written where the frame lies, to compare
+    std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
+    FramePipeline pipeline(bundled("attention.json", 160, 120), s, std::make_unique<GlBackend>(), *gaze);
+    PassTimer timer;
+    const FramePipeline::Frame f = pipeline.render(0, 0.3, 0.25, 0.3, timer);
+    ASSERT_EQ(f.on_gpu, gpu) << f.plan.explain();
+    ASSERT_TRUE(f.plan.runs(PassId::Dof));
+    if (gpu) {
+      planes[0].resize(f.gbuffer->width, f.gbuffer->height);
+      pipeline.gpu_frame()->read_back({.depth = true, .object_id = true}, planes[0]);
+    } else {
+      planes[1] = *f.gbuffer;
+    }
+  }
+  ASSERT_EQ(planes[0].size(), planes[1].size());
+  EXPECT_EQ(planes[0].object_id, planes[1].object_id);
+  EXPECT_EQ(planes[0].depth, planes[1].depth);
 }
 
 // lee-mipmap, schedl-layered (M = 3, its layers peeled on the GPU) and lee-splat (its hidden image

@@ -636,6 +636,12 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
     render_peeled(time, settings, out);
     return;
   }
+  if (settings.keep_frame) {
+    const GlGBufferTextures t = render_aside(time, settings);
+    out.resize(t.width, t.height);
+    read_back_from(aside_.fbo, settings.readback, out);
+    return;
+  }
   render_on_gpu(time, settings, GBufferPlanes::all());
   out.resize(image_width_, image_height_);
   read_back(settings.readback, out);
