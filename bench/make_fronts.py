@@ -60,12 +60,17 @@ def device_token(renderer):
 def dof_device_fronts(results):
     """The dof fronts of the OpenGL backend on the devices bench_dof's GL rows ran on: every
     bench_dof_gl.csv under RESULTS (this machine's, and any copied from another machine's run of
-    bench_dof --methods "lee-mipmap,lee-mipmap sigma=C/4,lee-mipmap gl"). Options: the CPU methods
-    (dof.device=cpu: read back, filtered, uploaded) at their wall time, and the GL implementations
-    (dof.device=gpu) at their GPU time, the pass's cost in a GPU-resident frame; one reference for both."""
+    bench_dof --methods "lee-mipmap,lee-mipmap sigma=C/4,lee-mipmap gl", and of
+    --methods "lee-splat,schedl-layered M=3,schedl-layered gl M=3" with the same size and reference). Options:
+    the CPU methods (dof.device=cpu: read back, filtered, uploaded) at their wall time (lee-splat's and
+    schedl-layered's with their peeled renders), and the GL implementations (dof.device=gpu) at their GPU
+    time, the pass's cost in a GPU-resident frame (without gpu.peel); one reference for both."""
     cpu = {"lee-mipmap": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.5"},
-           "lee-mipmap sigma=C/4": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.25"}}
-    gpu = {"lee-mipmap gl": cpu["lee-mipmap"], "lee-mipmap gl sigma=C/4": cpu["lee-mipmap sigma=C/4"]}
+           "lee-mipmap sigma=C/4": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.25"},
+           "lee-splat": {"dof.method": "lee-splat"},
+           "schedl-layered M=3": {"dof.method": "schedl-layered", "dof.layers": "3"}}
+    gpu = {"lee-mipmap gl": cpu["lee-mipmap"], "lee-mipmap gl sigma=C/4": cpu["lee-mipmap sigma=C/4"],
+           "lee-splat gl": cpu["lee-splat"], "schedl-layered gl M=3": cpu["schedl-layered M=3"]}
     fronts = []
     for path in sorted(glob.glob(os.path.join(results, "**", "bench_dof_gl.csv"), recursive=True)):
         rows = [r for r in csv.DictReader(open(path)) if r["mean_coc_px"] == "16"]
