@@ -483,17 +483,7 @@ void GlAttention::upload_objects(const GlAttentionObjects& objects) {
 }
 
 void GlAttention::draw(std::initializer_list<unsigned> targets, int w, int h) {
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  GLenum buffers[4] = {GL_NONE, GL_NONE, GL_NONE, GL_NONE};
-  int i = 0;
-  for (unsigned t : targets) {
-    buffers[i] = static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, buffers[i], GL_TEXTURE_2D, t, 0);
-    ++i;
-  }
-  for (int k = i; k < 4; ++k)
-    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
-  glDrawBuffers(i, buffers);
+  gl::attach_targets(fbo_, targets);
   glViewport(0, 0, w, h);
   glDrawArrays(GL_TRIANGLES, 0, 3);
 }
@@ -534,11 +524,7 @@ void GlAttention::scatter(int mode, unsigned target, int target_w, int target_h,
   set_int(p, "u_mode", mode);
   set_int(p, "u_shift", shift);
   set_ivec2(p, "u_target", target_w, target_h);
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target, 0);
-  for (int k = 1; k < 4; ++k)
-    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
-  glDrawBuffer(GL_COLOR_ATTACHMENT0);
+  gl::attach_targets(fbo_, {target});
   glViewport(0, 0, target_w, target_h);
   const float zero[4] = {0, 0, 0, 0};
   glClearBufferfv(GL_COLOR, 0, zero);

@@ -258,14 +258,17 @@ void GlBackend::release_aside() {
   aside_ = Aside{};
 }
 
-GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSettings& settings) {
+glm::uvec2 GlBackend::begin_render(const BackendSettings& settings) {
   check_settings(settings);
-  if (!scene_) set_scene(Scene{});
-  const Scene& scene = *scene_;
-  const Camera& cam = scene.camera;
+  if (!scene_) set_scene(Scene{});  // as the Embree backend: background only, default camera
   context_.make_current();
-  const std::uint32_t width = settings.width > 0 ? settings.width : cam.width;
-  const std::uint32_t height = settings.height > 0 ? settings.height : cam.height;
+  const Camera& cam = scene_->camera;
+  return {settings.width > 0 ? settings.width : cam.width, settings.height > 0 ? settings.height : cam.height};
+}
+
+GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSettings& settings) {
+  const glm::uvec2 size = begin_render(settings);
+  const std::uint32_t width = size.x, height = size.y;
   if (aside_.fbo == 0 || aside_.width != width || aside_.height != height) {
     release_aside();
     const GLenum status = make_gbuffer_target(aside_.fbo, aside_.textures, aside_.z, width, height);
@@ -669,13 +672,10 @@ void GlBackend::render_peeled_layers(const FrameTime& time, const BackendSetting
 }
 
 const GlPeeling& GlBackend::peel_on_gpu(const FrameTime& time, const BackendSettings& settings, std::uint32_t layers) {
-  check_settings(settings);
-  if (!scene_) set_scene(Scene{});
+  const glm::uvec2 size = begin_render(settings);
+  const std::uint32_t width = size.x, height = size.y;
   const Scene& scene = *scene_;
   const Camera& cam = scene.camera;
-  context_.make_current();
-  const std::uint32_t width = settings.width > 0 ? settings.width : cam.width;
-  const std::uint32_t height = settings.height > 0 ? settings.height : cam.height;
   if (!peeling_) peeling_ = std::make_unique<GlPeeling>();
   const FrameView frame = frame_view(cam, time, settings.lens);
   const auto clear = [&](unsigned fbo) {

@@ -22,6 +22,8 @@
 #include <string>
 #include <vector>
 
+#include <glm/vec2.hpp>
+
 #include "backend/backend.h"
 #include "backend/gl/gl_context.h"
 #include "backend/gl/gl_peel.h"
@@ -189,6 +191,9 @@ class GlBackend final : public Backend {
     std::uint32_t width = 0, height = 0;
   } aside_;
   void release_aside();
+  // The start of a render into targets of the backend's own: checks `settings`, a default scene if
+  // none was set, the context current; returns the image's size (the camera's unless set).
+  glm::uvec2 begin_render(const BackendSettings& settings);
 };
 
 std::unique_ptr<Backend> make_gl_backend(GlPlatform platform = GlPlatform::Egl, const GlContext* share = nullptr);

@@ -327,17 +327,7 @@ void GlLeeMipmap::ensure_targets(std::uint32_t width, std::uint32_t height) {
 
 // Draws one full-screen triangle over `viewport` of `targets` (draw buffers 0, 1, ...).
 void GlLeeMipmap::draw_into(GLenum target, std::initializer_list<unsigned> textures, glm::ivec2 origin, glm::ivec2 size) {
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  GLenum buffers[3] = {GL_NONE, GL_NONE, GL_NONE};
-  GLsizei n = 0;
-  for (unsigned t : textures) {
-    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + n), target, t, 0);
-    buffers[n] = static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + n);
-    ++n;
-  }
-  for (GLsizei k = n; k < 3; ++k)
-    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
-  glDrawBuffers(n, buffers);
+  gl::attach_targets(fbo_, textures, target);
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
     throw std::runtime_error("GlLeeMipmap: framebuffer incomplete (status " + std::to_string(status) + ")");

@@ -277,17 +277,7 @@ void GlLeeSplat::ensure_targets(std::uint32_t width, std::uint32_t height) {
 }
 
 void GlLeeSplat::draw_into(std::initializer_list<unsigned> targets) {
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  GLenum buffers[3] = {GL_NONE, GL_NONE, GL_NONE};
-  int i = 0;
-  for (unsigned t : targets) {
-    buffers[i] = static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + i);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, buffers[i], GL_TEXTURE_2D, t, 0);
-    ++i;
-  }
-  for (int k = i; k < 3; ++k)
-    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
-  glDrawBuffers(i, buffers);
+  gl::attach_targets(fbo_, targets);
   glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
 }
 

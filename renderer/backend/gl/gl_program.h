@@ -6,6 +6,7 @@
 #include <epoxy/gl.h>
 
 #include <cstring>
+#include <initializer_list>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -86,6 +87,23 @@ void main() {
   gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
 }
 )";
+
+// Binds `fbo` with `textures` (at most 4, of texture target `target`) as its colour attachments
+// 0, 1, ..., the other attachments of 0..3 detached, and draws into all of them.
+inline void attach_targets(unsigned fbo, std::initializer_list<unsigned> textures, GLenum target = GL_TEXTURE_2D) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  GLenum buffers[4] = {GL_NONE, GL_NONE, GL_NONE, GL_NONE};
+  GLsizei n = 0;
+  for (unsigned t : textures) {
+    if (n == 4) throw std::logic_error("gl::attach_targets: more than 4 targets");
+    buffers[n] = static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + n);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, buffers[n], target, t, 0);
+    ++n;
+  }
+  for (GLsizei k = n; k < 4; ++k)
+    glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
+  glDrawBuffers(n, buffers);
+}
 
 // Throws std::runtime_error("<who>: OpenGL error N in <where>") when GL reports an error (and clears
 // the rest of the queue).
