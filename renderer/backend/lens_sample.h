@@ -4,6 +4,10 @@
 // so that plane stays sharp and everything else blurs by the thin-lens CoC (Lee 2009 eq. 4.3). With
 // one lens point for every pixel a render is one view of an accumulation buffer (Haeberli & Akeley);
 // with a different point per pixel it is one sample of distributed ray tracing (Cook et al. 1984).
+// The aperture is a uniform disc (a real lens's iris: the blur of a point is a disc of the CoC's
+// diameter C) or, for Lee 2009 §4.1.3's lens "with a Gaussian intensity distribution", a Gaussian
+// transmission profile: the blur of a point is then a Gaussian whose per-axis standard deviation is
+// gaussian_sigma_per_coc x C (Lee's sigma = C / 2 is 0.5; the disc's own per-axis deviation is C / 4).
 #include <cmath>
 #include <cstdint>
 
@@ -21,6 +25,9 @@ struct LensSample {
   std::uint32_t index = 0;
   std::uint64_t seed = 0;
   glm::vec2 disc{0.0f, 0.0f};
+  // > 0: the Gaussian aperture above (its per-axis deviation is this times the diameter E = 2 x
+  // aperture_radius_m, unbounded); 0: the uniform disc of radius aperture_radius_m.
+  double gaussian_sigma_per_coc = 0;
   bool active() const { return aperture_radius_m > 0 && std::isfinite(aperture_radius_m) && focus_m > 0 && std::isfinite(focus_m); }
 };
 
@@ -61,17 +68,27 @@ inline glm::vec2 concentric_disc(double u, double v) {
   }
   return {static_cast<float>(r * std::cos(phi)), static_cast<float>(r * std::sin(phi))};
 }
-// Point `index` of the (0,2)-sequence XOR-scrambled by `scramble` (scrambling keeps the net property).
-inline glm::vec2 disc_point(std::uint32_t index, std::uint64_t scramble) {
+// Box-Muller from [0,1)^2 to the standard normal in 2-D, radius from u and angle from v, so the
+// (0,2)-sequence's strata map to annular sectors; 1 - u > 0 keeps the radius finite (at most 6.7).
+inline glm::vec2 normal_point(double u, double v) {
+  constexpr double kTwoPi = 6.28318530717958647692;
+  const double r = std::sqrt(-2.0 * std::log(1.0 - u)), phi = kTwoPi * v;
+  return {static_cast<float>(r * std::cos(phi)), static_cast<float>(r * std::sin(phi))};
+}
+// Point `index` of the (0,2)-sequence XOR-scrambled by `scramble` (scrambling keeps the net property),
+// on the unit disc (gaussian_sigma_per_coc = 0) or drawn from the Gaussian aperture of
+// LensSample::gaussian_sigma_per_coc, in units of the aperture radius (per-axis deviation 2 sigma).
+inline glm::vec2 lens_point(std::uint32_t index, std::uint64_t scramble, double gaussian_sigma_per_coc = 0) {
   const auto sx = static_cast<std::uint32_t>(scramble), sy = static_cast<std::uint32_t>(scramble >> 32);
   const double u = static_cast<double>(reverse_bits(index) ^ sx) * 0x1p-32;
   const double v = static_cast<double>(sobol_dim2(index) ^ sy) * 0x1p-32;
+  if (gaussian_sigma_per_coc > 0) return normal_point(u, v) * static_cast<float>(2.0 * gaussian_sigma_per_coc);
   return concentric_disc(u, v);
 }
-// The lens point (unit disc) of pixel (x, y) under `s`.
-inline glm::vec2 pixel_disc_point(const LensSample& s, std::uint32_t x, std::uint32_t y) {
+// The lens point (in units of the aperture radius) of pixel (x, y) under `s`.
+inline glm::vec2 pixel_lens_point(const LensSample& s, std::uint32_t x, std::uint32_t y) {
   if (!s.per_pixel) return s.disc;
-  return disc_point(s.index, mix(s.seed ^ mix((std::uint64_t{y} << 32) | x)));
+  return lens_point(s.index, mix(s.seed ^ mix((std::uint64_t{y} << 32) | x)), s.gaussian_sigma_per_coc);
 }
 
 }  // namespace lens_sampling

@@ -7,17 +7,22 @@
 namespace fovea::render::dof {
 
 DofReference::DofReference(Backend& backend, const FrameTime& time, const BackendSettings& base, const Lens& lens,
-                           double focus_m, ReferenceKind kind, std::uint64_t seed)
+                           double focus_m, ReferenceKind kind, std::uint64_t seed, double gaussian_sigma_per_coc)
     : backend_(backend),
       time_(time),
       base_(base),
       radius_m_(lens.is_pinhole() || !std::isfinite(lens.aperture_m) ? 0.0 : 0.5 * lens.aperture_m),
       focus_m_(focus_m),
       kind_(kind),
-      seed_(seed) {
+      seed_(seed),
+      gaussian_sigma_per_coc_(gaussian_sigma_per_coc) {
   if (!(focus_m > 0) || !std::isfinite(focus_m)) {
     throw std::invalid_argument("DOF reference: focus distance " + std::to_string(focus_m) +
                                 " m: allowed a finite distance > 0");
+  }
+  if (!(gaussian_sigma_per_coc >= 0) || !(gaussian_sigma_per_coc <= 4)) {
+    throw std::invalid_argument("DOF reference: Gaussian aperture sigma per CoC diameter " +
+                                std::to_string(gaussian_sigma_per_coc) + ": allowed 0 (the uniform disc) to 4");
   }
 }
 
@@ -29,11 +34,12 @@ void DofReference::add_samples(std::uint32_t n) {
     s.lens.focus_m = focus_m_;
     s.lens.seed = seed_;
     s.lens.index = samples_;
+    s.lens.gaussian_sigma_per_coc = gaussian_sigma_per_coc_;
     if (kind_ == ReferenceKind::RayTraced) {
       s.lens.per_pixel = true;
     } else {
       s.lens.per_pixel = false;
-      s.lens.disc = lens_sampling::disc_point(samples_, lens_sampling::mix(seed_));
+      s.lens.disc = lens_sampling::lens_point(samples_, lens_sampling::mix(seed_), gaussian_sigma_per_coc_);
     }
     backend_.render(time_, s, scratch_);
     if (samples_ == 0) {

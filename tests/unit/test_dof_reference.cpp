@@ -5,8 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+
+#include <glm/geometric.hpp>
 
 #include "backend/embree/embree_backend.h"
+#include "backend/lens_sample.h"
 #include "dof/lens.h"
 #include "dof/reference.h"
 #include "scene/geometry.h"
@@ -73,10 +77,10 @@ Moments moments(const RgbImage& img) {
 }
 
 RgbImage reference(const Scene& s, ReferenceKind kind, std::uint32_t samples, std::uint64_t seed = 1,
-                   double focus_m = 4) {
+                   double focus_m = 4, double gaussian_sigma_per_coc = 0) {
   EmbreeBackend b;
   b.set_scene(s);
-  DofReference ref(b, {}, {}, s.camera.lens, focus_m, kind, seed);
+  DofReference ref(b, {}, {}, s.camera.lens, focus_m, kind, seed, gaussian_sigma_per_coc);
   ref.add_samples(samples);
   return ref.image();
 }
@@ -120,17 +124,19 @@ TEST(DofReference, ThePlaneInFocusStaysSharp) {
 // A small square light's blur spot has the variance of its (continuous) pinhole image, s^2 / 12 per
 // axis for a square s px wide, plus that of a uniform disc of the CoC's diameter C (C^2 / 16): C
 // measured from the reference must match the lens model; its energy is the square's area times the
-// emission (the thin lens spreads the light, it does not lose it).
-void expect_blur_matches_model(float depth_m, ReferenceKind kind) {
+// emission (the thin lens spreads the light, it does not lose it). A Gaussian aperture of sigma s per
+// CoC diameter adds (s C)^2 instead of C^2 / 16.
+void expect_blur_matches_model(float depth_m, ReferenceKind kind, double gaussian_sigma_per_coc = 0) {
   Scene s = light_scene(depth_m, 0.1f);
   s.camera.lens.aperture_m = 0.25;  // a big lens, so a 129 px image shows a blur of several pixels
   const double tan_half = std::tan(15.0 * 3.14159265358979323846 / 180.0);
   const double size_px = 0.1 / (2.0 * static_cast<double>(depth_m) * tan_half) * kSize;
-  const Moments m = moments(reference(s, kind, 256));
+  const Moments m = moments(reference(s, kind, 256, 1, 4, gaussian_sigma_per_coc));
   const CocModel model = coc_model(s.camera, s.display, 4.0, CocProjection::Sensor);
   const double c_model = model.coc_px(depth_m);
   const double square = size_px * size_px / 12.0;
-  const double c_x = std::sqrt(16.0 * (m.var_x - square)), c_y = std::sqrt(16.0 * (m.var_y - square));
+  const double per_var = gaussian_sigma_per_coc > 0 ? 1.0 / (gaussian_sigma_per_coc * gaussian_sigma_per_coc) : 16.0;
+  const double c_x = std::sqrt(per_var * (m.var_x - square)), c_y = std::sqrt(per_var * (m.var_y - square));
   EXPECT_NEAR(c_x, c_model, 0.05 * c_model + 0.3) << "depth " << depth_m;
   EXPECT_NEAR(c_y, c_model, 0.05 * c_model + 0.3) << "depth " << depth_m;
   EXPECT_NEAR(m.sum, size_px * size_px, 0.03 * size_px * size_px) << "depth " << depth_m;
@@ -145,6 +151,44 @@ TEST(DofReference, RayTracedBlurMatchesTheThinLensCocInFrontAndBehind) {
 TEST(DofReference, AccumulationBlurMatchesTheThinLensCocInFrontAndBehind) {
   expect_blur_matches_model(2.0f, ReferenceKind::Accumulation);
   expect_blur_matches_model(12.0f, ReferenceKind::Accumulation);
+}
+
+// Lee §4.1.3's Gaussian lens: the blur's per-axis deviation is sigma x C, in front and behind, for
+// both kinds. Not sigma = C / 4, whose variance equals the disc's: 0.15 and 0.35 tell the two apart
+// and keep the spot inside the 129 px image at these CoCs.
+TEST(DofReference, AGaussianApertureBlursByTheGaussianOfItsSigma) {
+  expect_blur_matches_model(2.0f, ReferenceKind::RayTraced, 0.15);
+  expect_blur_matches_model(12.0f, ReferenceKind::RayTraced, 0.35);
+  expect_blur_matches_model(2.0f, ReferenceKind::Accumulation, 0.35);
+}
+
+// The Gaussian aperture's lens points: zero mean, per-axis deviation 2 sigma (units of the radius),
+// finite everywhere, and unlike the disc they leave the unit circle.
+TEST(DofReference, GaussianLensPointsHaveTheirDeviation) {
+  constexpr std::uint32_t kN = 4096;
+  for (const double sigma : {0.25, 0.5, 1.0}) {
+    double sx = 0, sy = 0, sxx = 0, syy = 0;
+    std::uint32_t outside = 0;
+    for (std::uint32_t i = 0; i < kN; ++i) {
+      const glm::vec2 p = lens_sampling::lens_point(i, lens_sampling::mix(7), sigma);
+      ASSERT_TRUE(std::isfinite(p.x) && std::isfinite(p.y)) << i;
+      sx += static_cast<double>(p.x);
+      sy += static_cast<double>(p.y);
+      sxx += static_cast<double>(p.x * p.x);
+      syy += static_cast<double>(p.y * p.y);
+      outside += glm::dot(p, p) > 1.0f;
+    }
+    const double want = 2.0 * sigma;
+    EXPECT_NEAR(sx / kN, 0.0, 0.02 * want) << sigma;
+    EXPECT_NEAR(sy / kN, 0.0, 0.02 * want) << sigma;
+    EXPECT_NEAR(std::sqrt(sxx / kN), want, 0.02 * want) << sigma;
+    EXPECT_NEAR(std::sqrt(syy / kN), want, 0.02 * want) << sigma;
+    EXPECT_GT(outside, 0u) << sigma;
+  }
+  for (std::uint32_t i = 0; i < kN; ++i) {
+    const glm::vec2 p = lens_sampling::lens_point(i, lens_sampling::mix(7));
+    ASSERT_LE(glm::dot(p, p), 1.0f + 1e-6f) << i;
+  }
 }
 
 TEST(DofReference, RayTracedAndAccumulationAgree) {
@@ -170,6 +214,20 @@ TEST(DofReference, ASeedFixesTheResult) {
   const Scene s = light_scene(2.0f, 0.15f);
   EXPECT_EQ(rmse(reference(s, ReferenceKind::RayTraced, 16, 7), reference(s, ReferenceKind::RayTraced, 16, 7)), 0.0);
   EXPECT_GT(rmse(reference(s, ReferenceKind::RayTraced, 16, 7), reference(s, ReferenceKind::RayTraced, 16, 8)), 0.0);
+}
+
+TEST(DofReference, RefusesABadGaussianAperture) {
+  const Scene s = light_scene(2.0f, 0.1f);
+  EmbreeBackend b;
+  b.set_scene(s);
+  for (const double bad : {-0.1, 5.0, std::nan("")}) {
+    try {
+      DofReference ref(b, {}, {}, s.camera.lens, 4.0, ReferenceKind::RayTraced, 1, bad);
+      FAIL() << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("Gaussian aperture sigma"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(DofReference, RefusesABadFocusDistance) {

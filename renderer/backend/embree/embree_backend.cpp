@@ -168,7 +168,7 @@ struct Frame {
     dir = direction(x, y);
     origin = eye;
     if (!lens_on) return;
-    const glm::vec2 p = lens_sampling::pixel_disc_point(lens, x, y) * lens_radius;
+    const glm::vec2 p = lens_sampling::pixel_lens_point(lens, x, y) * lens_radius;
     const glm::vec3 offset = right * p.x + up * p.y;
     const glm::vec3 focal = eye + dir * focus;
     origin = eye + offset;
