@@ -15,7 +15,9 @@
 //   leak   background pixels (behind the focal plane, C > 2 px) within C/2 of an in-focus pixel
 //          (C < 1 px): where a focused object's colour would leak into the blur (Lee §4.2);
 //   edge   pixels within the foreground's mean C/2 of a blurred foreground pixel (in front, C > 2):
-//          the blurred foreground boundary (Lee §4.3, Schedl & Wimmer's partial occlusion).
+//          the blurred foreground boundary (Lee §4.3, Schedl & Wimmer's partial occlusion);
+// and PSNR over the interior, where no depth discontinuity is within reach (interior_mask): there
+// every one-layer method's lens model is exact, so what is left is its blur kernel's error.
 //
 // The "... gl" rows run the method's OpenGL implementation (backend/gl/gl_lee_mipmap.h,
 // gl_schedl_layered.h, gl_lee_splat.h: on the ray tracer's peeled layers, the peeling not timed) on the same
@@ -24,6 +26,12 @@
 // queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's. The CSV's
 // device column names where each row ran ("cpu", or the OpenGL renderer): bench/make_fronts.py
 // builds the governor's per-device fronts from it.
+//
+// The gap to the papers' figures (Lee's 37.66 / 35.41 dB for lee-mipmap) is split by two more tools:
+// --aperture-sigma S renders the reference through Lee §4.1.3's Gaussian lens (blur deviation S x C,
+// backend/lens_sample.h) instead of the real lens's uniform disc; the "gaussian gather" rows are the
+// exact filter lee-mipmap approximates (dof/gaussian_gather.h), and vs_gather_db is each CPU
+// lee-mipmap row's PSNR against the gather of its own sigma: the mipmap's own error.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -47,6 +55,7 @@
 #include "backend/gl/gl_lee_mipmap.h"
 #include "backend/gl/gl_lee_splat.h"
 #include "backend/gl/gl_schedl_layered.h"
+#include "dof/gaussian_gather.h"
 #include "dof/lee_mipmap.h"
 #include "dof/lee_splat.h"
 #include "dof/lens.h"
@@ -119,9 +128,54 @@ double masked_rmse(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
 }
 
 struct Masks {
-  cv::Mat leak, edge;
+  cv::Mat leak, edge, interior;
   double mean_coc = 0;
 };
+
+// Pixels that no depth discontinuity reaches: a discontinuity is a pixel whose signed CoC differs
+// from a 4-neighbour's by more than 1 px, its reach 1.5 x the larger CoC diameter of the two sides
+// (3 deviations of a sigma = C / 2 Gaussian, beyond a disc's C / 2); a pixel is interior when it is
+// farther than 1.5 x its own CoC and than the nearest discontinuity's reach. There a one-layer
+// gather is the exact lens model, so the error left is the method's blur alone.
+cv::Mat interior_mask(const cv::Mat& b) {
+  const int w = b.cols, h = b.rows;
+  cv::Mat not_disc(h, w, CV_8U, cv::Scalar(255)), reach(h, w, CV_32F, cv::Scalar(0.0f));
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const float v = b.at<float>(y, x);
+      float far = 0;
+      const int nx[4] = {x - 1, x + 1, x, x}, ny[4] = {y, y, y - 1, y + 1};
+      for (int k = 0; k < 4; ++k) {
+        if (nx[k] < 0 || ny[k] < 0 || nx[k] >= w || ny[k] >= h) continue;
+        const float u = b.at<float>(ny[k], nx[k]);
+        if (std::fabs(u - v) > 1.0f) far = std::max({far, std::fabs(u), std::fabs(v)});
+      }
+      if (far > 0) {
+        not_disc.at<std::uint8_t>(y, x) = 0;
+        reach.at<float>(y, x) = 1.5f * far;
+      }
+    }
+  }
+  cv::Mat dist, labels;
+  cv::distanceTransform(not_disc, dist, labels, cv::DIST_L2, 5, cv::DIST_LABEL_PIXEL);
+  // Label k (from 1) is the k-th zero pixel of not_disc in row-major order.
+  std::vector<float> reach_of_label(1, 0.0f);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      if (not_disc.at<std::uint8_t>(y, x) == 0) reach_of_label.push_back(reach.at<float>(y, x));
+    }
+  }
+  cv::Mat inside = cv::Mat::zeros(h, w, CV_8U);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const auto label = static_cast<std::size_t>(labels.at<int>(y, x));
+      const float near = label < reach_of_label.size() ? reach_of_label[label] : 0.0f;
+      const float d = dist.at<float>(y, x);
+      if (d > 1.5f * std::fabs(b.at<float>(y, x)) && d > near) inside.at<std::uint8_t>(y, x) = 255;
+    }
+  }
+  return inside;
+}
 Masks failure_masks(const GBuffer& g, const CocModel& coc) {
   const int w = static_cast<int>(g.width), h = static_cast<int>(g.height);
   cv::Mat c(h, w, CV_32F), b(h, w, CV_32F);
@@ -136,6 +190,7 @@ Masks failure_masks(const GBuffer& g, const CocModel& coc) {
   }
   Masks m;
   m.mean_coc = sum / (static_cast<double>(w) * h);
+  m.interior = interior_mask(b);
   // Distance (px) to the nearest in-focus pixel, and to the nearest blurred foreground pixel.
   cv::Mat not_focused = c >= 1.0f, not_foreground = b > -2.0f, dist_focus, dist_fg;
   cv::distanceTransform(not_focused, dist_focus, cv::DIST_L2, 3);
@@ -178,6 +233,7 @@ int main(int argc, char** argv) {
   std::string methods_text = "all";
   std::uint32_t samples = 256, repeats = 5;
   std::uint32_t convergence = 0;
+  double aperture_sigma = 0;
   app.add_option("--size", size_text, "image size WxH");
   app.add_option("--cocs", cocs_text, "mean CoC diameters in pixels, comma-separated");
   app.add_option("--cases", cases_text, "background-blur,foreground-blur,partial-occlusion or all");
@@ -189,7 +245,11 @@ int main(int argc, char** argv) {
                  "first case at the largest CoC (N = this value; 0: skip)");
   app.add_option("--methods", methods_text,
                  "comma-separated method names to run (a name selects every row that starts with it, e.g. lee-mipmap), "
-                 "or all");
+                 "or all (all but the gaussian gather rows, the exact filter lee-mipmap approximates: name them)");
+  app.add_option("--aperture-sigma", aperture_sigma,
+                 "the reference's aperture: 0 the real lens's uniform disc; S > 0 Lee's Gaussian lens, whose blur has a "
+                 "per-axis deviation of S x the CoC diameter (0.5: Lee's sigma = C / 2)")
+      ->check(CLI::Range(0.0, 4.0));
   app.add_option("--csv", csv_path, "write the table as CSV");
   app.add_option("--png", png_dir, "write every image (reference and methods) as PNG into this directory");
   CLI11_PARSE(app, argc, argv);
@@ -219,8 +279,9 @@ int main(int argc, char** argv) {
     std::string item;
     while (std::getline(ss, item, ',')) method_filter.push_back(item);
   }
+  // The gaussian gather rows are an analysis tool (seconds per image): only when --methods names them.
   const auto method_selected = [&](const std::string& name) {
-    if (method_filter.empty()) return true;
+    if (method_filter.empty()) return name.rfind("gaussian gather", 0) != 0;
     return std::any_of(method_filter.begin(), method_filter.end(),
                        [&](const std::string& f) { return name.rfind(f, 0) == 0; });
   };
@@ -244,7 +305,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     csv << "scene,mean_coc_px,method,psnr_db,ssim,leak_rmse,edge_rmse,ms_per_frame,reference_samples,"
-           "reference_seconds,gpu_ms,vs_cpu_db,device\n";
+           "reference_seconds,gpu_ms,vs_cpu_db,device,reference_aperture_sigma,vs_gather_db,interior_psnr_db,"
+           "interior_fraction\n";
   }
   // The OpenGL implementations' context (EGL): their rows are skipped, with the reason, without one.
   std::unique_ptr<GlBackend> gl_context;
@@ -265,8 +327,11 @@ int main(int argc, char** argv) {
       std::printf("gl rows skipped: %s\n", e.what());
     }
   }
-  std::printf("%-18s %6s %-24s %8s %7s %9s %9s %10s %8s %9s\n", "scene", "coc", "method", "psnr_db", "ssim",
-              "leak_rmse", "edge_rmse", "ms/frame", "gpu_ms", "vs_cpu_db");
+  std::printf("reference: %s\n", aperture_sigma > 0 ? ("Gaussian aperture, sigma = " + std::to_string(aperture_sigma) +
+                                                         " x CoC").c_str()
+                                                    : "uniform disc aperture (the thin lens)");
+  std::printf("%-18s %6s %-27s %8s %7s %9s %9s %9s %10s %8s %9s %9s\n", "scene", "coc", "method", "psnr_db", "ssim",
+              "leak_rmse", "edge_rmse", "interior", "ms/frame", "gpu_ms", "vs_cpu_db", "vs_gather");
 
   for (const Case& cs : cases) {
     Scene scene = load_scene(cs.file);
@@ -289,13 +354,15 @@ int main(int argc, char** argv) {
       s.camera.lens.aperture_m *= target / std::max(1e-9, mean0);
       coc = coc_model(s.camera, s.display, cs.focus_m, CocProjection::Sensor);
       const Masks masks = failure_masks(g, coc);
+      std::printf("%-18s %6.1f interior (no depth discontinuity within reach): %.1f %% of the pixels\n",
+                  cs.name.c_str(), target, 100.0 * cv::countNonZero(masks.interior) / (static_cast<double>(w) * h));
 
-      DofReference ref(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::RayTraced, 1);
+      DofReference ref(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::RayTraced, 1, aperture_sigma);
       if (convergence > 0 && &cs == &cases.front() && target == cocs.back()) {
-        DofReference truth(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::RayTraced, 77);
+        DofReference truth(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::RayTraced, 77, aperture_sigma);
         truth.add_samples(convergence);
         const cv::Mat t = as_mat(to_ldr(truth.image(), w, h));
-        DofReference probe(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::RayTraced, 1);
+        DofReference probe(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::RayTraced, 1, aperture_sigma);
         for (std::uint32_t n = 4; n <= convergence / 4; n *= 2) {
           probe.add_samples(n - probe.samples());
           const cv::Mat p = as_mat(to_ldr(probe.image(), w, h));
@@ -331,32 +398,54 @@ int main(int argc, char** argv) {
         // The OpenGL rows: their GPU time of the last run, and the CPU implementation they mirror.
         double* gpu_ms = nullptr;
         std::function<void(RgbImage&)> cpu_twin = nullptr;
+        // The CPU lee-mipmap rows: the sigma per CoC of the gaussian gather that is their exact twin.
+        double gather_twin = 0;
       };
+      // The gaussian gather rows' images by sigma per CoC, for the lee-mipmap rows after them.
+      std::map<double, cv::Mat> gathered;
       double gl_ms = 0;
       LeeMipmap mip;
       std::vector<Method> methods;
       methods.push_back({"pinhole (no dof)", [&](RgbImage& out) { out.assign(g.color.begin(), g.color.end()); }});
-      methods.push_back({"lee-mipmap", [&](RgbImage& out) { mip.run(in, LeeMipmapSettings{}, out); }});
+      for (const double dob : {0.5, 0.25}) {
+        methods.push_back({dob == 0.5 ? "gaussian gather sigma=C/2" : "gaussian gather sigma=C/4",
+                           [&, dob](RgbImage& out) { gaussian_gather(in, {.sigma_per_coc = dob}, out); }});
+      }
+      methods.push_back({"lee-mipmap", [&](RgbImage& out) { mip.run(in, LeeMipmapSettings{}, out); }, nullptr,
+                         nullptr, 0.5});
       methods.push_back({"lee-mipmap isotropic", [&](RgbImage& out) {
                            LeeMipmapSettings ls;
                            ls.anisotropic = false;
                            mip.run(in, ls, out);
-                         }});
+                         },
+                         nullptr, nullptr, 0.5});
+      // Isotropic and without smoothing: the mipmap's blur (eqs. 4.5-4.8) alone, the gather's approximation.
+      for (const double dob : {0.5, 0.25}) {
+        LeeMipmapSettings ls;
+        ls.anisotropic = false;
+        ls.smooth_foreground = false;
+        ls.dob_per_coc = dob;
+        methods.push_back({dob == 0.5 ? "lee-mipmap plain" : "lee-mipmap plain sigma=C/4",
+                           [&, ls](RgbImage& out) { mip.run(in, ls, out); }, nullptr, nullptr, dob});
+      }
       methods.push_back({"lee-mipmap no-smoothing", [&](RgbImage& out) {
                            LeeMipmapSettings ls;
                            ls.smooth_foreground = false;
                            mip.run(in, ls, out);
-                         }});
+                         },
+                         nullptr, nullptr, 0.5});
       methods.push_back({"lee-mipmap linear blend", [&](RgbImage& out) {
                            LeeMipmapSettings ls;
                            ls.geometric = false;
                            mip.run(in, ls, out);
-                         }});
+                         },
+                         nullptr, nullptr, 0.5});
       methods.push_back({"lee-mipmap sigma=C/4", [&](RgbImage& out) {
                            LeeMipmapSettings ls;
                            ls.dob_per_coc = 0.25;
                            mip.run(in, ls, out);
-                         }});
+                         },
+                         nullptr, nullptr, 0.25});
       if (gl_mipmap) {
         for (const double dob : {0.5, 0.25}) {
           LeeMipmapSettings ls;
@@ -458,6 +547,7 @@ int main(int argc, char** argv) {
         const cv::Mat ldr = as_mat(to_ldr(out, w, h));
         const double p = psnr(ldr, ref_ldr), q = ssim(ldr, ref_ldr);
         const double leak = masked_rmse(ldr, ref_ldr, masks.leak), edge = masked_rmse(ldr, ref_ldr, masks.edge);
+        const double interior = 20.0 * std::log10(255.0 / masked_rmse(ldr, ref_ldr, masks.interior));
         // The OpenGL rows: the GPU time (median over the runs) and the agreement with the CPU twin.
         std::vector<double> gpu;
         double vs_cpu = std::nan("");
@@ -471,8 +561,11 @@ int main(int argc, char** argv) {
           m.cpu_twin(twin);
           vs_cpu = psnr(ldr, as_mat(to_ldr(twin, w, h)));
         }
-        std::printf("%-18s %6.1f %-24s %8.2f %7.4f %9.2f %9.2f %10.2f %8.2f %9.2f\n", cs.name.c_str(), target,
-                    m.name.c_str(), p, q, leak, edge, median(ms), median(gpu), vs_cpu);
+        if (m.name.rfind("gaussian gather sigma=C/", 0) == 0) gathered[m.name.back() == '2' ? 0.5 : 0.25] = ldr;
+        const auto gather = gathered.find(m.gather_twin);
+        const double vs_gather = gather != gathered.end() ? psnr(ldr, gather->second) : std::nan("");
+        std::printf("%-18s %6.1f %-27s %8.2f %7.4f %9.2f %9.2f %9.2f %10.2f %8.2f %9.2f %9.2f\n", cs.name.c_str(),
+                    target, m.name.c_str(), p, q, leak, edge, interior, median(ms), median(gpu), vs_cpu, vs_gather);
         std::fflush(stdout);
         if (csv) {
           csv << cs.name << "," << target << "," << m.name << "," << p << "," << q << "," << leak << "," << edge << ","
@@ -482,13 +575,17 @@ int main(int argc, char** argv) {
           } else {
             csv << ",,cpu";
           }
-          csv << "\n";
+          csv << "," << aperture_sigma << ",";
+          if (std::isfinite(vs_gather)) csv << vs_gather;
+          csv << "," << interior << ","
+              << cv::countNonZero(masks.interior) / (static_cast<double>(w) * static_cast<double>(h)) << "\n";
         }
         if (!png_dir.empty()) {
           cv::Mat bgr;
           cv::cvtColor(ldr, bgr, cv::COLOR_RGB2BGR);
           std::string tag = m.name;
           std::replace(tag.begin(), tag.end(), ' ', '_');
+          std::replace(tag.begin(), tag.end(), '/', '_');  // "sigma=C/4" is not a directory
           std::erase_if(tag, [](char ch) { return ch == '(' || ch == ')' || ch == ','; });
           char name[300];
           std::snprintf(name, sizeof name, "%s/%s-coc%02d-%s.png", png_dir.c_str(), cs.name.c_str(),
