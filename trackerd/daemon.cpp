@@ -10,6 +10,8 @@
 #include <chrono>
 #include <ctime>
 #include <fstream>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <thread>
@@ -17,6 +19,7 @@
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/csv.h"
 #include "service/calibration_stage.h"
+#include "fovea/protocol/bounded_file.h"
 #include "service/command_mailbox.h"
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
@@ -60,7 +63,8 @@ class Daemon {
   protocol::ControlReply reload(const std::string& why);
   std::string start_recording(const std::string& path, bool append);  // empty or what went wrong
   std::string stop_recording();
-  protocol::ControlReply load_calibration(const std::string& argument);
+  protocol::ControlReply submit_calibration_load(const protocol::ControlRequest& request);
+  void publish_control_view();
   void apply_display(const std::optional<protocol::DisplayGeometry>& configured);
   std::string status_line() const;
   bool stopping() const { return signals_.stop != nullptr && signals_.stop->load(); }
@@ -76,6 +80,15 @@ class Daemon {
   std::unique_ptr<service::CalibrationStage> calibration_;
   // A calibration loaded by the control command; kept over reloads until "configured" or a restart.
   std::optional<std::string> calibration_override_;
+  // What the control thread needs to prepare a calibration-load without touching the loop's state:
+  // the configured file and the display, as the publishing loop last set them.
+  struct ControlView {
+    std::string configured_calibration;
+    protocol::DisplayGeometry display;
+    std::string running_calibration;  // its description, for the log
+  };
+  mutable std::mutex control_view_mutex_;
+  ControlView control_view_;
   std::unique_ptr<ClassifyStage> classify_;  // rebuilt on reload when the method changes
   std::vector<GazeItem> outgoing_;
   std::unique_ptr<protocol::GazeServer> server_;
@@ -147,13 +160,17 @@ bool Daemon::start(std::int64_t start_ns) {
                  s.lease_ms);
   });
   // Runs on the server's control thread; the publishing loop executes the command between samples.
+  // What a client sent reaches the log escaped (a newline in a path cannot forge a log line).
+  publish_control_view();
   server_->on_control([this](const protocol::ControlRequest& r, const protocol::Endpoint& from) {
     spdlog::info("control {} from {}{}", protocol::to_string(r.command), from.to_string(),
-                 r.argument.value.empty() ? std::string() : " (" + r.argument.value + ")");
-    protocol::ControlReply reply = mailbox_.submit(r, std::chrono::milliseconds(3000));
+                 r.argument.value.empty() ? std::string() : " (" + protocol::escape_for_log(r.argument.value) + ")");
+    protocol::ControlReply reply = r.command == protocol::ControlCommand::LoadCalibration
+                                       ? submit_calibration_load(r)
+                                       : mailbox_.submit(r, [this, r] { return execute(r); }, std::chrono::milliseconds(3000));
     spdlog::log(reply.result == protocol::ControlResult::Ok ? spdlog::level::info : spdlog::level::warn,
                 "control {}: {}: {}", protocol::to_string(r.command), protocol::to_string(reply.result),
-                reply.message.value);
+                protocol::escape_for_log(reply.message.value));
     return reply;
   });
 
@@ -213,7 +230,7 @@ Daemon::Wake Daemon::wait_until(std::int64_t due_ns) {
 
 void Daemon::attend() {
   if (signals_.reload != nullptr && signals_.reload->exchange(false)) reload("SIGHUP");
-  if (mailbox_.pending()) mailbox_.drain([this](const protocol::ControlRequest& r) { return execute(r); });
+  if (mailbox_.pending()) mailbox_.drain();
 }
 
 void Daemon::service_tick() {
@@ -278,34 +295,58 @@ protocol::ControlReply Daemon::execute(const protocol::ControlRequest& r) {
       return out;
     }
     case protocol::ControlCommand::LoadCalibration:
-      return load_calibration(r.argument.value);
+      return fail("calibration-load is prepared on the control thread");  // submit_calibration_load
   }
   return fail("unknown command");
 }
 
-// "none": no calibration; "configured": the configuration's file; anything else: a file to load.
-protocol::ControlReply Daemon::load_calibration(const std::string& argument) {
-  protocol::ControlReply out{protocol::ControlCommand::LoadCalibration, protocol::ControlResult::Ok, {}};
-  auto reply = [&](protocol::ControlResult result, std::string text) {
-    out.result = result;
+// The publishing loop tells the control thread the configured calibration file and the display.
+void Daemon::publish_control_view() {
+  std::lock_guard lock(control_view_mutex_);
+  control_view_ = {config_.calibration.file, display_, calibration_->description()};
+}
+
+// calibration-load: "none" no calibration; "configured" the configuration's file; anything else a
+// file to load. The file is read and checked here, on the control thread (bounded, regular files
+// only: calibration_stage.h); the publishing loop only swaps the result in, if the display it was
+// checked against is still the one clients are told.
+protocol::ControlReply Daemon::submit_calibration_load(const protocol::ControlRequest& r) {
+  const auto reply = [](protocol::ControlResult result, std::string text) {
+    protocol::ControlReply out{protocol::ControlCommand::LoadCalibration, result, {}};
     if (text.size() > 63) text = text.substr(0, 60) + "...";
     out.message.value = std::move(text);
     return out;
   };
+  const std::string& argument = r.argument.value;
   if (argument.empty()) return reply(protocol::ControlResult::Failed, "calibration-load needs a file, none or configured");
+  ControlView view;
+  {
+    std::lock_guard lock(control_view_mutex_);
+    view = control_view_;
+  }
   const std::optional<std::string> next_override =
       argument == "configured" ? std::nullopt : std::optional<std::string>(argument == "none" ? "" : argument);
-  const std::string file = next_override.value_or(config_.calibration.file);
+  // std::function must be copyable: the loaded stage travels in a shared holder.
+  auto stage = std::make_shared<std::unique_ptr<service::CalibrationStage>>();
   try {
-    calibration_ = service::load_calibration_stage(file, display_);
+    *stage = service::load_calibration_stage(next_override.value_or(view.configured_calibration), view.display);
   } catch (const std::exception& e) {
-    spdlog::error("calibration-load {}: {}; keeping {}", argument, e.what(), calibration_->description());
+    spdlog::error("calibration-load {}: {}; keeping {}", protocol::escape_for_log(argument), e.what(),
+                  view.running_calibration);
     return reply(protocol::ControlResult::Failed, e.what());
   }
-  calibration_override_ = next_override;
-  spdlog::info("calibration (control request): {}", calibration_->description());
-  notifier_.status(status_line());
-  return reply(protocol::ControlResult::Ok, "loaded " + calibration_->summary());
+  const auto swap_in = [this, stage, next_override, view, reply] {
+    if (!(display_ == view.display)) {
+      return reply(protocol::ControlResult::Failed, "the display changed while the file was read; load it again");
+    }
+    calibration_ = std::move(*stage);
+    calibration_override_ = next_override;
+    publish_control_view();
+    spdlog::info("calibration (control request): {}", calibration_->description());
+    notifier_.status(status_line());
+    return reply(protocol::ControlResult::Ok, "loaded " + calibration_->summary());
+  };
+  return mailbox_.submit(r, swap_in, std::chrono::milliseconds(3000));
 }
 
 std::string Daemon::start_recording(const std::string& path, bool append) {
@@ -412,6 +453,7 @@ protocol::ControlReply Daemon::reload(const std::string& why) {
   spdlog::set_level(spdlog::level::from_str(next.log_level));
   for (const auto& c : changes.live) spdlog::info("applied: {}", c);
   config_ = next;
+  publish_control_view();
   notifier_.reloaded(status_line());
 
   if (!problems.empty()) {

@@ -520,7 +520,11 @@ void read_outliers_and_validation(const json& j, const std::string& name, Calibr
 
 Calibration load_calibration(const std::filesystem::path& path) {
   const std::string name = path.string();
-  const json j = parse_json(read_text(path, name), name);
+  return parse_calibration(read_text(path, name), name);
+}
+
+Calibration parse_calibration(const std::string& text, const std::string& name) {
+  const json j = parse_json(text, name);
   try {
     check_format_and_version(j, name);
     Calibration cal;

@@ -83,6 +83,31 @@ grep -q "ok: loaded none" "$WORK/none.out" || fail "none: $(cat "$WORK/none.out"
 grep -q "ok: loaded poly2 on pupil-glint, validated [0-9.]* deg" "$WORK/rel.out" \
   || fail "relative path: $(cat "$WORK/rel.out")"
 "$CTL" --server "127.0.0.1:$PORT" calibration-load configured >/dev/null 2>&1 || fail "configured"
+echo "== calibration-load of what is not a calibration file: refused at once, publishing and status go on"
+# Issue 23 item 1: /dev/zero was read whole on the publishing thread (RSS without bound, SIGTERM
+# ignored), a FIFO without a writer hung the daemon until one appeared.
+mkfifo "$WORK/fifo"
+head -c $((17 * 1024 * 1024)) /dev/zero >"$WORK/huge.json"
+mkdir "$WORK/dir.json"
+for bad in /dev/zero:"character device" "$WORK/fifo":"FIFO" "$WORK/huge.json":"the limit is 16777216" \
+           "$WORK/dir.json":"directory"; do
+  path=${bad%%:*} want=${bad#*:}
+  start=$(date +%s%N)
+  out=$(timeout 10 "$CTL" --server "127.0.0.1:$PORT" calibration-load "$path" 2>&1) && fail "loaded $path: $out"
+  ms=$(( ($(date +%s%N) - start) / 1000000 ))
+  [ "$ms" -lt 3000 ] || fail "$path took $ms ms"
+  grep -q "$want" "$WORK/d.log" || fail "$path: the log does not say '$want': $(tail -n 3 "$WORK/d.log")"
+  timeout 5 "$CTL" --server "127.0.0.1:$PORT" status >/dev/null 2>&1 || fail "status stopped answering after $path"
+done
+rss_kb=$(awk '/VmRSS/ {print $2}' "/proc/$DPID/status")
+[ "$rss_kb" -lt 400000 ] || fail "the daemon's RSS grew to $rss_kb kB"
+# A newline in a path cannot forge a log line; escape sequences do not reach a terminal.
+evil="$WORK/x"$'\n'"2026-01-01 [info] FORGED"$'\e'"[2J"
+timeout 10 "$CTL" --server "127.0.0.1:$PORT" calibration-load "$evil" >/dev/null 2>&1 && fail "loaded the evil path"
+sleep 0.2
+grep -q "^2026-01-01 \[info\] FORGED" "$WORK/d.log" && fail "a client forged a log line"
+grep -q $'\e' "$WORK/d.log" && fail "an escape sequence reached the log"
+grep -q 'x\\x0a2026-01-01 \[info\] FORGED\\x1b\[2J' "$WORK/d.log" || fail "the evil path is not in the log, escaped"
 kill "$DPID"
 wait "$DPID" 2>/dev/null
 DPID=""

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "fovea/calib/model.h"
+#include "fovea/protocol/bounded_file.h"
 
 namespace fovea::trackerd::service {
 
@@ -24,7 +25,7 @@ class MappedCalibration final : public CalibrationStage {
     pupil_glint_ = cal_.input == calib::kInputPupilGlint;
   }
 
-  std::string description() const override { return file_ + ": " + cal_.describe(); }
+  std::string description() const override { return protocol::escape_for_log(file_) + ": " + cal_.describe(); }
   std::string summary() const override {
     std::string s = cal_.model->kind() + (cal_.on_top_of ? " on " + cal_.on_top_of->kind() : "") + " on " + cal_.input;
     if (const auto a = cal_.validated_accuracy_deg()) {
@@ -91,10 +92,13 @@ class MappedCalibration final : public CalibrationStage {
 std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file,
                                                          const protocol::DisplayGeometry& display) {
   if (file.empty()) return std::make_unique<IdentityCalibration>();
-  calib::Calibration cal = calib::load_calibration(file);  // names the file and field at fault
+  // A control request names the file: read it as a hostile user's path (regular file, bounded,
+  // never blocking), then parse with the same checks as calib::load_calibration.
+  const std::string text = protocol::read_bounded_file(file, {.max_bytes = kMaxCalibrationFileBytes, .what = "calibration file"});
+  calib::Calibration cal = calib::parse_calibration(text, protocol::escape_for_log(file));  // names the field at fault
   if (cal.display) {
     if (cal.display->width_px != display.width_px || cal.display->height_px != display.height_px) {
-      throw std::runtime_error("calibration file " + file + ": made for a " + calib::to_string(*cal.display) +
+      throw std::runtime_error("calibration file " + protocol::escape_for_log(file) + ": made for a " + calib::to_string(*cal.display) +
                                " screen; the daemon's display is " + protocol::to_string(display) +
                                " (calibrate again on this display)");
     }

@@ -12,6 +12,7 @@
 // velocity is cleared so that the classifier computes it from the calibrated gaze. A mapped point
 // that is not finite or lies absurdly far outside the screen (beyond 100 screen widths) makes the
 // sample invalid rather than carry an overflow onto the wire.
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -29,9 +30,13 @@ class CalibrationStage {
   virtual void apply(GazeItem& item) const = 0;
 };
 
+// A calibration file is a few KB; anything larger than this is refused unread.
+constexpr std::size_t kMaxCalibrationFileBytes = 16u << 20;
+
 // Loads `file` (empty: no calibration, the identity) for a daemon whose clients are told `display`.
-// Throws std::runtime_error naming the file and what is wrong: unreadable, not a calibration file,
-// from a newer fovea, or made for a screen of another pixel size than `display`.
+// Throws std::runtime_error naming the file (escaped) and what is wrong: missing, not a regular file
+// (a device, FIFO or directory is refused without reading or blocking), over the size limit, not a
+// calibration file, from a newer fovea, or made for a screen of another pixel size than `display`.
 std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file,
                                                          const protocol::DisplayGeometry& display);
 

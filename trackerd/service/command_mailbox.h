@@ -3,6 +3,8 @@
 // daemon's state (recorder, configuration) and executes them between two samples. The caller
 // waits for the result; a command the loop has not picked up within the timeout is withdrawn and
 // reported as not executed, so a reply never claims something that did not (or did) happen.
+// What a command submits is an action: slow work (reading a file) is done by the caller before it
+// submits, so the loop only swaps in the result and publishing never waits on a client's file.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -19,9 +21,11 @@ namespace fovea::trackerd::service {
 
 class CommandMailbox {
  public:
-  // Control thread: queues `request` and waits for the loop to execute it.
-  protocol::ControlReply submit(const protocol::ControlRequest& request, std::chrono::milliseconds timeout) {
-    auto entry = std::make_shared<Entry>(Entry{request, std::nullopt});
+  using Action = std::function<protocol::ControlReply()>;
+
+  // Control thread: queues `action` (the command `request`) and waits for the loop to run it.
+  protocol::ControlReply submit(const protocol::ControlRequest& request, Action action, std::chrono::milliseconds timeout) {
+    auto entry = std::make_shared<Entry>(Entry{request, std::move(action), std::nullopt});
     std::unique_lock lock(mutex_);
     if (closed_) return failed(request, "the daemon is stopping");
     queue_.push_back(entry);
@@ -40,8 +44,8 @@ class CommandMailbox {
   // Publishing loop: true when commands are waiting (cheap; checked between samples).
   bool pending() const { return pending_.load(std::memory_order_relaxed); }
 
-  // Publishing loop: executes every queued command.
-  void drain(const std::function<protocol::ControlReply(const protocol::ControlRequest&)>& execute) {
+  // Publishing loop: runs every queued command's action.
+  void drain() {
     std::deque<std::shared_ptr<Entry>> work;
     {
       std::lock_guard lock(mutex_);
@@ -49,7 +53,7 @@ class CommandMailbox {
       pending_.store(false);
     }
     for (auto& e : work) {
-      protocol::ControlReply r = execute(e->request);
+      protocol::ControlReply r = e->action();
       std::lock_guard lock(mutex_);
       e->reply = std::move(r);
       cv_.notify_all();
@@ -68,6 +72,7 @@ class CommandMailbox {
  private:
   struct Entry {
     protocol::ControlRequest request;
+    Action action;
     std::optional<protocol::ControlReply> reply;
   };
   static protocol::ControlReply failed(const protocol::ControlRequest& r, const char* why) {

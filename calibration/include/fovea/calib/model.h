@@ -121,6 +121,9 @@ void save_calibration(const Calibration& calibration, const std::filesystem::pat
 // version above kCalibrationFileVersion: "written by a newer fovea (version N); this build reads
 // version 1".
 Calibration load_calibration(const std::filesystem::path& path);
+// The same checks on a file's text already read (`name` for the errors): for callers that read the
+// file themselves, as the daemon does with a size limit and refusing anything but a regular file.
+Calibration parse_calibration(const std::string& text, const std::string& name);
 
 // Current time as "YYYY-MM-DDTHH:MM:SSZ".
 std::string utc_now_iso8601();
