@@ -20,6 +20,7 @@
 #include "fovea/protocol/csv.h"
 #include "service/calibration_stage.h"
 #include "fovea/protocol/bounded_file.h"
+#include "fovea/protocol/control_socket.h"
 #include "service/command_mailbox.h"
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
@@ -63,6 +64,8 @@ class Daemon {
   protocol::ControlReply reload(const std::string& why);
   std::string start_recording(const std::string& path, bool append);  // empty or what went wrong
   std::string stop_recording();
+  protocol::ControlReply handle_control(const protocol::ControlRequest& request, const std::string& who);
+  bool open_control_socket();
   protocol::ControlReply submit_calibration_load(const protocol::ControlRequest& request);
   void publish_control_view();
   void apply_display(const std::optional<protocol::DisplayGeometry>& configured);
@@ -92,6 +95,7 @@ class Daemon {
   std::unique_ptr<ClassifyStage> classify_;  // rebuilt on reload when the method changes
   std::vector<GazeItem> outgoing_;
   std::unique_ptr<protocol::GazeServer> server_;
+  std::unique_ptr<protocol::ControlSocket> control_socket_;  // local control; null: none
   std::unique_ptr<protocol::RecordingWriter> recorder_;
   std::string recording_path_;
   protocol::DisplayGeometry display_;  // what clients are told
@@ -159,20 +163,13 @@ bool Daemon::start(std::int64_t start_ns) {
     spdlog::info("subscriber {} session {:016x}: {} (lease {} ms)", s.address.to_string(), s.session_id, what,
                  s.lease_ms);
   });
-  // Runs on the server's control thread; the publishing loop executes the command between samples.
-  // What a client sent reaches the log escaped (a newline in a path cannot forge a log line).
+  // Control commands: the local socket (file permissions say who), and UDP only from networks an
+  // operator listed. Both run on their own threads; the publishing loop executes between samples.
   publish_control_view();
   server_->on_control([this](const protocol::ControlRequest& r, const protocol::Endpoint& from) {
-    spdlog::info("control {} from {}{}", protocol::to_string(r.command), from.to_string(),
-                 r.argument.value.empty() ? std::string() : " (" + protocol::escape_for_log(r.argument.value) + ")");
-    protocol::ControlReply reply = r.command == protocol::ControlCommand::LoadCalibration
-                                       ? submit_calibration_load(r)
-                                       : mailbox_.submit(r, [this, r] { return execute(r); }, std::chrono::milliseconds(3000));
-    spdlog::log(reply.result == protocol::ControlResult::Ok ? spdlog::level::info : spdlog::level::warn,
-                "control {}: {}: {}", protocol::to_string(r.command), protocol::to_string(reply.result),
-                protocol::escape_for_log(reply.message.value));
-    return reply;
+    return handle_control(r, from.to_string());
   });
+  if (!open_control_socket()) return false;
 
   if (!config_.record.path.empty()) {
     if (const std::string err = start_recording(config_.record.path, config_.record.append); !err.empty()) {
@@ -183,8 +180,11 @@ bool Daemon::start(std::int64_t start_ns) {
   spdlog::info("serving {} on {} ({} Hz, display {})", source_->description(), server_->local_endpoint().to_string(),
                so.nominal_rate_hz, protocol::to_string(display_));
   if (so.multicast) spdlog::info("also publishing to multicast group {}", so.multicast->group.to_string());
-  spdlog::info("control commands accepted from {}; calibration: {}; classifier: {}",
-               networks(config_.network.control_allow), calibration_->description(), classify_->description());
+  if (!config_.network.control_allow.empty()) {
+    spdlog::warn("control commands also accepted over UDP from {}: authorised by source address only, so every "
+                 "user on those hosts is an operator", networks(config_.network.control_allow));
+  }
+  spdlog::info("calibration: {}; classifier: {}", calibration_->description(), classify_->description());
   if (notifier_.watchdog_interval_ns() > 0) {
     spdlog::info("systemd watchdog: pinging every {} ms", notifier_.watchdog_interval_ns() / kMs);
   }
@@ -298,6 +298,42 @@ protocol::ControlReply Daemon::execute(const protocol::ControlRequest& r) {
       return fail("calibration-load is prepared on the control thread");  // submit_calibration_load
   }
   return fail("unknown command");
+}
+
+// One control command, from the socket or UDP (`who` for the log); what a client sent reaches the
+// log escaped, so a newline in a path cannot forge a log line.
+protocol::ControlReply Daemon::handle_control(const protocol::ControlRequest& r, const std::string& who) {
+  spdlog::info("control {} from {}{}", protocol::to_string(r.command), who,
+               r.argument.value.empty() ? std::string() : " (" + protocol::escape_for_log(r.argument.value) + ")");
+  protocol::ControlReply reply = r.command == protocol::ControlCommand::LoadCalibration
+                                     ? submit_calibration_load(r)
+                                     : mailbox_.submit(r, [this, r] { return execute(r); }, std::chrono::milliseconds(3000));
+  spdlog::log(reply.result == protocol::ControlResult::Ok ? spdlog::level::info : spdlog::level::warn,
+              "control {}: {}: {}", protocol::to_string(r.command), protocol::to_string(reply.result),
+              protocol::escape_for_log(reply.message.value));
+  return reply;
+}
+
+// The local control socket (protocol/control_socket.h), mode 0660: the daemon's user and group.
+bool Daemon::open_control_socket() {
+  if (config_.network.control_socket == "none") {
+    spdlog::info("no control socket (control_socket = none)");
+    return true;
+  }
+  try {
+    const std::string path = config_.network.control_socket.empty()
+                                 ? protocol::default_control_socket(server_->local_endpoint().port)
+                                 : config_.network.control_socket;
+    control_socket_ = std::make_unique<protocol::ControlSocket>(
+        path, 0660, [this](const protocol::ControlRequest& r, const protocol::PeerCredentials& who) {
+          return handle_control(r, "the control socket (" + who.to_string() + ")");
+        });
+    spdlog::info("control commands from {} (mode 0660: this user and group)", protocol::escape_for_log(path));
+    return true;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return false;
+  }
 }
 
 // The publishing loop tells the control thread the configured calibration file and the display.
@@ -530,6 +566,7 @@ int Daemon::run() {
   if (watcher_.joinable()) watcher_.join();
   notifier_.stopping();
   mailbox_.close();
+  control_socket_.reset();
   const auto st = server_->stats();
   server_->stop();
   spdlog::info(

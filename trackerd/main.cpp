@@ -37,6 +37,7 @@ struct Flags {
   svc::DaemonConfig d = defaults;  // receives the flag values; only flags given on the command line count
   std::string config_path, display, multicast, log_level = defaults.log_level, record_path, calibration, classifier;
   std::vector<std::string> control_allow;
+  std::string control_socket;
   bool check_config = false, loop = false, append = false;
   trackerd::RunOptions run;
   // The eye pipeline (camera:, video:, synthetic-eye).
@@ -48,7 +49,7 @@ struct Flags {
   CLI::Option *o_eye = nullptr, *o_leds = nullptr, *o_downscale = nullptr, *o_no_roi = nullptr, *o_eye_size = nullptr,
               *o_eye_hard = nullptr, *o_eye_script = nullptr, *o_eye_head_offset = nullptr;
   CLI::Option *o_speed = nullptr, *o_loop = nullptr, *o_display = nullptr, *o_lease = nullptr, *o_max = nullptr,
-              *o_allow = nullptr, *o_calibration = nullptr, *o_classifier = nullptr, *o_log = nullptr;
+              *o_allow = nullptr, *o_control_socket = nullptr, *o_calibration = nullptr, *o_classifier = nullptr, *o_log = nullptr;
 };
 
 // The option groups below are added in --help order; keep it when moving an option.
@@ -137,9 +138,15 @@ void add_replay_display_and_subscriber_options(CLI::App& app, Flags& f) {
           ->capture_default_str();
   f.o_max = app.add_option("--max-subscribers", d.network.max_subscribers, "refuse subscriptions beyond this many")
                 ->capture_default_str();
+  f.o_control_socket = app.add_option("--control-socket", f.control_socket,
+                                      "where control commands (reload, record-start/stop, calibration-load) come "
+                                      "from: a Unix socket, mode 0660 (the daemon's user and group); default "
+                                      "/run/fovea/control-PORT.sock, else $XDG_RUNTIME_DIR/fovea/ or /tmp/fovea-UID/; "
+                                      "none: no control");
   f.o_allow = app.add_option("--control-allow", f.control_allow,
-                             "networks allowed to send control commands (reload, record-start/stop), A.B.C.D/N; "
-                             "repeat or separate with commas (default 127.0.0.0/8)")
+                             "also accept control commands over UDP from these networks, A.B.C.D/N (repeat or "
+                             "separate with commas). Authorised by source address only: every user on them is an "
+                             "operator. Default: none")
                   ->delimiter(',');
 }
 
@@ -200,6 +207,7 @@ svc::CliOverrides cli_overrides(const Flags& f) {
   if (given(f.o_ttl)) cli.multicast_ttl = d.network.multicast_ttl;
   if (given(f.o_max)) cli.max_subscribers = d.network.max_subscribers;
   if (given(f.o_lease)) cli.lease_ms = d.network.lease_ms;
+  if (given(f.o_control_socket)) cli.control_socket = f.control_socket;
   if (given(f.o_allow)) {
     std::vector<protocol::Ipv4Cidr> nets;
     for (const auto& text : f.control_allow) nets.push_back(protocol::parse_cidr(text));

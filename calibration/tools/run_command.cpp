@@ -20,6 +20,7 @@
 #include "fovea/calib/validation.h"
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
+#include "fovea/protocol/control_socket.h"
 #include "fovea/protocol/recording.h"
 #include "fovea/protocol/udp.h"
 #include "gaze_samples.h"
@@ -127,16 +128,30 @@ void print_collection(const std::vector<TargetCollection>& collected) {
   }
 }
 
-std::string control_reply_text(const std::optional<proto::ControlReply>& r) {
-  if (!r) return "no answer (is fovea-trackerd running there, and new enough to know calibration-load?)";
-  return std::string(proto::to_string(r->result)) + ": " + r->message.value;
+struct ControlAnswer {
+  std::optional<proto::ControlReply> reply;
+  std::string error;
+  bool ok() const { return reply && reply->result == proto::ControlResult::Ok; }
+  std::string text() const {
+    if (!reply) return error + " (is fovea-trackerd running there, and new enough to know calibration-load?)";
+    return std::string(proto::to_string(reply->result)) + ": " + reply->message.value;
+  }
+};
+
+// calibration-load `argument` through the daemon's control socket on this host, else over UDP
+// (protocol/control_socket.h: send_control_to_daemon).
+ControlAnswer load_on_daemon(const proto::Endpoint& server, const std::string& argument, int timeout_ms) {
+  proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
+  req.argument.value = argument;
+  ControlAnswer a;
+  std::string via;
+  a.reply = proto::send_control_to_daemon(server, "", req, timeout_ms, a.error, via);
+  return a;
 }
 
 // Tells the daemon to load `file`; true when it did.
 bool tell_daemon(const RunArgs& a, const std::string& file) {
   const proto::Endpoint server = proto::parse_endpoint(a.server, proto::kDefaultPort);
-  proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
-  req.argument.value = file;
   if (file.size() > 63) {
     std::fprintf(stderr,
                  "fovea-calibrate run: %s is written, but its absolute path is longer than the 63 bytes a control "
@@ -145,11 +160,10 @@ bool tell_daemon(const RunArgs& a, const std::string& file) {
                  file.c_str());
     return false;
   }
-  const auto reply = proto::GazeClient::send_control(server, req, 4000);
-  const bool ok = reply && reply->result == proto::ControlResult::Ok;
-  std::fprintf(ok ? stdout : stderr, "daemon %s: calibration-load: %s\n", server.to_string().c_str(),
-               control_reply_text(reply).c_str());
-  return ok;
+  const ControlAnswer answer = load_on_daemon(server, file, 4000);
+  std::fprintf(answer.ok() ? stdout : stderr, "daemon %s: calibration-load: %s\n", server.to_string().c_str(),
+               answer.text().c_str());
+  return answer.ok();
 }
 
 // --- the analysis shared by live and headless runs ---
@@ -436,18 +450,14 @@ void subscribe(proto::GazeClient& client, const RunArgs& a, const proto::Endpoin
 // Screen input is calibrated on the tracker's own gaze: the daemon's current calibration must be
 // off while we collect, and is restored if we do not finish.
 void switch_daemon_calibration_off(const proto::Endpoint& server) {
-  proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
-  req.argument.value = "none";
-  const auto r = proto::GazeClient::send_control(server, req, 4000);
-  if (!r || r->result != proto::ControlResult::Ok) {
-    throw std::runtime_error("could not switch the daemon's calibration off for collection: " + control_reply_text(r));
+  const ControlAnswer answer = load_on_daemon(server, "none", 4000);
+  if (!answer.ok()) {
+    throw std::runtime_error("could not switch the daemon's calibration off for collection: " + answer.text());
   }
 }
 
 void restore_daemon_calibration(const proto::Endpoint& server) {
-  proto::ControlRequest req{proto::ControlCommand::LoadCalibration, {}};
-  req.argument.value = "configured";
-  (void)proto::GazeClient::send_control(server, req, 2000);
+  (void)load_on_daemon(server, "configured", 2000);
 }
 
 // Shows the schedule while the stream is recorded into s.samples, until a sample's tracker time

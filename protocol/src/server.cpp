@@ -265,7 +265,8 @@ void GazeServer::handle_control(const Message& m, const Endpoint& from) {
     if (!allowed(options_.control_allow, from.ip)) {
       ++stats_.control_refused;
       ControlReply no{req.command, ControlResult::Refused, {}};
-      no.message.value = "not allowed from " + dotted_quad(from.ip);
+      no.message.value = options_.control_allow.empty() ? "UDP control is off; use the daemon's control socket"
+                                                        : "not allowed from " + dotted_quad(from.ip);
       reply(from, seq, no);
       return;
     }

@@ -112,6 +112,8 @@ TEST(Control, EmptyAllowListRefusesEveryone) {
   const auto reply = peer.request(ControlCommand::StopRecording, "", 5);
   ASSERT_TRUE(reply);
   EXPECT_EQ(reply->result, ControlResult::Refused);
+  EXPECT_EQ(reply->message.value, "UDP control is off; use the daemon's control socket");
+  EXPECT_TRUE(ServerOptions{}.control_allow.empty());  // the default is nobody
 }
 
 TEST(Control, NoHandlerFails) {

@@ -165,8 +165,21 @@ sleep 0.5
 FD1=$(fd_count $DPID)
 [ "$FD0" -eq "$FD1" ] || { ls -l /proc/$DPID/fd; fail "file descriptors: $FD0 before churn, $FD1 after"; }
 
-echo "== control from a network outside control_allow is refused and counted"
+echo "== control through the daemon's socket: its default path for the port, mode 0660, the sender logged"
+sock=$(sed -n 's/.*control commands from \(.*\) (mode 0660.*/\1/p' "$WORK/daemon.log" | head -n 1)
+[ -S "$sock" ] || fail "no control socket at '$sock': $(grep -i control "$WORK/daemon.log")"
+[ "$(stat -c %a "$sock")" = 660 ] || fail "control socket mode $(stat -c %a "$sock")"
+case "$sock" in */control-$PORT.sock) ;; *) fail "the socket's name does not carry the port: $sock" ;; esac
+grep -q "control reload from the control socket (pid [0-9]* uid $(id -u) gid" "$WORK/daemon.log" \
+  || fail "the sender of a socket command is not logged"
+"$CTL" --server "$SRV" --control-socket "$WORK/nosuch.sock" status >/dev/null || fail "status needs no control socket"
+out=$("$CTL" --server "$SRV" --control-socket "$WORK/nosuch.sock" record-stop 2>&1) && fail "a missing socket worked"
+grep -q "control socket $WORK/nosuch.sock: No such file" <<<"$out" || fail "missing socket unclear: $out"
+
+echo "== control over UDP from a network outside control_allow is refused and counted"
 write_config "$WORK/far.toml" 5000 1920 1080 "$PORT2" '"10.0.0.0/8"'
+# No control socket: fovea-ctl then falls back to UDP, which this daemon allows from 10/8 only.
+sed -i 's/^control_allow = .*/&\ncontrol_socket = "none"/' "$WORK/far.toml"
 "$TRACKERD" --config "$WORK/far.toml" >"$WORK/daemon2.log" 2>&1 &
 D2=$!; PIDS+=($D2)
 wait_status "127.0.0.1:$PORT2" || fail "second daemon did not answer status"

@@ -225,7 +225,8 @@ TEST(Config, CommandLineOverridesTheFile) {
 TEST(Config, ReloadSeparatesLiveChangesFromRestartOnes) {
   const DaemonConfig a = parse_config("[network]\nport = 47900\nlease_ms = 3000\n", "a.toml");
   const DaemonConfig b = parse_config(
-      "[network]\nport = 47901\nlease_ms = 2000\ncontrol_allow = []\n[source]\nrate = 100\n"
+      "[network]\nport = 47901\nlease_ms = 2000\ncontrol_allow = [\"10.0.0.0/8\"]\ncontrol_socket = \"/run/x.sock\"\n"
+      "[source]\nrate = 100\n"
       "[display]\nwidth_px = 800\nheight_px = 600\nwidth_mm = 300\nheight_mm = 200\ndistance_mm = 500\n",
       "b.toml");
   const ConfigChanges ch = diff(a, b);
@@ -240,12 +241,14 @@ TEST(Config, ReloadSeparatesLiveChangesFromRestartOnes) {
   EXPECT_TRUE(has(ch.live, "display"));
   EXPECT_TRUE(has(ch.needs_restart, "network.port 47900 -> 47901"));
   EXPECT_TRUE(has(ch.needs_restart, "source.rate"));
+  EXPECT_TRUE(has(ch.needs_restart, "network.control_socket (the default) -> /run/x.sock"));
   EXPECT_FALSE(has(ch.live, "network.port"));
   const DaemonConfig adopted = adopt_live(a, b);
   EXPECT_EQ(adopted.network.port, 47900);  // kept
+  EXPECT_EQ(adopted.network.control_socket, "");  // kept: the socket is opened once
   EXPECT_EQ(adopted.source.rate_hz, a.source.rate_hz);
   EXPECT_EQ(adopted.network.lease_ms, 2000u);  // applied
-  EXPECT_TRUE(adopted.network.control_allow.empty());
+  EXPECT_EQ(adopted.network.control_allow.size(), 1u);  // applied
   EXPECT_TRUE(adopted.display.has_value());
   EXPECT_TRUE(diff(a, a).live.empty());
   EXPECT_TRUE(diff(a, a).needs_restart.empty());

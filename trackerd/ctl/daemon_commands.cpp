@@ -12,6 +12,7 @@
 
 #include "ctl/commands.h"
 #include "fovea/protocol/client.h"
+#include "fovea/protocol/control_socket.h"
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/recording.h"
 
@@ -27,6 +28,7 @@ struct Common {
   double duration_s = 0;
   std::string multicast;
   int connect_timeout_ms = 5000;
+  std::string control_socket;  // control commands: this socket ("" : the daemon's default on this host)
 };
 
 std::string ms(std::int64_t ns) {
@@ -232,9 +234,10 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
 
 // ---- control commands (reload, record-start, record-stop, calibration-load) ------------------------
 
-// Sends one CONTROL_REQUEST and prints the daemon's answer. The request is retransmitted unchanged
-// (same sequence) after 1 s without a reply; the daemon answers a retransmission without executing
-// it twice. Exit status: 0 ok, 1 refused, failed or no answer, 2 bad arguments.
+// Sends one CONTROL_REQUEST and prints the daemon's answer: through the daemon's control socket
+// (--control-socket, or its default on this host for a loopback --server), else over UDP, where the
+// request is retransmitted unchanged after 1 s without a reply (the daemon answers a retransmission
+// without executing it twice). Exit status: 0 ok, 1 refused, failed or no answer, 2 bad arguments.
 int cmd_control(const Common& c, ControlCommand command, const std::string& argument) {
   const std::string role = to_string(command);
   Endpoint server;
@@ -248,12 +251,11 @@ int cmd_control(const Common& c, ControlCommand command, const std::string& argu
     std::fprintf(stderr, "fovea-ctl %s: %s\n", role.c_str(), e.what());
     return 2;
   }
-  const std::optional<ControlReply> reply = GazeClient::send_control(server, request, 4000);
+  std::string error, via;
+  const std::optional<ControlReply> reply = send_control_to_daemon(server, c.control_socket, request, 4000, error, via);
   if (!reply) {
-    std::fprintf(stderr,
-                 "fovea-ctl %s: no answer from %s within 4000 ms; is fovea-trackerd (with control support) "
-                 "running there?\n",
-                 role.c_str(), server.to_string().c_str());
+    std::fprintf(stderr, "fovea-ctl %s: %s; is fovea-trackerd running%s?\n", role.c_str(), error.c_str(),
+                 via.rfind("UDP", 0) == 0 ? " there, and does it allow control over UDP from here" : " on this host");
     return 1;
   }
   std::fprintf(reply->result == ControlResult::Ok ? stdout : stderr, "fovea-ctl %s: %s: %s\n", role.c_str(),
@@ -276,6 +278,9 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
   auto o = std::make_shared<Options>();
   auto& [c, every, events_only, record_path, append, control_record_path, calibration_file] = *o;
   app.add_option("--server", c.server, "fovea-trackerd address HOST:PORT")->capture_default_str();
+  app.add_option("--control-socket", c.control_socket,
+                 "control commands through this socket (default: the daemon's own on this host, found by the "
+                 "--server port: /run/fovea/control-PORT.sock, $XDG_RUNTIME_DIR/fovea/..., /tmp/fovea-UID/...)");
 
   auto* status = app.add_subcommand("status", "print the daemon's source, rate, display and counters");
 

@@ -284,7 +284,8 @@ void parse_control_allow(Checker& c, const toml::node& node, std::vector<protoco
 // [network]: listen address and port, multicast group, subscriber limits, the control allow-list.
 void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
   c.only(t, "network.",
-         {"listen", "port", "multicast", "multicast_ttl", "max_subscribers", "lease_ms", "control_allow"});
+         {"listen", "port", "multicast", "multicast_ttl", "max_subscribers", "lease_ms", "control_socket",
+          "control_allow"});
   c.string(t, "network.", "listen", n.listen, "a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
   if (const auto* node = t.get("listen"); node != nullptr && node->is_string()) {
     try {
@@ -306,6 +307,9 @@ void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
   c.integer(t, "network.", "multicast_ttl", n.multicast_ttl, 0, 255);
   c.integer(t, "network.", "max_subscribers", n.max_subscribers, 1, 65536);
   c.integer(t, "network.", "lease_ms", n.lease_ms, 200, 600000);
+  c.string(t, "network.", "control_socket", n.control_socket,
+           "the control socket's path, \"\" for the default of the port, or \"none\"");
+  if (n.control_socket != "none") n.control_socket = c.path(n.control_socket);
   if (const toml::node* node = t.get("control_allow")) parse_control_allow(c, *node, n.control_allow);
 }
 
@@ -484,6 +488,7 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
   if (o.max_subscribers) c.network.max_subscribers = *o.max_subscribers;
   if (o.lease_ms) c.network.lease_ms = *o.lease_ms;
   if (o.control_allow) c.network.control_allow = *o.control_allow;
+  if (o.control_socket) c.network.control_socket = *o.control_socket;
   if (o.record_path) c.record.path = *o.record_path;
   if (o.record_append) c.record.append = *o.record_append;
   if (o.classifier_method) c.classifier.method = *o.classifier_method;
@@ -524,6 +529,7 @@ std::string to_toml(const DaemonConfig& c) {
   out += "multicast = " + quoted(n.multicast) + "\n";
   out += fmt::format("multicast_ttl = {}\nmax_subscribers = {}\nlease_ms = {}\n", n.multicast_ttl, n.max_subscribers,
                      n.lease_ms);
+  out += "control_socket = " + quoted(n.control_socket) + "\n";
   std::vector<std::string> nets;
   for (const auto& a : n.control_allow) nets.push_back(quoted(a.to_string()));
   out += "control_allow = [" + join(nets, ", ") + "]\n";
@@ -585,6 +591,8 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.live, "log.level", a.log_level, b.log_level);
   // Restart: the socket, the source and device discovery are set up once.
   note(ch.needs_restart, "source.spec", a.source.spec, b.source.spec);
+  const auto socket = [](const std::string& s) { return s.empty() ? std::string("(the default)") : s; };
+  note(ch.needs_restart, "network.control_socket", socket(a.network.control_socket), socket(b.network.control_socket));
   const auto rate = [](double r) { return r > 0 ? fmt::format("{}", r) : std::string("(the source's default)"); };
   note(ch.needs_restart, "source.rate", rate(a.source.rate_hz), rate(b.source.rate_hz));
   note(ch.needs_restart, "source.seed", a.source.seed, b.source.seed);
@@ -618,6 +626,7 @@ DaemonConfig adopt_live(const DaemonConfig& running, const DaemonConfig& next) {
   out.network.port = running.network.port;
   out.network.multicast = running.network.multicast;
   out.network.multicast_ttl = running.network.multicast_ttl;
+  out.network.control_socket = running.network.control_socket;
   out.devices = running.devices;
   return out;
 }

@@ -33,7 +33,11 @@ struct NetworkConfig {
   int multicast_ttl = 1;
   std::size_t max_subscribers = 256;
   std::uint32_t lease_ms = 5000;  // default lease for subscribers that do not ask for one
-  std::vector<protocol::Ipv4Cidr> control_allow{protocol::Ipv4Cidr{0x7F000000, 8}};
+  // Control commands come through the local control socket (protocol/control_socket.h): "" its
+  // default path for the port, "none" no local control. UDP control is authorised by source address
+  // only, so it is off unless networks are listed here (every user on them is then an operator).
+  std::string control_socket;
+  std::vector<protocol::Ipv4Cidr> control_allow;
   friend bool operator==(const NetworkConfig&, const NetworkConfig&) = default;
 };
 
@@ -125,6 +129,7 @@ struct CliOverrides {
   std::optional<std::size_t> max_subscribers;
   std::optional<std::uint32_t> lease_ms;
   std::optional<std::vector<protocol::Ipv4Cidr>> control_allow;
+  std::optional<std::string> control_socket;
   std::optional<std::string> record_path;
   std::optional<bool> record_append;
   std::optional<std::string> classifier_method;

@@ -51,8 +51,10 @@ struct ServerOptions {
   DisplayGeometry display;
   double nominal_rate_hz = 0;
   std::string source_name;
-  // Who may send CONTROL_REQUEST; everyone else is refused and counted. Default: loopback only.
-  std::vector<Ipv4Cidr> control_allow{Ipv4Cidr{0x7F000000, 8}};
+  // Who may send CONTROL_REQUEST over UDP; everyone else is refused and counted. A source address
+  // is all that is checked, so the default is nobody: a daemon takes commands through its local
+  // control socket (control_socket.h), whose file permissions say who.
+  std::vector<Ipv4Cidr> control_allow;
 };
 
 struct SubscriberInfo {
