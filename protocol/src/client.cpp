@@ -289,7 +289,6 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
 
 void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
   if (state_ != State::Subscribed) return;
-  last_heard_ns_ = now;
   Arrival a;
   a.sequence = m.header.sequence;
   a.receive_ns = now;
@@ -299,7 +298,11 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
     std::lock_guard lock(mutex_);
     SequenceTracker& tracker = is_sample ? sample_seq_ : event_seq_;
     const auto verdict = tracker.on_arrival(m.header.sequence);
-    if (verdict == SequenceTracker::Verdict::Duplicate || verdict == SequenceTracker::Verdict::TooOld) return;
+    if (verdict == SequenceTracker::Verdict::Duplicate || verdict == SequenceTracker::Verdict::TooOld ||
+        verdict == SequenceTracker::Verdict::Implausible) {
+      return;  // not heard: a stream the client cannot follow must end in a resubscription (issue 23 item 5)
+    }
+    last_heard_ns_ = now;
     // Map the server's send time to our clock; meaningful once a TIME_SYNC exchange has completed.
     a.latency_ns = now - (m.header.send_time_ns - stats_.clock_offset_ns);
     if (is_sample) {

@@ -383,6 +383,43 @@ TEST(Multicast, ClientReceivesSamplesFromTheGroup) {
   EXPECT_EQ(c->stats().samples.duplicated, 0u) << "samples must not arrive twice (unicast and group)";
 }
 
+// Issue 23 item 5: on multicast only the source address is checked, so any local process can send
+// the group a GAZE_SAMPLE. One with sequence 2^63 made the client drop every later sample as old,
+// never resubscribe, and report lost = 2^63 - 100. Now it is counted as implausible and ignored.
+TEST(Multicast, ASpoofedHugeSequenceNumberDoesNotBlackholeTheClient) {
+  ServerOptions o = server_options();
+  const std::uint16_t group_port = static_cast<std::uint16_t>(40000 + ((getpid() + 7) % 20000));
+  const Endpoint group{0xEFFF2F51, group_port};
+  o.multicast = MulticastTarget{group, 0, kLoopback};
+  GazeServer server(o);
+  ClientOptions co = client_options(server.local_endpoint());
+  co.multicast_group = group;
+  co.multicast_interface_ip = kLoopback;
+  std::unique_ptr<GazeClient> c;
+  try {
+    c = std::make_unique<GazeClient>(co);
+  } catch (const std::system_error& e) {
+    GTEST_SKIP() << "multicast not available here: " << e.what();
+  }
+  c->start();
+  ASSERT_TRUE(c->wait_subscribed(2000));
+  Publisher pub(server, 500);
+  std::this_thread::sleep_for(200ms);
+  const UdpSocket attacker = UdpSocket::bind(Endpoint{kLoopback, 0});
+  attacker.set_multicast_output(0, kLoopback, true);
+  Message forged{Header{}, sample_at(1)};
+  forged.header.sequence = std::uint64_t{1} << 63;
+  const std::vector<std::uint8_t> bytes = encode(forged);
+  ASSERT_TRUE(attacker.send_to(group, bytes));
+  std::this_thread::sleep_for(100ms);
+  const std::uint64_t before = c->stats().samples.received;
+  std::this_thread::sleep_for(400ms);
+  const ClientStats st = c->stats();
+  EXPECT_GT(st.samples.received, before + 100) << "samples after the forged one were dropped";
+  EXPECT_EQ(st.samples.implausible, 1u);
+  EXPECT_LT(st.samples.lost, 50u);
+}
+
 TEST(Client, CompletesTheHandshakeWhenTheRoundTripExceedsTheRetryInterval) {
   // A slow "daemon" that answers each request only after 500 ms (a retry interval is 200 ms).
   UdpSocket fake = UdpSocket::bind(Endpoint{kLoopback, 0});
