@@ -427,12 +427,28 @@ std::string read_text(const std::filesystem::path& path, const std::string& name
   return ss.str();
 }
 
+// A calibration file nests three levels; the daemon parses one a control request names, so a
+// hostile file nested 100,000 deep is refused while parsing rather than built (issue 23 item 7).
+constexpr int kMaxJsonDepth = 32;
+
 json parse_json(const std::string& text, const std::string& name) {
   json j;
+  bool too_deep = false;
   try {
-    j = json::parse(text);
+    j = json::parse(text, [&](int depth, json::parse_event_t event, json&) {
+      if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) &&
+          depth >= kMaxJsonDepth) {
+        too_deep = true;
+        throw std::runtime_error("too deep");
+      }
+      return true;
+    });
   } catch (const json::parse_error& e) {
     throw std::runtime_error(name + ": not valid JSON: " + e.what());
+  } catch (const std::runtime_error&) {
+    if (!too_deep) throw;
+    throw std::runtime_error(name + ": nested deeper than " + std::to_string(kMaxJsonDepth) +
+                             " levels; not a fovea calibration file");
   }
   return j;
 }

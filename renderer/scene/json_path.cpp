@@ -52,6 +52,7 @@ class DocumentBuilder final : public nlohmann::json_sax<Json> {
   bool binary(binary_t& /*v*/) override { return scalar(Json(nullptr)); }  // not produced by the JSON parser
 
   bool start_object(std::size_t /*elements*/) override {
+    if (too_deep()) return false;
     stack_.push_back(Frame{put(Json::object()), false, 0, {}, {}});
     return true;
   }
@@ -67,6 +68,7 @@ class DocumentBuilder final : public nlohmann::json_sax<Json> {
   }
   bool end_object() override { return end(); }
   bool start_array(std::size_t /*elements*/) override {
+    if (too_deep()) return false;
     stack_.push_back(Frame{put(Json::array()), true, 0, {}, {}});
     return true;
   }
@@ -95,6 +97,15 @@ class DocumentBuilder final : public nlohmann::json_sax<Json> {
     std::string key;
     std::set<std::string> keys;
   };
+
+  // A scene file nests a handful of levels; a hostile one nested 100,000 deep overflowed the stack
+  // (issue 23 item 7). The path in the message stops after a few levels.
+  bool too_deep() {
+    if (stack_.size() < kMaxJsonDepth) return false;
+    error_ = source_ + ": " + path(6) + "...: nested deeper than " + std::to_string(kMaxJsonDepth) +
+             " levels (a scene file nests a few)";
+    return true;
+  }
 
   // The path of the value being parsed, through the first `depth` open containers (all by default).
   std::string path(std::size_t depth = SIZE_MAX) const {

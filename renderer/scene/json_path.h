@@ -5,6 +5,7 @@
 // Errors are SceneError (scene_error.h).
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -39,7 +40,9 @@ std::string unknown_field_message(std::string_view key, const Keys& allowed);
 
 // Parses `text` keeping the file's key order; duplicate keys and numbers that overflow a double
 // (1e999) are errors at their path (nlohmann's DOM parser keeps the last duplicate silently and
-// reports overflow without a path). Throws SceneError; the document must be an object.
+// reports overflow without a path), and so is nesting deeper than kMaxJsonDepth. Throws SceneError;
+// the document must be an object.
+inline constexpr std::size_t kMaxJsonDepth = 64;
 Json parse_document(const std::string& text, const std::string& source);
 
 // A value in the document and its path.

@@ -151,6 +151,14 @@ TEST_F(CalibrationFileStability, NewerVersionIsRefusedClearly) {
   EXPECT_EQ(load_error(), path_.string() + ": written by a newer fovea (version 2); this build reads version 1");
 }
 
+// Issue 23 item 7, for the file a control request names: deep nesting is refused while parsing.
+TEST_F(CalibrationFileStability, DeepNestingIsRefusedWhileParsing) {
+  write("{\"model\": " + std::string(100000, '[') + std::string(100000, ']') + "}");
+  EXPECT_EQ(load_error(), path_.string() + ": nested deeper than 32 levels; not a fovea calibration file");
+  write(std::string(31, '[') + std::string(31, ']'));
+  EXPECT_CONTAINS(load_error(), "must be a JSON object");
+}
+
 TEST_F(CalibrationFileStability, BadFieldsAreNamed) {
   write("{not json");
   EXPECT_CONTAINS(load_error(), "not valid JSON");

@@ -736,6 +736,23 @@ TEST(SceneErrors, DuplicatesAndSyntax) {
   EXPECT_CONTAINS(msg, "line 1");
 }
 
+// Issue 23 item 7: 100,000 levels overflowed the stack (fovea-render segfaulted).
+TEST(SceneErrors, DeepNestingIsRefusedByName) {
+  for (const std::size_t depth : {std::size_t{65}, std::size_t{100000}, std::size_t{1000000}}) {
+    const std::string text = "{\"objects\": " + std::string(depth, '[') + std::string(depth, ']') + "}";
+    const std::string msg = error_of_text(text);
+    EXPECT_CONTAINS(msg, "broken.json: $.objects[0][0][0][0][0]...: nested deeper than 64 levels");
+    EXPECT_LT(msg.size(), 200u);
+  }
+  std::string objects;
+  for (int i = 0; i < 100000; ++i) objects += "{\"a\": ";
+  objects += "1" + std::string(100000, '}');
+  EXPECT_CONTAINS(error_of_text(objects), "broken.json: $.a.a.a.a.a.a...: nested deeper than 64 levels");
+  // 63 levels below the document still parse (and then fail as a scene, by path).
+  const std::string ok = "{\"objects\": " + std::string(63, '[') + std::string(63, ']') + "}";
+  EXPECT_EQ(error_of_text(ok).find("nested deeper"), std::string::npos);
+}
+
 TEST(SceneErrors, GeometryNeedsExactlyOneShape) {
   Json doc = base_scene();
   doc["objects"][0]["geometry"]["box"] = {1, 1, 1};
