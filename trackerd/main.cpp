@@ -216,7 +216,12 @@ svc::CliOverrides cli_overrides(const Flags& f) {
   if (given(f.o_record)) cli.record_path = f.record_path;
   if (given(f.o_append)) cli.record_append = f.append;
   if (given(f.o_calibration)) cli.calibration_file = f.calibration;
-  if (given(f.o_classifier)) cli.classifier_method = f.classifier;
+  if (given(f.o_classifier)) {
+    if (const std::string err = svc::check_classifier_method(f.classifier); !err.empty()) {
+      throw std::invalid_argument("--classifier: " + err);
+    }
+    cli.classifier_method = f.classifier;
+  }
   if (given(f.o_log)) cli.log_level = f.log_level;
   if (given(f.o_eye)) cli.eye_side = f.eye_side;
   if (given(f.o_leds)) cli.eye_leds = f.leds;

@@ -77,6 +77,15 @@ out=$("$TRACKERD" --check-config --config "$WORK/badsource.toml" 2>&1) && fail "
 grep -q 'unknown source "camera-typo"' <<<"$out" || fail "unknown source not named: $out"
 "$TRACKERD" --config "$WORK/bad.toml" >/dev/null 2>&1; rc=$?
 [ $rc -eq 78 ] || fail "daemon with a bad config exited $rc, expected 78 (EX_CONFIG)"
+# Issue 23 item 10: an unknown classifier passed the check and the daemon then exited 2.
+printf '[classifier]\nmethod = "magic"\n' >"$WORK/magic.toml"
+out=$("$TRACKERD" --check-config --config "$WORK/magic.toml" 2>&1) && fail "unknown classifier accepted"
+grep -q 'magic.toml:2: classifier.method: unknown method "magic"; allowed: ivvt' <<<"$out" \
+  || fail "unknown classifier not named: $out"
+"$TRACKERD" --config "$WORK/magic.toml" >/dev/null 2>&1; rc=$?
+[ $rc -eq 78 ] || fail "daemon with an unknown classifier exited $rc, expected 78 (EX_CONFIG)"
+out=$("$TRACKERD" --classifier magic --duration 1 2>&1); rc=$?
+[ $rc -eq 2 ] && grep -q -- '--classifier: unknown method "magic"' <<<"$out" || fail "--classifier magic: $rc $out"
 
 echo "== daemon under a fake systemd: READY, STATUS, WATCHDOG"
 NOTIFY="$WORK/notify.sock"

@@ -147,6 +147,10 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   expect_problem("[network]\ncontrol_allow = [\"10.1.2.3/8\"]\n",
                  {"network.control_allow[0]", "did you mean 10.0.0.0/8"});
   expect_problem("[source]\nrate = 0\n", {"test.toml:2:", "source.rate", "[1, 10000] Hz"});
+  // Issue 23 item 10: an unknown classifier passed --check-config, then the daemon exited 2.
+  expect_problem("[classifier]\nmethod = \"magic\"\n",
+                 {"test.toml:2:", "classifier.method", "unknown method \"magic\"", "allowed: ivvt"});
+  expect_problem("[classifier]\nmethod = \"a\\u001b[2J\"\n", {"unknown method \"a\\x1b[2J\""});
   expect_problem("[source]\nspeed = -1.5\n", {"test.toml:2:", "source.speed", "(0, 1000]"});
   expect_problem("[source]\nloop = \"yes\"\n", {"test.toml:2:", "source.loop", "true or false"});
   expect_problem("[source]\nspec = \"\"\n", {"test.toml:2:", "source.spec", "synthetic, synthetic-eye, replay:FILE"});

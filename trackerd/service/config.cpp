@@ -13,9 +13,21 @@
 #include <sstream>
 #include <toml++/toml.h>
 
+#include "classify/classifier.h"
+#include "fovea/protocol/bounded_file.h"
 #include "sources/source_table.h"
 
 namespace fovea::trackerd::service {
+
+std::string check_classifier_method(const std::string& method) {
+  if (method.empty()) return {};
+  std::string names;
+  for (const auto& m : classify::classifiers()) {
+    if (m.name == method) return {};
+    names += (names.empty() ? "" : ", ") + m.name;
+  }
+  return "unknown method \"" + protocol::escape_for_log(method, 40) + "\"; allowed: " + names + " (fovea-ctl classify --list)";
+}
 
 namespace {
 
@@ -333,6 +345,13 @@ void parse_calibration(Checker& c, const toml::table& t, CalibrationConfig& cali
 void parse_classifier(Checker& c, const toml::table& t, ClassifierConfig& classifier) {
   c.only(t, "classifier.", {"method"});
   c.string(t, "classifier.", "method", classifier.method, "a classifier name (fovea-ctl classify --list)");
+  // Checked here, so --check-config refuses it and the daemon exits 78 (issue 23 item 10: it passed
+  // the check, and the daemon then exited 2, which the unit restarts on).
+  if (const auto* node = t.get("method"); node != nullptr && node->is_string()) {
+    if (const std::string err = check_classifier_method(classifier.method); !err.empty()) {
+      c.problem(node->source(), "classifier.method", err);
+    }
+  }
 }
 
 // [eye]: the eye pipeline (side, LED layout, pupil search) and the synthetic eye's settings.

@@ -114,6 +114,10 @@ DaemonConfig load_config(const std::string& path);
 // The same, from text (`origin` names it in messages; relative paths resolve against `base_dir`).
 DaemonConfig parse_config(const std::string& text, const std::string& origin, const std::string& base_dir = ".");
 
+// "" when `method` is empty (the classify module's default) or a method this build knows; else
+// what is wrong, with the known names. parse_config checks [classifier] method with it.
+std::string check_classifier_method(const std::string& method);
+
 // Command-line values that override the file; unset members leave the file's value.
 struct CliOverrides {
   std::optional<std::string> source;
