@@ -134,7 +134,7 @@ void add_replay_display_and_subscriber_options(CLI::App& app, Flags& f) {
       "display geometry WxH@WMMxHMMmm,DISTmm (default: the recording's, or 1920x1080@531.3x298.9mm,650mm)");
   f.o_lease =
       app.add_option("--lease-ms", d.network.lease_ms, "lease granted to subscribers that do not ask for one")
-          ->check(CLI::Range(200u, 600000u))
+          ->check(CLI::Range(200u, 60000u))
           ->capture_default_str();
   f.o_max = app.add_option("--max-subscribers", d.network.max_subscribers, "refuse subscriptions beyond this many")
                 ->capture_default_str();

@@ -263,6 +263,7 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
       {
         std::lock_guard lock(mutex_);
         ++stats_.errors_received;
+        stats_.last_error = e.code;
       }
       // Our session or cookie is no longer known (daemon restarted, lease lapsed): subscribe again.
       if (e.code == ErrorCode::UnknownSession || e.code == ErrorCode::BadCookie || e.code == ErrorCode::CookieExpired ||

@@ -343,7 +343,9 @@ void GazeServer::handle_subscribe(const Subscribe& sub, std::uint64_t seq, const
   }
   const char* what = "renewed";
   if (session == nullptr) {
-    if (sessions_.size() >= options_.max_subscribers) {
+    const auto same_host = static_cast<std::size_t>(std::count_if(
+        sessions_.begin(), sessions_.end(), [&](const auto& kv) { return kv.second.address.ip == from.ip; }));
+    if (sessions_.size() >= options_.max_subscribers || same_host >= options_.max_subscribers_per_address) {
       refuse(from, seq, MessageType::Subscribe, ErrorCode::TooManySubscribers);
       return;
     }

@@ -64,7 +64,8 @@ class Publisher {
 // A hand-driven peer speaking raw datagrams, to test what a misbehaving client gets.
 class RawPeer {
  public:
-  explicit RawPeer(Endpoint server) : server_(server), socket_(UdpSocket::bind(Endpoint{kLoopback, 0})) {}
+  explicit RawPeer(Endpoint server, std::uint32_t local_ip = kLoopback)
+      : server_(server), socket_(UdpSocket::bind(Endpoint{local_ip, 0})) {}
   void send(Payload p, std::uint64_t seq = 1) {
     Message m{Header{}, std::move(p)};
     m.header.sequence = seq;
@@ -222,6 +223,39 @@ TEST(Server, RefusesSubscribersBeyondItsLimit) {
   const auto err = b.receive(MessageType::Error, 1000);
   ASSERT_TRUE(err);
   EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::TooManySubscribers);
+}
+
+// Issue 23 item 4: 256 SUBSCRIBEs asking for 10-minute leases from one process locked every other
+// client out for 10 minutes. Now one address holds at most max_subscribers_per_address sessions,
+// another address still gets in, leases are capped at a minute, and the client knows why it was
+// refused.
+TEST(Server, OneAddressCannotTakeTheWholeTable) {
+  ServerOptions o = server_options();
+  o.max_subscribers_per_address = 4;
+  GazeServer server(o);
+  std::vector<std::unique_ptr<RawPeer>> flood;
+  for (int i = 0; i < 4; ++i) {
+    flood.push_back(std::make_unique<RawPeer>(server.local_endpoint()));
+    const auto s = flood.back()->handshake(600'000);
+    ASSERT_TRUE(s) << i;
+    EXPECT_EQ(s->lease_ms, 60'000u) << "a 10-minute lease is capped at a minute";
+  }
+  RawPeer fifth(server.local_endpoint());
+  fifth.send(Hello{5, {"fifth"}});
+  const auto challenge = fifth.receive(MessageType::Challenge, 1000);
+  ASSERT_TRUE(challenge);
+  fifth.send(Subscribe{std::get<Challenge>(challenge->payload).cookie, 5, kStreamSamples, 0});
+  const auto err = fifth.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::TooManySubscribers);
+  RawPeer elsewhere(server.local_endpoint(), 0x7F000002);  // 127.0.0.2: another address
+  EXPECT_TRUE(elsewhere.handshake(0));
+  // The reference client says why (fovea-ctl watch printed "no answer ... is it running?").
+  ClientOptions co = client_options(server.local_endpoint());
+  GazeClient refused(co);
+  refused.start();
+  EXPECT_FALSE(refused.wait_subscribed(1500));
+  EXPECT_EQ(refused.stats().last_error, ErrorCode::TooManySubscribers);
 }
 
 TEST(Server, AnswersOtherVersionsWithItsOwnAndIgnoresGarbage) {

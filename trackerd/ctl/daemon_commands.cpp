@@ -60,8 +60,15 @@ int run_client(const Common& c, const std::string& role, std::uint32_t streams,
   setup(*client);
   client->start();
   if (!client->wait_subscribed(c.connect_timeout_ms)) {
-    std::fprintf(stderr, "fovea-ctl %s: no answer from %s within %d ms; is fovea-trackerd running there?\n",
-                 role.c_str(), co.server.to_string().c_str(), c.connect_timeout_ms);
+    if (client->stats().last_error == ErrorCode::TooManySubscribers) {
+      std::fprintf(stderr,
+                   "fovea-ctl %s: %s refused the subscription: too many subscribers (in all, or from this "
+                   "address); try again when some have left\n",
+                   role.c_str(), co.server.to_string().c_str());
+    } else {
+      std::fprintf(stderr, "fovea-ctl %s: no answer from %s within %d ms; is fovea-trackerd running there?\n",
+                   role.c_str(), co.server.to_string().c_str(), c.connect_timeout_ms);
+    }
     return 1;
   }
   try {

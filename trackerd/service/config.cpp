@@ -318,7 +318,7 @@ void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
   }
   c.integer(t, "network.", "multicast_ttl", n.multicast_ttl, 0, 255);
   c.integer(t, "network.", "max_subscribers", n.max_subscribers, 1, 65536);
-  c.integer(t, "network.", "lease_ms", n.lease_ms, 200, 600000);
+  c.integer(t, "network.", "lease_ms", n.lease_ms, 200, 60000);
   c.string(t, "network.", "control_socket", n.control_socket,
            "the control socket's path, \"\" for the default of the port, or \"none\"");
   if (n.control_socket != "none") n.control_socket = c.path(n.control_socket);

@@ -47,6 +47,7 @@ struct ClientStats {
   std::uint64_t queue_dropped = 0;
   std::uint64_t subscriptions = 0;     // successful SUBSCRIBED, first one included
   std::uint64_t errors_received = 0;
+  std::optional<ErrorCode> last_error;  // the last ERROR the server sent (why it refused, if it did)
   std::int64_t clock_offset_ns = 0;    // server clock minus client clock
   std::int64_t clock_round_trip_ns = -1;
   // Latency over the most recent samples (window of 65536): publish on the server to arrival here.

@@ -44,9 +44,16 @@ struct ServerOptions {
   Endpoint listen{0x7F000001, kDefaultPort};  // 127.0.0.1:47800
   std::uint32_t default_lease_ms = 5000;
   std::uint32_t min_lease_ms = 200;
-  std::uint32_t max_lease_ms = 600'000;
+  // A minute: ample for a client that heartbeats every 500 ms, short enough that sessions a client
+  // abandoned (or a flood of them) free their slots soon (issue 23 item 4: 10-minute leases asked
+  // for by one process locked everyone else out for 10 minutes).
+  std::uint32_t max_lease_ms = 60'000;
   std::uint32_t cookie_lifetime_ms = 10'000;
   std::size_t max_subscribers = 256;
+  // Sessions one source address may hold, so that one host cannot take the whole table. (Local
+  // processes share 127.0.0.1, but may also bind other loopback addresses: the lease cap bounds
+  // what they can hold on to.)
+  std::size_t max_subscribers_per_address = 64;
   std::optional<MulticastTarget> multicast;
   DisplayGeometry display;
   double nominal_rate_hz = 0;
