@@ -47,6 +47,20 @@ rc=$?
 grep -q "$WORK/missing.png: no such file" "$WORK/mixed.err" || fail "missing file not named: $(cat "$WORK/mixed.err")"
 grep -q "$WORK/text.png: cannot be read as an image" "$WORK/mixed.err" || fail "bad image not named: $(cat "$WORK/mixed.err")"
 [ "$(wc -l <"$WORK/mixed.out")" -eq 3 ] || fail "the readable images were not all processed: $(cat "$WORK/mixed.out")"
+# Issue 23 item 6: a small PNG declaring 20000x20000 took detect-pupil to 1.7 GB; a FIFO blocked it.
+python3 -c "import sys; b = bytearray(open(sys.argv[1], 'rb').read()); b[16:24] = (20000).to_bytes(4, 'big') * 2; open(sys.argv[2], 'wb').write(b)" \
+  "$WORK/eyes/eye_0000.png" "$WORK/bomb.png"
+mkfifo "$WORK/fifo.png"
+start=$(date +%s%N)
+timeout 20 "$CTL" detect-pupil "$WORK/bomb.png" "$WORK/fifo.png" "$WORK/eyes/eye_0001.png" >"$WORK/bomb.out" 2>"$WORK/bomb.err"
+rc=$?
+ms=$(( ($(date +%s%N) - start) / 1000000 ))
+[ $rc -eq 1 ] || fail "bomb: exit $rc (want 1): $(cat "$WORK/bomb.err")"
+[ "$ms" -lt 5000 ] || fail "bomb and FIFO took $ms ms"
+grep -q "bomb.png: cannot be read as an image: PNG declaring 20000x20000 pixels; at most 16777216 are decoded" \
+  "$WORK/bomb.err" || fail "bomb not named: $(cat "$WORK/bomb.err")"
+grep -q "fifo.png: is a FIFO, not a regular file" "$WORK/bomb.err" || fail "FIFO not named: $(cat "$WORK/bomb.err")"
+[ "$(wc -l <"$WORK/bomb.out")" -eq 2 ] || fail "the good image after the bomb was not processed"
 out=$("$CTL" detect-pupil "$WORK/eyes/eye_0001.png" --leds "1,2;x" 2>&1) && fail "bad --leds accepted"
 grep -q "x" <<<"$out" && grep -q "LED layout" <<<"$out" || fail "unclear --leds message: $out"
 

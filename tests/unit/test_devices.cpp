@@ -19,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "source_api/image_header.h"
 #include "sources/usb_hotplug.h"
 #include "sources/v4l2_camera.h"
 #include "sources/v4l2_device.h"
@@ -425,6 +426,34 @@ TEST(V4l2Camera, MjpgIsDecodedToGrey) {
   EXPECT_FALSE(cam.next(0));
   EXPECT_EQ(cam.status().dropped, 1u);
   EXPECT_EQ(cam.status().frames, 1u);
+}
+
+// Issue 23 item 6: a frame declaring another size than the negotiated mode (a bomb declaring
+// 20000x20000, or just a mismatch) is dropped before it is decoded.
+TEST(V4l2Camera, MjpgFramesOfAnotherDeclaredSizeAreDroppedUndecoded) {
+  auto dev = std::make_shared<FakeV4l2Device>();
+  dev->formats = {{V4L2_PIX_FMT_MJPEG, 160, 120, {30}}};
+  V4l2Camera cam(opts(), dev, some_nodes());
+  std::vector<std::uint8_t> small, bomb;
+  ASSERT_TRUE(cv::imencode(".jpg", cv::Mat(60, 80, CV_8UC1, cv::Scalar(90)), small));
+  ASSERT_TRUE(cv::imencode(".jpg", cv::Mat(120, 160, CV_8UC1, cv::Scalar(90)), bomb));
+  const auto header = read_image_header(bomb);
+  ASSERT_TRUE(header);
+  ASSERT_EQ(header->width, 160u);
+  // Patch the frame header (SOF0: FF C0, length, precision, height, width) to 20000x20000.
+  for (std::size_t i = 2; i + 9 < bomb.size(); ++i) {
+    if (bomb[i] == 0xFF && bomb[i + 1] == 0xC0) {
+      bomb[i + 5] = 20000 >> 8, bomb[i + 6] = 20000 & 0xFF, bomb[i + 7] = 20000 >> 8, bomb[i + 8] = 20000 & 0xFF;
+      break;
+    }
+  }
+  ASSERT_EQ(read_image_header(bomb)->width, 20000u);
+  dev->frames.push_back({small, 0, 1'000});
+  dev->frames.push_back({bomb, 1, 2'000});
+  EXPECT_FALSE(cam.next(0));
+  EXPECT_FALSE(cam.next(0));
+  EXPECT_EQ(cam.status().dropped, 2u);
+  EXPECT_EQ(cam.status().frames, 0u);
 }
 
 // ---- timestamps and drops ----

@@ -14,11 +14,13 @@
 
 #include "ctl/commands.h"
 #include "eye/eye_detector.h"
+#include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/recording.h"
 #include "sim/calibration_viewer.h"
 #include "sim/synthetic_eye.h"
 #include "sim/synthetic_eye_frames.h"
+#include "source_api/image_header.h"
 
 namespace fovea::ctl {
 namespace {
@@ -26,6 +28,10 @@ namespace {
 using namespace fovea::protocol;
 
 namespace eye = fovea::trackerd::eye;
+using trackerd::decode_image_bounded;
+using trackerd::kMaxEyeImagePixels;
+// An eye image file: a few MB at most (a raw 4096x4096 grey BMP is 16 MiB).
+constexpr std::size_t kMaxImageFileBytes = 64u << 20;
 
 // A CSV field: quoted when it holds a comma, a quote or a line break (RFC 4180).
 std::string csv_field(const std::string& text) {
@@ -100,12 +106,17 @@ int cmd_detect_pupil(const std::vector<std::string>& images, const std::string& 
     } else if (std::filesystem::is_directory(st)) {
       why = "is a directory";
     } else {
+      // Bounded before decoding: a small file can declare a huge image (issue 23 item 6).
       try {
-        image = cv::imread(file, cv::IMREAD_UNCHANGED);
-      } catch (const cv::Exception&) {
-        image.release();
+        const std::string bytes =
+            protocol::read_bounded_file(file, {.max_bytes = kMaxImageFileBytes, .what = "image"});
+        image = decode_image_bounded(
+            std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()),
+            cv::IMREAD_UNCHANGED, kMaxEyeImagePixels, why);
+        if (image.empty()) why = "cannot be read as an image: " + why;
+      } catch (const std::runtime_error& e) {
+        why = e.what();
       }
-      if (image.empty()) why = "cannot be read as an image (unreadable, or a format OpenCV cannot decode)";
     }
     if (!why.empty()) {
       std::fprintf(stderr, "fovea-ctl detect-pupil: %s: %s\n", file.c_str(), why.c_str());

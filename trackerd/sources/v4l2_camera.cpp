@@ -12,11 +12,15 @@
 #include <cstdio>
 #include <cstring>
 #include <numeric>
+#include <optional>
+#include <span>
 #include <system_error>
 #include <thread>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+
+#include "source_api/image_header.h"
 
 namespace fovea::trackerd {
 
@@ -590,10 +594,15 @@ bool V4l2Camera::decode_luminance(const v4l2_buffer& b, cv::Mat& image) const {
   bool corrupt = (b.flags & V4L2_BUF_FLAG_ERROR) != 0;
   if (!corrupt) {
     if (mode_.fourcc == V4L2_PIX_FMT_MJPEG) {
-      // imdecode reports a corrupt stream through an exception in some OpenCV builds.
-      try {
-        image = cv::imdecode(cv::Mat(1, static_cast<int>(used), CV_8UC1, buffer.data), cv::IMREAD_GRAYSCALE);
-      } catch (const cv::Exception&) {
+      // A frame must declare the negotiated size before it is decoded: a device (or a USB/IP peer)
+      // sending a small JPEG that declares a huge image would otherwise make the decoder allocate
+      // for it (issue 23 item 6). decode_image_bounded also catches OpenCV's exceptions.
+      const std::span<const std::uint8_t> bytes(static_cast<const std::uint8_t*>(buffer.data), used);
+      const std::optional<ImageHeader> header = read_image_header(bytes);
+      std::string why;
+      if (header && header->width == mode_.width && header->height == mode_.height) {
+        image = decode_image_bounded(bytes, cv::IMREAD_GRAYSCALE, std::uint64_t{mode_.width} * mode_.height, why);
+      } else {
         image.release();
       }
       corrupt = image.empty();
