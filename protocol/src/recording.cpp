@@ -1,5 +1,7 @@
 #include "fovea/protocol/recording.h"
 
+#include "fovea/protocol/bounded_file.h"
+
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
@@ -267,29 +269,17 @@ Recording parse_recording(std::span<const std::uint8_t> data) {
   return rec;
 }
 
+// Read, not mapped: a file that shrinks while it is read (a recorder truncating it, a hostile user)
+// made the mapped pages fault with SIGBUS (issue 23 item 11), and a FIFO blocked the reader. Only a
+// regular file is read, up to kMaxRecordingBytes.
 Recording read_recording(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw std::runtime_error(sys_error("cannot open recording", path));
-  struct stat st {};
-  if (fstat(fd, &st) != 0) {
-    ::close(fd);
-    throw std::runtime_error(sys_error("cannot stat recording", path));
-  }
-  const auto size = static_cast<std::size_t>(st.st_size);
-  if (size == 0) {
-    ::close(fd);
-    throw std::runtime_error("recording " + path + " is empty");
-  }
-  void* map = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
-  ::close(fd);
-  if (map == MAP_FAILED) throw std::runtime_error(sys_error("cannot map recording", path));
+  const std::string bytes = read_bounded_file(path, {.max_bytes = kMaxRecordingBytes, .what = "recording"});
+  if (bytes.empty()) throw std::runtime_error("recording " + escape_for_log(path) + " is empty");
   try {
-    Recording r = parse_recording(std::span<const std::uint8_t>(static_cast<const std::uint8_t*>(map), size));
-    ::munmap(map, size);
-    return r;
+    return parse_recording(
+        std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size()));
   } catch (const std::exception& e) {
-    ::munmap(map, size);
-    throw std::runtime_error(path + ": " + e.what());
+    throw std::runtime_error(escape_for_log(path) + ": " + e.what());
   }
 }
 

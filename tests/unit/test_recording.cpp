@@ -1,6 +1,7 @@
 // Gaze recordings (.fgr): round trips, recovery of truncated and damaged files, the writer's
 // refusal to lose stored data, and a writer killed with SIGKILL mid-stream.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <signal.h>
 #include <sys/types.h>
 #include <sys/wait.h>
@@ -558,6 +559,14 @@ TEST(RecordingFile, ReadErrorsNameTheFile) {
   msg = error_of([&] { read_recording(garbage); });
   EXPECT_NE(msg.find(garbage), std::string::npos) << msg;
   EXPECT_NE(msg.find("not a fovea recording"), std::string::npos) << msg;
+
+  // Issue 23 item 11: a FIFO blocked `fovea-ctl info` for ever; a device or directory is no recording.
+  const std::string fifo = dir.file("fifo.fgr");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  msg = error_of([&] { read_recording(fifo); });
+  EXPECT_NE(msg.find("recording " + fifo + ": is a FIFO, not a regular file"), std::string::npos) << msg;
+  msg = error_of([&] { read_recording("/dev/zero"); });
+  EXPECT_NE(msg.find("is a character device"), std::string::npos) << msg;
 }
 
 // ---- writer: nothing already stored is lost ------------------------------------------------------

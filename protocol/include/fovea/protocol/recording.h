@@ -2,6 +2,7 @@
 // Gaze recordings (.fgr): a header, then append-only length-prefixed records each guarded by a
 // CRC-32C. Byte layout in protocol/RECORDING.md. A reader recovers every intact record of a file
 // that was truncated or damaged anywhere, and reports what it skipped.
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -81,7 +82,11 @@ struct Recording {
 // the rest is counted in the report. Throws std::runtime_error only when `data` is not a recording
 // at all (no header magic and no recognisable record).
 Recording parse_recording(std::span<const std::uint8_t> data);
-// Reads a file; throws std::runtime_error naming the file if it cannot be opened or is not a recording.
+// Larger recordings are refused (an hour at 1000 Hz is ~400 MB; the parsed records take more).
+inline constexpr std::size_t kMaxRecordingBytes = std::size_t{4} << 30;
+// Reads a regular file of at most kMaxRecordingBytes (a FIFO, device or directory is refused at
+// once; a file that shrinks while it is read is read as far as it goes); throws std::runtime_error
+// naming the file if it cannot be read or is not a recording.
 Recording read_recording(const std::string& path);
 
 }  // namespace fovea::protocol
