@@ -12,6 +12,7 @@ PACKAGES=(
   # protocol, daemon and CLI
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libtomlplusplus-dev
   libsystemd-dev
+  libsodium-dev                       # the subscription cookies' MAC and key (no hand-written cryptography)
   # tracker hardware
   libhidapi-dev libusb-1.0-0-dev libv4l-dev
   # vision

@@ -1,54 +1,32 @@
 #include "fovea/protocol/cookie.h"
 
-#include <sys/random.h>
+#include <sodium.h>
 
-#include <cerrno>
-#include <system_error>
+#include <cstring>
+#include <stdexcept>
 
 #include "fovea/protocol/wire.h"
 
 namespace fovea::protocol {
 
 namespace {
-constexpr std::uint64_t rotl(std::uint64_t x, int b) { return (x << b) | (x >> (64 - b)); }
-
-void sipround(std::uint64_t& v0, std::uint64_t& v1, std::uint64_t& v2, std::uint64_t& v3) {
-  v0 += v1; v1 = rotl(v1, 13); v1 ^= v0; v0 = rotl(v0, 32);
-  v2 += v3; v3 = rotl(v3, 16); v3 ^= v2;
-  v0 += v3; v3 = rotl(v3, 21); v3 ^= v0;
-  v2 += v1; v1 = rotl(v1, 17); v1 ^= v2; v2 = rotl(v2, 32);
+void init_sodium() {
+  if (sodium_init() < 0) throw std::runtime_error("libsodium could not initialise (no entropy source?)");
 }
 }  // namespace
 
+// libsodium's crypto_shorthash is SipHash-2-4 with a 16-byte key; its 8 bytes are the little-endian
+// 64-bit value of the reference implementation.
 std::uint64_t siphash24(const std::array<std::uint8_t, 16>& key, std::span<const std::uint8_t> data) {
-  const std::uint64_t k0 = wire::load_le<std::uint64_t>(key, 0);
-  const std::uint64_t k1 = wire::load_le<std::uint64_t>(key, 8);
-  std::uint64_t v0 = 0x736f6d6570736575ULL ^ k0, v1 = 0x646f72616e646f6dULL ^ k1;
-  std::uint64_t v2 = 0x6c7967656e657261ULL ^ k0, v3 = 0x7465646279746573ULL ^ k1;
-  const std::size_t n = data.size();
-  std::size_t i = 0;
-  for (; i + 8 <= n; i += 8) {
-    const std::uint64_t m = wire::load_le<std::uint64_t>(data, i);
-    v3 ^= m;
-    sipround(v0, v1, v2, v3);
-    sipround(v0, v1, v2, v3);
-    v0 ^= m;
-  }
-  std::uint64_t b = static_cast<std::uint64_t>(n) << 56;
-  for (std::size_t j = 0; i + j < n; ++j) b |= static_cast<std::uint64_t>(data[i + j]) << (8 * j);
-  v3 ^= b;
-  sipround(v0, v1, v2, v3);
-  sipround(v0, v1, v2, v3);
-  v0 ^= b;
-  v2 ^= 0xff;
-  for (int r = 0; r < 4; ++r) sipround(v0, v1, v2, v3);
-  return v0 ^ v1 ^ v2 ^ v3;
+  static_assert(crypto_shorthash_KEYBYTES == 16 && crypto_shorthash_BYTES == 8);
+  std::array<std::uint8_t, crypto_shorthash_BYTES> out{};
+  crypto_shorthash(out.data(), data.data(), data.size(), key.data());
+  return wire::load_le<std::uint64_t>(out, 0);
 }
 
 CookieJar::CookieJar(std::uint32_t lifetime_ms) : lifetime_ms_(lifetime_ms) {
-  if (getrandom(key_.data(), key_.size(), 0) != static_cast<ssize_t>(key_.size())) {
-    throw std::system_error(errno, std::generic_category(), "getrandom for the cookie key");
-  }
+  init_sodium();
+  crypto_shorthash_keygen(key_.data());
 }
 
 std::uint64_t CookieJar::mac(const Endpoint& peer, std::uint64_t nonce, std::uint64_t issued_ms) const {
@@ -71,7 +49,10 @@ Cookie CookieJar::issue(const Endpoint& peer, std::uint64_t client_nonce, std::i
 CookieCheck CookieJar::check(const Cookie& c, const Endpoint& peer, std::uint64_t client_nonce,
                              std::int64_t now_ns) const {
   const auto issued_ms = wire::load_le<std::uint64_t>(c, 0);
-  if (wire::load_le<std::uint64_t>(c, 8) != mac(peer, client_nonce, issued_ms)) return CookieCheck::Forged;
+  std::array<std::uint8_t, 8> expected{};
+  wire::store_le<std::uint64_t>(expected, 0, mac(peer, client_nonce, issued_ms));
+  // In constant time: how many leading bytes of a forgery match must not show in the reply's timing.
+  if (sodium_memcmp(expected.data(), c.data() + 8, expected.size()) != 0) return CookieCheck::Forged;
   const auto now_ms = static_cast<std::uint64_t>(now_ns / 1'000'000);
   if (issued_ms > now_ms || now_ms - issued_ms > lifetime_ms_) return CookieCheck::Expired;
   return CookieCheck::Valid;

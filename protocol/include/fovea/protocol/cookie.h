@@ -11,14 +11,15 @@
 
 namespace fovea::protocol {
 
-// SipHash-2-4 (Aumasson & Bernstein 2012), a keyed PRF over short inputs.
+// SipHash-2-4 (Aumasson & Bernstein 2012), a keyed PRF over short inputs: libsodium's
+// crypto_shorthash, as the reference's 64-bit little-endian value.
 std::uint64_t siphash24(const std::array<std::uint8_t, 16>& key, std::span<const std::uint8_t> data);
 
 enum class CookieCheck { Valid, Forged, Expired };
 
 class CookieJar {
  public:
-  // A random key from the OS; a restarted daemon therefore rejects the old daemon's cookies.
+  // A random key from libsodium's generator; a restarted daemon therefore rejects the old daemon's cookies.
   explicit CookieJar(std::uint32_t lifetime_ms);
   CookieJar(const std::array<std::uint8_t, 16>& key, std::uint32_t lifetime_ms) : key_(key), lifetime_ms_(lifetime_ms) {}
 
