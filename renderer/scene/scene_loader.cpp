@@ -25,6 +25,12 @@ using namespace json;
 using namespace schema;
 
 constexpr double kMaxCoordinate = 1e6;  // metres; larger values lose float precision in the backends
+// The scene's memory budget, checked before anything is allocated (issue 23 item 8: 20 spheres at
+// the largest rings and segments took 5.5 GB, a 16384^2 camera ended in a bare std::bad_alloc).
+// The renderer holds ~170 bytes per triangle (mesh, BVH, LOD levels, GPU buffers: measured with
+// 10,000 spheres), so 32 M triangles is ~5 GB; a 28 M-triangle scan still loads.
+constexpr std::uint64_t kMaxSceneTriangles = 32'000'000;
+constexpr std::uint64_t kMaxCameraPixels = std::uint64_t{7680} * 4320;  // 8K UHD
 
 // The scene's sections, read through json::Reader (errors by path) against the schema.
 class Loader : private json::Reader {
@@ -47,7 +53,19 @@ class Loader : private json::Reader {
   std::vector<Material> materials(const Node& n);
   Material material(const Node& n, std::string name);
   Transform transform(const Node& n);
-  std::shared_ptr<const Mesh> geometry(const Node& n);
+  // A geometry as read and checked, before its mesh is built.
+  struct Shape {
+    std::string kind;  // mesh, box, plane, sphere, cylinder
+    Node node;         // the shape's own node ($...geometry.sphere)
+    glm::vec3 size{0.0f};
+    float radius = 0, height = 0;
+    int rings = 16, segments = 32;
+    std::uint64_t triangles = 0;  // known before building (0 for a mesh file: counted once read)
+    std::string what;             // for the budget's message
+  };
+  Shape shape(const Node& geometry);
+  std::shared_ptr<const Mesh> build_shape(const Shape& s);
+  void budget_procedural_shapes(const Node& objects);
   std::shared_ptr<const Mesh> mesh_file(const Node& n);
   // The levels the scene gives (files or simplification ratios), or none and the chain it asks for.
   std::vector<LodLevel> lods(const Node& n, const Mesh& full, std::optional<LodChainRequest>& chain);
@@ -55,9 +73,24 @@ class Loader : private json::Reader {
   protocol::DisplayGeometry display(const Node& n);
   void check_finite(const Scene& s) const;
 
+  // Counts a geometry's triangles into the scene's budget; fails at `n` before it is built if the
+  // scene would exceed kMaxSceneTriangles.
+  // `total`: the scene's triangles with this one, when known (the procedural pre-pass).
+  void budget_triangles(const Node& n, std::uint64_t triangles, const std::string& what, std::uint64_t total = 0);
+
   std::filesystem::path base_dir_;
   std::map<std::string, std::shared_ptr<const Mesh>> mesh_cache_;  // by resolved path
+  std::uint64_t triangles_ = 0;                                     // the scene's so far
 };
+
+void Loader::budget_triangles(const Node& n, std::uint64_t triangles, const std::string& what, std::uint64_t total) {
+  if (total == 0) total = triangles_ + triangles;
+  if (total > kMaxSceneTriangles) {
+    fail(n, what + " takes the scene to " + std::to_string(total) + " triangles; a scene may hold " +
+                std::to_string(kMaxSceneTriangles) + " (about 5 GB in the renderer): use fewer or coarser objects");
+  }
+  triangles_ += triangles;
+}
 
 // ---------------------------------------------------------------------------------------------
 // Sections
@@ -75,6 +108,7 @@ Scene Loader::build(const Json& doc, const std::string& default_name) {
 
   const Node objects = require(root, "objects", "an array of objects");
   if (!objects.v.is_array() || objects.v.empty()) fail(objects, "must be a non-empty array of objects");
+  budget_procedural_shapes(objects);
   std::map<std::string, std::string> object_names;  // name -> path of its first use
   for (std::size_t i = 0; i < objects.v.size(); ++i) {
     const Node n = element(objects, i);
@@ -99,7 +133,9 @@ Scene Loader::build(const Json& doc, const std::string& default_name) {
     }
     obj.material = static_cast<std::uint32_t>(found - scene.materials.begin());
 
-    obj.mesh = geometry(require(n, "geometry", "one of mesh, box, sphere, plane, cylinder"));
+    const Shape geometry = shape(require(n, "geometry", "one of mesh, box, sphere, plane, cylinder"));
+    budget_triangles(geometry.node, geometry.triangles, geometry.what);
+    obj.mesh = build_shape(geometry);
     if (auto t = get(n, "transform")) obj.transform = transform(*t);
     if (auto a = get(n, "animation")) obj.animation = animation(*a, false);
     if (auto ti = get(n, "task_importance")) obj.task_importance = number_f(*ti, Range{0, 1, false, false, ""});
@@ -128,6 +164,10 @@ Camera Loader::camera(const Node& n) {
   if (auto v = get(n, "vertical_fov_deg")) c.vertical_fov_deg = number_f(*v, Range{0, 180, true, true, "degrees"});
   if (auto v = get(n, "width")) c.width = static_cast<std::uint32_t>(integer(*v, 1, 16384));
   if (auto v = get(n, "height")) c.height = static_cast<std::uint32_t>(integer(*v, 1, 16384));
+  if (std::uint64_t{c.width} * c.height > kMaxCameraPixels) {
+    fail(n, "width x height = " + std::to_string(c.width) + "x" + std::to_string(c.height) + " pixels; at most " +
+                std::to_string(kMaxCameraPixels) + " (7680x4320) are rendered");
+  }
   const auto near = get(n, "near");
   const auto far = get(n, "far");
   if (near) c.near_m = number_f(*near, Range{0, kMaxCoordinate, true, false, "m"});
@@ -337,7 +377,7 @@ Transform Loader::transform(const Node& n) {
   return t;
 }
 
-std::shared_ptr<const Mesh> Loader::geometry(const Node& n) {
+Loader::Shape Loader::shape(const Node& n) {
   check_keys(n, kGeometryKeys, "geometry: one of mesh, box, sphere, plane, cylinder");
   std::optional<Node> found;
   std::string kind;
@@ -351,27 +391,61 @@ std::shared_ptr<const Mesh> Loader::geometry(const Node& n) {
     }
   }
   if (!found) fail(n, "must have exactly one of " + join(kShapeKeys));
-  const Node* shape = &*found;
+  Shape out{.kind = kind, .node = *found, .what = {}};
+  const Node& shape = *found;
   const Range size{0, kMaxCoordinate, true, false, "m"};
-  if (kind == "mesh") return mesh_file(*shape);
-  if (kind == "box") return std::make_shared<const Mesh>(make_box(vec3(*shape, size, "box size [x, y, z] in metres")));
-  if (kind == "plane") {
-    return std::make_shared<const Mesh>(make_plane(vec<2>(*shape, size, "plane size [x, z] in metres")));
+  if (kind == "box") {
+    out.size = vec3(shape, size, "box size [x, y, z] in metres");
+    out.triangles = 12;
+  } else if (kind == "plane") {
+    out.size = glm::vec3(vec<2>(shape, size, "plane size [x, z] in metres"), 0.0f);
+    out.triangles = 2;
+  } else if (kind == "sphere") {
+    check_keys(shape, kSphereKeys, "a sphere {\"radius\", \"rings\", \"segments\"}");
+    out.radius = number_f(require(shape, "radius", "sphere radius in metres"), size);
+    out.rings = 16;
+    if (auto v = get(shape, "rings")) out.rings = static_cast<int>(integer(*v, 2, 1024));
+    if (auto v = get(shape, "segments")) out.segments = static_cast<int>(integer(*v, 3, 2048));
+    out.triangles = 2 * static_cast<std::uint64_t>(out.rings) * static_cast<std::uint64_t>(out.segments);
+    out.what = "a sphere of " + std::to_string(out.rings) + " rings and " + std::to_string(out.segments) + " segments";
+  } else if (kind == "cylinder") {
+    check_keys(shape, kCylinderKeys, "a cylinder {\"radius\", \"height\", \"segments\"}");
+    out.radius = number_f(require(shape, "radius", "cylinder radius in metres"), size);
+    out.height = number_f(require(shape, "height", "cylinder height in metres"), size);
+    if (auto v = get(shape, "segments")) out.segments = static_cast<int>(integer(*v, 3, 2048));
+    out.triangles = 4 * static_cast<std::uint64_t>(out.segments);
   }
-  if (kind == "sphere") {
-    check_keys(*shape, kSphereKeys, "a sphere {\"radius\", \"rings\", \"segments\"}");
-    const float radius = number_f(require(*shape, "radius", "sphere radius in metres"), size);
-    int rings = 16, segments = 32;
-    if (auto v = get(*shape, "rings")) rings = static_cast<int>(integer(*v, 2, 1024));
-    if (auto v = get(*shape, "segments")) segments = static_cast<int>(integer(*v, 3, 2048));
-    return std::make_shared<const Mesh>(make_sphere(radius, rings, segments));
+  if (out.what.empty()) out.what = "a " + kind;
+  return out;
+}
+
+std::shared_ptr<const Mesh> Loader::build_shape(const Shape& s) {
+  if (s.kind == "mesh") return mesh_file(s.node);
+  if (s.kind == "box") return std::make_shared<const Mesh>(make_box(s.size));
+  if (s.kind == "plane") return std::make_shared<const Mesh>(make_plane(glm::vec2(s.size)));
+  if (s.kind == "sphere") return std::make_shared<const Mesh>(make_sphere(s.radius, s.rings, s.segments));
+  return std::make_shared<const Mesh>(make_cylinder(s.radius, s.height, s.segments));
+}
+
+// Before any mesh is built, the procedural shapes' triangles are summed against the budget, so a
+// scene over it is refused at the object that crosses it without first building the ones before.
+// Errors in a geometry are left to the object loop, which reports them in the file's order.
+void Loader::budget_procedural_shapes(const Node& objects) {
+  std::uint64_t total = 0;
+  for (std::size_t i = 0; i < objects.v.size(); ++i) {
+    const Node n = element(objects, i);
+    const auto g = n.v.is_object() ? get(n, "geometry") : std::nullopt;
+    if (!g) continue;
+    std::uint64_t triangles = 0;
+    try {
+      const Shape s = shape(*g);
+      triangles = s.triangles;
+      total += triangles;
+      if (total > kMaxSceneTriangles) budget_triangles(s.node, triangles, s.what, total);
+    } catch (const SceneError&) {
+      if (total > kMaxSceneTriangles) throw;  // the budget's own error
+    }
   }
-  check_keys(*shape, kCylinderKeys, "a cylinder {\"radius\", \"height\", \"segments\"}");
-  const float radius = number_f(require(*shape, "radius", "cylinder radius in metres"), size);
-  const float height = number_f(require(*shape, "height", "cylinder height in metres"), size);
-  int segments = 32;
-  if (auto v = get(*shape, "segments")) segments = static_cast<int>(integer(*v, 3, 2048));
-  return std::make_shared<const Mesh>(make_cylinder(radius, height, segments));
 }
 
 std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
@@ -388,7 +462,10 @@ std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
                 "'; supported: " + join(kSupported));
   }
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) fail(n, "mesh file not found: " + path.string());
+  const auto st = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(st)) fail(n, "mesh file not found: " + path.string());
+  // Item 12 of issue 23: a FIFO, device or directory was reported "not found" (a FIFO is never opened).
+  if (!std::filesystem::is_regular_file(st)) fail(n, "mesh file " + path.string() + " is not a regular file");
   if (auto it = mesh_cache_.find(path.string()); it != mesh_cache_.end()) return it->second;
   std::shared_ptr<Mesh> mesh;
   try {
@@ -396,6 +473,8 @@ std::shared_ptr<const Mesh> Loader::mesh_file(const Node& n) {
   } catch (const SceneError& e) {
     fail(n, e.what());
   }
+  // A mesh file's size is known only once read (bounded by the file); counted once however often used.
+  budget_triangles(n, mesh->indices.size() / 3, "mesh file " + path.filename().string());
   mesh_cache_.emplace(path.string(), mesh);
   return mesh;
 }

@@ -1,6 +1,8 @@
 // Scene loading: the bundled scenes, mesh files through assimp, LOD chains, overrides, and the
 // catalogue of bad inputs, each of which must name the file, the JSON path and the bad value.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <chrono>
 
 #include <algorithm>
 #include <cmath>
@@ -734,6 +736,52 @@ TEST(SceneErrors, DuplicatesAndSyntax) {
   msg = error_of_text("{\"camera\": {\"width\": 10,}}");
   EXPECT_CONTAINS(msg, "broken.json: invalid JSON");
   EXPECT_CONTAINS(msg, "line 1");
+}
+
+// Issue 23 item 8: 20 spheres at the largest rings and segments took 5.5 GB; a 16384^2 camera
+// ended in a bare std::bad_alloc. The budget is checked before anything is built, by path.
+TEST(SceneErrors, TheMemoryBudgetIsCheckedBeforeBuildingByPath) {
+  Json doc = base_scene();
+  doc["objects"] = Json::array();
+  for (int i = 0; i < 20; ++i) {
+    doc["objects"].push_back({{"name", "s" + std::to_string(i)}, {"material", "white"},
+                              {"geometry", {{"sphere", {{"radius", 0.5}, {"rings", 1024}, {"segments", 2048}}}}}});
+  }
+  const auto start = std::chrono::steady_clock::now();
+  std::string msg = error_of(doc);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(500)) << "built before it was refused";
+  // 4,194,304 triangles each: the eighth takes the scene past 32 M.
+  EXPECT_CONTAINS(msg, "broken.json: $.objects[7].geometry.sphere");
+  EXPECT_CONTAINS(msg, "a sphere of 1024 rings and 2048 segments takes the scene to 33554432 triangles");
+  EXPECT_CONTAINS(msg, "a scene may hold 32000000");
+
+  doc = base_scene();
+  doc["camera"]["width"] = 16384;
+  doc["camera"]["height"] = 16384;
+  msg = error_of(doc);
+  EXPECT_CONTAINS(msg, "broken.json: $.camera");
+  EXPECT_CONTAINS(msg, "16384x16384 pixels; at most 33177600 (7680x4320)");
+  doc["camera"]["width"] = 7680;
+  doc["camera"]["height"] = 4320;
+  EXPECT_NO_THROW(parse(doc));
+}
+
+// Issue 23 item 12: a mesh that is a FIFO was reported "not found" (and a FIFO must not be opened).
+TEST(SceneErrors, AMeshThatIsNotARegularFileIsNamedSo) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("fovea-scene-fifo-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  ASSERT_EQ(::mkfifo((dir / "pipe.obj").c_str(), 0600), 0);
+  Json doc = base_scene();
+  doc["objects"][0]["geometry"] = {{"mesh", "pipe.obj"}};
+  std::string msg;
+  try {
+    parse_scene(doc.dump(), "broken.json", dir);
+  } catch (const SceneError& e) {
+    msg = e.what();
+  }
+  std::filesystem::remove_all(dir);
+  EXPECT_CONTAINS(msg, "$.objects[0].geometry.mesh");
+  EXPECT_CONTAINS(msg, "pipe.obj is not a regular file");
 }
 
 // Issue 23 item 7: 100,000 levels overflowed the stack (fovea-render segfaulted).
