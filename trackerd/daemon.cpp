@@ -177,7 +177,7 @@ bool Daemon::start(std::int64_t start_ns) {
       return false;
     }
   }
-  spdlog::info("serving {} on {} ({} Hz, display {})", source_->description(), server_->local_endpoint().to_string(),
+  spdlog::info("serving {} on {} ({} Hz, display {})", protocol::escape_for_log(source_->description()), server_->local_endpoint().to_string(),
                so.nominal_rate_hz, protocol::to_string(display_));
   if (so.multicast) spdlog::info("also publishing to multicast group {}", so.multicast->group.to_string());
   if (!config_.network.control_allow.empty()) {
@@ -240,7 +240,7 @@ void Daemon::service_tick() {
     const std::string problem = source_->problem();
     if (problem != source_problem_) {
       if (problem.empty()) {
-        spdlog::info("{}: working again", source_->description());
+        spdlog::info("{}: working again", protocol::escape_for_log(source_->description()));
       } else {
         spdlog::warn("{}", problem);
       }
@@ -263,7 +263,7 @@ void Daemon::service_tick() {
 
 std::string Daemon::status_line() const {
   const auto st = server_->stats();
-  std::string s = source_->description() + ", " + std::to_string(static_cast<long>(source_->nominal_rate_hz())) +
+  std::string s = protocol::escape_for_log(source_->description()) + ", " + std::to_string(static_cast<long>(source_->nominal_rate_hz())) +
                   " Hz, " + std::to_string(st.subscribers) + " subscribers, " + std::to_string(st.samples_published) +
                   " samples";
   if (const std::string detail = source_->status_detail(); !detail.empty()) s += ", " + detail;
@@ -387,7 +387,7 @@ protocol::ControlReply Daemon::submit_calibration_load(const protocol::ControlRe
 
 std::string Daemon::start_recording(const std::string& path, bool append) {
   protocol::RecordingHeader h;
-  h.device = source_->description().substr(0, 63);
+  h.device = protocol::recording_device_name(source_->description());
   h.display = display_;
   h.nominal_rate_hz = source_->nominal_rate_hz();
   h.clock = protocol::RecordingClock::Monotonic;
@@ -576,7 +576,7 @@ int Daemon::run() {
       st.leases_expired, st.control_requests, st.control_refused,
       recorder_ ? ", " + std::to_string(recorder_->records_written()) + " records written" : std::string());
   if (const std::string detail = source_->status_detail(); !detail.empty()) {
-    spdlog::info("{}: {}", source_->description(), detail);
+    spdlog::info("{}: {}", protocol::escape_for_log(source_->description()), protocol::escape_for_log(detail));
   }
   return status_;
 }

@@ -101,9 +101,13 @@ std::string read_bounded_file(const std::string& path, const BoundedRead& o) {
   return out;
 }
 
-std::string escape_for_log(const std::string& text, std::size_t max_chars) {
+namespace {
+
+// escape_for_log's rule, stopping after max_chars input characters ("..." appended) or before an
+// escaped character would take the output past max_bytes (never splitting one).
+std::string escape(const std::string& text, std::size_t max_chars, std::size_t max_bytes) {
   static const char* hex = "0123456789abcdef";
-  std::string out;
+  std::string out, piece;
   std::size_t chars = 0;
   for (std::size_t i = 0; i < text.size(); ++chars) {
     if (chars == max_chars) {
@@ -111,23 +115,32 @@ std::string escape_for_log(const std::string& text, std::size_t max_chars) {
       break;
     }
     const auto c = static_cast<unsigned char>(text[i]);
+    std::size_t used = 1;
     if (c == '\\') {
-      out += "\\\\";
-      ++i;
+      piece = "\\\\";
     } else if (c >= 0x20 && c < 0x7F) {
-      out += static_cast<char>(c);
-      ++i;
+      piece.assign(1, static_cast<char>(c));
     } else if (const std::size_t n = c >= 0x80 ? utf8_sequence(text, i) : 0; n > 0) {
-      out.append(text, i, n);
-      i += n;
+      piece.assign(text, i, n);
+      used = n;
     } else {
-      out += "\\x";
-      out += hex[c >> 4];
-      out += hex[c & 0xF];
-      ++i;
+      piece = {'\\', 'x', hex[c >> 4], hex[c & 0xF]};
     }
+    if (out.size() + piece.size() > max_bytes) break;
+    out += piece;
+    i += used;
   }
   return out;
+}
+
+}  // namespace
+
+std::string escape_for_log(const std::string& text, std::size_t max_chars) {
+  return escape(text, max_chars, std::string::npos);
+}
+
+std::string escape_to_fit(const std::string& text, std::size_t max_bytes) {
+  return escape(text, std::string::npos, max_bytes);
 }
 
 }  // namespace fovea::protocol

@@ -107,7 +107,7 @@ void apply_header_comment(RecordingHeader& header, const std::string& line, cons
   while (!value.empty() && value.front() == ' ') value.erase(value.begin());
   try {
     if (key == "device") {
-      header.device = value.substr(0, 63);
+      header.device = recording_device_name(value);
     } else if (key == "display") {
       header.display = parse_display_geometry(value);
     } else if (key == "sample_rate_hz") {

@@ -111,6 +111,8 @@ std::int64_t Record::time_ns() const {
   return e.start_time_ns + e.duration_ns;
 }
 
+std::string recording_device_name(const std::string& description) { return escape_to_fit(description, 63); }
+
 std::vector<std::uint8_t> encode_recording_header(const RecordingHeader& h) {
   if (h.device.size() > 63) throw std::invalid_argument("recording device name longer than 63 bytes: " + h.device);
   for (const char ch : h.device) {

@@ -1,5 +1,7 @@
 #include "fovea/protocol/server.h"
 
+#include "fovea/protocol/bounded_file.h"
+
 #include <sys/random.h>
 
 #include <algorithm>
@@ -389,7 +391,7 @@ void GazeServer::handle_unsubscribe(const Unsubscribe& un, const Endpoint& from)
 // PROTOCOL.md §4.11; read under mutex_ so the counters agree with each other.
 StatusReply GazeServer::status_reply(std::int64_t received_ns) const {
   StatusReply s;
-  s.source.value = options_.source_name.substr(0, decltype(s.source)::capacity - 1);
+  s.source.value = escape_to_fit(options_.source_name, decltype(s.source)::capacity - 1);  // no control characters on the wire
   s.nominal_rate_hz = options_.nominal_rate_hz;
   s.uptime_ns = received_ns - started_ns_;
   s.samples_published = stats_.samples_published;

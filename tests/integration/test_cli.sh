@@ -89,6 +89,19 @@ wait $DPID; rc=$?
 [ $rc -eq 0 ] || fail "daemon exit status $rc after SIGTERM"
 grep -q "shut down cleanly" "$WORK/daemon.log" || fail "no clean-shutdown log line"
 
+echo "== a source named with control characters still records, converts and prints escaped"
+# Issue 23 item 9: record, record-start and --record failed, convert refused, info printed escapes raw.
+EVIL="$WORK/evil"$'\e'"[2J"$'\n'"name.fgr"
+cp "$REC" "$EVIL"
+"$TRACKERD" --source "replay:$EVIL" --port $PORT --duration 1 --record "$WORK/evil-out.fgr" >"$WORK/evil.log" 2>&1 \
+  || fail "--record of a source with control characters: $(tail -3 "$WORK/evil.log")"
+"$CTL" info "$WORK/evil-out.fgr" >"$WORK/evil.info" || fail "info of that recording"
+grep -q $'\e' "$WORK/evil.info" && fail "info printed a raw escape sequence"
+# Stored escaped (evil\x1b...); info escapes what it prints again, so the stored backslash shows doubled.
+grep -qF 'evil\\x1b[2J\\x0aname.fgr' "$WORK/evil.info" || fail "device not escaped: $(cat "$WORK/evil.info")"
+"$CTL" convert "$WORK/evil-out.fgr" "$WORK/evil.csv" 2>/dev/null || fail "convert to csv"
+"$CTL" convert "$WORK/evil.csv" "$WORK/evil-back.fgr" 2>/dev/null || fail "convert back refused"
+
 echo "== daemon --record writes what it publishes"
 "$TRACKERD" --source synthetic --rate 500 --port $PORT --duration 1 --record "$WORK/daemon.fgr" 2>/dev/null || fail "daemon --record"
 n=$("$CTL" info "$WORK/daemon.fgr" | awk '/^samples/{print $2}')

@@ -790,4 +790,23 @@ TEST(RecordingHeaderValidation, RefusesWhatTheReaderWouldCallDamaged) {
   EXPECT_THROW(encode_recording_header(bad), std::invalid_argument);
 }
 
+// Issue 23 item 9: a source named with a control character (a file name, a HID product string) made
+// every recording of it fail. Its device name is escaped, cut to 63 bytes without splitting an
+// escape or a UTF-8 character, and then accepted by the writer.
+TEST(RecordingHeaderValidation, AnySourceDescriptionMakesAValidDeviceName) {
+  using namespace fovea::protocol;
+  EXPECT_EQ(recording_device_name("replay:/data/a.fgr"), "replay:/data/a.fgr");
+  EXPECT_EQ(recording_device_name("replay:/tmp/evil\x1b[2J\n.fgr"), "replay:/tmp/evil\\x1b[2J\\x0a.fgr");
+  const std::string long_name = std::string(60, 'a') + "\x01" + "bcdef";  // the escape would straddle byte 63
+  EXPECT_EQ(recording_device_name(long_name), std::string(60, 'a'));
+  const std::string utf8 = std::string(61, 'a') + "\xc3\xa9\xc3\xa9";  // é at bytes 61-62, the next would not fit
+  EXPECT_EQ(recording_device_name(utf8), std::string(61, 'a') + "\xc3\xa9");
+  for (const std::string& d : {std::string("a\x7f\xff\x1b"), long_name, utf8, std::string(200, '\x02')}) {
+    RecordingHeader h;
+    h.device = recording_device_name(d);
+    EXPECT_LE(h.device.size(), 63u);
+    EXPECT_NO_THROW(encode_recording_header(h)) << h.device;
+  }
+}
+
 }  // namespace

@@ -219,7 +219,7 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
       [&](const Subscribed& s) {
         RecordingHeader h;
         if (auto st = GazeClient::query_status(parse_endpoint(c.server, kDefaultPort), 500)) device = st->source.value;
-        h.device = device.substr(0, 63);
+        h.device = recording_device_name(device);
         h.display = s.display;
         h.nominal_rate_hz = s.nominal_rate_hz;
         h.clock = RecordingClock::Monotonic;

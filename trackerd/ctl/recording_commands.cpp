@@ -10,6 +10,7 @@
 
 #include "classify/classifier.h"
 #include "ctl/commands.h"
+#include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/csv.h"
 #include "fovea/protocol/recording.h"
 
@@ -78,7 +79,7 @@ int cmd_info(const std::string& path) {
       }
     }
     std::printf("file        %s\n", path.c_str());
-    std::printf("device      %s\n", rec.header.device.c_str());
+    std::printf("device      %s\n", escape_for_log(rec.header.device).c_str());
     std::printf("display     %s\n", to_string(rec.header.display).c_str());
     std::printf("rate        %.1f Hz (nominal)\n", rec.header.nominal_rate_hz);
     const double span = samples > 1 ? static_cast<double>(last - first) / 1e9 : 0;

@@ -21,5 +21,8 @@ std::string read_bounded_file(const std::string& path, const BoundedRead& option
 // Printable for a log line or a terminal: control characters, DEL and bytes that are not UTF-8 as
 // \xNN, backslash as \\, at most max_chars characters of the input (then "..." ).
 std::string escape_for_log(const std::string& text, std::size_t max_chars = 256);
+// The same escaping, as much of `text` as fits in max_bytes without splitting an escape or a UTF-8
+// character: for fixed-size fields (a recording's 63-byte device name).
+std::string escape_to_fit(const std::string& text, std::size_t max_bytes);
 
 }  // namespace fovea::protocol

@@ -21,7 +21,7 @@ inline constexpr std::uint16_t kRecordingVersion = 1;
 enum class RecordingClock : std::uint8_t { Monotonic = 0, Realtime = 1 };
 
 struct RecordingHeader {
-  std::string device;  // at most 63 bytes
+  std::string device;  // at most 63 bytes, no control characters (recording_device_name makes one)
   DisplayGeometry display;
   double nominal_rate_hz = 0;
   RecordingClock clock = RecordingClock::Monotonic;
@@ -36,6 +36,11 @@ struct Record {
   friend bool operator==(const Record&, const Record&) = default;
   std::int64_t time_ns() const;  // sample time, or event end time
 };
+
+// A source's description as a header's device name: control characters and bytes that are not UTF-8
+// escaped (\\xNN), cut to 63 bytes without splitting a character (issue 23 item 9: a file name or a
+// HID product string with a control character made every recording of that source fail).
+std::string recording_device_name(const std::string& description);
 
 std::vector<std::uint8_t> encode_recording_header(const RecordingHeader& h);
 std::vector<std::uint8_t> encode_record(const Record& r);
