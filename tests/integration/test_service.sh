@@ -161,6 +161,19 @@ write_config "$WORK/good.toml" 2000 1280 1024 "$PORT" '"127.0.0.0/8"'
 grep -q "ok: reloaded" "$WORK/ctl.out" || fail "reload reply: $(cat "$WORK/ctl.out")"
 sleep 1
 
+echo "== a flood of control commands starves neither status nor the subscribers"
+# Issue 23 item 3: a flood of record-stop (each waiting for the publishing loop) made status fail
+# 5/5 and a subscribed watcher lose its lease and ~9 s of gaze while reporting lost=0. Control now
+# has its own socket and thread, apart from the thread that answers status and heartbeats.
+flood() { for _ in $(seq 1 150); do "$CTL" --server "$SRV" record-stop >/dev/null 2>&1; done; }
+F=(); for _ in 1 2 3 4; do flood & F+=($!); done
+ok=0
+for _ in 1 2 3 4 5; do "$CTL" --server "$SRV" status >/dev/null 2>&1 && ok=$((ok + 1)); sleep 0.3; done
+wait "${F[@]}"
+[ $ok -eq 5 ] || fail "status answered $ok of 5 times during a control flood"
+grep -c "control record-stop from the control socket" "$WORK/daemon.log" | { read -r n; [ "$n" -ge 500 ]; } \
+  || fail "the flood's 600 requests were not all answered and logged"
+
 echo "== the long-lived subscribers never noticed"
 kill -INT $W $R; wait $W; rw=$?; wait $R; rr=$?
 [ $rw -eq 0 ] && [ $rr -eq 0 ] || fail "watch/record exited $rw/$rr"
