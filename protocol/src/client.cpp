@@ -197,6 +197,11 @@ void GazeClient::loop() {
         if (now >= next_time_sync_ns_) {
           TimeSyncRequest t;
           t.client_send_ns = monotonic_ns();
+          {
+            std::lock_guard lock(mutex_);
+            sync_sent_.push_back(t.client_send_ns);
+            if (sync_sent_.size() > kTimeSyncKeep) sync_sent_.pop_front();
+          }
           send(t);
           next_time_sync_ns_ = now + (time_syncs_done_ < 4 ? 50 * kMs : 2000 * kMs);
         }
@@ -242,20 +247,7 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
       last_heard_ns_ = now;
       return;
     case MessageType::TimeSyncReply: {
-      const auto& t = std::get<TimeSyncReply>(m.payload);
-      // NTP: offset = ((t2 - t1) + (t3 - t4)) / 2, delay = (t4 - t1) - (t3 - t2).
-      const std::int64_t offset = ((t.server_receive_ns - t.client_send_ns) + (t.server_send_ns - now)) / 2;
-      const std::int64_t delay = (now - t.client_send_ns) - (t.server_send_ns - t.server_receive_ns);
-      if (delay < 0) return;
-      std::lock_guard lock(mutex_);
-      ++time_syncs_done_;
-      sync_samples_.push_back({offset, delay});
-      if (sync_samples_.size() > kTimeSyncKeep) sync_samples_.pop_front();
-      // The exchange with the smallest round trip has the least queueing error (NTP's clock filter).
-      const auto best = std::min_element(sync_samples_.begin(), sync_samples_.end(),
-                                         [](const SyncSample& a, const SyncSample& b) { return a.delay < b.delay; });
-      stats_.clock_offset_ns = best->offset;
-      stats_.clock_round_trip_ns = best->delay;
+      on_time_sync(std::get<TimeSyncReply>(m.payload), now);
       return;
     }
     case MessageType::Error: {
@@ -286,6 +278,52 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
       return;
     }
   }
+}
+
+// NTP's exchange (offset = ((t2 - t1) + (t3 - t4)) / 2, delay = (t4 - t1) - (t3 - t2)), hardened
+// (issue 23 item 12: one reply could set an absurd offset, and times near +-2^63 wrapped): only a
+// reply to a request this client sent counts; a server time outside +-2^60 ns (36 years) is dropped
+// so that no difference below can overflow, and so is a round trip outside [0, 10 s]; the offset
+// is that of the least-delay exchange (NTP's clock filter) among those that agree with the median
+// of the last few, so a minority of bad exchanges cannot move it.
+void GazeClient::on_time_sync(const TimeSyncReply& t, std::int64_t now) {
+  constexpr std::int64_t kMaxTime = std::int64_t{1} << 60;
+  std::lock_guard lock(mutex_);
+  const auto sent = std::find(sync_sent_.begin(), sync_sent_.end(), t.client_send_ns);
+  if (sent == sync_sent_.end()) {
+    ++stats_.rejected;  // not an answer to a request of ours
+    return;
+  }
+  sync_sent_.erase(sent);
+  if (t.server_receive_ns < -kMaxTime || t.server_receive_ns > kMaxTime || t.server_send_ns < -kMaxTime ||
+      t.server_send_ns > kMaxTime) {
+    ++stats_.rejected;
+    return;
+  }
+  // |t1|, |t4| < 2^62 (this host's monotonic clock), |t2|, |t3| <= 2^60: every sum below fits.
+  const std::int64_t t1 = t.client_send_ns, t2 = t.server_receive_ns, t3 = t.server_send_ns, t4 = now;
+  const std::int64_t delay = (t4 - t1) - (t3 - t2);
+  if (delay < 0 || delay > 10'000'000'000) {
+    ++stats_.rejected;
+    return;
+  }
+  ++time_syncs_done_;
+  sync_samples_.push_back({(t2 - t1) / 2 + (t3 - t4) / 2, delay});
+  if (sync_samples_.size() > kTimeSyncKeep) sync_samples_.pop_front();
+  // The majority's offset (the median of all kept exchanges), then NTP's choice among the exchanges
+  // that agree with it within their own round trip (1 ms at least): the one of least delay.
+  std::vector<std::int64_t> offsets;
+  for (const SyncSample& s : sync_samples_) offsets.push_back(s.offset);
+  std::nth_element(offsets.begin(), offsets.begin() + static_cast<std::ptrdiff_t>(offsets.size() / 2), offsets.end());
+  const std::int64_t median = offsets[offsets.size() / 2];
+  const SyncSample* best = nullptr;
+  for (const SyncSample& s : sync_samples_) {
+    const std::int64_t tolerance = std::max<std::int64_t>(s.delay, 1'000'000);
+    if (s.offset - median > tolerance || median - s.offset > tolerance) continue;
+    if (best == nullptr || s.delay < best->delay) best = &s;
+  }
+  stats_.clock_offset_ns = best != nullptr ? best->offset : median;
+  stats_.clock_round_trip_ns = best != nullptr ? best->delay : sync_samples_.back().delay;
 }
 
 void GazeClient::handle_gaze(const Message& m, std::int64_t now) {

@@ -454,6 +454,84 @@ TEST(Multicast, ASpoofedHugeSequenceNumberDoesNotBlackholeTheClient) {
   EXPECT_LT(st.samples.lost, 50u);
 }
 
+// A hand-driven server: completes the handshake, then answers every TIME_SYNC with `answer`.
+class FakeTimeServer {
+ public:
+  using Answer = std::function<std::vector<TimeSyncReply>(const TimeSyncRequest&)>;
+  explicit FakeTimeServer(Answer answer) : socket_(UdpSocket::bind(Endpoint{kLoopback, 0})), answer_(std::move(answer)) {
+    thread_ = std::thread([this] { loop(); });
+  }
+  ~FakeTimeServer() {
+    stop_ = true;
+    thread_.join();
+  }
+  Endpoint endpoint() const { return socket_.local_endpoint(); }
+
+ private:
+  void reply(const Endpoint& to, std::uint64_t seq, Payload p) {
+    Message m{Header{}, std::move(p)};
+    m.header.sequence = seq;
+    m.header.send_time_ns = m.header.origin_time_ns = monotonic_ns();
+    socket_.send_to(to, encode(m));
+  }
+  void loop() {
+    std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+    while (!stop_) {
+      Endpoint from;
+      const std::size_t n = socket_.receive(buf, from, 10);
+      Message m;
+      if (n == 0 || !decode(std::span<const std::uint8_t>(buf.data(), n), m)) continue;
+      const std::uint64_t seq = m.header.sequence;
+      if (const auto* h = std::get_if<Hello>(&m.payload)) reply(from, seq, Challenge{h->client_nonce, {}, 10000});
+      if (std::holds_alternative<Subscribe>(m.payload)) {
+        Subscribed s;
+        s.session_id = 42;
+        s.streams = kStreamSamples;
+        s.lease_ms = 5000;
+        s.nominal_rate_hz = 250;
+        reply(from, seq, s);
+      }
+      if (const auto* t = std::get_if<TimeSyncRequest>(&m.payload)) {
+        for (const TimeSyncReply& r : answer_(*t)) reply(from, seq, r);
+      }
+    }
+  }
+  UdpSocket socket_;
+  Answer answer_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+// Issue 23 item 12: one TIME_SYNC reply could set an absurd clock offset, and times near +-2^63
+// wrapped in the arithmetic. Replies to requests never sent, times beyond +-2^60 and impossible
+// round trips are dropped, and one bad exchange among honest ones cannot move the median.
+TEST(Client, TimeSyncSurvivesAbsurdAndUnsolicitedReplies) {
+  constexpr std::int64_t kTrueOffset = 5'000'000;  // the fake server's clock runs 5 ms ahead
+  std::atomic<int> count{0};
+  FakeTimeServer server([&](const TimeSyncRequest& t) {
+    const std::int64_t now = monotonic_ns() + kTrueOffset;
+    std::vector<TimeSyncReply> out{{t.client_send_ns, now, now}};
+    switch (count++ % 4) {
+      case 1: out.push_back({t.client_send_ns + 1, 0, 0}); break;  // answers a request never sent
+      case 2: out.push_back({t.client_send_ns, INT64_MAX, INT64_MIN}); break;  // wraps if computed naively
+      case 3: out[0] = {t.client_send_ns, now + 3'600'000'000'000, now + 3'600'000'000'000}; break;  // one hour off
+      default: break;
+    }
+    return out;
+  });
+  ClientOptions co = client_options(server.endpoint());
+  GazeClient c(co);
+  c.start();
+  ASSERT_TRUE(c.wait_subscribed(2000));
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));  // the first syncs come 50 ms apart
+  const ClientStats st = c.stats();
+  EXPECT_GE(count.load(), 4);
+  EXPECT_NEAR(static_cast<double>(st.clock_offset_ns), static_cast<double>(kTrueOffset), 2e6)
+      << "one bad exchange in four moved the offset";
+  EXPECT_GE(st.clock_round_trip_ns, 0);
+  EXPECT_GE(st.rejected, 2u);
+}
+
 TEST(Client, CompletesTheHandshakeWhenTheRoundTripExceedsTheRetryInterval) {
   // A slow "daemon" that answers each request only after 500 ms (a retry interval is 200 ms).
   UdpSocket fake = UdpSocket::bind(Endpoint{kLoopback, 0});

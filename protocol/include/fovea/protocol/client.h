@@ -94,6 +94,7 @@ class GazeClient {
   void send(Payload p);
   void handle(const Message& m, std::int64_t now);
   void handle_gaze(const Message& m, std::int64_t now);
+  void on_time_sync(const TimeSyncReply& t, std::int64_t now);
   void begin_handshake(std::int64_t now, bool fresh);
 
   ClientOptions options_;
@@ -125,6 +126,7 @@ class GazeClient {
   std::vector<std::int64_t> latency_all_;
   struct SyncSample { std::int64_t offset, delay; };
   std::deque<SyncSample> sync_samples_;
+  std::deque<std::int64_t> sync_sent_;  // client_send_ns of the requests awaiting a reply (the last few)
 
   DecodeCounters rejected_;
   std::atomic<bool> subscribed_{false};
