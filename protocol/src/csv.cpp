@@ -1,5 +1,7 @@
 #include "fovea/protocol/csv.h"
 
+#include "fovea/protocol/bounded_file.h"
+
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -48,7 +50,7 @@ struct LineParser {
 
   [[noreturn]] void fail(std::size_t col, const std::string& why) const {
     throw std::runtime_error(source + ":" + std::to_string(line_no) + ": column " + std::to_string(col + 1) + " (" +
-                             kColumns[col] + ") = \"" + fields[col] + "\": " + why);
+                             kColumns[col] + ") = \"" + escape_for_log(fields[col], 40) + "\": " + why);
   }
   template <typename T>
   T integer(std::size_t col, T lo, T hi) const {

@@ -102,6 +102,25 @@ grep -qF 'evil\\x1b[2J\\x0aname.fgr' "$WORK/evil.info" || fail "device not escap
 "$CTL" convert "$WORK/evil-out.fgr" "$WORK/evil.csv" 2>/dev/null || fail "convert to csv"
 "$CTL" convert "$WORK/evil.csv" "$WORK/evil-back.fgr" 2>/dev/null || fail "convert back refused"
 
+echo "== record across a daemon restart with another display ends the recording, saying why"
+# Issue 23 item 12: the samples after the restart went into the file under the first header.
+"$TRACKERD" --source synthetic --rate 250 --port $PORT >"$WORK/d1.log" 2>&1 &
+D1=$!; PIDS+=($D1)
+wait_status || fail "first daemon did not answer"
+"$CTL" --server "$SRV" record "$WORK/restart.fgr" --duration 20 >/dev/null 2>"$WORK/restart.err" &
+RR=$!; PIDS+=($RR)
+sleep 1
+kill -TERM $D1; wait $D1
+"$TRACKERD" --source synthetic --rate 250 --port $PORT --display "1280x1024@376x301mm,600mm" >"$WORK/d2.log" 2>&1 &
+D2=$!; PIDS+=($D2)
+wait $RR; rc=$?
+kill -TERM $D2; wait $D2
+[ $rc -eq 1 ] || fail "record across a display change exited $rc: $(cat "$WORK/restart.err")"
+grep -q "the daemon's display changed from 1920x1080@.* to 1280x1024@.*; the recording ends here" "$WORK/restart.err" \
+  || fail "unclear display-change message: $(cat "$WORK/restart.err")"
+n=$("$CTL" info "$WORK/restart.fgr" | awk '/^samples/{print $2}')
+[ "$n" -ge 150 ] && [ "$n" -le 400 ] || fail "the recording holds $n samples (want only the first daemon's ~250)"
+
 echo "== daemon --record writes what it publishes"
 "$TRACKERD" --source synthetic --rate 500 --port $PORT --duration 1 --record "$WORK/daemon.fgr" 2>/dev/null || fail "daemon --record"
 n=$("$CTL" info "$WORK/daemon.fgr" | awk '/^samples/{print $2}')

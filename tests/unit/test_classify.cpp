@@ -600,4 +600,16 @@ TEST(ClassifyCli, MalformedInputNamesTheLineAndWritesNothing) {
   EXPECT_EQ(c.run(in + " " + out + " -5 1920 1080 531 299 650", err), 1);
   EXPECT_NE(err.find("RATE_HZ"), std::string::npos) << err;
 }
+
+// Issue 23 item 12: a 50 MB bad field was echoed whole; control characters reached the terminal.
+TEST(ClassifyCli, ABadFieldIsEchoedShortAndEscaped) {
+  Ctl c;
+  const std::string out = (c.dir / "out.csv").string();
+  const std::string in = c.write("bad.csv", "t_ms,x_px,y_px\n0,1,2\n4,\x1b[2J" + std::string(5'000'000, '9') + "x,2\n");
+  std::string err;
+  EXPECT_EQ(c.run(in + " " + out + kGeometry, err), 1);
+  EXPECT_LT(err.size(), 400u) << "the field was echoed whole";
+  EXPECT_EQ(err.find('\x1b'), std::string::npos);
+  EXPECT_NE(err.find(":3: x_px \"\\x1b[2J999"), std::string::npos) << err.substr(0, 300);
+}
 #endif

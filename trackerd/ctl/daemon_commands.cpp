@@ -199,12 +199,25 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
   std::mutex writer_mutex;
   std::string failure;
   std::string device = "fovea-trackerd at " + c.server;
+  DisplayGeometry header_display;
   int rc = run_client(
       c, "record", kStreamSamples | kStreamEvents,
       [&](GazeClient& client) {
         const auto write = [&](Record r) {
+          // The client resubscribes on its own (a daemon restart); a daemon restarted with another
+          // display must not go on into a file whose header says the old one (issue 23 item 12).
+          // Callbacks run on the client's thread after it handled SUBSCRIBED, so session() is this item's.
+          const std::optional<Subscribed> session = client.session();
           std::lock_guard lock(writer_mutex);
           if (!writer) return;
+          if (session && !(session->display == header_display)) {
+            failure = "the daemon's display changed from " + to_string(header_display) + " to " +
+                      to_string(session->display) + " (restarted with another configuration?); the recording ends "
+                      "here: record the new display into another file";
+            writer.reset();
+            stop_requested() = true;
+            return;
+          }
           try {
             writer->append(r);
           } catch (const std::exception& e) {
@@ -221,6 +234,7 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
         if (auto st = GazeClient::query_status(parse_endpoint(c.server, kDefaultPort), 500)) device = st->source.value;
         h.device = recording_device_name(device);
         h.display = s.display;
+        header_display = s.display;
         h.nominal_rate_hz = s.nominal_rate_hz;
         h.clock = RecordingClock::Monotonic;
         h.created_unix_ns = realtime_ns();

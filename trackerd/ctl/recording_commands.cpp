@@ -117,7 +117,8 @@ double classify_field(const std::string& text, const char* name, bool nan_ok, co
     used = 0;
   }
   if (t.empty() || used != t.size() || !std::isfinite(v)) {
-    throw std::runtime_error(where + ": " + name + " \"" + text + "\" is not a finite number" +
+    // Shown escaped and shortened: a 50 MB field was echoed whole (issue 23 item 12).
+    throw std::runtime_error(where + ": " + name + " \"" + escape_for_log(text, 40) + "\" is not a finite number" +
                              (nan_ok ? " or nan" : ""));
   }
   return v;
@@ -188,7 +189,7 @@ ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeome
     if (line_no == 1) {
       if (line.size() >= 3 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // UTF-8 BOM
       if (line != "t_ms,x_px,y_px") {
-        throw std::runtime_error(where + ": header is \"" + line + "\", expected \"t_ms,x_px,y_px\"");
+        throw std::runtime_error(where + ": header is \"" + escape_for_log(line, 40) + "\", expected \"t_ms,x_px,y_px\"");
       }
       continue;
     }
