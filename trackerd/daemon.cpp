@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <chrono>
 #include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <mutex>
@@ -22,6 +23,7 @@
 #include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/control_socket.h"
 #include "service/command_mailbox.h"
+#include "service/control_paths.h"
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
 #include "sources/source_table.h"
@@ -98,6 +100,7 @@ class Daemon {
   std::unique_ptr<protocol::ControlSocket> control_socket_;  // local control; null: none
   std::unique_ptr<protocol::RecordingWriter> recorder_;
   std::string recording_path_;
+  std::string start_dir_ = std::filesystem::current_path().string();  // record-start's default directory
   protocol::DisplayGeometry display_;  // what clients are told
   std::uint64_t control_refused_logged_ = 0;
   std::int64_t next_refusal_check_ns_ = 0;
@@ -285,7 +288,18 @@ protocol::ControlReply Daemon::execute(const protocol::ControlRequest& r) {
     case protocol::ControlCommand::StartRecording: {
       if (r.argument.value.empty()) return fail("record-start needs a file path");
       if (recorder_) return fail("already recording to " + recording_path_);
-      if (const std::string err = start_recording(r.argument.value, false); !err.empty()) return fail(err);
+      std::string path;
+      try {
+        path = service::confined_path(r.argument.value, config_.network.control_dir.empty() ? start_dir_
+                                                                                            : config_.network.control_dir);
+      } catch (const std::exception& e) {
+        // The log has it all; the 63-byte reply keeps the reason, not the path the client knows.
+        spdlog::warn("{}", e.what());
+        const std::string what = e.what();
+        const std::size_t colon = what.rfind(": ");
+        return fail(colon == std::string::npos ? what : what.substr(colon + 2));
+      }
+      if (const std::string err = start_recording(path, false); !err.empty()) return fail(err);
       out.message.value = "recording to " + recording_path_;
       return out;
     }

@@ -49,6 +49,7 @@ port = $5
 lease_ms = $2
 max_subscribers = 16
 control_allow = [$6]
+control_dir = "$WORK"
 
 [calibration]
 file = "cal.json"
@@ -141,6 +142,15 @@ out=$("$CTL" --server "$SRV" record-start "$WORK/ctl.fgr" 2>&1) && fail "record-
 grep -q "already exists" <<<"$out" || fail "overwrite refusal unclear: $out"
 out=$("$CTL" --server "$SRV" record-stop 2>&1) && fail "record-stop without a recording succeeded"
 grep -q "failed: not recording" <<<"$out" || fail "record-stop reply: $out"
+# Issue 23 item 2: record-start wrote wherever the daemon could (a root daemon created files in
+# /etc) and "../" walked out; now it writes only inside [network] control_dir.
+for bad in /etc/fovea-test-$$.fgr ../outside-$$.fgr "$WORK/../outside-$$.fgr"; do
+  out=$("$CTL" --server "$SRV" record-start "$bad" 2>&1) && fail "record-start $bad accepted"
+  grep -q "outside the recordings directory\|outside the record" <<<"$out" || fail "record-start $bad: unclear refusal: $out"
+done
+[ ! -e /etc/fovea-test-$$.fgr ] && [ ! -e "$(dirname "$WORK")/outside-$$.fgr" ] || fail "a refused record-start wrote a file"
+grep -q "record-start /etc/fovea-test-$$.fgr: outside the recordings directory $WORK" "$WORK/daemon.log" \
+  || fail "the refusal is not logged in full"
 
 echo "== SIGHUP reloads a changed configuration without dropping subscribers"
 write_config "$WORK/good.toml" 2000 1280 1024 $((PORT + 1)) '"127.0.0.0/8"'

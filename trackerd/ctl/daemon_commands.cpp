@@ -328,8 +328,8 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
   auto* record_start =
       app.add_subcommand("record-start", "make the daemon record what it publishes to PATH on its machine");
   record_start->add_option("PATH", control_record_path,
-                           "new .fgr file, at most 63 bytes; relative to the daemon's working directory "
-                           "(/var/lib/fovea for the service)")
+                           "new .fgr file, at most 63 bytes, inside the daemon's [network] control_dir (its "
+                           "working directory by default: /var/lib/fovea for the service); relative to it")
       ->required();
   auto* record_stop = app.add_subcommand("record-stop", "make the daemon stop the recording it is writing");
   auto* calibration_load = app.add_subcommand(

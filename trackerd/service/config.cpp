@@ -297,7 +297,7 @@ void parse_control_allow(Checker& c, const toml::node& node, std::vector<protoco
 void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
   c.only(t, "network.",
          {"listen", "port", "multicast", "multicast_ttl", "max_subscribers", "lease_ms", "control_socket",
-          "control_allow"});
+          "control_dir", "control_allow"});
   c.string(t, "network.", "listen", n.listen, "a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
   if (const auto* node = t.get("listen"); node != nullptr && node->is_string()) {
     try {
@@ -322,6 +322,9 @@ void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
   c.string(t, "network.", "control_socket", n.control_socket,
            "the control socket's path, \"\" for the default of the port, or \"none\"");
   if (n.control_socket != "none") n.control_socket = c.path(n.control_socket);
+  c.string(t, "network.", "control_dir", n.control_dir,
+           "the directory record-start writes into, or \"\" for the daemon's working directory");
+  n.control_dir = c.path(n.control_dir);
   if (const toml::node* node = t.get("control_allow")) parse_control_allow(c, *node, n.control_allow);
 }
 
@@ -508,6 +511,7 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
   if (o.lease_ms) c.network.lease_ms = *o.lease_ms;
   if (o.control_allow) c.network.control_allow = *o.control_allow;
   if (o.control_socket) c.network.control_socket = *o.control_socket;
+  if (o.control_dir) c.network.control_dir = *o.control_dir;
   if (o.record_path) c.record.path = *o.record_path;
   if (o.record_append) c.record.append = *o.record_append;
   if (o.classifier_method) c.classifier.method = *o.classifier_method;
@@ -549,6 +553,7 @@ std::string to_toml(const DaemonConfig& c) {
   out += fmt::format("multicast_ttl = {}\nmax_subscribers = {}\nlease_ms = {}\n", n.multicast_ttl, n.max_subscribers,
                      n.lease_ms);
   out += "control_socket = " + quoted(n.control_socket) + "\n";
+  out += "control_dir = " + quoted(n.control_dir) + "\n";
   std::vector<std::string> nets;
   for (const auto& a : n.control_allow) nets.push_back(quoted(a.to_string()));
   out += "control_allow = [" + join(nets, ", ") + "]\n";
@@ -602,6 +607,7 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.live, "display", display(a.display), display(b.display));
   note(ch.live, "network.lease_ms", a.network.lease_ms, b.network.lease_ms);
   note(ch.live, "network.max_subscribers", a.network.max_subscribers, b.network.max_subscribers);
+  note(ch.live, "network.control_dir", text(a.network.control_dir), text(b.network.control_dir));
   note(ch.live, "network.control_allow", nets(a.network.control_allow), nets(b.network.control_allow));
   note(ch.live, "record.path", text(a.record.path), text(b.record.path));
   note(ch.live, "record.append", a.record.append, b.record.append);

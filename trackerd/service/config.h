@@ -37,6 +37,9 @@ struct NetworkConfig {
   // default path for the port, "none" no local control. UDP control is authorised by source address
   // only, so it is off unless networks are listed here (every user on them is then an operator).
   std::string control_socket;
+  // Where record-start may create recordings (service/control_paths.h); "" = the daemon's working
+  // directory when it started (/var/lib/fovea for the service).
+  std::string control_dir;
   std::vector<protocol::Ipv4Cidr> control_allow;
   friend bool operator==(const NetworkConfig&, const NetworkConfig&) = default;
 };
@@ -134,6 +137,7 @@ struct CliOverrides {
   std::optional<std::uint32_t> lease_ms;
   std::optional<std::vector<protocol::Ipv4Cidr>> control_allow;
   std::optional<std::string> control_socket;
+  std::optional<std::string> control_dir;
   std::optional<std::string> record_path;
   std::optional<bool> record_append;
   std::optional<std::string> classifier_method;
