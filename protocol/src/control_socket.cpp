@@ -138,7 +138,9 @@ ControlSocket::~ControlSocket() {
   ::unlink(path_.c_str());
 }
 
-ControlSocket::Stats ControlSocket::stats() const { return {requests_.load(), malformed_.load(), timed_out_.load()}; }
+ControlSocket::Stats ControlSocket::stats() const {
+  return {requests_.load(), malformed_.load(), timed_out_.load(), rate_limited_.load()};
+}
 
 void ControlSocket::serve() {
   for (;;) {
@@ -176,11 +178,22 @@ void ControlSocket::serve_one(int fd) {
   }
   const auto& req = std::get<ControlRequest>(m.payload);
   ControlReply answer{req.command, ControlResult::Failed, {}};
-  try {
-    answer = handler_(req, who);
-    answer.command = req.command;
-  } catch (const std::exception& e) {
-    answer.message.value = e.what();
+  const std::int64_t now = monotonic_ns();
+  tokens_ = std::min(kMaxRequestsPerSecond,
+                     tokens_ + kMaxRequestsPerSecond * static_cast<double>(now - tokens_at_ns_) * 1e-9);
+  tokens_at_ns_ = now;
+  if (tokens_ < 1) {
+    ++rate_limited_;
+    answer.result = ControlResult::Refused;
+    answer.message.value = "too many control requests; nothing was done";
+  } else {
+    tokens_ -= 1;
+    try {
+      answer = handler_(req, who);
+      answer.command = req.command;
+    } catch (const std::exception& e) {
+      answer.message.value = e.what();
+    }
   }
   if (answer.message.value.size() >= decltype(answer.message)::capacity) {
     answer.message.value = answer.message.value.substr(0, decltype(answer.message)::capacity - 4) + "...";

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -132,6 +133,36 @@ TEST(ControlSocket, SilentAndGarbledClientsAreDroppedAndTheNextIsServed) {
   ::close(garbled);
   EXPECT_EQ(s.stats().timed_out, 1u);
   EXPECT_EQ(s.stats().malformed, 1u);
+}
+
+// Issue 23 item 3: requests are rate-limited and still answered, never dropped silently.
+TEST(ControlSocket, AFloodIsAnsweredButOnlyTheRateIsExecuted) {
+  TempDir d;
+  std::atomic<int> executed{0};
+  ControlSocket s(d.sock(), 0660, [&](const ControlRequest& r, const PeerCredentials& who) {
+    ++executed;
+    return echo(r, who);
+  });
+  int refused = 0, answered = 0;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 300; ++i) {
+    std::string error;
+    const auto r = send_local_control(d.sock(), request("x"), 2000, error);
+    ASSERT_TRUE(r) << error;
+    ++answered;
+    if (r->result == ControlResult::Refused) {
+      EXPECT_EQ(r->message.value, "too many control requests; nothing was done");
+      ++refused;
+    }
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(answered, 300);
+  EXPECT_LE(executed.load(), static_cast<int>(ControlSocket::kMaxRequestsPerSecond * (1 + seconds)) + 1);
+  EXPECT_EQ(refused + executed.load(), 300);
+  EXPECT_EQ(s.stats().rate_limited, static_cast<std::uint64_t>(refused));
+  if (seconds < 2) {
+    EXPECT_GT(refused, 0) << "300 requests in " << seconds << " s were all executed";
+  }
 }
 
 TEST(ControlSocket, AMissingSocketOrNoPermissionIsNamed) {

@@ -8,7 +8,8 @@
 // SOCK_SEQPACKET: one connection per request, one CONTROL_REQUEST message and one CONTROL_REPLY
 // (the gaze protocol's own encoding), boundaries kept, and the sender known by its credentials
 // (SO_PEERCRED) for the log. A connection that sends nothing, or something else, is closed after
-// a second without blocking the next one for longer; requests are served one at a time.
+// a second without blocking the next one for longer; requests are served one at a time, and beyond
+// kMaxRequestsPerSecond they are answered Refused without being executed.
 #include <sys/types.h>
 
 #include <atomic>
@@ -39,7 +40,11 @@ class ControlSocket {
     std::uint64_t requests = 0;   // answered (ok, failed or refused by the handler)
     std::uint64_t malformed = 0;  // not one CONTROL_REQUEST: closed unanswered
     std::uint64_t timed_out = 0;  // connected and sent nothing within the receive timeout
+    std::uint64_t rate_limited = 0;  // answered "too many", not executed
   };
+  // Requests beyond this rate (a burst of as many is allowed) are answered Refused and not executed,
+  // so a flood cannot keep the publishing loop busy executing commands.
+  static constexpr double kMaxRequestsPerSecond = 50;
 
   // Creates the socket at `path` (mode `mode`; a stale socket of an earlier run is replaced, a live
   // one or anything that is not a socket is refused) and starts serving. Throws std::system_error
@@ -60,7 +65,9 @@ class ControlSocket {
   int receive_timeout_ms_;
   int listen_fd_ = -1;
   int stop_fd_ = -1;  // eventfd: wakes the thread to stop
-  std::atomic<std::uint64_t> requests_{0}, malformed_{0}, timed_out_{0};
+  std::atomic<std::uint64_t> requests_{0}, malformed_{0}, timed_out_{0}, rate_limited_{0};
+  double tokens_ = kMaxRequestsPerSecond;  // the serving thread's token bucket
+  std::int64_t tokens_at_ns_ = 0;
   std::thread thread_;
 };
 
