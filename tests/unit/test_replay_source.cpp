@@ -63,6 +63,31 @@ TEST(ReplaySource, SpeedFactorAndLoopKeepTimeMonotonic) {
   EXPECT_DOUBLE_EQ(src.nominal_rate_hz(), 200.0);
 }
 
+// Issue 23 item 12: times near +-2^63 wrapped in the replay's arithmetic.
+TEST(ReplaySource, RefusesTimesThatWouldWrap) {
+  ReplayOptions o;
+  o.path = "wrap.fgr";
+  for (const std::int64_t t : {INT64_MAX, INT64_MIN, (std::int64_t{1} << 61) + 1}) {
+    auto rec = make_recording(10, 250);
+    std::get<protocol::GazeSample>(rec.records.back().item).tracker_time_ns = t;
+    try {
+      ReplaySource s(o, rec);
+      ADD_FAILURE() << t;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("recording wrap.fgr: record " + std::to_string(rec.records.size() - 1) +
+                                           " has the time " + std::to_string(t) + " ns"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  auto rec = make_recording(10, 250);
+  protocol::GazeEvent e;
+  e.start_time_ns = 0;
+  e.duration_ns = INT64_MAX;
+  rec.records.push_back(protocol::Record{999, e});
+  EXPECT_THROW(ReplaySource(o, rec), std::runtime_error);
+}
+
 TEST(ReplaySource, RefusesBadSpeedAndEmptyRecordings) {
   const auto rec = make_recording(10, 250);
   ReplayOptions o;

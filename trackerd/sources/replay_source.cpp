@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "fovea/protocol/bounded_file.h"
+
 namespace fovea::trackerd {
 
 using protocol::GazeEvent;
@@ -22,6 +24,7 @@ ReplaySource::ReplaySource(ReplayOptions options, protocol::Recording recording)
     return std::holds_alternative<GazeSample>(r.item);
   });
   if (!has_sample) throw std::runtime_error("recording " + options_.path + " holds no intact gaze samples");
+  refuse_absurd_times();
   std::int64_t first = INT64_MAX, last = INT64_MIN;
   for (const auto& r : recording_.records) {
     first = std::min(first, r.time_ns());
@@ -31,6 +34,25 @@ ReplaySource::ReplaySource(ReplayOptions options, protocol::Recording recording)
   const double rate = recording_.header.nominal_rate_hz > 0 ? recording_.header.nominal_rate_hz : 1000.0;
   loop_span_ns_ = (last - first) + static_cast<std::int64_t>(1e9 / rate);
   live_origin_ns_ = options_.start_time_ns;
+}
+
+// Times near +-2^63 would wrap in the span, the rebasing and the loop arithmetic (issue 23 item 12).
+// Every time must lie within +-2^61 ns (73 years) and every event last at most that long, so that
+// no sum or difference below can overflow.
+void ReplaySource::refuse_absurd_times() const {
+  constexpr std::int64_t kMax = std::int64_t{1} << 61;
+  for (std::size_t i = 0; i < recording_.records.size(); ++i) {
+    const auto& item = recording_.records[i].item;
+    const std::int64_t t = std::holds_alternative<GazeSample>(item) ? std::get<GazeSample>(item).tracker_time_ns
+                                                                     : std::get<GazeEvent>(item).start_time_ns;
+    const std::int64_t d = std::holds_alternative<GazeEvent>(item) ? std::get<GazeEvent>(item).duration_ns : 0;
+    if (t < -kMax || t > kMax || d < 0 || d > kMax) {
+      throw std::runtime_error("recording " + protocol::escape_for_log(options_.path) + ": record " +
+                               std::to_string(i) + " has the time " + std::to_string(t) + " ns" +
+                               (d != 0 ? " (duration " + std::to_string(d) + " ns)" : std::string()) +
+                               ", beyond +-2^61 ns: not a recording this replays");
+    }
+  }
 }
 
 std::string ReplaySource::description() const {

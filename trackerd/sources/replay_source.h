@@ -30,6 +30,7 @@ class ReplaySource final : public GazeSource {
   std::uint64_t loops_completed() const { return loops_; }
 
  private:
+  void refuse_absurd_times() const;
   ReplayOptions options_;
   protocol::Recording recording_;
   std::size_t index_ = 0;
