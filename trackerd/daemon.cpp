@@ -91,6 +91,7 @@ class Daemon {
     std::string configured_calibration;
     protocol::DisplayGeometry display;
     std::string running_calibration;  // its description, for the log
+    std::string calibration_dir;      // "" : any file; else calibration-load is confined to it
   };
   mutable std::mutex control_view_mutex_;
   ControlView control_view_;
@@ -353,7 +354,7 @@ bool Daemon::open_control_socket() {
 // The publishing loop tells the control thread the configured calibration file and the display.
 void Daemon::publish_control_view() {
   std::lock_guard lock(control_view_mutex_);
-  control_view_ = {config_.calibration.file, display_, calibration_->description()};
+  control_view_ = {config_.calibration.file, display_, calibration_->description(), config_.network.calibration_dir};
 }
 
 // calibration-load: "none" no calibration; "configured" the configuration's file; anything else a
@@ -379,7 +380,18 @@ protocol::ControlReply Daemon::submit_calibration_load(const protocol::ControlRe
   // std::function must be copyable: the loaded stage travels in a shared holder.
   auto stage = std::make_shared<std::unique_ptr<service::CalibrationStage>>();
   try {
-    *stage = service::load_calibration_stage(next_override.value_or(view.configured_calibration), view.display);
+    std::string file = next_override.value_or(view.configured_calibration);
+    const bool confined = next_override && !next_override->empty() && !view.calibration_dir.empty();
+    if (confined) {
+      try {
+        file = service::confined_path(file, view.calibration_dir, "calibration-load", "calibrations directory");
+      } catch (const std::exception& e) {
+        spdlog::warn("{}", e.what());  // in full; the 63-byte reply keeps the reason
+        const std::string what = e.what();
+        return reply(protocol::ControlResult::Failed, what.substr(what.rfind(": ") + 2));
+      }
+    }
+    *stage = service::load_calibration_stage(file, view.display, /*follow_symlinks=*/!confined);
   } catch (const std::exception& e) {
     spdlog::error("calibration-load {}: {}; keeping {}", protocol::escape_for_log(argument), e.what(),
                   view.running_calibration);

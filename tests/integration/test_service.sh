@@ -50,6 +50,7 @@ lease_ms = $2
 max_subscribers = 16
 control_allow = [$6]
 control_dir = "$WORK"
+calibration_dir = "$WORK/cals"
 
 [calibration]
 file = "cal.json"
@@ -151,6 +152,15 @@ done
 [ ! -e /etc/fovea-test-$$.fgr ] && [ ! -e "$(dirname "$WORK")/outside-$$.fgr" ] || fail "a refused record-start wrote a file"
 grep -q "record-start /etc/fovea-test-$$.fgr: outside the recordings directory $WORK" "$WORK/daemon.log" \
   || fail "the refusal is not logged in full"
+# calibration-load is confined to [network] calibration_dir, and never follows a link out of it.
+mkdir -p "$WORK/cals"; cp "$WORK/cal.json" "$WORK/cals/ok.json"; ln -s "$WORK/cal.json" "$WORK/cals/link.json"
+"$CTL" --server "$SRV" calibration-load "$WORK/cals/ok.json" >"$WORK/ctl.out" 2>&1 || fail "calibration-load inside: $(cat "$WORK/ctl.out")"
+out=$("$CTL" --server "$SRV" calibration-load "$WORK/cal.json" 2>&1) && fail "calibration-load outside accepted"
+grep -q "failed: outside the calibrations directory" <<<"$out" || fail "calibration-load outside: unclear refusal: $out"
+out=$("$CTL" --server "$SRV" calibration-load "$WORK/cals/link.json" 2>&1) && fail "calibration-load through a link accepted"
+grep -q "failed: calibration file .*link.json: is a sy" <<<"$out" || fail "through a link: unclear refusal: $out"
+grep -q "link.json: is a symbolic link (not followed)" "$WORK/daemon.log" || fail "the link refusal is not logged in full"
+"$CTL" --server "$SRV" calibration-load configured >/dev/null 2>&1 || fail "calibration-load configured"
 
 echo "== SIGHUP reloads a changed configuration without dropping subscribers"
 write_config "$WORK/good.toml" 2000 1280 1024 $((PORT + 1)) '"127.0.0.0/8"'

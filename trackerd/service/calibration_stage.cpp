@@ -90,11 +90,11 @@ class MappedCalibration final : public CalibrationStage {
 }  // namespace
 
 std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file,
-                                                         const protocol::DisplayGeometry& display) {
+                                                         const protocol::DisplayGeometry& display, bool follow_symlinks) {
   if (file.empty()) return std::make_unique<IdentityCalibration>();
   // A control request names the file: read it as a hostile user's path (regular file, bounded,
   // never blocking), then parse with the same checks as calib::load_calibration.
-  const std::string text = protocol::read_bounded_file(file, {.max_bytes = kMaxCalibrationFileBytes, .what = "calibration file"});
+  const std::string text = protocol::read_bounded_file(file, {.max_bytes = kMaxCalibrationFileBytes, .follow_symlinks = follow_symlinks, .what = "calibration file"});
   calib::Calibration cal = calib::parse_calibration(text, protocol::escape_for_log(file));  // names the field at fault
   if (cal.display) {
     if (cal.display->width_px != display.width_px || cal.display->height_px != display.height_px) {

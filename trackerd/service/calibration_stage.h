@@ -37,7 +37,10 @@ constexpr std::size_t kMaxCalibrationFileBytes = 16u << 20;
 // Throws std::runtime_error naming the file (escaped) and what is wrong: missing, not a regular file
 // (a device, FIFO or directory is refused without reading or blocking), over the size limit, not a
 // calibration file, from a newer fovea, or made for a screen of another pixel size than `display`.
+// follow_symlinks = false: a symbolic link as the file itself is refused (a control request's path
+// confined to a directory, where a link could lead out of it).
 std::unique_ptr<CalibrationStage> load_calibration_stage(const std::string& file,
-                                                         const protocol::DisplayGeometry& display);
+                                                         const protocol::DisplayGeometry& display,
+                                                         bool follow_symlinks = true);
 
 }  // namespace fovea::trackerd::service

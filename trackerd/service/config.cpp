@@ -297,7 +297,7 @@ void parse_control_allow(Checker& c, const toml::node& node, std::vector<protoco
 void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
   c.only(t, "network.",
          {"listen", "port", "multicast", "multicast_ttl", "max_subscribers", "lease_ms", "control_socket",
-          "control_dir", "control_allow"});
+          "control_dir", "calibration_dir", "control_allow"});
   c.string(t, "network.", "listen", n.listen, "a local IPv4 address, e.g. 127.0.0.1 or 0.0.0.0");
   if (const auto* node = t.get("listen"); node != nullptr && node->is_string()) {
     try {
@@ -325,6 +325,9 @@ void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
   c.string(t, "network.", "control_dir", n.control_dir,
            "the directory record-start writes into, or \"\" for the daemon's working directory");
   n.control_dir = c.path(n.control_dir);
+  c.string(t, "network.", "calibration_dir", n.calibration_dir,
+           "the directory calibration-load reads from, or \"\" for any file the daemon can read");
+  n.calibration_dir = c.path(n.calibration_dir);
   if (const toml::node* node = t.get("control_allow")) parse_control_allow(c, *node, n.control_allow);
 }
 
@@ -554,6 +557,7 @@ std::string to_toml(const DaemonConfig& c) {
                      n.lease_ms);
   out += "control_socket = " + quoted(n.control_socket) + "\n";
   out += "control_dir = " + quoted(n.control_dir) + "\n";
+  out += "calibration_dir = " + quoted(n.calibration_dir) + "\n";
   std::vector<std::string> nets;
   for (const auto& a : n.control_allow) nets.push_back(quoted(a.to_string()));
   out += "control_allow = [" + join(nets, ", ") + "]\n";
@@ -608,6 +612,7 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.live, "network.lease_ms", a.network.lease_ms, b.network.lease_ms);
   note(ch.live, "network.max_subscribers", a.network.max_subscribers, b.network.max_subscribers);
   note(ch.live, "network.control_dir", text(a.network.control_dir), text(b.network.control_dir));
+  note(ch.live, "network.calibration_dir", text(a.network.calibration_dir), text(b.network.calibration_dir));
   note(ch.live, "network.control_allow", nets(a.network.control_allow), nets(b.network.control_allow));
   note(ch.live, "record.path", text(a.record.path), text(b.record.path));
   note(ch.live, "record.append", a.record.append, b.record.append);

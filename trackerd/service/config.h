@@ -40,6 +40,9 @@ struct NetworkConfig {
   // Where record-start may create recordings (service/control_paths.h); "" = the daemon's working
   // directory when it started (/var/lib/fovea for the service).
   std::string control_dir;
+  // Where calibration-load may read a file (confined as record-start is, and never through a
+  // symbolic link); "" = any regular file the daemon can read.
+  std::string calibration_dir;
   std::vector<protocol::Ipv4Cidr> control_allow;
   friend bool operator==(const NetworkConfig&, const NetworkConfig&) = default;
 };

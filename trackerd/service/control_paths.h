@@ -9,8 +9,11 @@
 
 namespace fovea::trackerd::service {
 
-// The path to create for `requested` inside `dir`, or throws std::runtime_error naming both and
-// what is wrong (escaped: the request comes from a client).
-std::string confined_path(const std::string& requested, const std::string& dir);
+// The path for `requested` inside `dir`, or throws std::runtime_error naming both and what is wrong
+// (escaped: the request comes from a client). `command` and `dir_name` name the request and the
+// directory in the message.
+std::string confined_path(const std::string& requested, const std::string& dir,
+                          const std::string& command = "record-start",
+                          const std::string& dir_name = "recordings directory");
 
 }  // namespace fovea::trackerd::service
