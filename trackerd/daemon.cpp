@@ -185,8 +185,9 @@ bool Daemon::start(std::int64_t start_ns) {
                so.nominal_rate_hz, protocol::to_string(display_));
   if (so.multicast) spdlog::info("also publishing to multicast group {}", so.multicast->group.to_string());
   if (!config_.network.control_allow.empty()) {
-    spdlog::warn("control commands also accepted over UDP from {}: authorised by source address only, so every "
-                 "user on those hosts is an operator", networks(config_.network.control_allow));
+    spdlog::warn("network.control_allow ({}) is ignored: control commands come only through the control socket, "
+                 "whose permissions say who may send them (UDP shows nothing but a source address); remove the key",
+                 networks(config_.network.control_allow));
   }
   spdlog::info("calibration: {}; classifier: {}", calibration_->description(), classify_->description());
   if (notifier_.watchdog_interval_ns() > 0) {
@@ -258,7 +259,7 @@ void Daemon::service_tick() {
     next_refusal_check_ns_ = now + 1000 * kMs;
     const auto st = server_->stats();
     if (st.control_refused > control_refused_logged_) {
-      spdlog::warn("refused {} control request(s) from outside control_allow ({} refused so far)",
+      spdlog::warn("refused {} control request(s) over UDP ({} refused so far): control is local only",
                    st.control_refused - control_refused_logged_, st.control_refused);
       control_refused_logged_ = st.control_refused;
     }
@@ -490,7 +491,6 @@ protocol::ControlReply Daemon::reload(const std::string& why) {
     problems = e.what();
   }
   server_->set_limits(next.network.lease_ms, next.network.max_subscribers);
-  server_->set_control_allow(next.network.control_allow);
   if (!(next.record == config_.record)) {
     if (recorder_) stop_recording();
     if (!next.record.path.empty()) {

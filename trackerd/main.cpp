@@ -37,7 +37,6 @@ struct Flags {
   const svc::DaemonConfig defaults;
   svc::DaemonConfig d = defaults;  // receives the flag values; only flags given on the command line count
   std::string config_path, display, multicast, log_level = defaults.log_level, record_path, calibration, classifier;
-  std::vector<std::string> control_allow;
   std::string control_socket, control_dir;
   bool check_config = false, loop = false, append = false;
   trackerd::RunOptions run;
@@ -50,7 +49,7 @@ struct Flags {
   CLI::Option *o_eye = nullptr, *o_leds = nullptr, *o_downscale = nullptr, *o_no_roi = nullptr, *o_eye_size = nullptr,
               *o_eye_hard = nullptr, *o_eye_script = nullptr, *o_eye_head_offset = nullptr;
   CLI::Option *o_speed = nullptr, *o_loop = nullptr, *o_display = nullptr, *o_lease = nullptr, *o_max = nullptr,
-              *o_allow = nullptr, *o_control_socket = nullptr, *o_control_dir = nullptr, *o_calibration = nullptr, *o_classifier = nullptr, *o_log = nullptr;
+              *o_control_socket = nullptr, *o_control_dir = nullptr, *o_calibration = nullptr, *o_classifier = nullptr, *o_log = nullptr;
 };
 
 // The option groups below are added in --help order; keep it when moving an option.
@@ -147,11 +146,6 @@ void add_replay_display_and_subscriber_options(CLI::App& app, Flags& f) {
   f.o_control_dir = app.add_option("--control-dir", f.control_dir,
                                    "the directory record-start may create recordings in (relative names are "
                                    "relative to it; nothing outside it is written); default: the working directory");
-  f.o_allow = app.add_option("--control-allow", f.control_allow,
-                             "also accept control commands over UDP from these networks, A.B.C.D/N (repeat or "
-                             "separate with commas). Authorised by source address only: every user on them is an "
-                             "operator. Default: none")
-                  ->delimiter(',');
 }
 
 // Calibration, classifier, how long to run, and the log level.
@@ -213,11 +207,6 @@ svc::CliOverrides cli_overrides(const Flags& f) {
   if (given(f.o_lease)) cli.lease_ms = d.network.lease_ms;
   if (given(f.o_control_socket)) cli.control_socket = f.control_socket;
   if (given(f.o_control_dir)) cli.control_dir = std::filesystem::absolute(f.control_dir).lexically_normal().string();
-  if (given(f.o_allow)) {
-    std::vector<protocol::Ipv4Cidr> nets;
-    for (const auto& text : f.control_allow) nets.push_back(protocol::parse_cidr(text));
-    cli.control_allow = nets;
-  }
   if (given(f.o_record)) cli.record_path = f.record_path;
   if (given(f.o_append)) cli.record_append = f.append;
   if (given(f.o_calibration)) cli.calibration_file = f.calibration;

@@ -219,7 +219,7 @@ grep -q "control reload from the control socket (pid [0-9]* uid $(id -u) gid" "$
 out=$("$CTL" --server "$SRV" --control-socket "$WORK/nosuch.sock" record-stop 2>&1) && fail "a missing socket worked"
 grep -q "control socket $WORK/nosuch.sock: No such file" <<<"$out" || fail "missing socket unclear: $out"
 
-echo "== control over UDP from a network outside control_allow is refused and counted"
+echo "== control over UDP is refused and counted, also where an old configuration allowed it"
 write_config "$WORK/far.toml" 5000 1920 1080 "$PORT2" '"10.0.0.0/8"'
 # No control socket: fovea-ctl then falls back to UDP, which this daemon allows from 10/8 only.
 sed -i 's/^control_allow = .*/&\ncontrol_socket = "none"/' "$WORK/far.toml"
@@ -228,9 +228,11 @@ D2=$!; PIDS+=($D2)
 wait_status "127.0.0.1:$PORT2" || fail "second daemon did not answer status"
 for cmd in reload "record-start $WORK/never.fgr"; do
   out=$("$CTL" --server "127.0.0.1:$PORT2" $cmd 2>&1) && fail "$cmd from loopback accepted by a 10.0.0.0/8-only daemon"
-  grep -q "refused: not allowed from 127.0.0.1" <<<"$out" || fail "refusal unclear: $out"
+  grep -q "refused: UDP control is off; use the daemon's control socket" <<<"$out" || fail "refusal unclear: $out"
 done
 [ ! -e "$WORK/never.fgr" ] || fail "a refused record-start was executed"
+grep -q "network.control_allow (10.0.0.0/8) is ignored: control commands come only through the control socket" \
+  "$WORK/daemon2.log" || fail "an old control_allow is not reported as ignored"
 wait_for "$WORK/daemon2.log" "refused 2 control request(s)\|(2 refused so far)" 30 || fail "refusals not logged"
 kill -TERM $D2; wait $D2; rc=$?
 [ $rc -eq 0 ] || fail "second daemon exit status $rc"

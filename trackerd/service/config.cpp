@@ -512,7 +512,6 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
   if (o.multicast_ttl) c.network.multicast_ttl = *o.multicast_ttl;
   if (o.max_subscribers) c.network.max_subscribers = *o.max_subscribers;
   if (o.lease_ms) c.network.lease_ms = *o.lease_ms;
-  if (o.control_allow) c.network.control_allow = *o.control_allow;
   if (o.control_socket) c.network.control_socket = *o.control_socket;
   if (o.control_dir) c.network.control_dir = *o.control_dir;
   if (o.record_path) c.record.path = *o.record_path;
@@ -589,7 +588,7 @@ protocol::ServerOptions server_options(const DaemonConfig& c) {
   }
   so.default_lease_ms = c.network.lease_ms;
   so.max_subscribers = c.network.max_subscribers;
-  so.control_allow = c.network.control_allow;
+  so.control_allow = {};  // UDP control is never executed: the control socket is the way (issue 23)
   return so;
 }
 
@@ -602,18 +601,12 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   const auto display = [](const std::optional<protocol::DisplayGeometry>& g) {
     return g ? protocol::to_string(*g) : std::string("(the source's)");
   };
-  const auto nets = [](const std::vector<protocol::Ipv4Cidr>& v) {
-    std::vector<std::string> s;
-    for (const auto& n : v) s.push_back(n.to_string());
-    return "[" + join(s, ", ") + "]";
-  };
   // Live: the daemon applies these without closing its socket or dropping a session.
   note(ch.live, "display", display(a.display), display(b.display));
   note(ch.live, "network.lease_ms", a.network.lease_ms, b.network.lease_ms);
   note(ch.live, "network.max_subscribers", a.network.max_subscribers, b.network.max_subscribers);
   note(ch.live, "network.control_dir", text(a.network.control_dir), text(b.network.control_dir));
   note(ch.live, "network.calibration_dir", text(a.network.calibration_dir), text(b.network.calibration_dir));
-  note(ch.live, "network.control_allow", nets(a.network.control_allow), nets(b.network.control_allow));
   note(ch.live, "record.path", text(a.record.path), text(b.record.path));
   note(ch.live, "record.append", a.record.append, b.record.append);
   note(ch.live, "calibration.file", text(a.calibration.file), text(b.calibration.file));

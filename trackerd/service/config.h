@@ -43,6 +43,9 @@ struct NetworkConfig {
   // Where calibration-load may read a file (confined as record-start is, and never through a
   // symbolic link); "" = any regular file the daemon can read.
   std::string calibration_dir;
+  // Ignored (a warning at start): control over UDP, authorised by source address alone, is gone
+  // (issue 23). Still parsed and checked, so that configuration files written for earlier versions
+  // (whose example allowed 127.0.0.0/8) start, with UDP control off.
   std::vector<protocol::Ipv4Cidr> control_allow;
   friend bool operator==(const NetworkConfig&, const NetworkConfig&) = default;
 };
@@ -138,7 +141,6 @@ struct CliOverrides {
   std::optional<int> multicast_ttl;
   std::optional<std::size_t> max_subscribers;
   std::optional<std::uint32_t> lease_ms;
-  std::optional<std::vector<protocol::Ipv4Cidr>> control_allow;
   std::optional<std::string> control_socket;
   std::optional<std::string> control_dir;
   std::optional<std::string> record_path;
