@@ -268,7 +268,8 @@ void parse_display(Checker& c, const toml::table& t, std::optional<protocol::Dis
   }
 }
 
-// network.control_allow: an array of A.B.C.D/N; a present array replaces the default allow-list.
+// network.control_allow: an array of A.B.C.D/N. Ignored since control over UDP is gone (NetworkConfig),
+// but still checked so that a malformed one in an old file is named.
 void parse_control_allow(Checker& c, const toml::node& node, std::vector<protocol::Ipv4Cidr>& control_allow) {
   const char* allowed =
       "an array of IPv4 networks A.B.C.D/N, e.g. [\"127.0.0.0/8\", \"192.168.1.0/24\"]; [] allows none";
@@ -557,9 +558,12 @@ std::string to_toml(const DaemonConfig& c) {
   out += "control_socket = " + quoted(n.control_socket) + "\n";
   out += "control_dir = " + quoted(n.control_dir) + "\n";
   out += "calibration_dir = " + quoted(n.calibration_dir) + "\n";
-  std::vector<std::string> nets;
-  for (const auto& a : n.control_allow) nets.push_back(quoted(a.to_string()));
-  out += "control_allow = [" + join(nets, ", ") + "]\n";
+  if (!n.control_allow.empty()) {
+    std::vector<std::string> nets;
+    for (const auto& a : n.control_allow) nets.push_back(quoted(a.to_string()));
+    out += "# ignored: control commands come only through the control socket\n";
+    out += "control_allow = [" + join(nets, ", ") + "]\n";
+  }
   out += "\n[record]\npath = " + quoted(c.record.path) + fmt::format("\nappend = {}\n", c.record.append);
   out += "\n[calibration]\nfile = " + quoted(c.calibration.file) + "\n";
   out += "\n[classifier]\nmethod = " + quoted(c.classifier.method) + "\n";
