@@ -20,18 +20,14 @@
 #include <string>
 
 #include "fovea/protocol/control_socket.h"
+#include "temp_dir.h"
 
 using namespace fovea::protocol;
 
 namespace {
 
-struct TempDir {
-  std::filesystem::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/fovea-ctlsock-XXXXXX";
-    path = ::mkdtemp(tmpl);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
+struct TempDir : fovea::test::TempDir {
+  TempDir() : fovea::test::TempDir("fovea-ctlsock") {}
   std::string sock() const { return (path / "control.sock").string(); }
 };
 

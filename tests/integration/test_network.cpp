@@ -394,20 +394,40 @@ TEST(Client, StatusQueryTimesOutWhenNobodyListens) {
   EXPECT_FALSE(GazeClient::query_status(nobody, 300));
 }
 
-TEST(Multicast, ClientReceivesSamplesFromTheGroup) {
+namespace {
+
+// A server publishing to a loopback multicast group and a client of it (not started). `client` is
+// null, and `unavailable` says why, where this host has no multicast (the test then skips).
+struct MulticastRig {
+  Endpoint group;
+  std::unique_ptr<GazeServer> server;
+  std::unique_ptr<GazeClient> client;
+  std::string unavailable;
+};
+MulticastRig multicast_rig(std::uint32_t group_ip, int port_salt) {
+  MulticastRig r;
+  r.group = Endpoint{group_ip, static_cast<std::uint16_t>(40000 + ((getpid() + port_salt) % 20000))};
   ServerOptions o = server_options();
-  const std::uint16_t group_port = static_cast<std::uint16_t>(40000 + (getpid() % 20000));
-  o.multicast = MulticastTarget{Endpoint{0xEFFF2F50, group_port}, 0, kLoopback};
-  GazeServer server(o);
-  ClientOptions co = client_options(server.local_endpoint());
-  co.multicast_group = Endpoint{0xEFFF2F50, group_port};
+  o.multicast = MulticastTarget{r.group, 0, kLoopback};
+  r.server = std::make_unique<GazeServer>(o);
+  ClientOptions co = client_options(r.server->local_endpoint());
+  co.multicast_group = r.group;
   co.multicast_interface_ip = kLoopback;
-  std::unique_ptr<GazeClient> c;
   try {
-    c = std::make_unique<GazeClient>(co);
+    r.client = std::make_unique<GazeClient>(co);
   } catch (const std::system_error& e) {
-    GTEST_SKIP() << "multicast not available here: " << e.what();
+    r.unavailable = e.what();
   }
+  return r;
+}
+
+}  // namespace
+
+TEST(Multicast, ClientReceivesSamplesFromTheGroup) {
+  MulticastRig rig = multicast_rig(0xEFFF2F50, 0);
+  if (!rig.client) GTEST_SKIP() << "multicast not available here: " << rig.unavailable;
+  GazeServer& server = *rig.server;
+  GazeClient* c = rig.client.get();
   c->start();
   ASSERT_TRUE(c->wait_subscribed(2000));
   EXPECT_EQ(c->session()->multicast.group_ipv4, 0xEFFF2F50u);
@@ -421,20 +441,11 @@ TEST(Multicast, ClientReceivesSamplesFromTheGroup) {
 // the group a GAZE_SAMPLE. One with sequence 2^63 made the client drop every later sample as old,
 // never resubscribe, and report lost = 2^63 - 100. Now it is counted as implausible and ignored.
 TEST(Multicast, ASpoofedHugeSequenceNumberDoesNotBlackholeTheClient) {
-  ServerOptions o = server_options();
-  const std::uint16_t group_port = static_cast<std::uint16_t>(40000 + ((getpid() + 7) % 20000));
-  const Endpoint group{0xEFFF2F51, group_port};
-  o.multicast = MulticastTarget{group, 0, kLoopback};
-  GazeServer server(o);
-  ClientOptions co = client_options(server.local_endpoint());
-  co.multicast_group = group;
-  co.multicast_interface_ip = kLoopback;
-  std::unique_ptr<GazeClient> c;
-  try {
-    c = std::make_unique<GazeClient>(co);
-  } catch (const std::system_error& e) {
-    GTEST_SKIP() << "multicast not available here: " << e.what();
-  }
+  MulticastRig rig = multicast_rig(0xEFFF2F51, 7);
+  if (!rig.client) GTEST_SKIP() << "multicast not available here: " << rig.unavailable;
+  GazeServer& server = *rig.server;
+  GazeClient* c = rig.client.get();
+  const Endpoint group = rig.group;
   c->start();
   ASSERT_TRUE(c->wait_subscribed(2000));
   Publisher pub(server, 500);

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "fovea/protocol/bounded_file.h"
+#include "temp_dir.h"
 
 using fovea::protocol::BoundedRead;
 using fovea::protocol::escape_for_log;
@@ -20,14 +21,7 @@ using fovea::protocol::read_bounded_file;
 
 namespace {
 
-struct TempDir {
-  std::filesystem::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/fovea-bounded-XXXXXX";
-    path = ::mkdtemp(tmpl);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
+using fovea::test::TempDir;
 
 std::string refusal(const std::string& path, const BoundedRead& o = {}) {
   try {

@@ -13,6 +13,7 @@
 #include "backend/lens_sample.h"
 #include "dof/lens.h"
 #include "dof/reference.h"
+#include "image_moments.h"
 #include "scene/geometry.h"
 
 using namespace fovea::render;
@@ -49,32 +50,8 @@ Scene light_scene(float light_depth_m, float light_size_m) {
   return s;
 }
 
-struct Moments {
-  double sum = 0, var_x = 0, var_y = 0;
-};
-Moments moments(const RgbImage& img) {
-  Moments m;
-  double sx = 0, sy = 0;
-  for (std::uint32_t y = 0; y < kSize; ++y) {
-    for (std::uint32_t x = 0; x < kSize; ++x) {
-      const double v = img[std::size_t{y} * kSize + x].r;
-      m.sum += v;
-      sx += v * x;
-      sy += v * y;
-    }
-  }
-  const double mx = sx / m.sum, my = sy / m.sum;
-  for (std::uint32_t y = 0; y < kSize; ++y) {
-    for (std::uint32_t x = 0; x < kSize; ++x) {
-      const double v = img[std::size_t{y} * kSize + x].r;
-      m.var_x += v * (x - mx) * (x - mx);
-      m.var_y += v * (y - my) * (y - my);
-    }
-  }
-  m.var_x /= m.sum;
-  m.var_y /= m.sum;
-  return m;
-}
+using Moments = fovea::test::ImageMoments;
+Moments moments(const RgbImage& img) { return fovea::test::image_moments(img, kSize, 0); }
 
 RgbImage reference(const Scene& s, ReferenceKind kind, std::uint32_t samples, std::uint64_t seed = 1,
                    double focus_m = 4, double gaussian_sigma_per_coc = 0) {

@@ -11,6 +11,7 @@
 
 #include "dof/gaussian_gather.h"
 #include "dof/lens.h"
+#include "image_moments.h"
 
 using namespace fovea::render;
 using namespace fovea::render::dof;
@@ -31,32 +32,8 @@ CocModel lens() {
 // The depth behind the focal plane whose CoC diameter is c px.
 float depth_for_coc(const CocModel& m, double c) { return static_cast<float>(m.depth_far_for_coc(c)); }
 
-struct Spot {
-  double sum = 0, var_x = 0, var_y = 0;
-};
-Spot spot(const RgbImage& img) {
-  Spot s;
-  double sx = 0, sy = 0;
-  for (std::uint32_t y = 0; y < kSize; ++y) {
-    for (std::uint32_t x = 0; x < kSize; ++x) {
-      const double v = static_cast<double>(img[std::size_t{y} * kSize + x].g);
-      s.sum += v;
-      sx += v * x;
-      sy += v * y;
-    }
-  }
-  const double mx = sx / s.sum, my = sy / s.sum;
-  for (std::uint32_t y = 0; y < kSize; ++y) {
-    for (std::uint32_t x = 0; x < kSize; ++x) {
-      const double v = static_cast<double>(img[std::size_t{y} * kSize + x].g);
-      s.var_x += v * (x - mx) * (x - mx);
-      s.var_y += v * (y - my) * (y - my);
-    }
-  }
-  s.var_x /= s.sum;
-  s.var_y /= s.sum;
-  return s;
-}
+using Spot = fovea::test::ImageMoments;
+Spot spot(const RgbImage& img) { return fovea::test::image_moments(img, kSize, 1); }
 
 struct Case {
   std::vector<glm::vec3> color;
