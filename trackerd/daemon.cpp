@@ -167,12 +167,10 @@ bool Daemon::start(std::int64_t start_ns) {
     spdlog::info("subscriber {} session {:016x}: {} (lease {} ms)", s.address.to_string(), s.session_id, what,
                  s.lease_ms);
   });
-  // Control commands: the local socket (file permissions say who), and UDP only from networks an
-  // operator listed. Both run on their own threads; the publishing loop executes between samples.
+  // Control commands come only through the local socket (its file permissions say who), on its own
+  // thread; the publishing loop executes them between samples. The gaze server gets no control
+  // handler and an empty allow-list: over UDP it refuses every command (issue 23).
   publish_control_view();
-  server_->on_control([this](const protocol::ControlRequest& r, const protocol::Endpoint& from) {
-    return handle_control(r, from.to_string());
-  });
   if (!open_control_socket()) return false;
 
   if (!config_.record.path.empty()) {
@@ -316,7 +314,7 @@ protocol::ControlReply Daemon::execute(const protocol::ControlRequest& r) {
   return fail("unknown command");
 }
 
-// One control command, from the socket or UDP (`who` for the log); what a client sent reaches the
+// One control command from the control socket (`who` for the log); what a client sent reaches the
 // log escaped, so a newline in a path cannot forge a log line.
 protocol::ControlReply Daemon::handle_control(const protocol::ControlRequest& r, const std::string& who) {
   spdlog::info("control {} from {}{}", protocol::to_string(r.command), who,
