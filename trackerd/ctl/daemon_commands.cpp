@@ -277,8 +277,12 @@ int cmd_control(const Common& c, ControlCommand command, const std::string& argu
   std::string error, via;
   const std::optional<ControlReply> reply = send_control_to_daemon(server, c.control_socket, request, 4000, error, via);
   if (!reply) {
-    std::fprintf(stderr, "fovea-ctl %s: %s; is fovea-trackerd running%s?\n", role.c_str(), error.c_str(),
-                 via.rfind("UDP", 0) == 0 ? " there, and does it allow control over UDP from here" : " on this host");
+    // No socket was found (or named) for a daemon on this host, or the server is elsewhere: UDP was tried.
+    std::fprintf(stderr, "fovea-ctl %s: %s; %s\n", role.c_str(), error.c_str(),
+                 via.rfind("UDP", 0) == 0
+                     ? "is fovea-trackerd running there? (it takes control commands only through its control "
+                       "socket: run fovea-ctl on its host, as a member of its group)"
+                     : "is fovea-trackerd running on this host?");
     return 1;
   }
   std::fprintf(reply->result == ControlResult::Ok ? stdout : stderr, "fovea-ctl %s: %s: %s\n", role.c_str(),
