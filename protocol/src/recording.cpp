@@ -165,7 +165,9 @@ RecordingWriter::RecordingWriter(const std::string& path, const RecordingHeader&
       throw std::runtime_error(sys_error("cannot create recording", path));
     }
   } else {
-    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    // O_NONBLOCK: a FIFO or device at the path is refused below instead of blocking the open or,
+    // once its buffer is full, every write of the publishing loop.
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC | O_NONBLOCK, 0644);
     if (fd_ < 0) throw std::runtime_error(sys_error("cannot open recording", path));
     struct stat st {};
     if (fstat(fd_, &st) != 0) {
@@ -173,6 +175,11 @@ RecordingWriter::RecordingWriter(const std::string& path, const RecordingHeader&
       ::close(fd_);
       throw std::runtime_error(msg);
     }
+    if (!S_ISREG(st.st_mode)) {
+      ::close(fd_);
+      throw std::runtime_error("cannot append to " + path + ": not a regular file");
+    }
+    ::fcntl(fd_, F_SETFL, O_APPEND);
     if (st.st_size > 0) {
       std::vector<std::uint8_t> existing(kRecordingHeaderSize);
       const ssize_t n = ::pread(fd_, existing.data(), existing.size(), 0);

@@ -694,6 +694,22 @@ TEST(RecordingWriterTest, AppendRefusesAFileWithoutAnIntactHeader) {
   }
 }
 
+// Issue 23: appending to a FIFO blocked the daemon's publishing loop once the pipe was full (nobody
+// reads it), and a device was written to. Neither is a recording: refused at once, by what it is.
+TEST(RecordingWriterTest, AppendRefusesWhatIsNotARegularFile) {
+  const TempDir dir;
+  const std::string fifo = dir.file("fifo.fgr");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string subdir = dir.file("dir.fgr");
+  fs::create_directory(subdir);
+  for (const std::string& path : {fifo, std::string("/dev/null"), subdir}) {
+    const std::string msg = error_of([&] { RecordingWriter w(path, test_header(), RecordingWriter::Mode::Append); });
+    EXPECT_NE(msg.find(path), std::string::npos) << msg;
+    EXPECT_TRUE(msg.find("not a regular file") != std::string::npos || msg.find("Is a directory") != std::string::npos)
+        << msg;
+  }
+}
+
 // A writer killed mid-record leaves a partial tail; appending after it keeps every intact record.
 TEST(RecordingWriterTest, AppendAfterACutTailRecoversEverything) {
   const TempDir dir;
