@@ -30,6 +30,8 @@ struct Sample {
 //  - t_s not finite, or not greater than the last accepted t_s (time standing still or going
 //    backwards): the sample is labelled Unknown and otherwise ignored (it does not move time).
 //  - valid but x_deg/y_deg not finite or beyond +-90 deg (no gaze direction): treated as a lost sample.
+//  - valid but reached from the sample before faster than 1000 deg/s (a jump of over 1 deg):
+//    noise, treated as a lost sample (pipeline.h, FrontendOptions::max_eye_speed_deg_s).
 //  - pupil_aspect not finite or <= 0: unknown (ignored).
 
 struct Labeled {

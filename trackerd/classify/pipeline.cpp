@@ -4,25 +4,39 @@ namespace fovea::trackerd::classify {
 
 // --- Frontend ---------------------------------------------------------------------------------
 
-Prepared::Kind Frontend::loss_kind(double t, bool aspect_blink) const {
+Prepared::Kind Frontend::loss_kind(double t, bool aspect_blink, bool artifact) const {
   if (aspect_blink) return Prepared::Kind::Blink;  // direct evidence: the lid covers the pupil
+  if (artifact) return Prepared::Kind::Lost;       // the tracker saw something, not an eye
   if (o_.loss_blink_max_s > 0 && have_valid_ && t - last_valid_.t <= o_.loss_blink_max_s) return Prepared::Kind::Blink;
   return Prepared::Kind::Lost;
 }
 
 void Frontend::release_unfilled(const Emit& emit) {
   for (Held& h : held_) {
-    h.p.kind = loss_kind(h.p.t, h.aspect_blink);
+    h.p.kind = loss_kind(h.p.t, h.aspect_blink, h.artifact);
     emit(h.p);
   }
   held_.clear();
 }
 
+bool Frontend::implausible_speed(double t, double x, double y) const {
+  if (o_.max_eye_speed_deg_s <= 0 || !have_position_) return false;
+  const double jump = std::hypot(x - position_x_, y - position_y_);
+  // t > position_t_ (the pipeline accepts only increasing times); written as a product, a step in
+  // a nanosecond (or in less time than a double can tell) is as implausible as it is.
+  return jump > o_.min_artifact_jump_deg && jump > o_.max_eye_speed_deg_s * (t - position_t_);
+}
+
 void Frontend::push(std::uint64_t index, const Sample& s, const Emit& emit) {
   const double t = s.t_s;
   const bool aspect_blink = std::isfinite(s.pupil_aspect) && s.pupil_aspect > 0 && s.pupil_aspect < o_.blink_aspect;
-  const bool gaze = s.valid && !aspect_blink && std::isfinite(s.x_deg) && std::isfinite(s.y_deg) &&
-                    std::abs(s.x_deg) <= 90 && std::abs(s.y_deg) <= 90;
+  const bool direction = s.valid && !aspect_blink && std::isfinite(s.x_deg) && std::isfinite(s.y_deg) &&
+                         std::abs(s.x_deg) <= 90 && std::abs(s.y_deg) <= 90;
+  const bool gaze = direction && !implausible_speed(t, s.x_deg, s.y_deg);
+  if (direction) {
+    have_position_ = true;
+    position_t_ = t, position_x_ = s.x_deg, position_y_ = s.y_deg;
+  }
   if (gaze) {
     Prepared p{index, t, s.x_deg, s.y_deg, Prepared::Kind::Gaze};
     if (!held_.empty()) {
@@ -47,14 +61,14 @@ void Frontend::push(std::uint64_t index, const Sample& s, const Emit& emit) {
     have_valid_ = true;
     return;
   }
-  Held h{Prepared{index, t, 0, 0, Prepared::Kind::Lost}, aspect_blink};
+  Held h{Prepared{index, t, 0, 0, Prepared::Kind::Lost}, aspect_blink, direction};
   const bool may_fill = have_valid_ && o_.gap_fill_max_s > 0 && !aspect_blink && t - last_valid_.t <= o_.gap_fill_max_s;
   if (may_fill) {
     held_.push_back(h);
     return;
   }
   release_unfilled(emit);  // the run has outlived the fill-in limit (or holds a blink): a loss
-  h.p.kind = loss_kind(t, aspect_blink);
+  h.p.kind = loss_kind(t, aspect_blink, direction);
   emit(h.p);
 }
 

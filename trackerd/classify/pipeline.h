@@ -3,8 +3,9 @@
 //
 //   push(Sample) -> [Pipeline: reject bad times] -> [Frontend: lost/blink, gap fill-in] -> [Core: the method]
 //
-// The front end turns raw samples into Prepared samples, in order: gaze (valid), filled (a short gap
-// bridged by linear interpolation, Olsen 2012 §2.4), or a loss (blink or lost, final). A core labels
+// The front end turns raw samples into Prepared samples, in order: gaze (valid, and reached at a
+// speed an eye can move), filled (a short gap bridged by linear interpolation, Olsen 2012 §2.4), or
+// a loss (blink or lost, final). A core labels
 // Prepared samples and emits them in order; the pipeline interleaves the samples it rejected.
 // Each stage holds a sample for a bounded time (in sample time), so the whole pipeline's latency is
 // the sum of the stages' bounds.
@@ -39,6 +40,13 @@ struct FrontendOptions {
   // aspect ratio calls blinks). Blinks last about 100-400 ms; we take 0.5 s as the ceiling.
   double loss_blink_max_s = 0.5;
   double blink_aspect = 0.7;  // Lee 2009 §3.5.2: pupil ellipse aspect ratio below this is a blink
+  // A sample that moved faster than an eye can from the sample before it is noise, not gaze
+  // (Nystrom & Holmqvist 2010 §2.3: above 1000 deg/s): it is treated as a lost sample (bridged like
+  // one). The next sample is judged against it, so a tracker whose gaze steps once (a mistimed
+  // sample) loses one sample, not the rest. Jumps up to min_artifact_jump_deg are never judged
+  // (a 1000 Hz tracker's noise alone moves that far between samples); 0: no limit.
+  double max_eye_speed_deg_s = 1000;
+  double min_artifact_jump_deg = 1.0;
 };
 
 class Frontend {
@@ -50,15 +58,19 @@ class Frontend {
   double latency_s() const { return o_.gap_fill_max_s; }
 
  private:
-  Prepared::Kind loss_kind(double t, bool aspect_blink) const;
+  Prepared::Kind loss_kind(double t, bool aspect_blink, bool artifact) const;
   void release_unfilled(const Emit& emit);
   struct Held {
     Prepared p;
     bool aspect_blink = false;
+    bool artifact = false;  // a gaze direction reached too fast: noise, never called a blink
   };
+  bool implausible_speed(double t, double x, double y) const;
   FrontendOptions o_;
   bool have_valid_ = false;
   Prepared last_valid_;
+  bool have_position_ = false;  // the last sample with a gaze direction, plausible or not
+  double position_t_ = 0, position_x_ = 0, position_y_ = 0;
   std::vector<Held> held_;  // an invalid run that may still be bridged
 };
 
