@@ -26,6 +26,7 @@
 #include "service/control_paths.h"
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
+#include "daemon_changes.h"
 #include "sources/source_table.h"
 
 namespace fovea::trackerd {
@@ -59,16 +60,22 @@ class Daemon {
   void publish(GazeItem item);
   void send(const GazeItem& item);
   Wake wait_until(std::int64_t due_ns);
-  bool attention() const { return (signals_.reload != nullptr && signals_.reload->load()) || mailbox_.pending(); }
-  void attend();
+  bool attention() const { return mailbox_.pending(); }
   void service_tick();
-  protocol::ControlReply execute(const protocol::ControlRequest& request);
-  protocol::ControlReply reload(const std::string& why);
-  std::string start_recording(const std::string& path, bool append);  // empty or what went wrong
-  std::string stop_recording();
+  // Control: prepared on the control thread or the SIGHUP worker, one at a time, against the view
+  // the loop last published (daemon_changes.h); the loop runs only the swap (mailbox).
   protocol::ControlReply handle_control(const protocol::ControlRequest& request, const std::string& who);
+  protocol::ControlReply prepare_and_submit(const protocol::ControlRequest& request);
+  protocol::ControlReply submit_reload(const RunningView& view, const std::string& why);
+  protocol::ControlReply submit_record_start(const protocol::ControlRequest& request, const RunningView& view);
+  protocol::ControlReply submit_calibration_load(const protocol::ControlRequest& request, const RunningView& view);
+  void watch_reload_signal();
+  RunningView running_view() const;
+  // The loop's side.
+  protocol::ControlReply apply_reload(PreparedReload& prepared, const std::string& why);
+  void adopt_recording(PendingRecording& recording);
+  std::string stop_recording();
   bool open_control_socket();
-  protocol::ControlReply submit_calibration_load(const protocol::ControlRequest& request);
   void publish_control_view();
   void apply_display(const std::optional<protocol::DisplayGeometry>& configured);
   std::string status_line() const;
@@ -85,16 +92,11 @@ class Daemon {
   std::unique_ptr<service::CalibrationStage> calibration_;
   // A calibration loaded by the control command; kept over reloads until "configured" or a restart.
   std::optional<std::string> calibration_override_;
-  // What the control thread needs to prepare a calibration-load without touching the loop's state:
-  // the configured file and the display, as the publishing loop last set them.
-  struct ControlView {
-    std::string configured_calibration;
-    protocol::DisplayGeometry display;
-    std::string running_calibration;  // its description, for the log
-    std::string calibration_dir;      // "" : any file; else calibration-load is confined to it
-  };
+  // What the control side prepares against: the loop publishes it after every change it makes.
   mutable std::mutex control_view_mutex_;
-  ControlView control_view_;
+  RunningView control_view_;
+  std::mutex prepare_mutex_;  // one change prepared and applied at a time
+  std::thread reload_worker_;  // prepares SIGHUP reloads
   std::unique_ptr<ClassifyStage> classify_;  // rebuilt on reload when the method changes
   std::vector<GazeItem> outgoing_;
   std::unique_ptr<protocol::GazeServer> server_;
@@ -115,6 +117,14 @@ class Daemon {
   std::thread watcher_;
   void watch_source();
 };
+
+constexpr std::chrono::milliseconds kApplyTimeout{3000};  // for the loop to pick a prepared change up
+
+protocol::ControlReply failed(protocol::ControlCommand command, std::string why) {
+  protocol::ControlReply out{command, protocol::ControlResult::Failed, {}};
+  out.message.value = std::move(why);
+  return out;
+}
 
 void Daemon::watch_source() {
   while (!watcher_stop_.load()) {
@@ -174,8 +184,11 @@ bool Daemon::start(std::int64_t start_ns) {
   if (!open_control_socket()) return false;
 
   if (!config_.record.path.empty()) {
-    if (const std::string err = start_recording(config_.record.path, config_.record.append); !err.empty()) {
-      spdlog::error("{}", err);
+    try {
+      PendingRecording recording(config_.record.path, config_.record.append, running_view(), display_);
+      adopt_recording(recording);
+    } catch (const std::exception& e) {
+      spdlog::error("{}", e.what());
       return false;
     }
   }
@@ -231,11 +244,6 @@ Daemon::Wake Daemon::wait_until(std::int64_t due_ns) {
   }
 }
 
-void Daemon::attend() {
-  if (signals_.reload != nullptr && signals_.reload->exchange(false)) reload("SIGHUP");
-  if (mailbox_.pending()) mailbox_.drain();
-}
-
 void Daemon::service_tick() {
   const std::int64_t now = monotonic_ns();
   if (now >= next_health_check_ns_) {
@@ -275,57 +283,137 @@ std::string Daemon::status_line() const {
   return s;
 }
 
-protocol::ControlReply Daemon::execute(const protocol::ControlRequest& r) {
-  protocol::ControlReply out{r.command, protocol::ControlResult::Ok, {}};
-  const auto fail = [&](const std::string& why) {
-    out.result = protocol::ControlResult::Failed;
-    out.message.value = why;
-    return out;
-  };
-  switch (r.command) {
-    case protocol::ControlCommand::Reload:
-      return reload("control request");
-    case protocol::ControlCommand::StartRecording: {
-      if (r.argument.value.empty()) return fail("record-start needs a file path");
-      if (recorder_) return fail("already recording to " + recording_path_);
-      std::string path;
-      try {
-        path = service::confined_path(r.argument.value, config_.network.control_dir.empty() ? start_dir_
-                                                                                            : config_.network.control_dir);
-      } catch (const std::exception& e) {
-        // The log has it all; the 63-byte reply keeps the reason, not the path the client knows.
-        spdlog::warn("{}", e.what());
-        const std::string what = e.what();
-        const std::size_t colon = what.rfind(": ");
-        return fail(colon == std::string::npos ? what : what.substr(colon + 2));
-      }
-      if (const std::string err = start_recording(path, false); !err.empty()) return fail(err);
-      out.message.value = "recording to " + recording_path_;
-      return out;
-    }
-    case protocol::ControlCommand::StopRecording: {
-      if (!recorder_) return fail("not recording");
-      out.message.value = stop_recording();
-      return out;
-    }
-    case protocol::ControlCommand::LoadCalibration:
-      return fail("calibration-load is prepared on the control thread");  // submit_calibration_load
-  }
-  return fail("unknown command");
-}
-
 // One control command from the control socket (`who` for the log); what a client sent reaches the
 // log escaped, so a newline in a path cannot forge a log line.
 protocol::ControlReply Daemon::handle_control(const protocol::ControlRequest& r, const std::string& who) {
   spdlog::info("control {} from {}{}", protocol::to_string(r.command), who,
                r.argument.value.empty() ? std::string() : " (" + protocol::escape_for_log(r.argument.value) + ")");
-  protocol::ControlReply reply = r.command == protocol::ControlCommand::LoadCalibration
-                                     ? submit_calibration_load(r)
-                                     : mailbox_.submit(r, [this, r] { return execute(r); }, std::chrono::milliseconds(3000));
+  const protocol::ControlReply reply = prepare_and_submit(r);
   spdlog::log(reply.result == protocol::ControlResult::Ok ? spdlog::level::info : spdlog::level::warn,
               "control {}: {}: {}", protocol::to_string(r.command), protocol::to_string(reply.result),
               protocol::escape_for_log(reply.message.value));
   return reply;
+}
+
+// Reads what the command names here, off the publishing loop, and hands the loop only the swap.
+// Changes are prepared one at a time, and each waits until the loop has applied it, so the next
+// one is prepared against the state this one left.
+protocol::ControlReply Daemon::prepare_and_submit(const protocol::ControlRequest& r) {
+  std::lock_guard lock(prepare_mutex_);
+  const RunningView view = running_view();
+  try {
+    switch (r.command) {
+      case protocol::ControlCommand::Reload:
+        return submit_reload(view, "control request");
+      case protocol::ControlCommand::StartRecording:
+        return submit_record_start(r, view);
+      case protocol::ControlCommand::StopRecording:
+        return mailbox_.submit(r, [this, r] {
+          protocol::ControlReply out{r.command, protocol::ControlResult::Ok, {}};
+          if (!recorder_) out.result = protocol::ControlResult::Failed;
+          out.message.value = stop_recording();
+          return out;
+        }, kApplyTimeout);
+      case protocol::ControlCommand::LoadCalibration:
+        return submit_calibration_load(r, view);
+    }
+    throw std::runtime_error("unknown command");
+  } catch (const service::PathRefused& e) {
+    // The log has it all; the 63-byte reply keeps the reason, not the path the client knows.
+    spdlog::warn("{}", e.what());
+    return failed(r.command, e.reason());
+  } catch (const std::exception& e) {
+    spdlog::warn("{}", e.what());
+    return failed(r.command, e.what());
+  }
+}
+
+protocol::ControlReply Daemon::submit_record_start(const protocol::ControlRequest& r, const RunningView& view) {
+  // std::function must be copyable: the open file travels in a shared holder, and is removed
+  // again if the loop never adopts it.
+  auto recording = std::make_shared<PendingRecording>(prepare_record_start(r.argument.value, view));
+  return mailbox_.submit(r, [this, r, recording] {
+    protocol::ControlReply out{r.command, protocol::ControlResult::Failed, {}};
+    if (recorder_) {
+      out.message.value = "already recording to " + recording_path_;
+    } else if (!(display_ == recording->display())) {
+      out.message.value = "the display changed while the file was made; start again";
+    } else {
+      adopt_recording(*recording);
+      out.result = protocol::ControlResult::Ok;
+      out.message.value = "recording to " + recording_path_;
+    }
+    return out;
+  }, kApplyTimeout);
+}
+
+// calibration-load: "none" no calibration; "configured" the configuration's file; anything else a
+// file in the calibrations directory. Read and checked here (bounded, regular files only:
+// calibration_stage.h); the loop swaps the result in if the display it was checked against is
+// still the one clients are told.
+protocol::ControlReply Daemon::submit_calibration_load(const protocol::ControlRequest& r, const RunningView& view) {
+  auto prepared = std::make_shared<PreparedCalibration>();
+  try {
+    *prepared = prepare_calibration_load(r.argument.value, view);
+  } catch (const service::PathRefused&) {
+    throw;
+  } catch (const std::exception& e) {
+    spdlog::error("calibration-load {}: {}; keeping {}", protocol::escape_for_log(r.argument.value), e.what(),
+                  view.running_calibration);
+    return failed(r.command, e.what());
+  }
+  return mailbox_.submit(r, [this, r, prepared] {
+    protocol::ControlReply out{r.command, protocol::ControlResult::Failed, {}};
+    if (!(display_ == prepared->display)) {
+      out.message.value = "the display changed while the file was read; load it again";
+      return out;
+    }
+    calibration_ = std::move(prepared->stage);
+    calibration_override_ = prepared->override_file;
+    publish_control_view();
+    spdlog::info("calibration (control request): {}", calibration_->description());
+    notifier_.status(status_line());
+    out.result = protocol::ControlResult::Ok;
+    out.message.value = "loaded " + calibration_->summary();
+    return out;
+  }, kApplyTimeout);
+}
+
+protocol::ControlReply Daemon::submit_reload(const RunningView& view, const std::string& why) {
+  const protocol::ControlRequest request{protocol::ControlCommand::Reload, {}};
+  notifier_.reloading();
+  spdlog::info("reloading configuration from {} ({})", view.config.origin, why);
+  std::shared_ptr<PreparedReload> prepared;
+  try {
+    prepared = std::make_shared<PreparedReload>(prepare_reload(view, loader_));
+  } catch (const std::exception& e) {
+    spdlog::error("reload failed; keeping the running configuration:\n{}", e.what());
+    // READY=1 again, with the status only the loop can compose.
+    const protocol::ControlReply out = failed(request.command, std::string("configuration invalid: ") + e.what());
+    return mailbox_.submit(request, [this, out] {
+      notifier_.reloaded(status_line());
+      return out;
+    }, kApplyTimeout);
+  }
+  return mailbox_.submit(request, [this, prepared, why] { return apply_reload(*prepared, why); }, kApplyTimeout);
+}
+
+// SIGHUP: the signal handler only sets a flag; this thread prepares the reload the flag asks for.
+void Daemon::watch_reload_signal() {
+  while (!watcher_stop_.load()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (signals_.reload == nullptr || !signals_.reload->exchange(false)) continue;
+    std::lock_guard lock(prepare_mutex_);
+    const protocol::ControlReply reply = submit_reload(running_view(), "SIGHUP");
+    if (reply.result != protocol::ControlResult::Ok) {
+      spdlog::warn("reload (SIGHUP): {}", protocol::escape_for_log(reply.message.value));
+    }
+  }
+}
+
+RunningView Daemon::running_view() const {
+  std::lock_guard lock(control_view_mutex_);
+  return control_view_;
 }
 
 // The local control socket (protocol/control_socket.h), mode 0660: the daemon's user and group.
@@ -350,83 +438,27 @@ bool Daemon::open_control_socket() {
   }
 }
 
-// The publishing loop tells the control thread the configured calibration file and the display.
+// The publishing loop tells the control side what it runs (daemon_changes.h), after every change.
 void Daemon::publish_control_view() {
+  RunningView v;
+  v.config = config_;
+  v.calibration_override = calibration_override_;
+  v.display = display_;
+  v.source_display = source_->display();
+  v.source_description = source_->description();
+  v.nominal_rate_hz = source_->nominal_rate_hz();
+  v.running_calibration = calibration_->description();
+  v.recording_path = recording_path_;
+  v.start_dir = start_dir_;
   std::lock_guard lock(control_view_mutex_);
-  control_view_ = {config_.calibration.file, display_, calibration_->description(), config_.network.calibration_dir};
+  control_view_ = std::move(v);
 }
 
-// calibration-load: "none" no calibration; "configured" the configuration's file; anything else a
-// file to load. The file is read and checked here, on the control thread (bounded, regular files
-// only: calibration_stage.h); the publishing loop only swaps the result in, if the display it was
-// checked against is still the one clients are told.
-protocol::ControlReply Daemon::submit_calibration_load(const protocol::ControlRequest& r) {
-  const auto reply = [](protocol::ControlResult result, std::string text) {
-    protocol::ControlReply out{protocol::ControlCommand::LoadCalibration, result, {}};
-    if (text.size() > 63) text = text.substr(0, 60) + "...";
-    out.message.value = std::move(text);
-    return out;
-  };
-  const std::string& argument = r.argument.value;
-  if (argument.empty()) return reply(protocol::ControlResult::Failed, "calibration-load needs a file, none or configured");
-  ControlView view;
-  {
-    std::lock_guard lock(control_view_mutex_);
-    view = control_view_;
-  }
-  const std::optional<std::string> next_override =
-      argument == "configured" ? std::nullopt : std::optional<std::string>(argument == "none" ? "" : argument);
-  // std::function must be copyable: the loaded stage travels in a shared holder.
-  auto stage = std::make_shared<std::unique_ptr<service::CalibrationStage>>();
-  try {
-    std::string file = next_override.value_or(view.configured_calibration);
-    const bool confined = next_override && !next_override->empty() && !view.calibration_dir.empty();
-    if (confined) {
-      try {
-        file = service::confined_path(file, view.calibration_dir, "calibration-load", "calibrations directory");
-      } catch (const std::exception& e) {
-        spdlog::warn("{}", e.what());  // in full; the 63-byte reply keeps the reason
-        const std::string what = e.what();
-        return reply(protocol::ControlResult::Failed, what.substr(what.rfind(": ") + 2));
-      }
-    }
-    *stage = service::load_calibration_stage(file, view.display, /*follow_symlinks=*/!confined);
-  } catch (const std::exception& e) {
-    spdlog::error("calibration-load {}: {}; keeping {}", protocol::escape_for_log(argument), e.what(),
-                  view.running_calibration);
-    return reply(protocol::ControlResult::Failed, e.what());
-  }
-  const auto swap_in = [this, stage, next_override, view, reply] {
-    if (!(display_ == view.display)) {
-      return reply(protocol::ControlResult::Failed, "the display changed while the file was read; load it again");
-    }
-    calibration_ = std::move(*stage);
-    calibration_override_ = next_override;
-    publish_control_view();
-    spdlog::info("calibration (control request): {}", calibration_->description());
-    notifier_.status(status_line());
-    return reply(protocol::ControlResult::Ok, "loaded " + calibration_->summary());
-  };
-  return mailbox_.submit(r, swap_in, std::chrono::milliseconds(3000));
-}
-
-std::string Daemon::start_recording(const std::string& path, bool append) {
-  protocol::RecordingHeader h;
-  h.device = protocol::recording_device_name(source_->description());
-  h.display = display_;
-  h.nominal_rate_hz = source_->nominal_rate_hz();
-  h.clock = protocol::RecordingClock::Monotonic;
-  h.created_unix_ns = protocol::realtime_ns();
-  h.created_clock_ns = monotonic_ns();
-  try {
-    recorder_ = std::make_unique<protocol::RecordingWriter>(
-        path, h, append ? protocol::RecordingWriter::Mode::Append : protocol::RecordingWriter::Mode::CreateNew);
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  recording_path_ = path;
-  spdlog::info("recording published gaze to {}", path);
-  return {};
+void Daemon::adopt_recording(PendingRecording& recording) {
+  recording_path_ = recording.path();
+  recorder_ = recording.adopt();
+  spdlog::info("recording published gaze to {}", protocol::escape_for_log(recording_path_));
+  publish_control_view();
 }
 
 std::string Daemon::stop_recording() {
@@ -435,7 +467,8 @@ std::string Daemon::stop_recording() {
       "stopped recording to " + recording_path_ + " (" + std::to_string(recorder_->records_written()) + " records)";
   recorder_.reset();  // closes the file
   recording_path_.clear();
-  spdlog::info("{}", what);
+  spdlog::info("{}", protocol::escape_for_log(what));
+  publish_control_view();
   return what;
 }
 
@@ -455,75 +488,42 @@ void Daemon::apply_display(const std::optional<protocol::DisplayGeometry>& confi
                  recording_path_);
 }
 
-// Adopts a new configuration without closing the socket or dropping a session. Settings that need
-// a restart (source, listen address, port, multicast, devices) are logged and kept.
-protocol::ControlReply Daemon::reload(const std::string& why) {
-  protocol::ControlReply out{protocol::ControlCommand::Reload, protocol::ControlResult::Ok, {}};
-  notifier_.reloading();
-  spdlog::info("reloading configuration from {} ({})", config_.origin, why);
-  service::DaemonConfig next;
-  try {
-    next = loader_ ? loader_() : config_;
-  } catch (const std::exception& e) {
-    spdlog::error("reload failed; keeping the running configuration:\n{}", e.what());
-    notifier_.reloaded(status_line());
-    out.result = protocol::ControlResult::Failed;
-    out.message.value = std::string("configuration invalid: ") + e.what();
-    return out;
-  }
-  const service::ConfigChanges changes = service::diff(config_, next);
-  for (const auto& c : changes.needs_restart) spdlog::warn("{}: needs a restart; keeping the running value", c);
-  next = service::adopt_live(config_, next);
-
-  // Calibration: read again even when the name is unchanged (the file may have been refitted);
-  // checked against the display the clients are told from now on.
-  apply_display(next.display);
-  std::string problems;
-  try {
-    calibration_ = service::load_calibration_stage(calibration_override_.value_or(next.calibration.file), display_);
+// Swaps in a prepared reload without closing the socket or dropping a session. Settings that need
+// a restart (source, listen address, port, multicast, devices) were logged and kept.
+protocol::ControlReply Daemon::apply_reload(PreparedReload& p, const std::string& why) {
+  apply_display(p.next.display);
+  if (p.calibration) {
+    calibration_ = std::move(p.calibration);
     spdlog::info("calibration: {}{}", calibration_->description(),
                  calibration_override_ ? " (loaded by calibration-load; kept over reloads)" : "");
-  } catch (const std::exception& e) {
-    spdlog::error("{}; keeping the previous calibration", e.what());
-    next.calibration = config_.calibration;
-    problems = e.what();
   }
-  server_->set_limits(next.network.lease_ms, next.network.max_subscribers);
-  if (!(next.record == config_.record)) {
+  server_->set_limits(p.next.network.lease_ms, p.next.network.max_subscribers);
+  if (p.restart_recording) {
     if (recorder_) stop_recording();
-    if (!next.record.path.empty()) {
-      if (const std::string err = start_recording(next.record.path, next.record.append); !err.empty()) {
-        spdlog::error("{}", err);
-        problems = err;
-      }
-    }
+    if (p.recording) adopt_recording(p.recording);
   }
-  if (next.classifier.method != config_.classifier.method) {
-    try {
-      outgoing_.clear();
-      classify_->flush(outgoing_);  // close the old classifier's open event before switching
-      for (const GazeItem& pending : outgoing_) send(pending);
-      classify_ = std::make_unique<ClassifyStage>(next.classifier.method, source_->nominal_rate_hz(), display_);
-      spdlog::info("classifier: {}", classify_->description());
-    } catch (const std::exception& e) {
-      spdlog::error("classifier {}: {}; keeping {}", next.classifier.method, e.what(), classify_->description());
-      next.classifier.method = config_.classifier.method;
-    }
+  if (p.classifier) {
+    outgoing_.clear();
+    classify_->flush(outgoing_);  // close the old classifier's open event before switching
+    for (const GazeItem& pending : outgoing_) send(pending);
+    classify_ = std::move(p.classifier);
+    spdlog::info("classifier: {}", classify_->description());
   }
-  spdlog::set_level(spdlog::level::from_str(next.log_level));
-  for (const auto& c : changes.live) spdlog::info("applied: {}", c);
-  config_ = next;
+  spdlog::set_level(spdlog::level::from_str(p.next.log_level));
+  for (const auto& c : p.changes.live) spdlog::info("applied: {}", c);
+  config_ = p.next;
   publish_control_view();
   notifier_.reloaded(status_line());
 
-  if (!problems.empty()) {
+  protocol::ControlReply out{protocol::ControlCommand::Reload, protocol::ControlResult::Ok, {}};
+  if (!p.problems.empty()) {
     out.result = protocol::ControlResult::Failed;
-    out.message.value = problems;
+    out.message.value = p.problems;
   } else {
-    out.message.value = "reloaded: " + std::to_string(changes.live.size()) + " applied, " +
-                        std::to_string(changes.needs_restart.size()) + " need a restart";
+    out.message.value = "reloaded: " + std::to_string(p.changes.live.size()) + " applied, " +
+                        std::to_string(p.changes.needs_restart.size()) + " need a restart";
   }
-  spdlog::info("{}", problems.empty() ? out.message.value : "reload finished with problems");
+  spdlog::info("{} ({})", p.problems.empty() ? out.message.value : "reload finished with problems", why);
   return out;
 }
 
@@ -536,12 +536,14 @@ int Daemon::run() {
   if (!start(start_ns)) return 2;
   notifier_.ready(status_line());
   watcher_ = std::thread([this] { watch_source(); });
+  reload_worker_ = std::thread([this] { watch_reload_signal(); });
   if (run_.wait_subscribers > 0) {
     // As gpsfake does: hold the source until the expected clients are listening, so they see the
     // stream from its first sample (regression tests diff what they receive).
     spdlog::info("waiting for {} subscriber(s) before starting the source", run_.wait_subscribers);
     while (!stopping() && server_->stats().subscribers < run_.wait_subscribers) {
       service_tick();
+      if (mailbox_.pending()) mailbox_.drain();
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
   }
@@ -551,7 +553,7 @@ int Daemon::run() {
   bool source_ended = false;
   std::optional<GazeItem> item;  // the next item, waiting for its time
   while (!stopping()) {
-    attend();
+    if (mailbox_.pending()) mailbox_.drain();  // prepared changes, swapped in between two items
     if (source_ended) {
       if (run_.exit_when_source_ends) break;
       const Wake w = wait_until(std::min(end_ns, monotonic_ns() + 100 * kMs));
@@ -581,7 +583,7 @@ int Daemon::run() {
     if (due >= end_ns) break;
     const Wake w = wait_until(due);
     if (w == Wake::Stop) break;
-    if (w == Wake::Attention) continue;  // attend, then wait for the same item again
+    if (w == Wake::Attention) continue;  // swap changes in, then wait for the same item again
     publish(std::move(*item));
     item.reset();
   }
@@ -590,6 +592,7 @@ int Daemon::run() {
   if (watcher_.joinable()) watcher_.join();
   notifier_.stopping();
   mailbox_.close();
+  if (reload_worker_.joinable()) reload_worker_.join();
   control_socket_.reset();
   const auto st = server_->stats();
   server_->stop();

@@ -145,7 +145,9 @@ void add_replay_display_and_subscriber_options(CLI::App& app, Flags& f) {
                                       "none: no control");
   f.o_control_dir = app.add_option("--control-dir", f.control_dir,
                                    "the directory record-start may create recordings in (relative names are "
-                                   "relative to it; nothing outside it is written); default: the working directory");
+                                   "relative to it; nothing outside it is written), and calibration-load read "
+                                   "calibrations from unless [network] calibration_dir says otherwise; default: the "
+                                   "working directory");
 }
 
 // Calibration, classifier, how long to run, and the log level.

@@ -341,7 +341,8 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
       "make the daemon load a calibration file now (kept over reloads), 'none' (the source's own gaze) or "
       "'configured' (back to its configuration's [calibration] file); subscribers stay connected");
   calibration_load->add_option("FILE", calibration_file,
-                               "calibration file (fovea-calibrate), read by the daemon on its machine; its absolute "
+                               "calibration file (fovea-calibrate), read by the daemon on its machine from its "
+                               "calibrations directory ([network] calibration_dir, else control_dir); its absolute "
                                "path must fit in 63 bytes")
       ->required();
 

@@ -327,7 +327,7 @@ void parse_network(Checker& c, const toml::table& t, NetworkConfig& n) {
            "the directory record-start writes into, or \"\" for the daemon's working directory");
   n.control_dir = c.path(n.control_dir);
   c.string(t, "network.", "calibration_dir", n.calibration_dir,
-           "the directory calibration-load reads from, or \"\" for any file the daemon can read");
+           "the directory calibration-load reads from, or \"\" for control_dir");
   n.calibration_dir = c.path(n.calibration_dir);
   if (const toml::node* node = t.get("control_allow")) parse_control_allow(c, *node, n.control_allow);
 }

@@ -41,7 +41,7 @@ struct NetworkConfig {
   // directory when it started (/var/lib/fovea for the service).
   std::string control_dir;
   // Where calibration-load may read a file (confined as record-start is, and never through a
-  // symbolic link); "" = any regular file the daemon can read.
+  // symbolic link); "" = control_dir.
   std::string calibration_dir;
   // Ignored (a warning at start): control over UDP, authorised by source address alone, is gone
   // (issue 23). Still parsed and checked, so that configuration files written for earlier versions

@@ -26,7 +26,7 @@ bool within(const fs::path& inner, const fs::path& outer) {
 std::string confined_path(const std::string& requested, const std::string& dir, const std::string& command,
                           const std::string& dir_name) {
   const auto fail = [&](const std::string& why) {
-    return std::runtime_error(command + " " + protocol::escape_for_log(requested) + ": " + why);
+    return PathRefused(command + " " + protocol::escape_for_log(requested) + ": " + why, why);
   };
   if (requested.empty()) throw fail("empty path");
   std::error_code ec;
