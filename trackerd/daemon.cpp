@@ -323,8 +323,7 @@ protocol::ControlReply Daemon::prepare_and_submit(const protocol::ControlRequest
     spdlog::warn("{}", e.what());
     return failed(r.command, e.reason());
   } catch (const std::exception& e) {
-    spdlog::warn("{}", e.what());
-    return failed(r.command, e.what());
+    return failed(r.command, e.what());  // handle_control logs the reply
   }
 }
 
