@@ -11,11 +11,12 @@
 
 #include "sources/hid/eye_tracker.h"
 #include "sources/hid/report_descriptor.h"
-#include "sources/hid/tracker_clock.h"
+#include "source_api/tracker_clock.h"
 
 namespace {
 
 using namespace fovea::trackerd::hid;
+using fovea::trackerd::TrackerClock;
 
 void check(bool ok) {
   if (!ok) std::abort();

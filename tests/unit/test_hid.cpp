@@ -20,12 +20,13 @@
 #include "sources/hid/eye_tracker.h"
 #include "sources/hid/hid_source.h"
 #include "sources/hid/report_descriptor.h"
-#include "sources/hid/tracker_clock.h"
+#include "source_api/tracker_clock.h"
 #include "sources/hid/usage_tables.h"
 
 namespace {
 
 using namespace fovea::trackerd::hid;
+using fovea::trackerd::TrackerClock;
 using Bytes = std::vector<std::uint8_t>;
 
 // ---------------------------------------------------------------------------------------------

@@ -18,7 +18,7 @@
 #include "source_api/gaze_source.h"
 #include "sources/hid/eye_tracker.h"
 #include "sources/hid/report_descriptor.h"
-#include "sources/hid/tracker_clock.h"
+#include "source_api/tracker_clock.h"
 
 namespace fovea::trackerd::hid {
 

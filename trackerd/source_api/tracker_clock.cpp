@@ -1,9 +1,9 @@
-#include "sources/hid/tracker_clock.h"
+#include "source_api/tracker_clock.h"
 
 #include <algorithm>
 #include <cmath>
 
-namespace fovea::trackerd::hid {
+namespace fovea::trackerd {
 
 TrackerClock::TrackerClock(double tick_s, std::uint32_t counter_bits, double window_s, double max_gap_s)
     : tick_ns_(std::isfinite(tick_s) && tick_s > 0 ? tick_s * 1e9 : 1e3),
@@ -62,4 +62,4 @@ std::int64_t TrackerClock::map(std::uint64_t ticks, std::int64_t receive_ns) {
   return mapped;
 }
 
-}  // namespace fovea::trackerd::hid
+}  // namespace fovea::trackerd

@@ -13,7 +13,7 @@
 #include <cstdint>
 #include <deque>
 
-namespace fovea::trackerd::hid {
+namespace fovea::trackerd {
 
 class TrackerClock {
  public:
@@ -48,4 +48,4 @@ class TrackerClock {
   std::uint64_t resets_ = 0;
 };
 
-}  // namespace fovea::trackerd::hid
+}  // namespace fovea::trackerd
