@@ -817,8 +817,14 @@ TEST(HidClock, FollowsASlowTrackerClockWithinItsDriftAllowance) {
     const std::int64_t mapped = clock.map(ticks, receive);
     ASSERT_LE(mapped, receive);
     ASSERT_GE(mapped, receive - 300'000) << k;  // lag: drift x 1 s window = 0.2 ms
+    if (k == 250) {
+      EXPECT_FALSE(clock.drift_ppm()) << "a drift from one window";
+    }
   }
   EXPECT_EQ(clock.resets(), 0u);
+  // The offset host - tracker grows by 200 us per second: +200 ppm, found within 1 ppm.
+  ASSERT_TRUE(clock.drift_ppm());
+  EXPECT_NEAR(*clock.drift_ppm(), 200.0, 1.0);
 }
 
 TEST(HidClock, ResetsAndGapsReanchor) {

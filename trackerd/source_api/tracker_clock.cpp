@@ -20,6 +20,14 @@ void TrackerClock::anchor(std::uint64_t ticks, std::int64_t receive_ns) {
   offset_ns_ = receive_ns;
   window_.clear();
   window_.push_back({0, receive_ns});
+  first_full_window_.reset();
+}
+
+std::optional<double> TrackerClock::drift_ppm() const {
+  if (!first_full_window_) return std::nullopt;
+  const std::int64_t span = tracker_ns_ - first_full_window_->tracker_ns;
+  if (span < window_ns_ || span <= 0) return std::nullopt;
+  return static_cast<double>(offset_ns_ - first_full_window_->offset_ns) / static_cast<double>(span) * 1e6;
 }
 
 std::int64_t TrackerClock::map(std::uint64_t ticks, std::int64_t receive_ns) {
@@ -46,6 +54,7 @@ std::int64_t TrackerClock::map(std::uint64_t ticks, std::int64_t receive_ns) {
         window_.push_back({tracker_ns_, candidate});
         while (window_.front().tracker_ns < tracker_ns_ - window_ns_) window_.pop_front();
         offset_ns_ = window_.front().offset_ns;
+        if (!first_full_window_ && tracker_ns_ >= window_ns_) first_full_window_ = Candidate{tracker_ns_, offset_ns_};
       }
     }
   }

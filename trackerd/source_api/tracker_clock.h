@@ -12,6 +12,7 @@
 // than that re-anchors (tracker reset), counted in resets(). Mapped times never decrease.
 #include <cstdint>
 #include <deque>
+#include <optional>
 
 namespace fovea::trackerd {
 
@@ -27,6 +28,11 @@ class TrackerClock {
   }
   std::uint64_t resets() const { return resets_; }
   std::int64_t offset_ns() const { return offset_ns_; }
+  // How fast the tracker's clock runs against the host's, in parts per million (positive: the
+  // offset host - tracker grows, the tracker is slow): the change of the best offset since the
+  // first full window, over the tracker time between. nullopt until two windows have passed since
+  // the last anchor.
+  std::optional<double> drift_ppm() const;
 
  private:
   void anchor(std::uint64_t ticks, std::int64_t receive_ns);
@@ -46,6 +52,7 @@ class TrackerClock {
   std::deque<Candidate> window_;     // increasing offsets: the front is the window's least
   std::int64_t last_mapped_ns_ = 0;
   std::uint64_t resets_ = 0;
+  std::optional<Candidate> first_full_window_;  // the best offset when the first window had passed
 };
 
 }  // namespace fovea::trackerd

@@ -15,6 +15,7 @@
 #include "sim/calibration_viewer.h"
 #include "sim/synthetic_eye_frames.h"
 #include "sim/synthetic_gaze.h"
+#include "sources/gazepoint/gazepoint_source.h"
 #include "sources/hid/hid_source.h"
 #include "sources/hotplug_camera.h"
 #include "sources/replay_source.h"
@@ -229,6 +230,16 @@ std::unique_ptr<GazeSource> make_replay(const service::DaemonConfig& c, std::int
 
 // ---- the table ----------------------------------------------------------------------------------
 
+// A Gazepoint GP3 streams at 60 Hz, the GP3 HD at 150 Hz: [source] rate says which (default 150).
+std::unique_ptr<GazeSource> make_gazepoint(const service::DaemonConfig& c, std::int64_t) {
+  const double rate = c.source.rate_hz > 0 ? c.source.rate_hz : 150;
+  if (!(rate >= 1 && rate <= 1000)) {
+    throw std::invalid_argument("--rate " + std::to_string(rate) + " is outside 1..1000 Hz for a Gazepoint tracker");
+  }
+  return std::make_unique<gazepoint::GazepointSource>(gazepoint::parse_gazepoint_spec(c.source.spec),
+                                                      c.display.value_or(protocol::DisplayGeometry{}), rate);
+}
+
 using Arg = SourceKind::Argument;
 
 // clang-format off
@@ -241,6 +252,8 @@ constexpr SourceKind kSourceKinds[] = {
   {"camera:",       Arg::Required, "camera:/dev/videoN", "eye camera",                             nullptr, make_camera},
   {"camera:usb:",   Arg::Optional, "camera:usb:VID:PID", "eye camera, opened when plugged in",     nullptr, make_usb_camera},
   {"video:",        Arg::Required, "video:FILE",         "eye video",                              nullptr, make_video},
+  {"gazepoint:",    Arg::Required, "gazepoint:HOST[:PORT]", "Gazepoint GP3 tracker, through Gazepoint "
+                                                         "Control's Open Gaze API; port 4242 by default", gazepoint::check_gazepoint_spec, make_gazepoint},
 };
 // clang-format on
 
