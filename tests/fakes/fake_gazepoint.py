@@ -65,6 +65,7 @@ class Client:
         # Absolute CLOCK_MONOTONIC deadlines; next_ns is a float so period rounding never accumulates.
         self.next_ns = self.drop_at = None
         self.long_sent, self.last_fields = False, []
+        self.held = []   # --burst: records taken, not yet written
 
 
 class Closed(Exception):
@@ -207,12 +208,20 @@ def send_due_records(srv, client):
         host_ns = now_ns()   # just before the write, as the daemon would timestamp it
         if host_ns - client.next_ns > 1e9:   # stalled for a second: resync instead of bursting
             client.next_ns = float(host_ns)
+        if args.burst > 1:
+            # A tracker whose transport batches: the record is taken on schedule and written
+            # with the next ones, so its receive time lags its capture by up to burst-1 periods.
+            host_ns = int(client.next_ns)
         t = tracker_time(srv, host_ns)
         fields, best = record_fields(client, args.rate, t)
-        send(client, element("REC", fields))
-        if srv.truth:
-            srv.truth.write("%d,%d,%.5f,%s,%s,%s\n" % ((client.cnt, host_ns, t) + best))
-            srv.truth.flush()
+        # The truth lists what was written: records still held when the connection ends never are.
+        client.held.append((element("REC", fields), "%d,%d,%.5f,%s,%s,%s\n" % ((client.cnt, host_ns, t) + best)))
+        if len(client.held) >= args.burst:
+            send(client, b"".join(rec for rec, _ in client.held))
+            if srv.truth:
+                srv.truth.write("".join(line for _, line in client.held))
+                srv.truth.flush()
+            client.held = []
         client.last_fields = fields
         client.cnt += 1
         client.next_ns += 1e9 / args.rate
@@ -306,11 +315,14 @@ def parse_args(argv):
         help="after every N-th record send one malformed line (0 = never)")
     opt("--drop-after", type=float, default=0.0, metavar="S",
         help="close the connection S s after ENABLE_SEND_DATA is set (0 = never)")
+    opt("--burst", type=int, default=1, metavar="N",
+        help="write records N at a time, each stamped when it was taken: the truth's host_send_ns is "
+             "then the capture time, and the receive delay grows to N-1 periods (default 1)")
     opt("--duration", type=float, default=0.0, metavar="S",
         help="exit 0 after S seconds (0 = run until SIGTERM/SIGINT)")
     args = p.parse_args(argv)
-    if args.rate <= 0 or args.malformed_every < 0:
-        p.error("--rate must be > 0 and --malformed-every >= 0")
+    if args.rate <= 0 or args.malformed_every < 0 or args.burst < 1:
+        p.error("--rate must be > 0, --malformed-every >= 0 and --burst >= 1")
     return args
 
 

@@ -22,7 +22,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const auto r = parse_record(*e, error);
   if (!r) return 0;
   if (!std::isfinite(r->best_x) || !std::isfinite(r->best_y)) std::abort();
-  if (r->best_valid && (r->best_x < -1 || r->best_x > 2 || r->best_y < -1 || r->best_y > 2)) std::abort();
+  if (r->best_x < -1 || r->best_x > 2 || r->best_y < -1 || r->best_y > 2) std::abort();
   if (r->time_s && !(*r->time_s >= 0 && *r->time_s <= 1e9)) std::abort();
   if (r->left_pupil_mm && !(*r->left_pupil_mm > 0 && *r->left_pupil_mm <= 20)) std::abort();
   return 0;

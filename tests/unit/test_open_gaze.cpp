@@ -83,6 +83,8 @@ TEST(OpenGaze, RecordsWithBadValuesAreRefusedNeverHalfUsed) {
   EXPECT_NE(record_error(R"(<REC BPOGX="0.5 " BPOGY="0.5" BPOGV="1" />)").find("not a finite number"), std::string::npos);
   EXPECT_NE(record_error(R"(<REC BPOGX="1e308" BPOGY="0.5" BPOGV="1" />)").find("beyond"), std::string::npos);
   EXPECT_NE(record_error(R"(<REC BPOGX="1e999" BPOGY="0.5" BPOGV="1" />)").find("not a finite"), std::string::npos);
+  EXPECT_NE(record_error(R"(<REC BPOGX="0" BPOGY="-1e308" BPOGV="0" />)").find("beyond"), std::string::npos)
+      << "an invalid point is no licence for junk";
   EXPECT_NE(record_error(R"(<REC BPOGX="0.5" BPOGV="1" />)").find("required"), std::string::npos);
   EXPECT_NE(record_error(R"(<REC BPOGX="0.5" BPOGY="0.5" BPOGV="2" />)").find("not 0 or 1"), std::string::npos);
   EXPECT_NE(record_error(R"(<REC CNT="-1" BPOGX="0.5" BPOGY="0.5" BPOGV="1" />)").find("CNT"), std::string::npos);

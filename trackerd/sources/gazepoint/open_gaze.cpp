@@ -162,7 +162,7 @@ std::optional<Record> parse_record(const Element& rec, std::string& error) {
   if (!problem.empty()) return fail(problem);
   if (!x || !y || !valid) return fail("BPOGX, BPOGY and BPOGV are required (ENABLE_SEND_POG_BEST)");
   r.best_x = *x, r.best_y = *y, r.best_valid = *valid;
-  if (r.best_valid && (r.best_x < -1 || r.best_x > 2 || r.best_y < -1 || r.best_y > 2)) {
+  if (r.best_x < -1 || r.best_x > 2 || r.best_y < -1 || r.best_y > 2) {
     return fail("point of gaze " + std::to_string(r.best_x) + ", " + std::to_string(r.best_y) + " is beyond -1..2 screens");
   }
   if (const std::string* cnt = rec.attribute("CNT")) {

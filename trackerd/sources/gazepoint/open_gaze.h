@@ -53,8 +53,9 @@ struct Record {
   std::optional<double> left_pupil_mm, right_pupil_mm;  // LPUPILD, RPUPILD (metres on the wire), when valid
 };
 // A REC element as a record, or nullopt with `error`: BPOGX, BPOGY and BPOGV are required (fovea
-// enables them); every number must parse whole and be finite; a valid point of gaze must lie within
-// -1..2 screens (Gazepoint reports off-screen gaze a little outside 0..1, never farther); CNT and
+// enables them); every number must parse whole and be finite; the point of gaze, valid or not, must
+// lie within -1..2 screens (Gazepoint reports off-screen gaze a little outside 0..1, never farther,
+// and 0, 0 when invalid); CNT and
 // TIME_TICK are integers, TIME non-negative.
 std::optional<Record> parse_record(const Element& rec, std::string& error);
 

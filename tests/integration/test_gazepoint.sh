@@ -1,0 +1,99 @@
+#!/usr/bin/env bash
+# fovea-trackerd --source gazepoint:HOST:PORT against a fake Gazepoint Control
+# (tests/fakes/fake_gazepoint.py: the Open Gaze API with a known trajectory, a tracker clock 1000 s
+# ahead running 50 ppm fast, invalid stretches and malformed lines, records written 4 at a time so
+# that they arrive up to 20 ms after they were taken). Two clients record what the daemon
+# publishes; every sample they got must be a record the fake sent: same point (y not flipped), same
+# validity, and its time, mapped from the tracker's clock, within 1 ms of when the fake took it
+# (stamping arrival instead would be off by up to 20 ms). Halfway the fake drops the connection:
+# the daemon reconnects. The daemon's counts of records and malformed lines must equal the fake's.
+# Usage: test_gazepoint.sh TRACKERD CTL SOURCE_DIR
+set -u
+TRACKERD=$1 CTL=$2 SRC=$3
+WORK=$(mktemp -d)
+FPID="" DPID=""
+trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
+fail() { echo "FAIL: $*"; for f in d.log fake.log; do [ -f "$WORK/$f" ] && { echo "--- $f"; tail -n 15 "$WORK/$f"; }; done; exit 1; }
+
+echo "== a fake Gazepoint Control (150 Hz in bursts of 4, clock +1000 s and 50 ppm fast, a malformed line every 25 records)"
+/usr/bin/python3 "$SRC/tests/fakes/fake_gazepoint.py" --port 0 --ready-file "$WORK/port" --truth "$WORK/truth.csv" \
+  --rate 150 --burst 4 --time-offset 1000 --drift-ppm 50 --malformed-every 25 >"$WORK/fake.log" 2>&1 &
+FPID=$!
+for _ in $(seq 50); do [ -s "$WORK/port" ] && break; sleep 0.1; done
+[ -s "$WORK/port" ] || fail "the fake did not start"
+GP=$(cat "$WORK/port")
+
+PORT=$((49000 + RANDOM % 900))
+"$TRACKERD" --source "gazepoint:127.0.0.1:$GP" --port "$PORT" --control-socket none --log-level info \
+  >"$WORK/d.log" 2>&1 &
+DPID=$!
+sleep 0.3
+"$CTL" --server "127.0.0.1:$PORT" record --duration 5 "$WORK/a.fgr" >"$WORK/a.out" 2>&1 &
+A=$!
+"$CTL" --server "127.0.0.1:$PORT" record --duration 5 "$WORK/b.fgr" >"$WORK/b.out" 2>&1 &
+B=$!
+sleep 2.5
+echo "== the fake drops the connection: the daemon reconnects"
+kill -USR1 "$FPID"
+wait "$A" || fail "client a: $(cat "$WORK/a.out")"
+wait "$B" || fail "client b: $(cat "$WORK/b.out")"
+kill -TERM "$FPID"
+wait "$FPID" || fail "the fake did not exit cleanly"
+FPID=""
+sleep 0.5
+kill -TERM "$DPID"
+wait "$DPID" || fail "the daemon did not stop cleanly"
+DPID=""
+grep -q "gazepoint:127.0.0.1:$GP: connected; streaming" "$WORK/d.log" || fail "never connected"
+grep -q "the connection ended; reconnecting" "$WORK/d.log" || fail "the dropped connection was not reported"
+grep -q "1 reconnections" "$WORK/d.log" || fail "no reconnection counted"
+
+echo "== every sample a client got is a record the fake sent: point, validity, time"
+for c in a b; do
+  "$CTL" convert "$WORK/$c.fgr" "$WORK/$c.csv" >/dev/null 2>&1 || fail "convert $c.fgr"
+done
+/usr/bin/python3 - "$WORK" <<'PY' || fail "samples do not match what the fake sent"
+import bisect, csv, re, sys
+work = sys.argv[1]
+truth, malformed = [], None
+for line in open(f"{work}/truth.csv"):
+    if line.startswith("# malformed"):
+        malformed = int(line.split()[-1])
+    elif line[0].isdigit():
+        cnt, send_ns, t, x, y, v = line.strip().split(",")
+        truth.append((int(send_ns), float(x), float(y), v == "1"))
+# The records by what they say (the trajectory repeats every 2 s, and CNT restarts with a
+# connection): a sample is the record with its point and validity taken nearest its time.
+by_point = {}
+for send_ns, x, y, v in sorted(truth):
+    by_point.setdefault((round(x, 5), round(y, 5), v), []).append(send_ns)
+log = open(f"{work}/d.log").read()
+m = re.search(r"gazepoint:[0-9.:]+: (\d+) records \((\d+) valid\), (\d+) malformed", log)
+assert m, "no final counts in the daemon's log"
+records, malformed_seen = int(m.group(1)), int(m.group(3))
+assert records == len(truth), f"the daemon read {records} records, the fake sent {len(truth)}"
+assert malformed_seen == malformed, f"the daemon counted {malformed_seen} malformed lines, the fake sent {malformed}"
+for client in "ab":
+    rows = [r for r in csv.reader(l for l in open(f"{work}/{client}.csv") if not l.startswith("#"))][1:]
+    errors = []
+    for r in rows:
+        t, x, y, valid = int(r[1]), float(r[2]), float(r[3]), r[9] == "1"
+        key = (round(x, 5), round(y, 5), valid) if valid else (0.0, 0.0, False)
+        # float32 on the wire: 5 decimals survive (the fake writes 5).
+        assert key in by_point, f"{client}: ({x}, {y}, valid={valid}) at {t} is no record the fake sent (y flipped?)"
+        times = by_point[key]
+        i = bisect.bisect_left(times, t)
+        errors.append(min(abs(times[j] - t) for j in (i - 1, i) if 0 <= j < len(times)))
+    assert len(rows) > 0.5 * 5 * 150, f"{client}: only {len(rows)} samples in 5 s at 150 Hz"
+    errors.sort()
+    p50, p98, worst = errors[len(errors) // 2], errors[int(len(errors) * 0.98)], errors[-1]
+    late = sum(e > 1_000_000 for e in errors)
+    print(f"   {client}: {len(rows)} samples, time error p50 {p50/1e6:.3f} ms, p98 {p98/1e6:.3f} ms, "
+          f"max {worst/1e6:.3f} ms, {late} over 1 ms")
+    # The first burst after each (re)connection is stamped on arrival: the clock has seen nothing
+    # better yet. Those are the only samples allowed past 1 ms: 3 per connection, 2 connections.
+    assert late <= 8, f"{client}: {late} times are off by more than 1 ms"
+    assert worst < 40_000_000, f"{client}: a time is off by {worst/1e6:.1f} ms"
+print(f"   the daemon read all {records} records and refused all {malformed} malformed lines")
+PY
+echo "PASS"
