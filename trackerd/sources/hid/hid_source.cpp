@@ -108,7 +108,7 @@ void sleep_ms(std::int64_t ms) {
 HidSpec parse_hid_spec(const std::string& spec) {
   const auto bad = [&](const std::string& why) {
     return std::invalid_argument("source '" + spec + "': " + why +
-                                 " (expected 'hid' or 'hid:VID:PID' with VID and PID in hexadecimal, e.g. hid:2104:0313)");
+                                 " (expected 'hid' or 'hid:VID:PID' with VID and PID in hexadecimal, e.g. hid:1234:5678)");
   };
   if (spec == "hid") return {};
   if (spec.rfind("hid:", 0) != 0) throw bad("not a HID source");
