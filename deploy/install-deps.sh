@@ -15,6 +15,7 @@ PACKAGES=(
   libsodium-dev                       # the subscription cookies' MAC and key (no hand-written cryptography)
   # tracker hardware
   libhidapi-dev libusb-1.0-0-dev libv4l-dev
+  libzmq3-dev cppzmq-dev libmsgpack-cxx-dev  # Pupil Core's network API (ZeroMQ, msgpack)
   # vision
   libopencv-dev libopencv-contrib-dev
   # renderer
@@ -26,6 +27,7 @@ PACKAGES=(
   xvfb xauth                          # an X server for the tests of the GLFW window (the viewer)
   # tests, benchmarks, report plots
   libgtest-dev libgmock-dev googletest libbenchmark-dev python3 python3-matplotlib
+  python3-zmq python3-msgpack         # the fake Pupil Capture of the tests (tests/fakes/)
 )
 
 missing=()
