@@ -17,6 +17,7 @@
 #include "sim/synthetic_gaze.h"
 #include "sources/gazepoint/gazepoint_source.h"
 #include "sources/hid/hid_source.h"
+#include "sources/pupil/pupil_source.h"
 #include "sources/hotplug_camera.h"
 #include "sources/replay_source.h"
 #include "sources/v4l2_camera.h"
@@ -240,6 +241,16 @@ std::unique_ptr<GazeSource> make_gazepoint(const service::DaemonConfig& c, std::
                                                       c.display.value_or(protocol::DisplayGeometry{}), rate);
 }
 
+// Pupil Core publishes gaze at the eye cameras' rate, 200 Hz by default ([source] rate says otherwise).
+std::unique_ptr<GazeSource> make_pupil(const service::DaemonConfig& c, std::int64_t) {
+  const double rate = c.source.rate_hz > 0 ? c.source.rate_hz : 200;
+  if (!(rate >= 1 && rate <= 1000)) {
+    throw std::invalid_argument("--rate " + std::to_string(rate) + " is outside 1..1000 Hz for Pupil Core");
+  }
+  return std::make_unique<pupil::PupilSource>(pupil::parse_pupil_spec(c.source.spec),
+                                              c.display.value_or(protocol::DisplayGeometry{}), rate);
+}
+
 using Arg = SourceKind::Argument;
 
 // clang-format off
@@ -254,6 +265,10 @@ constexpr SourceKind kSourceKinds[] = {
   {"video:",        Arg::Required, "video:FILE",         "eye video",                              nullptr, make_video},
   {"gazepoint:",    Arg::Required, "gazepoint:HOST[:PORT]", "Gazepoint GP3 tracker, through Gazepoint "
                                                          "Control's Open Gaze API; port 4242 by default", gazepoint::check_gazepoint_spec, make_gazepoint},
+  {"pupil:",        Arg::Required, "pupil:HOST[:PORT][?surface=NAME&min_confidence=C]",
+                                                         "Pupil Core through Pupil Capture's network API (Pupil Remote, port "
+                                                         "50020); screen gaze from the Surface Tracker's surface \"screen\"",
+                                                         pupil::check_pupil_spec, make_pupil},
 };
 // clang-format on
 
