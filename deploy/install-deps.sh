@@ -16,6 +16,7 @@ PACKAGES=(
   # tracker hardware
   libhidapi-dev libusb-1.0-0-dev libv4l-dev
   libzmq3-dev cppzmq-dev libmsgpack-cxx-dev  # Pupil Core's network API (ZeroMQ, msgpack)
+  libx11-dev                          # the mouse source (the X11 pointer as gaze)
   # vision
   libopencv-dev libopencv-contrib-dev
   # renderer

@@ -17,6 +17,7 @@
 #include "sim/synthetic_gaze.h"
 #include "sources/gazepoint/gazepoint_source.h"
 #include "sources/hid/hid_source.h"
+#include "sources/mouse/mouse_source.h"
 #include "sources/pupil/pupil_source.h"
 #include "sources/hotplug_camera.h"
 #include "sources/replay_source.h"
@@ -251,6 +252,14 @@ std::unique_ptr<GazeSource> make_pupil(const service::DaemonConfig& c, std::int6
                                               c.display.value_or(protocol::DisplayGeometry{}), rate);
 }
 
+std::unique_ptr<GazeSource> make_mouse(const service::DaemonConfig& c, std::int64_t start_time_ns) {
+  const double rate = c.source.rate_hz > 0 ? c.source.rate_hz : 120;
+  if (!(rate >= 1 && rate <= 1000)) {
+    throw std::invalid_argument("--rate " + std::to_string(rate) + " is outside 1..1000 Hz for the mouse");
+  }
+  return std::make_unique<mouse::MouseSource>(mouse::parse_mouse_spec(c.source.spec), c.display, rate, start_time_ns);
+}
+
 using Arg = SourceKind::Argument;
 
 // clang-format off
@@ -269,6 +278,8 @@ constexpr SourceKind kSourceKinds[] = {
                                                          "Pupil Core through Pupil Capture's network API (Pupil Remote, port "
                                                          "50020); screen gaze from the Surface Tracker's surface \"screen\"",
                                                          pupil::check_pupil_spec, make_pupil},
+  {"mouse",         Arg::Optional, "mouse[:DISPLAY]",    "the X11 pointer as gaze, 120 Hz unless --rate (developing without "
+                                                         "a tracker)", mouse::check_mouse_spec, make_mouse},
 };
 // clang-format on
 
