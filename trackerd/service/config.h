@@ -18,7 +18,7 @@ namespace fovea::trackerd::service {
 inline constexpr const char* kDefaultConfigPath = "/etc/fovea/trackerd.toml";
 
 struct SourceConfig {
-  std::string spec = "synthetic";  // synthetic | synthetic-eye | replay:FILE | hid[:VID:PID] | camera:... | video:FILE
+  std::string spec = "synthetic";  // a row of sources/source_table.cpp: synthetic | replay:FILE | gazepoint:HOST | ...
   double rate_hz = 0;              // synthetic 1..10000, synthetic-eye 1..1000 Hz; 0: the source's default (250 / 120)
   std::uint64_t seed = 1;          // synthetic, synthetic-eye: random seed
   double speed = 1.0;              // replay: speed factor, (0, 1000]
