@@ -22,7 +22,6 @@ namespace fovea::trackerd::gazepoint {
 
 namespace {
 
-constexpr std::size_t kQueueCapacity = 4096;
 constexpr std::size_t kDelayWindow = 1024;
 constexpr std::int64_t kMs = 1'000'000;
 constexpr std::int64_t kRetryNs = 1000 * kMs;    // between connection attempts
@@ -69,39 +68,13 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
 
 GazepointSource::GazepointSource(GazepointSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz)
     : spec_(std::move(spec)), display_(display), nominal_rate_hz_(nominal_rate_hz) {
-  problem_ = description() + ": connecting";
+  problem_.set(description() + ": connecting");
   reader_ = std::thread([this] { run(); });
 }
 
 GazepointSource::~GazepointSource() {
   stop_ = true;
   if (reader_.joinable()) reader_.join();
-}
-
-std::optional<GazeItem> GazepointSource::next() {
-  std::unique_lock lock(mutex_);
-  ready_.wait_for(lock, std::chrono::milliseconds(50), [&] { return !queue_.empty() || interrupted_; });
-  interrupted_ = false;
-  if (queue_.empty()) return std::nullopt;
-  protocol::GazeSample s = queue_.front();
-  queue_.pop_front();
-  return GazeItem{s};
-}
-
-void GazepointSource::interrupt() {
-  std::lock_guard lock(mutex_);
-  interrupted_ = true;
-  ready_.notify_all();
-}
-
-std::string GazepointSource::problem() const {
-  std::lock_guard lock(mutex_);
-  return problem_;
-}
-
-void GazepointSource::set_problem(std::string text) {
-  std::lock_guard lock(mutex_);
-  problem_ = std::move(text);
 }
 
 GazepointStats GazepointSource::stats() const {
@@ -139,7 +112,7 @@ void GazepointSource::run() {
         stats_.connected = false;
       }
       if (stop_) break;
-      set_problem(description() + ": the connection ended; reconnecting every second");
+      problem_.set(description() + ": the connection ended; reconnecting every second");
     }
     for (std::int64_t waited = 0; waited < kRetryNs && !stop_; waited += 50 * kMs) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -154,7 +127,7 @@ int GazepointSource::connect_to_server() {
   addrinfo* found = nullptr;
   const std::string port = std::to_string(spec_.port);
   if (const int rc = ::getaddrinfo(spec_.host.c_str(), port.c_str(), &hints, &found); rc != 0) {
-    set_problem(description() + ": cannot resolve " + spec_.host + ": " + ::gai_strerror(rc) + "; retrying every second");
+    problem_.set(description() + ": cannot resolve " + spec_.host + ": " + ::gai_strerror(rc) + "; retrying every second");
     return -1;
   }
   const int fd = ::socket(found->ai_family, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
@@ -165,7 +138,7 @@ int GazepointSource::connect_to_server() {
   ::freeaddrinfo(found);
   if (err != 0) {
     if (fd >= 0) ::close(fd);
-    set_problem(description() + ": " + errno_text(err) + " (is Gazepoint Control running, with its API on port " + port +
+    problem_.set(description() + ": " + errno_text(err) + " (is Gazepoint Control running, with its API on port " + port +
                 "?); retrying every second");
     return -1;
   }
@@ -177,7 +150,7 @@ int GazepointSource::connect_to_server() {
 void GazepointSource::serve(int fd) {
   for (const std::string& command : start_commands()) {
     if (!send_all(fd, command)) {
-      set_problem(description() + ": could not send the start commands: " + errno_text(errno));
+      problem_.set(description() + ": could not send the start commands: " + errno_text(errno));
       return;
     }
   }
@@ -189,8 +162,8 @@ void GazepointSource::serve(int fd) {
     std::lock_guard lock(mutex_);
     stats_.connected = true;
     ++stats_.connects;
-    problem_.clear();
   }
+  problem_.set("");
   spdlog::info("{}: connected; streaming", description());
   std::string buffer;
   bool discarding = false;  // inside a line that was already too long
@@ -202,7 +175,7 @@ void GazepointSource::serve(int fd) {
     const std::int64_t now = protocol::monotonic_ns();
     if (ready == 0) {
       if (now - last_record_ns > kSilenceNs && !silence_reported_) {
-        set_problem(description() + ": connected, but no gaze records for 3 s (is the tracker running?)");
+        problem_.set(description() + ": connected, but no gaze records for 3 s (is the tracker running?)");
         silence_reported_ = true;
       }
       continue;
@@ -266,7 +239,7 @@ bool GazepointSource::handle_line(std::string_view line, std::int64_t receive_ns
 
 void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
   if (silence_reported_) {
-    set_problem("");
+    problem_.set("");
     silence_reported_ = false;
   }
   const std::int64_t mapped =
@@ -308,12 +281,7 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
     stats_.delay_p50_ns = percentile(delays_, 0.5);
     stats_.delay_p99_ns = percentile(delays_, 0.99);
   }
-  if (queue_.size() == kQueueCapacity) {
-    queue_.pop_front();
-    ++stats_.queue_dropped;
-  }
-  queue_.push_back(s);
-  ready_.notify_all();
+  queue_.push(s);
 }
 
 }  // namespace fovea::trackerd::gazepoint

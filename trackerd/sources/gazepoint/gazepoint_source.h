@@ -11,9 +11,7 @@
 // A lost connection (Gazepoint Control closed or restarted) is retried every second, reported as
 // the source's problem meanwhile; a line that does not parse is counted and dropped, never used.
 #include <atomic>
-#include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -23,6 +21,7 @@
 #include "source_api/gaze_source.h"
 #include "source_api/tracker_clock.h"
 #include "sources/gazepoint/open_gaze.h"
+#include "sources/network_common.h"
 
 namespace fovea::trackerd::gazepoint {
 
@@ -33,7 +32,6 @@ struct GazepointStats {
   std::uint64_t malformed = 0;    // lines refused (not an element, a bad record, too long)
   std::uint64_t refused = 0;      // NACKs: commands the server did not take
   std::uint64_t counter_gaps = 0; // records missing by CNT (the tracker's or the network's loss)
-  std::uint64_t queue_dropped = 0;
   std::uint64_t connects = 0;     // successful connections (1 + reconnections)
   std::uint64_t clock_resets = 0;
   std::optional<std::pair<std::uint32_t, std::uint32_t>> screen;  // what SCREEN_SIZE said
@@ -53,10 +51,10 @@ class GazepointSource final : public GazeSource {
   std::string description() const override { return "gazepoint:" + spec_.to_string(); }
   protocol::DisplayGeometry display() const override { return display_; }
   double nominal_rate_hz() const override { return nominal_rate_hz_; }
-  std::optional<GazeItem> next() override;  // waits up to 50 ms for a sample
+  std::optional<GazeItem> next() override { return queue_.next(); }  // waits up to 50 ms for a sample
   bool ended() const override { return false; }
-  void interrupt() override;
-  std::string problem() const override;
+  void interrupt() override { queue_.interrupt(); }
+  std::string problem() const override { return problem_.get(); }
   std::string status_detail() const override;
   GazepointStats stats() const;
 
@@ -66,7 +64,6 @@ class GazepointSource final : public GazeSource {
   void serve(int fd);       // until the connection ends or the source stops
   bool handle_line(std::string_view line, std::int64_t receive_ns);  // true: a record
   void handle_record(const Record& r, std::int64_t receive_ns);
-  void set_problem(std::string text);
 
   GazepointSpec spec_;
   protocol::DisplayGeometry display_;
@@ -77,11 +74,9 @@ class GazepointSource final : public GazeSource {
   std::size_t delay_next_ = 0;
   bool silence_reported_ = false;  // "no gaze records" is the problem now
 
-  mutable std::mutex mutex_;
-  std::condition_variable ready_;
-  std::deque<protocol::GazeSample> queue_;
-  bool interrupted_ = false;
-  std::string problem_;
+  net::SampleQueue queue_;
+  net::ProblemText problem_;
+  mutable std::mutex mutex_;  // guards stats_
   GazepointStats stats_;
 
   std::atomic<bool> stop_{false};

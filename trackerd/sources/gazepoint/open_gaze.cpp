@@ -5,6 +5,8 @@
 #include <stdexcept>
 
 #include "fovea/protocol/bounded_file.h"
+#include "source_api/spec_check.h"
+#include "sources/network_common.h"
 
 namespace fovea::trackerd::gazepoint {
 
@@ -53,33 +55,11 @@ GazepointSpec parse_gazepoint_spec(const std::string& spec) {
                                  "; expected gazepoint:HOST[:PORT] (Gazepoint Control's Open Gaze API, port 4242)");
   };
   if (spec.rfind(prefix, 0) != 0) throw bad("not a gazepoint source");
-  std::string rest = spec.substr(prefix.size());
-  GazepointSpec out;
-  if (const std::size_t colon = rest.rfind(':'); colon != std::string::npos) {
-    unsigned port = 0;
-    if (!integer_text(rest.substr(colon + 1), port) || port < 1 || port > 65535) {
-      throw bad("\"" + protocol::escape_for_log(rest.substr(colon + 1)) + "\" is not a port (1..65535)");
-    }
-    out.port = static_cast<std::uint16_t>(port);
-    rest.resize(colon);
-  }
-  if (rest.empty()) throw bad("no host");
-  for (const char c : rest) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '-';
-    if (!ok) throw bad("the host \"" + protocol::escape_for_log(rest) + "\" is not an IPv4 address or a host name");
-  }
-  out.host = rest;
-  return out;
+  const net::HostPort hp = net::parse_host_port(spec.substr(prefix.size()), kDefaultPort, bad);
+  return GazepointSpec{hp.host, hp.port};
 }
 
-std::string check_gazepoint_spec(const std::string& spec) {
-  try {
-    (void)parse_gazepoint_spec(spec);
-    return {};
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-}
+std::string check_gazepoint_spec(const std::string& spec) { return spec_problem(parse_gazepoint_spec, spec); }
 
 const std::string* Element::attribute(std::string_view key) const {
   for (const auto& [k, v] : attributes) {

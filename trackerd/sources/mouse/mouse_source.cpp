@@ -6,6 +6,7 @@
 
 #include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/clock.h"
+#include "source_api/spec_check.h"
 
 // Last: Xlib defines macros (None, Status, True, ...) that would rewrite names in the headers above.
 #include <X11/Xlib.h>
@@ -32,14 +33,7 @@ std::optional<std::string> parse_mouse_spec(const std::string& spec) {
   return spec.substr(6);
 }
 
-std::string check_mouse_spec(const std::string& spec) {
-  try {
-    (void)parse_mouse_spec(spec);
-    return {};
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-}
+std::string check_mouse_spec(const std::string& spec) { return spec_problem(parse_mouse_spec, spec); }
 
 MouseSource::MouseSource(const std::optional<std::string>& display_name,
                          std::optional<protocol::DisplayGeometry> configured, double rate_hz, std::int64_t start_time_ns)

@@ -8,6 +8,8 @@
 #include <string_view>
 
 #include "fovea/protocol/bounded_file.h"
+#include "source_api/spec_check.h"
+#include "sources/network_common.h"
 
 namespace fovea::trackerd::pupil {
 
@@ -142,33 +144,13 @@ PupilSpec parse_pupil_spec(const std::string& spec) {
     }
     rest.resize(q);
   }
-  if (const std::size_t colon = rest.rfind(':'); colon != std::string::npos) {
-    unsigned port = 0;
-    const std::string p = rest.substr(colon + 1);
-    const auto r = std::from_chars(p.data(), p.data() + p.size(), port);
-    if (p.empty() || r.ec != std::errc{} || r.ptr != p.data() + p.size() || port < 1 || port > 65535) {
-      throw bad("\"" + protocol::escape_for_log(p) + "\" is not a port (1..65535)");
-    }
-    out.port = static_cast<std::uint16_t>(port);
-    rest.resize(colon);
-  }
-  if (rest.empty()) throw bad("no host");
-  for (const char c : rest) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '-';
-    if (!ok) throw bad("the host \"" + protocol::escape_for_log(rest) + "\" is not an IPv4 address or a host name");
-  }
-  out.host = rest;
+  const net::HostPort hp = net::parse_host_port(rest, kDefaultPort, bad);
+  out.host = hp.host;
+  out.port = hp.port;
   return out;
 }
 
-std::string check_pupil_spec(const std::string& spec) {
-  try {
-    (void)parse_pupil_spec(spec);
-    return {};
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-}
+std::string check_pupil_spec(const std::string& spec) { return spec_problem(parse_pupil_spec, spec); }
 
 std::optional<std::vector<PupilGaze>> parse_surface_payload(std::span<const std::uint8_t> payload,
                                                             const std::string& surface, std::string& error) {

@@ -14,7 +14,6 @@ namespace fovea::trackerd::pupil {
 
 namespace {
 
-constexpr std::size_t kQueueCapacity = 4096;
 constexpr std::int64_t kMs = 1'000'000;
 constexpr int kRequestTimeoutMs = 1000;            // Pupil Remote answers in well under that
 constexpr std::int64_t kSyncEveryNs = 1000 * kMs;  // one "t" exchange a second
@@ -73,7 +72,7 @@ struct PupilSource::Connection {
 
 PupilSource::PupilSource(PupilSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz)
     : spec_(std::move(spec)), display_(display), nominal_rate_hz_(nominal_rate_hz) {
-  problem_ = description() + ": connecting";
+  problem_.set(description() + ": connecting");
   reader_ = std::thread([this] { run(); });
 }
 
@@ -82,31 +81,9 @@ PupilSource::~PupilSource() {
   if (reader_.joinable()) reader_.join();
 }
 
-std::optional<GazeItem> PupilSource::next() {
-  std::unique_lock lock(mutex_);
-  ready_.wait_for(lock, std::chrono::milliseconds(50), [&] { return !queue_.empty() || interrupted_; });
-  interrupted_ = false;
-  if (queue_.empty()) return std::nullopt;
-  protocol::GazeSample s = queue_.front();
-  queue_.pop_front();
-  return GazeItem{s};
-}
-
-void PupilSource::interrupt() {
-  std::lock_guard lock(mutex_);
-  interrupted_ = true;
-  ready_.notify_all();
-}
-
-std::string PupilSource::problem() const {
-  std::lock_guard lock(mutex_);
-  return problem_;
-}
-
-void PupilSource::set_problem(std::string text) {
-  std::lock_guard lock(mutex_);
-  if (text == problem_) return;
-  problem_ = std::move(text);
+void PupilSource::set_problem(Problem kind, std::string text) {
+  problem_kind_ = kind;
+  problem_.set(std::move(text));
 }
 
 PupilStats PupilSource::stats() const {
@@ -147,7 +124,7 @@ void PupilSource::run() {
       try {
         serve(c);
       } catch (const zmq::error_t& e) {
-        set_problem(description() + ": " + e.what() + "; reconnecting every second");
+        set_problem(Problem::Lost, description() + ": " + e.what() + "; reconnecting every second");
       }
     }
     {
@@ -163,7 +140,7 @@ void PupilSource::run() {
 void PupilSource::serve(Connection& c) {
   c.open_remote(spec_);
   const auto lost = [&](const std::string& what) {
-    set_problem(description() + ": " + what + " (is Pupil Capture running, with Pupil Remote on port " +
+    set_problem(Problem::Lost, description() + ": " + what + " (is Pupil Capture running, with Pupil Remote on port " +
                 std::to_string(spec_.port) + "?); reconnecting every second");
   };
   const auto sync = [&]() -> bool {
@@ -203,8 +180,8 @@ void PupilSource::serve(Connection& c) {
     std::lock_guard lock(mutex_);
     stats_.connected = true;
     ++stats_.connects;
-    problem_ = description() + ": connected; waiting for gaze";
   }
+  set_problem(Problem::Waiting, description() + ": connected; waiting for gaze");
   spdlog::info("{}: connected (publisher on port {})", description(), c.sub_port);
   c.last_message_ns = protocol::monotonic_ns();
   last_surface_ns_ = c.last_message_ns;  // give the surface its 2 s before calling gaze scene-only
@@ -230,10 +207,10 @@ void PupilSource::serve(Connection& c) {
       }
     }
     if (now - last_surface_ns_ > kSurfaceStaleNs && now - c.last_message_ns < kSurfaceStaleNs && stats().scene_only > 0) {
-      set_problem(description() + ": only scene-camera gaze, no surface \"" + spec_.surface +
+      set_problem(Problem::SceneOnly, description() + ": only scene-camera gaze, no surface \"" + spec_.surface +
                   "\" (define it in Pupil Capture's Surface Tracker, fitted to the screen): screen gaze is invalid");
     } else if (now - c.last_message_ns > kSilenceNs) {
-      set_problem(description() + ": connected, but no gaze for 3 s (are the eye cameras running?)");
+      set_problem(Problem::Silent, description() + ": connected, but no gaze for 3 s (are the eye cameras running?)");
     }
   }
 }
@@ -265,13 +242,7 @@ bool PupilSource::handle_message(Connection& c, std::int64_t receive_ns) {
       return true;
     }
     last_surface_ns_ = receive_ns;
-    {
-      std::lock_guard lock(mutex_);
-      if (problem_.find("only scene-camera gaze") != std::string::npos || problem_.find("waiting for gaze") != std::string::npos ||
-          problem_.find("no gaze for") != std::string::npos) {
-        problem_.clear();
-      }
-    }
+    if (problem_kind_ != Problem::None) set_problem(Problem::None, "");  // screen gaze is flowing
     for (const PupilGaze& g : *gaze) publish(g, true, receive_ns);
   } else if (topic.rfind("gaze.", 0) == 0) {
     const auto g = parse_gaze_payload(payload, error);
@@ -322,12 +293,7 @@ void PupilSource::publish(const PupilGaze& g, bool screen, std::int64_t receive_
       ++stats_.valid;
     }
   }
-  if (queue_.size() == kQueueCapacity) {
-    queue_.pop_front();
-    ++stats_.queue_dropped;
-  }
-  queue_.push_back(s);
-  ready_.notify_all();
+  queue_.push(s);
 }
 
 }  // namespace fovea::trackerd::pupil

@@ -13,9 +13,7 @@
 // problem. When Pupil Capture stops answering, or restarts (its clock jumps, its publisher moves),
 // the source reconnects.
 #include <atomic>
-#include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -23,6 +21,7 @@
 
 #include "source_api/gaze_source.h"
 #include "source_api/round_trip_clock.h"
+#include "sources/network_common.h"
 #include "sources/pupil/pupil_messages.h"
 
 namespace fovea::trackerd::pupil {
@@ -37,7 +36,6 @@ struct PupilStats {
   std::uint64_t malformed = 0;        // messages refused
   std::uint64_t out_of_order = 0;     // gaze not after the last one published (dropped)
   std::uint64_t connects = 0;
-  std::uint64_t queue_dropped = 0;
   std::uint64_t clock_exchanges = 0, clock_resets = 0;
   std::int64_t clock_offset_ns = 0, clock_uncertainty_ns = 0, clock_last_rtt_ns = 0;
   std::optional<double> clock_drift_ppm;
@@ -54,10 +52,10 @@ class PupilSource final : public GazeSource {
   std::string description() const override { return "pupil:" + spec_.to_string() + " (surface " + spec_.surface + ")"; }
   protocol::DisplayGeometry display() const override { return display_; }
   double nominal_rate_hz() const override { return nominal_rate_hz_; }
-  std::optional<GazeItem> next() override;  // waits up to 50 ms for a sample
+  std::optional<GazeItem> next() override { return queue_.next(); }  // waits up to 50 ms for a sample
   bool ended() const override { return false; }
-  void interrupt() override;
-  std::string problem() const override;
+  void interrupt() override { queue_.interrupt(); }
+  std::string problem() const override { return problem_.get(); }
   std::string status_detail() const override;
   PupilStats stats() const;
 
@@ -68,7 +66,10 @@ class PupilSource final : public GazeSource {
   bool handle_message(Connection& c, std::int64_t receive_ns);  // false: no message waiting
   void publish(const PupilGaze& g, bool screen, std::int64_t receive_ns);
   void count_malformed(const std::string& why);
-  void set_problem(std::string text);
+  // What the problem is, so that gaze arriving clears the ones it answers (reader thread only).
+  enum class Problem { None, Waiting, SceneOnly, Silent, Lost };
+  void set_problem(Problem kind, std::string text);
+  Problem problem_kind_ = Problem::None;
 
   PupilSpec spec_;
   protocol::DisplayGeometry display_;
@@ -82,11 +83,9 @@ class PupilSource final : public GazeSource {
   }
   std::int64_t last_surface_ns_ = 0;      // host time of the last surface message
 
-  mutable std::mutex mutex_;
-  std::condition_variable ready_;
-  std::deque<protocol::GazeSample> queue_;
-  bool interrupted_ = false;
-  std::string problem_;
+  net::SampleQueue queue_;
+  net::ProblemText problem_;
+  mutable std::mutex mutex_;  // guards stats_ and the members the loop's threads read
   PupilStats stats_;
 
   std::atomic<bool> stop_{false};
