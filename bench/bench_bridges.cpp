@@ -122,7 +122,7 @@ Truth read_truth(const std::string& path, const Bridge& b) {
 void run_bridge(const Bridge& b, const std::string& trackerd, const std::string& source_dir, double seconds) {
   const fs::path dir = fs::temp_directory_path() / ("fovea-bench-bridges-" + std::to_string(getpid()) + "-" + b.name);
   fs::create_directories(dir);
-  std::vector<std::string> fake = {"/usr/bin/python3", source_dir + "/tests/fakes/" + b.fake, "--port", "0",
+  std::vector<std::string> fake = {"/usr/bin/python3", "-B", source_dir + "/tests/fakes/" + b.fake, "--port", "0",
                                    "--ready-file", (dir / "port").string(), "--truth", (dir / "truth.csv").string()};
   fake.insert(fake.end(), b.fake_args.begin(), b.fake_args.end());
   const pid_t fake_pid = spawn(fake, (dir / "fake.log").string());

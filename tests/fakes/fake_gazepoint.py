@@ -16,13 +16,15 @@ ends with "# malformed N"). Standard library only; one client at a time, others 
 """
 import argparse
 import math
-import os
 import re
 import select
 import signal
 import socket
 import sys
-import time
+
+from fakelib import make_log, now_ns, write_ready_file
+
+log = make_log("fake_gazepoint")
 
 ENABLE_IDS = tuple("ENABLE_SEND_" + n for n in (
     "DATA COUNTER TIME TIME_TICK POG_FIX POG_BEST POG_LEFT POG_RIGHT "
@@ -37,10 +39,6 @@ MALFORMED_KINDS = ("unterminated", "nan", "missing_bpogy", "garbage", "out_of_ra
 CMD_RE = re.compile(r"<\s*(SET|GET)\b([^>]*)>")
 ID_RE = re.compile(r'\bID\s*=\s*"([^"]*)"')
 STATE_RE = re.compile(r'\bSTATE\s*=\s*"([^"]*)"')
-
-
-def now_ns():
-    return time.clock_gettime_ns(time.CLOCK_MONOTONIC)
 
 
 class Server:
@@ -280,17 +278,6 @@ def serve(srv, listener):
         except Closed as e:
             log("client closed: %s" % e)
         sock.close()
-
-
-def write_ready_file(path, port):
-    tmp = "%s.tmp.%d" % (path, os.getpid())
-    with open(tmp, "w") as f:
-        f.write("%d\n" % port)
-    os.replace(tmp, path)   # atomic: a reader never sees a partial file
-
-
-def log(msg):
-    print("fake_gazepoint: " + msg, file=sys.stderr, flush=True)
 
 
 def parse_screen(text):

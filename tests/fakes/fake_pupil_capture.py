@@ -28,6 +28,10 @@ import time
 import msgpack
 import zmq
 
+from fakelib import make_log, now_ns, write_ready_file
+
+log = make_log("fake_pupil_capture")
+
 GAZE_TOPIC = "gaze.3d.01."
 MAX_REQUEST = 64 * 1024   # longer Pupil Remote frames are answered "Unknown command." unread
 MAX_FRAME = 4 << 20       # zmq drops a peer sending more; bounds our memory
@@ -39,10 +43,6 @@ MALFORMED_KINDS = (("not_msgpack", False), ("list", False), ("int", True), ("no_
                    ("short_norm_pos", False), ("str_norm_pos", False), ("nan_confidence", False),
                    ("nan_timestamp", False), ("str_timestamp", False), ("gos_not_list", True),
                    ("single_frame", False), ("three_frames", False), ("huge", False))
-
-
-def now_ns():
-    return time.clock_gettime_ns(time.CLOCK_MONOTONIC)
 
 
 class Fake:
@@ -334,17 +334,6 @@ def serve(fake, wake):
             serve_rep(fake)
         if fake.sink in events:
             drain_sink(fake)
-
-
-def write_ready_file(path, port):
-    tmp = "%s.tmp.%d" % (path, os.getpid())
-    with open(tmp, "w") as f:
-        f.write("%d\n" % port)
-    os.replace(tmp, path)   # atomic: a reader never sees a partial file
-
-
-def log(msg):
-    print("fake_pupil_capture: " + msg, file=sys.stderr, flush=True)
 
 
 def parse_args(argv):

@@ -15,13 +15,12 @@ FPID="" DPID=""
 trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
 fail() { echo "FAIL: $*"; for f in d.log fake.log; do [ -f "$WORK/$f" ] && { echo "--- $f"; tail -n 15 "$WORK/$f"; }; done; exit 1; }
 
+. "$SRC/tests/integration/fake_tracker.sh"
+
 echo "== a fake Gazepoint Control (150 Hz in bursts of 4, clock +1000 s and 50 ppm fast, a malformed line every 25 records)"
-/usr/bin/python3 "$SRC/tests/fakes/fake_gazepoint.py" --port 0 --ready-file "$WORK/port" --truth "$WORK/truth.csv" \
-  --rate 150 --burst 4 --time-offset 1000 --drift-ppm 50 --malformed-every 25 >"$WORK/fake.log" 2>&1 &
-FPID=$!
-for _ in $(seq 50); do [ -s "$WORK/port" ] && break; sleep 0.1; done
-[ -s "$WORK/port" ] || fail "the fake did not start"
-GP=$(cat "$WORK/port")
+start_fake fake_gazepoint.py --truth "$WORK/truth.csv" --rate 150 --burst 4 --time-offset 1000 --drift-ppm 50 \
+  --malformed-every 25
+GP=$FAKE_PORT
 
 PORT=$((49000 + RANDOM % 900))
 "$TRACKERD" --source "gazepoint:127.0.0.1:$GP" --port "$PORT" --control-socket none --log-level info \
@@ -37,13 +36,9 @@ echo "== the fake drops the connection: the daemon reconnects"
 kill -USR1 "$FPID"
 wait "$A" || fail "client a: $(cat "$WORK/a.out")"
 wait "$B" || fail "client b: $(cat "$WORK/b.out")"
-kill -TERM "$FPID"
-wait "$FPID" || fail "the fake did not exit cleanly"
-FPID=""
+stop "$FPID"; FPID=""
 sleep 0.5
-kill -TERM "$DPID"
-wait "$DPID" || fail "the daemon did not stop cleanly"
-DPID=""
+stop "$DPID"; DPID=""
 grep -q "gazepoint:127.0.0.1:$GP: connected; streaming" "$WORK/d.log" || fail "never connected"
 grep -q "the connection ended; reconnecting" "$WORK/d.log" || fail "the dropped connection was not reported"
 grep -q "1 reconnections" "$WORK/d.log" || fail "no reconnection counted"

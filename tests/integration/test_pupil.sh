@@ -15,26 +15,13 @@ WORK=$(mktemp -d)
 FPID="" DPID=""
 trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
 fail() { echo "FAIL: $*"; for f in d.log fake.log; do [ -f "$WORK/$f" ] && { echo "--- $f"; tail -n 15 "$WORK/$f"; }; done; exit 1; }
-FAKE=(/usr/bin/python3 "$SRC/tests/fakes/fake_pupil_capture.py")
-
-start_fake() {  # start_fake ARGS...: the fake, waiting for its port
-  rm -f "$WORK/port"
-  "${FAKE[@]}" --port 0 --ready-file "$WORK/port" "$@" >"$WORK/fake.log" 2>&1 &
-  FPID=$!
-  for _ in $(seq 50); do [ -s "$WORK/port" ] && break; sleep 0.1; done
-  [ -s "$WORK/port" ] || fail "the fake did not start"
-  PP=$(cat "$WORK/port")
-}
-stop() {  # stop PID: SIGTERM and a clean exit
-  kill -TERM "$1"
-  wait "$1" || fail "process $1 did not exit cleanly"
-}
+. "$SRC/tests/integration/fake_tracker.sh"
 
 echo "== a fake Pupil Capture: surface \"screen\", 200 Hz, 15 ms late, clock +5000 s and 30 ppm fast"
-start_fake --truth "$WORK/truth.csv" --rate 200 --time-offset 5000 --drift-ppm 30 --latency-ms 15 \
+start_fake fake_pupil_capture.py --truth "$WORK/truth.csv" --rate 200 --time-offset 5000 --drift-ppm 30 --latency-ms 15 \
   --t-jitter-ms 3 --malformed-every 40
 PORT=$((49000 + RANDOM % 900))
-"$TRACKERD" --source "pupil:127.0.0.1:$PP" --port "$PORT" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
+"$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT" --port "$PORT" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
 DPID=$!
 sleep 0.5
 "$CTL" --server "127.0.0.1:$PORT" record --duration 5 "$WORK/a.fgr" >"$WORK/a.out" 2>&1 &
@@ -103,8 +90,8 @@ print(f"   the daemon: {samples} surface samples ({valid} valid, {low} below con
 PY
 
 echo "== no surface: scene-camera gaze only, published invalid, and the daemon says why"
-start_fake --rate 200 --no-surface
-"$TRACKERD" --source "pupil:127.0.0.1:$PP" --port "$PORT" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
+start_fake fake_pupil_capture.py --rate 200 --no-surface
+"$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT" --port "$PORT" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
 DPID=$!
 sleep 0.5
 "$CTL" --server "127.0.0.1:$PORT" record --duration 3 "$WORK/c.fgr" >"$WORK/c.out" 2>&1 || fail "client c: $(cat "$WORK/c.out")"
