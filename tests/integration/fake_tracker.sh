@@ -16,3 +16,26 @@ stop() {
   kill -TERM "$1"
   wait "$1" || fail "process $1 did not exit cleanly"
 }
+
+# two_clients_across_a_restart SOURCE WHAT: the daemon on SOURCE (log d.log); two clients record 5 s
+# of it (a.fgr, b.fgr); 2.5 s in, SIGUSR1 makes the fake drop its connection or restart (WHAT says
+# which, for the log). Then the fake and the daemon stop cleanly. Needs TRACKERD, CTL.
+two_clients_across_a_restart() {
+  local port=$((49000 + RANDOM % 900))
+  "$TRACKERD" --source "$1" --port "$port" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
+  DPID=$!
+  sleep 0.5
+  "$CTL" --server "127.0.0.1:$port" record --duration 5 "$WORK/a.fgr" >"$WORK/a.out" 2>&1 &
+  local a=$!
+  "$CTL" --server "127.0.0.1:$port" record --duration 5 "$WORK/b.fgr" >"$WORK/b.out" 2>&1 &
+  local b=$!
+  sleep 2.5
+  echo "== $2"
+  kill -USR1 "$FPID"
+  wait "$a" || fail "client a: $(cat "$WORK/a.out")"
+  wait "$b" || fail "client b: $(cat "$WORK/b.out")"
+  stop "$FPID"; FPID=""
+  sleep 0.5
+  stop "$DPID"; DPID=""
+  for c in a b; do "$CTL" convert "$WORK/$c.fgr" "$WORK/$c.csv" >/dev/null 2>&1 || fail "convert $c.fgr"; done
+}

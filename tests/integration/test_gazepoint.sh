@@ -22,31 +22,12 @@ start_fake fake_gazepoint.py --truth "$WORK/truth.csv" --rate 150 --burst 4 --ti
   --malformed-every 25
 GP=$FAKE_PORT
 
-PORT=$((49000 + RANDOM % 900))
-"$TRACKERD" --source "gazepoint:127.0.0.1:$GP" --port "$PORT" --control-socket none --log-level info \
-  >"$WORK/d.log" 2>&1 &
-DPID=$!
-sleep 0.3
-"$CTL" --server "127.0.0.1:$PORT" record --duration 5 "$WORK/a.fgr" >"$WORK/a.out" 2>&1 &
-A=$!
-"$CTL" --server "127.0.0.1:$PORT" record --duration 5 "$WORK/b.fgr" >"$WORK/b.out" 2>&1 &
-B=$!
-sleep 2.5
-echo "== the fake drops the connection: the daemon reconnects"
-kill -USR1 "$FPID"
-wait "$A" || fail "client a: $(cat "$WORK/a.out")"
-wait "$B" || fail "client b: $(cat "$WORK/b.out")"
-stop "$FPID"; FPID=""
-sleep 0.5
-stop "$DPID"; DPID=""
+two_clients_across_a_restart "gazepoint:127.0.0.1:$GP" "the fake drops the connection: the daemon reconnects"
 grep -q "gazepoint:127.0.0.1:$GP: connected; streaming" "$WORK/d.log" || fail "never connected"
 grep -q "the connection ended; reconnecting" "$WORK/d.log" || fail "the dropped connection was not reported"
 grep -q "1 reconnections" "$WORK/d.log" || fail "no reconnection counted"
 
 echo "== every sample a client got is a record the fake sent: point, validity, time"
-for c in a b; do
-  "$CTL" convert "$WORK/$c.fgr" "$WORK/$c.csv" >/dev/null 2>&1 || fail "convert $c.fgr"
-done
 /usr/bin/python3 - "$WORK" <<'PY' || fail "samples do not match what the fake sent"
 import bisect, csv, re, sys
 work = sys.argv[1]

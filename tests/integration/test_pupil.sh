@@ -20,27 +20,11 @@ fail() { echo "FAIL: $*"; for f in d.log fake.log; do [ -f "$WORK/$f" ] && { ech
 echo "== a fake Pupil Capture: surface \"screen\", 200 Hz, 15 ms late, clock +5000 s and 30 ppm fast"
 start_fake fake_pupil_capture.py --truth "$WORK/truth.csv" --rate 200 --time-offset 5000 --drift-ppm 30 --latency-ms 15 \
   --t-jitter-ms 3 --malformed-every 40
-PORT=$((49000 + RANDOM % 900))
-"$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT" --port "$PORT" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
-DPID=$!
-sleep 0.5
-"$CTL" --server "127.0.0.1:$PORT" record --duration 5 "$WORK/a.fgr" >"$WORK/a.out" 2>&1 &
-A=$!
-"$CTL" --server "127.0.0.1:$PORT" record --duration 5 "$WORK/b.fgr" >"$WORK/b.out" 2>&1 &
-B=$!
-sleep 2.5
-echo "== the fake restarts: its publisher moves, Pupil time jumps 1000 s"
-kill -USR1 "$FPID"
-wait "$A" || fail "client a: $(cat "$WORK/a.out")"
-wait "$B" || fail "client b: $(cat "$WORK/b.out")"
-stop "$FPID"; FPID=""
-sleep 0.3
-stop "$DPID"; DPID=""
+two_clients_across_a_restart "pupil:127.0.0.1:$FAKE_PORT" "the fake restarts: its publisher moves, Pupil time jumps 1000 s"
 grep -q "connected (publisher on port" "$WORK/d.log" || fail "never connected"
 grep -q "Pupil time jumped" "$WORK/d.log" || fail "the restart's clock jump was not noticed"
 
 echo "== every sample a client got is a gaze the fake published: point, y flipped, validity, time"
-for c in a b; do "$CTL" convert "$WORK/$c.fgr" "$WORK/$c.csv" >/dev/null 2>&1 || fail "convert $c.fgr"; done
 /usr/bin/python3 - "$WORK" <<'PY' || fail "samples do not match what the fake published"
 import bisect, csv, re, struct, sys
 work = sys.argv[1]
@@ -91,6 +75,7 @@ PY
 
 echo "== no surface: scene-camera gaze only, published invalid, and the daemon says why"
 start_fake fake_pupil_capture.py --rate 200 --no-surface
+PORT=$((49000 + RANDOM % 900))
 "$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT" --port "$PORT" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
 DPID=$!
 sleep 0.5

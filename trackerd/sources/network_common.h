@@ -2,6 +2,7 @@
 // What the sources that read a tracker over its network API share (gazepoint/, pupil/): the
 // HOST[:PORT] of their specs, and the hand-over from the reader thread, which owns the connection,
 // to the daemon's publishing loop.
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -10,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "source_api/gaze_source.h"
 
@@ -56,6 +58,45 @@ class ProblemText {
  private:
   mutable std::mutex mutex_;
   std::string text_;
+};
+
+// A source whose tracker is read by a thread of its own: the samples that thread hands over, its
+// problem, the display and rate. The derived class starts the thread at the end of its constructor
+// (start_reader) and stops it first thing in its destructor (stop_reader), while its members live.
+class ReaderSource : public GazeSource {
+ public:
+  protocol::DisplayGeometry display() const override { return display_; }
+  double nominal_rate_hz() const override { return nominal_rate_hz_; }
+  std::optional<GazeItem> next() override { return queue_.next(); }  // waits up to 50 ms for a sample
+  bool ended() const override { return false; }  // a tracker never ends; it may be away a while
+  void interrupt() override { queue_.interrupt(); }
+  std::string problem() const override { return problem_.get(); }
+
+ protected:
+  ReaderSource(protocol::DisplayGeometry display, double nominal_rate_hz)
+      : display_(display), nominal_rate_hz_(nominal_rate_hz) {}
+  ~ReaderSource() override { stop_reader(); }
+  ReaderSource(const ReaderSource&) = delete;
+  ReaderSource& operator=(const ReaderSource&) = delete;
+
+  void start_reader(std::function<void()> run) {
+    problem_.set(description() + ": connecting");
+    reader_ = std::thread(std::move(run));
+  }
+  void stop_reader() {
+    stop_ = true;
+    if (reader_.joinable()) reader_.join();
+  }
+  bool stopping() const { return stop_.load(); }
+
+  const protocol::DisplayGeometry display_;
+  const double nominal_rate_hz_;
+  SampleQueue queue_;
+  ProblemText problem_;
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::thread reader_;
 };
 
 }  // namespace fovea::trackerd::net

@@ -67,14 +67,8 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
 }  // namespace
 
 GazepointSource::GazepointSource(GazepointSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz)
-    : spec_(std::move(spec)), display_(display), nominal_rate_hz_(nominal_rate_hz) {
-  problem_.set(description() + ": connecting");
-  reader_ = std::thread([this] { run(); });
-}
-
-GazepointSource::~GazepointSource() {
-  stop_ = true;
-  if (reader_.joinable()) reader_.join();
+    : ReaderSource(display, nominal_rate_hz), spec_(std::move(spec)) {
+  start_reader([this] { run(); });
 }
 
 GazepointStats GazepointSource::stats() const {
@@ -102,7 +96,7 @@ std::string GazepointSource::status_detail() const {
 // ---- the reader thread -----------------------------------------------------------------------
 
 void GazepointSource::run() {
-  while (!stop_) {
+  while (!stopping()) {
     const int fd = connect_to_server();
     if (fd >= 0) {
       serve(fd);
@@ -111,10 +105,10 @@ void GazepointSource::run() {
         std::lock_guard lock(mutex_);
         stats_.connected = false;
       }
-      if (stop_) break;
+      if (stopping()) break;
       problem_.set(description() + ": the connection ended; reconnecting every second");
     }
-    for (std::int64_t waited = 0; waited < kRetryNs && !stop_; waited += 50 * kMs) {
+    for (std::int64_t waited = 0; waited < kRetryNs && !stopping(); waited += 50 * kMs) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
   }
@@ -169,7 +163,7 @@ void GazepointSource::serve(int fd) {
   bool discarding = false;  // inside a line that was already too long
   std::int64_t last_record_ns = protocol::monotonic_ns();
   char chunk[8192];
-  while (!stop_) {
+  while (!stopping()) {
     pollfd p{fd, POLLIN, 0};
     const int ready = ::poll(&p, 1, 100);
     const std::int64_t now = protocol::monotonic_ns();

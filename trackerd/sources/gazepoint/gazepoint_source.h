@@ -41,20 +41,12 @@ struct GazepointStats {
   std::string last_malformed;                  // why the last refused line was refused
 };
 
-class GazepointSource final : public GazeSource {
+class GazepointSource final : public net::ReaderSource {
  public:
   GazepointSource(GazepointSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz);
-  ~GazepointSource() override;
-  GazepointSource(const GazepointSource&) = delete;
-  GazepointSource& operator=(const GazepointSource&) = delete;
+  ~GazepointSource() override { stop_reader(); }
 
   std::string description() const override { return "gazepoint:" + spec_.to_string(); }
-  protocol::DisplayGeometry display() const override { return display_; }
-  double nominal_rate_hz() const override { return nominal_rate_hz_; }
-  std::optional<GazeItem> next() override { return queue_.next(); }  // waits up to 50 ms for a sample
-  bool ended() const override { return false; }
-  void interrupt() override { queue_.interrupt(); }
-  std::string problem() const override { return problem_.get(); }
   std::string status_detail() const override;
   GazepointStats stats() const;
 
@@ -66,21 +58,14 @@ class GazepointSource final : public GazeSource {
   void handle_record(const Record& r, std::int64_t receive_ns);
 
   GazepointSpec spec_;
-  protocol::DisplayGeometry display_;
-  double nominal_rate_hz_;
   TrackerClock clock_{1e-6, 64};  // TIME in microseconds
   std::optional<std::uint64_t> last_counter_;
   std::vector<std::int64_t> delays_;  // ring of receive - mapped
   std::size_t delay_next_ = 0;
   bool silence_reported_ = false;  // "no gaze records" is the problem now
 
-  net::SampleQueue queue_;
-  net::ProblemText problem_;
   mutable std::mutex mutex_;  // guards stats_
   GazepointStats stats_;
-
-  std::atomic<bool> stop_{false};
-  std::thread reader_;
 };
 
 }  // namespace fovea::trackerd::gazepoint

@@ -71,14 +71,8 @@ struct PupilSource::Connection {
 };
 
 PupilSource::PupilSource(PupilSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz)
-    : spec_(std::move(spec)), display_(display), nominal_rate_hz_(nominal_rate_hz) {
-  problem_.set(description() + ": connecting");
-  reader_ = std::thread([this] { run(); });
-}
-
-PupilSource::~PupilSource() {
-  stop_ = true;
-  if (reader_.joinable()) reader_.join();
+    : ReaderSource(display, nominal_rate_hz), spec_(std::move(spec)) {
+  start_reader([this] { run(); });
 }
 
 void PupilSource::set_problem(Problem kind, std::string text) {
@@ -118,7 +112,7 @@ void PupilSource::count_malformed(const std::string& why) {
 
 void PupilSource::run() {
   zmq::context_t context(1);
-  while (!stop_) {
+  while (!stopping()) {
     {
       Connection c(context);
       try {
@@ -131,7 +125,7 @@ void PupilSource::run() {
       std::lock_guard lock(mutex_);
       stats_.connected = false;
     }
-    for (int i = 0; i < 20 && !stop_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    for (int i = 0; i < 20 && !stopping(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
 }
 
@@ -186,7 +180,7 @@ void PupilSource::serve(Connection& c) {
   c.last_message_ns = protocol::monotonic_ns();
   last_surface_ns_ = c.last_message_ns;  // give the surface its 2 s before calling gaze scene-only
   c.next_sync_ns = c.last_message_ns + kSyncEveryNs;
-  while (!stop_) {
+  while (!stopping()) {
     zmq::pollitem_t item{c.sub.handle(), 0, ZMQ_POLLIN, 0};
     zmq::poll(&item, 1, std::chrono::milliseconds(50));
     const std::int64_t now = protocol::monotonic_ns();

@@ -42,20 +42,12 @@ struct PupilStats {
   std::string last_malformed;
 };
 
-class PupilSource final : public GazeSource {
+class PupilSource final : public net::ReaderSource {
  public:
   PupilSource(PupilSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz);
-  ~PupilSource() override;
-  PupilSource(const PupilSource&) = delete;
-  PupilSource& operator=(const PupilSource&) = delete;
+  ~PupilSource() override { stop_reader(); }
 
   std::string description() const override { return "pupil:" + spec_.to_string() + " (surface " + spec_.surface + ")"; }
-  protocol::DisplayGeometry display() const override { return display_; }
-  double nominal_rate_hz() const override { return nominal_rate_hz_; }
-  std::optional<GazeItem> next() override { return queue_.next(); }  // waits up to 50 ms for a sample
-  bool ended() const override { return false; }
-  void interrupt() override { queue_.interrupt(); }
-  std::string problem() const override { return problem_.get(); }
   std::string status_detail() const override;
   PupilStats stats() const;
 
@@ -72,8 +64,6 @@ class PupilSource final : public GazeSource {
   Problem problem_kind_ = Problem::None;
 
   PupilSpec spec_;
-  protocol::DisplayGeometry display_;
-  double nominal_rate_hz_;
   RoundTripClock clock_;
   double last_timestamp_ = -1e300;        // the last Pupil time published
   bool clock_suspect_ = false;            // a gaze's time made no sense: ask Pupil time now
@@ -83,13 +73,8 @@ class PupilSource final : public GazeSource {
   }
   std::int64_t last_surface_ns_ = 0;      // host time of the last surface message
 
-  net::SampleQueue queue_;
-  net::ProblemText problem_;
   mutable std::mutex mutex_;  // guards stats_ and the members the loop's threads read
   PupilStats stats_;
-
-  std::atomic<bool> stop_{false};
-  std::thread reader_;
 };
 
 }  // namespace fovea::trackerd::pupil
