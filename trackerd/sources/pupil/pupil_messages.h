@@ -19,7 +19,8 @@
 namespace fovea::trackerd::pupil {
 
 inline constexpr std::uint16_t kDefaultPort = 50020;  // Pupil Remote
-inline constexpr std::size_t kMaxPayloadBytes = 1u << 20;
+// A gaze datum is under 1 KB, a surface event with a world frame's gaze some tens of KB.
+inline constexpr std::size_t kMaxPayloadBytes = 256u << 10;
 
 // "pupil:HOST[:PORT][?surface=NAME&min_confidence=C]"
 struct PupilSpec {

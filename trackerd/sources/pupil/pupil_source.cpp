@@ -22,7 +22,10 @@ constexpr std::int64_t kSyncEveryNs = 1000 * kMs;  // one "t" exchange a second
 constexpr int kBurstExchanges = 16;
 constexpr std::int64_t kSurfaceStaleNs = 2000 * kMs;  // no surface for this long: scene gaze only
 constexpr std::int64_t kSilenceNs = 3000 * kMs;       // no message at all: ask for the publisher again
-constexpr std::int64_t kMaxMessageBytes = 4 << 20;            // larger frames are refused by ZeroMQ itself
+// What a hostile publisher can make us hold: ZeroMQ drops a peer that sends a larger frame, and
+// queues at most kReceiveQueue messages: 256 KiB x 1000 = 256 MB at worst, about 5 s of real gaze.
+constexpr std::int64_t kMaxMessageBytes = static_cast<std::int64_t>(kMaxPayloadBytes);
+constexpr int kReceiveQueue = 1000;
 constexpr std::int64_t kClockSlackNs = 5 * kMs;     // a mapped time this far after arrival: the clock is off
 constexpr std::int64_t kMaxLatencyNs = 1000 * kMs;  // ... or this far before
 
@@ -62,7 +65,7 @@ struct PupilSource::Connection {
     sub = zmq::socket_t(context, zmq::socket_type::sub);
     sub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::maxmsgsize, kMaxMessageBytes);
-    sub.set(zmq::sockopt::rcvhwm, 10000);
+    sub.set(zmq::sockopt::rcvhwm, kReceiveQueue);
     sub.set(zmq::sockopt::subscribe, "surfaces." + spec.surface);
     sub.set(zmq::sockopt::subscribe, "gaze.");
     sub.connect(endpoint(spec.host, port));
