@@ -93,7 +93,7 @@ std::string PupilSource::status_detail() const {
   std::string out = std::to_string(s.samples) + " samples (" + std::to_string(s.valid) + " valid, " +
                     std::to_string(s.low_confidence) + " below confidence, " + std::to_string(s.off_surface) +
                     " off the surface), " + std::to_string(s.scene_only) + " scene-only, " +
-                    std::to_string(s.malformed) + " malformed";
+                    std::to_string(s.malformed) + " malformed, " + std::to_string(s.gaps) + " dropouts";
   char clock[200];
   std::snprintf(clock, sizeof clock, ", clock offset %.3f ms +- %.3f ms over %llu exchanges, drift %s ppm",
                 static_cast<double>(s.clock_offset_ns) / 1e6, static_cast<double>(s.clock_uncertainty_ns) / 1e6,
@@ -262,6 +262,7 @@ void PupilSource::publish(const PupilGaze& g, bool screen, std::int64_t receive_
     ++stats_.out_of_order;
     return;
   }
+  if (screen && g.timestamp - last_timestamp_ > 2.5 / nominal_rate_hz_ && last_timestamp_ > -1e300) ++stats_.gaps;
   last_timestamp_ = g.timestamp;
   protocol::GazeSample s;
   // A gaze can only have been taken before it arrived, and not long before: a mapped time beyond

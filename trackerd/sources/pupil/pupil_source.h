@@ -35,6 +35,7 @@ struct PupilStats {
   std::uint64_t scene_only = 0;       // scene-camera gaze published invalid (no surface)
   std::uint64_t malformed = 0;        // messages refused
   std::uint64_t out_of_order = 0;     // gaze not after the last one published (dropped)
+  std::uint64_t gaps = 0;             // dropouts: more than 2.5 sample periods between two gaze points
   std::uint64_t connects = 0;
   std::uint64_t clock_exchanges = 0, clock_resets = 0;
   std::int64_t clock_offset_ns = 0, clock_uncertainty_ns = 0, clock_last_rtt_ns = 0;
