@@ -275,11 +275,12 @@ constexpr SourceKind kSourceKinds[] = {
   {"gazepoint:",    Arg::Required, "gazepoint:HOST[:PORT]", "Gazepoint GP3 tracker, through Gazepoint "
                                                          "Control's Open Gaze API; port 4242 by default", gazepoint::check_gazepoint_spec, make_gazepoint},
   {"pupil:",        Arg::Required, "pupil:HOST[:PORT][?surface=NAME&min_confidence=C]",
-                                                         "Pupil Core through Pupil Capture's network API (Pupil Remote, port "
-                                                         "50020); screen gaze from the Surface Tracker's surface \"screen\"",
+                                                         "Pupil Core through Pupil Capture's network API, Pupil Remote on port "
+                                                         "50020 by default; screen gaze from the Surface Tracker's surface "
+                                                         "\"screen\"",
                                                          pupil::check_pupil_spec, make_pupil},
-  {"mouse",         Arg::Optional, "mouse[:DISPLAY]",    "the X11 pointer as gaze, 120 Hz unless --rate (developing without "
-                                                         "a tracker)", mouse::check_mouse_spec, make_mouse},
+  {"mouse",         Arg::Optional, "mouse[:DISPLAY]",    "the X11 pointer as gaze, 120 Hz unless --rate: for developing "
+                                                         "without a tracker", mouse::check_mouse_spec, make_mouse},
 };
 // clang-format on
 
