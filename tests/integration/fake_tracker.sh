@@ -1,5 +1,14 @@
-# Sourced by the tests of the tracker bridges (test_gazepoint.sh, test_pupil.sh): a fake tracker
-# from tests/fakes/ started and waited for, and processes stopped cleanly. Needs SRC, WORK and fail.
+# Sourced by the tests of the tracker bridges (test_gazepoint.sh, test_pupil.sh), after they set
+# TRACKERD, CTL and SRC: a work directory removed at exit with the fake and the daemon, fail (which
+# shows both logs), a fake tracker from tests/fakes/ started and waited for, processes stopped cleanly.
+WORK=$(mktemp -d)
+FPID="" DPID=""
+trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
+fail() {
+  echo "FAIL: $*"
+  for f in d.log fake.log; do [ -f "$WORK/$f" ] && { echo "--- $f"; tail -n 15 "$WORK/$f"; }; done
+  exit 1
+}
 
 # start_fake SCRIPT ARGS...: the fake on an ephemeral port; sets FPID and FAKE_PORT.
 start_fake() {

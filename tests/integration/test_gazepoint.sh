@@ -10,10 +10,6 @@
 # Usage: test_gazepoint.sh TRACKERD CTL SOURCE_DIR
 set -u
 TRACKERD=$1 CTL=$2 SRC=$3
-WORK=$(mktemp -d)
-FPID="" DPID=""
-trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
-fail() { echo "FAIL: $*"; for f in d.log fake.log; do [ -f "$WORK/$f" ] && { echo "--- $f"; tail -n 15 "$WORK/$f"; }; done; exit 1; }
 
 . "$SRC/tests/integration/fake_tracker.sh"
 

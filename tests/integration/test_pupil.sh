@@ -6,15 +6,13 @@
 # Two clients record what the daemon publishes; every sample must be a gaze the fake published: the
 # surface point with y flipped (Pupil's origin is bottom-left), invalid below confidence 0.6, and its
 # time, mapped from Pupil time, within 1 ms of when the gaze was taken, or within the clock's stated
-# uncertainty (half the fastest "t" round trip) where that is larger (stamping arrival would be 15 ms late). Halfway the fake restarts (new publisher port, Pupil time jumps): the daemon follows.
+# uncertainty (half the fastest "t" round trip) where that is larger (stamping arrival would be
+# 15 ms late). Halfway the fake restarts (new publisher port, Pupil time jumps): the daemon follows.
 # Then, without the surface: samples invalid, and the daemon says why.
 # Usage: test_pupil.sh TRACKERD CTL SOURCE_DIR
 set -u
 TRACKERD=$1 CTL=$2 SRC=$3
-WORK=$(mktemp -d)
-FPID="" DPID=""
-trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
-fail() { echo "FAIL: $*"; for f in d.log fake.log; do [ -f "$WORK/$f" ] && { echo "--- $f"; tail -n 15 "$WORK/$f"; }; done; exit 1; }
+
 . "$SRC/tests/integration/fake_tracker.sh"
 
 echo "== a fake Pupil Capture: surface \"screen\", 200 Hz, 15 ms late, clock +5000 s and 30 ppm fast"
