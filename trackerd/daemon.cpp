@@ -59,6 +59,8 @@ class Daemon {
   bool start(std::int64_t start_ns);
   void publish(GazeItem item);
   void send(const GazeItem& item);
+  void record(const protocol::Record& record);
+  void record_markers();
   Wake wait_until(std::int64_t due_ns);
   bool attention() const { return mailbox_.pending(); }
   void service_tick();
@@ -102,6 +104,10 @@ class Daemon {
   std::unique_ptr<protocol::GazeServer> server_;
   std::unique_ptr<protocol::ControlSocket> control_socket_;  // local control; null: none
   std::unique_ptr<protocol::RecordingWriter> recorder_;
+  // Markers the server published (control thread), waiting for the loop to record them.
+  mutable std::mutex markers_mutex_;
+  std::vector<protocol::Record> markers_in_;
+  std::uint64_t markers_unrecorded_ = 0;  // dropped because the loop fell 4096 behind
   std::string recording_path_;
   std::string start_dir_ = std::filesystem::current_path().string();  // record-start's default directory
   protocol::DisplayGeometry display_;  // what clients are told
@@ -173,6 +179,14 @@ bool Daemon::start(std::int64_t start_ns) {
     spdlog::error("{} (is another fovea-trackerd running? choose another --port)", e.what());
     return false;
   }
+  server_->on_marker([this](const protocol::Marker& m, std::uint64_t sequence) {
+    std::lock_guard lock(markers_mutex_);
+    if (markers_in_.size() >= 4096) {
+      ++markers_unrecorded_;
+      return;
+    }
+    markers_in_.push_back(protocol::Record{sequence, m});
+  });
   server_->on_subscriber_change([](const protocol::SubscriberInfo& s, const char* what) {
     spdlog::info("subscriber {} session {:016x}: {} (lease {} ms)", s.address.to_string(), s.session_id, what,
                  s.lease_ms);
@@ -217,9 +231,24 @@ void Daemon::publish(GazeItem item) {
 
 void Daemon::send(const GazeItem& item) {
   const std::uint64_t seq = std::visit([&](const auto& v) { return server_->publish(v); }, item);
+  record_markers();  // those that came before this item, so the file stays nearly in time order
+  std::visit([&](const auto& v) { record(protocol::Record{seq, v}); }, item);
+}
+
+void Daemon::record_markers() {
+  std::vector<protocol::Record> markers;
+  {
+    std::lock_guard lock(markers_mutex_);
+    if (markers_in_.empty()) return;
+    markers.swap(markers_in_);
+  }
+  for (const protocol::Record& m : markers) record(m);
+}
+
+void Daemon::record(const protocol::Record& record) {
   if (recorder_) {
     try {
-      recorder_->append(protocol::Record{seq, item});
+      recorder_->append(record);
     } catch (const std::exception& e) {
       spdlog::error("{}; recording stopped, streaming continues", e.what());
       recorder_.reset();
@@ -245,6 +274,7 @@ Daemon::Wake Daemon::wait_until(std::int64_t due_ns) {
 }
 
 void Daemon::service_tick() {
+  record_markers();  // also while the source is quiet
   const std::int64_t now = monotonic_ns();
   if (now >= next_health_check_ns_) {
     next_health_check_ns_ = now + 200 * kMs;
@@ -277,6 +307,11 @@ std::string Daemon::status_line() const {
   std::string s = protocol::escape_for_log(source_->description()) + ", " + std::to_string(static_cast<long>(source_->nominal_rate_hz())) +
                   " Hz, " + std::to_string(st.subscribers) + " subscribers, " + std::to_string(st.samples_published) +
                   " samples";
+  if (st.markers_published > 0) s += ", " + std::to_string(st.markers_published) + " markers";
+  {
+    std::lock_guard lock(markers_mutex_);
+    if (markers_unrecorded_ > 0) s += " (" + std::to_string(markers_unrecorded_) + " not recorded: the loop fell behind)";
+  }
   if (const std::string detail = source_->status_detail(); !detail.empty()) s += ", " + detail;
   s += ", calibration " + calibration_->description();
   if (recorder_) s += ", recording " + recording_path_;
@@ -462,6 +497,7 @@ void Daemon::adopt_recording(PendingRecording& recording) {
 
 std::string Daemon::stop_recording() {
   if (!recorder_) return "not recording";
+  record_markers();  // every marker published before the stop is in the file
   const std::string what =
       "stopped recording to " + recording_path_ + " (" + std::to_string(recorder_->records_written()) + " records)";
   recorder_.reset();  // closes the file

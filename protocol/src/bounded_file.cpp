@@ -143,4 +143,17 @@ std::string escape_to_fit(const std::string& text, std::size_t max_bytes) {
   return escape(text, std::string::npos, max_bytes);
 }
 
+bool printable_utf8(const std::string& text, std::size_t* bad_at) {
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    const std::size_t n = c >= 0x80 ? utf8_sequence(text, i) : (c >= 0x20 && c < 0x7F ? 1 : 0);
+    if (n == 0) {
+      if (bad_at != nullptr) *bad_at = i;
+      return false;
+    }
+    i += n;
+  }
+  return true;
+}
+
 }  // namespace fovea::protocol

@@ -7,6 +7,7 @@
 #include <array>
 #include <stdexcept>
 
+#include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/clock.h"
 
 namespace fovea::protocol {
@@ -98,6 +99,7 @@ ClientStats GazeClient::stats() const {
   ClientStats s = stats_;
   s.samples = sample_seq_.counts();
   s.events = event_seq_.counts();
+  s.markers = marker_seq_.counts();
   s.rejected += rejected_.rejected();
   s.latency_count = latency_ring_.size();
   s.latency_p50_ns = percentile(latency_ring_, 0.50);
@@ -194,6 +196,7 @@ void GazeClient::loop() {
         }
         const std::optional<Subscribed> s = session();
         if (now - last_sent_ns_ >= hb && s) send(Heartbeat{s->session_id, options_.requested_lease_ms});
+        resend_markers(now);
         if (now >= next_time_sync_ns_) {
           TimeSyncRequest t;
           t.client_send_ns = monotonic_ns();
@@ -231,6 +234,7 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
         if (new_session) {
           sample_seq_.reset(s.next_sample_sequence);
           event_seq_.reset(s.next_event_sequence);
+          marker_seq_.reset_from_first_arrival();
           ++stats_.subscriptions;
           sync_samples_.clear();
           time_syncs_done_ = 0;
@@ -271,6 +275,9 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
     case MessageType::GazeSample:
     case MessageType::GazeEvent:
       handle_gaze(m, now);
+      return;
+    case MessageType::Marker:
+      handle_marker(m, now);
       return;
     default: {
       std::lock_guard lock(mutex_);
@@ -368,6 +375,114 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
   } else if (on_event_) {
     on_event_(std::get<GazeEvent>(m.payload), a);
   }
+}
+
+namespace {
+constexpr std::int64_t kMarkerResendNs = 250 * kMs;
+constexpr std::size_t kMarkerPendingLimit = 4096;
+}  // namespace
+
+std::uint64_t GazeClient::mark(const std::string& label, std::optional<std::int64_t> client_time_ns) {
+  std::size_t bad = 0;
+  if (label.empty() || label.size() >= decltype(Marker::label)::capacity) {
+    throw std::invalid_argument("marker label must be 1.." + std::to_string(decltype(Marker::label)::capacity - 1) +
+                                " bytes; \"" + escape_for_log(label, 80) + "\" is " + std::to_string(label.size()));
+  }
+  if (!printable_utf8(label, &bad)) {
+    throw std::invalid_argument("marker label \"" + escape_for_log(label, 80) + "\": byte " + std::to_string(bad) +
+                                " is a control character or not UTF-8");
+  }
+  std::unique_lock lock(mutex_);
+  if (!session_ || !subscribed_.load()) throw std::logic_error("mark: not subscribed to a daemon");
+  PendingMarker p;
+  p.marker.marker_id = random_nonce();
+  p.marker.label.value = label;
+  p.marker.session_id = session_->session_id;
+  if (client_time_ns) {
+    if (stats_.clock_round_trip_ns < 0) throw std::logic_error("mark: the daemon's clock offset is not known yet");
+    p.marker.flags = kMarkerClientTime;
+    p.marker.time_ns = *client_time_ns + stats_.clock_offset_ns;  // offset = server - client
+  }
+  p.sent_ns = monotonic_ns();
+  p.attempts = 1;
+  ++stats_.markers_sent;
+  const Marker to_send = p.marker;
+  if ((options_.streams & kStreamMarkers) != 0 && pending_markers_.size() < kMarkerPendingLimit) {
+    pending_markers_.push_back(p);
+  }
+  lock.unlock();
+  send(to_send);
+  return to_send.marker_id;
+}
+
+// Loop thread: markers whose copy has not come back go out again (with the current session: a
+// daemon restart in between gave us a new one), until kMarkerAttempts sends.
+void GazeClient::resend_markers(std::int64_t now) {
+  std::vector<Marker> again;
+  {
+    std::lock_guard lock(mutex_);
+    if (!session_) return;
+    for (auto it = pending_markers_.begin(); it != pending_markers_.end();) {
+      if (now - it->sent_ns < kMarkerResendNs) {
+        ++it;
+      } else if (it->attempts >= kMarkerAttempts) {
+        ++stats_.markers_unconfirmed;
+        it = pending_markers_.erase(it);
+      } else {
+        ++it->attempts;
+        it->sent_ns = now;
+        it->marker.session_id = session_->session_id;
+        again.push_back(it->marker);
+        ++it;
+      }
+    }
+  }
+  for (const Marker& m : again) send(m);
+}
+
+void GazeClient::handle_marker(const Message& m, std::int64_t now) {
+  if (state_ != State::Subscribed || (options_.streams & kStreamMarkers) == 0) return;
+  const auto& marker = std::get<Marker>(m.payload);
+  Arrival a;
+  a.sequence = m.header.sequence;
+  a.receive_ns = now;
+  {
+    std::lock_guard lock(mutex_);
+    const auto verdict = marker_seq_.on_arrival(m.header.sequence);
+    const auto mine = std::find_if(pending_markers_.begin(), pending_markers_.end(),
+                                   [&](const PendingMarker& p) { return p.marker.marker_id == marker.marker_id; });
+    if (mine != pending_markers_.end()) {
+      pending_markers_.erase(mine);
+      ++stats_.markers_confirmed;
+      if (confirmed_markers_.size() >= 64) confirmed_markers_.pop_front();
+      confirmed_markers_.push_back(marker);
+      marker_cv_.notify_all();
+    }
+    if (verdict == SequenceTracker::Verdict::Duplicate || verdict == SequenceTracker::Verdict::TooOld ||
+        verdict == SequenceTracker::Verdict::Implausible) {
+      return;
+    }
+    last_heard_ns_ = now;
+    a.latency_ns = now - (m.header.send_time_ns - stats_.clock_offset_ns);
+  }
+  if (on_marker_) on_marker_(marker, a);
+}
+
+std::optional<Marker> GazeClient::wait_marker(std::uint64_t marker_id, int timeout_ms) {
+  std::unique_lock lock(mutex_);
+  std::optional<Marker> found;
+  marker_cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] {
+    for (const Marker& m : confirmed_markers_) {
+      if (m.marker_id == marker_id) found = m;
+    }
+    return found.has_value();
+  });
+  return found;
+}
+
+bool GazeClient::clock_known() const {
+  std::lock_guard lock(mutex_);
+  return stats_.clock_round_trip_ns >= 0;
 }
 
 namespace {

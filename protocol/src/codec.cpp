@@ -4,6 +4,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/wire.h"
 
 namespace fovea::protocol {
@@ -28,6 +29,7 @@ const char* to_string(MessageType t) {
     case MessageType::Error: return "ERROR";
     case MessageType::ControlRequest: return "CONTROL_REQUEST";
     case MessageType::ControlReply: return "CONTROL_REPLY";
+    case MessageType::Marker: return "MARKER";
   }
   return "?";
 }
@@ -71,6 +73,7 @@ const char* to_string(ErrorCode c) {
     case ErrorCode::TooManySubscribers: return "too many subscribers";
     case ErrorCode::BadRequest: return "bad request";
     case ErrorCode::AddressMismatch: return "address mismatch";
+    case ErrorCode::RateLimited: return "rate limited";
   }
   return "?";
 }
@@ -118,6 +121,7 @@ std::size_t size_of(MessageType t) {
     case MessageType::Error: return 8;
     case MessageType::ControlRequest: return 72;  // as large as CONTROL_REPLY: no amplification
     case MessageType::ControlReply: return 72;
+    case MessageType::Marker: return 104;
   }
   return 0;
 }
@@ -247,6 +251,14 @@ struct Writer {
     put<std::uint8_t>(0, static_cast<std::uint8_t>(m.command));
     put<std::uint8_t>(1, static_cast<std::uint8_t>(m.result));
     text(8, m.message);
+  }
+  void operator()(const Marker& m) {
+    put<std::uint64_t>(0, m.session_id);
+    put<std::uint64_t>(8, m.marker_id);
+    put<std::int64_t>(16, m.time_ns);
+    put<std::int64_t>(24, m.received_ns);
+    put<std::uint8_t>(32, m.flags);
+    text(40, m.label);
   }
 };
 
@@ -502,6 +514,25 @@ struct Reader {
     return m;
   }
 
+  // Payload layout: PROTOCOL.md §4.17. The label is shown to people and written to logs and CSV:
+  // one or more characters, valid UTF-8, no control characters.
+  Marker read_marker() {
+    Marker m;
+    m.session_id = get<std::uint64_t>(0);
+    m.marker_id = get<std::uint64_t>(8);
+    if (m.marker_id == 0) fail(DecodeError::OutOfRange, 8);
+    m.time_ns = get<std::int64_t>(16);
+    m.received_ns = get<std::int64_t>(24);
+    m.flags = flags(32, kMarkerFlagMask);
+    if ((m.flags & kMarkerClientTime) == 0 && m.time_ns != m.received_ns) fail(DecodeError::OutOfRange, 16);
+    zero(33, 7);
+    text(40, m.label);
+    std::size_t bad = 0;
+    if (result && m.label.value.empty()) fail(DecodeError::BadString, 40);
+    if (result && !printable_utf8(m.label.value, &bad)) fail(DecodeError::BadString, 40 + bad);
+    return m;
+  }
+
   Payload read(MessageType t) {
     switch (t) {
       case MessageType::Hello: return read_hello();
@@ -519,6 +550,7 @@ struct Reader {
       case MessageType::Error: return read_error();
       case MessageType::ControlRequest: return read_control_request();
       case MessageType::ControlReply: return read_control_reply();
+      case MessageType::Marker: return read_marker();
     }
     fail(DecodeError::UnknownType, 0);
     return StatusRequest{};

@@ -2,6 +2,7 @@
 
 #include "fovea/protocol/bounded_file.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -195,7 +196,7 @@ std::size_t write_csv(std::ostream& out, const Recording& rec) {
   for (const Record& r : rec.records) {
     const auto* s = std::get_if<GazeSample>(&r.item);
     if (s == nullptr) {
-      ++events;
+      if (std::holds_alternative<GazeEvent>(r.item)) ++events;
       continue;
     }
     out << r.sequence << ',' << s->tracker_time_ns << ',' << fmt_float(s->x) << ',' << fmt_float(s->y) << ','
@@ -206,6 +207,31 @@ std::size_t write_csv(std::ostream& out, const Recording& rec) {
     out << '\n';
   }
   return events;
+}
+
+std::size_t count_markers(const Recording& rec) {
+  return static_cast<std::size_t>(std::count_if(rec.records.begin(), rec.records.end(), [](const Record& r) {
+    return std::holds_alternative<Marker>(r.item);
+  }));
+}
+
+std::size_t write_markers_csv(std::ostream& out, const Recording& rec) {
+  out << "# fovea markers v1\n";
+  out << "# times: the recording's clock, as the samples' tracker_time_ns\n";
+  out << "sequence,time_ns,received_ns,time_source,label\n";
+  std::size_t n = 0;
+  for (const Record& r : rec.records) {
+    const auto* m = std::get_if<Marker>(&r.item);
+    if (m == nullptr) continue;
+    // Labels are printable UTF-8 (the decoder refused anything else); commas and quotes stay
+    // inside one quoted field.
+    std::string label;
+    for (const char ch : m->label.value) label += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+    out << r.sequence << ',' << m->time_ns << ',' << m->received_ns << ','
+        << ((m->flags & kMarkerClientTime) != 0 ? "client" : "daemon") << ",\"" << label << "\"\n";
+    ++n;
+  }
+  return n;
 }
 
 Recording read_csv(std::istream& in, const std::string& source) {

@@ -82,7 +82,8 @@ std::size_t parse_record(std::span<const std::uint8_t> d, Record& out) {
   if (d.size() < kMinRecord || std::memcmp(d.data(), kSync, 4) != 0) return 0;
   const auto type_raw = d[4];
   if (type_raw != static_cast<std::uint8_t>(MessageType::GazeSample) &&
-      type_raw != static_cast<std::uint8_t>(MessageType::GazeEvent)) {
+      type_raw != static_cast<std::uint8_t>(MessageType::GazeEvent) &&
+      type_raw != static_cast<std::uint8_t>(MessageType::Marker)) {
     return 0;
   }
   const auto type = static_cast<MessageType>(type_raw);
@@ -97,8 +98,10 @@ std::size_t parse_record(std::span<const std::uint8_t> d, Record& out) {
   out.sequence = load_le<std::uint64_t>(d, 8);
   if (type == MessageType::GazeSample) {
     out.item = std::get<GazeSample>(p);
-  } else {
+  } else if (type == MessageType::GazeEvent) {
     out.item = std::get<GazeEvent>(p);
+  } else {
+    out.item = std::get<Marker>(p);
   }
   return total;
 }
@@ -107,6 +110,7 @@ std::size_t parse_record(std::span<const std::uint8_t> d, Record& out) {
 
 std::int64_t Record::time_ns() const {
   if (const auto* s = std::get_if<GazeSample>(&item)) return s->tracker_time_ns;
+  if (const auto* m = std::get_if<Marker>(&item)) return m->time_ns;
   const auto& e = std::get<GazeEvent>(item);
   return e.start_time_ns + e.duration_ns;
 }

@@ -7,10 +7,16 @@ void SequenceTracker::reset(std::uint64_t first_expected) {
     counts_.lost += first_expected - highest_ - 1;  // published while this client was not subscribed
   }
   started_ = false;
+  from_first_ = false;
   base_ = first_expected;
   highest_ = 0;
   window_ = 0;
   run_length_ = 0;
+}
+
+void SequenceTracker::reset_from_first_arrival() {
+  reset(0);
+  from_first_ = true;
 }
 
 void SequenceTracker::start_at(std::uint64_t seq) {
@@ -39,6 +45,10 @@ SequenceTracker::Verdict SequenceTracker::implausible(std::uint64_t seq) {
 
 SequenceTracker::Verdict SequenceTracker::on_arrival(std::uint64_t seq) {
   if (seq < base_) return Verdict::TooOld;  // before this session's first sequence number
+  if (!started_ && from_first_) {
+    from_first_ = false;
+    base_ = seq;
+  }
   if (!started_) {
     if (seq - base_ > kMaxPlausibleJump) return implausible(seq);
     // Everything between the subscription point and the first arrival was lost.

@@ -151,6 +151,11 @@ void GazeServer::on_control(ControlHandler handler) {
   on_control_ = std::move(handler);
 }
 
+void GazeServer::on_marker(MarkerHandler handler) {
+  std::lock_guard lock(mutex_);
+  on_marker_ = std::move(handler);
+}
+
 ServerStats GazeServer::stats() const {
   std::lock_guard lock(mutex_);
   ServerStats s = stats_;
@@ -388,6 +393,51 @@ void GazeServer::handle_unsubscribe(const Unsubscribe& un, const Endpoint& from)
   }
 }
 
+// PROTOCOL.md §4.17 and §9: only a session's own address may mark (anyone else gets a 40-byte ERROR,
+// smaller than the 136-byte MARKER), at most marker_rate_per_s; what is published goes only to
+// subscribers of the marker stream, who all proved they receive where they asked.
+void GazeServer::handle_marker(const std::unique_lock<std::mutex>& held, const Marker& marker, std::uint64_t seq,
+                               const Endpoint& from, std::int64_t received_ns) {
+  const auto session = sessions_.find(marker.session_id);
+  if (session == sessions_.end() || !(session->second.address == from)) {
+    ++stats_.markers_refused;
+    refuse(from, seq, MessageType::Marker,
+           session == sessions_.end() ? ErrorCode::UnknownSession : ErrorCode::AddressMismatch);
+    return;
+  }
+  MarkerState& state = marker_state_[marker.session_id];
+  for (const auto& sent : state.recent) {
+    if (sent.marker_id == marker.marker_id) {
+      // Its copy was lost on the way back (or is late): the sender alone gets the same copy again.
+      ++stats_.markers_repeated;
+      if ((session->second.streams & kStreamMarkers) != 0) reply(from, sent.sequence, sent.published, sent.published.time_ns);
+      return;
+    }
+  }
+  const double rate = options_.marker_rate_per_s;
+  if (state.refilled_ns == 0) state.tokens = rate;
+  state.tokens = std::min(rate, state.tokens + rate * static_cast<double>(received_ns - state.refilled_ns) * 1e-9);
+  state.refilled_ns = received_ns;
+  const bool implausible = (marker.flags & kMarkerClientTime) != 0 &&
+                           (marker.time_ns < received_ns - options_.marker_max_time_offset_ns ||
+                            marker.time_ns > received_ns + options_.marker_max_time_offset_ns);
+  if (state.tokens < 1.0 || implausible) {
+    ++stats_.markers_refused;
+    refuse(from, seq, MessageType::Marker, implausible ? ErrorCode::BadRequest : ErrorCode::RateLimited);
+    return;
+  }
+  state.tokens -= 1.0;
+  Marker published = marker;
+  published.session_id = 0;  // sessions are never disclosed to other subscribers
+  published.received_ns = received_ns;
+  if ((marker.flags & kMarkerClientTime) == 0) published.time_ns = received_ns;
+  const std::uint64_t sequence = send_stream(held, kStreamMarkers, next_marker_seq_, published.time_ns, published);
+  ++stats_.markers_published;
+  if (state.recent.size() >= 32) state.recent.pop_front();
+  state.recent.push_back({marker.marker_id, sequence, published});
+  if (on_marker_) on_marker_(published, sequence);
+}
+
 // PROTOCOL.md §4.11; read under mutex_ so the counters agree with each other.
 StatusReply GazeServer::status_reply(std::int64_t received_ns) const {
   StatusReply s;
@@ -408,7 +458,7 @@ void GazeServer::handle(const Message& m, const Endpoint& from, std::int64_t rec
     handle_control(m, from);
     return;
   }
-  std::lock_guard lock(mutex_);
+  std::unique_lock lock(mutex_);
   const std::uint64_t seq = m.header.sequence;
   switch (m.header.type) {
     case MessageType::Hello: {
@@ -420,6 +470,7 @@ void GazeServer::handle(const Message& m, const Endpoint& from, std::int64_t rec
     case MessageType::Subscribe: handle_subscribe(std::get<Subscribe>(m.payload), seq, from, received_ns); return;
     case MessageType::Heartbeat: handle_heartbeat(std::get<Heartbeat>(m.payload), seq, from, received_ns); return;
     case MessageType::Unsubscribe: handle_unsubscribe(std::get<Unsubscribe>(m.payload), from); return;
+    case MessageType::Marker: handle_marker(lock, std::get<Marker>(m.payload), seq, from, received_ns); return;
     case MessageType::StatusRequest: reply(from, seq, status_reply(received_ns)); return;
     case MessageType::TimeSyncRequest: {
       const auto& req = std::get<TimeSyncRequest>(m.payload);
@@ -445,6 +496,7 @@ void GazeServer::expire_leases(std::int64_t now_ns) {
       ++it;
     }
   }
+  std::erase_if(marker_state_, [&](const auto& kv) { return !sessions_.contains(kv.first); });
 }
 
 }  // namespace fovea::protocol

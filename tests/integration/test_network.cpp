@@ -73,6 +73,18 @@ class RawPeer {
     socket_.send_to(server_, encode(m));
   }
   void send_raw(const std::vector<std::uint8_t>& bytes) { socket_.send_to(server_, bytes); }
+  // Next message of any type within the timeout.
+  std::optional<Message> receive_any(int timeout_ms) {
+    const std::int64_t deadline = monotonic_ns() + std::int64_t{timeout_ms} * 1'000'000;
+    std::array<std::uint8_t, kMaxDatagramSize + 1> buf{};
+    while (monotonic_ns() < deadline) {
+      Endpoint from;
+      const std::size_t n = socket_.receive(buf, from, 10);
+      Message m;
+      if (n > 0 && decode(std::span<const std::uint8_t>(buf.data(), n), m)) return m;
+    }
+    return std::nullopt;
+  }
   // Next message of the given type within the timeout; others are skipped.
   std::optional<Message> receive(MessageType type, int timeout_ms) {
     const std::int64_t deadline = monotonic_ns() + std::int64_t{timeout_ms} * 1'000'000;
@@ -94,11 +106,11 @@ class RawPeer {
     }
     return n;
   }
-  std::optional<Subscribed> handshake(std::uint32_t lease_ms) {
+  std::optional<Subscribed> handshake(std::uint32_t lease_ms, std::uint32_t streams = kStreamSamples) {
     send(Hello{99, {"raw"}});
     const auto challenge = receive(MessageType::Challenge, 1000);
     if (!challenge) return std::nullopt;
-    send(Subscribe{std::get<Challenge>(challenge->payload).cookie, 99, kStreamSamples, lease_ms});
+    send(Subscribe{std::get<Challenge>(challenge->payload).cookie, 99, streams, lease_ms});
     const auto sub = receive(MessageType::Subscribed, 1000);
     if (!sub) return std::nullopt;
     return std::get<Subscribed>(sub->payload);
@@ -593,4 +605,198 @@ TEST(Client, BacksOffWhenTheDaemonIsFull) {
   EXPECT_FALSE(second.subscribed());
   first.stop();  // a slot frees up: the second one gets in after its back-off
   EXPECT_TRUE(second.wait_subscribed(3000));
+}
+
+// ---- MARKER (PROTOCOL.md §4.17) ------------------------------------------------------------------
+
+namespace {
+Marker marker_from(std::uint64_t session, std::uint64_t id, const std::string& label) {
+  Marker m;
+  m.session_id = session;
+  m.marker_id = id;
+  m.label.value = label;
+  return m;
+}
+
+// Collects what the server hands its marker handler (the daemon records these).
+struct MarkerLog {
+  std::mutex mutex;
+  std::vector<std::pair<Marker, std::uint64_t>> seen;
+  void attach(GazeServer& server) {
+    server.on_marker([this](const Marker& m, std::uint64_t seq) {
+      std::lock_guard lock(mutex);
+      seen.emplace_back(m, seq);
+    });
+  }
+  std::size_t size() {
+    std::lock_guard lock(mutex);
+    return seen.size();
+  }
+};
+}  // namespace
+
+TEST(Markers, ReachMarkerSubscribersOnlyWithTheSenderSessionHidden) {
+  GazeServer server(server_options());
+  MarkerLog log;
+  log.attach(server);
+  ClientOptions with = client_options(server.local_endpoint());
+  with.streams = kStreamSamples | kStreamMarkers;
+  GazeClient sender(with), without(client_options(server.local_endpoint()));
+  std::atomic<int> seen_without{0};
+  without.on_marker([&](const Marker&, const Arrival&) { ++seen_without; });
+  sender.start();
+  without.start();
+  RawPeer watcher(server.local_endpoint());
+  ASSERT_TRUE(watcher.handshake(0, kStreamMarkers));
+  ASSERT_TRUE(sender.wait_subscribed(2000));
+  ASSERT_TRUE(without.wait_subscribed(2000));
+
+  const std::int64_t before = monotonic_ns();
+  const std::uint64_t id = sender.mark("trial 1: stimulus on");
+  const auto copy = sender.wait_marker(id, 2000);
+  ASSERT_TRUE(copy) << "the sender's copy never came back";
+  EXPECT_EQ(copy->session_id, 0u) << "a session id was disclosed";
+  EXPECT_EQ(copy->label.value, "trial 1: stimulus on");
+  EXPECT_EQ(copy->flags, 0);
+  EXPECT_EQ(copy->time_ns, copy->received_ns) << "without a time of its own, the marker takes the receive time";
+  EXPECT_GE(copy->received_ns, before);
+
+  const auto at_watcher = watcher.receive(MessageType::Marker, 1000);
+  ASSERT_TRUE(at_watcher);
+  EXPECT_EQ(std::get<Marker>(at_watcher->payload), *copy);
+  EXPECT_EQ(at_watcher->header.origin_time_ns, copy->time_ns);
+  ASSERT_EQ(log.size(), 1u);
+  EXPECT_EQ(log.seen[0].first, *copy);
+  EXPECT_EQ(log.seen[0].second, at_watcher->header.sequence);
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(seen_without.load(), 0) << "a client that did not ask for markers received one";
+  const auto st = sender.stats();
+  EXPECT_EQ(st.markers_sent, 1u);
+  EXPECT_EQ(st.markers_confirmed, 1u);
+  EXPECT_EQ(st.markers.received, 1u);
+  EXPECT_EQ(server.stats().markers_published, 1u);
+}
+
+TEST(Markers, StrangersAndOtherAddressesGetASmallErrorAndPublishNothing) {
+  GazeServer server(server_options());
+  MarkerLog log;
+  log.attach(server);
+  RawPeer owner(server.local_endpoint()), stranger(server.local_endpoint());
+  const auto sub = owner.handshake(0, kStreamMarkers);
+  ASSERT_TRUE(sub);
+  stranger.send(marker_from(0x1234, 1, "forged"));
+  auto err = stranger.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::UnknownSession);
+  EXPECT_EQ(std::get<Error>(err->payload).request_type, MessageType::Marker);
+  stranger.send(marker_from(sub->session_id, 2, "forged with a real session"));
+  err = stranger.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::AddressMismatch);
+  EXPECT_LT(kHeaderSize + payload_size(MessageType::Error), kHeaderSize + payload_size(MessageType::Marker))
+      << "a refusal must be smaller than the marker that caused it";
+  EXPECT_EQ(owner.count(MessageType::Marker, 200), 0u);
+  EXPECT_EQ(log.size(), 0u);
+  EXPECT_EQ(server.stats().markers_refused, 2u);
+}
+
+TEST(Markers, ARetransmissionIsPublishedOnceAndItsCopySentAgainToTheSenderAlone) {
+  GazeServer server(server_options());
+  MarkerLog log;
+  log.attach(server);
+  RawPeer sender(server.local_endpoint()), other(server.local_endpoint());
+  const auto sub = sender.handshake(0, kStreamMarkers);
+  ASSERT_TRUE(sub);
+  ASSERT_TRUE(other.handshake(0, kStreamMarkers));
+  sender.send(marker_from(sub->session_id, 77, "key press"), 10);
+  const auto first = sender.receive(MessageType::Marker, 1000);
+  ASSERT_TRUE(first);
+  sender.send(marker_from(sub->session_id, 77, "key press"), 11);  // its copy "was lost"
+  const auto again = sender.receive(MessageType::Marker, 1000);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->header.sequence, first->header.sequence);
+  EXPECT_EQ(std::get<Marker>(again->payload), std::get<Marker>(first->payload));
+  EXPECT_EQ(other.count(MessageType::Marker, 300), 1u) << "others must see it once";
+  EXPECT_EQ(log.size(), 1u);
+  EXPECT_EQ(server.stats().markers_repeated, 1u);
+}
+
+TEST(Markers, ASessionBeyondItsRateIsRefusedWithRateLimited) {
+  ServerOptions o = server_options();
+  o.marker_rate_per_s = 5;
+  GazeServer server(o);
+  RawPeer sender(server.local_endpoint());
+  const auto sub = sender.handshake(0, kStreamMarkers);
+  ASSERT_TRUE(sub);
+  for (std::uint64_t id = 1; id <= 10; ++id) sender.send(marker_from(sub->session_id, id, "m"), id);
+  std::size_t published = 0, limited = 0;
+  const std::int64_t deadline = monotonic_ns() + 500'000'000;
+  while (monotonic_ns() < deadline) {
+    const auto m = sender.receive_any(5);
+    if (!m) continue;
+    if (m->header.type == MessageType::Marker) ++published;
+    if (m->header.type == MessageType::Error && std::get<Error>(m->payload).code == ErrorCode::RateLimited) ++limited;
+  }
+  // 10 arrive within a few ms: the bucket of 5 (plus at most one refilled token) passes.
+  EXPECT_GE(published, 5u);
+  EXPECT_LE(published, 6u);
+  EXPECT_EQ(published + limited, 10u);
+}
+
+TEST(Markers, ASendersOwnTimeIsMappedAndAnImplausibleOneRefused) {
+  GazeServer server(server_options());
+  ClientOptions co = client_options(server.local_endpoint());
+  co.streams = kStreamMarkers;
+  GazeClient client(co);
+  EXPECT_THROW(client.mark("too early"), std::logic_error);  // not subscribed yet
+  client.start();
+  ASSERT_TRUE(client.wait_subscribed(2000));
+  for (int i = 0; i < 100 && !client.clock_known(); ++i) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(client.clock_known());
+  const std::int64_t flip = monotonic_ns() - 5'000'000;  // 5 ms ago on this (the same) clock
+  const auto copy = client.wait_marker(client.mark("flip", flip), 2000);
+  ASSERT_TRUE(copy);
+  EXPECT_EQ(copy->flags, kMarkerClientTime);
+  EXPECT_LT(std::llabs(copy->time_ns - flip), 1'000'000) << "loopback shares one clock: the mapping is ~identity";
+  EXPECT_GE(copy->received_ns - copy->time_ns, 4'000'000);
+
+  EXPECT_THROW(client.mark(""), std::invalid_argument);
+  EXPECT_THROW(client.mark("tab\there"), std::invalid_argument);
+  EXPECT_THROW(client.mark(std::string(64, 'x')), std::invalid_argument);
+  EXPECT_THROW(client.mark("\xff\xfe"), std::invalid_argument);
+
+  RawPeer raw(server.local_endpoint());
+  const auto sub = raw.handshake(0, kStreamMarkers);
+  ASSERT_TRUE(sub);
+  Marker late = marker_from(sub->session_id, 5, "an hour off");
+  late.flags = kMarkerClientTime;
+  late.time_ns = monotonic_ns() + 3'600'000'000'000;
+  raw.send(late);
+  const auto err = raw.receive(MessageType::Error, 1000);
+  ASSERT_TRUE(err);
+  EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::BadRequest);
+}
+
+TEST(Markers, AMarkerSentWhileTheDaemonRestartsArrivesOnceAfterwards) {
+  auto server = std::make_unique<GazeServer>(server_options());
+  const Endpoint where = server->local_endpoint();
+  ClientOptions co = client_options(where);
+  co.streams = kStreamMarkers;
+  co.heartbeat_interval_ms = 100;
+  GazeClient client(co);
+  client.start();
+  ASSERT_TRUE(client.wait_subscribed(2000));
+  server.reset();  // the daemon goes away; the client does not know yet
+  const std::uint64_t id = client.mark("trial 2");
+  std::this_thread::sleep_for(300ms);
+  server = std::make_unique<GazeServer>(server_options(where.port));
+  MarkerLog log;
+  log.attach(*server);
+  const auto copy = client.wait_marker(id, 3000);
+  ASSERT_TRUE(copy) << "the marker was lost across the restart";
+  EXPECT_EQ(copy->label.value, "trial 2");
+  std::this_thread::sleep_for(600ms);  // later resends, if any, must not publish it twice
+  EXPECT_EQ(log.size(), 1u);
+  EXPECT_EQ(client.stats().markers_confirmed, 1u);
+  EXPECT_EQ(client.stats().markers_unconfirmed, 0u);
 }

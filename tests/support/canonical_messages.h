@@ -92,6 +92,17 @@ inline std::vector<std::pair<std::string, protocol::Message>> canonical_messages
   control_reply.result = ControlResult::Ok;
   control_reply.message.value = "recording to /var/lib/fovea/session-01.fgr";
   out.emplace_back("control_reply", Message{header(7), control_reply});
+  // As the daemon publishes it (session 0): the sender gave its own time (a display flip 2 ms before
+  // the daemon received the marker), mapped to the daemon's clock.
+  Marker marker;
+  marker.marker_id = 0x0F0E0D0C0B0A0908ULL;
+  marker.time_ns = 1'000'000'000;
+  marker.received_ns = 1'002'000'000;
+  marker.flags = kMarkerClientTime;
+  marker.label.value = "trial 7: stimulus on";
+  Header mh = header(3);
+  mh.origin_time_ns = marker.time_ns;
+  out.emplace_back("marker", Message{mh, marker});
   for (auto& [name, m] : out) m.header.type = type_of(m.payload);
   return out;
 }

@@ -198,7 +198,7 @@ TEST(Decoder, RejectsOutOfRangeFieldsAndReservedBits) {
   EXPECT_EQ(mutate(0, [](auto& b) { b[H + 47] = 1; }), DecodeError::ReservedNotZero);
   // SUBSCRIBE (index 2): no streams, unknown stream bits
   EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 0); }), DecodeError::OutOfRange);
-  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 4); }), DecodeError::OutOfRange);
+  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 8); }), DecodeError::OutOfRange);
   // SUBSCRIBED (index 3): zero-sized display, negative distance
   EXPECT_EQ(mutate(3, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 40, 0); }), DecodeError::OutOfRange);
   EXPECT_EQ(mutate(3, [](auto& b) { wire::store_le<double>(b, H + 64, -0.5); }), DecodeError::OutOfRange);
@@ -207,6 +207,47 @@ TEST(Decoder, RejectsOutOfRangeFieldsAndReservedBits) {
   // ERROR (index 12): unknown code, unknown request type
   EXPECT_EQ(mutate(12, [](auto& b) { wire::store_le<std::uint16_t>(b, H, 99); }), DecodeError::OutOfRange);
   EXPECT_EQ(mutate(12, [](auto& b) { b[H + 2] = 0; }), DecodeError::OutOfRange);
+}
+
+TEST(Decoder, MarkerLabelsArePrintableUtf8AndItsFieldsConsistent) {
+  const auto messages = fovea::test::canonical_messages();
+  const std::size_t index = 15;
+  ASSERT_EQ(messages[index].first, "marker");
+  const auto mutate = [&](auto&& f) {
+    auto bytes = encode(messages[index].second);
+    f(bytes);
+    Message out;
+    return decode(bytes, out);
+  };
+  constexpr std::size_t H = kHeaderSize, L = H + 40;  // the label
+  const auto label = [&](const std::string& text) {
+    return mutate([&](auto& b) {
+      std::fill(b.begin() + L, b.begin() + L + 64, 0);
+      std::copy(text.begin(), text.end(), b.begin() + L);
+    });
+  };
+  EXPECT_TRUE(label("Reiz an: \xc3\xa4\xe2\x82\xac \\ \"quoted\", comma"));  // UTF-8, backslash, quotes
+  EXPECT_EQ(label("").error, DecodeError::BadString);
+  const DecodeResult newline = label("trial 1\nforged log line");
+  EXPECT_EQ(newline.error, DecodeError::BadString);
+  EXPECT_EQ(newline.offset, L + 7) << "the offset names the offending byte";
+  EXPECT_EQ(label("esc \x1b[2J").error, DecodeError::BadString);
+  EXPECT_EQ(label("del \x7f").error, DecodeError::BadString);
+  EXPECT_EQ(label("c1 \xc2\x9b").error, DecodeError::BadString);
+  EXPECT_EQ(label("latin-1 \xe4").error, DecodeError::BadString);
+  EXPECT_EQ(label("overlong \xc0\xaf").error, DecodeError::BadString);
+  EXPECT_EQ(label("surrogate \xed\xa0\x80").error, DecodeError::BadString);
+  EXPECT_EQ(label("cut \xe2\x82").error, DecodeError::BadString);
+  EXPECT_EQ(mutate([&](auto& b) { b[L + 30] = 'x'; }).error, DecodeError::BadString);  // after the NUL
+  EXPECT_EQ(mutate([&](auto& b) { wire::store_le<std::uint64_t>(b, H + 8, 0); }).error, DecodeError::OutOfRange);
+  EXPECT_EQ(mutate([&](auto& b) { b[H + 32] = 2; }).error, DecodeError::ReservedNotZero);
+  EXPECT_EQ(mutate([&](auto& b) { b[H + 35] = 1; }).error, DecodeError::ReservedNotZero);
+  // Without the sender's-time flag, time_ns must be the receive time: nothing half-meant.
+  EXPECT_EQ(mutate([&](auto& b) { b[H + 32] = 0; }).error, DecodeError::OutOfRange);
+  EXPECT_TRUE(mutate([&](auto& b) {
+    b[H + 32] = 0;
+    wire::store_le<std::int64_t>(b, H + 16, 1'002'000'000);
+  }));
 }
 
 TEST(Decoder, SurvivesAHundredThousandRandomDatagrams) {

@@ -271,3 +271,34 @@ TEST(Csv, ErrorsReturnNothingPartial) {
 }
 
 }  // namespace
+
+TEST(Csv, MarkersGoToTheirOwnCsvWithLabelsQuoted) {
+  Recording rec = sample_recording();
+  Marker a;
+  a.marker_id = 1;
+  a.time_ns = a.received_ns = 42;
+  a.label.value = "trial 1, \"go\"";
+  Marker b;
+  b.marker_id = 2;
+  b.time_ns = 40;
+  b.received_ns = 45;
+  b.flags = kMarkerClientTime;
+  b.label.value = "Reiz \xc3\xa4";
+  rec.records.push_back(Record{0, a});
+  rec.records.push_back(Record{1, b});
+  EXPECT_EQ(count_markers(rec), 2u);
+
+  std::ostringstream samples;
+  EXPECT_EQ(write_csv(samples, rec), rec.records.size() - samples_of(rec).size() - 2)
+      << "markers are not events: they are not counted as left out";
+  EXPECT_EQ(parse_csv(samples.str(), "s.csv").records, samples_of(rec));
+
+  std::ostringstream markers;
+  EXPECT_EQ(write_markers_csv(markers, rec), 2u);
+  EXPECT_EQ(markers.str(),
+            "# fovea markers v1\n"
+            "# times: the recording's clock, as the samples' tracker_time_ns\n"
+            "sequence,time_ns,received_ns,time_source,label\n"
+            "0,42,42,daemon,\"trial 1, \"\"go\"\"\"\n"
+            "1,40,45,client,\"Reiz \xc3\xa4\"\n");
+}

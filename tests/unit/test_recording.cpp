@@ -93,7 +93,19 @@ GazeEvent random_event(std::mt19937& rng, std::int64_t t) {
   return e;
 }
 
-// Samples every 4 ms with an event now and then; sequence numbers count up from `first_seq`.
+// A marker as the daemon publishes it: with the receive time, or a sender's own (earlier) time.
+Marker marker_at(std::int64_t t, std::size_t i) {
+  Marker m;
+  m.marker_id = 1000 + i;
+  m.received_ns = t;
+  m.time_ns = i % 2 == 0 ? t : t - 3'000'000;
+  m.flags = i % 2 == 0 ? 0 : kMarkerClientTime;
+  m.label.value = "trial " + std::to_string(i) + ", \"stimulus\" \xc3\xa4";
+  return m;
+}
+
+// Samples every 4 ms with an event now and then and a marker every 17th record; sequence numbers
+// count up from `first_seq`.
 std::vector<Record> random_records(std::size_t n, std::uint32_t seed, std::uint64_t first_seq = 0) {
   std::mt19937 rng(seed);
   std::vector<Record> out;
@@ -105,6 +117,8 @@ std::vector<Record> random_records(std::size_t n, std::uint32_t seed, std::uint6
     r.sequence = first_seq + i;
     if (pick(rng, 0, 3) == 0) {
       r.item = random_event(rng, t);
+    } else if (i % 17 == 5) {
+      r.item = marker_at(t, i);
     } else {
       r.item = random_sample(rng, t);
     }
@@ -222,6 +236,7 @@ TEST(RecordingFormat, HeaderAndRecordSizes) {
   // sync 4 + type 1 + reserved 1 + length 2 + sequence 8 + payload + CRC 4
   EXPECT_EQ(encode_record(Record{0, random_sample(rng, 0)}).size(), 20u + 76u);
   EXPECT_EQ(encode_record(Record{0, random_event(rng, 0)}).size(), 20u + 48u);
+  EXPECT_EQ(encode_record(Record{0, marker_at(0, 1)}).size(), 20u + 104u);
 }
 
 TEST(RecordingFormat, HeaderRoundTripsAllFields) {
@@ -300,6 +315,9 @@ TEST(RecordingFile, WriterAndReaderRoundTrip) {
   ASSERT_GT(std::count_if(records.begin(), records.end(),
                           [](const Record& r) { return std::holds_alternative<GazeEvent>(r.item); }),
             10);
+  ASSERT_GT(std::count_if(records.begin(), records.end(),
+                          [](const Record& r) { return std::holds_alternative<Marker>(r.item); }),
+            5);
   {
     RecordingWriter w(path, h);
     EXPECT_EQ(w.path(), path);

@@ -20,7 +20,7 @@ protocol::Recording make_recording(int samples, double rate) {
   while (n < samples) {
     const auto item = g.next();
     if (std::holds_alternative<protocol::GazeSample>(*item)) ++n;
-    rec.records.push_back(protocol::Record{seq++, *item});
+    std::visit([&](const auto& v) { rec.records.push_back(protocol::Record{seq++, v}); }, *item);
   }
   return rec;
 }

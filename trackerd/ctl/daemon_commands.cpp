@@ -84,13 +84,14 @@ int run_client(const Common& c, const std::string& role, std::uint32_t streams,
   const ClientStats s = client->stats();
   std::fprintf(stderr,
                "fovea-ctl %s: summary received=%llu lost=%llu duplicated=%llu reordered=%llu implausible=%llu events=%llu "
-               "latency_ms_p50=%s latency_ms_p99=%s latency_ms_max=%s clock_offset_us=%.1f subscriptions=%llu\n",
+               "latency_ms_p50=%s latency_ms_p99=%s latency_ms_max=%s clock_offset_us=%.1f subscriptions=%llu markers=%llu\n",
                role.c_str(), static_cast<unsigned long long>(s.samples.received),
                static_cast<unsigned long long>(s.samples.lost), static_cast<unsigned long long>(s.samples.duplicated),
                static_cast<unsigned long long>(s.samples.reordered),
                static_cast<unsigned long long>(s.samples.implausible), static_cast<unsigned long long>(s.events.received),
                ms(s.latency_p50_ns).c_str(), ms(s.latency_p99_ns).c_str(), ms(s.latency_max_ns).c_str(),
-               static_cast<double>(s.clock_offset_ns) / 1e3, static_cast<unsigned long long>(s.subscriptions));
+               static_cast<double>(s.clock_offset_ns) / 1e3, static_cast<unsigned long long>(s.subscriptions),
+               static_cast<unsigned long long>(s.markers.received));
   if (!c.stats_json.empty()) {
     nlohmann::json j = {{"client", role},
                         {"received", s.samples.received},
@@ -103,7 +104,8 @@ int run_client(const Common& c, const std::string& role, std::uint32_t streams,
                         {"latency_p99_ns", s.latency_p99_ns},
                         {"latency_max_ns", s.latency_max_ns},
                         {"clock_offset_ns", s.clock_offset_ns},
-                        {"subscriptions", s.subscriptions}};
+                        {"subscriptions", s.subscriptions},
+                        {"markers", s.markers.received}};
     std::ofstream(c.stats_json) << j.dump(2) << "\n";
   }
   return 0;
@@ -145,7 +147,7 @@ int cmd_watch(const Common& c, unsigned every, bool events_only) {
     return static_cast<double>(t - t0) / 1e9;
   };
   return run_client(
-      c, "watch", events_only ? kStreamEvents : kStreamSamples | kStreamEvents,
+      c, "watch", (events_only ? kStreamEvents : kStreamSamples | kStreamEvents) | kStreamMarkers,
       [&](GazeClient& client) {
         client.on_sample([&](const GazeSample& s, const Arrival& a) {
           std::lock_guard lock(out_mutex);
@@ -190,8 +192,58 @@ int cmd_watch(const Common& c, unsigned every, bool events_only) {
           }
           std::fflush(stdout);
         });
+        client.on_marker([&](const Marker& m, const Arrival&) {
+          std::lock_guard lock(out_mutex);
+          std::printf("%9.3fs MARKER \"%s\" (%s time)\n", rel(m.time_ns), m.label.value.c_str(),
+                      (m.flags & kMarkerClientTime) != 0 ? "sender's" : "daemon's receive");
+          std::fflush(stdout);
+        });
       },
       [](const Subscribed&) {});
+}
+
+// Sends one marker and prints the copy the daemon published (so the marker is known to be on the
+// gaze clock, in the daemon's recording if it records, and with its subscribers).
+int cmd_mark(const Common& c, const std::string& label, std::optional<std::int64_t> time_ns) {
+  ClientOptions co;
+  try {
+    co.server = parse_endpoint(c.server, kDefaultPort);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl mark: %s\n", e.what());
+    return 2;
+  }
+  co.streams = kStreamMarkers;
+  co.name = c.name.empty() ? "fovea-ctl mark" : c.name;
+  GazeClient client(co);
+  client.start();
+  if (!client.wait_subscribed(c.connect_timeout_ms)) {
+    std::fprintf(stderr, "fovea-ctl mark: no answer from %s within %d ms; is fovea-trackerd running there?\n",
+                 co.server.to_string().c_str(), c.connect_timeout_ms);
+    return 1;
+  }
+  for (int i = 0; time_ns && i < 100 && !client.clock_known(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  std::uint64_t id = 0;
+  try {
+    id = client.mark(label, time_ns);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl mark: %s\n", e.what());
+    return 2;
+  }
+  const int wait_ms = GazeClient::kMarkerAttempts * 250 + 500;
+  const std::optional<Marker> published = client.wait_marker(id, wait_ms);
+  const ClientStats st = client.stats();
+  client.stop();
+  if (!published) {
+    std::fprintf(stderr, "fovea-ctl mark: %s did not confirm the marker within %d ms%s%s\n",
+                 co.server.to_string().c_str(), wait_ms, st.last_error ? "; it answered: " : "",
+                 st.last_error ? to_string(*st.last_error) : "");
+    return 1;
+  }
+  std::printf("marker \"%s\" at %.9f s on the daemon's clock (%s), received %.9f s\n", published->label.value.c_str(),
+              static_cast<double>(published->time_ns) / 1e9,
+              (published->flags & kMarkerClientTime) != 0 ? "the time given, mapped" : "when it arrived",
+              static_cast<double>(published->received_ns) / 1e9);
+  return 0;
 }
 
 int cmd_record(const Common& c, const std::string& path, bool append) {
@@ -201,7 +253,7 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
   std::string device = "fovea-trackerd at " + c.server;
   DisplayGeometry header_display;
   int rc = run_client(
-      c, "record", kStreamSamples | kStreamEvents,
+      c, "record", kStreamSamples | kStreamEvents | kStreamMarkers,
       [&](GazeClient& client) {
         const auto write = [&](Record r) {
           // The client resubscribes on its own (a daemon restart); a daemon restarted with another
@@ -228,6 +280,7 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
         };
         client.on_sample([write](const GazeSample& s, const Arrival& a) { write(Record{a.sequence, s}); });
         client.on_event([write](const GazeEvent& e, const Arrival& a) { write(Record{a.sequence, e}); });
+        client.on_marker([write](const Marker& m, const Arrival& a) { write(Record{a.sequence, m}); });
       },
       [&](const Subscribed& s) {
         RecordingHeader h;
@@ -301,9 +354,11 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
     bool append = false;
     std::string control_record_path;
     std::string calibration_file;
+    std::string mark_label;
+    std::optional<std::int64_t> mark_time_ns;
   };
   auto o = std::make_shared<Options>();
-  auto& [c, every, events_only, record_path, append, control_record_path, calibration_file] = *o;
+  auto& [c, every, events_only, record_path, append, control_record_path, calibration_file, mark_label, mark_time_ns] = *o;
   app.add_option("--server", c.server, "fovea-trackerd address HOST:PORT")->capture_default_str();
   app.add_option("--control-socket", c.control_socket,
                  "control commands through this socket (default: the daemon's own on this host, found by the "
@@ -326,6 +381,14 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
   record->add_flag("--append", append, "append to an existing recording of the same display");
   record->add_option("--multicast", c.multicast, "receive samples from multicast GROUP:PORT instead of unicast");
   record->add_option("--stats-json", c.stats_json, "write the final statistics to this JSON file");
+
+  auto* mark = app.add_subcommand(
+      "mark", "put an experiment marker (stimulus onset, trial start, ...) on the gaze clock: into the daemon's "
+              "recording and to its subscribers");
+  mark->add_option("LABEL", mark_label, "1..63 bytes of UTF-8 text, no control characters")->required();
+  mark->add_option("--time-ns", mark_time_ns,
+                   "when it happened, in ns of this host's CLOCK_MONOTONIC (mapped to the daemon's clock); default: "
+                   "when the daemon receives it");
 
   auto* reload = app.add_subcommand(
       "reload", "make the daemon reload its configuration and calibration (as SIGHUP; subscribers stay connected)");
@@ -350,6 +413,7 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
       {status, [o] { return cmd_status(o->c); }},
       {watch, [o] { return cmd_watch(o->c, o->every, o->events_only); }},
       {record, [o] { return cmd_record(o->c, o->record_path, o->append); }},
+      {mark, [o] { return cmd_mark(o->c, o->mark_label, o->mark_time_ns); }},
       {reload, [o] { return cmd_control(o->c, ControlCommand::Reload, ""); }},
       {record_start, [o] { return cmd_control(o->c, ControlCommand::StartRecording, o->control_record_path); }},
       {record_stop, [o] { return cmd_control(o->c, ControlCommand::StopRecording, ""); }},

@@ -28,6 +28,25 @@ Recording load_any(const std::string& path) {
   return read_recording(path);
 }
 
+// OUT.csv's markers go to OUT.markers.csv, written the same careful way as OUT itself.
+void write_markers_beside(const Recording& rec, const std::string& out_path, bool force) {
+  const std::string path = out_path.substr(0, out_path.size() - 4) + ".markers.csv";
+  if (!force && std::filesystem::exists(path)) {
+    throw std::runtime_error(path + " (for the markers) already exists (use --force to replace it)");
+  }
+  const std::string tmp = path + ".partial-" + std::to_string(getpid());
+  std::ofstream out(tmp);
+  const std::size_t n = write_markers_csv(out, rec);
+  out.close();
+  if (!out) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw std::runtime_error("cannot write " + tmp);
+  }
+  std::filesystem::rename(tmp, path);
+  std::fprintf(stderr, "fovea-ctl convert: wrote %zu markers to %s\n", n, path.c_str());
+}
+
 int cmd_convert(const std::string& in_path, const std::string& out_path, bool force) {
   // A name of our own next to OUT, so rename() is atomic and nobody else's file is touched.
   const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
@@ -43,6 +62,7 @@ int cmd_convert(const std::string& in_path, const std::string& out_path, bool fo
       out.close();
       if (!out) throw std::runtime_error("cannot write " + tmp);
       if (events > 0) std::fprintf(stderr, "fovea-ctl convert: %zu events left out (CSV holds samples only)\n", events);
+      if (count_markers(rec) > 0) write_markers_beside(rec, out_path, force);
     } else if (ends_with(out_path, ".fgr")) {
       RecordingWriter w(tmp, rec.header);
       for (const Record& r : rec.records) w.append(r);
@@ -65,7 +85,7 @@ int cmd_convert(const std::string& in_path, const std::string& out_path, bool fo
 int cmd_info(const std::string& path) {
   try {
     const Recording rec = load_any(path);
-    std::size_t samples = 0, valid = 0;
+    std::size_t samples = 0, valid = 0, markers = 0;
     std::map<std::string, std::size_t> ends;
     std::int64_t first = INT64_MAX, last = INT64_MIN;
     for (const Record& r : rec.records) {
@@ -74,8 +94,10 @@ int cmd_info(const std::string& path) {
         last = std::max(last, s->tracker_time_ns);
         ++samples;
         if (s->flags & kGazeValid) ++valid;
-      } else if (const auto& e = std::get<GazeEvent>(r.item); e.phase == EventPhase::End) {
-        ++ends[to_string(e.kind)];
+      } else if (const auto* e = std::get_if<GazeEvent>(&r.item); e != nullptr && e->phase == EventPhase::End) {
+        ++ends[to_string(e->kind)];
+      } else if (std::holds_alternative<Marker>(r.item)) {
+        ++markers;
       }
     }
     std::printf("file        %s\n", path.c_str());
@@ -89,6 +111,7 @@ int cmd_info(const std::string& path) {
     std::printf("\n");
     std::printf("events     ");
     for (const auto& [k, n] : ends) std::printf(" %zu %s", n, k.c_str());
+    std::printf("\nmarkers     %zu", markers);
     std::printf("\nintegrity   %s\n", rec.report.describe().c_str());
     return 0;
   } catch (const std::exception& e) {

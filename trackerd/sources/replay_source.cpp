@@ -24,6 +24,9 @@ ReplaySource::ReplaySource(ReplayOptions options, protocol::Recording recording)
     return std::holds_alternative<GazeSample>(r.item);
   });
   if (!has_sample) throw std::runtime_error("recording " + options_.path + " holds no intact gaze samples");
+  // Markers are not republished yet (a source yields samples and events); they stay in the file.
+  markers_skipped_ = static_cast<std::size_t>(std::erase_if(
+      recording_.records, [](const protocol::Record& r) { return std::holds_alternative<protocol::Marker>(r.item); }));
   refuse_absurd_times();
   std::int64_t first = INT64_MAX, last = INT64_MIN;
   for (const auto& r : recording_.records) {
@@ -53,6 +56,10 @@ void ReplaySource::refuse_absurd_times() const {
                                ", beyond +-2^61 ns: not a recording this replays");
     }
   }
+}
+
+std::string ReplaySource::status_detail() const {
+  return markers_skipped_ == 0 ? std::string() : std::to_string(markers_skipped_) + " markers in the file not replayed";
 }
 
 std::string ReplaySource::description() const {

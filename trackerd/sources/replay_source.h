@@ -26,6 +26,7 @@ class ReplaySource final : public GazeSource {
   protocol::DisplayGeometry display() const override { return recording_.header.display; }
   double nominal_rate_hz() const override { return recording_.header.nominal_rate_hz * options_.speed; }
   std::optional<GazeItem> next() override;
+  std::string status_detail() const override;
   const protocol::RecoveryReport& recovery() const { return recording_.report; }
   std::uint64_t loops_completed() const { return loops_; }
 
@@ -39,6 +40,7 @@ class ReplaySource final : public GazeSource {
   std::int64_t live_origin_ns_ = 0;      // daemon time that maps to recorded_origin_ns_ this loop
   std::int64_t loop_span_ns_ = 0;        // recorded duration of one pass plus one sample period
   std::int64_t last_due_ns_ = 0;
+  std::size_t markers_skipped_ = 0;
 };
 
 }  // namespace fovea::trackerd

@@ -24,5 +24,8 @@ std::string escape_for_log(const std::string& text, std::size_t max_chars = 256)
 // The same escaping, as much of `text` as fits in max_bytes without splitting an escape or a UTF-8
 // character: for fixed-size fields (a recording's 63-byte device name).
 std::string escape_to_fit(const std::string& text, std::size_t max_bytes);
+// Whether `text` needs no escaping at all: valid UTF-8 without control characters (C0, DEL, C1).
+// Backslashes are printable. The byte offset of the first offending byte goes to `bad_at`.
+bool printable_utf8(const std::string& text, std::size_t* bad_at = nullptr);
 
 }  // namespace fovea::protocol

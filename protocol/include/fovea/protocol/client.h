@@ -43,6 +43,10 @@ struct Arrival {
 struct ClientStats {
   SequenceCounts samples;
   SequenceCounts events;
+  SequenceCounts markers;
+  std::uint64_t markers_sent = 0;         // by mark(), retransmissions not counted
+  std::uint64_t markers_confirmed = 0;    // came back on the marker stream
+  std::uint64_t markers_unconfirmed = 0;  // given up after kMarkerAttempts sends without a copy back
   std::uint64_t rejected = 0;          // datagrams that failed to decode or came from elsewhere
   std::uint64_t queue_dropped = 0;
   std::uint64_t subscriptions = 0;     // successful SUBSCRIBED, first one included
@@ -59,6 +63,8 @@ class GazeClient {
  public:
   using SampleCallback = std::function<void(const GazeSample&, const Arrival&)>;
   using EventCallback = std::function<void(const GazeEvent&, const Arrival&)>;
+  using MarkerCallback = std::function<void(const Marker&, const Arrival&)>;
+  static constexpr int kMarkerAttempts = 8;  // a marker is sent again every 250 ms until confirmed
 
   explicit GazeClient(ClientOptions options);
   ~GazeClient();  // unsubscribes and stops
@@ -68,6 +74,7 @@ class GazeClient {
   // Callbacks run on the client's receive thread; set them before start().
   void on_sample(SampleCallback cb) { on_sample_ = std::move(cb); }
   void on_event(EventCallback cb) { on_event_ = std::move(cb); }
+  void on_marker(MarkerCallback cb) { on_marker_ = std::move(cb); }
   void start();
   void stop();  // sends UNSUBSCRIBE when subscribed
 
@@ -80,6 +87,20 @@ class GazeClient {
   ClientStats stats() const;
   // Full latency record (nanoseconds) since start, for reports; bounded to 10^7 entries.
   std::vector<std::int64_t> latencies() const;
+
+  // Sends an experiment marker (PROTOCOL.md §4.17) and returns its id; thread-safe. Without a time
+  // the daemon stamps it when it arrives; with `client_time_ns` (this host's CLOCK_MONOTONIC, e.g.
+  // a display flip's time) it is mapped to the daemon's clock through TIME_SYNC. When the
+  // subscription includes kStreamMarkers, the marker is sent again until its copy comes back on
+  // that stream (or kMarkerAttempts sends), across a daemon restart too; otherwise it is sent once.
+  // Throws std::invalid_argument for a label that is empty, longer than 63 bytes, not UTF-8 or with
+  // control characters, and std::logic_error when not subscribed, or (with a time) before the
+  // clock offset is known.
+  std::uint64_t mark(const std::string& label, std::optional<std::int64_t> client_time_ns = std::nullopt);
+  // The marker's copy as the daemon published it, once it came back (needs kStreamMarkers).
+  std::optional<Marker> wait_marker(std::uint64_t marker_id, int timeout_ms);
+  // True once a TIME_SYNC exchange has given the clock offset.
+  bool clock_known() const;
 
   // One-shot request/reply helpers (no subscription), used by `fovea-ctl status`.
   static std::optional<StatusReply> query_status(const Endpoint& server, int timeout_ms);
@@ -94,6 +115,8 @@ class GazeClient {
   void send(Payload p);
   void handle(const Message& m, std::int64_t now);
   void handle_gaze(const Message& m, std::int64_t now);
+  void handle_marker(const Message& m, std::int64_t now);
+  void resend_markers(std::int64_t now);
   void on_time_sync(const TimeSyncReply& t, std::int64_t now);
   void begin_handshake(std::int64_t now, bool fresh);
 
@@ -102,13 +125,14 @@ class GazeClient {
   UdpSocket multicast_socket_;
   SampleCallback on_sample_;
   EventCallback on_event_;
+  MarkerCallback on_marker_;
 
   enum class State { Hello, Subscribe, Subscribed };
   State state_ = State::Hello;
   std::uint64_t nonce_ = 0;
   Cookie cookie_{};
-  std::uint64_t request_seq_ = 0;
-  std::int64_t last_sent_ns_ = 0;
+  std::atomic<std::uint64_t> request_seq_{0};  // send() runs on the loop and in mark()
+  std::atomic<std::int64_t> last_sent_ns_{0};
   std::int64_t retry_after_ns_ = 0;  // after a refusal (TooManySubscribers, UnsupportedVersion)
   std::int64_t last_heard_ns_ = 0;  // last HEARTBEAT reply or stream datagram from the server
   std::int64_t next_time_sync_ns_ = 0;
@@ -119,7 +143,15 @@ class GazeClient {
   std::optional<Subscribed> session_;
   std::optional<GazeSample> latest_;
   std::deque<std::pair<GazeSample, Arrival>> queue_;
-  SequenceTracker sample_seq_, event_seq_;
+  SequenceTracker sample_seq_, event_seq_, marker_seq_;
+  struct PendingMarker {
+    Marker marker;  // session_id filled in when sent
+    std::int64_t sent_ns = 0;
+    int attempts = 0;
+  };
+  std::vector<PendingMarker> pending_markers_;
+  std::deque<Marker> confirmed_markers_;  // the last 64 of ours that came back
+  std::condition_variable marker_cv_;
   ClientStats stats_;
   std::vector<std::int64_t> latency_ring_;
   std::size_t latency_next_ = 0;

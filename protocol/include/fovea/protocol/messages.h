@@ -34,14 +34,16 @@ enum class MessageType : std::uint8_t {
   Error = 13,
   ControlRequest = 14,
   ControlReply = 15,
+  Marker = 16,
 };
-inline constexpr std::uint8_t kMaxMessageType = 15;
+inline constexpr std::uint8_t kMaxMessageType = 16;
 const char* to_string(MessageType t);
 
 // Subscription stream bits.
 inline constexpr std::uint32_t kStreamSamples = 1u << 0;
 inline constexpr std::uint32_t kStreamEvents = 1u << 1;
-inline constexpr std::uint32_t kStreamMask = kStreamSamples | kStreamEvents;
+inline constexpr std::uint32_t kStreamMarkers = 1u << 2;
+inline constexpr std::uint32_t kStreamMask = kStreamSamples | kStreamEvents | kStreamMarkers;
 
 struct Header {
   MessageType type = MessageType::Hello;
@@ -203,8 +205,9 @@ enum class ErrorCode : std::uint16_t {
   TooManySubscribers = 5,
   BadRequest = 6,
   AddressMismatch = 7,
+  RateLimited = 8,
 };
-inline constexpr std::uint16_t kMaxErrorCode = 7;
+inline constexpr std::uint16_t kMaxErrorCode = 8;
 const char* to_string(ErrorCode c);
 
 struct Error {
@@ -238,9 +241,27 @@ struct ControlReply {
   friend bool operator==(const ControlReply&, const ControlReply&) = default;
 };
 
+// An experimenter's event (stimulus onset, key press, trial start) on the gaze clock (PROTOCOL.md
+// §4.17). A subscribed client sends it with its own session id; the server stamps its receive time
+// and publishes it to the marker stream with session_id 0 (sessions are never disclosed).
+inline constexpr std::uint8_t kMarkerClientTime = 1u << 0;  // time_ns was given by the sender
+inline constexpr std::uint8_t kMarkerFlagMask = kMarkerClientTime;
+
+struct Marker {
+  std::uint64_t session_id = 0;  // client -> server: the sender's session; server -> client: 0
+  std::uint64_t marker_id = 0;   // chosen by the sender (non-zero); a repeat of a recent one is a retransmission
+  // Server clock. With kMarkerClientTime: when the event happened, as the sender mapped its own clock
+  // through TIME_SYNC; without: 0 from the sender, and the receive time once the server publishes it.
+  std::int64_t time_ns = 0;
+  std::int64_t received_ns = 0;  // server clock when the server received it; 0 from the sender
+  std::uint8_t flags = 0;        // kMarkerClientTime
+  FixedString<64> label;         // 1..63 bytes of UTF-8 without control characters
+  friend bool operator==(const Marker&, const Marker&) = default;
+};
+
 using Payload = std::variant<Hello, Challenge, Subscribe, Subscribed, Heartbeat, Unsubscribe, GazeSample,
                              GazeEvent, StatusRequest, StatusReply, TimeSyncRequest, TimeSyncReply, Error,
-                             ControlRequest, ControlReply>;
+                             ControlRequest, ControlReply, Marker>;
 
 MessageType type_of(const Payload& p);
 

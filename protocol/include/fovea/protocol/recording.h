@@ -31,10 +31,10 @@ struct RecordingHeader {
 };
 
 struct Record {
-  std::uint64_t sequence = 0;
-  std::variant<GazeSample, GazeEvent> item;
+  std::uint64_t sequence = 0;  // of the item's own stream (samples, events and markers are numbered apart)
+  std::variant<GazeSample, GazeEvent, Marker> item;
   friend bool operator==(const Record&, const Record&) = default;
-  std::int64_t time_ns() const;  // sample time, or event end time
+  std::int64_t time_ns() const;  // sample time, event end time, or marker time
 };
 
 // A source's description as a header's device name: control characters and bytes that are not UTF-8

@@ -31,6 +31,9 @@ class SequenceTracker {
   // TooOld. If the tracker already followed this stream and first_expected lies a plausible
   // distance ahead, the numbers skipped while unsubscribed are counted as lost.
   void reset(std::uint64_t first_expected);
+  // A new session of a stream whose next number the server did not say (MARKER): the first arrival
+  // starts it, and nothing before it counts as lost.
+  void reset_from_first_arrival();
   Verdict on_arrival(std::uint64_t seq);
   const SequenceCounts& counts() const { return counts_; }
   bool started() const { return started_; }
@@ -40,6 +43,7 @@ class SequenceTracker {
   Verdict implausible(std::uint64_t seq);
   void start_at(std::uint64_t seq);
   bool started_ = false;
+  bool from_first_ = false;
   std::uint64_t base_ = 0;     // first sequence number this tracker is responsible for
   std::uint64_t highest_ = 0;  // highest seen so far (valid when started_)
   std::uint64_t window_ = 0;   // bit i: highest_ - i has arrived

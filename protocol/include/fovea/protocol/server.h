@@ -4,6 +4,7 @@
 // multicast group.
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <mutex>
 #include <optional>
@@ -62,6 +63,10 @@ struct ServerOptions {
   // is all that is checked, so the default is nobody: a daemon takes commands through its local
   // control socket (control_socket.h), whose file permissions say who.
   std::vector<Ipv4Cidr> control_allow;
+  // MARKER (PROTOCOL.md §4.17): what one session may send, as a token bucket (a burst of this many,
+  // refilled at this rate), and how far a sender's own time may lie from the receive time.
+  double marker_rate_per_s = 100;
+  std::int64_t marker_max_time_offset_ns = 60'000'000'000;
 };
 
 struct SubscriberInfo {
@@ -83,12 +88,18 @@ struct ServerStats {
   std::uint64_t leases_expired = 0;
   std::uint64_t control_requests = 0;  // CONTROL_REQUEST from allowed addresses (handled or failed)
   std::uint64_t control_refused = 0;   // CONTROL_REQUEST from outside the allow-list, never executed
+  std::uint64_t markers_published = 0;
+  std::uint64_t markers_refused = 0;    // no session, rate limited or implausible time: answered ERROR
+  std::uint64_t markers_repeated = 0;   // retransmissions of a marker already published
   std::size_t subscribers = 0;
 };
 
 // Executes an operator command; called on the server's control thread without the server's lock
 // held (so it may call the server's setters), only for requests from allowed addresses.
 using ControlHandler = std::function<ControlReply(const ControlRequest&, const Endpoint& from)>;
+// Told of each marker as it was published (session_id 0, the server's times) and its sequence
+// number; called on the control thread with the server's lock held, so it must not call the server.
+using MarkerHandler = std::function<void(const Marker&, std::uint64_t sequence)>;
 
 class GazeServer {
  public:
@@ -116,6 +127,7 @@ class GazeServer {
   void set_control_allow(std::vector<Ipv4Cidr> allow);
   std::vector<Ipv4Cidr> control_allow() const;
   void on_control(ControlHandler handler);
+  void on_marker(MarkerHandler handler);
   ServerStats stats() const;
   std::vector<SubscriberInfo> subscribers() const;
   const DecodeCounters& decode_counters() const { return rejected_; }
@@ -132,6 +144,8 @@ class GazeServer {
   void handle_subscribe(const Subscribe& sub, std::uint64_t seq, const Endpoint& from, std::int64_t received_ns);
   void handle_heartbeat(const Heartbeat& hb, std::uint64_t seq, const Endpoint& from, std::int64_t received_ns);
   void handle_unsubscribe(const Unsubscribe& un, const Endpoint& from);
+  void handle_marker(const std::unique_lock<std::mutex>& held, const Marker& marker, std::uint64_t seq,
+                     const Endpoint& from, std::int64_t received_ns);
   SubscriberInfo& new_session(const Endpoint& from);
   Subscribed subscribed_reply(const SubscriberInfo& session) const;
   StatusReply status_reply(std::int64_t received_ns) const;
@@ -155,6 +169,18 @@ class GazeServer {
   std::unordered_map<std::uint64_t, SubscriberInfo> sessions_;
   std::uint64_t next_sample_seq_ = 0;
   std::uint64_t next_event_seq_ = 0;
+  std::uint64_t next_marker_seq_ = 0;
+  // Per session: the marker token bucket, and the last markers it published (so a retransmission
+  // is answered with the same copy, not published twice). Entries of ended sessions are dropped
+  // when leases are checked.
+  struct MarkerState {
+    double tokens = 0;
+    std::int64_t refilled_ns = 0;
+    struct Sent { std::uint64_t marker_id, sequence; Marker published; };
+    std::deque<Sent> recent;  // at most 32
+  };
+  std::unordered_map<std::uint64_t, MarkerState> marker_state_;
+  MarkerHandler on_marker_;
   ServerStats stats_;
   std::vector<Endpoint> targets_;  // scratch for publish
   std::function<void(const SubscriberInfo&, const char*)> on_change_;
