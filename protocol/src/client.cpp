@@ -382,7 +382,7 @@ constexpr std::int64_t kMarkerResendNs = 250 * kMs;
 constexpr std::size_t kMarkerPendingLimit = 4096;
 }  // namespace
 
-std::uint64_t GazeClient::mark(const std::string& label, std::optional<std::int64_t> client_time_ns) {
+void GazeClient::check_marker_label(const std::string& label) {
   std::size_t bad = 0;
   if (label.empty() || label.size() >= decltype(Marker::label)::capacity) {
     throw std::invalid_argument("marker label must be 1.." + std::to_string(decltype(Marker::label)::capacity - 1) +
@@ -392,6 +392,10 @@ std::uint64_t GazeClient::mark(const std::string& label, std::optional<std::int6
     throw std::invalid_argument("marker label \"" + escape_for_log(label, 80) + "\": byte " + std::to_string(bad) +
                                 " is a control character or not UTF-8");
   }
+}
+
+std::uint64_t GazeClient::mark(const std::string& label, std::optional<std::int64_t> client_time_ns) {
+  check_marker_label(label);
   std::unique_lock lock(mutex_);
   if (!session_ || !subscribed_.load()) throw std::logic_error("mark: not subscribed to a daemon");
   PendingMarker p;

@@ -138,4 +138,38 @@ echo "== daemon --record writes what it publishes"
 "$TRACKERD" --source synthetic --rate 500 --port $PORT --duration 1 --record "$WORK/daemon.fgr" 2>/dev/null || fail "daemon --record"
 n=$("$CTL" info "$WORK/daemon.fgr" | awk '/^samples/{print $2}')
 [ "$n" -ge 490 ] && [ "$n" -le 510 ] || fail "daemon recorded $n samples in 1 s at 500 Hz"
+
+echo "== markers: fovea-ctl mark lands in the daemon's recording, a client's recording and the CSV"
+"$TRACKERD" --source synthetic --port $PORT --record "$WORK/marked.fgr" >"$WORK/marked.log" 2>&1 &
+DM=$!; PIDS+=($DM)
+wait_status || fail "daemon for markers did not answer status"
+"$CTL" --server "$SRV" record "$WORK/client-marked.fgr" --duration 3 2>"$WORK/client-marked.err" &
+CR=$!
+sleep 0.5
+"$CTL" --server "$SRV" mark 'trial 1, "go"' >"$WORK/mark1.out" 2>&1 || fail "mark failed: $(cat "$WORK/mark1.out")"
+grep -q 'marker "trial 1, "go"" at .* on the daemon.s clock (when it arrived)' "$WORK/mark1.out" \
+  || fail "mark printed: $(cat "$WORK/mark1.out")"
+flip=$(python3 -c 'import time; print(time.monotonic_ns() - 20_000_000)')
+"$CTL" --server "$SRV" mark "flip" --time-ns "$flip" >"$WORK/mark2.out" 2>&1 || fail "mark --time-ns failed: $(cat "$WORK/mark2.out")"
+out=$("$CTL" --server "$SRV" mark $'two\nlines' 2>&1); rc=$?
+[ $rc -eq 2 ] && grep -q 'marker label "two\\x0alines": byte 3 is a control character' <<<"$out" \
+  || fail "a label with a newline: exit $rc, $out"
+out=$("$CTL" --server 127.0.0.1:$((PORT + 1)) mark "nobody" 2>&1) && fail "mark without a daemon succeeded"
+wait $CR || fail "client record failed: $(cat "$WORK/client-marked.err")"
+kill -TERM $DM; wait $DM
+"$CTL" info "$WORK/marked.fgr" | grep -q "^markers     2$" || fail "daemon recording: $("$CTL" info "$WORK/marked.fgr")"
+"$CTL" info "$WORK/client-marked.fgr" | grep -q "^markers     2$" || fail "client recording: $("$CTL" info "$WORK/client-marked.fgr")"
+"$CTL" convert "$WORK/marked.fgr" "$WORK/marked.csv" 2>"$WORK/convert-marked.err" || fail "convert with markers"
+grep -q "wrote 2 markers to $WORK/marked.markers.csv" "$WORK/convert-marked.err" || fail "$(cat "$WORK/convert-marked.err")"
+grep -q '^0,[0-9]*,[0-9]*,daemon,"trial 1, ""go"""$' "$WORK/marked.markers.csv" || fail "$(cat "$WORK/marked.markers.csv")"
+line=$(grep ',client,"flip"$' "$WORK/marked.markers.csv") || fail "no flip marker: $(cat "$WORK/marked.markers.csv")"
+t=$(cut -d, -f2 <<<"$line")
+# Loopback shares one clock: the given time comes back within a millisecond (mapped through TIME_SYNC).
+d=$(( t - flip )); [ ${d#-} -lt 1000000 ] || fail "flip marker at $t, given $flip"
+# The marker's time lies among the recorded samples' times.
+first=$(sed -n '6p' "$WORK/marked.csv" | cut -d, -f2); last=$(tail -1 "$WORK/marked.csv" | cut -d, -f2)
+[ "$t" -gt "$first" ] && [ "$t" -lt "$last" ] || fail "marker $t outside the samples $first..$last"
+"$CTL" convert "$WORK/marked.fgr" "$WORK/marked.csv" 2>/dev/null && fail "convert replaced the CSV without --force"
+"$CTL" convert "$WORK/marked.fgr" "$WORK/marked.csv" --force 2>/dev/null || fail "convert --force"
+
 echo "PASS"

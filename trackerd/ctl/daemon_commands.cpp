@@ -207,6 +207,7 @@ int cmd_watch(const Common& c, unsigned every, bool events_only) {
 int cmd_mark(const Common& c, const std::string& label, std::optional<std::int64_t> time_ns) {
   ClientOptions co;
   try {
+    GazeClient::check_marker_label(label);
     co.server = parse_endpoint(c.server, kDefaultPort);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fovea-ctl mark: %s\n", e.what());

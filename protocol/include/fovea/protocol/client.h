@@ -97,6 +97,9 @@ class GazeClient {
   // control characters, and std::logic_error when not subscribed, or (with a time) before the
   // clock offset is known.
   std::uint64_t mark(const std::string& label, std::optional<std::int64_t> client_time_ns = std::nullopt);
+  // mark()'s label check alone (std::invalid_argument naming the offending byte), for callers that
+  // want to refuse a label before they connect.
+  static void check_marker_label(const std::string& label);
   // The marker's copy as the daemon published it, once it came back (needs kStreamMarkers).
   std::optional<Marker> wait_marker(std::uint64_t marker_id, int timeout_ms);
   // True once a TIME_SYNC exchange has given the clock offset.
