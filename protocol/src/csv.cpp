@@ -19,8 +19,10 @@ constexpr const char* kColumns[] = {
     "sequence", "tracker_time_ns", "x", "y", "x_deg", "y_deg", "angular_velocity_deg_s", "confidence", "state",
     "gaze_valid", "left_flags", "left_pupil_x_px", "left_pupil_y_px", "left_pupil_diameter_mm",
     "left_pupil_glint_x_px", "left_pupil_glint_y_px", "right_flags", "right_pupil_x_px", "right_pupil_y_px",
-    "right_pupil_diameter_mm", "right_pupil_glint_x_px", "right_pupil_glint_y_px"};
+    "right_pupil_diameter_mm", "right_pupil_glint_x_px", "right_pupil_glint_y_px", "host_receive_ns"};
 constexpr std::size_t kColumnCount = sizeof(kColumns) / sizeof(kColumns[0]);
+// Files written before host_receive_ns existed have the first 22 columns only; they are still read.
+constexpr std::size_t kOldColumnCount = kColumnCount - 1;
 
 std::string fmt_float(float v) {
   char buf[32];
@@ -126,19 +128,21 @@ void apply_header_comment(RecordingHeader& header, const std::string& line, cons
   }
 }
 
-// The column line must name exactly kColumns in order: a file of another layout is refused, not misread.
-void check_column_line(const std::vector<std::string>& fields, const std::string& source, std::size_t line_no) {
-  if (fields.size() != kColumnCount) {
+// The column line must name exactly kColumns in order (or the first 22 of them): a file of another
+// layout is refused, not misread. Returns how many columns the lines have.
+std::size_t check_column_line(const std::vector<std::string>& fields, const std::string& source, std::size_t line_no) {
+  if (fields.size() != kColumnCount && fields.size() != kOldColumnCount) {
     throw std::runtime_error(source + ":" + std::to_string(line_no) + ": expected the " +
                              std::to_string(kColumnCount) + "-column header starting \"sequence,tracker_time_ns,\"" +
                              ", found " + std::to_string(fields.size()) + " columns");
   }
-  for (std::size_t i = 0; i < kColumnCount; ++i) {
+  for (std::size_t i = 0; i < fields.size(); ++i) {
     if (fields[i] != kColumns[i]) {
       throw std::runtime_error(source + ":" + std::to_string(line_no) + ": column " + std::to_string(i + 1) +
                                " is \"" + fields[i] + "\", expected \"" + kColumns[i] + "\"");
     }
   }
+  return fields.size();
 }
 
 // Columns 1..21 in column order, so the error names the first bad column of the line.
@@ -159,10 +163,10 @@ GazeSample parse_sample(const LineParser& p) {
 }
 
 // Samples must arrive in time order (as a recording holds them); a line that goes back in time is an error.
-void append_sample_line(Recording& rec, const std::vector<std::string>& fields, const std::string& source,
-                        std::size_t line_no) {
-  if (fields.size() != kColumnCount) {
-    throw std::runtime_error(source + ":" + std::to_string(line_no) + ": expected " + std::to_string(kColumnCount) +
+void append_sample_line(Recording& rec, const std::vector<std::string>& fields, std::size_t columns,
+                        const std::string& source, std::size_t line_no) {
+  if (fields.size() != columns) {
+    throw std::runtime_error(source + ":" + std::to_string(line_no) + ": expected " + std::to_string(columns) +
                              " columns, found " + std::to_string(fields.size()));
   }
   const LineParser p{source, line_no, fields};
@@ -174,6 +178,8 @@ void append_sample_line(Recording& rec, const std::vector<std::string>& fields, 
                              ": tracker_time_ns goes backwards (samples must be in time order)");
   }
   r.item = s;
+  // Empty: the source had no receive time of its own (the sample's time is the host's).
+  if (columns == kColumnCount && !fields[22].empty()) r.host_receive_ns = p.integer<std::int64_t>(22, INT64_MIN, INT64_MAX);
   rec.records.push_back(r);
 }
 
@@ -204,6 +210,8 @@ std::size_t write_csv(std::ostream& out, const Recording& rec) {
         << fmt_float(s->confidence) << ',' << to_string(s->state) << ',' << ((s->flags & kGazeValid) ? 1 : 0);
     write_eye(out, s->left);
     write_eye(out, s->right);
+    out << ',';
+    if (r.host_receive_ns) out << *r.host_receive_ns;
     out << '\n';
   }
   return events;
@@ -240,7 +248,7 @@ Recording read_csv(std::istream& in, const std::string& source) {
   rec.header.device = "csv import";
   std::string line;
   std::size_t line_no = 0;
-  bool have_columns = false;
+  std::size_t columns = 0;
   while (std::getline(in, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -250,14 +258,13 @@ Recording read_csv(std::istream& in, const std::string& source) {
       continue;
     }
     const std::vector<std::string> fields = split(line);
-    if (!have_columns) {
-      check_column_line(fields, source, line_no);
-      have_columns = true;
+    if (columns == 0) {
+      columns = check_column_line(fields, source, line_no);
       continue;
     }
-    append_sample_line(rec, fields, source, line_no);
+    append_sample_line(rec, fields, columns, source, line_no);
   }
-  if (!have_columns) throw std::runtime_error(source + ": no column header line found (is this a fovea gaze CSV?)");
+  if (columns == 0) throw std::runtime_error(source + ": no column header line found (is this a fovea gaze CSV?)");
   rec.report.records = rec.records.size();
   return rec;
 }

@@ -24,7 +24,8 @@ using wire::store_le;
 namespace {
 constexpr std::uint8_t kFileMagic[8] = {'F', 'O', 'V', 'E', 'A', 'F', 'G', 'R'};
 constexpr std::uint8_t kSync[4] = {0xF0, 0x7E, 0xA1, 0x52};
-constexpr std::size_t kRecordPrefix = 16;  // sync, type, reserved, length, sequence
+constexpr std::size_t kRecordPrefix = 16;  // sync, type, flags, length, sequence
+constexpr std::uint8_t kRecordHasReceiveTime = 1u << 0;  // flags: an i64 host receive time follows the sequence
 constexpr std::size_t kRecordCrc = 4;
 constexpr std::size_t kMinRecord = kRecordPrefix + kRecordCrc;
 
@@ -59,7 +60,8 @@ DisplayGeometry read_display(std::span<const std::uint8_t> b, std::size_t off) {
 std::optional<RecordingHeader> parse_header(std::span<const std::uint8_t> d) {
   if (d.size() < kRecordingHeaderSize) return std::nullopt;
   if (std::memcmp(d.data(), kFileMagic, 8) != 0) return std::nullopt;
-  if (load_le<std::uint16_t>(d, 8) != kRecordingVersion) return std::nullopt;
+  const auto version = load_le<std::uint16_t>(d, 8);
+  if (version < 1 || version > kRecordingVersion) return std::nullopt;
   if (load_le<std::uint16_t>(d, 10) != kRecordingHeaderSize) return std::nullopt;
   if (load_le<std::uint32_t>(d, 156) != crc32c(d.first(156))) return std::nullopt;
   RecordingHeader h;
@@ -87,15 +89,20 @@ std::size_t parse_record(std::span<const std::uint8_t> d, Record& out) {
     return 0;
   }
   const auto type = static_cast<MessageType>(type_raw);
-  if (d[5] != 0) return 0;
+  const std::uint8_t flags = d[5];
+  if ((flags & ~kRecordHasReceiveTime) != 0) return 0;
+  if (flags != 0 && type != MessageType::GazeSample) return 0;  // only samples carry a receive time
+  const std::size_t extra = flags != 0 ? 8 : 0;
   const std::size_t body = load_le<std::uint16_t>(d, 6);
-  if (body != 8 + payload_size(type)) return 0;
+  if (body != 8 + extra + payload_size(type)) return 0;
   const std::size_t total = 8 + body + kRecordCrc;
   if (d.size() < total) return 0;
   if (load_le<std::uint32_t>(d, 8 + body) != crc32c(d.subspan(4, 4 + body))) return 0;
   Payload p;
-  if (!decode_payload(type, d.subspan(kRecordPrefix, body - 8), p)) return 0;
+  if (!decode_payload(type, d.subspan(kRecordPrefix + extra, body - 8 - extra), p)) return 0;
   out.sequence = load_le<std::uint64_t>(d, 8);
+  out.host_receive_ns.reset();
+  if (extra != 0) out.host_receive_ns = load_le<std::int64_t>(d, kRecordPrefix);
   if (type == MessageType::GazeSample) {
     out.item = std::get<GazeSample>(p);
   } else if (type == MessageType::GazeEvent) {
@@ -147,13 +154,19 @@ std::vector<std::uint8_t> encode_recording_header(const RecordingHeader& h) {
 std::vector<std::uint8_t> encode_record(const Record& r) {
   const Payload p = std::visit([](const auto& v) -> Payload { return v; }, r.item);
   const MessageType type = type_of(p);
-  const std::size_t body = 8 + payload_size(type);
+  if (r.host_receive_ns && type != MessageType::GazeSample) {
+    throw std::invalid_argument("only gaze samples carry a host receive time in a recording");
+  }
+  const std::size_t extra = r.host_receive_ns ? 8 : 0;
+  const std::size_t body = 8 + extra + payload_size(type);
   std::vector<std::uint8_t> b(8 + body + kRecordCrc, 0);
   std::memcpy(b.data(), kSync, 4);
   b[4] = static_cast<std::uint8_t>(type);
+  b[5] = r.host_receive_ns ? kRecordHasReceiveTime : 0;
   store_le<std::uint16_t>(b, 6, static_cast<std::uint16_t>(body));
   store_le<std::uint64_t>(b, 8, r.sequence);
-  encode_payload(p, std::span<std::uint8_t>(b).subspan(kRecordPrefix, body - 8));
+  if (r.host_receive_ns) store_le<std::int64_t>(b, kRecordPrefix, *r.host_receive_ns);
+  encode_payload(p, std::span<std::uint8_t>(b).subspan(kRecordPrefix + extra, body - 8 - extra));
   store_le<std::uint32_t>(b, 8 + body, crc32c(std::span<const std::uint8_t>(b).subspan(4, 4 + body)));
   return b;
 }
@@ -197,6 +210,7 @@ RecordingWriter::RecordingWriter(const std::string& path, const RecordingHeader&
         throw std::runtime_error("cannot append to " + path + ": it was recorded for display " +
                                  to_string(parsed->display) + ", not " + to_string(header.display));
       }
+      receive_times_ = load_le<std::uint16_t>(existing, 8) >= 2;
       return;
     }
   }
@@ -212,7 +226,14 @@ RecordingWriter::~RecordingWriter() {
 }
 
 void RecordingWriter::append(const Record& r) {
-  const std::vector<std::uint8_t> bytes = encode_record(r);
+  std::vector<std::uint8_t> bytes;
+  if (r.host_receive_ns && !receive_times_) {
+    Record older = r;  // what a version-1 file can hold
+    older.host_receive_ns.reset();
+    bytes = encode_record(older);
+  } else {
+    bytes = encode_record(r);
+  }
   const ssize_t n = ::write(fd_, bytes.data(), bytes.size());
   if (n != static_cast<ssize_t>(bytes.size())) {
     if (n >= 0) errno = ENOSPC;  // a short write sets no errno; the usual cause is a full disk

@@ -19,7 +19,7 @@ constexpr const char* kColumnLine =
     "sequence,tracker_time_ns,x,y,x_deg,y_deg,angular_velocity_deg_s,confidence,state,gaze_valid,left_flags,"
     "left_pupil_x_px,left_pupil_y_px,left_pupil_diameter_mm,left_pupil_glint_x_px,left_pupil_glint_y_px,"
     "right_flags,right_pupil_x_px,right_pupil_y_px,right_pupil_diameter_mm,right_pupil_glint_x_px,"
-    "right_pupil_glint_y_px";
+    "right_pupil_glint_y_px";  // the 22 columns of files written before host_receive_ns: still read
 
 Recording sample_recording() {
   Recording rec;
@@ -149,7 +149,7 @@ TEST(Csv, HeaderLinesCarryDeviceDisplayAndRate) {
   write_csv(out, rec);
   const std::string expected = std::string("# fovea gaze samples v1\n# device: lab 3\n") +
                                "# display: 2560x1440@600x337.5mm,700mm\n# sample_rate_hz: 1000\n" +
-                               kColumnLine + "\n";
+                               kColumnLine + ",host_receive_ns\n";
   EXPECT_EQ(out.str(), expected);
   const Recording back = parse_csv(out.str());
   EXPECT_TRUE(back.records.empty());
@@ -201,7 +201,7 @@ TEST(Csv, BadColumnHeader) {
 
   text = csv_with_rows({});
   text.replace(text.find(",right_pupil_glint_y_px"), 23, "");
-  expect_mentions(csv_error(text, "hdr2.csv"), {"hdr2.csv:5:", "22", "found 21"});
+  expect_mentions(csv_error(text, "hdr2.csv"), {"hdr2.csv:5:", "23", "found 21"});
 }
 
 TEST(Csv, MissingColumnHeaderLine) {
@@ -301,4 +301,22 @@ TEST(Csv, MarkersGoToTheirOwnCsvWithLabelsQuoted) {
             "sequence,time_ns,received_ns,time_source,label\n"
             "0,42,42,daemon,\"trial 1, \"\"go\"\"\"\n"
             "1,40,45,client,\"Reiz \xc3\xa4\"\n");
+}
+
+TEST(Csv, HostReceiveTimesRoundTripAndMayBeAbsent) {
+  Recording rec = sample_recording();
+  std::size_t n = 0;
+  for (Record& r : rec.records) {
+    if (std::holds_alternative<GazeSample>(r.item) && n++ % 2 == 0) r.host_receive_ns = r.time_ns() + 1'234'567;
+  }
+  std::ostringstream out;
+  write_csv(out, rec);
+  const std::string first = ",-2765433\n";  // the first sample's receive time: -4 ms + 1.234567 ms
+  ASSERT_NE(out.str().find(first), std::string::npos) << out.str().substr(0, 1200);
+  EXPECT_NE(out.str().find(",\n"), std::string::npos) << "a sample without a receive time ends in an empty field";
+  EXPECT_EQ(parse_csv(out.str(), "rt.csv").records, samples_of(rec));
+  // A receive time that is not an integer is named like any bad value.
+  std::string bad = out.str();
+  bad.replace(bad.find(first), first.size(), ",12x\n");
+  expect_mentions(csv_error(bad, "rt.csv"), {"rt.csv:6:", "column 23 (host_receive_ns)", "\"12x\"", "not an integer"});
 }

@@ -25,6 +25,7 @@
 #include <thread>
 #include <vector>
 
+#include "fovea/protocol/crc32c.h"
 #include "fovea/protocol/recording.h"
 
 namespace {
@@ -121,6 +122,7 @@ std::vector<Record> random_records(std::size_t n, std::uint32_t seed, std::uint6
       r.item = marker_at(t, i);
     } else {
       r.item = random_sample(rng, t);
+      if (i % 3 == 0) r.host_receive_ns = t + 700'000 + static_cast<std::int64_t>(i);  // a bridged tracker's
     }
     out.push_back(r);
   }
@@ -636,6 +638,46 @@ TEST(RecordingWriterTest, AppendFailedRecordLeavesFileUnchanged) {
   EXPECT_EQ(w.records_written(), 3u);
   EXPECT_EQ(read_bytes(path), before);
   EXPECT_EQ(read_recording(path).records, records);
+}
+
+TEST(RecordingFormat, OnlySamplesCarryAReceiveTime) {
+  std::mt19937 rng(3);
+  Record e{0, random_event(rng, 0), 5};
+  EXPECT_THROW(encode_record(e), std::invalid_argument);
+  const Record s{0, random_sample(rng, 0), 5};
+  EXPECT_EQ(encode_record(s).size(), 20u + 8u + 76u);
+}
+
+TEST(RecordingWriterTest, AppendingToAVersionOneFileLeavesReceiveTimesOut) {
+  const TempDir dir;
+  const std::string path = dir.file("v1.fgr");
+  // A file as version 1 wrote it: the same header with version 1 (and its CRC), records without receive times.
+  std::vector<std::uint8_t> head = encode_recording_header(test_header());
+  head[8] = 1;
+  const std::uint32_t crc = fovea::protocol::crc32c(std::span<const std::uint8_t>(head).first(156));
+  for (int i = 0; i < 4; ++i) head[156 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(crc >> (8 * i));
+  std::vector<Record> old = random_records(6, 7);
+  for (Record& r : old) r.host_receive_ns.reset();
+  std::vector<std::uint8_t> bytes = head;
+  for (const Record& r : old) {
+    const auto b = encode_record(r);
+    bytes.insert(bytes.end(), b.begin(), b.end());
+  }
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  ASSERT_EQ(read_recording(path).records, old) << "version-1 files are read as before";
+
+  std::vector<Record> more = random_records(30, 8, 6);
+  {
+    RecordingWriter w(path, test_header(), RecordingWriter::Mode::Append);
+    EXPECT_FALSE(w.stores_receive_times());
+    for (const Record& r : more) w.append(r);
+  }
+  ASSERT_TRUE(std::any_of(more.begin(), more.end(), [](const Record& r) { return r.host_receive_ns.has_value(); }));
+  for (Record& r : more) r.host_receive_ns.reset();
+  old.insert(old.end(), more.begin(), more.end());
+  const Recording back = read_recording(path);
+  EXPECT_TRUE(back.report.header_valid);
+  EXPECT_EQ(back.records, old);
 }
 
 TEST(RecordingWriterTest, AppendAddsToARecordingOfTheSameDisplay) {

@@ -16,7 +16,9 @@
 namespace fovea::protocol {
 
 inline constexpr std::size_t kRecordingHeaderSize = 160;
-inline constexpr std::uint16_t kRecordingVersion = 1;
+// Version 2 added the sample records' host receive time; version 1 files are read as before, and
+// appended to without it.
+inline constexpr std::uint16_t kRecordingVersion = 2;
 
 enum class RecordingClock : std::uint8_t { Monotonic = 0, Realtime = 1 };
 
@@ -31,8 +33,17 @@ struct RecordingHeader {
 };
 
 struct Record {
+  using Item = std::variant<GazeSample, GazeEvent, Marker>;
+  Record() = default;
+  Record(std::uint64_t seq, Item it, std::optional<std::int64_t> receive_ns = std::nullopt)
+      : sequence(seq), item(std::move(it)), host_receive_ns(receive_ns) {}
+
   std::uint64_t sequence = 0;  // of the item's own stream (samples, events and markers are numbered apart)
-  std::variant<GazeSample, GazeEvent, Marker> item;
+  Item item;
+  // Samples only: when the daemon received the sample from the tracker, on the record clock (the
+  // sample's tracker_time_ns is the tracker's own timestamp mapped to that clock). Unset for sources
+  // whose samples carry the host's time already, and in version-1 files.
+  std::optional<std::int64_t> host_receive_ns;
   friend bool operator==(const Record&, const Record&) = default;
   std::int64_t time_ns() const;  // sample time, event end time, or marker time
 };
@@ -60,12 +71,15 @@ class RecordingWriter {
   void append(const Record& r);
   void sync();  // fdatasync
   std::uint64_t records_written() const { return written_; }
+  // False when appending to a version-1 file: receive times are then left out, as that version has none.
+  bool stores_receive_times() const { return receive_times_; }
   const std::string& path() const { return path_; }
 
  private:
   std::string path_;
   int fd_ = -1;
   std::uint64_t written_ = 0;
+  bool receive_times_ = true;
 };
 
 struct RecoveryReport {
