@@ -57,8 +57,8 @@ class Daemon {
   enum class Wake { Due, Stop, Attention };
 
   bool start(std::int64_t start_ns);
-  void publish(GazeItem item);
-  void send(const GazeItem& item);
+  void publish(GazeItem item, std::optional<std::int64_t> receive_ns);
+  void send(const GazeItem& item, std::optional<std::int64_t> receive_ns = std::nullopt);
   void record(const protocol::Record& record);
   void record_markers();
   Wake wait_until(std::int64_t due_ns);
@@ -221,18 +221,33 @@ bool Daemon::start(std::int64_t start_ns) {
   return true;
 }
 
-// calibration -> online classifier -> publisher -> recorder
-void Daemon::publish(GazeItem item) {
+// calibration -> online classifier -> publisher -> recorder. `receive_ns`: when the item reached this
+// host, where the source says (a network tracker); it goes with the sample, which the classifier
+// hands on in the same call (its events, in the past, follow it).
+void Daemon::publish(GazeItem item, std::optional<std::int64_t> receive_ns) {
   calibration_->apply(item);
   outgoing_.clear();
   classify_->process(item, outgoing_);
-  for (const GazeItem& out : outgoing_) send(out);
+  bool sample_sent = false;
+  for (const GazeItem& out : outgoing_) {
+    const bool is_sample = std::holds_alternative<protocol::GazeSample>(out);
+    send(out, is_sample && !sample_sent ? receive_ns : std::nullopt);
+    sample_sent = sample_sent || is_sample;
+  }
 }
 
-void Daemon::send(const GazeItem& item) {
-  const std::uint64_t seq = std::visit([&](const auto& v) { return server_->publish(v); }, item);
+void Daemon::send(const GazeItem& item, std::optional<std::int64_t> receive_ns) {
+  std::uint64_t seq = 0;
+  std::optional<std::int64_t> stored_receive;
+  if (const auto* s = std::get_if<protocol::GazeSample>(&item)) {
+    seq = server_->publish(*s, receive_ns.value_or(s->tracker_time_ns));
+    // Stored only where it says something the sample's time does not (RECORDING.md).
+    if (receive_ns && *receive_ns != s->tracker_time_ns) stored_receive = receive_ns;
+  } else {
+    seq = server_->publish(std::get<protocol::GazeEvent>(item));
+  }
   record_markers();  // those that came before this item, so the file stays nearly in time order
-  std::visit([&](const auto& v) { record(protocol::Record{seq, v}); }, item);
+  std::visit([&](const auto& v) { record(protocol::Record{seq, v, stored_receive}); }, item);
 }
 
 void Daemon::record_markers() {
@@ -587,6 +602,7 @@ int Daemon::run() {
       run_.duration_s > 0 ? start_ns + static_cast<std::int64_t>(run_.duration_s * 1e9) : INT64_MAX;
   bool source_ended = false;
   std::optional<GazeItem> item;  // the next item, waiting for its time
+  std::optional<std::int64_t> item_receive_ns;  // when it reached this host, if the source says
   while (!stopping()) {
     if (mailbox_.pending()) mailbox_.drain();  // prepared changes, swapped in between two items
     if (source_ended) {
@@ -599,6 +615,7 @@ int Daemon::run() {
       in_next_since_ns_.store(monotonic_ns());
       item = source_->next();
       in_next_since_ns_.store(0);
+      item_receive_ns = item ? source_->last_receive_ns() : std::nullopt;
       if (!item && !source_->ended()) {  // a device with nothing yet, or interrupted: attend, go on
         if (monotonic_ns() >= end_ns) break;
         service_tick();
@@ -619,7 +636,7 @@ int Daemon::run() {
     const Wake w = wait_until(due);
     if (w == Wake::Stop) break;
     if (w == Wake::Attention) continue;  // swap changes in, then wait for the same item again
-    publish(std::move(*item));
+    publish(std::move(*item), item_receive_ns);
     item.reset();
   }
 

@@ -338,6 +338,7 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
   Arrival a;
   a.sequence = m.header.sequence;
   a.receive_ns = now;
+  a.host_receive_ns = m.header.origin_time_ns;
   const bool is_sample = m.header.type == MessageType::GazeSample;
   if ((options_.streams & (is_sample ? kStreamSamples : kStreamEvents)) == 0) return;
   {

@@ -200,10 +200,12 @@ std::uint64_t GazeServer::send_stream(const std::unique_lock<std::mutex>& held, 
   return m.header.sequence;
 }
 
-std::uint64_t GazeServer::publish(const GazeSample& sample) {
+std::uint64_t GazeServer::publish(const GazeSample& sample) { return publish(sample, sample.tracker_time_ns); }
+
+std::uint64_t GazeServer::publish(const GazeSample& sample, std::int64_t host_receive_ns) {
   std::unique_lock lock(mutex_);
   ++stats_.samples_published;
-  return send_stream(lock, kStreamSamples, next_sample_seq_, sample.tracker_time_ns, sample);
+  return send_stream(lock, kStreamSamples, next_sample_seq_, host_receive_ns, sample);
 }
 
 std::uint64_t GazeServer::publish(const GazeEvent& event) {

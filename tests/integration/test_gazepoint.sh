@@ -66,6 +66,13 @@ for client in "ab":
     # better yet. Those are the only samples allowed past 1 ms: 3 per connection, 2 connections.
     assert late <= 8, f"{client}: {late} times are off by more than 1 ms"
     assert worst < 40_000_000, f"{client}: a time is off by {worst/1e6:.1f} ms"
+    # Both times kept: the tracker's (mapped) and when the record reached the daemon, later by the
+    # burst's wait (records go out 4 at a time: up to 20 ms).
+    delays = sorted(int(r[22]) - int(r[1]) for r in rows if r[22] != "")
+    assert len(delays) > 0.9 * len(rows), f"{client}: {len(rows) - len(delays)} of {len(rows)} samples lack the receive time"
+    assert delays[0] > -2_000_000 and delays[-1] < 60_000_000, f"{client}: receive - tracker time {delays[0]}..{delays[-1]} ns"
+    assert delays[len(delays) // 2] > 3_000_000, f"{client}: median receive delay {delays[len(delays) // 2]} ns: not the arrival time?"
+    print(f"   {client}: receive time after the tracker's: p50 {delays[len(delays) // 2]/1e6:.1f} ms, max {delays[-1]/1e6:.1f} ms")
 print(f"   the daemon read all {records} records and refused all {malformed} malformed lines")
 PY
 echo "PASS"

@@ -400,6 +400,33 @@ TEST(Client, StatusQueryAndClockSyncOnLoopback) {
   EXPECT_TRUE(c.latest_sample().has_value());
 }
 
+TEST(Client, ASampleCarriesTheDaemonsReceiveTimeBesideTheTrackersTime) {
+  GazeServer server(server_options());
+  GazeClient c(client_options(server.local_endpoint()));
+  std::mutex mutex;
+  std::vector<std::pair<GazeSample, Arrival>> got;
+  c.on_sample([&](const GazeSample& s, const Arrival& a) {
+    std::lock_guard lock(mutex);
+    got.emplace_back(s, a);
+  });
+  c.start();
+  ASSERT_TRUE(c.wait_subscribed(2000));
+  server.publish(sample_at(1'000'000'000), 1'015'000'000);  // a bridged tracker's sample, 15 ms on the way
+  server.publish(sample_at(1'020'000'000));                 // a source without a clock of its own
+  for (int i = 0; i < 100; ++i) {
+    {
+      std::lock_guard lock(mutex);
+      if (got.size() == 2) break;
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  std::lock_guard lock(mutex);
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[0].first.tracker_time_ns, 1'000'000'000);
+  EXPECT_EQ(got[0].second.host_receive_ns, 1'015'000'000);
+  EXPECT_EQ(got[1].second.host_receive_ns, got[1].first.tracker_time_ns);
+}
+
 TEST(Client, StatusQueryTimesOutWhenNobodyListens) {
   UdpSocket placeholder = UdpSocket::bind(Endpoint{kLoopback, 0});  // a port with no daemon behind it
   const Endpoint nobody = placeholder.local_endpoint();

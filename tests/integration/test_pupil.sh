@@ -67,6 +67,13 @@ for client in "ab":
     # Around the restart, gaze that arrives before the clock has heard of the jump is stamped on
     # arrival (15 ms late): at most a few dozen samples of one 50 ms poll and one exchange.
     assert late <= 0.03 * len(errors), f"{client}: {late} of {len(errors)} times are off by more than {bound_ns/1e6} ms"
+    # Both times kept: the fake publishes each gaze 15 ms after it was taken, so it reaches the
+    # daemon that much after its (mapped) time.
+    delays = sorted(int(r[22]) - int(r[1]) for r in rows if r[22] != "")
+    assert len(delays) > 0.9 * len(rows), f"{client}: {len(rows) - len(delays)} of {len(rows)} samples lack the receive time"
+    p50 = delays[len(delays) // 2]
+    assert 14_000_000 < p50 < 25_000_000, f"{client}: median receive delay {p50/1e6:.2f} ms, the fake's latency is 15 ms"
+    print(f"   {client}: receive time after the tracker's: p50 {p50/1e6:.2f} ms, max {delays[-1]/1e6:.2f} ms")
 print(f"   the daemon: {samples} surface samples ({valid} valid, {low} below confidence, {off} off the surface), "
       f"{refused} malformed messages refused of {malformed} sent")
 PY

@@ -40,6 +40,35 @@ TEST(ReplaySource, RebasesTimeAndKeepsSpacing) {
   for (std::size_t i = 1; i < times.size(); ++i) EXPECT_EQ(times[i] - times[i - 1], 4'000'000);
 }
 
+TEST(ReplaySource, RecordedReceiveTimesAreRebasedWithTheSamplesAndMarkersLeftOut) {
+  auto rec = make_recording(20, 250);
+  for (auto& r : rec.records) {
+    if (const auto* s = std::get_if<protocol::GazeSample>(&r.item)) r.host_receive_ns = s->tracker_time_ns + 7'000'000;
+  }
+  protocol::Marker m;
+  m.marker_id = 1;
+  m.time_ns = m.received_ns = rec.records[3].time_ns();
+  m.label.value = "trial 1";
+  rec.records.insert(rec.records.begin() + 4, protocol::Record{0, m});
+  ReplayOptions o;
+  o.start_time_ns = 5'000'000'000;
+  o.speed = 2.0;
+  ReplaySource src(o, rec);
+  EXPECT_EQ(src.status_detail(), "1 markers in the file not replayed");
+  std::size_t samples = 0;
+  while (auto item = src.next()) {
+    const auto* s = std::get_if<protocol::GazeSample>(&*item);
+    if (s == nullptr) {
+      EXPECT_FALSE(src.last_receive_ns());
+      continue;
+    }
+    ++samples;
+    ASSERT_TRUE(src.last_receive_ns());
+    EXPECT_EQ(*src.last_receive_ns() - s->tracker_time_ns, 3'500'000) << "7 ms at twice the speed";
+  }
+  EXPECT_EQ(samples, 20u);
+}
+
 TEST(ReplaySource, SpeedFactorAndLoopKeepTimeMonotonic) {
   const auto rec = make_recording(50, 100);
   ReplayOptions o;

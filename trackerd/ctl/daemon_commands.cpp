@@ -279,7 +279,10 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
             stop_requested() = true;
           }
         };
-        client.on_sample([write](const GazeSample& s, const Arrival& a) { write(Record{a.sequence, s}); });
+        client.on_sample([write](const GazeSample& s, const Arrival& a) {
+          // The daemon's receive time, where it differs from the sample's (RECORDING.md).
+          write(Record{a.sequence, s, a.host_receive_ns != s.tracker_time_ns ? std::optional(a.host_receive_ns) : std::nullopt});
+        });
         client.on_event([write](const GazeEvent& e, const Arrival& a) { write(Record{a.sequence, e}); });
         client.on_marker([write](const Marker& m, const Arrival& a) { write(Record{a.sequence, m}); });
       },

@@ -24,6 +24,11 @@ class GazeSource {
   // The next item in time order. nullopt: the source has ended (ended() true), or it has nothing
   // yet / was interrupted (ended() false) and next() may be called again.
   virtual std::optional<GazeItem> next() = 0;
+  // When the item next() returned last reached this host (CLOCK_MONOTONIC), for sources whose items
+  // carry a tracker's own timestamp mapped to the host clock (network trackers); nullopt where the
+  // item's time is the host's own already (synthetic, HID reads, camera frames). Called on the
+  // thread that calls next().
+  virtual std::optional<std::int64_t> last_receive_ns() const { return std::nullopt; }
   // After next() returned nullopt: is the stream over for good? (files: yes; devices: no)
   virtual bool ended() const { return true; }
   // Thread-safe; a source that can block in next() (a device waiting for data) returns nullopt

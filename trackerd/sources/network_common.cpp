@@ -33,13 +33,13 @@ HostPort parse_host_port(std::string text, std::uint16_t default_port,
   return out;
 }
 
-void SampleQueue::push(const protocol::GazeSample& s) {
+void SampleQueue::push(const protocol::GazeSample& s, std::int64_t receive_ns) {
   std::lock_guard lock(mutex_);
   if (queue_.size() == kQueueCapacity) {
     queue_.pop_front();
     ++dropped_;
   }
-  queue_.push_back(s);
+  queue_.push_back({s, receive_ns});
   ready_.notify_all();
 }
 
@@ -48,9 +48,10 @@ std::optional<GazeItem> SampleQueue::next() {
   ready_.wait_for(lock, std::chrono::milliseconds(50), [&] { return !queue_.empty() || interrupted_; });
   interrupted_ = false;
   if (queue_.empty()) return std::nullopt;
-  const protocol::GazeSample s = queue_.front();
+  const Entry e = queue_.front();
   queue_.pop_front();
-  return GazeItem{s};
+  last_receive_ns_ = e.receive_ns;
+  return GazeItem{e.sample};
 }
 
 void SampleQueue::interrupt() {

@@ -30,15 +30,22 @@ HostPort parse_host_port(std::string text, std::uint16_t default_port,
 // next() waits up to 50 ms, interrupt() wakes it without a sample.
 class SampleQueue {
  public:
-  void push(const protocol::GazeSample& s);
+  // `receive_ns`: when the sample's bytes reached this host (CLOCK_MONOTONIC).
+  void push(const protocol::GazeSample& s, std::int64_t receive_ns);
   std::optional<GazeItem> next();
+  std::int64_t last_receive_ns() const { return last_receive_ns_; }  // of what next() returned; its thread only
   void interrupt();
   std::uint64_t dropped() const;
 
  private:
   mutable std::mutex mutex_;
   std::condition_variable ready_;
-  std::deque<protocol::GazeSample> queue_;
+  struct Entry {
+    protocol::GazeSample sample;
+    std::int64_t receive_ns;
+  };
+  std::deque<Entry> queue_;
+  std::int64_t last_receive_ns_ = 0;
   bool interrupted_ = false;
   std::uint64_t dropped_ = 0;
 };
@@ -68,6 +75,7 @@ class ReaderSource : public GazeSource {
   protocol::DisplayGeometry display() const override { return display_; }
   double nominal_rate_hz() const override { return nominal_rate_hz_; }
   std::optional<GazeItem> next() override { return queue_.next(); }  // waits up to 50 ms for a sample
+  std::optional<std::int64_t> last_receive_ns() const override { return queue_.last_receive_ns(); }
   bool ended() const override { return false; }  // a tracker never ends; it may be away a while
   void interrupt() override { queue_.interrupt(); }
   std::string problem() const override { return problem_.get(); }

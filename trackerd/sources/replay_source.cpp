@@ -83,9 +83,11 @@ std::optional<GazeItem> ReplaySource::next() {
            static_cast<std::int64_t>(std::llround(static_cast<double>(recorded_ns - recorded_origin_ns_) / options_.speed));
   };
   GazeItem item;
+  last_receive_ns_.reset();
   if (const auto* s = std::get_if<GazeSample>(&r.item)) {
     GazeSample live = *s;
     live.tracker_time_ns = to_live(s->tracker_time_ns);
+    if (r.host_receive_ns) last_receive_ns_ = to_live(*r.host_receive_ns);
     item = live;
   } else {
     GazeEvent live = std::get<GazeEvent>(r.item);

@@ -27,6 +27,8 @@ class ReplaySource final : public GazeSource {
   double nominal_rate_hz() const override { return recording_.header.nominal_rate_hz * options_.speed; }
   std::optional<GazeItem> next() override;
   std::string status_detail() const override;
+  // The recorded receive time, rebased as the sample's time is (a recording of a network tracker).
+  std::optional<std::int64_t> last_receive_ns() const override { return last_receive_ns_; }
   const protocol::RecoveryReport& recovery() const { return recording_.report; }
   std::uint64_t loops_completed() const { return loops_; }
 
@@ -41,6 +43,7 @@ class ReplaySource final : public GazeSource {
   std::int64_t loop_span_ns_ = 0;        // recorded duration of one pass plus one sample period
   std::int64_t last_due_ns_ = 0;
   std::size_t markers_skipped_ = 0;
+  std::optional<std::int64_t> last_receive_ns_;
 };
 
 }  // namespace fovea::trackerd

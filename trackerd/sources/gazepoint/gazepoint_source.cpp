@@ -275,7 +275,7 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
     stats_.delay_p50_ns = percentile(delays_, 0.5);
     stats_.delay_p99_ns = percentile(delays_, 0.99);
   }
-  queue_.push(s);
+  queue_.push(s, receive_ns);
 }
 
 }  // namespace fovea::trackerd::gazepoint

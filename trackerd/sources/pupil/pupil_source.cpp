@@ -291,7 +291,7 @@ void PupilSource::publish(const PupilGaze& g, bool screen, std::int64_t receive_
       ++stats_.valid;
     }
   }
-  queue_.push(s);
+  queue_.push(s, receive_ns);
 }
 
 }  // namespace fovea::trackerd::pupil

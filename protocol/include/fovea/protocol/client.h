@@ -38,6 +38,9 @@ struct Arrival {
   std::uint64_t sequence = 0;
   std::int64_t receive_ns = 0;   // client clock
   std::int64_t latency_ns = 0;   // receive time minus the server's send time mapped to our clock
+  // GAZE_SAMPLE: when the sample reached the daemon from the tracker (the header's origin time, on
+  // the daemon's clock like tracker_time_ns; equal to it for sources without a clock of their own).
+  std::int64_t host_receive_ns = 0;
 };
 
 struct ClientStats {

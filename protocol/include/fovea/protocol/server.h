@@ -115,6 +115,9 @@ class GazeServer {
   // `sample.tracker_time_ns` becomes the header's origin time. Thread-safe. Returns the sequence
   // number the item was sent with.
   std::uint64_t publish(const GazeSample& sample);
+  // The same, for a sample that reached the daemon at `host_receive_ns` (its clock), later than the
+  // tracker's own timestamp says: that time becomes the header's origin time (PROTOCOL.md §2).
+  std::uint64_t publish(const GazeSample& sample, std::int64_t host_receive_ns);
   std::uint64_t publish(const GazeEvent& event);
 
   void set_source_state(SourceState s) { source_state_.store(s); }
