@@ -48,6 +48,9 @@ assert refused > 0, "no malformed message was refused"
 # The mapping can be no better than half the fastest exchange's round trip, which the daemon states.
 u = re.search(r"clock offset [-0-9.]+ ms \+- ([0-9.]+) ms", log)
 bound_ns = max(1_000_000, int((float(u.group(1)) + 0.1) * 1e6)) if u else 1_000_000
+# STATUS states the delay the bridge adds: the fake publishes 15 ms late.
+d = re.search(r"delay p50 ([0-9.]+) / p99 ([0-9.]+) ms", log)
+assert d and 14 < float(d.group(1)) < 25, f"the daemon's stated delay: {d.group(0) if d else None}"
 for client in "ab":
     rows = [r for r in csv.reader(l for l in open(f"{work}/{client}.csv") if not l.startswith("#"))][1:]
     errors = []

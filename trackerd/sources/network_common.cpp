@@ -1,5 +1,6 @@
 #include "sources/network_common.h"
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 
@@ -58,6 +59,24 @@ void SampleQueue::interrupt() {
   std::lock_guard lock(mutex_);
   interrupted_ = true;
   ready_.notify_all();
+}
+
+void DelayWindow::add(std::int64_t delay_ns) {
+  constexpr std::size_t kWindow = 1024;
+  if (ring_.size() < kWindow) {
+    ring_.push_back(delay_ns);
+  } else {
+    ring_[next_] = delay_ns;
+    next_ = (next_ + 1) % kWindow;
+  }
+}
+
+std::int64_t DelayWindow::percentile(double q) const {
+  if (ring_.empty()) return 0;
+  std::vector<std::int64_t> v = ring_;
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
 }
 
 std::uint64_t SampleQueue::dropped() const {

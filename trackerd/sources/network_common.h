@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "source_api/gaze_source.h"
 
@@ -48,6 +49,18 @@ class SampleQueue {
   std::int64_t last_receive_ns_ = 0;
   bool interrupted_ = false;
   std::uint64_t dropped_ = 0;
+};
+
+// The delay a bridge adds (host receive time minus the tracker's own time, mapped) over the last
+// 1024 samples: its median and 99th percentile are the STATUS line's delay and jitter.
+class DelayWindow {
+ public:
+  void add(std::int64_t delay_ns);
+  std::int64_t percentile(double q) const;  // 0 while empty
+
+ private:
+  std::vector<std::int64_t> ring_;
+  std::size_t next_ = 0;
 };
 
 // The source's problem (GazeSource::problem), written by the reader thread, read by the loop.

@@ -22,7 +22,6 @@ namespace fovea::trackerd::gazepoint {
 
 namespace {
 
-constexpr std::size_t kDelayWindow = 1024;
 constexpr std::int64_t kMs = 1'000'000;
 constexpr std::int64_t kRetryNs = 1000 * kMs;    // between connection attempts
 constexpr std::int64_t kSilenceNs = 3000 * kMs;  // connected, no records: say so
@@ -57,12 +56,6 @@ bool send_all(int fd, const std::string& text) {
   return true;
 }
 
-std::int64_t percentile(std::vector<std::int64_t> v, double q) {
-  if (v.empty()) return 0;
-  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
 
 }  // namespace
 
@@ -257,12 +250,7 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
     s.right.flags |= protocol::kEyePupilValid;
     s.right.pupil_diameter_mm = static_cast<float>(*r.right_pupil_mm);
   }
-  if (delays_.size() < kDelayWindow) {
-    delays_.push_back(receive_ns - mapped);
-  } else {
-    delays_[delay_next_] = receive_ns - mapped;
-    delay_next_ = (delay_next_ + 1) % kDelayWindow;
-  }
+  delays_.add(receive_ns - mapped);
   std::lock_guard lock(mutex_);
   if (r.counter && last_counter_ && *r.counter > *last_counter_ + 1) stats_.counter_gaps += *r.counter - *last_counter_ - 1;
   if (r.counter) last_counter_ = r.counter;
@@ -272,8 +260,8 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
   stats_.clock_drift_ppm = clock_.drift_ppm();
   stats_.clock_resets = clock_.resets();
   if (stats_.records % 64 == 1) {
-    stats_.delay_p50_ns = percentile(delays_, 0.5);
-    stats_.delay_p99_ns = percentile(delays_, 0.99);
+    stats_.delay_p50_ns = delays_.percentile(0.5);
+    stats_.delay_p99_ns = delays_.percentile(0.99);
   }
   queue_.push(s, receive_ns);
 }

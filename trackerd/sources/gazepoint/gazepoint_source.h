@@ -60,8 +60,7 @@ class GazepointSource final : public net::ReaderSource {
   GazepointSpec spec_;
   TrackerClock clock_{1e-6, 64};  // TIME in microseconds
   std::optional<std::uint64_t> last_counter_;
-  std::vector<std::int64_t> delays_;  // ring of receive - mapped
-  std::size_t delay_next_ = 0;
+  net::DelayWindow delays_;  // receive - mapped
   bool silence_reported_ = false;  // "no gaze records" is the problem now
 
   mutable std::mutex mutex_;  // guards stats_

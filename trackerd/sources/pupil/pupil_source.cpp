@@ -94,11 +94,13 @@ std::string PupilSource::status_detail() const {
                     std::to_string(s.low_confidence) + " below confidence, " + std::to_string(s.off_surface) +
                     " off the surface), " + std::to_string(s.scene_only) + " scene-only, " +
                     std::to_string(s.malformed) + " malformed, " + std::to_string(s.gaps) + " dropouts";
-  char clock[200];
-  std::snprintf(clock, sizeof clock, ", clock offset %.3f ms +- %.3f ms over %llu exchanges, drift %s ppm",
+  char clock[256];
+  std::snprintf(clock, sizeof clock,
+                ", clock offset %.3f ms +- %.3f ms over %llu exchanges, drift %s ppm, delay p50 %.2f / p99 %.2f ms",
                 static_cast<double>(s.clock_offset_ns) / 1e6, static_cast<double>(s.clock_uncertainty_ns) / 1e6,
                 static_cast<unsigned long long>(s.clock_exchanges),
-                s.clock_drift_ppm ? std::to_string(static_cast<long>(std::lround(*s.clock_drift_ppm))).c_str() : "?");
+                s.clock_drift_ppm ? std::to_string(static_cast<long>(std::lround(*s.clock_drift_ppm))).c_str() : "?",
+                static_cast<double>(s.delay_p50_ns) / 1e6, static_cast<double>(s.delay_p99_ns) / 1e6);
   out += clock;
   if (s.connects > 1) out += ", " + std::to_string(s.connects - 1) + " reconnections";
   if (s.malformed > 0) out += "; last refused: " + protocol::escape_for_log(s.last_malformed, 80);
@@ -271,6 +273,11 @@ void PupilSource::publish(const PupilGaze& g, bool screen, std::int64_t receive_
   const std::int64_t mapped = clock_.to_host_ns(g.timestamp);
   if (mapped > receive_ns + kClockSlackNs || mapped < receive_ns - kMaxLatencyNs) clock_suspect_ = true;
   s.tracker_time_ns = clock_suspect_ ? receive_ns : std::min(mapped, receive_ns);
+  delays_.add(receive_ns - s.tracker_time_ns);
+  if ((stats_.samples + stats_.scene_only) % 64 == 0) {
+    stats_.delay_p50_ns = delays_.percentile(0.5);
+    stats_.delay_p99_ns = delays_.percentile(0.99);
+  }
   s.confidence = static_cast<float>(g.confidence);
   const double x = g.x, y = 1.0 - g.y_up;
   const bool confident = g.confidence >= spec_.min_confidence;

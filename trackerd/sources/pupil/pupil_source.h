@@ -40,6 +40,7 @@ struct PupilStats {
   std::uint64_t clock_exchanges = 0, clock_resets = 0;
   std::int64_t clock_offset_ns = 0, clock_uncertainty_ns = 0, clock_last_rtt_ns = 0;
   std::optional<double> clock_drift_ppm;
+  std::int64_t delay_p50_ns = 0, delay_p99_ns = 0;  // receive time - mapped time, last 1024 gaze points
   std::string last_malformed;
 };
 
@@ -76,6 +77,7 @@ class PupilSource final : public net::ReaderSource {
 
   mutable std::mutex mutex_;  // guards stats_ and the members the loop's threads read
   PupilStats stats_;
+  net::DelayWindow delays_;  // receive - mapped (guarded by mutex_)
 };
 
 }  // namespace fovea::trackerd::pupil
