@@ -96,4 +96,37 @@ n=$(grep -vc '^#' "$WORK/c.csv")
 [ "$n" -gt 200 ] || fail "only $n samples without a surface"
 grep -v '^#' "$WORK/c.csv" | tail -n +2 | awk -F, '$10 != 0 {bad++} END {exit bad > 0}' || fail "scene-camera gaze was published as valid screen gaze"
 echo "   $((n - 1)) samples, all invalid"
+
+echo "== gaze=scene: the scene camera's gaze published as the point, y flipped, for a fovea calibration to map"
+start_fake fake_pupil_capture.py --rate 200 --no-surface --truth "$WORK/scene-truth.csv"
+PORT=$((49000 + RANDOM % 900))
+"$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT?gaze=scene" --port "$PORT" --control-socket none --log-level info \
+  >"$WORK/d.log" 2>&1 &
+DPID=$!
+sleep 0.5
+"$CTL" --server "127.0.0.1:$PORT" record --duration 2 "$WORK/s.fgr" >"$WORK/s.out" 2>&1 || fail "client s: $(cat "$WORK/s.out")"
+stop "$DPID"; DPID=""
+stop "$FPID"; FPID=""
+grep -q "publishes the scene camera's gaze .* map it with a fovea calibration" "$WORK/d.log" || fail "scene mode not announced"
+grep -q "only scene-camera gaze" "$WORK/d.log" && fail "scene mode reported the missing surface as a problem"
+"$CTL" convert "$WORK/s.fgr" "$WORK/s.csv" >/dev/null 2>&1 || fail "convert s.fgr"
+/usr/bin/python3 - "$WORK" <<'PY' || fail "scene gaze does not match what the fake published"
+import csv, struct, sys
+work = sys.argv[1]
+f32 = lambda v: struct.unpack("<f", struct.pack("<f", v))[0]
+scene = {}
+for line in open(f"{work}/scene-truth.csv"):
+    if line[0].isdigit():
+        n, cap, t, x, y_up, on, c, sx, sy = line.strip().split(",")
+        scene[(f32(float(sx)), f32(1.0 - float(sy)))] = float(c)
+rows = [r for r in csv.reader(l for l in open(f"{work}/s.csv") if not l.startswith("#"))][1:]
+valid = [r for r in rows if r[9] == "1"]
+assert len(rows) > 150, f"only {len(rows)} samples in 2 s at 200 Hz"
+assert len(valid) > 0.5 * len(rows), f"only {len(valid)} of {len(rows)} scene samples valid"
+for r in valid:
+    key = (f32(float(r[2])), f32(float(r[3])))
+    assert key in scene, f"{key} is no scene gaze the fake published (y not flipped?)"
+    assert scene[key] >= 0.6, f"{key} has confidence {scene[key]}, below 0.6, yet is valid"
+print(f"   {len(rows)} samples, {len(valid)} valid, each the fake's scene gaze with y flipped")
+PY
 echo "PASS"

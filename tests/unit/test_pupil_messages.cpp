@@ -126,8 +126,12 @@ TEST(PupilMessages, SpecsAndRemoteReplies) {
   EXPECT_EQ(s.to_string(), "capture-pc:50030");
   EXPECT_EQ(s.surface, "monitor");
   EXPECT_DOUBLE_EQ(s.min_confidence, 0.8);
+  EXPECT_FALSE(s.scene_gaze);
+  EXPECT_TRUE(parse_pupil_spec("pupil:127.0.0.1?gaze=scene&min_confidence=0.7").scene_gaze);
+  EXPECT_FALSE(parse_pupil_spec("pupil:127.0.0.1?gaze=surface").scene_gaze);
+  EXPECT_NE(check_pupil_spec("pupil:h?gaze=scene&surface=monitor").find("gaze=scene uses no surface"), std::string::npos);
   for (const char* bad : {"pupil:", "pupil:h:0", "pupil:h:x", "pupil:h?min_confidence=2", "pupil:h?colour=red",
-                          "pupil:h?surface=", "pupil:a b"}) {
+                          "pupil:h?surface=", "pupil:a b", "pupil:h?gaze=eye", "pupil:h?gaze="}) {
     EXPECT_NE(check_pupil_spec(bad).find("expected pupil:HOST"), std::string::npos) << bad;
   }
   EXPECT_EQ(parse_port_reply("50021"), 50021);

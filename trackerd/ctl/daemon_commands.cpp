@@ -84,14 +84,14 @@ int run_client(const Common& c, const std::string& role, std::uint32_t streams,
   const ClientStats s = client->stats();
   std::fprintf(stderr,
                "fovea-ctl %s: summary received=%llu lost=%llu duplicated=%llu reordered=%llu implausible=%llu events=%llu "
-               "latency_ms_p50=%s latency_ms_p99=%s latency_ms_max=%s clock_offset_us=%.1f subscriptions=%llu markers=%llu\n",
+               "markers=%llu latency_ms_p50=%s latency_ms_p99=%s latency_ms_max=%s clock_offset_us=%.1f subscriptions=%llu\n",
                role.c_str(), static_cast<unsigned long long>(s.samples.received),
                static_cast<unsigned long long>(s.samples.lost), static_cast<unsigned long long>(s.samples.duplicated),
                static_cast<unsigned long long>(s.samples.reordered),
                static_cast<unsigned long long>(s.samples.implausible), static_cast<unsigned long long>(s.events.received),
+               static_cast<unsigned long long>(s.markers.received),
                ms(s.latency_p50_ns).c_str(), ms(s.latency_p99_ns).c_str(), ms(s.latency_max_ns).c_str(),
-               static_cast<double>(s.clock_offset_ns) / 1e3, static_cast<unsigned long long>(s.subscriptions),
-               static_cast<unsigned long long>(s.markers.received));
+               static_cast<double>(s.clock_offset_ns) / 1e3, static_cast<unsigned long long>(s.subscriptions));
   if (!c.stats_json.empty()) {
     nlohmann::json j = {{"client", role},
                         {"received", s.samples.received},

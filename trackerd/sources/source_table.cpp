@@ -274,10 +274,11 @@ constexpr SourceKind kSourceKinds[] = {
   {"video:",        Arg::Required, "video:FILE",         "eye video",                              nullptr, make_video},
   {"gazepoint:",    Arg::Required, "gazepoint:HOST[:PORT]", "Gazepoint GP3 tracker, through Gazepoint "
                                                          "Control's Open Gaze API; port 4242 by default", gazepoint::check_gazepoint_spec, make_gazepoint},
-  {"pupil:",        Arg::Required, "pupil:HOST[:PORT][?surface=NAME&min_confidence=C]",
+  {"pupil:",        Arg::Required, "pupil:HOST[:PORT][?surface=NAME|gaze=scene&min_confidence=C]",
                                                          "Pupil Core through Pupil Capture's network API, Pupil Remote on port "
                                                          "50020 by default; screen gaze from the Surface Tracker's surface "
-                                                         "\"screen\"",
+                                                         "\"screen\", or with gaze=scene the scene camera's gaze, for a fovea "
+                                                         "calibration to map",
                                                          pupil::check_pupil_spec, make_pupil},
   {"mouse",         Arg::Optional, "mouse[:DISPLAY]",    "the X11 pointer as gaze, 120 Hz unless --rate: for developing "
                                                          "without a tracker", mouse::check_mouse_spec, make_mouse},

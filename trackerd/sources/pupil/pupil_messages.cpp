@@ -113,7 +113,7 @@ std::string PupilSpec::to_string() const { return host + ":" + std::to_string(po
 PupilSpec parse_pupil_spec(const std::string& spec) {
   const auto bad = [&](const std::string& why) {
     return std::invalid_argument("source " + protocol::escape_for_log(spec) + ": " + why +
-                                 "; expected pupil:HOST[:PORT][?surface=NAME&min_confidence=C] (Pupil Capture's "
+                                 "; expected pupil:HOST[:PORT][?surface=NAME|gaze=scene&min_confidence=C] (Pupil Capture's "
                                  "Pupil Remote, port 50020)");
   };
   const std::string prefix = "pupil:";
@@ -131,6 +131,8 @@ PupilSpec parse_pupil_spec(const std::string& spec) {
       const std::string value(eq == std::string_view::npos ? std::string_view() : kv.substr(eq + 1));
       if (key == "surface" && !value.empty() && value.size() <= 64 && value.find_first_of(" \t\r\n") == std::string::npos) {
         out.surface = value;
+      } else if (key == "gaze" && (value == "scene" || value == "surface")) {
+        out.scene_gaze = value == "scene";
       } else if (key == "min_confidence") {
         double c = -1;
         const auto r = std::from_chars(value.data(), value.data() + value.size(), c);
@@ -139,9 +141,11 @@ PupilSpec parse_pupil_spec(const std::string& spec) {
         }
         out.min_confidence = c;
       } else {
-        throw bad("\"" + protocol::escape_for_log(std::string(kv)) + "\" is not surface=NAME or min_confidence=C");
+        throw bad("\"" + protocol::escape_for_log(std::string(kv)) +
+                  "\" is not surface=NAME, gaze=scene|surface or min_confidence=C");
       }
     }
+    if (out.scene_gaze && out.surface != "screen") throw bad("gaze=scene uses no surface: drop surface=");
     rest.resize(q);
   }
   const net::HostPort hp = net::parse_host_port(rest, kDefaultPort, bad);

@@ -22,12 +22,15 @@ inline constexpr std::uint16_t kDefaultPort = 50020;  // Pupil Remote
 // A gaze datum is under 1 KB, a surface event with a world frame's gaze some tens of KB.
 inline constexpr std::size_t kMaxPayloadBytes = 256u << 10;
 
-// "pupil:HOST[:PORT][?surface=NAME&min_confidence=C]"
+// "pupil:HOST[:PORT][?surface=NAME|gaze=scene&min_confidence=C]"
 struct PupilSpec {
   std::string host;
   std::uint16_t port = kDefaultPort;
   std::string surface = "screen";  // the Surface Tracker surface that is the screen
   double min_confidence = 0.6;     // below it a gaze is invalid (Pupil's own tools use 0.6)
+  // gaze=scene: the scene camera's gaze is the published point (normalised image coordinates, y
+  // down), for a fovea calibration (input "screen") to map onto the screen; no surface is used.
+  bool scene_gaze = false;
   std::string to_string() const;   // "HOST:PORT"
 };
 // Throws std::invalid_argument naming the spec and the form it should have.

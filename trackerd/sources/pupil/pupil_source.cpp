@@ -66,7 +66,7 @@ struct PupilSource::Connection {
     sub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::maxmsgsize, kMaxMessageBytes);
     sub.set(zmq::sockopt::rcvhwm, kReceiveQueue);
-    sub.set(zmq::sockopt::subscribe, "surfaces." + spec.surface);
+    if (!spec.scene_gaze) sub.set(zmq::sockopt::subscribe, "surfaces." + spec.surface);
     sub.set(zmq::sockopt::subscribe, "gaze.");
     sub.connect(endpoint(spec.host, port));
     sub_port = port;
@@ -75,6 +75,12 @@ struct PupilSource::Connection {
 
 PupilSource::PupilSource(PupilSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz)
     : ReaderSource(display, nominal_rate_hz), spec_(std::move(spec)) {
+  if (spec_.scene_gaze) {
+    spdlog::warn("{}: publishes the scene camera's gaze (its image, normalised), not screen gaze: map it with a fovea "
+                 "calibration of input \"screen\" (fovea-calibrate run, then --calibration or fovea-ctl "
+                 "calibration-load), with the head as still as during calibration",
+                 description());
+  }
   start_reader([this] { run(); });
 }
 
@@ -247,6 +253,11 @@ bool PupilSource::handle_message(Connection& c, std::int64_t receive_ns) {
     const auto g = parse_gaze_payload(payload, error);
     if (!g) {
       count_malformed(topic + ": " + error);
+      return true;
+    }
+    if (spec_.scene_gaze) {
+      if (problem_kind_ != Problem::None) set_problem(Problem::None, "");
+      publish(*g, true, receive_ns);  // the point a fovea calibration maps
       return true;
     }
     // With the surface present, its gaze is the screen gaze; this datum is the same gaze in the

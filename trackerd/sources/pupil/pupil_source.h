@@ -1,5 +1,5 @@
 #pragma once
-// `pupil:HOST[:PORT][?surface=NAME&min_confidence=C]`: Pupil Core through Pupil Capture's (or Pupil
+// `pupil:HOST[:PORT][?surface=NAME|gaze=scene&min_confidence=C]`: Pupil Core through Pupil Capture's (or Pupil
 // Service's) network API (pupil_messages.h). A reader thread owns the ZeroMQ sockets:
 //  - Pupil Remote (REQ, port 50020): "SUB_PORT" finds the publisher; "t" asks Pupil time, once a
 //    second (16 times in a row at the start and after Pupil time jumps), and a RoundTripClock maps
@@ -10,7 +10,9 @@
 // bottom-left), valid when its confidence reaches min_confidence (0.6, as Pupil's own tools).
 // Gaze off the surface stays valid, outside 0..1. Without the surface only scene-camera gaze exists:
 // the source then publishes its samples invalid (their times, no screen point) and says so as its
-// problem. When Pupil Capture stops answering, or restarts (its clock jumps, its publisher moves),
+// problem. With ?gaze=scene the scene camera's gaze is published instead, valid (its image
+// coordinates, y flipped), for a fovea calibration of input "screen" to map onto the screen: the
+// way to use Pupil Core without a surface. When Pupil Capture stops answering, or restarts (its clock jumps, its publisher moves),
 // the source reconnects.
 #include <atomic>
 #include <cstdint>
@@ -28,7 +30,7 @@ namespace fovea::trackerd::pupil {
 
 struct PupilStats {
   bool connected = false;
-  std::uint64_t samples = 0;          // published from surface gaze
+  std::uint64_t samples = 0;          // published from surface gaze (or scene gaze with gaze=scene)
   std::uint64_t valid = 0;
   std::uint64_t low_confidence = 0;   // below min_confidence: invalid
   std::uint64_t off_surface = 0;      // on_surf false (valid, outside the screen)
@@ -49,7 +51,9 @@ class PupilSource final : public net::ReaderSource {
   PupilSource(PupilSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz);
   ~PupilSource() override { stop_reader(); }
 
-  std::string description() const override { return "pupil:" + spec_.to_string() + " (surface " + spec_.surface + ")"; }
+  std::string description() const override {
+    return "pupil:" + spec_.to_string() + (spec_.scene_gaze ? " (scene camera)" : " (surface " + spec_.surface + ")");
+  }
   std::string status_detail() const override;
   PupilStats stats() const;
 
