@@ -81,17 +81,26 @@ print(f"   the daemon: {samples} surface samples ({valid} valid, {low} below con
       f"{refused} malformed messages refused of {malformed} sent")
 PY
 
+# One client records SECONDS of the daemon reading the running fake through SPEC (after "pupil:127.0.0.1:PORT")
+# into $WORK/NAME.csv; then daemon and fake stop. The daemon's log is $WORK/d.log.
+record_from_fake() {
+  local spec=$1 name=$2 seconds=$3
+  PORT=$((49000 + RANDOM % 900))
+  "$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT$spec" --port "$PORT" --control-socket none --log-level info \
+    >"$WORK/d.log" 2>&1 &
+  DPID=$!
+  sleep 0.5
+  "$CTL" --server "127.0.0.1:$PORT" record --duration "$seconds" "$WORK/$name.fgr" >"$WORK/$name.out" 2>&1 \
+    || fail "client $name: $(cat "$WORK/$name.out")"
+  stop "$DPID"; DPID=""
+  stop "$FPID"; FPID=""
+  "$CTL" convert "$WORK/$name.fgr" "$WORK/$name.csv" >/dev/null 2>&1 || fail "convert $name.fgr"
+}
+
 echo "== no surface: scene-camera gaze only, published invalid, and the daemon says why"
 start_fake fake_pupil_capture.py --rate 200 --no-surface
-PORT=$((49000 + RANDOM % 900))
-"$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT" --port "$PORT" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
-DPID=$!
-sleep 0.5
-"$CTL" --server "127.0.0.1:$PORT" record --duration 3 "$WORK/c.fgr" >"$WORK/c.out" 2>&1 || fail "client c: $(cat "$WORK/c.out")"
-stop "$DPID"; DPID=""
-stop "$FPID"; FPID=""
+record_from_fake "" c 3
 grep -q 'only scene-camera gaze, no surface "screen"' "$WORK/d.log" || fail "the missing surface was not reported"
-"$CTL" convert "$WORK/c.fgr" "$WORK/c.csv" >/dev/null 2>&1 || fail "convert c.fgr"
 n=$(grep -vc '^#' "$WORK/c.csv")
 [ "$n" -gt 200 ] || fail "only $n samples without a surface"
 grep -v '^#' "$WORK/c.csv" | tail -n +2 | awk -F, '$10 != 0 {bad++} END {exit bad > 0}' || fail "scene-camera gaze was published as valid screen gaze"
@@ -99,17 +108,9 @@ echo "   $((n - 1)) samples, all invalid"
 
 echo "== gaze=scene: the scene camera's gaze published as the point, y flipped, for a fovea calibration to map"
 start_fake fake_pupil_capture.py --rate 200 --no-surface --truth "$WORK/scene-truth.csv"
-PORT=$((49000 + RANDOM % 900))
-"$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT?gaze=scene" --port "$PORT" --control-socket none --log-level info \
-  >"$WORK/d.log" 2>&1 &
-DPID=$!
-sleep 0.5
-"$CTL" --server "127.0.0.1:$PORT" record --duration 2 "$WORK/s.fgr" >"$WORK/s.out" 2>&1 || fail "client s: $(cat "$WORK/s.out")"
-stop "$DPID"; DPID=""
-stop "$FPID"; FPID=""
+record_from_fake "?gaze=scene" s 2
 grep -q "publishes the scene camera's gaze .* map it with a fovea calibration" "$WORK/d.log" || fail "scene mode not announced"
 grep -q "only scene-camera gaze" "$WORK/d.log" && fail "scene mode reported the missing surface as a problem"
-"$CTL" convert "$WORK/s.fgr" "$WORK/s.csv" >/dev/null 2>&1 || fail "convert s.fgr"
 /usr/bin/python3 - "$WORK" <<'PY' || fail "scene gaze does not match what the fake published"
 import csv, struct, sys
 work = sys.argv[1]
