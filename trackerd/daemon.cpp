@@ -57,6 +57,7 @@ class Daemon {
   enum class Wake { Due, Stop, Attention };
 
   bool start(std::int64_t start_ns);
+  void shut_down();
   void publish(GazeItem item, std::optional<std::int64_t> receive_ns);
   void send(const GazeItem& item, std::optional<std::int64_t> receive_ns = std::nullopt);
   void record(const protocol::Record& record);
@@ -640,6 +641,12 @@ int Daemon::run() {
     item.reset();
   }
 
+  shut_down();
+  return status_;
+}
+
+// Stops the helper threads and the server, then logs what was done.
+void Daemon::shut_down() {
   watcher_stop_ = true;
   if (watcher_.joinable()) watcher_.join();
   notifier_.stopping();
@@ -657,7 +664,6 @@ int Daemon::run() {
   if (const std::string detail = source_->status_detail(); !detail.empty()) {
     spdlog::info("{}: {}", protocol::escape_for_log(source_->description()), protocol::escape_for_log(detail));
   }
-  return status_;
 }
 
 }  // namespace

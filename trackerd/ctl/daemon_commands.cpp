@@ -347,6 +347,17 @@ int cmd_control(const Common& c, ControlCommand command, const std::string& argu
   return reply->result == ControlResult::Ok ? 0 : 1;
 }
 
+CLI::App* add_mark_command(CLI::App& app, std::string& label, std::optional<std::int64_t>& time_ns) {
+  auto* mark = app.add_subcommand(
+      "mark", "put an experiment marker (stimulus onset, trial start, ...) on the gaze clock: into the daemon's "
+              "recording and to its subscribers");
+  mark->add_option("LABEL", label, "1..63 bytes of UTF-8 text, no control characters")->required();
+  mark->add_option("--time-ns", time_ns,
+                   "when it happened, in ns of this host's CLOCK_MONOTONIC (mapped to the daemon's clock); default: "
+                   "when the daemon receives it");
+  return mark;
+}
+
 }  // namespace
 
 std::vector<Command> add_daemon_commands(CLI::App& app) {
@@ -386,13 +397,7 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
   record->add_option("--multicast", c.multicast, "receive samples from multicast GROUP:PORT instead of unicast");
   record->add_option("--stats-json", c.stats_json, "write the final statistics to this JSON file");
 
-  auto* mark = app.add_subcommand(
-      "mark", "put an experiment marker (stimulus onset, trial start, ...) on the gaze clock: into the daemon's "
-              "recording and to its subscribers");
-  mark->add_option("LABEL", mark_label, "1..63 bytes of UTF-8 text, no control characters")->required();
-  mark->add_option("--time-ns", mark_time_ns,
-                   "when it happened, in ns of this host's CLOCK_MONOTONIC (mapped to the daemon's clock); default: "
-                   "when the daemon receives it");
+  auto* mark = add_mark_command(app, mark_label, mark_time_ns);
 
   auto* reload = app.add_subcommand(
       "reload", "make the daemon reload its configuration and calibration (as SIGHUP; subscribers stay connected)");
