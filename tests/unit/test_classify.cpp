@@ -633,6 +633,43 @@ TEST(ClassifyCli, MalformedInputNamesTheLineAndWritesNothing) {
   EXPECT_NE(err.find("RATE_HZ"), std::string::npos) << err;
 }
 
+// Issue 25: real exports hold NaN, empty, zero or reset timestamps, or none at all.
+TEST(ClassifyCli, RenumberNumbersBrokenTimesAtTheRateAndSaysHowMany) {
+  Ctl c;
+  const std::string out = (c.dir / "out.csv").string();
+  // 250 Hz: 4 ms apart. Row 3 NaN, row 4 empty, row 5 zero, rows 6.. a reset clock (0.5, 1, ...).
+  const std::string in = c.write("broken.csv",
+                                 "t_ms,x_px,y_px\n100,960,540\n104,960,540\nNaN,960,540\n,960,540\n0,960,540\n"
+                                 "0.5,960,540\n1,960,540\n130,960,540\n");
+  std::string err;
+  EXPECT_EQ(c.run(in + " " + out + kGeometry, err), 1) << "without --renumber a broken time is an error";
+  EXPECT_NE(err.find("--renumber"), std::string::npos) << "the error should name the way out: " << err;
+  ASSERT_EQ(c.run(in + " " + out + kGeometry + " --renumber", err), 0) << err;
+  EXPECT_NE(err.find("renumbered 5 of 8 rows at 250 Hz"), std::string::npos) << err;
+  const auto times_in = [](const std::string& path) {
+    std::vector<std::string> times;
+    std::istringstream lines(Ctl::read(path));
+    std::string line;
+    std::getline(lines, line);
+    while (std::getline(lines, line)) times.push_back(line.substr(0, line.find(',')));
+    return times;
+  };
+  const std::vector<std::string> want = {"100", "104", "108", "112", "116", "120", "124", "130"};
+  EXPECT_EQ(times_in(out), want) << "good times echoed as written, broken ones numbered 4 ms after the previous row";
+
+  // No time column at all: every row numbered from 0.
+  const std::string bare = c.write("bare.csv", "x_px,y_px\n960,540\n961,540\nnan,nan\n962,540\n");
+  ASSERT_EQ(c.run(bare + " " + out + kGeometry + " --renumber --force", err), 0) << err;
+  EXPECT_NE(err.find("renumbered 4 of 4 rows"), std::string::npos) << err;
+  EXPECT_EQ(times_in(out), (std::vector<std::string>{"0", "4", "8", "12"}));
+  EXPECT_EQ(c.run(bare + " " + out + kGeometry + " --force", err), 1) << "x_px,y_px needs --renumber";
+  EXPECT_NE(err.find("with --renumber"), std::string::npos) << err;
+  // Positions are still checked.
+  const std::string bad = c.write("bad.csv", "x_px,y_px\n960,540\n961\n");
+  EXPECT_EQ(c.run(bad + " " + out + kGeometry + " --renumber --force", err), 1);
+  EXPECT_NE(err.find(":3: 1 fields, expected 2 (x_px,y_px)"), std::string::npos) << err;
+}
+
 // Issue 23 item 12: a 50 MB bad field was echoed whole; control characters reached the terminal.
 TEST(ClassifyCli, ABadFieldIsEchoedShortAndEscaped) {
   Ctl c;

@@ -175,11 +175,36 @@ std::vector<std::string> split_classify_row(const std::string& line) {
   return f;
 }
 
-// The classify input: one sample per data row, and its t_ms exactly as written (echoed to OUT).
+// The classify input: one sample per data row, and its t_ms exactly as written (echoed to OUT), or
+// as numbered where --renumber replaced a missing or broken one.
 struct ClassifyInput {
   std::vector<fovea::trackerd::classify::Sample> samples;
   std::vector<std::string> times;
+  std::size_t renumbered = 0;
 };
+
+// Real exports hold NaN, empty or zero timestamps, or times that reset: with --renumber such a row
+// (a time that is empty, not a finite number, or not after the previous row's) is numbered one sample
+// period after the previous row, at RATE_HZ. Returns the time to use, and whether it was renumbered.
+std::pair<double, bool> classify_time(const std::string& field, bool first, double last_t, double period_ms) {
+  double t = std::nan("");
+  try {
+    t = classify_field(field, "t_ms", true, "");
+  } catch (const std::runtime_error&) {
+    // not a number: numbered like a NaN
+  }
+  if (std::isfinite(t) && (first || t > last_t)) return {t, false};
+  return {first ? 0.0 : last_t + period_ms, true};
+}
+
+std::string format_ms(double t) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.6f", t);
+  std::string s = buf;
+  while (s.back() == '0') s.pop_back();  // 12.500000 -> 12.5, 12.000000 -> 12
+  if (s.back() == '.') s.pop_back();
+  return s;
+}
 
 // One gaze point in degrees from the screen centre, or invalid where x or y is nan.
 fovea::trackerd::classify::Sample classify_sample(const DisplayGeometry& g, double t_ms, double x_px, double y_px) {
@@ -197,36 +222,57 @@ fovea::trackerd::classify::Sample classify_sample(const DisplayGeometry& g, doub
 }
 
 // Reads the CSV t_ms,x_px,y_px (trackerd/CLASSIFY.md), naming the file and line of the first bad row.
-ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeometry& g) {
+// renumber_hz > 0: rows without a usable time are numbered at that rate (classify_time), and the
+// header may be x_px,y_px (no time column: every row numbered).
+ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeometry& g, double renumber_hz) {
   std::ifstream in(in_path);
   if (!in) throw std::runtime_error("cannot open " + in_path);
   ClassifyInput input;
-  auto& [samples, times] = input;
+  auto& [samples, times, renumbered] = input;
   std::string line;
   std::size_t line_no = 0;
   double last_t = 0;
+  bool time_column = true;
   while (std::getline(in, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const std::string where = in_path + ":" + std::to_string(line_no);
     if (line_no == 1) {
       if (line.size() >= 3 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // UTF-8 BOM
-      if (line != "t_ms,x_px,y_px") {
-        throw std::runtime_error(where + ": header is \"" + escape_for_log(line, 40) + "\", expected \"t_ms,x_px,y_px\"");
+      time_column = line != "x_px,y_px" || renumber_hz <= 0;
+      if (line != "t_ms,x_px,y_px" && time_column) {
+        throw std::runtime_error(where + ": header is \"" + escape_for_log(line, 40) +
+                                 "\", expected \"t_ms,x_px,y_px\" (or \"x_px,y_px\" with --renumber)");
       }
       continue;
     }
     if (line.empty()) throw std::runtime_error(where + ": empty line (expected t_ms,x_px,y_px)");
-    const std::vector<std::string> f = split_classify_row(line);
+    std::vector<std::string> f = split_classify_row(line);
+    if (!time_column) f.insert(f.begin(), "");
     if (f.size() != 3) {
-      throw std::runtime_error(where + ": " + std::to_string(f.size()) + " fields, expected 3 (t_ms,x_px,y_px)");
+      throw std::runtime_error(where + ": " + std::to_string(f.size() - (time_column ? 0 : 1)) + " fields, expected " +
+                               (time_column ? "3 (t_ms,x_px,y_px)" : "2 (x_px,y_px)"));
     }
-    const double t_ms = classify_field(f[0], "t_ms", false, where);
+    double t_ms = 0;
+    if (renumber_hz > 0) {
+      const auto [t, replaced] = classify_time(f[0], samples.empty(), last_t, 1000.0 / renumber_hz);
+      t_ms = t;
+      if (replaced) {
+        ++renumbered;
+        f[0] = format_ms(t);
+      }
+    } else {
+      try {
+        t_ms = classify_field(f[0], "t_ms", false, where);
+      } catch (const std::runtime_error& e) {
+        throw std::runtime_error(std::string(e.what()) + " (--renumber numbers such rows at RATE_HZ)");
+      }
+    }
     const double x_px = classify_field(f[1], "x_px", true, where);
     const double y_px = classify_field(f[2], "y_px", true, where);
     if (!samples.empty() && !(t_ms > last_t)) {
       throw std::runtime_error(where + ": t_ms " + f[0] + " is not after the previous row's " + times.back() +
-                               " (times must strictly increase)");
+                               " (times must strictly increase; --renumber numbers such rows at RATE_HZ)");
     }
     last_t = t_ms;
     samples.push_back(classify_sample(g, t_ms, x_px, y_px));
@@ -255,7 +301,8 @@ std::map<std::string, std::size_t> write_classify_labels(const std::string& tmp,
 }
 
 int cmd_classify(const std::string& in_path, const std::string& out_path, double rate_hz, std::uint32_t w_px,
-                 std::uint32_t h_px, double w_mm, double h_mm, double dist_mm, const std::string& method, bool force) {
+                 std::uint32_t h_px, double w_mm, double h_mm, double dist_mm, const std::string& method, bool force,
+                 bool renumber) {
   namespace cl = fovea::trackerd::classify;
   const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
   try {
@@ -263,7 +310,7 @@ int cmd_classify(const std::string& in_path, const std::string& out_path, double
       throw std::runtime_error(out_path + " already exists (use --force to replace it)");
     }
     const DisplayGeometry g = checked_classify_screen(rate_hz, w_px, h_px, w_mm, h_mm, dist_mm);
-    const ClassifyInput input = read_classify_input(in_path, g);
+    const ClassifyInput input = read_classify_input(in_path, g, renumber ? rate_hz : 0);
 
     cl::ClassifierOptions options;
     options.nominal_rate_hz = rate_hz;
@@ -275,6 +322,10 @@ int cmd_classify(const std::string& in_path, const std::string& out_path, double
     std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", input.samples.size(),
                  method.c_str(), cl::make_classifier(method, options)->latency_s() * 1000);
     for (const auto& [k, n] : counts) std::fprintf(stderr, " %zu %s", n, k.c_str());
+    if (renumber) {
+      std::fprintf(stderr, "\nfovea-ctl classify: renumbered %zu of %zu rows at %g Hz (missing or broken t_ms)",
+                   input.renumbered, input.samples.size(), rate_hz);
+    }
     std::fprintf(stderr, "\nfovea-ctl classify: wrote %s\n", out_path.c_str());
     return 0;
   } catch (const std::exception& e) {
@@ -296,10 +347,11 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
     double cls_rate = 0, cls_w_mm = 0, cls_h_mm = 0, cls_dist_mm = 0;
     std::uint32_t cls_w_px = 0, cls_h_px = 0;
     bool cls_force = false;
+    bool cls_renumber = false;
   };
   auto o = std::make_shared<Options>();
   auto& [in_path, out_path, force, info_path, cls_in, cls_out, cls_method, cls_rate, cls_w_mm, cls_h_mm, cls_dist_mm,
-         cls_w_px, cls_h_px, cls_force] = *o;
+         cls_w_px, cls_h_px, cls_force, cls_renumber] = *o;
   auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files)");
   convert->add_option("IN", in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
   convert->add_option("OUT", out_path, "output .fgr or .csv")->required();
@@ -332,6 +384,10 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
     classify->add_option("--method", cls_method, help)->check(CLI::IsMember(names))->capture_default_str();
   }
   classify->add_flag("--force", cls_force, "replace OUT if it exists");
+  classify->add_flag("--renumber", cls_renumber,
+                     "number rows at RATE_HZ where t_ms is missing, not a number or not after the previous row's "
+                     "(real exports hold NaN, zero or reset timestamps), and accept a header x_px,y_px without "
+                     "times; OUT shows the numbered times, and the count is reported");
 
   return {
       {convert, [o] { return cmd_convert(o->in_path, o->out_path, o->force); }},
@@ -339,7 +395,7 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
       {classify,
        [o] {
          return cmd_classify(o->cls_in, o->cls_out, o->cls_rate, o->cls_w_px, o->cls_h_px, o->cls_w_mm, o->cls_h_mm,
-                             o->cls_dist_mm, o->cls_method, o->cls_force);
+                             o->cls_dist_mm, o->cls_method, o->cls_force, o->cls_renumber);
        }},
   };
 }
