@@ -1,0 +1,154 @@
+#!/usr/bin/python3
+"""Agreement of fovea's classifiers with a human coder, on real recordings (issue 25).
+
+Reads the human-coded IRF lookAtPoint_EL sessions (EyeLink 1000 Plus, 1000 Hz; ../shared/data, see
+its README), runs every `fovea-ctl classify` method on each session exactly as a user would (the
+gaze in screen pixels, lost samples as nan), and scores the labels against the coder's:
+
+- sample level: Cohen's kappa of each class against the rest, and the mean over fixation and
+  saccade (the issue's summary figure);
+- event level: F1 of each class, an algorithm event matching a coder event of the same class when
+  their intersection over union is at least 0.5 (Startsev, Agtzidis & Dorr 2019, "1D CNN with
+  BLSTM for automated classification of fixations, saccades, and smooth pursuits", Behav Res Meth
+  51:556-572, section "Event-level evaluation"; each coder event matches at most one).
+
+Coder classes: 1 fixation, 2 saccade, 3 PSO, 4 pursuit, 5 blink, 0 undefined (scored as "other":
+a label the algorithm never gives). fovea's lost and unknown labels are "other" too.
+
+Usage: bench/eval_classify_human.py FOVEA_CTL [DATA_DIR] [--json OUT.json]
+(DATA_DIR defaults to ../shared/data/irf-lookAtPoint_EL beside the checkout.)
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+CODER = {1: "fixation", 2: "saccade", 3: "pso", 4: "pursuit", 5: "blink"}
+CLASSES = ("fixation", "saccade", "pso", "blink")  # the classes this data set holds
+METHODS = ("ivvt", "ivt", "idt", "lee2009")
+
+
+def load_geometry(data_dir):
+    with open(os.path.join(data_dir, "db_config.json")) as f:
+        g = json.load(f)["geom"]
+    return (int(g["display_width_pix"]), int(g["display_height_pix"]), g["screen_width"], g["screen_height"],
+            g["eye_distance"])
+
+
+def write_input(session, geometry, path):
+    """The session as fovea-ctl classify's input: t_ms,x_px,y_px, nan where the tracker lost the eye."""
+    w_px, h_px, w_mm, h_mm, dist_mm = geometry
+    x_px = np.tan(np.radians(session["x"].astype(np.float64))) * dist_mm / w_mm * w_px + w_px / 2
+    y_px = np.tan(np.radians(session["y"].astype(np.float64))) * dist_mm / h_mm * h_px + h_px / 2
+    lost = ~session["status"] | ~np.isfinite(x_px) | ~np.isfinite(y_px)
+    with open(path, "w") as f:
+        f.write("t_ms,x_px,y_px\n")
+        for t, x, y, gone in zip(session["t"] * 1000.0, x_px, y_px, lost):
+            f.write("%.3f,nan,nan\n" % t if gone else "%.3f,%.3f,%.3f\n" % (t, x, y))
+
+
+def classify(ctl, in_path, out_path, rate_hz, geometry, method):
+    w_px, h_px, w_mm, h_mm, dist_mm = geometry
+    cmd = [ctl, "classify", in_path, out_path, "%g" % rate_hz, str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
+           "%g" % dist_mm, "--method", method, "--force"]
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    with open(out_path) as f:
+        next(f)
+        return [line.rstrip("\n").split(",", 1)[1] for line in f]
+
+
+def kappa(truth, predicted, c):
+    """Cohen's kappa of class c against the rest; nan when undefined."""
+    t = np.asarray(truth) == c
+    p = np.asarray(predicted) == c
+    n = len(t)
+    po = np.mean(t == p)
+    pe = (t.sum() * p.sum() + (n - t.sum()) * (n - p.sum())) / (n * n)
+    return float("nan") if pe >= 1.0 else float((po - pe) / (1 - pe))
+
+
+def events(labels, c):
+    """Runs of class c as half-open [start, end) sample intervals."""
+    out, start = [], None
+    for i, label in enumerate(labels):
+        if label == c and start is None:
+            start = i
+        elif label != c and start is not None:
+            out.append((start, i))
+            start = None
+    if start is not None:
+        out.append((start, len(labels)))
+    return out
+
+
+def event_f1(truth, predicted, c, min_iou=0.5):
+    """Startsev et al. 2019: a hit is a pair of same-class events with IoU >= min_iou, each used once."""
+    true_events, found = events(truth, c), events(predicted, c)
+    hits, j = 0, 0
+    used = set()
+    for ts, te in true_events:
+        while j < len(found) and found[j][1] <= ts:
+            j += 1
+        k = j
+        while k < len(found) and found[k][0] < te:
+            fs, fe = found[k]
+            inter = min(te, fe) - max(ts, fs)
+            union = max(te, fe) - min(ts, fs)
+            if k not in used and inter / union >= min_iou:
+                used.add(k)
+                hits += 1
+                break
+            k += 1
+    fp, fn = len(found) - hits, len(true_events) - hits
+    return float("nan") if hits + fp + fn == 0 else 2 * hits / (2 * hits + fp + fn)
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("ctl", help="the fovea-ctl binary")
+    ap.add_argument("data", nargs="?", default=os.path.join(here, "..", "..", "shared", "data", "irf-lookAtPoint_EL"))
+    ap.add_argument("--json", help="write the scores here")
+    args = ap.parse_args()
+    geometry = load_geometry(args.data)
+    sessions = sorted(f for f in os.listdir(args.data) if f.endswith(".npy"))
+    if not sessions:
+        sys.exit(f"no .npy sessions in {args.data}")
+    scores = {m: {"kappa": {c: [] for c in CLASSES}, "f1": {c: [] for c in CLASSES}} for m in METHODS}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in sessions:
+            s = np.load(os.path.join(args.data, name))
+            rate = 1.0 / float(np.median(np.diff(s["t"])))
+            truth = [CODER.get(int(e), "other") for e in s["evt"]]
+            in_path, out_path = os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv")
+            write_input(s, geometry, in_path)
+            for m in METHODS:
+                labels = [l if l in CLASSES or l == "pursuit" else "other" for l in classify(args.ctl, in_path, out_path, rate, geometry, m)]
+                for c in CLASSES:
+                    scores[m]["kappa"][c].append(kappa(truth, labels, c))
+                    scores[m]["f1"][c].append(event_f1(truth, labels, c))
+    mean = lambda v: float(np.nanmean(v)) if not all(math.isnan(x) for x in v) else float("nan")
+    print(f"{len(sessions)} sessions of {os.path.basename(os.path.normpath(args.data))}, one human coder\n")
+    print("| method | kappa fixation | kappa saccade | kappa PSO | kappa blink | **mean kappa fix+sacc** "
+          "| F1 fixation | F1 saccade | F1 PSO | F1 blink |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    summary = {}
+    for m in METHODS:
+        k = {c: mean(scores[m]["kappa"][c]) for c in CLASSES}
+        f = {c: mean(scores[m]["f1"][c]) for c in CLASSES}
+        fs = (k["fixation"] + k["saccade"]) / 2
+        summary[m] = {"kappa": k, "f1": f, "mean_kappa_fixation_saccade": fs, "per_session": scores[m]}
+        print(f"| {m} | " + " | ".join(f"{k[c]:.2f}" for c in CLASSES) + f" | **{fs:.2f}** | " +
+              " | ".join(f"{f[c]:.2f}" for c in CLASSES) + " |")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(summary, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
