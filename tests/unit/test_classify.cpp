@@ -21,6 +21,7 @@
 
 #include "classify/classifier.h"
 #include "classify/evaluate.h"
+#include "classify/pipeline.h"
 #include "sim/synthetic_labelled.h"
 #include "sim/synthetic_gaze.h"
 
@@ -228,6 +229,62 @@ TEST(Classify, LongerLossIsBlinkThenLost) {
     EXPECT_EQ(share(l, c, index_at(s, 1.19), Label::Blink), 1.0) << m;
     EXPECT_EQ(share(l, index_at(s, 1.21), d, Label::Lost), 1.0) << m;
   }
+}
+
+// The lid covering and uncovering the pupil drags its centre: a blink comes between two fast
+// movements (SR Research's parser embeds every blink in a saccade). Those belong to the blink; a
+// saccade elsewhere stays a saccade, and so does one too long to be a lid's.
+TEST(Classify, TheLidsMovementsAroundABlinkArePartOfIt) {
+  Script sc;
+  sc.rate = 500;
+  // 0.5 s: the lid closes (the gaze sweeps 4 deg down in 30 ms), 150 ms lost, it opens (sweeps back
+  // in 30 ms). 1.2 s: a real 8 deg saccade, far from any loss.
+  auto s = sample(sc, 2.0, [](double t) {
+    const double close = std::clamp((t - 0.5) / 0.03, 0.0, 1.0), open = std::clamp((t - 0.68) / 0.03, 0.0, 1.0);
+    const double y = t < 0.68 ? 4.0 * close : 4.0 * (1.0 - open);
+    return std::pair{saccade_at(t, 1.2, 8.0).first, y};
+  });
+  const std::size_t lost_from = index_at(s, 0.53), lost_to = index_at(s, 0.68);
+  for (std::size_t i = lost_from; i < lost_to; ++i) s[i].valid = false;
+  for (const std::string m : {"ivvt", "ivt"}) {
+    const auto l = run_online(m, s, 500);
+    EXPECT_EQ(share(l, lost_from, lost_to, Label::Blink), 1.0) << m;
+    EXPECT_EQ(share(l, index_at(s, 0.505), lost_from, Label::Saccade), 0.0) << m << ": the lid closing is a saccade";
+    EXPECT_EQ(share(l, lost_to, index_at(s, 0.705), Label::Saccade), 0.0) << m << ": the lid opening is a saccade";
+    EXPECT_GT(share(l, index_at(s, 0.51), lost_from, Label::Blink), 0.8) << m;
+    EXPECT_GT(share(l, index_at(s, 1.205), index_at(s, 1.23), Label::Saccade), 0.8) << m << ": the real saccade";
+    EXPECT_EQ(share(l, index_at(s, 1.0), index_at(s, 1.5), Label::Blink), 0.0) << m;
+  }
+  // lee2009 keeps its published rule, idt its own (its "saccade" is anything but a fixation).
+  for (const std::string m : {"idt", "lee2009"}) {
+    const auto l = run_online(m, s, 500);
+    EXPECT_EQ(share(l, index_at(s, 0.505), index_at(s, 0.52), Label::Blink), 0.0) << m;
+  }
+}
+
+TEST(Classify, BlinkEdgesHoldOnlyRunsALidCouldMake) {
+  // Labels at 1 kHz: S = saccade, P = PSO, F = fixation, B = blink.
+  const auto run = [](const std::string& script) {
+    BlinkEdges edges(0.100, 0.200);
+    std::vector<Labeled> out;
+    std::uint64_t i = 0;
+    for (const char c : script) {
+      const Label l = c == 'S' ? Label::Saccade : c == 'P' ? Label::Pso : c == 'B' ? Label::Blink : Label::Fixation;
+      edges.push({i, l}, static_cast<double>(i) * 1e-3, out);
+      ++i;
+    }
+    edges.flush(out);
+    std::string back;
+    for (const Labeled& l : out) back += l.label == Label::Saccade ? 'S' : l.label == Label::Pso ? 'P' : l.label == Label::Blink ? 'B' : 'F';
+    return back;
+  };
+  EXPECT_EQ(run("FFSSPPBBSSPFF"), "FFBBBBBBBBBFF");   // closing and opening
+  EXPECT_EQ(run("FFSSFFBBFFSSFF"), "FFSSFFBBFFSSFF");  // not touching the blink
+  const std::string long_run(300, 'S');
+  EXPECT_EQ(run("F" + long_run + "BB"), "F" + long_run + "BB") << "a run longer than 100 ms is no lid closing";
+  EXPECT_EQ(run("F" + std::string(90, 'S') + "BB"), "F" + std::string(92, 'B'));
+  EXPECT_EQ(run("BB" + long_run + "F"), "BB" + std::string(201, 'B') + std::string(99, 'S') + "F")
+      << "the lid opens for at most 200 ms";
 }
 
 TEST(Classify, NanRunsAreLost) {

@@ -78,6 +78,7 @@ void Frontend::flush(const Emit& emit) { release_unfilled(emit); }  // a gap at 
 
 void Pipeline::push(const Sample& s, std::vector<Labeled>& out) {
   const std::uint64_t index = next_index_++;
+  times_.emplace_back(index, s.t_s);
   if (!std::isfinite(s.t_s) || (have_time_ && !(s.t_s > last_t_))) {
     rejected_.push_back(index);  // time standing still or going backwards: Unknown, ignored otherwise
   } else {
@@ -93,22 +94,70 @@ void Pipeline::flush(std::vector<Labeled>& out) {
   frontend_.flush([this](const Prepared& p) { core_->push(p, core_out_); });
   core_->flush(core_out_);
   forward(out);
+  edges_.flush(out);
 }
 
 void Pipeline::forward(std::vector<Labeled>& out) {
+  ordered_.clear();
   for (const Labeled& l : core_out_) {
     while (!rejected_.empty() && rejected_.front() < l.index) {
-      out.push_back({rejected_.front(), Label::Unknown});
+      ordered_.push_back({rejected_.front(), Label::Unknown});
       rejected_.pop_front();
     }
-    out.push_back(l);
+    ordered_.push_back(l);
     if (!accepted_.empty() && accepted_.front() == l.index) accepted_.pop_front();
   }
   core_out_.clear();
   while (!rejected_.empty() && (accepted_.empty() || rejected_.front() < accepted_.front())) {
-    out.push_back({rejected_.front(), Label::Unknown});
+    ordered_.push_back({rejected_.front(), Label::Unknown});
     rejected_.pop_front();
   }
+  for (const Labeled& l : ordered_) {
+    while (times_.front().first < l.index) times_.pop_front();  // labels come in index order
+    edges_.push(l, times_.front().second, out);
+  }
+}
+
+void BlinkEdges::push(const Labeled& l, double t, std::vector<Labeled>& out) {
+  const bool movement = l.label == Label::Saccade || l.label == Label::Pso;
+  if (closing_max_s_ <= 0 && opening_max_s_ <= 0) {
+    out.push_back(l);
+    return;
+  }
+  if (movement && after_blink_) {  // the lid opening
+    if (opening_start_t_ < 0) opening_start_t_ = t;
+    if (t - opening_start_t_ <= opening_max_s_) {
+      out.push_back({l.index, Label::Blink});
+      return;
+    }
+    after_blink_ = false;
+  }
+  if (movement) {
+    if (run_.empty() && holding_) run_start_t_ = t;
+    if (holding_ && t - run_start_t_ > closing_max_s_) {  // too long for a lid: a saccade, whatever follows
+      release(out, false);
+      holding_ = false;
+    }
+    if (holding_) {
+      run_.push_back(l);
+    } else {
+      out.push_back(l);
+    }
+    return;
+  }
+  const bool blink = l.label == Label::Blink;
+  release(out, blink);  // a run that ends where a blink begins is the lid closing
+  holding_ = true;
+  out.push_back(l);
+  after_blink_ = blink;
+  opening_start_t_ = -1;
+}
+
+void BlinkEdges::flush(std::vector<Labeled>& out) { release(out, false); }
+
+void BlinkEdges::release(std::vector<Labeled>& out, bool as_blink) {
+  for (const Labeled& held : run_) out.push_back({held.index, as_blink ? Label::Blink : held.label});
+  run_.clear();
 }
 
 }  // namespace fovea::trackerd::classify
