@@ -1,6 +1,7 @@
 #include "classify/classifier.h"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "classify/pipeline.h"
@@ -62,7 +63,7 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
     // I-DT's "saccade" is whatever is not a fixation, noise included: next to a blink it is no
     // evidence of the lid (on noisy synthetic gaze the lid rule made half its blinks false).
     FrontendOptions idt = standard;
-    idt.lid_closing_max_s = idt.lid_opening_max_s = 0;
+    idt.lid_opening_max_s = 0;
     return std::make_unique<Pipeline>(name, idt, make_idt_core());
   }
   if (name == "lee2009") {
@@ -70,7 +71,7 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
     FrontendOptions lee;
     lee.gap_fill_max_s = 0;
     lee.loss_blink_max_s = 0;
-    lee.lid_closing_max_s = lee.lid_opening_max_s = 0;
+    lee.lid_opening_max_s = 0;
     return std::make_unique<Pipeline>(name, lee, make_lee_core(options.display));
   }
   throw std::invalid_argument("unknown classification method \"" + name + "\" (known: " + known_names() + ")");
@@ -82,22 +83,33 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, doubl
   return make_classifier(name, o);
 }
 
-std::vector<Label> classify_all(const std::string& name, const ClassifierOptions& options,
-                                const std::vector<Sample>& samples) {
+OnlineLabels classify_online(const std::string& name, const ClassifierOptions& options,
+                             const std::vector<Sample>& samples) {
   auto c = make_classifier(name, options);
-  std::vector<Label> labels(samples.size(), Label::Unknown);
+  OnlineLabels r{std::vector<Label>(samples.size(), Label::Unknown),
+                 std::vector<double>(samples.size(), std::numeric_limits<double>::quiet_NaN())};
   std::vector<Labeled> out;
+  double newest = std::numeric_limits<double>::quiet_NaN();
   const auto take = [&] {
-    for (const Labeled& l : out) labels.at(l.index) = l.label;
+    for (const Labeled& l : out) {
+      r.labels.at(l.index) = l.label;
+      r.final_t_s.at(l.index) = newest;
+    }
     out.clear();
   };
   for (const Sample& s : samples) {
+    if (std::isfinite(s.t_s) && !(s.t_s <= newest)) newest = s.t_s;
     c->push(s, out);
     take();
   }
   c->flush(out);
   take();
-  return labels;
+  return r;
+}
+
+std::vector<Label> classify_all(const std::string& name, const ClassifierOptions& options,
+                                const std::vector<Sample>& samples) {
+  return classify_online(name, options, samples).labels;
 }
 
 std::vector<Label> classify_all(const std::string& name, double nominal_rate_hz, const std::vector<Sample>& samples) {

@@ -76,6 +76,15 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
 
 // Runs an online classifier over a whole recording: one label per sample, in order.
 std::vector<Label> classify_all(const std::string& name, double nominal_rate_hz, const std::vector<Sample>& samples);
+// Labels from pushing the samples one at a time, and when each became final: the time of the newest
+// sample pushed when its label came out (the last sample's time for those the final flush gave).
+// final_t_s - t_s is a label's latency; NaN where no sample had a finite time yet.
+struct OnlineLabels {
+  std::vector<Label> labels;
+  std::vector<double> final_t_s;
+};
+OnlineLabels classify_online(const std::string& name, const ClassifierOptions& options,
+                             const std::vector<Sample>& samples);
 std::vector<Label> classify_all(const std::string& name, const ClassifierOptions& options,
                                 const std::vector<Sample>& samples);
 

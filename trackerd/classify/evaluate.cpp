@@ -1,10 +1,47 @@
 #include "classify/evaluate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
 namespace fovea::trackerd::classify {
+
+OnsetLatency onset_latency(const std::vector<Label>& truth, const std::vector<Label>& predicted,
+                           const std::vector<double>& final_t_s, const std::vector<Sample>& samples, Label c) {
+  if (truth.size() != predicted.size() || truth.size() != final_t_s.size() || truth.size() != samples.size()) {
+    throw std::invalid_argument("onset_latency: sequences differ in length");
+  }
+  OnsetLatency out;
+  const std::size_t n = truth.size();
+  for (std::size_t a = 0; a < n;) {
+    if (truth[a] != c) {
+      ++a;
+      continue;
+    }
+    std::size_t b = a;
+    while (b < n && truth[b] == c) ++b;
+    // The predicted run overlapping [a, b): its first sample, walking back from the first overlap.
+    std::size_t k = a;
+    while (k < b && predicted[k] != c) ++k;
+    if (k == b) {
+      ++out.missed;
+    } else {
+      while (k > 0 && predicted[k - 1] == c) --k;
+      const double latency = final_t_s[k] - samples[a].t_s;
+      if (std::isfinite(latency)) out.latency_s.push_back(latency);
+    }
+    a = b;
+  }
+  return out;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const auto k = static_cast<std::size_t>(std::lround(q * static_cast<double>(v.size() - 1)));
+  return v[k];
+}
 
 double class_kappa(const std::vector<Label>& truth, const std::vector<Label>& predicted, Label c) {
   if (truth.size() != predicted.size()) throw std::invalid_argument("class_kappa: sequences differ in length");

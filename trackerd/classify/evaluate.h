@@ -16,6 +16,19 @@ double class_kappa(const std::vector<Label>& truth, const std::vector<Label>& pr
 // Cohen's kappa over all seven labels at once.
 double overall_kappa(const std::vector<Label>& truth, const std::vector<Label>& predicted);
 
+// How long after a true event's onset the classifier said so: for each run of class c in `truth`,
+// the first predicted sample of c in the predicted run that overlaps it (it may start a little
+// before the true onset), and the time its label became final (classify_online) minus the true
+// onset's time. A true run that no predicted run of c overlaps is missed.
+struct OnsetLatency {
+  std::vector<double> latency_s;  // one per found onset
+  std::size_t missed = 0;
+};
+OnsetLatency onset_latency(const std::vector<Label>& truth, const std::vector<Label>& predicted,
+                           const std::vector<double>& final_t_s, const std::vector<Sample>& samples, Label c);
+// The q-quantile (0..1, nearest rank) of `v`; NaN when empty.
+double quantile(std::vector<double> v, double q);
+
 struct Degradation {
   double extra_noise_deg = 0;      // added gaussian noise, per axis, degrees (RMS)
   double dropouts_per_s = 0;       // Poisson rate of runs of lost samples

@@ -94,7 +94,6 @@ void Pipeline::flush(std::vector<Labeled>& out) {
   frontend_.flush([this](const Prepared& p) { core_->push(p, core_out_); });
   core_->flush(core_out_);
   forward(out);
-  edges_.flush(out);
 }
 
 void Pipeline::forward(std::vector<Labeled>& out) {
@@ -120,44 +119,18 @@ void Pipeline::forward(std::vector<Labeled>& out) {
 
 void BlinkEdges::push(const Labeled& l, double t, std::vector<Labeled>& out) {
   const bool movement = l.label == Label::Saccade || l.label == Label::Pso;
-  if (closing_max_s_ <= 0 && opening_max_s_ <= 0) {
-    out.push_back(l);
-    return;
-  }
-  if (movement && after_blink_) {  // the lid opening
+  if (movement && after_blink_ && opening_max_s_ > 0) {  // the lid opening
     if (opening_start_t_ < 0) opening_start_t_ = t;
     if (t - opening_start_t_ <= opening_max_s_) {
       out.push_back({l.index, Label::Blink});
       return;
     }
-    after_blink_ = false;
   }
-  if (movement) {
-    if (run_.empty() && holding_) run_start_t_ = t;
-    if (holding_ && t - run_start_t_ > closing_max_s_) {  // too long for a lid: a saccade, whatever follows
-      release(out, false);
-      holding_ = false;
-    }
-    if (holding_) {
-      run_.push_back(l);
-    } else {
-      out.push_back(l);
-    }
-    return;
-  }
-  const bool blink = l.label == Label::Blink;
-  release(out, blink);  // a run that ends where a blink begins is the lid closing
-  holding_ = true;
   out.push_back(l);
-  after_blink_ = blink;
-  opening_start_t_ = -1;
-}
-
-void BlinkEdges::flush(std::vector<Labeled>& out) { release(out, false); }
-
-void BlinkEdges::release(std::vector<Labeled>& out, bool as_blink) {
-  for (const Labeled& held : run_) out.push_back({held.index, as_blink ? Label::Blink : held.label});
-  run_.clear();
+  if (!movement || !after_blink_) {
+    after_blink_ = l.label == Label::Blink;
+    opening_start_t_ = -1;
+  }
 }
 
 }  // namespace fovea::trackerd::classify

@@ -47,34 +47,26 @@ struct FrontendOptions {
   // (a 1000 Hz tracker's noise alone moves that far between samples); 0: no limit.
   double max_eye_speed_deg_s = 1000;
   double min_artifact_jump_deg = 1.0;
-  // The lid's artefact around a blink: as the lid covers and uncovers the pupil its centre moves, so
-  // a blink is preceded and followed by what looks like a saccade (SR Research, EyeLink 1000 User
-  // Manual, "Blinks": the parser embeds each blink in a saccade). A saccade or PSO run that ends
-  // where a blink begins, or begins where one ends, is labelled blink: up to the lid's closing
-  // (down-phase) and opening (up-phase) durations, about 100 ms and twice that (Evinger, Manning &
-  // Sibony 1991, "Eyelid movements", Invest Ophthalmol Vis Sci 32:387-400). A longer run before a
-  // blink is left alone; the closing bound is how long a run may be held back to see what follows
-  // it (added to the latency). Both 0: off.
-  double lid_closing_max_s = 0.100;
+  // The lid's artefact around a blink: as the lid uncovers the pupil its centre moves, so a blink is
+  // followed by what looks like a saccade (SR Research, EyeLink 1000 User Manual, "Blinks": the
+  // parser embeds each blink in a saccade). A saccade or PSO run that begins where a blink ends is
+  // labelled blink, for at most the lid's up-phase, about 200 ms (Evinger, Manning & Sibony 1991,
+  // "Eyelid movements", Invest Ophthalmol Vis Sci 32:387-400); 0: off. The closing side is left
+  // alone: telling a run before a blink from a saccade would hold every saccade's labels back until
+  // it ends, and on the human-coded EyeLink sessions it changed no score.
   double lid_opening_max_s = 0.200;
 };
 
-// The lid-artefact rule of FrontendOptions, on the pipeline's labelled output (in order): holds a
-// run of saccade/PSO labels until it is known whether a blink follows it.
+// The lid-artefact rule of FrontendOptions, on the pipeline's labelled output (in order, nothing
+// held back).
 class BlinkEdges {
  public:
-  BlinkEdges(double closing_max_s, double opening_max_s) : closing_max_s_(closing_max_s), opening_max_s_(opening_max_s) {}
+  explicit BlinkEdges(double opening_max_s) : opening_max_s_(opening_max_s) {}
   void push(const Labeled& l, double t, std::vector<Labeled>& out);
-  void flush(std::vector<Labeled>& out);
-  double latency_s() const { return closing_max_s_; }
 
  private:
-  void release(std::vector<Labeled>& out, bool as_blink);
-  double closing_max_s_, opening_max_s_;
-  std::vector<Labeled> run_;  // saccade/PSO labels held back
-  double run_start_t_ = 0;
-  bool holding_ = true;       // false once the current run outgrew closing_max_s_: it passes as it is
-  bool after_blink_ = false;  // the labels since the last blink were all saccade/PSO
+  double opening_max_s_;
+  bool after_blink_ = false;      // the labels since the last blink were all saccade/PSO
   double opening_start_t_ = -1;  // time of the first of them (-1: none yet)
 };
 
@@ -115,9 +107,9 @@ class Core {
 class Pipeline final : public OnlineClassifier {
  public:
   Pipeline(std::string name, FrontendOptions fo, std::unique_ptr<Core> core)
-      : name_(std::move(name)), frontend_(fo), core_(std::move(core)), edges_(fo.lid_closing_max_s, fo.lid_opening_max_s) {}
+      : name_(std::move(name)), frontend_(fo), core_(std::move(core)), edges_(fo.lid_opening_max_s) {}
   std::string name() const override { return name_; }
-  double latency_s() const override { return frontend_.latency_s() + core_->latency_s() + edges_.latency_s(); }
+  double latency_s() const override { return frontend_.latency_s() + core_->latency_s(); }
   void push(const Sample& s, std::vector<Labeled>& out) override;
   void flush(std::vector<Labeled>& out) override;
 
