@@ -2,7 +2,8 @@
 // knows the true movement of every sample), degraded the way real trackers degrade: sample rate
 // (60 Hz remote ... 1000 Hz lab tracker), added gaussian noise, random runs of lost samples.
 // Prints one markdown table: sample-level Cohen's kappa per class (one class vs the rest) and over
-// all labels, the share of samples labelled pso/unknown, and the cost per sample.
+// all labels, the share of samples labelled pso/unknown, and the cost per sample; then a second:
+// how long after a true fixation or saccade onset the online classifier's final label said so.
 //
 //   bench_classify [--seconds S] [--seeds N]     (defaults: 120 s of gaze per seed, 3 seeds)
 #include <chrono>
@@ -40,6 +41,45 @@ std::string fmt(double k) {
   char b[16];
   std::snprintf(b, sizeof b, "%.3f", k);
   return b;
+}
+
+// Event latency of the final labels (issue 25, goal 4): the true onset of each fixation and saccade
+// to the moment the online classifier's label for that event's first sample became final (pushing
+// one sample at a time, as the daemon does). The latency a client sees adds the daemon's and the
+// network's (bench_latency).
+void print_onset_latency(const double* rates, const Condition& c, double seconds, int seeds) {
+  std::printf("\nOnset latency of final labels, condition %s: p50 / p99 ms from the true onset to the final label "
+              "of the detected event's first sample; missed = true events no detected event of the class "
+              "overlaps.\n\n",
+              c.name);
+  std::printf("| rate Hz | method | fixation onset p50 | p99 | missed %% | saccade onset p50 | p99 | missed %% |\n");
+  std::printf("|---:|---|---:|---:|---:|---:|---:|---:|\n");
+  for (int r = 0; r < 4; ++r) {
+    for (const ClassifierInfo& m : classifiers()) {
+      if (m.name == "lee2009") continue;  // no latency: it labels each sample on arrival
+      OnsetLatency fix, sac;
+      for (int s = 0; s < seeds; ++s) {
+        Labelled l = synthetic(rates[r], seconds, static_cast<std::uint64_t>(s + 1));
+        Degradation d = c.d;
+        d.seed = static_cast<std::uint64_t>(100 + s);
+        degrade(l.samples, d);
+        ClassifierOptions o;
+        o.nominal_rate_hz = rates[r];
+        const OnlineLabels p = classify_online(m.name, o, l.samples);
+        for (auto [cls, acc] : {std::pair{Label::Fixation, &fix}, std::pair{Label::Saccade, &sac}}) {
+          const OnsetLatency one = onset_latency(l.truth, p.labels, p.final_t_s, l.samples, cls);
+          acc->latency_s.insert(acc->latency_s.end(), one.latency_s.begin(), one.latency_s.end());
+          acc->missed += one.missed;
+        }
+      }
+      const auto missed = [](const OnsetLatency& o) {
+        return 100.0 * static_cast<double>(o.missed) / static_cast<double>(o.missed + o.latency_s.size());
+      };
+      std::printf("| %.0f | %s | %.0f | %.0f | %.1f | %.0f | %.0f | %.1f |\n", rates[r], m.name.c_str(),
+                  1000 * quantile(fix.latency_s, 0.5), 1000 * quantile(fix.latency_s, 0.99), missed(fix),
+                  1000 * quantile(sac.latency_s, 0.5), 1000 * quantile(sac.latency_s, 0.99), missed(sac));
+    }
+  }
 }
 
 }  // namespace
@@ -116,5 +156,6 @@ int main(int argc, char** argv) {
       }
     }
   }
+  print_onset_latency(rates, conditions[1], seconds, seeds);
   return 0;
 }

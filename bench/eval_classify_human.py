@@ -10,7 +10,10 @@ gaze in screen pixels, lost samples as nan), and scores the labels against the c
 - event level: F1 of each class, an algorithm event matching a coder event of the same class when
   their intersection over union is at least 0.5 (Startsev, Agtzidis & Dorr 2019, "1D CNN with
   BLSTM for automated classification of fixations, saccades, and smooth pursuits", Behav Res Meth
-  51:556-572, section "Event-level evaluation"; each coder event matches at most one).
+  51:556-572, section "Event-level evaluation"; each coder event matches at most one);
+- onset latency: for each coder fixation and saccade, the algorithm's event of that class that
+  overlaps it, and when the label of its first sample became final (`--final-times`: the classifier
+  runs online, one sample at a time) minus the coder's onset; p50 and p99 over all sessions.
 
 Coder classes: 1 fixation, 2 saccade, 3 PSO, 4 pursuit, 5 blink, 0 undefined (scored as "other":
 a label the algorithm never gives). fovea's lost and unknown labels are "other" too.
@@ -55,11 +58,16 @@ def write_input(session, geometry, path):
 def classify(ctl, in_path, out_path, rate_hz, geometry, method):
     w_px, h_px, w_mm, h_mm, dist_mm = geometry
     cmd = [ctl, "classify", in_path, out_path, "%g" % rate_hz, str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
-           "%g" % dist_mm, "--method", method, "--force"]
+           "%g" % dist_mm, "--method", method, "--force", "--final-times"]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
+    labels, final_ms = [], []
     with open(out_path) as f:
         next(f)
-        return [line.rstrip("\n").split(",", 1)[1] for line in f]
+        for line in f:
+            _, label, final = line.rstrip("\n").split(",")
+            labels.append(label)
+            final_ms.append(float(final))
+    return labels, final_ms
 
 
 def kappa(truth, predicted, c):
@@ -108,6 +116,20 @@ def event_f1(truth, predicted, c, min_iou=0.5):
     return float("nan") if hits + fp + fn == 0 else 2 * hits / (2 * hits + fp + fn)
 
 
+def onset_latencies(truth, predicted, final_ms, t_ms, c):
+    """Coder onset of each event of class c -> when the overlapping detected event's first label was final."""
+    out, missed = [], 0
+    for a, b in events(truth, c):
+        k = next((i for i in range(a, b) if predicted[i] == c), None)
+        if k is None:
+            missed += 1
+            continue
+        while k > 0 and predicted[k - 1] == c:
+            k -= 1
+        out.append(final_ms[k] - t_ms[a])
+    return out, missed
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -119,7 +141,8 @@ def main():
     sessions = sorted(f for f in os.listdir(args.data) if f.endswith(".npy"))
     if not sessions:
         sys.exit(f"no .npy sessions in {args.data}")
-    scores = {m: {"kappa": {c: [] for c in CLASSES}, "f1": {c: [] for c in CLASSES}} for m in METHODS}
+    scores = {m: {"kappa": {c: [] for c in CLASSES}, "f1": {c: [] for c in CLASSES},
+                  "onset_ms": {"fixation": [], "saccade": []}, "missed": {"fixation": 0, "saccade": 0}} for m in METHODS}
     with tempfile.TemporaryDirectory() as tmp:
         for name in sessions:
             s = np.load(os.path.join(args.data, name))
@@ -127,11 +150,17 @@ def main():
             truth = [CODER.get(int(e), "other") for e in s["evt"]]
             in_path, out_path = os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv")
             write_input(s, geometry, in_path)
+            t_ms = s["t"] * 1000.0
             for m in METHODS:
-                labels = [l if l in CLASSES or l == "pursuit" else "other" for l in classify(args.ctl, in_path, out_path, rate, geometry, m)]
+                raw, final_ms = classify(args.ctl, in_path, out_path, rate, geometry, m)
+                labels = [l if l in CLASSES or l == "pursuit" else "other" for l in raw]
                 for c in CLASSES:
                     scores[m]["kappa"][c].append(kappa(truth, labels, c))
                     scores[m]["f1"][c].append(event_f1(truth, labels, c))
+                for c in ("fixation", "saccade"):
+                    found, missed = onset_latencies(truth, labels, final_ms, t_ms, c)
+                    scores[m]["onset_ms"][c] += found
+                    scores[m]["missed"][c] += missed
     mean = lambda v: float(np.nanmean(v)) if not all(math.isnan(x) for x in v) else float("nan")
     print(f"{len(sessions)} sessions of {os.path.basename(os.path.normpath(args.data))}, one human coder\n")
     print("| method | kappa fixation | kappa saccade | kappa PSO | kappa blink | **mean kappa fix+sacc** "
@@ -142,9 +171,24 @@ def main():
         k = {c: mean(scores[m]["kappa"][c]) for c in CLASSES}
         f = {c: mean(scores[m]["f1"][c]) for c in CLASSES}
         fs = (k["fixation"] + k["saccade"]) / 2
-        summary[m] = {"kappa": k, "f1": f, "mean_kappa_fixation_saccade": fs, "per_session": scores[m]}
+        summary[m] = {"kappa": k, "f1": f, "mean_kappa_fixation_saccade": fs,
+                      "per_session": {"kappa": scores[m]["kappa"], "f1": scores[m]["f1"]}}
         print(f"| {m} | " + " | ".join(f"{k[c]:.2f}" for c in CLASSES) + f" | **{fs:.2f}** | " +
               " | ".join(f"{f[c]:.2f}" for c in CLASSES) + " |")
+    print("\nOnset latency of final labels (ms from the coder's onset to the final label of the detected "
+          "event's first sample; missed: coder events no detected event of the class overlaps):\n")
+    print("| method | fixation onset p50 | p99 | missed | saccade onset p50 | p99 | missed |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for m in METHODS:
+        row = []
+        for c in ("fixation", "saccade"):
+            v = np.array(scores[m]["onset_ms"][c])
+            n = len(v) + scores[m]["missed"][c]
+            row += ["%.0f" % np.percentile(v, 50) if len(v) else "-", "%.0f" % np.percentile(v, 99) if len(v) else "-",
+                    "%d of %d" % (scores[m]["missed"][c], n)]
+            summary[m]["onset_p50_ms_" + c] = float(np.percentile(v, 50)) if len(v) else None
+            summary[m]["onset_p99_ms_" + c] = float(np.percentile(v, 99)) if len(v) else None
+        print(f"| {m} | " + " | ".join(row) + " |")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(summary, f, indent=1)

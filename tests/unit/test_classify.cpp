@@ -687,6 +687,38 @@ TEST(ClassifyCli, MalformedInputNamesTheLineAndWritesNothing) {
   EXPECT_NE(err.find("RATE_HZ"), std::string::npos) << err;
 }
 
+// Issue 25, goal 4: when each label became final, as the daemon would have it.
+TEST(ClassifyCli, FinalTimesSayWhenEachLabelWasKnown) {
+  Ctl c;
+  std::string csv = "t_ms,x_px,y_px\n";
+  for (int i = 0; i < 500; ++i) csv += std::to_string(i * 4) + "," + (i < 250 ? "800" : "1100") + ",540\n";
+  const std::string in = c.write("in.csv", csv), out = (c.dir / "out.csv").string();
+  std::string err;
+  ASSERT_EQ(c.run(in + " " + out + kGeometry + " --final-times", err), 0) << err;
+  std::istringstream lines(Ctl::read(out));
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line, "t_ms,label,final_ms");
+  const double bound_ms = make_classifier("ivvt", 250)->latency_s() * 1000;
+  int n = 0, at_end = 0;
+  double last_final = 0;
+  while (std::getline(lines, line)) {
+    const auto a = line.find(','), b = line.rfind(',');
+    const double t = std::stod(line.substr(0, a)), final_ms = std::stod(line.substr(b + 1));
+    EXPECT_GE(final_ms, t) << line;
+    EXPECT_GE(final_ms, last_final) << "labels become final in order";
+    last_final = final_ms;
+    if (final_ms == 1996) {
+      ++at_end;  // the flush at the end of the file
+    } else {
+      EXPECT_LE(final_ms - t, bound_ms + 1e-6) << line;
+    }
+    ++n;
+  }
+  EXPECT_EQ(n, 500);
+  EXPECT_LT(at_end, 100) << "only the last samples wait for the end of the file";
+}
+
 // Issue 25: real exports hold NaN, empty, zero or reset timestamps, or none at all.
 TEST(ClassifyCli, RenumberNumbersBrokenTimesAtTheRateAndSaysHowMany) {
   Ctl c;

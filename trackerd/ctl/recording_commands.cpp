@@ -283,17 +283,22 @@ ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeome
   return input;
 }
 
-// Writes t_ms,label, one row per input row, to `tmp`; returns how many samples got each label.
+// Writes t_ms,label, one row per input row, to `tmp` (with --final-times a third column, final_ms:
+// when the label became final); returns how many samples got each label.
 std::map<std::string, std::size_t> write_classify_labels(const std::string& tmp, const ClassifyInput& input,
-                                                         const std::vector<fovea::trackerd::classify::Label>& labels) {
+                                                         const fovea::trackerd::classify::OnlineLabels& result,
+                                                         bool final_times) {
   namespace cl = fovea::trackerd::classify;
   std::map<std::string, std::size_t> counts;
   std::ofstream out(tmp);
   if (!out) throw std::runtime_error("cannot create " + tmp);
-  out << "t_ms,label\n";
+  out << (final_times ? "t_ms,label,final_ms\n" : "t_ms,label\n");
   for (std::size_t i = 0; i < input.samples.size(); ++i) {
-    out << input.times[i] << ',' << cl::to_string(labels[i]) << '\n';
-    ++counts[cl::to_string(labels[i])];
+    const char* label = cl::to_string(result.labels[i]);
+    out << input.times[i] << ',' << label;
+    if (final_times) out << ',' << format_ms(result.final_t_s[i] * 1000.0);
+    out << '\n';
+    ++counts[label];
   }
   out.close();
   if (!out) throw std::runtime_error("cannot write " + tmp);
@@ -302,7 +307,7 @@ std::map<std::string, std::size_t> write_classify_labels(const std::string& tmp,
 
 int cmd_classify(const std::string& in_path, const std::string& out_path, double rate_hz, std::uint32_t w_px,
                  std::uint32_t h_px, double w_mm, double h_mm, double dist_mm, const std::string& method, bool force,
-                 bool renumber) {
+                 bool renumber, bool final_times) {
   namespace cl = fovea::trackerd::classify;
   const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
   try {
@@ -315,9 +320,9 @@ int cmd_classify(const std::string& in_path, const std::string& out_path, double
     cl::ClassifierOptions options;
     options.nominal_rate_hz = rate_hz;
     options.display = g;
-    const std::vector<cl::Label> labels = cl::classify_all(method, options, input.samples);
+    const cl::OnlineLabels result = cl::classify_online(method, options, input.samples);
 
-    const std::map<std::string, std::size_t> counts = write_classify_labels(tmp, input, labels);
+    const std::map<std::string, std::size_t> counts = write_classify_labels(tmp, input, result, final_times);
     std::filesystem::rename(tmp, out_path);  // atomic: OUT is either absent/old or complete
     std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", input.samples.size(),
                  method.c_str(), cl::make_classifier(method, options)->latency_s() * 1000);
@@ -348,10 +353,11 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
     std::uint32_t cls_w_px = 0, cls_h_px = 0;
     bool cls_force = false;
     bool cls_renumber = false;
+    bool cls_final_times = false;
   };
   auto o = std::make_shared<Options>();
   auto& [in_path, out_path, force, info_path, cls_in, cls_out, cls_method, cls_rate, cls_w_mm, cls_h_mm, cls_dist_mm,
-         cls_w_px, cls_h_px, cls_force, cls_renumber] = *o;
+         cls_w_px, cls_h_px, cls_force, cls_renumber, cls_final_times] = *o;
   auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files)");
   convert->add_option("IN", in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
   convert->add_option("OUT", out_path, "output .fgr or .csv")->required();
@@ -388,6 +394,9 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
                      "number rows at RATE_HZ where t_ms is missing, not a number or not after the previous row's "
                      "(real exports hold NaN, zero or reset timestamps), and accept a header x_px,y_px without "
                      "times; OUT shows the numbered times, and the count is reported");
+  classify->add_flag("--final-times", cls_final_times,
+                     "add a column final_ms: the t_ms of the newest row pushed when the label became final (the "
+                     "classifier runs online, one row at a time, as in the daemon): final_ms - t_ms is its latency");
 
   return {
       {convert, [o] { return cmd_convert(o->in_path, o->out_path, o->force); }},
@@ -395,7 +404,7 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
       {classify,
        [o] {
          return cmd_classify(o->cls_in, o->cls_out, o->cls_rate, o->cls_w_px, o->cls_h_px, o->cls_w_mm, o->cls_h_mm,
-                             o->cls_dist_mm, o->cls_method, o->cls_force, o->cls_renumber);
+                             o->cls_dist_mm, o->cls_method, o->cls_force, o->cls_renumber, o->cls_final_times);
        }},
   };
 }
