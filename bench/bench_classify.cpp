@@ -27,14 +27,15 @@ namespace {
 
 using Labelled = LabelledGaze;
 
-Labelled synthetic(double rate_hz, double seconds, std::uint64_t seed) {
-  return synthetic_labelled(rate_hz, seconds, seed);
-}
-
 struct Condition {
   const char* name;
   Degradation d;
+  bool realistic = false;  // microsaccades and catch-up saccades (synthetic_labelled.h)
 };
+
+Labelled synthetic(double rate_hz, double seconds, std::uint64_t seed, const Condition& c) {
+  return synthetic_labelled(rate_hz, seconds, seed, c.realistic);
+}
 
 std::string fmt(double k) {
   if (std::isnan(k)) return "  -  ";
@@ -59,7 +60,7 @@ void print_onset_latency(const double* rates, const Condition& c, double seconds
       if (m.name == "lee2009") continue;  // no latency: it labels each sample on arrival
       OnsetLatency fix, sac;
       for (int s = 0; s < seeds; ++s) {
-        Labelled l = synthetic(rates[r], seconds, static_cast<std::uint64_t>(s + 1));
+        Labelled l = synthetic(rates[r], seconds, static_cast<std::uint64_t>(s + 1), c);
         Degradation d = c.d;
         d.seed = static_cast<std::uint64_t>(100 + s);
         degrade(l.samples, d);
@@ -103,6 +104,9 @@ int main(int argc, char** argv) {
     conditions.push_back({"+0.1 deg, drops 2/s", d});
     d.extra_noise_deg = 0.3;
     conditions.push_back({"+0.3 deg, drops 2/s", d});
+    Degradation n;
+    n.extra_noise_deg = 0.1;
+    conditions.push_back({"microsaccades, catch-up saccades, +0.1 deg", n, true});
   }
 
   std::printf("Synthetic gaze, %d seed(s) x %.0f s per cell; kappa = sample-level Cohen's kappa of the class vs the "
@@ -118,7 +122,7 @@ int main(int argc, char** argv) {
       // The same degraded data for every method.
       std::vector<Labelled> data;
       for (int s = 0; s < seeds; ++s) {
-        Labelled l = synthetic(rate, seconds, static_cast<std::uint64_t>(s + 1));
+        Labelled l = synthetic(rate, seconds, static_cast<std::uint64_t>(s + 1), c);
         Degradation d = c.d;
         d.seed = static_cast<std::uint64_t>(100 + s);
         degrade(l.samples, d);
@@ -157,5 +161,6 @@ int main(int argc, char** argv) {
     }
   }
   print_onset_latency(rates, conditions[1], seconds, seeds);
+  print_onset_latency(rates, conditions.back(), seconds, seeds);
   return 0;
 }

@@ -2,6 +2,7 @@
 // blinks, pursuit, and every value encodable (finite, in range).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -16,8 +17,9 @@ using protocol::GazeEvent;
 using protocol::GazeSample;
 
 namespace {
-std::vector<GazeItem> generate(double rate, double seconds, std::uint64_t seed) {
-  SyntheticGazeOptions o;
+std::vector<GazeItem> generate(double rate, double seconds, std::uint64_t seed,
+                               const SyntheticGazeOptions& base = {}) {
+  SyntheticGazeOptions o = base;
   o.rate_hz = rate;
   o.seed = seed;
   SyntheticGaze g(o);
@@ -126,6 +128,65 @@ TEST(SyntheticGaze, HighRatesAndOddDisplaysStayFinite) {
       if (const auto* s = std::get_if<GazeSample>(&*item)) {
         ASSERT_NO_THROW(protocol::encode(protocol::Message{protocol::Header{}, *s})) << "rate " << rate;
       }
+    }
+  }
+}
+
+// Issue 25: the movements the plain model leaves out, each off by default.
+namespace {
+std::vector<GazeEvent> ends_of(const std::vector<GazeItem>& items) {
+  std::vector<GazeEvent> out;
+  for (const auto& it : items) {
+    if (const auto* e = std::get_if<GazeEvent>(&it); e != nullptr && e->phase == EventPhase::End) out.push_back(*e);
+  }
+  return out;
+}
+}  // namespace
+
+TEST(SyntheticGaze, MicrosaccadesComeAtTheirRateAndSize) {
+  SyntheticGazeOptions o;
+  o.microsaccades_per_s = 1.5;
+  const auto ends = ends_of(generate(500, 300, 5, o));
+  double fixation_s = 0;
+  std::vector<double> small;
+  for (const auto& e : ends) {
+    if (e.kind == EyeMovement::Fixation) fixation_s += static_cast<double>(e.duration_ns) * 1e-9;
+    if (e.kind == EyeMovement::Saccade && e.amplitude_deg < 0.9f) small.push_back(e.amplitude_deg);
+  }
+  const double rate = static_cast<double>(small.size()) / fixation_s;
+  EXPECT_GT(rate, 1.0);
+  EXPECT_LT(rate, 2.0);
+  std::sort(small.begin(), small.end());
+  EXPECT_NEAR(small[small.size() / 2], 0.3, 0.08) << "median amplitude";
+  EXPECT_GE(small.front(), 0.09);
+  for (const auto& e : ends_of(generate(500, 300, 5))) {
+    if (e.kind == EyeMovement::Saccade) {
+      EXPECT_GE(e.amplitude_deg, 0.9f) << "off by default: none under 1 deg (by the axes)";
+    }
+  }
+}
+
+TEST(SyntheticGaze, PursuitLagsAndCatchesUpWithSaccades) {
+  SyntheticGazeOptions o;
+  o.catch_up_saccades = true;
+  const auto ends = ends_of(generate(500, 300, 6, o));
+  int catch_ups = 0, pursuits = 0;
+  for (std::size_t i = 1; i + 1 < ends.size(); ++i) {
+    if (ends[i].kind == EyeMovement::Pursuit) {
+      ++pursuits;
+      EXPECT_LE(ends[i].duration_ns, 400'000'001) << "pursuit stretches of at most 400 ms";
+    }
+    if (ends[i].kind == EyeMovement::Saccade && ends[i - 1].kind == EyeMovement::Pursuit &&
+        ends[i + 1].kind == EyeMovement::Pursuit) {
+      ++catch_ups;
+      EXPECT_LT(ends[i].amplitude_deg, 2.0f) << "a catch-up saccade makes up a lag of a few tenths of a degree";
+    }
+  }
+  EXPECT_GT(pursuits, 50);
+  EXPECT_GT(catch_ups, 20);
+  for (const auto& e : ends_of(generate(500, 300, 6))) {
+    if (e.kind == EyeMovement::Pursuit) {
+      EXPECT_GE(e.duration_ns, 399'000'000) << "off by default: one stretch";
     }
   }
 }

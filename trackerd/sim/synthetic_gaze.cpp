@@ -98,11 +98,67 @@ SyntheticGaze::Vec2 SyntheticGaze::random_target(const Vec2& from) {
   return {from.x * 0.3, from.y * 0.3};
 }
 
+SyntheticGaze::Segment SyntheticGaze::plan_saccade(const Vec2& from, const Vec2& to) const {
+  Segment s;
+  s.phase = Phase::Saccade;
+  s.from = from;
+  s.to = to;
+  const double amplitude = angle_between_deg(from.x, from.y, to.x, to.y);
+  s.duration_s = saccade_duration_s(amplitude);
+  s.profile = saccade_profile(amplitude, s.duration_s, saccade_peak_velocity(amplitude));
+  return s;
+}
+
+// With catch_up_saccades: a pursuit segment of the eye at gain 0.9, for 200-400 ms or what is left;
+// `carrier` holds the target's velocity and position and the pursuit time left.
+SyntheticGaze::Segment SyntheticGaze::plan_pursuit(Segment carrier, const Vec2& from) {
+  constexpr double kGain = 0.9;
+  Segment s = std::move(carrier);
+  s.phase = Phase::Pursuit;
+  s.from = from;
+  s.duration_s = std::min(s.pursuit_left_s, 0.2 + 0.2 * uniform_(rng_));
+  s.pursuit_left_s -= s.duration_s;
+  s.velocity = {kGain * s.target_velocity.x, kGain * s.target_velocity.y};
+  s.to = {from.x + s.velocity.x * s.duration_s, from.y + s.velocity.y * s.duration_s};
+  s.target_end = {s.target_end.x + s.target_velocity.x * s.duration_s, s.target_end.y + s.target_velocity.y * s.duration_s};
+  s.profile.clear();
+  return s;
+}
+
+// After a stretch of lagging pursuit: a catch-up saccade to 10 % beyond the target (then pursuit
+// again); after the catch-up saccade: pursuit again. False when the pursuit is over.
+bool SyntheticGaze::continue_pursuit(const Segment& finished, Segment& next) {
+  if (!options_.catch_up_saccades || finished.pursuit_left_s <= 0) return false;
+  if (finished.phase == Phase::Pursuit) {
+    const Vec2 lag{finished.target_end.x - finished.to.x, finished.target_end.y - finished.to.y};
+    const Vec2 aim{finished.to.x + 1.1 * lag.x, finished.to.y + 1.1 * lag.y};
+    next = plan_saccade(finished.to, aim);
+    next.target_velocity = finished.target_velocity;
+    next.pursuit_left_s = std::max(0.0, finished.pursuit_left_s - next.duration_s);
+    next.target_end = {finished.target_end.x + finished.target_velocity.x * next.duration_s,
+                       finished.target_end.y + finished.target_velocity.y * next.duration_s};
+    return true;
+  }
+  if (finished.phase == Phase::Saccade) {
+    next = plan_pursuit(finished, finished.to);
+    return next.duration_s > 0;
+  }
+  return false;
+}
+
 SyntheticGaze::Segment SyntheticGaze::plan_after(const Segment& finished) {
   const Vec2 here = finished.to;
   Segment s;
   s.from = here;
   s.to = here;
+  if (continue_pursuit(finished, s)) return s;
+  if (finished.phase == Phase::Fixation && options_.microsaccades_per_s > 0 &&
+      uniform_(rng_) < 1.0 - std::exp(-options_.microsaccades_per_s * finished.duration_s)) {
+    // A microsaccade in the fixation (it ends the fixation segment; a new one follows it).
+    const double amplitude = std::clamp(0.3 * std::exp(0.5 * gauss_(rng_)), 0.1, 1.0);
+    const double dir = uniform_(rng_) * 2 * kPi;
+    return plan_saccade(here, {here.x + amplitude * std::cos(dir), here.y + amplitude * std::sin(dir)});
+  }
   if (finished.phase != Phase::Fixation) {
     // Every movement ends in a fixation: log-normal duration, median 250 ms, within 150-600 ms.
     s.phase = Phase::Fixation;
@@ -127,13 +183,15 @@ SyntheticGaze::Segment SyntheticGaze::plan_after(const Segment& finished) {
       s.phase = Phase::Fixation;
       s.to = here;
       s.duration_s = 0.2;
+    } else if (options_.catch_up_saccades) {
+      // The target moves as planned; the eye follows it in lagging stretches and catch-up saccades.
+      s.target_velocity = s.velocity;
+      s.target_end = here;
+      s.pursuit_left_s = s.duration_s;
+      return plan_pursuit(s, here);
     }
   } else {
-    s.phase = Phase::Saccade;
-    s.to = random_target(here);
-    const double amplitude = angle_between_deg(here.x, here.y, s.to.x, s.to.y);
-    s.duration_s = saccade_duration_s(amplitude);
-    s.profile = saccade_profile(amplitude, s.duration_s, saccade_peak_velocity(amplitude));
+    return plan_saccade(here, random_target(here));
   }
   return s;
 }

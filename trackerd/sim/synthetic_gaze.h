@@ -18,6 +18,18 @@ struct SyntheticGazeOptions {
   protocol::DisplayGeometry display;
   std::int64_t start_time_ns = 0;
   double noise_deg = 0.03;  // RMS tracker noise per axis (precision of a good video tracker)
+  // Movements real viewers make that the plain model leaves out (issue 25: classifiers fitted to it
+  // did not transfer). Off by default, so the daemon's synthetic source stays as it was.
+  // Microsaccades during fixation, about this many per second of fixation (Engbert & Kliegl 2003,
+  // Vision Res 43:1035: 1-2/s), amplitude log-normal with median 0.3 deg within 0.1-1 deg
+  // (Martinez-Conde, Macknik & Hubel 2004, Nat Rev Neurosci 5:229), on the main sequence; labelled
+  // saccade, as human coders of lab recordings label them.
+  double microsaccades_per_s = 0;
+  // Pursuit that lags its target (gain 0.9) and catches up with saccades (de Brouwer, Yuksel,
+  // Blohm, Missal & Lefevre 2002, J Neurophysiol 87:1772: catch-up saccades every few hundred ms
+  // during pursuit): the eye pursues for 200-400 ms, then a saccade of the accumulated lag (plus 10 %)
+  // brings it back onto the target, and pursuit goes on.
+  bool catch_up_saccades = false;
 };
 
 // Main-sequence relations used by the generator (and checked by its tests).
@@ -43,6 +55,10 @@ class SyntheticGaze final : public GazeSource {
     Vec2 from, to;            // degrees from screen centre
     Vec2 velocity;            // pursuit, deg/s
     std::vector<double> profile;  // saccade: normalized position at 256 even steps of normalized time
+    // Pursuit with catch-up saccades: the target's velocity, where the target is at the segment's end,
+    // and how much of the pursuit is left after this segment (its catch-up saccade's too).
+    Vec2 target_velocity, target_end;
+    double pursuit_left_s = 0;
   };
 
   void step();  // generates the next sample and any events due before it
@@ -56,6 +72,9 @@ class SyntheticGaze final : public GazeSource {
   void start_segment(Segment s, std::int64_t t_ns);
   void end_segment(std::int64_t t_ns);
   Segment plan_after(const Segment& finished);
+  Segment plan_saccade(const Vec2& from, const Vec2& to) const;
+  Segment plan_pursuit(Segment carrier, const Vec2& from);
+  bool continue_pursuit(const Segment& finished, Segment& next);
   Vec2 position_in_segment(double t_s);
   Vec2 random_target(const Vec2& from);
   bool on_screen(const Vec2& deg, double margin) const;

@@ -25,10 +25,16 @@ inline Label truth_label(protocol::EyeMovement m) {
   return Label::Unknown;
 }
 
-inline LabelledGaze synthetic_labelled(double rate_hz, double seconds, std::uint64_t seed) {
+// realistic: with the movements the plain model leaves out (SyntheticGazeOptions: microsaccades at
+// 1.5/s of fixation, pursuit with catch-up saccades).
+inline LabelledGaze synthetic_labelled(double rate_hz, double seconds, std::uint64_t seed, bool realistic = false) {
   SyntheticGazeOptions o;
   o.rate_hz = rate_hz;
   o.seed = seed;
+  if (realistic) {
+    o.microsaccades_per_s = 1.5;
+    o.catch_up_saccades = true;
+  }
   SyntheticGaze g(o);
   LabelledGaze l;
   const auto n = static_cast<std::size_t>(rate_hz * seconds);
