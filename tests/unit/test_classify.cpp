@@ -336,6 +336,30 @@ TEST(Classify, PursuitRamp) {
   }
 }
 
+// Issue 25: on human-coded EyeLink data, ivvt called the eye settling after a saccade pursuit.
+TEST(Classify, SettlingAfterASaccadeIsNoPursuitButCatchUpPursuitGoesOn) {
+  Script sc;
+  sc.rate = 500;
+  sc.noise = 0.01;
+  // Fixation, an 8 deg saccade at 0.5 s, then the eye drifts 0.4 deg further over ~60 ms, settles.
+  const auto settle = sample(sc, 1.2, [](double t) {
+    const double x = saccade_at(t, 0.5, 8.0).first;
+    const double end = 0.5 + saccade_duration_s(8.0);
+    const double drift = t > end ? 0.4 * (1.0 - std::exp(-(t - end) / 0.03)) : 0.0;
+    return std::pair{x + drift, 0.0};
+  });
+  const auto l = run_online("ivvt", settle, 500);
+  EXPECT_EQ(share(l, index_at(settle, 0.56), index_at(settle, 0.75), Label::Pursuit), 0.0)
+      << "the settling after a saccade from a fixation is no pursuit";
+  // Pursuit at 10 deg/s, a 1 deg catch-up saccade at 0.6 s, pursuit goes on.
+  const auto chase = sample(sc, 1.4, [](double t) {
+    return std::pair{10.0 * t + saccade_at(t, 0.6, 1.0).first, 0.0};
+  });
+  const auto c = run_online("ivvt", chase, 500);
+  EXPECT_GT(share(c, index_at(chase, 0.65), index_at(chase, 0.75), Label::Pursuit), 0.9)
+      << "after a catch-up saccade the eye is still pursuing";
+}
+
 TEST(Classify, PostSaccadicOscillation) {
   // A damped 0.5 deg, 25 Hz wobble after landing (a PSO) is labelled pso, not saccade or fixation.
   Script sc;

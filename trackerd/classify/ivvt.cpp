@@ -27,7 +27,9 @@
 //     filtered gaze, 2 deg/s): the least-squares slope over +-100 ms of the surrounding
 //     inter-saccadic samples (a low-pass filter with its first zero at 5 Hz, close to REMoDNaV's
 //     4 Hz) must exceed max(2 deg/s, 3 x its own noise sigma / sqrt(sum (t - mean t)^2)); the
-//     second term keeps a noisy or short stretch from passing for pursuit.
+//     second term keeps a noisy or short stretch from passing for pursuit. Within 100 ms after a
+//     saccade (the window cut short by it) pursuit also needs pursuit before the saccade: what
+//     follows a saccade alone is mostly the eye settling (smooth_label).
 //
 // Latency: the velocity window (10 ms) plus the pursuit window (100 ms) = 110 ms in this core; the
 // saccade onset walk-back and the PSO window (40 ms) fit inside it.
@@ -250,7 +252,14 @@ class IvvtCore final : public Core {
     const Fit fw = fit(a, b);
     if (!(fw.stt > 0)) return Label::Fixation;
     const double threshold = std::max(kPursuitFloorDegS, kPursuitK * at(f).sigma / std::sqrt(fw.stt));
-    return std::hypot(fw.vx, fw.vy) > threshold ? Label::Pursuit : Label::Fixation;
+    const bool moving = std::hypot(fw.vx, fw.vy) > threshold;
+    // Right after a saccade the window holds only what follows it: the eye settling (glissades,
+    // Bahill, Clark & Stark 1975; in pupil-based trackers the pupil moving inside the iris, Nystrom,
+    // Hooge & Holmqvist 2013) passes for pursuit there. So a window cut short by a saccade on its
+    // left says pursuit only when the eye pursued before that saccade: a catch-up saccade.
+    const bool after_saccade = a > base_ && at(a - 1).marked && at(a).p.t > t - kSmoothHalfS;
+    if (moving && after_saccade && before_saccade_ != Label::Pursuit) return Label::Fixation;
+    return moving ? Label::Pursuit : Label::Fixation;
   }
 
   void finalize(std::vector<Labeled>& out, bool flushing) {
@@ -265,6 +274,8 @@ class IvvtCore final : public Core {
       else if (e.marked) l = e.mark;
       else if (std::isnan(e.v)) l = Label::Unknown;
       else l = smooth_label(fin_next_);
+      if (e.marked && (fin_next_ == 0 || !at(fin_next_ - 1).marked)) before_saccade_ = last_smooth_;
+      if (l == Label::Fixation || l == Label::Pursuit) last_smooth_ = l;
       out.push_back({e.p.index, l});
       ++fin_next_;
     }
@@ -286,6 +297,8 @@ class IvvtCore final : public Core {
   std::uint64_t fin_next_ = 0;   // next entry to label
   std::uint64_t break_upto_ = 0; // entries before this precede a loss: nothing after them matters
   double newest_t_ = 0;
+  Label last_smooth_ = Label::Fixation;     // the last fixation/pursuit label given
+  Label before_saccade_ = Label::Fixation;  // what the eye did before the last saccade
 
   std::deque<std::pair<double, double>> residuals_;  // (time, |residual| / its SD factor)
   std::vector<double> scratch_;
