@@ -660,6 +660,15 @@ struct MarkerLog {
     return seen.size();
   }
 };
+
+// A server whose markers are logged, and two raw peers: the first subscribed to markers.
+struct MarkerRig {
+  explicit MarkerRig(ServerOptions o = server_options()) : server(std::move(o)) { log.attach(server); }
+  GazeServer server;
+  MarkerLog log;
+  RawPeer first{server.local_endpoint()}, second{server.local_endpoint()};
+  std::optional<Subscribed> first_session = first.handshake(0, kStreamMarkers);
+};
 }  // namespace
 
 TEST(Markers, ReachMarkerSubscribersOnlyWithTheSenderSessionHidden) {
@@ -705,11 +714,8 @@ TEST(Markers, ReachMarkerSubscribersOnlyWithTheSenderSessionHidden) {
 }
 
 TEST(Markers, StrangersAndOtherAddressesGetASmallErrorAndPublishNothing) {
-  GazeServer server(server_options());
-  MarkerLog log;
-  log.attach(server);
-  RawPeer owner(server.local_endpoint()), stranger(server.local_endpoint());
-  const auto sub = owner.handshake(0, kStreamMarkers);
+  MarkerRig rig;
+  auto& [server, log, owner, stranger, sub] = rig;
   ASSERT_TRUE(sub);
   stranger.send(marker_from(0x1234, 1, "forged"));
   auto err = stranger.receive(MessageType::Error, 1000);
@@ -728,11 +734,8 @@ TEST(Markers, StrangersAndOtherAddressesGetASmallErrorAndPublishNothing) {
 }
 
 TEST(Markers, ARetransmissionIsPublishedOnceAndItsCopySentAgainToTheSenderAlone) {
-  GazeServer server(server_options());
-  MarkerLog log;
-  log.attach(server);
-  RawPeer sender(server.local_endpoint()), other(server.local_endpoint());
-  const auto sub = sender.handshake(0, kStreamMarkers);
+  MarkerRig rig;
+  auto& [server, log, sender, other, sub] = rig;
   ASSERT_TRUE(sub);
   ASSERT_TRUE(other.handshake(0, kStreamMarkers));
   sender.send(marker_from(sub->session_id, 77, "key press"), 10);
@@ -751,9 +754,8 @@ TEST(Markers, ARetransmissionIsPublishedOnceAndItsCopySentAgainToTheSenderAlone)
 TEST(Markers, ASessionBeyondItsRateIsRefusedWithRateLimited) {
   ServerOptions o = server_options();
   o.marker_rate_per_s = 5;
-  GazeServer server(o);
-  RawPeer sender(server.local_endpoint());
-  const auto sub = sender.handshake(0, kStreamMarkers);
+  MarkerRig rig(o);
+  auto& [server, log, sender, unused, sub] = rig;
   ASSERT_TRUE(sub);
   for (std::uint64_t id = 1; id <= 10; ++id) sender.send(marker_from(sub->session_id, id, "m"), id);
   std::size_t published = 0, limited = 0;
