@@ -99,3 +99,17 @@ TEST(SequenceTracker, LossWhileUnsubscribedSurvivesTheResubscription) {
   EXPECT_EQ(t.counts().lost, 2250u);
   EXPECT_EQ(t.counts().received, 20u);
 }
+
+// MARKER: SUBSCRIBED names no next marker sequence; the first arrival starts the stream.
+TEST(SequenceTracker, FromFirstArrivalCountsNothingBeforeItAsLost) {
+  fovea::protocol::SequenceTracker t;
+  t.reset_from_first_arrival();
+  EXPECT_EQ(t.on_arrival(41), fovea::protocol::SequenceTracker::Verdict::New);
+  EXPECT_EQ(t.counts().lost, 0u);
+  EXPECT_EQ(t.on_arrival(43), fovea::protocol::SequenceTracker::Verdict::New);
+  EXPECT_EQ(t.counts().lost, 1u) << "after the first arrival gaps count as usual";
+  EXPECT_EQ(t.on_arrival(40), fovea::protocol::SequenceTracker::Verdict::TooOld);
+  t.reset(100);  // an ordinary reset afterwards is unaffected
+  EXPECT_EQ(t.on_arrival(102), fovea::protocol::SequenceTracker::Verdict::New);
+  EXPECT_EQ(t.counts().lost, 1u + 56u + 2u) << "44..99 skipped while unsubscribed, then 100 and 101";
+}
