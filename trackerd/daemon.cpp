@@ -58,7 +58,7 @@ class Daemon {
 
   bool start(std::int64_t start_ns);
   void shut_down();
-  void publish(GazeItem item, std::optional<std::int64_t> receive_ns);
+  void publish(GazeItem item, std::optional<std::int64_t> receive_ns, const std::vector<protocol::Marker>& markers);
   void send(const GazeItem& item, std::optional<std::int64_t> receive_ns = std::nullopt);
   void record(const protocol::Record& record);
   void record_markers();
@@ -225,7 +225,9 @@ bool Daemon::start(std::int64_t start_ns) {
 // calibration -> online classifier -> publisher -> recorder. `receive_ns`: when the item reached this
 // host, where the source says (a network tracker); it goes with the sample, which the classifier
 // hands on in the same call (its events, in the past, follow it).
-void Daemon::publish(GazeItem item, std::optional<std::int64_t> receive_ns) {
+void Daemon::publish(GazeItem item, std::optional<std::int64_t> receive_ns,
+                     const std::vector<protocol::Marker>& markers) {
+  for (const protocol::Marker& m : markers) server_->publish(m);  // recorded through on_marker
   calibration_->apply(item);
   outgoing_.clear();
   classify_->process(item, outgoing_);
@@ -604,6 +606,7 @@ int Daemon::run() {
   bool source_ended = false;
   std::optional<GazeItem> item;  // the next item, waiting for its time
   std::optional<std::int64_t> item_receive_ns;  // when it reached this host, if the source says
+  std::vector<protocol::Marker> item_markers;    // met by the source on the way to it
   while (!stopping()) {
     if (mailbox_.pending()) mailbox_.drain();  // prepared changes, swapped in between two items
     if (source_ended) {
@@ -617,6 +620,7 @@ int Daemon::run() {
       item = source_->next();
       in_next_since_ns_.store(0);
       item_receive_ns = item ? source_->last_receive_ns() : std::nullopt;
+      item_markers = source_->take_markers();
       if (!item && !source_->ended()) {  // a device with nothing yet, or interrupted: attend, go on
         if (monotonic_ns() >= end_ns) break;
         service_tick();
@@ -637,7 +641,7 @@ int Daemon::run() {
     const Wake w = wait_until(due);
     if (w == Wake::Stop) break;
     if (w == Wake::Attention) continue;  // swap changes in, then wait for the same item again
-    publish(std::move(*item), item_receive_ns);
+    publish(std::move(*item), item_receive_ns, item_markers);
     item.reset();
   }
 

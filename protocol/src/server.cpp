@@ -208,6 +208,16 @@ std::uint64_t GazeServer::publish(const GazeSample& sample, std::int64_t host_re
   return send_stream(lock, kStreamSamples, next_sample_seq_, host_receive_ns, sample);
 }
 
+std::uint64_t GazeServer::publish(const Marker& marker) {
+  std::unique_lock lock(mutex_);
+  Marker published = marker;
+  published.session_id = 0;
+  const std::uint64_t sequence = send_stream(lock, kStreamMarkers, next_marker_seq_, published.time_ns, published);
+  ++stats_.markers_published;
+  if (on_marker_) on_marker_(published, sequence);
+  return sequence;
+}
+
 std::uint64_t GazeServer::publish(const GazeEvent& event) {
   std::unique_lock lock(mutex_);
   ++stats_.events_published;

@@ -172,4 +172,13 @@ first=$(sed -n '6p' "$WORK/marked.csv" | cut -d, -f2); last=$(tail -1 "$WORK/mar
 "$CTL" convert "$WORK/marked.fgr" "$WORK/marked.csv" 2>/dev/null && fail "convert replaced the CSV without --force"
 "$CTL" convert "$WORK/marked.fgr" "$WORK/marked.csv" --force 2>/dev/null || fail "convert --force"
 
+echo "== a replayed recording publishes its markers again"
+"$TRACKERD" --source "replay:$WORK/marked.fgr" --port $PORT --wait-subscribers 1 >"$WORK/replay-marked.log" 2>&1 &
+DR=$!; PIDS+=($DR)
+"$CTL" --server "$SRV" watch --events-only --duration 5 >"$WORK/replay-watch.out" 2>&1 || fail "watch of the replay: $(cat "$WORK/replay-watch.out")"
+kill -TERM $DR; wait $DR
+grep -q 'MARKER "trial 1, "go"" (daemon.s receive time)' "$WORK/replay-watch.out" || fail "replay: $(grep -c MARKER "$WORK/replay-watch.out") markers: $(head -5 "$WORK/replay-watch.out")"
+grep -q 'MARKER "flip" (sender.s time)' "$WORK/replay-watch.out" || fail "replay lost the flip marker"
+grep -q "markers=2 " "$WORK/replay-watch.out" || fail "watch counted: $(grep summary "$WORK/replay-watch.out")"
+
 echo "PASS"

@@ -40,7 +40,7 @@ TEST(ReplaySource, RebasesTimeAndKeepsSpacing) {
   for (std::size_t i = 1; i < times.size(); ++i) EXPECT_EQ(times[i] - times[i - 1], 4'000'000);
 }
 
-TEST(ReplaySource, RecordedReceiveTimesAreRebasedWithTheSamplesAndMarkersLeftOut) {
+TEST(ReplaySource, RecordedReceiveTimesAndMarkersAreRebasedWithTheSamples) {
   auto rec = make_recording(20, 250);
   for (auto& r : rec.records) {
     if (const auto* s = std::get_if<protocol::GazeSample>(&r.item)) r.host_receive_ns = s->tracker_time_ns + 7'000'000;
@@ -54,10 +54,13 @@ TEST(ReplaySource, RecordedReceiveTimesAreRebasedWithTheSamplesAndMarkersLeftOut
   o.start_time_ns = 5'000'000'000;
   o.speed = 2.0;
   ReplaySource src(o, rec);
-  EXPECT_EQ(src.status_detail(), "1 markers in the file not replayed");
   std::size_t samples = 0;
+  std::vector<protocol::Marker> markers;
+  std::int64_t sample_after_marker = -1;
   while (auto item = src.next()) {
+    for (const auto& mk : src.take_markers()) markers.push_back(mk);
     const auto* s = std::get_if<protocol::GazeSample>(&*item);
+    if (s != nullptr && !markers.empty() && sample_after_marker < 0) sample_after_marker = s->tracker_time_ns;
     if (s == nullptr) {
       EXPECT_FALSE(src.last_receive_ns());
       continue;
@@ -67,6 +70,12 @@ TEST(ReplaySource, RecordedReceiveTimesAreRebasedWithTheSamplesAndMarkersLeftOut
     EXPECT_EQ(*src.last_receive_ns() - s->tracker_time_ns, 3'500'000) << "7 ms at twice the speed";
   }
   EXPECT_EQ(samples, 20u);
+  ASSERT_EQ(markers.size(), 1u) << "the recording's marker comes out with the item after it";
+  EXPECT_EQ(markers[0].label.value, "trial 1");
+  EXPECT_EQ(markers[0].time_ns, markers[0].received_ns);
+  EXPECT_LE(markers[0].time_ns, sample_after_marker) << "rebased like the samples: not after the sample it preceded";
+  EXPECT_GT(markers[0].time_ns, 5'000'000'000);
+  EXPECT_EQ(src.status_detail(), "1 markers replayed");
 }
 
 TEST(ReplaySource, SpeedFactorAndLoopKeepTimeMonotonic) {

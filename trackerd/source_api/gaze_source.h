@@ -4,6 +4,7 @@
 // comes.
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "fovea/protocol/display_geometry.h"
 #include "fovea/protocol/recording.h"
@@ -29,6 +30,9 @@ class GazeSource {
   // item's time is the host's own already (synthetic, HID reads, camera frames). Called on the
   // thread that calls next().
   virtual std::optional<std::int64_t> last_receive_ns() const { return std::nullopt; }
+  // Experiment markers (PROTOCOL.md §4.17) the source met on the way to the item next() returned
+  // last, times on the daemon's clock (a replayed recording's); the daemon publishes them with it.
+  virtual std::vector<protocol::Marker> take_markers() { return {}; }
   // After next() returned nullopt: is the stream over for good? (files: yes; devices: no)
   virtual bool ended() const { return true; }
   // Thread-safe; a source that can block in next() (a device waiting for data) returns nullopt

@@ -24,9 +24,6 @@ ReplaySource::ReplaySource(ReplayOptions options, protocol::Recording recording)
     return std::holds_alternative<GazeSample>(r.item);
   });
   if (!has_sample) throw std::runtime_error("recording " + options_.path + " holds no intact gaze samples");
-  // Markers are not republished yet (a source yields samples and events); they stay in the file.
-  markers_skipped_ = static_cast<std::size_t>(std::erase_if(
-      recording_.records, [](const protocol::Record& r) { return std::holds_alternative<protocol::Marker>(r.item); }));
   refuse_absurd_times();
   std::int64_t first = INT64_MAX, last = INT64_MIN;
   for (const auto& r : recording_.records) {
@@ -46,9 +43,18 @@ void ReplaySource::refuse_absurd_times() const {
   constexpr std::int64_t kMax = std::int64_t{1} << 61;
   for (std::size_t i = 0; i < recording_.records.size(); ++i) {
     const auto& item = recording_.records[i].item;
-    const std::int64_t t = std::holds_alternative<GazeSample>(item) ? std::get<GazeSample>(item).tracker_time_ns
-                                                                     : std::get<GazeEvent>(item).start_time_ns;
-    const std::int64_t d = std::holds_alternative<GazeEvent>(item) ? std::get<GazeEvent>(item).duration_ns : 0;
+    std::int64_t t = 0, d = 0;
+    if (const auto* s = std::get_if<GazeSample>(&item)) {
+      t = s->tracker_time_ns;
+    } else if (const auto* e = std::get_if<GazeEvent>(&item)) {
+      t = e->start_time_ns;
+      d = e->duration_ns;
+    } else {
+      const auto& m = std::get<protocol::Marker>(item);
+      t = m.time_ns;
+      d = m.received_ns - m.time_ns;  // the rebasing shifts both: their distance must stay in range too
+      if (d < 0) d = -d;
+    }
     if (t < -kMax || t > kMax || d < 0 || d > kMax) {
       throw std::runtime_error("recording " + protocol::escape_for_log(options_.path) + ": record " +
                                std::to_string(i) + " has the time " + std::to_string(t) + " ns" +
@@ -59,7 +65,7 @@ void ReplaySource::refuse_absurd_times() const {
 }
 
 std::string ReplaySource::status_detail() const {
-  return markers_skipped_ == 0 ? std::string() : std::to_string(markers_skipped_) + " markers in the file not replayed";
+  return markers_replayed_ == 0 ? std::string() : std::to_string(markers_replayed_) + " markers replayed";
 }
 
 std::string ReplaySource::description() const {
@@ -70,18 +76,40 @@ std::string ReplaySource::description() const {
   return "replay:" + (slash == std::string::npos ? options_.path : options_.path.substr(slash + 1)) + buf;
 }
 
+std::int64_t ReplaySource::to_live(std::int64_t recorded_ns) const {
+  return live_origin_ns_ +
+         static_cast<std::int64_t>(std::llround(static_cast<double>(recorded_ns - recorded_origin_ns_) / options_.speed));
+}
+
+std::vector<protocol::Marker> ReplaySource::take_markers() {
+  std::vector<protocol::Marker> out;
+  out.swap(markers_);
+  return out;
+}
+
+// The next sample or event; the markers passed on the way are kept for take_markers(), rebased.
 std::optional<GazeItem> ReplaySource::next() {
-  if (index_ >= recording_.records.size()) {
-    if (!options_.loop) return std::nullopt;
-    index_ = 0;
-    ++loops_;
-    live_origin_ns_ += static_cast<std::int64_t>(std::llround(static_cast<double>(loop_span_ns_) / options_.speed));
+  while (true) {
+    if (index_ >= recording_.records.size()) {
+      if (!options_.loop) return std::nullopt;
+      index_ = 0;
+      ++loops_;
+      live_origin_ns_ += static_cast<std::int64_t>(std::llround(static_cast<double>(loop_span_ns_) / options_.speed));
+    }
+    const protocol::Record& r = recording_.records[index_++];
+    if (const auto* m = std::get_if<protocol::Marker>(&r.item)) {
+      protocol::Marker live = *m;
+      live.time_ns = to_live(m->time_ns);
+      live.received_ns = to_live(m->received_ns);
+      markers_.push_back(live);
+      ++markers_replayed_;
+      continue;
+    }
+    return live_item(r);
   }
-  const protocol::Record& r = recording_.records[index_++];
-  const auto to_live = [&](std::int64_t recorded_ns) {
-    return live_origin_ns_ +
-           static_cast<std::int64_t>(std::llround(static_cast<double>(recorded_ns - recorded_origin_ns_) / options_.speed));
-  };
+}
+
+GazeItem ReplaySource::live_item(const protocol::Record& r) {
   GazeItem item;
   last_receive_ns_.reset();
   if (const auto* s = std::get_if<GazeSample>(&r.item)) {

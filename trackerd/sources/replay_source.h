@@ -29,11 +29,15 @@ class ReplaySource final : public GazeSource {
   std::string status_detail() const override;
   // The recorded receive time, rebased as the sample's time is (a recording of a network tracker).
   std::optional<std::int64_t> last_receive_ns() const override { return last_receive_ns_; }
+  // The recording's markers met on the way to the last item, rebased like it.
+  std::vector<protocol::Marker> take_markers() override;
   const protocol::RecoveryReport& recovery() const { return recording_.report; }
   std::uint64_t loops_completed() const { return loops_; }
 
  private:
   void refuse_absurd_times() const;
+  std::int64_t to_live(std::int64_t recorded_ns) const;
+  GazeItem live_item(const protocol::Record& r);
   ReplayOptions options_;
   protocol::Recording recording_;
   std::size_t index_ = 0;
@@ -42,7 +46,8 @@ class ReplaySource final : public GazeSource {
   std::int64_t live_origin_ns_ = 0;      // daemon time that maps to recorded_origin_ns_ this loop
   std::int64_t loop_span_ns_ = 0;        // recorded duration of one pass plus one sample period
   std::int64_t last_due_ns_ = 0;
-  std::size_t markers_skipped_ = 0;
+  std::vector<protocol::Marker> markers_;  // met, not yet taken
+  std::uint64_t markers_replayed_ = 0;
   std::optional<std::int64_t> last_receive_ns_;
 };
 

@@ -118,6 +118,9 @@ class GazeServer {
   // The same, for a sample that reached the daemon at `host_receive_ns` (its clock), later than the
   // tracker's own timestamp says: that time becomes the header's origin time (PROTOCOL.md §2).
   std::uint64_t publish(const GazeSample& sample, std::int64_t host_receive_ns);
+  // A marker of the daemon's own (a replayed recording's) on the marker stream, as if a client had
+  // sent it: session_id 0; the marker handler is told too.
+  std::uint64_t publish(const Marker& marker);
   std::uint64_t publish(const GazeEvent& event);
 
   void set_source_state(SourceState s) { source_state_.store(s); }
