@@ -627,6 +627,7 @@ int Daemon::run() {
         continue;
       }
       if (!item) {
+        for (const protocol::Marker& m : item_markers) server_->publish(m);  // those after the last item
         outgoing_.clear();
         classify_->flush(outgoing_);
         for (const GazeItem& out : outgoing_) send(out);

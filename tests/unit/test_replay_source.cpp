@@ -76,6 +76,20 @@ TEST(ReplaySource, RecordedReceiveTimesAndMarkersAreRebasedWithTheSamples) {
   EXPECT_LE(markers[0].time_ns, sample_after_marker) << "rebased like the samples: not after the sample it preceded";
   EXPECT_GT(markers[0].time_ns, 5'000'000'000);
   EXPECT_EQ(src.status_detail(), "1 markers replayed");
+
+  // A marker after the last sample is met by the next() that finds the end: take_markers has it.
+  auto tail = make_recording(5, 250);
+  protocol::Marker last = m;
+  last.time_ns = last.received_ns = tail.records.back().time_ns() + 1'000'000;
+  last.label.value = "end";
+  tail.records.push_back(protocol::Record{1, last});
+  ReplaySource end_src(o, tail);
+  while (end_src.next()) {
+    EXPECT_TRUE(end_src.take_markers().empty());
+  }
+  const auto after = end_src.take_markers();
+  ASSERT_EQ(after.size(), 1u);
+  EXPECT_EQ(after[0].label.value, "end");
 }
 
 TEST(ReplaySource, SpeedFactorAndLoopKeepTimeMonotonic) {
