@@ -212,7 +212,12 @@ std::uint64_t GazeServer::publish(const Marker& marker) {
   std::unique_lock lock(mutex_);
   Marker published = marker;
   published.session_id = 0;
-  const std::uint64_t sequence = send_stream(lock, kStreamMarkers, next_marker_seq_, published.time_ns, published);
+  return send_marker(lock, published);
+}
+
+// Sends a marker on its stream and tells the marker handler; the caller holds mutex_.
+std::uint64_t GazeServer::send_marker(const std::unique_lock<std::mutex>& held, const Marker& published) {
+  const std::uint64_t sequence = send_stream(held, kStreamMarkers, next_marker_seq_, published.time_ns, published);
   ++stats_.markers_published;
   if (on_marker_) on_marker_(published, sequence);
   return sequence;
@@ -443,11 +448,9 @@ void GazeServer::handle_marker(const std::unique_lock<std::mutex>& held, const M
   published.session_id = 0;  // sessions are never disclosed to other subscribers
   published.received_ns = received_ns;
   if ((marker.flags & kMarkerClientTime) == 0) published.time_ns = received_ns;
-  const std::uint64_t sequence = send_stream(held, kStreamMarkers, next_marker_seq_, published.time_ns, published);
-  ++stats_.markers_published;
+  const std::uint64_t sequence = send_marker(held, published);
   if (state.recent.size() >= 32) state.recent.pop_front();
   state.recent.push_back({marker.marker_id, sequence, published});
-  if (on_marker_) on_marker_(published, sequence);
 }
 
 // PROTOCOL.md §4.11; read under mutex_ so the counters agree with each other.

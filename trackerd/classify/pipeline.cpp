@@ -78,13 +78,12 @@ void Frontend::flush(const Emit& emit) { release_unfilled(emit); }  // a gap at 
 
 void Pipeline::push(const Sample& s, std::vector<Labeled>& out) {
   const std::uint64_t index = next_index_++;
-  times_.emplace_back(index, s.t_s);
   if (!std::isfinite(s.t_s) || (have_time_ && !(s.t_s > last_t_))) {
-    rejected_.push_back(index);  // time standing still or going backwards: Unknown, ignored otherwise
+    rejected_.emplace_back(index, s.t_s);  // time standing still or going backwards: Unknown, ignored otherwise
   } else {
     have_time_ = true;
     last_t_ = s.t_s;
-    accepted_.push_back(index);
+    accepted_.emplace_back(index, s.t_s);
     frontend_.push(index, s, [this](const Prepared& p) { core_->push(p, core_out_); });
   }
   forward(out);
@@ -97,23 +96,20 @@ void Pipeline::flush(std::vector<Labeled>& out) {
 }
 
 void Pipeline::forward(std::vector<Labeled>& out) {
-  ordered_.clear();
   for (const Labeled& l : core_out_) {
-    while (!rejected_.empty() && rejected_.front() < l.index) {
-      ordered_.push_back({rejected_.front(), Label::Unknown});
+    while (!rejected_.empty() && rejected_.front().first < l.index) {
+      emit({rejected_.front().first, Label::Unknown}, rejected_.front().second, out);
       rejected_.pop_front();
     }
-    ordered_.push_back(l);
-    if (!accepted_.empty() && accepted_.front() == l.index) accepted_.pop_front();
+    // The core labels accepted samples in order: this one is accepted_'s first.
+    const double t = !accepted_.empty() && accepted_.front().first == l.index ? accepted_.front().second : last_t_;
+    emit(l, t, out);
+    if (!accepted_.empty() && accepted_.front().first == l.index) accepted_.pop_front();
   }
   core_out_.clear();
-  while (!rejected_.empty() && (accepted_.empty() || rejected_.front() < accepted_.front())) {
-    ordered_.push_back({rejected_.front(), Label::Unknown});
+  while (!rejected_.empty() && (accepted_.empty() || rejected_.front().first < accepted_.front().first)) {
+    emit({rejected_.front().first, Label::Unknown}, rejected_.front().second, out);
     rejected_.pop_front();
-  }
-  for (const Labeled& l : ordered_) {
-    while (times_.front().first < l.index) times_.pop_front();  // labels come in index order
-    edges_.push(l, times_.front().second, out);
   }
 }
 

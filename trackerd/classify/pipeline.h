@@ -121,12 +121,12 @@ class Pipeline final : public OnlineClassifier {
   std::uint64_t next_index_ = 0;
   bool have_time_ = false;
   double last_t_ = 0;
-  std::deque<std::uint64_t> rejected_;  // indices of rejected samples not yet emitted
-  std::deque<std::uint64_t> accepted_;  // indices of accepted samples not yet emitted
+  void emit(const Labeled& l, double t, std::vector<Labeled>& out) { edges_.push(l, t, out); }
+  // Index and time of the rejected / accepted samples not yet emitted.
+  std::deque<std::pair<std::uint64_t, double>> rejected_;
+  std::deque<std::pair<std::uint64_t, double>> accepted_;
   std::vector<Labeled> core_out_;
   BlinkEdges edges_;
-  std::deque<std::pair<std::uint64_t, double>> times_;  // index and time of samples not yet past edges_
-  std::vector<Labeled> ordered_;  // scratch: forward()'s output before edges_
 };
 
 // --- geometry shared by the methods -------------------------------------------------------------

@@ -22,6 +22,10 @@ std::vector<Command> add_daemon_commands(CLI::App& app);
 std::vector<Command> add_recording_commands(CLI::App& app);
 std::vector<Command> add_eye_commands(CLI::App& app);
 
+// Writes `text` to `path` through a temporary file beside it, renamed into place (never a
+// half-written file); refuses to replace an existing file unless `force`. Throws std::runtime_error.
+void write_new_file(const std::string& path, const std::string& text, bool force);
+
 // Set by SIGINT/SIGTERM (main installs the handlers); long-running commands poll it.
 std::atomic<bool>& stop_requested();
 

@@ -23,6 +23,26 @@
 #include "source_api/image_header.h"
 
 namespace fovea::ctl {
+
+// Declared in commands.h (convert's markers CSV writes through it too).
+void write_new_file(const std::string& path, const std::string& text, bool force) {
+  if (!force && std::filesystem::exists(path)) {
+    throw std::runtime_error(path + " already exists (use --force to replace it)");
+  }
+  const std::string tmp = path + ".partial-" + std::to_string(getpid());
+  {
+    std::ofstream out(tmp);
+    out << text;
+    out.close();
+    if (!out) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw std::runtime_error("cannot write " + path);
+    }
+  }
+  std::filesystem::rename(tmp, path);
+}
+
 namespace {
 
 using namespace fovea::protocol;
@@ -56,25 +76,6 @@ std::string glint_list(const std::vector<cv::Point2d>& points) {
   return out;
 }
 
-// Writes `text` to `path` through a temporary file beside it (never a half-written file), refusing
-// to replace an existing one unless `force`.
-void write_new_file(const std::string& path, const std::string& text, bool force) {
-  if (!force && std::filesystem::exists(path)) {
-    throw std::runtime_error(path + " already exists (use --force to replace it)");
-  }
-  const std::string tmp = path + ".partial-" + std::to_string(getpid());
-  {
-    std::ofstream out(tmp);
-    out << text;
-    out.close();
-    if (!out) {
-      std::error_code ignored;
-      std::filesystem::remove(tmp, ignored);
-      throw std::runtime_error("cannot write " + path);
-    }
-  }
-  std::filesystem::rename(tmp, path);
-}
 
 int cmd_detect_pupil(const std::vector<std::string>& images, const std::string& out_path, bool force,
                      const std::string& leds, int downscale, bool track) {

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 
 #include "classify/classifier.h"
 #include "ctl/commands.h"
@@ -31,19 +32,9 @@ Recording load_any(const std::string& path) {
 // OUT.csv's markers go to OUT.markers.csv, written the same careful way as OUT itself.
 void write_markers_beside(const Recording& rec, const std::string& out_path, bool force) {
   const std::string path = out_path.substr(0, out_path.size() - 4) + ".markers.csv";
-  if (!force && std::filesystem::exists(path)) {
-    throw std::runtime_error(path + " (for the markers) already exists (use --force to replace it)");
-  }
-  const std::string tmp = path + ".partial-" + std::to_string(getpid());
-  std::ofstream out(tmp);
-  const std::size_t n = write_markers_csv(out, rec);
-  out.close();
-  if (!out) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    throw std::runtime_error("cannot write " + tmp);
-  }
-  std::filesystem::rename(tmp, path);
+  std::ostringstream text;
+  const std::size_t n = write_markers_csv(text, rec);
+  write_new_file(path, text.str(), force);
   std::fprintf(stderr, "fovea-ctl convert: wrote %zu markers to %s\n", n, path.c_str());
 }
 
