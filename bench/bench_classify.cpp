@@ -6,6 +6,7 @@
 // how long after a true fixation or saccade onset the online classifier's final label said so.
 //
 //   bench_classify [--seconds S] [--seeds N]     (defaults: 120 s of gaze per seed, 3 seeds)
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -80,6 +81,48 @@ void print_onset_latency(const double* rates, const Condition& c, double seconds
                   1000 * quantile(fix.latency_s, 0.5), 1000 * quantile(fix.latency_s, 0.99), missed(fix),
                   1000 * quantile(sac.latency_s, 0.5), 1000 * quantile(sac.latency_s, 0.99), missed(sac));
     }
+  }
+}
+
+// Provisional events (issue 25, goal 2): true onset -> the provisional event, in sample time (the
+// newest sample when it was known), and how often the default method's final labels retracted one.
+void print_provisional(const double* rates, const Condition& c, double seconds, int seeds) {
+  std::printf("\nProvisional events, condition %s: p50 / p99 ms from the true onset to the sample that made the "
+              "provisional event known; missed = true events with none; false starts per minute; retracted = "
+              "provisional events the default method's (%s) final labels did not confirm within 50 ms.\n\n",
+              c.name, classifiers().front().name.c_str());
+  std::printf("| rate Hz | saccade onset p50 | p99 | missed %% | fixation onset p50 | p99 | missed %% | false starts /min | "
+              "retracted %% |\n");
+  std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (int r = 0; r < 4; ++r) {
+    ProvisionalLatency all;
+    ProvisionalAgreement agree;
+    for (int s = 0; s < seeds; ++s) {
+      Labelled l = synthetic(rates[r], seconds, static_cast<std::uint64_t>(s + 1), c);
+      Degradation d = c.d;
+      d.seed = static_cast<std::uint64_t>(100 + s);
+      degrade(l.samples, d);
+      const std::vector<ProvisionalEvent> events = provisional_events(l.samples);
+      const ProvisionalLatency one = provisional_latency(l.truth, l.samples, events);
+      for (auto [from, to] : {std::pair{&one.saccade, &all.saccade}, std::pair{&one.fixation, &all.fixation}}) {
+        to->latency_s.insert(to->latency_s.end(), from->latency_s.begin(), from->latency_s.end());
+        to->missed += from->missed;
+      }
+      all.false_starts += one.false_starts;
+      ClassifierOptions o;
+      o.nominal_rate_hz = rates[r];
+      const ProvisionalAgreement a = provisional_agreement(events, classify_all(classifiers().front().name, o, l.samples), l.samples);
+      agree.emitted += a.emitted;
+      agree.retracted += a.retracted;
+    }
+    const auto missed = [](const OnsetLatency& o) {
+      return 100.0 * static_cast<double>(o.missed) / static_cast<double>(o.missed + o.latency_s.size());
+    };
+    std::printf("| %.0f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f | %.1f |\n", rates[r],
+                1000 * quantile(all.saccade.latency_s, 0.5), 1000 * quantile(all.saccade.latency_s, 0.99), missed(all.saccade),
+                1000 * quantile(all.fixation.latency_s, 0.5), 1000 * quantile(all.fixation.latency_s, 0.99),
+                missed(all.fixation), static_cast<double>(all.false_starts) / (seconds * seeds / 60.0),
+                100.0 * static_cast<double>(agree.retracted) / static_cast<double>(std::max<std::uint64_t>(1, agree.emitted)));
   }
 }
 
@@ -162,5 +205,7 @@ int main(int argc, char** argv) {
   }
   print_onset_latency(rates, conditions[1], seconds, seeds);
   print_onset_latency(rates, conditions.back(), seconds, seeds);
+  print_provisional(rates, conditions[1], seconds, seeds);
+  print_provisional(rates, conditions.back(), seconds, seeds);
   return 0;
 }

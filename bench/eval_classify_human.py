@@ -14,6 +14,12 @@ gaze in screen pixels, lost samples as nan), and scores the labels against the c
 - onset latency: for each coder fixation and saccade, the algorithm's event of that class that
   overlaps it, and when the label of its first sample became final (`--final-times`: the classifier
   runs online, one sample at a time) minus the coder's onset; p50 and p99 over all sessions.
+- provisional events (`--provisional`, the daemon's events before the final labels): for each coder
+  saccade, the first provisional saccade start whose onset lies from 20 ms before it to its end;
+  for each coder saccade followed by PSO or fixation (its landing: the saccade's end), the first
+  provisional fixation start from 20 ms before to 50 ms after the landing; latency = the time of
+  the sample that made the event known minus the coder's time. And how many provisional events
+  the default method's final labels retracted (fovea-ctl classify reports it).
 
 Coder classes: 1 fixation, 2 saccade, 3 PSO, 4 pursuit, 5 blink, 0 undefined (scored as "other":
 a label the algorithm never gives). fovea's lost and unknown labels are "other" too.
@@ -55,19 +61,56 @@ def write_input(session, geometry, path):
             f.write("%.3f,nan,nan\n" % t if gone else "%.3f,%.3f,%.3f\n" % (t, x, y))
 
 
-def classify(ctl, in_path, out_path, rate_hz, geometry, method):
+def classify(ctl, in_path, out_path, rate_hz, geometry, method, provisional=None):
+    """Labels and final times; with `provisional` (a dict) also the provisional events, as
+    (kind_phase, event time ms, row index that made it known), and the confirmed/retracted counts."""
     w_px, h_px, w_mm, h_mm, dist_mm = geometry
     cmd = [ctl, "classify", in_path, out_path, "%g" % rate_hz, str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
            "%g" % dist_mm, "--method", method, "--force", "--final-times"]
-    subprocess.run(cmd, check=True, capture_output=True, text=True)
-    labels, final_ms = [], []
+    if provisional is not None:
+        cmd.append("--provisional")
+    run = subprocess.run(cmd, check=True, capture_output=True, text=True)
+    labels, final_ms, found = [], [], []
     with open(out_path) as f:
         next(f)
-        for line in f:
-            _, label, final = line.rstrip("\n").split(",")
-            labels.append(label)
-            final_ms.append(float(final))
+        for row, line in enumerate(f):
+            fields = line.rstrip("\n").split(",")
+            labels.append(fields[1])
+            final_ms.append(float(fields[2]))
+            if provisional is not None and fields[3]:
+                for cell in fields[3].split(";"):
+                    kind, at = cell.split("@")
+                    found.append((kind, float(at), row))
+    if provisional is not None:
+        provisional["events"] = found
+        for line in run.stderr.splitlines():
+            if "provisional events" in line:
+                words = line.split()
+                provisional["counts"] = (int(words[2]), int(words[5]), int(words[8]))
     return labels, final_ms
+
+
+def provisional_latencies(truth, t_ms, events):
+    """Coder saccade onsets and landings -> the row time that made the provisional event known."""
+    starts = [(at, row) for kind, at, row in events if kind == "saccade_start"]
+    fixes = [(at, row) for kind, at, row in events if kind == "fixation_start"]
+    out = {"saccade": [], "fixation": []}
+    missed = {"saccade": 0, "fixation": 0}
+    for a, b in events_of(truth, "saccade"):
+        onset, end = t_ms[a], t_ms[b - 1]
+        hit = next((row for at, row in starts if onset - 20 <= at <= end), None)
+        if hit is None:
+            missed["saccade"] += 1
+        else:
+            out["saccade"].append(t_ms[hit] - onset)
+        if b < len(truth) and truth[b] in ("pso", "fixation"):
+            landing = t_ms[b]
+            hit = next((row for at, row in fixes if landing - 20 <= at <= landing + 50), None)
+            if hit is None:
+                missed["fixation"] += 1
+            else:
+                out["fixation"].append(t_ms[hit] - landing)
+    return out, missed
 
 
 def kappa(truth, predicted, c):
@@ -80,7 +123,7 @@ def kappa(truth, predicted, c):
     return float("nan") if pe >= 1.0 else float((po - pe) / (1 - pe))
 
 
-def events(labels, c):
+def events_of(labels, c):
     """Runs of class c as half-open [start, end) sample intervals."""
     out, start = [], None
     for i, label in enumerate(labels):
@@ -96,7 +139,7 @@ def events(labels, c):
 
 def event_f1(truth, predicted, c, min_iou=0.5):
     """Startsev et al. 2019: a hit is a pair of same-class events with IoU >= min_iou, each used once."""
-    true_events, found = events(truth, c), events(predicted, c)
+    true_events, found = events_of(truth, c), events_of(predicted, c)
     hits, j = 0, 0
     used = set()
     for ts, te in true_events:
@@ -119,7 +162,7 @@ def event_f1(truth, predicted, c, min_iou=0.5):
 def onset_latencies(truth, predicted, final_ms, t_ms, c):
     """Coder onset of each event of class c -> when the overlapping detected event's first label was final."""
     out, missed = [], 0
-    for a, b in events(truth, c):
+    for a, b in events_of(truth, c):
         k = next((i for i in range(a, b) if predicted[i] == c), None)
         if k is None:
             missed += 1
@@ -143,6 +186,7 @@ def main():
         sys.exit(f"no .npy sessions in {args.data}")
     scores = {m: {"kappa": {c: [] for c in CLASSES}, "f1": {c: [] for c in CLASSES},
                   "onset_ms": {"fixation": [], "saccade": []}, "missed": {"fixation": 0, "saccade": 0}} for m in METHODS}
+    prov = {"onset_ms": {"fixation": [], "saccade": []}, "missed": {"fixation": 0, "saccade": 0}, "counts": [0, 0, 0]}
     with tempfile.TemporaryDirectory() as tmp:
         for name in sessions:
             s = np.load(os.path.join(args.data, name))
@@ -152,7 +196,14 @@ def main():
             write_input(s, geometry, in_path)
             t_ms = s["t"] * 1000.0
             for m in METHODS:
-                raw, final_ms = classify(args.ctl, in_path, out_path, rate, geometry, m)
+                p = {} if m == METHODS[0] else None
+                raw, final_ms = classify(args.ctl, in_path, out_path, rate, geometry, m, p)
+                if p is not None:
+                    found, missed = provisional_latencies(truth, t_ms, p["events"])
+                    for c in ("fixation", "saccade"):
+                        prov["onset_ms"][c] += found[c]
+                        prov["missed"][c] += missed[c]
+                    prov["counts"] = [x + y for x, y in zip(prov["counts"], p["counts"])]
                 labels = [l if l in CLASSES or l == "pursuit" else "other" for l in raw]
                 for c in CLASSES:
                     scores[m]["kappa"][c].append(kappa(truth, labels, c))
@@ -189,6 +240,21 @@ def main():
             summary[m]["onset_p50_ms_" + c] = float(np.percentile(v, 50)) if len(v) else None
             summary[m]["onset_p99_ms_" + c] = float(np.percentile(v, 99)) if len(v) else None
         print(f"| {m} | " + " | ".join(row) + " |")
+    emitted, confirmed, retracted = prov["counts"]
+    print(f"\nProvisional events (ms from the coder's saccade onset / landing to the sample that made the provisional "
+          f"saccade start / fixation start known); {emitted} sent, {confirmed} confirmed and {retracted} retracted "
+          f"({100.0 * retracted / max(1, emitted):.1f} %) by {METHODS[0]}'s final labels:\n")
+    print("| event | p50 | p99 | missed |")
+    print("|---|---:|---:|---:|")
+    for c, what in (("saccade", "saccade onset"), ("fixation", "fixation onset (landing)")):
+        v = np.array(prov["onset_ms"][c])
+        n = len(v) + prov["missed"][c]
+        print(f"| {what} | " + ("%.0f | %.0f" % (np.percentile(v, 50), np.percentile(v, 99)) if len(v) else "- | -") +
+              " | %d of %d |" % (prov["missed"][c], n))
+        summary.setdefault("provisional", {})[c] = {
+            "p50_ms": float(np.percentile(v, 50)) if len(v) else None,
+            "p99_ms": float(np.percentile(v, 99)) if len(v) else None, "missed": prov["missed"][c], "of": n}
+    summary["provisional"]["sent"], summary["provisional"]["retracted"] = emitted, retracted
     if args.json:
         with open(args.json, "w") as f:
             json.dump(summary, f, indent=1)

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 namespace fovea::trackerd {
 
@@ -45,7 +46,8 @@ ClassifyStage::ClassifyStage(const std::string& method, double nominal_rate_hz, 
 std::string ClassifyStage::description() const {
   if (!classifier_) return "source (the source's own labels and events are passed through)";
   char buf[160];
-  std::snprintf(buf, sizeof buf, "%s (labels final %.0f ms after the sample; sample state trails by that)",
+  std::snprintf(buf, sizeof buf,
+                "%s (labels final %.0f ms after the sample; sample state trails by that; provisional saccade events at once)",
                 method_.c_str(), classifier_->latency_s() * 1000);
   return buf;
 }
@@ -82,8 +84,41 @@ void ClassifyStage::process(const GazeItem& in, std::vector<GazeItem>& out) {
   classifier_->push(cs, labels_);
   pending_.push_back({s});
   finalise(labels_, out);
+  provisional(cs, out);
   s.state = latest_final_;
   out.insert(out.begin(), GazeItem{s});  // the sample itself goes out first, events (in the past) after
+}
+
+void ClassifyStage::provisional(const classify::Sample& cs, std::vector<GazeItem>& out) {
+  // New provisional events first (they are about now), then retractions of older ones the final
+  // labels have passed.
+  provisional_.clear();
+  detector_.push(cs, provisional_);
+  for (const auto& p : provisional_) {
+    check_.provisional(p);
+    out.push_back(to_event(p, protocol::kEventProvisional));
+  }
+  if (!have_final_) return;
+  provisional_.clear();
+  check_.final_upto(to_s(final_upto_ns_), provisional_);
+  for (const auto& p : provisional_) out.push_back(to_event(p, protocol::kEventProvisional | protocol::kEventRetracted));
+}
+
+GazeEvent ClassifyStage::to_event(const classify::ProvisionalEvent& p, std::uint8_t flags) const {
+  GazeEvent e;
+  e.kind = p.kind == classify::Label::Saccade ? EyeMovement::Saccade : EyeMovement::Fixation;
+  e.phase = p.phase == classify::Phase::Start ? EventPhase::Start : EventPhase::End;
+  e.flags = flags;
+  e.start_time_ns = to_ns(p.onset_s);
+  e.duration_ns = e.phase == EventPhase::End ? std::max<std::int64_t>(0, to_ns(p.t_s) - e.start_time_ns) : 0;
+  e.centroid_x_deg = static_cast<float>(p.x_deg);
+  e.centroid_y_deg = static_cast<float>(p.y_deg);
+  const auto norm = protocol::degrees_to_normalized(display_, {p.x_deg, p.y_deg});
+  e.centroid_x = static_cast<float>(norm.x);
+  e.centroid_y = static_cast<float>(norm.y);
+  e.amplitude_deg = static_cast<float>(p.amplitude_deg);
+  e.peak_velocity_deg_s = static_cast<float>(p.peak_deg_s);
+  return e;
 }
 
 void ClassifyStage::flush(std::vector<GazeItem>& out) {
@@ -92,6 +127,10 @@ void ClassifyStage::flush(std::vector<GazeItem>& out) {
   classifier_->flush(labels_);
   finalise(labels_, out);
   if (run_open_ && have_prev_) close_run(prev_t_, out);
+  // Every label is final now: what is still unconfirmed never will be.
+  provisional_.clear();
+  check_.final_upto(std::numeric_limits<double>::infinity(), provisional_);
+  for (const auto& p : provisional_) out.push_back(to_event(p, protocol::kEventProvisional | protocol::kEventRetracted));
 }
 
 void ClassifyStage::finalise(const std::vector<classify::Labeled>& labels, std::vector<GazeItem>& out) {
@@ -101,6 +140,8 @@ void ClassifyStage::finalise(const std::vector<classify::Labeled>& labels, std::
     pending_.pop_front();
     latest_final_ = to_movement(l.label);
     take(s, latest_final_, out);
+    final_upto_ns_ = s.tracker_time_ns;
+    have_final_ = true;
   }
 }
 
@@ -112,6 +153,7 @@ void ClassifyStage::take(const GazeSample& s, EyeMovement kind, std::vector<Gaze
     run_.start_ns = s.tracker_time_ns;
     run_open_ = true;
     if (kind != EyeMovement::Unknown) {
+      confirm(kind, classify::Phase::Start, s.tracker_time_ns);
       GazeEvent e;
       e.kind = kind;
       e.phase = EventPhase::Start;
@@ -143,6 +185,7 @@ void ClassifyStage::take(const GazeSample& s, EyeMovement kind, std::vector<Gaze
 void ClassifyStage::close_run(std::int64_t end_ns, std::vector<GazeItem>& out) {
   run_open_ = false;
   if (run_.kind == EyeMovement::Unknown) return;
+  confirm(run_.kind, classify::Phase::End, end_ns);
   GazeEvent e;
   e.kind = run_.kind;
   e.phase = EventPhase::End;

@@ -1,14 +1,19 @@
 #pragma once
 // The daemon's online classification stage: labels each published sample with the classifier's
 // latest final label and builds GAZE_EVENT start/end messages from runs of final labels
-// (centroid, duration, amplitude, peak velocity). With method "source" it passes the source's own
-// labels and events through (the synthetic source's ground truth, a recording's events).
+// (centroid, duration, amplitude, peak velocity). Beside them, at once, provisional saccade onsets
+// and landings (classify/provisional.h; GAZE_EVENT flag kEventProvisional) and, once the final
+// labels have passed one without confirming it, its retraction (kEventRetracted). With method
+// "source" it passes the source's own labels and events through (the synthetic source's ground
+// truth, a recording's events).
 #include <deque>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "classify/classifier.h"
+#include "classify/provisional.h"
 #include "fovea/protocol/display_geometry.h"
 #include "source_api/gaze_source.h"
 
@@ -20,6 +25,8 @@ class ClassifyStage {
   ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display);
   std::string description() const;
   bool passthrough() const { return classifier_ == nullptr; }
+  // Provisional events sent, confirmed by the final labels, and retracted so far.
+  const classify::ProvisionalCheck& provisional_check() const { return check_; }
   // One item from the source in; the items to publish out (in time order).
   void process(const GazeItem& in, std::vector<GazeItem>& out);
   // End of stream: finalises the remaining labels and closes the open event.
@@ -41,12 +48,19 @@ class ClassifyStage {
   void finalise(const std::vector<classify::Labeled>& labels, std::vector<GazeItem>& out);
   void take(const protocol::GazeSample& s, protocol::EyeMovement kind, std::vector<GazeItem>& out);
   void close_run(std::int64_t end_ns, std::vector<GazeItem>& out);
+  void provisional(const classify::Sample& cs, std::vector<GazeItem>& out);
+  protocol::GazeEvent to_event(const classify::ProvisionalEvent& p, std::uint8_t flags) const;
+  std::int64_t to_ns(double t_s) const { return origin_ns_ + std::llround(t_s * 1e9); }
+  double to_s(std::int64_t ns) const { return static_cast<double>(ns - origin_ns_) * 1e-9; }
 
   std::string method_;
   protocol::DisplayGeometry display_;
   std::unique_ptr<classify::OnlineClassifier> classifier_;
   std::deque<Pending> pending_;  // pushed, label not yet final
   std::vector<classify::Labeled> labels_;
+  classify::ProvisionalDetector detector_;
+  classify::ProvisionalCheck check_;
+  std::vector<classify::ProvisionalEvent> provisional_;  // scratch
   std::int64_t origin_ns_ = 0;
   bool have_origin_ = false;
   protocol::EyeMovement latest_final_ = protocol::EyeMovement::Unknown;
@@ -55,6 +69,12 @@ class ClassifyStage {
   bool have_prev_ = false;
   double prev_xd_ = 0, prev_yd_ = 0;
   std::int64_t prev_t_ = 0;
+  std::int64_t final_upto_ns_ = 0;  // time of the newest sample with a final label
+  bool have_final_ = false;
+  void confirm(protocol::EyeMovement kind, classify::Phase phase, std::int64_t t_ns) {
+    if (kind == protocol::EyeMovement::Saccade) check_.final_event(classify::Label::Saccade, phase, to_s(t_ns));
+    if (kind == protocol::EyeMovement::Fixation) check_.final_event(classify::Label::Fixation, phase, to_s(t_ns));
+  }
 };
 
 }  // namespace fovea::trackerd

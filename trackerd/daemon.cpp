@@ -247,7 +247,9 @@ void Daemon::send(const GazeItem& item, std::optional<std::int64_t> receive_ns) 
     // Stored only where it says something the sample's time does not (RECORDING.md).
     if (receive_ns && *receive_ns != s->tracker_time_ns) stored_receive = receive_ns;
   } else {
-    seq = server_->publish(std::get<protocol::GazeEvent>(item));
+    const auto& event = std::get<protocol::GazeEvent>(item);
+    seq = server_->publish(event);
+    if (event.provisional()) return;  // recordings keep the final labels (RECORDING.md)
   }
   record_markers();  // those that came before this item, so the file stays nearly in time order
   std::visit([&](const auto& v) { record(protocol::Record{seq, v, stored_receive}); }, item);

@@ -100,6 +100,7 @@ ClientStats GazeClient::stats() const {
   s.samples = sample_seq_.counts();
   s.events = event_seq_.counts();
   s.markers = marker_seq_.counts();
+  s.provisional = provisional_seq_.counts();
   s.rejected += rejected_.rejected();
   s.latency_count = latency_ring_.size();
   s.latency_p50_ns = percentile(latency_ring_, 0.50);
@@ -235,6 +236,7 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
           sample_seq_.reset(s.next_sample_sequence);
           event_seq_.reset(s.next_event_sequence);
           marker_seq_.reset_from_first_arrival();
+          provisional_seq_.reset_from_first_arrival();
           ++stats_.subscriptions;
           sync_samples_.clear();
           time_syncs_done_ = 0;
@@ -340,10 +342,13 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
   a.receive_ns = now;
   a.host_receive_ns = m.header.origin_time_ns;
   const bool is_sample = m.header.type == MessageType::GazeSample;
-  if ((options_.streams & (is_sample ? kStreamSamples : kStreamEvents)) == 0) return;
+  // Provisional events and their retractions come on a stream (and counter) of their own.
+  const bool provisional = !is_sample && std::get<GazeEvent>(m.payload).provisional();
+  const std::uint32_t stream = is_sample ? kStreamSamples : provisional ? kStreamProvisional : kStreamEvents;
+  if ((options_.streams & stream) == 0) return;
   {
     std::lock_guard lock(mutex_);
-    SequenceTracker& tracker = is_sample ? sample_seq_ : event_seq_;
+    SequenceTracker& tracker = is_sample ? sample_seq_ : provisional ? provisional_seq_ : event_seq_;
     const auto verdict = tracker.on_arrival(m.header.sequence);
     if (verdict == SequenceTracker::Verdict::Duplicate || verdict == SequenceTracker::Verdict::TooOld ||
         verdict == SequenceTracker::Verdict::Implausible) {

@@ -211,6 +211,7 @@ struct Writer {
   void operator()(const GazeEvent& m) {
     put<std::uint8_t>(0, static_cast<std::uint8_t>(m.kind));
     put<std::uint8_t>(1, static_cast<std::uint8_t>(m.phase));
+    put<std::uint8_t>(2, m.flags);
     put<std::int64_t>(8, m.start_time_ns);
     put<std::int64_t>(16, m.duration_ns);
     f32(24, m.centroid_x);
@@ -438,7 +439,10 @@ struct Reader {
     GazeEvent m;
     m.kind = enumeration<EyeMovement>(0, 1, kMaxEyeMovement);
     m.phase = enumeration<EventPhase>(1, 1, 2);
-    zero(2, 6);
+    m.flags = get<std::uint8_t>(2);
+    if ((m.flags & ~kEventFlagMask) != 0) fail(DecodeError::ReservedNotZero, 2);
+    if (m.flags == kEventRetracted) fail(DecodeError::OutOfRange, 2);  // a retraction is of a provisional event
+    zero(3, 5);
     m.start_time_ns = get<std::int64_t>(8);
     m.duration_ns = get<std::int64_t>(16);
     if (m.duration_ns < 0) fail(DecodeError::OutOfRange, 16);

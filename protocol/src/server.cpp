@@ -226,6 +226,9 @@ std::uint64_t GazeServer::send_marker(const std::unique_lock<std::mutex>& held, 
 std::uint64_t GazeServer::publish(const GazeEvent& event) {
   std::unique_lock lock(mutex_);
   ++stats_.events_published;
+  if (event.provisional()) {
+    return send_stream(lock, kStreamProvisional, next_provisional_seq_, event.start_time_ns + event.duration_ns, event);
+  }
   return send_stream(lock, kStreamEvents, next_event_seq_, event.start_time_ns + event.duration_ns, event);
 }
 

@@ -102,4 +102,75 @@ void degrade(std::vector<Sample>& samples, const Degradation& d) {
   }
 }
 
+namespace {
+
+// Runs of one class: [first, end) sample indices.
+std::vector<std::pair<std::size_t, std::size_t>> runs_of(const std::vector<Label>& labels, Label c) {
+  std::vector<std::pair<std::size_t, std::size_t>> runs;
+  for (std::size_t i = 0; i < labels.size();) {
+    if (labels[i] != c) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j < labels.size() && labels[j] == c) ++j;
+    runs.emplace_back(i, j);
+    i = j;
+  }
+  return runs;
+}
+
+}  // namespace
+
+ProvisionalLatency provisional_latency(const std::vector<Label>& truth, const std::vector<Sample>& samples,
+                                       const std::vector<ProvisionalEvent>& events) {
+  if (truth.size() != samples.size()) throw std::invalid_argument("provisional_latency: sequences differ in length");
+  constexpr double kBefore = 0.020, kAfter = 0.050;
+  ProvisionalLatency r;
+  std::vector<bool> used(events.size(), false);
+  for (const auto& [a, b] : runs_of(truth, Label::Saccade)) {
+    const double t0 = samples[a].t_s, t1 = samples[b - 1].t_s;
+    bool found = false;
+    for (std::size_t k = 0; k < events.size() && !found; ++k) {
+      const ProvisionalEvent& e = events[k];
+      if (used[k] || e.kind != Label::Saccade || e.phase != Phase::Start || e.t_s < t0 - kBefore || e.t_s > t1) continue;
+      used[k] = found = true;
+      r.saccade.latency_s.push_back(e.emitted_s - t0);
+    }
+    if (!found) ++r.saccade.missed;
+    if (b >= truth.size() || truth[b] != Label::Fixation) continue;
+    const double tf = samples[b].t_s;
+    found = false;
+    for (const ProvisionalEvent& e : events) {
+      if (e.kind != Label::Fixation || e.t_s < tf - kBefore || e.t_s > tf + kAfter) continue;
+      found = true;
+      r.fixation.latency_s.push_back(e.emitted_s - tf);
+      break;
+    }
+    if (!found) ++r.fixation.missed;
+  }
+  for (std::size_t k = 0; k < events.size(); ++k) {
+    if (!used[k] && events[k].kind == Label::Saccade && events[k].phase == Phase::Start) ++r.false_starts;
+  }
+  return r;
+}
+
+ProvisionalAgreement provisional_agreement(const std::vector<ProvisionalEvent>& events, const std::vector<Label>& final_labels,
+                                           const std::vector<Sample>& samples) {
+  if (final_labels.size() != samples.size()) throw std::invalid_argument("provisional_agreement: sequences differ in length");
+  ProvisionalCheck check;
+  for (const ProvisionalEvent& e : events) check.provisional(e);
+  // The final events as the daemon's stage makes them: runs of one class (PSO with its saccade).
+  const auto merged = [](Label l) { return l == Label::Pso ? Label::Saccade : l; };
+  for (std::size_t i = 1; i < final_labels.size(); ++i) {
+    const Label before = merged(final_labels[i - 1]), now = merged(final_labels[i]);
+    if (before == now) continue;
+    check.final_event(before, Phase::End, samples[i].t_s);
+    check.final_event(now, Phase::Start, samples[i].t_s);
+  }
+  std::vector<ProvisionalEvent> retracted;
+  check.final_upto(std::numeric_limits<double>::infinity(), retracted);
+  return {check.emitted(), check.confirmed(), check.retracted()};
+}
+
 }  // namespace fovea::trackerd::classify

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "classify/classifier.h"
+#include "classify/provisional.h"
 
 namespace fovea::trackerd::classify {
 
@@ -26,6 +27,26 @@ struct OnsetLatency {
 };
 OnsetLatency onset_latency(const std::vector<Label>& truth, const std::vector<Label>& predicted,
                            const std::vector<double>& final_t_s, const std::vector<Sample>& samples, Label c);
+// How long after a true onset the provisional events (provisional.h) said so: for each true saccade
+// (a run of Saccade in `truth`), the first provisional Saccade Start whose onset lies within 20 ms
+// before it to its end; for each true fixation that follows a saccade, the first provisional
+// Fixation Start whose time lies within 20 ms before to 50 ms after its first sample. Latency =
+// the newest sample's time when the event was known (emitted_s) minus the true onset. `false_starts`:
+// provisional saccade starts matched to no true saccade.
+struct ProvisionalLatency {
+  OnsetLatency saccade, fixation;
+  std::size_t false_starts = 0;
+};
+ProvisionalLatency provisional_latency(const std::vector<Label>& truth, const std::vector<Sample>& samples,
+                                       const std::vector<ProvisionalEvent>& events);
+// Provisional events against a method's final labels, as the daemon checks them (ProvisionalCheck,
+// PSO counted as saccade): how many the final events confirmed and how many were retracted.
+struct ProvisionalAgreement {
+  std::uint64_t emitted = 0, confirmed = 0, retracted = 0;
+};
+ProvisionalAgreement provisional_agreement(const std::vector<ProvisionalEvent>& events, const std::vector<Label>& final_labels,
+                                           const std::vector<Sample>& samples);
+
 // The q-quantile (0..1, nearest rank) of `v`; NaN when empty.
 double quantile(std::vector<double> v, double q);
 

@@ -10,6 +10,8 @@
 #include <sstream>
 
 #include "classify/classifier.h"
+#include "classify/evaluate.h"
+#include "classify/provisional.h"
 #include "ctl/commands.h"
 #include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/csv.h"
@@ -274,20 +276,48 @@ ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeome
   return input;
 }
 
-// Writes t_ms,label, one row per input row, to `tmp` (with --final-times a third column, final_ms:
-// when the label became final); returns how many samples got each label.
+struct ClassifyArgs {
+  std::string in_path, out_path, method = fovea::trackerd::classify::classifiers().front().name;
+  double rate_hz = 0, w_mm = 0, h_mm = 0, dist_mm = 0;
+  std::uint32_t w_px = 0, h_px = 0;
+  bool force = false, renumber = false, final_times = false, provisional = false;
+};
+
+// "saccade_start@T;..." for the provisional events a row made known (T: the event's time, ms).
+std::string provisional_cell(const std::vector<fovea::trackerd::classify::ProvisionalEvent>& events) {
+  namespace cl = fovea::trackerd::classify;
+  std::string cell;
+  for (const auto& e : events) {
+    if (!cell.empty()) cell += ';';
+    cell += std::string(cl::to_string(e.kind)) + (e.phase == cl::Phase::Start ? "_start@" : "_end@") + format_ms(e.t_s * 1000.0);
+  }
+  return cell;
+}
+
+// Writes t_ms,label, one row per input row, to `tmp` (with --final-times a column final_ms: when the
+// label became final; with --provisional a column provisional: the provisional events that row made
+// known); returns how many samples got each label, and fills `provisional` with those events.
 std::map<std::string, std::size_t> write_classify_labels(const std::string& tmp, const ClassifyInput& input,
                                                          const fovea::trackerd::classify::OnlineLabels& result,
-                                                         bool final_times) {
+                                                         const ClassifyArgs& a,
+                                                         std::vector<fovea::trackerd::classify::ProvisionalEvent>& provisional) {
   namespace cl = fovea::trackerd::classify;
   std::map<std::string, std::size_t> counts;
   std::ofstream out(tmp);
   if (!out) throw std::runtime_error("cannot create " + tmp);
-  out << (final_times ? "t_ms,label,final_ms\n" : "t_ms,label\n");
+  out << "t_ms,label" << (a.final_times ? ",final_ms" : "") << (a.provisional ? ",provisional" : "") << '\n';
+  cl::ProvisionalDetector detector;
+  std::vector<cl::ProvisionalEvent> row_events;
   for (std::size_t i = 0; i < input.samples.size(); ++i) {
     const char* label = cl::to_string(result.labels[i]);
     out << input.times[i] << ',' << label;
-    if (final_times) out << ',' << format_ms(result.final_t_s[i] * 1000.0);
+    if (a.final_times) out << ',' << format_ms(result.final_t_s[i] * 1000.0);
+    if (a.provisional) {
+      row_events.clear();
+      detector.push(input.samples[i], row_events);
+      out << ',' << provisional_cell(row_events);
+      provisional.insert(provisional.end(), row_events.begin(), row_events.end());
+    }
     out << '\n';
     ++counts[label];
   }
@@ -296,33 +326,38 @@ std::map<std::string, std::size_t> write_classify_labels(const std::string& tmp,
   return counts;
 }
 
-int cmd_classify(const std::string& in_path, const std::string& out_path, double rate_hz, std::uint32_t w_px,
-                 std::uint32_t h_px, double w_mm, double h_mm, double dist_mm, const std::string& method, bool force,
-                 bool renumber, bool final_times) {
+int cmd_classify(const ClassifyArgs& a) {
   namespace cl = fovea::trackerd::classify;
-  const std::string tmp = out_path + ".partial-" + std::to_string(getpid());
+  const std::string tmp = a.out_path + ".partial-" + std::to_string(getpid());
   try {
-    if (!force && std::filesystem::exists(out_path)) {
-      throw std::runtime_error(out_path + " already exists (use --force to replace it)");
+    if (!a.force && std::filesystem::exists(a.out_path)) {
+      throw std::runtime_error(a.out_path + " already exists (use --force to replace it)");
     }
-    const DisplayGeometry g = checked_classify_screen(rate_hz, w_px, h_px, w_mm, h_mm, dist_mm);
-    const ClassifyInput input = read_classify_input(in_path, g, renumber ? rate_hz : 0);
+    const DisplayGeometry g = checked_classify_screen(a.rate_hz, a.w_px, a.h_px, a.w_mm, a.h_mm, a.dist_mm);
+    const ClassifyInput input = read_classify_input(a.in_path, g, a.renumber ? a.rate_hz : 0);
 
     cl::ClassifierOptions options;
-    options.nominal_rate_hz = rate_hz;
+    options.nominal_rate_hz = a.rate_hz;
     options.display = g;
-    const cl::OnlineLabels result = cl::classify_online(method, options, input.samples);
+    const cl::OnlineLabels result = cl::classify_online(a.method, options, input.samples);
 
-    const std::map<std::string, std::size_t> counts = write_classify_labels(tmp, input, result, final_times);
-    std::filesystem::rename(tmp, out_path);  // atomic: OUT is either absent/old or complete
+    std::vector<cl::ProvisionalEvent> provisional;
+    const std::map<std::string, std::size_t> counts = write_classify_labels(tmp, input, result, a, provisional);
+    std::filesystem::rename(tmp, a.out_path);  // atomic: OUT is either absent/old or complete
     std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", input.samples.size(),
-                 method.c_str(), cl::make_classifier(method, options)->latency_s() * 1000);
+                 a.method.c_str(), cl::make_classifier(a.method, options)->latency_s() * 1000);
     for (const auto& [k, n] : counts) std::fprintf(stderr, " %zu %s", n, k.c_str());
-    if (renumber) {
+    if (a.renumber) {
       std::fprintf(stderr, "\nfovea-ctl classify: renumbered %zu of %zu rows at %g Hz (missing or broken t_ms)",
-                   input.renumbered, input.samples.size(), rate_hz);
+                   input.renumbered, input.samples.size(), a.rate_hz);
     }
-    std::fprintf(stderr, "\nfovea-ctl classify: wrote %s\n", out_path.c_str());
+    if (a.provisional) {
+      const cl::ProvisionalAgreement agree = cl::provisional_agreement(provisional, result.labels, input.samples);
+      std::fprintf(stderr, "\nfovea-ctl classify: %llu provisional events, %llu confirmed and %llu retracted by the final labels",
+                   static_cast<unsigned long long>(agree.emitted), static_cast<unsigned long long>(agree.confirmed),
+                   static_cast<unsigned long long>(agree.retracted));
+    }
+    std::fprintf(stderr, "\nfovea-ctl classify: wrote %s\n", a.out_path.c_str());
     return 0;
   } catch (const std::exception& e) {
     std::error_code ignored;
@@ -339,16 +374,10 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
     std::string in_path, out_path;
     bool force = false;
     std::string info_path;
-    std::string cls_in, cls_out, cls_method = fovea::trackerd::classify::classifiers().front().name;
-    double cls_rate = 0, cls_w_mm = 0, cls_h_mm = 0, cls_dist_mm = 0;
-    std::uint32_t cls_w_px = 0, cls_h_px = 0;
-    bool cls_force = false;
-    bool cls_renumber = false;
-    bool cls_final_times = false;
+    ClassifyArgs cls;
   };
   auto o = std::make_shared<Options>();
-  auto& [in_path, out_path, force, info_path, cls_in, cls_out, cls_method, cls_rate, cls_w_mm, cls_h_mm, cls_dist_mm,
-         cls_w_px, cls_h_px, cls_force, cls_renumber, cls_final_times] = *o;
+  auto& [in_path, out_path, force, info_path, cls] = *o;
   auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files)");
   convert->add_option("IN", in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
   convert->add_option("OUT", out_path, "output .fgr or .csv")->required();
@@ -360,17 +389,17 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
   // classify: offline eye-movement classification (trackerd/CLASSIFY.md)
   auto* classify = app.add_subcommand("classify", "label every gaze sample of a CSV (t_ms,x_px,y_px) as fixation, "
                                                   "saccade, pso, pursuit, blink, lost or unknown");
-  classify->add_option("IN", cls_in, "input CSV with header t_ms,x_px,y_px (nan marks a lost sample)")
+  classify->add_option("IN", cls.in_path, "input CSV with header t_ms,x_px,y_px (nan marks a lost sample)")
       ->required()
       ->check(CLI::ExistingFile);
-  classify->add_option("OUT", cls_out, "output CSV t_ms,label, one row per input row (refuses to overwrite)")
+  classify->add_option("OUT", cls.out_path, "output CSV t_ms,label, one row per input row (refuses to overwrite)")
       ->required();
-  classify->add_option("RATE_HZ", cls_rate, "nominal sample rate, Hz")->required();
-  classify->add_option("SCREEN_W_PX", cls_w_px, "screen width, pixels")->required();
-  classify->add_option("SCREEN_H_PX", cls_h_px, "screen height, pixels")->required();
-  classify->add_option("SCREEN_W_MM", cls_w_mm, "screen width, millimetres")->required();
-  classify->add_option("SCREEN_H_MM", cls_h_mm, "screen height, millimetres")->required();
-  classify->add_option("DIST_MM", cls_dist_mm, "eye-to-screen distance, millimetres")->required();
+  classify->add_option("RATE_HZ", cls.rate_hz, "nominal sample rate, Hz")->required();
+  classify->add_option("SCREEN_W_PX", cls.w_px, "screen width, pixels")->required();
+  classify->add_option("SCREEN_H_PX", cls.h_px, "screen height, pixels")->required();
+  classify->add_option("SCREEN_W_MM", cls.w_mm, "screen width, millimetres")->required();
+  classify->add_option("SCREEN_H_MM", cls.h_mm, "screen height, millimetres")->required();
+  classify->add_option("DIST_MM", cls.dist_mm, "eye-to-screen distance, millimetres")->required();
   {
     std::vector<std::string> names;
     std::string help = "classification method:";
@@ -378,25 +407,26 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
       names.push_back(m.name);
       help += "\n  " + m.name + (names.size() == 1 ? " (default)" : "") + ": " + m.summary;
     }
-    classify->add_option("--method", cls_method, help)->check(CLI::IsMember(names))->capture_default_str();
+    classify->add_option("--method", cls.method, help)->check(CLI::IsMember(names))->capture_default_str();
   }
-  classify->add_flag("--force", cls_force, "replace OUT if it exists");
-  classify->add_flag("--renumber", cls_renumber,
+  classify->add_flag("--force", cls.force, "replace OUT if it exists");
+  classify->add_flag("--renumber", cls.renumber,
                      "number rows at RATE_HZ where t_ms is missing, not a number or not after the previous row's "
                      "(real exports hold NaN, zero or reset timestamps), and accept a header x_px,y_px without "
                      "times; OUT shows the numbered times, and the count is reported");
-  classify->add_flag("--final-times", cls_final_times,
+  classify->add_flag("--final-times", cls.final_times,
                      "add a column final_ms: the t_ms of the newest row pushed when the label became final (the "
                      "classifier runs online, one row at a time, as in the daemon): final_ms - t_ms is its latency");
+  classify->add_flag("--provisional", cls.provisional,
+                     "add a column provisional: the provisional events (saccade start/end, fixation start, as the "
+                     "daemon sends them before the final labels) each row made known, as KIND_PHASE@T_MS joined "
+                     "by ';'; reports how many the final labels confirmed and retracted");
 
   return {
       {convert, [o] { return cmd_convert(o->in_path, o->out_path, o->force); }},
       {info, [o] { return cmd_info(o->info_path); }},
       {classify,
-       [o] {
-         return cmd_classify(o->cls_in, o->cls_out, o->cls_rate, o->cls_w_px, o->cls_h_px, o->cls_w_mm, o->cls_h_mm,
-                             o->cls_dist_mm, o->cls_method, o->cls_force, o->cls_renumber, o->cls_final_times);
-       }},
+       [o] { return cmd_classify(o->cls); }},
   };
 }
 

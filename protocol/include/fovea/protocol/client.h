@@ -47,6 +47,7 @@ struct ClientStats {
   SequenceCounts samples;
   SequenceCounts events;
   SequenceCounts markers;
+  SequenceCounts provisional;  // provisional events and retractions (kStreamProvisional)
   std::uint64_t markers_sent = 0;         // by mark(), retransmissions not counted
   std::uint64_t markers_confirmed = 0;    // came back on the marker stream
   std::uint64_t markers_unconfirmed = 0;  // given up after kMarkerAttempts sends without a copy back
@@ -149,7 +150,7 @@ class GazeClient {
   std::optional<Subscribed> session_;
   std::optional<GazeSample> latest_;
   std::deque<std::pair<GazeSample, Arrival>> queue_;
-  SequenceTracker sample_seq_, event_seq_, marker_seq_;
+  SequenceTracker sample_seq_, event_seq_, marker_seq_, provisional_seq_;
   struct PendingMarker {
     Marker marker;  // session_id filled in when sent
     std::int64_t sent_ns = 0;

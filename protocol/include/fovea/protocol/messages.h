@@ -43,7 +43,9 @@ const char* to_string(MessageType t);
 inline constexpr std::uint32_t kStreamSamples = 1u << 0;
 inline constexpr std::uint32_t kStreamEvents = 1u << 1;
 inline constexpr std::uint32_t kStreamMarkers = 1u << 2;
-inline constexpr std::uint32_t kStreamMask = kStreamSamples | kStreamEvents | kStreamMarkers;
+// Provisional GAZE_EVENTs (kEventProvisional) and their retractions, on a stream of their own.
+inline constexpr std::uint32_t kStreamProvisional = 1u << 3;
+inline constexpr std::uint32_t kStreamMask = kStreamSamples | kStreamEvents | kStreamMarkers | kStreamProvisional;
 
 struct Header {
   MessageType type = MessageType::Hello;
@@ -153,6 +155,14 @@ struct GazeSample {
 
 enum class EventPhase : std::uint8_t { Start = 1, End = 2 };
 
+// GAZE_EVENT flags (PROTOCOL.md §4.9). 0: a final event, from the method's final labels.
+// Provisional: said from the newest samples, before the final labels (provisional stream only).
+// Retracted (always with Provisional): the provisional event of this kind, phase and start time was
+// not confirmed by the final labels.
+inline constexpr std::uint8_t kEventProvisional = 1u << 0;
+inline constexpr std::uint8_t kEventRetracted = 1u << 1;
+inline constexpr std::uint8_t kEventFlagMask = kEventProvisional | kEventRetracted;
+
 struct GazeEvent {
   EyeMovement kind = EyeMovement::Fixation;
   EventPhase phase = EventPhase::Start;
@@ -162,6 +172,8 @@ struct GazeEvent {
   float centroid_x_deg = 0, centroid_y_deg = 0;
   float amplitude_deg = 0;
   float peak_velocity_deg_s = 0;
+  std::uint8_t flags = 0;  // kEventProvisional | kEventRetracted; 0 = final
+  bool provisional() const { return (flags & kEventProvisional) != 0; }
   friend bool operator==(const GazeEvent&, const GazeEvent&) = default;
 };
 

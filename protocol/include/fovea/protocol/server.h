@@ -177,6 +177,7 @@ class GazeServer {
   std::uint64_t next_sample_seq_ = 0;
   std::uint64_t next_event_seq_ = 0;
   std::uint64_t next_marker_seq_ = 0;
+  std::uint64_t next_provisional_seq_ = 0;
   // Per session: the marker token bucket, and the last markers it published (so a retransmission
   // is answered with the same copy, not published twice). Entries of ended sessions are dropped
   // when leases are checked.
