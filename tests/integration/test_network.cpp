@@ -834,3 +834,59 @@ TEST(Markers, AMarkerSentWhileTheDaemonRestartsArrivesOnceAfterwards) {
   EXPECT_EQ(client.stats().markers_confirmed, 1u);
   EXPECT_EQ(client.stats().markers_unconfirmed, 0u);
 }
+
+// Issue 25: provisional events and their retractions go only to subscribers of the provisional
+// stream, on a counter of their own, so the final event stream of everyone else stays gap-free.
+TEST(ProvisionalEvents, ReachOnlyTheirSubscribersOnTheirOwnCounter) {
+  GazeServer server(server_options());
+  ClientOptions with = client_options(server.local_endpoint());
+  with.streams = kStreamEvents | kStreamProvisional;
+  ClientOptions without = client_options(server.local_endpoint());
+  without.streams = kStreamEvents;
+  struct Seen {
+    std::mutex mu;
+    std::vector<std::pair<std::uint8_t, std::uint64_t>> events;  // flags, sequence
+  } seen_with, seen_without;
+  GazeClient a(with), b(without);
+  for (auto [client, seen] : {std::pair{&a, &seen_with}, std::pair{&b, &seen_without}}) {
+    client->on_event([seen](const GazeEvent& e, const Arrival& arrival) {
+      std::lock_guard lock(seen->mu);
+      seen->events.emplace_back(e.flags, arrival.sequence);
+    });
+    client->start();
+  }
+  ASSERT_TRUE(a.wait_subscribed(2000));
+  ASSERT_TRUE(b.wait_subscribed(2000));
+
+  GazeEvent e;
+  e.kind = EyeMovement::Saccade;
+  e.start_time_ns = monotonic_ns();
+  for (int i = 0; i < 10; ++i) {
+    e.flags = i % 3 == 1 ? kEventProvisional : i % 3 == 2 ? kEventProvisional | kEventRetracted : 0;
+    server.publish(e);
+  }
+  for (int i = 0; i < 200 && (a.stats().events.received + a.stats().provisional.received < 10 ||
+                              b.stats().events.received < 4);
+       ++i) {
+    std::this_thread::sleep_for(5ms);
+  }
+  std::lock_guard la(seen_with.mu), lb(seen_without.mu);
+  ASSERT_EQ(seen_with.events.size(), 10u);
+  ASSERT_EQ(seen_without.events.size(), 4u) << "only the final events (flags 0)";
+  std::uint64_t next_final = seen_with.events.front().second, next_provisional = 0;
+  bool first_provisional = true;
+  for (const auto& [flags, seq] : seen_with.events) {
+    if (flags == 0) {
+      EXPECT_EQ(seq, next_final++) << "the final stream's counter skips nothing";
+    } else {
+      if (first_provisional) next_provisional = seq, first_provisional = false;
+      EXPECT_EQ(seq, next_provisional++) << "the provisional stream counts on its own";
+    }
+  }
+  for (const auto& [flags, seq] : seen_without.events) EXPECT_EQ(flags, 0);
+  EXPECT_EQ(a.stats().events.lost, 0u);
+  EXPECT_EQ(a.stats().provisional.lost, 0u);
+  EXPECT_EQ(a.stats().provisional.received, 6u);
+  EXPECT_EQ(b.stats().events.lost, 0u);
+  EXPECT_EQ(b.stats().provisional.received, 0u);
+}

@@ -1,5 +1,6 @@
 #pragma once
-// One canonical example of every protocol message, with distinctive field values. The golden
+// One canonical example of every protocol message, with distinctive field values, then variants of
+// a message whose flags change its meaning (GAZE_EVENT provisional and retracted). The golden
 // vectors in tests/data/golden and the worked examples in protocol/PROTOCOL.md are these bytes.
 #include <string>
 #include <utility>
@@ -103,6 +104,24 @@ inline std::vector<std::pair<std::string, protocol::Message>> canonical_messages
   Header mh = header(3);
   mh.origin_time_ns = marker.time_ns;
   out.emplace_back("marker", Message{mh, marker});
+  // A provisional saccade onset (on the provisional stream, its own counter), said 12 ms after the
+  // onset, and its retraction once the final labels have passed without confirming it.
+  GazeEvent provisional;
+  provisional.kind = EyeMovement::Saccade;
+  provisional.phase = EventPhase::Start;
+  provisional.flags = kEventProvisional;
+  provisional.start_time_ns = 999'960'000;
+  provisional.centroid_x = 0.5f;
+  provisional.centroid_y = 0.5f;
+  Header ph = header(7);
+  ph.origin_time_ns = provisional.start_time_ns;
+  ph.send_time_ns = 999'972'000;
+  out.emplace_back("gaze_event_provisional", Message{ph, provisional});
+  GazeEvent retracted = provisional;
+  retracted.flags = kEventProvisional | kEventRetracted;
+  Header rh = header(8);
+  rh.origin_time_ns = provisional.start_time_ns;
+  out.emplace_back("gaze_event_retracted", Message{rh, retracted});
   for (auto& [name, m] : out) m.header.type = type_of(m.payload);
   return out;
 }

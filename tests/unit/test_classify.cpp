@@ -22,12 +22,16 @@
 #include "classify/classifier.h"
 #include "classify/evaluate.h"
 #include "classify/pipeline.h"
+#include "gaze_scripts.h"
 #include "sim/synthetic_labelled.h"
 #include "sim/synthetic_gaze.h"
 
 using namespace fovea;
 using namespace fovea::trackerd;
 using namespace fovea::trackerd::classify;
+using fovea::test::Script;
+using fovea::test::sample;
+using fovea::test::saccade_at;
 
 namespace {
 
@@ -40,38 +44,6 @@ std::vector<std::string> method_names() {
 }
 
 // --- hand-made sequences ----------------------------------------------------------------------
-
-// A scripted eye: position(t) in degrees; noise per axis; evenly sampled.
-struct Script {
-  double rate = 500;
-  double noise = 0.01;
-  std::uint64_t seed = 3;
-};
-
-template <class F>
-std::vector<Sample> sample(const Script& s, double seconds, F position) {
-  std::mt19937_64 rng(s.seed);
-  std::normal_distribution<double> g(0, 1);
-  std::vector<Sample> out;
-  const auto n = static_cast<std::size_t>(seconds * s.rate);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double t = static_cast<double>(i) / s.rate;
-    Sample x;
-    x.t_s = t;
-    const auto [px, py] = position(t);
-    x.x_deg = px + s.noise * g(rng);
-    x.y_deg = py + s.noise * g(rng);
-    out.push_back(x);
-  }
-  return out;
-}
-
-// Minimum-jerk saccade of `amp` degrees starting at t0, main-sequence duration (2.2 ms/deg + 21 ms).
-std::pair<double, double> saccade_at(double t, double t0, double amp) {
-  const double d = (2.2 * amp + 21) / 1000;
-  const double u = std::clamp((t - t0) / d, 0.0, 1.0);
-  return {amp * (10 * std::pow(u, 3) - 15 * std::pow(u, 4) + 6 * std::pow(u, 5)), 0.0};
-}
 
 std::size_t index_at(const std::vector<Sample>& s, double t) {
   for (std::size_t i = 0; i < s.size(); ++i) {
@@ -792,3 +764,36 @@ TEST(ClassifyCli, ABadFieldIsEchoedShortAndEscaped) {
   EXPECT_NE(err.find(":3: x_px \"\\x1b[2J999"), std::string::npos) << err.substr(0, 300);
 }
 #endif
+
+// Issue 25: the provisional events the daemon would send, per row, beside the final labels.
+TEST(ClassifyCli, ProvisionalSaysEachEventOnTheRowThatShowedItAndCountsRetractions) {
+  Ctl c;
+  std::string csv = "t_ms,x_px,y_px\n";
+  // 1000 Hz; a 10 deg minimum-jerk saccade (43 ms) at 500 ms, in pixels of kGeometry's screen.
+  const auto geometry = protocol::DisplayGeometry{};
+  for (int i = 0; i < 1000; ++i) {
+    const double deg = saccade_at(i / 1000.0, 0.5, 10).first;
+    const auto norm = protocol::degrees_to_normalized(geometry, {deg, 0});
+    csv += std::to_string(i) + "," + std::to_string(norm.x * geometry.width_px) + ",540\n";
+  }
+  const std::string in = c.write("in.csv", csv), out = (c.dir / "out.csv").string();
+  std::string err;
+  ASSERT_EQ(c.run(in + " " + out + " 1000 1920 1080 531.3 298.9 650 --provisional", err), 0) << err;
+  std::istringstream lines(Ctl::read(out));
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line, "t_ms,label,provisional");
+  std::vector<std::pair<int, std::string>> cells;
+  for (int row = 0; std::getline(lines, line); ++row) {
+    const std::string cell = line.substr(line.rfind(',') + 1);
+    if (!cell.empty()) cells.emplace_back(row, cell);
+  }
+  ASSERT_EQ(cells.size(), 2u) << "the onset on one row, the landing (end and fixation start) on another";
+  EXPECT_EQ(cells[0].second.rfind("saccade_start@", 0), 0u) << cells[0].second;
+  EXPECT_GE(cells[0].first, 500);
+  EXPECT_LE(cells[0].first, 515) << "said within 15 ms of the onset";
+  EXPECT_NE(cells[1].second.find("saccade_end@"), std::string::npos) << cells[1].second;
+  EXPECT_NE(cells[1].second.find(";fixation_start@"), std::string::npos) << cells[1].second;
+  EXPECT_LE(cells[1].first, 543 + 20) << "landing said within 20 ms";
+  EXPECT_NE(err.find("3 provisional events, 3 confirmed and 0 retracted"), std::string::npos) << err;
+}

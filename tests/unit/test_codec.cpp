@@ -47,7 +47,10 @@ std::string to_hex_lines(const std::vector<std::uint8_t>& bytes) {
 
 TEST(Codec, EveryMessageTypeRoundTrips) {
   const auto messages = fovea::test::canonical_messages();
-  ASSERT_EQ(messages.size(), kMaxMessageType) << "one canonical example per message type";
+  ASSERT_GE(messages.size(), kMaxMessageType);
+  for (std::size_t i = 0; i < kMaxMessageType; ++i) {
+    EXPECT_EQ(static_cast<std::size_t>(messages[i].second.header.type), i + 1) << "one canonical example per type, in order";
+  }
   for (const auto& [name, m] : messages) {
     const auto bytes = encode(m);
     EXPECT_EQ(bytes.size(), kHeaderSize + payload_size(m.header.type)) << name;
@@ -192,13 +195,20 @@ TEST(Decoder, RejectsOutOfRangeFieldsAndReservedBits) {
   EXPECT_EQ(mutate(7, [](auto& b) { b[H + 1] = 3; }), DecodeError::OutOfRange);
   EXPECT_EQ(mutate(7, [](auto& b) { b[H + 5] = 1; }), DecodeError::ReservedNotZero);
   EXPECT_EQ(mutate(7, [](auto& b) { wire::store_le<std::int64_t>(b, H + 16, -1); }), DecodeError::OutOfRange);
+  // GAZE_EVENT flags (byte 2): unknown bits, and a retraction that is not of a provisional event
+  EXPECT_EQ(mutate(7, [](auto& b) { b[H + 2] = 0x04; }), DecodeError::ReservedNotZero);
+  EXPECT_EQ(mutate(7, [](auto& b) { b[H + 2] = kEventRetracted; }), DecodeError::OutOfRange);
+  EXPECT_EQ(mutate(7, [](auto& b) { b[H + 2] = kEventProvisional; }), DecodeError::Ok);
+  EXPECT_EQ(mutate(7, [](auto& b) { b[H + 2] = kEventProvisional | kEventRetracted; }), DecodeError::Ok);
+  EXPECT_EQ(mutate(7, [](auto& b) { b[H + 3] = 1; }), DecodeError::ReservedNotZero);
   // HELLO (index 0): name without terminator, garbage after terminator, reserved tail
   EXPECT_EQ(mutate(0, [](auto& b) { std::fill(b.begin() + H + 8, b.begin() + H + 40, 'a'); }), DecodeError::BadString);
   EXPECT_EQ(mutate(0, [](auto& b) { b[H + 38] = 'x'; }), DecodeError::BadString);
   EXPECT_EQ(mutate(0, [](auto& b) { b[H + 47] = 1; }), DecodeError::ReservedNotZero);
   // SUBSCRIBE (index 2): no streams, unknown stream bits
   EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 0); }), DecodeError::OutOfRange);
-  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 8); }), DecodeError::OutOfRange);
+  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 16); }), DecodeError::OutOfRange);
+  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, kStreamProvisional); }), DecodeError::Ok);
   // SUBSCRIBED (index 3): zero-sized display, negative distance
   EXPECT_EQ(mutate(3, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 40, 0); }), DecodeError::OutOfRange);
   EXPECT_EQ(mutate(3, [](auto& b) { wire::store_le<double>(b, H + 64, -0.5); }), DecodeError::OutOfRange);

@@ -105,7 +105,8 @@ int run_client(const Common& c, const std::string& role, std::uint32_t streams,
                         {"latency_max_ns", s.latency_max_ns},
                         {"clock_offset_ns", s.clock_offset_ns},
                         {"subscriptions", s.subscriptions},
-                        {"markers", s.markers.received}};
+                        {"markers", s.markers.received},
+                        {"provisional", s.provisional.received}};
     std::ofstream(c.stats_json) << j.dump(2) << "\n";
   }
   return 0;
@@ -138,7 +139,7 @@ int cmd_status(const Common& c) {
   return 0;
 }
 
-int cmd_watch(const Common& c, unsigned every, bool events_only) {
+int cmd_watch(const Common& c, unsigned every, bool events_only, bool provisional) {
   std::mutex out_mutex;
   std::int64_t t0 = 0;
   std::uint64_t count = 0;
@@ -147,7 +148,8 @@ int cmd_watch(const Common& c, unsigned every, bool events_only) {
     return static_cast<double>(t - t0) / 1e9;
   };
   return run_client(
-      c, "watch", (events_only ? kStreamEvents : kStreamSamples | kStreamEvents) | kStreamMarkers,
+      c, "watch",
+      (events_only ? kStreamEvents : kStreamSamples | kStreamEvents) | kStreamMarkers | (provisional ? kStreamProvisional : 0u),
       [&](GazeClient& client) {
         client.on_sample([&](const GazeSample& s, const Arrival& a) {
           std::lock_guard lock(out_mutex);
@@ -181,12 +183,13 @@ int cmd_watch(const Common& c, unsigned every, bool events_only) {
         client.on_event([&](const GazeEvent& e, const Arrival&) {
           std::lock_guard lock(out_mutex);
           const double t = rel(e.start_time_ns + e.duration_ns);
+          const char* what = (e.flags & kEventRetracted) != 0 ? "RETRACTED" : e.provisional() ? "PROVISIONAL" : "EVENT";
           if (e.phase == EventPhase::Start) {
-            std::printf("%9.3fs EVENT %s start at (%.3f, %.3f)\n", t, to_string(e.kind),
+            std::printf("%9.3fs %s %s start at (%.3f, %.3f)\n", t, what, to_string(e.kind),
                         static_cast<double>(e.centroid_x), static_cast<double>(e.centroid_y));
           } else {
-            std::printf("%9.3fs EVENT %s end: %.0f ms, amplitude %.2f°, peak %.0f°/s, centroid (%.3f, %.3f)\n", t,
-                        to_string(e.kind), static_cast<double>(e.duration_ns) / 1e6,
+            std::printf("%9.3fs %s %s end: %.0f ms, amplitude %.2f°, peak %.0f°/s, centroid (%.3f, %.3f)\n", t,
+                        what, to_string(e.kind), static_cast<double>(e.duration_ns) / 1e6,
                         static_cast<double>(e.amplitude_deg), static_cast<double>(e.peak_velocity_deg_s),
                         static_cast<double>(e.centroid_x), static_cast<double>(e.centroid_y));
           }
@@ -365,6 +368,7 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
     Common c;
     unsigned every = 1;
     bool events_only = false;
+    bool provisional = false;
     std::string record_path;
     bool append = false;
     std::string control_record_path;
@@ -373,7 +377,7 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
     std::optional<std::int64_t> mark_time_ns;
   };
   auto o = std::make_shared<Options>();
-  auto& [c, every, events_only, record_path, append, control_record_path, calibration_file, mark_label, mark_time_ns] = *o;
+  auto& [c, every, events_only, provisional, record_path, append, control_record_path, calibration_file, mark_label, mark_time_ns] = *o;
   app.add_option("--server", c.server, "fovea-trackerd address HOST:PORT")->capture_default_str();
   app.add_option("--control-socket", c.control_socket,
                  "control commands through this socket (default: the daemon's own on this host, found by the "
@@ -387,6 +391,9 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
       ->check(CLI::Range(1u, 1000000u))
       ->capture_default_str();
   watch->add_flag("--events-only", events_only, "subscribe to events only");
+  watch->add_flag("--provisional", provisional,
+                  "also subscribe to provisional events (saccade start/end, fixation start as soon as the newest "
+                  "samples show them, before the final labels), printed PROVISIONAL, and their retractions");
   watch->add_option("--multicast", c.multicast, "receive samples from multicast GROUP:PORT instead of unicast");
   watch->add_option("--stats-json", c.stats_json, "write the final statistics to this JSON file");
 
@@ -420,7 +427,7 @@ std::vector<Command> add_daemon_commands(CLI::App& app) {
 
   return {
       {status, [o] { return cmd_status(o->c); }},
-      {watch, [o] { return cmd_watch(o->c, o->every, o->events_only); }},
+      {watch, [o] { return cmd_watch(o->c, o->every, o->events_only, o->provisional); }},
       {record, [o] { return cmd_record(o->c, o->record_path, o->append); }},
       {mark, [o] { return cmd_mark(o->c, o->mark_label, o->mark_time_ns); }},
       {reload, [o] { return cmd_control(o->c, ControlCommand::Reload, ""); }},

@@ -1,0 +1,202 @@
+// Provisional online events (issue 25 goal 2): the causal saccade detector's timing against a
+// scripted eye and the synthetic viewer, its silence on noise and slow movement, its resets, the
+// check against final labels, and the daemon's classification stage that sends both.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "classify/evaluate.h"
+#include "classify/provisional.h"
+#include "classify_stage.h"
+#include "gaze_scripts.h"
+#include "sim/synthetic_gaze.h"
+#include "sim/synthetic_labelled.h"
+
+using namespace fovea;
+using namespace fovea::trackerd;
+using namespace fovea::trackerd::classify;
+using fovea::test::Script;
+
+namespace {
+
+std::vector<ProvisionalEvent> of(const std::vector<ProvisionalEvent>& all, Label kind, Phase phase) {
+  std::vector<ProvisionalEvent> out;
+  for (const auto& e : all) {
+    if (e.kind == kind && e.phase == phase) out.push_back(e);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Provisional, ASaccadeIsSaidOneSampleAfterItsSpeedCrossesAndItsLandingWithin20ms) {
+  constexpr double kOnset = 0.4, kAmp = 10;  // 43 ms minimum-jerk saccade
+  const double end = kOnset + (2.2 * kAmp + 21) / 1000;
+  for (const double rate : {60.0, 250.0, 500.0, 1000.0}) {
+    SCOPED_TRACE(std::to_string(rate) + " Hz");
+    Script sc;
+    sc.rate = rate;
+    const auto samples = fovea::test::sample(sc, 0.8, [&](double t) { return fovea::test::saccade_at(t, kOnset, kAmp); });
+    const auto events = provisional_events(samples);
+    const auto starts = of(events, Label::Saccade, Phase::Start);
+    const auto ends = of(events, Label::Saccade, Phase::End);
+    const auto fixations = of(events, Label::Fixation, Phase::Start);
+    ASSERT_EQ(starts.size(), 1u);
+    ASSERT_EQ(ends.size(), 1u);
+    ASSERT_EQ(fixations.size(), 1u);
+    const double period = 1 / rate;
+    // The eye's own speed crosses the 30 deg/s floor (the noise here is far below it); the trailing
+    // window's velocity lags that by at most half the window (5 ms) or one interval.
+    double cross = kOnset;
+    while (fovea::test::saccade_speed(cross, kOnset, kAmp) <= 30) cross += 1e-5;
+    const double lag = std::max(0.005, period);
+    EXPECT_LE(starts[0].emitted_s, cross + lag + 2 * period + 0.003) << "said within 2 samples + 3 ms of the crossing";
+    EXPECT_NEAR(starts[0].t_s, kOnset, period + 0.005) << "the onset it reports";
+    EXPECT_NEAR(ends[0].t_s, end, period + 0.010) << "the landing it reports";
+    if (rate >= 250) {
+      EXPECT_LE(fixations[0].emitted_s - end, 0.020) << "fixation onset known within 20 ms of landing";
+    }
+    EXPECT_EQ(fixations[0].t_s, ends[0].t_s);
+    EXPECT_NEAR(ends[0].amplitude_deg, kAmp, 0.5);
+    EXPECT_GT(ends[0].peak_deg_s, 200);
+    EXPECT_NEAR(fixations[0].x_deg, kAmp, 0.5) << "the landing point";
+  }
+}
+
+TEST(Provisional, NoiseAndPursuitMakeNoSaccades) {
+  for (const double rate : {250.0, 1000.0}) {
+    SCOPED_TRACE(std::to_string(rate) + " Hz");
+    Script sc;
+    sc.rate = rate;
+    sc.noise = 0.05;  // a typical video tracker
+    // 30 s of fixation, then 30 s of 10 deg/s pursuit back and forth.
+    const auto samples = fovea::test::sample(sc, 60, [](double t) {
+      if (t < 30) return std::pair{0.0, 0.0};
+      const double phase = std::fmod(t - 30, 4.0);
+      return std::pair{phase < 2 ? 10 * phase - 10 : 30 - 10 * phase, 0.0};
+    });
+    EXPECT_LE(of(provisional_events(samples), Label::Saccade, Phase::Start).size(), 1u);
+  }
+}
+
+TEST(Provisional, ALossResetsItAndANoiseSpikeIsNoSaccade) {
+  Script sc;
+  sc.rate = 500;
+  auto samples = fovea::test::sample(sc, 0.8, [](double t) { return fovea::test::saccade_at(t, 0.4, 10); });
+  // The tracker loses the eye mid-saccade, for 30 ms: the saccade started, never lands provisionally.
+  for (auto& s : samples) {
+    if (s.t_s > 0.415 && s.t_s < 0.445) s.valid = false;
+  }
+  // And a single sample thrown 5 degrees off during the later fixation (over 1000 deg/s).
+  samples[350].x_deg += 5;
+  const auto events = provisional_events(samples);
+  EXPECT_EQ(of(events, Label::Saccade, Phase::Start).size(), 1u);
+  EXPECT_EQ(of(events, Label::Saccade, Phase::End).size(), 0u);
+  // Samples that go back in time or are not finite are ignored, not fatal.
+  std::vector<Sample> bad = {{0.1, 0, 0, true, 0}, {0.05, 1, 1, true, 0},
+                             {std::numeric_limits<double>::quiet_NaN(), 0, 0, true, 0}, {0.2, 1e9, 0, true, 0}};
+  EXPECT_TRUE(provisional_events(bad).empty());
+}
+
+TEST(Provisional, OnTheSyntheticViewerItIsFastAndRarelyWrong) {
+  for (const double rate : {250.0, 1000.0}) {
+    SCOPED_TRACE(std::to_string(rate) + " Hz");
+    LabelledGaze l = synthetic_labelled(rate, 60, 5);
+    Degradation d;
+    d.extra_noise_deg = 0.05;
+    degrade(l.samples, d);
+    const auto events = provisional_events(l.samples);
+    const ProvisionalLatency lat = provisional_latency(l.truth, l.samples, events);
+    const std::size_t saccades = lat.saccade.latency_s.size() + lat.saccade.missed;
+    ASSERT_GT(saccades, 50u);
+    EXPECT_LT(static_cast<double>(lat.saccade.missed), 0.1 * static_cast<double>(saccades));
+    EXPECT_LT(quantile(lat.saccade.latency_s, 0.99), 0.025) << "onset said within 25 ms of the true onset";
+    EXPECT_LE(quantile(lat.fixation.latency_s, 0.99), 0.020) << "fixation onset within 20 ms of landing";
+    const ProvisionalAgreement agree = provisional_agreement(events, classify_all("ivvt", rate, l.samples), l.samples);
+    EXPECT_EQ(agree.confirmed + agree.retracted, agree.emitted);
+    EXPECT_LT(static_cast<double>(agree.retracted), 0.1 * static_cast<double>(agree.emitted));
+  }
+}
+
+TEST(ProvisionalCheck, ConfirmsAMatchWithinToleranceAndRetractsOnlyOnceTheFinalLabelsHavePassed) {
+  ProvisionalCheck check(0.050);
+  ProvisionalEvent a;  // saccade start at 1.000 s
+  a.t_s = 1.0;
+  ProvisionalEvent b = a;  // another at 2.000 s, never confirmed
+  b.t_s = 2.0;
+  ProvisionalEvent c = a;  // a fixation start at 3.000 s, confirmed 40 ms later
+  c.kind = Label::Fixation;
+  c.t_s = 3.0;
+  for (const auto& e : {a, b, c}) check.provisional(e);
+  std::vector<ProvisionalEvent> retracted;
+  check.final_event(Label::Saccade, Phase::Start, 1.030);
+  check.final_event(Label::Saccade, Phase::End, 2.0);  // same time, other phase: no match
+  check.final_upto(2.049, retracted);
+  EXPECT_TRUE(retracted.empty()) << "2.000 may still be confirmed up to 2.050";
+  check.final_upto(2.051, retracted);
+  ASSERT_EQ(retracted.size(), 1u);
+  EXPECT_EQ(retracted[0].t_s, 2.0);
+  check.final_event(Label::Fixation, Phase::Start, 3.040);
+  check.final_upto(10, retracted);
+  EXPECT_EQ(retracted.size(), 1u);
+  EXPECT_EQ(check.emitted(), 3u);
+  EXPECT_EQ(check.confirmed(), 2u);
+  EXPECT_EQ(check.retracted(), 1u);
+}
+
+// The daemon's stage: provisional events go out with the sample that showed them, long before the
+// final event of the same saccade; every retraction repeats an earlier provisional event; nothing
+// is left unresolved at the end.
+TEST(ClassifyStage, SendsProvisionalEventsFirstAndRetractsOnlyWhatItSent) {
+  SyntheticGazeOptions so;
+  so.rate_hz = 250;
+  so.seed = 9;
+  SyntheticGaze source(so);
+  ClassifyStage stage("ivvt", 250, protocol::DisplayGeometry{});
+  std::vector<GazeItem> out, all;
+  for (int i = 0; i < 250 * 30; ++i) {
+    const auto item = source.next();
+    ASSERT_TRUE(item);
+    out.clear();
+    stage.process(*item, out);
+    all.insert(all.end(), out.begin(), out.end());
+  }
+  out.clear();
+  stage.flush(out);
+  all.insert(all.end(), out.begin(), out.end());
+
+  std::vector<protocol::GazeEvent> provisional;
+  std::size_t final_starts = 0, preceded = 0, retractions = 0;
+  for (const GazeItem& item : all) {
+    const auto* e = std::get_if<protocol::GazeEvent>(&item);
+    if (e == nullptr) continue;
+    if ((e->flags & protocol::kEventRetracted) != 0) {
+      ++retractions;
+      bool sent = false;
+      for (const auto& p : provisional) {
+        sent = sent || (p.kind == e->kind && p.phase == e->phase && p.start_time_ns == e->start_time_ns);
+      }
+      EXPECT_TRUE(sent) << "a retraction of an event never sent";
+    } else if (e->provisional()) {
+      provisional.push_back(*e);
+    } else if (e->kind == protocol::EyeMovement::Saccade && e->phase == protocol::EventPhase::Start) {
+      ++final_starts;
+      for (const auto& p : provisional) {
+        if (p.kind == e->kind && p.phase == e->phase && std::llabs(p.start_time_ns - e->start_time_ns) <= 50'000'000) {
+          ++preceded;
+          break;
+        }
+      }
+    }
+  }
+  ASSERT_GT(final_starts, 20u);
+  EXPECT_GE(static_cast<double>(preceded), 0.9 * static_cast<double>(final_starts))
+      << "most final saccades were said provisionally before";
+  const auto& check = stage.provisional_check();
+  EXPECT_EQ(check.emitted(), provisional.size());
+  EXPECT_EQ(check.retracted(), retractions);
+  EXPECT_EQ(check.confirmed() + check.retracted(), check.emitted()) << "after the flush nothing is pending";
+}
