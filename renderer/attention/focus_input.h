@@ -7,15 +7,17 @@
 namespace fovea::render::attention {
 
 // `available`: GazeInput::available() (false for --gaze none). A sample that is not valid (blink,
-// lost track) or classified as a saccade or blink holds the focus.
+// lost track) or in a saccade (GazeState::in_saccade) or a blink holds the focus. With provisional
+// events the sample's final label trails the eye (a blink's label outlasts the blink by the
+// classifier's window): only the samples' validity and the provisional saccade count then.
 inline FocusGaze focus_gaze_from(const GazeState& state, bool available) {
   FocusGaze g;
   g.available = available;
   g.valid = available && state.valid;
   g.x = state.x;
   g.y = state.y;
-  g.saccade_or_blink = state.movement == protocol::EyeMovement::Saccade ||
-                       state.movement == protocol::EyeMovement::Blink || !state.valid;
+  g.saccade_or_blink = state.in_saccade || !state.valid ||
+                       (!state.provisional && state.movement == protocol::EyeMovement::Blink);
   g.fixations = state.fixations;
   return g;
 }

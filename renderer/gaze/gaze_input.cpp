@@ -13,6 +13,7 @@
 #include "fovea/protocol/csv.h"
 #include "fovea/protocol/display_geometry.h"
 #include "fovea/protocol/recording.h"
+#include "gaze/gaze_events.h"
 
 namespace fovea::render {
 
@@ -71,14 +72,11 @@ class UdpGaze final : public GazeInput {
   explicit UdpGaze(const std::string& address) : address_(address) {
     protocol::ClientOptions o;
     o.server = protocol::parse_endpoint(address, protocol::kDefaultPort);
-    o.streams = protocol::kStreamSamples | protocol::kStreamEvents;
+    // Provisional events too: the focus refocuses at a fixation's landing, not 185 ms later.
+    o.streams = protocol::kStreamSamples | protocol::kStreamEvents | protocol::kStreamProvisional;
     o.name = "fovea-render";
     client_ = std::make_unique<protocol::GazeClient>(o);
-    client_->on_event([this](const protocol::GazeEvent& e, const protocol::Arrival&) {
-      if (e.kind == protocol::EyeMovement::Fixation && e.phase == protocol::EventPhase::Start) {
-        fixations_.fetch_add(1, std::memory_order_relaxed);
-      }
-    });
+    client_->on_event([this](const protocol::GazeEvent& e, const protocol::Arrival& a) { events_.on_event(e, a.receive_ns); });
     client_->start();
   }
   std::string description() const override { return "udp://" + address_; }
@@ -91,19 +89,22 @@ class UdpGaze final : public GazeInput {
         state_.y = sample->y;
       }
       state_.movement = sample->state;
+      state_.in_saccade = sample->state == protocol::EyeMovement::Saccade;
       const auto stats = client_->stats();
       state_.age_ms = static_cast<double>(protocol::monotonic_ns() - (sample->tracker_time_ns - stats.clock_offset_ns)) / 1e6;
       state_.received = stats.samples.received;
       state_.lost = stats.samples.lost;
       state_.latency_p99_ms = static_cast<double>(stats.latency_p99_ns) / 1e6;
     }
-    state_.fixations = fixations_.load(std::memory_order_relaxed);
+    state_.fixations = events_.fixations();
+    state_.provisional = events_.provisional();
+    if (state_.provisional) state_.in_saccade = events_.in_saccade(protocol::monotonic_ns());
     return state_;
   }
 
  private:
   std::string address_;
-  std::atomic<std::uint64_t> fixations_{0};  // written on the client's receive thread; outlives client_
+  GazeEventTracker events_;  // written on the client's receive thread; outlives client_
   std::unique_ptr<protocol::GazeClient> client_;
   GazeState state_;
 };
@@ -157,6 +158,7 @@ class FileGaze final : public GazeInput {
     GazeState g;
     g.valid = (it->flags & protocol::kGazeValid) != 0;
     g.movement = it->state;
+    g.in_saccade = it->state == protocol::EyeMovement::Saccade;  // the recording's final labels, at their time
     for (std::size_t i = index + 1; i-- > 0;) {
       if (samples_[i].flags & protocol::kGazeValid) {
         g.x = samples_[i].x;

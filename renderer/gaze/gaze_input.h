@@ -17,6 +17,12 @@ struct GazeState {
   std::uint64_t received = 0, lost = 0;
   double latency_p99_ms = 0;
   std::uint64_t fixations = 0;   // fixation onsets (GAZE_EVENT Fixation Start) seen so far; a change = a new fixation
+  // A saccade is in flight now, as best known: udp with provisional events, from them (gaze_events.h);
+  // otherwise the sample's movement is Saccade.
+  bool in_saccade = false;
+  // The movement comes from provisional events (udp): `movement`, the sample's final label, then
+  // trails the eye by the classifier's window and in_saccade says what the eye does now.
+  bool provisional = false;
 };
 
 class GazeInput {
@@ -30,7 +36,9 @@ class GazeInput {
   virtual void set_cursor(double /*x*/, double /*y*/) {}
 };
 
-// Fixation onsets (GazeState::fixations): udp counts the stream's GAZE_EVENT Fixation Start; file
+// Fixation onsets (GazeState::fixations): udp counts the stream's GAZE_EVENT Fixation Start, the
+// provisional one when the daemon sends it (at landing) and the final one only when no provisional
+// one came within 50 ms of it (gaze_events.h); file
 // counts the recording's Fixation Start events up to the replay time (a recording without events, as
 // CSV is, counts samples whose state turns to Fixation instead); mouse counts a fixation when the
 // cursor has stayed within 1 deg (on the default display geometry) for 100 ms after moving; none

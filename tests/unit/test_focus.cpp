@@ -7,11 +7,15 @@
 #include <filesystem>
 #include <limits>
 #include <numbers>
+#include <thread>
 #include <unistd.h>
 
 #include "attention/focus.h"
 #include "attention/focus_input.h"
+#include "fovea/protocol/clock.h"
 #include "fovea/protocol/recording.h"
+#include "fovea/protocol/server.h"
+#include "gaze/gaze_events.h"
 #include "gaze/gaze_input.h"
 #include "passes/overlay.h"
 #include "pipeline/planner.h"
@@ -567,8 +571,21 @@ TEST(FocusInput, FromGazeState) {
   EXPECT_TRUE(g.available && g.valid && !g.saccade_or_blink);
   EXPECT_EQ(g.fixations, 4u);
   EXPECT_DOUBLE_EQ(g.x, 0.3);
-  s.movement = fovea::protocol::EyeMovement::Saccade;
+  s.in_saccade = true;  // what every input sets while the sample's movement is Saccade
   EXPECT_TRUE(focus_gaze_from(s, true).saccade_or_blink);
+  s.in_saccade = false;
+  s.movement = fovea::protocol::EyeMovement::Blink;
+  EXPECT_TRUE(focus_gaze_from(s, true).saccade_or_blink);
+  // With provisional events the final label trails the eye: a valid sample out of a provisional
+  // saccade may refocus although its final label still says saccade or blink.
+  s.provisional = true;
+  EXPECT_FALSE(focus_gaze_from(s, true).saccade_or_blink);
+  s.movement = fovea::protocol::EyeMovement::Saccade;
+  EXPECT_FALSE(focus_gaze_from(s, true).saccade_or_blink);
+  s.in_saccade = true;
+  EXPECT_TRUE(focus_gaze_from(s, true).saccade_or_blink);
+  s.in_saccade = false;
+  s.provisional = false;
   s.movement = fovea::protocol::EyeMovement::Pursuit;
   EXPECT_FALSE(focus_gaze_from(s, true).saccade_or_blink);
   s.valid = false;
@@ -779,4 +796,72 @@ TEST(FocusPlanner, FocusSettingsAreKnownWithTheirRanges) {
   EXPECT_THROW(s.set_assignment("focus.cutoff_hz=0"), std::invalid_argument);
   EXPECT_THROW(s.set_assignment("focus.transition_ms=-1"), std::invalid_argument);
   EXPECT_THROW(s.set_assignment("focus.gaze_radius_deg=11"), std::invalid_argument);
+}
+
+// Issue 25: provisional events move the fixation count and the saccade in flight at once; their
+// final events do not count the same fixation twice.
+TEST(GazeFixations, ProvisionalOnsetsCountOnceAndSaccadesFlyUntilTheyLand) {
+  using fovea::protocol::EventPhase;
+  using fovea::protocol::EyeMovement;
+  using fovea::protocol::GazeEvent;
+  using fovea::protocol::kEventProvisional;
+  using fovea::protocol::kEventRetracted;
+  const auto event = [](EyeMovement kind, EventPhase phase, std::int64_t start_ms, std::uint8_t flags) {
+    GazeEvent e;
+    e.kind = kind;
+    e.phase = phase;
+    e.start_time_ns = start_ms * 1'000'000;
+    e.flags = flags;
+    return e;
+  };
+  constexpr std::int64_t ms = 1'000'000;
+  fovea::render::GazeEventTracker t;
+  t.on_event(event(EyeMovement::Fixation, EventPhase::Start, 0, 0), 0);  // a final onset, none provisional
+  EXPECT_EQ(t.fixations(), 1u);
+  EXPECT_FALSE(t.provisional());
+  t.on_event(event(EyeMovement::Saccade, EventPhase::Start, 1000, kEventProvisional), 1010 * ms);
+  EXPECT_TRUE(t.provisional());
+  EXPECT_TRUE(t.in_saccade(1020 * ms));
+  t.on_event(event(EyeMovement::Saccade, EventPhase::End, 1000, kEventProvisional), 1050 * ms);
+  t.on_event(event(EyeMovement::Fixation, EventPhase::Start, 1045, kEventProvisional), 1050 * ms);
+  EXPECT_FALSE(t.in_saccade(1051 * ms)) << "landed";
+  EXPECT_EQ(t.fixations(), 2u) << "counted at the provisional onset";
+  t.on_event(event(EyeMovement::Fixation, EventPhase::Start, 1080, 0), 1270 * ms);  // its final event, 35 ms off
+  EXPECT_EQ(t.fixations(), 2u) << "the final event of a fixation already counted";
+  t.on_event(event(EyeMovement::Fixation, EventPhase::Start, 2000, 0), 2200 * ms);  // nobody said it early
+  EXPECT_EQ(t.fixations(), 3u);
+  // A provisional saccade retracted ends at once; one never landed ends after 200 ms.
+  t.on_event(event(EyeMovement::Saccade, EventPhase::Start, 3000, kEventProvisional), 3005 * ms);
+  t.on_event(event(EyeMovement::Saccade, EventPhase::Start, 3000, kEventProvisional | kEventRetracted), 3200 * ms);
+  EXPECT_FALSE(t.in_saccade(3201 * ms));
+  t.on_event(event(EyeMovement::Saccade, EventPhase::Start, 4000, kEventProvisional), 4005 * ms);
+  EXPECT_TRUE(t.in_saccade(4200 * ms));
+  EXPECT_FALSE(t.in_saccade(4206 * ms));
+}
+
+// End to end: a daemon's provisional fixation onset reaches the renderer's udp gaze input.
+TEST(GazeFixations, UdpInputTakesTheDaemonsProvisionalEvents) {
+  fovea::protocol::ServerOptions so;
+  so.listen = {0x7F000001, 0};
+  fovea::protocol::GazeServer server(so);
+  auto input = make_gaze_input("udp://" + server.local_endpoint().to_string());
+  fovea::protocol::GazeSample s;
+  s.flags = fovea::protocol::kGazeValid;
+  s.state = fovea::protocol::EyeMovement::Saccade;  // the final label, trailing
+  fovea::protocol::GazeEvent landing;
+  landing.kind = fovea::protocol::EyeMovement::Fixation;
+  landing.phase = fovea::protocol::EventPhase::Start;
+  landing.flags = fovea::protocol::kEventProvisional;
+  GazeState g;
+  for (int i = 0; i < 400 && g.fixations == 0; ++i) {
+    s.tracker_time_ns = landing.start_time_ns = fovea::protocol::monotonic_ns();
+    server.publish(s);
+    server.publish(landing);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    g = input->at(0);
+  }
+  EXPECT_EQ(g.fixations, 1u);
+  EXPECT_TRUE(g.provisional);
+  EXPECT_FALSE(g.in_saccade) << "the provisional stream, not the trailing final label, says where the eye is";
+  EXPECT_FALSE(focus_gaze_from(g, true).saccade_or_blink);
 }
