@@ -197,7 +197,8 @@ void write_lod_row(std::ofstream& lod_log, const std::string& out_dir, std::uint
                    const FramePipeline::Frame::Lod& lod) {
   if (!lod_log.is_open()) {
     lod_log.open(fs::path(out_dir) / "lod.csv");
-    lod_log << "frame,policy,objects,triangles,full_triangles,budget_bias,cannot_meet,levels\n";
+    lod_log << "frame,policy,objects,triangles,full_triangles,budget_bias,cannot_meet,in_saccade,pops,"
+               "switched_in_saccade,blended,levels\n";
   }
   std::string levels;
   for (const lod::Selection& sel : lod.selection) {
@@ -205,11 +206,12 @@ void write_lod_row(std::ofstream& lod_log, const std::string& out_dir, std::uint
     std::snprintf(item, sizeof item, "%s%u:%d", levels.empty() ? "" : " ", sel.id, sel.drawn);
     levels += item;
   }
-  char ll[160];
-  std::snprintf(ll, sizeof ll, "%llu,%s,%zu,%llu,%llu,%.2f,%d,", static_cast<unsigned long long>(i), lod.policy,
+  char ll[200];
+  std::snprintf(ll, sizeof ll, "%llu,%s,%zu,%llu,%llu,%.2f,%d,%d,%d,%d,%d,", static_cast<unsigned long long>(i), lod.policy,
                 lod.selection.size(), static_cast<unsigned long long>(lod.triangles),
                 static_cast<unsigned long long>(lod.full_triangles), lod.budget.bias,
-                lod.budget.cannot_meet ? 1 : 0);
+                lod.budget.cannot_meet ? 1 : 0, lod.switches.in_saccade ? 1 : 0, lod.switches.pops,
+                lod.switches.switched_in_saccade, lod.switches.blended);
   lod_log << ll << '"' << levels << "\"\n";
 }
 

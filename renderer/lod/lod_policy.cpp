@@ -159,6 +159,8 @@ const std::vector<Selection>& LodSelector::select(const std::vector<ObjectView>&
       if (std::isfinite(o.attention)) max_attention = std::max(max_attention, o.attention);
   bool all_coarsest = true;
   std::vector<std::pair<std::uint32_t, int>> drawn;
+  SwitchState switches;
+  switches.in_saccade = in_saccade_;
   for (const ObjectView& o : objects) {
     Selection sel;
     sel.id = o.id;
@@ -169,32 +171,54 @@ const std::vector<Selection>& LodSelector::select(const std::vector<ObjectView>&
     double l = continuous_level(relative, settings_, frame);
     if (!brown) l = std::min(top, l + budget_.bias);
     sel.level = l;
-    if (settings_.policy == Policy::Ulod) {
-      // ULOD: the two adjacent levels, blended in image space by the fraction.
-      sel.drawn = static_cast<int>(std::floor(l));
-      sel.blend_to = std::min(sel.drawn + 1, o.levels - 1);
-      sel.blend = l - std::floor(l);
-    } else {
-      // Hysteresis: the drawn level changes only when L leaves it by more than half a level plus h.
-      int previous = -1;
-      for (const auto& [id, lv] : drawn_)
-        if (id == o.id) previous = lv;
-      const double h = std::max(0.0, finite_or(settings_.hysteresis, 0.0));
-      int d = static_cast<int>(std::lround(l));
-      if (previous >= 0 && std::abs(l - previous) <= 0.5 + h) d = std::min(previous, o.levels - 1);
-      sel.drawn = std::clamp(d, 0, std::max(0, o.levels - 1));
-      sel.blend_to = sel.drawn;
+    int previous = -1;
+    for (const auto& [id, lv] : drawn_)
+      if (id == o.id) previous = lv;
+    sel.drawn = choose_drawn(o, l, previous, sel);
+    if (previous >= 0 && sel.drawn != previous) {
+      const bool blended_change = settings_.policy == Policy::Ulod && !settings_.switch_in_saccades;
+      if (in_saccade_) ++switches.switched_in_saccade;
+      else if (!blended_change) ++switches.pops;
     }
+    if (sel.blend > 0 && sel.blend_to != sel.drawn) ++switches.blended;
     all_coarsest = all_coarsest && sel.drawn >= o.levels - 1;
     drawn.emplace_back(o.id, sel.drawn);
     out_.push_back(sel);
   }
   drawn_ = std::move(drawn);
+  switches_ = switches;
   budget_.cannot_meet = over && all_coarsest;
   budget_.why = budget_.cannot_meet ? "every object is at its coarsest level and the frame (" + std::to_string(last_frame_ms) +
                                           " ms) is still over the budget (" + std::to_string(budget_.target_ms) + " ms)"
                                     : "";
   return out_;
+}
+
+// The level drawn for continuous level l (previous: last frame's drawn level, -1 for an object new
+// in view); fills the blend of `sel`.
+int LodSelector::choose_drawn(const ObjectView& o, double l, int previous, Selection& sel) const {
+  const int top = std::max(0, o.levels - 1);
+  sel.blend_to = -1;
+  sel.blend = 0;
+  int d = 0;
+  if (settings_.switch_in_saccades) {
+    // Saccadic suppression: switch freely during a saccade; hold outside one within the slack.
+    d = static_cast<int>(std::lround(l));
+    if (!in_saccade_ && previous >= 0 && std::abs(l - previous) <= kSwitchSlack) d = previous;
+  } else if (settings_.policy == Policy::Ulod) {
+    // ULOD: the two adjacent levels, blended in image space by the fraction.
+    d = static_cast<int>(std::floor(l));
+    sel.blend_to = std::min(d + 1, top);
+    sel.blend = l - std::floor(l);
+  } else {
+    // Hysteresis: the drawn level changes only when L leaves it by more than half a level plus h.
+    const double h = std::max(0.0, finite_or(settings_.hysteresis, 0.0));
+    d = static_cast<int>(std::lround(l));
+    if (previous >= 0 && std::abs(l - previous) <= 0.5 + h) d = previous;
+  }
+  d = std::clamp(d, 0, top);
+  if (sel.blend_to < 0) sel.blend_to = d;
+  return d;
 }
 
 }  // namespace fovea::render::lod

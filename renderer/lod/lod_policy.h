@@ -78,7 +78,14 @@ struct PolicySettings {
   BrownSettings brown;
   perception::GeislerPerry csf;   // gaze policy: Geisler-Perry constants (Murphy eqs. 4.1-4.3)
   double hysteresis = 0.25;       // levels: a drawn level changes when L leaves it by 0.5 + this
+  // Saccadic suppression (the eye is nearly blind during a saccade: Matin 1974; Volkmann 1986):
+  // during a saccade in flight every drawn level goes straight to round(L), unblended; outside
+  // saccades a drawn level holds until L is more than kSwitchSlack levels off (then it pops, a
+  // change the viewer may see, counted), and ULOD draws no blend. Off: ULOD blends, the others
+  // switch through the hysteresis whenever L moves.
+  bool switch_in_saccades = false;
 };
+inline constexpr double kSwitchSlack = 1.5;
 
 // The policy's continuous level of one object, before the frame-time bias, in [0, levels - 1].
 // `stress` (Brown's s, a share of P in [0, 1 + a]) and the visible objects' motion statistics (for
@@ -98,6 +105,16 @@ struct Selection {
   int drawn = 0;         // the level drawn (after hysteresis)
   int blend_to = 0;      // ULOD: the adjacent level blended in with weight `blend`
   double blend = 0;
+};
+
+// What the level changes of the last frame were: changes outside a saccade are pops a viewer may
+// see (ULOD's blended changes are not: its weight moves continuously); blended objects cost ULOD's
+// second pass.
+struct SwitchState {
+  bool in_saccade = false;
+  int pops = 0;                // objects whose drawn level changed outside a saccade (not blended)
+  int switched_in_saccade = 0; // objects whose drawn level changed during a saccade
+  int blended = 0;             // objects drawn as a blend of two levels
 };
 
 struct BudgetState {
@@ -121,6 +138,9 @@ class LodSelector {
   const std::vector<Selection>& select(const std::vector<ObjectView>& objects, double last_frame_ms,
                                        double top_attention = std::numeric_limits<double>::quiet_NaN());
   const BudgetState& budget() const { return budget_; }
+  // Whether a saccade is in flight for the next select() (GazeState::in_saccade).
+  void set_in_saccade(bool in_saccade) { in_saccade_ = in_saccade; }
+  const SwitchState& switches() const { return switches_; }
 
  private:
   PolicySettings settings_;
@@ -128,6 +148,9 @@ class LodSelector {
   std::vector<Selection> out_;
   std::vector<std::pair<std::uint32_t, int>> drawn_;  // object id -> drawn level last frame
   double stress_ = 0;
+  bool in_saccade_ = false;
+  SwitchState switches_;
+  int choose_drawn(const ObjectView& o, double l, int previous, Selection& sel) const;
 };
 
 }  // namespace fovea::render::lod

@@ -88,6 +88,7 @@ lod::PolicySettings lod_policy_settings(const Settings& s) {
   ps.tolerance_px = s.number("lod.tolerance_px");
   ps.distance_ref_m = s.number("lod.distance_ref_m");
   ps.hysteresis = s.number("lod.hysteresis");
+  ps.switch_in_saccades = s.flag("lod.switch_in_saccades");
   return ps;
 }
 
@@ -429,7 +430,10 @@ void FramePipeline::step_gbuffer(const Frame& f, double now_s, double previous_s
   bs.depth_prepass = ps.depth_prepass;
   bs.visibility_buffer = ps.visibility_buffer;
   backend_->render(FrameTime{now_s, previous_s}, bs, gbuffer_);
-  if (f.lod != nullptr && ps.plan.lod_policy == lod::Policy::Ulod) blend_ulod(FrameTime{now_s, previous_s}, bs);
+  if (f.lod != nullptr && ps.plan.lod_policy == lod::Policy::Ulod) {
+    auto u = timer.scope("gbuffer.ulod");  // the next levels' render and the blend, inside "gbuffer"
+    blend_ulod(FrameTime{now_s, previous_s}, bs);
+  }
   if (check) require_finite_gbuffer("gbuffer", gbuffer_);
 }
 
@@ -732,6 +736,7 @@ void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double p
   const std::vector<lod::ObjectView> views = lod::object_views(scene_, in, lod_bounds_, object_of);
   // ULOD: S_o relative to the frame's most attended object, whether it has a chain or not.
   const double top_attention = att.objects.empty() ? std::numeric_limits<double>::quiet_NaN() : att.objects.front().attention;
+  lod_selector_.set_in_saccade(gaze.in_saccade);
   const std::vector<lod::Selection>& sel = lod_selector_.select(views, last_frame_ms, top_attention);
   lod_levels_.assign(scene_.objects.size(), 0);
   for (std::size_t k = 0; k < sel.size(); ++k) {
@@ -742,6 +747,7 @@ void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double p
   }
   lod_frame_.selection = sel;
   lod_frame_.budget = lod_selector_.budget();
+  lod_frame_.switches = lod_selector_.switches();
 }
 
 }  // namespace fovea::render

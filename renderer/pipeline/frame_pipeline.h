@@ -69,6 +69,7 @@ class FramePipeline {
       std::vector<lod::Selection> selection;  // per visible object with a chain
       std::uint64_t triangles = 0, full_triangles = 0;  // drawn, and at full detail
       lod::BudgetState budget;
+      lod::SwitchState switches;
     };
     const Lod* lod = nullptr;  // null when lod-select did not run
     // The display image lies on the GPU (image is null): read_display() brings it to the CPU, the

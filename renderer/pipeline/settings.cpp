@@ -81,6 +81,10 @@ const std::vector<SettingSpec>& Settings::specs() {
        "Brown 2003's binary importance, Lee 2009's ULOD L = M(1 - S_o) from the attention pass, or gaze eccentricity "
        "through the Geisler-Perry contrast threshold (renderer/lod/lod_policy.h)"},
       {"lod.tolerance_px", "1", "number in [0.01, 1000]", "screen-size policy: geometric error allowed on screen, pixels"},
+      {"lod.switch_in_saccades", "false", "bool",
+       "change drawn levels during saccades in flight (saccadic suppression hides it; provisional events from "
+       "the daemon say when), unblended; outside saccades a level holds until it is 1.5 levels off (a pop, "
+       "counted in lod.csv)"},
       {"lod.distance_ref_m", "2", "number in [0.001, 100000]", "distance policy: full detail up to this distance"},
       {"lod.hysteresis", "0.25", "number in [0, 2]", "levels beyond half a level an object's L must move before its drawn level changes"},
       {"lod.budget_ms", "0", "number in [0, 100000]",

@@ -159,6 +159,65 @@ TEST(LodPolicy, HysteresisStopsOscillation) {
   EXPECT_GE(sel.select({o}, 0)[0].drawn, 3);
 }
 
+// Issue 25: with switch_in_saccades the levels change during saccades (hidden by saccadic
+// suppression), unblended; outside one a level holds within the slack and a change beyond it is
+// counted as a pop. Without it ULOD blends (no pops, blended objects) and the others pop.
+TEST(LodPolicy, SwitchInSaccadesChangesLevelsOnlyWhileTheEyeIsBlind) {
+  const auto at_level = [](ObjectView o, double l) {
+    o.distance_m = 2.0 * std::pow(4.0, l / 2.0);  // distance policy, d_ref 2 m: L = l
+    return o;
+  };
+  PolicySettings s;
+  s.policy = Policy::Distance;
+  s.switch_in_saccades = true;
+  LodSelector sel(s);
+  const ObjectView o = chain_object();
+  EXPECT_EQ(sel.select({at_level(o, 0.0)}, 0)[0].drawn, 0);
+  EXPECT_EQ(sel.select({at_level(o, 1.4)}, 0)[0].drawn, 0) << "held outside a saccade";
+  EXPECT_EQ(sel.switches().pops, 0);
+  sel.set_in_saccade(true);
+  EXPECT_EQ(sel.select({at_level(o, 1.4)}, 0)[0].drawn, 1) << "switched during the saccade";
+  EXPECT_EQ(sel.switches().switched_in_saccade, 1);
+  EXPECT_TRUE(sel.switches().in_saccade);
+  sel.set_in_saccade(false);
+  EXPECT_EQ(sel.select({at_level(o, 2.4)}, 0)[0].drawn, 1);
+  EXPECT_EQ(sel.select({at_level(o, 2.6)}, 0)[0].drawn, 3) << "beyond the slack it pops";
+  EXPECT_EQ(sel.switches().pops, 1);
+
+  // ULOD: blends without the setting (weight moves continuously: no pops), never with it.
+  PolicySettings u;
+  u.policy = Policy::Ulod;
+  LodSelector blend(u);
+  ObjectView a = chain_object();
+  a.attention = 1;
+  ObjectView b = chain_object(2);
+  b.attention = 0.55;  // L = 4 (1 - 0.55) = 1.8 relative to a
+  blend.select({a, b}, 0);
+  b.attention = 0.4;  // L = 2.4: drawn 1 -> 2, blended
+  const auto& blended = blend.select({a, b}, 0);
+  EXPECT_EQ(blended[1].drawn, 2);
+  EXPECT_GT(blended[1].blend, 0.0);
+  EXPECT_EQ(blend.switches().pops, 0);
+  EXPECT_EQ(blend.switches().blended, 1);
+  u.switch_in_saccades = true;
+  LodSelector snap(u);
+  b.attention = 0.55;
+  snap.select({a, b}, 0);
+  b.attention = 0.4;
+  const auto& snapped = snap.select({a, b}, 0);
+  EXPECT_EQ(snapped[1].drawn, 2) << "round(1.8) held: 2.4 is within the slack";
+  EXPECT_EQ(snapped[1].blend, 0.0);
+  EXPECT_EQ(snap.switches().blended, 0);
+
+  // The hysteresis policies pop whenever their level changes outside a saccade.
+  PolicySettings h;
+  h.policy = Policy::Distance;
+  LodSelector hyst(h);
+  hyst.select({at_level(o, 0.0)}, 0);
+  hyst.select({at_level(o, 1.0)}, 0);
+  EXPECT_EQ(hyst.switches().pops, 1);
+}
+
 TEST(LodPolicy, BudgetControllerCoarsensUntilItMeetsTheBudgetOrSaysItCannot) {
   PolicySettings s;
   s.policy = Policy::ScreenSize;
