@@ -23,6 +23,7 @@
 #include "fovea/calib/model.h"
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
+#include "fovea/protocol/recording.h"
 #include "service/control_paths.h"
 #include "temp_dir.h"
 
@@ -231,6 +232,46 @@ TEST(DaemonLoop, ASlowReloadDoesNotPauseTheGazeStream) {
   const fs::path rec = dir.path / "after-reload.fgr";
   ASSERT_TRUE(fs::exists(rec));
   EXPECT_GT(fs::file_size(rec), 1000u);
+}
+
+// Issue 25: the daemon sends provisional events to the clients that ask, and records only the
+// final ones (RECORDING.md).
+TEST(DaemonLoop, ProvisionalEventsGoToSubscribersButNotIntoTheRecording) {
+  spdlog::set_level(spdlog::level::warn);
+  const TempDir dir;
+  service::DaemonConfig config;
+  config.network.port = free_udp_port();
+  config.network.control_socket = "none";
+  config.log_level = "warn";
+  config.record.path = (dir.path / "live.fgr").string();
+  std::atomic<bool> stop{false}, reload{false};
+  int status = -1;
+  std::thread daemon([&] { status = run_daemon(config, RunOptions{}, DaemonSignals{&stop, &reload}, nullptr); });
+
+  protocol::ClientOptions o;
+  o.server = protocol::Endpoint{0x7F000001, config.network.port};
+  o.streams = protocol::kStreamEvents | protocol::kStreamProvisional;
+  protocol::GazeClient client(o);
+  std::atomic<int> provisional{0}, final_events{0};
+  client.on_event([&](const protocol::GazeEvent& e, const protocol::Arrival&) { ++(e.provisional() ? provisional : final_events); });
+  client.start();
+  ASSERT_TRUE(client.wait_subscribed(5000));
+  for (int i = 0; i < 100 && (provisional.load() < 3 || final_events.load() < 3); ++i) std::this_thread::sleep_for(50ms);
+  client.stop();
+  stop = true;
+  daemon.join();
+  EXPECT_EQ(status, 0);
+  EXPECT_GE(provisional.load(), 3) << "the synthetic viewer's saccades were said provisionally";
+
+  const protocol::Recording rec = protocol::read_recording(config.record.path);
+  std::size_t events = 0;
+  for (const auto& r : rec.records) {
+    if (const auto* e = std::get_if<protocol::GazeEvent>(&r.item)) {
+      ++events;
+      EXPECT_EQ(e->flags, 0) << "a provisional event was recorded";
+    }
+  }
+  EXPECT_GE(events, 3u);
 }
 
 }  // namespace
