@@ -200,3 +200,28 @@ TEST(ClassifyStage, SendsProvisionalEventsFirstAndRetractsOnlyWhatItSent) {
   EXPECT_EQ(check.retracted(), retractions);
   EXPECT_EQ(check.confirmed() + check.retracted(), check.emitted()) << "after the flush nothing is pending";
 }
+
+// The tracker's heuristic filter of the realistic generator (evaluate.h, Stampe 1993 stage 1):
+// it removes one-sample spikes, keeps steps and ramps, and colours white noise (less power at high
+// frequencies: the lag-1 autocorrelation of the noise rises from ~0).
+TEST(HeuristicFilter, RemovesOneSampleSpikesAndColoursWhiteNoise) {
+  std::vector<Sample> s;
+  for (const double x : {0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 2.0, 2.0, 3.0, 4.0, 5.0}) s.push_back({static_cast<double>(s.size()), x, 0, true, 0});
+  stampe_filter(s);
+  const std::vector<double> want = {0, 0, 0, 0, 0, 2, 2, 2, 3, 4, 5};  // the spike goes, the step and the ramp stay
+  for (std::size_t i = 0; i < s.size(); ++i) EXPECT_EQ(s[i].x_deg, want[i]) << i;
+
+  Script sc;
+  sc.rate = 1000;
+  sc.noise = 0.05;
+  const auto lag1 = [](const std::vector<Sample>& v) {
+    double num = 0, den = 0;
+    for (std::size_t i = 1; i < v.size(); ++i) num += v[i].x_deg * v[i - 1].x_deg, den += v[i].x_deg * v[i].x_deg;
+    return num / den;
+  };
+  auto noise = fovea::test::sample(sc, 10, [](double) { return std::pair{0.0, 0.0}; });
+  const double white = lag1(noise);
+  stampe_filter(noise);
+  EXPECT_LT(std::abs(white), 0.05);
+  EXPECT_GT(lag1(noise), white + 0.2) << "filtered noise is no longer white";
+}

@@ -76,7 +76,36 @@ double overall_kappa(const std::vector<Label>& truth, const std::vector<Label>& 
   return (agree / n - pe) / (1 - pe);
 }
 
+void stampe_filter(std::vector<Sample>& samples) {
+  // Each decision reads the input, not what the filter already changed (a three-sample window
+  // sliding over the raw signal, as the tracker's stage does with its delay of one sample).
+  const std::vector<Sample> in = samples;
+  const auto usable = [&in](std::size_t i) { return in[i].valid && std::isfinite(in[i].x_deg) && std::isfinite(in[i].y_deg); };
+  const auto despike = [](double a, double b, double c) {
+    if ((b > a && b > c) || (b < a && b < c)) return std::abs(b - a) < std::abs(b - c) ? a : c;
+    return b;
+  };
+  for (std::size_t i = 1; i + 1 < in.size(); ++i) {
+    if (!usable(i - 1) || !usable(i) || !usable(i + 1)) continue;
+    samples[i].x_deg = despike(in[i - 1].x_deg, in[i].x_deg, in[i + 1].x_deg);
+    samples[i].y_deg = despike(in[i - 1].y_deg, in[i].y_deg, in[i + 1].y_deg);
+  }
+}
+
 void degrade(std::vector<Sample>& samples, const Degradation& d) {
+  if (d.heuristic_filter) {
+    Degradation noise_only = d;
+    noise_only.heuristic_filter = false;
+    noise_only.dropouts_per_s = 0;
+    degrade(samples, noise_only);
+    stampe_filter(samples);
+    Degradation drops_only = d;
+    drops_only.heuristic_filter = false;
+    drops_only.extra_noise_deg = 0;
+    drops_only.seed = d.seed + 1;  // independent of the noise draws
+    degrade(samples, drops_only);
+    return;
+  }
   std::mt19937_64 rng(d.seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);

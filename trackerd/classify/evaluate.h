@@ -54,9 +54,19 @@ struct Degradation {
   double extra_noise_deg = 0;      // added gaussian noise, per axis, degrees (RMS)
   double dropouts_per_s = 0;       // Poisson rate of runs of lost samples
   double dropout_mean_s = 0.020;   // mean length of a run (exponential), capped at 10x
+  // The tracker's own heuristic filter on its output, after the noise: Stampe 1993 (Behav Res
+  // Methods Instrum Comput 25:137-142), the first stage, which is EyeLink's "standard" level (one
+  // sample of delay; SR Research's default for link data): a sample that lies beyond both its
+  // neighbours (a one-sample spike) takes the value of the nearer one. Unfiltered tracker noise is
+  // white; filters like this one colour it (Niehorster, Zemblys & Holmqvist 2021, Behav Res Methods
+  // 53:311-324), and coloured noise passes for drift.
+  bool heuristic_filter = false;
   std::uint64_t seed = 7;
 };
-// Adds noise and drops runs of samples to invalid (x, y set to NaN). Times are untouched.
+// Adds noise, applies the heuristic filter, and drops runs of samples to invalid (x, y set to NaN).
+// Times are untouched.
 void degrade(std::vector<Sample>& samples, const Degradation& d);
+// Stampe 1993's first stage on x and y separately, over runs of valid samples.
+void stampe_filter(std::vector<Sample>& samples);
 
 }  // namespace fovea::trackerd::classify

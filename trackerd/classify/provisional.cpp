@@ -8,15 +8,13 @@
 namespace fovea::trackerd::classify {
 namespace {
 
-constexpr double kNoiseWindowS = 1.0;       // as ivvt's noise estimate
-constexpr double kNoisePriorDeg = 0.05;     // until 16 residuals are in
-constexpr std::size_t kNoiseMinResiduals = 16;
-constexpr std::size_t kNoiseEvery = 16;     // the median is refreshed every 16 samples
-constexpr std::size_t kNoiseMaxResiduals = 4096;
-// Median absolute deviation -> sigma for a normal distribution; a second difference of white noise
-// has variance (1 + 1/4 + 1/4) sigma^2.
-constexpr double kMadToSigma = 1.4826;
-const double kSecondDifferenceGain = std::sqrt(1.5);
+constexpr double kNoiseWindowS = 1.0;       // the quiet speeds of the last second (as ivvt's noise window)
+constexpr double kNoisePriorDeg = 0.05;     // position noise of a typical video tracker, until measured
+constexpr double kPriorK = 4;               // the prior's threshold: 4 sigma_v of that noise
+constexpr std::size_t kNoiseMinSpeeds = 32;
+constexpr std::size_t kNoiseEvery = 16;     // the threshold is refreshed every 16 samples
+constexpr std::size_t kNoiseMaxSpeeds = 4096;
+constexpr double kMadToSigma = 1.4826;      // median absolute deviation -> SD of a normal distribution
 
 bool finite_gaze(const Sample& s) {
   return s.valid && std::isfinite(s.x_deg) && std::isfinite(s.y_deg) && std::abs(s.x_deg) <= 90 &&
@@ -110,31 +108,30 @@ void ProvisionalDetector::velocity(Point& newest) {
     syt += dt * (recent_[j].y - my);
   }
   newest.v = stt > 0 ? std::hypot(sxt / stt, syt / stt) : 0;
-  const double sigma_v = stt > 0 ? sigma_ / std::sqrt(stt) : 0;
-  threshold_ = std::max(o_.peak_floor_deg_s, o_.peak_k * sigma_v);
+  const double prior = stt > 0 ? kPriorK * kNoisePriorDeg / std::sqrt(stt) : 0;
+  threshold_ = std::max(o_.peak_floor_deg_s, measured_ ? speed_threshold_ : prior);
 }
 
 void ProvisionalDetector::add_noise(const Point& p) {
-  // The second difference at the point before the newest, against the line through its neighbours
-  // (uneven spacing interpolated).
-  if (recent_.size() < 3) return;
-  const Point& a = recent_[recent_.size() - 3];
-  const Point& b = recent_[recent_.size() - 2];
-  const double w = (b.t - a.t) / (p.t - a.t);
-  residuals_.push_back(std::abs(b.x - (a.x + w * (p.x - a.x))));
-  residuals_.push_back(std::abs(b.y - (a.y + w * (p.y - a.y))));
-  residual_t_.push_back(p.t);
-  residual_t_.push_back(p.t);
-  while (!residual_t_.empty() && (residual_t_.front() < p.t - kNoiseWindowS || residuals_.size() > kNoiseMaxResiduals)) {
-    residual_t_.pop_front();
-    residuals_.pop_front();
+  // The detector's own speeds while the eye is quiet: their spread is the velocity noise as this
+  // velocity estimate sees it, white or coloured (a tracker's filter colours it, and a noise level
+  // taken from second differences then underestimates the slow part that a 10 ms slope keeps).
+  speeds_.push_back(p.v);
+  speed_t_.push_back(p.t);
+  while (!speed_t_.empty() && (speed_t_.front() < p.t - kNoiseWindowS || speeds_.size() > kNoiseMaxSpeeds)) {
+    speed_t_.pop_front();
+    speeds_.pop_front();
   }
-  if (residuals_.size() < kNoiseMinResiduals || ++since_sigma_ < kNoiseEvery) return;
-  since_sigma_ = 0;
-  std::vector<double> v(residuals_.begin(), residuals_.end());
+  if (speeds_.size() < kNoiseMinSpeeds || ++since_update_ < kNoiseEvery) return;
+  since_update_ = 0;
+  std::vector<double> v(speeds_.begin(), speeds_.end());
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
-  sigma_ = *mid * kMadToSigma / kSecondDifferenceGain;
+  const double median = *mid;
+  for (double& x : v) x = std::abs(x - median);
+  std::nth_element(v.begin(), mid, v.end());
+  speed_threshold_ = median + o_.peak_k * kMadToSigma * *mid;
+  measured_ = true;
 }
 
 void ProvisionalDetector::start_saccade(const Point& crossing, double emitted_s, std::vector<ProvisionalEvent>& out) {

@@ -11,12 +11,14 @@
 //  - velocity: least-squares slope over the trailing 10 ms (at least the last two samples; the
 //    default method's window is 20 ms centred), so it lags the eye by about 5 ms, never by a
 //    look-ahead;
-//  - noise: sigma, the median absolute second difference of the recent positions (the last 1 s),
-//    as ivvt measures it; threshold T = max(30 deg/s, 4 sigma_v). Not ivvt's 6 sigma: a trailing
-//    window's velocity is noisier, and the onset rule below asks for two samples in a row; the speed
-//    of pure noise exceeds 4 sigma_v with probability exp(-8) = 3e-4 per sample (Rayleigh), two in a
-//    row far less often. Measured on synthetic gaze with 0.1 deg noise: 0-12 false starts a minute
-//    (bench_classify, "Provisional events"), every one retracted by the final labels;
+//  - threshold T = max(30 deg/s, median + 6 robust SD of this velocity while the eye is quiet, over
+//    the last 1 s): Nystrom & Holmqvist 2010's data-driven peak threshold (mean + 6 SD of the
+//    velocities below it), with median and MAD so saccades the detector missed do not inflate it.
+//    Taken from the detector's own speeds, not from the position noise's second differences as ivvt
+//    does: a tracker's filter colours its noise (Niehorster, Zemblys & Holmqvist 2021), which keeps
+//    the slow part a 10 ms slope sees while the second differences shrink; with EyeLink's heuristic
+//    filter on synthetic gaze the second-difference threshold made 92-137 false starts a minute.
+//    Until 32 quiet speeds are in: 4 sigma_v of 0.05 deg position noise;
 //  - onset: two consecutive samples above T, or one above 2T; the event goes out at the second
 //    (at most one sample after the crossing); its time is the last sample before the crossing below
 //    T/2 (walked back at most 20 ms), its position that sample's;
@@ -52,7 +54,7 @@ struct ProvisionalEvent {
 struct ProvisionalOptions {
   double window_s = 0.010;        // trailing velocity window
   double peak_floor_deg_s = 30;   // lowest threshold (the I-VT standard, Olsen 2012)
-  double peak_k = 4;              // see above (ivvt: 6, Engbert & Kliegl 2003)
+  double peak_k = 6;              // Nystrom & Holmqvist 2010: 6 SD of the quiet velocities
   double hold_s = 0.004;          // landing must hold this long (at least one sample)
   double max_saccade_s = 0.150;   // no landing by then: not a saccade we can call early
   double walk_back_s = 0.020;     // onset search before the crossing
@@ -81,10 +83,10 @@ class ProvisionalDetector {
 
   ProvisionalOptions o_;
   std::deque<Point> recent_;  // the last walk_back_s + window_s of gaze, newest last
-  std::deque<double> residuals_;  // |second differences|, per axis, the last 1 s
-  std::deque<double> residual_t_;
-  double sigma_ = 0.05;  // position noise, degrees (a typical video tracker until measured)
-  std::size_t since_sigma_ = 0;
+  std::deque<double> speeds_, speed_t_;  // the detector's speeds while quiet, the last 1 s
+  double speed_threshold_ = 0;           // their median + peak_k robust SD
+  bool measured_ = false;
+  std::size_t since_update_ = 0;
   State state_ = State::Quiet;
   Point crossing_{}, onset_{}, landing_{};
   double peak_ = 0;
