@@ -10,6 +10,7 @@
 //
 //   bench_classify [--seconds S] [--seeds N]     (defaults: 120 s of gaze per seed, 3 seeds)
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -83,6 +84,41 @@ void print_onset_latency(const double* rates, const Condition& c, double seconds
       std::printf("| %.0f | %s | %.0f | %.0f | %.1f | %.0f | %.0f | %.1f |\n", rates[r], m.name.c_str(),
                   1000 * quantile(fix.latency_s, 0.5), 1000 * quantile(fix.latency_s, 0.99), missed(fix),
                   1000 * quantile(sac.latency_s, 0.5), 1000 * quantile(sac.latency_s, 0.99), missed(sac));
+    }
+  }
+}
+
+// Event-level F1 (IoU >= 0.5, Startsev et al. 2019) per class, as eval_classify_human.py reports on
+// the human-coded data. The generator has no PSO: a method's PSO counts as part of its saccade.
+void print_event_f1(const double* rates, const std::vector<const Condition*>& conditions, double seconds, int seeds) {
+  std::printf("\nEvent-level F1 (a true and a found event of the class match when their intersection over union is "
+              ">= 0.5, each used once; Startsev, Agtzidis & Dorr 2019); pso counted as saccade.\n\n");
+  std::printf("| rate Hz | condition | method | F1 fixation | F1 saccade | F1 pursuit | F1 blink |\n");
+  std::printf("|---:|---|---|---:|---:|---:|---:|\n");
+  for (int r = 0; r < 4; ++r) {
+    for (const Condition* c : conditions) {
+      for (const ClassifierInfo& m : classifiers()) {
+        if (m.name == "lee2009") continue;
+        std::array<double, 4> sum{};
+        std::array<int, 4> n{};
+        for (int s = 0; s < seeds; ++s) {
+          Labelled l = synthetic(rates[r], seconds, static_cast<std::uint64_t>(s + 1), *c);
+          Degradation d = c->d;
+          d.seed = static_cast<std::uint64_t>(100 + s);
+          degrade(l.samples, d);
+          std::vector<Label> p = classify_all(m.name, rates[r], l.samples);
+          for (Label& x : p) x = x == Label::Pso ? Label::Saccade : x;
+          int k = 0;
+          for (const Label cls : {Label::Fixation, Label::Saccade, Label::Pursuit, Label::Blink}) {
+            const double f = event_f1(l.truth, p, cls);
+            if (!std::isnan(f)) sum[static_cast<std::size_t>(k)] += f, ++n[static_cast<std::size_t>(k)];
+            ++k;
+          }
+        }
+        const auto mean = [&](std::size_t k) { return n[k] ? sum[k] / n[k] : std::nan(""); };
+        std::printf("| %.0f | %s | %s | %s | %s | %s | %s |\n", rates[r], c->name, m.name.c_str(), fmt(mean(0)).c_str(),
+                    fmt(mean(1)).c_str(), fmt(mean(2)).c_str(), fmt(mean(3)).c_str());
+      }
     }
   }
 }
@@ -209,6 +245,7 @@ int main(int argc, char** argv) {
     }
   }
   const Condition& realistic = conditions[conditions.size() - 2];
+  print_event_f1(rates, {&conditions[1], &realistic, &conditions.back()}, seconds, seeds);
   print_onset_latency(rates, conditions[1], seconds, seeds);
   print_onset_latency(rates, realistic, seconds, seeds);
   print_provisional(rates, conditions[1], seconds, seeds);

@@ -1,4 +1,5 @@
-// Provisional online events (issue 25 goal 2): the causal saccade detector's timing against a
+// Provisional online events (issue 25 goal 2), and the evaluation beside them (event F1, the
+// tracker filter of the realistic generator): the causal saccade detector's timing against a
 // scripted eye and the synthetic viewer, its silence on noise and slow movement, its resets, the
 // check against final labels, and the daemon's classification stage that sends both.
 #include <gtest/gtest.h>
@@ -224,4 +225,22 @@ TEST(HeuristicFilter, RemovesOneSampleSpikesAndColoursWhiteNoise) {
   stampe_filter(noise);
   EXPECT_LT(std::abs(white), 0.05);
   EXPECT_GT(lag1(noise), white + 0.2) << "filtered noise is no longer white";
+}
+
+// Event-level F1 as Startsev et al. 2019 define it (IoU >= 0.5, each event used once).
+TEST(EventF1, MatchesEventsByIntersectionOverUnion) {
+  using L = Label;
+  const L F = L::Fixation, S = L::Saccade;
+  // Truth: F(0-3) S(4-5) F(6-9); found: F(0-3) S(4) F(5-9): both fixations overlap >= 0.5, the
+  // saccade 1/2 = 0.5 too.
+  const std::vector<L> truth = {F, F, F, F, S, S, F, F, F, F};
+  const std::vector<L> found = {F, F, F, F, S, F, F, F, F, F};
+  EXPECT_DOUBLE_EQ(event_f1(truth, found, F), 1.0);
+  EXPECT_DOUBLE_EQ(event_f1(truth, found, S), 1.0);
+  // One long found fixation across both true ones: it matches neither (IoU 4/10 < 0.5).
+  const std::vector<L> merged(10, F);
+  EXPECT_DOUBLE_EQ(event_f1(truth, merged, F), 0.0);
+  EXPECT_DOUBLE_EQ(event_f1(truth, merged, S), 0.0);  // a miss, nothing found
+  EXPECT_TRUE(std::isnan(event_f1(truth, found, L::Blink)));
+  EXPECT_THROW(static_cast<void>(event_f1(truth, {F}, F)), std::invalid_argument);
 }

@@ -151,6 +151,29 @@ std::vector<std::pair<std::size_t, std::size_t>> runs_of(const std::vector<Label
 
 }  // namespace
 
+double event_f1(const std::vector<Label>& truth, const std::vector<Label>& predicted, Label c, double min_iou) {
+  if (truth.size() != predicted.size()) throw std::invalid_argument("event_f1: sequences differ in length");
+  const auto true_events = runs_of(truth, c), found = runs_of(predicted, c);
+  std::size_t hits = 0, j = 0;
+  std::vector<bool> used(found.size(), false);
+  for (const auto& [ts, te] : true_events) {
+    while (j < found.size() && found[j].second <= ts) ++j;
+    for (std::size_t k = j; k < found.size() && found[k].first < te; ++k) {
+      const auto [fs, fe] = found[k];
+      const double inter = static_cast<double>(std::min(te, fe) - std::max(ts, fs));
+      const double uni = static_cast<double>(std::max(te, fe) - std::min(ts, fs));
+      if (!used[k] && inter / uni >= min_iou) {
+        used[k] = true;
+        ++hits;
+        break;
+      }
+    }
+  }
+  const std::size_t misses = true_events.size() - hits, false_events = found.size() - hits;
+  if (hits + misses + false_events == 0) return std::numeric_limits<double>::quiet_NaN();
+  return 2.0 * static_cast<double>(hits) / static_cast<double>(2 * hits + misses + false_events);
+}
+
 ProvisionalLatency provisional_latency(const std::vector<Label>& truth, const std::vector<Sample>& samples,
                                        const std::vector<ProvisionalEvent>& events) {
   if (truth.size() != samples.size()) throw std::invalid_argument("provisional_latency: sequences differ in length");

@@ -17,6 +17,12 @@ double class_kappa(const std::vector<Label>& truth, const std::vector<Label>& pr
 // Cohen's kappa over all seven labels at once.
 double overall_kappa(const std::vector<Label>& truth, const std::vector<Label>& predicted);
 
+// Event-level F1 of class c (Startsev, Agtzidis & Dorr 2019; Hooge et al. 2018): events are runs of
+// c; a true and a predicted event match when their intersection over union (in samples) is at
+// least min_iou, each used once; F1 = 2 hits / (2 hits + misses + false events). NaN when neither
+// sequence has an event of c. (bench/eval_classify_human.py computes the same on real data.)
+double event_f1(const std::vector<Label>& truth, const std::vector<Label>& predicted, Label c, double min_iou = 0.5);
+
 // How long after a true event's onset the classifier said so: for each run of class c in `truth`,
 // the first predicted sample of c in the predicted run that overlaps it (it may start a little
 // before the true onset), and the time its label became final (classify_online) minus the true
