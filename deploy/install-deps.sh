@@ -8,6 +8,7 @@ PACKAGES=(
   # toolchain
   build-essential g++ cmake ninja-build pkg-config git
   universal-ctags                     # dev/long-functions (function lengths)
+  scdoc                               # the man pages (man/*.scd -> roff, at build time)
   clang libclang-rt-14-dev            # libFuzzer target and its sanitizer runtimes
   # protocol, daemon and CLI
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libtomlplusplus-dev

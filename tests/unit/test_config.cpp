@@ -150,7 +150,9 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   expect_problem("[source]\nrate = 0\n", {"test.toml:2:", "source.rate", "[1, 10000] Hz"});
   // Issue 23 item 10: an unknown classifier passed --check-config, then the daemon exited 2.
   expect_problem("[classifier]\nmethod = \"magic\"\n",
-                 {"test.toml:2:", "classifier.method", "unknown method \"magic\"", "allowed: ivvt"});
+                 {"test.toml:2:", "classifier.method", "unknown method \"magic\"", "allowed: ivvt", "source"});
+  // "source" (the source's own labels and events) is a method the daemon knows, as --help says.
+  EXPECT_TRUE(check_classifier_method("source").empty());
   expect_problem("[classifier]\nmethod = \"a\\u001b[2J\"\n", {"unknown method \"a\\x1b[2J\""});
   expect_problem("[source]\nspeed = -1.5\n", {"test.toml:2:", "source.speed", "(0, 1000]"});
   expect_problem("[source]\nloop = \"yes\"\n", {"test.toml:2:", "source.loop", "true or false"});

@@ -20,13 +20,15 @@
 namespace fovea::trackerd::service {
 
 std::string check_classifier_method(const std::string& method) {
-  if (method.empty()) return {};
+  // "source": the source's own labels and events pass through (the daemon's ClassifyStage).
+  if (method.empty() || method == "source") return {};
   std::string names;
   for (const auto& m : classify::classifiers()) {
     if (m.name == method) return {};
     names += (names.empty() ? "" : ", ") + m.name;
   }
-  return "unknown method \"" + protocol::escape_for_log(method, 40) + "\"; allowed: " + names + " (fovea-ctl classify --list)";
+  return "unknown method \"" + protocol::escape_for_log(method, 40) + "\"; allowed: " + names +
+         ", source (fovea-ctl classify --help describes the methods)";
 }
 
 namespace {
@@ -351,7 +353,8 @@ void parse_calibration(Checker& c, const toml::table& t, CalibrationConfig& cali
 // [classifier]: the method name; the classify module validates it.
 void parse_classifier(Checker& c, const toml::table& t, ClassifierConfig& classifier) {
   c.only(t, "classifier.", {"method"});
-  c.string(t, "classifier.", "method", classifier.method, "a classifier name (fovea-ctl classify --list)");
+  c.string(t, "classifier.", "method", classifier.method,
+           "a classifier name or \"source\" (fovea-ctl classify --help describes them)");
   // Checked here, so --check-config refuses it and the daemon exits 78 (issue 23 item 10: it passed
   // the check, and the daemon then exited 2, which the unit restarts on).
   if (const auto* node = t.get("method"); node != nullptr && node->is_string()) {
