@@ -11,6 +11,8 @@ missing=0
 say() { echo "MISSING: $*"; missing=$((missing + 1)); }
 
 options_of() { grep -o -- '--[a-zA-Z][a-zA-Z0-9-]*' | sort -u; }
+# The option as a whole token (--time-ns is not in a page that says only --time-nsec).
+has() { grep -qE -- "(^|[^a-zA-Z0-9-])$1([^a-zA-Z0-9-]|\$)" "$2"; }
 subcommands_of() { sed -n '/^Subcommands:/,$p' | sed -n 's/^  \([a-z][a-z0-9-]*\)  .*/\1/p'; }
 
 for pair in "$@"; do
@@ -19,12 +21,12 @@ for pair in "$@"; do
   [ -f "$scd" ] || { say "$page: no man/$page.scd"; continue; }
   help=$("$bin" --help 2>&1) || { say "$page: $bin --help failed"; continue; }
   for opt in $(options_of <<<"$help"); do
-    grep -qF -- "$opt" "$scd" || say "$page: $opt (from $(basename "$bin") --help)"
+    has "$opt" "$scd" || say "$page: $opt (from $(basename "$bin") --help)"
   done
   for sub in $(subcommands_of <<<"$help"); do
     grep -qw -- "$sub" "$scd" || say "$page: subcommand $sub"
     for opt in $("$bin" "$sub" --help 2>&1 | options_of); do
-      grep -qF -- "$opt" "$scd" || say "$page: $opt (from $(basename "$bin") $sub --help)"
+      has "$opt" "$scd" || say "$page: $opt (from $(basename "$bin") $sub --help)"
     done
   done
   if command -v scdoc >/dev/null; then
