@@ -172,15 +172,21 @@ std::uint16_t free_udp_port() {
   return ntohs(a.sin_port);
 }
 
-// Before issue 23 the loop read the configuration, the calibration and opened the recording
-// itself: a subscriber saw no gaze for as long as that took.
-TEST(DaemonLoop, ASlowReloadDoesNotPauseTheGazeStream) {
+// A daemon of the synthetic source on a free loopback port, quiet, without a control socket.
+service::DaemonConfig quiet_daemon_config() {
   spdlog::set_level(spdlog::level::warn);
-  const TempDir dir;
   service::DaemonConfig config;
   config.network.port = free_udp_port();
   config.network.control_socket = "none";
   config.log_level = "warn";
+  return config;
+}
+
+// Before issue 23 the loop read the configuration, the calibration and opened the recording
+// itself: a subscriber saw no gaze for as long as that took.
+TEST(DaemonLoop, ASlowReloadDoesNotPauseTheGazeStream) {
+  const TempDir dir;
+  service::DaemonConfig config = quiet_daemon_config();
   std::atomic<bool> stop{false}, reload{false};
   std::atomic<int> loads{0};
   const ConfigLoader slow_loader = [&] {
@@ -237,12 +243,8 @@ TEST(DaemonLoop, ASlowReloadDoesNotPauseTheGazeStream) {
 // Issue 25: the daemon sends provisional events to the clients that ask, and records only the
 // final ones (RECORDING.md).
 TEST(DaemonLoop, ProvisionalEventsGoToSubscribersButNotIntoTheRecording) {
-  spdlog::set_level(spdlog::level::warn);
   const TempDir dir;
-  service::DaemonConfig config;
-  config.network.port = free_udp_port();
-  config.network.control_socket = "none";
-  config.log_level = "warn";
+  service::DaemonConfig config = quiet_daemon_config();
   config.record.path = (dir.path / "live.fgr").string();
   std::atomic<bool> stop{false}, reload{false};
   int status = -1;
