@@ -98,9 +98,12 @@ void ClassifyStage::provisional(const classify::Sample& cs, std::vector<GazeItem
     check_.provisional(p);
     out.push_back(to_event(p, protocol::kEventProvisional));
   }
-  if (!have_final_) return;
+  if (have_final_) retract_upto(to_s(final_upto_ns_), out);
+}
+
+void ClassifyStage::retract_upto(double final_upto_s, std::vector<GazeItem>& out) {
   provisional_.clear();
-  check_.final_upto(to_s(final_upto_ns_), provisional_);
+  check_.final_upto(final_upto_s, provisional_);
   for (const auto& p : provisional_) out.push_back(to_event(p, protocol::kEventProvisional | protocol::kEventRetracted));
 }
 
@@ -128,9 +131,7 @@ void ClassifyStage::flush(std::vector<GazeItem>& out) {
   finalise(labels_, out);
   if (run_open_ && have_prev_) close_run(prev_t_, out);
   // Every label is final now: what is still unconfirmed never will be.
-  provisional_.clear();
-  check_.final_upto(std::numeric_limits<double>::infinity(), provisional_);
-  for (const auto& p : provisional_) out.push_back(to_event(p, protocol::kEventProvisional | protocol::kEventRetracted));
+  retract_upto(std::numeric_limits<double>::infinity(), out);
 }
 
 void ClassifyStage::finalise(const std::vector<classify::Labeled>& labels, std::vector<GazeItem>& out) {

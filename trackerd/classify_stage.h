@@ -49,6 +49,8 @@ class ClassifyStage {
   void take(const protocol::GazeSample& s, protocol::EyeMovement kind, std::vector<GazeItem>& out);
   void close_run(std::int64_t end_ns, std::vector<GazeItem>& out);
   void provisional(const classify::Sample& cs, std::vector<GazeItem>& out);
+  // Retractions of the provisional events the final labels (known up to final_upto_s) passed.
+  void retract_upto(double final_upto_s, std::vector<GazeItem>& out);
   protocol::GazeEvent to_event(const classify::ProvisionalEvent& p, std::uint8_t flags) const;
   std::int64_t to_ns(double t_s) const { return origin_ns_ + std::llround(t_s * 1e9); }
   double to_s(std::int64_t ns) const { return static_cast<double>(ns - origin_ns_) * 1e-9; }

@@ -23,8 +23,6 @@ bool finite_gaze(const Sample& s) {
 
 }  // namespace
 
-double ProvisionalDetector::threshold_deg_s() const { return threshold_; }
-
 void ProvisionalDetector::reset() {
   recent_.clear();
   state_ = State::Quiet;
@@ -47,9 +45,13 @@ void ProvisionalDetector::push(const Sample& s, std::vector<ProvisionalEvent>& o
   if (recent_.size() < 2) return;
   Point& p = recent_.back();
   velocity(p);
-  if (state_ == State::Quiet) add_noise(p);
+  if (state_ == State::Quiet) add_quiet_speed(p);
+  advance(p, recent_[recent_.size() - 2].v, out);
+}
+
+// The onset / landing state machine on the newest point (prev_v: the speed of the point before it).
+void ProvisionalDetector::advance(const Point& p, double prev_v, std::vector<ProvisionalEvent>& out) {
   const double t = threshold_;
-  const double prev_v = recent_.size() >= 2 ? recent_[recent_.size() - 2].v : 0;
   switch (state_) {
     case State::Quiet:
       if (p.v > t && !(have_landing_ && p.t - last_landing_t_ < o_.refractory_s)) {
@@ -112,7 +114,7 @@ void ProvisionalDetector::velocity(Point& newest) {
   threshold_ = std::max(o_.peak_floor_deg_s, measured_ ? speed_threshold_ : prior);
 }
 
-void ProvisionalDetector::add_noise(const Point& p) {
+void ProvisionalDetector::add_quiet_speed(const Point& p) {
   // The detector's own speeds while the eye is quiet: their spread is the velocity noise as this
   // velocity estimate sees it, white or coloured (a tracker's filter colours it, and a noise level
   // taken from second differences then underestimates the slow part that a 10 ms slope keeps).

@@ -67,7 +67,6 @@ class ProvisionalDetector {
   explicit ProvisionalDetector(ProvisionalOptions o = {}) : o_(o) {}
   // Samples in time order (a sample not later than the last is ignored).
   void push(const Sample& s, std::vector<ProvisionalEvent>& out);
-  double threshold_deg_s() const;  // T now
 
  private:
   struct Point {
@@ -77,7 +76,8 @@ class ProvisionalDetector {
   void reset();
   // Speed of the newest point (the trailing window's slope) and the threshold T for it.
   void velocity(Point& newest);
-  void add_noise(const Point& p);
+  void add_quiet_speed(const Point& p);
+  void advance(const Point& p, double prev_v, std::vector<ProvisionalEvent>& out);
   void start_saccade(const Point& crossing, double emitted_s, std::vector<ProvisionalEvent>& out);
   void land(double emitted_s, std::vector<ProvisionalEvent>& out);
 
