@@ -305,7 +305,7 @@ int main(int argc, char** argv) {
       "events over UDP to subscribed clients (protocol: protocol/PROTOCOL.md). Settings come from --config FILE\n"
       "(TOML, documented in deploy/trackerd.toml) and the flags below, which override the file.\n"
       "SIGINT/SIGTERM stop it cleanly; SIGHUP reloads the configuration and calibration without dropping subscribers."};
-  app.set_version_flag("--version", "fovea-trackerd 0.1.0");
+  app.set_version_flag("--version", "fovea-trackerd " FOVEA_VERSION);
 
   Flags f;
   add_config_options(app, f);

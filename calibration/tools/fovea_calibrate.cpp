@@ -113,6 +113,7 @@ int main(int argc, char** argv) {
       "fovea-calibrate: calibrate a viewer on fovea-trackerd (run), fit calibration files from calibration\n"
       "points (fit), check them on validation points (validate) and apply them to raw gaze (apply).\n"
       "See calibration/CALIBRATION.md."};
+  app.set_version_flag("--version", "fovea-calibrate " FOVEA_VERSION);
   app.require_subcommand(1);
 
   FitArgs fa;

@@ -10,7 +10,7 @@ int main(int argc, char** argv) {
   CLI::App app{
       "fovea-render: renders a scene with the perceptual pipeline, driven by gaze from fovea-trackerd.\n"
       "Interactive viewer by default; --headless writes frames, timings and the frame plan to --out DIR."};
-  app.set_version_flag("--version", "fovea-render 0.1.0");
+  app.set_version_flag("--version", "fovea-render " FOVEA_VERSION);
   RenderOptions o;
   std::string backend = "embree";
   std::vector<std::string> sets, scene_sets;
@@ -52,7 +52,8 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (o.scene_path.empty()) {
-    std::fprintf(stderr, "fovea-render: --scene FILE is required (bundled scenes: renderer/scenes/*.json)\n");
+    std::fprintf(stderr, "fovea-render: --scene FILE is required (bundled scenes: renderer/scenes/*.json in the source "
+                         "tree, " FOVEA_SCENES_DIR "/*.json where installed)\n");
     return 2;
   }
   o.backend = backend == "gl" ? BackendKind::OpenGL : BackendKind::Embree;

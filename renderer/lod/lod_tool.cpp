@@ -32,6 +32,7 @@ void print_chain(const lod::Chain& c) {
 
 int main(int argc, char** argv) {
   CLI::App app{"fovea-lod: level-of-detail chains for fovea-render (Lee 2009 eq. 7.4, meshoptimizer)"};
+  app.set_version_flag("--version", "fovea-lod " FOVEA_VERSION);
   app.require_subcommand(1);
   CLI::App* build = app.add_subcommand("build", "simplify MESH into a chain: one mesh file per level and manifest.json");
   std::string mesh_path, out_dir, format = "obj", attributes = "seams";

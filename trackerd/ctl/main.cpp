@@ -23,7 +23,7 @@ void on_signal(int) { fovea::ctl::stop_requested().store(true); }
 int main(int argc, char** argv) {
   namespace ctl = fovea::ctl;
   CLI::App app{"fovea-ctl: talk to fovea-trackerd and work with gaze recordings (.fgr, .csv)"};
-  app.set_version_flag("--version", "fovea-ctl 0.1.0");
+  app.set_version_flag("--version", "fovea-ctl " FOVEA_VERSION);
   app.require_subcommand(1);
   app.fallthrough();  // --server may also follow the subcommand
 
