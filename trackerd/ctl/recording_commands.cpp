@@ -1,7 +1,8 @@
-// fovea-ctl's recording tools: convert (.fgr <-> .csv, repairing damaged files), info, and classify
+// fovea-ctl's recording tools: convert (.fgr <-> .csv, repairing damaged files; .fgr -> BIDS), info, and classify
 // (offline eye-movement classification of a CSV of gaze points, trackerd/CLASSIFY.md).
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include "classify/classifier.h"
 #include "classify/evaluate.h"
 #include "classify/provisional.h"
+#include "ctl/bids_export.h"
 #include "ctl/commands.h"
 #include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/csv.h"
@@ -73,6 +75,72 @@ int cmd_convert(const std::string& in_path, const std::string& out_path, bool fo
     std::fprintf(stderr, "fovea-ctl convert: %s\n", e.what());
     return 1;
   }
+}
+
+struct ConvertArgs {
+  std::string in_path, out_path, format = "auto";
+  bool force = false;
+  BidsOptions bids;
+};
+
+// convert --format bids: IN (.fgr or .csv) into the BIDS dataset directory OUT (protocol/RECORDING.md,
+// "BIDS export"); never replaces a file.
+int cmd_convert_bids(const ConvertArgs& a) {
+  try {
+    if (a.force) throw std::runtime_error("--force does not apply to --format bids: a BIDS export never replaces a file");
+    BidsOptions o = a.bids;
+    o.dataset_dir = a.out_path;
+    o.generator_version = FOVEA_VERSION;
+    if (o.subject.empty() || o.task.empty()) throw std::runtime_error("--format bids needs --subject and --task");
+    // Labels and existing outputs are checked before the recording is read.
+    for (const auto& [what, label] : {std::pair<const char*, const std::string*>{"--subject", &o.subject},
+                                      {"--task", &o.task},
+                                      {"--recording", &o.recording}}) {
+      if (std::string err = bids_label_error(what, *label); !err.empty()) throw std::runtime_error(err);
+    }
+    if (std::filesystem::exists(a.out_path) && !std::filesystem::is_directory(a.out_path)) {
+      throw std::runtime_error(a.out_path + " exists and is not a directory (--format bids writes a BIDS dataset directory)");
+    }
+    for (const std::string& name : bids_output_names(o)) {
+      if (const std::string p = a.out_path + "/" + name; std::filesystem::exists(p)) {
+        throw std::runtime_error(p + " already exists; BIDS export never replaces a file (choose another --subject, "
+                                 "--session, --task, --run or --recording)");
+      }
+    }
+    const Recording rec = load_any(a.in_path);
+    std::fprintf(stderr, "fovea-ctl convert: %s: %s\n", a.in_path.c_str(), rec.report.describe().c_str());
+    const BidsResult r = export_bids(rec, o);
+    std::fprintf(stderr, "fovea-ctl convert: %zu samples (%zu with valid gaze) at %g Hz%s, %zu eye-movement events, %zu markers\n",
+                 r.samples, r.valid_samples, r.sampling_frequency, r.measured_rate ? " (measured: the header has no rate)" : "",
+                 r.events, r.markers);
+    if (r.unfinished_events > 0) {
+      std::fprintf(stderr, "fovea-ctl convert: %zu events left out (started but not ended in the recording)\n",
+                   r.unfinished_events);
+    }
+    for (const std::string& f : r.written) std::fprintf(stderr, "fovea-ctl convert: wrote %s\n", f.c_str());
+    if (std::find(r.written.begin(), r.written.end(), r.scans_tsv) == r.written.end()) {
+      std::fprintf(stderr, "fovea-ctl convert: added a row to %s\n", r.scans_tsv.c_str());
+    }
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-ctl convert: %s\n", e.what());
+    return 1;
+  }
+}
+
+int cmd_convert_any(const ConvertArgs& a) {
+  if (a.format == "bids") return cmd_convert_bids(a);
+  if (!a.bids.subject.empty() || !a.bids.task.empty() || !a.bids.session.empty() || !a.bids.run.empty() ||
+      a.bids.recording != "eye1") {
+    std::fprintf(stderr, "fovea-ctl convert: --subject, --task, --session, --run and --recording need --format bids\n");
+    return 1;
+  }
+  const bool csv = ends_with(a.out_path, ".csv"), fgr = ends_with(a.out_path, ".fgr");
+  if ((a.format == "csv" && !csv) || (a.format == "fgr" && !fgr)) {
+    std::fprintf(stderr, "fovea-ctl convert: --format %s needs OUT ending in .%s\n", a.format.c_str(), a.format.c_str());
+    return 1;
+  }
+  return cmd_convert(a.in_path, a.out_path, a.force);
 }
 
 int cmd_info(const std::string& path) {
@@ -371,17 +439,27 @@ int cmd_classify(const ClassifyArgs& a) {
 
 std::vector<Command> add_recording_commands(CLI::App& app) {
   struct Options {
-    std::string in_path, out_path;
-    bool force = false;
+    ConvertArgs cv;
     std::string info_path;
     ClassifyArgs cls;
   };
   auto o = std::make_shared<Options>();
-  auto& [in_path, out_path, force, info_path, cls] = *o;
-  auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files)");
-  convert->add_option("IN", in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
-  convert->add_option("OUT", out_path, "output .fgr or .csv")->required();
-  convert->add_flag("--force", force, "replace OUT if it exists");
+  auto& [cv, info_path, cls] = *o;
+  auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files), or "
+                                                "export a recording to a BIDS dataset (--format bids)");
+  convert->add_option("IN", cv.in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
+  convert->add_option("OUT", cv.out_path, "output .fgr or .csv; with --format bids the BIDS dataset directory")->required();
+  convert->add_flag("--force", cv.force, "replace OUT if it exists (not with --format bids)");
+  convert->add_option("--format", cv.format,
+                      "auto (by OUT's extension: .fgr or .csv), fgr, csv, or bids: OUT is a BIDS dataset directory "
+                      "(eye-tracking physio + physioevents, BIDS 1.10; never replaces a file)")
+      ->check(CLI::IsMember({"auto", "fgr", "csv", "bids"}))
+      ->capture_default_str();
+  convert->add_option("--subject", cv.bids.subject, "--format bids: the sub-<label> (letters and digits)");
+  convert->add_option("--task", cv.bids.task, "--format bids: the task-<label>");
+  convert->add_option("--session", cv.bids.session, "--format bids: the ses-<label> (default: none)");
+  convert->add_option("--run", cv.bids.run, "--format bids: the run-<index> (digits; default: none)");
+  convert->add_option("--recording", cv.bids.recording, "--format bids: the recording-<label>")->capture_default_str();
 
   auto* info = app.add_subcommand("info", "describe a recording: display, rate, span, events, integrity");
   info->add_option("FILE", info_path, ".fgr or .csv file")->required()->check(CLI::ExistingFile);
@@ -423,7 +501,7 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
                      "by ';'; reports how many the final labels confirmed and retracted");
 
   return {
-      {convert, [o] { return cmd_convert(o->in_path, o->out_path, o->force); }},
+      {convert, [o] { return cmd_convert_any(o->cv); }},
       {info, [o] { return cmd_info(o->info_path); }},
       {classify,
        [o] { return cmd_classify(o->cls); }},
