@@ -14,6 +14,7 @@ PACKAGES=(
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libtomlplusplus-dev
   libsystemd-dev
   libsodium-dev                       # the subscription cookies' MAC and key (no hand-written cryptography)
+  zlib1g-dev                          # gzip of the BIDS export's .tsv.gz files (fovea-ctl convert --format bids)
   # tracker hardware
   libhidapi-dev libusb-1.0-0-dev libv4l-dev
   libzmq3-dev cppzmq-dev libmsgpack-cxx-dev  # Pupil Core's network API (ZeroMQ, msgpack)
@@ -32,7 +33,7 @@ PACKAGES=(
   python3-zmq python3-msgpack         # the fake Pupil Capture of the tests (tests/fakes/)
   # packaging: the Python package (python/), the Debian packages (debian/)
   python3-setuptools python3-pip python3-wheel
-  debhelper dh-python fakeroot lintian
+  debhelper dh-python fakeroot lintian python3-all pybuild-plugin-pyproject python3-build python3-installer
 )
 
 missing=()

@@ -38,6 +38,19 @@ else
   summary+=("report --quick: FAILED (see build/report-quick/report.html)"); status=1
 fi
 
+# The Debian packages: built from a copy of the tree (tests off: they ran above) and checked
+# (contents, --version, systemd-analyze verify, the SDK example, import fovea, lintian).
+if command -v dpkg-buildpackage >/dev/null 2>&1 && command -v dh >/dev/null 2>&1; then
+  echo "=== Debian packages (deploy/build-packages.sh)"
+  if bash deploy/build-packages.sh --out build/packages; then
+    summary+=("packages: built and checked (build/packages)")
+  else
+    summary+=("packages: FAILED"); status=1
+  fi
+else
+  summary+=("packages: skipped (dpkg-buildpackage or debhelper missing; deploy/install-deps.sh installs them)")
+fi
+
 run_suite "asan+ubsan" asan
 
 if command -v clang++ >/dev/null 2>&1; then

@@ -1,0 +1,124 @@
+#!/usr/bin/env bash
+# Builds fovea's Debian packages and checks what they hold (issue 26 item 4; README "Install"):
+#   deploy/build-packages.sh [--out DIR] [--check-only DIR] [--tests]
+# Copies the tree (tracked and untracked, not ignored) to a scratch directory, runs
+# `dpkg-buildpackage -us -uc -b` there (with DEB_BUILD_OPTIONS=nocheck unless --tests: deploy/test.sh
+# runs the test suite on its own), copies the .deb files to DIR (default build/packages), then checks
+# them: each package's file list, every program's --version from the extracted files, the unit with
+# `systemd-analyze verify` (when present), the C++ example built against the extracted -dev package
+# with CMake and pkg-config, `import fovea` from python3-fovea, and lintian (its findings printed;
+# errors fail). --check-only DIR checks .deb files already built. Needs dpkg-buildpackage (dpkg-dev)
+# and debhelper: deploy/install-deps.sh installs them.
+set -euo pipefail
+SRC=$(cd "$(dirname "$0")/.." && pwd)
+OUT=$SRC/build/packages
+CHECK_ONLY=""
+NOCHECK=nocheck
+while [ $# -gt 0 ]; do
+  case $1 in
+    --out) OUT=$2; shift ;;
+    --check-only) CHECK_ONLY=$2; shift ;;
+    --tests) NOCHECK="" ;;
+    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+    *) echo "build-packages: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+for tool in dpkg-buildpackage dh dpkg-deb; do
+  command -v "$tool" >/dev/null || { echo "build-packages: $tool not found (run deploy/install-deps.sh)" >&2; exit 3; }
+done
+WORK=$(mktemp -d)
+trap 'rm -rf "$WORK"' EXIT
+fail() { echo "build-packages: FAIL: $*" >&2; exit 1; }
+
+version=$(dpkg-parsechangelog -l "$SRC/debian/changelog" -S Version)
+arch=$(dpkg-architecture -qDEB_HOST_ARCH)
+multiarch=$(dpkg-architecture -qDEB_HOST_MULTIARCH)
+
+build() {
+  local tree=$WORK/fovea-$version
+  mkdir -p "$tree"
+  (cd "$SRC" && git ls-files -z --cached --others --exclude-standard | xargs -0 cp --parents -t "$tree" 2>/dev/null) ||
+    (cd "$SRC" && git ls-files -z --cached --others --exclude-standard | while IFS= read -r -d '' f; do
+       [ -e "$f" ] && cp --parents -P -t "$tree" "$f"; done)
+  echo "build-packages: dpkg-buildpackage -us -uc -b in $tree (DEB_BUILD_OPTIONS=${NOCHECK:-<tests on>})"
+  local start=$SECONDS
+  # Debian's own interpreters and tools only: a python3 from pyenv or a venv earlier in PATH would
+  # build the Python package for itself.
+  (cd "$tree" && PATH=/usr/sbin:/usr/bin:/sbin:/bin DEB_BUILD_OPTIONS="$NOCHECK parallel=$(nproc)" \
+     dpkg-buildpackage -us -uc -b >"$WORK/build.log" 2>&1) ||
+    { tail -n 40 "$WORK/build.log" >&2; fail "dpkg-buildpackage failed (log above)"; }
+  echo "build-packages: built in $((SECONDS - start)) s"
+  mkdir -p "$OUT"
+  rm -f "$OUT"/*.deb
+  cp "$WORK"/*.deb "$OUT/"
+  cp "$WORK"/*.changes "$OUT/" 2>/dev/null || true
+}
+
+# PACKAGE PATH... : the package holds each path.
+expect() {
+  local pkg=$1; shift
+  local deb=$DEBS/${pkg}_${version}_$( [ "$pkg" = python3-fovea ] && echo all || echo "$arch").deb
+  [ -f "$deb" ] || fail "no $deb"
+  dpkg-deb -c "$deb" | awk '{print $6}' | sed 's#^\./#/#; s#/$##' >"$WORK/$pkg.list"
+  for p in "$@"; do grep -qx -- "$p" "$WORK/$pkg.list" || fail "$pkg lacks $p (has: $(grep -v '/$' "$WORK/$pkg.list" | tr '\n' ' '))"; done
+  dpkg-deb -x "$deb" "$WORK/root"
+}
+
+check() {
+  DEBS=$1
+  rm -rf "$WORK/root"; mkdir -p "$WORK/root"
+  expect fovea-trackerd /usr/bin/fovea-trackerd /lib/systemd/system/fovea-trackerd.service \
+    /lib/udev/rules.d/70-fovea-trackers.rules /usr/lib/sysusers.d/fovea.conf /usr/lib/tmpfiles.d/fovea.conf \
+    /etc/fovea/trackerd.toml /usr/share/man/man8/fovea-trackerd.8.gz /usr/share/man/man5/trackerd.toml.5.gz
+  dpkg-deb -e "$DEBS/fovea-trackerd_${version}_$arch.deb" "$WORK/control"
+  grep -qx /etc/fovea/trackerd.toml "$WORK/control/conffiles" || fail "/etc/fovea/trackerd.toml is not a conffile"
+  grep -q systemd-sysusers "$WORK/control/postinst" || fail "postinst does not create the fovea user (systemd-sysusers)"
+  expect fovea-tools /usr/bin/fovea-ctl /usr/bin/fovea-calibrate /usr/bin/fovea-lod /usr/share/man/man1/fovea-ctl.1.gz
+  expect fovea-render /usr/bin/fovea-render /usr/share/fovea/scenes/attention.json /usr/share/man/man1/fovea-render.1.gz
+  expect libfovea-client0 "/usr/lib/$multiarch/libfovea-client.so.0"
+  expect libfovea-client-dev /usr/include/fovea/protocol/client.h "/usr/lib/$multiarch/libfovea-client.so" \
+    "/usr/lib/$multiarch/cmake/fovea/foveaConfig.cmake" "/usr/lib/$multiarch/pkgconfig/fovea-client.pc"
+  expect python3-fovea /usr/lib/python3/dist-packages/fovea/__init__.py
+  local R=$WORK/root
+  echo "build-packages: packages ($version):"
+  for d in "$DEBS"/*.deb; do printf '  %-44s %8s bytes, installed %6s KiB\n' "$(basename "$d")" "$(stat -c %s "$d")" "$(dpkg-deb -f "$d" Installed-Size)"; done
+
+  for b in fovea-trackerd fovea-ctl fovea-calibrate fovea-lod fovea-render; do
+    v=$("$R/usr/bin/$b" --version 2>&1) || fail "$b --version: $v"
+    [ "$v" = "$b ${version%%-*}" ] || fail "$b --version says '$v', the package is $version"
+  done
+  echo "build-packages: every program runs from the package (--version matches $version)"
+  out=$("$R/usr/bin/fovea-trackerd" --check-config --config "$R/etc/fovea/trackerd.toml" 2>&1) || fail "the packaged configuration is refused: $out"
+  if command -v systemd-analyze >/dev/null; then
+    # The unit as packaged, its ExecStart pointed at the extracted binary (verify wants it to exist).
+    mkdir -p "$WORK/unit"
+    sed "s#^ExecStart=/usr/bin/fovea-trackerd #ExecStart=$R/usr/bin/fovea-trackerd #" \
+      "$R/lib/systemd/system/fovea-trackerd.service" >"$WORK/unit/fovea-trackerd.service"
+    grep -q "^ExecStart=$R/usr/bin/fovea-trackerd --config /etc/fovea/trackerd.toml" "$WORK/unit/fovea-trackerd.service" ||
+      fail "the packaged unit's ExecStart: $(grep ExecStart= "$R/lib/systemd/system/fovea-trackerd.service")"
+    out=$(systemd-analyze verify "$WORK/unit/fovea-trackerd.service" 2>&1) || fail "systemd-analyze verify: $out"
+    echo "build-packages: systemd-analyze verify: the unit is valid${out:+ ($out)}"
+  else
+    echo "build-packages: systemd-analyze not here: the unit is not verified"
+  fi
+  PYTHONPATH=$R/usr/lib/python3/dist-packages /usr/bin/python3 -c 'import fovea, sys; assert fovea.__file__.startswith(sys.argv[1]), fovea.__file__' "$R" ||
+    fail "import fovea from python3-fovea"
+  cmake -S "$SRC/examples" -B "$WORK/ex" -DCMAKE_PREFIX_PATH="$R/usr" >"$WORK/ex.log" 2>&1 && cmake --build "$WORK/ex" >>"$WORK/ex.log" 2>&1 ||
+    fail "the example against libfovea-client-dev (CMake): $(tail -n 8 "$WORK/ex.log")"
+  PKG_CONFIG_PATH=$R/usr/lib/$multiarch/pkgconfig c++ -std=c++20 "$SRC/examples/client.cpp" -o "$WORK/ex-pc" \
+    $(PKG_CONFIG_PATH=$R/usr/lib/$multiarch/pkgconfig pkg-config --cflags --libs fovea-client) 2>"$WORK/pc.log" ||
+    fail "the example against libfovea-client-dev (pkg-config): $(tail -n 8 "$WORK/pc.log")"
+  echo "build-packages: examples/client.cpp builds against the packaged SDK (CMake and pkg-config)"
+  if command -v lintian >/dev/null; then
+    lintian --tag-display-limit 0 --info "$DEBS"/*.deb >"$WORK/lintian.txt" 2>&1 || true
+    echo "build-packages: lintian ($(grep -c '^[EWIP]:' "$WORK/lintian.txt" || true) findings):"
+    sed 's/^/  /' "$WORK/lintian.txt"
+    ! grep -q '^E:' "$WORK/lintian.txt" || fail "lintian reports errors (above)"
+  else
+    echo "build-packages: lintian not here: not run"
+  fi
+}
+
+if [ -n "$CHECK_ONLY" ]; then check "$(cd "$CHECK_ONLY" && pwd)"; else build; check "$OUT"; fi
+echo "build-packages: ok ($OUT)"
