@@ -65,6 +65,25 @@ expect() {
   dpkg-deb -x "$deb" "$WORK/root"
 }
 
+# The packaged daemon with the packaged configuration (its port moved off the default), answered by
+# the packaged fovea-ctl and by the packaged Python client: the service's start without systemd.
+run_packaged_daemon() {  # ROOT
+  local R=$1 port=$(( 47900 + RANDOM % 500 ))
+  "$R/usr/bin/fovea-trackerd" --config "$R/etc/fovea/trackerd.toml" --port "$port" --duration 5 >"$WORK/daemon.log" 2>&1 &
+  local pid=$!
+  for _ in $(seq 1 100); do "$R/usr/bin/fovea-ctl" --server "127.0.0.1:$port" status >/dev/null 2>&1 && break; sleep 0.05; done
+  "$R/usr/bin/fovea-ctl" --server "127.0.0.1:$port" status >"$WORK/status.txt" 2>&1 ||
+    { kill "$pid" 2>/dev/null; fail "the packaged daemon does not answer: $(tail -n 5 "$WORK/daemon.log")"; }
+  PYTHONPATH=$R/usr/lib/python3/dist-packages /usr/bin/python3 -c '
+import sys, fovea
+with fovea.GazeClient("127.0.0.1", int(sys.argv[1])) as c:
+    assert c.wait_subscribed(3.0), "no subscription"
+    import time; time.sleep(0.3)
+    assert c.latest() is not None, "no sample"' "$port" || { kill "$pid" 2>/dev/null; fail "the packaged Python client got no gaze"; }
+  kill "$pid" 2>/dev/null; wait "$pid" 2>/dev/null || true
+  echo "build-packages: the packaged daemon runs its packaged configuration; fovea-ctl and the Python client get its gaze"
+}
+
 check() {
   DEBS=$1
   rm -rf "$WORK/root"; mkdir -p "$WORK/root"
@@ -104,6 +123,10 @@ check() {
   fi
   PYTHONPATH=$R/usr/lib/python3/dist-packages /usr/bin/python3 -c 'import fovea, sys; assert fovea.__file__.startswith(sys.argv[1]), fovea.__file__' "$R" ||
     fail "import fovea from python3-fovea"
+  run_packaged_daemon "$R"
+  "$R/usr/bin/fovea-ctl" convert "$SRC/tests/data/recordings/synthetic-250hz-62s.fgr" "$WORK/bids" --format bids \
+    --subject 01 --task check >"$WORK/bids.log" 2>&1 || fail "BIDS export with the packaged fovea-ctl: $(tail -n 5 "$WORK/bids.log")"
+  echo "build-packages: the packaged fovea-ctl exports a recording to BIDS"
   cmake -S "$SRC/examples" -B "$WORK/ex" -DCMAKE_PREFIX_PATH="$R/usr" >"$WORK/ex.log" 2>&1 && cmake --build "$WORK/ex" >>"$WORK/ex.log" 2>&1 ||
     fail "the example against libfovea-client-dev (CMake): $(tail -n 8 "$WORK/ex.log")"
   PKG_CONFIG_PATH=$R/usr/lib/$multiarch/pkgconfig c++ -std=c++20 "$SRC/examples/client.cpp" -o "$WORK/ex-pc" \
