@@ -45,7 +45,7 @@ build() {
   local start=$SECONDS
   # Debian's own interpreters and tools only: a python3 from pyenv or a venv earlier in PATH would
   # build the Python package for itself.
-  (cd "$tree" && PATH=/usr/sbin:/usr/bin:/sbin:/bin DEB_BUILD_OPTIONS="$NOCHECK parallel=$(nproc)" \
+  (cd "$tree" && env -u CMAKE_PREFIX_PATH PATH=/usr/sbin:/usr/bin:/sbin:/bin DEB_BUILD_OPTIONS="$NOCHECK parallel=$(nproc)" \
      dpkg-buildpackage -us -uc -b >"$WORK/build.log" 2>&1) ||
     { tail -n 40 "$WORK/build.log" >&2; fail "dpkg-buildpackage failed (log above)"; }
   echo "build-packages: built in $((SECONDS - start)) s"

@@ -28,6 +28,15 @@ run_suite() {  # name preset ctest-args...
   [ "$rc" -eq 0 ] || status=1
 }
 
+# liblsl for the Lab Streaming Layer parts (issue 27): Debian has none, so it is built once from
+# ../shared/third_party into a cached prefix; without that source the LSL parts and tests are skipped.
+if lsl_prefix=$(bash deploy/build-liblsl.sh); then
+  export CMAKE_PREFIX_PATH="$lsl_prefix${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
+  summary+=("liblsl: $lsl_prefix (the LSL outlet and its tests are built)")
+else
+  summary+=("liblsl: none (no ../shared/third_party source): the LSL parts and their tests are skipped")
+fi
+
 run_suite "release" default
 
 # The accuracy-cost report, quick: every effect's sweep in ~2 minutes, checked against the baseline.

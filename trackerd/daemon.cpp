@@ -26,6 +26,7 @@
 #include "service/control_paths.h"
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
+#include "lsl/lsl_outlet.h"
 #include "daemon_changes.h"
 #include "sources/source_table.h"
 
@@ -79,6 +80,7 @@ class Daemon {
   void adopt_recording(PendingRecording& recording);
   std::string stop_recording();
   bool open_control_socket();
+  bool open_lsl_outlet_if_asked();
   void publish_control_view();
   void apply_display(const std::optional<protocol::DisplayGeometry>& configured);
   std::string status_line() const;
@@ -105,6 +107,7 @@ class Daemon {
   std::unique_ptr<protocol::GazeServer> server_;
   std::unique_ptr<protocol::ControlSocket> control_socket_;  // local control; null: none
   std::unique_ptr<protocol::RecordingWriter> recorder_;
+  std::unique_ptr<LslOutlet> lsl_;  // [lsl] outlet; null: none
   // Markers the server published (control thread), waiting for the loop to record them.
   mutable std::mutex markers_mutex_;
   std::vector<protocol::Record> markers_in_;
@@ -180,7 +183,9 @@ bool Daemon::start(std::int64_t start_ns) {
     spdlog::error("{} (is another fovea-trackerd running? choose another --port)", e.what());
     return false;
   }
+  if (!open_lsl_outlet_if_asked()) return false;
   server_->on_marker([this](const protocol::Marker& m, std::uint64_t sequence) {
+    if (lsl_) lsl_->push(m);
     std::lock_guard lock(markers_mutex_);
     if (markers_in_.size() >= 4096) {
       ++markers_unrecorded_;
@@ -244,12 +249,14 @@ void Daemon::send(const GazeItem& item, std::optional<std::int64_t> receive_ns) 
   std::optional<std::int64_t> stored_receive;
   if (const auto* s = std::get_if<protocol::GazeSample>(&item)) {
     seq = server_->publish(*s, receive_ns.value_or(s->tracker_time_ns));
+    if (lsl_) lsl_->push(*s);
     // Stored only where it says something the sample's time does not (RECORDING.md).
     if (receive_ns && *receive_ns != s->tracker_time_ns) stored_receive = receive_ns;
   } else {
     const auto& event = std::get<protocol::GazeEvent>(item);
     seq = server_->publish(event);
-    if (event.provisional()) return;  // recordings keep the final labels (RECORDING.md)
+    if (event.provisional()) return;
+    if (lsl_) lsl_->push(event);  // recordings keep the final labels (RECORDING.md)
   }
   record_markers();  // those that came before this item, so the file stays nearly in time order
   std::visit([&](const auto& v) { record(protocol::Record{seq, v, stored_receive}); }, item);
@@ -335,6 +342,7 @@ std::string Daemon::status_line() const {
   if (const std::string detail = source_->status_detail(); !detail.empty()) s += ", " + detail;
   s += ", calibration " + calibration_->description();
   if (recorder_) s += ", recording " + recording_path_;
+  if (lsl_) s += ", LSL " + lsl_->status();
   return s;
 }
 
@@ -493,6 +501,26 @@ bool Daemon::open_control_socket() {
 }
 
 // The publishing loop tells the control side what it runs (daemon_changes.h), after every change.
+// The LSL outlets, named after [lsl] name and told apart between daemons on one host by the port.
+bool Daemon::open_lsl_outlet_if_asked() {
+  if (!config_.lsl.outlet) return true;
+  LslOutletOptions o;
+  o.name = config_.lsl.name;
+  o.source_id = fmt::format("fovea-trackerd-{}", config_.network.port);
+  o.nominal_rate_hz = source_->nominal_rate_hz();
+  o.display = display_;
+  o.device = source_->description();
+  try {
+    lsl_ = open_lsl_outlet(o);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return false;
+  }
+  spdlog::info("LSL outlets \"{0} gaze\" (Gaze, {1} channels, {2} Hz) and \"{0} markers\" (Markers), source_id {3}-*; {4}",
+               o.name, kLslGazeChannels.size(), o.nominal_rate_hz, o.source_id, lsl_library_info());
+  return true;
+}
+
 void Daemon::publish_control_view() {
   RunningView v;
   v.config = config_;

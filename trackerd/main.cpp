@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "daemon.h"
+#include "lsl/lsl_outlet.h"
 #include "service/config.h"
 #include "sources/source_table.h"
 
@@ -38,14 +39,14 @@ struct Flags {
   svc::DaemonConfig d = defaults;  // receives the flag values; only flags given on the command line count
   std::string config_path, display, multicast, log_level = defaults.log_level, record_path, calibration, classifier;
   std::string control_socket, control_dir;
-  bool check_config = false, loop = false, append = false;
+  bool check_config = false, loop = false, append = false, lsl = false;
   trackerd::RunOptions run;
   // The eye pipeline (camera:, video:, synthetic-eye).
   std::string eye_side = defaults.eye.side, leds, eye_size, eye_script, eye_head_offset;
   bool no_pupil_roi = false, eye_hard = false;
 
   CLI::Option *o_source = nullptr, *o_port = nullptr, *o_listen = nullptr, *o_multicast = nullptr, *o_ttl = nullptr,
-              *o_record = nullptr, *o_append = nullptr, *o_rate = nullptr, *o_seed = nullptr;
+              *o_record = nullptr, *o_append = nullptr, *o_rate = nullptr, *o_seed = nullptr, *o_lsl = nullptr;
   CLI::Option *o_eye = nullptr, *o_leds = nullptr, *o_downscale = nullptr, *o_no_roi = nullptr, *o_eye_size = nullptr,
               *o_eye_hard = nullptr, *o_eye_script = nullptr, *o_eye_head_offset = nullptr;
   CLI::Option *o_speed = nullptr, *o_loop = nullptr, *o_display = nullptr, *o_lease = nullptr, *o_max = nullptr,
@@ -84,6 +85,9 @@ void add_source_network_and_record_options(CLI::App& app, Flags& f) {
       app.add_option("--record", f.record_path, "record everything published to this .fgr file (refuses to overwrite)");
   f.o_append =
       app.add_flag("--append", f.append, "with --record: append to an existing recording of the same display");
+  f.o_lsl = app.add_flag("--lsl", f.lsl,
+                         "also publish gaze and events/markers as Lab Streaming Layer streams (types Gaze and Markers; "
+                         "[lsl] in the configuration; needs a build with liblsl)");
   f.o_rate = app.add_option("--rate", d.source.rate_hz,
                             "synthetic sources: sample (frame) rate in Hz; synthetic 1..10000 (default 250), "
                             "synthetic-eye 1..1000 (default 120)")
@@ -211,6 +215,10 @@ svc::CliOverrides cli_overrides(const Flags& f) {
   if (given(f.o_control_dir)) cli.control_dir = std::filesystem::absolute(f.control_dir).lexically_normal().string();
   if (given(f.o_record)) cli.record_path = f.record_path;
   if (given(f.o_append)) cli.record_append = f.append;
+  if (given(f.o_lsl)) {
+    if (f.lsl && !trackerd::lsl_available()) throw std::invalid_argument("--lsl: " + trackerd::lsl_library_info());
+    cli.lsl_outlet = f.lsl;
+  }
   if (given(f.o_calibration)) cli.calibration_file = f.calibration;
   if (given(f.o_classifier)) {
     if (const std::string err = svc::check_classifier_method(f.classifier); !err.empty()) {

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "lsl/lsl_outlet.h"
 #include "service/config.h"
 
 using namespace fovea;
@@ -324,4 +325,26 @@ TEST(Cidr, ParsesAndMatches) {
                           "10.1.0.0/8", " 10.0.0.0/8", "10. 0.0.0/8", "10.+0.0.0/8", "10.0.0.0/8 ", "10.0.0.0/-1"}) {
     EXPECT_THROW((void)protocol::parse_cidr(bad), std::invalid_argument) << bad;
   }
+}
+
+// [lsl]: the outlet where this build has liblsl; refused with the reason where it has none, so
+// --check-config says so before the service fails to start.
+TEST(Config, LslOutletIsAcceptedOnlyWhereLiblslIsBuiltIn) {
+  const std::string text = "[lsl]\noutlet = true\nname = \"lab-a\"\n";
+  if (fovea::trackerd::lsl_available()) {
+    const DaemonConfig c = parse_config(text, "lsl.toml");
+    EXPECT_TRUE(c.lsl.outlet);
+    EXPECT_EQ(c.lsl.name, "lab-a");
+    EXPECT_EQ(parse_config(to_toml(c), "again").lsl, c.lsl) << to_toml(c);
+  } else {
+    try {
+      parse_config(text, "lsl.toml");
+      ADD_FAILURE() << "a build without liblsl accepted [lsl] outlet = true";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("lsl.toml:2: lsl.outlet"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("without liblsl"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(parse_config("[lsl]\nname = \"\"\n", "empty.toml"), ConfigError);
+  EXPECT_EQ(parse_config("", "none").lsl, LslConfig{}) << "off by default";
 }

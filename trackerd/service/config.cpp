@@ -15,6 +15,7 @@
 
 #include "classify/classifier.h"
 #include "fovea/protocol/bounded_file.h"
+#include "lsl/lsl_outlet.h"
 #include "sources/source_table.h"
 
 namespace fovea::trackerd::service {
@@ -392,6 +393,16 @@ void parse_eye(Checker& c, const toml::table& t, EyeConfig& eye) {
   c.string(t, "eye.", "synthetic_head_offset_mm", eye.synthetic_head_offset_mm, "\"x,y,z\" in mm");
 }
 
+// [lsl]: the LSL outlet; asking for it in a build without liblsl is a problem of the file.
+void parse_lsl(Checker& c, const toml::table& t, LslConfig& lsl) {
+  c.only(t, "lsl.", {"outlet", "name"});
+  c.boolean(t, "lsl.", "outlet", lsl.outlet);
+  c.string(t, "lsl.", "name", lsl.name, "the streams' name prefix (\"<name> gaze\", \"<name> markers\")");
+  if (lsl.outlet && !lsl_available()) c.problem(t.get("outlet")->source(), "lsl.outlet", lsl_library_info());
+  if (lsl.name.empty() && t.get("name") != nullptr)
+    c.problem(t.get("name")->source(), "lsl.name", "empty; allowed: a non-empty name");
+}
+
 // [log]: the log level; an unknown one falls back to info after the problem is noted.
 void parse_log(Checker& c, const toml::table& t, std::string& log_level) {
   c.only(t, "log.", {"level"});
@@ -445,7 +456,7 @@ void parse_devices(Checker& c, const toml::node& node, std::vector<DeviceEntry>&
 DaemonConfig parse_table(const toml::table& doc, Checker& c) {
   DaemonConfig cfg;
   cfg.origin = c.origin_;
-  c.only(doc, "", {"source", "display", "network", "record", "calibration", "classifier", "eye", "devices", "log"});
+  c.only(doc, "", {"source", "display", "network", "record", "calibration", "classifier", "eye", "lsl", "devices", "log"});
   if (const auto* t = c.table(doc, "source")) parse_source(c, *t, cfg.source);
   if (const auto* t = c.table(doc, "display")) parse_display(c, *t, cfg.display);
   if (const auto* t = c.table(doc, "network")) parse_network(c, *t, cfg.network);
@@ -453,6 +464,7 @@ DaemonConfig parse_table(const toml::table& doc, Checker& c) {
   if (const auto* t = c.table(doc, "calibration")) parse_calibration(c, *t, cfg.calibration);
   if (const auto* t = c.table(doc, "classifier")) parse_classifier(c, *t, cfg.classifier);
   if (const auto* t = c.table(doc, "eye")) parse_eye(c, *t, cfg.eye);
+  if (const auto* t = c.table(doc, "lsl")) parse_lsl(c, *t, cfg.lsl);
   if (const auto* t = c.table(doc, "log")) parse_log(c, *t, cfg.log_level);
   if (const toml::node* node = doc.get("devices")) parse_devices(c, *node, cfg.devices);
   return cfg;
@@ -509,6 +521,7 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
   if (o.seed) c.source.seed = *o.seed;
   if (o.speed) c.source.speed = *o.speed;
   if (o.loop) c.source.loop = *o.loop;
+  if (o.lsl_outlet) c.lsl.outlet = *o.lsl_outlet;
   if (o.display) c.display = *o.display;
   if (o.listen) c.network.listen = *o.listen;
   if (o.port) c.network.port = *o.port;
@@ -577,6 +590,7 @@ std::string to_toml(const DaemonConfig& c) {
                      c.eye.synthetic_hard);
   out += "synthetic_script = " + quoted(c.eye.synthetic_script) + "\n";
   out += "synthetic_head_offset_mm = " + quoted(c.eye.synthetic_head_offset_mm) + "\n";
+  out += fmt::format("\n[lsl]\noutlet = {}\nname = ", c.lsl.outlet) + quoted(c.lsl.name) + "\n";
   out += "\n[log]\nlevel = " + quoted(c.log_level) + "\n";
   for (const auto& d : c.devices) {
     out += fmt::format("\n[[devices]]\nvid = 0x{:04x}\npid = 0x{:04x}\nkind = {}\nname = {}\n", d.vid, d.pid,
@@ -628,6 +642,8 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.needs_restart, "source.seed", a.source.seed, b.source.seed);
   note(ch.needs_restart, "source.speed", a.source.speed, b.source.speed);
   note(ch.needs_restart, "source.loop", a.source.loop, b.source.loop);
+  note(ch.needs_restart, "lsl.outlet", a.lsl.outlet, b.lsl.outlet);
+  note(ch.needs_restart, "lsl.name", a.lsl.name, b.lsl.name);
   note(ch.needs_restart, "eye.side", a.eye.side, b.eye.side);
   note(ch.needs_restart, "eye.leds", text(a.eye.leds), text(b.eye.leds));
   note(ch.needs_restart, "eye.pupil_downscale", a.eye.pupil_downscale, b.eye.pupil_downscale);
@@ -658,6 +674,7 @@ DaemonConfig adopt_live(const DaemonConfig& running, const DaemonConfig& next) {
   out.network.multicast_ttl = running.network.multicast_ttl;
   out.network.control_socket = running.network.control_socket;
   out.devices = running.devices;
+  out.lsl = running.lsl;  // the outlets are opened once
   return out;
 }
 

@@ -56,6 +56,13 @@ struct RecordConfig {
   friend bool operator==(const RecordConfig&, const RecordConfig&) = default;
 };
 
+// [lsl]: the Lab Streaming Layer outlet (trackerd/lsl/lsl_outlet.h).
+struct LslConfig {
+  bool outlet = false;        // publish gaze and markers as LSL streams
+  std::string name = "fovea";  // stream names "<name> gaze", "<name> markers"
+  friend bool operator==(const LslConfig&, const LslConfig&) = default;
+};
+
 struct CalibrationConfig {
   std::string file;  // empty: none (identity)
   friend bool operator==(const CalibrationConfig&, const CalibrationConfig&) = default;
@@ -102,6 +109,7 @@ struct DaemonConfig {
   CalibrationConfig calibration;
   ClassifierConfig classifier;
   EyeConfig eye;
+  LslConfig lsl;
   std::vector<DeviceEntry> devices;
   std::string log_level = "info";  // trace | debug | info | warn | error
 };
@@ -145,6 +153,7 @@ struct CliOverrides {
   std::optional<std::string> control_dir;
   std::optional<std::string> record_path;
   std::optional<bool> record_append;
+  std::optional<bool> lsl_outlet;
   std::optional<std::string> classifier_method;
   std::optional<std::string> calibration_file;
   std::optional<std::string> log_level;
