@@ -16,6 +16,7 @@
 #include "sim/synthetic_eye_frames.h"
 #include "sim/synthetic_gaze.h"
 #include "sources/gazepoint/gazepoint_source.h"
+#include "sources/lsl/lsl_source.h"
 #include "sources/hid/hid_source.h"
 #include "sources/mouse/mouse_source.h"
 #include "sources/pupil/pupil_source.h"
@@ -260,6 +261,13 @@ std::unique_ptr<GazeSource> make_mouse(const service::DaemonConfig& c, std::int6
   return std::make_unique<mouse::MouseSource>(mouse::parse_mouse_spec(c.source.spec), c.display, rate, start_time_ns);
 }
 
+// An LSL stream's own rate, unless [source] rate is given (which also lets the daemon start before
+// the stream exists).
+std::unique_ptr<GazeSource> make_lsl(const service::DaemonConfig& c, std::int64_t) {
+  return lsl_source::make_lsl_source(lsl_source::parse_lsl_spec(c.source.spec),
+                                     c.display.value_or(protocol::DisplayGeometry{}), c.source.rate_hz);
+}
+
 using Arg = SourceKind::Argument;
 
 // clang-format off
@@ -282,6 +290,10 @@ constexpr SourceKind kSourceKinds[] = {
                                                          pupil::check_pupil_spec, make_pupil},
   {"mouse",         Arg::Optional, "mouse[:DISPLAY]",    "the X11 pointer as gaze, 120 Hz unless --rate: for developing "
                                                          "without a tracker", mouse::check_mouse_spec, make_mouse},
+  {"lsl",           Arg::Optional, "lsl[:NAME][?x=I&y=J&units=pixels|normalized&confidence=K&min_confidence=C]",
+                                                         "a tracker's Lab Streaming Layer stream (the first of type Gaze, or the one "
+                                                         "named NAME); channels from its metadata (ScreenX/ScreenY) or x=/y=; needs "
+                                                         "a build with liblsl", lsl_source::check_lsl_spec, make_lsl},
 };
 // clang-format on
 
