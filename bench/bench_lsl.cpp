@@ -6,8 +6,10 @@
 //   fovea  fovea-trackerd --source synthetic --lsl: the sample's device time (when the synthetic
 //          viewer's sample was due; the daemon publishes it then) to receipt: the daemon's pipeline
 //          (calibration, classifier, GazeServer, outlet) plus LSL
-// and the daemon's CPU (utime + stime from /proc over the window) with the outlet on and off (no
-// LSL consumer, no fovea subscriber), as % of one core. Discovery stays on this machine: LSLAPICFG
+// and, the other direction, from an LSL outlet's push (its timestamp, lsl_local_clock()) to receipt
+// by 1, 8 and 32 fovea clients (GazeClient) of fovea-trackerd --source lsl:NAME, against the same
+// outlet read by as many bare inlets; and the daemon's CPU (utime + stime from /proc over the
+// window) with the outlet on and off (no LSL consumer, no fovea subscriber), as % of one core. Discovery stays on this machine: LSLAPICFG
 // is set to tests/data/lsl_api.cfg unless already set.
 //
 //   bench_lsl [--rate 1000] [--seconds 5] [--consumers 1 8 32]
@@ -29,6 +31,8 @@
 #include <thread>
 #include <vector>
 
+#include "fovea/protocol/client.h"
+#include "fovea/protocol/clock.h"
 #include "lsl/lsl_outlet.h"
 
 namespace {
@@ -91,11 +95,11 @@ std::vector<double> bare(double rate, std::size_t consumers, double seconds) {
   return ms;
 }
 
-pid_t start_daemon(const std::string& trackerd, double rate, int port, bool lsl) {
+pid_t start_daemon(const std::string& trackerd, double rate, int port, bool lsl, const std::string& source = "synthetic") {
   const std::string rate_text = std::to_string(rate), port_text = std::to_string(port);
   const pid_t pid = fork();
   if (pid == 0) {
-    std::vector<const char*> args{trackerd.c_str(), "--source", "synthetic", "--rate", rate_text.c_str(), "--port",
+    std::vector<const char*> args{trackerd.c_str(), "--source", source.c_str(), "--rate", rate_text.c_str(), "--port",
                                   port_text.c_str(), "--log-level", "warn"};
     if (lsl) args.push_back("--lsl");
     args.push_back(nullptr);
@@ -136,6 +140,74 @@ double daemon_cpu_percent(const std::string& trackerd, double rate, int port, bo
   return 100.0 * (c1 - c0) / seconds;
 }
 
+// An outlet in this process pushing at `rate`, each sample stamped as pushed, for `seconds` + 3 s of
+// start-up, while `read` measures.
+template <class Read>
+std::vector<double> with_pushing_outlet(const std::string& name, double rate, Read read) {
+  lsl::stream_info info(name, "Gaze", 2, rate, lsl::cf_float32, name);
+  lsl::xml_element chns = info.desc().append_child("channels");
+  chns.append_child("channel").append_child_value("label", "x").append_child_value("type", "ScreenX").append_child_value("unit", "normalized");
+  chns.append_child("channel").append_child_value("label", "y").append_child_value("type", "ScreenY").append_child_value("unit", "normalized");
+  lsl::stream_outlet outlet(info);
+  std::atomic<bool> stop{false};
+  std::thread pusher([&] {
+    const float v[2] = {0.5f, 0.5f};
+    auto due = std::chrono::steady_clock::now();
+    const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / rate));
+    while (!stop.load()) {
+      due += period;
+      std::this_thread::sleep_until(due);
+      outlet.push_sample(v, lsl::local_clock());
+    }
+  });
+  std::vector<double> ms = read(info);
+  stop = true;
+  pusher.join();
+  return ms;
+}
+
+// LSL outlet -> fovea-trackerd --source lsl:NAME -> `clients` GazeClients: receipt (CLOCK_MONOTONIC)
+// minus the sample's time (the outlet's timestamp, mapped by the daemon onto the same clock), ms.
+std::vector<double> inbound_fovea(const std::string& trackerd, double rate, int port, std::size_t clients, double seconds) {
+  const std::string name = "bench-in-" + std::to_string(getpid()) + "-" + std::to_string(clients);
+  return with_pushing_outlet(name, rate, [&](const lsl::stream_info&) {
+    const pid_t pid = start_daemon(trackerd, rate, port, false, "lsl:" + name);
+    std::mutex mu;
+    std::vector<double> ms;
+    bool measuring = false;
+    std::vector<std::unique_ptr<fovea::protocol::GazeClient>> cs;
+    for (std::size_t i = 0; i < clients; ++i) {
+      fovea::protocol::ClientOptions o;
+      o.server = fovea::protocol::Endpoint{0x7F000001, static_cast<std::uint16_t>(port)};
+      o.streams = fovea::protocol::kStreamSamples;
+      o.name = "bench_lsl";
+      auto c = std::make_unique<fovea::protocol::GazeClient>(o);
+      c->on_sample([&](const fovea::protocol::GazeSample& s, const fovea::protocol::Arrival&) {
+        const double d = static_cast<double>(fovea::protocol::monotonic_ns() - s.tracker_time_ns) * 1e-6;
+        std::lock_guard lock(mu);
+        if (measuring) ms.push_back(d);
+      });
+      c->start();
+      cs.push_back(std::move(c));
+    }
+    std::this_thread::sleep_for(std::chrono::seconds(3));  // resolution, subscriptions
+    { std::lock_guard lock(mu); measuring = true; }
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    { std::lock_guard lock(mu); measuring = false; }
+    cs.clear();
+    stop_daemon(pid);
+    return ms;
+  });
+}
+
+std::vector<double> inbound_bare(double rate, std::size_t consumers, double seconds) {
+  const std::string name = "bench-in-bare-" + std::to_string(getpid()) + "-" + std::to_string(consumers);
+  return with_pushing_outlet(name, rate, [&](const lsl::stream_info& info) {
+    const auto found = lsl::resolve_stream("source_id", info.source_id(), 1, 10.0);
+    return found.empty() ? std::vector<double>{} : consume(found.front(), consumers, seconds);
+  });
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -161,6 +233,17 @@ int main(int argc, char** argv) {
     const auto found = lsl::resolve_stream("source_id", "fovea-trackerd-" + std::to_string(port) + "-gaze", 1, 10.0);
     const std::vector<double> f = found.empty() ? std::vector<double>{} : consume(found.front(), n, seconds);
     stop_daemon(pid);
+    std::printf("| %zu | %.3f / %.3f | %.3f / %.3f | %+.3f | %zu, %zu |\n", n, quantile(b, 0.5), quantile(b, 0.99),
+                quantile(f, 0.5), quantile(f, 0.99), quantile(f, 0.5) - quantile(b, 0.5), b.size(), f.size());
+    std::fflush(stdout);
+  }
+  std::printf("\nThe other direction: an LSL outlet at %g Hz, stamped as pushed, read by bare inlets and by fovea "
+              "clients of fovea-trackerd --source lsl:NAME.\n\n"
+              "| consumers | bare LSL p50 / p99 ms | LSL -> fovea-trackerd -> fovea clients p50 / p99 ms | added p50 ms | samples (bare, fovea) |\n"
+              "|---:|---:|---:|---:|---:|\n", rate);
+  for (const std::size_t n : consumers) {
+    const std::vector<double> b = inbound_bare(rate, n, seconds);
+    const std::vector<double> f = inbound_fovea(trackerd, rate, port, n, seconds);
     std::printf("| %zu | %.3f / %.3f | %.3f / %.3f | %+.3f | %zu, %zu |\n", n, quantile(b, 0.5), quantile(b, 0.99),
                 quantile(f, 0.5), quantile(f, 0.99), quantile(f, 0.5) - quantile(b, 0.5), b.size(), f.size());
     std::fflush(stdout);
