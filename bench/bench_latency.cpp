@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "proc_cpu.h"
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
 
@@ -26,19 +27,7 @@ using namespace fovea::protocol;
 
 namespace {
 
-double cpu_seconds(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
-  std::string line;
-  std::getline(in, line);
-  // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
-  std::istringstream rest(line.substr(line.rfind(')') + 2));
-  std::string field;
-  double ticks = 0;
-  for (int i = 3; i <= 15 && rest >> field; ++i) {
-    if (i == 14 || i == 15) ticks += std::stod(field);
-  }
-  return ticks / static_cast<double>(sysconf(_SC_CLK_TCK));
-}
+using fovea::bench::cpu_seconds;
 
 double pct(std::vector<std::int64_t>& v, double q) {
   if (v.empty()) return 0;

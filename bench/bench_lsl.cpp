@@ -34,6 +34,7 @@
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
 #include "lsl/lsl_outlet.h"
+#include "proc_cpu.h"
 
 namespace {
 
@@ -73,28 +74,6 @@ std::vector<double> consume(const lsl::stream_info& info, std::size_t consumers,
   return all;
 }
 
-std::vector<double> bare(double rate, std::size_t consumers, double seconds) {
-  lsl::stream_info info("bench bare", "Gaze", static_cast<std::int32_t>(fovea::trackerd::kLslGazeChannels.size()), rate,
-                        lsl::cf_float32, "bench-lsl-bare-" + std::to_string(getpid()));
-  lsl::stream_outlet outlet(info);
-  std::atomic<bool> stop{false};
-  std::thread pusher([&] {
-    std::vector<float> v(fovea::trackerd::kLslGazeChannels.size(), 0.5f);
-    auto due = std::chrono::steady_clock::now();
-    const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / rate));
-    while (!stop.load()) {
-      due += period;
-      std::this_thread::sleep_until(due);
-      outlet.push_sample(v, lsl::local_clock());
-    }
-  });
-  const auto found = lsl::resolve_stream("source_id", info.source_id(), 1, 10.0);
-  std::vector<double> ms = found.empty() ? std::vector<double>{} : consume(found.front(), consumers, seconds);
-  stop = true;
-  pusher.join();
-  return ms;
-}
-
 pid_t start_daemon(const std::string& trackerd, double rate, int port, bool lsl, const std::string& source = "synthetic") {
   const std::string rate_text = std::to_string(rate), port_text = std::to_string(port);
   const pid_t pid = fork();
@@ -115,20 +94,7 @@ void stop_daemon(pid_t pid) {
   waitpid(pid, nullptr, 0);
 }
 
-// utime + stime of `pid`, seconds.
-double cpu_seconds(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
-  std::string line;
-  std::getline(in, line);
-  std::istringstream rest(line.substr(line.rfind(')') + 2));
-  std::string field;
-  double utime = 0, stime = 0;
-  for (int i = 3; i <= 15 && rest >> field; ++i) {
-    if (i == 14) utime = std::stod(field);
-    if (i == 15) stime = std::stod(field);
-  }
-  return (utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
-}
+using fovea::bench::cpu_seconds;
 
 double daemon_cpu_percent(const std::string& trackerd, double rate, int port, bool lsl, double seconds) {
   const pid_t pid = start_daemon(trackerd, rate, port, lsl);
@@ -140,18 +106,15 @@ double daemon_cpu_percent(const std::string& trackerd, double rate, int port, bo
   return 100.0 * (c1 - c0) / seconds;
 }
 
-// An outlet in this process pushing at `rate`, each sample stamped as pushed, for `seconds` + 3 s of
-// start-up, while `read` measures.
+// An outlet of `info` in this process pushing at its rate, each sample stamped as pushed, while
+// `read` measures.
 template <class Read>
-std::vector<double> with_pushing_outlet(const std::string& name, double rate, Read read) {
-  lsl::stream_info info(name, "Gaze", 2, rate, lsl::cf_float32, name);
-  lsl::xml_element chns = info.desc().append_child("channels");
-  chns.append_child("channel").append_child_value("label", "x").append_child_value("type", "ScreenX").append_child_value("unit", "normalized");
-  chns.append_child("channel").append_child_value("label", "y").append_child_value("type", "ScreenY").append_child_value("unit", "normalized");
+std::vector<double> with_pushing_outlet(lsl::stream_info info, Read read) {
+  const double rate = info.nominal_srate();
   lsl::stream_outlet outlet(info);
   std::atomic<bool> stop{false};
   std::thread pusher([&] {
-    const float v[2] = {0.5f, 0.5f};
+    const std::vector<float> v(static_cast<std::size_t>(info.channel_count()), 0.5f);
     auto due = std::chrono::steady_clock::now();
     const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / rate));
     while (!stop.load()) {
@@ -170,7 +133,11 @@ std::vector<double> with_pushing_outlet(const std::string& name, double rate, Re
 // minus the sample's time (the outlet's timestamp, mapped by the daemon onto the same clock), ms.
 std::vector<double> inbound_fovea(const std::string& trackerd, double rate, int port, std::size_t clients, double seconds) {
   const std::string name = "bench-in-" + std::to_string(getpid()) + "-" + std::to_string(clients);
-  return with_pushing_outlet(name, rate, [&](const lsl::stream_info&) {
+  lsl::stream_info info(name, "Gaze", 2, rate, lsl::cf_float32, name);
+  lsl::xml_element chns = info.desc().append_child("channels");
+  chns.append_child("channel").append_child_value("label", "x").append_child_value("type", "ScreenX").append_child_value("unit", "normalized");
+  chns.append_child("channel").append_child_value("label", "y").append_child_value("type", "ScreenY").append_child_value("unit", "normalized");
+  return with_pushing_outlet(info, [&](const lsl::stream_info&) {
     const pid_t pid = start_daemon(trackerd, rate, port, false, "lsl:" + name);
     std::mutex mu;
     std::vector<double> ms;
@@ -200,9 +167,11 @@ std::vector<double> inbound_fovea(const std::string& trackerd, double rate, int 
   });
 }
 
-std::vector<double> inbound_bare(double rate, std::size_t consumers, double seconds) {
-  const std::string name = "bench-in-bare-" + std::to_string(getpid()) + "-" + std::to_string(consumers);
-  return with_pushing_outlet(name, rate, [&](const lsl::stream_info& info) {
+// A bare outlet of `channels` floats read by `consumers` bare inlets: LSL's own latency.
+std::vector<double> bare(double rate, std::size_t channels, std::size_t consumers, double seconds) {
+  const std::string name = "bench-bare-" + std::to_string(getpid()) + "-" + std::to_string(channels) + "-" + std::to_string(consumers);
+  return with_pushing_outlet(lsl::stream_info(name, "Gaze", static_cast<std::int32_t>(channels), rate, lsl::cf_float32, name),
+                             [&](const lsl::stream_info& info) {
     const auto found = lsl::resolve_stream("source_id", info.source_id(), 1, 10.0);
     return found.empty() ? std::vector<double>{} : consume(found.front(), consumers, seconds);
   });
@@ -228,7 +197,7 @@ int main(int argc, char** argv) {
               "|---:|---:|---:|---:|---:|\n");
   const int port = 47000 + static_cast<int>(getpid() % 900);
   for (const std::size_t n : consumers) {
-    const std::vector<double> b = bare(rate, n, seconds);
+    const std::vector<double> b = bare(rate, fovea::trackerd::kLslGazeChannels.size(), n, seconds);
     const pid_t pid = start_daemon(trackerd, rate, port, true);
     const auto found = lsl::resolve_stream("source_id", "fovea-trackerd-" + std::to_string(port) + "-gaze", 1, 10.0);
     const std::vector<double> f = found.empty() ? std::vector<double>{} : consume(found.front(), n, seconds);
@@ -242,7 +211,7 @@ int main(int argc, char** argv) {
               "| consumers | bare LSL p50 / p99 ms | LSL -> fovea-trackerd -> fovea clients p50 / p99 ms | added p50 ms | samples (bare, fovea) |\n"
               "|---:|---:|---:|---:|---:|\n", rate);
   for (const std::size_t n : consumers) {
-    const std::vector<double> b = inbound_bare(rate, n, seconds);
+    const std::vector<double> b = bare(rate, 2, n, seconds);
     const std::vector<double> f = inbound_fovea(trackerd, rate, port, n, seconds);
     std::printf("| %zu | %.3f / %.3f | %.3f / %.3f | %+.3f | %zu, %zu |\n", n, quantile(b, 0.5), quantile(b, 0.99),
                 quantile(f, 0.5), quantile(f, 0.99), quantile(f, 0.5) - quantile(b, 0.5), b.size(), f.size());
