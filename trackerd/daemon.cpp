@@ -81,6 +81,7 @@ class Daemon {
   std::string stop_recording();
   bool open_control_socket();
   bool open_lsl_outlet_if_asked();
+  void watch_server();
   void publish_control_view();
   void apply_display(const std::optional<protocol::DisplayGeometry>& configured);
   std::string status_line() const;
@@ -184,19 +185,7 @@ bool Daemon::start(std::int64_t start_ns) {
     return false;
   }
   if (!open_lsl_outlet_if_asked()) return false;
-  server_->on_marker([this](const protocol::Marker& m, std::uint64_t sequence) {
-    if (lsl_) lsl_->push(m);
-    std::lock_guard lock(markers_mutex_);
-    if (markers_in_.size() >= 4096) {
-      ++markers_unrecorded_;
-      return;
-    }
-    markers_in_.push_back(protocol::Record{sequence, m});
-  });
-  server_->on_subscriber_change([](const protocol::SubscriberInfo& s, const char* what) {
-    spdlog::info("subscriber {} session {:016x}: {} (lease {} ms)", s.address.to_string(), s.session_id, what,
-                 s.lease_ms);
-  });
+  watch_server();
   // Control commands come only through the local socket (its file permissions say who), on its own
   // thread; the publishing loop executes them between samples. The gaze server gets no control
   // handler and an empty allow-list: over UDP it refuses every command (issue 23).
@@ -501,6 +490,24 @@ bool Daemon::open_control_socket() {
 }
 
 // The publishing loop tells the control side what it runs (daemon_changes.h), after every change.
+// What the server's thread reports: markers it published (to the recording, through the loop, and
+// to LSL at once) and subscribers coming and going (to the log).
+void Daemon::watch_server() {
+  server_->on_marker([this](const protocol::Marker& m, std::uint64_t sequence) {
+    if (lsl_) lsl_->push(m);
+    std::lock_guard lock(markers_mutex_);
+    if (markers_in_.size() >= 4096) {
+      ++markers_unrecorded_;
+      return;
+    }
+    markers_in_.push_back(protocol::Record{sequence, m});
+  });
+  server_->on_subscriber_change([](const protocol::SubscriberInfo& s, const char* what) {
+    spdlog::info("subscriber {} session {:016x}: {} (lease {} ms)", s.address.to_string(), s.session_id, what,
+                 s.lease_ms);
+  });
+}
+
 // The LSL outlets, named after [lsl] name and told apart between daemons on one host by the port.
 bool Daemon::open_lsl_outlet_if_asked() {
   if (!config_.lsl.outlet) return true;

@@ -219,6 +219,25 @@ Json dataset_description(const std::string& version) {
   return j;
 }
 
+// One physio.tsv row: the columns build_tables names, n/a where the gaze is invalid.
+std::string physio_row(const GazeSample& s, double w, double h, bool left, bool right) {
+  const bool valid = (s.flags & kGazeValid) != 0;
+  std::string row = seconds(s.tracker_time_ns);
+  row += '\t';
+  row += valid ? fixed(static_cast<double>(s.x) * w, 4) : "n/a";
+  row += '\t';
+  row += valid ? fixed(static_cast<double>(s.y) * h, 4) : "n/a";
+  row += '\t';
+  row += valid ? fixed(static_cast<double>(s.x_deg), 5) : "n/a";
+  row += '\t';
+  row += valid ? fixed(static_cast<double>(s.y_deg), 5) : "n/a";
+  if (left) row += '\t' + pupil_cell(s.left);
+  if (right) row += '\t' + pupil_cell(s.right);
+  row += '\t' + fixed(static_cast<double>(s.confidence), 4);
+  row += valid ? "\t1\n" : "\t0\n";
+  return row;
+}
+
 Tables build_tables(const Recording& rec, BidsResult& res) {
   const DisplayGeometry& g = rec.header.display;
   std::vector<const GazeSample*> samples;
@@ -255,22 +274,8 @@ Tables build_tables(const Recording& rec, BidsResult& res) {
   const double w = static_cast<double>(g.width_px), h = static_cast<double>(g.height_px);
   t.physio.reserve(samples.size() * 80);
   for (const GazeSample* s : samples) {
-    const bool valid = (s->flags & kGazeValid) != 0;
-    if (valid) ++res.valid_samples;
-    std::string row = seconds(s->tracker_time_ns);
-    row += '\t';
-    row += valid ? fixed(static_cast<double>(s->x) * w, 4) : "n/a";
-    row += '\t';
-    row += valid ? fixed(static_cast<double>(s->y) * h, 4) : "n/a";
-    row += '\t';
-    row += valid ? fixed(static_cast<double>(s->x_deg), 5) : "n/a";
-    row += '\t';
-    row += valid ? fixed(static_cast<double>(s->y_deg), 5) : "n/a";
-    if (left) row += '\t' + pupil_cell(s->left);
-    if (right) row += '\t' + pupil_cell(s->right);
-    row += '\t' + fixed(static_cast<double>(s->confidence), 4);
-    row += valid ? "\t1\n" : "\t0\n";
-    t.physio += row;
+    if ((s->flags & kGazeValid) != 0) ++res.valid_samples;
+    t.physio += physio_row(*s, w, h, left, right);
   }
 
   // physioevents: eye-movement events and markers together, by onset (stable: file order on ties).
