@@ -9,35 +9,14 @@
 #include <fmt/format.h>
 #include <lsl_cpp.h>
 
+#include "fovea/protocol/clock.h"
 #include "lsl/lsl_outlet.h"
 
 namespace fovea::trackerd {
 
 namespace {
 
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return std::int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
-
-// lsl_local_clock() - CLOCK_MONOTONIC, in seconds: the read of LSL's clock bracketed by the two
-// monotonic reads closest together (liblsl uses std::chrono::steady_clock, the same clock on Linux,
-// so this is ~0; measured rather than assumed, so another libstdc++ or platform stays correct).
-double measure_clock_offset_s() {
-  double best_gap = 1e9, offset = 0;
-  for (int i = 0; i < 8; ++i) {
-    const std::int64_t a = monotonic_ns();
-    const double l = lsl::local_clock();
-    const std::int64_t b = monotonic_ns();
-    const double gap = static_cast<double>(b - a);
-    if (gap < best_gap) {
-      best_gap = gap;
-      offset = l - static_cast<double>(a + (b - a) / 2) * 1e-9;
-    }
-  }
-  return offset;
-}
+using protocol::monotonic_ns;
 
 void describe_gaze_channels(lsl::xml_element desc) {
   lsl::xml_element channels = desc.append_child("channels");
@@ -70,7 +49,7 @@ class LiblslOutlet final : public LslOutlet {
  public:
   explicit LiblslOutlet(const LslOutletOptions& o)
       : display_(o.display), gaze_(gaze_info(o)), markers_(markers_info(o)) {
-    offset_s_.store(measure_clock_offset_s());
+    offset_s_.store(lsl_clock_minus_monotonic_s());
     next_offset_ns_ = monotonic_ns() + kOffsetRefreshNs;
   }
 
@@ -89,10 +68,8 @@ class LiblslOutlet final : public LslOutlet {
   void push(const protocol::Marker& m) override { push_marker(lsl_marker_text(m), m.time_ns); }
 
   std::string status() const override {
-    // have_consumers() is not const in liblsl's C++ wrapper.
-    auto& self = const_cast<LiblslOutlet&>(*this);
-    return fmt::format("gaze {}, markers {}, clock offset {:+.6f} s", self.gaze_.have_consumers() ? "consumed" : "no consumer",
-                       self.markers_.have_consumers() ? "consumed" : "no consumer", offset_s_.load());
+    return fmt::format("gaze {}, markers {}, clock offset {:+.6f} s", gaze_.have_consumers() ? "consumed" : "no consumer",
+                       markers_.have_consumers() ? "consumed" : "no consumer", offset_s_.load());
   }
 
  private:
@@ -117,7 +94,7 @@ class LiblslOutlet final : public LslOutlet {
   void refresh_offset() {
     const std::int64_t now = monotonic_ns();
     if (now < next_offset_ns_) return;
-    offset_s_.store(measure_clock_offset_s());
+    offset_s_.store(lsl_clock_minus_monotonic_s());
     next_offset_ns_ = now + kOffsetRefreshNs;
   }
 
@@ -129,14 +106,33 @@ class LiblslOutlet final : public LslOutlet {
   }
 
   protocol::DisplayGeometry display_;
-  lsl::stream_outlet gaze_;
+  // mutable: liblsl's C++ wrapper has no const have_consumers(), which status() asks.
+  mutable lsl::stream_outlet gaze_;
   std::mutex markers_mutex_;  // events from the loop, MARKERs from the server's thread
-  lsl::stream_outlet markers_;
+  mutable lsl::stream_outlet markers_;
   std::atomic<double> offset_s_{0};
   std::int64_t next_offset_ns_ = 0;
 };
 
 }  // namespace
+
+// The read of LSL's clock bracketed by the two monotonic reads closest together (liblsl uses
+// std::chrono::steady_clock, the same clock on Linux, so this is ~0; measured rather than assumed,
+// so another standard library or platform stays correct).
+double lsl_clock_minus_monotonic_s() {
+  double best_gap = 1e9, offset = 0;
+  for (int i = 0; i < 8; ++i) {
+    const std::int64_t a = monotonic_ns();
+    const double l = lsl::local_clock();
+    const std::int64_t b = monotonic_ns();
+    const double gap = static_cast<double>(b - a);
+    if (gap < best_gap) {
+      best_gap = gap;
+      offset = l - static_cast<double>(a + (b - a) / 2) * 1e-9;
+    }
+  }
+  return offset;
+}
 
 bool lsl_available() { return true; }
 

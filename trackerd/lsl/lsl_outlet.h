@@ -25,6 +25,9 @@
 namespace fovea::trackerd {
 
 bool lsl_available();
+// lsl_local_clock() - CLOCK_MONOTONIC, seconds: maps the daemon's times onto LSL's clock and back.
+// Only in builds with liblsl.
+double lsl_clock_minus_monotonic_s();
 // "liblsl 1.16.2 (...)" or why there is none, for --version-like messages and STATUS.
 std::string lsl_library_info();
 

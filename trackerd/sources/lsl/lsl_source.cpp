@@ -20,21 +20,6 @@ namespace {
 
 constexpr double kResolveWaitS = 5.0;
 
-// lsl_local_clock() - CLOCK_MONOTONIC, seconds (see lsl_outlet.cpp: the closest bracketing reads).
-double lsl_minus_monotonic_s() {
-  double best = 1e9, offset = 0;
-  for (int i = 0; i < 8; ++i) {
-    const std::int64_t a = protocol::monotonic_ns();
-    const double l = lsl::local_clock();
-    const std::int64_t b = protocol::monotonic_ns();
-    if (static_cast<double>(b - a) < best) {
-      best = static_cast<double>(b - a);
-      offset = l - static_cast<double>(a + (b - a) / 2) * 1e-9;
-    }
-  }
-  return offset;
-}
-
 std::vector<lsl::stream_info> resolve(const LslSpec& spec, double wait_s) {
   return spec.name.empty() ? lsl::resolve_stream("type", "Gaze", 1, wait_s) : lsl::resolve_stream("name", spec.name, 1, wait_s);
 }
@@ -154,13 +139,13 @@ class LslSource final : public net::ReaderSource {
 
   void pull(lsl::stream_inlet& inlet, const lsl::stream_info& info, const ChannelMap& map) {
     std::vector<float> v;
-    double offset = lsl_minus_monotonic_s(), correction = 0;
+    double offset = lsl_clock_minus_monotonic_s(), correction = 0;
     std::int64_t next_check_ns = 0;
     while (!stopping()) {
       const double ts = inlet.pull_sample(v, 0.1);
       const std::int64_t now = protocol::monotonic_ns();
       if (now >= next_check_ns) {  // every 2 s: the clocks, and the status line
-        offset = lsl_minus_monotonic_s();
+        offset = lsl_clock_minus_monotonic_s();
         try {
           correction = inlet.time_correction(0.0);
         } catch (const lsl::timeout_error&) {
