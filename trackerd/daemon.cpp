@@ -105,10 +105,11 @@ class Daemon {
   std::thread reload_worker_;  // prepares SIGHUP reloads
   std::unique_ptr<ClassifyStage> classify_;  // rebuilt on reload when the method changes
   std::vector<GazeItem> outgoing_;
+  // Declared before the server, so destroyed after it: the server's marker callback pushes to it.
+  std::unique_ptr<LslOutlet> lsl_;  // [lsl] outlet; null: none
   std::unique_ptr<protocol::GazeServer> server_;
   std::unique_ptr<protocol::ControlSocket> control_socket_;  // local control; null: none
   std::unique_ptr<protocol::RecordingWriter> recorder_;
-  std::unique_ptr<LslOutlet> lsl_;  // [lsl] outlet; null: none
   // Markers the server published (control thread), waiting for the loop to record them.
   mutable std::mutex markers_mutex_;
   std::vector<protocol::Record> markers_in_;
