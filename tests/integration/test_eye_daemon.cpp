@@ -25,6 +25,8 @@
 #include "sim/synthetic_eye.h"
 #include "sim/synthetic_eye_frames.h"
 #include "fovea/protocol/recording.h"
+#include "process.h"
+#include "temp_dir.h"
 
 namespace fs = std::filesystem;
 using namespace fovea;
@@ -32,34 +34,13 @@ using namespace fovea::trackerd::eye;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/fovea-eye-daemon-XXXXXX";
-    path = mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
+using fovea::test::exit_status;
+using fovea::test::random_port;
+using fovea::test::read_text;
+using fovea::test::wait_for;
+struct TempDir : fovea::test::TempDir {
+  TempDir() : fovea::test::TempDir("fovea-eye-daemon") {}
 };
-
-int exit_status(const std::string& cmd) {
-  const int rc = std::system(cmd.c_str());
-  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
-
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-int random_port() {
-  std::random_device rd;
-  return 48000 + static_cast<int>(rd() % 1000);
-}
 
 std::vector<protocol::GazeSample> samples_of(const protocol::Recording& r) {
   std::vector<protocol::GazeSample> out;
@@ -69,15 +50,6 @@ std::vector<protocol::GazeSample> samples_of(const protocol::Recording& r) {
   return out;
 }
 
-// Waits for a background command's status file.
-bool wait_for(const fs::path& file, double seconds) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-  while (std::chrono::steady_clock::now() < end) {
-    if (fs::exists(file) && !read_text(file).empty()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  return false;
-}
 
 }  // namespace
 

@@ -17,6 +17,7 @@
 
 #include "ctl/bids_export.h"
 #include "fovea/protocol/recording.h"
+#include "temp_dir.h"
 
 namespace {
 
@@ -27,16 +28,8 @@ using Json = nlohmann::json;
 
 const std::string kSynthetic = std::string(FOVEA_TEST_DATA) + "/recordings/synthetic-250hz-62s.fgr";
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/fovea-bids-XXXXXX";
-    path = mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ignored;
-    fs::remove_all(path, ignored);
-  }
+struct TempDir : fovea::test::TempDir {
+  TempDir() : fovea::test::TempDir("fovea-bids") {}
 };
 
 std::string slurp(const fs::path& p) {
