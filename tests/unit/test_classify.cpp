@@ -332,6 +332,50 @@ TEST(Classify, SettlingAfterASaccadeIsNoPursuitButCatchUpPursuitGoesOn) {
       << "after a catch-up saccade the eye is still pursuing";
 }
 
+// Issue 25: on still images ivvt called a quarter of all samples pursuit. Drift and a video
+// tracker's slow wander move the eye at pursuit-like speeds for a while but stay within a
+// fixation's range (Larsson et al. 2015: 1.9 deg); pursuit leaves it.
+TEST(Classify, DriftWithinAFixationsRangeIsNoPursuit) {
+  for (const double rate : {250.0, 500.0, 1000.0}) {
+    Script sc;
+    sc.rate = rate;
+    sc.noise = 0.01;
+    // 0.5 s still, then 4 deg/s for 200 ms (0.8 deg) one way, still, 3 deg/s back for 150 ms.
+    const auto drift = sample(sc, 1.6, [](double t) {
+      const double out = 4.0 * std::clamp(t - 0.5, 0.0, 0.2);
+      const double back = 3.0 * std::clamp(t - 1.0, 0.0, 0.15);
+      return std::pair{out - back, 0.25 * out};
+    });
+    SCOPED_TRACE(rate);
+    const auto l = run_online("ivvt", drift, rate);
+    EXPECT_EQ(share(l, 0, drift.size(), Label::Pursuit), 0.0) << "drift within 1 deg is fixation";
+    EXPECT_GT(share(l, 0, drift.size(), Label::Fixation), 0.99);
+    // The same speed kept up long enough to leave 1.9 deg behind is pursuit from where a sample
+    // sees that happen within its 200 ms of look-ahead: 1.9 / 4 - 0.2 = 0.275 s into the run.
+    const auto chase = sample(sc, 1.6, [](double t) { return std::pair{4.0 * std::clamp(t - 0.3, 0.0, 1.0), 0.0}; });
+    const auto c = run_online("ivvt", chase, rate);
+    EXPECT_GT(share(c, index_at(chase, 0.62), index_at(chase, 1.2), Label::Pursuit), 0.95);
+    EXPECT_GT(share(c, index_at(chase, 0.35), index_at(chase, 0.5), Label::Fixation), 0.95);
+  }
+}
+
+TEST(Classify, AfterACatchUpSaccadePursuitGoesOnOnlyInItsDirection) {
+  Script sc;
+  sc.rate = 500;
+  sc.noise = 0.01;
+  // Pursuit to the right at 10 deg/s, a 6 deg saccade back left at 0.8 s onto a still target,
+  // and the eye settles 0.4 deg downwards (a direction the pursuit never had).
+  const auto s = sample(sc, 1.4, [](double t) {
+    const double end = 0.8 + saccade_duration_s(6.0);
+    const double settle = t > end ? -0.4 * (1.0 - std::exp(-(t - end) / 0.03)) : 0.0;
+    return std::pair{10.0 * std::min(t, 0.8) - saccade_at(t, 0.8, 6.0).first, settle};
+  });
+  const auto l = run_online("ivvt", s, 500);
+  EXPECT_GT(share(l, index_at(s, 0.3), index_at(s, 0.75), Label::Pursuit), 0.95);
+  EXPECT_EQ(share(l, index_at(s, 0.86), l.size(), Label::Pursuit), 0.0)
+      << "settling at right angles to the pursuit after a saccade is no catch-up";
+}
+
 TEST(Classify, PostSaccadicOscillation) {
   // A damped 0.5 deg, 25 Hz wobble after landing (a PSO) is labelled pso, not saccade or fixation.
   Script sc;

@@ -28,15 +28,19 @@
 //     inter-saccadic samples (a low-pass filter with its first zero at 5 Hz, close to REMoDNaV's
 //     4 Hz) must exceed max(2 deg/s, 3 x its own noise sigma / sqrt(sum (t - mean t)^2)); the
 //     second term keeps a noisy or short stretch from passing for pursuit. Within 100 ms after a
-//     saccade (the window cut short by it) pursuit also needs pursuit before the saccade: what
-//     follows a saccade alone is mostly the eye settling (smooth_label).
+//     saccade (the window cut short by it) pursuit also needs pursuit before the saccade, in about
+//     the same direction: what follows a saccade alone is mostly the eye settling.
+//  6. Pursuit covers ground (Larsson et al. 2015): a run of moving samples is pursuit only once
+//     its low-pass position has left a fixation's spatial range (1.9 deg) of where the run began;
+//     each sample waits up to 200 ms for that (smooth_label).
 //
-// Latency: the velocity window (10 ms) plus the pursuit window (100 ms) = 110 ms in this core; the
-// saccade onset walk-back and the PSO window (40 ms) fit inside it.
+// Latency: the velocity window (10 ms) plus the pursuit window (100 ms) plus the range look-ahead
+// (200 ms) = 310 ms in this core; the saccade onset walk-back and the PSO window fit inside it.
 #include <algorithm>
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <optional>
 
 #include "classify/pipeline.h"
 
@@ -53,6 +57,9 @@ constexpr double kPsoMinRiseDegS = 5.0;    // ... and at least this much (ignore
 constexpr double kSmoothHalfS = 0.100;     // pursuit low-pass window (REMoDNaV: 4 Hz low-pass)
 constexpr double kPursuitFloorDegS = 2.0;  // REMoDNaV pursuit_velthresh
 constexpr double kPursuitK = 3.0;          // slope must exceed 3 standard errors of noise
+constexpr double kPursuitRangeDeg = 1.9;   // Larsson et al. 2015 eta_maxFix: a fixation's spatial range stays below
+constexpr double kPursuitLookS = 0.200;    // how long a moving sample waits for its movement to reach that range
+constexpr double kCatchUpMaxAngleDeg = 45; // Larsson et al. 2015 phi: pursuit goes on in about the same direction
 constexpr double kNoiseWindowS = 1.0;      // trailing window of the noise estimate
 constexpr double kNoisePriorDeg = 0.05;    // until 16 residuals are in: a typical video tracker
 constexpr std::size_t kNoiseMaxResiduals = 4096;
@@ -60,12 +67,13 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 struct Fit {
   double vx = 0, vy = 0, stt = 0;
+  double mt = 0, mx = 0, my = 0;  // the centroid the line passes through
   std::size_t n = 0;
 };
 
 class IvvtCore final : public Core {
  public:
-  double latency_s() const override { return kVelHalfS + kSmoothHalfS; }
+  double latency_s() const override { return kVelHalfS + kSmoothHalfS + kPursuitLookS; }
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     buf_.push_back(Entry{p});
@@ -100,6 +108,12 @@ class IvvtCore final : public Core {
     double sigma = 0;    // position noise estimate when the velocity was computed
     bool marked = false;
     Label mark = Label::Unknown;  // Saccade or Pso when marked
+    // The pursuit test (smooth()), once the sample's low-pass window is complete:
+    bool smoothed = false;
+    bool moving = false;     // the low-pass slope says the eye moves
+    bool cut_left = false;   // that window begins at a saccade less than its half-width before
+    double sx = 0, sy = 0;   // low-pass position: the window's least-squares line at the sample
+    double dx = 0, dy = 0;   // the line's slope (deg/s)
   };
 
   Entry& at(std::uint64_t k) { return buf_[static_cast<std::size_t>(k - base_)]; }
@@ -116,6 +130,7 @@ class IvvtCore final : public Core {
     }
     const double n = static_cast<double>(b - a + 1);
     mt /= n, mx /= n, my /= n;
+    f.mt = mt, f.mx = mx, f.my = my;
     double sxt = 0, syt = 0;
     for (std::uint64_t j = a; j <= b; ++j) {
       const double dt = at(j).p.t - mt;
@@ -242,40 +257,101 @@ class IvvtCore final : public Core {
   }
 
   // --- fixation vs pursuit, and output -------------------------------------------------------------
-  Label smooth_label(std::uint64_t f) {
-    const double t = at(f).p.t;
+  // Step 1, per sample: does the low-pass gaze move?
+  void smooth(std::uint64_t f) {
+    Entry& e = at(f);
+    e.smoothed = true;
+    if (!e.p.has_gaze() || e.marked || std::isnan(e.v)) return;
+    const double t = e.p.t;
     std::uint64_t a = f, b = f;
     const auto usable = [&](std::uint64_t j) { return gaze(j) && !at(j).marked; };
     while (a > base_ && usable(a - 1) && at(a - 1).p.t >= t - kSmoothHalfS) --a;
     while (b + 1 < vel_next_ && usable(b + 1) && at(b + 1).p.t <= t + kSmoothHalfS) ++b;
-    if (b - a + 1 < 3) return Label::Fixation;
+    if (b - a + 1 < 3) return;
     const Fit fw = fit(a, b);
-    if (!(fw.stt > 0)) return Label::Fixation;
-    const double threshold = std::max(kPursuitFloorDegS, kPursuitK * at(f).sigma / std::sqrt(fw.stt));
-    const bool moving = std::hypot(fw.vx, fw.vy) > threshold;
-    // Right after a saccade the window holds only what follows it: the eye settling (glissades,
-    // Bahill, Clark & Stark 1975; in pupil-based trackers the pupil moving inside the iris, Nystrom,
-    // Hooge & Holmqvist 2013) passes for pursuit there. So a window cut short by a saccade on its
-    // left says pursuit only when the eye pursued before that saccade: a catch-up saccade.
-    const bool after_saccade = a > base_ && at(a - 1).marked && at(a).p.t > t - kSmoothHalfS;
-    if (moving && after_saccade && before_saccade_ != Label::Pursuit) return Label::Fixation;
-    return moving ? Label::Pursuit : Label::Fixation;
+    if (!(fw.stt > 0)) return;
+    const double threshold = std::max(kPursuitFloorDegS, kPursuitK * e.sigma / std::sqrt(fw.stt));
+    e.moving = std::hypot(fw.vx, fw.vy) > threshold;
+    e.sx = fw.mx + fw.vx * (t - fw.mt);
+    e.sy = fw.my + fw.vy * (t - fw.mt);
+    e.dx = fw.vx, e.dy = fw.vy;
+    e.cut_left = a > base_ && at(a - 1).marked && at(a).p.t > t - kSmoothHalfS;
+  }
+
+  // Step 2, per sample in order: fixation or pursuit; nullopt while the look-ahead is incomplete.
+  //  - Right after a saccade the window holds only what follows it: the eye settling (glissades,
+  //    Bahill, Clark & Stark 1975; in pupil-based trackers the pupil moving inside the iris,
+  //    Nystrom, Hooge & Holmqvist 2013) passes for pursuit there. So a window cut short by a saccade
+  //    on its left says pursuit only when the eye pursued before that saccade, in about the same
+  //    direction (a catch-up saccade; Larsson et al. 2015's phi = 45 deg).
+  //  - Otherwise a run of moving samples is pursuit only once its low-pass position has moved
+  //    kPursuitRangeDeg from where the run began (Larsson, Nystrom, Andersson & Stridh 2015,
+  //    "Detection of fixations and smooth pursuit movements in high-speed eye-tracking data",
+  //    Biomed Signal Process Control 18:145-152: eta_maxFix = 1.9 deg, the spatial range beyond
+  //    which a segment is no fixation). Fixational drift and the slow wander of video trackers move
+  //    the eye at pursuit-like speeds for tens of ms but stay within a fixation's range; on still
+  //    images ivvt called a quarter of all samples pursuit without this. A sample waits at most
+  //    kPursuitLookS for its run to reach the range.
+  std::optional<Label> smooth_label(std::uint64_t f, bool flushing) {
+    const Entry& e = at(f);
+    if (!e.moving) {
+      run_open_ = false;
+      return Label::Fixation;
+    }
+    if (!run_open_) {
+      run_open_ = true;
+      run_confirmed_ = false;
+      run_x_ = e.sx, run_y_ = e.sy;
+    }
+    if (e.cut_left) {
+      if (before_saccade_ != Label::Pursuit || !same_direction(e.dx, e.dy, pursuit_dx_, pursuit_dy_)) return Label::Fixation;
+      run_confirmed_ = true;
+      return Label::Pursuit;
+    }
+    if (run_confirmed_) return Label::Pursuit;
+    for (std::uint64_t j = f; j < count_; ++j) {
+      const Entry& q = at(j);
+      if (q.p.t > e.p.t + kPursuitLookS) return Label::Fixation;
+      if (!q.smoothed) return flushing ? std::optional<Label>(Label::Fixation) : std::nullopt;
+      if (!q.moving) return Label::Fixation;  // the run ended within a fixation's range
+      if (std::hypot(q.sx - run_x_, q.sy - run_y_) >= kPursuitRangeDeg) {
+        run_confirmed_ = true;
+        return Label::Pursuit;
+      }
+    }
+    return flushing ? std::optional<Label>(Label::Fixation) : std::nullopt;
+  }
+
+  static bool same_direction(double ax, double ay, double bx, double by) {
+    const double na = std::hypot(ax, ay), nb = std::hypot(bx, by);
+    if (!(na > 0) || !(nb > 0)) return false;
+    return (ax * bx + ay * by) / (na * nb) >= std::cos(kCatchUpMaxAngleDeg * kDegToRad);
   }
 
   void finalize(std::vector<Labeled>& out, bool flushing) {
-    while (fin_next_ < vel_next_) {
-      const Entry& e = at(fin_next_);
-      const bool ready = flushing || fin_next_ < break_upto_ || newest_t_ > e.p.t + kSmoothHalfS + kVelHalfS;
+    while (smooth_next_ < vel_next_) {
+      const Entry& e = at(smooth_next_);
+      const bool ready = flushing || smooth_next_ < break_upto_ || newest_t_ > e.p.t + kSmoothHalfS + kVelHalfS;
       if (!ready) break;
       if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS) close_pso();
+      smooth(smooth_next_++);
+    }
+    while (fin_next_ < smooth_next_) {
+      const Entry& e = at(fin_next_);
       Label l;
       if (e.p.kind == Prepared::Kind::Blink) l = Label::Blink;
       else if (e.p.kind == Prepared::Kind::Lost) l = Label::Lost;
       else if (e.marked) l = e.mark;
       else if (std::isnan(e.v)) l = Label::Unknown;
-      else l = smooth_label(fin_next_);
+      else {
+        const auto smooth = smooth_label(fin_next_, flushing);
+        if (!smooth) break;
+        l = *smooth;
+      }
+      if (l != Label::Fixation && l != Label::Pursuit) run_open_ = false;
       if (e.marked && (fin_next_ == 0 || !at(fin_next_ - 1).marked)) before_saccade_ = last_smooth_;
       if (l == Label::Fixation || l == Label::Pursuit) last_smooth_ = l;
+      if (l == Label::Pursuit) pursuit_dx_ = e.dx, pursuit_dy_ = e.dy;
       out.push_back({e.p.index, l});
       ++fin_next_;
     }
@@ -294,11 +370,16 @@ class IvvtCore final : public Core {
   std::uint64_t base_ = 0;       // absolute position of buf_[0]
   std::uint64_t count_ = 0;      // entries pushed
   std::uint64_t vel_next_ = 0;   // next entry needing its velocity
+  std::uint64_t smooth_next_ = 0; // next entry for the pursuit test
   std::uint64_t fin_next_ = 0;   // next entry to label
   std::uint64_t break_upto_ = 0; // entries before this precede a loss: nothing after them matters
   double newest_t_ = 0;
   Label last_smooth_ = Label::Fixation;     // the last fixation/pursuit label given
   Label before_saccade_ = Label::Fixation;  // what the eye did before the last saccade
+  double pursuit_dx_ = 0, pursuit_dy_ = 0;  // the direction of the last pursuit sample
+  bool run_open_ = false;       // the samples labelled last were a run of moving samples
+  bool run_confirmed_ = false;  // ... that has moved a fixation's range: pursuit
+  double run_x_ = 0, run_y_ = 0;  // the low-pass position where the run began
 
   std::deque<std::pair<double, double>> residuals_;  // (time, |residual| / its SD factor)
   std::vector<double> scratch_;
