@@ -24,7 +24,13 @@ gaze in screen pixels, lost samples as nan), and scores the labels against the c
 Coder classes: 1 fixation, 2 saccade, 3 PSO, 4 pursuit, 5 blink, 0 undefined (scored as "other":
 a label the algorithm never gives). fovea's lost and unknown labels are "other" too.
 
-Usage: bench/eval_classify_human.py FOVEA_CTL [DATA_DIR] [--json OUT.json]
+- `--robustness`: the same sessions as other trackers would have recorded them, scored against the
+  same coder: decimated to 500, 250 and 62.5 Hz (every 2nd, 4th, 16th sample and its label), and
+  with white noise added (seeded, per axis): the mean kappa over fixation and saccade per method.
+  A decimated EyeLink signal keeps EyeLink's filter and is no real 250 Hz tracker; it shows how the
+  methods' rules hold when samples are fewer and noisier, not what another tracker's coder would say.
+
+Usage: bench/eval_classify_human.py FOVEA_CTL [DATA_DIR] [--json OUT.json] [--robustness]
 (DATA_DIR defaults to ../shared/data/irf-lookAtPoint_EL beside the checkout.)
 """
 import argparse
@@ -173,12 +179,54 @@ def onset_latencies(truth, predicted, final_ms, t_ms, c):
     return out, missed
 
 
+VARIANTS = (  # (name, decimation step, added noise deg RMS per axis)
+    ("1000 Hz as recorded", 1, 0.0),
+    ("500 Hz", 2, 0.0),
+    ("250 Hz", 4, 0.0),
+    ("62.5 Hz", 16, 0.0),
+    ("1000 Hz + 0.05 deg noise", 1, 0.05),
+    ("250 Hz + 0.1 deg noise", 4, 0.1),
+    ("62.5 Hz + 0.3 deg noise", 16, 0.3),
+)
+
+
+def robustness(ctl, data, geometry, sessions):
+    """Mean kappa over fixation and saccade for each method on each variant of the sessions."""
+    rng = np.random.default_rng(25)
+    print("\nThe same sessions decimated and with added noise (mean kappa fixation+saccade; fixation / saccade):\n")
+    print("| variant | " + " | ".join(METHODS) + " |")
+    print("|---|" + "---:|" * len(METHODS))
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, step, noise in VARIANTS:
+            k = {m: {"fixation": [], "saccade": []} for m in METHODS}
+            for session in sessions:
+                s = np.load(os.path.join(data, session))[::step].copy()
+                if noise > 0:
+                    for axis in ("x", "y"):
+                        s[axis] = s[axis] + rng.normal(0.0, noise, len(s)).astype(s[axis].dtype)
+                rate = 1.0 / float(np.median(np.diff(s["t"])))
+                truth = [CODER.get(int(e), "other") for e in s["evt"]]
+                in_path, out_path = os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv")
+                write_input(s, geometry, in_path)
+                for m in METHODS:
+                    raw, _ = classify(ctl, in_path, out_path, rate, geometry, m)
+                    labels = [l if l in CLASSES or l == "pursuit" else "other" for l in raw]
+                    for c in ("fixation", "saccade"):
+                        k[m][c].append(kappa(truth, labels, c))
+            cells = []
+            for m in METHODS:
+                f, sac = float(np.nanmean(k[m]["fixation"])), float(np.nanmean(k[m]["saccade"]))
+                cells.append(f"**{(f + sac) / 2:.2f}** ({f:.2f} / {sac:.2f})")
+            print(f"| {name} | " + " | ".join(cells) + " |", flush=True)
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("ctl", help="the fovea-ctl binary")
     ap.add_argument("data", nargs="?", default=os.path.join(here, "..", "..", "shared", "data", "irf-lookAtPoint_EL"))
     ap.add_argument("--json", help="write the scores here")
+    ap.add_argument("--robustness", action="store_true", help="also score decimated and noisier versions")
     args = ap.parse_args()
     geometry = load_geometry(args.data)
     sessions = sorted(f for f in os.listdir(args.data) if f.endswith(".npy"))
@@ -258,6 +306,8 @@ def main():
     if args.json:
         with open(args.json, "w") as f:
             json.dump(summary, f, indent=1)
+    if args.robustness:
+        robustness(args.ctl, args.data, geometry, sessions)
 
 
 if __name__ == "__main__":
