@@ -72,7 +72,7 @@ class UdpGaze final : public GazeInput {
   explicit UdpGaze(const std::string& address) : address_(address) {
     protocol::ClientOptions o;
     o.server = protocol::parse_endpoint(address, protocol::kDefaultPort);
-    // Provisional events too: the focus refocuses at a fixation's landing, not 185 ms later.
+    // Provisional events too: the focus refocuses at a fixation's landing, not ~110 ms later.
     o.streams = protocol::kStreamSamples | protocol::kStreamEvents | protocol::kStreamProvisional;
     o.name = "fovea-render";
     client_ = std::make_unique<protocol::GazeClient>(o);

@@ -1,7 +1,7 @@
 #pragma once
 // Provisional online events: a saccade's onset and landing (and so the next fixation's onset) said
 // as soon as the newest sample shows them, without the look-ahead the classifiers' final labels
-// wait for (ivvt: 185 ms). The renderer acts on them at once (refocus at fixation onset, level
+// wait for (ivvt: ~110 ms, up to 385 ms while the eye moves slowly). The renderer acts on them at once (refocus at fixation onset, level
 // changes hidden by saccadic suppression); the final labels follow, and a provisional event they do
 // not confirm is retracted (ProvisionalCheck). Documented in trackerd/CLASSIFY.md, "Two speeds".
 //
