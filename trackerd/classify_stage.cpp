@@ -47,7 +47,7 @@ std::string ClassifyStage::description() const {
   if (!classifier_) return "source (the source's own labels and events are passed through)";
   char buf[160];
   std::snprintf(buf, sizeof buf,
-                "%s (labels final %.0f ms after the sample; sample state trails by that; provisional saccade events at once)",
+                "%s (labels final at most %.0f ms after the sample; sample state trails by up to that; provisional saccade events at once)",
                 method_.c_str(), classifier_->latency_s() * 1000);
   return buf;
 }
