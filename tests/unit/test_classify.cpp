@@ -308,6 +308,12 @@ TEST(Classify, PursuitRamp) {
   }
 }
 
+// The eye drifting on by `deg` after a saccade that ended at `end`, settling within ~0.1 s: what
+// pupil-based trackers show after a saccade (Nystrom, Hooge & Holmqvist 2013).
+namespace {
+double settling(double t, double end, double deg) { return t > end ? deg * (1.0 - std::exp(-(t - end) / 0.03)) : 0.0; }
+}  // namespace
+
 // Issue 25: on human-coded EyeLink data, ivvt called the eye settling after a saccade pursuit.
 TEST(Classify, SettlingAfterASaccadeIsNoPursuitButCatchUpPursuitGoesOn) {
   Script sc;
@@ -315,10 +321,7 @@ TEST(Classify, SettlingAfterASaccadeIsNoPursuitButCatchUpPursuitGoesOn) {
   sc.noise = 0.01;
   // Fixation, an 8 deg saccade at 0.5 s, then the eye drifts 0.4 deg further over ~60 ms, settles.
   const auto settle = sample(sc, 1.2, [](double t) {
-    const double x = saccade_at(t, 0.5, 8.0).first;
-    const double end = 0.5 + saccade_duration_s(8.0);
-    const double drift = t > end ? 0.4 * (1.0 - std::exp(-(t - end) / 0.03)) : 0.0;
-    return std::pair{x + drift, 0.0};
+    return std::pair{saccade_at(t, 0.5, 8.0).first + settling(t, 0.5 + saccade_duration_s(8.0), 0.4), 0.0};
   });
   const auto l = run_online("ivvt", settle, 500);
   EXPECT_EQ(share(l, index_at(settle, 0.56), index_at(settle, 0.75), Label::Pursuit), 0.0)
@@ -366,9 +369,7 @@ TEST(Classify, AfterACatchUpSaccadePursuitGoesOnOnlyInItsDirection) {
   // Pursuit to the right at 10 deg/s, a 6 deg saccade back left at 0.8 s onto a still target,
   // and the eye settles 0.4 deg downwards (a direction the pursuit never had).
   const auto s = sample(sc, 1.4, [](double t) {
-    const double end = 0.8 + saccade_duration_s(6.0);
-    const double settle = t > end ? -0.4 * (1.0 - std::exp(-(t - end) / 0.03)) : 0.0;
-    return std::pair{10.0 * std::min(t, 0.8) - saccade_at(t, 0.8, 6.0).first, settle};
+    return std::pair{10.0 * std::min(t, 0.8) - saccade_at(t, 0.8, 6.0).first, settling(t, 0.8 + saccade_duration_s(6.0), -0.4)};
   });
   const auto l = run_online("ivvt", s, 500);
   EXPECT_GT(share(l, index_at(s, 0.3), index_at(s, 0.75), Label::Pursuit), 0.95);
