@@ -67,6 +67,16 @@ def write_input(session, geometry, path):
             f.write("%.3f,nan,nan\n" % t if gone else "%.3f,%.3f,%.3f\n" % (t, x, y))
 
 
+def coder_labels(session):
+    """The coder's class of every sample, by name ("other" for undefined)."""
+    return [CODER.get(int(e), "other") for e in session["evt"]]
+
+
+def scored(raw):
+    """fovea's labels as scored: lost and unknown are "other" (a class the coder never gives)."""
+    return [l if l in CLASSES or l == "pursuit" else "other" for l in raw]
+
+
 def classify(ctl, in_path, out_path, rate_hz, geometry, method, provisional=None):
     """Labels and final times; with `provisional` (a dict) also the provisional events, as
     (kind_phase, event time ms, row index that made it known), and the confirmed/retracted counts."""
@@ -205,12 +215,12 @@ def robustness(ctl, data, geometry, sessions):
                     for axis in ("x", "y"):
                         s[axis] = s[axis] + rng.normal(0.0, noise, len(s)).astype(s[axis].dtype)
                 rate = 1.0 / float(np.median(np.diff(s["t"])))
-                truth = [CODER.get(int(e), "other") for e in s["evt"]]
+                truth = coder_labels(s)
                 in_path, out_path = os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv")
                 write_input(s, geometry, in_path)
                 for m in METHODS:
                     raw, _ = classify(ctl, in_path, out_path, rate, geometry, m)
-                    labels = [l if l in CLASSES or l == "pursuit" else "other" for l in raw]
+                    labels = scored(raw)
                     for c in ("fixation", "saccade"):
                         k[m][c].append(kappa(truth, labels, c))
             cells = []
@@ -239,7 +249,7 @@ def main():
         for name in sessions:
             s = np.load(os.path.join(args.data, name))
             rate = 1.0 / float(np.median(np.diff(s["t"])))
-            truth = [CODER.get(int(e), "other") for e in s["evt"]]
+            truth = coder_labels(s)
             in_path, out_path = os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv")
             write_input(s, geometry, in_path)
             t_ms = s["t"] * 1000.0
@@ -252,7 +262,7 @@ def main():
                         prov["onset_ms"][c] += found[c]
                         prov["missed"][c] += missed[c]
                     prov["counts"] = [x + y for x, y in zip(prov["counts"], p["counts"])]
-                labels = [l if l in CLASSES or l == "pursuit" else "other" for l in raw]
+                labels = scored(raw)
                 for c in CLASSES:
                     scores[m]["kappa"][c].append(kappa(truth, labels, c))
                     scores[m]["f1"][c].append(event_f1(truth, labels, c))
