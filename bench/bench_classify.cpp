@@ -35,11 +35,19 @@ using Labelled = LabelledGaze;
 struct Condition {
   const char* name;
   Degradation d;
-  bool realistic = false;  // microsaccades and catch-up saccades (synthetic_labelled.h)
+  bool realistic = false;  // realistic_gaze_options(): microsaccades, catch-up saccades, PSO, blink movements
+  double noise_deg = 0.03;  // the generator's tracker noise (standard deviation per axis) ...
+  double noise_alpha = 0;   // ... and its spectral slope
 };
 
 Labelled synthetic(double rate_hz, double seconds, std::uint64_t seed, const Condition& c) {
-  return synthetic_labelled(rate_hz, seconds, seed, c.realistic);
+  SyntheticGazeOptions o;
+  if (c.realistic) o = realistic_gaze_options(rate_hz, seed);
+  o.rate_hz = rate_hz;
+  o.seed = seed;
+  o.noise_deg = c.noise_deg;
+  o.noise_alpha = c.noise_alpha;
+  return synthetic_labelled(o, seconds);
 }
 
 std::string fmt(double k) {
@@ -89,10 +97,11 @@ void print_onset_latency(const double* rates, const Condition& c, double seconds
 }
 
 // Event-level F1 (IoU >= 0.5, Startsev et al. 2019) per class, as eval_classify_human.py reports on
-// the human-coded data. The generator has no PSO: a method's PSO counts as part of its saccade.
+// the human-coded data. A saccade's event includes its PSO, in the truth and in a method's labels.
 void print_event_f1(const double* rates, const std::vector<const Condition*>& conditions, double seconds, int seeds) {
   std::printf("\nEvent-level F1 (a true and a found event of the class match when their intersection over union is "
-              ">= 0.5, each used once; Startsev, Agtzidis & Dorr 2019); pso counted as saccade.\n\n");
+              ">= 0.5, each used once; Startsev, Agtzidis & Dorr 2019); pso counted as saccade, in the truth and the "
+              "labels.\n\n");
   std::printf("| rate Hz | condition | method | F1 fixation | F1 saccade | F1 pursuit | F1 blink |\n");
   std::printf("|---:|---|---|---:|---:|---:|---:|\n");
   for (int r = 0; r < 4; ++r) {
@@ -108,6 +117,7 @@ void print_event_f1(const double* rates, const std::vector<const Condition*>& co
           degrade(l.samples, d);
           std::vector<Label> p = classify_all(m.name, rates[r], l.samples);
           for (Label& x : p) x = x == Label::Pso ? Label::Saccade : x;
+          for (Label& x : l.truth) x = x == Label::Pso ? Label::Saccade : x;
           int k = 0;
           for (const Label cls : {Label::Fixation, Label::Saccade, Label::Pursuit, Label::Blink}) {
             const double f = event_f1(l.truth, p, cls);
@@ -186,21 +196,30 @@ int main(int argc, char** argv) {
     conditions.push_back({"+0.1 deg, drops 2/s", d});
     d.extra_noise_deg = 0.3;
     conditions.push_back({"+0.3 deg, drops 2/s", d});
+    // Realistic: microsaccades, catch-up saccades, PSO, blink eye and lid movements; then the same
+    // tracker noise (0.104 deg = 0.03 and 0.1 deg white together) coloured, and behind the filter.
     Degradation n;
     n.extra_noise_deg = 0.1;
-    conditions.push_back({"microsaccades, catch-up saccades, +0.1 deg", n, true});
+    conditions.push_back({"realistic, +0.1 deg", n, true});
+    conditions.push_back({"realistic, 0.104 deg noise of slope 1", {}, true, 0.104, 1.0});
+    conditions.push_back({"realistic, 0.104 deg noise of slope 2", {}, true, 0.104, 2.0});
     n.heuristic_filter = true;
-    conditions.push_back({"microsaccades, catch-up saccades, +0.1 deg, heuristic filter", n, true});
+    conditions.push_back({"realistic, +0.1 deg, heuristic filter", n, true});
   }
+  const Condition& noisy = conditions[1];
+  const Condition& realistic = conditions[4];
+  const Condition& pink = conditions[5];
+  const Condition& filtered = conditions[7];
 
   std::printf("Synthetic gaze, %d seed(s) x %.0f s per cell; kappa = sample-level Cohen's kappa of the class vs the "
               "rest; 'all' = Cohen's kappa over all labels.\n",
               seeds, seconds);
-  std::printf("Generator noise is 0.03 deg RMS per axis (0.06 during saccades); conditions add gaussian noise per axis "
-              "and drop runs of samples (exponential length, mean 20 ms).\n\n");
-  std::printf("| rate Hz | condition | method | fixation | saccade | pursuit | blink | all | pso %% | unknown %% | "
+  std::printf("Generator noise is 0.03 deg RMS per axis (0.06 during saccades) unless a condition sets it (with its "
+              "spectral slope: power ~ 1/f^slope); conditions add gaussian noise per axis and drop runs of samples "
+              "(exponential length, mean 20 ms).\n\n");
+  std::printf("| rate Hz | condition | method | fixation | saccade | pso | pursuit | blink | all | pso %% | unknown %% | "
               "ns/sample | latency ms |\n");
-  std::printf("|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf("|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const double rate : rates) {
     for (const Condition& c : conditions) {
       // The same degraded data for every method.
@@ -233,9 +252,10 @@ int main(int argc, char** argv) {
           unknown += p == Label::Unknown ? 1 : 0;
         }
         const double total = static_cast<double>(predicted.size());
-        std::printf("| %.0f | %s | %s | %s | %s | %s | %s | %s | %.1f | %.1f | %.0f | %.0f |\n", rate, c.name,
+        std::printf("| %.0f | %s | %s | %s | %s | %s | %s | %s | %s | %.1f | %.1f | %.0f | %.0f |\n", rate, c.name,
                     m.name.c_str(), fmt(class_kappa(truth, predicted, Label::Fixation)).c_str(),
                     fmt(class_kappa(truth, predicted, Label::Saccade)).c_str(),
+                    fmt(class_kappa(truth, predicted, Label::Pso)).c_str(),
                     fmt(class_kappa(truth, predicted, Label::Pursuit)).c_str(),
                     fmt(class_kappa(truth, predicted, Label::Blink)).c_str(),
                     fmt(overall_kappa(truth, predicted)).c_str(), 100 * pso / total, 100 * unknown / total,
@@ -244,12 +264,11 @@ int main(int argc, char** argv) {
       }
     }
   }
-  const Condition& realistic = conditions[conditions.size() - 2];
-  print_event_f1(rates, {&conditions[1], &realistic, &conditions.back()}, seconds, seeds);
-  print_onset_latency(rates, conditions[1], seconds, seeds);
+  print_event_f1(rates, {&noisy, &realistic, &pink, &filtered}, seconds, seeds);
+  print_onset_latency(rates, noisy, seconds, seeds);
   print_onset_latency(rates, realistic, seconds, seeds);
-  print_provisional(rates, conditions[1], seconds, seeds);
+  print_provisional(rates, noisy, seconds, seeds);
   print_provisional(rates, realistic, seconds, seeds);
-  print_provisional(rates, conditions.back(), seconds, seeds);
+  print_provisional(rates, filtered, seconds, seeds);
   return 0;
 }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numbers>
+#include <random>
 
 #include "fovea/protocol/codec.h"
 #include "sim/synthetic_gaze.h"
@@ -188,5 +190,148 @@ TEST(SyntheticGaze, PursuitLagsAndCatchesUpWithSaccades) {
     if (e.kind == EyeMovement::Pursuit) {
       EXPECT_GE(e.duration_ns, 399'000'000) << "off by default: one stretch";
     }
+  }
+}
+
+namespace {
+// Samples of the generator with each one's pupil-motion ground truth, and its saccades' End events.
+struct Traced {
+  std::vector<GazeSample> samples;
+  std::vector<SyntheticGaze::PupilMotion> pupil;
+  std::vector<GazeEvent> saccade_ends;
+};
+Traced trace(const SyntheticGazeOptions& o, double seconds) {
+  SyntheticGaze g(o);
+  Traced t;
+  while (static_cast<double>(t.samples.size()) < seconds * o.rate_hz) {
+    const auto item = g.next();
+    if (const auto* s = std::get_if<GazeSample>(&*item)) {
+      t.samples.push_back(*s);
+      t.pupil.push_back(g.last_sample_pupil_motion());
+    } else if (const auto& e = std::get<GazeEvent>(*item); e.phase == EventPhase::End && e.kind == EyeMovement::Saccade) {
+      t.saccade_ends.push_back(e);
+    }
+  }
+  return t;
+}
+}  // namespace
+
+// Post-saccadic oscillations (Bouzat et al. 2018's pupil oscillator): after a saccade of a few
+// degrees the tracked position overshoots the landing point, swings back past it and settles; in the
+// ground truth the saccade ends where the pupil stops moving on (a few ms before or after the eyeball
+// stops) and the ringing is the PSO for a few tens of milliseconds. The option adds no random
+// draws, so the same seed without it is the same viewer without the oscillation: the difference of
+// the two is the pupil's motion in the eyeball alone.
+TEST(SyntheticGaze, PupilOvershootsAndRingsAfterSaccades) {
+  SyntheticGazeOptions o;
+  o.rate_hz = 1000;
+  o.seed = 3;
+  o.noise_deg = 0;
+  const Traced without = trace(o, 120);
+  o.post_saccadic_oscillations = true;
+  const Traced with = trace(o, 120);
+  ASSERT_EQ(with.saccade_ends.size(), without.saccade_ends.size());
+  EXPECT_EQ(std::count(without.pupil.begin(), without.pupil.end(), SyntheticGaze::PupilMotion::None),
+            static_cast<std::ptrdiff_t>(without.pupil.size()));
+  int checked = 0;
+  for (const GazeEvent& e : with.saccade_ends) {
+    const auto end_i = static_cast<std::size_t>((e.start_time_ns + e.duration_ns + 999'999) / 1'000'000);  // first sample after
+    if (e.amplitude_deg < 4 || end_i + 100 >= with.samples.size() || with.samples[end_i].state != EyeMovement::Fixation) continue;
+    const GazeSample& start = without.samples[static_cast<std::size_t>(e.start_time_ns / 1'000'000)];
+    const double amplitude = static_cast<double>(e.amplitude_deg);
+    const double ux = (static_cast<double>(e.centroid_x_deg - start.x_deg)) / amplitude;
+    const double uy = (static_cast<double>(e.centroid_y_deg - start.y_deg)) / amplitude;
+    const auto pupil_in_eyeball = [&](std::size_t i) {  // along the saccade's direction
+      return static_cast<double>(with.samples[i].x_deg - without.samples[i].x_deg) * ux +
+             static_cast<double>(with.samples[i].y_deg - without.samples[i].y_deg) * uy;
+    };
+    std::size_t peak = end_i;
+    for (std::size_t i = end_i; i < end_i + 40; ++i) peak = pupil_in_eyeball(i) > pupil_in_eyeball(peak) ? i : peak;
+    double swing_back = 0;
+    for (std::size_t i = peak; i < end_i + 100; ++i) swing_back = std::min(swing_back, pupil_in_eyeball(i));
+    const auto after = with.pupil.begin() + static_cast<std::ptrdiff_t>(end_i);
+    const auto tail_ms = std::count(after, after + 100, SyntheticGaze::PupilMotion::SaccadeTail);
+    const auto pso_ms = std::count(after, after + 100, SyntheticGaze::PupilMotion::Oscillation);
+    ++checked;
+    EXPECT_GT(pupil_in_eyeball(peak), 0.03 * amplitude) << "overshoot after a " << amplitude << " deg saccade";
+    EXPECT_LT(pupil_in_eyeball(peak), 0.25 * amplitude);
+    EXPECT_LT(swing_back, -0.01) << "swings back past the landing point";
+    // Settled 100 ms later, but for the pupil's small lag behind the eyeball's fixational drift.
+    EXPECT_NEAR(pupil_in_eyeball(end_i + 99), 0, 0.03);
+    EXPECT_LE(tail_ms, 20);
+    EXPECT_EQ(with.pupil[end_i + static_cast<std::size_t>(tail_ms)], SyntheticGaze::PupilMotion::Oscillation) << "the PSO follows the saccade";
+    EXPECT_GE(pso_ms, 10);
+    EXPECT_LE(pso_ms, 80);
+  }
+  EXPECT_GT(checked, 50);
+}
+
+// The tracker noise's power spectrum falls as 1/f^alpha (log-log slope of the periodogram, averaged
+// over blocks, between 1/256 and 1/4 of the sample rate) at unit standard deviation.
+TEST(SyntheticGaze, TrackerNoiseHasItsSpectralSlope) {
+  constexpr std::size_t kBlock = 512, kBlocks = 64;
+  for (const double alpha : {0.0, 1.0, 2.0}) {
+    PowerLawNoise noise(alpha, 4096);
+    std::mt19937_64 rng(11);
+    std::normal_distribution<double> gauss;
+    for (int i = 0; i < 8192; ++i) noise.next(gauss(rng));  // past the filter's start-up
+    std::vector<double> power(kBlock / 4 + 1, 0.0);
+    double sum_sq = 0;
+    for (std::size_t b = 0; b < kBlocks; ++b) {
+      std::vector<double> x(kBlock);
+      for (double& v : x) v = noise.next(gauss(rng)), sum_sq += v * v;
+      for (std::size_t k = 2; k < power.size(); ++k) {
+        double re = 0, im = 0;
+        for (std::size_t n = 0; n < kBlock; ++n) {
+          const double w = 2 * std::numbers::pi * static_cast<double>(k * n) / kBlock;
+          re += x[n] * std::cos(w), im += x[n] * std::sin(w);
+        }
+        power[k] += re * re + im * im;
+      }
+    }
+    double sx = 0, sy = 0, sxx = 0, sxy = 0, m = 0;
+    for (std::size_t k = 2; k < power.size(); ++k) {
+      const double lx = std::log(static_cast<double>(k)), ly = std::log(power[k]);
+      sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly, ++m;
+    }
+    const double slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
+    EXPECT_NEAR(slope, -alpha, 0.2) << "alpha " << alpha;
+    EXPECT_NEAR(std::sqrt(sum_sq / (kBlock * kBlocks)), 1.0, alpha < 2 ? 0.1 : 0.3) << "alpha " << alpha;
+  }
+}
+
+// Blinks with blink_eye_movements: 30 ms of tracked lid closing in which the eye dips 1-2 deg
+// downward (y grows), the pupil lost, then 30 ms of tracked lid opening with the eye back where it
+// was; the whole is blink in the ground truth. Without the option every blink sample is lost.
+TEST(SyntheticGaze, BlinksShowTheEyesDipAndTheMovingLid) {
+  for (const bool on : {true, false}) {
+    SyntheticGazeOptions o;
+    o.rate_hz = 1000;
+    o.seed = 4;
+    o.noise_deg = 0;
+    o.blink_eye_movements = on;
+    const Traced t = trace(o, 120);
+    int blinks = 0;
+    for (std::size_t i = 1; i < t.samples.size(); ++i) {
+      if (t.samples[i].state != EyeMovement::Blink || t.samples[i - 1].state == EyeMovement::Blink) continue;
+      std::size_t end = i;
+      while (end < t.samples.size() && t.samples[end].state == EyeMovement::Blink) ++end;
+      if (end == t.samples.size()) break;
+      ++blinks;
+      std::size_t lead = 0, trail = 0;
+      while (i + lead < end && (t.samples[i + lead].flags & protocol::kGazeValid) != 0) ++lead;
+      while (trail < end - i && (t.samples[end - 1 - trail].flags & protocol::kGazeValid) != 0) ++trail;
+      if (on) {
+        EXPECT_NEAR(static_cast<double>(lead), 30, 1);
+        EXPECT_NEAR(static_cast<double>(trail), 30, 1);
+        const double dip = static_cast<double>(t.samples[i + lead - 1].y_deg - t.samples[i - 1].y_deg);
+        EXPECT_GT(dip, 0.7) << "the eye has dipped by the time the lid covers the pupil";
+        EXPECT_LT(dip, 2.1);
+        EXPECT_NEAR(t.samples[end - 1].y_deg, t.samples[i - 1].y_deg, 0.05) << "and is back when it reopens";
+      } else {
+        EXPECT_EQ(lead + trail, 0u);
+      }
+    }
+    EXPECT_GT(blinks, 10);
   }
 }

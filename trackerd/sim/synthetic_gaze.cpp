@@ -64,9 +64,52 @@ double angle_between_deg(double ax, double ay, double bx, double by) {
   return protocol::angle_between_deg({ax, ay}, {bx, by});
 }
 
+// Position along a saccade profile at normalized time u in [0, 1], linearly interpolated.
+double profile_at(const std::vector<double>& profile, double u) {
+  const double x = std::clamp(u, 0.0, 1.0) * kProfileSteps;
+  const auto i = std::min(static_cast<std::size_t>(x), kProfileSteps - 1);
+  return profile[i] + (profile[i + 1] - profile[i]) * (x - static_cast<double>(i));
+}
+
+// Bouzat et al. 2018's pupil oscillator in 1/s^2 and 1/s (Schweitzer & Rolfs's 0.032 /ms^2, 0.15 /ms),
+// integrated in steps of 0.1 ms (under a hundredth of its period at any sample rate).
+constexpr double kPupilStiffness = 0.032e6;
+constexpr double kPupilDamping = 0.15e3;
+constexpr std::int64_t kPupilStepNs = 100'000;
+// A PSO lasts, in the ground truth, while the oscillation's velocity envelope exceeds 5 deg/s, the
+// ground-truth velocity criterion of Schweitzer & Rolfs's simulator (an amplitude of 0.028 deg); the
+// saccade itself, in the truth, lasts until the tracked pupil's speed first falls under it.
+constexpr double kPsoEndDegS = 5.0;
+// Of a blink's tracked lid movement (blink_eye_movements), the part on each side of the pupil loss.
+constexpr double kLidTrackedS = 0.030;
+
 }  // namespace
 
+PowerLawNoise::PowerLawNoise(double alpha, std::size_t taps) : h_(std::max<std::size_t>(1, taps)), history_(h_.size()) {
+  h_[0] = 1;
+  for (std::size_t k = 1; k < h_.size(); ++k) {
+    h_[k] = h_[k - 1] * (static_cast<double>(k) - 1 + alpha / 2) / static_cast<double>(k);
+  }
+  double energy = 0;
+  for (const double c : h_) energy += c * c;
+  scale_ = 1 / std::sqrt(energy);
+}
+
+double PowerLawNoise::next(double white) {
+  head_ = head_ == 0 ? history_.size() - 1 : head_ - 1;
+  history_[head_] = white;
+  double sum = 0;
+  const std::size_t n = history_.size();
+  for (std::size_t k = 0; k < n; ++k) sum += h_[k] * history_[(head_ + k) % n];
+  return scale_ * sum;
+}
+
 SyntheticGaze::SyntheticGaze(SyntheticGazeOptions options) : options_(options), rng_(options.seed) {
+  if (options_.noise_alpha > 0) {
+    const auto taps = static_cast<std::size_t>(std::max(16.0, options_.rate_hz));  // one second
+    noise_x_.emplace(options_.noise_alpha, taps);
+    noise_y_.emplace(options_.noise_alpha, taps);
+  }
   Segment first;
   first.phase = Phase::Fixation;
   first.duration_s = 0.3;
@@ -167,8 +210,9 @@ SyntheticGaze::Segment SyntheticGaze::plan_after(const Segment& finished) {
   }
   const double u = uniform_(rng_);
   if (u < 0.07) {
-    s.phase = Phase::Blink;
-    s.duration_s = 0.1 + 0.2 * uniform_(rng_);  // 100-300 ms
+    Segment b = plan_blink();
+    b.from = b.to = here;
+    return b;
   } else if (u < 0.14) {
     s.phase = Phase::Pursuit;
     s.duration_s = 0.4 + 0.8 * uniform_(rng_);
@@ -196,18 +240,37 @@ SyntheticGaze::Segment SyntheticGaze::plan_after(const Segment& finished) {
   return s;
 }
 
+// A blink of 100-300 ms; with blink_eye_movements, its dip and the part in which the pupil is lost.
+SyntheticGaze::Segment SyntheticGaze::plan_blink() {
+  Segment s;
+  s.phase = Phase::Blink;
+  s.duration_s = 0.1 + 0.2 * uniform_(rng_);
+  s.covered_to_s = s.duration_s;
+  if (options_.blink_eye_movements) {
+    const double dip = 1 + uniform_(rng_);  // Riggs et al. 1987: 1-2 deg downward
+    s.dip = {0, dip};
+    s.profile = saccade_profile(dip, saccade_duration_s(dip), saccade_peak_velocity(dip));
+    s.covered_from_s = kLidTrackedS;
+    s.covered_to_s = s.duration_s - kLidTrackedS;
+  }
+  return s;
+}
+
 SyntheticGaze::Vec2 SyntheticGaze::position_in_segment(double t) {
   const Segment& s = segment_;
   switch (s.phase) {
     case Phase::Fixation:
-    case Phase::Blink:
       return s.from;
+    case Phase::Blink: {
+      if (s.profile.empty()) return s.from;
+      const double d = saccade_duration_s(s.dip.y);  // down in d, back in d
+      const double f = t < d ? profile_at(s.profile, t / d) : 1 - profile_at(s.profile, (t - d) / d);
+      return {s.from.x + s.dip.x * f, s.from.y + s.dip.y * f};
+    }
     case Phase::Pursuit:
       return {s.from.x + s.velocity.x * t, s.from.y + s.velocity.y * t};
     case Phase::Saccade: {
-      const double u = std::clamp(t / s.duration_s, 0.0, 1.0) * kProfileSteps;
-      const auto i = std::min(static_cast<std::size_t>(u), kProfileSteps - 1);
-      const double f = s.profile[i] + (s.profile[i + 1] - s.profile[i]) * (u - static_cast<double>(i));
+      const double f = profile_at(s.profile, t / s.duration_s);
       return {s.from.x + (s.to.x - s.from.x) * f, s.from.y + (s.to.y - s.from.y) * f};
     }
   }
@@ -246,6 +309,12 @@ GazeEvent SyntheticGaze::make_event(EventPhase phase, std::int64_t t_ns) const {
 
 void SyntheticGaze::start_segment(Segment s, std::int64_t t_ns) {
   segment_ = std::move(s);
+  if (segment_.phase == Phase::Saccade) {
+    saccade_ended_ = false;
+    pupil_motion_ = PupilMotion::None;
+    const double a = std::hypot(segment_.to.x - segment_.from.x, segment_.to.y - segment_.from.y);
+    saccade_dir_ = a > 0 ? Vec2{(segment_.to.x - segment_.from.x) / a, (segment_.to.y - segment_.from.y) / a} : Vec2{};
+  }
   segment_start_ns_ = t_ns;
   drift_ = {};
   sum_pos_ = {};
@@ -255,6 +324,7 @@ void SyntheticGaze::start_segment(Segment s, std::int64_t t_ns) {
 }
 
 void SyntheticGaze::end_segment(std::int64_t t_ns) {
+  if (segment_.phase == Phase::Saccade) saccade_ended_ = true;
   segment_.to = segment_.phase == Phase::Fixation || segment_.phase == Phase::Blink
                     ? Vec2{segment_.from.x + drift_.x, segment_.from.y + drift_.y}
                     : segment_.to;
@@ -267,12 +337,82 @@ void SyntheticGaze::step() {
                     static_cast<std::int64_t>(std::llround(static_cast<double>(sample_index_) * 1e9 * dt));
   ++sample_index_;
 
+  if (options_.post_saccadic_oscillations) move_pupil_to(t_ns);
   const double t = advance_segments_to(t_ns);
   const Vec2 eye = true_eye_position(t, t_ns, dt);
   const double velocity = track_true_eye(eye, dt);
-  GazeSample s = measured_sample(t_ns, eye, velocity);
-  add_pupil_and_eye_cameras(s, eye, dt);
+  update_pso_truth(t);
+  const Vec2 offset = pupil_offset();
+  GazeSample s = measured_sample(t_ns, {eye.x + offset.x, eye.y + offset.y}, velocity);
+  add_pupil_and_eye_cameras(s, eye, dt, t);
   pending_.push_back(s);
+}
+
+// Bouzat et al. 2018's Eq. 2 in absolute coordinates, p'' = -k (p - x) - gamma (p' - x'), with x the
+// eyeball's position (the planned path plus its drift so far, continuous across segments): steps the
+// pupil from the last sample to t_ns, moving the segments on as it goes (the same segments and
+// events, in the same order, as advance_segments_to(t_ns) alone).
+void SyntheticGaze::move_pupil_to(std::int64_t t_ns) {
+  const auto eyeball_at = [&](std::int64_t when_ns) {
+    const double t = advance_segments_to(when_ns);
+    const Vec2 p = position_in_segment(t);
+    return Vec2{p.x + drift_.x, p.y + drift_.y};
+  };
+  if (!have_pupil_) {
+    eyeball_ = pupil_ = eyeball_at(t_ns);
+    pupil_ns_ = t_ns;
+    have_pupil_ = true;
+    return;
+  }
+  while (pupil_ns_ < t_ns) {
+    const std::int64_t step_ns = std::min(kPupilStepNs, t_ns - pupil_ns_);
+    const double h = static_cast<double>(step_ns) * 1e-9;
+    pupil_ns_ += step_ns;
+    const Vec2 x = eyeball_at(pupil_ns_);
+    eyeball_v_ = {(x.x - eyeball_.x) / h, (x.y - eyeball_.y) / h};
+    eyeball_ = x;
+    // Semi-implicit Euler: the velocity first, then the position with the new velocity.
+    pupil_v_.x += h * (-kPupilStiffness * (pupil_.x - x.x) - kPupilDamping * (pupil_v_.x - eyeball_v_.x));
+    pupil_v_.y += h * (-kPupilStiffness * (pupil_.y - x.y) - kPupilDamping * (pupil_v_.y - eyeball_v_.y));
+    pupil_.x += h * pupil_v_.x;
+    pupil_.y += h * pupil_v_.y;
+  }
+}
+
+// Where the tracked pupil is relative to the eyeball, deg (zero without post_saccadic_oscillations).
+SyntheticGaze::Vec2 SyntheticGaze::pupil_offset() const {
+  if (!have_pupil_) return {};
+  return {pupil_.x - eyeball_.x, pupil_.y - eyeball_.y};
+}
+
+// Past the eyeball's peak velocity (half-way through its saccade), the saccade lasts, in the truth,
+// while the tracked pupil still moves on in its direction at kPsoEndDegS or more: Schweitzer &
+// Rolfs's signed criterion, so a sampled speed cannot step over the zero at the turn. The pupil may
+// turn before the eyeball stops (it runs ahead while the eyeball decelerates) or after (the tail,
+// judged relative to the eyeball, which may pursue on).
+// Then the PSO, while the oscillation's velocity envelope, sqrt(v^2 + k y^2) for the pupil's offset
+// y and relative velocity v, exceeds kPsoEndDegS; the next saccade ends it.
+void SyntheticGaze::update_pso_truth(double t) {
+  const bool saccade = segment_.phase == Phase::Saccade;
+  if (!options_.post_saccadic_oscillations || (!saccade && !saccade_ended_)) {
+    pupil_motion_ = PupilMotion::None;
+    return;
+  }
+  if (pupil_motion_ != PupilMotion::Oscillation) {
+    const bool past_peak = !saccade || t >= segment_.duration_s / 2;
+    // After the eyeball's saccade, relative to the eyeball (which may pursue on in that direction).
+    const Vec2 v = saccade ? pupil_v_ : Vec2{pupil_v_.x - eyeball_v_.x, pupil_v_.y - eyeball_v_.y};
+    const double forward = v.x * saccade_dir_.x + v.y * saccade_dir_.y;
+    if (!past_peak || forward >= kPsoEndDegS) {
+      pupil_motion_ = saccade ? PupilMotion::None : PupilMotion::SaccadeTail;
+      return;
+    }
+  }
+  const Vec2 y = pupil_offset();
+  const Vec2 v{pupil_v_.x - eyeball_v_.x, pupil_v_.y - eyeball_v_.y};
+  const double envelope = std::sqrt(v.x * v.x + v.y * v.y + kPupilStiffness * (y.x * y.x + y.y * y.y));
+  pupil_motion_ = envelope > kPsoEndDegS ? PupilMotion::Oscillation : PupilMotion::None;
+  if (pupil_motion_ == PupilMotion::None) saccade_ended_ = false;
 }
 
 // Ends every segment that is over by t_ns and plans the next; returns t_ns's time into the current one, s.
@@ -318,13 +458,19 @@ double SyntheticGaze::track_true_eye(const Vec2& eye, double dt) {
   return velocity;
 }
 
-// The tracker's gaze estimate: the true position plus noise, doubled during saccades, labelled with
-// the movement that produced it.
-GazeSample SyntheticGaze::measured_sample(std::int64_t t_ns, const Vec2& eye, double velocity) {
+// The tracker's gaze estimate: the tracked position (the eye, or the pupil with
+// post_saccadic_oscillations) plus noise, doubled during saccades, labelled with the movement that
+// produced it.
+GazeSample SyntheticGaze::measured_sample(std::int64_t t_ns, const Vec2& tracked, double velocity) {
   GazeSample s;
   s.tracker_time_ns = t_ns;
   const double noise = segment_.phase == Phase::Saccade ? 2 * options_.noise_deg : options_.noise_deg;
-  const Vec2 measured{eye.x + noise * gauss_(rng_), eye.y + noise * gauss_(rng_)};
+  double nx = gauss_(rng_), ny = gauss_(rng_);
+  if (noise_x_) {
+    nx = noise_x_->next(nx);
+    ny = noise_y_->next(ny);
+  }
+  const Vec2 measured{tracked.x + noise * nx, tracked.y + noise * ny};
   const auto n = protocol::degrees_to_normalized(options_.display, Degrees{measured.x, measured.y});
   s.x = static_cast<float>(n.x);
   s.y = static_cast<float>(n.y);
@@ -340,10 +486,11 @@ GazeSample SyntheticGaze::measured_sample(std::int64_t t_ns, const Vec2& eye, do
   return s;
 }
 
-// Validity, confidence and per-eye data; a blink invalidates the sample. The pupil and confidence
-// draws happen during blinks too, so the random sequence does not depend on them.
-void SyntheticGaze::add_pupil_and_eye_cameras(GazeSample& s, const Vec2& eye, double dt) {
-  const bool blinking = segment_.phase == Phase::Blink;
+// Validity, confidence and per-eye data; a blink invalidates the samples in which the lid covers the
+// pupil. The pupil and confidence draws happen during blinks too, so the random sequence does not
+// depend on them.
+void SyntheticGaze::add_pupil_and_eye_cameras(GazeSample& s, const Vec2& eye, double dt, double t) {
+  const bool blinking = segment_.phase == Phase::Blink && t >= segment_.covered_from_s && t < segment_.covered_to_s;
   // Pupil diameter wanders slowly between about 3 and 4.4 mm (hippus and luminance changes).
   pupil_phase_ += dt * 2 * kPi * 0.1;
   const double pupil_mm = 3.7 + 0.5 * std::sin(pupil_phase_) + 0.05 * gauss_(rng_);

@@ -5,6 +5,7 @@
 // pursuit. The source labels its own movements (ground truth) in samples and events.
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -30,6 +31,42 @@ struct SyntheticGazeOptions {
   // during pursuit): the eye pursues for 200-400 ms, then a saccade of the accumulated lag (plus 10 %)
   // brings it back onto the target, and pursuit goes on.
   bool catch_up_saccades = false;
+  // Post-saccadic oscillations (PSO) of a pupil-based tracker: the pupil moves inside the iris, so
+  // the tracked pupil centre lags, overshoots and rings where the eyeball stops (Nystrom, Hooge &
+  // Holmqvist 2013, Vision Res 92:59). Bouzat, Freije, Frapiccini & Gasaneo 2018 (Phys Rev Lett
+  // 120:178101, Eq. 2): the pupil is a damped oscillator in the eyeball's frame driven by the
+  // eyeball's acceleration; stiffness k = 0.032 /ms^2 and damping 0.15 /ms are the example values of
+  // Schweitzer & Rolfs's simulator (2022, Neuromethods 183; a 35 ms period, damping ratio 0.42).
+  // The samples show the pupil; its own motion's ground truth is last_sample_pupil_motion().
+  bool post_saccadic_oscillations = false;
+  // Spectral slope of the tracker noise, power ~ 1/f^alpha (Kasdin 1995, Proc IEEE 83:802, over the
+  // last second of samples): 0 white, as unfiltered trackers are; filtered trackers colour it
+  // (Niehorster, Zemblys & Holmqvist 2021, Behav Res Methods 53:311), and Niehorster, Zemblys,
+  // Beelders & Holmqvist 2020 (Behav Res Methods 52:2515) ask that methods be tested across signal
+  // types. noise_deg stays the noise's standard deviation.
+  double noise_alpha = 0;
+  // Blinks as a video tracker records them: the eye rotates downward 1-2 deg as the lid starts to
+  // close and is back before it reopens (Riggs, Kelly, Manning & Moore 1987, IOVS 28:334; shaped
+  // here like a saccade of that size, down and back), and the pupil stays tracked while the lid
+  // moves: a blink seen in the eye-openness signal lasts about 60 ms longer than its loss of the
+  // pupil (Nystrom et al. 2024, Behav Res Methods, doi:10.3758/s13428-023-02333-9; split evenly here between closing and
+  // opening, for want of a source). The blink's ground truth covers the tracked lid movement too.
+  bool blink_eye_movements = false;
+};
+
+// Stream of noise with power spectrum ~ 1/f^alpha (0 <= alpha <= 2) and unit standard deviation:
+// white gaussian draws through Kasdin's (1995) fractional-differencing filter, h_0 = 1,
+// h_k = h_(k-1) (k - 1 + alpha/2) / k, truncated at `taps` (below rate/taps the spectrum flattens).
+class PowerLawNoise {
+ public:
+  PowerLawNoise(double alpha, std::size_t taps);
+  double next(double white);  // feeds one N(0,1) draw, returns the next noise value
+
+ private:
+  std::vector<double> h_;
+  std::vector<double> history_;  // ring of the last taps draws
+  std::size_t head_ = 0;
+  double scale_ = 1;
 };
 
 // Main-sequence relations used by the generator (and checked by its tests).
@@ -43,6 +80,14 @@ class SyntheticGaze final : public GazeSource {
   protocol::DisplayGeometry display() const override { return options_.display; }
   double nominal_rate_hz() const override { return options_.rate_hz; }
   std::optional<GazeItem> next() override;
+  // Ground truth the protocol's movement states do not carry (post_saccadic_oscillations), for the
+  // sample next() returned last, whose state names what the eyeball does: a saccade ends where the
+  // tracked pupil, past the eyeball's peak velocity, stops moving on in its direction at 5 deg/s or
+  // more (Schweitzer & Rolfs's simulator's criterion), which may be before the eyeball stops (the
+  // rest of the eyeball's saccade is then PSO) or after it (SaccadeTail: still the saccade); then the
+  // pupil rings while its oscillation's velocity envelope exceeds 5 deg/s (Oscillation: the PSO).
+  enum class PupilMotion : std::uint8_t { None, SaccadeTail, Oscillation };
+  PupilMotion last_sample_pupil_motion() const { return pupil_motion_; }
 
  private:
   struct Vec2 {
@@ -59,20 +104,28 @@ class SyntheticGaze final : public GazeSource {
     // and how much of the pursuit is left after this segment (its catch-up saccade's too).
     Vec2 target_velocity, target_end;
     double pursuit_left_s = 0;
+    // Blink (blink_eye_movements): the eye's downward dip and back, and the stretch of the blink
+    // in which the lid covers the pupil.
+    Vec2 dip;
+    double covered_from_s = 0, covered_to_s = 0;
   };
 
   void step();  // generates the next sample and any events due before it
   // step()'s stages, in the order it calls them (the order of the random draws).
   double advance_segments_to(std::int64_t t_ns);
   Vec2 true_eye_position(double t, std::int64_t t_ns, double dt);
+  void move_pupil_to(std::int64_t t_ns);
+  Vec2 pupil_offset() const;
+  void update_pso_truth(double t);
   double track_true_eye(const Vec2& eye, double dt);
-  protocol::GazeSample measured_sample(std::int64_t t_ns, const Vec2& eye, double velocity);
-  void add_pupil_and_eye_cameras(protocol::GazeSample& s, const Vec2& eye, double dt);
+  protocol::GazeSample measured_sample(std::int64_t t_ns, const Vec2& tracked, double velocity);
+  void add_pupil_and_eye_cameras(protocol::GazeSample& s, const Vec2& eye, double dt, double t);
   protocol::EyeData eye_camera_data(const Vec2& eye, double pupil_mm, double vergence_px);
   void start_segment(Segment s, std::int64_t t_ns);
   void end_segment(std::int64_t t_ns);
   Segment plan_after(const Segment& finished);
   Segment plan_saccade(const Vec2& from, const Vec2& to) const;
+  Segment plan_blink();
   Segment plan_pursuit(Segment carrier, const Vec2& from);
   bool continue_pursuit(const Segment& finished, Segment& next);
   Vec2 position_in_segment(double t_s);
@@ -96,6 +149,16 @@ class SyntheticGaze final : public GazeSource {
   std::size_t sum_count_ = 0;
   double peak_velocity_ = 0;
   double pupil_phase_ = 0;
+  // post_saccadic_oscillations: the tracked pupil centre and its velocity (deg, deg/s), the eyeball
+  // it is tied to at the last integration step, and the PSO's ground truth.
+  bool have_pupil_ = false;
+  std::int64_t pupil_ns_ = 0;
+  Vec2 pupil_, pupil_v_, eyeball_, eyeball_v_;
+  bool saccade_ended_ = false;  // a saccade ended and its pupil has not yet come to rest
+  Vec2 saccade_dir_;            // that saccade's direction (unit vector)
+  PupilMotion pupil_motion_ = PupilMotion::None;
+  // noise_alpha > 0: coloured tracker noise per axis.
+  std::optional<PowerLawNoise> noise_x_, noise_y_;
 };
 
 }  // namespace fovea::trackerd

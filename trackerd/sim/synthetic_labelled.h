@@ -25,19 +25,26 @@ inline Label truth_label(protocol::EyeMovement m) {
   return Label::Unknown;
 }
 
-// realistic: with the movements the plain model leaves out (SyntheticGazeOptions: microsaccades at
-// 1.5/s of fixation, pursuit with catch-up saccades).
-inline LabelledGaze synthetic_labelled(double rate_hz, double seconds, std::uint64_t seed, bool realistic = false) {
+// The generator with what the plain model leaves out (issue 25; each in SyntheticGazeOptions):
+// microsaccades at 1.5/s of fixation, pursuit with catch-up saccades, post-saccadic oscillations,
+// blinks with their eye movement and tracked lid movement.
+inline SyntheticGazeOptions realistic_gaze_options(double rate_hz, std::uint64_t seed) {
   SyntheticGazeOptions o;
   o.rate_hz = rate_hz;
   o.seed = seed;
-  if (realistic) {
-    o.microsaccades_per_s = 1.5;
-    o.catch_up_saccades = true;
-  }
+  o.microsaccades_per_s = 1.5;
+  o.catch_up_saccades = true;
+  o.post_saccadic_oscillations = true;
+  o.blink_eye_movements = true;
+  return o;
+}
+
+// The truth is the generator's movement state, or the pupil's own motion where there is one
+// (last_sample_pupil_motion(): the saccade's tail, the PSO).
+inline LabelledGaze synthetic_labelled(const SyntheticGazeOptions& o, double seconds) {
   SyntheticGaze g(o);
   LabelledGaze l;
-  const auto n = static_cast<std::size_t>(rate_hz * seconds);
+  const auto n = static_cast<std::size_t>(o.rate_hz * seconds);
   while (l.samples.size() < n) {
     const auto item = g.next();
     if (!item) break;
@@ -49,9 +56,21 @@ inline LabelledGaze synthetic_labelled(double rate_hz, double seconds, std::uint
     c.x_deg = s->x_deg;
     c.y_deg = s->y_deg;
     l.samples.push_back(c);
-    l.truth.push_back(truth_label(s->state));
+    switch (g.last_sample_pupil_motion()) {
+      case SyntheticGaze::PupilMotion::SaccadeTail: l.truth.push_back(Label::Saccade); break;
+      case SyntheticGaze::PupilMotion::Oscillation: l.truth.push_back(Label::Pso); break;
+      case SyntheticGaze::PupilMotion::None: l.truth.push_back(truth_label(s->state)); break;
+    }
   }
   return l;
+}
+
+// realistic: realistic_gaze_options().
+inline LabelledGaze synthetic_labelled(double rate_hz, double seconds, std::uint64_t seed, bool realistic = false) {
+  SyntheticGazeOptions o;
+  o.rate_hz = rate_hz;
+  o.seed = seed;
+  return synthetic_labelled(realistic ? realistic_gaze_options(rate_hz, seed) : o, seconds);
 }
 
 }  // namespace fovea::trackerd::classify
