@@ -122,6 +122,30 @@ TEST(Provisional, OnTheSyntheticViewerItIsFastAndRarelyWrong) {
   }
 }
 
+// A fixation after a saccade's PSO (as the realistic generator's truth has them) is timed from the
+// landing, the saccade's end, as the human coder's are: not skipped.
+TEST(Provisional, AFixationAfterAPsoIsTimedFromTheLanding) {
+  std::vector<Sample> samples;
+  std::vector<Label> truth;
+  for (int i = 0; i < 300; ++i) {
+    samples.push_back({i * 0.001, 0, 0, true, 0});
+    truth.push_back(i < 100 ? Label::Fixation : i < 130 ? Label::Saccade : i < 160 ? Label::Pso : Label::Fixation);
+  }
+  ProvisionalEvent start;
+  start.t_s = start.onset_s = 0.100;
+  start.emitted_s = 0.108;
+  ProvisionalEvent landing;
+  landing.kind = Label::Fixation;
+  landing.t_s = 0.131;
+  landing.emitted_s = 0.139;
+  const ProvisionalLatency lat = provisional_latency(truth, samples, {start, landing});
+  ASSERT_EQ(lat.fixation.latency_s.size(), 1u);
+  EXPECT_NEAR(lat.fixation.latency_s[0], 0.009, 1e-9);
+  EXPECT_EQ(lat.fixation.missed, 0u);
+  ASSERT_EQ(lat.saccade.latency_s.size(), 1u);
+  EXPECT_NEAR(lat.saccade.latency_s[0], 0.008, 1e-9);
+}
+
 TEST(ProvisionalCheck, ConfirmsAMatchWithinToleranceAndRetractsOnlyOnceTheFinalLabelsHavePassed) {
   ProvisionalCheck check(0.050);
   ProvisionalEvent a;  // saccade start at 1.000 s

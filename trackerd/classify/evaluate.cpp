@@ -190,7 +190,11 @@ ProvisionalLatency provisional_latency(const std::vector<Label>& truth, const st
       r.saccade.latency_s.push_back(e.emitted_s - t0);
     }
     if (!found) ++r.saccade.missed;
-    if (b >= truth.size() || truth[b] != Label::Fixation) continue;
+    // The landing is the saccade's end, also where a PSO follows it before the fixation (as
+    // eval_classify_human.py scores the human coder's landings).
+    std::size_t f = b;
+    while (f < truth.size() && truth[f] == Label::Pso) ++f;
+    if (f >= truth.size() || truth[f] != Label::Fixation) continue;
     const double tf = samples[b].t_s;
     found = false;
     for (const ProvisionalEvent& e : events) {

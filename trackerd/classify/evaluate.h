@@ -35,8 +35,9 @@ OnsetLatency onset_latency(const std::vector<Label>& truth, const std::vector<La
                            const std::vector<double>& final_t_s, const std::vector<Sample>& samples, Label c);
 // How long after a true onset the provisional events (provisional.h) said so: for each true saccade
 // (a run of Saccade in `truth`), the first provisional Saccade Start whose onset lies within 20 ms
-// before it to its end; for each true fixation that follows a saccade, the first provisional
-// Fixation Start whose time lies within 20 ms before to 50 ms after its first sample. Latency =
+// before it to its end; for each true fixation that follows a saccade (directly or after its PSO),
+// the first provisional Fixation Start whose time lies within 20 ms before to 50 ms after the
+// landing (the saccade's last sample's successor). Latency =
 // the newest sample's time when the event was known (emitted_s) minus the true onset. `false_starts`:
 // provisional saccade starts matched to no true saccade.
 struct ProvisionalLatency {
