@@ -399,6 +399,24 @@ TEST(Classify, PostSaccadicOscillation) {
   EXPECT_EQ(share(classify_all("ivvt", 1000, clean), 0, clean.size(), Label::Pso), 0.0);
 }
 
+TEST(Classify, ThePsosSlowSwingBackIsPsoToo) {
+  // A pupil-based tracker's PSO overshoots and returns (Hooge et al. 2015): here the eye lands
+  // 0.4 deg beyond the target and comes back within ~50 ms, slower than the landing itself, so the
+  // speed never rises again; the swing back against the saccade's direction is the PSO.
+  Script sc;
+  sc.rate = 1000;
+  sc.noise = 0.005;
+  const double off = 0.4 + (2.2 * 10.4 + 21) / 1000;
+  const auto s = sample(sc, 0.8, [&](double t) {
+    auto p = saccade_at(t, 0.4, 10.4);
+    if (t > off) p.first -= 0.4 * (1 - std::exp(-(t - off) / 0.012));
+    return p;
+  });
+  const auto l = classify_all("ivvt", 1000, s);
+  EXPECT_GT(share(l, index_at(s, off + 0.01), index_at(s, off + 0.025), Label::Pso), 0.9);
+  EXPECT_GT(share(l, index_at(s, off + 0.08), index_at(s, 0.75), Label::Fixation), 0.95);
+}
+
 TEST(Classify, RateChangesMidStream) {
   // 250 Hz, then 1000 Hz, then 60 Hz, each with a saccade: methods work on times, not counts.
   std::vector<Sample> s;

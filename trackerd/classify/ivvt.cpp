@@ -20,9 +20,11 @@
 //     minimum: the eye has landed, e.g. on a moving target).
 //  4. PSO (Nystrom & Holmqvist 2010; 40 ms as REMoDNaV's max_pso_duration): within 40 ms after the
 //     offset, a renewed rise of the velocity above the offset velocity + max(3 sigma_v, 5 deg/s)
-//     (N&H 2010 use the local noise level, mean + 3 SD, as the PSO threshold)
-//     marks the samples from the offset to the last such sample as PSO -- also when the rise passes
-//     the peak threshold (their "high-velocity PSO"): no new saccade starts within those 40 ms.
+//     (N&H 2010 use the local noise level, mean + 3 SD, as the PSO threshold), or a velocity
+//     against the saccade's direction of more than max(3 sigma_v, 5 deg/s) (the swing back:
+//     Hooge, Nystrom, Cornelissen & Holmqvist 2015, the PSO as overshoot and return), marks the
+//     samples from the offset to the last such sample as PSO -- also when the rise passes the peak
+//     threshold (their "high-velocity PSO"): no new saccade starts within those 40 ms.
 //  5. Pursuit vs fixation (REMoDNaV, Dar, Wagner & Hanke 2021: a velocity threshold on low-pass
 //     filtered gaze, 2 deg/s): the least-squares slope over +-100 ms of the surrounding
 //     inter-saccadic samples (a low-pass filter with its first zero at 5 Hz, close to REMoDNaV's
@@ -104,6 +106,7 @@ class IvvtCore final : public Core {
   struct Entry {
     Prepared p;
     double v = kNaN;     // speed, deg/s (NaN: no neighbour to differentiate against)
+    double vx = 0, vy = 0;  // the velocity itself
     double sv = 0;       // velocity noise (sigma_v) at this sample
     double sigma = 0;    // position noise estimate when the velocity was computed
     bool marked = false;
@@ -157,6 +160,7 @@ class IvvtCore final : public Core {
     if (a != b) {
       const Fit f = fit(a, b);
       e.v = std::hypot(f.vx, f.vy);
+      e.vx = f.vx, e.vy = f.vy;
       e.sv = f.stt > 0 ? sigma_ / std::sqrt(f.stt) : 0;
     }
     saccade_step(k);
@@ -216,8 +220,11 @@ class IvvtCore final : public Core {
         close_pso();  // window over: handled below as idle
       } else {
         // Fast oscillations count too (N&H 2010's "high-velocity PSO"): no saccade follows
-        // another within 40 ms.
-        if (e.v > pso_thr_) {
+        // another within 40 ms. So does the swing back against the saccade (Hooge et al. 2015: the
+        // PSO overshoots and returns), which a speed test misses while the return is slower than
+        // the landing.
+        const double back = -(e.vx * sac_ux_ + e.vy * sac_uy_);
+        if (e.v > pso_thr_ || back > std::max(kPsoK * e.sv, kPsoMinRiseDegS)) {
           pso_has_above_ = true;
           pso_last_above_ = k;
         }
@@ -233,6 +240,8 @@ class IvvtCore final : public Core {
         return;
       }
       state_ = State::Pso;
+      const double dx = e.p.x - sac_x0_, dy = e.p.y - sac_y0_, a = std::hypot(dx, dy);
+      sac_ux_ = a > 0 ? dx / a : 0, sac_uy_ = a > 0 ? dy / a : 0;  // the saccade's direction
       pso_start_ = k;
       pso_end_t_ = e.p.t + kPsoMaxS;
       pso_thr_ = e.v + std::max(kPsoK * e.sv, kPsoMinRiseDegS);
@@ -242,6 +251,7 @@ class IvvtCore final : public Core {
     if (e.v > peak_thr) {
       mark(k, Label::Saccade);
       // Onset: walk back down the rising flank (still unlabelled samples only).
+      std::uint64_t onset = k;
       for (std::uint64_t j = k; j > fin_next_ && j > base_;) {
         --j;
         const Entry& q = at(j);
@@ -249,8 +259,10 @@ class IvvtCore final : public Core {
         if (!q.p.has_gaze() || q.marked || std::isnan(q.v)) break;
         if (q.v <= kOnsetRatio * std::max(kPeakFloorDegS, kPeakK * q.sv) || q.v > r.v + q.sv) break;
         mark(j, Label::Saccade);
+        onset = j;
       }
       state_ = State::Saccade;
+      sac_x0_ = at(onset).p.x, sac_y0_ = at(onset).p.y;
       peak_v_ = e.v;
       prev_v_ = e.v;
     }
@@ -388,6 +400,8 @@ class IvvtCore final : public Core {
 
   State state_ = State::Idle;
   double peak_v_ = 0, prev_v_ = 0;
+  double sac_x0_ = 0, sac_y0_ = 0;  // the saccade's onset position
+  double sac_ux_ = 0, sac_uy_ = 0;  // its direction, onset to offset (unit vector)
   std::uint64_t pso_start_ = 0, pso_last_above_ = 0;
   double pso_end_t_ = 0, pso_thr_ = 0;
   bool pso_has_above_ = false;
