@@ -377,16 +377,27 @@ TEST(Classify, AfterACatchUpSaccadePursuitGoesOnOnlyInItsDirection) {
       << "settling at right angles to the pursuit after a saccade is no catch-up";
 }
 
-TEST(Classify, PostSaccadicOscillation) {
-  // A damped 0.5 deg, 25 Hz wobble after landing (a PSO) is labelled pso, not saccade or fixation.
+namespace {
+// 0.8 s at 1000 Hz (0.005 deg noise) with a saccade of `amplitude` deg along x at 0.4 s, whose
+// landing then moves by `after(time since its offset)` deg; returns the samples and the offset.
+std::pair<std::vector<Sample>, double> saccade_then(double amplitude, double (*after)(double)) {
   Script sc;
   sc.rate = 1000;
   sc.noise = 0.005;
-  const double off = 0.4 + (2.2 * 10 + 21) / 1000;
-  const auto s = sample(sc, 0.8, [&](double t) {
-    auto p = saccade_at(t, 0.4, 10);
-    if (t > off) p.first += 0.5 * std::exp(-(t - off) / 0.015) * std::sin(2 * std::numbers::pi * 25 * (t - off));
+  const double off = 0.4 + (2.2 * amplitude + 21) / 1000;
+  auto s = sample(sc, 0.8, [&](double t) {
+    auto p = saccade_at(t, 0.4, amplitude);
+    if (t > off) p.first += after(t - off);
     return p;
+  });
+  return {std::move(s), off};
+}
+}  // namespace
+
+TEST(Classify, PostSaccadicOscillation) {
+  // A damped 0.5 deg, 25 Hz wobble after landing (a PSO) is labelled pso, not saccade or fixation.
+  const auto [s, off] = saccade_then(10, [](double dt) {
+    return 0.5 * std::exp(-dt / 0.015) * std::sin(2 * std::numbers::pi * 25 * dt);
   });
   const auto l = classify_all("ivvt", 1000, s);
   // The first, outward half-cycle continues the saccade's motion (the overshoot stays in the
@@ -395,7 +406,7 @@ TEST(Classify, PostSaccadicOscillation) {
   EXPECT_EQ(l[index_at(s, off - 0.01)], Label::Saccade);
   EXPECT_GT(share(l, index_at(s, off + 0.06), index_at(s, 0.75), Label::Fixation), 0.95);
   // Without the wobble: no PSO at all.
-  const auto clean = sample(sc, 0.8, [](double t) { return saccade_at(t, 0.4, 10); });
+  const auto clean = saccade_then(10, [](double) { return 0.0; }).first;
   EXPECT_EQ(share(classify_all("ivvt", 1000, clean), 0, clean.size(), Label::Pso), 0.0);
 }
 
@@ -403,15 +414,7 @@ TEST(Classify, ThePsosSlowSwingBackIsPsoToo) {
   // A pupil-based tracker's PSO overshoots and returns (Hooge et al. 2015): here the eye lands
   // 0.4 deg beyond the target and comes back within ~50 ms, slower than the landing itself, so the
   // speed never rises again; the swing back against the saccade's direction is the PSO.
-  Script sc;
-  sc.rate = 1000;
-  sc.noise = 0.005;
-  const double off = 0.4 + (2.2 * 10.4 + 21) / 1000;
-  const auto s = sample(sc, 0.8, [&](double t) {
-    auto p = saccade_at(t, 0.4, 10.4);
-    if (t > off) p.first -= 0.4 * (1 - std::exp(-(t - off) / 0.012));
-    return p;
-  });
+  const auto [s, off] = saccade_then(10.4, [](double dt) { return -0.4 * (1 - std::exp(-dt / 0.012)); });
   const auto l = classify_all("ivvt", 1000, s);
   EXPECT_GT(share(l, index_at(s, off + 0.01), index_at(s, off + 0.025), Label::Pso), 0.9);
   EXPECT_GT(share(l, index_at(s, off + 0.08), index_at(s, 0.75), Label::Fixation), 0.95);
