@@ -118,9 +118,15 @@ TEST(SyntheticGaze, BlinksInvalidateGazeAndGazeStaysOnScreen) {
 }
 
 TEST(SyntheticGaze, HighRatesAndOddDisplaysStayFinite) {
-  for (double rate : {30.0, 2000.0}) {
+  for (const auto& [rate, realistic] : {std::pair{30.0, false}, std::pair{2000.0, false}, std::pair{30.0, true},
+                                        std::pair{2000.0, true}}) {
     SyntheticGazeOptions o;
     o.rate_hz = rate;
+    if (realistic) {  // every movement and artefact, the reddest noise
+      o.microsaccades_per_s = 1.5;
+      o.catch_up_saccades = o.post_saccadic_oscillations = o.blink_eye_movements = true;
+      o.noise_alpha = 2;
+    }
     o.display.width_m = 3.0;  // a wall-sized display at arm's length: wide angles
     o.display.viewing_distance_m = 0.3;
     SyntheticGaze g(o);
