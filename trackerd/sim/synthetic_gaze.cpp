@@ -78,7 +78,8 @@ constexpr double kPupilDamping = 0.15e3;
 constexpr std::int64_t kPupilStepNs = 100'000;
 // A PSO lasts, in the ground truth, while the oscillation's velocity envelope exceeds 5 deg/s, the
 // ground-truth velocity criterion of Schweitzer & Rolfs's simulator (an amplitude of 0.028 deg); the
-// saccade itself, in the truth, lasts until the tracked pupil's speed first falls under it.
+// saccade itself, in the truth, lasts until the tracked pupil stops moving on in its direction at
+// that speed (update_pso_truth).
 constexpr double kPsoEndDegS = 5.0;
 // Of a blink's tracked lid movement (blink_eye_movements), the part on each side of the pupil loss.
 constexpr double kLidTrackedS = 0.030;
@@ -342,9 +343,12 @@ void SyntheticGaze::step() {
   const Vec2 eye = true_eye_position(t, t_ns, dt);
   const double velocity = track_true_eye(eye, dt);
   update_pso_truth(t);
+  // What the tracker sees is the pupil, which rings inside the iris after a saccade (the eye
+  // cameras' pupil and pupil-glint vector too: the glint moves with the eyeball's cornea).
   const Vec2 offset = pupil_offset();
-  GazeSample s = measured_sample(t_ns, {eye.x + offset.x, eye.y + offset.y}, velocity);
-  add_pupil_and_eye_cameras(s, eye, dt, t);
+  const Vec2 tracked{eye.x + offset.x, eye.y + offset.y};
+  GazeSample s = measured_sample(t_ns, tracked, velocity);
+  add_pupil_and_eye_cameras(s, tracked, dt, t);
   pending_.push_back(s);
 }
 
