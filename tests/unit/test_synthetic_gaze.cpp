@@ -4,9 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <random>
+#include <stdexcept>
+#include <string>
 
 #include "fovea/protocol/codec.h"
 #include "sim/synthetic_gaze.h"
@@ -303,6 +306,18 @@ TEST(SyntheticGaze, TrackerNoiseHasItsSpectralSlope) {
     const double slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
     EXPECT_NEAR(slope, -alpha, 0.2) << "alpha " << alpha;
     EXPECT_NEAR(std::sqrt(sum_sq / (kBlock * kBlocks)), 1.0, alpha < 2 ? 0.1 : 0.3) << "alpha " << alpha;
+  }
+  // Outside the filter's range: a clear error, also through the generator's options.
+  for (const double bad : {-0.5, 2.5, std::numeric_limits<double>::quiet_NaN()}) {
+    EXPECT_THROW(PowerLawNoise(bad, 64), std::invalid_argument) << bad;
+    SyntheticGazeOptions o;
+    o.noise_alpha = bad;
+    try {
+      SyntheticGaze g(o);
+      ADD_FAILURE() << "accepted noise_alpha " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("alpha"), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <stdexcept>
 
 namespace fovea::trackerd {
 
@@ -87,6 +88,11 @@ constexpr double kLidTrackedS = 0.030;
 }  // namespace
 
 PowerLawNoise::PowerLawNoise(double alpha, std::size_t taps) : h_(std::max<std::size_t>(1, taps)), history_(h_.size()) {
+  if (!(alpha >= 0 && alpha <= 2)) {
+    char what[96];
+    std::snprintf(what, sizeof what, "spectral slope alpha = %g: must lie in [0, 2]", alpha);
+    throw std::invalid_argument(what);
+  }
   h_[0] = 1;
   for (std::size_t k = 1; k < h_.size(); ++k) {
     h_[k] = h_[k - 1] * (static_cast<double>(k) - 1 + alpha / 2) / static_cast<double>(k);
@@ -106,7 +112,7 @@ double PowerLawNoise::next(double white) {
 }
 
 SyntheticGaze::SyntheticGaze(SyntheticGazeOptions options) : options_(options), rng_(options.seed) {
-  if (options_.noise_alpha > 0) {
+  if (options_.noise_alpha != 0) {  // NaN and negatives too: the filter refuses them
     const auto taps = static_cast<std::size_t>(std::max(16.0, options_.rate_hz));  // one second
     noise_x_.emplace(options_.noise_alpha, taps);
     noise_y_.emplace(options_.noise_alpha, taps);

@@ -43,7 +43,7 @@ struct SyntheticGazeOptions {
   // last second of samples): 0 white, as unfiltered trackers are; filtered trackers colour it
   // (Niehorster, Zemblys & Holmqvist 2021, Behav Res Methods 53:311), and Niehorster, Zemblys,
   // Beelders & Holmqvist 2020 (Behav Res Methods 52:2515) ask that methods be tested across signal
-  // types. noise_deg stays the noise's standard deviation.
+  // types. noise_deg stays the noise's standard deviation. Outside [0, 2] the constructor throws.
   double noise_alpha = 0;
   // Blinks as a video tracker records them: the eye rotates downward 1-2 deg as the lid starts to
   // close and is back before it reopens (Riggs, Kelly, Manning & Moore 1987, IOVS 28:334; shaped
@@ -57,6 +57,7 @@ struct SyntheticGazeOptions {
 // Stream of noise with power spectrum ~ 1/f^alpha (0 <= alpha <= 2) and unit standard deviation:
 // white gaussian draws through Kasdin's (1995) fractional-differencing filter, h_0 = 1,
 // h_k = h_(k-1) (k - 1 + alpha/2) / k, truncated at `taps` (below rate/taps the spectrum flattens).
+// Throws std::invalid_argument for an alpha outside [0, 2] (or NaN).
 class PowerLawNoise {
  public:
   PowerLawNoise(double alpha, std::size_t taps);
