@@ -1,4 +1,5 @@
-// fovea-trackerd --source lsl:NAME against a liblsl outlet in this test (issue 27, source): a known
+// fovea-trackerd --source lsl:NAME against a liblsl outlet (issue 27, source), opened by a tracker's
+// app in its own process (tests/tools/lsl_tracker_app.cpp): a known
 // trajectory in pixels with XDF channel metadata, the outlet's timestamps pushed in bursts, NaN and
 // low-confidence samples; the daemon's recording must hold the same positions and validity on the
 // outlet's timestamps, and it must read the stream again after the outlet restarts. Discovery stays
@@ -6,10 +7,10 @@
 #include <gtest/gtest.h>
 #include <lsl_cpp.h>
 
-#include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <map>
-#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -28,36 +29,21 @@ namespace protocol = fovea::protocol;
 
 constexpr double kRate = 250;
 
-std::unique_ptr<lsl::stream_outlet> tracker_outlet(const std::string& name, bool with_metadata) {
-  lsl::stream_info info(name, "Gaze", 5, kRate, lsl::cf_float32, name + "-" + std::to_string(lsl::local_clock()));
-  if (with_metadata) {
-    lsl::xml_element chns = info.desc().append_child("channels");
-    const char* rows[][4] = {{"gx", "both", "ScreenX", "pixels"},
-                             {"gy", "both", "ScreenY", "pixels"},
-                             {"conf", "both", "Confidence", "normalized"},
-                             {"pl", "left", "Diameter", "mm"},
-                             {"pr", "right", "Diameter", "mm"}};
-    for (const auto& r : rows) {
-      chns.append_child("channel").append_child_value("label", r[0]).append_child_value("eye", r[1])
-          .append_child_value("type", r[2]).append_child_value("unit", r[3]);
-    }
-  }
-  return std::make_unique<lsl::stream_outlet>(info);
+// The tracker's app in its own process (tests/tools/lsl_tracker_app.cpp): it opens its outlet at
+// once and pushes samples [from, to) of the trajectory once `go` holds t0; it quits after them, or,
+// with a `quit` file, once that exists. Its exit status lands in `rc`.
+void start_tracker_app(const std::string& name, int from, int to, const std::filesystem::path& go,
+                       const std::string& quit, const std::filesystem::path& rc, bool bare = false) {
+  const std::string cmd = std::string(FOVEA_LSL_TRACKER_APP_PATH) + " " + name + " " + std::to_string(from) + " " +
+                          std::to_string(to) + " " + go.string() + " " + quit + (bare ? " --bare" : "");
+  ASSERT_EQ(exit_status("(" + cmd + "; echo $? >" + rc.string() + ") &"), 0);
 }
 
-// Sample k of the trajectory: NaN every 25th from 7, confidence 0.2 every 25th from 13.
-std::vector<float> sample(int k) {
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  return {k % 25 == 7 ? nan : 100.0f + static_cast<float>(k), 200.0f + 0.5f * static_cast<float>(k),
-          k % 25 == 13 ? 0.2f : 0.9f, 3.0f + 0.001f * static_cast<float>(k), 3.5f};
-}
-
-// Pushes samples [from, to) on the grid t0 + k / rate, in bursts of 10 every 40 ms.
-void push_bursts(lsl::stream_outlet& outlet, double t0, int from, int to) {
-  for (int k = from; k < to; k += 10) {
-    for (int j = k; j < std::min(k + 10, to); ++j) outlet.push_sample(sample(j), t0 + j / kRate, j + 1 == std::min(k + 10, to));
-    std::this_thread::sleep_for(std::chrono::milliseconds(40));
-  }
+// Writes t0 to `go` whole (the app polls for the file).
+void say_go(const std::filesystem::path& go, double t0) {
+  const auto part = go.string() + ".part";
+  std::ofstream(part) << std::to_string(t0) << "\n";
+  std::filesystem::rename(part, go);
 }
 
 bool wait_for_text(const std::filesystem::path& log, const std::string& text, std::size_t times, double seconds) {
@@ -75,7 +61,8 @@ bool wait_for_text(const std::filesystem::path& log, const std::string& text, st
 TEST(LslSource, ReadsTheTrackersTrajectoryOnItsTimestampsAndAfterTheOutletRestarts) {
   TempDir d("fovea-lsl-src");
   const std::string name = "tracker-" + std::to_string(::getpid());
-  auto outlet = tracker_outlet(name, true);
+  const auto go1 = d.path / "go1", go2 = d.path / "go2", quit = d.path / "quit";
+  start_tracker_app(name, 0, 500, go1, "-", d.path / "app1.rc");
   const int port = fovea::test::random_port();
   const auto log = d.path / "daemon.log", rc = d.path / "daemon.rc", fgr = d.path / "daemon.fgr";
   const std::string cmd = std::string(FOVEA_TRACKERD_PATH) + " --source 'lsl:" + name +
@@ -84,13 +71,15 @@ TEST(LslSource, ReadsTheTrackersTrajectoryOnItsTimestampsAndAfterTheOutletRestar
   ASSERT_TRUE(wait_for_text(log, "reading \"" + name + "\"", 1, 10)) << read_text(log);
 
   const double t0 = lsl::local_clock();
-  push_bursts(*outlet, t0, 0, 500);
-  outlet.reset();  // the tracker's app closes...
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  outlet = tracker_outlet(name, true);  // ... and comes back: a new outlet of the same name
+  say_go(go1, t0);
+  ASSERT_TRUE(wait_for(d.path / "app1.rc", 20));  // the tracker's app quits...
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  start_tracker_app(name, 500, 750, go2, quit.string(), d.path / "app2.rc");  // ... and comes back
   ASSERT_TRUE(wait_for_text(log, "reading \"" + name + "\"", 2, 10)) << read_text(log);
-  push_bursts(*outlet, t0, 500, 750);
+  say_go(go2, t0);
   ASSERT_TRUE(wait_for(rc, 20)) << read_text(log);
+  std::ofstream(quit) << "0\n";  // the daemon is done: the app may quit
+  ASSERT_TRUE(wait_for(d.path / "app2.rc", 20));
   EXPECT_EQ(read_text(rc), "0\n") << read_text(log);
   EXPECT_NE(read_text(log).find("1 losses"), std::string::npos) << "the loss is not in the status: " << read_text(log);
 
@@ -126,17 +115,17 @@ TEST(LslSource, ReadsTheTrackersTrajectoryOnItsTimestampsAndAfterTheOutletRestar
 TEST(LslSource, ChannelsTheMetadataDoesNotNameAreAProblemUntilTheSpecGivesThem) {
   TempDir d("fovea-lsl-src");
   const std::string name = "bare-" + std::to_string(::getpid());
-  auto outlet = tracker_outlet(name, false);
+  start_tracker_app(name, 0, 1500, d.path / "go", "-", d.path / "app.rc", true);
   const auto log = d.path / "daemon.log";
   const std::string base = std::string(FOVEA_TRACKERD_PATH) + " --duration 3 --port " +
                            std::to_string(fovea::test::random_port()) + " --source 'lsl:" + name;
-  std::thread pusher([&] { push_bursts(*outlet, lsl::local_clock(), 0, 1500); });
+  say_go(d.path / "go", lsl::local_clock());
   exit_status(base + "' 2>" + log.string());
   EXPECT_NE(read_text(log).find("names no ScreenX/ScreenY channels"), std::string::npos) << read_text(log);
   EXPECT_NE(read_text(log).find("?x=I&y=J&units=pixels|normalized"), std::string::npos) << read_text(log);
   exit_status(base + "?x=0&y=1&units=pixels' 2>" + log.string());
   EXPECT_NE(read_text(log).find("x/y pixels (channels 0, 1) from the spec"), std::string::npos) << read_text(log);
-  pusher.join();
+  EXPECT_TRUE(wait_for(d.path / "app.rc", 20));
 }
 
 }  // namespace
