@@ -13,7 +13,6 @@
 #include <map>
 #include <string>
 #include <thread>
-#include <vector>
 
 #include "fovea/protocol/recording.h"
 #include "process.h"

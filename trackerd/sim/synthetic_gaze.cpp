@@ -105,9 +105,11 @@ PowerLawNoise::PowerLawNoise(double alpha, std::size_t taps) : h_(std::max<std::
 double PowerLawNoise::next(double white) {
   head_ = head_ == 0 ? history_.size() - 1 : head_ - 1;
   history_[head_] = white;
+  // The ring from head_ (the newest draw) to its end, then from its start: no index wraps per tap.
   double sum = 0;
-  const std::size_t n = history_.size();
-  for (std::size_t k = 0; k < n; ++k) sum += h_[k] * history_[(head_ + k) % n];
+  const std::size_t n = history_.size(), first = n - head_;
+  for (std::size_t k = 0; k < first; ++k) sum += h_[k] * history_[head_ + k];
+  for (std::size_t k = first; k < n; ++k) sum += h_[k] * history_[k - first];
   return scale_ * sum;
 }
 
@@ -408,18 +410,18 @@ void SyntheticGaze::update_pso_truth(double t) {
     pupil_motion_ = PupilMotion::None;
     return;
   }
+  const Vec2 v{pupil_v_.x - eyeball_v_.x, pupil_v_.y - eyeball_v_.y};  // relative to the eyeball
   if (pupil_motion_ != PupilMotion::Oscillation) {
     const bool past_peak = !saccade || t >= segment_.duration_s / 2;
     // After the eyeball's saccade, relative to the eyeball (which may pursue on in that direction).
-    const Vec2 v = saccade ? pupil_v_ : Vec2{pupil_v_.x - eyeball_v_.x, pupil_v_.y - eyeball_v_.y};
-    const double forward = v.x * saccade_dir_.x + v.y * saccade_dir_.y;
+    const Vec2 moving = saccade ? pupil_v_ : v;
+    const double forward = moving.x * saccade_dir_.x + moving.y * saccade_dir_.y;
     if (!past_peak || forward >= kPsoEndDegS) {
       pupil_motion_ = saccade ? PupilMotion::None : PupilMotion::SaccadeTail;
       return;
     }
   }
   const Vec2 y = pupil_offset();
-  const Vec2 v{pupil_v_.x - eyeball_v_.x, pupil_v_.y - eyeball_v_.y};
   const double envelope = std::sqrt(v.x * v.x + v.y * v.y + kPupilStiffness * (y.x * y.x + y.y * y.y));
   pupil_motion_ = envelope > kPsoEndDegS ? PupilMotion::Oscillation : PupilMotion::None;
   if (pupil_motion_ == PupilMotion::None) saccade_ended_ = false;
