@@ -207,7 +207,7 @@ void GazeClient::loop() {
             if (sync_sent_.size() > kTimeSyncKeep) sync_sent_.pop_front();
           }
           send(t);
-          next_time_sync_ns_ = now + (time_syncs_done_ < 4 ? 50 * kMs : 2000 * kMs);
+          next_time_sync_ns_ = now + (time_syncs_done_ < kClockBurst ? 50 * kMs : 2000 * kMs);
         }
         break;
       }
@@ -493,6 +493,11 @@ std::optional<Marker> GazeClient::wait_marker(std::uint64_t marker_id, int timeo
 bool GazeClient::clock_known() const {
   std::lock_guard lock(mutex_);
   return stats_.clock_round_trip_ns >= 0;
+}
+
+std::uint32_t GazeClient::clock_exchanges() const {
+  std::lock_guard lock(mutex_);
+  return time_syncs_done_;
 }
 
 namespace {

@@ -225,7 +225,10 @@ int cmd_mark(const Common& c, const std::string& label, std::optional<std::int64
                  co.server.to_string().c_str(), c.connect_timeout_ms);
     return 1;
   }
-  for (int i = 0; time_ns && i < 100 && !client.clock_known(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  // A given time is mapped through the clock offset: wait for the first burst of exchanges (about
+  // 200 ms), whose least-delay one bounds the error by half its round trip, or 1 s at most.
+  for (int i = 0; time_ns && i < 100 && client.clock_exchanges() < GazeClient::kClockBurst; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   std::uint64_t id = 0;
   try {
     id = client.mark(label, time_ns);
@@ -243,10 +246,13 @@ int cmd_mark(const Common& c, const std::string& label, std::optional<std::int64
                  st.last_error ? to_string(*st.last_error) : "");
     return 1;
   }
+  // The mapped time is as good as the offset: within half the round trip of its exchange.
+  char how[96] = "when it arrived";
+  if ((published->flags & kMarkerClientTime) != 0)
+    std::snprintf(how, sizeof how, "the time given, mapped within +-%.3f ms",
+                  static_cast<double>(st.clock_round_trip_ns) / 2e6);
   std::printf("marker \"%s\" at %.9f s on the daemon's clock (%s), received %.9f s\n", published->label.value.c_str(),
-              static_cast<double>(published->time_ns) / 1e9,
-              (published->flags & kMarkerClientTime) != 0 ? "the time given, mapped" : "when it arrived",
-              static_cast<double>(published->received_ns) / 1e9);
+              static_cast<double>(published->time_ns) / 1e9, how, static_cast<double>(published->received_ns) / 1e9);
   return 0;
 }
 
@@ -356,7 +362,8 @@ CLI::App* add_mark_command(CLI::App& app, std::string& label, std::optional<std:
               "recording and to its subscribers");
   mark->add_option("LABEL", label, "1..63 bytes of UTF-8 text, no control characters")->required();
   mark->add_option("--time-ns", time_ns,
-                   "when it happened, in ns of this host's CLOCK_MONOTONIC (mapped to the daemon's clock); default: "
+                   "when it happened, in ns of this host's CLOCK_MONOTONIC (mapped to the daemon's clock through the "
+                   "least-delay one of the first 4 TIME_SYNC exchanges; the reply says within how much); default: "
                    "when the daemon receives it");
   return mark;
 }

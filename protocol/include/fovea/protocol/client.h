@@ -108,6 +108,11 @@ class GazeClient {
   std::optional<Marker> wait_marker(std::uint64_t marker_id, int timeout_ms);
   // True once a TIME_SYNC exchange has given the clock offset.
   bool clock_known() const;
+  // TIME_SYNC exchanges counted this session. The first kClockBurst go out 50 ms apart, so once
+  // this reaches kClockBurst the offset is the least-delay one of them (one exchange alone can be
+  // off by half a round trip that a loaded host stretched).
+  std::uint32_t clock_exchanges() const;
+  static constexpr std::uint32_t kClockBurst = 4;
 
   // One-shot request/reply helpers (no subscription), used by `fovea-ctl status`.
   static std::optional<StatusReply> query_status(const Endpoint& server, int timeout_ms);
