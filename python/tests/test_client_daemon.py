@@ -127,8 +127,10 @@ class AgainstDaemon(unittest.TestCase):
         c = self.client()
         self.assertTrue(c.wait_clock(2.0))
         stats = c.stats()
-        self.assertLess(abs(stats.clock_offset_ns), 1_000_000, "one host, one CLOCK_MONOTONIC")
         self.assertGreaterEqual(stats.clock_round_trip_ns, 0)
+        # Zero within the exchange's bound, half its round trip (1 ms when that was short).
+        self.assertLessEqual(abs(stats.clock_offset_ns), max(1_000_000, stats.clock_round_trip_ns // 2 + 1000),
+                             "one host, one CLOCK_MONOTONIC")
         sample, arrival = wait_for(c.latest_with_arrival, 2.0) and c.latest_with_arrival()
         self.assertLess(abs(c.to_client_ns(sample.tracker_time_ns) - monotonic_ns()), 1_000_000_000)
         self.assertLess(arrival.latency_ns, 100_000_000)

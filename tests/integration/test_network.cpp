@@ -392,7 +392,10 @@ TEST(Client, StatusQueryAndClockSyncOnLoopback) {
   std::this_thread::sleep_for(400ms);
   const auto st = c.stats();
   EXPECT_GE(st.clock_round_trip_ns, 0);
-  EXPECT_LT(std::abs(st.clock_offset_ns), 1'000'000) << "same clock on loopback: offset should be ~0";
+  // One clock on loopback: the offset is 0 within its exchange's bound, half the round trip (1 ms
+  // when that was short; a loaded host stretches it).
+  EXPECT_LE(std::abs(st.clock_offset_ns), std::max<std::int64_t>(1'000'000, st.clock_round_trip_ns / 2 + 1000))
+      << "same clock on loopback: offset should be ~0";
   EXPECT_GT(st.latency_count, 100u);
   EXPECT_GE(st.latency_p50_ns, 0);
   std::vector<std::pair<GazeSample, Arrival>> polled;
