@@ -818,6 +818,57 @@ TEST(ClassifyCli, RenumberNumbersBrokenTimesAtTheRateAndSaysHowMany) {
   EXPECT_NE(err.find(":3: 1 fields, expected 2 (x_px,y_px)"), std::string::npos) << err;
 }
 
+// Real exports mark a lost sample with an empty cell or a fixed point (often 0,0): read as gaze, the
+// point is a jump to the corner and back, two false saccades around every blink.
+TEST(ClassifyCli, EmptyCellsAndTheLostAtPointAreLostSamples) {
+  Ctl c;
+  const std::string out = (c.dir / "out.csv").string();
+  // 250 Hz fixation at the centre with a 100 ms loss in the middle, written three ways.
+  const auto recording = [](const std::string& lost_cells) {
+    std::string csv = "t_ms,x_px,y_px\n";
+    for (int i = 0; i < 500; ++i) {
+      csv += std::to_string(i * 4) + "," + (i >= 250 && i < 275 ? lost_cells : std::string("960,540")) + "\n";
+    }
+    return csv;
+  };
+  const auto labels_of = [](const std::string& path) {
+    std::map<std::string, int> counts;
+    std::istringstream lines(Ctl::read(path));
+    std::string line;
+    std::getline(lines, line);
+    while (std::getline(lines, line)) ++counts[line.substr(line.find(',') + 1)];
+    return counts;
+  };
+  std::string err;
+  const std::string nan_in = c.write("nan.csv", recording("nan,nan"));
+  ASSERT_EQ(c.run(nan_in + " " + out + kGeometry, err), 0) << err;
+  const std::map<std::string, int> want = labels_of(out);
+  EXPECT_EQ(want.count("saccade"), 0u);
+  EXPECT_NE(err.find("25 rows without a gaze point"), std::string::npos) << err;
+
+  const std::string empty_in = c.write("empty.csv", recording(","));
+  ASSERT_EQ(c.run(empty_in + " " + out + kGeometry + " --force", err), 0) << err;
+  EXPECT_EQ(labels_of(out), want) << "an empty cell is a lost sample, as nan is";
+  EXPECT_NE(err.find("25 rows without a gaze point"), std::string::npos) << err;
+
+  const std::string zero_in = c.write("zero.csv", recording("0,0"));
+  ASSERT_EQ(c.run(zero_in + " " + out + kGeometry + " --force", err), 0) << err;
+  EXPECT_GT(labels_of(out)["saccade"], 0) << "without --lost-at, 0,0 is gaze at the corner";
+  ASSERT_EQ(c.run(zero_in + " " + out + kGeometry + " --force --lost-at 0,0", err), 0) << err;
+  EXPECT_EQ(labels_of(out), want) << "with --lost-at 0,0 those rows are lost";
+  EXPECT_NE(err.find("0 rows without a gaze point (x_px or y_px nan or empty) and 25 at the --lost-at point 0,0"),
+            std::string::npos)
+      << err;
+  // Only the exact point: gaze that passes near it stays gaze.
+  ASSERT_EQ(c.run(zero_in + " " + out + kGeometry + " --force --lost-at 0,0.5", err), 0) << err;
+  EXPECT_NE(err.find("and 0 at the --lost-at point"), std::string::npos) << err;
+
+  for (const char* bad : {"0", "0,0,0", "a,0", "0,inf", ""}) {
+    EXPECT_EQ(c.run(zero_in + " " + out + kGeometry + " --force --lost-at '" + bad + "'", err), 1) << bad;
+    EXPECT_NE(err.find("--lost-at"), std::string::npos) << bad << ": " << err;
+  }
+}
+
 // Issue 23 item 12: a 50 MB bad field was echoed whole; control characters reached the terminal.
 TEST(ClassifyCli, ABadFieldIsEchoedShortAndEscaped) {
   Ctl c;

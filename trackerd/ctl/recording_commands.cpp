@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "classify/classifier.h"
@@ -183,7 +184,8 @@ int cmd_info(const std::string& path) {
 
 // --- classify: offline eye-movement classification of a CSV of gaze points (trackerd/CLASSIFY.md) ---
 
-// Parses a decimal number field of the classify input; `nan_ok` accepts "nan" (any case) as NaN.
+// Parses a decimal number field of the classify input; `nan_ok` accepts "nan" (any case) and an
+// empty field (how many exports leave a lost sample's cell) as NaN.
 double classify_field(const std::string& text, const char* name, bool nan_ok, const std::string& where) {
   std::string t = text;
   while (!t.empty() && (t.back() == ' ' || t.back() == '\t')) t.pop_back();
@@ -192,7 +194,7 @@ double classify_field(const std::string& text, const char* name, bool nan_ok, co
   t = t.substr(b);
   std::string lower;
   for (char ch : t) lower += (ch >= 'A' && ch <= 'Z') ? static_cast<char>(ch - 'A' + 'a') : ch;
-  if (nan_ok && (lower == "nan" || lower == "-nan" || lower == "+nan")) return std::nan("");
+  if (nan_ok && (lower.empty() || lower == "nan" || lower == "-nan" || lower == "+nan")) return std::nan("");
   double v = 0;
   std::size_t used = 0;
   try {
@@ -203,7 +205,7 @@ double classify_field(const std::string& text, const char* name, bool nan_ok, co
   if (t.empty() || used != t.size() || !std::isfinite(v)) {
     // Shown escaped and shortened: a 50 MB field was echoed whole (issue 23 item 12).
     throw std::runtime_error(where + ": " + name + " \"" + escape_for_log(text, 40) + "\" is not a finite number" +
-                             (nan_ok ? " or nan" : ""));
+                             (nan_ok ? ", nan or empty" : ""));
   }
   return v;
 }
@@ -242,7 +244,24 @@ struct ClassifyInput {
   std::vector<fovea::trackerd::classify::Sample> samples;
   std::vector<std::string> times;
   std::size_t renumbered = 0;
+  std::size_t lost_nan = 0;  // rows whose x_px or y_px is nan or empty
+  std::size_t lost_at = 0;   // rows at the --lost-at point
 };
+
+// --lost-at: the point an export writes for a lost sample (often 0,0); `set` false: none given.
+struct LostPoint {
+  bool set = false;
+  double x_px = 0, y_px = 0;
+};
+
+// Parses --lost-at's "X,Y" (two finite numbers); throws naming the option.
+LostPoint parse_lost_point(const std::string& text) {
+  const std::vector<std::string> f = split_classify_row(text);
+  if (f.size() != 2) {
+    throw std::runtime_error("--lost-at \"" + escape_for_log(text, 40) + "\": expected X,Y (two numbers, e.g. 0,0)");
+  }
+  return {true, classify_field(f[0], "X", false, "--lost-at"), classify_field(f[1], "Y", false, "--lost-at")};
+}
 
 // Real exports hold NaN, empty or zero timestamps, or times that reset: with --renumber such a row
 // (a time that is empty, not a finite number, or not after the previous row's) is numbered one sample
@@ -284,12 +303,13 @@ fovea::trackerd::classify::Sample classify_sample(const DisplayGeometry& g, doub
 
 // Reads the CSV t_ms,x_px,y_px (trackerd/CLASSIFY.md), naming the file and line of the first bad row.
 // renumber_hz > 0: rows without a usable time are numbered at that rate (classify_time), and the
-// header may be x_px,y_px (no time column: every row numbered).
-ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeometry& g, double renumber_hz) {
+// header may be x_px,y_px (no time column: every row numbered). A row at `lost_at` is lost.
+ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeometry& g, double renumber_hz,
+                                  const LostPoint& lost_at) {
   std::ifstream in(in_path);
   if (!in) throw std::runtime_error("cannot open " + in_path);
   ClassifyInput input;
-  auto& [samples, times, renumbered] = input;
+  auto& [samples, times, renumbered, lost_nan, lost_at_count] = input;
   std::string line;
   std::size_t line_no = 0;
   double last_t = 0;
@@ -329,8 +349,14 @@ ClassifyInput read_classify_input(const std::string& in_path, const DisplayGeome
         throw std::runtime_error(std::string(e.what()) + " (--renumber numbers such rows at RATE_HZ)");
       }
     }
-    const double x_px = classify_field(f[1], "x_px", true, where);
-    const double y_px = classify_field(f[2], "y_px", true, where);
+    double x_px = classify_field(f[1], "x_px", true, where);
+    double y_px = classify_field(f[2], "y_px", true, where);
+    if (std::isnan(x_px) || std::isnan(y_px)) {
+      ++lost_nan;
+    } else if (lost_at.set && x_px == lost_at.x_px && y_px == lost_at.y_px) {
+      ++lost_at_count;
+      x_px = y_px = std::nan("");
+    }
     if (!samples.empty() && !(t_ms > last_t)) {
       throw std::runtime_error(where + ": t_ms " + f[0] + " is not after the previous row's " + times.back() +
                                " (times must strictly increase; --renumber numbers such rows at RATE_HZ)");
@@ -348,6 +374,7 @@ struct ClassifyArgs {
   std::string in_path, out_path, method = fovea::trackerd::classify::classifiers().front().name;
   double rate_hz = 0, w_mm = 0, h_mm = 0, dist_mm = 0;
   std::uint32_t w_px = 0, h_px = 0;
+  std::optional<std::string> lost_at;  // --lost-at X,Y
   bool force = false, renumber = false, final_times = false, provisional = false;
 };
 
@@ -402,7 +429,8 @@ int cmd_classify(const ClassifyArgs& a) {
       throw std::runtime_error(a.out_path + " already exists (use --force to replace it)");
     }
     const DisplayGeometry g = checked_classify_screen(a.rate_hz, a.w_px, a.h_px, a.w_mm, a.h_mm, a.dist_mm);
-    const ClassifyInput input = read_classify_input(a.in_path, g, a.renumber ? a.rate_hz : 0);
+    const LostPoint lost_at = a.lost_at ? parse_lost_point(*a.lost_at) : LostPoint{};
+    const ClassifyInput input = read_classify_input(a.in_path, g, a.renumber ? a.rate_hz : 0, lost_at);
 
     cl::ClassifierOptions options;
     options.nominal_rate_hz = a.rate_hz;
@@ -415,6 +443,10 @@ int cmd_classify(const ClassifyArgs& a) {
     std::fprintf(stderr, "fovea-ctl classify: %zu samples, method %s (online latency %.0f ms):", input.samples.size(),
                  a.method.c_str(), cl::make_classifier(a.method, options)->latency_s() * 1000);
     for (const auto& [k, n] : counts) std::fprintf(stderr, " %zu %s", n, k.c_str());
+    if (input.lost_nan > 0 || lost_at.set) {
+      std::fprintf(stderr, "\nfovea-ctl classify: %zu rows without a gaze point (x_px or y_px nan or empty)", input.lost_nan);
+      if (lost_at.set) std::fprintf(stderr, " and %zu at the --lost-at point %s", input.lost_at, a.lost_at->c_str());
+    }
     if (a.renumber) {
       std::fprintf(stderr, "\nfovea-ctl classify: renumbered %zu of %zu rows at %g Hz (missing or broken t_ms)",
                    input.renumbered, input.samples.size(), a.rate_hz);
@@ -467,7 +499,7 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
   // classify: offline eye-movement classification (trackerd/CLASSIFY.md)
   auto* classify = app.add_subcommand("classify", "label every gaze sample of a CSV (t_ms,x_px,y_px) as fixation, "
                                                   "saccade, pso, pursuit, blink, lost or unknown");
-  classify->add_option("IN", cls.in_path, "input CSV with header t_ms,x_px,y_px (nan marks a lost sample)")
+  classify->add_option("IN", cls.in_path, "input CSV with header t_ms,x_px,y_px (nan or an empty x_px/y_px marks a lost sample)")
       ->required()
       ->check(CLI::ExistingFile);
   classify->add_option("OUT", cls.out_path, "output CSV t_ms,label, one row per input row (refuses to overwrite)")
@@ -492,6 +524,9 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
                      "number rows at RATE_HZ where t_ms is missing, not a number or not after the previous row's "
                      "(real exports hold NaN, zero or reset timestamps), and accept a header x_px,y_px without "
                      "times; OUT shows the numbered times, and the count is reported");
+  classify->add_option("--lost-at", cls.lost_at,
+                       "X,Y: rows at exactly this point are lost samples too (many exports write a fixed point, often "
+                       "0,0, for them); the count is reported");
   classify->add_flag("--final-times", cls.final_times,
                      "add a column final_ms: the t_ms of the newest row pushed when the label became final (the "
                      "classifier runs online, one row at a time, as in the daemon): final_ms - t_ms is its latency");
