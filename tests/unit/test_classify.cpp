@@ -308,6 +308,58 @@ TEST(Classify, PursuitRamp) {
   }
 }
 
+// tangent_vector: per-axis angle changes as the eye's rotation, exact for small changes anywhere.
+TEST(Classify, TangentVectorIsTheTrueAngularChange) {
+  const TangentVector c = tangent_vector(0, 0, 3, -4);
+  EXPECT_NEAR(c.x, 3, 1e-12);
+  EXPECT_NEAR(c.y, -4, 1e-12);
+  // At 40 deg horizontal eccentricity a per-axis vertical change is cos 40 deg of an angle, a
+  // horizontal one exactly one.
+  const TangentVector v = tangent_vector(40, 0, 0, 1);
+  EXPECT_NEAR(v.x, 0, 1e-12);
+  EXPECT_NEAR(v.y, std::cos(40 * std::numbers::pi / 180), 1e-12);
+  EXPECT_NEAR(tangent_vector(40, 0, 1, 0).x, 1, 1e-12);
+  // Anywhere, the length of a small change is the angle between the two directions, and its first
+  // axis follows increasing x (same sign as dx where dy = 0).
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> pos(-60, 60), dir(0, 2 * std::numbers::pi);
+  for (int i = 0; i < 200; ++i) {
+    const double x = pos(rng), y = pos(rng), a = dir(rng), h = 1e-4;
+    const double dx = h * std::cos(a), dy = h * std::sin(a);
+    const TangentVector w = tangent_vector(x, y, dx, dy);
+    EXPECT_NEAR(std::hypot(w.x, w.y), angle_between_deg(x, y, x + dx, y + dy), 1e-4 * h) << x << "," << y;
+    EXPECT_GT(tangent_vector(x, y, h, 0).x, 0);
+    EXPECT_GT(tangent_vector(x, y, 0, h).y, 0);
+  }
+}
+
+// A movement's label does not depend on where on the screen it happens: per-axis angles overstated
+// a vertical pursuit at 25 deg/s, 50 deg to the side (a wide screen or a headset), as 39 deg/s,
+// over the 30 deg/s saccade floor.
+TEST(Classify, AMovementsLabelDoesNotDependOnItsEccentricity) {
+  const double deg = std::numbers::pi / 180;
+  for (const double rate : {250.0, 1000.0}) {
+    Script sc;
+    sc.rate = rate;
+    sc.noise = 0.01;
+    // Along the great circle through (azimuth, 0) and straight up, at 25 deg/s for 0.6 s.
+    const auto vertical_pursuit = [&](double azimuth) {
+      return sample(sc, 1.4, [azimuth, deg](double t) {
+        const double phi = 25 * std::clamp(t - 0.3, 0.0, 0.6) * deg;
+        return std::pair{azimuth, std::atan(std::tan(phi) / std::cos(azimuth * deg)) / deg};
+      });
+    };
+    const auto centre = vertical_pursuit(0), side = vertical_pursuit(50);
+    const auto lc = classify_all("ivvt", rate, centre), ls = classify_all("ivvt", rate, side);
+    SCOPED_TRACE(rate);
+    EXPECT_EQ(share(ls, 0, ls.size(), Label::Saccade), 0.0) << "25 deg/s is no saccade, anywhere";
+    EXPECT_GT(share(ls, index_at(side, 0.45), index_at(side, 0.85), Label::Pursuit), 0.95);
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < lc.size(); ++i) differ += lc[i] != ls[i] ? 1u : 0u;
+    EXPECT_LE(differ, 2u) << "the same movement, 50 deg to the side";
+  }
+}
+
 // The eye drifting on by `deg` after a saccade that ended at `end`, settling within ~0.1 s: what
 // pupil-based trackers show after a saccade (Nystrom, Hooge & Holmqvist 2013).
 namespace {

@@ -8,8 +8,10 @@
 //
 //  1. Velocity: least-squares slope over a 20 ms window centred on the sample (at least one
 //     neighbour each side) -- a first-order Savitzky-Golay differentiator, as in Nystrom &
-//     Holmqvist 2010 and REMoDNaV (19 ms).
-//  2. Noise: sigma, the tracker's per-axis position noise, from the median absolute deviation of
+//     Holmqvist 2010 and REMoDNaV (19 ms) -- of the per-axis angles, turned into the eye's true
+//     angular velocity at the sample (tangent_vector: per-axis angles overstate movements off the
+//     axes, by 1 / cos 40 deg = 1.31 for a vertical one at 40 deg horizontal eccentricity).
+//  2. Noise: sigma, the tracker's position noise per tangent axis, from the median absolute deviation of
 //     each sample from the line through its neighbours (a robust second difference, insensitive to
 //     saccades and linear motion), over the last 1 s. The velocity noise of a sample is then
 //     sigma_v = sigma / sqrt(sum (t - mean t)^2) over its window.
@@ -106,7 +108,7 @@ class IvvtCore final : public Core {
   struct Entry {
     Prepared p;
     double v = kNaN;     // speed, deg/s (NaN: no neighbour to differentiate against)
-    double vx = 0, vy = 0;  // the velocity itself
+    double vx = 0, vy = 0;  // the velocity itself, in the tangent frame at the sample (tangent_vector)
     double sv = 0;       // velocity noise (sigma_v) at this sample
     double sigma = 0;    // position noise estimate when the velocity was computed
     bool marked = false;
@@ -116,7 +118,7 @@ class IvvtCore final : public Core {
     bool moving = false;     // the low-pass slope says the eye moves
     bool cut_left = false;   // that window begins at a saccade less than its half-width before
     double sx = 0, sy = 0;   // low-pass position: the window's least-squares line at the sample
-    double dx = 0, dy = 0;   // the line's slope (deg/s)
+    double dx = 0, dy = 0;   // the line's slope as an angular velocity (tangent_vector), deg/s
   };
 
   Entry& at(std::uint64_t k) { return buf_[static_cast<std::size_t>(k - base_)]; }
@@ -159,8 +161,9 @@ class IvvtCore final : public Core {
     e.sigma = sigma_;
     if (a != b) {
       const Fit f = fit(a, b);
-      e.v = std::hypot(f.vx, f.vy);
-      e.vx = f.vx, e.vy = f.vy;
+      const TangentVector w = tangent_vector(e.p.x, e.p.y, f.vx, f.vy);  // the true angular velocity
+      e.v = std::hypot(w.x, w.y);
+      e.vx = w.x, e.vy = w.y;
       e.sv = f.stt > 0 ? sigma_ / std::sqrt(f.stt) : 0;
     }
     saccade_step(k);
@@ -173,8 +176,10 @@ class IvvtCore final : public Core {
     if (p0.kind != Prepared::Kind::Gaze || p1.kind != Prepared::Kind::Gaze || p2.kind != Prepared::Kind::Gaze) return;
     const double w = (p1.t - p0.t) / (p2.t - p0.t);
     const double c = std::sqrt(1 + w * w + (1 - w) * (1 - w));  // residual SD in units of sigma
-    residuals_.push_back({p1.t, std::abs(p1.x - (p0.x + w * (p2.x - p0.x))) / c});
-    residuals_.push_back({p1.t, std::abs(p1.y - (p0.y + w * (p2.y - p0.y))) / c});
+    // Measured as true angles, as the velocities are (tangent_vector).
+    const TangentVector off = tangent_vector(p1.x, p1.y, p1.x - (p0.x + w * (p2.x - p0.x)), p1.y - (p0.y + w * (p2.y - p0.y)));
+    residuals_.push_back({p1.t, std::abs(off.x) / c});
+    residuals_.push_back({p1.t, std::abs(off.y) / c});
     while (!residuals_.empty() && (residuals_.front().first < p1.t - kNoiseWindowS || residuals_.size() > kNoiseMaxResiduals)) {
       residuals_.pop_front();
     }
@@ -240,8 +245,10 @@ class IvvtCore final : public Core {
         return;
       }
       state_ = State::Pso;
-      const double dx = e.p.x - sac_x0_, dy = e.p.y - sac_y0_, a = std::hypot(dx, dy);
-      sac_ux_ = a > 0 ? dx / a : 0, sac_uy_ = a > 0 ? dy / a : 0;  // the saccade's direction
+      // The saccade's direction, in the frame of the velocities.
+      const TangentVector d = tangent_vector(e.p.x, e.p.y, e.p.x - sac_x0_, e.p.y - sac_y0_);
+      const double a = std::hypot(d.x, d.y);
+      sac_ux_ = a > 0 ? d.x / a : 0, sac_uy_ = a > 0 ? d.y / a : 0;
       pso_start_ = k;
       pso_end_t_ = e.p.t + kPsoMaxS;
       pso_thr_ = e.v + std::max(kPsoK * e.sv, kPsoMinRiseDegS);
@@ -283,10 +290,11 @@ class IvvtCore final : public Core {
     const Fit fw = fit(a, b);
     if (!(fw.stt > 0)) return;
     const double threshold = std::max(kPursuitFloorDegS, kPursuitK * e.sigma / std::sqrt(fw.stt));
-    e.moving = std::hypot(fw.vx, fw.vy) > threshold;
-    e.sx = fw.mx + fw.vx * (t - fw.mt);
+    const TangentVector w = tangent_vector(e.p.x, e.p.y, fw.vx, fw.vy);
+    e.moving = std::hypot(w.x, w.y) > threshold;
+    e.sx = fw.mx + fw.vx * (t - fw.mt);  // per-axis angles, as the samples
     e.sy = fw.my + fw.vy * (t - fw.mt);
-    e.dx = fw.vx, e.dy = fw.vy;
+    e.dx = w.x, e.dy = w.y;
     e.cut_left = a > base_ && at(a - 1).marked && at(a).p.t > t - kSmoothHalfS;
   }
 
@@ -326,7 +334,7 @@ class IvvtCore final : public Core {
       if (q.p.t > e.p.t + kPursuitLookS) return Label::Fixation;
       if (!q.smoothed) return flushing ? std::optional<Label>(Label::Fixation) : std::nullopt;
       if (!q.moving) return Label::Fixation;  // the run ended within a fixation's range
-      if (std::hypot(q.sx - run_x_, q.sy - run_y_) >= kPursuitRangeDeg) {
+      if (angle_between_deg(q.sx, q.sy, run_x_, run_y_) >= kPursuitRangeDeg) {
         run_confirmed_ = true;
         return Label::Pursuit;
       }

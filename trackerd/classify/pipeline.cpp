@@ -129,4 +129,21 @@ void BlinkEdges::push(const Labeled& l, double t, std::vector<Labeled>& out) {
   }
 }
 
+// The direction is u = T / L with T = (tan x, tan y, 1), L = |T|; a change dT = (sec^2 x dx,
+// sec^2 y dy, 0) turns it by du = (dT - u (u . dT)) / L. In the orthonormal frame e1 = the unit
+// part of (1, 0, 0) orthogonal to u, e2 = u x e1, both orthogonal to u, du's components are
+// dT . e1 / L and dT . e2 / L.
+TangentVector tangent_vector(double x_deg, double y_deg, double dx, double dy) {
+  const double tx = std::tan(x_deg * kDegToRad), ty = std::tan(y_deg * kDegToRad);
+  const double l = std::sqrt(1 + tx * tx + ty * ty);
+  const double ux = tx / l, uy = ty / l, uz = 1 / l;
+  const double dtx = (1 + tx * tx) * dx, dty = (1 + ty * ty) * dy;
+  const double n1 = std::sqrt(1 - ux * ux);  // |(1, 0, 0) - u ux| > 0: |x_deg| < 90
+  const double e1x = (1 - ux * ux) / n1, e1y = -ux * uy / n1;
+  // e2 = u x e1 with e1z = -ux uz / n1: its x and y components.
+  const double e1z = -ux * uz / n1;
+  const double e2x = uy * e1z - uz * e1y, e2y = uz * e1x - ux * e1z;
+  return {(dtx * e1x + dty * e1y) / l, (dtx * e2x + dty * e2y) / l};
+}
+
 }  // namespace fovea::trackerd::classify

@@ -140,6 +140,16 @@ inline double angle_between_deg(double ax, double ay, double bx, double by) {
   return protocol::angle_between_deg({ax, ay}, {bx, by});
 }
 
+// A rate of change (or a small change) of the per-axis angles, (dx, dy), at the gaze direction
+// (x_deg, y_deg), as the eye's rotation: its components in the tangent frame of that direction whose
+// first axis points along increasing x, so that its length is the true angular speed (or angle).
+// Per-axis angles overstate movements off the axes: a vertical one at 40 deg horizontal eccentricity
+// reads 1 / cos 40 deg = 1.31 times too fast, which pushes pursuit over a saccade threshold.
+struct TangentVector {
+  double x = 0, y = 0;
+};
+TangentVector tangent_vector(double x_deg, double y_deg, double dx, double dy);
+
 // The cores of each method (one file each).
 std::unique_ptr<Core> make_ivt_core();      // ivt.cpp
 std::unique_ptr<Core> make_idt_core();      // idt.cpp

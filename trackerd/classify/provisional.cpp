@@ -109,7 +109,9 @@ void ProvisionalDetector::velocity(Point& newest) {
     sxt += dt * (recent_[j].x - mx);
     syt += dt * (recent_[j].y - my);
   }
-  newest.v = stt > 0 ? std::hypot(sxt / stt, syt / stt) : 0;
+  // The true angular speed at the newest point (tangent_vector), as ivvt's.
+  const TangentVector w = stt > 0 ? tangent_vector(newest.x, newest.y, sxt / stt, syt / stt) : TangentVector{};
+  newest.v = std::hypot(w.x, w.y);
   const double prior = stt > 0 ? kPriorK * kNoisePriorDeg / std::sqrt(stt) : 0;
   threshold_ = std::max(o_.peak_floor_deg_s, measured_ ? speed_threshold_ : prior);
 }
