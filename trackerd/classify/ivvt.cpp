@@ -68,6 +68,7 @@ constexpr double kNoiseWindowS = 1.0;      // trailing window of the noise estim
 constexpr double kNoisePriorDeg = 0.05;    // until 16 residuals are in: a typical video tracker
 constexpr std::size_t kNoiseMaxResiduals = 4096;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+const double kCosPursuitRange = std::cos(kPursuitRangeDeg * kDegToRad);
 
 struct Fit {
   double vx = 0, vy = 0, stt = 0;
@@ -80,7 +81,10 @@ class IvvtCore final : public Core {
   double latency_s() const override { return kVelHalfS + kSmoothHalfS + kPursuitLookS; }
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
-    buf_.push_back(Entry{p});
+    Entry e;
+    e.p = p;
+    if (p.has_gaze()) e.tangent = tangent_map(p.x, p.y);
+    buf_.push_back(e);
     ++count_;
     newest_t_ = p.t;
     if (!p.has_gaze()) {
@@ -107,6 +111,7 @@ class IvvtCore final : public Core {
  private:
   struct Entry {
     Prepared p;
+    TangentMap tangent;  // per-axis changes at the sample -> the eye's rotation (tangent_vector)
     double v = kNaN;     // speed, deg/s (NaN: no neighbour to differentiate against)
     double vx = 0, vy = 0;  // the velocity itself, in the tangent frame at the sample (tangent_vector)
     double sv = 0;       // velocity noise (sigma_v) at this sample
@@ -117,7 +122,7 @@ class IvvtCore final : public Core {
     bool smoothed = false;
     bool moving = false;     // the low-pass slope says the eye moves
     bool cut_left = false;   // that window begins at a saccade less than its half-width before
-    double sx = 0, sy = 0;   // low-pass position: the window's least-squares line at the sample
+    Direction s_dir;         // low-pass position: the window's least-squares line at the sample
     double dx = 0, dy = 0;   // the line's slope as an angular velocity (tangent_vector), deg/s
   };
 
@@ -161,7 +166,7 @@ class IvvtCore final : public Core {
     e.sigma = sigma_;
     if (a != b) {
       const Fit f = fit(a, b);
-      const TangentVector w = tangent_vector(e.p.x, e.p.y, f.vx, f.vy);  // the true angular velocity
+      const TangentVector w = e.tangent(f.vx, f.vy);  // the true angular velocity
       e.v = std::hypot(w.x, w.y);
       e.vx = w.x, e.vy = w.y;
       e.sv = f.stt > 0 ? sigma_ / std::sqrt(f.stt) : 0;
@@ -177,7 +182,7 @@ class IvvtCore final : public Core {
     const double w = (p1.t - p0.t) / (p2.t - p0.t);
     const double c = std::sqrt(1 + w * w + (1 - w) * (1 - w));  // residual SD in units of sigma
     // Measured as true angles, as the velocities are (tangent_vector).
-    const TangentVector off = tangent_vector(p1.x, p1.y, p1.x - (p0.x + w * (p2.x - p0.x)), p1.y - (p0.y + w * (p2.y - p0.y)));
+    const TangentVector off = at(k).tangent(p1.x - (p0.x + w * (p2.x - p0.x)), p1.y - (p0.y + w * (p2.y - p0.y)));
     residuals_.push_back({p1.t, std::abs(off.x) / c});
     residuals_.push_back({p1.t, std::abs(off.y) / c});
     while (!residuals_.empty() && (residuals_.front().first < p1.t - kNoiseWindowS || residuals_.size() > kNoiseMaxResiduals)) {
@@ -246,7 +251,7 @@ class IvvtCore final : public Core {
       }
       state_ = State::Pso;
       // The saccade's direction, in the frame of the velocities.
-      const TangentVector d = tangent_vector(e.p.x, e.p.y, e.p.x - sac_x0_, e.p.y - sac_y0_);
+      const TangentVector d = e.tangent(e.p.x - sac_x0_, e.p.y - sac_y0_);
       const double a = std::hypot(d.x, d.y);
       sac_ux_ = a > 0 ? d.x / a : 0, sac_uy_ = a > 0 ? d.y / a : 0;
       pso_start_ = k;
@@ -290,10 +295,9 @@ class IvvtCore final : public Core {
     const Fit fw = fit(a, b);
     if (!(fw.stt > 0)) return;
     const double threshold = std::max(kPursuitFloorDegS, kPursuitK * e.sigma / std::sqrt(fw.stt));
-    const TangentVector w = tangent_vector(e.p.x, e.p.y, fw.vx, fw.vy);
+    const TangentVector w = e.tangent(fw.vx, fw.vy);
     e.moving = std::hypot(w.x, w.y) > threshold;
-    e.sx = fw.mx + fw.vx * (t - fw.mt);  // per-axis angles, as the samples
-    e.sy = fw.my + fw.vy * (t - fw.mt);
+    e.s_dir = direction(fw.mx + fw.vx * (t - fw.mt), fw.my + fw.vy * (t - fw.mt));  // per-axis angles, as the samples
     e.dx = w.x, e.dy = w.y;
     e.cut_left = a > base_ && at(a - 1).marked && at(a).p.t > t - kSmoothHalfS;
   }
@@ -321,7 +325,7 @@ class IvvtCore final : public Core {
     if (!run_open_) {
       run_open_ = true;
       run_confirmed_ = false;
-      run_x_ = e.sx, run_y_ = e.sy;
+      run_start_ = e.s_dir;
     }
     if (e.cut_left) {
       if (before_saccade_ != Label::Pursuit || !same_direction(e.dx, e.dy, pursuit_dx_, pursuit_dy_)) return Label::Fixation;
@@ -334,7 +338,7 @@ class IvvtCore final : public Core {
       if (q.p.t > e.p.t + kPursuitLookS) return Label::Fixation;
       if (!q.smoothed) return flushing ? std::optional<Label>(Label::Fixation) : std::nullopt;
       if (!q.moving) return Label::Fixation;  // the run ended within a fixation's range
-      if (angle_between_deg(q.sx, q.sy, run_x_, run_y_) >= kPursuitRangeDeg) {
+      if (q.s_dir.dot(run_start_) <= kCosPursuitRange) {  // the angle between them >= kPursuitRangeDeg
         run_confirmed_ = true;
         return Label::Pursuit;
       }
@@ -399,7 +403,7 @@ class IvvtCore final : public Core {
   double pursuit_dx_ = 0, pursuit_dy_ = 0;  // the direction of the last pursuit sample
   bool run_open_ = false;       // the samples labelled last were a run of moving samples
   bool run_confirmed_ = false;  // ... that has moved a fixation's range: pursuit
-  double run_x_ = 0, run_y_ = 0;  // the low-pass position where the run began
+  Direction run_start_;  // the low-pass position where the run began
 
   std::deque<std::pair<double, double>> residuals_;  // (time, |residual| / its SD factor)
   std::vector<double> scratch_;

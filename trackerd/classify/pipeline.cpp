@@ -133,17 +133,18 @@ void BlinkEdges::push(const Labeled& l, double t, std::vector<Labeled>& out) {
 // sec^2 y dy, 0) turns it by du = (dT - u (u . dT)) / L. In the orthonormal frame e1 = the unit
 // part of (1, 0, 0) orthogonal to u, e2 = u x e1, both orthogonal to u, du's components are
 // dT . e1 / L and dT . e2 / L.
-TangentVector tangent_vector(double x_deg, double y_deg, double dx, double dy) {
+TangentMap tangent_map(double x_deg, double y_deg) {
   const double tx = std::tan(x_deg * kDegToRad), ty = std::tan(y_deg * kDegToRad);
   const double l = std::sqrt(1 + tx * tx + ty * ty);
   const double ux = tx / l, uy = ty / l, uz = 1 / l;
-  const double dtx = (1 + tx * tx) * dx, dty = (1 + ty * ty) * dy;
   const double n1 = std::sqrt(1 - ux * ux);  // |(1, 0, 0) - u ux| > 0: |x_deg| < 90
   const double e1x = (1 - ux * ux) / n1, e1y = -ux * uy / n1;
   // e2 = u x e1 with e1z = -ux uz / n1: its x and y components.
   const double e1z = -ux * uz / n1;
   const double e2x = uy * e1z - uz * e1y, e2y = uz * e1x - ux * e1z;
-  return {(dtx * e1x + dty * e1y) / l, (dtx * e2x + dty * e2y) / l};
+  // dT = (sx dx, sy dy, 0): the map's columns are sx e1 / l, sy e2 / l (rows: e1, e2 components).
+  const double sx = (1 + tx * tx) / l, sy = (1 + ty * ty) / l;
+  return {sx * e1x, sy * e1y, sx * e2x, sy * e2y};
 }
 
 }  // namespace fovea::trackerd::classify

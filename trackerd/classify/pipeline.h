@@ -148,7 +148,26 @@ inline double angle_between_deg(double ax, double ay, double bx, double by) {
 struct TangentVector {
   double x = 0, y = 0;
 };
-TangentVector tangent_vector(double x_deg, double y_deg, double dx, double dy);
+// The unit vector of a gaze direction given as per-axis angles: (tan x, tan y, 1) normalised.
+struct Direction {
+  double x = 0, y = 0, z = 1;
+  double dot(const Direction& o) const { return x * o.x + y * o.y + z * o.z; }
+};
+inline Direction direction(double x_deg, double y_deg) {
+  const double tx = std::tan(x_deg * kDegToRad), ty = std::tan(y_deg * kDegToRad);
+  const double l = std::sqrt(1 + tx * tx + ty * ty);
+  return {tx / l, ty / l, 1 / l};
+}
+
+// The same as a linear map at one direction, for callers that apply it to many changes there.
+struct TangentMap {
+  double xx = 1, xy = 0, yx = 0, yy = 1;
+  TangentVector operator()(double dx, double dy) const { return {xx * dx + xy * dy, yx * dx + yy * dy}; }
+};
+TangentMap tangent_map(double x_deg, double y_deg);
+inline TangentVector tangent_vector(double x_deg, double y_deg, double dx, double dy) {
+  return tangent_map(x_deg, y_deg)(dx, dy);
+}
 
 // The cores of each method (one file each).
 std::unique_ptr<Core> make_ivt_core();      // ivt.cpp
