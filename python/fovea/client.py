@@ -425,9 +425,18 @@ class GazeClient:
         with self._lock:
             return self._clock.known
 
-    def wait_clock(self, timeout: float) -> bool:
+    def wait_clock(self, timeout: float, exchanges: int = 1) -> bool:
+        """Waits until `exchanges` TIME_SYNC exchanges of this session have been accepted.
+
+        One gives an offset good to half its round trip; the first 4 come 50 ms apart, and with
+        `exchanges=4` the offset is the least-delay one of them (what `fovea-ctl mark --time-ns`
+        waits for): use it before marking with a `client_time_ns`. The offset's error is then at
+        most `stats().clock_round_trip_ns / 2`.
+        """
+        if exchanges < 1:
+            raise ValueError(f"wait_clock: exchanges must be at least 1, not {exchanges}")
         with self._lock:
-            return self._changed.wait_for(lambda: self._clock.known, timeout)
+            return self._changed.wait_for(lambda: self._clock.accepted >= exchanges, timeout)
 
     def to_client_ns(self, server_ns: int) -> int:
         """A daemon time (sample, event, marker) on this host's CLOCK_MONOTONIC."""

@@ -148,7 +148,10 @@ class AgainstDaemon(unittest.TestCase):
         self.assertIsNotNone(back, "the marker did not come back on the marker stream")
         self.assertEqual((back.label, back.session_id, back.flags), ("python: stimulus on", 0, 0))
         self.assertEqual(back.time_ns, back.received_ns)
-        self.assertTrue(c.wait_clock(2.0))
+        self.assertTrue(c.wait_clock(2.0, exchanges=4))
+        self.assertGreaterEqual(c._clock.accepted, 4)
+        with self.assertRaises(ValueError):
+            c.wait_clock(1.0, exchanges=0)
         flip = monotonic_ns() - 20_000_000
         back = c.wait_marker(c.mark("flip", client_time_ns=flip), 2.0)
         self.assertTrue(back.client_time)
