@@ -1,6 +1,7 @@
 # Sourced by the tests of the tracker bridges (test_gazepoint.sh, test_pupil.sh), after they set
 # TRACKERD, CTL and SRC: a work directory removed at exit with the fake and the daemon, fail (which
 # shows both logs), a fake tracker from tests/fakes/ started and waited for, processes stopped cleanly.
+. "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
 WORK=$(mktemp -d)
 FPID="" DPID=""
 trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
@@ -30,7 +31,8 @@ stop() {
 # of it (a.fgr, b.fgr); 2.5 s in, SIGUSR1 makes the fake drop its connection or restart (WHAT says
 # which, for the log). Then the fake and the daemon stop cleanly. Needs TRACKERD, CTL.
 two_clients_across_a_restart() {
-  local port=$((49000 + RANDOM % 900))
+  local port
+  port=$(free_udp_port)
   "$TRACKERD" --source "$1" --port "$port" --control-socket none --log-level info >"$WORK/d.log" 2>&1 &
   DPID=$!
   sleep 0.5

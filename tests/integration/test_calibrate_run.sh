@@ -50,7 +50,8 @@ out=$("$CAL" run --out "$WORK/z.json" --server 127.0.0.1:1 --window 320x200 2>&1
 grep -q "no answer from fovea-trackerd" <<<"$out" || fail "unclear no-daemon message: $out"
 
 echo "== live: fovea-trackerd's synthetic viewer follows the targets fovea-calibrate shows"
-PORT=$((47000 + RANDOM % 900))
+. "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
+PORT=$(free_udp_port)
 "$TRACKERD" --source synthetic-eye --eye-script calibration:5:4 --eye-size 240x180 --port "$PORT" --control-dir "$WORK" \
   --log-level info >"$WORK/d.log" 2>&1 &
 DPID=$!

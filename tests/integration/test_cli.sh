@@ -7,7 +7,8 @@ PIDS=()
 cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null; done; rm -rf "$WORK"; }
 trap cleanup EXIT
 fail() { echo "FAIL: $*"; exit 1; }
-PORT=$(( 47900 + RANDOM % 1000 ))
+. "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
+PORT=$(free_udp_port)
 SRV=127.0.0.1:$PORT
 REC=$DATA/recordings/synthetic-250hz-62s.fgr
 

@@ -85,7 +85,7 @@ PY
 # into $WORK/NAME.csv; then daemon and fake stop. The daemon's log is $WORK/d.log.
 record_from_fake() {
   local spec=$1 name=$2 seconds=$3
-  PORT=$((49000 + RANDOM % 900))
+  PORT=$(free_udp_port)
   "$TRACKERD" --source "pupil:127.0.0.1:$FAKE_PORT$spec" --port "$PORT" --control-socket none --log-level info \
     >"$WORK/d.log" 2>&1 &
   DPID=$!

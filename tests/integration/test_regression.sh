@@ -7,6 +7,7 @@
 set -u
 TRACKERD=$1 CLIENT=$2 DATA=$3
 SPEED=1  # real time: the classifier must see real velocities
+. "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
 WORK=$(mktemp -d)
 DAEMON=""
 cleanup() { [ -n "$DAEMON" ] && kill -9 "$DAEMON" 2>/dev/null; rm -rf "$WORK"; }
@@ -17,7 +18,7 @@ for input in "$DATA"/*.fgr "$DATA"/*.csv; do
   [ -f "$input" ] || continue
   count=$((count + 1))
   name=$(basename "$input")
-  port=$(( 48900 + RANDOM % 900 ))
+  port=$(free_udp_port)
   "$TRACKERD" --source "replay:$input" --speed $SPEED --wait-subscribers 1 --port $port \
     >"$WORK/$name.daemon.log" 2>&1 &
   DAEMON=$!

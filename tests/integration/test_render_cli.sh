@@ -195,7 +195,8 @@ out=$("$RENDER" "${GOV[@]}" --headless --frames 1 --budget-ms 0 --out "$WORK/gov
 grep -q "^governor: budget 500.0 ms" "$WORK/viewer-gov.out" || fail "the viewer should report the governor: $(tail -3 "$WORK/viewer-gov.out")"
 
 echo "== two render clients against one daemon"
-PORT=$(( 48100 + RANDOM % 800 ))
+. "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
+PORT=$(free_udp_port)
 "$TRACKERD" --source "replay:$REC" --loop --port $PORT >"$WORK/daemon.log" 2>&1 &
 PIDS+=($!)
 for _ in $(seq 1 50); do "$CTL" --server 127.0.0.1:$PORT status >/dev/null 2>&1 && break; sleep 0.1; done

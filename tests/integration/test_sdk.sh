@@ -44,7 +44,8 @@ echo "== examples/client.cpp with pkg-config"
   >"$WORK/pc.log" 2>&1 || fail "pkg-config build: $(tail -10 "$WORK/pc.log")"
 
 echo "== each build against a running daemon"
-PORT=$((47000 + RANDOM % 900))
+. "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
+PORT=$(free_udp_port)
 "$TRACKERD" --port "$PORT" --control-socket none --duration 20 --log-level warn >"$WORK/d.log" 2>&1 &
 DPID=$!
 sleep 0.5

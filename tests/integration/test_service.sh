@@ -14,8 +14,9 @@ fail() {
   for f in "$WORK"/daemon*.log; do [ -f "$f" ] && { echo "--- $f"; tail -n 40 "$f"; }; done
   exit 1
 }
-PORT=$(( 48900 + RANDOM % 1000 ))
-PORT2=$(( PORT + 1000 ))
+. "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
+PORT=$(free_udp_port)
+PORT2=$(free_udp_port)
 SRV=127.0.0.1:$PORT
 
 wait_status() {  # SERVER
