@@ -12,7 +12,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -35,7 +34,7 @@ using namespace fovea::trackerd::eye;
 namespace {
 
 using fovea::test::exit_status;
-using fovea::test::random_port;
+using fovea::test::free_udp_port;
 using fovea::test::read_text;
 using fovea::test::wait_for;
 struct TempDir : fovea::test::TempDir {
@@ -55,7 +54,7 @@ std::vector<protocol::GazeSample> samples_of(const protocol::Recording& r) {
 
 TEST(EyeDaemon, SyntheticEyePublishesScreenGazeAndPupilData) {
   TempDir d;
-  const int port = random_port();
+  const int port = free_udp_port();
   // Seed 7 blinks 0.3 s in (and again within 3 s; checked below), so blink frames are exercised.
   const std::uint64_t seed = 7;
   const std::string daemon = std::string(FOVEA_TRACKERD_PATH) + " --source synthetic-eye --seed " +
@@ -145,7 +144,7 @@ TEST(EyeDaemon, EyeVideoGivesPupilDataButNoGazeWithoutCalibration) {
       w.write(bgr);
     }
   }
-  const int port = random_port();
+  const int port = free_udp_port();
   const std::string cmd = std::string(FOVEA_TRACKERD_PATH) + " --source video:" + video.string() +
                           " --exit-at-end --duration 10 --port " + std::to_string(port) + " --record " +
                           (d.path / "video.fgr").string() + " 2>" + (d.path / "daemon.log").string();

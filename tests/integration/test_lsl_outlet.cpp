@@ -31,7 +31,7 @@ const bool kDiscoveryConfined = [] { return ::setenv("LSLAPICFG", FOVEA_LSL_API_
 
 struct Daemon {
   TempDir dir{"fovea-lsl"};
-  int port = fovea::test::random_port();
+  int port = fovea::test::free_udp_port();
   std::filesystem::path log = dir.path / "daemon.log", rc = dir.path / "daemon.rc", fgr = dir.path / "daemon.fgr";
 
   explicit Daemon(double seconds) {

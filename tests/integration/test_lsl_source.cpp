@@ -62,7 +62,7 @@ TEST(LslSource, ReadsTheTrackersTrajectoryOnItsTimestampsAndAfterTheOutletRestar
   const std::string name = "tracker-" + std::to_string(::getpid());
   const auto go1 = d.path / "go1", go2 = d.path / "go2", quit = d.path / "quit";
   start_tracker_app(name, 0, 500, go1, "-", d.path / "app1.rc");
-  const int port = fovea::test::random_port();
+  const int port = fovea::test::free_udp_port();
   const auto log = d.path / "daemon.log", rc = d.path / "daemon.rc", fgr = d.path / "daemon.fgr";
   const std::string cmd = std::string(FOVEA_TRACKERD_PATH) + " --source 'lsl:" + name +
                           "?min_confidence=0.5' --duration 9 --port " + std::to_string(port) + " --record " + fgr.string();
@@ -117,7 +117,7 @@ TEST(LslSource, ChannelsTheMetadataDoesNotNameAreAProblemUntilTheSpecGivesThem) 
   start_tracker_app(name, 0, 1500, d.path / "go", "-", d.path / "app.rc", true);
   const auto log = d.path / "daemon.log";
   const std::string base = std::string(FOVEA_TRACKERD_PATH) + " --duration 3 --port " +
-                           std::to_string(fovea::test::random_port()) + " --source 'lsl:" + name;
+                           std::to_string(fovea::test::free_udp_port()) + " --source 'lsl:" + name;
   say_go(d.path / "go", lsl::local_clock());
   exit_status(base + "' 2>" + log.string());
   EXPECT_NE(read_text(log).find("names no ScreenX/ScreenY channels"), std::string::npos) << read_text(log);
