@@ -134,9 +134,8 @@ void BlinkEdges::push(const Labeled& l, double t, std::vector<Labeled>& out) {
 // part of (1, 0, 0) orthogonal to u, e2 = u x e1, both orthogonal to u, du's components are
 // dT . e1 / L and dT . e2 / L.
 TangentMap tangent_map(double x_deg, double y_deg) {
-  const double tx = std::tan(x_deg * kDegToRad), ty = std::tan(y_deg * kDegToRad);
-  const double l = std::sqrt(1 + tx * tx + ty * ty);
-  const double ux = tx / l, uy = ty / l, uz = 1 / l;
+  const Direction u = direction(x_deg, y_deg);
+  const double ux = u.x, uy = u.y, uz = u.z, l = 1 / uz, tx = ux * l, ty = uy * l;
   const double n1 = std::sqrt(1 - ux * ux);  // |(1, 0, 0) - u ux| > 0: |x_deg| < 90
   const double e1x = (1 - ux * ux) / n1, e1y = -ux * uy / n1;
   // e2 = u x e1 with e1z = -ux uz / n1: its x and y components.
