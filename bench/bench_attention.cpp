@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Visual attention tracking (Lee 2009 ch. 3): milliseconds per frame of AttentionTracker::update on
 // Embree G-buffers of renderer/scenes/attention.json over its 8 s animation, per saliency-map size,
 // split into the pixel saliency map (resampling, features, pyramids, eqs. 3.1-3.6) and the object

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What the tracker bridges cost and how well they keep time (issue 24): a fake tracker (Gazepoint
 // Control, Pupil Capture: tests/fakes/) with a known clock (offset and drift), a real
 // fovea-trackerd reading it, and a GazeClient subscriber in this process. Every sample received is

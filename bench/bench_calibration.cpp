@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Calibration accuracy versus cost (step 5): error against the number of calibration points and
 // the model, on the synthetic eye following a calibration (trackerd/sim/calibration_viewer.h) with
 // realistic fixation behaviour, image noise and a head offset.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Accuracy and cost of every eye-movement classifier on labelled synthetic gaze (the generator
 // knows the true movement of every sample), degraded the way real trackers degrade: sample rate
 // (60 Hz remote ... 1000 Hz lab tracker), added gaussian noise, random runs of lost samples, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Encode + decode cost per message, and the checksums used on the wire path and in recordings.
 #include <benchmark/benchmark.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CSF-driven peripheral ray casting (renderer/gi/csf_mask.h, Murphy 2007 ch. 4-5): rays cast versus
 // full resolution, and the time to build the ring mesh and ray mask and to refine and reconstruct an
 // analytic scene of a few discs, per image size, with the gaze at the centre and at a corner.

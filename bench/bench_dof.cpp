@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Depth of field, accuracy versus time (issue step 7): every method x mean CoC x scene against the
 // thin-lens distributed-ray-tracing reference (renderer/dof/reference.h), at 1024x768 by default.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Embree G-buffer throughput at 1024x768: primary rays per second for each traversal mode (single
 // rays, packets of 4/8/16, rtcIntersect1M streams) and geometry mode (flattened world-space
 // meshes vs instances), with and without shading (shading always with shadow rays).

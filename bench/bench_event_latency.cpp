@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Event latency through the real daemon (issue 25 goal 4): a fovea-trackerd process serves its
 // synthetic viewer (seeded, so this program regenerates the ground truth: which movement each
 // sample is) with the default classifier, and one GazeClient on loopback subscribes to samples,

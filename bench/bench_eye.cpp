@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pupil-detector accuracy versus time on generated infrared eye sequences with exact ground truth.
 //
 // For each resolution (192x192, 320x240, 640x480) and image set (clean; the hard conditions one at a

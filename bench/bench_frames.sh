@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Whole-frame pass breakdown: renders every bundled scene headless with each backend and prints the
 # per-pass timing summary from the one timing instrument (timings.csv).
 # Usage: bench/bench_frames.sh [BUILD_DIR] [FRAMES] [WIDTHxHEIGHT]

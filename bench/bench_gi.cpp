@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Gaze-directed hybrid rendering with photon mapping (Jensen & Pedersen 2009): the thesis's tables
 // on this machine, and accuracy against a converged reference.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // OpenGL raster G-buffer backend under Mesa llvmpipe: frame time with read-back (what the pipeline
 // pays: render + glReadPixels of the five targets + row flip) and without (render + glFinish), at
 // 640x480 and 1024x768, for the procedural Cornell-like and many-objects scenes and every bundled

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The frame kept on the GPU against the readback path, side by side in one run: fovea-render headless
 # with the OpenGL backend through EGL (no X), each configuration rendered by both paths one after the
 # other (frame.gpu=false: the G-buffer read back and every pass on the CPU; frame.gpu=true: G-buffer,

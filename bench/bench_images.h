@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What the benchmarks hand to image-based peers (OpenCV saliency): the display image.
 #include <cstdint>

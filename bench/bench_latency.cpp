@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Loopback latency of the gaze stream: a real fovea-trackerd process publishing synthetic gaze,
 // and N GazeClient subscribers in this process. For each N it reports, over all clients:
 //   age      - the sample's capture (due) time on the daemon to the client callback

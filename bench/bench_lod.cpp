@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Level of detail (Lee 2009 Fig. 7.4/7.5): frame time against the number of visible objects for
 // NOLOD, ULOD2..ULOD5 and each selection policy, with the triangles drawn and the image error against
 // full detail inside the gazed region and in the periphery.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # lod.switch_in_saccades (issue 25 goal 3): level changes moved into saccades, where saccadic
 # suppression hides them, against blending (ULOD) or switching whenever the level moves (the other
 # policies). Renders a field of 40 LOD objects (the bundled blob with its 4-level chain, on a 8 x 5

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The LSL outlet's cost (issue 27, "Measure"), side by side in one run: for 1, 8 and 32 consumers
 // (liblsl inlets, one thread each, on this machine), the latency from a sample's timestamp to its
 // receipt by an inlet, p50/p99,

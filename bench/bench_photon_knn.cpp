@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Side by side: fovea's photon kd-tree (renderer/gi/photon_map.h, Jensen's left-balanced tree) against
 // nanoflann (Debian's libnanoflann-dev), on real photon maps of cornell.json and the queries the GI
 // render makes (the surface points seen inside a 20 deg gaze area at 640x480): build time, k-nearest

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Attention prediction accuracy (Lee 2009 §3.5): replays a gaze recording (.fgr) against a scene's
 // playback and reports A1/A2/A3 (the gazed object is among the top 1/2/3 predicted objects), the
 // feature-group ablation of Lee's Table 3.2 (B, E, T on/off, 8 combinations), the random-pixel

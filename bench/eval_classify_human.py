@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Agreement of fovea's classifiers with a human coder, on real recordings (issue 25).
 
 Reads the human-coded IRF lookAtPoint_EL sessions (EyeLink 1000 Plus, 1000 Hz; ../shared/data, see

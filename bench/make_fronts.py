@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Builds the governor's accuracy-versus-time fronts (renderer/governor/fronts.json) from the
 benchmarks' checked-in CSVs: every option is a set of render settings with the time it took and the
 accuracy it reached against the effect's reference, and only the Pareto-optimal ones are kept (no

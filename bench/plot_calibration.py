@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Plots bench/results/bench_calibration.csv (bench_calibration) as calibration error versus the
 number of calibration points, one line per model; panels: input (pupil-glint vector / the tracker's
 factory-calibrated screen gaze) x head offset (0 / the bench's offset). Solid: normal imaging,

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Plots bench/results/bench_dof.csv (bench_dof): for each scene, PSNR against the thin-lens
 ray-traced reference versus the mean CoC (left) and versus ms/frame (right: accuracy against cost,
 one point per method and CoC). Usage: plot_dof.py [CSV] [PNG]."""

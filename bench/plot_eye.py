@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Plots bench_eye's CSV: pupil-centre error against ms/frame per detector variant.
 
 usage: bench/plot_eye.py bench_eye.csv out.png

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Plots bench_gi's CSVs (bench/results/gi/): relative RMSE in the gaze area against ms/frame per
 strategy and estimate (left: accuracy against cost, one point per photon count), and photons in the
 gaze area per scene and gaze-area size (right). Usage: plot_gi.py [CSV_DIR] [PNG]."""

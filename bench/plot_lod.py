@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """Plots bench/results/bench_lod.csv (bench_lod). Top row: ms/frame against visible objects per
 condition (Lee 2009 Fig. 7.4/7.5), one panel per model and backend. Bottom row: at the largest count,
 image error against time (PSNR inside the attended objects and in the periphery against ms/frame),

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The CPU time a process has used, from /proc: the benchmarks that run fovea-trackerd as a process
 // report its cost as a share of one core.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Builds liblsl (the Lab Streaming Layer library, which Debian does not package) from the source kept
 # in ../shared/third_party into a cached prefix, for this project's own CI and tests (issue 27). Users
 # install upstream's release .deb instead (README, "Lab Streaming Layer").

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Builds fovea's Debian packages and checks what they hold (issue 26 item 4; README "Install"):
 #   deploy/build-packages.sh [--out DIR] [--check-only DIR] [--tests]
 # Copies the tree (tracked and untracked, not ignored) to a scratch directory, runs

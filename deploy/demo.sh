@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea's main job on bundled defaults, no hardware needed:
 #   installs dependencies if missing, builds, starts fovea-trackerd replaying the bundled gaze
 #   recording, connects four clients — fovea-ctl watch (live lines), fovea-ctl record (a .fgr file)

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Installs every Debian 12 package fovea needs to build, test, benchmark and run.
 # This file is the only place package names are listed. Idempotent: packages
 # already present are not reinstalled, and nothing happens when all are there.

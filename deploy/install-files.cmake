@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Runs at install time (deploy/CMakeLists.txt sets the FOVEA_* variables before it): writes the
 # systemd unit with the installed binary's and configuration's paths, and installs the example
 # configuration unless one is already there.

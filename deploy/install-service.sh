@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Installs fovea-trackerd as a systemd service. Idempotent: run it again after a rebuild to update
 # the binaries, the unit and the udev rules; an existing /etc/fovea/trackerd.toml is never touched.
 #

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea's test command (README command 2; .ci/run runs exactly this):
 #   installs dependencies if missing, builds the normal and the ASan+UBSan configurations (and the
 #   libFuzzer targets when clang is present), runs ctest on each, runs the quick accuracy-cost report

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Runs a command with its own Xvfb server, for what opens an X window (fovea-render's viewer,
 # fovea-calibrate's target window): Mesa llvmpipe OpenGL, no GPU or real display needed. Headless
 # OpenGL (fovea-render --headless, the GL tests and benchmarks) needs no X server: it uses EGL.

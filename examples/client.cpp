@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A fovea client in 30 lines: subscribe to fovea-trackerd, print every fixation as soon as the
 // daemon says it (provisional, at the saccade's landing) and the gaze once a second.
 //   fovea-example-client [HOST:PORT] [SECONDS]     (defaults 127.0.0.1:47800, 5)

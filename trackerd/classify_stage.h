@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The daemon's online classification stage: labels each published sample with the classifier's
 // latest final label and builds GAZE_EVENT start/end messages from runs of final labels

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The fovea-trackerd main loop: paces a GazeSource in real time, passes each item through the
 // calibration stage (and, with step 3's classifier, the online classifier), publishes it through

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What reload, record-start and calibration-load change, prepared off the publishing loop (issue 23:
 // nothing slow on the publishing thread). The control thread and the SIGHUP worker read the

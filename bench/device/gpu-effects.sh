@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The perceptual effects on a machine with an NVIDIA GPU, in one command (issue 22's targets at
 # 1920x1080), whole attention.json frames on the GPU path against the readback path, same run, same
 # card (bench/bench_gpu_frame.sh; gpu-side ms per pass from timer queries):

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The frame benchmark on a machine with an NVIDIA GPU, in one command, from the bundle that
 # bench/device/make-bundle.sh made here (.gpu-bundle, carried): unpacks fovea-render and its
 # libraries, makes EGL find the NVIDIA driver, and runs bench/bench_gpu_frame.sh (readback path and

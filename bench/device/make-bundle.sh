@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Packs fovea-render and the shared libraries it needs (from ldd) into .gpu-bundle/bundle.tar.xz, for
 # the GPU machine, which has no package registry: bench/device/gpu-frame.sh unpacks and runs it there.
 # Left out: glibc (the machine's own is newer), libstdc++/libgcc_s (likewise), and the OpenGL/EGL

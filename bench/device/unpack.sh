@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Sourced by the device scripts (gpu-frame.sh, gpu-effects.sh): unpacks the bundle that
 # bench/device/make-bundle.sh made here (.gpu-bundle, carried) into $run, makes EGL find the NVIDIA
 # driver, and says which card and driver the figures come from.

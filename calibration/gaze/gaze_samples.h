@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Calibration inputs from the gaze protocol's samples: the one conversion of a GAZE_SAMPLE into the
 // raw point and state a calibration collects (session.h). A separate small library

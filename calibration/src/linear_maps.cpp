@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "fovea/calib/linear_maps.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Reading the CSV files of fovea-calibrate (POINTS.csv, raw streams): a fixed header, numbers only,
 // errors that name the file, line and column.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-calibrate: fits calibration files from calibration points and applies them to raw streams.
 // calibration/CALIBRATION.md documents the commands and the file format.
 #include <CLI/CLI.hpp>

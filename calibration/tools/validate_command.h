@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // fovea-calibrate validate CAL.json --points POINTS.csv [--report DIR] [--display WxH@WMMxHMMmm,DISTmm]
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The validation report of `fovea-calibrate validate --report DIR` (calibration/CALIBRATION.md):
 //   report.md     title, display, the per-target table (markdown), overall summary, how the figures

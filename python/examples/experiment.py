@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """A gaze-contingent loop for experimenters: print fixations, and put a marker on the gaze clock at
 each "stimulus".
 

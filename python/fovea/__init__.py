@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """fovea: pure-Python client of fovea-trackerd (gaze protocol v1) and reader of .fgr recordings."""
 
 from .protocol import (  # noqa: F401

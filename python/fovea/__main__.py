@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Command line: python3 -m fovea {status,watch,info} (a small subset of fovea-ctl, for checking a setup)."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """GazeClient: subscribes to fovea-trackerd, keeps the subscription alive, resubscribes by itself.
 
 Behaviour follows the reference client (protocol/src/client.cpp, PROTOCOL.md sections 6.6, 10, 11

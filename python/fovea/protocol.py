@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The fovea gaze protocol, version 1: message dataclasses, encoder and strict decoder.
 
 Byte layouts and validation rules are those of protocol/PROTOCOL.md (sections 2-5); the reference

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Gaze recordings (.fgr): reader with recovery, and a writer.
 
 Byte layout and recovery rules: protocol/RECORDING.md; the reference is protocol/src/recording.cpp

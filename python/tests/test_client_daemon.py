@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """GazeClient against a real fovea-trackerd (synthetic source), cross-checked with fovea-ctl.
 
 Needs $FOVEA_TRACKERD (and $FOVEA_CTL for the cross-checks); skipped without them.

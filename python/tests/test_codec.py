@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The codec against the golden vectors shared with the C++ tests, and its strictness.
 
 The golden directory is $FOVEA_GOLDEN_DIR, else tests/data/golden of this checkout. The expected

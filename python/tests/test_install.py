@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`pip install --no-build-isolation` of this package works offline and installs an importable fovea.
 
 The source is copied first so that the build's by-products (build/, *.egg-info) stay out of the tree.

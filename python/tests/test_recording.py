@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The .fgr reader: round trip, and the damaged-file cases of tests/unit/test_recording.cpp
 (RecordingRecovery.*), ported. Test data: $FOVEA_TEST_DATA, else tests/data of this checkout."""
 

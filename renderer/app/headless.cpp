@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Headless rendering: frames to PNG (and EXR), per-frame per-pass timings to CSV, a progress bar.
 #include <unistd.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-render: the gaze-contingent renderer (interactive viewer or headless frames).
 #include <CLI/CLI.hpp>
 #include <cstdio>

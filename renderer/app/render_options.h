@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What fovea-render was asked to do, parsed from its command line.
 #include <memory>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The interactive viewer: a GLFW window showing the tone-mapped frame, camera navigation, effect
 // toggles, and gaze, latency and loss in the title bar.
 #include <GLFW/glfw3.h>

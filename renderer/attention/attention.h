@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Visual attention tracking (Lee 2009, ch. 3): a bottom-up pixel saliency map from the G-buffer
 // (luminance and hue, depth, object size, object motion; §3.1), turned into per-object attention

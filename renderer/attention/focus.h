@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The focus pass: where the thin lens focuses this frame (Lee 2009 §6.1), from attention without a
 // tracker, from gaze with one, or from both.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The focus pass's view of the renderer's gaze input (gaze/gaze_input.h): kept apart from focus.h
 // so the focus code itself does not depend on the gaze sources.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A G-buffer backend: Embree ray casting (backend/embree) or OpenGL raster (backend/gl). Both
 // produce the same G-buffer for the same scene and time, up to rasterization tolerance, and shade

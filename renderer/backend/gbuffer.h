@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The G-buffer every backend produces and every pass reads. Row-major, row 0 at the top of the
 // image, pixel (x, y) covers [x, x+1) x [y, y+1) and is sampled at its centre.

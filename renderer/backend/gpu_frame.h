@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The frame kept on the GPU: what a backend that rasterises on a GPU (the OpenGL backend) offers
 // the frame pipeline beyond Backend::render(). The G-buffer stays in GPU textures; only the planes

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A thin-lens sample for the depth-of-field references (renderer/dof/reference.h): primary rays
 // leave from a point of the lens aperture and pass through the pixel's point on the plane in focus,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What every depth-of-field method reads and writes: a pinhole image (linear HDR colour and
 // view-axis depth, row-major, row 0 at the top) and the lens's CoC model; out comes linear HDR

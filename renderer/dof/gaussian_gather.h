@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The exact filter lee-mipmap approximates (Lee 2009 ch. 4): every pixel's colour is the whole image
 // blurred by a Gaussian of the pixel's own degree of blurring sigma = sigma_per_coc x C(depth), a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Depth of field by anisotropically filtered nonlinear mipmap interpolation: Lee 2009, chapter 4
 // (S. Lee, G. J. Kim, S. Choi, "Real-Time Depth-of-Field Rendering Using Anisotropically Filtered

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Real-time depth of field by point splatting on per-pixel layers (Lee 2009, chapter 5), on the CPU.
 //

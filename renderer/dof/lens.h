@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 #include <cstddef>
 // Thin-lens circle of confusion (CoC) for the depth-of-field pass.

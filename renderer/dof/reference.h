@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The depth-of-field references every real-time method is measured against (issue step 7):
 // - Distributed ray tracing through the thin lens (Embree): every pixel's primary ray starts at its

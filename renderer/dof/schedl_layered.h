@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Depth of field by layered blurring with depth-peeled input: Schedl & Wimmer, "A layered
 // depth-of-field method for solving partial occlusion" (JWSCG 2012), as a CPU image operation.

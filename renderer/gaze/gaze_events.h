@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Fixation onsets and saccades in flight, from a live stream of final and provisional GAZE_EVENTs
 // (PROTOCOL.md §4.9). The final events trail the eye by the classifier's window (ivvt: ~110 ms of

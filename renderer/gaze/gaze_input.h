@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Where the viewer looks, for the renderer: a live fovea-trackerd stream, a recording replayed on
 // the frame clock (deterministic headless runs), the mouse, or nothing (screen centre).

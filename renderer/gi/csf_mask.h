@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // CSF-driven peripheral ray casting (Murphy 2007, "Hybrid Image/Model-Based Gaze-Contingent
 // Rendering", ch. 4-5): cast rays only as densely as the eye can resolve at each eccentricity,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Eye rays of a pinhole camera through pixel centres, the same rays as the Embree G-buffer
 // (backend/embree): direction scaled to unit length along the view axis, so t is view depth.

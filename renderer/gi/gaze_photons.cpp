@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "gi/gaze_photons.h"
 
 #include <tbb/blocked_range.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Gaze-directed photon maps (Jensen & Pedersen 2009): the photon map of this frame is steered by
 // what the last frame's gaze area used.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // One frame of gaze-directed hybrid rendering (Jensen & Pedersen 2009, ch. 7-8) as one object: the
 // photon maps by the chosen strategy, the GI of the gaze area, and the composite into the local

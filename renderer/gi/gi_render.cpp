@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "gi/gi_render.h"
 
 #include <tbb/blocked_range.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The second pass of photon mapping and the gaze-directed hybrid render (Jensen & Pedersen 2009,
 // §6.3, §7.5, §8.3): eye rays through the pixels of a circular gaze area, shaded with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Small optics shared by the photon tracer and the GI render: reflection, Fresnel refraction,
 // ray-origin offsets, tangent frames and direction sampling.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "gi/photon_map.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Photons and the photon map: a left-balanced kd-tree over photon positions with k-nearest-neighbour
 // search, and the radiance estimate (Jensen 2001; Jensen & Pedersen 2009, §6.2.3 and §6.3.2).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The first pass of photon mapping (Jensen & Pedersen 2009, §6.2; Jensen 2001): photons emitted
 // from the scene's point, spot and area lights, traced through it with Embree, scattered by Russian

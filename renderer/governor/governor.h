@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The time-budget governor (fovea-render --budget-ms): given a frame-time budget, picks each running
 // effect's settings from its measured accuracy-versus-time front (fronts.json, made by

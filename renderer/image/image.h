@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Display images (8-bit sRGB) and image files: PNG for display images and G-buffer maps, OpenEXR
 // for HDR colour.

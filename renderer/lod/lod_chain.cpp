@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "lod/lod_chain.h"
 
 #include <meshoptimizer.h>  // MESHOPTIMIZER_VERSION, part of the cache key

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Level-of-detail chains (Lee 2009, ch. 7): level L keeps r(L) = base^-L of the full mesh's
 // triangles (eq. 7.4, base beta = 4), built once with meshoptimizer's quadric edge-collapse

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What the lod-select pass and bench_lod share: the per-object views the policies read, built from
 // the scene and camera at a frame time, and ULOD's image-space blend of two adjacent levels.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Level-of-detail selection: which level of its chain (lod_chain.h) each visible object is drawn at.
 // Every policy gives a continuous level L in [0, levels - 1] (0 = full detail); Lee's ULOD blends

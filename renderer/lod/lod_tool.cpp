@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-lod: builds level-of-detail chains offline (Lee 2009, eq. 7.4: level L keeps base^-L of the
 // triangles) and shows what a chain holds.
 //

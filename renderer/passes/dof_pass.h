@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The dof pass as one object: its typed settings (parsed once per settings change, compared with a
 // defaulted operator==) and what it keeps between frames (lee-mipmap's pyramid, the hidden and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Overlays drawn on the display image: the gaze point and the gaze area, and false-colour views of
 // G-buffer maps.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // HDR colour to the display image: exposure, an operator, the sRGB transfer function.
 #include <string>

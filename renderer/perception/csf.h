@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The contrast sensitivity of the human eye across the visual field (Geisler & Perry 1998, as
 // numbered in Murphy 2007 §4.4.3): which spatial frequencies a viewer can see at which eccentricity.

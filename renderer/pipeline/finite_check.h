@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // fovea's second promise at the module boundary: no NaN or Inf leaves a pass. In debug builds (and
 // in any build with --set debug.finite_checks=true) the frame pipeline scans every pass's output

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Runs one frame: plan the passes, run those that are needed and implemented, time each through
 // the PassTimer. Owns the backend and the frame's buffers.

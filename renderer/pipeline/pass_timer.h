@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The one per-pass timing instrument: every pass of every frame is timed through it, and it writes
 // CSV (frame,scene_time_s,pass,ms). Benchmarks read the same CSV.

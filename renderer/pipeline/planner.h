@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The effect planner: a typed pass graph built each frame from the passes' declarations (Filament's
 // FrameGraph is the model). Each pass declares the resources it reads (some only with certain

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Render settings: every quality knob and effect switch of fovea-render, with its default, allowed
 // values and meaning. `--set key=value` on the command line and the viewer's toggles change them;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Procedural meshes for bundled scenes and tests. All are centred at the origin, unit-sized as
 // documented, with outward normals and counter-clockwise front faces.

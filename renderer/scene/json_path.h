@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Reading a JSON document with errors by path: every message names the source, the JSON path of the
 // bad value ($.objects[2].transform.translation[1]), the value, and what is allowed. The scene

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Mesh files (OBJ, PLY, glTF) through assimp, as scenes and LOD chains read them.
 #include <filesystem>

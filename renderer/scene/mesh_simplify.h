@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Mesh simplification with meshoptimizer's quadric edge-collapse simplifier, shared by the scene
 // loader's `lod: {"simplify": [...]}` and the LOD chains of renderer/lod/.

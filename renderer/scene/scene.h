@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The scene model shared by every backend and pass. Units: metres, seconds, watts; colours are
 // linear RGB. Loaded from JSON by scene_loader.h (format in renderer/SCENES.md).

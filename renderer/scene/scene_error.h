@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What loading a scene throws: the message names the file, the JSON path, the bad value and the
 // allowed range, e.g. "scenes/room.json: $.objects[2].transform.translation[1] = nan: must be a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Loads JSON scene files (format: renderer/SCENES.md) into a validated Scene. Every error names the
 // file, the JSON path, the bad value and the allowed range, e.g.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Scene overrides (fovea-render --scene-set PATH=VALUE): set a value of the JSON document before it
 // is validated, by a dotted path ("camera.width", "lights.0.power"). The value is parsed as JSON if

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The scene file's schema (renderer/SCENES.md): which keys each kind of JSON object may hold.
 // Validation (scene_loader.cpp) and overrides (scene_overrides.h) share it.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Local illumination with the modified Blinn-Phong BRDF, shared by the Embree backend (C++) and the
 // OpenGL backend (the GLSL in backend/gl/shaders.h implements the same formulas; a test compares

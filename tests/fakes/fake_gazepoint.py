@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Fake Gazepoint "Open Gaze API" v2 server (GP3 eye tracker) for integration tests.
 
 Written from the public API description: single-line XML elements ending in "\\r\\n"

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
 """Fake Pupil Labs Pupil Capture / Pupil Service "Network API" for integration tests.
 
 Written from Pupil Labs' public network API documentation: Pupil Remote is a ZeroMQ REP

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """What the fake trackers (fake_gazepoint.py, fake_pupil_capture.py) share: the host clock they
 stamp their ground truth with (the daemon's CLOCK_MONOTONIC), the ready file a test waits for, and
 their log lines on stderr."""

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer entry point for what the daemon does with a control request's bytes before it acts
 // (issue 23): the datagram decoded as the control socket decodes it, the path argument confined to
 // a directory as record-start and calibration-load confine it, and the argument escaped for the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer entry point for the datagram decoder: whatever the bytes, decode() must return a
 // verdict without undefined behaviour, and anything it accepts must re-encode to the same bytes.
 #include <cstdint>

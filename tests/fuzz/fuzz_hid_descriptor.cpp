@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer entry point for the HID report descriptor parser: whatever the bytes, the parser must
 // either return layouts or throw DescriptorError, without undefined behaviour. When the bytes parse,
 // reports derived from them (zeros, ones, the input itself; the right length, one byte short, one

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer entry point for a line from a Gazepoint server (sources/gazepoint/open_gaze.h): whatever
 // the bytes, parsing returns an element or a reason, never undefined behaviour; a record it accepts
 // holds finite numbers within the bounds parse_record promises.

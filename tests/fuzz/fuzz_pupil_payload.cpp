@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer entry point for a payload from a Pupil Capture publisher (sources/pupil/pupil_messages.h):
 // whatever the bytes, as a surface event or a gaze datum, parsing returns gaze or a reason, never
 // undefined behaviour, and what it returns holds finite numbers within the promised bounds.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer entry point for the recording reader: any byte string either is rejected as "not a
 // recording" or yields intact records that re-encode to bytes present in the input.
 #include <cstdint>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer entry point for scene JSON (issue 23): whatever the text, parse_scene must either
 // return a scene or throw SceneError naming what is wrong, never crash, overflow the stack or
 // allocate without bound. Mesh paths resolve against an empty directory, so no file is read.

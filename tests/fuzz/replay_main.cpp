@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Runs a fuzz target over every file of a corpus directory (and its subdirectories) so the corpus
 // is an ordinary regression test with any compiler.
 #include <cstdint>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lee 2009 ch. 3's pixel stage on the GPU (backend/gl/gl_attention.h) against its CPU reference
 // (attention/attention.h): the bundled scenes' G-buffers with every setting, and the CPU's stability
 // catalogue (tests/stability/test_attention_stability.cpp) run through the GPU: no visible object,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The OpenGL raster G-buffer backend: analytic checks (depth, ids, normals, motion, background,
 // shading against scene/shading.cpp) and agreement with the Embree ray-casting backend on the same
 // scenes. Needs an X display: CTest runs it under xvfb-run (Mesa llvmpipe).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The GPU-resident frame on OpenGL (backend/gl/gl_frame.h) against the CPU passes it replaces, on
 // the bundled scenes: the tone map (every operator; exact formula and table), the upload of a CPU
 // pass's HDR colour, the overlay (gaze rings, focus outline, iso-depth line), the partial readback,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lee 2009 ch. 4 on the GPU (backend/gl/gl_lee_mipmap.h) against its CPU reference (dof/lee_mipmap.h):
 // the bundled scenes' G-buffers at several apertures and every setting, and the CPU's stability
 // catalogue (tests/stability/test_dof_lee_mipmap_stability.cpp) run through the GPU: pinhole and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lee 2009 ch. 5 on the GPU (backend/gl/gl_lee_splat.h) against its CPU reference (dof/lee_splat.h):
 // the bundled scenes' G-buffers with the hidden image peeled by the raster backend, every aperture
 // and setting, and the CPU's stability catalogue (tests/stability/test_dof_lee_splat_stability.cpp)

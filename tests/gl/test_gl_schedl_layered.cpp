@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Schedl & Wimmer's layered DOF on the GPU (backend/gl/gl_schedl_layered.h) against its CPU reference
 // (dof/schedl_layered.h) on the same inputs: the bundled scenes' visible and depth-peeled layers
 // (M = 1, 2, 3) at several apertures, and the CPU's stability catalogue

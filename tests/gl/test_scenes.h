@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Procedurally built scenes shared by the GL backend tests and bench/bench_gl.cpp: a Cornell-box-like
 // room with a sphere, and a many-objects scene with object and camera animation.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Sourced by the tests of the tracker bridges (test_gazepoint.sh, test_pupil.sh), after they set
 # TRACKERD, CTL and SRC: a work directory removed at exit with the fake and the daemon, fail (which
 # shows both logs), a fake tracker from tests/fakes/ started and waited for, processes stopped cleanly.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Sourced by the integration tests: a port for each daemon they start.
 #
 # free_udp_port: a UDP port on 127.0.0.1 that nothing is bound to, chosen by the kernel (a bind to

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-ctl convert --format bids as a user runs it (issue 26 item 6): the dataset is read back by an
 # independent reader (Python's gzip, csv and json) and checked against BIDS 1.10's eye-tracking rules
 # and the recording's known counts; existing files and bad labels are refused; a damaged recording

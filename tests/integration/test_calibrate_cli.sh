@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-calibrate as a user runs it: fit (every model, --on-top-of) and apply on a generated CSV; bad
 # input gives an error naming the line, a non-zero exit and no output file.
 # Usage: test_calibrate_cli.sh FOVEA_CALIBRATE

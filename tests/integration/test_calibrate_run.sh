@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-calibrate run as a user runs it: headless on a recorded session of the synthetic viewer,
 # live against fovea-trackerd (targets in a window under Xvfb, the synthetic viewer following them),
 # loading the result into the running daemon, and the refusals.

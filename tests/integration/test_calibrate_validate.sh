@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-calibrate validate as a user runs it: fit on generated calibration points, then validate on
 # separate points with --report (report.md, targets.csv, summary.json, errors.png); bad input gives
 # an error naming the file, a non-zero exit and no report.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Whole-process test of fovea-trackerd and fovea-ctl as a user runs them.
 set -u
 TRACKERD=$1 CTL=$2 DATA=$3

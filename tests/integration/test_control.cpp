@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CONTROL_REQUEST / CONTROL_REPLY at the GazeServer: the allow-list decides, refusals are counted
 // and never executed, retransmissions are not executed twice, replies never amplify, and a handler
 // may reconfigure the server (live limits and allow-list) without dropping a session.

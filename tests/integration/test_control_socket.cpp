@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The local control socket (fovea/protocol/control_socket.h): a request is answered with the
 // sender's credentials known; the file is created with the mode asked for and removed on the way
 // out; a stale socket is replaced, a live one or a regular file is not; a client that connects

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Issue 23, "nothing slow on the publishing thread": reload, record-start and calibration-load are
 // prepared off the publishing loop (daemon_changes.h) and only swapped in by it. The preparations
 // as functions, and the daemon itself in this process: a reload whose configuration takes 1.5 s to

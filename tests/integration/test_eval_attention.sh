@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-eval-attention as a user runs it: a synthetic viewer's recording of renderer/scenes/attention.json,
 # then evaluate: the B/E/T ablation (8 rows), the baselines, the map-size sweep, A1 <= A2 <= A3, the
 # random-pixel baseline below the full model; bad inputs are refused with a clear message.

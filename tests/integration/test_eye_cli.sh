@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-ctl synth-eye and detect-pupil as a user runs them, and the daemon's eye options at the
 # command line.
 set -u

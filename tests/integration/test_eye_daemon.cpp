@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-trackerd with eye-pipeline sources, as whole processes: synthetic-eye (with its factory
 // calibration: screen gaze) recorded by the daemon and by fovea-ctl record, and video:FILE of an
 // eye video written here (no calibration: pupil data, gaze invalid). Recordings are checked

@@ -1,4 +1,5 @@
 #!/bin/bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-bench report --only: the re-measured effect is replaced, every other effect of the report
 # stays (from DIR/report.json when DIR holds only a report, as bench/results/report does).
 # Runs against a fake build directory whose benchmarks print fixed tables, so it takes a second.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-trackerd --source gazepoint:HOST:PORT against a fake Gazepoint Control
 # (tests/fakes/fake_gazepoint.py: the Open Gaze API with a known trajectory, a tracker clock 1000 s
 # ahead running 50 ppm fast, invalid stretches and malformed lines, records written 4 at a time so

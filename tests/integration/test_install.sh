@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # `cmake --install` installs everything a package needs (issue 26 item 5), to the GNUInstallDirs
 # places: every binary, the systemd unit naming the installed binary and configuration, the udev
 # rules, sysusers.d/tmpfiles.d entries, the example configuration (never replacing an edited one),

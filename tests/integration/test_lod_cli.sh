@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-lod as a user runs it: build a chain from a bundled mesh in both formats, read it back,
 # refuse to overwrite, name a missing mesh and a bad option.
 set -u

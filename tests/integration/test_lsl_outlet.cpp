@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-trackerd --lsl as an LSL consumer sees it (issue 27, outlet): a liblsl inlet resolves the
 // daemon's streams (discovery confined to this machine by LSLAPICFG, set by CTest), checks their
 // channels, metadata and rate, receives the samples published in a window, with timestamps in order

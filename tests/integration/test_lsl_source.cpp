@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-trackerd --source lsl:NAME against a liblsl outlet (issue 27, source), opened by a tracker's
 // app in its own process (tests/tools/lsl_tracker_app.cpp): a known
 // trajectory in pixels with XDF channel metadata, the outlet's timestamps pushed in bursts, NaN and

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The man pages keep up with the programs (issue 26 item 3): every long option and subcommand that a
 # program's --help lists (its subcommands' --help too) is in its page's source (man/*.scd), every
 # section and key of the example configuration (deploy/trackerd.toml) is in trackerd.toml(5), and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GazeServer and GazeClient on loopback: handshake, leases, fan-out, late joiners, restarts.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-trackerd --source pupil:HOST:PORT against a fake Pupil Capture (tests/fakes/fake_pupil_capture.py:
 # Pupil Remote and the publisher, gaze on a surface "screen" and in the scene camera at 200 Hz, Pupil
 # time 5000 s ahead and 30 ppm fast, every message sent 15 ms after its gaze was taken, "t" answers

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Replays every recorded input in DATA (.fgr or .csv) through a running fovea-trackerd and diffs
 # what a subscribed client receives (samples by state, events with their times, amplitudes and
 # positions) against DATA/<input>.expected. Regenerate after an intended change with

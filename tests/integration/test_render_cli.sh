@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Whole-process test of fovea-render as a user runs it: explain, headless frames with each backend,
 # deterministic replays, clear errors, the viewer under Xvfb, and two render clients on one daemon.
 set -u

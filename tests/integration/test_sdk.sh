@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The client SDK as a user gets it (issue 26 item 1): `cmake --install --component sdk` into a fresh
 # prefix holds libfovea-client (shared with its SONAME, and static), the public headers and nothing
 # of the server side, the CMake package and the pkg-config file; examples/ builds against that

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-trackerd as a service: configuration file and --check-config, sd_notify (READY, STATUS,
 # WATCHDOG, RELOADING, STOPPING) on a fake NOTIFY_SOCKET, subscriber churn (kill -9), SIGHUP reload
 # with a changed configuration that keeps existing subscribers, control commands from an allowed

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # fovea-ctl synth-calibration as a user runs it: a recorded calibration session of the synthetic
 # viewer (SESSION.fgr) with the targets it was shown (SESSION.targets.csv), never overwriting.
 set -u

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The service unit's exposure as systemd rates it (issue 23: keep `systemd-analyze security` at or
 # below 1.6), analysed offline on the file in the tree. Skipped (77) where systemd-analyze is absent.
 set -u

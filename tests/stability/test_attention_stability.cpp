@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The attention tracker's hard cases (Lee 2009 ch. 3 on inputs the paper never saw): whatever the
 // G-buffer, scene or clock does, every output is finite, S_p lies in [0, 1] and attention is >= 0.
 #include <gtest/gtest.h>

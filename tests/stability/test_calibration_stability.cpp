@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of fovea::calib fitting and calibration files (ctest -L stability): degenerate,
 // too few, non-finite and ill-conditioned point sets, incomplete grids, files from newer versions.
 #include <gtest/gtest.h>

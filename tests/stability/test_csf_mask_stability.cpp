@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of the CSF ray mask, ring mesh and reconstruction (renderer/gi/csf_mask.h): finite
 // results and no crash, or a std::invalid_argument naming the bad field.
 #include <gtest/gtest.h>

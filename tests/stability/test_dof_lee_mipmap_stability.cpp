@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lee 2009 ch. 4 depth of field (renderer/dof/lee_mipmap.h) on hard inputs: the output is finite
 // and within [0, max input] always, and a pinhole copies the input.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lee 2009 chapter 5 splatting DOF under hard and random input: pinholes, depth 0 / inf / NaN,
 // colour NaN / Inf / 1e6, CoCs larger than the image, degenerate sizes (1x1, 1xN, Nx1), absent or
 // empty hidden layers, wild settings. The output is always finite, of the input's size, and within

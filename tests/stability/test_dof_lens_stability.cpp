@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of the thin-lens CoC model (renderer/dof/lens.h): finite and bounded everywhere.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of Schedl & Wimmer's layered DOF: non-finite and extreme inputs, degenerate sizes,
 // CoCs larger than the image, focus at the focal length: finite output within [0, max input].
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of the pupil/glint detector (ctest -L stability): degenerate images, unusual formats
 // and occlusions must give a clear "no pupil" or a sane pupil, never NaN, never an exception.
 #include <gtest/gtest.h>

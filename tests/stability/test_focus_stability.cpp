@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The focus pass under random input: G-buffers with NaN, Inf, negative and huge depths and stray
 // ids, attention lists with NaN fields, gaze points anywhere (NaN included), times that jump, stall,
 // go backwards or are not numbers, every mode and transition. FocusResult stays finite, the focal

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of gaze-directed photon mapping (renderer/gi/gaze_photons.h): emissionRatio 0 and 1,
 // where photon power scaling breaks down (no traditional or no gaze-emitted photon in the area), a
 // gaze area off the screen, zero photons. Everything stays finite and says what it did.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of the photon map (renderer/gi/photon_map.h): empty maps, nNN larger than the map,
 // radius 0, non-finite queries and photons. Every estimate stays finite.
 #include <gtest/gtest.h>

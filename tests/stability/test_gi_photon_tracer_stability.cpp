@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of the photon tracer (renderer/gi/photon_tracer.h): no lights, a light inside
 // geometry, zero photons stored, albedo 1, non-finite light data. It terminates, says why, and
 // every stored photon is finite.

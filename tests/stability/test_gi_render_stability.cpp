@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of the GI render (renderer/gi/gi_render.h): gaze outside the screen, a gaze area
 // larger than the screen, radius 0 or NaN, no lights, empty maps, nNN larger than the map.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of LOD chains (renderer/lod/lod_chain.h): meshes with 0, 1 and 2 triangles,
 // non-manifold and degenerate input, out-of-range indices, a ratio simplification cannot reach,
 // bad settings, unreadable files.

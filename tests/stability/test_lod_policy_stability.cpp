@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hard cases of LOD selection (renderer/lod/lod_policy.h): S_o outside [0, 1] or NaN, objects without
 // a chain, non-finite distances and eccentricities, unknown policy names, a budget no level meets.
 #include <gtest/gtest.h>

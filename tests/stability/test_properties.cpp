@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Property tests (ctest -L stability): random inputs across each function's valid domain, and a
 // share of hostile ones (NaN, Inf, huge, denormal), give outputs that are finite and within the
 // documented bounds, or a clear refusal. Seeded: a failure names its seed and input.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea::calib validation on random input over its whole valid domain (ctest -L stability): any
 // usable display, targets anywhere, measured points on screen, far off it (1e6 px and up to the
 // largest doubles), lost (NaN, infinite) — every figure that comes out is finite, the angles lie in

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Small scenes for the attention tests: a camera at the origin looking down -z and unit-ish boxes
 // placed by the test, with their task importance.

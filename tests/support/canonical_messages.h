@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // One canonical example of every protocol message, with distinctive field values, then variants of
 // a message whose flags change its meaning (GAZE_EVENT provisional and retracted). The golden

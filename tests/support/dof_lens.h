@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Thin-lens CoC models for the DOF tests (renderer/dof/lens.h), built from the numbers a test cares about.
 #include "dof/lens.h"

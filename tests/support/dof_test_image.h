@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // One image for the DOF tests: visible colour and depth plus a hidden (second, peeled) layer, handed
 // to a method as the DofInput of renderer/dof/dof_image.h.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Scripted gaze for classifier tests: an eye whose position is a function of time, evenly sampled
 // with gaussian noise, and the minimum-jerk saccade it makes.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Shared by the gaze-directed photon mapping tests: cornell.json at 160x120 and one frame of the loop
 // the pipeline runs (trace, index, render with labels, hand the labelled map back).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A bundled scene's G-buffer through the raster backend as a DOF input, for the GL DOF tests: the
 // visible image, optionally its first peeled layer (Lee's hidden image), and a lens whose CoC is

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Comparing HDR images as a display shows them: PSNR of the colour clamped to [0, 1] (non-finite as
 // 0), peak 1, over every channel; +infinity when equal. The GPU passes' tolerance against their CPU

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The moments of a blur spot: the total (energy) and the per-axis variance about its centroid, of
 // one colour channel of a square image. The DOF tests measure a blur's width this way.

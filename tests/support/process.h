@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Running the project's programs as whole processes from a test: a shell command's exit status, a
 // file's text, waiting for a file, a free port.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A private temporary directory (mode 0700, from mkdtemp) for one test, removed with everything in
 // it when the test is done.

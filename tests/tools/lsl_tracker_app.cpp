@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A tracker's app as the lsl: source test needs one (tests/integration/test_lsl_source.cpp), in its
 // own process: it opens a liblsl outlet of a known gaze trajectory in pixels with XDF channel
 // metadata (or none, with --bare), waits for GO_FILE (which holds t0, the grid's start on liblsl's clock), pushes samples

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Prints every canonical message as hex, 16 bytes per line with offsets, for the golden files
 // (--golden DIR writes DIR/<name>.hex) and for the worked examples in protocol/PROTOCOL.md.
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Regression client in the manner of gpsd's gpsfake: subscribes to a fovea-trackerd that replays a
 // recorded input, and prints a canonical, diff-able account of what the daemon published (events
 // with times relative to the first sample, and a per-state sample summary) once the daemon reports

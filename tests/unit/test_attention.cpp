@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Visual attention tracking (Lee 2009 ch. 3) on hand-made G-buffers: the bottom-up saliency map
 // (eqs. 3.1-3.6), the object level (eq. 3.7), the top-down contexts (eqs. 3.8-3.10), the Kalman
 // filter and the feature-group switches.

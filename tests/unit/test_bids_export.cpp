@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // BIDS export of gaze recordings (issue 26 item 6): the files are read back (gunzip, TSV, JSON) and
 // checked against the BIDS 1.10 eye-tracking rules and against the recording itself; the export
 // refuses to replace files and bad labels, and exports a damaged recording's intact records.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // read_bounded_file and escape_for_log (fovea/protocol/bounded_file.h): what a hostile local user
 // can name instead of a file (/dev/zero, a FIFO without a writer, a directory, a symbolic link, a
 // huge file) is refused at once by what it is, and what they can put in a path reaches a log or a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea::calib step 5 models: affine and homography baselines, the Jensen & Pedersen 2009
 // calibration-vector grid (eqs. 4.1-4.2), the model interface and the calibration file.
 #include <gtest/gtest.h>

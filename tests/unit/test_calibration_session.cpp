@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea::calib step 5: the calibration schedule, the targets file, collection of fixation samples
 // per target, and robust (outlier-rejecting) fitting.
 #include <gtest/gtest.h>

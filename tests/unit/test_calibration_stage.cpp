@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's calibration stage (trackerd/service/calibration_stage.h): pupil-glint and screen
 // input, the display check, invalid and absurd inputs, and the control message that loads it.
 #include <gtest/gtest.h>

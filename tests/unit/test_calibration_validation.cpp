@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea::calib validation: display geometry (pixels -> millimetres -> visual angle), accuracy and
 // precision per target and overall (Jensen & Pedersen 2009, Tables 4.1/4.2), lost samples,
 // before/after, the table and JSON.

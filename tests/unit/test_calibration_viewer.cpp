@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The synthetic viewer that follows a calibration (trackerd/sim/calibration_viewer.h): it lands on
 // each target within its collection window, its saccades follow the main sequence, it blinks, it
 // is deterministic; a simulated session collects and calibrates; a zero head offset is the old

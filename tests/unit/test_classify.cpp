@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Eye-movement classification (trackerd/classify/, trackerd/CLASSIFY.md): every method on
 // hand-made sequences, accuracy on labelled synthetic gaze degraded like real trackers, the
 // online/offline contract (same labels, bounded latency) and garbage input.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The gaze protocol codec: round trips, golden vectors, and a strict decoder.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-trackerd configuration: the documented example, strict errors that name file:line and
 // key, command-line precedence, reload classification, and IPv4 CIDR allow-lists.
 #include <gtest/gtest.h>

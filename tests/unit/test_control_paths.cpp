@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // confined_path (trackerd/service/control_paths.h): record-start writes only inside its directory.
 // Issue 23 item 2: a root-run daemon created a root-owned file in /etc for any local user, and
 // "../" walked out of the working directory.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CSF-driven peripheral ray casting (renderer/gi/csf_mask.h, Murphy 2007 ch. 4-5).
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CSV form of gaze recordings: exact round trip of samples and display, and errors that name the
 // source, the line and the column.
 #include <gtest/gtest.h>

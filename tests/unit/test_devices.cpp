@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Eye-camera and device sources: V4L2 camera against a fake kernel device, recorded video files,
 // USB hotplug against a fake enumerator. No camera or USB device is needed.
 #include <fcntl.h>

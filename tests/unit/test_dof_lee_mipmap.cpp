@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lee 2009 ch. 4 depth of field (renderer/dof/lee_mipmap.h): exactness, blur shape against a
 // brute-force Gaussian, intensity leakage (Fig. 4.7) and foreground smoothing (Fig. 4.9).
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lee 2009 chapter 5 depth of field by point splatting on per-pixel layers (renderer/dof/lee_splat.h):
 // pinhole exactness, energy conservation per aperture shape, partial occlusion with and without
 // the hidden layer against a brute-force layered reference, no smearing of focused areas next to

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The thin-lens CoC model (Lee 2009 eqs. 4.2-4.4 and 5.3, Schedl & Wimmer eq. 1 and its inversion).
 #include <gtest/gtest.h>
 

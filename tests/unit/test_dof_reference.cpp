@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The DOF references (renderer/dof/reference.h) against the thin-lens model: a pinhole lens gives
 // the pinhole render, the plane in focus stays sharp, a small light blurs by the CoC the lens model
 // predicts (in front of and behind the focal plane), distributed ray tracing and the accumulation

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Schedl & Wimmer's layered DOF (renderer/dof/schedl_layered.h): pinhole exactness, a constant image
 // stays constant, the focused layer stays sharp, the peeled layer fills partial occlusion, the layer
 // count covers the depth range and honours its cap.

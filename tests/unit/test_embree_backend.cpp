@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Embree G-buffer backend against closed-form answers: depth, ids, normals, motion, shading,
 // shadows, background, hard cases (degenerate geometry), determinism and traversal agreement.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pupil and glint detector: accuracy on drawn and generated eyes, ROI tracking, LED pairing, blinks.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The eye pipeline as a daemon source (eye/eye_source.h) and the synthetic-eye frame source
 // (sim/synthetic_eye_frames.h): detection on rendered frames, the factory calibration, blinks,
 // frame-source health, never NaN, real-time pacing, and the daemon's synthetic-eye spec.

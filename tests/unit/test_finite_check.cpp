@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The module-boundary check (renderer/pipeline/finite_check.h): NaN/Inf in a pass's output stops the
 // frame with an error naming the pass, the buffer and the pixel; clean frames pass through.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The focus pass (renderer/attention/focus.h): where the thin lens focuses, from attention, gaze or
 // both (Lee 2009 §6.1, §6.3), with hand-made G-buffers and AttentionFrames; the gaze inputs'
 // fixation onsets that drive refocusing; the focus overlay.

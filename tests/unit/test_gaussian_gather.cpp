@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The exact Gaussian gather (renderer/dof/gaussian_gather.h), the filter lee-mipmap approximates:
 // a pinhole copies the input bit for bit, a point spreads into a spot whose variance is sigma^2 on a
 // blur level and between two (the mixture's weight), energy is kept, a constant image stays constant

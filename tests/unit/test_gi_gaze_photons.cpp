@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Gaze-directed photon maps (renderer/gi/gaze_photons.h): Algorithm 8.5's emission map, more
 // photons in the gaze area than traditional photon mapping, power scaling that keeps the gaze
 // area's brightness, frame-coherent seeds, importons.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The photon map's kd-tree and radiance estimate (renderer/gi/photon_map.h) against brute force.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The photon tracer (renderer/gi/photon_tracer.h): the white furnace, energy conservation,
 // determinism, emission matching local illumination, caustic paths.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The GI render and the hybrid composite (renderer/gi/gi_render.h).
 #include <gtest/gtest.h>
 

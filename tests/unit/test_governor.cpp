@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The time-budget governor (renderer/governor/governor.h): it takes the most accurate combination
 // that fits the budget, corrects the fronts by measured pass times, says when it cannot meet a
 // budget, and refuses malformed fronts with the field named.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The frame pipeline's GPU-resident path against a fake backend with a fake GpuFrame (no OpenGL):
 // which path each setting takes and why (--explain's "where" line), which G-buffer planes come back
 // for the CPU passes that run, when the CPU's HDR colour is uploaded, the GPU pass order, and the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // HID "Eye and Head Trackers" source: report descriptor parser, eye-tracker mapping, report
 // decoding, tracker clock, spec parsing and user-facing messages. Descriptors are built by hand
 // with a tiny item emitter, after the shape of Microsoft's reference eye-tracker drivers (the

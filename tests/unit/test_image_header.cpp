@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // read_image_header and decode_image_bounded (trackerd/source_api/image_header.h): the declared
 // size of PNG, JPEG, BMP and PNM images without decoding them, and decompression bombs (a small
 // file declaring 20000x20000, issue 23 item 6) refused before OpenCV allocates.

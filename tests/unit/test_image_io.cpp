@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The renderer's PNG writer (libpng): pixels round-trip exactly, a failure names the file and the
 // reason and leaves no file behind.
 #include <gtest/gtest.h>

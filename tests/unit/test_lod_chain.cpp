@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Level-of-detail chains (renderer/lod/lod_chain.h): Lee 2009 eq. 7.4's ratios, seams kept,
 // files and manifest round trip, the cache.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What the lod-select pass and bench_lod share (renderer/lod/lod_frame.h): object views from the
 // scene, bounding spheres cached per mesh, ULOD's second-pass levels and its image-space blend.
 #include <gtest/gtest.h>

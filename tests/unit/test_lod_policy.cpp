@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // LOD selection policies (renderer/lod/lod_policy.h): each policy's level, hysteresis, ULOD
 // blending, the frame-time budget.
 #include <gtest/gtest.h>

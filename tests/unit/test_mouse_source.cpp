@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The mouse source (sources/mouse/mouse_source.h) on a real X server: run under
 // deploy/with-xvfb.sh, which starts Xvfb and sets DISPLAY. The test moves the pointer itself.
 #include <gtest/gtest.h>

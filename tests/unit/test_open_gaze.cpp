@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Gazepoint's Open Gaze API as text (sources/gazepoint/open_gaze.h): what a record and an
 // acknowledgement look like on the wire, and every way a hostile or broken server's line is refused.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Display passes: tone mapping (table vs exact reference, hard values) and overlays.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The effect planner's decisions, table-driven: each row is a scene feature set plus settings, and
 // the passes that must (not) be planned.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea::calib::Poly2Map and the least-squares solver under it.
 #include <gtest/gtest.h>
 

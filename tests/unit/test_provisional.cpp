@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Provisional online events (issue 25 goal 2), and the evaluation beside them (event F1, the
 // tracker filter of the realistic generator): the causal saccade detector's timing against a
 // scripted eye and the synthetic viewer, its silence on noise and slow movement, its resets, the

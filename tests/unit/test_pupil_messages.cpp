@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Pupil Core's network API as data (sources/pupil/pupil_messages.h): the spec, the surface and gaze
 // payloads as Pupil Capture packs them, and every way a hostile publisher's payload is refused.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Gaze recordings (.fgr): round trips, recovery of truncated and damaged files, the writer's
 // refusal to lose stored data, and a writer killed with SIGKILL mid-stream.
 #include <gtest/gtest.h>

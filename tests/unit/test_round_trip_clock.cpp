@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // RoundTripClock (source_api/round_trip_clock.h): a remote clock known only through question and
 // answer, mapped onto the host's, as Pupil Capture's "t" is.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scene loading: the bundled scenes, mesh files through assimp, LOD chains, overrides, and the
 // catalogue of bad inputs, each of which must name the file, the JSON path and the bad value.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The synthetic infrared eye is ground truth for the pupil/glint detector, so its geometry must be
 // exact and its rendering unbiased to well under the detector's ~0.1 px errors.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The synthetic source must look like a real viewer: main-sequence saccades, fixation durations,
 // blinks, pursuit, and every value encodable (finite, in range).
 #include <gtest/gtest.h>

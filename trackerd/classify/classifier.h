@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Eye-movement classification of a gaze stream, online (sample by sample, as the daemon runs) and
 // offline (`fovea-ctl classify`). Input positions are degrees of visual angle from the screen centre

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Measuring a classifier against ground truth, and degrading clean data the way real trackers do
 // (used by the benchmark and the tests; no dependency on any source).

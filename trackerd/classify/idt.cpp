@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // I-DT, dispersion-threshold identification (Salvucci & Goldberg 2000, "Identifying fixations and
 // saccades in eye-tracking protocols", ETRA, Table/Fig. "I-DT"):
 //   while points remain: take a window covering the minimum duration; if its dispersion

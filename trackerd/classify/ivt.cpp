@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // I-VT after the Tobii I-VT fixation filter (Olsen 2012, "The Tobii I-VT Fixation Filter",
 // Tobii Technology white paper), with its default parameters:
 //   gap fill-in       linear interpolation over gaps up to 75 ms        (front end, §2.4)

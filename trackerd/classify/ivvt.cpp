@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The default method: I-VVT, velocity-velocity threshold identification (Komogortsev & Karpov 2013,
 // "Automated classification and scoring of smooth pursuit eye movements in the presence of
 // fixations and saccades", Behav Res Methods 45:203-215): a high velocity threshold separates

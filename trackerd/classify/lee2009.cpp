@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The seed's rule, Lee 2009 §3.5.2 (data analysis of the attention-tracking experiment, a 60 Hz
 // tracker): a sample whose pupil ellipse aspect ratio is below 0.7 is a blink (handled by the
 // front end); otherwise the "velocity" is the change in normalized screen position since the last

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Provisional online events: a saccade's onset and landing (and so the next fixation's onset) said
 // as soon as the newest sample shows them, without the look-ahead the classifiers' final labels

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // BIDS export of a gaze recording; see bids_export.h and protocol/RECORDING.md ("BIDS export").
 #include "ctl/bids_export.h"
 

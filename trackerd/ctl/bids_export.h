@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // BIDS export of a gaze recording (issue 26 item 6): the .fgr's samples as an eye-tracking
 // physiological recording (BIDS 1.10, "Physiological recordings" / "Eye-tracking"), its eye-movement

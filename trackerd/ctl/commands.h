@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // fovea-ctl's command families. Each adds its subcommands to the app and returns, per subcommand,
 // the action that runs it with the options it parsed; main() runs the one the user chose.

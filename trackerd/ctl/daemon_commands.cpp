@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-ctl's daemon client: status, watch, record (subscribed clients of the gaze stream) and the
 // control commands (reload, record-start, record-stop, calibration-load).
 #include <unistd.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-ctl's eye tools: detect-pupil (the eye pipeline's detector on image files), synth-eye (test
 // images with their exact truth) and synth-calibration (a recorded calibration session of the
 // synthetic viewer).

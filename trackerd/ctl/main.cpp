@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-ctl: the command-line client of fovea-trackerd (status, watch, record, control), recording
 // tools (convert, info, classify) and eye-image tools (detect-pupil, synth-eye, synth-calibration).
 // The commands live in families (ctl/commands.h); this file builds the app and runs the one chosen.

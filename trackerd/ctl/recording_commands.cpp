@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // fovea-ctl's recording tools: convert (.fgr <-> .csv, repairing damaged files; .fgr -> BIDS), info, and classify
 // (offline eye-movement classification of a CSV of gaze points, trackerd/CLASSIFY.md).
 #include <unistd.h>

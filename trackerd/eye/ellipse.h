@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // An ellipse in image pixels: the pupil as the camera sees it.
 #include <opencv2/core.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Dark-pupil and corneal-glint detection on infrared eye-camera frames.
 //

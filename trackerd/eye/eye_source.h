@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The eye pipeline as a daemon source: frames from an eye camera, an eye video or the synthetic
 // eye go through the pupil/glint detector (eye/eye_detector.h), and each frame becomes one gaze

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Where the infrared LEDs sit around the eye camera's lens. Each LED makes one corneal glint; on
 // the convex cornea the glints form a small, upright, reduced copy of this layout, which is how the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The LSL outlet through liblsl (built only when find_package(LSL) found it).
 #include <atomic>
 #include <chrono>

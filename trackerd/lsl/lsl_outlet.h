@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // fovea-trackerd in the Lab Streaming Layer (issue 27 item 1): what the daemon publishes, also as
 // two LSL outlets, so LabRecorder and any LSL consumer record fovea's gaze beside EEG or motion

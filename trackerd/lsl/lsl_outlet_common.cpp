@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The parts of the LSL outlet that do not need liblsl: channel values and marker texts.
 #include <cmath>
 #include <limits>

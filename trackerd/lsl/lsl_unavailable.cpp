@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The LSL outlet in a build without liblsl: every use says so in one line.
 #include <stdexcept>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The daemon's calibration stage: maps raw tracker output to calibrated screen gaze before the
 // classifier and the publisher see it (calibration/CALIBRATION.md describes the file).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Hands control commands from the server's control thread to the publishing loop, which owns the
 // daemon's state (recorder, configuration) and executes them between two samples. The caller

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // fovea-trackerd's configuration: a TOML file (deploy/trackerd.toml documents every key), overridden
 // by command-line flags. Loading is strict: an unknown key, a value of the wrong type or out of range

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Where a control command may write (issue 23 item 2: a root-run daemon created a root-owned file in
 // /etc for any local user, and "../" walked out of any directory). record-start's path is confined

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // sd_notify(3) for fovea-trackerd under systemd (Type=notify): READY, STATUS, RELOADING, STOPPING
 // and watchdog pings. Every call is a no-op when the process was not started by systemd with a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The synthetic viewer that follows a calibration: the eye's motion while a user does what a
 // calibration asks (look at each target in turn), and a whole simulated calibration session as the

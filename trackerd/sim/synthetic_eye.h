@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Synthetic infrared eye images with exact ground truth, for tests, benchmarks and the daemon's
 // synthetic-eye source. An eye model (rotation centre, spherical cornea, pupil disc, iris) is seen by

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `synthetic-eye`: a frame source that renders the synthetic eye (sim/synthetic_eye.h) as a camera
 // would deliver it, driven by the synthetic viewer's gaze (sim/synthetic_gaze.h, without

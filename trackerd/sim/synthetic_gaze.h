@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Synthetic gaze: a seeded, deterministic model of a viewer looking at a screen. Fixations of
 // 150-600 ms with drift, tremor and tracker noise; saccades on the main sequence (duration about

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Labelled gaze for classifier tests and benchmarks: the synthetic source's samples in degrees,
 // with its ground truth (it knows which movement it is making) as the reference labels.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A source of eye-camera frames (V4L2 camera, recorded eye video, the synthetic eye). The eye
 // pipeline (eye/eye_source.h: pupil and corneal-glint detection, then a calibration map) turns

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A source of ready gaze samples and events (synthetic, replayed, HID trackers, the eye pipeline).
 // Items carry times on the daemon's CLOCK_MONOTONIC; the daemon publishes each item when its time

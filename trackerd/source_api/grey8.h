@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Eye-camera frames as the eye pipeline reads them: 8-bit single-channel grey. Frame sources (video
 // files, cameras) and the detector both convert with this, so neither reaches into the other.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // An image's declared size, read from its header without decoding it, so that a decompression bomb
 // (issue 23 item 6: a 543-byte JPEG declaring 20000x20000 took `fovea-ctl detect-pupil` to 4.4 GB

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "source_api/round_trip_clock.h"
 
 #include <algorithm>

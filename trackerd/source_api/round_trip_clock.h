@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Maps a remote clock that can only be asked ("what time is it?") onto the host's CLOCK_MONOTONIC,
 // as NTP and Cristian's algorithm do: each exchange sent at host time s, answered with remote time

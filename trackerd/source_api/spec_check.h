@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A source kind's check (source_table.h, SourceKind::check) from its spec parser: empty when the
 // parser takes the spec, else what it said was wrong.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "source_api/tracker_clock.h"
 
 #include <algorithm>

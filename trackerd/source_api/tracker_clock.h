@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Maps a tracker's sensor timestamps onto the host's CLOCK_MONOTONIC.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `camera:usb:VID:PID[?options]`: an eye camera named by its USB identity rather than a /dev node.
 // A libusb watcher (hotplug callbacks, or polling where the platform has none) reports arrivals

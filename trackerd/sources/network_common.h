@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What the sources that read a tracker over its network API share (gazepoint/, pupil/): the
 // HOST[:PORT] of their specs, and the hand-over from the reader thread, which owns the connection,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Replays a .fgr recording as if it were a live tracker: original timing (scaled by a speed
 // factor), times rebased onto the daemon's clock, optional looping.

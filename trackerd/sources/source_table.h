@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The kinds of gaze source fovea-trackerd can open, as one table: gpsd keeps its drivers in one
 // array (drivers/drivers.c) and so do we. `--source`'s help, `--check-config`, the configuration's

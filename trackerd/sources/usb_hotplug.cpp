@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "sources/usb_hotplug.h"
 
 #include <libusb.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // USB hotplug: a table of known tracker/camera VID:PIDs, a watcher that reports known devices
 // arriving and leaving, and a supervisor that keeps one wanted device open across unplug/replug.

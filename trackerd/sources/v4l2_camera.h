@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `camera:/dev/videoN` — an eye camera captured through the kernel's V4L2 API: capabilities,
 // format/size/frame-rate negotiation (GREY, YUYV, MJPG), mmap streaming buffers, driver buffer

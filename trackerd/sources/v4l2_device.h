@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The thin layer between V4l2Camera and the kernel: open/ioctl/mmap/poll/close on a video node, and
 // the list of video nodes in sysfs. Everything above it is kernel-free, so a fake device in the

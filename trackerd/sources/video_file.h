@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `video:FILE` — a recorded eye video read through OpenCV's VideoCapture. Frames are converted to
 // 8-bit grey and stamped on the daemon's CLOCK_MONOTONIC: the first frame at the time the source

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "backend/embree/embree_backend.h"
 
 #include <embree3/rtcore.h>

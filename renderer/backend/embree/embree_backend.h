@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The Embree G-buffer backend: one primary ray through each pixel centre, local illumination with
 // the shared BRDF (scene/shading.h) and, when asked, Embree occlusion rays for shadows.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Lee 2009 chapter 3's pixel stage (attention/attention.h, the CPU reference) as OpenGL 3.3 passes,
 // as Lee's own implementation ran it (Fig. 3.3: the feature maps, their pyramids and eq. 3.4's

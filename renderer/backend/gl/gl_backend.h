@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // OpenGL 3.3 raster G-buffer backend. Renders the scene into a framebuffer object at the camera's
 // resolution with one pass and multiple render targets:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "backend/gl/gl_context.h"
 
 #include <epoxy/egl.h>

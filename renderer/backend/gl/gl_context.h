@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // An OpenGL core context, the newest the driver gives of 4.6, 4.5, 4.3 and 3.3 (3.3 is what the
 // G-buffer needs; the GPU passes need more: GlFeatures). Two platforms:

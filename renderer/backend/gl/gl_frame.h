@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The GPU-resident frame on OpenGL (backend/gpu_frame.h): the G-buffer pass without readback, the
 // tone map (a compute pass on GL 4.3 GPUs) and the overlay as fragment-shader passes on the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Lee 2009 chapter 4's depth of field (dof/lee_mipmap.h, the CPU reference) as OpenGL 3.3 passes,
 // as Lee's own implementation ran it: the mipmaps are built by fragment passes, the final pass reads

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Lee 2009 chapter 5's depth of field by point splatting (dof/lee_splat.h, the CPU reference) as
 // OpenGL 3.3 passes: the same settings and the same choices where the paper is silent.

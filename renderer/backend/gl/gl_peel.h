@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Depth peeling by object on the raster backend (BackendSettings::peel): the same layers as the
 // Embree backend's trace_peeled. Along each pixel's ray, the n-th object met behind the visible one;

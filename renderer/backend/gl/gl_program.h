@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Small helpers for GLSL programs and the GPU passes: compile, link, and turn a failure into an
 // exception carrying the driver's info log; the full-screen triangle every image pass draws; GL

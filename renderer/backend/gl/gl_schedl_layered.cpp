@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "backend/gl/gl_schedl_layered.h"
 
 #include <epoxy/gl.h>

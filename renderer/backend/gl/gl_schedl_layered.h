@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Schedl & Wimmer's layered depth of field (dof/schedl_layered.h, the CPU reference) as OpenGL 3.3
 // passes on the visible image and its depth-peeled layers (gl_peel.h), with the same steps:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // ULOD's blend of adjacent levels (Lee 2009 §7.3 with Giegl et al.'s unpopping LOD; lod/lod_frame.h
 // ulod_blend, the CPU reference) as one OpenGL 3.3 pass where the frame lies: each pixel whose object

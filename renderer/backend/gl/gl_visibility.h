@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The G-buffer by a visibility buffer (Burns & Hunt 2013): the raster pass writes only which
 // triangle covers each pixel (and z), and one compute pass (GL 4.3) rebuilds every plane asked for

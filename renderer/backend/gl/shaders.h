@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // GLSL of the G-buffer pass. The fragment shader's shade_local() is a line-by-line port of
 // scene/shading.cpp (modified Blinn-Phong, Jensen & Pedersen 2009 eq. 5.21-5.23, 5.33, spot

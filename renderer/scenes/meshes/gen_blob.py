@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Generates renderer/scenes/meshes/blob.obj: an icosphere (2 subdivisions, 320 triangles) with a
 # smooth bumpy displacement, radius about 0.5 m. No normals: assimp generates smooth ones.
 import math

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `gazepoint:HOST[:PORT]`: a Gazepoint tracker (GP3, GP3 HD) through Gazepoint Control's Open Gaze
 // API (open_gaze.h). A reader thread connects, enables the counter, the tracker's time, the best

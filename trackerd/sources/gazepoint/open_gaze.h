@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Gazepoint's Open Gaze API (version 2.0, the TCP protocol of Gazepoint Control / GP3 trackers;
 // port 4242): the text it speaks, without any socket. Each message either way is one XML element

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The eye-tracker mapping: finds the usages of the HID "Eye and Head Trackers" page (0x12) in a
 // parsed report descriptor — gaze point, eye positions, sensor timestamp and status in the Input

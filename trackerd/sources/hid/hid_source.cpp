@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "sources/hid/hid_source.h"
 
 #include <hidapi/hidapi.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `hid[:VID:PID]`: a gaze source for trackers that speak the USB HID "Eye and Head Trackers" usage
 // page (0x12) — the standard consumer trackers implement for operating-system eye control. Opens

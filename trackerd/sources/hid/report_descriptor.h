@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A general HID report descriptor parser (Device Class Definition for HID 1.11, §6.2.2): turns the
 // item stream into report layouts — for each report type and ID, the fields with their bit offsets,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // HID usage tables as data: the "Eye and Head Trackers" page (0x12, HUTRR74, in the HID Usage
 // Tables since 1.21) in full, plus names for the pages and application usages a user is likely to

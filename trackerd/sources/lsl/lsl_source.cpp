@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The lsl: source through liblsl (built only when find_package(LSL) found it).
 #include <lsl_cpp.h>
 #include <spdlog/spdlog.h>

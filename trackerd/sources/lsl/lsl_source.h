@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `lsl[:NAME][?x=I&y=J&units=pixels|normalized&confidence=K&min_confidence=C]`: gaze from a tracker's
 // Lab Streaming Layer stream (issue 27 item 2). Most research trackers have an LSL app (Tobii Pro,

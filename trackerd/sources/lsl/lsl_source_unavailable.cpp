@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The lsl: source in a build without liblsl: it says so in one line.
 #include <stdexcept>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The lsl: spec, which needs no liblsl (so --check-config can judge it in any build).
 #include <charconv>
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `mouse[:DISPLAY]`: the X11 pointer as gaze, sampled at a fixed rate, for developing experiments
 // and gaze-contingent displays without a tracker (PsychoPy's ioHub has the same for the same

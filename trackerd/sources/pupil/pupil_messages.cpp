@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "sources/pupil/pupil_messages.h"
 
 #include <msgpack.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Pupil Core's network API (Pupil Capture / Pupil Service), as data, without any socket: the
 // source spec, and the msgpack payloads of the two topics fovea reads.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // `pupil:HOST[:PORT][?surface=NAME|gaze=scene&min_confidence=C]`: Pupil Core through Pupil Capture's (or Pupil
 // Service's) network API (pupil_messages.h). A reader thread owns the ZeroMQ sockets:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The bilinear calibration-vector grid of Jensen & Pedersen 2009 ("Gaze-directed photon mapping",
 // §4.2.1, eqs. 4.1-4.2). A regular grid of known screen points Q_ij = (x_i, y_j) each carries a

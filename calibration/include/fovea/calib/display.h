@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The screen a calibration was made for: pixels, visible size and viewing distance, and the
 // conversions validation needs (screen millimetres, visual angle between two screen points).

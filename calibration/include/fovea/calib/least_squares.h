@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Dense linear least squares by Householder QR with column pivoting, hand-written for the small
 // systems calibration fits (tens to thousands of rows, a handful of unknowns). Golub & Van Loan,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Affine and projective (homography) baselines from a raw 2-D measurement to the screen, fitted by
 // linear least squares with the Householder-QR solver of least_squares.h.

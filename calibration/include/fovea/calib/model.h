@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // One interface over fovea's calibration models, fitting by name, and the versioned JSON
 // calibration file (calibration/CALIBRATION.md describes the format).

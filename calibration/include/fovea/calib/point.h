@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The plain 2-D types calibration models are fitted and applied on.
 namespace fovea::calib {

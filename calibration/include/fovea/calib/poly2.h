@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Second-order polynomial calibration map: each output coordinate is a full quadratic in the raw
 // 2-D measurement (u, v),

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // A calibration session: which targets are shown where and when (the schedule), and how the raw
 // samples recorded while a target was shown become calibration points (collection).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Validation of a calibration on samples recorded while targets were shown: accuracy and precision
 // per target and overall, as Jensen & Pedersen 2009, §4.1.2 and §4.2.3 (Tables 4.1 and 4.2).

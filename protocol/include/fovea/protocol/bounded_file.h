@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Reading a file a hostile local user may name (a control request's path, a configuration's, a
 // command line's): only a regular file, of bounded size, without blocking and, where asked, without

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // GazeClient: subscribes to a fovea-trackerd stream, keeps the subscription alive, resubscribes by
 // itself when the daemon restarts, and measures what it receives.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Time in fovea is int64 nanoseconds of CLOCK_MONOTONIC on the producing machine.
 #include <cstdint>

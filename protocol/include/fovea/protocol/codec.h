@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Encoder and strict decoder for protocol v1 datagrams. The decoder accepts only datagrams whose
 // every field is in range; anything else is rejected with a reason and never partly trusted.

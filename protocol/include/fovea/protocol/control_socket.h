@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Local operator control (PROTOCOL.md §6, DEVICES.md "Who may control the daemon"): the daemon's
 // privileged commands (reload, record-start, record-stop, calibration-load) arrive through a

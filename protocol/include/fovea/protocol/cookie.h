@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Stateless subscription cookies (in the spirit of TCP SYN cookies and DTLS HelloVerifyRequest):
 // the server proves a subscriber receives at the address it claims without keeping state for

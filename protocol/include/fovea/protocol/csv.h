@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // CSV import/export of gaze samples; columns documented in protocol/RECORDING.md.
 #include <iosfwd>

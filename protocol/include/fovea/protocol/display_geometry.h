@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Display geometry: converts between normalized screen coordinates, pixels and visual angle.
 #include <cstdint>

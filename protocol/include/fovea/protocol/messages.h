@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The gaze protocol v1: message types and their fields. The byte layout of each is defined in
 // codec.cpp and documented in protocol/PROTOCOL.md; the two must agree (tests check the golden

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Gaze recordings (.fgr): a header, then append-only length-prefixed records each guarded by a
 // CRC-32C. Byte layout in protocol/RECORDING.md. A reader recovers every intact record of a file

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Classifies arriving sequence numbers as new, lost (gap), duplicated or reordered, with a
 // 64-entry history window (as RTP receivers do).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // GazeServer: the publishing side of the gaze protocol. It answers the handshake, keeps leases,
 // and sends every published sample/event to each subscriber by unicast and, optionally, to a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // IPv4 UDP endpoints and sockets: the thin OS layer under GazeServer and GazeClient.
 #include <netinet/in.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Little-endian field access on byte buffers. Callers check bounds once per message (all v1
 // messages are fixed-size), so these helpers only assert in debug builds.
