@@ -35,7 +35,7 @@ uint sortable(float v) {
 }
 )";
 
-// 1. The G-buffer resampled to the map (resample_grid and resample_rows of attention.cpp): each map
+// 1. The G-buffer resampled to the map (resample_grid and resample_rows of gbuffer_resample.cpp): each map
 // pixel's box of source pixels (or the one under its centre), colour clamped to [0, 1] per source
 // pixel, summed per source column over the rows and then over the columns (the CPU's order), HLS and
 // eq. 3.1; ids and the per-object depth nearest. Map rows are stored top row first (texel row y is
@@ -72,7 +72,7 @@ uint slot_of(uint id) {
   }
   return (lo < u_objects_count && texelFetch(u_objects, slot_texel(lo), 0).r == id) ? uint(lo) + 1u : 0u;
 }
-// attention.cpp's hls(): lightness, and the hue vector (S cos H, S sin H).
+// gbuffer_resample.cpp's hls(): lightness, and the hue vector (S cos H, S sin H).
 vec3 hls(vec3 c) {
   float mx = max(c.r, max(c.g, c.b)), mn = min(c.r, min(c.g, c.b));
   float l = 0.5 * (mx + mn), chroma = mx - mn;
@@ -176,7 +176,7 @@ void main() {
 }
 )";
 
-// 4. One pyramid level from the one below (attention.cpp's downsample): 2x2 boxes, the rows
+// 4. One pyramid level from the one below (feature_pyramid.cpp's downsample): 2x2 boxes, the rows
 // clamped at the bottom edge, an odd width's last texel the mean of its two rows.
 constexpr const char* kDown = R"(
 uniform sampler2D u_image, u_object;
@@ -198,8 +198,8 @@ void main() {
 }
 )";
 
-// 5. Eq. 3.4 per feature, every level at the map pixel; coarse levels magnified as attention.cpp's
-// Magnified (texel centres, clamp to edge; along rows first, then between rows).
+// 5. Eq. 3.4 per feature, every level at the map pixel; coarse levels magnified as
+// feature_pyramid.h's Magnified (texel centres, clamp to edge; along rows first, then between rows).
 constexpr const char* kContrast = R"(
 uniform sampler2D u_i0, u_i1, u_i2, u_i3, u_i4, u_i5, u_i6, u_o0, u_o1, u_o2, u_o3, u_o4, u_o5, u_o6;
 uniform ivec2 u_dim[7];
@@ -490,7 +490,7 @@ void GlAttention::draw(std::initializer_list<unsigned> targets, int w, int h) {
 }
 
 void GlAttention::resample(const GlAttentionInput& in, double near_m, double far_m, const AttentionSettings& s) {
-  // read_source of attention.cpp: the depth range of eq. 3.1 and what depths are clamped to.
+  // read_source of gbuffer_resample.cpp: the depth range of eq. 3.1 and what depths are clamped to.
   const double z_range = (std::isfinite(far_m - near_m) && far_m > near_m) ? far_m - near_m : 1.0;
   const float fnear = static_cast<float>(std::isfinite(near_m) ? near_m : 0.0);
   const float ffar = static_cast<float>(std::isfinite(far_m) ? far_m : static_cast<double>(fnear) + 1.0);
