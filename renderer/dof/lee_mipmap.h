@@ -15,11 +15,12 @@
 //   5. m from the DoB (eq. 4.6), and the colour by nonlinear (geometric) interpolation of the 3x3
 //      circular neighbourhood at the one-lower level (eq. 4.8, Fig. 4.4b).
 //
-// Choices where the paper is silent are documented next to the code in lee_mipmap.cpp: the 3x3
-// Gaussian is the binomial [1 2 1] / 4 read with GL bilinear taps; k_sigma is refitted for this
-// pipeline (see LeeMipmapSettings::k_sigma); in eq. 4.8 the I(l) factor is read at offsets of its
-// own texels (I(l - 1)'s at its own, as the paper writes), so the result is continuous in m; for
-// m < 1 (no level -1) the pixel is blended with its level-0 3x3 neighbourhood.
+// Choices where the paper is silent are documented next to the code (lee_mipmap_detail.h,
+// lee_mipmap_levels.cpp, lee_mipmap_final_pass.cpp): the 3x3 Gaussian is the binomial [1 2 1] / 4
+// read with GL bilinear taps; k_sigma is refitted for this pipeline (see LeeMipmapSettings::k_sigma);
+// in eq. 4.8 the I(l) factor is read at offsets of its own texels (I(l - 1)'s at its own, as the
+// paper writes), so the result is continuous in m; for m < 1 (no level -1) the pixel is blended with
+// its level-0 3x3 neighbourhood.
 //
 // Cost: one LeeMipmap reuses its buffers from frame to frame. The per-pixel work is 18 bilinear
 // colour reads and, with eq. 4.8's geometric blend, 27 log/exp pairs (vectorised), plus 9 DoN reads

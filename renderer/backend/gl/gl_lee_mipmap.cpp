@@ -18,7 +18,7 @@ namespace fovea::render {
 namespace {
 
 
-// lee_mipmap.cpp's constants and eq. 4.6, shared by the passes.
+// lee_mipmap_detail.h's constants and eq. 4.6, shared by the passes.
 constexpr const char* kCommon = R"(#version 330 core
 const float kTiny = 1e-18;      // the geometric blend's floor for 0 (log2 stays finite)
 const float kHuge = 1e18;       // and its ceiling
@@ -75,7 +75,7 @@ uniform float u_zf, u_delta;
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_zs;
 layout(location = 2) out vec4 o_don;
-// lee_mipmap.cpp's Taps: eq. 4.1's [1 2 1] / 4 as three bilinear taps one source texel apart around
+// lee_mipmap_detail.h's Taps: eq. 4.1's [1 2 1] / 4 as three bilinear taps one source texel apart around
 // the destination texel's centre, i.e. four texels, clamped to the edge.
 void taps(int i, int sw, int dw, out int idx[4], out float w[4]) {
   float c = float((2 * i + 1) * sw) / float(2 * dw) - 0.5;
@@ -141,7 +141,7 @@ uniform int u_top, u_max_level;
 uniform float u_ks, u_diag;  // u_diag: 1/sqrt 2 (circular, Fig. 4.4b) or 1
 uniform bool u_smooth, u_geometric;
 out vec4 o_color;
-// The 3x3 neighbourhood of eq. 4.8 and its binomial weights (lee_mipmap.cpp's Neighbourhood); y is
+// The 3x3 neighbourhood of eq. 4.8 and its binomial weights (lee_mipmap_detail.h's Neighbourhood); y is
 // negated so the samples are summed in the CPU's order (its rows run top-down).
 const float kW[9] = float[9](0.25, 0.125, 0.125, 0.125, 0.125, 0.0625, 0.0625, 0.0625, 0.0625);
 vec2 offset(int k) {
