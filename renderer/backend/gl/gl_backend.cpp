@@ -1,4 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
+// The OpenGL G-buffer backend (gl_backend.h): its programs, the G-buffer's framebuffers, and the
+// frame drawn into them (forward with an optional depth pre-pass, the visibility buffer, or depth
+// peeling). The scene's upload is in gl_backend_scene.cpp, the read-back in gl_backend_readback.cpp.
 #include "backend/gl/gl_backend.h"
 
 #include <epoxy/gl.h>
@@ -6,127 +9,24 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <limits>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 
+#include "backend/gl/gl_backend_detail.h"
 #include "backend/gl/gl_frame.h"
 #include "backend/gl/gl_program.h"
 #include "backend/gl/shaders.h"
 
 namespace fovea::render {
 
+using namespace gl_backend_detail;
+
 namespace {
 
-enum Attachment : std::size_t { kColor = 0, kDepth = 1, kId = 2, kNormal = 3, kMotion = 4 };
-constexpr std::size_t kNoMesh = static_cast<std::size_t>(-1);  // DrawItem of an object without a mesh
 // The texture units of the G-buffer program's depth-peeling samplers (gl_peel.h).
 constexpr int kPeelDepthUnit = 6, kPeelStateUnit = 7;
-constexpr GLenum kDrawBuffers[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
-                                    GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
-
-// std140 layout of one LightSample in the LightSamples uniform block (shaders.h).
-struct LightSampleStd140 {
-  float position_kind[4];
-  float power_cutoff[4];
-  float direction_start[4];
-};
-static_assert(sizeof(LightSampleStd140) == 48);
-
-std::string hex(unsigned v) {
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "0x%04X", v);
-  return buf;
-}
-
-void check_gl(const char* where) {
-  const GLenum error = glGetError();
-  if (error == GL_NO_ERROR) return;
-  while (glGetError() != GL_NO_ERROR) {
-  }
-  throw std::runtime_error(std::string("GlBackend: OpenGL error ") + hex(error) + " in " + where);
-}
-
-float finite_or(float v, float fallback) { return std::isfinite(v) ? v : fallback; }
-
-std::string object_label(const Scene& scene, const Object& o) {
-  return (scene.source.empty() ? scene.name : scene.source.string()) + ": object '" + o.name + "' (id " +
-         std::to_string(o.id) + ")";
-}
-
-// Throws std::invalid_argument unless mesh (level 0 or one LOD level of o) can be drawn: one normal per
-// position, whole triangles, an index count GLsizei can hold, every index a position.
-void validate_drawable_mesh(const Scene& scene, const Object& o, const Mesh& m) {
-  if (m.normals.size() != m.positions.size()) {
-    throw std::invalid_argument(object_label(scene, o) + ": mesh has " + std::to_string(m.normals.size()) +
-                                " normals for " + std::to_string(m.positions.size()) +
-                                " positions (must be one per position)");
-  }
-  if (m.indices.size() % 3 != 0) {
-    throw std::invalid_argument(object_label(scene, o) + ": mesh index count " + std::to_string(m.indices.size()) +
-                                " is not a multiple of 3");
-  }
-  if (m.indices.size() > static_cast<std::size_t>(std::numeric_limits<GLsizei>::max())) {
-    throw std::invalid_argument(object_label(scene, o) + ": mesh has too many indices for OpenGL");
-  }
-  for (const std::uint32_t i : m.indices) {
-    if (i >= m.positions.size()) {
-      throw std::invalid_argument(object_label(scene, o) + ": mesh index " + std::to_string(i) +
-                                  " out of range [0, " + std::to_string(m.positions.size()) + ")");
-    }
-  }
-}
-
-// Throws std::invalid_argument for the first object with a mesh the raster backend cannot draw.
-void validate_drawable_objects(const Scene& scene) {
-  for (const Object& o : scene.objects) {
-    if (!o.mesh) continue;  // nothing to draw (as in the Embree backend)
-    if (o.material >= scene.materials.size()) {
-      throw std::invalid_argument(object_label(scene, o) + ": material index " + std::to_string(o.material) +
-                                  " out of range [0, " + std::to_string(scene.materials.size()) + ")");
-    }
-    for (std::size_t level = 0; level <= o.lods.size(); ++level) {
-      const Mesh* level_mesh = level == 0 ? o.mesh.get() : o.lods[level - 1].mesh.get();
-      if (level_mesh == nullptr) continue;
-      validate_drawable_mesh(scene, o, *level_mesh);
-    }
-  }
-}
-
-// The scene's lights expanded to samples in the std140 layout of the LightSamples block; throws
-// std::runtime_error past gl::kMaxLightSamples (the block's fixed size).
-std::vector<LightSampleStd140> pack_light_samples(const Scene& scene) {
-  std::vector<LightSampleStd140> packed;
-  std::vector<LightSample> samples;
-  for (const Light& light : scene.lights) {
-    light_samples(light, samples);
-    for (const LightSample& s : samples) {
-      packed.push_back({{s.position.x, s.position.y, s.position.z, static_cast<float>(s.kind)},
-                        {s.power.x, s.power.y, s.power.z, s.cos_cutoff},
-                        {s.direction.x, s.direction.y, s.direction.z, s.cos_falloff_start}});
-    }
-  }
-  if (packed.size() > static_cast<std::size_t>(gl::kMaxLightSamples)) {
-    throw std::runtime_error((scene.source.empty() ? scene.name : scene.source.string()) + ": the lights expand to " +
-                             std::to_string(packed.size()) + " light samples; the OpenGL backend supports at most " +
-                             std::to_string(gl::kMaxLightSamples) +
-                             " (an area light counts area_samples^2: lower area_samples or use fewer lights)");
-  }
-  return packed;
-}
-
-void upload_light_samples(GLuint light_ubo, const std::vector<LightSampleStd140>& packed) {
-  glBindBuffer(GL_UNIFORM_BUFFER, light_ubo);
-  if (!packed.empty()) {
-    glBufferSubData(GL_UNIFORM_BUFFER, 0, static_cast<GLsizeiptr>(packed.size() * sizeof(LightSampleStd140)),
-                    packed.data());
-  }
-  glBindBuffer(GL_UNIFORM_BUFFER, 0);
-}
 
 // Targets the image's lower-left corner of the G-buffer with the z test on and no culling or blending,
 // writing only the planes asked for: a plane nobody reads is neither cleared nor written (the raster
@@ -230,18 +130,6 @@ GlBackend::~GlBackend() {
   if (depth_program_ != 0) glDeleteProgram(depth_program_);
 }
 
-void GlBackend::release_meshes() {
-  for (GpuMesh& m : meshes_) {
-    glDeleteVertexArrays(1, &m.vao);
-    glDeleteBuffers(1, &m.vbo);
-    glDeleteBuffers(1, &m.ibo);
-  }
-  meshes_.clear();
-  draws_.clear();
-  mesh_sources_.clear();
-  visibility_meshes_stale_ = true;
-}
-
 void GlBackend::release_framebuffer() {
   if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
   glDeleteTextures(5, textures_);
@@ -288,73 +176,6 @@ GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSe
   check_gl("GlBackend::render_aside");
   return {aside_.textures[kColor], aside_.textures[kDepth], aside_.textures[kId], aside_.textures[kNormal],
           aside_.textures[kMotion], width, height, width, height};
-}
-
-void GlBackend::set_scene(const Scene& scene) {
-  // Validate everything before touching GL state, so a bad scene leaves the previous one usable.
-  validate_drawable_objects(scene);
-  const std::vector<LightSampleStd140> packed = pack_light_samples(scene);
-
-  context_.make_current();
-  release_meshes();
-  upload_draw_items(scene);
-  upload_light_samples(light_ubo_, packed);
-  light_sample_count_ = static_cast<int>(packed.size());
-  scene_ = scene;
-  check_gl("GlBackend::set_scene");
-}
-
-GlBackend::GpuMesh GlBackend::upload_interleaved_mesh(const Mesh& mesh, std::vector<float>& interleaved) {
-  GpuMesh gpu;
-  gpu.index_count = static_cast<std::int32_t>(mesh.indices.size());
-  interleaved.resize(mesh.positions.size() * 6);
-  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
-    std::memcpy(&interleaved[6 * i], &mesh.positions[i], 3 * sizeof(float));
-    std::memcpy(&interleaved[6 * i + 3], &mesh.normals[i], 3 * sizeof(float));
-  }
-  glGenVertexArrays(1, &gpu.vao);
-  glGenBuffers(1, &gpu.vbo);
-  glGenBuffers(1, &gpu.ibo);
-  glBindVertexArray(gpu.vao);
-  glBindBuffer(GL_ARRAY_BUFFER, gpu.vbo);
-  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(interleaved.size() * sizeof(float)), interleaved.data(),
-               GL_STATIC_DRAW);
-  glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, gpu.ibo);
-  glBufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh.indices.size() * sizeof(std::uint32_t)),
-               mesh.indices.data(), GL_STATIC_DRAW);
-  constexpr GLsizei kStride = 6 * sizeof(float);
-  glEnableVertexAttribArray(0);
-  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, kStride, nullptr);
-  glEnableVertexAttribArray(1);
-  // The classic buffer-offset idiom of glVertexAttribPointer.
-  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, kStride,
-                        reinterpret_cast<const void*>(static_cast<std::uintptr_t>(3 * sizeof(float))));
-  glBindVertexArray(0);
-  glBindBuffer(GL_ARRAY_BUFFER, 0);
-  return gpu;
-}
-
-void GlBackend::upload_draw_items(const Scene& scene) {
-  std::unordered_map<const Mesh*, std::size_t> uploaded;  // shared meshes are uploaded once
-  std::vector<float> interleaved;
-  const auto upload = [&](const Mesh* mesh) -> std::size_t {
-    const auto found = uploaded.find(mesh);
-    if (found != uploaded.end()) return found->second;
-    const GpuMesh gpu = upload_interleaved_mesh(*mesh, interleaved);
-    uploaded.emplace(mesh, meshes_.size());
-    meshes_.push_back(gpu);
-    mesh_sources_.push_back(mesh);
-    return meshes_.size() - 1;
-  };
-  for (const Object& o : scene.objects) {
-    if (o.mesh == nullptr) {
-      draws_.push_back({kNoMesh, {}});
-      continue;
-    }
-    DrawItem item{upload(o.mesh.get()), {}};
-    for (const LodLevel& l : o.lods) item.lods.push_back(l.mesh ? upload(l.mesh.get()) : item.mesh);
-    draws_.push_back(std::move(item));
-  }
 }
 
 void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
@@ -701,101 +522,6 @@ const GlPeeling& GlBackend::peel_on_gpu(const FrameTime& time, const BackendSett
   peeling_->run(width, height, layers, draw_layer, clear);
   check_gl("GlBackend::peel_on_gpu");
   return *peeling_;
-}
-
-void GlBackend::read_back(const GBufferPlanes& planes, GBuffer& out) { read_back_from(fbo_, planes, out); }
-
-void GlBackend::read_back_from(unsigned fbo, const GBufferPlanes& planes, GBuffer& out) {
-  const std::uint32_t w = out.width, h = out.height;
-  if (w == 0 || h == 0) return;
-  context_.make_current();
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-  const auto gw = static_cast<GLsizei>(w), gh = static_cast<GLsizei>(h);
-  const float far_m = scene_->camera.far_m;
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  const std::size_t n = out.size();
-
-  // Reads attachment `index` into scratch with `channels` floats per pixel.
-  const auto read_float = [&](std::size_t index, GLenum format, std::size_t channels) {
-    scratch_.resize(n * channels);
-    glReadBuffer(kDrawBuffers[index]);
-    glReadPixels(0, 0, gw, gh, format, GL_FLOAT, scratch_.data());
-  };
-  // GL rows start at the bottom; the G-buffer's row 0 is the top.
-  const auto src = [&](std::uint32_t x, std::uint32_t y) { return std::size_t{h - 1 - y} * w + x; };
-  // An RGBA32F attachment's RGB into a vec3 plane, non-finite values as 0.
-  const auto read_vec3 = [&](std::size_t index, std::vector<glm::vec3>& plane) {
-    read_float(index, GL_RGBA, 4);
-    for (std::uint32_t y = 0; y < h; ++y) {
-      for (std::uint32_t x = 0; x < w; ++x) {
-        const float* p = &scratch_[4 * src(x, y)];
-        plane[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0), finite_or(p[2], 0)};
-      }
-    }
-  };
-
-  if (planes.color) read_vec3(kColor, out.color);
-  if (planes.depth) {
-    read_float(kDepth, GL_RED, 1);
-    for (std::uint32_t y = 0; y < h; ++y) {
-      for (std::uint32_t x = 0; x < w; ++x) out.depth[out.index(x, y)] = finite_or(scratch_[src(x, y)], far_m);
-    }
-  } else {
-    std::fill(out.depth.begin(), out.depth.end(), far_m);
-  }
-  if (planes.normal) read_vec3(kNormal, out.normal);
-  if (planes.motion) {
-    read_float(kMotion, GL_RG, 2);
-    for (std::uint32_t y = 0; y < h; ++y) {
-      for (std::uint32_t x = 0; x < w; ++x) {
-        const float* p = &scratch_[2 * src(x, y)];
-        out.motion[out.index(x, y)] = {finite_or(p[0], 0), finite_or(p[1], 0)};
-      }
-    }
-  }
-  if (planes.object_id) {
-    scratch_id_.resize(n);
-    glReadBuffer(kDrawBuffers[kId]);
-    glReadPixels(0, 0, gw, gh, GL_RED_INTEGER, GL_UNSIGNED_INT, scratch_id_.data());
-    for (std::uint32_t y = 0; y < h; ++y) {
-      std::memcpy(&out.object_id[out.index(0, y)], &scratch_id_[src(0, y)], std::size_t{w} * sizeof(std::uint32_t));
-    }
-  }
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  check_gl("GlBackend::render (read back)");
-}
-
-void GlBackend::read_back_rect(std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1,
-                               std::vector<float>& depth, std::vector<std::uint32_t>& ids) {
-  if (x1 > image_width_ || y1 > image_height_ || x0 > x1 || y0 > y1) {
-    throw std::invalid_argument("GlBackend::read_back_rect: [" + std::to_string(x0) + ", " + std::to_string(x1) + ") x [" +
-                                std::to_string(y0) + ", " + std::to_string(y1) + ") is not inside the " +
-                                std::to_string(image_width_) + "x" + std::to_string(image_height_) + " image");
-  }
-  const std::uint32_t w = x1 - x0, h = y1 - y0;
-  depth.resize(std::size_t{w} * h);
-  ids.resize(std::size_t{w} * h);
-  if (w == 0 || h == 0) return;
-  context_.make_current();
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  // GL rows start at the bottom: the rectangle's top row y0 is GL row image_height_ - 1 - y0.
-  const auto gx = static_cast<GLint>(x0), gy = static_cast<GLint>(image_height_ - y1);
-  const auto gw = static_cast<GLsizei>(w), gh = static_cast<GLsizei>(h);
-  scratch_.resize(std::size_t{w} * h);
-  scratch_id_.resize(std::size_t{w} * h);
-  glReadBuffer(kDrawBuffers[kDepth]);
-  glReadPixels(gx, gy, gw, gh, GL_RED, GL_FLOAT, scratch_.data());
-  glReadBuffer(kDrawBuffers[kId]);
-  glReadPixels(gx, gy, gw, gh, GL_RED_INTEGER, GL_UNSIGNED_INT, scratch_id_.data());
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  const float far_m = scene_ ? scene_->camera.far_m : 100.0f;
-  for (std::uint32_t y = 0; y < h; ++y) {
-    const std::size_t from = std::size_t{h - 1 - y} * w, to = std::size_t{y} * w;
-    for (std::uint32_t x = 0; x < w; ++x) depth[to + x] = finite_or(scratch_[from + x], far_m);
-    std::memcpy(&ids[to], &scratch_id_[from], std::size_t{w} * sizeof(std::uint32_t));
-  }
-  check_gl("GlBackend::read_back_rect");
 }
 
 GlGBufferTextures GlBackend::textures() const {
