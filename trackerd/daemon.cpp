@@ -525,7 +525,8 @@ bool Daemon::open_lsl_outlet_if_asked() {
     spdlog::error("{}", e.what());
     return false;
   }
-  spdlog::info("LSL outlets \"{0} gaze\" (Gaze, {1} channels, {2} Hz) and \"{0} markers\" (Markers), source_id {3}-*; {4}",
+  spdlog::info("LSL outlets \"{0} gaze\" (Gaze, {1} channels, {2} Hz), \"{0} markers\" (Markers: the experiment's "
+               "markers, verbatim) and \"{0} events\" (GazeEvents: eye-movement events), source_id {3}-*; {4}",
                o.name, kLslGazeChannels.size(), o.nominal_rate_hz, o.source_id, lsl_library_info());
   return true;
 }

@@ -87,8 +87,8 @@ void add_source_network_and_record_options(CLI::App& app, Flags& f) {
   f.o_append =
       app.add_flag("--append", f.append, "with --record: append to an existing recording of the same display");
   f.o_lsl = app.add_flag("--lsl", f.lsl,
-                         "also publish gaze and events/markers as Lab Streaming Layer streams (types Gaze and Markers; "
-                         "[lsl] in the configuration; needs a build with liblsl)");
+                         "also publish gaze, markers (verbatim) and eye-movement events as Lab Streaming Layer streams "
+                         "(types Gaze, Markers and GazeEvents; [lsl] in the configuration; needs a build with liblsl)");
   f.o_rate = app.add_option("--rate", d.source.rate_hz,
                             "synthetic sources: sample (frame) rate in Hz; synthetic 1..10000 (default 250), "
                             "synthetic-eye 1..1000 (default 120)")

@@ -2,14 +2,16 @@
 // fovea-trackerd --lsl as an LSL consumer sees it (issue 27, outlet): a liblsl inlet resolves the
 // daemon's streams (discovery confined to this machine by LSLAPICFG, set by CTest), checks their
 // channels, metadata and rate, receives the samples published in a window, with timestamps in order
-// and on the recorded device times, and gets a marker sent with `fovea-ctl mark` on the Markers
-// stream. The daemon's own recording (--record) is the truth.
+// and on the recorded device times, gets a marker sent with `fovea-ctl mark` on the Markers stream
+// exactly as it was written, and the eye-movement events, in their documented format, on a stream
+// of their own. The daemon's own recording (--record) is the truth.
 #include <gtest/gtest.h>
 #include <lsl_cpp.h>
 
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -79,14 +81,45 @@ TEST(LslOutlet, StreamsCarryTheDocumentedChannelsMetadataAndRate) {
   EXPECT_EQ(minfo.type(), "Markers");
   EXPECT_EQ(minfo.channel_format(), lsl::cf_string);
   EXPECT_EQ(minfo.nominal_srate(), lsl::IRREGULAR_RATE);
+
+  lsl::stream_inlet events(resolve(d.id("events")));
+  lsl::stream_info einfo = events.info(5.0);
+  EXPECT_EQ(einfo.name(), "fovea events");
+  EXPECT_EQ(einfo.type(), "GazeEvents");
+  EXPECT_EQ(einfo.channel_format(), lsl::cf_string);
+  EXPECT_EQ(einfo.channel_count(), 1);
+  EXPECT_EQ(einfo.nominal_srate(), lsl::IRREGULAR_RATE);
+  EXPECT_STREQ(einfo.desc().child_value("format"), fovea::trackerd::kLslEventFormat);
 }
 
-TEST(LslOutlet, SamplesArriveOnTheirDeviceTimesAndMarkersOnTheMarkersStream) {
+// KIND PHASE [duration_ms= amplitude_deg= peak_velocity_deg_s=] x= y= (lsl_outlet.h).
+bool is_event_text(const std::string& t) {
+  static const std::regex start(R"((fixation|saccade|pursuit|blink) start x=-?[0-9.]+ y=-?[0-9.]+)");
+  static const std::regex end(R"((fixation|saccade|pursuit|blink) end duration_ms=[0-9.]+ amplitude_deg=[0-9.]+ )"
+                              R"(peak_velocity_deg_s=[0-9]+ x=-?[0-9.]+ y=-?[0-9.]+)");
+  return std::regex_match(t, start) || std::regex_match(t, end);
+}
+
+// Pulls a string stream for up to `seconds`, or until `until` is among what arrived.
+std::vector<std::string> pull_texts(lsl::stream_inlet& inlet, double seconds, const std::string& until = {}) {
+  std::vector<std::string> texts;
+  std::string text;
+  const double deadline = lsl::local_clock() + seconds;
+  while (lsl::local_clock() < deadline) {
+    if (inlet.pull_sample(&text, 1, 0.2) != 0.0) texts.push_back(text);
+    if (!until.empty() && !texts.empty() && texts.back() == until) break;
+  }
+  return texts;
+}
+
+TEST(LslOutlet, SamplesArriveOnTheirDeviceTimesMarkersVerbatimAndEventsOnAStreamOfTheirOwn) {
   Daemon d(7);
   lsl::stream_inlet gaze(resolve(d.id("gaze")), 360);
   lsl::stream_inlet markers(resolve(d.id("markers")));
+  lsl::stream_inlet events(resolve(d.id("events")));
   gaze.open_stream(5.0);
   markers.open_stream(5.0);
+  events.open_stream(5.0);
 
   // 2.5 s of samples, a marker half-way through.
   std::vector<std::pair<double, std::vector<float>>> received;
@@ -103,19 +136,15 @@ TEST(LslOutlet, SamplesArriveOnTheirDeviceTimesAndMarkersOnTheMarkersStream) {
                 0);
     }
   }
-  std::vector<std::string> texts;
-  std::string text;
-  const double mark_deadline = lsl::local_clock() + 3.0;
-  while (lsl::local_clock() < mark_deadline) {
-    if (markers.pull_sample(&text, 1, 0.2) != 0.0) texts.push_back(text);
-    if (std::find(texts.begin(), texts.end(), "marker lsl-check-7") != texts.end()) break;
-  }
+  const std::vector<std::string> texts = pull_texts(markers, 3.0, "lsl-check-7");
+  const std::vector<std::string> event_texts = pull_texts(events, 0.5);
   ASSERT_TRUE(wait_for(d.rc, 20)) << read_text(d.log);
   EXPECT_EQ(read_text(d.rc), "0\n") << read_text(d.log);
-  EXPECT_NE(std::find(texts.begin(), texts.end(), "marker lsl-check-7"), texts.end())
-      << texts.size() << " marker-stream texts, none the marker";
-  EXPECT_TRUE(std::any_of(texts.begin(), texts.end(), [](const std::string& t) { return t.starts_with("event "); }))
-      << "no eye-movement event on the Markers stream";
+  // The user's label alone, as written: nothing else goes on the markers stream.
+  ASSERT_EQ(texts.size(), 1u) << texts.size() << " marker-stream texts, the first \"" << (texts.empty() ? "" : texts[0]) << "\"";
+  EXPECT_EQ(texts[0], "lsl-check-7");
+  ASSERT_GT(event_texts.size(), 5u) << "too few eye-movement events on the events stream";
+  for (const std::string& t : event_texts) EXPECT_TRUE(is_event_text(t)) << "not in the documented format: \"" << t << "\"";
 
   // The truth: the daemon's recording of what it published.
   const auto rec = protocol::read_recording(d.fgr.string());

@@ -49,7 +49,7 @@ void describe_setup(lsl::xml_element desc, const LslOutletOptions& o) {
 class LiblslOutlet final : public LslOutlet {
  public:
   explicit LiblslOutlet(const LslOutletOptions& o)
-      : display_(o.display), gaze_(gaze_info(o)), markers_(markers_info(o)) {
+      : display_(o.display), gaze_(gaze_info(o)), markers_(markers_info(o)), events_(events_info(o)) {
     offset_s_.store(lsl_clock_minus_monotonic_s());
     next_offset_ns_ = monotonic_ns() + kOffsetRefreshNs;
   }
@@ -63,14 +63,20 @@ class LiblslOutlet final : public LslOutlet {
   void push(const protocol::GazeEvent& e) override {
     if (e.provisional()) return;
     const std::int64_t t = e.start_time_ns + (e.phase == protocol::EventPhase::End ? e.duration_ns : 0);
-    push_marker(lsl_marker_text(e), t);
+    const std::string text = lsl_event_text(e);
+    events_.push_sample(&text, lsl_time(t));
   }
 
-  void push(const protocol::Marker& m) override { push_marker(lsl_marker_text(m), m.time_ns); }
+  // The label as its sender wrote it: consumers match on their own labels.
+  void push(const protocol::Marker& m) override {
+    std::lock_guard lock(markers_mutex_);
+    markers_.push_sample(&m.label.value, lsl_time(m.time_ns));
+  }
 
   std::string status() const override {
-    return fmt::format("gaze {}, markers {}, clock offset {:+.6f} s", gaze_.have_consumers() ? "consumed" : "no consumer",
-                       markers_.have_consumers() ? "consumed" : "no consumer", offset_s_.load());
+    const auto consumed = [](lsl::stream_outlet& o) { return o.have_consumers() ? "consumed" : "no consumer"; };
+    return fmt::format("gaze {}, markers {}, events {}, clock offset {:+.6f} s", consumed(gaze_), consumed(markers_),
+                       consumed(events_), offset_s_.load());
   }
 
  private:
@@ -88,7 +94,15 @@ class LiblslOutlet final : public LslOutlet {
   static lsl::stream_info markers_info(const LslOutletOptions& o) {
     lsl::stream_info info(o.name + " markers", "Markers", 1, lsl::IRREGULAR_RATE, lsl::cf_string,
                           o.source_id + "-markers");
-    info.desc().append_child("channels").append_child("channel").append_child_value("label", "event").append_child_value("type", "Marker");
+    info.desc().append_child("channels").append_child("channel").append_child_value("label", "marker").append_child_value("type", "Marker");
+    return info;
+  }
+
+  static lsl::stream_info events_info(const LslOutletOptions& o) {
+    lsl::stream_info info(o.name + " events", "GazeEvents", 1, lsl::IRREGULAR_RATE, lsl::cf_string,
+                          o.source_id + "-events");
+    info.desc().append_child("channels").append_child("channel").append_child_value("label", "event").append_child_value("type", "EyeMovementEvent");
+    info.desc().append_child_value("format", kLslEventFormat);
     return info;
   }
 
@@ -101,16 +115,12 @@ class LiblslOutlet final : public LslOutlet {
 
   double lsl_time(std::int64_t monotonic) const { return static_cast<double>(monotonic) * 1e-9 + offset_s_.load(); }
 
-  void push_marker(const std::string& text, std::int64_t time_ns) {
-    std::lock_guard lock(markers_mutex_);
-    markers_.push_sample(&text, lsl_time(time_ns));
-  }
-
   protocol::DisplayGeometry display_;
   // mutable: liblsl's C++ wrapper has no const have_consumers(), which status() asks.
   mutable lsl::stream_outlet gaze_;
-  std::mutex markers_mutex_;  // events from the loop, MARKERs from the server's thread
+  std::mutex markers_mutex_;  // MARKERs come from the server's thread and the loop's
   mutable lsl::stream_outlet markers_;
+  mutable lsl::stream_outlet events_;  // the loop's thread only
   std::atomic<double> offset_s_{0};
   std::int64_t next_offset_ns_ = 0;
 };

@@ -1,15 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 // fovea-trackerd in the Lab Streaming Layer (issue 27 item 1): what the daemon publishes, also as
-// two LSL outlets, so LabRecorder and any LSL consumer record fovea's gaze beside EEG or motion
+// three LSL outlets, so LabRecorder and any LSL consumer record fovea's gaze beside EEG or motion
 // capture on LSL's common clock.
 //
 //   "<name> gaze"    type Gaze, float32 channels (kLslGazeChannels), nominal rate = the source's,
 //                    channel metadata in desc/channels after the XDF gaze meta-data conventions
 //                    (github.com/sccn/xdf/wiki/Gaze-Meta-Data: label, eye, type, unit), the display
 //                    geometry in desc/setup/display; invalid gaze as NaN
-//   "<name> markers" type Markers, one string channel, irregular rate: final eye-movement events and
-//                    MARKER messages (lsl_marker_text)
+//   "<name> markers" type Markers, one string channel, irregular rate: the experiment's MARKER
+//                    messages (`fovea-ctl mark LABEL`, the clients' markers), each label verbatim,
+//                    so that LabRecorder, pyxdf and MNE users match on their own labels
+//   "<name> events"  type GazeEvents, one string channel, irregular rate: the final eye-movement
+//                    events, one string each in the format of lsl_event_text
 //
 // Timestamps are the sample's device time (the daemon's CLOCK_MONOTONIC, which trackers with their
 // own clock were already mapped onto) mapped onto lsl_local_clock(), not the push time.
@@ -55,10 +58,16 @@ inline constexpr std::array<LslChannel, 11> kLslGazeChannels{{
 // One sample as the gaze outlet's channel values (kLslGazeChannels' order).
 std::array<float, kLslGazeChannels.size()> lsl_gaze_values(const protocol::GazeSample& s,
                                                            const protocol::DisplayGeometry& display);
-// The Markers stream's text: "event saccade end duration_ms=42.0 amplitude_deg=5.12 x=0.4812
-// y=0.5210" for a final event, "marker LABEL" for a MARKER.
-std::string lsl_marker_text(const protocol::GazeEvent& e);
-std::string lsl_marker_text(const protocol::Marker& m);
+// The events stream's text for a final event: KIND PHASE, then key=value fields separated by one
+// space, "saccade end duration_ms=42.0 amplitude_deg=5.12 peak_velocity_deg_s=310 x=0.4812
+// y=0.5210" (x, y: the event's centroid, normalized screen coordinates, origin top-left; a start
+// has x and y only). KIND: fixation, saccade, pursuit, blink; PHASE: start, end. The grammar is
+// also in the stream's desc/format.
+std::string lsl_event_text(const protocol::GazeEvent& e);
+inline constexpr const char* kLslEventFormat =
+    "KIND PHASE [duration_ms=D amplitude_deg=A peak_velocity_deg_s=V] x=X y=Y; KIND fixation|saccade|pursuit|"
+    "blink, PHASE start|end (the bracketed fields at end only), X/Y the event's centroid in normalized screen "
+    "coordinates (origin top-left); the timestamp is the event's onset (start) or end (end)";
 
 struct LslOutletOptions {
   std::string name = "fovea";       // stream names "<name> gaze" / "<name> markers"

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The parts of the LSL outlet that do not need liblsl: channel values and marker texts.
+// The parts of the LSL outlet that do not need liblsl: channel values and event texts.
 #include <cmath>
 #include <limits>
 
@@ -31,9 +31,9 @@ std::array<float, kLslGazeChannels.size()> lsl_gaze_values(const protocol::GazeS
           pupil(s.right)};
 }
 
-std::string lsl_marker_text(const protocol::GazeEvent& e) {
+std::string lsl_event_text(const protocol::GazeEvent& e) {
   const char* phase = e.phase == protocol::EventPhase::Start ? "start" : "end";
-  std::string text = fmt::format("event {} {}", protocol::to_string(e.kind), phase);
+  std::string text = fmt::format("{} {}", protocol::to_string(e.kind), phase);
   if (e.phase == protocol::EventPhase::End) {
     text += fmt::format(" duration_ms={:.1f} amplitude_deg={:.2f} peak_velocity_deg_s={:.0f}",
                         static_cast<double>(e.duration_ns) * 1e-6, static_cast<double>(e.amplitude_deg),
@@ -41,7 +41,5 @@ std::string lsl_marker_text(const protocol::GazeEvent& e) {
   }
   return text + fmt::format(" x={:.4f} y={:.4f}", static_cast<double>(e.centroid_x), static_cast<double>(e.centroid_y));
 }
-
-std::string lsl_marker_text(const protocol::Marker& m) { return "marker " + m.label.value; }
 
 }  // namespace fovea::trackerd

@@ -398,7 +398,7 @@ void parse_eye(Checker& c, const toml::table& t, EyeConfig& eye) {
 void parse_lsl(Checker& c, const toml::table& t, LslConfig& lsl) {
   c.only(t, "lsl.", {"outlet", "name"});
   c.boolean(t, "lsl.", "outlet", lsl.outlet);
-  c.string(t, "lsl.", "name", lsl.name, "the streams' name prefix (\"<name> gaze\", \"<name> markers\")");
+  c.string(t, "lsl.", "name", lsl.name, "the streams' name prefix (\"<name> gaze\", \"<name> markers\", \"<name> events\")");
   if (lsl.outlet && !lsl_available()) c.problem(t.get("outlet")->source(), "lsl.outlet", lsl_library_info());
   if (lsl.name.empty() && t.get("name") != nullptr)
     c.problem(t.get("name")->source(), "lsl.name", "empty; allowed: a non-empty name");
