@@ -1,0 +1,151 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+// The pupil/glint detector's stages (eye/eye_detector.h), shared by their files and by
+// eye_detector.cpp, which runs them; eye/EYE.md ("Detector") describes them in the order they run:
+//   glint_candidates.cpp   bright, round, saturated blobs, and the mask that keeps them out of the edge search
+//   pupil_candidates.cpp   dark centre-surround blobs on an integral image (Świrski 2012 §3.1)
+//   pupil_edges.cpp        edge points (Starburst rays or Canny), eyelid runs removed
+//   pupil_ellipse_fit.cpp  RANSAC ellipse fit and least-squares refit (Świrski 2012 §3.3)
+//   pupil_confidence.cpp   the fit's evidence and the calibrated confidence (PuRe, Santini 2018 §3.4)
+//   glint_pairing.cpp      glints paired with the LED layout, and the pupil–glint reference point
+// Points here use OpenCV's pixel convention (pixel centres at integer coordinates);
+// eye_detector.cpp moves results into Ellipse's.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "eye/eye_detector.h"
+
+namespace fovea::trackerd::eye::stages {
+
+inline constexpr double kPi = 3.14159265358979323846;
+
+inline double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1.0) : 0.0; }
+
+inline bool finite(const cv::Point2d& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
+
+// Grey levels of an 8-bit image.
+inline double bilinear(const cv::Mat& img, double x, double y) {
+  const int w = img.cols, h = img.rows;
+  x = std::clamp(x, 0.0, static_cast<double>(w - 1));
+  y = std::clamp(y, 0.0, static_cast<double>(h - 1));
+  const int x0 = std::min(static_cast<int>(x), w - 2 < 0 ? 0 : w - 2);
+  const int y0 = std::min(static_cast<int>(y), h - 2 < 0 ? 0 : h - 2);
+  const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
+  const double fx = x - x0, fy = y - y0;
+  const double v00 = img.at<std::uint8_t>(y0, x0), v01 = img.at<std::uint8_t>(y0, x1);
+  const double v10 = img.at<std::uint8_t>(y1, x0), v11 = img.at<std::uint8_t>(y1, x1);
+  return (v00 * (1 - fx) + v01 * fx) * (1 - fy) + (v10 * (1 - fx) + v11 * fx) * fy;
+}
+
+// A percentile of the pixels in `roi` (8-bit).
+inline double percentile(const cv::Mat& img, double fraction) {
+  std::array<int, 256> hist{};
+  for (int y = 0; y < img.rows; ++y) {
+    const std::uint8_t* row = img.ptr<std::uint8_t>(y);
+    for (int x = 0; x < img.cols; ++x) ++hist[row[x]];
+  }
+  const double total = static_cast<double>(img.total());
+  double seen = 0;
+  for (int v = 0; v < 256; ++v) {
+    seen += hist[static_cast<std::size_t>(v)];
+    if (seen >= fraction * total) return v;
+  }
+  return 255;
+}
+
+// --- glint_candidates.cpp
+
+struct GlintCandidates {
+  std::vector<Glint> glints;  // internal pixel convention
+  cv::Mat mask;               // glint pixels (dilated), same size as the searched window, 8U
+  cv::Rect window;
+};
+
+GlintCandidates find_glints(const cv::Mat& grey, const cv::Rect& window, double image_size);
+
+// Whether (x, y) is a glint pixel (of the dilated mask).
+inline bool in_glint(const GlintCandidates& g, double x, double y) {
+  if (g.glints.empty()) return false;
+  const int ix = static_cast<int>(std::lround(x)) - g.window.x, iy = static_cast<int>(std::lround(y)) - g.window.y;
+  if (ix < 0 || iy < 0 || ix >= g.mask.cols || iy >= g.mask.rows) return false;
+  return g.mask.at<std::uint8_t>(iy, ix) != 0;
+}
+
+// --- pupil_candidates.cpp
+
+struct Blob {
+  cv::Point2d centre;  // full-resolution internal pixel coordinates
+  double radius = 0;   // full-resolution pixels
+  double response = 0; // surround mean minus inner mean, grey levels
+  double inner = 0, surround = 0;
+};
+
+// The best `count` dark blobs in `window`, best first (`small` and `integral` are reused buffers).
+std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, int downscale, double rmin, double rmax,
+                                  std::size_t count, cv::Mat& small, cv::Mat& integral);
+
+// --- pupil_edges.cpp
+
+struct EdgePoint {
+  cv::Point2d p;
+  double contrast = 0;
+};
+
+// Starburst rays from `from` inside the pupil to the first sharp dark-to-bright step.
+std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
+                                 const cv::Point2d& from, double pupil_level, double min_step, double max_length,
+                                 int rays);
+// Canny edges around `from` whose gradient points away from it (dark inside).
+std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const GlintCandidates& glints, const cv::Point2d& from,
+                                   double contrast, double max_length);
+// Removes up to two straight runs of edge points (the lid margins) across a pupil of `radius`.
+void remove_eyelid_lines(std::vector<EdgePoint>& edges, double radius, std::mt19937& rng);
+
+// --- pupil_ellipse_fit.cpp
+
+struct FitResult {
+  Ellipse ellipse;
+  std::vector<std::size_t> inliers;
+  double rms = 0;
+};
+
+// The pupil ellipse through the edge points (RANSAC, then a least-squares refit on the inliers),
+// with a radius in [rmin, rmax] px near `origin`; nullopt when none is plausible.
+std::optional<FitResult> fit_pupil(const std::vector<EdgePoint>& edges, FitMethod method, const cv::Point2d& origin,
+                                   double rmin, double rmax, std::mt19937& rng);
+Ellipse from_rotated_rect(const cv::RotatedRect& r);
+// A point on the ellipse at parameter t (internal pixel convention).
+cv::Point2d ellipse_point(const Ellipse& e, double t, double scale = 1.0);
+
+// --- pupil_confidence.cpp
+
+// Share of the fitted outline where the inside is clearly darker than the outside.
+double outline_contrast(const cv::Mat& smooth, const cv::Rect& valid, const Ellipse& e, double step_needed);
+// Share of 16 directions around the centre in which some inlier edge point lies.
+double arc_coverage(const std::vector<EdgePoint>& edges, const std::vector<std::size_t>& inliers,
+                    const cv::Point2d& centre);
+// Share of the ellipse's outline inside `frame`.
+double outline_inside(const cv::Rect& frame, const Ellipse& e);
+
+// --- glint_pairing.cpp
+
+// The glint point the pupil–glint vector is measured from.
+struct GlintReference {
+  cv::Point2d point;
+  bool valid = false;
+};
+
+// The reference point of the glints (labelling each with its LED when there is a layout); updates
+// the scale and reference priors kept between frames.
+GlintReference glint_reference(std::vector<Glint>& glints, const LedLayout& leds, double size, double& last_glint_scale,
+                               std::optional<cv::Point2d>& last_reference);
+
+}  // namespace fovea::trackerd::eye::stages
