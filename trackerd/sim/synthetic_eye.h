@@ -103,9 +103,10 @@ class SyntheticEye {
 
  private:
   struct Look;   // the instance's fixed appearance (iris texture, skin, lashes, reflections), from the seed
-  struct Frame;  // one frame's geometry
+                 // (synthetic_eye_look.h)
+  struct Frame;  // one frame's geometry (synthetic_eye_geometry.h)
   Frame frame(double yaw_deg, double pitch_deg, double openness) const;
-  struct RenderStages;  // render()'s stages that read Look (synthetic_eye.cpp)
+  struct RenderStages;  // render()'s stages that read Look (synthetic_eye_render.cpp)
 
   SyntheticEyeOptions options_;
   std::mt19937_64 rng_;
