@@ -706,8 +706,9 @@ void Daemon::shut_down() {
       st.samples_published, st.events_published, st.datagrams_sent, st.send_failures, st.datagrams_rejected,
       st.leases_expired, st.control_requests, st.control_refused,
       recorder_ ? ", " + std::to_string(recorder_->records_written()) + " records written" : std::string());
+  // The source's counts in full: a network source's run past 256 characters (its arrival rules last).
   if (const std::string detail = source_->status_detail(); !detail.empty()) {
-    spdlog::info("{}: {}", protocol::escape_for_log(source_->description()), protocol::escape_for_log(detail));
+    spdlog::info("{}: {}", protocol::escape_for_log(source_->description()), protocol::escape_for_log(detail, 1024));
   }
 }
 

@@ -23,9 +23,12 @@ class TrackerClock {
 
   // Host time of a report with raw counter `ticks` received at `receive_ns`.
   std::int64_t map(std::uint64_t ticks, std::int64_t receive_ns);
+  // Forgets the mapping (a new connection, a flood's false times): the next report anchors afresh;
+  // drift is unknown until then. Mapped times still never decrease.
   void reset() {
     anchored_ = false;
     window_.clear();
+    first_full_window_.reset();
   }
   std::uint64_t resets() const { return resets_; }
   std::int64_t offset_ns() const { return offset_ns_; }

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 // What the sources that read a tracker over its network API share (gazepoint/, pupil/): the
-// HOST[:PORT] of their specs, and the hand-over from the reader thread, which owns the connection,
-// to the daemon's publishing loop.
+// HOST[:PORT] of their specs, the hand-over from the reader thread, which owns the connection, to
+// the daemon's publishing loop, and the rules every sample passes as it arrives (arrival_guard.h).
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -15,7 +15,9 @@
 #include <thread>
 #include <vector>
 
+#include "fovea/protocol/clock.h"
 #include "source_api/gaze_source.h"
+#include "sources/arrival_guard.h"
 
 namespace fovea::trackerd::net {
 
@@ -82,13 +84,19 @@ class ProblemText {
 };
 
 // A source whose tracker is read by a thread of its own: the samples that thread hands over, its
-// problem, the display and rate. The derived class starts the thread at the end of its constructor
+// problem, the display and rate, and the arrival rules (arrivals_: the cap on its declared rate, the
+// flood rule, no times from the future), which the reader thread applies to every sample before its
+// clock sees it (the call order is in arrival_guard.h) and the source's status_detail() reports
+// (arrivals_.status()). The derived class starts the thread at the end of its constructor
 // (start_reader) and stops it first thing in its destructor (stop_reader), while its members live.
 class ReaderSource : public GazeSource {
  public:
   protocol::DisplayGeometry display() const override { return display_; }
   double nominal_rate_hz() const override { return nominal_rate_hz_; }
-  std::optional<GazeItem> next() override { return queue_.next(); }  // waits up to 50 ms for a sample
+  std::optional<GazeItem> next() override {  // waits up to 50 ms for a sample
+    arrivals_.poll(protocol::monotonic_ns());  // a flood ends also when the peer falls silent
+    return queue_.next();
+  }
   std::optional<std::int64_t> last_receive_ns() const override { return queue_.last_receive_ns(); }
   bool ended() const override { return false; }  // a tracker never ends; it may be away a while
   void interrupt() override { queue_.interrupt(); }
@@ -96,13 +104,14 @@ class ReaderSource : public GazeSource {
 
  protected:
   ReaderSource(protocol::DisplayGeometry display, double nominal_rate_hz)
-      : display_(display), nominal_rate_hz_(nominal_rate_hz) {}
+      : display_(display), nominal_rate_hz_(nominal_rate_hz), arrivals_(nominal_rate_hz) {}
   ~ReaderSource() override { stop_reader(); }
   ReaderSource(const ReaderSource&) = delete;
   ReaderSource& operator=(const ReaderSource&) = delete;
 
   void start_reader(std::function<void()> run) {
     problem_.set(description() + ": connecting");
+    arrivals_.set_name(description());
     reader_ = std::thread(std::move(run));
   }
   void stop_reader() {
@@ -115,6 +124,7 @@ class ReaderSource : public GazeSource {
   const double nominal_rate_hz_;
   SampleQueue queue_;
   ProblemText problem_;
+  ArrivalGuard arrivals_;
 
  private:
   std::atomic<bool> stop_{false};

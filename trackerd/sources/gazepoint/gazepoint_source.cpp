@@ -73,7 +73,8 @@ GazepointStats GazepointSource::stats() const {
 std::string GazepointSource::status_detail() const {
   const GazepointStats s = stats();
   std::string out = std::to_string(s.records) + " records (" + std::to_string(s.valid) + " valid), " +
-                    std::to_string(s.malformed) + " malformed, " + std::to_string(s.counter_gaps) + " missing by CNT";
+                    std::to_string(s.malformed) + " malformed, " + std::to_string(s.counter_gaps) + " missing by CNT" +
+                    arrivals_.status();
   if (s.records > 0) {
     char clock[160];
     std::snprintf(clock, sizeof clock, ", clock offset %.3f ms, drift %s ppm, delay p50 %.2f / p99 %.2f ms",
@@ -230,8 +231,29 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
     problem_.set("");
     silence_reported_ = false;
   }
-  const std::int64_t mapped =
-      r.time_s ? clock_.map(static_cast<std::uint64_t>(std::llround(*r.time_s * 1e6)), receive_ns) : receive_ns;
+  // The arrival rules before the clock (arrival_guard.h): a flood must not teach it its time.
+  const net::ArrivalGuard::Admission a = arrivals_.admit(receive_ns);
+  if (a.within_pace && !a.flooding) paced_clock_ = {clock_.offset_ns(), clock_.drift_ppm()};
+  {
+    std::lock_guard lock(mutex_);
+    if (r.counter && last_counter_ && *r.counter > *last_counter_ + 1) stats_.counter_gaps += *r.counter - *last_counter_ - 1;
+    if (r.counter) last_counter_ = r.counter;
+    ++stats_.records;
+    if (r.best_valid) ++stats_.valid;
+    if (a.flood_began) {
+      // What the flood's first records taught the clock is wrong: forget it, and show the mapping
+      // as it was before them until the clock anchors afresh after the flood.
+      clock_.reset();
+      stats_.clock_offset_ns = paced_clock_.first;
+      stats_.clock_drift_ppm = paced_clock_.second;
+    }
+  }
+  if (!a.keep) return;
+  std::int64_t mapped = receive_ns;
+  if (r.time_s && !a.flooding) {
+    mapped = arrivals_.not_after_arrival(clock_.map(static_cast<std::uint64_t>(std::llround(*r.time_s * 1e6)), receive_ns),
+                                         receive_ns);
+  }
   protocol::GazeSample s;
   s.tracker_time_ns = mapped;
   if (r.best_valid) {
@@ -251,18 +273,16 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
     s.right.flags |= protocol::kEyePupilValid;
     s.right.pupil_diameter_mm = static_cast<float>(*r.right_pupil_mm);
   }
-  delays_.add(receive_ns - mapped);
-  std::lock_guard lock(mutex_);
-  if (r.counter && last_counter_ && *r.counter > *last_counter_ + 1) stats_.counter_gaps += *r.counter - *last_counter_ - 1;
-  if (r.counter) last_counter_ = r.counter;
-  ++stats_.records;
-  if (r.best_valid) ++stats_.valid;
-  stats_.clock_offset_ns = clock_.offset_ns();
-  stats_.clock_drift_ppm = clock_.drift_ppm();
-  stats_.clock_resets = clock_.resets();
-  if (stats_.records % 64 == 1) {
-    stats_.delay_p50_ns = delays_.percentile(0.5);
-    stats_.delay_p99_ns = delays_.percentile(0.99);
+  if (!a.flooding) {
+    delays_.add(receive_ns - mapped);
+    std::lock_guard lock(mutex_);
+    stats_.clock_offset_ns = clock_.offset_ns();
+    stats_.clock_drift_ppm = clock_.drift_ppm();
+    stats_.clock_resets = clock_.resets();
+    if (++delay_samples_ % 64 == 1) {
+      stats_.delay_p50_ns = delays_.percentile(0.5);
+      stats_.delay_p99_ns = delays_.percentile(0.99);
+    }
   }
   queue_.push(s, receive_ns);
 }

@@ -9,6 +9,9 @@
 //  - time: the tracker's TIME mapped onto CLOCK_MONOTONIC by a TrackerClock (the least receive
 //    delay over a sliding second, following drift), so a sample's time is when the tracker took it,
 //    not when the network delivered it; a record without TIME gets its receive time.
+// Every record passes the arrival rules first (arrival_guard.h): at most 4x the declared rate is
+// published; while the server floods, records are stamped on arrival and the clock is not fed (it
+// is reset when the flood begins and anchors afresh after it).
 // A lost connection (Gazepoint Control closed or restarted) is retried every second, reported as
 // the source's problem meanwhile; a line that does not parse is counted and dropped, never used.
 #include <atomic>
@@ -17,6 +20,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "source_api/gaze_source.h"
@@ -28,7 +32,7 @@ namespace fovea::trackerd::gazepoint {
 
 struct GazepointStats {
   bool connected = false;
-  std::uint64_t records = 0;      // data records turned into samples
+  std::uint64_t records = 0;      // data records read (those dropped over the rate cap among them)
   std::uint64_t valid = 0;        // of which with a valid point of gaze
   std::uint64_t malformed = 0;    // lines refused (not an element, a bad record, too long)
   std::uint64_t refused = 0;      // NACKs: commands the server did not take
@@ -62,6 +66,10 @@ class GazepointSource final : public net::ReaderSource {
   TrackerClock clock_{1e-6, 64};  // TIME in microseconds
   std::optional<std::uint64_t> last_counter_;
   net::DelayWindow delays_;  // receive - mapped
+  std::uint64_t delay_samples_ = 0;  // records added to delays_
+  // The clock's offset and drift before the last record that arrived within the declared pace:
+  // what STATUS shows from a flood's start until the clock anchors afresh.
+  std::pair<std::int64_t, std::optional<double>> paced_clock_{0, std::nullopt};
   bool silence_reported_ = false;  // "no gaze records" is the problem now
 
   mutable std::mutex mutex_;  // guards stats_

@@ -101,6 +101,10 @@ std::string PupilSource::status_detail() const {
                     std::to_string(s.low_confidence) + " below confidence, " + std::to_string(s.off_surface) +
                     " off the surface), " + std::to_string(s.scene_only) + " scene-only, " +
                     std::to_string(s.malformed) + " malformed, " + std::to_string(s.gaps) + " dropouts";
+  out += arrivals_.status();
+  if (s.stamped_unsynced > 0) {
+    out += ", " + std::to_string(s.stamped_unsynced) + " stamped on arrival while the clock re-synced";
+  }
   char clock[256];
   std::snprintf(clock, sizeof clock,
                 ", clock offset %.3f ms +- %.3f ms over %llu exchanges, drift %s ppm, delay p50 %.2f / p99 %.2f ms",
@@ -270,6 +274,7 @@ bool PupilSource::handle_message(Connection& c, std::int64_t receive_ns) {
 
 // One gaze point as a sample: Pupil time mapped onto the host clock (never after it arrived), y
 // flipped to fovea's top-left origin; invalid below the confidence threshold or without a screen.
+// Over the rate cap it is counted and dropped; during a flood it is stamped on arrival.
 void PupilSource::publish(const PupilGaze& g, bool screen, std::int64_t receive_ns) {
   std::lock_guard lock(mutex_);
   if (!(g.timestamp > last_timestamp_)) {
@@ -278,17 +283,28 @@ void PupilSource::publish(const PupilGaze& g, bool screen, std::int64_t receive_
   }
   if (screen && g.timestamp - last_timestamp_ > 2.5 / nominal_rate_hz_ && last_timestamp_ > -1e300) ++stats_.gaps;
   last_timestamp_ = g.timestamp;
+  const net::ArrivalGuard::Admission a = arrivals_.admit(receive_ns);
+  if (!a.keep) return;  // counted by the guard; the clock is fed by "t" exchanges, not by gaze
   protocol::GazeSample s;
-  // A gaze can only have been taken before it arrived, and not long before: a mapped time beyond
-  // that means Pupil time jumped (a restart, "T" from another client) before the clock heard of
-  // it. Such a sample is stamped on arrival, and the clock asked again at once.
-  const std::int64_t mapped = clock_.to_host_ns(g.timestamp);
-  if (mapped > receive_ns + kClockSlackNs || mapped < receive_ns - kMaxLatencyNs) clock_suspect_ = true;
-  s.tracker_time_ns = clock_suspect_ ? receive_ns : std::min(mapped, receive_ns);
-  delays_.add(receive_ns - s.tracker_time_ns);
-  if ((stats_.samples + stats_.scene_only) % 64 == 0) {
-    stats_.delay_p50_ns = delays_.percentile(0.5);
-    stats_.delay_p99_ns = delays_.percentile(0.99);
+  if (a.flooding) {
+    s.tracker_time_ns = receive_ns;
+  } else {
+    // A gaze can only have been taken before it arrived (a later time is stamped on arrival and
+    // counted by the guard), and not long before: a mapped time beyond that means Pupil time
+    // jumped (a restart, "T" from another client) before the clock heard of it. The clock is then
+    // asked again at once, and until it answers every gaze is stamped on arrival (counted too).
+    const std::int64_t mapped = clock_.to_host_ns(g.timestamp);
+    if (mapped > receive_ns + kClockSlackNs || mapped < receive_ns - kMaxLatencyNs) clock_suspect_ = true;
+    s.tracker_time_ns = arrivals_.not_after_arrival(mapped, receive_ns);
+    if (clock_suspect_ && s.tracker_time_ns != receive_ns) {
+      s.tracker_time_ns = receive_ns;
+      ++stats_.stamped_unsynced;
+    }
+    delays_.add(receive_ns - s.tracker_time_ns);
+    if (++delay_samples_ % 64 == 1) {
+      stats_.delay_p50_ns = delays_.percentile(0.5);
+      stats_.delay_p99_ns = delays_.percentile(0.99);
+    }
   }
   s.confidence = static_cast<float>(g.confidence);
   const double x = g.x, y = 1.0 - g.y_up;

@@ -15,6 +15,9 @@
 // coordinates, y flipped), for a fovea calibration of input "screen" to map onto the screen: the
 // way to use Pupil Core without a surface. When Pupil Capture stops answering, or restarts (its clock jumps, its publisher moves),
 // the source reconnects.
+// Every gaze passes the arrival rules (arrival_guard.h): at most 4x the declared rate is published,
+// samples are stamped on arrival while the publisher floods, and a time after the gaze's arrival is
+// replaced by the arrival time and counted.
 #include <atomic>
 #include <cstdint>
 #include <mutex>
@@ -39,6 +42,7 @@ struct PupilStats {
   std::uint64_t malformed = 0;        // messages refused
   std::uint64_t out_of_order = 0;     // gaze not after the last one published (dropped)
   std::uint64_t gaps = 0;             // dropouts: more than 2.5 sample periods between two gaze points
+  std::uint64_t stamped_unsynced = 0; // mapped in the past, yet stamped on arrival: the clock was re-syncing
   std::uint64_t connects = 0;
   std::uint64_t clock_exchanges = 0, clock_resets = 0;
   std::int64_t clock_offset_ns = 0, clock_uncertainty_ns = 0, clock_last_rtt_ns = 0;
@@ -83,6 +87,7 @@ class PupilSource final : public net::ReaderSource {
   mutable std::mutex mutex_;  // guards stats_ and the members the loop's threads read
   PupilStats stats_;
   net::DelayWindow delays_;  // receive - mapped (guarded by mutex_)
+  std::uint64_t delay_samples_ = 0;  // gaze points added to delays_ (guarded by mutex_)
 };
 
 }  // namespace fovea::trackerd::pupil
