@@ -14,6 +14,12 @@ How tests use it: start it in the background with --port 0 --ready-file R --trut
 from it and point the daemon at 127.0.0.1:PORT; read T.csv while it runs (one flushed
 line per record); SIGUSR1 forces a disconnect; SIGTERM stops it (exit 0, T.csv then
 ends with "# malformed N"). Standard library only; one client at a time, others wait.
+
+--flood START,LEN makes it a server gone wrong: from START to START+LEN seconds after
+ENABLE_SEND_DATA it writes records as fast as the client takes them (or --flood-rate N a
+second), TIME advancing one declared period per record (as a server looping over its buffer
+would), then goes back to its pace and its real clock. Flood records are not in the truth;
+the log says how many.
 """
 import argparse
 import math
@@ -23,7 +29,7 @@ import signal
 import socket
 import sys
 
-from fakelib import make_log, now_ns, write_ready_file
+from fakelib import flood_due, flood_next_ns, make_log, now_ns, parse_flood, write_ready_file
 
 log = make_log("fake_gazepoint")
 
@@ -33,6 +39,8 @@ ENABLE_IDS = tuple("ENABLE_SEND_" + n for n in (
 TICK_FREQ = 10_000_000
 MAX_LINE = 64 * 1024     # longest command line we buffer; longer ones are dropped
 MAX_OUTBUF = 1 << 20     # a client that stops reading is disconnected, not buffered forever
+FLOOD_HIGH = 256 * 1024  # --flood: write more only while less than this waits for the client
+FLOOD_BATCH = 256        # records per write while flooding
 FIX_LEN = 30             # samples per synthetic fixation
 TRUTH_HEADER = "cnt,host_send_ns,tracker_time_s,bpogx,bpogy,bpogv\n"
 MALFORMED_KINDS = ("unterminated", "nan", "missing_bpogy", "garbage", "out_of_range", "abc", "long_line")
@@ -65,6 +73,9 @@ class Client:
         self.next_ns = self.drop_at = None
         self.long_sent, self.last_fields = False, []
         self.held = []   # --burst: records taken, not yet written
+        self.data_start_ns = None        # when ENABLE_SEND_DATA was set
+        self.flood_t = None              # --flood: the TIME of the next flood record, while flooding
+        self.flood_sent = self.flood_start_ns = 0
 
 
 class Closed(Exception):
@@ -165,6 +176,7 @@ def handle_command(srv, client, line):
         state = int(stm.group(1))
         if ident == "ENABLE_SEND_DATA" and state and not client.enabled[ident]:
             client.next_ns = float(now_ns())   # first record right away, then on the grid
+            client.data_start_ns = client.next_ns
             if srv.args.drop_after > 0 and client.drop_at is None:
                 client.drop_at = client.next_ns + srv.args.drop_after * 1e9
         client.enabled[ident] = state
@@ -229,6 +241,46 @@ def send_due_records(srv, client):
             srv.malformed += 1
 
 
+def flood_window(srv, client):
+    """(start, end) CLOCK_MONOTONIC ns of this connection's flood, or None."""
+    if not srv.args.flood or client.data_start_ns is None:
+        return None
+    start = client.data_start_ns + srv.args.flood[0] * 1e9
+    return start, start + srv.args.flood[1] * 1e9
+
+
+def send_flood_records(srv, client):
+    """One batch of flood records, if the client has taken the last ones."""
+    rate = srv.args.rate
+    if client.flood_t is None:
+        client.flood_t, client.flood_start_ns = tracker_time(srv, now_ns()), now_ns()
+        log("flooding: records %s, TIME one period (%.5f s) apart" % (
+            "%g a second" % srv.args.flood_rate if srv.args.flood_rate else "as fast as the client takes them", 1 / rate))
+    count = flood_due(srv.args.flood_rate, client.flood_start_ns, client.flood_sent, FLOOD_BATCH)
+    if len(client.outbuf) >= FLOOD_HIGH or count <= 0:
+        return
+    # One template per batch: CNT and TIME change per record, the rest is the batch's first record.
+    fields, _ = record_fields(client, rate, client.flood_t)
+    slots = {"CNT": "{cnt}", "TIME": "{t:.5f}", "TIME_TICK": "{tick}"}
+    template = element("REC", [(k, slots.get(k, v)) for k, v in fields]).decode("ascii")
+    batch = []
+    for _ in range(count):
+        t = client.flood_t
+        batch.append(template.format(cnt=client.cnt, t=t, tick=round(t * TICK_FREQ)))
+        client.cnt += 1
+        client.flood_t += 1 / rate
+    client.flood_sent += count
+    send(client, "".join(batch).encode("ascii"))
+
+
+def end_flood(client):
+    seconds = (now_ns() - client.flood_start_ns) / 1e9
+    log("flood over: %d records in %.2f s (%.0f/s); back to the pace and the real clock"
+        % (client.flood_sent, seconds, client.flood_sent / max(seconds, 1e-9)))
+    client.flood_t = None
+    client.next_ns = float(now_ns())
+
+
 def wait(srv, rlist, wlist, deadlines):
     """select() until a socket is ready, the earliest deadline passes, or a signal arrives."""
     deadlines = [d for d in deadlines + [srv.end_ns] if d is not None]
@@ -249,6 +301,12 @@ def serve_client(srv, client):
         if srv.drop:
             raise Closed("SIGUSR1")
         data_at = client.next_ns if client.enabled["ENABLE_SEND_DATA"] else None
+        flood = flood_window(srv, client)
+        flooding = flood is not None and flood[0] <= now_ns() < flood[1] and client.enabled["ENABLE_SEND_DATA"]
+        if flooding:   # more as soon as the client has taken some (and --flood-rate allows); the pace after
+            data_at = flood[1] if len(client.outbuf) >= FLOOD_HIGH else (
+                now_ns() if client.flood_t is None else
+                flood_next_ns(srv.args.flood_rate, client.flood_start_ns, client.flood_sent, FLOOD_BATCH))
         r, w = wait(srv, [client.sock], [client.sock] if client.outbuf else [], [data_at, client.drop_at])
         if client.sock in r:
             read_commands(srv, client)
@@ -259,6 +317,11 @@ def serve_client(srv, client):
             return
         if client.drop_at and now >= client.drop_at:
             raise Closed("--drop-after")
+        if flooding and now < flood[1]:
+            send_flood_records(srv, client)
+            continue
+        if client.flood_t is not None:
+            end_flood(client)
         send_due_records(srv, client)
 
 
@@ -306,11 +369,16 @@ def parse_args(argv):
     opt("--burst", type=int, default=1, metavar="N",
         help="write records N at a time, each stamped when it was taken: the truth's host_send_ns is "
              "then the capture time, and the receive delay grows to N-1 periods (default 1)")
+    opt("--flood", type=parse_flood, metavar="START,LEN",
+        help="from START to START+LEN s after ENABLE_SEND_DATA, write records as fast as the client takes "
+             "them, TIME one period apart (a looping server); not in the truth")
+    opt("--flood-rate", type=float, default=0.0, metavar="N",
+        help="records per second while flooding (default 0: as fast as the client takes them)")
     opt("--duration", type=float, default=0.0, metavar="S",
         help="exit 0 after S seconds (0 = run until SIGTERM/SIGINT)")
     args = p.parse_args(argv)
-    if args.rate <= 0 or args.malformed_every < 0 or args.burst < 1:
-        p.error("--rate must be > 0, --malformed-every >= 0 and --burst >= 1")
+    if args.rate <= 0 or args.malformed_every < 0 or args.burst < 1 or args.flood_rate < 0:
+        p.error("--rate must be > 0, --malformed-every and --flood-rate >= 0 and --burst >= 1")
     return args
 
 

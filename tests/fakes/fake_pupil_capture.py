@@ -17,6 +17,12 @@ as needed); wait for R, read the Pupil Remote port from it and point the daemon 
 simulates a Pupil Capture restart (Pupil Remote back on the same port, the publisher on a new
 one, the clock at a new offset); SIGTERM stops it (exit 0, T.csv then ends with
 "# malformed N"). Needs python3-zmq and python3-msgpack; otherwise standard library only.
+
+Two ways to misbehave, for the daemon's arrival rules: --flood START,LEN publishes gaze and
+surface messages as fast as it can (or --flood-rate N a second) from START to START+LEN s
+after start, each stamped with Pupil time as it is sent (not in the truth; the log says how
+many); --future-ms F sends the last 20 of every 100 samples early, the k-th of them F*k/20 ms
+before its own timestamp (Pupil time at capture, so the truth stays right).
 """
 import argparse
 import math
@@ -29,11 +35,12 @@ import time
 import msgpack
 import zmq
 
-from fakelib import make_log, now_ns, write_ready_file
+from fakelib import flood_due, flood_next_ns, make_log, now_ns, parse_flood, write_ready_file
 
 log = make_log("fake_pupil_capture")
 
 GAZE_TOPIC = "gaze.3d.01."
+FLOOD_BATCH = 100         # --flood: samples per turn of the loop
 MAX_REQUEST = 64 * 1024   # longer Pupil Remote frames are answered "Unknown command." unread
 MAX_FRAME = 4 << 20       # zmq drops a peer sending more; bounds our memory
 UNKNOWN = "Unknown command."
@@ -61,6 +68,11 @@ class Fake:
         self.last = None        # latest real (gaze, surface) payloads, the base of hostile ones
         reset_time_base(self, args.time_offset)
         self.end_ns = self.start_ns + int(args.duration * 1e9) if args.duration > 0 else None
+        self.flood = None if args.flood is None else (
+            self.start_ns + int(args.flood[0] * 1e9), self.start_ns + int(sum(args.flood) * 1e9))
+        self.flood_sent = self.flood_started_ns = 0
+        self.flood_t = -1e300   # the last flood timestamp: strictly increasing
+        self.early_sent, self.max_early_ms = 0, 0.0
         self.drop_at = self.start_ns + int(args.drop_after * 1e9) if args.drop_after > 0 else None
 
 
@@ -79,7 +91,16 @@ def capture_ns(fake, n):
     return fake.origin_ns + round((n - fake.origin_n) * 1e9 / fake.args.rate)
 
 
+def early_ms(fake, n):
+    """--future-ms: how long before its capture time sample n is sent (0: on time)."""
+    k = n % 100 - 79
+    return fake.args.future_ms * k / 20 if fake.args.future_ms > 0 and k > 0 else 0.0
+
+
 def send_ns(fake, n):
+    early = early_ms(fake, n)
+    if early > 0:
+        return capture_ns(fake, n) - int(early * 1e6)
     return capture_ns(fake, n) + int(fake.args.latency_ms * 1e6)
 
 
@@ -129,17 +150,23 @@ def pack(obj):
     return msgpack.packb(obj, use_bin_type=True)   # Python floats go out as float64
 
 
-def publish_sample(fake):
+def publish_sample(fake, flood_t=None):
+    """Sample n, stamped at its capture time, or at flood_t (Pupil time, flooding: not in the truth)."""
     args, n = fake.args, fake.n
     cap = capture_ns(fake, n)
     t, c = pupil_time(fake, cap), confidence(n)   # stamped at capture, not at send
+    if flood_t is not None:
+        t = flood_t
+    elif early_ms(fake, n) > 0:
+        fake.early_sent += 1
+        fake.max_early_ms = max(fake.max_early_ms, (cap - now_ns()) / 1e6)
     gaze = gaze_datum(n, t, c)
     surf = surface_datum(args.surface_name, n, t, c)
     fake.pub.send_multipart([GAZE_TOPIC.encode(), pack(gaze)])
     if not args.no_surface:
         fake.pub.send_multipart([surf["topic"].encode(), pack(surf)])
     fake.last = gaze, surf
-    if fake.truth:
+    if fake.truth and flood_t is None:
         # The very floats that were packed, so a test can compare for equality.
         (sx, sy), hit = gaze["norm_pos"], surf["gaze_on_surfaces"][0]
         (x, y_up), on = hit["norm_pos"], hit["on_surf"]
@@ -179,6 +206,27 @@ def malformed_message(fake):
     elif kind == "huge":
         gaze["padding"] = bytes(2 << 20)   # 2 MiB: a client must bound what it accepts
     return [topic, pack(payload)]
+
+
+def flood_batch(fake):
+    """--flood: a batch of samples at once (or what --flood-rate has due), each stamped with
+    Pupil time as it is sent."""
+    if not fake.flood_started_ns:
+        fake.flood_started_ns = now_ns()
+        log("flooding: gaze and surface messages, %s" % (
+            "%g a second" % fake.args.flood_rate if fake.args.flood_rate else "as fast as they go"))
+    for _ in range(flood_due(fake.args.flood_rate, fake.flood_started_ns, fake.flood_sent, FLOOD_BATCH)):
+        fake.flood_t = max(pupil_time(fake, now_ns()), fake.flood_t + 1e-9)
+        publish_sample(fake, fake.flood_t)
+        fake.flood_sent += 1
+
+
+def end_flood(fake):
+    seconds = (now_ns() - fake.flood_started_ns) / 1e9
+    log("flood over: %d samples in %.2f s (%.0f/s); back to the pace"
+        % (fake.flood_sent, seconds, fake.flood_sent / max(seconds, 1e-9)))
+    fake.flood = None
+    fake.origin_ns, fake.origin_n = now_ns(), fake.n   # the schedule goes on from here
 
 
 def handle_request(fake, frames):
@@ -310,10 +358,15 @@ def serve(fake, wake):
             restart(fake, "SIGUSR1")
         if fake.pending_t is not None and now_ns() >= fake.pending_t:
             reply_time(fake)
-        if now_ns() - send_ns(fake, fake.n) > 1e9:   # stalled for a second: resync, no burst
+        flooding = fake.flood is not None and fake.flood[0] <= now < fake.flood[1]
+        if flooding:
+            flood_batch(fake)
+        elif fake.flood is not None and now >= fake.flood[1]:
+            end_flood(fake)
+        if not flooding and now_ns() - send_ns(fake, fake.n) > 1e9:   # stalled for a second: resync, no burst
             log("stalled; skipping ahead")
             fake.origin_ns, fake.origin_n = now_ns(), fake.n
-        while now_ns() >= send_ns(fake, fake.n):
+        while not flooding and now_ns() >= send_ns(fake, fake.n):
             publish_sample(fake)
         poller = zmq.Poller()
         poller.register(wake, zmq.POLLIN)
@@ -321,6 +374,9 @@ def serve(fake, wake):
         if fake.pending_t is None:   # a REP socket takes no new request before it replies
             poller.register(fake.rep, zmq.POLLIN)
         deadlines = [d for d in (send_ns(fake, fake.n), fake.pending_t, fake.drop_at, fake.end_ns) if d]
+        if fake.flood is not None:
+            deadlines.append(fake.flood[0] if not flooding else flood_next_ns(
+                fake.args.flood_rate, fake.flood_started_ns, fake.flood_sent, FLOOD_BATCH))
         wait = min(deadlines) - now_ns()
         events = dict(poller.poll(min(100, max(0, wait // 1_000_000))))
         if not events and 0 < wait < 1_000_000:   # zmq polls in whole ms: sleep the rest
@@ -360,12 +416,20 @@ def parse_args(argv):
         help="after every N-th sample publish one malformed message (0 = never)")
     opt("--drop-after", type=float, default=0.0, metavar="S",
         help="simulate a Pupil Capture restart (as SIGUSR1) once, S s after start (0 = never)")
+    opt("--flood", type=parse_flood, metavar="START,LEN",
+        help="from START to START+LEN s after start, publish as fast as it goes, each sample stamped "
+             "with Pupil time as it is sent; not in the truth")
+    opt("--flood-rate", type=float, default=0.0, metavar="N",
+        help="samples per second while flooding (default 0: as fast as they go)")
+    opt("--future-ms", type=float, default=0.0, metavar="F",
+        help="send the last 20 of every 100 samples early, the k-th F*k/20 ms before its own "
+             "timestamp (default 0: never)")
     opt("--duration", type=float, default=0.0, metavar="S",
         help="exit 0 after S seconds (0 = run until SIGTERM/SIGINT)")
     opt("--seed", type=int, default=0, help="seed for the jitter and garbage bytes (default 0)")
     args = p.parse_args(argv)
-    delays = (args.latency_ms, args.t_reply_delay_ms, args.t_jitter_ms)
-    if args.rate <= 0 or args.malformed_every < 0 or min(delays) < 0:
+    delays = (args.latency_ms, args.t_reply_delay_ms, args.t_jitter_ms, args.future_ms)
+    if args.rate <= 0 or args.malformed_every < 0 or min(delays) < 0 or args.flood_rate < 0:
         p.error("--rate must be > 0; --malformed-every and the delays must be >= 0")
     return args
 
@@ -393,6 +457,8 @@ def main(argv=None):
             % (fake.rep_port, fake.pub_port, fake.sink_port))
         serve(fake, wake)
     finally:
+        if args.future_ms > 0:
+            log("sent %d samples early, up to %.1f ms before their time" % (fake.early_sent, fake.max_early_ms))
         if truth:
             truth.write("# malformed %d\n" % fake.malformed)
             truth.close()

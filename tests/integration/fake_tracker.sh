@@ -1,11 +1,12 @@
 # SPDX-License-Identifier: Apache-2.0
-# Sourced by the tests of the tracker bridges (test_gazepoint.sh, test_pupil.sh), after they set
-# TRACKERD, CTL and SRC: a work directory removed at exit with the fake and the daemon, fail (which
-# shows both logs), a fake tracker from tests/fakes/ started and waited for, processes stopped cleanly.
+# Sourced by the tests of the tracker bridges (test_gazepoint.sh, test_pupil.sh, test_*_flood.sh),
+# after they set TRACKERD, CTL and SRC: a work directory removed at exit with the fake and the
+# daemon, fail (which shows both logs), a fake tracker from tests/fakes/ started and waited for,
+# processes stopped cleanly; for the flood tests a fake systemd notify socket and one recording.
 . "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
 WORK=$(mktemp -d)
-FPID="" DPID=""
-trap 'kill $FPID $DPID 2>/dev/null; rm -rf "$WORK"' EXIT
+FPID="" DPID="" NPID=""
+trap 'kill $FPID $DPID $NPID 2>/dev/null; rm -rf "$WORK"' EXIT
 fail() {
   echo "FAIL: $*"
   for f in d.log fake.log; do [ -f "$WORK/$f" ] && { echo "--- $f"; tail -n 15 "$WORK/$f"; }; done
@@ -50,4 +51,36 @@ two_clients_across_a_restart() {
   sleep 0.5
   stop "$DPID"; DPID=""
   for c in a b; do "$CTL" convert "$WORK/$c.fgr" "$WORK/$c.csv" >/dev/null 2>&1 || fail "convert $c.fgr"; done
+}
+
+# start_notify_listener: a fake systemd notify socket ($WORK/notify.sock); each datagram becomes a
+# line of $WORK/notify.log (STATUS= lines: the daemon's status, once a second). Sets NPID.
+start_notify_listener() {
+  /usr/bin/python3 - "$WORK/notify.sock" "$WORK/notify.log" <<'PY' &
+import socket, sys
+s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+s.bind(sys.argv[1])
+with open(sys.argv[2], "a", buffering=1) as log:
+    while True:
+        log.write(s.recv(65536).decode(errors="replace").replace("\n", " ") + "\n")
+PY
+  NPID=$!
+  for _ in $(seq 50); do [ -S "$WORK/notify.sock" ] && break; sleep 0.1; done
+  [ -S "$WORK/notify.sock" ] || fail "the notify listener did not start"
+}
+
+# flood_and_record SOURCE SECONDS: the daemon on SOURCE (log d.log, STATUS to the notify listener);
+# one client records SECONDS of it (r.fgr, r.csv); then the fake and the daemon stop cleanly.
+flood_and_record() {
+  local port
+  port=$(free_udp_port)
+  NOTIFY_SOCKET="$WORK/notify.sock" "$TRACKERD" --source "$1" --port "$port" --control-socket none --log-level info \
+    >"$WORK/d.log" 2>&1 &
+  DPID=$!
+  sleep 0.3
+  "$CTL" --server "127.0.0.1:$port" record --duration "$2" "$WORK/r.fgr" >"$WORK/r.out" 2>&1 \
+    || fail "the client: $(cat "$WORK/r.out")"
+  stop "$FPID"; FPID=""
+  stop "$DPID"; DPID=""
+  "$CTL" convert "$WORK/r.fgr" "$WORK/r.csv" >/dev/null 2>&1 || fail "convert r.fgr"
 }
