@@ -293,8 +293,9 @@ constexpr SourceKind kSourceKinds[] = {
                                                          "without a tracker", mouse::check_mouse_spec, make_mouse},
   {"lsl",           Arg::Optional, "lsl[:NAME][?x=I&y=J&units=pixels|normalized&confidence=K&min_confidence=C]",
                                                          "a tracker's Lab Streaming Layer stream (the first of type Gaze, or the one "
-                                                         "named NAME); channels from its metadata (ScreenX/ScreenY) or x=/y=; needs "
-                                                         "a build with liblsl", lsl_source::check_lsl_spec, make_lsl},
+                                                         "named NAME); channels from its metadata (ScreenX/ScreenY) or x=/y=; gaze "
+                                                         "below confidence 0.6 invalid where it has a confidence "
+                                                         "channel (min_confidence=0: off); needs a build with liblsl", lsl_source::check_lsl_spec, make_lsl},
 };
 // clang-format on
 

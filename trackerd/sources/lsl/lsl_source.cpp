@@ -84,7 +84,7 @@ class LslSource final : public net::ReaderSource {
   std::string description() const override { return spec_.to_string(); }
   std::string status_detail() const override {
     std::lock_guard lock(mutex_);
-    return status_;
+    return status_ + arrivals_.status();
   }
 
  private:
@@ -122,18 +122,21 @@ class LslSource final : public net::ReaderSource {
     lsl::stream_inlet inlet(found, 360, 0, false);
     inlet.set_postprocessing(lsl::post_clocksync);
     lsl::stream_info info = inlet.info(5.0);
-    std::string why;
-    const std::optional<ChannelMap> map = map_channels(info, spec_, why);
+    std::string why = unusable_channel_format(info.channel_format());
+    if (!why.empty()) why = "\"" + info.name() + "\": " + why;
+    const std::optional<ChannelMap> map = why.empty() ? map_channels(info, spec_, why) : std::nullopt;
     if (!map) {
       problem_.set(description() + ": " + why);
       std::this_thread::sleep_for(std::chrono::seconds(1));
       return;
     }
+    min_confidence_ = effective_min_confidence(spec_, map->confidence >= 0);
     inlet.open_stream(5.0);
     last_sample_ns_ = protocol::monotonic_ns();
-    spdlog::info("{}: reading \"{}\" ({}) from {}, {} channels at {} Hz; x/y {} (channels {}, {}) from the {}",
+    lookup_missed_ = false;
+    spdlog::info("{}: reading \"{}\" ({}) from {}, {} channels at {} Hz; x/y {} (channels {}, {}) from the {}; {}",
                  description(), info.name(), info.type(), info.hostname(), info.channel_count(), info.nominal_srate(),
-                 map->pixels ? "pixels" : "normalized", map->x, map->y, map->origin);
+                 map->pixels ? "pixels" : "normalized", map->x, map->y, map->origin, confidence_rule(*map));
     problem_.set({});
     pull(inlet, info, *map);
   }
@@ -159,14 +162,46 @@ class LslSource final : public net::ReaderSource {
         continue;
       }
       last_sample_ns_ = now;
-      const auto t_ns = static_cast<std::int64_t>(std::llround((ts - offset) * 1e9));
+      lookup_missed_ = false;
+      // The arrival rules (arrival_guard.h): the cap on the declared rate, a flood's samples timed
+      // by their arrival, no time after it. liblsl's clock correction is not fed by samples: a
+      // flood has nothing of it to reset.
+      const net::ArrivalGuard::Admission a = arrivals_.admit(now);
+      if (!a.keep) continue;
+      const auto outlet_ns = static_cast<std::int64_t>(std::llround((ts - offset) * 1e9));
+      const std::int64_t t_ns = a.flooding ? now : arrivals_.not_after_arrival(outlet_ns, now);
+      // Published times never decrease (a flood's arrival stamps run ahead of the outlet's own, and
+      // an inlet that reconnected may deliver a stale stretch): an earlier one is dropped, counted.
+      if (t_ns < last_t_ns_) {
+        ++out_of_order_;
+        continue;
+      }
       note_dropout(t_ns, info.nominal_srate());
       queue_.push(to_sample(v, map, t_ns), now);
       ++samples_;
     }
   }
 
-  protocol::GazeSample to_sample(const std::vector<float>& v, const ChannelMap& map, std::int64_t t_ns) const {
+  // What the start's log line says of confidence: which channel, and the threshold with its origin.
+  std::string confidence_rule(const ChannelMap& map) const {
+    if (map.confidence < 0) {
+      return spec_.min_confidence && *spec_.min_confidence > 0
+                 ? fmt::format("no confidence channel: min_confidence={:g} has nothing to gate", *spec_.min_confidence)
+                 : std::string("no confidence channel");
+    }
+    if (!spec_.min_confidence) {
+      return fmt::format("confidence in channel {}: gaze below {:g} is invalid (the default for a stream with "
+                         "confidence; min_confidence=C sets another, min_confidence=0 turns it off)",
+                         map.confidence, min_confidence_);
+    }
+    if (min_confidence_ > 0) {
+      return fmt::format("confidence in channel {}: gaze below {:g} is invalid (min_confidence)", map.confidence,
+                         min_confidence_);
+    }
+    return fmt::format("confidence in channel {}, not gated (min_confidence=0)", map.confidence);
+  }
+
+  protocol::GazeSample to_sample(const std::vector<float>& v, const ChannelMap& map, std::int64_t t_ns) {
     protocol::GazeSample s;
     s.tracker_time_ns = t_ns;
     double x = v[static_cast<std::size_t>(map.x)], y = v[static_cast<std::size_t>(map.y)];
@@ -178,7 +213,10 @@ class LslSource final : public net::ReaderSource {
     s.confidence = std::isfinite(confidence) ? std::clamp(confidence, 0.0f, 1.0f) : 0.0f;
     bool valid = std::isfinite(x) && std::isfinite(y) && std::abs(x) < 1e3 && std::abs(y) < 1e3;
     if (map.validity >= 0 && !(v[static_cast<std::size_t>(map.validity)] > 0.5f)) valid = false;
-    if (static_cast<double>(s.confidence) < spec_.min_confidence) valid = false;
+    if (static_cast<double>(s.confidence) < min_confidence_) {
+      valid = false;
+      ++low_confidence_;
+    }
     if (valid) {
       s.flags = protocol::kGazeValid;
       s.x = static_cast<float>(x), s.y = static_cast<float>(y);
@@ -199,18 +237,23 @@ class LslSource final : public net::ReaderSource {
   }
 
   // liblsl notices a closed outlet only through its watchdog (many seconds), so after 1 s without a
-  // sample the stream is looked up again: gone, or there under a new uid (the app restarted), it is
-  // lost and the reader resolves it anew; the same stream, merely paused, is read on.
+  // sample the stream is looked up again: there under a new uid (the app restarted), it is lost and
+  // the reader resolves it anew; the same stream, merely paused, is read on. Not found at all, it is
+  // lost only when a second lookup a second later agrees: on a loaded host a lookup can miss a
+  // stream that is there, and a false loss drops the connection to a live outlet.
   bool replaced_after_silence(const lsl::stream_info& info, std::int64_t now) {
     if (now - last_sample_ns_ < 1'000'000'000 || now - last_lookup_ns_ < 1'000'000'000) return false;
     last_lookup_ns_ = now;
     const auto streams = resolve(spec_, 0.5);
     const bool same = std::any_of(streams.begin(), streams.end(), [&](const lsl::stream_info& s) { return s.uid() == info.uid(); });
-    if (same) return false;
+    const bool missed_before = lookup_missed_;
+    lookup_missed_ = streams.empty();
+    if (same || (streams.empty() && !missed_before)) return false;
+    lookup_missed_ = false;
     ++lost_;
     problem_.set(description() + ": the stream was lost; waiting for it to come back");
     spdlog::warn("{}: \"{}\" was lost (no sample for 1 s and {}); resolving it again", description(), info.name(),
-                 streams.empty() ? "no longer found" : "another outlet now has its name");
+                 streams.empty() ? "not found twice in a row" : "another outlet now has its name");
     if (!streams.empty()) found_ = streams.front();
     return true;
   }
@@ -226,13 +269,17 @@ class LslSource final : public net::ReaderSource {
     status_ = fmt::format("LSL \"{}\" from {}, {} Hz, clock offset {:+.3f} ms, {} samples, {} dropouts, {} losses",
                           info.name(), info.hostname(), info.nominal_srate(), correction_s * 1e3, samples_, dropouts_,
                           lost_);
+    if (min_confidence_ > 0) status_ += fmt::format(", {} below confidence {:g} (invalid)", low_confidence_, min_confidence_);
+    if (out_of_order_ > 0) status_ += fmt::format(", {} out of order (dropped)", out_of_order_);
   }
 
   const LslSpec spec_;
   std::optional<lsl::stream_info> found_;  // resolved by make_lsl_source, read first
+  double min_confidence_ = 0;               // the stream's (effective_min_confidence); reader thread
   std::int64_t last_t_ns_ = 0;
   std::int64_t last_sample_ns_ = 0, last_lookup_ns_ = 0;  // CLOCK_MONOTONIC
-  std::uint64_t samples_ = 0, dropouts_ = 0, lost_ = 0;
+  bool lookup_missed_ = false;  // the last lookup after a silence found no stream of the name
+  std::uint64_t samples_ = 0, dropouts_ = 0, lost_ = 0, low_confidence_ = 0, out_of_order_ = 0;
   mutable std::mutex mutex_;  // guards status_
   std::string status_;
 };
@@ -243,6 +290,12 @@ std::unique_ptr<GazeSource> make_lsl_source(const LslSpec& spec, protocol::Displ
   std::optional<lsl::stream_info> found;
   const auto streams = resolve(spec, rate_hz > 0 ? 1.0 : kResolveWaitS);
   if (!streams.empty()) found = streams.front();
+  if (found) {
+    if (const std::string why = unusable_channel_format(found->channel_format()); !why.empty()) {
+      throw std::runtime_error("source \"" + spec.to_string() + "\": the LSL stream \"" + found->name() + "\" from " +
+                               found->hostname() + ": " + why);
+    }
+  }
   if (rate_hz <= 0) {
     if (!found) {
       throw std::runtime_error("source \"" + spec.to_string() + "\": no LSL stream " +

@@ -78,6 +78,25 @@ std::string check_lsl_spec(const std::string& spec) {
   return {};
 }
 
+double effective_min_confidence(const LslSpec& spec, bool has_confidence_channel) {
+  if (spec.min_confidence) return *spec.min_confidence;
+  return has_confidence_channel ? kDefaultMinConfidence : 0.0;
+}
+
+std::string unusable_channel_format(int format) {
+  switch (format) {
+    case 1: case 2: case 4: case 5: case 6: case 7: return {};
+    case 3:
+      return "its channels are strings (channel format string), which cannot carry gaze coordinates; fovea reads "
+             "numeric streams (float32, double64, int8..int64)";
+    case 0:
+      return "its channel format is undefined, which cannot carry gaze coordinates; fovea reads numeric streams "
+             "(float32, double64, int8..int64)";
+    default:
+      return "its channel format " + std::to_string(format) + " is not one liblsl defines";
+  }
+}
+
 std::string LslSpec::to_string() const {
   std::string out = "lsl" + (name.empty() ? std::string() : ":" + name);
   std::string q;
@@ -86,9 +105,9 @@ std::string LslSpec::to_string() const {
   if (y) add("y=" + std::to_string(*y));
   if (!units.empty()) add("units=" + units);
   if (confidence) add("confidence=" + std::to_string(*confidence));
-  if (min_confidence > 0) {
+  if (min_confidence) {
     char c[32];
-    std::snprintf(c, sizeof c, "%g", min_confidence);
+    std::snprintf(c, sizeof c, "%g", *min_confidence);
     add(std::string("min_confidence=") + c);
   }
   return out + q;
