@@ -29,7 +29,7 @@ import signal
 import socket
 import sys
 
-from fakelib import flood_due, flood_next_ns, make_log, now_ns, parse_flood, write_ready_file
+from fakelib import add_flood_options, flood_due, flood_next_ns, make_log, now_ns, write_ready_file
 
 log = make_log("fake_gazepoint")
 
@@ -369,11 +369,8 @@ def parse_args(argv):
     opt("--burst", type=int, default=1, metavar="N",
         help="write records N at a time, each stamped when it was taken: the truth's host_send_ns is "
              "then the capture time, and the receive delay grows to N-1 periods (default 1)")
-    opt("--flood", type=parse_flood, metavar="START,LEN",
-        help="from START to START+LEN s after ENABLE_SEND_DATA, write records as fast as the client takes "
-             "them, TIME one period apart (a looping server); not in the truth")
-    opt("--flood-rate", type=float, default=0.0, metavar="N",
-        help="records per second while flooding (default 0: as fast as the client takes them)")
+    add_flood_options(opt, "ENABLE_SEND_DATA", "write records as fast as the client takes them, TIME one "
+                      "period apart (a looping server)")
     opt("--duration", type=float, default=0.0, metavar="S",
         help="exit 0 after S seconds (0 = run until SIGTERM/SIGINT)")
     args = p.parse_args(argv)

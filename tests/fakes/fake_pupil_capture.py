@@ -35,7 +35,7 @@ import time
 import msgpack
 import zmq
 
-from fakelib import flood_due, flood_next_ns, make_log, now_ns, parse_flood, write_ready_file
+from fakelib import add_flood_options, flood_due, flood_next_ns, make_log, now_ns, write_ready_file
 
 log = make_log("fake_pupil_capture")
 
@@ -416,11 +416,8 @@ def parse_args(argv):
         help="after every N-th sample publish one malformed message (0 = never)")
     opt("--drop-after", type=float, default=0.0, metavar="S",
         help="simulate a Pupil Capture restart (as SIGUSR1) once, S s after start (0 = never)")
-    opt("--flood", type=parse_flood, metavar="START,LEN",
-        help="from START to START+LEN s after start, publish as fast as it goes, each sample stamped "
-             "with Pupil time as it is sent; not in the truth")
-    opt("--flood-rate", type=float, default=0.0, metavar="N",
-        help="samples per second while flooding (default 0: as fast as they go)")
+    add_flood_options(opt, "start", "publish as fast as it goes, each sample stamped with Pupil time as it "
+                      "is sent")
     opt("--future-ms", type=float, default=0.0, metavar="F",
         help="send the last 20 of every 100 samples early, the k-th F*k/20 ms before its own "
              "timestamp (default 0: never)")

@@ -51,3 +51,12 @@ def flood_next_ns(rate, start_ns, sent, batch):
     if not rate:
         return now_ns()
     return start_ns + (sent + max(1, batch // 4)) / rate * 1e9
+
+
+def add_flood_options(opt, when, what):
+    """--flood START,LEN and --flood-rate N, in the words of a fake: `when` the flood's clock starts
+    ("ENABLE_SEND_DATA", "start"), `what` it sends ("records", "samples") and how (its help)."""
+    opt("--flood", type=parse_flood, metavar="START,LEN",
+        help="from START to START+LEN s after %s, %s; not in the truth" % (when, what))
+    opt("--flood-rate", type=float, default=0.0, metavar="N",
+        help="messages per second while flooding (default 0: as fast as they go)")

@@ -84,3 +84,20 @@ flood_and_record() {
   stop "$DPID"; DPID=""
   "$CTL" convert "$WORK/r.fgr" "$WORK/r.csv" >/dev/null 2>&1 || fail "convert r.fgr"
 }
+
+# expect_flood_handled FAKE KIND DECLARED_HZ SECONDS WHAT FAKE_ARGS...: the fake (FAKE.py) at
+# DECLARED_HZ floods from 1.5 s to 4.5 s (FAKE_ARGS: its --flood-rate); the daemon on
+# KIND:127.0.0.1:PORT is recorded for SECONDS (flood_and_record, STATUS through the notify listener);
+# the fake must have flooded (its log's "flood over: N WHAT"), the daemon must pass check_flood.py.
+expect_flood_handled() {
+  local fake=$1 kind=$2 hz=$3 seconds=$4 what=$5
+  shift 5
+  echo "== a fake $fake at $hz Hz that floods from 1.5 s to 4.5 s ($*)"
+  start_fake "$fake" --rate "$hz" --flood 1.5,3 "$@"
+  start_notify_listener
+  flood_and_record "$kind:127.0.0.1:$FAKE_PORT" "$seconds"
+  grep -q "flood over: [0-9]* $what" "$WORK/fake.log" || fail "the fake did not flood"
+  echo "   the fake: $(grep -o 'flood over: [^;]*' "$WORK/fake.log")"
+  echo "== the flood warned of, shown in STATUS, capped, counted"
+  /usr/bin/python3 -B "$SRC/tests/integration/check_flood.py" "$WORK" "$hz" || fail "the flood was not handled"
+}

@@ -13,15 +13,9 @@ TRACKERD=$1 CTL=$2 SRC=$3
 
 . "$SRC/tests/integration/fake_tracker.sh"
 
-echo "== a fake Gazepoint Control at 150 Hz that floods from 1.5 s to 4.5 s, 30000 records a second"
-start_fake fake_gazepoint.py --rate 150 --flood 1.5,3 --flood-rate 30000
-start_notify_listener
-flood_and_record "gazepoint:127.0.0.1:$FAKE_PORT" 9
-grep -q "flood over: [0-9]* records" "$WORK/fake.log" || fail "the fake did not flood"
-echo "   the fake: $(grep -o 'flood over: [^;]*' "$WORK/fake.log")"
+expect_flood_handled fake_gazepoint.py gazepoint 150 9 records --flood-rate 30000
 
-echo "== the flood warned of, shown in STATUS, capped, counted; the clock not corrupted"
-/usr/bin/python3 -B "$SRC/tests/integration/check_flood.py" "$WORK" 150 || fail "the flood was not handled"
+echo "== the clock not corrupted by the flood"
 # Until the flood ends STATUS shows the mapping as it was before the flood (the offset is host time
 # minus tracker time since the clock's anchor: it moves only with drift); after it the clock
 # anchors afresh. No drift shown is absurd.

@@ -15,15 +15,7 @@ TRACKERD=$1 CTL=$2 SRC=$3
 
 . "$SRC/tests/integration/fake_tracker.sh"
 
-echo "== a fake Pupil Capture at 200 Hz that floods from 1.5 s to 4.5 s, 20000 samples a second"
-start_fake fake_pupil_capture.py --rate 200 --flood 1.5,3 --flood-rate 20000
-start_notify_listener
-flood_and_record "pupil:127.0.0.1:$FAKE_PORT" 7
-grep -q "flood over: [0-9]* samples" "$WORK/fake.log" || fail "the fake did not flood"
-echo "   the fake: $(grep -o 'flood over: [^;]*' "$WORK/fake.log")"
-
-echo "== the flood warned of, shown in STATUS, capped, counted"
-/usr/bin/python3 -B "$SRC/tests/integration/check_flood.py" "$WORK" 200 || fail "the flood was not handled"
+expect_flood_handled fake_pupil_capture.py pupil 200 7 samples --flood-rate 20000
 
 echo "== a fake Pupil Capture that sends a fifth of its samples early, up to 45 ms before their time"
 start_fake fake_pupil_capture.py --rate 200 --latency-ms 5 --future-ms 45
