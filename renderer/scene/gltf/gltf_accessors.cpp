@@ -133,9 +133,7 @@ std::string describe_form(const AccessorDesc& d) {
 }
 
 void read_accessors(Parser& p, const Node& root) {
-  const auto accessors = p.array(root, "accessors");
-  if (!accessors) return;
-  for (std::size_t i = 0; i < accessors->v.size(); ++i) p.accessors.push_back(read_accessor(p, Parser::element(*accessors, i)));
+  p.each(root, "accessors", [&](const Node& n) { p.accessors.push_back(read_accessor(p, n)); });
 }
 
 void expect_form(const Parser& p, const Node& ref, std::uint32_t a, const char* what, const AccessorRule& rule) {

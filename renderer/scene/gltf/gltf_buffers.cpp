@@ -79,16 +79,11 @@ void read_buffers(Parser& p, const Node& root, std::optional<std::string_view> g
   if (const auto buffers = p.array(root, "buffers")) {
     for (std::size_t i = 0; i < buffers->v.size(); ++i) p.asset.buffers.push_back(read_buffer(p, Parser::element(*buffers, i), i, glb_bin));
   }
-  if (const auto views = p.array(root, "bufferViews")) {
-    for (std::size_t i = 0; i < views->v.size(); ++i) p.asset.buffer_views.push_back(read_buffer_view(p, Parser::element(*views, i)));
-  }
+  p.each(root, "bufferViews", [&](const Node& n) { p.asset.buffer_views.push_back(read_buffer_view(p, n)); });
 }
 
 void read_images(Parser& p, const Node& root) {
-  const auto images = p.array(root, "images");
-  if (!images) return;
-  for (std::size_t i = 0; i < images->v.size(); ++i) {
-    const Node n = Parser::element(*images, i);
+  p.each(root, "images", [&p](const Node& n) {
     p.expect_object(n, "an image: uri, or bufferView and mimeType");
     Image im;
     im.name = p.optional_string(n, "name", "the image's name");
@@ -112,7 +107,7 @@ void read_images(Parser& p, const Node& root) {
       }
     }
     p.asset.images.push_back(std::move(im));
-  }
+  });
 }
 
 }  // namespace fovea::render::gltf::detail

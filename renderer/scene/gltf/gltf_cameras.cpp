@@ -14,11 +14,8 @@ const Range kPositive{0, 1e30, true, false, ""};
 const Range kNonNegative{0, 1e30, false, false, ""};
 
 Camera read_camera(const Parser& p, const Node& n) {
-  p.expect_object(n, "a camera: type and its perspective or orthographic parameters");
   Camera c;
-  c.name = p.optional_string(n, "name", "the camera's name");
-  const Node type = p.require(n, "type", "perspective or orthographic");
-  const std::string t = p.string(type, "perspective or orthographic");
+  const std::string t = p.typed_object(n, "a camera: type and its parameters", &c.name, "perspective or orthographic");
   if (t == "perspective") {
     const Node pp = p.require(n, "perspective", "the perspective parameters");
     p.expect_object(pp, "yfov, znear, zfar, aspectRatio");
@@ -46,17 +43,14 @@ Camera read_camera(const Parser& p, const Node& n) {
     c.zfar = p.number_f(zf, kPositive);
     if (!(*c.zfar > c.znear)) p.fail(zf, "must be greater than znear (" + json::format_number(c.znear) + ")");
   } else {
-    p.fail(type, "must be perspective or orthographic");
+    p.fail(n.path + ".type", &n.v.at("type"), "must be perspective or orthographic");
   }
   return c;
 }
 
 Light read_light(const Parser& p, const Node& n) {
-  p.expect_object(n, "a light: type, color, intensity, range, spot");
   Light l;
-  l.name = p.optional_string(n, "name", "the light's name");
-  const Node type = p.require(n, "type", "directional, point or spot");
-  const std::string t = p.string(type, "directional, point or spot");
+  const std::string t = p.typed_object(n, "a light: type, color, intensity, range, spot", &l.name, "directional, point or spot");
   if (t == "directional") {
     l.type = Light::Type::Directional;
   } else if (t == "point") {
@@ -64,7 +58,7 @@ Light read_light(const Parser& p, const Node& n) {
   } else if (t == "spot") {
     l.type = Light::Type::Spot;
   } else {
-    p.fail(type, "must be directional, point or spot");
+    p.fail(n.path + ".type", &n.v.at("type"), "must be directional, point or spot");
   }
   if (const auto c = Parser::get(n, "color")) l.color = p.vec3(*c, Range{0, 1, false, false, ""}, "linear RGB, each in [0, 1]");
   l.intensity = p.number_or(n, "intensity", kNonNegative, 1.0f);
@@ -83,16 +77,12 @@ Light read_light(const Parser& p, const Node& n) {
 }  // namespace
 
 void read_cameras_and_lights(Parser& p, const Node& root) {
-  if (const auto a = p.array(root, "cameras")) {
-    for (std::size_t i = 0; i < a->v.size(); ++i) p.asset.cameras.push_back(read_camera(p, Parser::element(*a, i)));
-  }
+  p.each(root, "cameras", [&](const Node& n) { p.asset.cameras.push_back(read_camera(p, n)); });
   const auto ext = p.object(root, "extensions", "the asset's extensions");
   if (!ext) return;
   const auto punctual = p.object(*ext, "KHR_lights_punctual", "the lights");
   if (!punctual) return;
-  if (const auto a = p.array(*punctual, "lights")) {
-    for (std::size_t i = 0; i < a->v.size(); ++i) p.asset.lights.push_back(read_light(p, Parser::element(*a, i)));
-  }
+  p.each(*punctual, "lights", [&](const Node& n) { p.asset.lights.push_back(read_light(p, n)); });
 }
 
 }  // namespace fovea::render::gltf::detail

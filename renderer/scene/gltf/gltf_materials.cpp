@@ -102,15 +102,9 @@ Material read_material(const Parser& p, const Node& n) {
 }  // namespace
 
 void read_materials(Parser& p, const Node& root) {
-  if (const auto a = p.array(root, "samplers")) {
-    for (std::size_t i = 0; i < a->v.size(); ++i) p.asset.samplers.push_back(read_sampler(p, Parser::element(*a, i)));
-  }
-  if (const auto a = p.array(root, "textures")) {
-    for (std::size_t i = 0; i < a->v.size(); ++i) p.asset.textures.push_back(read_texture(p, Parser::element(*a, i)));
-  }
-  if (const auto a = p.array(root, "materials")) {
-    for (std::size_t i = 0; i < a->v.size(); ++i) p.asset.materials.push_back(read_material(p, Parser::element(*a, i)));
-  }
+  p.each(root, "samplers", [&](const Node& n) { p.asset.samplers.push_back(read_sampler(p, n)); });
+  p.each(root, "textures", [&](const Node& n) { p.asset.textures.push_back(read_texture(p, n)); });
+  p.each(root, "materials", [&](const Node& n) { p.asset.materials.push_back(read_material(p, n)); });
 }
 
 }  // namespace fovea::render::gltf::detail

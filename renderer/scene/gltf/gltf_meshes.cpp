@@ -135,10 +135,7 @@ std::optional<Primitive> read_primitive(Parser& p, const Node& n) {
 }  // namespace
 
 void read_meshes(Parser& p, const Node& root) {
-  const auto meshes = p.array(root, "meshes");
-  if (!meshes) return;
-  for (std::size_t m = 0; m < meshes->v.size(); ++m) {
-    const Node n = Parser::element(*meshes, m);
+  p.each(root, "meshes", [&p](const Node& n) {
     p.expect_object(n, "a mesh: name, primitives");
     Mesh mesh;
     mesh.name = p.optional_string(n, "name", "the mesh's name");
@@ -148,7 +145,7 @@ void read_meshes(Parser& p, const Node& root) {
       if (auto prim = read_primitive(p, Parser::element(prims, i))) mesh.primitives.push_back(std::move(*prim));
     }
     p.asset.meshes.push_back(std::move(mesh));
-  }
+  });
 }
 
 }  // namespace fovea::render::gltf::detail

@@ -51,14 +51,24 @@ class Parser : public json::Reader {
 
   // The array at parent.key; none when absent; an error when not an array.
   std::optional<Node> array(const Node& parent, std::string_view key) const;
-  std::size_t size(const Node& parent, std::string_view key) const {
-    const auto a = array(parent, key);
-    return a ? a->v.size() : 0;
+  // Calls f(element) for each element of the array at parent.key, if there is one.
+  template <class F>
+  void each(const Node& parent, std::string_view key, F&& f) const {
+    if (const auto a = array(parent, key)) {
+      for (std::size_t i = 0; i < a->v.size(); ++i) f(element(*a, i));
+    }
   }
   // An index into the asset's array `what` ("$.accessors") of `count` elements.
   std::uint32_t index(const Node& n, std::size_t count, const char* what) const;
   std::optional<std::uint32_t> optional_index(const Node& parent, std::string_view key, std::size_t count,
                                               const char* what) const;
+  // The object `n` (checked to be one, `what` it holds), its name (none: "") and the string at
+  // n.type, one of `types` ("directional, point or spot").
+  std::string typed_object(const Node& n, const char* what, std::string* name, const char* types) const {
+    expect_object(n, what);
+    *name = optional_string(n, "name", "a name");
+    return string(require(n, "type", types), types);
+  }
   std::string optional_string(const Node& parent, std::string_view key, const char* what) const;
   float number_or(const Node& parent, std::string_view key, const Range& r, float fallback) const;
   // An object at parent.key (checked to be one), if present.
