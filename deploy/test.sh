@@ -65,7 +65,7 @@ run_suite "asan+ubsan" asan
 
 if command -v clang++ >/dev/null 2>&1; then
   echo "=== libFuzzer: configure + build"
-  if cmake --preset fuzz >/dev/null && cmake --build build/fuzz -j "$JOBS" --target fuzz_decoder fuzz_recording fuzz_hid_descriptor fuzz_control_request fuzz_open_gaze fuzz_pupil_payload; then
+  if cmake --preset fuzz >/dev/null && cmake --build build/fuzz -j "$JOBS" --target fuzz_decoder fuzz_recording fuzz_hid_descriptor fuzz_control_request fuzz_open_gaze fuzz_pupil_payload fuzz_gltf; then
     log=$(mktemp)
     ctest --test-dir build/fuzz -R libfuzzer --output-on-failure 2>&1 | tee "$log"
     rc=${PIPESTATUS[0]}
