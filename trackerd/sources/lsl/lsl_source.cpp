@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -83,8 +84,19 @@ class LslSource final : public net::ReaderSource {
 
   std::string description() const override { return spec_.to_string(); }
   std::string status_detail() const override {
-    std::lock_guard lock(mutex_);
-    return status_ + arrivals_.status();
+    // The counts as they are now (the stream's line is refreshed with its clock, every 2 s): the
+    // stop line must count the loss that ended the stream.
+    std::string out;
+    {
+      std::lock_guard lock(mutex_);
+      out = stream_text_.empty() ? std::string("LSL: no stream read yet") : stream_text_;
+    }
+    out += fmt::format(", {} samples, {} dropouts, {} losses", samples_.load(), dropouts_.load(), lost_.load());
+    if (const double c = min_confidence_.load(); c > 0) {
+      out += fmt::format(", {} below confidence {:g} (invalid)", low_confidence_.load(), c);
+    }
+    if (out_of_order_ > 0) out += fmt::format(", {} out of order (dropped)", out_of_order_.load());
+    return out + arrivals_.status();
   }
 
  private:
@@ -192,11 +204,11 @@ class LslSource final : public net::ReaderSource {
     if (!spec_.min_confidence) {
       return fmt::format("confidence in channel {}: gaze below {:g} is invalid (the default for a stream with "
                          "confidence; min_confidence=C sets another, min_confidence=0 turns it off)",
-                         map.confidence, min_confidence_);
+                         map.confidence, min_confidence_.load());
     }
     if (min_confidence_ > 0) {
       return fmt::format("confidence in channel {}: gaze below {:g} is invalid (min_confidence)", map.confidence,
-                         min_confidence_);
+                         min_confidence_.load());
     }
     return fmt::format("confidence in channel {}, not gated (min_confidence=0)", map.confidence);
   }
@@ -213,7 +225,7 @@ class LslSource final : public net::ReaderSource {
     s.confidence = std::isfinite(confidence) ? std::clamp(confidence, 0.0f, 1.0f) : 0.0f;
     bool valid = std::isfinite(x) && std::isfinite(y) && std::abs(x) < 1e3 && std::abs(y) < 1e3;
     if (map.validity >= 0 && !(v[static_cast<std::size_t>(map.validity)] > 0.5f)) valid = false;
-    if (static_cast<double>(s.confidence) < min_confidence_) {
+    if (static_cast<double>(s.confidence) < min_confidence_.load()) {
       valid = false;
       ++low_confidence_;
     }
@@ -266,22 +278,20 @@ class LslSource final : public net::ReaderSource {
 
   void publish_status(const lsl::stream_info& info, double correction_s) {
     std::lock_guard lock(mutex_);
-    status_ = fmt::format("LSL \"{}\" from {}, {} Hz, clock offset {:+.3f} ms, {} samples, {} dropouts, {} losses",
-                          info.name(), info.hostname(), info.nominal_srate(), correction_s * 1e3, samples_, dropouts_,
-                          lost_);
-    if (min_confidence_ > 0) status_ += fmt::format(", {} below confidence {:g} (invalid)", low_confidence_, min_confidence_);
-    if (out_of_order_ > 0) status_ += fmt::format(", {} out of order (dropped)", out_of_order_);
+    stream_text_ = fmt::format("LSL \"{}\" from {}, {} Hz, clock offset {:+.3f} ms", info.name(), info.hostname(),
+                               info.nominal_srate(), correction_s * 1e3);
   }
 
   const LslSpec spec_;
   std::optional<lsl::stream_info> found_;  // resolved by make_lsl_source, read first
-  double min_confidence_ = 0;               // the stream's (effective_min_confidence); reader thread
+  std::atomic<double> min_confidence_{0};   // the stream's (effective_min_confidence); set by the reader
   std::int64_t last_t_ns_ = 0;
   std::int64_t last_sample_ns_ = 0, last_lookup_ns_ = 0;  // CLOCK_MONOTONIC
   bool lookup_missed_ = false;  // the last lookup after a silence found no stream of the name
-  std::uint64_t samples_ = 0, dropouts_ = 0, lost_ = 0, low_confidence_ = 0, out_of_order_ = 0;
-  mutable std::mutex mutex_;  // guards status_
-  std::string status_;
+  // Counted by the reader thread, read by status_detail() on the loop's.
+  std::atomic<std::uint64_t> samples_{0}, dropouts_{0}, lost_{0}, low_confidence_{0}, out_of_order_{0};
+  mutable std::mutex mutex_;  // guards stream_text_
+  std::string stream_text_;   // the stream, its host, rate and clock offset
 };
 
 }  // namespace
