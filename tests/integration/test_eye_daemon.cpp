@@ -114,8 +114,12 @@ TEST(EyeDaemon, SyntheticEyePublishesScreenGazeAndPupilData) {
   EXPECT_LT(errors[errors.size() / 2], 1.0) << "median gaze error";
 
   // What a client recorded: the same kind of samples.
+  // The client records 3.5 s of the daemon's 4: most of what it published (counted against the
+  // daemon's own recording, which a slow sanitizer build on a loaded machine keeps short, not against
+  // a fixed number: the clean-clone ASan CI once gave the client 46 of a fixed 50).
   const auto client = samples_of(protocol::read_recording((d.path / "client.fgr").string()));
-  ASSERT_GT(client.size(), 50u);
+  ASSERT_GT(client.size(), 20u);
+  EXPECT_GE(client.size(), samples.size() * 6 / 10) << client.size() << " of " << samples.size() << " published";
   const auto with_pupil = std::count_if(client.begin(), client.end(), [](const protocol::GazeSample& s) {
     return (s.right.flags & protocol::kEyePupilValid) && s.right.pupil_diameter_mm > 0;
   });
