@@ -14,6 +14,12 @@ bool all_finite(const Mesh& m) {
 }
 
 glm::mat4 Transform::matrix() const {
+  if (matrix_override) {
+    // An animation adds its translation to an imported node's matrix (rotation keys do not apply).
+    glm::mat4 m = *matrix_override;
+    m[3] = glm::vec4(translation, 1.0f);
+    return m;
+  }
   glm::mat4 m = glm::translate(glm::mat4(1.0f), translation);
   m = glm::rotate(m, glm::radians(rotation_deg.z), glm::vec3(0, 0, 1));
   m = glm::rotate(m, glm::radians(rotation_deg.y), glm::vec3(0, 1, 0));
@@ -76,7 +82,7 @@ Lens Lens::human_eye(double focus_distance_m) {
 }
 
 glm::vec3 Camera::position_at(double t) const {
-  return animation ? animation->apply(Transform{position, {}, {1, 1, 1}}, t).translation : position;
+  return animation ? animation->apply(Transform{position, {}, {1, 1, 1}, std::nullopt}, t).translation : position;
 }
 
 glm::mat4 Camera::view_at(double t) const {

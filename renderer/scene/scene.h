@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 // The scene model shared by every backend and pass. Units: metres, seconds, watts; colours are
-// linear RGB. Loaded from JSON by scene_loader.h (format in renderer/SCENES.md).
+// linear RGB. Loaded from JSON or glTF 2.0 by scene_loader.h (formats in renderer/SCENES.md).
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -32,7 +32,12 @@ struct Transform {
   glm::vec3 translation{0.0f};
   glm::vec3 rotation_deg{0.0f};  // Euler angles in degrees: X first, then Y, then Z (R = Rz * Ry * Rx)
   glm::vec3 scale{1.0f};
-  glm::mat4 matrix() const;      // T * R * S
+  // An imported node's exact world matrix (glTF: shear and any affine matrix stay exact). When set,
+  // matrix() returns its upper 3x4 with `translation` as the last column (the builder sets it to the
+  // matrix's, so an animation's translation still moves it); scale holds its column lengths (for LOD
+  // error), rotation_deg stays 0 and is ignored. JSON scenes never set it.
+  std::optional<glm::mat4> matrix_override;
+  glm::mat4 matrix() const;      // T * R * S, or matrix_override when set
 };
 
 // Piecewise-linear keyframes of translation and rotation; time in seconds. Scale is not animated.

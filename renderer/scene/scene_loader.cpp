@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "scene/geometry.h"
+#include "scene/gltf/gltf_scene.h"
 #include "scene/json_path.h"
 #include "scene/mesh_io.h"
 #include "scene/mesh_simplify.h"
@@ -686,7 +687,13 @@ Scene parse_scene(const std::string& json_text, const std::string& source_name, 
   return scene;
 }
 
-Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides) {
+Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides,
+                 const std::string& camera) {
+  if (is_gltf_file(path)) return load_gltf_scene(path, overrides, camera);
+  if (!camera.empty()) {
+    throw SceneError(path.string() + ": --camera " + camera + ": a JSON scene has one camera (--camera picks a glTF "
+                     "camera node)");
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError(path.string() + ": cannot open scene file");
   std::ostringstream text;

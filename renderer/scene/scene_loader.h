@@ -27,7 +27,12 @@ struct SceneOverride {
 };
 
 // Throws SceneError. Mesh files are resolved relative to the scene file's directory.
-Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides = {});
+// A .gltf or .glb file (by its extension, any case) is read by gltf::read_gltf and built by
+// scene_from_gltf (scene/gltf/gltf_scene.h); its warnings go to stderr. Its overrides may only set
+// camera.width and camera.height; `camera` names the glTF camera node to view from (empty: the
+// first). A JSON scene has one camera: a non-empty `camera` is an error.
+Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides = {},
+                 const std::string& camera = {});
 // The same from text; `source_name` is used in messages and `base_dir` to resolve mesh files.
 Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
                   const std::vector<SceneOverride>& overrides = {});

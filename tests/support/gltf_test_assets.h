@@ -65,4 +65,38 @@ struct GltfCube {
   }
 };
 
+// Two unit quads facing +Z, red at x = -0.6 and green at x = +0.6, each its own mesh node with its
+// own material (metallic 0: Lambertian), seen by a camera node at z = 3 (yfov 0.8 rad); no lights.
+// Views 0 positions, 1 normals, 2 indices.
+struct GltfTwoQuads {
+  GltfBin bin() const {
+    GltfBin b;
+    b.add(std::vector<glm::vec3>{{-0.5f, -0.5f, 0}, {0.5f, -0.5f, 0}, {0.5f, 0.5f, 0}, {-0.5f, 0.5f, 0}});
+    b.add(std::vector<glm::vec3>(4, glm::vec3(0, 0, 1)));
+    b.add(std::vector<std::uint16_t>{0, 1, 2, 0, 2, 3});
+    return b;
+  }
+  GltfJson doc() const {
+    GltfJson d = {{"asset", {{"version", "2.0"}}}};
+    d["accessors"] = GltfJson::parse(R"([
+        {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-0.5, -0.5, 0], "max": [0.5, 0.5, 0]},
+        {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+        {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}])");
+    d["materials"] = GltfJson::parse(R"([
+        {"name": "red", "pbrMetallicRoughness": {"baseColorFactor": [1, 0, 0, 1], "metallicFactor": 0}},
+        {"name": "green", "pbrMetallicRoughness": {"baseColorFactor": [0, 1, 0, 1], "metallicFactor": 0}}])");
+    d["meshes"] = GltfJson::parse(R"([
+        {"name": "red quad", "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}]},
+        {"name": "green quad", "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 1}]}])");
+    d["cameras"] = GltfJson::parse(R"([{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 20}}])");
+    d["nodes"] = GltfJson::parse(R"([
+        {"name": "left", "mesh": 0, "translation": [-0.6, 0, 0]},
+        {"name": "right", "mesh": 1, "translation": [0.6, 0, 0]},
+        {"name": "eye", "camera": 0, "translation": [0, 0, 3]}])");
+    d["scenes"] = GltfJson::parse(R"([{"nodes": [0, 1, 2]}])");
+    d["scene"] = 0;
+    return d;
+  }
+};
+
 }  // namespace fovea::test

@@ -3,7 +3,7 @@
 // A glTF 2.0 asset as read and checked by read_gltf (gltf_reader.h): typed data, every index range
 // checked, every accessor decoded into per-primitive arrays. Textures and images stay references:
 // decoding them is a later step (Filament gltfio's split: the asset once, resources separately).
-// Nothing here knows the renderer's scene model; a builder converts it (not yet written).
+// Nothing here knows the renderer's scene model; the builder (gltf_scene.h) converts it.
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>

@@ -44,11 +44,9 @@ std::vector<std::uint32_t> roots(const Asset& asset, std::optional<std::uint32_t
   return out;
 }
 
-}  // namespace
-
-std::vector<MeshInstance> flatten(const Asset& asset, std::optional<std::uint32_t> scene) {
-  std::vector<MeshInstance> out;
-  UniqueNames names;
+// Depth first from the scene's roots, children in the file's order: visit(node index, world).
+template <class Visit>
+void walk(const Asset& asset, std::optional<std::uint32_t> scene, Visit visit) {
   std::vector<bool> visited(asset.nodes.size(), false);  // read_gltf refuses cycles; a hand-made asset may not
   std::vector<std::pair<std::uint32_t, glm::mat4>> stack;  // node, parent's world; no recursion for deep graphs
   const std::vector<std::uint32_t> top = roots(asset, scene);
@@ -60,11 +58,28 @@ std::vector<MeshInstance> flatten(const Asset& asset, std::optional<std::uint32_
     visited[index] = true;
     const Node& node = asset.nodes[index];
     const glm::mat4 world = parent_world * node.local;
+    visit(index, world);
+    for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.emplace_back(*c, world);
+  }
+}
+
+}  // namespace
+
+std::vector<MeshInstance> flatten(const Asset& asset, std::optional<std::uint32_t> scene) {
+  std::vector<MeshInstance> out;
+  UniqueNames names;
+  walk(asset, scene, [&](std::uint32_t index, const glm::mat4& world) {
+    const Node& node = asset.nodes[index];
     if (node.mesh) {
       out.push_back({index, names.take(node.name.empty() ? "node" + std::to_string(index) : node.name), world, *node.mesh});
     }
-    for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.emplace_back(*c, world);
-  }
+  });
+  return out;
+}
+
+std::vector<std::optional<glm::mat4>> node_worlds(const Asset& asset, std::optional<std::uint32_t> scene) {
+  std::vector<std::optional<glm::mat4>> out(asset.nodes.size());
+  walk(asset, scene, [&](std::uint32_t index, const glm::mat4& world) { out[index] = world; });
   return out;
 }
 

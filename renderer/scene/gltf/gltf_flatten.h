@@ -26,4 +26,8 @@ struct MeshInstance {
 // earlier instance gets "#2", "#3", ... (the first free one), so every instance's name is unique.
 std::vector<MeshInstance> flatten(const Asset& asset, std::optional<std::uint32_t> scene = std::nullopt);
 
+// The world matrix of every node the same walk reaches (camera and light nodes too), indexed by
+// node; none for a node outside that scene.
+std::vector<std::optional<glm::mat4>> node_worlds(const Asset& asset, std::optional<std::uint32_t> scene = std::nullopt);
+
 }  // namespace fovea::render::gltf

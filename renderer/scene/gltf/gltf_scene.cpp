@@ -1,0 +1,329 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "scene/gltf/gltf_scene.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <optional>
+#include <utility>
+
+#include "scene/gltf/gltf_flatten.h"
+#include "scene/gltf/gltf_reader.h"
+
+namespace fovea::render {
+
+namespace {
+
+constexpr float kPi = std::numbers::pi_v<float>;
+
+bool finite(const glm::mat4& m) {
+  for (int c = 0; c < 4; ++c) {
+    for (int r = 0; r < 4; ++r) {
+      if (!std::isfinite(m[c][r])) return false;
+    }
+  }
+  return true;
+}
+
+std::string node_path(const gltf::Asset& a, std::uint32_t node) {
+  std::string p = "$.nodes[" + std::to_string(node) + "]";
+  if (node < a.nodes.size() && !a.nodes[node].name.empty()) p += " (\"" + a.nodes[node].name + "\")";
+  return p;
+}
+
+// A node's world matrix as a transform: refused unless finite and invertible.
+Transform node_transform(const gltf::Asset& a, std::uint32_t node, const glm::mat4& world) {
+  if (!finite(world)) throw SceneError(a.source + ": " + node_path(a, node) + ": world matrix is not finite");
+  const float det = glm::determinant(glm::mat3(world));
+  if (!std::isfinite(det) || std::abs(det) < 1e-30f) {
+    throw SceneError(a.source + ": " + node_path(a, node) + ": world matrix is not invertible (determinant " + std::to_string(det) +
+                     "): must scale every axis by a non-zero amount");
+  }
+  Transform t;
+  t.matrix_override = world;
+  t.translation = glm::vec3(world[3]);
+  t.scale = {glm::length(glm::vec3(world[0])), glm::length(glm::vec3(world[1])), glm::length(glm::vec3(world[2]))};
+  return t;
+}
+
+// Area-weighted vertex normals (the cross product's length is twice the triangle's area).
+std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& p, const std::vector<std::uint32_t>& idx) {
+  std::vector<glm::vec3> n(p.size(), glm::vec3(0.0f));
+  for (std::size_t i = 0; i + 2 < idx.size(); i += 3) {
+    const glm::vec3 face = glm::cross(p[idx[i + 1]] - p[idx[i]], p[idx[i + 2]] - p[idx[i]]);
+    for (std::size_t k = 0; k < 3; ++k) n[idx[i + k]] += face;
+  }
+  for (glm::vec3& v : n) {
+    const float len = glm::length(v);
+    v = len > 0 && std::isfinite(len) ? v / len : glm::vec3(0, 0, 1);  // unused or degenerate vertex
+  }
+  return n;
+}
+
+std::shared_ptr<const Mesh> to_mesh(const gltf::Asset& a, std::uint32_t mesh, std::uint32_t prim) {
+  const gltf::Primitive& p = a.meshes[mesh].primitives[prim];
+  Mesh m;
+  m.positions = p.positions;
+  m.indices = p.indices;
+  m.normals = p.normals.size() == p.positions.size() ? p.normals : area_weighted_normals(p.positions, p.indices);
+  if (!all_finite(m)) {
+    throw SceneError(a.source + ": $.meshes[" + std::to_string(mesh) + "].primitives[" + std::to_string(prim) +
+                     "]: a position or normal is not finite");
+  }
+  return std::make_shared<const Mesh>(std::move(m));
+}
+
+struct Bounds {
+  glm::vec3 lo{std::numeric_limits<float>::max()}, hi{std::numeric_limits<float>::lowest()};
+  void add(const glm::vec3& p) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  glm::vec3 centre() const { return 0.5f * (lo + hi); }
+  float radius() const { return std::max(0.5f * glm::length(hi - lo), 1e-3f); }
+};
+
+// The camera a node gives: its origin, looking down its -Z with +Y up.
+Camera node_camera(const gltf::Camera& c, const glm::mat4& world, const Bounds& b) {
+  Camera cam;
+  cam.position = glm::vec3(world[3]);
+  cam.target = cam.position + glm::normalize(glm::vec3(world * glm::vec4(0, 0, -1, 0)));
+  cam.up = glm::normalize(glm::vec3(world * glm::vec4(0, 1, 0, 0)));
+  cam.vertical_fov_deg = glm::degrees(c.yfov_rad);
+  cam.near_m = c.znear;
+  // An infinite far plane: far enough for the whole scene seen from the camera.
+  cam.far_m = c.zfar ? *c.zfar : std::max(100.0f, 4.0f * (glm::length(b.centre() - cam.position) + b.radius()));
+  return cam;
+}
+
+// No camera in the file: 45° vertical field of view from +Z, the bounding sphere filling the height.
+Camera framing_camera(const Bounds& b) {
+  Camera cam;
+  cam.vertical_fov_deg = 45;
+  const float r = b.radius(), d = 1.1f * r / std::sin(glm::radians(22.5f));
+  cam.target = b.centre();
+  cam.position = b.centre() + glm::vec3(0, 0, d);
+  cam.up = {0, 1, 0};
+  cam.near_m = std::max(1e-3f, 0.5f * (d - r));
+  cam.far_m = 2.0f * (d + r);
+  return cam;
+}
+
+Camera pick_camera(const gltf::Asset& a, const std::vector<std::optional<glm::mat4>>& worlds, const Bounds& b,
+                   const std::string& wanted, std::vector<std::string>& warn) {
+  std::vector<std::string> names;
+  for (std::uint32_t i = 0; i < a.nodes.size(); ++i) {
+    const gltf::Node& n = a.nodes[i];
+    if (!n.camera || !worlds[i]) continue;
+    const std::string name = n.name.empty() ? "node" + std::to_string(i) : n.name;
+    names.push_back(name);
+    if (!wanted.empty() && name != wanted) continue;
+    const gltf::Camera& c = a.cameras[*n.camera];
+    if (c.type != gltf::Camera::Type::Perspective) {
+      warn.push_back(node_path(a, i) + ": orthographic camera skipped (fovea has perspective cameras only)");
+      continue;
+    }
+    (void)node_transform(a, i, *worlds[i]);  // finite and invertible
+    return node_camera(c, *worlds[i], b);
+  }
+  if (!wanted.empty()) {
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + ("\"" + n + "\"");
+    throw SceneError(a.source + ": no perspective camera node named \"" + wanted + "\" (camera nodes: " +
+                     (list.empty() ? "none" : list) + ")");
+  }
+  return framing_camera(b);
+}
+
+std::vector<Light> lights(const gltf::Asset& a, const std::vector<std::optional<glm::mat4>>& worlds, const Bounds& b,
+                          std::vector<std::string>& warn) {
+  std::vector<Light> out;
+  for (std::uint32_t i = 0; i < a.nodes.size(); ++i) {
+    const gltf::Node& n = a.nodes[i];
+    if (!n.light || !worlds[i]) continue;
+    const glm::mat4& w = *worlds[i];
+    (void)node_transform(a, i, w);
+    const gltf::Light& g = a.lights[*n.light];
+    Light l;
+    l.position = glm::vec3(w[3]);
+    l.direction = glm::normalize(glm::vec3(w * glm::vec4(0, 0, -1, 0)));
+    // Candela (lm/sr) taken as W/sr: the radiant power of an isotropic source of that intensity.
+    l.power = 4.0f * kPi * g.intensity * g.color;
+    if (g.type == gltf::Light::Type::Spot) {
+      l.type = LightType::Spot;
+      l.spot_cutoff_deg = glm::degrees(g.outer_cone_rad);
+      l.spot_falloff_deg = glm::degrees(g.outer_cone_rad - g.inner_cone_rad);
+    } else if (g.type == gltf::Light::Type::Directional) {
+      // Lux taken as W/m²: a point light 10 scene radii up-beam giving that irradiance at the centre.
+      const float d = 10.0f * b.radius();
+      l.position = b.centre() - d * l.direction;
+      l.power = 4.0f * kPi * d * d * g.intensity * g.color;
+      warn.push_back(node_path(a, i) + ": directional light approximated by a distant point light");
+    }
+    if (g.range) warn.push_back(node_path(a, i) + ": light range ignored (inverse-square falloff everywhere)");
+    out.push_back(l);
+  }
+  if (!out.empty()) return out;
+  // The default rig: a key light above right in front, a fill light left; irradiance 4 and 1.5 W/m²
+  // at the centre (Phi = 4 pi d² E).
+  const glm::vec3 c = b.centre();
+  const float r = b.radius();
+  for (const auto& [offset, e] : {std::pair{glm::vec3(1.5f, 2.0f, 2.0f), 4.0f}, std::pair{glm::vec3(-2.0f, 1.0f, 1.5f), 1.5f}}) {
+    Light l;
+    l.position = c + r * offset;
+    const float d2 = glm::dot(r * offset, r * offset);
+    l.power = glm::vec3(4.0f * kPi * d2 * e);
+    out.push_back(l);
+  }
+  return out;
+}
+
+std::string texture_list(const gltf::Material& m) {
+  std::string out;
+  const auto add = [&](const std::optional<gltf::TextureRef>& t, const char* slot) {
+    if (t) out += (out.empty() ? "" : ", ") + std::string(slot);
+  };
+  add(m.base_color_texture, "baseColorTexture");
+  add(m.metallic_roughness_texture, "metallicRoughnessTexture");
+  add(m.normal_texture, "normalTexture");
+  add(m.occlusion_texture, "occlusionTexture");
+  add(m.emissive_texture, "emissiveTexture");
+  return out;
+}
+
+}  // namespace
+
+Material material_from_gltf(const gltf::Material& g, const std::string& name) {
+  Material m;
+  m.name = name;
+  const glm::vec3 base = glm::clamp(glm::vec3(g.base_color_factor), 0.0f, 1.0f);
+  const float metal = std::clamp(g.metallic_factor, 0.0f, 1.0f), rough = std::clamp(g.roughness_factor, 0.0f, 1.0f);
+  const glm::vec3 emission = g.emissive_factor * g.emissive_strength;
+  m.kd = base * (1.0f - metal);
+  if (base == glm::vec3(0.0f) && glm::any(glm::greaterThan(emission, glm::vec3(0.0f)))) {
+    m.type = MaterialType::Emissive;
+    m.emission = emission;
+    return m;
+  }
+  if (metal > 0 || rough < 1) {
+    m.type = MaterialType::BlinnPhong;
+    m.ks = glm::mix(glm::vec3(0.04f), base, metal);
+    const float alpha = std::max(rough * rough, 1e-4f);
+    m.shininess = std::clamp(2.0f / (alpha * alpha) - 2.0f, 1.0f, 10000.0f);
+  }
+  return m;
+}
+
+Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std::vector<std::string>* warnings) {
+  std::vector<std::string> warn;
+  Scene s;
+  s.name = std::filesystem::path(a.source).stem().string();
+  s.source = a.source;
+
+  // Materials on first use, in the file's order of use; the default material after them.
+  std::map<std::uint32_t, std::uint32_t> material_index;
+  std::optional<std::uint32_t> default_material;
+  const auto material = [&](const std::optional<std::uint32_t>& g) -> std::uint32_t {
+    if (!g) {
+      if (!default_material) {
+        // The spec's default (white, metallic 1, roughness 1) would be a black metal here: white
+        // Lambertian instead, fovea's default kd.
+        Material m;
+        m.name = "gltf-default";
+        default_material = static_cast<std::uint32_t>(s.materials.size());
+        s.materials.push_back(m);
+      }
+      return *default_material;
+    }
+    const auto [it, added] = material_index.try_emplace(*g, static_cast<std::uint32_t>(s.materials.size()));
+    if (added) {
+      const gltf::Material& gm = a.materials[*g];
+      const std::string name = gm.name.empty() ? "material" + std::to_string(*g) : gm.name;
+      s.materials.push_back(material_from_gltf(gm, name));
+      const std::string textures = texture_list(gm);
+      if (!textures.empty()) warn.push_back("material \"" + name + "\": textures not rendered yet: " + textures);
+      const Material& m = s.materials.back();
+      if (m.type != MaterialType::Emissive && glm::any(glm::greaterThan(gm.emissive_factor * gm.emissive_strength, glm::vec3(0.0f)))) {
+        warn.push_back("material \"" + name + "\": emission dropped (only a black base colour becomes an emitter)");
+      }
+      if (gm.alpha_mode != gltf::AlphaMode::Opaque) warn.push_back("material \"" + name + "\": alphaMode rendered as OPAQUE");
+    }
+    return it->second;
+  };
+
+  // One shared fovea Mesh per glTF primitive: instances of a mesh point at the same one.
+  std::vector<std::vector<std::shared_ptr<const Mesh>>> meshes(a.meshes.size());
+  Bounds bounds;
+  for (const gltf::MeshInstance& inst : gltf::flatten(a)) {
+    const Transform t = node_transform(a, inst.node, inst.world);
+    const gltf::Mesh& gm = a.meshes[inst.mesh];
+    auto& shared = meshes[inst.mesh];
+    shared.resize(gm.primitives.size());
+    for (std::uint32_t k = 0; k < gm.primitives.size(); ++k) {
+      const gltf::Primitive& p = gm.primitives[k];
+      if (p.indices.empty()) continue;  // no triangles (points or lines left out by the reader)
+      if (!shared[k]) shared[k] = to_mesh(a, inst.mesh, k);
+      Object o;
+      o.name = gm.primitives.size() == 1 ? inst.name : inst.name + "/p" + std::to_string(k);
+      o.id = static_cast<std::uint32_t>(s.objects.size() + 1);
+      o.mesh = shared[k];
+      o.material = material(p.material);
+      o.transform = t;
+      for (const glm::vec3& v : o.mesh->positions) bounds.add(glm::vec3(inst.world * glm::vec4(v, 1.0f)));
+      s.objects.push_back(std::move(o));
+    }
+  }
+  if (s.objects.empty()) throw SceneError(a.source + ": $.nodes: no node of the scene has a mesh with triangles: nothing to render");
+
+  const std::vector<std::optional<glm::mat4>> worlds = gltf::node_worlds(a);
+  s.camera = pick_camera(a, worlds, bounds, options.camera_name, warn);
+  s.camera.width = options.width;
+  s.camera.height = options.height;
+  s.lights = lights(a, worlds, bounds, warn);
+  if (warnings) {
+    for (const std::string& w : a.warnings) warnings->push_back(w);
+    for (std::string& w : warn) warnings->push_back(a.source + ": " + std::move(w));
+  }
+  return s;
+}
+
+bool is_gltf_file(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".gltf" || ext == ".glb";
+}
+
+Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides,
+                      const std::string& camera) {
+  GltfSceneOptions options;
+  options.camera_name = camera;
+  for (const SceneOverride& o : overrides) {
+    if (o.path != "camera.width" && o.path != "camera.height") {
+      throw SceneError(path.string() + ": --scene-set " + o.path + ": a glTF scene takes only camera.width and "
+                       "camera.height overrides");
+    }
+    char* end = nullptr;
+    const long v = std::strtol(o.value.c_str(), &end, 10);
+    if (o.value.empty() || *end != '\0' || v < 1 || v > 16384) {
+      throw SceneError(path.string() + ": --scene-set " + o.path + "=" + o.value + ": must be an integer in [1, 16384]");
+    }
+    (o.path == "camera.width" ? options.width : options.height) = static_cast<std::uint32_t>(v);
+  }
+  if (std::uint64_t{options.width} * options.height > std::uint64_t{7680} * 4320) {
+    throw SceneError(path.string() + ": camera " + std::to_string(options.width) + "x" + std::to_string(options.height) +
+                     ": at most 7680x4320 pixels");
+  }
+  std::vector<std::string> warnings;
+  Scene scene = scene_from_gltf(gltf::read_gltf(path), options, &warnings);
+  for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+  scene.source = path;
+  return scene;
+}
+
+}  // namespace fovea::render

@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: Apache-2.0
+#pragma once
+// The scene builder for glTF assets (Falcor's importer -> SceneBuilder split): turns a gltf::Asset
+// (read and checked by read_gltf) into fovea's scene model. It fills the model only; passes never
+// see glTF. The rules (renderer/SCENES.md, "glTF 2.0 assets"):
+//   objects    one per (mesh node, primitive), ids 1-based in gltf::flatten order; named as the
+//              instance ("node") for a one-primitive mesh, "node/p<k>" for several. Nodes sharing
+//              a glTF mesh share its fovea Mesh (one std::shared_ptr per primitive).
+//   transform  the node's exact world matrix (Transform::matrix_override); a matrix that is not
+//              finite or not invertible is refused by the node's JSON path.
+//   materials  interim mapping of the metallic-roughness factors to Lambertian / Blinn-Phong /
+//              Emissive (material_from_gltf); textures are listed in a warning, not rendered.
+//   camera     the first perspective camera node (or options.camera_name), else one framing the
+//              scene's bounds from +Z.
+//   lights     KHR_lights_punctual point and spot with Phi = 4 pi I colour (the file's units taken
+//              as fovea's), directional as a distant point light; none: a two-light default rig.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "scene/gltf/gltf_asset.h"
+#include "scene/scene.h"
+#include "scene/scene_error.h"
+#include "scene/scene_loader.h"
+
+namespace fovea::render {
+
+struct GltfSceneOptions {
+  std::string camera_name;  // a camera node's name; empty: the first camera node
+  std::uint32_t width = 640, height = 480;
+};
+
+// Throws SceneError naming asset.source and the JSON path. Appends what it approximated or left out
+// (textures, directional lights, orthographic cameras, ...) to `warnings` when given.
+Scene scene_from_gltf(const gltf::Asset& asset, const GltfSceneOptions& options,
+                      std::vector<std::string>* warnings = nullptr);
+
+// .gltf or .glb, by the extension in any case.
+bool is_gltf_file(const std::filesystem::path& path);
+
+// load_scene for a glTF file: read_gltf, then scene_from_gltf; warnings go to stderr. A built scene
+// has no JSON document to override: `overrides` may set only camera.width and camera.height.
+Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides,
+                      const std::string& camera);
+
+// The interim material mapping (exposed for tests): kd = base × (1 − metallic); Blinn-Phong with
+// ks = mix(0.04, base, metallic) and n = 2/α² − 2 (α = roughness², n clamped to [1, 10000]) unless
+// metallic == 0 and roughness == 1; Emissive when the base colour is black and the emission
+// (emissiveFactor × emissive strength) is not.
+Material material_from_gltf(const gltf::Material& m, const std::string& name);
+
+}  // namespace fovea::render
