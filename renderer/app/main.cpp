@@ -15,8 +15,11 @@ int main(int argc, char** argv) {
   RenderOptions o;
   std::string backend = "embree";
   std::vector<std::string> sets, scene_sets;
-  bool list_settings = false;
-  app.add_option("--scene", o.scene_path, "scene JSON file (renderer/SCENES.md)");
+  bool list_settings = false, list_objects = false;
+  app.add_option("--scene", o.scene_path, "scene file: JSON, or a glTF 2.0 asset (.gltf, .glb) (renderer/SCENES.md)");
+  app.add_option("--camera", o.camera, "glTF scenes: view from the camera node of this name (default: the first)");
+  app.add_flag("--list-objects", list_objects,
+               "print the scene's objects (id, name, triangles, material and its type), one a line, and exit");
   app.add_option("--backend", backend, "G-buffer backend")->check(CLI::IsMember({"embree", "gl"}))->capture_default_str();
   app.add_option("--gaze", o.gaze, "udp://HOST:PORT (fovea-trackerd), file:REC.fgr (on the frame clock), mouse, none")
       ->capture_default_str();
@@ -64,6 +67,15 @@ int main(int argc, char** argv) {
       const auto eq = s.find('=');
       if (eq == std::string::npos || eq == 0) throw std::invalid_argument("--scene-set \"" + s + "\": expected path=value");
       o.scene_overrides.push_back({s.substr(0, eq), s.substr(eq + 1)});
+    }
+    if (list_objects) {
+      const Scene scene = load_render_scene(o);
+      for (const Object& obj : scene.objects) {
+        const Material& m = scene.materials.at(obj.material);
+        std::printf("%u\t%s\t%zu triangles\t%s (%s)\n", obj.id, obj.name.c_str(), obj.mesh ? obj.mesh->triangle_count() : 0,
+                    m.name.c_str(), to_string(m.type));
+      }
+      return 0;
     }
     if (o.explain) {
       // The backend starts too: where the frame runs (the GPU path, what it reads back) is its answer.

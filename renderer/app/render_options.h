@@ -15,6 +15,7 @@ namespace fovea::render {
 
 struct RenderOptions {
   std::string scene_path;
+  std::string camera;  // --camera: a glTF camera node's name
   std::vector<SceneOverride> scene_overrides;
   BackendKind backend = BackendKind::Embree;
   std::string gaze = "udp://127.0.0.1:47800";
@@ -39,7 +40,7 @@ inline std::unique_ptr<Governor> make_governor(const RenderOptions& o) {
 
 // The scene as every mode renders it: loaded with its overrides, then its LOD chains attached.
 inline Scene load_render_scene(const RenderOptions& o) {
-  Scene scene = load_scene(o.scene_path, o.scene_overrides);
+  Scene scene = load_scene(o.scene_path, o.scene_overrides, o.camera);
   lod::attach_chains(scene);
   return scene;
 }

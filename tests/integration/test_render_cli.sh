@@ -195,6 +195,51 @@ out=$("$RENDER" "${GOV[@]}" --headless --frames 1 --budget-ms 0 --out "$WORK/gov
   || fail "viewer with the governor: $(tail -5 "$WORK/viewer-gov.out")"
 grep -q "^governor: budget 500.0 ms" "$WORK/viewer-gov.out" || fail "the viewer should report the governor: $(tail -3 "$WORK/viewer-gov.out")"
 
+echo "== glTF scenes: --list-objects and a headless frame of a .glb"
+# Two quads (red left, green right), each its own mesh node, and a camera node; written as .gltf
+# (data: URI) and .glb.
+python3 - "$WORK" <<'PY' || fail "could not write the glTF assets"
+import base64, json, struct, sys
+pos = struct.pack("<12f", -.5, -.5, 0, .5, -.5, 0, .5, .5, 0, -.5, .5, 0)
+nrm = struct.pack("<12f", *([0, 0, 1] * 4))
+idx = struct.pack("<6H", 0, 1, 2, 0, 2, 3)
+binary = pos + nrm + idx
+doc = {"asset": {"version": "2.0"},
+       "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+                       {"buffer": 0, "byteOffset": 96, "byteLength": 12}],
+       "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-.5, -.5, 0], "max": [.5, .5, 0]},
+                     {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+                     {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+       "materials": [{"name": "red", "pbrMetallicRoughness": {"baseColorFactor": [1, 0, 0, 1], "metallicFactor": 0}},
+                     {"name": "green", "pbrMetallicRoughness": {"baseColorFactor": [0, 1, 0, 1], "metallicFactor": 0}}],
+       "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}]},
+                  {"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 1}]}],
+       "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 20}}],
+       "nodes": [{"name": "left", "mesh": 0, "translation": [-.6, 0, 0]}, {"name": "right", "mesh": 1, "translation": [.6, 0, 0]},
+                 {"name": "eye", "camera": 0, "translation": [0, 0, 3]}],
+       "scenes": [{"nodes": [0, 1, 2]}], "scene": 0}
+gltf = dict(doc, buffers=[{"byteLength": len(binary), "uri": "data:application/octet-stream;base64," + base64.b64encode(binary).decode()}])
+open(sys.argv[1] + "/quads.gltf", "w").write(json.dumps(gltf))
+text = json.dumps(dict(doc, buffers=[{"byteLength": len(binary)}])).encode()
+text += b" " * (-len(text) % 4)
+glb = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(binary), b"BIN\0") + binary
+open(sys.argv[1] + "/quads.glb", "wb").write(b"glTF" + struct.pack("<II", 2, 12 + len(glb)) + glb)
+PY
+out=$("$RENDER" --scene "$WORK/quads.gltf" --list-objects 2>&1) || fail "--list-objects on a .gltf: $out"
+expected=$(printf '1\tleft\t2 triangles\tred (lambertian)\n2\tright\t2 triangles\tgreen (lambertian)')
+[ "$out" = "$expected" ] || fail "--list-objects on a .gltf printed: $out"
+out=$("$RENDER" --scene "$SCENES/cornell.json" --list-objects 2>&1) || fail "--list-objects on a JSON scene: $out"
+grep -qE "^1	[^	]+	[0-9]+ triangles	.+ \((lambertian|blinn-phong|mirror|glass|emissive)\)$" <<<"$out" \
+  || fail "--list-objects on a JSON scene printed: $out"
+out=$("$RENDER" --scene "$WORK/quads.gltf" --camera top --list-objects 2>&1) && fail "an unknown --camera was accepted"
+grep -q 'no perspective camera node named "top" (camera nodes: "eye")' <<<"$out" || fail "unknown --camera message: $out"
+"$RENDER" --scene "$WORK/quads.glb" --camera eye "${SMALL[@]}" --headless --frames 1 --gaze none --out "$WORK/glb" \
+  >/dev/null 2>"$WORK/glb.err" || fail "headless .glb: $(cat "$WORK/glb.err")"
+[ "$(ls "$WORK/glb"/frame-*.png | wc -l)" -eq 1 ] || fail "expected 1 frame of the .glb"
+out=$("$RENDER" --scene "$WORK/quads.glb" --scene-set lights.0.power=1 --list-objects 2>&1) \
+  && fail "a glTF override other than the image size was accepted"
+grep -q "a glTF scene takes only camera.width and camera.height" <<<"$out" || fail "glTF override message: $out"
+
 echo "== two render clients against one daemon"
 . "$(dirname "${BASH_SOURCE[0]}")/ports.sh"
 PORT=$(free_udp_port)
