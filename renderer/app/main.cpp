@@ -6,6 +6,20 @@
 #include "app/render_options.h"
 #include "pipeline/frame_pipeline.h"
 
+namespace {
+
+// --list-objects: one line an object. The scene is loaded without its LOD chains, which a listing of
+// the full meshes does not need (building one can take seconds).
+void print_objects(const fovea::render::Scene& scene) {
+  for (const fovea::render::Object& obj : scene.objects) {
+    const fovea::render::Material& m = scene.materials.at(obj.material);
+    std::printf("%u\t%s\t%zu triangles\t%s (%s)\n", obj.id, obj.name.c_str(), obj.mesh ? obj.mesh->triangle_count() : 0,
+                m.name.c_str(), to_string(m.type));
+  }
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   using namespace fovea::render;
   CLI::App app{
@@ -69,12 +83,7 @@ int main(int argc, char** argv) {
       o.scene_overrides.push_back({s.substr(0, eq), s.substr(eq + 1)});
     }
     if (list_objects) {
-      const Scene scene = load_render_scene(o);
-      for (const Object& obj : scene.objects) {
-        const Material& m = scene.materials.at(obj.material);
-        std::printf("%u\t%s\t%zu triangles\t%s (%s)\n", obj.id, obj.name.c_str(), obj.mesh ? obj.mesh->triangle_count() : 0,
-                    m.name.c_str(), to_string(m.type));
-      }
+      print_objects(load_scene(o.scene_path, o.scene_overrides, o.camera));
       return 0;
     }
     if (o.explain) {
