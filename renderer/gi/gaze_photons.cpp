@@ -308,7 +308,7 @@ void ImportonMap::build(const EmbreeBackend& backend, const Camera& camera, doub
         const bool front = glm::dot(dir, hit.geometric_normal) < 0.0f;
         const glm::vec3 n = front ? hit.normal : -hit.normal;
         const float eps = optics::surface_epsilon(hit.position);
-        if (m.type == MaterialType::Lambertian || m.type == MaterialType::BlinnPhong) {
+        if (m.is_diffuse_or_glossy()) {
           Photon& imp = found[k];
           imp.position = hit.position;
           imp.normal = n;

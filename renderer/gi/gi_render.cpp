@@ -100,14 +100,15 @@ struct Tracer {
         return tint * l;
       }
       case MaterialType::Lambertian:
-      case MaterialType::BlinnPhong: break;
+      case MaterialType::BlinnPhong:
+      case MaterialType::MetallicRoughness: break;
     }
     // Direct light: eq. 5.22 with shadow rays, exactly as the G-buffer shades it.
     ShadowRays shadow{&backend, n * eps};
     glm::vec3 l = shade_local(lights, m, hit.position, n, origin, s.shadows ? &visible : nullptr, &shadow);
     // Photon terms: sum f_r(l = -incoming, v) Phi_p / (pi r^2) over the nearest photons (eq. 6.6).
     const glm::vec3 v = glm::normalize(origin - hit.position);
-    const glm::vec3 kd = m.kd, ks = m.type == MaterialType::BlinnPhong ? m.ks : glm::vec3(0.0f);
+    const glm::vec3 kd = m.kd, ks = m.is_glossy() ? m.ks : glm::vec3(0.0f);
     const float shininess = m.shininess;
     const auto brdf = [&](const Photon& p) {
       if (ks == glm::vec3(0.0f)) return kd;
@@ -302,7 +303,7 @@ class GBufferFirstHits {
     const auto found = material_of_.find(id);
     const Material* m = found != material_of_.end() ? found->second : nullptr;
     const float depth = g_->depth[i];
-    if (m == nullptr || (m->type != MaterialType::Lambertian && m->type != MaterialType::BlinnPhong) ||
+    if (m == nullptr || !m->is_diffuse_or_glossy() ||
         !std::isfinite(depth) || !(depth > 0))
       return Kind::Trace;
     hit.t = depth;

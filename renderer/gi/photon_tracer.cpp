@@ -178,7 +178,7 @@ Arrival arrival_side(const SurfaceHit& hit, const glm::vec3& dir) {
   const bool from_front = glm::dot(dir, hit.geometric_normal) < 0.0f;
   const glm::vec3 n_face = from_front ? hit.normal : -hit.normal;  // shading normal on the arrival side
   const float eps = surface_epsilon(hit.position);
-  const bool diffuse = m.type == MaterialType::Lambertian || m.type == MaterialType::BlinnPhong;
+  const bool diffuse = m.is_diffuse_or_glossy();
   const glm::vec3 kd = diffuse ? clamp01(m.kd) : glm::vec3(0.0f);
   return {hit, m, from_front, n_face, eps, diffuse, kd};
 }
@@ -220,7 +220,7 @@ std::optional<Scatter> scatter_diffuse_or_glossy(float u, const Arrival& a, std:
                                                  const std::vector<Photon>& out, const DiffuseGuide& guide,
                                                  PhotonPath& path) {
   const Material& m = a.m;
-  const glm::vec3 ks = m.type == MaterialType::BlinnPhong ? clamp01(m.ks) : glm::vec3(0.0f);
+  const glm::vec3 ks = m.is_glossy() ? clamp01(m.ks) : glm::vec3(0.0f);
   float pd = max3(a.kd), ps = max3(ks);
   if (pd + ps > 1.0f) {  // a material reflecting more than it receives: keep the ratio, total 1
     const float t = pd + ps;

@@ -28,11 +28,6 @@ glm::vec3 Image8::get(std::uint32_t x, std::uint32_t y) const {
   return {rgb[i] / 255.0f, rgb[i + 1] / 255.0f, rgb[i + 2] / 255.0f};
 }
 
-float linear_to_srgb(float v) {
-  v = std::clamp(v, 0.0f, 1.0f);
-  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
-}
-
 namespace {
 
 // libpng reports errors through longjmp; this C-style writer holds nothing with a destructor across

@@ -21,8 +21,6 @@ struct Image8 {
   glm::vec3 get(std::uint32_t x, std::uint32_t y) const;
 };
 
-// sRGB transfer function (IEC 61966-2-1) of a linear value in [0, 1].
-float linear_to_srgb(float linear);
 
 // Throw std::runtime_error naming the file on failure.
 void write_png(const std::string& path, const Image8& image);

@@ -5,6 +5,8 @@
 #include <array>
 #include <cmath>
 
+#include "scene/texture.h"
+
 namespace fovea::render {
 
 namespace {

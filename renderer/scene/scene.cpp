@@ -9,8 +9,14 @@ namespace fovea::render {
 
 bool all_finite(const Mesh& m) {
   const auto finite = [](const glm::vec3& v) { return all_finite(v); };
+  const auto finite2 = [](const glm::vec2& v) { return std::isfinite(v.x) && std::isfinite(v.y); };
+  const auto finite4 = [](const glm::vec4& v) { return all_finite(glm::vec3(v)) && std::isfinite(v.w); };
   return std::all_of(m.positions.begin(), m.positions.end(), finite) &&
-         std::all_of(m.normals.begin(), m.normals.end(), finite);
+         std::all_of(m.normals.begin(), m.normals.end(), finite) &&
+         std::all_of(m.texcoords0.begin(), m.texcoords0.end(), finite2) &&
+         std::all_of(m.texcoords1.begin(), m.texcoords1.end(), finite2) &&
+         std::all_of(m.colors.begin(), m.colors.end(), finite4) &&
+         std::all_of(m.tangents.begin(), m.tangents.end(), finite4);
 }
 
 glm::mat4 Transform::matrix() const {
@@ -59,6 +65,16 @@ const char* to_string(MaterialType t) {
     case MaterialType::Mirror: return "mirror";
     case MaterialType::Glass: return "glass";
     case MaterialType::Emissive: return "emissive";
+    case MaterialType::MetallicRoughness: return "metallic-roughness";
+  }
+  return "?";
+}
+
+const char* to_string(AlphaMode m) {
+  switch (m) {
+    case AlphaMode::Opaque: return "OPAQUE";
+    case AlphaMode::Mask: return "MASK";
+    case AlphaMode::Blend: return "BLEND";
   }
   return "?";
 }
@@ -98,6 +114,12 @@ glm::mat4 Camera::projection() const {
 bool Scene::has_specular_or_refractive() const {
   return std::any_of(objects.begin(), objects.end(),
                      [&](const Object& o) { return materials.at(o.material).is_specular_or_refractive(); });
+}
+
+bool Scene::has_textures() const {
+  return std::any_of(materials.begin(), materials.end(), [](const Material& m) {
+    return m.type == MaterialType::MetallicRoughness && m.pbr.has_textures();
+  });
 }
 
 bool Scene::has_animation() const {

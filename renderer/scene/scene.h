@@ -13,14 +13,20 @@
 #include <vector>
 
 #include "fovea/protocol/display_geometry.h"
+#include "scene/texture.h"
 
 namespace fovea::render {
 
-// Indexed triangle mesh in object space. normals has one entry per position (smooth shading).
+// Indexed triangle mesh in object space. normals has one entry per position (smooth shading); the
+// other attributes are empty or have one entry per position too.
 struct Mesh {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
   std::vector<std::uint32_t> indices;  // 3 per triangle
+  std::vector<glm::vec2> texcoords0, texcoords1;  // TEXCOORD_0 and _1 (glTF: v down the image)
+  std::vector<glm::vec4> colors;                  // linear RGBA, multiplies the base colour
+  std::vector<glm::vec4> tangents;                // xyz unit tangent, w the bitangent's sign (normal maps)
+  const std::vector<glm::vec2>& texcoords(std::uint32_t set) const { return set == 0 ? texcoords0 : texcoords1; }
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
 
@@ -53,8 +59,32 @@ struct Animation {
   Transform apply(const Transform& base, double t) const;
 };
 
-enum class MaterialType { Lambertian, BlinnPhong, Mirror, Glass, Emissive };
+enum class MaterialType { Lambertian, BlinnPhong, Mirror, Glass, Emissive, MetallicRoughness };
 const char* to_string(MaterialType t);
+
+enum class AlphaMode { Opaque, Mask, Blend };
+const char* to_string(AlphaMode m);
+
+// glTF 2.0's metallic-roughness material (§3.9), shaded with its appendix B BRDF by
+// scene/shading.h shade_pbr. Each texture multiplies its factor.
+struct PbrParameters {
+  glm::vec4 base_color{1.0f};     // linear RGBA
+  float metallic = 1.0f, roughness = 1.0f;
+  glm::vec3 emissive{0.0f};       // emissiveFactor times KHR_materials_emissive_strength (W / (sr m^2))
+  float normal_scale = 1.0f, occlusion_strength = 1.0f;
+  std::optional<TextureBinding> base_color_texture;          // sRGB
+  std::optional<TextureBinding> metallic_roughness_texture;  // B metallic, G roughness
+  std::optional<TextureBinding> normal_texture;              // tangent space, +Y up the image's v decreasing
+  std::optional<TextureBinding> occlusion_texture;           // R
+  std::optional<TextureBinding> emissive_texture;            // sRGB
+  AlphaMode alpha_mode = AlphaMode::Opaque;
+  float alpha_cutoff = 0.5f;      // MASK (and BLEND, drawn as MASK: one surface per pixel)
+  bool double_sided = false;
+  bool has_textures() const {
+    return base_color_texture || metallic_roughness_texture || normal_texture || occlusion_texture || emissive_texture;
+  }
+  bool alpha_tested() const { return alpha_mode != AlphaMode::Opaque; }
+};
 
 struct Material {
   std::string name;
@@ -65,7 +95,15 @@ struct Material {
   glm::vec3 reflectance{1.0f}; // mirror and glass: tint of reflected/transmitted light
   float ior = 1.5f;            // glass
   glm::vec3 emission{0.0f};    // emissive: radiance leaving the surface, W / (sr m^2)
+  // MetallicRoughness only. kd, ks and shininess then hold the factors' nearest Blinn-Phong (what
+  // the photon map and eye paths use: renderer/gi/GI.md).
+  PbrParameters pbr;
   bool is_specular_or_refractive() const { return type == MaterialType::Mirror || type == MaterialType::Glass; }
+  // What the GI pass stores photons on and scatters with kd and ks (Lambertian, Blinn-Phong, PBR).
+  bool is_diffuse_or_glossy() const {
+    return type == MaterialType::Lambertian || type == MaterialType::BlinnPhong || type == MaterialType::MetallicRoughness;
+  }
+  bool is_glossy() const { return type == MaterialType::BlinnPhong || type == MaterialType::MetallicRoughness; }
 };
 
 // A level of detail: the mesh to use when the object's projected size or importance calls for it.
@@ -143,6 +181,7 @@ struct Scene {
   std::filesystem::path source;  // the JSON file, for messages
   Camera camera;
   std::vector<Material> materials;
+  std::vector<std::shared_ptr<const TextureImage>> textures;  // TextureBinding::texture indexes here
   std::vector<Object> objects;
   std::vector<Light> lights;
   glm::vec3 ambient{0.02f};      // ambient radiance for local illumination (times kd)
@@ -150,6 +189,7 @@ struct Scene {
   protocol::DisplayGeometry display;  // the screen the frames are shown on: pixels -> visual angle
 
   bool has_specular_or_refractive() const;
+  bool has_textures() const;  // a material samples a texture
   bool has_animation() const;
   bool has_lods() const;
   const Object* object_by_id(std::uint32_t id) const;

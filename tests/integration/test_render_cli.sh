@@ -226,7 +226,7 @@ glb = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(b
 open(sys.argv[1] + "/quads.glb", "wb").write(b"glTF" + struct.pack("<II", 2, 12 + len(glb)) + glb)
 PY
 out=$("$RENDER" --scene "$WORK/quads.gltf" --list-objects 2>&1) || fail "--list-objects on a .gltf: $out"
-expected=$(printf '1\tleft\t2 triangles\tred (lambertian)\n2\tright\t2 triangles\tgreen (lambertian)')
+expected=$(printf '1\tleft\t2 triangles\tred (metallic-roughness)\n2\tright\t2 triangles\tgreen (metallic-roughness)')
 [ "$out" = "$expected" ] || fail "--list-objects on a .gltf printed: $out"
 out=$("$RENDER" --scene "$SCENES/cornell.json" --list-objects 2>&1) || fail "--list-objects on a JSON scene: $out"
 grep -qE "^1	[^	]+	[0-9]+ triangles	.+ \((lambertian|blinn-phong|mirror|glass|emissive)\)$" <<<"$out" \

@@ -8,6 +8,7 @@
 #include "backend/embree/embree_backend.h"
 #include "gltf_render_check.h"
 #include "gltf_test_assets.h"
+#include "gltf_textured_quads.h"
 #include "scene/scene_loader.h"
 
 using namespace fovea::render;
@@ -65,4 +66,16 @@ TEST(GltfRender, OverridesAndCameraAreChecked) {
   EXPECT_NE(load_error(file, {}, "top").find("(camera nodes: \"eye\")"), std::string::npos);
   const auto json = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes/cornell.json";
   EXPECT_NE(load_error(json, {}, "eye").find("a JSON scene has one camera"), std::string::npos);
+}
+
+// glTF 2.0 points on the Embree backend: texture orientation, sRGB decoding, alpha MASK,
+// TEXCOORD_1, COLOR_0, normal maps on X and Y (gltf_textured_quads.h).
+TEST(GltfRender, TexturedQuadsShowTheSpecificationsPoints) {
+  TempDir dir;
+  const GltfTexturedQuads quads;
+  const auto file = write_gltf(dir.path, "quads", quads.doc(), quads.bin());
+  const Scene s = load_scene(file, {{"camera.width", "192"}, {"camera.height", "128"}});
+  ASSERT_EQ(s.objects.size(), 6u);
+  ASSERT_EQ(s.textures.size(), 4u);
+  expect_textured_quads(s.camera, render(s), render(without_normal_maps(s)));
 }

@@ -10,6 +10,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "scene/gltf/gltf_scene.h"
 
 using namespace fovea::render;
@@ -123,12 +125,14 @@ TEST(GltfScene, DefaultMaterialAndComputedNormals) {
   for (const glm::vec3& n : mesh.normals) EXPECT_EQ(n, glm::vec3(0, 0, 1));
 }
 
-TEST(GltfScene, MaterialFactorsMapToTheInterimModel) {
+TEST(GltfScene, MaterialFactorsAreKeptWithTheirBlinnPhongForGi) {
   const Material plastic = material_from_gltf(material({0.5f, 0.25f, 1}, 0, 1), "p");
-  EXPECT_EQ(plastic.type, MaterialType::Lambertian);
+  EXPECT_EQ(plastic.type, MaterialType::MetallicRoughness);
+  EXPECT_EQ(plastic.pbr.base_color, glm::vec4(0.5f, 0.25f, 1, 1));
+  EXPECT_EQ(plastic.pbr.metallic, 0.0f);
+  EXPECT_EQ(plastic.pbr.roughness, 1.0f);
   EXPECT_EQ(plastic.kd, glm::vec3(0.5f, 0.25f, 1));
   const Material metal = material_from_gltf(material({1, 0.5f, 0}, 1, 0.5f), "m");
-  EXPECT_EQ(metal.type, MaterialType::BlinnPhong);
   EXPECT_EQ(metal.kd, glm::vec3(0));
   EXPECT_EQ(metal.ks, glm::vec3(1, 0.5f, 0));
   EXPECT_FLOAT_EQ(metal.shininess, 30.0f);  // alpha = 0.25: 2 / 0.0625 - 2
@@ -138,19 +142,110 @@ TEST(GltfScene, MaterialFactorsMapToTheInterimModel) {
   gltf::Material lamp = material({0, 0, 0});
   lamp.emissive_factor = {1, 0.5f, 0.25f};
   lamp.emissive_strength = 4;
+  lamp.alpha_mode = gltf::AlphaMode::Mask;
+  lamp.alpha_cutoff = 0.3f;
+  lamp.double_sided = true;
   const Material e = material_from_gltf(lamp, "lamp");
-  EXPECT_EQ(e.type, MaterialType::Emissive);
-  EXPECT_EQ(e.emission, glm::vec3(4, 2, 1));
+  EXPECT_EQ(e.pbr.emissive, glm::vec3(4, 2, 1));
+  EXPECT_EQ(e.pbr.alpha_mode, AlphaMode::Mask);
+  EXPECT_FLOAT_EQ(e.pbr.alpha_cutoff, 0.3f);
+  EXPECT_TRUE(e.pbr.double_sided);
+  lamp.alpha_mode = gltf::AlphaMode::Blend;
+  EXPECT_FLOAT_EQ(material_from_gltf(lamp, "glass").pbr.alpha_cutoff, 0.5f);  // BLEND drawn as MASK 0.5
 }
 
-TEST(GltfScene, TexturesAreListedInAWarning) {
+namespace {
+
+std::vector<std::uint8_t> png_bytes(const cv::Mat& bgra) {
+  std::vector<std::uint8_t> out;
+  EXPECT_TRUE(cv::imencode(".png", bgra, out));
+  return out;
+}
+
+// instanced() with material "red" textured: base colour from image 0 (a 2x2 PNG in memory), the
+// normal map from image 1 (an external file that does not exist).
+gltf::Asset textured() {
   gltf::Asset a = instanced();
-  a.materials[0].base_color_texture = gltf::TextureRef{};
-  a.materials[0].normal_texture = gltf::TextureRef{};
+  a.folder = "/nonexistent-fovea-test-folder";
+  cv::Mat img(2, 2, CV_8UC4, cv::Scalar(0, 0, 255, 255));  // BGRA red
+  img.at<cv::Vec4b>(0, 1) = cv::Vec4b(255, 0, 0, 128);     // (1, 0): blue, half transparent
+  gltf::Image embedded;
+  embedded.data = png_bytes(img);
+  embedded.mime_type = "image/png";
+  gltf::Image missing;
+  missing.file = a.folder / "normal.png";
+  a.images = {embedded, missing};
+  a.textures = {{"base", std::nullopt, 0}, {"normal", std::nullopt, 1}};
+  a.materials[0].base_color_texture = gltf::TextureRef{0, 0};
+  a.materials[0].normal_texture = gltf::TextureRef{1, 1};
+  a.meshes[0].primitives[0].texcoords0 = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
+  a.meshes[0].primitives[0].texcoords1 = a.meshes[0].primitives[0].texcoords0;
+  return a;
+}
+
+}  // namespace
+
+TEST(GltfScene, TexturesAreDecodedAndAMissingImageIsAWarning) {
   std::vector<std::string> warnings;
-  (void)scene_from_gltf(a, {}, &warnings);
+  const Scene s = scene_from_gltf(textured(), {}, &warnings);
+  ASSERT_EQ(s.textures.size(), 1u);  // the normal map's image is missing
+  const TextureImage& t = *s.textures[0];
+  EXPECT_TRUE(t.srgb);
+  ASSERT_EQ(t.levels.size(), 2u);  // 2x2, 1x1
+  EXPECT_EQ(t.levels[0].rgba[0], 255);  // texel (0, 0): red, RGBA order
+  EXPECT_EQ(t.levels[0].rgba[2], 0);
+  EXPECT_EQ(t.levels[0].rgba[4 + 2], 255);  // texel (1, 0): blue
+  EXPECT_EQ(t.levels[0].rgba[4 + 3], 128);
+  const Material& m = s.materials.at(0);
+  ASSERT_TRUE(m.pbr.base_color_texture.has_value());
+  EXPECT_EQ(m.pbr.base_color_texture->texture, 0u);
+  EXPECT_FALSE(m.pbr.normal_texture.has_value());  // left out: the factor (none) stands alone
   ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_EQ(warnings[0], "two.gltf: material \"red\": textures not rendered yet: baseColorTexture, normalTexture");
+  EXPECT_NE(warnings[0].find("two.gltf: material \"red\" normalTexture: $.images[1] (\"normal.png\"): image file "),
+            std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[0].find("the texture is left out (the material's factors are used)"), std::string::npos);
+  const Mesh& mesh = *s.objects[0].mesh;
+  EXPECT_EQ(mesh.texcoords0.size(), 4u);
+  EXPECT_EQ(mesh.texcoords1.size(), 4u);
+  // Tangents generated for the normal map's set (u along +x): (1, 0, 0), right-handed.
+  ASSERT_EQ(mesh.tangents.size(), 4u);
+  for (const glm::vec4& t4 : mesh.tangents) {
+    EXPECT_NEAR(t4.x, 1.0f, 1e-6f);
+    EXPECT_NEAR(t4.w, 1.0f, 1e-6f);
+  }
+}
+
+TEST(GltfScene, ADecompressionBombIsRefusedBeforeDecoding) {
+  gltf::Asset a = textured();
+  // A PNG whose IHDR declares 20000 x 20000 pixels (400 M, past the 8192^2 limit).
+  std::vector<std::uint8_t>& png = a.images[0].data;
+  ASSERT_GT(png.size(), 24u);
+  for (std::size_t k : {16u, 20u}) {
+    png[k] = 0, png[k + 1] = 0, png[k + 2] = 20000 >> 8, png[k + 3] = 20000 & 0xFF;
+  }
+  std::vector<std::string> warnings;
+  const Scene s = scene_from_gltf(a, {}, &warnings);
+  EXPECT_TRUE(s.textures.empty());
+  EXPECT_FALSE(s.materials.at(0).pbr.base_color_texture.has_value());
+  ASSERT_GE(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("PNG declaring 20000x20000 pixels; at most 67108864 are decoded"), std::string::npos)
+      << warnings[0];
+}
+
+TEST(GltfScene, TexturesPastTheBudgetLoadAtALowerLevel) {
+  gltf::Asset a = textured();
+  a.images[0].data = png_bytes(cv::Mat(64, 64, CV_8UC4, cv::Scalar(10, 20, 30, 255)));
+  GltfSceneOptions o;
+  o.textures.budget_bytes = mip_chain_bytes(16, 16);  // fits 16x16, not 64x64 or 32x32
+  std::vector<std::string> warnings;
+  const Scene s = scene_from_gltf(a, o, &warnings);
+  ASSERT_EQ(s.textures.size(), 1u);
+  EXPECT_EQ(s.textures[0]->levels[0].width, 16u);
+  EXPECT_EQ(s.textures[0]->bytes(), mip_chain_bytes(16, 16));
+  bool said = false;
+  for (const std::string& w : warnings) said = said || w.find("every texture loaded at 1/4 of its resolution") != std::string::npos;
+  EXPECT_TRUE(said);
 }
 
 TEST(GltfScene, CameraFromTheFileAndByName) {

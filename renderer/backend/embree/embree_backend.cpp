@@ -216,6 +216,56 @@ inline void trace_tile(const TilePass& pass, std::uint32_t x0, std::uint32_t y0,
   }
 }
 
+// A hit's triangle and barycentrics (u, v weigh vertices 1 and 2, w = 1 - u - v vertex 0).
+struct HitVertices {
+  const PreparedMesh& m;
+  std::uint32_t i0, i1, i2;
+  float u, v, w;
+  template <class T>
+  T at(const std::vector<T>& a) const { return w * a[i0] + u * a[i1] + v * a[i2]; }
+};
+
+// The hit as a PBR material reads it: texture coordinates, colour, the front side's normal and
+// tangent frame, and each coordinate set's level of detail from the primary ray's cone
+// (Akenine-Möller et al. 2019, §3.4): spread angle atan(2 tan(fov/2) / height) per pixel, width
+// W = spread t at distance t, level log2(W / |n.d|) + 0.5 log2(uv area / world area) (eq. 34, the
+// texture's own 0.5 log2(w h) added when sampling). t is the ray's length, not view depth.
+SurfacePoint surface_point(const Frame& f, const ObjectFrame& of, const HitVertices& hv, const glm::vec3& p,
+                           const glm::vec3& front_normal, bool back_face, const glm::vec3& dir, float t) {
+  const PreparedMesh& m = hv.m;
+  SurfacePoint sp;
+  sp.position = p;
+  sp.normal = front_normal;
+  sp.back_face = back_face;
+  if (!m.colors.empty()) sp.color = hv.at(m.colors);
+  const glm::vec3 p0 = m.positions[hv.i0], p1 = m.positions[hv.i1], p2 = m.positions[hv.i2];
+  const float world_area = glm::length(transform_vector(of.normal_now, glm::cross(p1 - p0, p2 - p0)));
+  const float dir_len = glm::length(dir);
+  const float spread = std::atan(2.0f * f.tan_y / static_cast<float>(std::max(1u, f.height)));
+  const float cos_view = std::max(1e-4f, std::abs(glm::dot(front_normal, dir)) / std::max(dir_len, 1e-30f));
+  const float cone = std::log2(std::max(spread * t * dir_len, 1e-30f) / cos_view);
+  for (std::uint32_t set = 0; set < 2; ++set) {
+    const auto& tc = m.texcoords[set];
+    if (tc.empty()) continue;
+    sp.uv[set] = hv.at(tc);
+    const glm::vec2 e1 = tc[hv.i1] - tc[hv.i0], e2 = tc[hv.i2] - tc[hv.i0];
+    const float uv_area = std::abs(e1.x * e2.y - e2.x * e1.y);
+    sp.lod[set] = uv_area > 0 && world_area > 0 ? cone + 0.5f * std::log2(uv_area / world_area) : -100.0f;
+    if (!std::isfinite(sp.lod[set])) sp.lod[set] = 0;
+  }
+  if (!m.tangents.empty()) {
+    // Tangent and bitangent lie in the surface: they transform with the model matrix, and the
+    // handedness is read back against the world normal (a mirroring transform flips it).
+    const glm::vec4 t4 = hv.at(m.tangents);
+    const glm::vec3 n_obj = m.normals.empty() ? glm::cross(p1 - p0, p2 - p0) : hv.at(m.normals);
+    const glm::vec3 b_obj = glm::cross(n_obj, glm::vec3(t4)) * (t4.w < 0 ? -1.0f : 1.0f);
+    const glm::mat3 model(of.model_now);
+    const glm::vec3 tw = transform_vector(model, glm::vec3(t4)), bw = transform_vector(model, b_obj);
+    sp.tangent = glm::vec4(tw, glm::dot(glm::cross(front_normal, tw), bw) < 0 ? -1.0f : 1.0f);
+  }
+  return sp;
+}
+
 // Turns one traced hit into G-buffer texels.
 inline void resolve_hit(const TilePass& pass, const Hit& h, std::uint32_t x, std::uint32_t y, ShadowContext& shadow) {
   const EmbreeBackend::Impl& im = pass.im;
@@ -258,7 +308,8 @@ inline void resolve_hit(const TilePass& pass, const Hit& h, std::uint32_t x, std
     n = -dir;
     if (!normalize_checked(n)) n = f.back;
   }
-  if (glm::dot(n, dir) > 0.0f) n = -n;  // face the eye
+  const bool back_face = glm::dot(n, dir) > 0.0f;
+  if (back_face) n = -n;  // face the eye
 
   out.depth[i] = h.t;  // view-axis depth: the ray direction has unit length along the view axis
   out.object_id[i] = s.objects[r.object].id;
@@ -270,7 +321,13 @@ inline void resolve_hit(const TilePass& pass, const Hit& h, std::uint32_t x, std
     const float scale = std::max({1.0f, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
     shadow.epsilon = 1e-4f * scale;
     shadow.offset = n * shadow.epsilon;
-    color = shade_local(s, *r.material, p, n, origin, pass.visibility, &shadow);
+    if (r.material->type == MaterialType::MetallicRoughness) {
+      const HitVertices hv{m, i0, i1, i2, u, v, w};
+      const SurfacePoint point = surface_point(f, of, hv, p, back_face ? -n : n, back_face, dir, h.t);
+      color = shade_pbr(s, evaluate_pbr(s, r.material->pbr, point), p, origin, pass.visibility, &shadow);
+    } else {
+      color = shade_local(s, *r.material, p, n, origin, pass.visibility, &shadow);
+    }
   }
   out.color[i] = finite(color) ? color : glm::vec3(0.0f);
 

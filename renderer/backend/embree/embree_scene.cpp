@@ -13,6 +13,7 @@
 
 #include "backend/embree/embree_backend.h"
 #include "backend/embree/embree_scene.h"
+#include "scene/shading.h"
 
 namespace fovea::render {
 
@@ -29,6 +30,11 @@ std::shared_ptr<const PreparedMesh> prepare(const Mesh& mesh) {
     for (const glm::vec3& n : mesh.normals) out->normals.push_back(finite(n) ? n : glm::vec3(0.0f));
   }
   const std::size_t n = mesh.positions.size();
+  for (std::uint32_t set = 0; set < 2; ++set) {
+    if (mesh.texcoords(set).size() == n) out->texcoords[set] = mesh.texcoords(set);
+  }
+  if (mesh.colors.size() == n) out->colors = mesh.colors;
+  if (mesh.tangents.size() == n) out->tangents = mesh.tangents;
   out->indices.reserve(mesh.indices.size());
   for (std::size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
     const std::uint32_t a = mesh.indices[t], b = mesh.indices[t + 1], c = mesh.indices[t + 2];
@@ -72,12 +78,44 @@ RTCGeometry new_triangle_geometry(RTCDevice device, const PreparedMesh& mesh) {
   return g;
 }
 
+// Embree's filter for AlphaTest: a hit whose alpha is below the cutoff is no hit.
+void alpha_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* test = static_cast<const AlphaTest*>(args->geometryUserPtr);
+  if (test == nullptr) return;
+  const PreparedMesh& m = *test->mesh;
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    if (prim >= m.triangle_count()) continue;
+    const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i), w = 1.0f - u - v;
+    const std::uint32_t* idx = &m.indices[3 * std::size_t{prim}];
+    SurfacePoint point;
+    for (std::uint32_t set = 0; set < 2; ++set) {
+      const auto& tc = m.texcoords[set];
+      if (!tc.empty()) point.uv[set] = w * tc[idx[0]] + u * tc[idx[1]] + v * tc[idx[2]];
+      point.lod[set] = -1e30f;  // the base level (see AlphaTest)
+    }
+    if (!m.colors.empty()) point.color = w * m.colors[idx[0]] + u * m.colors[idx[1]] + v * m.colors[idx[2]];
+    if (pbr_alpha(*test->scene, *test->material, point) < test->material->alpha_cutoff) args->valid[i] = 0;
+  }
+}
+
 bool invertible(const glm::mat4& m) {
   const float det = glm::determinant(glm::mat3(m));
   return finite(m) && std::isfinite(det) && std::abs(det) > 1e-30f;
 }
 
 }  // namespace
+
+namespace embree_detail {
+
+void set_alpha_test(RTCGeometry g, const AlphaTest* test) {
+  rtcSetGeometryUserData(g, const_cast<AlphaTest*>(test));
+  rtcSetGeometryIntersectFilterFunction(g, &alpha_filter);
+  rtcSetGeometryOccludedFilterFunction(g, &alpha_filter);
+}
+
+}  // namespace embree_detail
 
 // Geometry: flattened vs instanced (both kept; EmbreeOptions::geometry selects).
 //  - Flattened: world-space vertices, one geometry per object. A static scene gets a single SAH
@@ -109,7 +147,9 @@ void EmbreeBackend::set_scene(const Scene& scene) {
   }
 
   std::map<const Mesh*, std::shared_ptr<const PreparedMesh>> prepared;
-  std::map<const PreparedMesh*, RTCScene> mesh_scene;
+  // Instanced: one BVH per distinct mesh, and per alpha-tested material using it (the filter reads
+  // the material).
+  std::map<std::pair<const PreparedMesh*, const Material*>, RTCScene> mesh_scene;
   for (std::size_t i = 0; i < s.objects.size(); ++i) {
     const Object& o = s.objects[i];
     if (!o.mesh) continue;
@@ -132,14 +172,21 @@ void EmbreeBackend::set_scene(const Scene& scene) {
       r.committed = o.transform_at(0).matrix();
       r.normal_committed = cofactor(r.committed);
       const bool emitter = r.material->type == MaterialType::Emissive;
+      const bool alpha_tested = r.material->type == MaterialType::MetallicRoughness && r.material->pbr.alpha_tested();
+      const AlphaTest* alpha = nullptr;
+      if (alpha_tested) {
+        im.alpha_tests.push_back(std::make_unique<AlphaTest>(AlphaTest{&s, &r.material->pbr, pm.get()}));
+        alpha = im.alpha_tests.back().get();
+      }
 
       RTCGeometry g = nullptr;
       if (instanced) {
-        RTCScene& ms = mesh_scene[pm.get()];
+        RTCScene& ms = mesh_scene[{pm.get(), alpha_tested ? r.material : nullptr}];
         if (ms == nullptr) {
           ms = rtcNewScene(im.device);
           im.mesh_scenes.push_back(ms);
           RTCGeometry tri = new_triangle_geometry(im.device, *pm);
+          if (alpha != nullptr) set_alpha_test(tri, alpha);
           rtcCommitGeometry(tri);
           rtcAttachGeometry(ms, tri);
           rtcReleaseGeometry(tri);
@@ -158,6 +205,7 @@ void EmbreeBackend::set_scene(const Scene& scene) {
         auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
         if (vertices != nullptr) write_world_vertices(vertices, *pm, r.committed);
         if (r.animated) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
+        if (alpha != nullptr) set_alpha_test(g, alpha);
       }
       if (emitter) rtcSetGeometryMask(g, kMaskEmitter);
       if (!r.lod_active) rtcDisableGeometry(g);

@@ -50,12 +50,28 @@ inline glm::mat3 cofactor(const glm::mat4& m) {
 // A mesh as Embree gets it: non-finite positions replaced by the origin (Embree drops the
 // resulting degenerate triangles), triangles with an index out of range dropped, normals kept only
 // if there is one per position. primID indexes `indices` of this copy.
+// Texture coordinates, colours and tangents are kept likewise: one per position or none.
 struct PreparedMesh {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
   std::vector<std::uint32_t> indices;
+  std::vector<glm::vec2> texcoords[2];
+  std::vector<glm::vec4> colors, tangents;
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
+
+// What an alpha-tested material's filter function reads (Embree geometry user data): MASK (and
+// BLEND) materials drop hits whose base-colour alpha is below the cutoff, for every ray, primary
+// and shadow alike. The alpha is read at the texture's base level in both backends, so a distant
+// leaf does not fade away with the mip chain's averaged alpha (it may alias instead).
+struct AlphaTest {
+  const Scene* scene = nullptr;
+  const PbrParameters* material = nullptr;
+  const PreparedMesh* mesh = nullptr;
+};
+
+// Installs the alpha test on a triangle geometry (intersection and occlusion filters).
+void set_alpha_test(RTCGeometry g, const AlphaTest* test);
 
 struct ObjectRecord {
   std::size_t object = 0;  // index into Impl::scene.objects
@@ -84,6 +100,7 @@ struct EmbreeBackend::Impl {
   Scene scene;
   bool has_scene = false;
   std::vector<embree_detail::ObjectRecord> records;  // one per attached object; geomID in `top` = position here
+  std::vector<std::unique_ptr<embree_detail::AlphaTest>> alpha_tests;  // user data of alpha-tested geometry
   std::atomic<std::uint64_t> shadow_rays{0};
   EmbreeFrameStats stats;
 
@@ -98,6 +115,7 @@ struct EmbreeBackend::Impl {
   void release_scene() {
     records.clear();
     if (top != nullptr) rtcReleaseScene(top);
+    alpha_tests.clear();  // after the scenes that point at them
     top = nullptr;
     for (RTCScene s : mesh_scenes) rtcReleaseScene(s);
     mesh_scenes.clear();

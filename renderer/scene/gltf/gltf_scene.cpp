@@ -15,6 +15,7 @@
 
 #include "scene/gltf/gltf_flatten.h"
 #include "scene/gltf/gltf_reader.h"
+#include "scene/gltf/gltf_textures.h"
 
 namespace fovea::render {
 
@@ -66,15 +67,59 @@ std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& p, co
   return n;
 }
 
-std::shared_ptr<const Mesh> to_mesh(const gltf::Asset& a, std::uint32_t mesh, std::uint32_t prim) {
+// Per-vertex tangents from the texture coordinates of `set` (Lengyel's method: each triangle's
+// dP/du accumulated, weighted by its area, then made orthogonal to the normal; w makes
+// cross(n, t) w point up the image, against dP/dv, as glTF's bitangent does). Used when a material has a normal map and the file gives no TANGENT. Not
+// MikkTSpace: at a vertex whose triangles' frames disagree (a mirrored UV seam without split
+// vertices) the two differ; glTF exporters split such vertices and most write TANGENT anyway.
+std::vector<glm::vec4> generate_tangents(const Mesh& m, const std::vector<glm::vec2>& uv) {
+  std::vector<glm::vec3> tan(m.positions.size(), glm::vec3(0.0f)), bitan(m.positions.size(), glm::vec3(0.0f));
+  for (std::size_t i = 0; i + 2 < m.indices.size(); i += 3) {
+    const std::uint32_t a = m.indices[i], b = m.indices[i + 1], c = m.indices[i + 2];
+    const glm::vec3 e1 = m.positions[b] - m.positions[a], e2 = m.positions[c] - m.positions[a];
+    const glm::vec2 d1 = uv[b] - uv[a], d2 = uv[c] - uv[a];
+    const float det = d1.x * d2.y - d2.x * d1.y;
+    if (!(std::abs(det) > 1e-20f) || !std::isfinite(det)) continue;
+    // Scaled by |det| (twice the UV area) times the triangle's own weight: dP/du * area.
+    const float sign = det > 0 ? 1.0f : -1.0f;
+    const glm::vec3 t = (e1 * d2.y - e2 * d1.y) * sign, bt = (e2 * d1.x - e1 * d2.x) * sign;
+    for (const std::uint32_t v : {a, b, c}) {
+      tan[v] += t;
+      bitan[v] += bt;
+    }
+  }
+  std::vector<glm::vec4> out(m.positions.size(), glm::vec4(1, 0, 0, 1));
+  for (std::size_t v = 0; v < out.size(); ++v) {
+    const glm::vec3 n = m.normals[v];
+    glm::vec3 t = tan[v] - n * glm::dot(n, tan[v]);
+    const float len = glm::length(t);
+    if (!(len > 1e-20f) || !std::isfinite(len)) continue;  // no UV gradient: any tangent will do
+    t /= len;
+    // The bitangent points up the image, towards decreasing v (glTF's normal maps: +Y up).
+    out[v] = glm::vec4(t, glm::dot(glm::cross(n, t), bitan[v]) > 0 ? -1.0f : 1.0f);
+  }
+  return out;
+}
+
+// The primitive as a fovea Mesh with all its attributes; tangents generated from TEXCOORD_n when
+// `tangent_set` is n and the file has none.
+std::shared_ptr<const Mesh> to_mesh(const gltf::Asset& a, std::uint32_t mesh, std::uint32_t prim,
+                                    std::optional<std::uint32_t> tangent_set) {
   const gltf::Primitive& p = a.meshes[mesh].primitives[prim];
   Mesh m;
   m.positions = p.positions;
   m.indices = p.indices;
   m.normals = p.normals.size() == p.positions.size() ? p.normals : area_weighted_normals(p.positions, p.indices);
+  m.texcoords0 = p.texcoords0;
+  m.texcoords1 = p.texcoords1;
+  m.colors = p.colors;
+  m.tangents = p.tangents;
+  if (m.tangents.empty() && tangent_set && m.texcoords(*tangent_set).size() == m.positions.size()) {
+    m.tangents = generate_tangents(m, m.texcoords(*tangent_set));
+  }
   if (!all_finite(m)) {
     throw SceneError(a.source + ": $.meshes[" + std::to_string(mesh) + "].primitives[" + std::to_string(prim) +
-                     "]: a position or normal is not finite");
+                     "]: a position, normal, texture coordinate, colour or tangent is not finite");
   }
   return std::make_shared<const Mesh>(std::move(m));
 }
@@ -184,41 +229,108 @@ std::vector<Light> lights(const gltf::Asset& a, const std::vector<std::optional<
   return out;
 }
 
-std::string texture_list(const gltf::Material& m) {
-  std::string out;
-  const auto add = [&](const std::optional<gltf::TextureRef>& t, const char* slot) {
-    if (t) out += (out.empty() ? "" : ", ") + std::string(slot);
-  };
-  add(m.base_color_texture, "baseColorTexture");
-  add(m.metallic_roughness_texture, "metallicRoughnessTexture");
-  add(m.normal_texture, "normalTexture");
-  add(m.occlusion_texture, "occlusionTexture");
-  add(m.emissive_texture, "emissiveTexture");
-  return out;
-}
-
 }  // namespace
 
 Material material_from_gltf(const gltf::Material& g, const std::string& name) {
   Material m;
   m.name = name;
-  const glm::vec3 base = glm::clamp(glm::vec3(g.base_color_factor), 0.0f, 1.0f);
-  const float metal = std::clamp(g.metallic_factor, 0.0f, 1.0f), rough = std::clamp(g.roughness_factor, 0.0f, 1.0f);
-  const glm::vec3 emission = g.emissive_factor * g.emissive_strength;
-  m.kd = base * (1.0f - metal);
-  if (base == glm::vec3(0.0f) && glm::any(glm::greaterThan(emission, glm::vec3(0.0f)))) {
-    m.type = MaterialType::Emissive;
-    m.emission = emission;
-    return m;
-  }
-  if (metal > 0 || rough < 1) {
-    m.type = MaterialType::BlinnPhong;
-    m.ks = glm::mix(glm::vec3(0.04f), base, metal);
-    const float alpha = std::max(rough * rough, 1e-4f);
-    m.shininess = std::clamp(2.0f / (alpha * alpha) - 2.0f, 1.0f, 10000.0f);
-  }
+  m.type = MaterialType::MetallicRoughness;
+  PbrParameters& pbr = m.pbr;
+  pbr.base_color = glm::clamp(g.base_color_factor, 0.0f, 1.0f);
+  pbr.metallic = std::clamp(g.metallic_factor, 0.0f, 1.0f);
+  pbr.roughness = std::clamp(g.roughness_factor, 0.0f, 1.0f);
+  pbr.emissive = g.emissive_factor * g.emissive_strength;
+  pbr.normal_scale = g.normal_scale;
+  pbr.occlusion_strength = g.occlusion_strength;
+  pbr.alpha_mode = g.alpha_mode == gltf::AlphaMode::Mask    ? AlphaMode::Mask
+                   : g.alpha_mode == gltf::AlphaMode::Blend ? AlphaMode::Blend
+                                                            : AlphaMode::Opaque;
+  pbr.alpha_cutoff = g.alpha_mode == gltf::AlphaMode::Blend ? 0.5f : g.alpha_cutoff;
+  pbr.double_sided = g.double_sided;
+  // The factors' nearest Blinn-Phong, for the photon map and eye paths (renderer/gi/GI.md).
+  const glm::vec3 base(pbr.base_color);
+  m.kd = base * (1.0f - pbr.metallic);
+  m.ks = glm::mix(glm::vec3(0.04f), base, pbr.metallic);
+  const float alpha = std::max(pbr.roughness * pbr.roughness, 1e-4f);
+  m.shininess = std::clamp(2.0f / (alpha * alpha) - 2.0f, 1.0f, 10000.0f);
+  m.emission = pbr.emissive;
   return m;
 }
+
+namespace {
+
+// glTF's sampler enums as fovea's sampler (minFilter is not kept: every texture is sampled trilinear,
+// see scene/texture.h).
+TextureSampler to_sampler(const gltf::Asset& a, const gltf::Texture& t) {
+  TextureSampler s;
+  if (!t.sampler) return s;
+  const gltf::Sampler& g = a.samplers[*t.sampler];
+  const auto wrap = [](std::uint32_t e) {
+    return e == 33071 ? TextureWrap::ClampToEdge : e == 33648 ? TextureWrap::MirroredRepeat : TextureWrap::Repeat;
+  };
+  s.wrap_s = wrap(g.wrap_s);
+  s.wrap_t = wrap(g.wrap_t);
+  s.mag_nearest = g.mag_filter == 9728;
+  return s;
+}
+
+// The images the materials use, one decode request per (image, colour or data), and the bindings
+// that wait for them: TextureBinding::texture holds the request's index until resolve() maps it to
+// the scene's texture or drops the binding.
+class TextureTable {
+ public:
+  explicit TextureTable(const gltf::Asset& a) : a_(a) {}
+
+  std::optional<TextureBinding> bind(const std::optional<gltf::TextureRef>& ref, bool srgb, const std::string& used_by) {
+    if (!ref || ref->texture >= a_.textures.size()) return std::nullopt;  // read_gltf checked the index
+    const gltf::Texture& t = a_.textures[ref->texture];
+    if (!t.source || *t.source >= a_.images.size()) return std::nullopt;  // a texture without an image is undefined: treated as absent
+    const auto [it, added] = index_.try_emplace({*t.source, srgb}, static_cast<std::uint32_t>(requests_.size()));
+    if (added) requests_.push_back({*t.source, srgb, used_by});
+    return TextureBinding{it->second, ref->tex_coord, to_sampler(a_, t)};
+  }
+
+  void bind_material(Material& m, const gltf::Material& g) {
+    const auto slot = [&](const char* name) { return "material \"" + m.name + "\" " + name; };
+    PbrParameters& p = m.pbr;
+    p.base_color_texture = bind(g.base_color_texture, true, slot("baseColorTexture"));
+    p.metallic_roughness_texture = bind(g.metallic_roughness_texture, false, slot("metallicRoughnessTexture"));
+    p.normal_texture = bind(g.normal_texture, false, slot("normalTexture"));
+    p.occlusion_texture = bind(g.occlusion_texture, false, slot("occlusionTexture"));
+    p.emissive_texture = bind(g.emissive_texture, true, slot("emissiveTexture"));
+  }
+
+  // Decodes every request into scene.textures and points the materials' bindings at them.
+  void resolve(Scene& scene, const gltf::TextureOptions& options, std::vector<std::string>& warn) {
+    const gltf::DecodedTextures decoded = gltf::decode_textures(a_, requests_, options);
+    for (const std::string& w : decoded.warnings) warn.push_back(w);
+    std::vector<std::optional<std::uint32_t>> scene_index(requests_.size());
+    for (std::size_t i = 0; i < requests_.size(); ++i) {
+      if (!decoded.images[i]) continue;
+      scene_index[i] = static_cast<std::uint32_t>(scene.textures.size());
+      scene.textures.push_back(decoded.images[i]);
+    }
+    for (Material& m : scene.materials) {
+      if (m.type != MaterialType::MetallicRoughness) continue;
+      for (std::optional<TextureBinding>* b : {&m.pbr.base_color_texture, &m.pbr.metallic_roughness_texture,
+                                               &m.pbr.normal_texture, &m.pbr.occlusion_texture, &m.pbr.emissive_texture}) {
+        if (!*b) continue;
+        if (const auto k = scene_index.at((*b)->texture)) {
+          (*b)->texture = *k;
+        } else {
+          b->reset();
+        }
+      }
+    }
+  }
+
+ private:
+  const gltf::Asset& a_;
+  std::map<std::pair<std::uint32_t, bool>, std::uint32_t> index_;
+  std::vector<gltf::TextureRequest> requests_;
+};
+
+}  // namespace
 
 Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std::vector<std::string>* warnings) {
   std::vector<std::string> warn;
@@ -229,6 +341,7 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
   // Materials on first use, in the file's order of use; the default material after them.
   std::map<std::uint32_t, std::uint32_t> material_index;
   std::optional<std::uint32_t> default_material;
+  TextureTable textures(a);
   const auto material = [&](const std::optional<std::uint32_t>& g) -> std::uint32_t {
     if (!g) {
       if (!default_material) {
@@ -244,17 +357,19 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
     const auto [it, added] = material_index.try_emplace(*g, static_cast<std::uint32_t>(s.materials.size()));
     if (added) {
       const gltf::Material& gm = a.materials[*g];
-      const std::string name = gm.name.empty() ? "material" + std::to_string(*g) : gm.name;
-      s.materials.push_back(material_from_gltf(gm, name));
-      const std::string textures = texture_list(gm);
-      if (!textures.empty()) warn.push_back("material \"" + name + "\": textures not rendered yet: " + textures);
-      const Material& m = s.materials.back();
-      if (m.type != MaterialType::Emissive && glm::any(glm::greaterThan(gm.emissive_factor * gm.emissive_strength, glm::vec3(0.0f)))) {
-        warn.push_back("material \"" + name + "\": emission dropped (only a black base colour becomes an emitter)");
+      s.materials.push_back(material_from_gltf(gm, gm.name.empty() ? "material" + std::to_string(*g) : gm.name));
+      textures.bind_material(s.materials.back(), gm);
+      if (gm.alpha_mode == gltf::AlphaMode::Blend) {
+        warn.push_back("material \"" + s.materials.back().name +
+                       "\": alphaMode BLEND drawn as MASK with cutoff 0.5 (the G-buffer holds one surface per pixel)");
       }
-      if (gm.alpha_mode != gltf::AlphaMode::Opaque) warn.push_back("material \"" + name + "\": alphaMode rendered as OPAQUE");
     }
     return it->second;
+  };
+  // The texture-coordinate set a primitive's normal map reads, for tangents the file does not give.
+  const auto tangent_set = [&](const gltf::Primitive& p) -> std::optional<std::uint32_t> {
+    if (!p.material || !a.materials[*p.material].normal_texture) return std::nullopt;
+    return a.materials[*p.material].normal_texture->tex_coord;
   };
 
   // One shared fovea Mesh per glTF primitive: instances of a mesh point at the same one.
@@ -268,7 +383,7 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
     for (std::uint32_t k = 0; k < gm.primitives.size(); ++k) {
       const gltf::Primitive& p = gm.primitives[k];
       if (p.indices.empty()) continue;  // no triangles (points or lines left out by the reader)
-      if (!shared[k]) shared[k] = to_mesh(a, inst.mesh, k);
+      if (!shared[k]) shared[k] = to_mesh(a, inst.mesh, k, tangent_set(p));
       Object o;
       o.name = gm.primitives.size() == 1 ? inst.name : inst.name + "/p" + std::to_string(k);
       o.id = static_cast<std::uint32_t>(s.objects.size() + 1);
@@ -280,6 +395,7 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
     }
   }
   if (s.objects.empty()) throw SceneError(a.source + ": $.nodes: no node of the scene has a mesh with triangles: nothing to render");
+  textures.resolve(s, options.textures, warn);
 
   const std::vector<std::optional<glm::mat4>> worlds = gltf::node_worlds(a);
   s.camera = pick_camera(a, worlds, bounds, options.camera_name, warn);

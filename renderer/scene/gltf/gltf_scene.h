@@ -8,8 +8,10 @@
 //              a glTF mesh share its fovea Mesh (one std::shared_ptr per primitive).
 //   transform  the node's exact world matrix (Transform::matrix_override); a matrix that is not
 //              finite or not invertible is refused by the node's JSON path.
-//   materials  interim mapping of the metallic-roughness factors to Lambertian / Blinn-Phong /
-//              Emissive (material_from_gltf); textures are listed in a warning, not rendered.
+//   materials  MetallicRoughness with the file's factors, textures (decoded by gltf_textures.h;
+//              a missing or broken image is a warning and the factor alone), alpha mode and
+//              double-sidedness; BLEND is drawn as MASK at 0.5. Tangents the file lacks are
+//              generated for normal-mapped primitives (generate_tangents: Lengyel, not MikkTSpace).
 //   camera     the first perspective camera node (or options.camera_name), else one framing the
 //              scene's bounds from +Z.
 //   lights     KHR_lights_punctual point and spot with Phi = 4 pi I colour (the file's units taken
@@ -20,6 +22,7 @@
 #include <vector>
 
 #include "scene/gltf/gltf_asset.h"
+#include "scene/gltf/gltf_textures.h"
 #include "scene/scene.h"
 #include "scene/scene_error.h"
 #include "scene/scene_loader.h"
@@ -29,6 +32,7 @@ namespace fovea::render {
 struct GltfSceneOptions {
   std::string camera_name;  // a camera node's name; empty: the first camera node
   std::uint32_t width = 640, height = 480;
+  gltf::TextureOptions textures;
 };
 
 // Throws SceneError naming asset.source and the JSON path. Appends what it approximated or left out
@@ -44,10 +48,10 @@ bool is_gltf_file(const std::filesystem::path& path);
 Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides,
                       const std::string& camera);
 
-// The interim material mapping (exposed for tests): kd = base × (1 − metallic); Blinn-Phong with
-// ks = mix(0.04, base, metallic) and n = 2/α² − 2 (α = roughness², n clamped to [1, 10000]) unless
-// metallic == 0 and roughness == 1; Emissive when the base colour is black and the emission
-// (emissiveFactor × emissive strength) is not.
+// A glTF material's factors as a MetallicRoughness material, without its textures (bound by the
+// builder). kd, ks and shininess get the factors' nearest Blinn-Phong for the GI pass: kd = base x
+// (1 - metallic), ks = mix(0.04, base, metallic), n = 2/alpha^2 - 2 (alpha = roughness^2, n in
+// [1, 10000]).
 Material material_from_gltf(const gltf::Material& m, const std::string& name);
 
 }  // namespace fovea::render
