@@ -10,6 +10,7 @@
 #include <unordered_map>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 
 #include "backend/embree/embree_backend.h"
 #include "gi/eye_rays.h"
@@ -108,8 +109,14 @@ struct Tracer {
     glm::vec3 l = shade_local(lights, m, hit.position, n, origin, s.shadows ? &visible : nullptr, &shadow);
     // Photon terms: sum f_r(l = -incoming, v) Phi_p / (pi r^2) over the nearest photons (eq. 6.6).
     const glm::vec3 v = glm::normalize(origin - hit.position);
-    const glm::vec3 kd = m.kd, ks = m.is_glossy() ? m.ks : glm::vec3(0.0f);
+    // A PBR material's BRDF is normalised (glTF appendix B): its photon terms use kd / pi and the
+    // normalised Blinn-Phong lobe (n + 8) / (8 pi) ks (n.h)^n, its factors' nearest (GI.md).
+    const bool normalised = m.type == MaterialType::MetallicRoughness;
     const float shininess = m.shininess;
+    const glm::vec3 kd = normalised ? m.kd / std::numbers::pi_v<float> : m.kd;
+    const glm::vec3 ks = !m.is_glossy() ? glm::vec3(0.0f)
+                         : normalised   ? m.ks * ((shininess + 8) / (8 * std::numbers::pi_v<float>))
+                                        : m.ks;
     const auto brdf = [&](const Photon& p) {
       if (ks == glm::vec3(0.0f)) return kd;
       const glm::vec3 h = glm::normalize(v - p.incoming);  // eq. 5.21

@@ -12,6 +12,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "scene/gltf/gltf_reader.h"
 #include "scene/gltf/gltf_scene.h"
 
 using namespace fovea::render;
@@ -319,4 +320,21 @@ TEST(GltfScene, AnAssetWithoutTrianglesIsRefused) {
   gltf::Asset a;
   a.source = "empty.gltf";
   EXPECT_NE(error_of(a).find("nothing to render"), std::string::npos);
+}
+
+// The CC0 sample with its occlusion-roughness-metallic image missing, as the shared data has it.
+TEST(GltfScene, BoomBoxWarnsOnceAboutItsMissingImage) {
+  const std::filesystem::path file = "/work/shared/data/gltf/BoomBox/glTF/BoomBox.gltf";
+  if (!std::filesystem::exists(file)) GTEST_SKIP() << file << " is not on this machine";
+  std::vector<std::string> warnings;
+  const Scene s = scene_from_gltf(gltf::read_gltf(file), {}, &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("material \"BoomBox_Mat\" metallicRoughnessTexture, material \"BoomBox_Mat\" "
+                             "occlusionTexture: $.images[1] (\"BoomBox_occlusionRoughnessMetallic.png\")"),
+            std::string::npos)
+      << warnings[0];
+  EXPECT_EQ(s.textures.size(), 3u);  // base colour, normal, emissive
+  const PbrParameters& m = s.materials.at(0).pbr;
+  EXPECT_TRUE(m.base_color_texture && m.normal_texture && m.emissive_texture);
+  EXPECT_FALSE(m.metallic_roughness_texture || m.occlusion_texture);
 }

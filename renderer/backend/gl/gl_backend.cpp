@@ -90,10 +90,15 @@ GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
   loc_shininess_ = loc("u_shininess");
   loc_moved_ = loc("u_moved");
   loc_peel_ = loc("u_peel");
-  // Units of their own: the program's two samplers of different types must never share one.
+  loc_pbr_ = {loc("u_pbr"),          loc("u_base_color"),  loc("u_metallic_roughness"), loc("u_emissive_factor"),
+              loc("u_normal_scale"), loc("u_occlusion_strength"), loc("u_alpha_test"),   loc("u_alpha_cutoff"),
+              loc("u_tex_present"),  loc("u_tex_set1")};
+  // Units of their own: the program's samplers of different types must never share one.
   glUseProgram(program_);
   glUniform1i(loc("u_peel_depth"), kPeelDepthUnit);
   glUniform1i(loc("u_peel_state"), kPeelStateUnit);
+  const char* slots[5] = {"u_tex_base", "u_tex_mr", "u_tex_normal", "u_tex_occlusion", "u_tex_emissive"};
+  for (int k = 0; k < 5; ++k) glUniform1i(loc(slots[k]), kMaterialTextureUnit + k);
   glUseProgram(0);
   depth_program_ = gl::link_program(gl::kDepthVertex, gl::kDepthFragment, "GlBackend depth pre-pass program");
   loc_depth_model_ = glGetUniformLocation(depth_program_, "u_model");
@@ -123,6 +128,7 @@ GlBackend::~GlBackend() {
   peeling_.reset();
   visibility_.reset();
   release_meshes();
+  release_textures();
   release_framebuffer();
   release_aside();
   if (light_ubo_ != 0) glDeleteBuffers(1, &light_ubo_);
@@ -248,6 +254,16 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   if (width == 0) width = cam.width;
   if (height == 0) height = cam.height;
   ensure_framebuffer(std::max(std::max(cam.width, width), fb_width_), std::max(std::max(cam.height, height), fb_height_));
+  if (visibility_buffer && pbr_scene_) {
+    // The compute resolve shades the scene's own materials, not glTF's textures and BRDF.
+    static bool said = false;
+    if (!said) {
+      std::fprintf(stderr, "fovea-render: visibility buffer off for this scene: its metallic-roughness (glTF) "
+                           "materials are shaded in the raster pass\n");
+      said = true;
+    }
+    visibility_buffer = false;
+  }
   if (visibility_buffer && ensure_visibility()) {
     const FrameView frame = frame_view(cam, time, lens);
     draw_visibility(scene, time, lod_levels, frame, frame.view != frame.view_prev, width, height, planes);
@@ -272,7 +288,12 @@ void GlBackend::draw_forward(unsigned fbo, const FrameTime& time, const LensSamp
     glDepthMask(GL_FALSE);
   }
   set_frame_uniforms(frame, scene.ambient, width, height);
-  draw_objects(scene, time, lod_levels, camera_moved);
+  draw_objects(scene, time, lod_levels, depth_prepass ? DrawSubset::Opaque : DrawSubset::All, camera_moved);
+  if (depth_prepass) {  // alpha-tested objects were left out of the pre-pass: depth-tested as usual
+    glDepthFunc(GL_LESS);
+    glDepthMask(GL_TRUE);
+    draw_objects(scene, time, lod_levels, DrawSubset::AlphaTested, camera_moved);
+  }
   glDepthFunc(GL_LESS);
   glDepthMask(GL_TRUE);
   glBindVertexArray(0);
@@ -370,7 +391,18 @@ void GlBackend::set_frame_uniforms(const FrameView& frame, const glm::vec3& ambi
   glUniform3fv(loc_eye_, 1, glm::value_ptr(frame.eye));
   glUniform3fv(loc_ambient_, 1, glm::value_ptr(ambient));
   glUniform2f(loc_viewport_, static_cast<float>(width), static_cast<float>(height));
+  // What a mesh without PBR attributes reads (generic attribute values are context state).
+  glVertexAttrib4f(2, 0, 0, 0, 1);
+  glVertexAttrib4f(3, 0, 0, 0, 1);
+  glVertexAttrib4f(4, 1, 1, 1, 1);
+  glVertexAttrib4f(5, 0, 0, 0, 1);
 }
+
+namespace {
+
+bool alpha_tested(const Material& m) { return m.type == MaterialType::MetallicRoughness && m.pbr.alpha_tested(); }
+
+}  // namespace
 
 const GlBackend::GpuMesh* GlBackend::mesh_for(std::size_t i, const std::vector<std::uint8_t>& lod_levels) const {
   if (draws_[i].mesh == kNoMesh) return nullptr;
@@ -381,12 +413,15 @@ const GlBackend::GpuMesh* GlBackend::mesh_for(std::size_t i, const std::vector<s
 }
 
 void GlBackend::draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
-                             bool camera_moved) {
+                             DrawSubset subset, bool camera_moved) {
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const GpuMesh* gpu = mesh_for(i, lod_levels);
     if (gpu == nullptr) continue;
     const Object& o = scene.objects[i];
-    set_object_uniforms(o, scene.materials[o.material], time, camera_moved);
+    const Material& m = scene.materials[o.material];
+    if (subset != DrawSubset::All && alpha_tested(m) != (subset == DrawSubset::AlphaTested)) continue;
+    set_object_uniforms(o, m, time, camera_moved);
+    set_material_textures(m);
     glBindVertexArray(gpu->vao);
     glDrawElements(GL_TRIANGLES, gpu->index_count, GL_UNSIGNED_INT, nullptr);
   }
@@ -400,7 +435,7 @@ void GlBackend::draw_depth(const Scene& scene, const FrameTime& time, const std:
   glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const GpuMesh* gpu = mesh_for(i, lod_levels);
-    if (gpu == nullptr) continue;
+    if (gpu == nullptr || alpha_tested(scene.materials[scene.objects[i].material])) continue;
     const glm::mat4 model = scene.objects[i].transform_at(time.now_s).matrix();
     glUniformMatrix4fv(loc_depth_model_, 1, GL_FALSE, glm::value_ptr(model));
     glBindVertexArray(gpu->vao);
@@ -515,7 +550,7 @@ const GlPeeling& GlBackend::peel_on_gpu(const FrameTime& time, const BackendSett
       glBindTexture(GL_TEXTURE_2D, against->state);
       glActiveTexture(GL_TEXTURE0);
     }
-    draw_objects(scene, time, settings.lod_levels, frame.view != frame.view_prev);
+    draw_objects(scene, time, settings.lod_levels, DrawSubset::All, frame.view != frame.view_prev);
     glUniform1i(loc_peel_, 0);
     glDisable(GL_SCISSOR_TEST);
   };

@@ -107,6 +107,7 @@ class GlBackend final : public Backend {
  private:
   struct GpuMesh {
     unsigned vao = 0, vbo = 0, ibo = 0;
+    unsigned extra_vbo = 0;  // texture coordinates, colours, tangents; 0 when the mesh has none
     std::int32_t index_count = 0;
   };
   struct DrawItem {
@@ -130,7 +131,10 @@ class GlBackend final : public Backend {
   static FrameView frame_view(const Camera& cam, const FrameTime& time, const LensSample& lens);
   static void move_eye_to_lens_point(const Camera& cam, const LensSample& lens, FrameView& frame);
   void set_frame_uniforms(const FrameView& frame, const glm::vec3& ambient, std::uint32_t width, std::uint32_t height);
-  void draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
+  // Which objects draw_objects draws: all, or the opaque ones and the alpha-tested ones apart (a
+  // depth pre-pass holds only the opaque: an alpha-tested surface's depth depends on its texture).
+  enum class DrawSubset { All, Opaque, AlphaTested };
+  void draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels, DrawSubset subset,
                     bool camera_moved);
   void set_object_uniforms(const Object& o, const Material& m, const FrameTime& time, bool camera_moved);
   // The visibility-buffer pass, built on first use; false (and one stderr line, once) where the
@@ -148,6 +152,12 @@ class GlBackend final : public Backend {
   static GpuMesh upload_interleaved_mesh(const Mesh& mesh, std::vector<float>& interleaved);
   // Fills meshes_ and draws_ (one per object, LOD levels included).
   void upload_draw_items(const Scene& scene);
+  // PBR (gl_backend_textures.cpp): the scene's textures with their mip chains, the sampler objects
+  // of its bindings, and a material's uniforms and texture units for one draw.
+  void upload_textures(const Scene& scene);
+  void release_textures();
+  unsigned sampler_for(const TextureSampler& s);
+  void set_material_textures(const Material& m);
   void ensure_framebuffer(std::uint32_t width, std::uint32_t height);
   static void check_settings(const BackendSettings& settings);
   void release_framebuffer();
@@ -187,6 +197,13 @@ class GlBackend final : public Backend {
   std::unique_ptr<GpuFrame> gpu_frame_;
   std::unique_ptr<GlPeeling> peeling_;  // made on the first peeled render
   int loc_peel_ = -1;
+  struct PbrLocations {
+    int pbr = -1, base_color = -1, metallic_roughness = -1, emissive = -1, normal_scale = -1, occlusion_strength = -1,
+        alpha_test = -1, alpha_cutoff = -1, tex_present = -1, tex_set1 = -1;
+  } loc_pbr_;
+  std::vector<unsigned> scene_textures_;  // one per Scene::textures entry
+  std::vector<std::pair<TextureSampler, unsigned>> samplers_;
+  bool pbr_scene_ = false;  // a MetallicRoughness material: the visibility buffer cannot shade it
   struct Aside {  // render_aside's targets
     unsigned fbo = 0, z = 0, textures[5] = {0, 0, 0, 0, 0};
     std::uint32_t width = 0, height = 0;

@@ -4,6 +4,7 @@
 // (interleaved positions and normals) with one draw item per object and level of detail.
 #include <epoxy/gl.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -97,6 +98,37 @@ void upload_light_samples(GLuint light_ubo, const std::vector<LightSampleStd140>
   glBindBuffer(GL_UNIFORM_BUFFER, 0);
 }
 
+// A mesh's texture coordinates, colours and tangents as a second vertex buffer at locations 2-5
+// (uv0, uv1, colour, tangent; 12 floats per vertex), into the bound VAO. Attributes the mesh lacks
+// get their defaults (0, colour 1); a mesh with none of them gets no buffer: the disabled arrays
+// read the generic values set per frame.
+void upload_pbr_attributes(const Mesh& mesh, unsigned& extra_vbo) {
+  const std::size_t n = mesh.positions.size();
+  const bool uv0 = mesh.texcoords0.size() == n, uv1 = mesh.texcoords1.size() == n, colors = mesh.colors.size() == n,
+             tangents = mesh.tangents.size() == n;
+  if (!(uv0 || uv1 || colors || tangents) || n == 0) return;
+  std::vector<float> extra(n * 12, 0.0f);
+  for (std::size_t i = 0; i < n; ++i) {
+    float* v = &extra[12 * i];
+    if (uv0) std::memcpy(v, &mesh.texcoords0[i], 2 * sizeof(float));
+    if (uv1) std::memcpy(v + 2, &mesh.texcoords1[i], 2 * sizeof(float));
+    const glm::vec4 c = colors ? mesh.colors[i] : glm::vec4(1.0f);
+    std::memcpy(v + 4, &c, 4 * sizeof(float));
+    if (tangents) std::memcpy(v + 8, &mesh.tangents[i], 4 * sizeof(float));
+  }
+  glGenBuffers(1, &extra_vbo);
+  glBindBuffer(GL_ARRAY_BUFFER, extra_vbo);
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(extra.size() * sizeof(float)), extra.data(), GL_STATIC_DRAW);
+  constexpr GLsizei kStride = 12 * sizeof(float);
+  const GLint sizes[4] = {2, 2, 4, 4};
+  const std::size_t offsets[4] = {0, 2, 4, 8};
+  for (GLuint k = 0; k < 4; ++k) {
+    glEnableVertexAttribArray(2 + k);
+    glVertexAttribPointer(2 + k, sizes[k], GL_FLOAT, GL_FALSE, kStride,
+                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(offsets[k] * sizeof(float))));
+  }
+}
+
 }  // namespace
 
 void GlBackend::release_meshes() {
@@ -104,6 +136,7 @@ void GlBackend::release_meshes() {
     glDeleteVertexArrays(1, &m.vao);
     glDeleteBuffers(1, &m.vbo);
     glDeleteBuffers(1, &m.ibo);
+    if (m.extra_vbo != 0) glDeleteBuffers(1, &m.extra_vbo);
   }
   meshes_.clear();
   draws_.clear();
@@ -118,7 +151,11 @@ void GlBackend::set_scene(const Scene& scene) {
 
   context_.make_current();
   release_meshes();
+  release_textures();
   upload_draw_items(scene);
+  upload_textures(scene);
+  pbr_scene_ = std::any_of(scene.materials.begin(), scene.materials.end(),
+                           [](const Material& m) { return m.type == MaterialType::MetallicRoughness; });
   upload_light_samples(light_ubo_, packed);
   light_sample_count_ = static_cast<int>(packed.size());
   scene_ = scene;
@@ -150,6 +187,7 @@ GlBackend::GpuMesh GlBackend::upload_interleaved_mesh(const Mesh& mesh, std::vec
   // The classic buffer-offset idiom of glVertexAttribPointer.
   glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, kStride,
                         reinterpret_cast<const void*>(static_cast<std::uintptr_t>(3 * sizeof(float))));
+  upload_pbr_attributes(mesh, gpu.extra_vbo);
   glBindVertexArray(0);
   glBindBuffer(GL_ARRAY_BUFFER, 0);
   return gpu;

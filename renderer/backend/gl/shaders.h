@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-// GLSL of the G-buffer pass. The fragment shader's shade_local() is a line-by-line port of
-// scene/shading.cpp (modified Blinn-Phong, Jensen & Pedersen 2009 eq. 5.21-5.23, 5.33, spot
+// GLSL of the G-buffer pass. The fragment shader's shade_local() and shade_pbr() are line-by-line
+// ports of scene/shading.cpp (modified Blinn-Phong, Jensen & Pedersen 2009 eq. 5.21-5.23, 5.33, spot
 // smoothstep, area lights as n x n cosine emitters expanded on the CPU by light_samples(), ambient,
-// emissive). Keep the two in step: tests/gl/test_gl_backend.cpp compares them pixel by pixel.
+// emissive; glTF 2.0 appendix B with evaluate_pbr()'s textures). Keep them in step:
+// tests/gl/test_gl_backend.cpp and tests/gl/test_gl_gltf.cpp compare them pixel by pixel.
 
 namespace fovea::render::gl {
 
@@ -14,6 +15,12 @@ inline constexpr int kMaxLightSamples = 256;
 inline constexpr const char* kGBufferVertex = R"(#version 330 core
 layout(location = 0) in vec3 a_position;
 layout(location = 1) in vec3 a_normal;
+// PBR attributes (a second buffer; when a mesh has none they are disabled and read the generic
+// values GlBackend sets: 0, and colour 1).
+layout(location = 2) in vec2 a_uv0;
+layout(location = 3) in vec2 a_uv1;
+layout(location = 4) in vec4 a_color;
+layout(location = 5) in vec4 a_tangent;
 
 uniform mat4 u_model;        // object -> world at time now
 uniform mat4 u_model_prev;   // object -> world at the previous frame's time
@@ -24,6 +31,9 @@ out vec3 v_world;
 out vec3 v_normal;
 out float v_view_depth;
 out vec4 v_clip_prev;
+out vec2 v_uv0, v_uv1;
+out vec4 v_color;
+out vec3 v_tangent, v_bitangent;  // world space, in the surface (they transform with the model matrix)
 // The depth pre-pass (kDepthVertex) computes gl_Position the same way: both invariant, so the
 // shading pass's z test at equal meets exactly the depths the pre-pass wrote.
 invariant gl_Position;
@@ -37,6 +47,11 @@ void main() {
   // perspective-correct interpolation below is exact on a planar triangle.
   v_view_depth = -view.z;
   v_clip_prev = u_proj * (u_view_prev * (u_model_prev * vec4(a_position, 1.0)));
+  v_uv0 = a_uv0;
+  v_uv1 = a_uv1;
+  v_color = a_color;
+  v_tangent = mat3(u_model) * a_tangent.xyz;
+  v_bitangent = mat3(u_model) * (cross(a_normal, a_tangent.xyz) * (a_tangent.w < 0.0 ? -1.0 : 1.0));
   gl_Position = u_proj * view;
 }
 )";
@@ -78,40 +93,90 @@ vec3 finite_or_zero(vec3 v) {
               isnan(v.z) || isinf(v.z) ? 0.0 : v.z);
 }
 
+// scene/shading.cpp sum_lights() for light sample i: the irradiance at x (0 when the sample is
+// behind the normal or outside its cone), and the unit direction to it in l.
+vec3 light_irradiance(int i, vec3 x, vec3 n, out vec3 l) {
+  LightSample s = u_lights[i];
+  l = vec3(0.0, 0.0, 1.0);
+  vec3 to_light = s.position_kind.xyz - x;
+  float d2 = dot(to_light, to_light);
+  if (!(d2 > 1e-12)) return vec3(0.0);
+  float d = sqrt(d2);
+  l = to_light / d;
+  float cos_theta = dot(n, l);
+  if (cos_theta <= 0.0) return vec3(0.0);
+  float emit = 1.0 / (4.0 * kPi);  // isotropic point light: E = Phi / (4 pi d^2) cos(theta), eq. 5.33
+  int kind = int(s.position_kind.w + 0.5);
+  if (kind == 1) {
+    float c = dot(-l, s.direction_start.xyz);
+    float cutoff = s.power_cutoff.w, start = s.direction_start.w;
+    float t = clamp((c - cutoff) / (start - cutoff), 0.0, 1.0);
+    emit *= t * t * (3.0 - 2.0 * t);  // smoothstep across the soft edge
+  } else if (kind == 2) {
+    emit = max(0.0, dot(-l, s.direction_start.xyz)) / kPi;  // Lambertian emitter
+  }
+  if (emit <= 0.0) return vec3(0.0);
+  return s.power_cutoff.xyz * (emit * cos_theta / d2);
+}
+
+vec3 view_direction(vec3 x, vec3 eye, vec3 n) {
+  vec3 to_eye = eye - x;
+  float eye_dist = length(to_eye);
+  return eye_dist > 0.0 ? to_eye / eye_dist : n;
+}
+
 // scene/shading.cpp shade_local(), without the visibility callback (no shadows in the raster backend).
 vec3 shade_local(vec3 x, vec3 n, vec3 eye, vec3 kd, vec3 ks, vec3 emission, float shininess, bool emissive) {
   if (emissive) return finite_or_zero(emission + kd * u_ambient);
-  vec3 to_eye = eye - x;
-  float eye_dist = length(to_eye);
-  vec3 v = eye_dist > 0.0 ? to_eye / eye_dist : n;
+  vec3 v = view_direction(x, eye, n);
   vec3 radiance = kd * u_ambient;
   for (int i = 0; i < u_light_count; ++i) {
-    LightSample s = u_lights[i];
-    vec3 to_light = s.position_kind.xyz - x;
-    float d2 = dot(to_light, to_light);
-    if (!(d2 > 1e-12)) continue;
-    float d = sqrt(d2);
-    vec3 l = to_light / d;
-    float cos_theta = dot(n, l);
-    if (cos_theta <= 0.0) continue;
-    float emit = 1.0 / (4.0 * kPi);  // isotropic point light: E = Phi / (4 pi d^2) cos(theta), eq. 5.33
-    int kind = int(s.position_kind.w + 0.5);
-    if (kind == 1) {
-      float c = dot(-l, s.direction_start.xyz);
-      float cutoff = s.power_cutoff.w, start = s.direction_start.w;
-      float t = clamp((c - cutoff) / (start - cutoff), 0.0, 1.0);
-      emit *= t * t * (3.0 - 2.0 * t);  // smoothstep across the soft edge
-    } else if (kind == 2) {
-      emit = max(0.0, dot(-l, s.direction_start.xyz)) / kPi;  // Lambertian emitter
-    }
-    if (emit <= 0.0) continue;
-    vec3 irradiance = s.power_cutoff.xyz * (emit * cos_theta / d2);
+    vec3 l;
+    vec3 irradiance = light_irradiance(i, x, n, l);
+    if (irradiance == vec3(0.0)) continue;
     vec3 h = normalize(l + v);  // eq. 5.21
     float n_dot_h = max(0.0, dot(n, h));
     // std::pow(0, 0) == 1 in C++; GLSL leaves pow(0, 0) undefined.
     float highlight = shininess == 0.0 ? 1.0 : pow(n_dot_h, shininess);
     vec3 brdf = ks * highlight + kd;  // eq. 5.22
     radiance += brdf * irradiance;
+  }
+  return finite_or_zero(radiance);
+}
+
+// scene/shading.cpp pbr_brdf(): glTF 2.0 appendix B.
+vec3 pbr_brdf(vec3 n, vec3 base, float metallic, float roughness, vec3 l, vec3 v) {
+  float n_dot_l = max(0.0, dot(n, l));
+  float n_dot_v = max(1e-4, abs(dot(n, v)));
+  if (n_dot_l <= 0.0) return vec3(0.0);
+  vec3 h = l + v;
+  float h_len = length(h);
+  h = h_len > 1e-12 ? h / h_len : n;
+  float n_dot_h = max(0.0, dot(n, h));
+  float v_dot_h = clamp(abs(dot(v, h)), 0.0, 1.0);
+  float alpha = max(roughness * roughness, 1e-3), a2 = alpha * alpha;
+  vec3 c_diff = mix(base, vec3(0.0), metallic);
+  vec3 f0 = mix(vec3(0.04), base, metallic);
+  float fw = pow(1.0 - v_dot_h, 5.0);
+  vec3 fresnel = f0 + (vec3(1.0) - f0) * fw;
+  float denom_d = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
+  float d = a2 / (kPi * denom_d * denom_d);
+  float vis = 1.0 / ((n_dot_l + sqrt(a2 + (1.0 - a2) * n_dot_l * n_dot_l)) *
+                     (n_dot_v + sqrt(a2 + (1.0 - a2) * n_dot_v * n_dot_v)));
+  return (vec3(1.0) - fresnel) * c_diff / kPi + fresnel * (d * vis);
+}
+
+// scene/shading.cpp shade_pbr(), without shadows.
+vec3 shade_pbr(vec3 x, vec3 n, vec3 eye, vec3 base, float metallic, float roughness, float occlusion, vec3 emission) {
+  vec3 v = view_direction(x, eye, n);
+  vec3 c_diff = mix(base, vec3(0.0), metallic);
+  vec3 f0 = mix(vec3(0.04), base, metallic);
+  vec3 radiance = emission + u_ambient * (c_diff + f0) * occlusion;
+  for (int i = 0; i < u_light_count; ++i) {
+    vec3 l;
+    vec3 irradiance = light_irradiance(i, x, n, l);
+    if (irradiance == vec3(0.0)) continue;
+    radiance += pbr_brdf(n, base, metallic, roughness, l, v) * irradiance;
   }
   return finite_or_zero(radiance);
 }
@@ -123,6 +188,9 @@ in vec3 v_world;
 in vec3 v_normal;
 in float v_view_depth;
 in vec4 v_clip_prev;
+in vec2 v_uv0, v_uv1;
+in vec4 v_color;
+in vec3 v_tangent, v_bitangent;
 
 uniform vec3 u_eye;
 uniform vec2 u_viewport;   // width, height in pixels
@@ -131,6 +199,18 @@ uniform uint u_object_id;
 uniform int u_emissive;
 uniform vec3 u_kd, u_ks, u_emission;
 uniform float u_shininess;
+// MetallicRoughness (scene/shading.h evaluate_pbr): factors, then one sampler per texture slot
+// (0 base colour, 1 metallic-roughness, 2 normal, 3 occlusion, 4 emissive); bit k of u_tex_present
+// says slot k has a texture, bit k of u_tex_set1 that it reads TEXCOORD_1.
+uniform bool u_pbr;
+uniform vec4 u_base_color;
+uniform vec2 u_metallic_roughness;
+uniform vec3 u_emissive_factor;
+uniform float u_normal_scale, u_occlusion_strength;
+uniform bool u_alpha_test;
+uniform float u_alpha_cutoff;
+uniform int u_tex_present, u_tex_set1;
+uniform sampler2D u_tex_base, u_tex_mr, u_tex_normal, u_tex_occlusion, u_tex_emissive;
 // Depth peeling (gl_peel.h): keep only fragments farther than the last layer's, by the Embree
 // backend's epsilon, at pixels not yet resolved.
 uniform bool u_peel;
@@ -143,19 +223,57 @@ layout(location = 2) out uint o_object_id;
 layout(location = 3) out vec4 o_normal;
 layout(location = 4) out vec2 o_motion;
 
+bool has_texture(int slot) { return (u_tex_present & (1 << slot)) != 0; }
+vec2 slot_uv(int slot) { return (u_tex_set1 & (1 << slot)) != 0 ? v_uv1 : v_uv0; }
+
+// evaluate_pbr()'s bent normal: the normal map in the front side's frame, turned round on a back face.
+vec3 bent_normal(vec3 front, vec3 tangent_space) {
+  float w = dot(cross(front, v_tangent), v_bitangent) < 0.0 ? -1.0 : 1.0;
+  vec3 t_ortho = v_tangent - front * dot(front, v_tangent);
+  float t_len = length(t_ortho);
+  if (!(t_len > 1e-12) || isinf(t_len)) return front;
+  vec3 t = t_ortho / t_len;
+  vec3 b = cross(front, t) * w;
+  vec3 tn = tangent_space * 2.0 - 1.0;
+  tn.xy *= u_normal_scale;
+  vec3 bent = t * tn.x + b * tn.y + front * tn.z;
+  float len = length(bent);
+  return len > 1e-12 && !isinf(len) && dot(bent, front) > 0.0 ? bent / len : front;
+}
+
 void main() {
   // Geometric normal as the fallback for a degenerate interpolated normal (computed outside any
   // branch: derivatives need uniform control flow).
   vec3 geometric = cross(dFdx(v_world), dFdy(v_world));
+  // Every texture read before any discard: implicit derivatives need the whole quad. The alpha
+  // test reads the base level (as the Embree backend's filter does).
+  vec4 tex_base = vec4(1.0), tex_mr = vec4(1.0), tex_normal = vec4(0.5, 0.5, 1.0, 1.0), tex_occ = vec4(1.0),
+       tex_emissive = vec4(1.0);
+  float alpha_base = 1.0;
+  if (u_pbr) {
+    if (has_texture(0)) {
+      tex_base = texture(u_tex_base, slot_uv(0));
+      alpha_base = textureLod(u_tex_base, slot_uv(0), 0.0).a;
+    }
+    if (has_texture(1)) tex_mr = texture(u_tex_mr, slot_uv(1));
+    if (has_texture(2)) tex_normal = texture(u_tex_normal, slot_uv(2));
+    if (has_texture(3)) tex_occ = texture(u_tex_occlusion, slot_uv(3));
+    if (has_texture(4)) tex_emissive = texture(u_tex_emissive, slot_uv(4));
+    if (u_alpha_test && clamp(u_base_color.a * v_color.a * alpha_base, 0.0, 1.0) < u_alpha_cutoff) discard;
+  }
   float len = length(v_normal);
   vec3 n;
+  vec3 front = vec3(0.0, 0.0, 1.0);
+  bool back_face = false;
   if (len > 1e-20 && !isinf(len)) {
-    n = v_normal / len;
-    if (!gl_FrontFacing) n = -n;  // the G-buffer normal faces the camera
+    front = v_normal / len;
+    back_face = !gl_FrontFacing;
+    n = back_face ? -front : front;  // the G-buffer normal faces the camera
   } else {
     float glen = length(geometric);
     n = glen > 0.0 ? geometric / glen : vec3(0.0, 0.0, 1.0);
     if (dot(n, u_eye - v_world) < 0.0) n = -n;
+    front = n;
   }
   if (u_peel) {  // after the derivatives: they need every fragment of the quad
     ivec2 p = ivec2(gl_FragCoord.xy);
@@ -166,7 +284,21 @@ void main() {
       discard;
   }
 
-  o_color = vec4(shade_local(v_world, n, u_eye, u_kd, u_ks, u_emission, u_shininess, u_emissive != 0), 1.0);
+  if (u_pbr) {
+    vec3 base = clamp((u_base_color * v_color * tex_base).rgb, 0.0, 1.0);
+    float metallic = clamp(u_metallic_roughness.x * tex_mr.b, 0.0, 1.0);
+    float roughness = clamp(u_metallic_roughness.y * tex_mr.g, 0.0, 1.0);
+    float occlusion = has_texture(3) ? clamp(1.0 + u_occlusion_strength * (tex_occ.r - 1.0), 0.0, 1.0) : 1.0;
+    vec3 emission = max(u_emissive_factor * tex_emissive.rgb, vec3(0.0));
+    vec3 shading_normal = n;
+    if (has_texture(2) && dot(v_tangent, v_tangent) > 0.0) {
+      shading_normal = bent_normal(front, tex_normal.rgb);
+      if (back_face) shading_normal = -shading_normal;
+    }
+    o_color = vec4(shade_pbr(v_world, shading_normal, u_eye, base, metallic, roughness, occlusion, emission), 1.0);
+  } else {
+    o_color = vec4(shade_local(v_world, n, u_eye, u_kd, u_ks, u_emission, u_shininess, u_emissive != 0), 1.0);
+  }
   o_depth = v_view_depth;
   o_object_id = u_object_id;
   o_normal = vec4(n, 0.0);

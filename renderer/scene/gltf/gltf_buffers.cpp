@@ -99,11 +99,9 @@ void read_images(Parser& p, const Node& root) {
         p.charge_buffer(*uri, im.data.size());
         if (im.mime_type.empty()) im.mime_type = mime;
       } else {
+        // Kept as a reference even when missing: the scene builder decodes the images materials use
+        // and warns about each it cannot read, naming the material.
         im.file = resolve_uri(p, *uri);
-        std::error_code ec;
-        if (!std::filesystem::is_regular_file(im.file, ec)) {
-          p.warn(uri->path, "image file " + im.file.string() + " not found (kept as a reference)");
-        }
       }
     }
     p.asset.images.push_back(std::move(im));

@@ -286,7 +286,11 @@ class TextureTable {
     const gltf::Texture& t = a_.textures[ref->texture];
     if (!t.source || *t.source >= a_.images.size()) return std::nullopt;  // a texture without an image is undefined: treated as absent
     const auto [it, added] = index_.try_emplace({*t.source, srgb}, static_cast<std::uint32_t>(requests_.size()));
-    if (added) requests_.push_back({*t.source, srgb, used_by});
+    if (added) {
+      requests_.push_back({*t.source, srgb, used_by});
+    } else {
+      requests_[it->second].used_by += ", " + used_by;  // one warning names every slot the image fills
+    }
     return TextureBinding{it->second, ref->tex_coord, to_sampler(a_, t)};
   }
 
