@@ -8,9 +8,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 
+#include "lod/mesh_cache_file.h"
 #include "scene/mesh_simplify.h"
 #include "scene/mesh_io.h"
 #include "scene/scene_error.h"
@@ -106,11 +108,25 @@ std::vector<LodLevel> chain_levels(const Chain& chain, std::size_t full_triangle
 }  // namespace
 
 void attach_chains(Scene& scene) {
+  // Objects sharing a mesh (glTF instancing) share its levels too.
+  std::map<std::pair<const Mesh*, std::string>, std::vector<LodLevel>> built;
   for (Object& o : scene.objects) {
     if (!o.lod_chain) continue;
+    if (!o.mesh) {
+      o.lod_chain.reset();
+      continue;
+    }
     // Built once per mesh and settings and cached on disk: the same chain fovea-lod writes.
-    const Chain chain = cached_chain(*o.mesh, settings_for(*o.lod_chain), "scene mesh");
-    o.lods = chain_levels(chain, o.mesh->triangle_count());
+    const ChainSettings settings = settings_for(*o.lod_chain);
+    const std::string key = std::to_string(settings.levels) + "|" + std::to_string(settings.base) + "|" +
+                            to_string(settings.attributes);
+    auto [it, added] = built.try_emplace({o.mesh.get(), key});
+    if (added) it->second = chain_levels(cached_chain(*o.mesh, settings, "scene mesh"), o.mesh->triangle_count());
+    o.lods = it->second;
+    if (o.lods.empty() && o.lod_chain->implicit) {
+      o.lod_chain.reset();
+      continue;
+    }
     if (o.lods.empty()) {
       throw SceneError(o.lod_chain->where + ": the simplifier could not reduce this mesh at all (" +
                        std::to_string(o.mesh->triangle_count()) + " triangles)");
@@ -161,7 +177,9 @@ void write_mesh(const Mesh& mesh, const fs::path& path) {
 }
 
 void write_chain(const Chain& chain, const fs::path& dir, const std::string& format) {
-  if (format != "obj" && format != "ply") throw std::runtime_error("format '" + format + "': use obj or ply");
+  if (format != "obj" && format != "ply" && format != "fmesh") {
+    throw std::runtime_error("format '" + format + "': use obj or ply");
+  }
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw std::runtime_error(dir.string() + ": cannot create: " + ec.message());
@@ -177,7 +195,13 @@ void write_chain(const Chain& chain, const fs::path& dir, const std::string& for
     char name[32];
     std::snprintf(name, sizeof name, "level%zu.%s", l, format.c_str());
     // Level 0 with no triangles has nothing to write: the manifest says so.
-    if (level.mesh.triangle_count() > 0) write_mesh(level.mesh, dir / name);
+    if (level.mesh.triangle_count() > 0) {
+      if (format == "fmesh") {
+        write_mesh_cache_file(level.mesh, dir / name);
+      } else {
+        write_mesh(level.mesh, dir / name);
+      }
+    }
     manifest["level"].push_back({{"file", level.mesh.triangle_count() > 0 ? name : ""},
                                  {"triangles", level.mesh.triangle_count()},
                                  {"input_triangles", input_tris},
@@ -217,7 +241,10 @@ Chain read_chain(const fs::path& dir) {
     for (const auto& l : m.at("level")) {
       ChainLevel level;
       const std::string file = l.at("file").get<std::string>();
-      if (!file.empty()) level.mesh = read_mesh(dir / file);
+      if (!file.empty()) {
+        const fs::path mesh_file = dir / file;
+        level.mesh = mesh_file.extension() == ".fmesh" ? read_mesh_cache_file(mesh_file) : read_mesh(mesh_file);
+      }
       level.target_ratio = l.at("target_ratio").get<double>();
       level.achieved_ratio = l.at("achieved_ratio").get<double>();
       level.error_m = l.at("error_m").get<float>();
@@ -255,8 +282,13 @@ Chain cached_chain(const Mesh& mesh, const ChainSettings& s, const std::string& 
   h = fnv1a(mesh.positions.data(), mesh.positions.size() * sizeof(glm::vec3), h);
   h = fnv1a(mesh.normals.data(), mesh.normals.size() * sizeof(glm::vec3), h);
   h = fnv1a(mesh.indices.data(), mesh.indices.size() * sizeof(std::uint32_t), h);
+  h = fnv1a(mesh.texcoords0.data(), mesh.texcoords0.size() * sizeof(glm::vec2), h);
+  h = fnv1a(mesh.texcoords1.data(), mesh.texcoords1.size() * sizeof(glm::vec2), h);
+  h = fnv1a(mesh.colors.data(), mesh.colors.size() * sizeof(glm::vec4), h);
+  h = fnv1a(mesh.tangents.data(), mesh.tangents.size() * sizeof(glm::vec4), h);
+  // fmesh: every attribute (the PLY of earlier caches had positions and normals only).
   const std::string key = std::to_string(s.levels) + "|" + std::to_string(s.base) + "|" + to_string(s.attributes) +
-                          "|meshopt" + std::to_string(MESHOPTIMIZER_VERSION);
+                          "|meshopt" + std::to_string(MESHOPTIMIZER_VERSION) + "|fmesh";
   h = fnv1a(key.data(), key.size(), h);
   char name[32];
   std::snprintf(name, sizeof name, "%016llx", static_cast<unsigned long long>(h));
@@ -273,7 +305,7 @@ Chain cached_chain(const Mesh& mesh, const ChainSettings& s, const std::string& 
   }
   Chain chain = build_chain(mesh, s, input_name);
   try {
-    write_chain(chain, dir, "ply");
+    write_chain(chain, dir, "fmesh");
   } catch (const std::exception&) {
     // An unwritable cache costs the next run a rebuild, nothing else.
   }

@@ -54,13 +54,14 @@ struct Chain {
 // out-of-range indices are dropped first.
 Chain build_chain(const Mesh& mesh, const ChainSettings& s, const std::string& input_name = "");
 
-// Writes level files (OBJ, or PLY by extension ".ply") and manifest.json into dir (created):
+// Writes level files (format "obj", "ply", or "fmesh": the cache's binary file with every attribute,
+// lod/mesh_cache_file.h) and manifest.json into dir (created):
 // {"input", "base", "levels", "attributes", "level": [{"file", "triangles", "target_ratio",
 // "achieved_ratio", "error_m", "reached"}]}. Throws std::runtime_error naming the path on failure.
 void write_chain(const Chain& chain, const std::filesystem::path& dir, const std::string& format = "obj");
 
-// Reads a directory written by write_chain back (the mesh files through assimp, as scenes read
-// meshes). Throws std::runtime_error naming the file and the problem.
+// Reads a directory written by write_chain back (OBJ and PLY through assimp, as scenes read meshes;
+// .fmesh exactly). Throws std::runtime_error naming the file and the problem.
 Chain read_chain(const std::filesystem::path& dir);
 
 // The cache: a directory per (mesh content, settings) under `root` (default: $FOVEA_LOD_CACHE, else

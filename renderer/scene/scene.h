@@ -120,6 +120,9 @@ struct LodChainRequest {
   std::optional<double> base;
   std::optional<bool> weld_attributes;  // "attributes": "weld" (true) or "seams" (false)
   std::string where;                    // "scene.json: $.objects[2].lod.chain", for messages
+  // A chain the scene did not ask for by name (every glTF object gets one): a mesh the simplifier
+  // cannot reduce then keeps no levels instead of being an error.
+  bool implicit = false;
 };
 
 struct Object {

@@ -7,10 +7,14 @@
 #include <cmath>
 #include <filesystem>
 #include <cstdlib>
+#include <cstring>
+#include <iterator>
 #include <fstream>
 
 #include "lod/lod_chain.h"
+#include "lod/mesh_cache_file.h"
 #include "scene/geometry.h"
+#include "scene/gltf/gltf_scene.h"
 #include "scene/scene_loader.h"
 
 namespace fovea::render::lod {
@@ -116,10 +120,165 @@ TEST(LodChain, CacheBuildsOnceAndRebuildsADamagedEntry) {
   cached_chain(sphere, three, "s", root, &hit);
   EXPECT_FALSE(hit);
   // A deleted level file: the entry is rebuilt, not trusted.
-  for (const auto& e : fs::directory_iterator(root)) fs::remove(e.path() / "level2.ply");
+  for (const auto& e : fs::directory_iterator(root)) fs::remove(e.path() / "level2.fmesh");
   const Chain rebuilt = cached_chain(sphere, ChainSettings{}, "s", root, &hit);
   EXPECT_FALSE(hit);
   EXPECT_EQ(rebuilt.levels[2].mesh.triangle_count(), first.levels[2].mesh.triangle_count());
+  fs::remove_all(root);
+}
+
+// A textured grid: UVs split along x = 0 (a seam: same positions, u 0.5 on the left and 0.6 on the
+// right), colours and tangents.
+Mesh textured_grid(int n) {
+  Mesh m;
+  for (int half = 0; half < 2; ++half) {
+    const auto base = static_cast<std::uint32_t>(m.positions.size());
+    for (int j = 0; j <= n; ++j) {
+      for (int i = 0; i <= n; ++i) {
+        const float x = static_cast<float>(half * n + i) / static_cast<float>(n) - 1.0f, y = static_cast<float>(j) / static_cast<float>(n);
+        m.positions.push_back({x, y, 0.02f * std::sin(9.0f * x) * std::cos(7.0f * y)});
+        m.normals.push_back({0, 0, 1});
+        m.texcoords0.push_back({static_cast<float>(half) * 0.6f + 0.5f * static_cast<float>(i) / static_cast<float>(n), y});
+        m.texcoords1.push_back({x, y});
+        m.colors.push_back({1, y, 0, 1});
+        m.tangents.push_back({1, 0, 0, 1});
+      }
+    }
+    const auto row = static_cast<std::uint32_t>(n + 1);
+    for (std::uint32_t j = 0; j < static_cast<std::uint32_t>(n); ++j) {
+      for (std::uint32_t i = 0; i < static_cast<std::uint32_t>(n); ++i) {
+        const std::uint32_t a = base + j * row + i;
+        m.indices.insert(m.indices.end(), {a, a + 1, a + row + 1, a, a + row + 1, a + row});
+      }
+    }
+  }
+  return m;
+}
+
+// Every attribute goes into every level and through the cache; the UV seam stays a seam.
+TEST(LodChain, AttributesAndUvSeamsSurviveLevelsAndTheCache) {
+  const Mesh grid = textured_grid(32);
+  const fs::path root = temp_dir("attributes");
+  bool hit = true;
+  const Chain built = cached_chain(grid, ChainSettings{}, "grid", root, &hit);
+  EXPECT_FALSE(hit);
+  const Chain cached = cached_chain(grid, ChainSettings{}, "grid", root, &hit);
+  EXPECT_TRUE(hit);
+  for (const Chain* c : {&built, &cached}) {
+    ASSERT_EQ(c->levels.size(), 5u);
+    for (std::size_t l = 0; l < c->levels.size(); ++l) {
+      const Mesh& m = c->levels[l].mesh;
+      ASSERT_GT(m.triangle_count(), 0u);
+      ASSERT_EQ(m.texcoords0.size(), m.positions.size()) << l;
+      ASSERT_EQ(m.texcoords1.size(), m.positions.size()) << l;
+      ASSERT_EQ(m.colors.size(), m.positions.size()) << l;
+      ASSERT_EQ(m.tangents.size(), m.positions.size()) << l;
+      for (std::size_t i = 0; i < m.positions.size(); ++i) {
+        // Each vertex keeps its own attributes: UV1 is its position, colour.g its y.
+        EXPECT_NEAR(m.texcoords1[i].x, m.positions[i].x, 1e-6f);
+        EXPECT_NEAR(m.colors[i].g, m.positions[i].y, 1e-6f);
+        // The seam: the two sides never share a vertex (left u <= 0.5, right u >= 0.6).
+        if (m.positions[i].x < -1e-6f) {
+          EXPECT_LE(m.texcoords0[i].x, 0.5f + 1e-6f);
+        }
+        if (m.positions[i].x > 1e-6f) {
+          EXPECT_GE(m.texcoords0[i].x, 0.6f - 1e-6f);
+        }
+      }
+      for (std::size_t t = 0; t < m.indices.size(); t += 3) {
+        bool left = false, right = false;
+        for (std::size_t k = 0; k < 3; ++k) {
+          const float x = m.positions[m.indices[t + k]].x;
+          left = left || x < -1e-6f;
+          right = right || x > 1e-6f;
+        }
+        EXPECT_FALSE(left && right) << "a triangle across the UV seam at level " << l << ": "
+                                    << m.positions[m.indices[t]].x << "," << m.texcoords0[m.indices[t]].x << " "
+                                    << m.positions[m.indices[t + 1]].x << "," << m.texcoords0[m.indices[t + 1]].x << " "
+                                    << m.positions[m.indices[t + 2]].x << "," << m.texcoords0[m.indices[t + 2]].x;
+      }
+    }
+    EXPECT_EQ(c->levels[2].mesh.triangle_count(), built.levels[2].mesh.triangle_count());
+  }
+  EXPECT_LT(built.levels[2].mesh.triangle_count(), grid.triangle_count() / 8);
+  fs::remove_all(root);
+}
+
+TEST(LodChain, ADamagedCacheFileIsRefusedByName) {
+  const fs::path dir = temp_dir("fmesh");
+  fs::create_directories(dir);
+  const fs::path file = dir / "level0.fmesh";
+  write_mesh_cache_file(textured_grid(2), file);
+  EXPECT_EQ(read_mesh_cache_file(file).triangle_count(), 16u);
+  std::string bytes;
+  {
+    std::ifstream f(file, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  }
+  const auto expect_refused = [&](const std::string& content, const std::string& why) {
+    std::ofstream(file, std::ios::binary).write(content.data(), static_cast<std::streamsize>(content.size()));
+    try {
+      (void)read_mesh_cache_file(file);
+      ADD_FAILURE() << "accepted: " << why;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  };
+  expect_refused(bytes.substr(0, bytes.size() - 4), "size does not match");
+  std::string huge = bytes;
+  const std::uint64_t count = std::uint64_t{1} << 60;
+  std::memcpy(huge.data() + 8, &count, 8);  // 2^60 positions
+  expect_refused(huge, "truncated");
+  std::string past = bytes;
+  const std::uint32_t big = 1000;
+  std::memcpy(past.data() + past.size() - 4, &big, 4);  // the last index
+  expect_refused(past, "index 1000 past the vertices");
+  expect_refused("FOVMESH0", "not a fovea mesh cache file");
+  fs::remove_all(dir);
+}
+
+// Every glTF object gets a default chain; instances share their mesh's levels; a mesh too small to
+// reduce keeps none (no error).
+TEST(LodChain, GltfObjectsGetChainsSharedByInstances) {
+  const fs::path root = temp_dir("gltf_cache");
+  ::setenv("FOVEA_LOD_CACHE", root.c_str(), 1);
+  const Mesh grid = textured_grid(24);
+  gltf::Asset a;
+  a.source = "grid.gltf";
+  gltf::Primitive p;
+  p.positions = grid.positions;
+  p.normals = grid.normals;
+  p.texcoords0 = grid.texcoords0;
+  p.indices = grid.indices;
+  gltf::Primitive tiny;
+  tiny.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  tiny.indices = {0, 1, 2};
+  a.meshes = {{"grid", {p}}, {"tiny", {tiny}}};
+  for (int k = 0; k < 2; ++k) {
+    gltf::Node n;
+    n.name = "grid" + std::to_string(k);
+    n.mesh = 0;
+    n.local[3] = glm::vec4(static_cast<float>(3 * k), 0, 0, 1);
+    a.nodes.push_back(n);
+  }
+  gltf::Node t;
+  t.name = "tiny";
+  t.mesh = 1;
+  a.nodes.push_back(t);
+  Scene s = scene_from_gltf(a, {});
+  ASSERT_EQ(s.objects.size(), 3u);
+  for (const Object& o : s.objects) EXPECT_TRUE(o.lod_chain && o.lod_chain->implicit);
+  attach_chains(s);
+  ASSERT_EQ(s.objects[0].lods.size(), 4u);
+  ASSERT_EQ(s.objects[1].lods.size(), 4u);
+  for (std::size_t l = 0; l < 4; ++l) {
+    EXPECT_EQ(s.objects[0].lods[l].mesh.get(), s.objects[1].lods[l].mesh.get());  // shared, not copied
+    EXPECT_EQ(s.objects[0].lods[l].mesh->texcoords0.size(), s.objects[0].lods[l].mesh->positions.size());
+  }
+  EXPECT_TRUE(s.objects[2].lods.empty());
+  EXPECT_FALSE(s.objects[2].lod_chain.has_value());
+  ::unsetenv("FOVEA_LOD_CACHE");
   fs::remove_all(root);
 }
 

@@ -394,6 +394,11 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
       o.mesh = shared[k];
       o.material = material(p.material);
       o.transform = t;
+      // A level-of-detail chain with the default settings (lod::attach_chains builds or loads it).
+      LodChainRequest chain;
+      chain.where = a.source + ": " + node_path(a, inst.node);
+      chain.implicit = true;
+      o.lod_chain = chain;
       for (const glm::vec3& v : o.mesh->positions) bounds.add(glm::vec3(inst.world * glm::vec4(v, 1.0f)));
       s.objects.push_back(std::move(o));
     }

@@ -6,6 +6,9 @@
 //   objects    one per (mesh node, primitive), ids 1-based in gltf::flatten order; named as the
 //              instance ("node") for a one-primitive mesh, "node/p<k>" for several. Nodes sharing
 //              a glTF mesh share its fovea Mesh (one std::shared_ptr per primitive).
+//   lod        each object asks for a default level-of-detail chain (LodChainRequest::implicit:
+//              lod::attach_chains builds it through the cache, or leaves a mesh it cannot reduce
+//              without levels); instances share their mesh's levels.
 //   transform  the node's exact world matrix (Transform::matrix_override); a matrix that is not
 //              finite or not invertible is refused by the node's JSON path.
 //   materials  MetallicRoughness with the file's factors, textures (decoded by gltf_textures.h;
