@@ -243,12 +243,20 @@ int run_headless(const RenderOptions& o) {
   std::unique_ptr<Governor> governor = make_governor(o);
   if (!prepare_output_dir(o)) return 2;
 
-  Scene scene = load_render_scene(o);
+  LoadReport load;
+  Scene scene = load_render_scene(o, &load);
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
+  const auto backend_start = std::chrono::steady_clock::now();
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
+  load.add("backend", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - backend_start).count(),
+           backend_load_note(o.backend));
+  if (o.verbose) std::fprintf(stderr, "fovea-render: %s\n", load.summary().c_str());
   pipeline.require_cpu_gbuffer(o.exr);  // the EXR is the G-buffer's colour
   write_plan(o, pipeline, *gaze);
   PassTimer timer((fs::path(o.out_dir) / "timings.csv").string());
+  // The load phases as the first rows of frame 0 (load.parse, load.textures, load.lod, load.backend).
+  timer.begin_frame(0, 0);
+  for (const LoadReport::Phase& phase : load.phases) timer.record("load." + phase.name, phase.ms);
   const bool tty = isatty(STDERR_FILENO) != 0;
   const bool realtime = o.realtime || o.gaze.rfind("udp://", 0) == 0;
   const auto start = std::chrono::steady_clock::now();

@@ -40,6 +40,9 @@ int main(int argc, char** argv) {
   app.add_option("--set", sets, "render setting key=value (repeatable; --list-settings shows them)");
   app.add_option("--scene-set", scene_sets, "scene override path=value, e.g. camera.width=320 (repeatable)");
   app.add_flag("--explain", o.explain, "print the frame plan (which passes run and why) and exit");
+  app.add_flag("-v,--verbose", o.verbose,
+               "print what loading cost, phase by phase (parse, textures, lod, backend; headless runs also "
+               "record them in timings.csv as load.* rows)");
   app.add_flag("--list-settings", list_settings, "list every render setting with default and allowed values");
   app.add_flag("--headless", o.headless, "render without a window to --out DIR");
   app.add_option("--frames", o.frames, "frames to render (headless: required; viewer: close after N)");

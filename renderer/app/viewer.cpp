@@ -167,7 +167,8 @@ void show(GlContext& window, const FramePipeline::Frame& f, FramePipeline& pipel
 }  // namespace
 
 int run_viewer(const RenderOptions& o) {
-  Scene scene = load_render_scene(o);
+  LoadReport load;
+  Scene scene = load_render_scene(o, &load);
   GlContextOptions co;
   co.visible = true;
   co.title = "fovea-render: " + scene.name;
@@ -178,10 +179,14 @@ int run_viewer(const RenderOptions& o) {
   // The raster backend's context uses the window's platform (GLFW): the viewer never mixes EGL and
   // GLX contexts in one process. It shares the window's textures, so a frame kept on the GPU is
   // shown from where it lies.
+  const auto backend_start = std::chrono::steady_clock::now();
   FramePipeline pipeline(std::move(scene), o.settings,
                          o.backend == BackendKind::OpenGL ? make_gl_backend(GlPlatform::Glfw, &window)
                                                           : make_backend(o.backend),
                          *gaze);
+  load.add("backend", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - backend_start).count(),
+           backend_load_note(o.backend));
+  if (o.verbose) std::fprintf(stderr, "fovea-render: %s\n", load.summary().c_str());
   KeyState keys{&pipeline.settings(), &pipeline};
   glfwSetWindowUserPointer(window.window(), &keys);
   glfwSetKeyCallback(window.window(), on_key);

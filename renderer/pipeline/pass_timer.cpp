@@ -60,12 +60,17 @@ std::map<std::string, PassTimer::Summary> PassTimer::summary() const {
 
 std::string PassTimer::summary_table() const {
   const auto sums = summary();
-  std::string out = "pass          frames   mean ms    p50 ms    p95 ms    max ms\n";
+  // The first column as wide as the longest pass name ("readback.display", "load.textures").
+  int width = 12;
+  for (const std::string& pass : order_) width = std::max(width, static_cast<int>(std::min<std::size_t>(pass.size(), 40)));
+  char line[200];
+  std::snprintf(line, sizeof line, "%-*s %7s %9s %9s %9s %9s\n", width, "pass", "frames", "mean ms", "p50 ms", "p95 ms",
+                "max ms");
+  std::string out = line;
   for (const std::string& pass : order_) {
     const Summary& s = sums.at(pass);
-    char line[160];
-    std::snprintf(line, sizeof line, "%-12s %7zu %9.3f %9.3f %9.3f %9.3f\n", pass.c_str(), s.count, s.mean_ms, s.p50_ms,
-                  s.p95_ms, s.max_ms);
+    std::snprintf(line, sizeof line, "%-*s %7zu %9.3f %9.3f %9.3f %9.3f\n", width, pass.c_str(), s.count, s.mean_ms,
+                  s.p50_ms, s.p95_ms, s.max_ms);
     out += line;
   }
   return out;

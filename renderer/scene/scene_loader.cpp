@@ -2,6 +2,8 @@
 #include "scene/scene_loader.h"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -687,9 +689,28 @@ Scene parse_scene(const std::string& json_text, const std::string& source_name, 
   return scene;
 }
 
+double LoadReport::total_ms() const {
+  double t = 0;
+  for (const Phase& p : phases) t += p.ms;
+  return t;
+}
+
+std::string LoadReport::summary() const {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "load %.0f ms:", total_ms());
+  std::string out = buf;
+  for (std::size_t i = 0; i < phases.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%s %s %.0f ms", i == 0 ? "" : ",", phases[i].name.c_str(), phases[i].ms);
+    out += buf;
+    if (!phases[i].note.empty()) out += " (" + phases[i].note + ")";
+  }
+  return out;
+}
+
 Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides,
-                 const std::string& camera) {
-  if (is_gltf_file(path)) return load_gltf_scene(path, overrides, camera);
+                 const std::string& camera, LoadReport* report) {
+  if (is_gltf_file(path)) return load_gltf_scene(path, overrides, camera, report);
+  const auto start = std::chrono::steady_clock::now();
   if (!camera.empty()) {
     throw SceneError(path.string() + ": --camera " + camera + ": a JSON scene has one camera (--camera picks a glTF "
                      "camera node)");
@@ -701,6 +722,9 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverr
   if (in.bad()) throw SceneError(path.string() + ": read error");
   Scene scene = parse_scene(text.str(), path.string(), path.parent_path(), overrides);
   scene.source = path;
+  if (report) {
+    report->add("parse", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  }
   return scene;
 }
 

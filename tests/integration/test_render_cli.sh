@@ -234,8 +234,14 @@ grep -qE "^1	[^	]+	[0-9]+ triangles	.+ \((lambertian|blinn-phong|mirror|glass|em
 out=$("$RENDER" --scene "$WORK/quads.gltf" --camera top --list-objects 2>&1) && fail "an unknown --camera was accepted"
 grep -q 'no perspective camera node named "top" (camera nodes: "eye")' <<<"$out" || fail "unknown --camera message: $out"
 "$RENDER" --scene "$WORK/quads.glb" --camera eye "${SMALL[@]}" --headless --frames 1 --gaze none --out "$WORK/glb" \
-  >/dev/null 2>"$WORK/glb.err" || fail "headless .glb: $(cat "$WORK/glb.err")"
+  --verbose >/dev/null 2>"$WORK/glb.err" || fail "headless .glb: $(cat "$WORK/glb.err")"
 [ "$(ls "$WORK/glb"/frame-*.png | wc -l)" -eq 1 ] || fail "expected 1 frame of the .glb"
+# --verbose: what loading cost, phase by phase; the same phases in timings.csv.
+grep -qE "^fovea-render: load [0-9]+ ms: parse [0-9]+ ms \(4 triangles in 2 meshes\), textures [0-9]+ ms \(0 textures, 0 MiB\), lod [0-9]+ ms \([0-9]+ levels\), backend [0-9]+ ms \(Embree BVH build\)$" \
+  "$WORK/glb.err" || fail "--verbose load line: $(cat "$WORK/glb.err")"
+for phase in parse textures lod backend; do
+  grep -qE "^0,0.000000,load\.$phase,[0-9.]+$" "$WORK/glb/timings.csv" || fail "timings.csv lacks load.$phase"
+done
 out=$("$RENDER" --scene "$WORK/quads.glb" --scene-set lights.0.power=1 --list-objects 2>&1) \
   && fail "a glTF override other than the image size was accepted"
 grep -q "a glTF scene takes only camera.width and camera.height" <<<"$out" || fail "glTF override message: $out"

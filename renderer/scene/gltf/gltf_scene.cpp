@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -336,7 +337,8 @@ class TextureTable {
 
 }  // namespace
 
-Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std::vector<std::string>* warnings) {
+Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std::vector<std::string>* warnings,
+                      LoadReport* report) {
   std::vector<std::string> warn;
   Scene s;
   s.name = std::filesystem::path(a.source).stem().string();
@@ -404,7 +406,14 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
     }
   }
   if (s.objects.empty()) throw SceneError(a.source + ": $.nodes: no node of the scene has a mesh with triangles: nothing to render");
+  const auto decode_start = std::chrono::steady_clock::now();
   textures.resolve(s, options.textures, warn);
+  if (report) {
+    std::size_t bytes = 0;
+    for (const auto& t : s.textures) bytes += t->bytes();
+    report->add("textures", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - decode_start).count(),
+                std::to_string(s.textures.size()) + " textures, " + std::to_string((bytes + (1u << 19)) >> 20) + " MiB");
+  }
 
   const std::vector<std::optional<glm::mat4>> worlds = gltf::node_worlds(a);
   s.camera = pick_camera(a, worlds, bounds, options.camera_name, warn);
@@ -425,7 +434,7 @@ bool is_gltf_file(const std::filesystem::path& path) {
 }
 
 Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides,
-                      const std::string& camera) {
+                      const std::string& camera, LoadReport* report) {
   GltfSceneOptions options;
   options.camera_name = camera;
   for (const SceneOverride& o : overrides) {
@@ -445,7 +454,17 @@ Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<Scene
                      ": at most 7680x4320 pixels");
   }
   std::vector<std::string> warnings;
-  Scene scene = scene_from_gltf(gltf::read_gltf(path), options, &warnings);
+  const auto start = std::chrono::steady_clock::now();
+  const gltf::Asset asset = gltf::read_gltf(path);
+  if (report) {
+    std::size_t triangles = 0;
+    for (const gltf::Mesh& m : asset.meshes) {
+      for (const gltf::Primitive& p : m.primitives) triangles += p.indices.size() / 3;
+    }
+    report->add("parse", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+                std::to_string(triangles) + " triangles in " + std::to_string(asset.meshes.size()) + " meshes");
+  }
+  Scene scene = scene_from_gltf(asset, options, &warnings, report);
   for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   scene.source = path;
   return scene;

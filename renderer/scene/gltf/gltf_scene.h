@@ -40,8 +40,9 @@ struct GltfSceneOptions {
 
 // Throws SceneError naming asset.source and the JSON path. Appends what it approximated or left out
 // (textures, directional lights, orthographic cameras, ...) to `warnings` when given.
+// `report`, when given, gets the "textures" phase (decoding and mip chains).
 Scene scene_from_gltf(const gltf::Asset& asset, const GltfSceneOptions& options,
-                      std::vector<std::string>* warnings = nullptr);
+                      std::vector<std::string>* warnings = nullptr, LoadReport* report = nullptr);
 
 // .gltf or .glb, by the extension in any case.
 bool is_gltf_file(const std::filesystem::path& path);
@@ -49,7 +50,7 @@ bool is_gltf_file(const std::filesystem::path& path);
 // load_scene for a glTF file: read_gltf, then scene_from_gltf; warnings go to stderr. A built scene
 // has no JSON document to override: `overrides` may set only camera.width and camera.height.
 Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<SceneOverride>& overrides,
-                      const std::string& camera);
+                      const std::string& camera, LoadReport* report = nullptr);
 
 // A glTF material's factors as a MetallicRoughness material, without its textures (bound by the
 // builder). kd, ks and shininess get the factors' nearest Blinn-Phong for the GI pass: kd = base x
