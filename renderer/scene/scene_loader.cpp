@@ -18,6 +18,7 @@
 #include "scene/json_path.h"
 #include "scene/mesh_io.h"
 #include "scene/mesh_simplify.h"
+#include "scene/scene_gltf_include.h"
 #include "scene/scene_overrides.h"
 #include "scene/scene_schema.h"
 
@@ -39,8 +40,8 @@ constexpr std::uint64_t kMaxCameraPixels = std::uint64_t{7680} * 4320;  // 8K UH
 // The scene's sections, read through json::Reader (errors by path) against the schema.
 class Loader : private json::Reader {
  public:
-  Loader(std::string source, std::filesystem::path base_dir)
-      : json::Reader(std::move(source)), base_dir_(std::move(base_dir)) {}
+  Loader(std::string source, std::filesystem::path base_dir, LoadReport* report = nullptr)
+      : json::Reader(std::move(source)), base_dir_(std::move(base_dir)), report_(report) {}
 
   json::Reader& reader() { return *this; }
 
@@ -51,7 +52,7 @@ class Loader : private json::Reader {
   glm::vec3 position(const Node& n, const char* what) const {
     return vec3(n, Range{-kMaxCoordinate, kMaxCoordinate, false, false, "m"}, what);
   }
-  Camera camera(const Node& n);
+  Camera camera(const Node& n, Camera c = {});
   Lens lens(const Node& n);
   Animation animation(const Node& n, bool camera);
   std::vector<Material> materials(const Node& n);
@@ -83,6 +84,7 @@ class Loader : private json::Reader {
   void budget_triangles(const Node& n, std::uint64_t triangles, const std::string& what, std::uint64_t total = 0);
 
   std::filesystem::path base_dir_;
+  LoadReport* report_ = nullptr;  // a glTF asset's load phases
   std::map<std::string, std::shared_ptr<const Mesh>> mesh_cache_;  // by resolved path
   std::uint64_t triangles_ = 0;                                     // the scene's so far
 };
@@ -102,18 +104,33 @@ void Loader::budget_triangles(const Node& n, std::uint64_t triangles, const std:
 Scene Loader::build(const Json& doc, const std::string& default_name) {
   const Node root{doc, "$"};
   check_keys(root, kSceneKeys, "a scene");
-  Scene scene;
+  // A glTF asset ($.gltf) gives the objects, materials, camera and lights the JSON does not.
+  const auto gltf = get(root, "gltf");
+  Scene scene = gltf ? read_gltf_include(*this, *gltf, base_dir_, report_) : Scene{};
   scene.name = default_name;
   if (auto n = get(root, "name")) scene.name = string(*n, "the scene's name");
 
-  scene.camera = camera(require(root, "camera", "the camera (position, target, lens, ...)"));
+  if (!gltf) {
+    scene.camera = camera(require(root, "camera", "the camera (position, target, lens, ...)"));
+  } else if (auto c = get(root, "camera")) {
+    // Without a position and target, the file's camera is kept and these fields change it.
+    const bool pose = get(*c, "position") || get(*c, "target");
+    scene.camera = camera(*c, pose ? Camera{} : scene.camera);
+  }
 
-  scene.materials = materials(require(root, "materials", "the named materials the objects use"));
+  const std::size_t first_material = scene.materials.size();
+  if (auto m = gltf ? get(root, "materials") : require(root, "materials", "the named materials the objects use")) {
+    for (Material& mat : materials(*m)) scene.materials.push_back(std::move(mat));
+  }
 
-  const Node objects = require(root, "objects", "an array of objects");
-  if (!objects.v.is_array() || objects.v.empty()) fail(objects, "must be a non-empty array of objects");
-  budget_procedural_shapes(objects);
   std::map<std::string, std::string> object_names;  // name -> path of its first use
+  for (const Object& o : scene.objects) object_names.emplace(o.name, gltf->path + ".file");
+  const std::size_t first_object = scene.objects.size();
+  const auto objects_node = gltf ? get(root, "objects") : require(root, "objects", "an array of objects");
+  static const Json kEmpty = Json::array();
+  const Node objects = objects_node ? *objects_node : Node{kEmpty, "$.objects"};
+  if (!objects.v.is_array() || (!gltf && objects.v.empty())) fail(objects, "must be a non-empty array of objects");
+  budget_procedural_shapes(objects);
   for (std::size_t i = 0; i < objects.v.size(); ++i) {
     const Node n = element(objects, i);
     check_keys(n, kObjectKeys, "an object");
@@ -124,15 +141,16 @@ Scene Loader::build(const Json& doc, const std::string& default_name) {
     if (const auto [it, fresh] = object_names.emplace(obj.name, name.path); !fresh) {
       fail(name, "duplicate object name (first used at " + it->second + "); object names must be unique");
     }
-    obj.id = static_cast<std::uint32_t>(i + 1);
+    obj.id = static_cast<std::uint32_t>(first_object + i + 1);
 
+    // The JSON's own materials (a glTF asset's are its objects' own).
     const Node mat = require(n, "material", "the name of a material in $.materials");
     const std::string mat_name = string(mat, "the name of a material in $.materials");
-    const auto found = std::find_if(scene.materials.begin(), scene.materials.end(),
-                                    [&](const Material& m) { return m.name == mat_name; });
+    const auto mats_begin = scene.materials.begin() + static_cast<std::ptrdiff_t>(first_material);
+    const auto found = std::find_if(mats_begin, scene.materials.end(), [&](const Material& m) { return m.name == mat_name; });
     if (found == scene.materials.end()) {
       std::string known;
-      for (const Material& m : scene.materials) known += (known.empty() ? "" : ", ") + m.name;
+      for (auto it = mats_begin; it != scene.materials.end(); ++it) known += (known.empty() ? "" : ", ") + it->name;
       fail(mat, "unknown material; defined materials: " + known);
     }
     obj.material = static_cast<std::uint32_t>(found - scene.materials.begin());
@@ -149,6 +167,7 @@ Scene Loader::build(const Json& doc, const std::string& default_name) {
 
   if (auto lights = get(root, "lights")) {
     if (!lights->v.is_array()) fail(*lights, "must be an array of lights");
+    scene.lights.clear();  // a glTF asset's lights (or its default rig) give way to the JSON's
     for (std::size_t i = 0; i < lights->v.size(); ++i) scene.lights.push_back(light(element(*lights, i)));
   }
   if (auto a = get(root, "ambient")) scene.ambient = colour(*a, "ambient radiance [r, g, b] >= 0");
@@ -159,9 +178,8 @@ Scene Loader::build(const Json& doc, const std::string& default_name) {
   return scene;
 }
 
-Camera Loader::camera(const Node& n) {
+Camera Loader::camera(const Node& n, Camera c) {
   check_keys(n, kCameraKeys, "the camera");
-  Camera c;
   if (auto v = get(n, "position")) c.position = position(*v, "camera position [x, y, z] in metres");
   if (auto v = get(n, "target")) c.target = position(*v, "point looked at [x, y, z] in metres");
   if (auto v = get(n, "up")) c.up = direction(*v, "up vector [x, y, z]");
@@ -678,9 +696,9 @@ void Loader::check_finite(const Scene& s) const {
 }  // namespace
 
 Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
-                  const std::vector<SceneOverride>& overrides) {
+                  const std::vector<SceneOverride>& overrides, LoadReport* report) {
   Json doc = parse_document(json_text, source_name);
-  Loader loader(source_name, base_dir);
+  Loader loader(source_name, base_dir, report);
   for (const SceneOverride& o : overrides) apply_override(doc, o, loader.reader());
   std::string default_name = std::filesystem::path(source_name).stem().string();
   if (default_name.empty()) default_name = source_name;
@@ -720,10 +738,15 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverr
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) throw SceneError(path.string() + ": read error");
-  Scene scene = parse_scene(text.str(), path.string(), path.parent_path(), overrides);
+  LoadReport included;  // an included glTF asset's phases
+  Scene scene = parse_scene(text.str(), path.string(), path.parent_path(), overrides, &included);
   scene.source = path;
   if (report) {
-    report->add("parse", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    // The JSON's parse is what the included asset's phases leave of the whole.
+    const double all = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    report->add("parse", std::max(0.0, all - included.total_ms() + (included.phases.empty() ? 0.0 : included.phases[0].ms)),
+                included.phases.empty() ? std::string() : included.phases[0].note);
+    for (std::size_t i = 1; i < included.phases.size(); ++i) report->phases.push_back(included.phases[i]);
   }
   return scene;
 }

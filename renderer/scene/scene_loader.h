@@ -51,6 +51,6 @@ Scene load_scene(const std::filesystem::path& path, const std::vector<SceneOverr
                  const std::string& camera = {}, LoadReport* report = nullptr);
 // The same from text; `source_name` is used in messages and `base_dir` to resolve mesh files.
 Scene parse_scene(const std::string& json_text, const std::string& source_name, const std::filesystem::path& base_dir,
-                  const std::vector<SceneOverride>& overrides = {});
+                  const std::vector<SceneOverride>& overrides = {}, LoadReport* report = nullptr);
 
 }  // namespace fovea::render

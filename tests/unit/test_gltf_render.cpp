@@ -9,6 +9,7 @@
 #include "gltf_render_check.h"
 #include "gltf_test_assets.h"
 #include "gltf_textured_quads.h"
+#include "scene/scene_gltf_include.h"
 #include "scene/scene_loader.h"
 
 using namespace fovea::render;
@@ -78,4 +79,90 @@ TEST(GltfRender, TexturedQuadsShowTheSpecificationsPoints) {
   ASSERT_EQ(s.objects.size(), 6u);
   ASSERT_EQ(s.textures.size(), 4u);
   expect_textured_quads(s.camera, render(s), render(without_normal_maps(s)));
+}
+
+namespace {
+
+std::filesystem::path write_json(const std::filesystem::path& dir, const std::string& name, const std::string& text) {
+  write_file(dir / name, text);
+  return dir / name;
+}
+
+}  // namespace
+
+// A JSON scene around a glTF asset: the file's objects and camera pose, the JSON's lens, lights,
+// display, per-object task importance and LOD by pattern, and an object of its own.
+TEST(GltfRender, JsonSceneIncludesAGltfAssetWithOverrides) {
+  TempDir dir;
+  const GltfTexturedQuads quads;
+  write_gltf(dir.path, "quads", quads.doc(), quads.bin());
+  const auto file = write_json(dir.path, "around.json", R"({
+    "name": "around",
+    "gltf": {"file": "quads.gltf", "camera": "eye", "objects": [
+      {"match": "tilt_*", "task_importance": 0.75},
+      {"match": "checker", "task_importance": 0.25, "lod": "none"},
+      {"match": "mask", "lod": {"chain": {"levels": 3}}}]},
+    "camera": {"width": 96, "height": 64, "lens": {"type": "human-eye", "focus_distance_m": 4}},
+    "materials": {"white": {"type": "lambertian", "kd": [0.8, 0.8, 0.8]}},
+    "objects": [{"name": "ball", "material": "white", "geometry": {"sphere": {"radius": 0.2}},
+                 "transform": {"translation": [0, 0, 1]}}],
+    "lights": [{"type": "point", "position": [0, 2, 4], "power": [300, 300, 300]}],
+    "display": {"width_px": 96, "height_px": 64, "width_mm": 500, "height_mm": 333, "viewing_distance_mm": 600}
+  })");
+  LoadReport report;
+  const Scene s = load_scene(file, {}, {}, &report);
+  ASSERT_EQ(s.objects.size(), 7u);
+  EXPECT_EQ(s.objects[6].name, "ball");
+  EXPECT_EQ(s.objects[6].id, 7u);
+  EXPECT_EQ(s.materials.at(s.objects[6].material).name, "white");
+  EXPECT_EQ(s.camera.position, glm::vec3(0, 0, 4));  // the file's camera node
+  EXPECT_EQ(s.camera.width, 96u);
+  EXPECT_DOUBLE_EQ(s.camera.lens.focal_length_m, 0.0167);  // human eye
+  ASSERT_EQ(s.lights.size(), 1u);                           // the JSON's replace the file's
+  EXPECT_EQ(s.lights[0].position, glm::vec3(0, 2, 4));
+  EXPECT_FLOAT_EQ(s.objects[4].task_importance, 0.75f);  // tilt_x
+  EXPECT_FLOAT_EQ(s.objects[5].task_importance, 0.75f);  // tilt_y
+  EXPECT_FLOAT_EQ(s.objects[0].task_importance, 0.25f);  // checker
+  EXPECT_FALSE(s.objects[0].lod_chain.has_value());
+  ASSERT_TRUE(s.objects[1].lod_chain.has_value());
+  EXPECT_EQ(s.objects[1].lod_chain->levels, 3);
+  EXPECT_FALSE(s.objects[1].lod_chain->implicit);
+  EXPECT_EQ(s.textures.size(), 4u);
+  ASSERT_GE(report.phases.size(), 2u);  // parse, then the asset's textures
+  EXPECT_EQ(report.phases[0].name, "parse");
+  EXPECT_EQ(report.phases[1].name, "textures");
+  const GBuffer g = render(s);
+  EXPECT_EQ(g.object_id[g.index(48, 32)], 7u);  // the ball in front of the middle
+}
+
+TEST(GltfRender, JsonSceneIncludeErrorsNameTheirPath) {
+  TempDir dir;
+  const GltfTexturedQuads quads;
+  write_gltf(dir.path, "quads", quads.doc(), quads.bin());
+  const auto error = [&](const std::string& gltf) {
+    return load_error(write_json(dir.path, "bad.json", R"({"gltf": )" + gltf + "}"), {});
+  };
+  EXPECT_NE(error(R"({"file": "quads.gltf", "objects": [{"match": "lamp*", "task_importance": 1}]})")
+                .find("$.gltf.objects[0].match = \"lamp*\": matches no object of quads.gltf (objects: checker, mask, set1, "
+                      "flat, tilt_x, tilt_y)"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"file": "missing.glb"})").find("$.gltf.file = \"missing.glb\""), std::string::npos);
+  EXPECT_NE(error(R"({"file": "quads.bin"})").find("must name a .gltf or .glb file"), std::string::npos);
+  EXPECT_NE(error(R"({"file": "quads.gltf", "objects": [{"match": "mask", "task_importance": 2}]})")
+                .find("$.gltf.objects[0].task_importance = 2: must be a finite number in [0, 1]"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"file": "quads.gltf", "camera": "top"})").find("no perspective camera node named \"top\""),
+            std::string::npos);
+  EXPECT_NE(error(R"({"file": "quads.gltf", "scale": 2})").find("$.gltf.scale"), std::string::npos);
+}
+
+TEST(GltfRender, GlobMatch) {
+  EXPECT_TRUE(glob_match("arch*", "arch_12"));
+  EXPECT_TRUE(glob_match("*", ""));
+  EXPECT_TRUE(glob_match("col?mn/p*", "column/p0"));
+  EXPECT_FALSE(glob_match("col?mn", "colmn"));
+  EXPECT_FALSE(glob_match("a*b", "acbd"));
+  EXPECT_TRUE(glob_match("*a*b*", "xxaxxbxx"));
+  // A hostile pattern stays linear-time.
+  EXPECT_FALSE(glob_match("*a*a*a*a*a*a*a*a*b", std::string(5000, 'a')));
 }
