@@ -106,14 +106,21 @@ struct Tracer {
     }
     // Direct light: eq. 5.22 with shadow rays, exactly as the G-buffer shades it.
     ShadowRays shadow{&backend, n * eps};
-    glm::vec3 l = shade_local(lights, m, hit.position, n, origin, s.shadows ? &visible : nullptr, &shadow);
+    glm::vec3 l(0.0f);
+    if (hit.pbr) {  // textured PBR: the sample intersect() evaluated, turned to the side seen
+      SurfaceSample sample = *hit.pbr;
+      if (!from_front) sample.normal = -sample.normal;
+      l = shade_pbr(lights, sample, hit.position, origin, s.shadows ? &visible : nullptr, &shadow);
+    } else {
+      l = shade_local(lights, m, hit.position, n, origin, s.shadows ? &visible : nullptr, &shadow);
+    }
     // Photon terms: sum f_r(l = -incoming, v) Phi_p / (pi r^2) over the nearest photons (eq. 6.6).
     const glm::vec3 v = glm::normalize(origin - hit.position);
     // A PBR material's BRDF is normalised (glTF appendix B): its photon terms use kd / pi and the
     // normalised Blinn-Phong lobe (n + 8) / (8 pi) ks (n.h)^n, its factors' nearest (GI.md).
     const bool normalised = m.type == MaterialType::MetallicRoughness;
     const float shininess = m.shininess;
-    const glm::vec3 kd = normalised ? m.kd / std::numbers::pi_v<float> : m.kd;
+    const glm::vec3 kd = normalised ? hit.diffuse_albedo() / std::numbers::pi_v<float> : m.kd;
     const glm::vec3 ks = !m.is_glossy() ? glm::vec3(0.0f)
                          : normalised   ? m.ks * ((shininess + 8) / (8 * std::numbers::pi_v<float>))
                                         : m.ks;
@@ -310,7 +317,8 @@ class GBufferFirstHits {
     const auto found = material_of_.find(id);
     const Material* m = found != material_of_.end() ? found->second : nullptr;
     const float depth = g_->depth[i];
-    if (m == nullptr || !m->is_diffuse_or_glossy() ||
+    // PBR materials are traced: their textures need the hit's coordinates, which the G-buffer lacks.
+    if (m == nullptr || !m->is_diffuse_or_glossy() || m->type == MaterialType::MetallicRoughness ||
         !std::isfinite(depth) || !(depth > 0))
       return Kind::Trace;
     hit.t = depth;

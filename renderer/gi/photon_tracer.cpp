@@ -179,7 +179,8 @@ Arrival arrival_side(const SurfaceHit& hit, const glm::vec3& dir) {
   const glm::vec3 n_face = from_front ? hit.normal : -hit.normal;  // shading normal on the arrival side
   const float eps = surface_epsilon(hit.position);
   const bool diffuse = m.is_diffuse_or_glossy();
-  const glm::vec3 kd = diffuse ? clamp01(m.kd) : glm::vec3(0.0f);
+  // A PBR material's textured diffuse reflectance (SurfaceHit::diffuse_albedo), else its kd.
+  const glm::vec3 kd = diffuse ? clamp01(hit.diffuse_albedo()) : glm::vec3(0.0f);
   return {hit, m, from_front, n_face, eps, diffuse, kd};
 }
 

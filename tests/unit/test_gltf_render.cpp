@@ -6,6 +6,7 @@
 #include <string>
 
 #include "backend/embree/embree_backend.h"
+#include "gi/photon_tracer.h"
 #include "gltf_render_check.h"
 #include "gltf_test_assets.h"
 #include "gltf_textured_quads.h"
@@ -165,4 +166,53 @@ TEST(GltfRender, GlobMatch) {
   EXPECT_TRUE(glob_match("*a*b*", "xxaxxbxx"));
   // A hostile pattern stays linear-time.
   EXPECT_FALSE(glob_match("*a*a*a*a*a*a*a*a*b", std::string(5000, 'a')));
+}
+
+// GI on textured PBR: intersect() evaluates the material at the hit, and photons leaving a textured
+// surface carry its texel's diffuse colour (the checker's red texel reflects red only).
+TEST(GltfRender, PhotonsCarryTheTexturedAlbedo) {
+  TempDir dir;
+  const GltfTexturedQuads quads;
+  write_gltf(dir.path, "quads", quads.doc(), quads.bin());
+  // A white wall in front of the quads, a light between them, in front of the checker.
+  const auto file = write_json(dir.path, "gi.json", R"({
+    "gltf": {"file": "quads.gltf"},
+    "materials": {"white": {"type": "lambertian", "kd": [0.8, 0.8, 0.8]}},
+    "objects": [{"name": "wall", "material": "white", "geometry": {"box": [10, 10, 0.02]},
+                 "transform": {"translation": [0, 0, 1]}}],
+    "lights": [{"type": "point", "position": [-1.45, 0.85, 0.3], "power": [100, 100, 100]}]
+  })");
+  const Scene s = load_scene(file);
+  EmbreeBackend backend;
+  backend.set_scene(s);
+  // The checker's top-left texel is red; its bottom-right grey.
+  SurfaceHit hit;
+  const glm::vec3 eye(0, 0, 0.9f);
+  ASSERT_TRUE(backend.intersect(eye, GltfTexturedQuads::centre(0) + glm::vec3(-0.25f, 0.25f, 0) - eye, 0, 10,
+                                RayVisibility::All, hit));
+  ASSERT_TRUE(hit.pbr.has_value());
+  EXPECT_NEAR(hit.pbr->base_color.r, 1.0f, 1e-3f);
+  EXPECT_NEAR(hit.pbr->base_color.g, 0.0f, 1e-3f);
+  EXPECT_EQ(hit.diffuse_albedo(), hit.pbr->base_color);  // metallic 0
+  ASSERT_TRUE(backend.intersect(eye, GltfTexturedQuads::centre(0) + glm::vec3(0.25f, -0.25f, 0) - eye, 0, 10,
+                                RayVisibility::All, hit));
+  EXPECT_NEAR(hit.pbr->base_color.g, 0.2158605f, 1e-3f);  // sRGB 128
+  gi::TraceSettings ts;
+  ts.stored_photons = 40000;
+  const gi::PhotonTraceResult res = gi::trace_photons(backend, ts);
+  std::size_t checked = 0, red = 0;
+  for (const gi::Photon& p : res.photons) {
+    if (p.parent == gi::kNoParent || p.position.z < 0.9f) continue;  // on the wall, after a bounce
+    const glm::vec3 from = res.photons[p.parent].position - GltfTexturedQuads::centre(0);
+    if (std::abs(from.z) > 1e-3f || !(from.x < -0.02f && from.x > -0.48f && from.y > 0.02f && from.y < 0.48f)) continue;
+    ++checked;
+    // Diffuse reflection: red only. The specular lobe (F0 = 0.04 of a dielectric) reflects white.
+    if (std::max(p.power.g, p.power.b) < 1e-3f * p.power.r) {
+      ++red;
+    } else {
+      EXPECT_NEAR(p.power.g, p.power.r, 1e-3f * p.power.r) << "neither diffuse red nor specular white";
+    }
+  }
+  EXPECT_GT(checked, 20u);
+  EXPECT_GT(red, checked * 8 / 10) << red << " of " << checked << " photons off the red texel are red";
 }

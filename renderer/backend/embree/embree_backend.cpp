@@ -227,10 +227,11 @@ struct HitVertices {
 
 // The hit as a PBR material reads it: texture coordinates, colour, the front side's normal and
 // tangent frame, and each coordinate set's level of detail from the primary ray's cone
-// (Akenine-Möller et al. 2019, §3.4): spread angle atan(2 tan(fov/2) / height) per pixel, width
+// (Akenine-Möller et al. 2019, §3.4): spread angle (primary rays: atan(2 tan(fov/2) / height) per
+// pixel; 0 samples the base level), width
 // W = spread t at distance t, level log2(W / |n.d|) + 0.5 log2(uv area / world area) (eq. 34, the
 // texture's own 0.5 log2(w h) added when sampling). t is the ray's length, not view depth.
-SurfacePoint surface_point(const Frame& f, const ObjectFrame& of, const HitVertices& hv, const glm::vec3& p,
+SurfacePoint surface_point(float spread, const ObjectFrame& of, const HitVertices& hv, const glm::vec3& p,
                            const glm::vec3& front_normal, bool back_face, const glm::vec3& dir, float t) {
   const PreparedMesh& m = hv.m;
   SurfacePoint sp;
@@ -241,7 +242,6 @@ SurfacePoint surface_point(const Frame& f, const ObjectFrame& of, const HitVerti
   const glm::vec3 p0 = m.positions[hv.i0], p1 = m.positions[hv.i1], p2 = m.positions[hv.i2];
   const float world_area = glm::length(transform_vector(of.normal_now, glm::cross(p1 - p0, p2 - p0)));
   const float dir_len = glm::length(dir);
-  const float spread = std::atan(2.0f * f.tan_y / static_cast<float>(std::max(1u, f.height)));
   const float cos_view = std::max(1e-4f, std::abs(glm::dot(front_normal, dir)) / std::max(dir_len, 1e-30f));
   const float cone = std::log2(std::max(spread * t * dir_len, 1e-30f) / cos_view);
   for (std::uint32_t set = 0; set < 2; ++set) {
@@ -323,7 +323,8 @@ inline void resolve_hit(const TilePass& pass, const Hit& h, std::uint32_t x, std
     shadow.offset = n * shadow.epsilon;
     if (r.material->type == MaterialType::MetallicRoughness) {
       const HitVertices hv{m, i0, i1, i2, u, v, w};
-      const SurfacePoint point = surface_point(f, of, hv, p, back_face ? -n : n, back_face, dir, h.t);
+      const float spread = std::atan(2.0f * f.tan_y / static_cast<float>(std::max(1u, f.height)));
+      const SurfacePoint point = surface_point(spread, of, hv, p, back_face ? -n : n, back_face, dir, h.t);
       color = shade_pbr(s, evaluate_pbr(s, r.material->pbr, point), p, origin, pass.visibility, &shadow);
     } else {
       color = shade_local(s, *r.material, p, n, origin, pass.visibility, &shadow);
@@ -469,7 +470,25 @@ bool EmbreeBackend::intersect(const glm::vec3& origin, const glm::vec3& directio
   hit.normal = ns;
   hit.object_id = im.scene.objects[r.object].id;
   hit.material = r.material;
+  hit.pbr.reset();
+  if (r.material->type == MaterialType::MetallicRoughness) {
+    // The front side is the shading normal's as the mesh gives it; the ray arrives at one side.
+    const bool back_face = glm::dot(ns, direction) > 0.0f;
+    ObjectFrame of;
+    of.model_now = r.committed;
+    of.normal_now = r.normal_committed;
+    const HitVertices hv{m, i0, i1, i2, u, v, w};
+    hit.pbr = evaluate_pbr(im.scene, r.material->pbr,
+                           surface_point(0.0f, of, hv, hit.position, ns, back_face, direction, hit.t));
+    // Back on the geometric normal's side, as `normal` is (callers turn it to the side they need).
+    if (back_face) hit.pbr->normal = -hit.pbr->normal;
+  }
   return true;
+}
+
+glm::vec3 SurfaceHit::diffuse_albedo() const {
+  if (pbr) return glm::mix(pbr->base_color, glm::vec3(0.0f), pbr->metallic);
+  return material != nullptr ? material->kd : glm::vec3(0.0f);
 }
 
 bool EmbreeBackend::occluded(const glm::vec3& from, const glm::vec3& to) const {

@@ -8,8 +8,10 @@
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <memory>
+#include <optional>
 
 #include "backend/backend.h"
+#include "scene/shading.h"
 
 namespace fovea::render {
 
@@ -68,6 +70,11 @@ struct SurfaceHit {
   glm::vec3 geometric_normal{0, 1, 0};  // unit face normal, outward by the triangle's winding
   std::uint32_t object_id = 0;          // Object::id
   const Material* material = nullptr;   // in the backend's copy of the scene; never null on a hit
+  // A MetallicRoughness material at the hit: its textures sampled at the base level (no ray cone
+  // for rays the caller made), its normal bent by the normal map on the side the ray arrived at.
+  std::optional<SurfaceSample> pbr;
+  // The diffuse reflectance the photon map uses: kd, or the PBR sample's base x (1 - metallic).
+  glm::vec3 diffuse_albedo() const;
 };
 
 // What a world-space ray can hit: everything, or only shadow casters (emissive objects are the
