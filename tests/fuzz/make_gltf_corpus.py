@@ -12,6 +12,7 @@ import base64
 import json
 import os
 import struct
+import zlib
 import sys
 
 
@@ -65,12 +66,21 @@ def triangle():
             "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}]}, b
 
 
+def png_rgba(width, height, rgba):
+    """A real PNG (8-bit RGBA, no filter), so the decoder's path is in the corpus."""
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    rows = b"".join(b"\x00" + bytes(rgba[y * width * 4:(y + 1) * width * 4]) for y in range(height))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 6, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
 def textured_quad():
     b = Bin()
     b.add(floats([0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0]))
     b.add(floats([0, 0, 1, 0, 1, 1, 0, 1]))
     b.add(struct.pack("<6H", 0, 1, 2, 0, 2, 3))
-    image = b.add(b"\x89PNG\r\n\x1a\n")
+    image = b.add(png_rgba(2, 2, [255, 0, 0, 255, 0, 0, 255, 0, 0, 255, 0, 255, 128, 128, 128, 128]))
     return {"asset": ASSET, "scenes": [{"nodes": [0]}], "nodes": [{"name": "quad", "mesh": 0}],
             "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
                           {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
