@@ -21,6 +21,18 @@ const std::array<float, 256>& srgb_table() {
 
 std::uint8_t to_byte(float v) { return static_cast<std::uint8_t>(std::clamp(std::lround(v * 255.0f), 0L, 255L)); }
 
+// lround(linear_to_srgb(x) * 255) without a pow per call: the byte whose interval of linear values
+// holds x, by binary search over the 255 boundaries (the sRGB values k + 0.5 of 255 in linear light).
+// Building a 2k texture's mip chain encodes ~4 M values: pow made it most of the texture load time.
+std::uint8_t to_srgb_byte(float x) {
+  static const std::array<float, 255> bounds = [] {
+    std::array<float, 255> b{};
+    for (int k = 0; k < 255; ++k) b[static_cast<std::size_t>(k)] = srgb_to_linear((static_cast<float>(k) + 0.5f) / 255.0f);
+    return b;
+  }();
+  return static_cast<std::uint8_t>(std::upper_bound(bounds.begin(), bounds.end(), x) - bounds.begin());
+}
+
 // One level from the one above: each texel the mean of its 2x2 parents (clamped at an odd edge).
 TextureLevel downsample(const TextureLevel& src, bool srgb) {
   TextureLevel dst;
@@ -40,7 +52,7 @@ TextureLevel downsample(const TextureLevel& src, bool srgb) {
         }
       }
       std::uint8_t* out = &dst.rgba[(std::size_t{y} * dst.width + x) * 4];
-      for (int c = 0; c < 3; ++c) out[c] = to_byte(srgb ? linear_to_srgb(sum[c] / 4) : sum[c] / 4);
+      for (int c = 0; c < 3; ++c) out[c] = srgb ? to_srgb_byte(sum[c] / 4) : to_byte(sum[c] / 4);
       out[3] = to_byte(sum[3] / 4);
     }
   }

@@ -38,6 +38,19 @@ TEST(Texture, SrgbRoundTrip) {
   EXPECT_NEAR(srgb_to_linear(128.0f / 255.0f), 0.2158605f, 1e-6f);
 }
 
+// The mip chain's sRGB encoding (a search over byte boundaries) rounds exactly as lround(encode * 255).
+TEST(Texture, SrgbLevelsRoundAsTheExactEncoding) {
+  for (int i = 0; i < 256; ++i) {
+    for (int j = 0; j < 256; j += 5) {
+      // A 2x1 image of bytes i and j: level 1 is their linear mean, encoded.
+      const auto img = make_texture_image("p", 2, 1, {static_cast<std::uint8_t>(i), 0, 0, 255, static_cast<std::uint8_t>(j), 0, 0, 255},
+                                          true).image;
+      const float mean = 0.5f * (srgb_to_linear(static_cast<float>(i) / 255.0f) + srgb_to_linear(static_cast<float>(j) / 255.0f));
+      ASSERT_EQ(img->levels[1].rgba[0], std::lround(linear_to_srgb(mean) * 255.0f)) << i << " " << j;
+    }
+  }
+}
+
 TEST(Texture, MipChainAveragesInLinearLight) {
   const MipChainResult srgb = make_texture_image("c", 2, 2, checker2(), true);
   ASSERT_TRUE(srgb.image);
