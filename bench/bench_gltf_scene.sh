@@ -5,8 +5,8 @@
 # licence keeps it out of the repository), measured
 #   1. bench_gltf: load phases with a cold and then a warm LOD cache, resident memory, the G-buffer
 #      per backend, Embree against OpenGL as PSNR;
-#   2. fovea-render headless per backend and effect (G-buffer + tone map alone, attention, DOF with
-#      the human eye's lens, LOD, GI), median ms per pass from timings.csv, peak RSS (GNU time).
+#   2. fovea-render headless per backend and effect (G-buffer + tone map alone, attention + focus +
+#      DOF with the human eye's lens, LOD, GI), median ms per pass from timings.csv, peak RSS (GNU time).
 # Usage: bench/bench_gltf_scene.sh [BUILD_DIR] [FRAMES] [WIDTHxHEIGHT] [SCENE.gltf]
 # (default: the stand-in, generated into BUILD_DIR/standin on first use).
 set -euo pipefail
@@ -44,13 +44,13 @@ env -u DISPLAY "$BUILD/bench/bench_gltf" --scene "$SCENE" --width "$W" --height 
 
 declare -A EFFECT=(
   [gbuffer]="attention.enabled=false dof.enabled=false lod.enabled=false gi.enabled=false"
-  [attention]="attention.enabled=true dof.enabled=false lod.enabled=false gi.enabled=false"
   [dof]="attention.enabled=true dof.enabled=true lod.enabled=false gi.enabled=false"
   [lod]="attention.enabled=true dof.enabled=false lod.enabled=true gi.enabled=false"
   [gi]="attention.enabled=false dof.enabled=false lod.enabled=false gi.enabled=true"
 )
 for backend in embree gl; do
-  for effect in gbuffer attention dof lod gi; do
+  # Attention alone is not a configuration: it runs only when focus, DOF or LOD consumes it.
+  for effect in gbuffer dof lod gi; do
     sets=()
     for s in ${EFFECT[$effect]}; do sets+=(--set "$s"); done
     dir=$OUT/$effect-$backend
