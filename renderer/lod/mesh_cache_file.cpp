@@ -21,12 +21,14 @@ constexpr std::size_t kElementBytes[kArrays] = {12, 12, 8, 8, 16, 16, 4};
 
 template <class T>
 void put(std::string& out, const std::vector<T>& v) {
+  if (v.empty()) return;
   out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
 }
 
 template <class T>
 void take(const std::string& bytes, std::size_t& at, std::uint64_t count, std::vector<T>& v) {
   v.resize(count);
+  if (count == 0) return;  // memcpy's pointers must not be null, even for no bytes
   std::memcpy(v.data(), bytes.data() + at, count * sizeof(T));
   at += count * sizeof(T);
 }
