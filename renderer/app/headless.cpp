@@ -248,8 +248,7 @@ int run_headless(const RenderOptions& o) {
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
   const auto backend_start = std::chrono::steady_clock::now();
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
-  load.add("backend", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - backend_start).count(),
-           backend_load_note(o.backend));
+  load.add_since("backend", backend_start, backend_load_note(o.backend));
   if (o.verbose) std::fprintf(stderr, "fovea-render: %s\n", load.summary().c_str());
   pipeline.require_cpu_gbuffer(o.exr);  // the EXR is the G-buffer's colour
   write_plan(o, pipeline, *gaze);

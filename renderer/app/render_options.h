@@ -49,8 +49,7 @@ inline Scene load_render_scene(const RenderOptions& o, LoadReport* report = null
   lod::attach_chains(scene);
   for (const Object& obj : scene.objects) levels += obj.lods.size();
   if (report) {
-    report->add("lod", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-                std::to_string(levels) + " levels");
+    report->add_since("lod", start, std::to_string(levels) + " levels");
   }
   return scene;
 }

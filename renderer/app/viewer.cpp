@@ -184,8 +184,7 @@ int run_viewer(const RenderOptions& o) {
                          o.backend == BackendKind::OpenGL ? make_gl_backend(GlPlatform::Glfw, &window)
                                                           : make_backend(o.backend),
                          *gaze);
-  load.add("backend", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - backend_start).count(),
-           backend_load_note(o.backend));
+  load.add_since("backend", backend_start, backend_load_note(o.backend));
   if (o.verbose) std::fprintf(stderr, "fovea-render: %s\n", load.summary().c_str());
   KeyState keys{&pipeline.settings(), &pipeline};
   glfwSetWindowUserPointer(window.window(), &keys);

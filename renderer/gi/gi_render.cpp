@@ -76,6 +76,21 @@ struct Tracer {
     return shade(origin, dir, hit, depth, local, mark);
   }
 
+  // Direct light at a diffuse or glossy hit seen from `origin`: eq. 5.22 (or a PBR material's
+  // appendix B with the sample intersect() evaluated, turned to the side seen) with shadow rays,
+  // exactly as the G-buffer shades it. `n` is the shading normal on the side seen.
+  glm::vec3 direct_light(const glm::vec3& origin, const SurfaceHit& hit, bool from_front, const glm::vec3& n,
+                         float eps) const {
+    ShadowRays shadow{&backend, n * eps};
+    const VisibilityFn vis = s.shadows ? &visible : nullptr;
+    if (hit.pbr) {
+      SurfaceSample sample = *hit.pbr;
+      if (!from_front) sample.normal = -sample.normal;
+      return shade_pbr(lights, sample, hit.position, origin, vis, &shadow);
+    }
+    return shade_local(lights, *hit.material, hit.position, n, origin, vis, &shadow);
+  }
+
   // The radiance leaving `hit` towards `origin` (along -dir).
   glm::vec3 shade(const glm::vec3& origin, const glm::vec3& dir, const SurfaceHit& hit, std::uint32_t depth,
                   Local& local, bool mark) const {
@@ -104,16 +119,7 @@ struct Tracer {
       case MaterialType::BlinnPhong:
       case MaterialType::MetallicRoughness: break;
     }
-    // Direct light: eq. 5.22 with shadow rays, exactly as the G-buffer shades it.
-    ShadowRays shadow{&backend, n * eps};
-    glm::vec3 l(0.0f);
-    if (hit.pbr) {  // textured PBR: the sample intersect() evaluated, turned to the side seen
-      SurfaceSample sample = *hit.pbr;
-      if (!from_front) sample.normal = -sample.normal;
-      l = shade_pbr(lights, sample, hit.position, origin, s.shadows ? &visible : nullptr, &shadow);
-    } else {
-      l = shade_local(lights, m, hit.position, n, origin, s.shadows ? &visible : nullptr, &shadow);
-    }
+    glm::vec3 l = direct_light(origin, hit, from_front, n, eps);
     // Photon terms: sum f_r(l = -incoming, v) Phi_p / (pi r^2) over the nearest photons (eq. 6.6).
     const glm::vec3 v = glm::normalize(origin - hit.position);
     // A PBR material's BRDF is normalised (glTF appendix B): its photon terms use kd / pi and the

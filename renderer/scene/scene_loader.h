@@ -8,6 +8,7 @@
 // overrides (scene/scene_overrides.h) and reads mesh files through scene/mesh_io.h. A scene's LOD
 // chains ("lod": {"chain": ...}) are not built here: the loader keeps the request
 // (Object::lod_chain) and lod::attach_chains (lod/lod_chain.h) builds or loads them.
+#include <chrono>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -38,6 +39,11 @@ struct LoadReport {
   };
   std::vector<Phase> phases;
   void add(std::string name, double ms, std::string note = {}) { phases.push_back({std::move(name), ms, std::move(note)}); }
+  // Adds a phase that began at `start` and ends now.
+  void add_since(std::string name, std::chrono::steady_clock::time_point start, std::string note = {}) {
+    add(std::move(name), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+        std::move(note));
+  }
   double total_ms() const;
   std::string summary() const;  // "load 812 ms: parse 120 ms, textures 540 ms (12 textures, 96 MiB), ..."
 };

@@ -80,6 +80,15 @@ TEST(GltfRender, TexturedQuadsShowTheSpecificationsPoints) {
   ASSERT_EQ(s.objects.size(), 6u);
   ASSERT_EQ(s.textures.size(), 4u);
   expect_textured_quads(s.camera, render(s), render(without_normal_maps(s)));
+  // Instanced geometry: the alpha test sits on the instanced mesh's own BVH.
+  EmbreeOptions instanced;
+  instanced.geometry = EmbreeGeometry::Instanced;
+  EmbreeBackend b(instanced);
+  b.set_scene(s);
+  GBuffer g;
+  b.render(FrameTime{}, BackendSettings{}, g);
+  EXPECT_EQ(g.object_id[pixel_of(s.camera, g, GltfTexturedQuads::centre(1) + glm::vec3(-0.25f, 0, 0))], 0u);
+  EXPECT_EQ(g.object_id[pixel_of(s.camera, g, GltfTexturedQuads::centre(1) + glm::vec3(0.25f, 0, 0))], 2u);
 }
 
 namespace {

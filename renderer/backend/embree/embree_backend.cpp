@@ -138,6 +138,7 @@ bool camera_frame(const Camera& cam, const glm::mat4& view, const BackendSetting
   f.back = glm::vec3(cam_to_world[2]);
   f.tan_x = tan_half * aspect;
   f.tan_y = tan_half;
+  f.cone_spread = std::atan(2.0f * tan_half / static_cast<float>(std::max(1u, size.height)));
   f.near_m = std::max(0.0f, cam.near_m);
   f.far_m = cam.far_m;
   f.lens = settings.lens;
@@ -323,8 +324,7 @@ inline void resolve_hit(const TilePass& pass, const Hit& h, std::uint32_t x, std
     shadow.offset = n * shadow.epsilon;
     if (r.material->type == MaterialType::MetallicRoughness) {
       const HitVertices hv{m, i0, i1, i2, u, v, w};
-      const float spread = std::atan(2.0f * f.tan_y / static_cast<float>(std::max(1u, f.height)));
-      const SurfacePoint point = surface_point(spread, of, hv, p, back_face ? -n : n, back_face, dir, h.t);
+      const SurfacePoint point = surface_point(f.cone_spread, of, hv, p, back_face ? -n : n, back_face, dir, h.t);
       color = shade_pbr(s, evaluate_pbr(s, r.material->pbr, point), p, origin, pass.visibility, &shadow);
     } else {
       color = shade_local(s, *r.material, p, n, origin, pass.visibility, &shadow);

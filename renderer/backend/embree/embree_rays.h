@@ -33,6 +33,7 @@ struct Frame {
   std::uint32_t width = 0, height = 0;
   glm::vec3 eye{0.0f}, right{1, 0, 0}, up{0, 1, 0}, back{0, 0, 1};
   float tan_x = 1, tan_y = 1;  // half-extent of the image plane at view depth 1
+  float cone_spread = 0;       // a pixel's ray-cone spread angle, atan(2 tan_y / height) (texture level)
   float near_m = 0, far_m = 0;
   bool motion = false;
   glm::mat4 view_proj_now{1.0f}, view_proj_prev{1.0f};

@@ -117,6 +117,38 @@ void set_alpha_test(RTCGeometry g, const AlphaTest* test) {
 
 }  // namespace embree_detail
 
+namespace {
+
+// The filter's data for a mesh drawn with an alpha-tested material (owned by `im`); null when the
+// material is opaque.
+const AlphaTest* alpha_test_for(EmbreeBackend::Impl& im, const Material& m, const PreparedMesh& mesh) {
+  if (m.type != MaterialType::MetallicRoughness || !m.pbr.alpha_tested()) return nullptr;
+  im.alpha_tests.push_back(std::make_unique<AlphaTest>(AlphaTest{&im.scene, &m.pbr, &mesh}));
+  return im.alpha_tests.back().get();
+}
+
+// Instanced mode: one object-space BVH per distinct mesh, and per alpha-tested material using it
+// (the filter reads the material), built on first use.
+using MeshScenes = std::map<std::pair<const PreparedMesh*, const Material*>, RTCScene>;
+RTCScene instanced_mesh_scene(EmbreeBackend::Impl& im, MeshScenes& scenes, const PreparedMesh& pm, const Material& m,
+                              const std::string& object) {
+  const bool alpha_tested = m.type == MaterialType::MetallicRoughness && m.pbr.alpha_tested();
+  RTCScene& ms = scenes[{&pm, alpha_tested ? &m : nullptr}];
+  if (ms != nullptr) return ms;
+  ms = rtcNewScene(im.device);
+  im.mesh_scenes.push_back(ms);
+  RTCGeometry tri = new_triangle_geometry(im.device, pm);
+  if (const AlphaTest* alpha = alpha_test_for(im, m, pm)) set_alpha_test(tri, alpha);
+  rtcCommitGeometry(tri);
+  rtcAttachGeometry(ms, tri);
+  rtcReleaseGeometry(tri);
+  rtcCommitScene(ms);
+  im.check("mesh of object '" + object + "'");
+  return ms;
+}
+
+}  // namespace
+
 // Geometry: flattened vs instanced (both kept; EmbreeOptions::geometry selects).
 //  - Flattened: world-space vertices, one geometry per object. A static scene gets a single SAH
 //    BVH over all triangles; a scene with animation is DYNAMIC (Embree then keeps one BVH per
@@ -147,9 +179,7 @@ void EmbreeBackend::set_scene(const Scene& scene) {
   }
 
   std::map<const Mesh*, std::shared_ptr<const PreparedMesh>> prepared;
-  // Instanced: one BVH per distinct mesh, and per alpha-tested material using it (the filter reads
-  // the material).
-  std::map<std::pair<const PreparedMesh*, const Material*>, RTCScene> mesh_scene;
+  MeshScenes mesh_scene;
   for (std::size_t i = 0; i < s.objects.size(); ++i) {
     const Object& o = s.objects[i];
     if (!o.mesh) continue;
@@ -172,29 +202,11 @@ void EmbreeBackend::set_scene(const Scene& scene) {
       r.committed = o.transform_at(0).matrix();
       r.normal_committed = cofactor(r.committed);
       const bool emitter = r.material->type == MaterialType::Emissive;
-      const bool alpha_tested = r.material->type == MaterialType::MetallicRoughness && r.material->pbr.alpha_tested();
-      const AlphaTest* alpha = nullptr;
-      if (alpha_tested) {
-        im.alpha_tests.push_back(std::make_unique<AlphaTest>(AlphaTest{&s, &r.material->pbr, pm.get()}));
-        alpha = im.alpha_tests.back().get();
-      }
 
       RTCGeometry g = nullptr;
       if (instanced) {
-        RTCScene& ms = mesh_scene[{pm.get(), alpha_tested ? r.material : nullptr}];
-        if (ms == nullptr) {
-          ms = rtcNewScene(im.device);
-          im.mesh_scenes.push_back(ms);
-          RTCGeometry tri = new_triangle_geometry(im.device, *pm);
-          if (alpha != nullptr) set_alpha_test(tri, alpha);
-          rtcCommitGeometry(tri);
-          rtcAttachGeometry(ms, tri);
-          rtcReleaseGeometry(tri);
-          rtcCommitScene(ms);
-          im.check("mesh of object '" + o.name + "'");
-        }
         g = rtcNewGeometry(im.device, RTC_GEOMETRY_TYPE_INSTANCE);
-        rtcSetGeometryInstancedScene(g, ms);
+        rtcSetGeometryInstancedScene(g, instanced_mesh_scene(im, mesh_scene, *pm, *r.material, o.name));
         rtcSetGeometryTimeStepCount(g, 1);
         r.enabled = invertible(r.committed);
         const glm::mat4 m = r.enabled ? r.committed : glm::mat4(1.0f);
@@ -205,7 +217,7 @@ void EmbreeBackend::set_scene(const Scene& scene) {
         auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
         if (vertices != nullptr) write_world_vertices(vertices, *pm, r.committed);
         if (r.animated) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
-        if (alpha != nullptr) set_alpha_test(g, alpha);
+        if (const AlphaTest* alpha = alpha_test_for(im, *r.material, *pm)) set_alpha_test(g, alpha);
       }
       if (emitter) rtcSetGeometryMask(g, kMaskEmitter);
       if (!r.lod_active) rtcDisableGeometry(g);

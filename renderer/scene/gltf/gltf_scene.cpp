@@ -305,8 +305,10 @@ class TextureTable {
     p.emissive_texture = bind(g.emissive_texture, true, slot("emissiveTexture"));
   }
 
-  // Decodes every request into scene.textures and points the materials' bindings at them.
-  void resolve(Scene& scene, const gltf::TextureOptions& options, std::vector<std::string>& warn) {
+  // Decodes every request into scene.textures and points the materials' bindings at them; the
+  // time goes to `report` as the "textures" phase.
+  void resolve(Scene& scene, const gltf::TextureOptions& options, std::vector<std::string>& warn, LoadReport* report) {
+    const auto start = std::chrono::steady_clock::now();
     const gltf::DecodedTextures decoded = gltf::decode_textures(a_, requests_, options);
     for (const std::string& w : decoded.warnings) warn.push_back(w);
     std::vector<std::optional<std::uint32_t>> scene_index(requests_.size());
@@ -327,12 +329,59 @@ class TextureTable {
         }
       }
     }
+    if (report) {
+      report->add_since("textures", start, std::to_string(scene.textures.size()) + " textures, " +
+                                               std::to_string((decoded.bytes + (1u << 19)) >> 20) + " MiB");
+    }
   }
 
  private:
   const gltf::Asset& a_;
   std::map<std::pair<std::uint32_t, bool>, std::uint32_t> index_;
   std::vector<gltf::TextureRequest> requests_;
+};
+
+// The scene's materials on first use, in the file's order of use, each with its textures bound
+// (TextureTable); the default material after them.
+class MaterialTable {
+ public:
+  MaterialTable(const gltf::Asset& a, Scene& s, TextureTable& textures, std::vector<std::string>& warn)
+      : a_(a), s_(s), textures_(textures), warn_(warn) {}
+
+  std::uint32_t index(const std::optional<std::uint32_t>& g) {
+    if (!g) return default_index();
+    const auto [it, added] = index_.try_emplace(*g, static_cast<std::uint32_t>(s_.materials.size()));
+    if (added) {
+      const gltf::Material& gm = a_.materials[*g];
+      s_.materials.push_back(material_from_gltf(gm, gm.name.empty() ? "material" + std::to_string(*g) : gm.name));
+      textures_.bind_material(s_.materials.back(), gm);
+      if (gm.alpha_mode == gltf::AlphaMode::Blend) {
+        warn_.push_back("material \"" + s_.materials.back().name +
+                        "\": alphaMode BLEND drawn as MASK with cutoff 0.5 (the G-buffer holds one surface per pixel)");
+      }
+    }
+    return it->second;
+  }
+
+ private:
+  // The spec's default (white, metallic 1, roughness 1) would be a black metal here: white
+  // Lambertian instead, fovea's default kd.
+  std::uint32_t default_index() {
+    if (!default_) {
+      Material m;
+      m.name = "gltf-default";
+      default_ = static_cast<std::uint32_t>(s_.materials.size());
+      s_.materials.push_back(m);
+    }
+    return *default_;
+  }
+
+  const gltf::Asset& a_;
+  Scene& s_;
+  TextureTable& textures_;
+  std::vector<std::string>& warn_;
+  std::map<std::uint32_t, std::uint32_t> index_;
+  std::optional<std::uint32_t> default_;
 };
 
 }  // namespace
@@ -344,34 +393,8 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
   s.name = std::filesystem::path(a.source).stem().string();
   s.source = a.source;
 
-  // Materials on first use, in the file's order of use; the default material after them.
-  std::map<std::uint32_t, std::uint32_t> material_index;
-  std::optional<std::uint32_t> default_material;
   TextureTable textures(a);
-  const auto material = [&](const std::optional<std::uint32_t>& g) -> std::uint32_t {
-    if (!g) {
-      if (!default_material) {
-        // The spec's default (white, metallic 1, roughness 1) would be a black metal here: white
-        // Lambertian instead, fovea's default kd.
-        Material m;
-        m.name = "gltf-default";
-        default_material = static_cast<std::uint32_t>(s.materials.size());
-        s.materials.push_back(m);
-      }
-      return *default_material;
-    }
-    const auto [it, added] = material_index.try_emplace(*g, static_cast<std::uint32_t>(s.materials.size()));
-    if (added) {
-      const gltf::Material& gm = a.materials[*g];
-      s.materials.push_back(material_from_gltf(gm, gm.name.empty() ? "material" + std::to_string(*g) : gm.name));
-      textures.bind_material(s.materials.back(), gm);
-      if (gm.alpha_mode == gltf::AlphaMode::Blend) {
-        warn.push_back("material \"" + s.materials.back().name +
-                       "\": alphaMode BLEND drawn as MASK with cutoff 0.5 (the G-buffer holds one surface per pixel)");
-      }
-    }
-    return it->second;
-  };
+  MaterialTable materials(a, s, textures, warn);
   // The texture-coordinate set a primitive's normal map reads, for tangents the file does not give.
   const auto tangent_set = [&](const gltf::Primitive& p) -> std::optional<std::uint32_t> {
     if (!p.material || !a.materials[*p.material].normal_texture) return std::nullopt;
@@ -394,7 +417,7 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
       o.name = gm.primitives.size() == 1 ? inst.name : inst.name + "/p" + std::to_string(k);
       o.id = static_cast<std::uint32_t>(s.objects.size() + 1);
       o.mesh = shared[k];
-      o.material = material(p.material);
+      o.material = materials.index(p.material);
       o.transform = t;
       // A level-of-detail chain with the default settings (lod::attach_chains builds or loads it).
       LodChainRequest chain;
@@ -406,14 +429,7 @@ Scene scene_from_gltf(const gltf::Asset& a, const GltfSceneOptions& options, std
     }
   }
   if (s.objects.empty()) throw SceneError(a.source + ": $.nodes: no node of the scene has a mesh with triangles: nothing to render");
-  const auto decode_start = std::chrono::steady_clock::now();
-  textures.resolve(s, options.textures, warn);
-  if (report) {
-    std::size_t bytes = 0;
-    for (const auto& t : s.textures) bytes += t->bytes();
-    report->add("textures", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - decode_start).count(),
-                std::to_string(s.textures.size()) + " textures, " + std::to_string((bytes + (1u << 19)) >> 20) + " MiB");
-  }
+  textures.resolve(s, options.textures, warn, report);
 
   const std::vector<std::optional<glm::mat4>> worlds = gltf::node_worlds(a);
   s.camera = pick_camera(a, worlds, bounds, options.camera_name, warn);
@@ -461,8 +477,7 @@ Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<Scene
     for (const gltf::Mesh& m : asset.meshes) {
       for (const gltf::Primitive& p : m.primitives) triangles += p.indices.size() / 3;
     }
-    report->add("parse", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-                std::to_string(triangles) + " triangles in " + std::to_string(asset.meshes.size()) + " meshes");
+    report->add_since("parse", start, std::to_string(triangles) + " triangles in " + std::to_string(asset.meshes.size()) + " meshes");
   }
   Scene scene = scene_from_gltf(asset, options, &warnings, report);
   for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
