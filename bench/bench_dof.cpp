@@ -8,6 +8,12 @@
 //   foreground-blur    attention.json focused at 14 m: the near objects blur in front of a sharp
 //                      far scene (blurring discontinuity at their outlines).
 //   partial-occlusion  occlusion.json: thin bars 1 m away blur over a checkerboard in focus at 6 m.
+// --scene FILE measures on any scene load_scene reads (.json, .gltf, .glb; e.g. the textured glTF
+// stand-in) from its own camera at --size, in place of these: "<stem>-near-focus" focused at the 10th
+// percentile of the pinhole G-buffer's depth over the pixels that hit geometry (the far scene blurs,
+// like background-blur) and "<stem>-far-focus" at the 90th (the near scene blurs, like
+// foreground-blur). Percentiles, not fixed distances, because the file's depth range is not known in
+// advance; --focus-m A,B,... gives explicit distances instead ("<stem>-focus-<A>m").
 // The aperture is scaled so that the mean CoC over the image's pixels is the row's CoC (4..64 px).
 //
 // Per row: PSNR (RGB) and SSIM (luma, Wang et al. 2004, 11x11 Gaussian window, sigma 1.5) of the
@@ -75,7 +81,24 @@ namespace {
 struct Case {
   std::string name, file;
   double focus_m;
+  // >= 0: focus_m is this percentile (0..1) of the pinhole depth over the pixels that hit geometry,
+  // known only once the G-buffer is rendered (the --scene cases).
+  double focus_percentile = -1;
 };
+
+// The p-th percentile (0..1, nearest rank) of the depth over the pixels that hit geometry; NaN when
+// none does. A miss holds the far plane's depth (a finite number, not infinity), so hits are told
+// apart by their object id (0 where nothing is hit).
+double hit_depth_percentile(const GBuffer& g, double p) {
+  std::vector<float> d;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    if (g.object_id[i] != 0 && std::isfinite(g.depth[i])) d.push_back(g.depth[i]);
+  }
+  if (d.empty()) return std::nan("");
+  const auto k = static_cast<std::size_t>(std::lround(p * static_cast<double>(d.size() - 1)));
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
+  return d[k];
+}
 
 Image8 to_ldr(const RgbImage& hdr, std::uint32_t w, std::uint32_t h) {
   TonemapParams p;
@@ -231,13 +254,21 @@ int main(int argc, char** argv) {
   CLI::App app{"Depth of field: PSNR, SSIM, failure modes and ms/frame of every method against the thin-lens "
                "ray-traced reference, per scene and mean CoC"};
   std::string size_text = "1024x768", csv_path, png_dir, cocs_text = "4,8,16,32,64", cases_text = "all";
-  std::string methods_text = "all";
+  std::string methods_text = "all", scene_path, focus_text;
   std::uint32_t samples = 256, repeats = 5;
   std::uint32_t convergence = 0;
   double aperture_sigma = 0;
   app.add_option("--size", size_text, "image size WxH");
   app.add_option("--cocs", cocs_text, "mean CoC diameters in pixels, comma-separated");
-  app.add_option("--cases", cases_text, "background-blur,foreground-blur,partial-occlusion or all");
+  app.add_option("--cases", cases_text,
+                 "the built-in cases: background-blur,foreground-blur,partial-occlusion or all (with --scene: all only)");
+  app.add_option("--scene", scene_path,
+                 "measure on this scene file (.json, .gltf or .glb, from its own camera at --size) instead of the built-in "
+                 "cases: <stem>-near-focus focused at the 10th percentile of the pinhole depth over the pixels that hit "
+                 "geometry, <stem>-far-focus at the 90th");
+  app.add_option("--focus-m", focus_text,
+                 "with --scene: these focus distances in metres, comma-separated, instead of the two percentiles "
+                 "(cases <stem>-focus-<A>m)");
   app.add_option("--samples", samples, "reference lens samples per pixel (power of two: stratified)")
       ->check(CLI::Range(1u, 65536u));
   app.add_option("--repeats", repeats, "timed runs per method (median)")->check(CLI::Range(1u, 100u));
@@ -290,7 +321,38 @@ int main(int argc, char** argv) {
   std::vector<Case> cases = {{"background-blur", src + "/renderer/scenes/attention.json", 2.9},
                              {"foreground-blur", src + "/renderer/scenes/attention.json", 14.0},
                              {"partial-occlusion", src + "/renderer/scenes/occlusion.json", 6.0}};
-  if (cases_text != "all") {
+  if (!focus_text.empty() && scene_path.empty()) {
+    std::cerr << "--focus-m needs --scene (the built-in cases have their own focus distances)\n";
+    return 2;
+  }
+  if (!scene_path.empty()) {
+    // A user's scene: its depth range is unknown, so the focus is a depth percentile unless given.
+    if (cases_text != "all") {
+      std::cerr << "--cases " << cases_text << " with --scene: --cases selects among the built-in cases, --scene "
+                << "replaces them; drop one of the two\n";
+      return 2;
+    }
+    const std::string stem = std::filesystem::path(scene_path).stem().string();
+    cases.clear();
+    if (focus_text.empty()) {
+      cases.push_back({stem + "-near-focus", scene_path, 0, 0.10});
+      cases.push_back({stem + "-far-focus", scene_path, 0, 0.90});
+    } else {
+      std::stringstream ss(focus_text);
+      std::string item;
+      while (std::getline(ss, item, ',')) {
+        char* end = nullptr;
+        const double v = std::strtod(item.c_str(), &end);
+        if (end == item.c_str() || *end != '\0' || !(v > 0) || !std::isfinite(v)) {
+          std::cerr << "--focus-m: '" << item << "' is not a distance > 0 m\n";
+          return 2;
+        }
+        char name[64];
+        std::snprintf(name, sizeof name, "-focus-%gm", v);
+        cases.push_back({stem + name, scene_path, v});
+      }
+    }
+  } else if (cases_text != "all") {
     std::erase_if(cases, [&](const Case& c) { return cases_text.find(c.name) == std::string::npos; });
     if (cases.empty()) {
       std::cerr << "--cases " << cases_text << ": none of background-blur, foreground-blur, partial-occlusion\n";
@@ -334,8 +396,15 @@ int main(int argc, char** argv) {
   std::printf("%-18s %6s %-27s %8s %7s %9s %9s %9s %10s %8s %9s %9s\n", "scene", "coc", "method", "psnr_db", "ssim",
               "leak_rmse", "edge_rmse", "interior", "ms/frame", "gpu_ms", "vs_cpu_db", "vs_gather");
 
-  for (const Case& cs : cases) {
-    Scene scene = load_scene(cs.file);
+  for (Case& cs : cases) {
+    // A user's file may be missing or malformed: the loader's message, not a crash.
+    Scene scene;
+    try {
+      scene = load_scene(cs.file);
+    } catch (const SceneError& e) {
+      std::cerr << "cannot load the scene: " << e.what() << "\n";
+      return 2;
+    }
     scene.camera.width = w;
     scene.camera.height = h;
     EmbreeBackend backend;
@@ -345,6 +414,15 @@ int main(int argc, char** argv) {
     BackendSettings peel;
     peel.peel = 1;
     backend.render({}, peel, hidden);
+    if (cs.focus_percentile >= 0) {
+      cs.focus_m = hit_depth_percentile(g, cs.focus_percentile);
+      if (!std::isfinite(cs.focus_m)) {
+        std::cerr << cs.file << ": no pixel of the pinhole image hits geometry: no depth to focus on\n";
+        return 2;
+      }
+      std::printf("%s: focus %.2f m (%.0fth percentile of the pinhole depth)\n", cs.name.c_str(), cs.focus_m,
+                  100.0 * cs.focus_percentile);
+    }
     const Lens base_lens = scene.camera.lens;
     for (const double target : cocs) {
       // Mean CoC is linear in the aperture: scale E so the mean over the image is the target.
