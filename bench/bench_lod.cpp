@@ -12,13 +12,21 @@
 // The viewer is taken to look at the object the full-detail attention pass ranks first.
 // The raster backend (OpenGL; run under deploy/with-xvfb.sh) is the renderer Lee's costs are about;
 // Embree's ray casting is timed alongside (its cost grows with the log of the triangles).
+//
+// --scene FILE measures the same conditions on a scene file instead (JSON, glTF or GLB; issue 41:
+// a textured scene whose objects differ in size, material and chain): every object with a chain
+// (a glTF object gets one by default) is a model, T_n is the frame with no objects, and eq. 7.2's
+// per-object cost t becomes a per-triangle cost, (T_NOLOD - T_n) / triangles, which is the same
+// model when every object is one mesh.
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <numbers>
 #include <random>
@@ -30,6 +38,7 @@
 #include "lod/lod_chain.h"
 #include "lod/lod_frame.h"
 #include "lod/lod_policy.h"
+#include "scene/scene_loader.h"
 
 using namespace fovea::render;
 using Clock = std::chrono::steady_clock;
@@ -189,6 +198,46 @@ double attention_of(const attention::AttentionFrame& att, std::uint32_t id) {
   return 0.0;
 }
 
+// Triangles of each object at each of its levels (level 0 its mesh), clamped as the backends clamp.
+struct TriangleTable {
+  std::vector<std::vector<std::uint64_t>> per_object;
+  explicit TriangleTable(const Scene& scene) {
+    for (const Object& o : scene.objects) {
+      std::vector<std::uint64_t> levels{o.mesh ? o.mesh->triangle_count() : 0};
+      for (const LodLevel& l : o.lods) levels.push_back(l.mesh ? l.mesh->triangle_count() : 0);
+      per_object.push_back(std::move(levels));
+    }
+  }
+  std::uint64_t at(std::size_t object, int level) const {
+    const auto& l = per_object[object];
+    return l[static_cast<std::size_t>(std::clamp(level, 0, static_cast<int>(l.size()) - 1))];
+  }
+  // Over the models: the objects with a chain (the generated floor has none).
+  std::uint64_t models_at(int level) const {
+    std::uint64_t sum = 0;
+    for (std::size_t k = 0; k < per_object.size(); ++k)
+      if (per_object[k].size() > 1) sum += at(k, level);
+    return sum;
+  }
+};
+
+// One measured scene: what the rows call it, the scene, its T_n frame (no models) and the highest
+// object id that is ground rather than model (the generated floor; none in a scene file).
+struct BenchScene {
+  std::string model;
+  int count = 0;
+  Scene scene, empty;
+  std::uint32_t ground_ids = 0;
+};
+
+Scene load_bench_scene(const std::string& file, std::uint32_t w, std::uint32_t h) {
+  Scene s = load_scene(file);
+  s.camera.width = w;
+  s.camera.height = h;
+  lod::attach_chains(s);
+  return s;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -199,8 +248,14 @@ int main(int argc, char** argv) {
   double region_deg = 5;
   bool quick = false;
   std::string proxy_resolution = "map";
-  app.add_option("--models", models_text, "bunny, dragon");
-  app.add_option("--counts", counts_text, "numbers of visible objects");
+  std::string scene_file;
+  auto* models_option = app.add_option("--models", models_text, "bunny, dragon");
+  auto* counts_option = app.add_option("--counts", counts_text, "numbers of visible objects");
+  app.add_option("--scene", scene_file,
+                 "measure on this scene file (JSON, .gltf, .glb) instead of the generated models: its objects with "
+                 "LOD chains are the models (glTF objects get one by default)")
+      ->excludes(models_option)
+      ->excludes(counts_option);
   app.add_option("--backends", backends_text, "gl (needs a display: deploy/with-xvfb.sh), embree");
   app.add_option("--size", size_text, "WxH");
   app.add_option("--frames", frames, "timed frames per condition (median)")->check(CLI::Range(1, 100));
@@ -246,22 +301,67 @@ int main(int argc, char** argv) {
     std::sort(ms.begin(), ms.end());
     return ms[ms.size() / 2];
   };
-  for (const std::string& model : split(models_text)) {
-    const int q = quick ? 4 : 1;
-    const Mesh mesh = model == "dragon" ? dragon_like(1700 / q, 128 / q) : bunny_like(147 / q, 236 / q);
-    const auto t0 = Clock::now();
-    lod::ChainSettings cs;
-    const lod::Chain chain = lod::build_chain(mesh, cs, model);
-    std::printf("# %s: %zu triangles, chain", model.c_str(), mesh.triangle_count());
-    for (const auto& l : chain.levels) std::printf(" %zu", l.mesh.triangle_count());
-    std::printf(" (built in %.1f s)\n", std::chrono::duration<double>(Clock::now() - t0).count());
-    const auto triangles_at = [&](int level) {
-      return chain.levels[static_cast<std::size_t>(std::clamp(level, 0, static_cast<int>(chain.levels.size()) - 1))].mesh.triangle_count();
-    };
+  // The scenes to measure, one at a time (a 256-dragon scene holds a few GiB).
+  std::vector<std::function<BenchScene()>> scenes;
+  if (!scene_file.empty()) {
+    scenes.push_back([&] {
+      BenchScene b;
+      b.model = std::filesystem::path(scene_file).stem().string();
+      const auto t0 = Clock::now();
+      b.scene = load_bench_scene(scene_file, w, h);
+      b.empty = b.scene;
+      b.empty.objects.clear();
+      std::uint64_t full = 0, coarsest = 0;
+      for (const Object& o : b.scene.objects) {
+        if (o.lods.empty()) continue;
+        ++b.count;
+        full += o.mesh->triangle_count();
+        coarsest += o.lods.back().mesh->triangle_count();
+      }
+      std::printf("# %s: %zu objects, %d with chains: %llu triangles at full detail, %llu at their coarsest (loaded "
+                  "in %.1f s)\n", scene_file.c_str(), b.scene.objects.size(), b.count,
+                  static_cast<unsigned long long>(full), static_cast<unsigned long long>(coarsest),
+                  std::chrono::duration<double>(Clock::now() - t0).count());
+      return b;
+    });
+  }
+  for (const std::string& model : scene_file.empty() ? split(models_text) : std::vector<std::string>{}) {
+    auto chain = std::make_shared<lod::Chain>();
     for (const std::string& count_text : split(counts_text)) {
-      const int count = std::stoi(count_text);
-      const Scene scene = make_scene(chain, count, 7, w, h);
-      const Scene floor_only = make_scene(chain, 0, 7, w, h);
+      scenes.push_back([&, model, chain, count_text] {
+        if (chain->levels.empty()) {
+          const int q = quick ? 4 : 1;
+          const Mesh mesh = model == "dragon" ? dragon_like(1700 / q, 128 / q) : bunny_like(147 / q, 236 / q);
+          const auto t0 = Clock::now();
+          *chain = lod::build_chain(mesh, lod::ChainSettings{}, model);
+          std::printf("# %s: %zu triangles, chain", model.c_str(), mesh.triangle_count());
+          for (const auto& l : chain->levels) std::printf(" %zu", l.mesh.triangle_count());
+          std::printf(" (built in %.1f s)\n", std::chrono::duration<double>(Clock::now() - t0).count());
+        }
+        BenchScene b;
+        b.model = model;
+        b.count = std::stoi(count_text);
+        b.scene = make_scene(*chain, b.count, 7, w, h);
+        b.empty = make_scene(*chain, 0, 7, w, h);
+        b.ground_ids = 1;
+        return b;
+      });
+    }
+  }
+  for (const auto& next_scene : scenes) {
+    {
+      BenchScene bench;
+      try {
+        bench = next_scene();
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return 2;
+      }
+      const std::string& model = bench.model;
+      const int count = bench.count;
+      const Scene& scene = bench.scene;
+      const Scene& floor_only = bench.empty;
+      const TriangleTable triangles(scene);
       // Attention on the full-detail frame (Embree): where the viewer is taken to look (the most
       // attended object) and what the proxies' attention is compared against (Lee Fig. 7.1).
       EmbreeOptions eo;
@@ -318,7 +418,7 @@ int main(int argc, char** argv) {
         GBuffer full_image;
         std::vector<std::uint8_t> region;    // 0 gazed, 1 periphery, 2 floor and background
         std::vector<std::uint8_t> attended;  // 0: an object the full-detail pass attends (S_o >= half the top's)
-        double per_object_ms = 0;          // t of eq. 7.1 per object at full detail
+        double per_triangle_ms = 0;        // t of eq. 7.1 per object at full detail, over its triangles
         const auto emit = [&](const Row& r, const GBuffer& image) {
           const double pa = psnr(image.color, full_image.color, attended, 0);
           const double pg = psnr(image.color, full_image.color, region, 0), pp = psnr(image.color, full_image.color, region, 1);
@@ -343,14 +443,14 @@ int main(int argc, char** argv) {
         {
           Row r{"NOLOD"};
           r.render = r.total = render_levels(std::vector<std::uint8_t>(scene.objects.size(), 0), full_image);
-          r.triangles = static_cast<std::uint64_t>(count) * triangles_at(0);
-          per_object_ms = count > 0 ? std::max(0.0, r.total - t_n) / count : 0;
-          r.model = t_n + per_object_ms * count;
+          r.triangles = triangles.models_at(0);
+          per_triangle_ms = r.triangles > 0 ? std::max(0.0, r.total - t_n) / static_cast<double>(r.triangles) : 0;
+          r.model = t_n + per_triangle_ms * static_cast<double>(r.triangles);
           region.assign(full_image.size(), 2);
           for (std::uint32_t y = 0; y < full_image.height; ++y)
             for (std::uint32_t x = 0; x < full_image.width; ++x) {
               const std::size_t i = full_image.index(x, y);
-              if (full_image.object_id[i] <= 1) continue;
+              if (full_image.object_id[i] <= bench.ground_ids) continue;
               const fovea::protocol::Degrees at = fovea::protocol::normalized_to_degrees(
                   scene.display, {(x + 0.5) / full_image.width, (y + 0.5) / full_image.height});
               region[i] = fovea::protocol::angle_between_deg(gaze_deg, at) <= region_deg ? 0 : 1;
@@ -358,7 +458,7 @@ int main(int argc, char** argv) {
           attended.assign(full_image.size(), 1);
           const double top = fa.empty() ? 0.0 : fa.front().attention;
           for (std::size_t i = 0; i < full_image.size(); ++i)
-            if (full_image.object_id[i] > 1 && top > 0 && attention_of(full_attention, full_image.object_id[i]) >= 0.5 * top)
+            if (full_image.object_id[i] > bench.ground_ids && top > 0 && attention_of(full_attention, full_image.object_id[i]) >= 0.5 * top)
               attended[i] = 0;
           Row floor{"floor-only"};
           floor.total = floor.render = floor.model = t_n;
@@ -407,15 +507,11 @@ int main(int argc, char** argv) {
           const bool blends = lod::ulod_next_levels(scene, chosen, next_levels);
           const double select_ms = std::chrono::duration<double, std::milli>(Clock::now() - s0).count();
           r.render = render_levels(levels, g) + select_ms;
-          double share = 0;  // sum over objects of (a + r + b): eq. 7.2's t . (a + r), plus the blend pass
+          // Eq. 7.2's t . (a + r) over the objects, plus the blend pass: triangles drawn at t per triangle.
           for (std::size_t k = 0; k < chosen.size(); ++k) {
-            const double full = static_cast<double>(triangles_at(0));
-            r.triangles += triangles_at(m - 1) + triangles_at(chosen[k].drawn);
-            share += static_cast<double>(triangles_at(m - 1) + triangles_at(chosen[k].drawn)) / full;
-            if (blends) {
-              r.triangles += triangles_at(chosen[k].blend_to);
-              share += static_cast<double>(triangles_at(chosen[k].blend_to)) / full;
-            }
+            const std::size_t o = object_index[k];
+            r.triangles += triangles.at(o, m - 1) + triangles.at(o, chosen[k].drawn);
+            if (blends) r.triangles += triangles.at(o, chosen[k].blend_to);
           }
           if (blends) {
             BackendSettings next_settings;
@@ -438,7 +534,7 @@ int main(int argc, char** argv) {
             blend_share = backend_name == "gl" ? 1.0
                                                : static_cast<double>(std::count(mask.begin(), mask.end(), 1)) / static_cast<double>(mask.size());
           }
-          r.model = t_n * (1 + proxy_share + blend_share) + r.attention + per_object_ms * share;
+          r.model = t_n * (1 + proxy_share + blend_share) + r.attention + per_triangle_ms * static_cast<double>(r.triangles);
           emit(r, g);
         }
         for (lod::Policy p : {lod::Policy::Distance, lod::Policy::ScreenSize, lod::Policy::Brown, lod::Policy::Gaze}) {
@@ -451,14 +547,12 @@ int main(int argc, char** argv) {
           const auto& chosen = selector.select(views, 0);
           const double select_ms = std::chrono::duration<double, std::milli>(Clock::now() - s0).count();
           std::vector<std::uint8_t> levels(scene.objects.size(), 0);
-          double share = 0;
           for (std::size_t k = 0; k < chosen.size(); ++k) {
             levels[object_index[k]] = static_cast<std::uint8_t>(chosen[k].drawn);
-            r.triangles += triangles_at(chosen[k].drawn);
-            share += static_cast<double>(triangles_at(chosen[k].drawn)) / static_cast<double>(triangles_at(0));
+            r.triangles += triangles.at(object_index[k], chosen[k].drawn);
           }
           r.render = r.total = render_levels(levels, g) + select_ms;
-          r.model = t_n + per_object_ms * share;
+          r.model = t_n + per_triangle_ms * static_cast<double>(r.triangles);
           emit(r, g);
         }
       }
