@@ -56,6 +56,15 @@ TEST(GlGltf, TexturedQuadsShowTheSpecificationsPoints) {
   EXPECT_EQ(g.object_id[pixel_of(s.camera, g, GltfTexturedQuads::centre(1) + glm::vec3(0.25f, 0, 0))], 2u);
 }
 
+// Generated tangents follow MikkTSpace at a mirrored UV seam: the Embree test's checks.
+TEST(GlGltf, AMirroredSeamUnderANormalMapTiltsEachHalfItsOwnWay) {
+  TempDir dir;
+  const GltfMirroredSeam strip;
+  const Scene s = load_scene(write_gltf(dir.path, "seam", strip.doc(), strip.bin()),
+                             {{"camera.width", "128"}, {"camera.height", "64"}});
+  expect_mirrored_seam(s.camera, render(BackendKind::OpenGL, s), render(BackendKind::OpenGL, without_normal_maps(s)));
+}
+
 // The two backends shade the same textures with the same BRDF: the images agree wherever both see
 // the same object (texture filtering differs by design: derivatives against ray cones, and the
 // GPU's filtering precision).

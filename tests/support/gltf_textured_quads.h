@@ -11,6 +11,7 @@
 //               "tilt_x"   a normal map tilting the normal to +X (tangent space (0.6, 0, 0.8))
 //               "tilt_y"   a normal map tilting it to +Y, up the image (generated tangents)
 // One KHR_lights_punctual point light up and to the right in front; the camera node at z = 4.
+// GltfMirroredSeam below: a mirrored UV seam under a normal map (generated tangents).
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -157,6 +158,64 @@ inline void expect_textured_quads(const render::Camera& cam, const render::GBuff
   }
   const float flat = lit.color[at(lit, 3, 0, 0)].g, flat_unmapped = unmapped.color[at(unmapped, 3, 0, 0)].g;
   EXPECT_NEAR(flat, flat_unmapped, 1e-3f * flat) << "removing normal maps changed the quad without one";
+}
+
+// A 2 x 1 strip whose right half mirrors the left's texture (u runs 0 -> 1 -> 0) with the seam's
+// vertices shared and no TANGENT: glTF asks for MikkTSpace, which splits the seam so that the +X
+// normal map tilts the left half to +X and the right half to -X. A per-vertex average (Lengyel)
+// gives the seam's vertices no tangent at all, and the right half near the seam tilts the wrong way.
+// One point light to the right in front; the camera node at z = 3.
+struct GltfMirroredSeam {
+  GltfBin bin() const {
+    GltfBin b;
+    std::vector<glm::vec3> p;
+    std::vector<glm::vec2> uv;
+    for (int r = 0; r <= 1; ++r)
+      for (int c = 0; c <= 2; ++c) {
+        p.push_back({static_cast<float>(c - 1), static_cast<float>(r) - 0.5f, 0});
+        uv.push_back({c == 1 ? 1.0f : 0.0f, 1.0f - static_cast<float>(r)});
+      }
+    b.add(p);
+    b.add(std::vector<glm::vec3>(6, glm::vec3(0, 0, 1)));
+    b.add(uv);
+    b.add(std::vector<std::uint16_t>{0, 1, 4, 0, 4, 3, 1, 2, 5, 1, 5, 4});
+    return b;
+  }
+  GltfJson doc() const {
+    GltfJson d = {{"asset", {{"version", "2.0"}}}};
+    d["extensionsUsed"] = GltfJson::array({"KHR_lights_punctual"});
+    d["extensions"] = GltfJson::parse(
+        R"({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 30, "color": [1, 1, 1]}]}})");
+    d["accessors"] = GltfJson::parse(R"([
+        {"bufferView": 0, "componentType": 5126, "count": 6, "type": "VEC3", "min": [-1, -0.5, 0], "max": [1, 0.5, 0]},
+        {"bufferView": 1, "componentType": 5126, "count": 6, "type": "VEC3"},
+        {"bufferView": 2, "componentType": 5126, "count": 6, "type": "VEC2"},
+        {"bufferView": 3, "componentType": 5123, "count": 12, "type": "SCALAR"}])");
+    cv::Mat tilt(1, 1, CV_8UC4, cv::Scalar(230, 128, 204, 255));  // BGRA of tangent-space (0.6, 0, 0.8)
+    d["images"] = GltfJson::array({{{"uri", png_data_uri(tilt)}}});
+    d["textures"] = GltfJson::parse(R"([{"source": 0}])");
+    d["materials"] = GltfJson::parse(
+        R"([{"name": "mirrored", "normalTexture": {"index": 0}, "pbrMetallicRoughness": {"metallicFactor": 0}}])");
+    d["meshes"] = GltfJson::parse(
+        R"([{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}, "indices": 3, "material": 0}]}])");
+    d["cameras"] = GltfJson::parse(R"([{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 20}}])");
+    d["nodes"] = GltfJson::parse(R"([{"name": "strip", "mesh": 0}, {"name": "eye", "camera": 0, "translation": [0, 0, 3]},
+        {"name": "lamp", "translation": [3, 0, 2], "extensions": {"KHR_lights_punctual": {"light": 0}}}])");
+    d["scenes"] = GltfJson::parse(R"([{"nodes": [0, 1, 2]}])");
+    d["scene"] = 0;
+    return d;
+  }
+};
+
+// `lit` as loaded, `unmapped` without its normal map: beside the seam, the left half turns towards
+// the light on the right (brighter), the mirrored right half away from it (darker).
+inline void expect_mirrored_seam(const render::Camera& cam, const render::GBuffer& lit, const render::GBuffer& unmapped) {
+  for (const float x : {-0.15f, 0.15f, -0.6f, 0.6f}) {
+    const std::size_t i = pixel_of(cam, lit, {x, 0.1f, 0});
+    const float ratio = lit.color[i].g / unmapped.color[i].g;
+    if (x < 0) EXPECT_GT(ratio, 1.1f) << "left of the seam (x = " << x << ") the +X map tilts towards the light";
+    else EXPECT_LT(ratio, 0.9f) << "right of the seam (x = " << x << ") the mirrored map tilts away from the light";
+  }
 }
 
 // The scene with every normal map removed.

@@ -91,6 +91,15 @@ TEST(GltfRender, TexturedQuadsShowTheSpecificationsPoints) {
   EXPECT_EQ(g.object_id[pixel_of(s.camera, g, GltfTexturedQuads::centre(1) + glm::vec3(0.25f, 0, 0))], 2u);
 }
 
+// Generated tangents follow MikkTSpace at a mirrored UV seam (gltf_textured_quads.h).
+TEST(GltfRender, AMirroredSeamUnderANormalMapTiltsEachHalfItsOwnWay) {
+  TempDir dir;
+  const GltfMirroredSeam strip;
+  const Scene s = load_scene(write_gltf(dir.path, "seam", strip.doc(), strip.bin()),
+                             {{"camera.width", "128"}, {"camera.height", "64"}});
+  expect_mirrored_seam(s.camera, render(s), render(without_normal_maps(s)));
+}
+
 namespace {
 
 std::filesystem::path write_json(const std::filesystem::path& dir, const std::string& name, const std::string& text) {

@@ -17,6 +17,7 @@
 #include "scene/gltf/gltf_flatten.h"
 #include "scene/gltf/gltf_reader.h"
 #include "scene/gltf/gltf_textures.h"
+#include "scene/tangents.h"
 
 namespace fovea::render {
 
@@ -68,40 +69,6 @@ std::vector<glm::vec3> area_weighted_normals(const std::vector<glm::vec3>& p, co
   return n;
 }
 
-// Per-vertex tangents from the texture coordinates of `set` (Lengyel's method: each triangle's
-// dP/du accumulated, weighted by its area, then made orthogonal to the normal; w makes
-// cross(n, t) w point up the image, against dP/dv, as glTF's bitangent does). Used when a material has a normal map and the file gives no TANGENT. Not
-// MikkTSpace: at a vertex whose triangles' frames disagree (a mirrored UV seam without split
-// vertices) the two differ; glTF exporters split such vertices and most write TANGENT anyway.
-std::vector<glm::vec4> generate_tangents(const Mesh& m, const std::vector<glm::vec2>& uv) {
-  std::vector<glm::vec3> tan(m.positions.size(), glm::vec3(0.0f)), bitan(m.positions.size(), glm::vec3(0.0f));
-  for (std::size_t i = 0; i + 2 < m.indices.size(); i += 3) {
-    const std::uint32_t a = m.indices[i], b = m.indices[i + 1], c = m.indices[i + 2];
-    const glm::vec3 e1 = m.positions[b] - m.positions[a], e2 = m.positions[c] - m.positions[a];
-    const glm::vec2 d1 = uv[b] - uv[a], d2 = uv[c] - uv[a];
-    const float det = d1.x * d2.y - d2.x * d1.y;
-    if (!(std::abs(det) > 1e-20f) || !std::isfinite(det)) continue;
-    // Scaled by |det| (twice the UV area) times the triangle's own weight: dP/du * area.
-    const float sign = det > 0 ? 1.0f : -1.0f;
-    const glm::vec3 t = (e1 * d2.y - e2 * d1.y) * sign, bt = (e2 * d1.x - e1 * d2.x) * sign;
-    for (const std::uint32_t v : {a, b, c}) {
-      tan[v] += t;
-      bitan[v] += bt;
-    }
-  }
-  std::vector<glm::vec4> out(m.positions.size(), glm::vec4(1, 0, 0, 1));
-  for (std::size_t v = 0; v < out.size(); ++v) {
-    const glm::vec3 n = m.normals[v];
-    glm::vec3 t = tan[v] - n * glm::dot(n, tan[v]);
-    const float len = glm::length(t);
-    if (!(len > 1e-20f) || !std::isfinite(len)) continue;  // no UV gradient: any tangent will do
-    t /= len;
-    // The bitangent points up the image, towards decreasing v (glTF's normal maps: +Y up).
-    out[v] = glm::vec4(t, glm::dot(glm::cross(n, t), bitan[v]) > 0 ? -1.0f : 1.0f);
-  }
-  return out;
-}
-
 // The primitive as a fovea Mesh with all its attributes; tangents generated from TEXCOORD_n when
 // `tangent_set` is n and the file has none.
 std::shared_ptr<const Mesh> to_mesh(const gltf::Asset& a, std::uint32_t mesh, std::uint32_t prim,
@@ -116,7 +83,7 @@ std::shared_ptr<const Mesh> to_mesh(const gltf::Asset& a, std::uint32_t mesh, st
   m.colors = p.colors;
   m.tangents = p.tangents;
   if (m.tangents.empty() && tangent_set && m.texcoords(*tangent_set).size() == m.positions.size()) {
-    m.tangents = generate_tangents(m, m.texcoords(*tangent_set));
+    generate_mikktspace_tangents(m, *tangent_set);  // may split vertices at mirrored UV seams
   }
   if (!all_finite(m)) {
     throw SceneError(a.source + ": $.meshes[" + std::to_string(mesh) + "].primitives[" + std::to_string(prim) +

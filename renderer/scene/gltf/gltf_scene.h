@@ -14,7 +14,8 @@
 //   materials  MetallicRoughness with the file's factors, textures (decoded by gltf_textures.h;
 //              a missing or broken image is a warning and the factor alone), alpha mode and
 //              double-sidedness; BLEND is drawn as MASK at 0.5. Tangents the file lacks are
-//              generated for normal-mapped primitives (generate_tangents: Lengyel, not MikkTSpace).
+//              generated for normal-mapped primitives by MikkTSpace's rules (scene/tangents.h),
+//              which splits a vertex whose corners lie on both sides of a mirrored UV seam.
 //   camera     the first perspective camera node (or options.camera_name), else one framing the
 //              scene's bounds from +Z.
 //   lights     KHR_lights_punctual point and spot with Phi = 4 pi I colour (the file's units taken
