@@ -9,15 +9,25 @@
 //   area      full screen against a 20 deg gaze area like Table 9.16
 //   accuracy  relative RMSE inside the gaze area against a many-photon traditional reference, against
 //             ms per frame, per strategy, photon count and estimate (CSV; bench/plot_gi.py plots it)
+//   radius    the gaze area's size against photons: the hybrid image against a full-screen reference,
+//             errors weighted by the eye's resolution at each pixel's eccentricity
+//
+// The scene is cornell.json (the thesis's test room) with the gaze on its sphere. --scene FILE (a
+// JSON or glTF scene) replaces it in stages, area, accuracy and radius, so that the tables can be
+// had on a textured, many-object scene too; density compares cornell's variants and refuses one.
+// --gaze X,Y moves the gaze (normalized screen coordinates, origin top left; default with --scene:
+// the centre, as nothing tells where a viewer of an arbitrary scene looks).
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -76,6 +86,21 @@ glm::vec2 gaze_on_sphere(const Scene& s) {
   const glm::vec3 c = s.objects.back().transform.translation;
   const glm::vec4 clip = s.camera.projection() * s.camera.view_at(0) * glm::vec4(c, 1.0f);
   return {0.5f * (clip.x / clip.w + 1.0f), 0.5f * (1.0f - clip.y / clip.w)};
+}
+
+// --gaze's "X,Y": two finite numbers in [0, 1]; nothing if the text is not that.
+std::optional<glm::vec2> parse_gaze(const std::string& text) {
+  const std::vector<std::string> xy = split(text);
+  if (std::count(text.begin(), text.end(), ',') != 1 || xy.size() != 2) return std::nullopt;
+  glm::vec2 g(0.0f);
+  for (glm::length_t i = 0; i < 2; ++i) {
+    const char* begin = xy[static_cast<std::size_t>(i)].c_str();
+    char* end = nullptr;
+    const double v = std::strtod(begin, &end);
+    if (end == begin || *end != '\0' || !std::isfinite(v) || v < 0 || v > 1) return std::nullopt;
+    g[i] = static_cast<float>(v);
+  }
+  return g;
 }
 
 struct Run {
@@ -156,14 +181,25 @@ double csf_weighted_relative_rmse(const std::vector<glm::vec3>& a, const std::ve
 
 int main(int argc, char** argv) {
   CLI::App app{"Gaze-directed hybrid rendering with photon mapping: per-stage times, photons in the gaze area, "
-               "full screen against the gaze area, and accuracy against a converged reference"};
+               "full screen against the gaze area, accuracy against a converged reference, and the gaze area's size "
+               "against photons; on cornell.json or a given scene"};
   std::string sections = "stages,density,area,accuracy,radius", sizes_text = "320x240,640x480,1024x768", csv_dir;
+  std::string scene_file, gaze_text;
   std::uint32_t photons = 40000, reference_photons = 2000000;
   int frames = 6;
-  app.add_option("--sections", sections, "comma-separated: stages,density,area,accuracy,radius");
+  CLI::Option* sections_option =
+      app.add_option("--sections", sections,
+                     "comma-separated: stages,density,area,accuracy,radius (with --scene the default leaves density "
+                     "out)");
+  app.add_option("--scene", scene_file,
+                 "a scene file (.json, .gltf, .glb) instead of cornell.json's diffuse variant in stages, area, "
+                 "accuracy and radius (density compares cornell's variants: not with --scene)");
+  app.add_option("--gaze", gaze_text,
+                 "the gaze point X,Y in normalized screen coordinates (0..1, origin top left); default: the centre "
+                 "with --scene, else cornell's sphere");
   app.add_option("--sizes", sizes_text, "image sizes of the stages section, WxH comma-separated");
   app.add_option("--photons", photons, "stored photons per frame (maxPhotons)")->check(CLI::Range(100u, 10000000u));
-  app.add_option("--reference-photons", reference_photons, "photons of the accuracy section's reference")
+  app.add_option("--reference-photons", reference_photons, "photons of the accuracy and radius sections' references")
       ->check(CLI::Range(1000u, 100000000u));
   app.add_option("--frames", frames, "frames per measurement (the first 2 warm the gaze-directed map up)")
       ->check(CLI::Range(3, 100));
@@ -179,13 +215,62 @@ int main(int argc, char** argv) {
     }
     sizes.push_back({w, h});
   }
+  // density's three scenes are cornell's variants; a given scene has no such variants, so only the
+  // sections that take one scene run on it.
+  if (!scene_file.empty() && sections_option->count() == 0) sections = "stages,area,accuracy,radius";
   const std::vector<std::string> wanted = split(sections);
   for (const std::string& w : wanted) {
     if (w != "stages" && w != "density" && w != "area" && w != "accuracy" && w != "radius") {
       std::fprintf(stderr, "--sections: '%s' is not one of stages, density, area, accuracy, radius\n", w.c_str());
       return 2;
     }
+    if (w == "density" && !scene_file.empty()) {
+      std::fprintf(stderr, "--sections density compares cornell.json's diffuse, specular and indirect variants: it "
+                           "does not run with --scene\n");
+      return 2;
+    }
   }
+  std::optional<glm::vec2> gaze_point;
+  if (!gaze_text.empty() && !(gaze_point = parse_gaze(gaze_text))) {
+    std::fprintf(stderr, "--gaze: '%s' is not X,Y with X and Y finite numbers in [0, 1]\n", gaze_text.c_str());
+    return 2;
+  }
+  // Loaded once: a glTF scene's parse and texture decoding cost far more than a section's setup.
+  std::optional<Scene> user_scene;
+  if (!scene_file.empty()) {
+    try {
+      user_scene = load_scene(scene_file);
+    } catch (const SceneError& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      return 2;
+    }
+  }
+  const std::string scene_name = user_scene ? fs::path(scene_file).filename().string() : "cornell.json (diffuse)";
+  // The scene of stages, area, accuracy and radius at `size`, with make_scene's changes to a given
+  // one too, so that its numbers compare with cornell's.
+  const auto bench_scene = [&](Size size) {
+    if (!user_scene) return make_scene("diffuse", size);
+    Scene s = *user_scene;
+    s.camera.width = size.w;
+    s.camera.height = size.h;
+    s.ambient = glm::vec3(0.0f);
+    return s;
+  };
+  // Nothing says where a viewer of a given scene looks: the centre, unless --gaze says.
+  const auto gaze_in = [&](const Scene& s) {
+    return gaze_point ? *gaze_point : user_scene ? glm::vec2(0.5f) : gaze_on_sphere(s);
+  };
+  // A section header's ", gaze (X, Y)". The sphere's place on the screen follows the image's
+  // aspect: without `s` (sizes of several aspects), its coordinates are left out.
+  const auto gaze_note = [&](const Scene* s) {
+    char xy[64] = "";
+    if (s != nullptr || gaze_point || user_scene) {
+      const glm::vec2 g = s != nullptr ? gaze_in(*s) : gaze_point ? *gaze_point : glm::vec2(0.5f);
+      std::snprintf(xy, sizeof xy, " (%.2f, %.2f)", static_cast<double>(g.x), static_cast<double>(g.y));
+    }
+    return std::string(", gaze") + (!gaze_point && !user_scene ? " on the sphere" : "") + xy;
+  };
+  const auto on_scene = [&](const Scene* s) { return " on " + scene_name + gaze_note(s); };
   const auto section = [&](const char* name) { return std::find(wanted.begin(), wanted.end(), name) != wanted.end(); };
   if (!csv_dir.empty()) fs::create_directories(csv_dir);
   const auto csv = [&](const std::string& name) {
@@ -214,16 +299,21 @@ int main(int argc, char** argv) {
   };
 
   if (section("stages")) {
-    std::printf("== per-stage ms (Tables 9.13-9.15), diffuse scene, 20 deg gaze area on the sphere, %u photons\n", photons);
+    const bool one_aspect = std::all_of(sizes.begin(), sizes.end(), [&](Size z) {
+      return std::uint64_t{z.w} * sizes.front().h == std::uint64_t{z.h} * sizes.front().w;
+    });
+    const Scene first = bench_scene(sizes.front());
+    std::printf("== per-stage ms (Tables 9.13-9.15), 20 deg gaze area, %u photons%s\n", photons,
+                on_scene(one_aspect ? &first : nullptr).c_str());
     std::printf("%-10s %-26s %-11s %8s %8s %8s %8s %8s %8s %8s %8s\n", "size", "strategy", "estimate", "stored",
                 "in_area", "photons", "index", "precomp", "render", "compose", "total");
     std::ofstream out = csv("gi_stages.csv");
     if (out) out << "size,strategy,estimate,photons_stored,area_photons,photons_ms,index_ms,precompute_ms,render_ms,composite_ms,total_ms,gbuffer_ms,area_pixels\n";
     for (Size size : sizes) {
-      const Scene scene = make_scene("diffuse", size);
+      const Scene scene = bench_scene(size);
       double gbuffer_ms = 0;
       const std::vector<glm::vec3> local = local_image(scene, &gbuffer_ms);
-      const gi::GazeArea area = gi::gaze_area(scene.display, size.w, size.h, gaze_on_sphere(scene), 20.0);
+      const gi::GazeArea area = gi::gaze_area(scene.display, size.w, size.h, gaze_in(scene), 20.0);
       std::size_t trad_area = 0, gaze_area_photons = 0;
       const auto row = [&](const std::string& name, gi::GiPassSettings s) {
         s.count_area_photons = true;
@@ -257,7 +347,9 @@ int main(int argc, char** argv) {
   }
 
   if (section("density")) {
-    std::printf("\n== photons in the gaze area (Tables 9.9-9.10), 640x480, %u photons stored, after %d frames\n", photons, frames);
+    const Scene diffuse = make_scene("diffuse", {640, 480});  // the variants share its camera and sphere
+    std::printf("\n== photons in the gaze area (Tables 9.9-9.10), 640x480, %u photons stored, after %d frames, on "
+                "cornell.json's variants%s\n", photons, frames, gaze_note(&diffuse).c_str());
     std::printf("%-9s %5s %-14s %10s %10s %9s\n", "scene", "deg", "strategy", "in_area", "used", "gain_%");
     std::ofstream out = csv("gi_density.csv");
     if (out) out << "scene,area_deg,strategy,area_photons,photons_used,gain_percent\n";
@@ -265,7 +357,7 @@ int main(int argc, char** argv) {
       const Scene scene = make_scene(kind, {640, 480});
       const std::vector<glm::vec3> local = local_image(scene, nullptr);
       for (double deg : {5.0, 10.0, 20.0}) {
-        const gi::GazeArea area = gi::gaze_area(scene.display, 640, 480, gaze_on_sphere(scene), deg);
+        const gi::GazeArea area = gi::gaze_area(scene.display, 640, 480, gaze_in(scene), deg);
         double trad = 0;
         for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected, gi::Strategy::Importon}) {
           gi::GiPassSettings s = base_settings(st, gi::IndirectEstimate::Nearest);
@@ -289,13 +381,14 @@ int main(int argc, char** argv) {
   }
 
   if (section("area")) {
-    std::printf("\n== full screen against a 20 deg gaze area (Table 9.16), 640x480 diffuse, %u photons\n", photons);
+    const Scene scene = bench_scene({640, 480});
+    std::printf("\n== full screen against a 20 deg gaze area (Table 9.16), 640x480, %u photons%s\n", photons,
+                on_scene(&scene).c_str());
     std::printf("%-14s %-11s %-12s %10s %10s %10s\n", "strategy", "estimate", "area", "pixels", "render_ms", "total_ms");
     std::ofstream out = csv("gi_area.csv");
     if (out) out << "strategy,estimate,area,pixels,render_ms,total_ms\n";
-    const Scene scene = make_scene("diffuse", {640, 480});
     const std::vector<glm::vec3> local = local_image(scene, nullptr);
-    const gi::GazeArea gaze = gi::gaze_area(scene.display, 640, 480, gaze_on_sphere(scene), 20.0);
+    const gi::GazeArea gaze = gi::gaze_area(scene.display, 640, 480, gaze_in(scene), 20.0);
     const gi::GazeArea full{{320.0f, 240.0f}, 401.0f};
     for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected})
       for (gi::IndirectEstimate est : {gi::IndirectEstimate::Nearest, gi::IndirectEstimate::Precomputed})
@@ -316,11 +409,11 @@ int main(int argc, char** argv) {
   }
 
   if (section("accuracy")) {
-    const Scene scene = make_scene("diffuse", {640, 480});
+    const Scene scene = bench_scene({640, 480});
     const std::vector<glm::vec3> local = local_image(scene, nullptr);
-    const gi::GazeArea area = gi::gaze_area(scene.display, 640, 480, gaze_on_sphere(scene), 20.0);
-    std::printf("\n== relative RMSE in the 20 deg gaze area against traditional photon mapping with %u photons, 640x480\n",
-                reference_photons);
+    const gi::GazeArea area = gi::gaze_area(scene.display, 640, 480, gaze_in(scene), 20.0);
+    std::printf("\n== relative RMSE in the 20 deg gaze area against traditional photon mapping with %u photons, 640x480%s\n",
+                reference_photons, on_scene(&scene).c_str());
     gi::GiPassSettings ref = base_settings(gi::Strategy::Traditional, gi::IndirectEstimate::Nearest);
     ref.photons = reference_photons;
     gi::GiPass ref_pass;
@@ -329,6 +422,8 @@ int main(int argc, char** argv) {
     const Run reference = run_frames(ref_pass, scene, area, ref, local, 1, 0);
     std::printf("reference: %zu photons, %.1f s\n", reference.last.photons,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    // A scene whose lights store few or no photons gives errors against a black reference: say so.
+    if (!reference.last.note.empty()) std::printf("reference: %s\n", reference.last.note.c_str());
     std::printf("%-14s %-11s %8s %10s %10s\n", "strategy", "estimate", "photons", "ms/frame", "rel_rmse");
     std::ofstream out = csv("gi_accuracy.csv");
     if (out) out << "strategy,estimate,photons,ms_per_frame,relative_rmse,reference_photons\n";
@@ -352,19 +447,21 @@ int main(int argc, char** argv) {
     // outside) against a full-screen reference, errors weighted by the eye's resolution at each
     // pixel's eccentricity (the governor trades gi.gaze_area_deg against gi.photons on this). The
     // raster side keeps the scene's ambient term outside the area, as fovea-render's does.
-    Scene scene = make_scene("diffuse", {640, 480});
-    scene.ambient = load_scene(std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/cornell.json").ambient;
+    Scene scene = bench_scene({640, 480});
+    scene.ambient =
+        user_scene ? user_scene->ambient : load_scene(std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/cornell.json").ambient;
     const std::vector<glm::vec3> local = local_image(scene, nullptr);
-    const glm::vec2 gaze = gaze_on_sphere(scene);
+    const glm::vec2 gaze = gaze_in(scene);
     const gi::GazeArea full{{320.0f, 240.0f}, 401.0f};
     std::printf("\n== gaze-area size against photons: CSF-weighted relative RMSE over the image against a full-screen "
-                "traditional map with %u photons, 640x480\n", reference_photons);
+                "traditional map with %u photons, 640x480%s\n", reference_photons, on_scene(&scene).c_str());
     gi::GiPassSettings ref = base_settings(gi::Strategy::Traditional, gi::IndirectEstimate::Nearest);
     ref.photons = reference_photons;
     ref.fovea = 1.0f;
     gi::GiPass ref_pass;
     ref_pass.set_scene(scene);
     const Run reference = run_frames(ref_pass, scene, full, ref, local, 1, 0);
+    if (!reference.last.note.empty()) std::printf("reference: %s\n", reference.last.note.c_str());
     std::printf("%-14s %-11s %8s %8s %10s %10s %10s\n", "strategy", "estimate", "photons", "area", "ms/frame", "csf_rmse",
                 "area_rmse");
     std::ofstream out = csv("gi_radius.csv");
