@@ -184,7 +184,7 @@ int main(int argc, char** argv) {
                "full screen against the gaze area, accuracy against a converged reference, and the gaze area's size "
                "against photons; on cornell.json or a given scene"};
   std::string sections = "stages,density,area,accuracy,radius", sizes_text = "320x240,640x480,1024x768", csv_dir;
-  std::string scene_file, gaze_text;
+  std::string scene_file, gaze_text, radii_text = "0.3";
   std::uint32_t photons = 40000, reference_photons = 2000000;
   int frames = 6;
   CLI::Option* sections_option =
@@ -203,8 +203,26 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1000u, 100000000u));
   app.add_option("--frames", frames, "frames per measurement (the first 2 warm the gaze-directed map up)")
       ->check(CLI::Range(3, 100));
+  app.add_option("--nn-radii", radii_text,
+                 "the accuracy section's radiance-estimate radii in metres (gi.nn_radius), comma-separated: Table 8.3's "
+                 "0.3 m suits a 2 m room, a larger scene's photons lie further apart; the reference uses the smallest");
   app.add_option("--csv-dir", csv_dir, "write one CSV per section into this directory");
   CLI11_PARSE(app, argc, argv);
+
+  std::vector<float> radii;
+  for (const std::string& t : split(radii_text)) {
+    char* end = nullptr;
+    const double r = std::strtod(t.c_str(), &end);
+    if (end == t.c_str() || *end != '\0' || !(r >= 1e-4) || !(r <= 1000)) {
+      std::fprintf(stderr, "--nn-radii: '%s' is not a radius in [0.0001, 1000] m\n", t.c_str());
+      return 2;
+    }
+    radii.push_back(static_cast<float>(r));
+  }
+  if (radii.empty()) {
+    std::fprintf(stderr, "--nn-radii: no radius given\n");
+    return 2;
+  }
 
   std::vector<Size> sizes;
   for (const std::string& t : split(sizes_text)) {
@@ -416,31 +434,37 @@ int main(int argc, char** argv) {
                 reference_photons, on_scene(&scene).c_str());
     gi::GiPassSettings ref = base_settings(gi::Strategy::Traditional, gi::IndirectEstimate::Nearest);
     ref.photons = reference_photons;
+    // The many-photon reference finds its nearest photons close by: the smallest radius biases it least.
+    ref.render.estimate.max_radius = *std::min_element(radii.begin(), radii.end());
     gi::GiPass ref_pass;
     ref_pass.set_scene(scene);
     const auto t0 = std::chrono::steady_clock::now();
     const Run reference = run_frames(ref_pass, scene, area, ref, local, 1, 0);
-    std::printf("reference: %zu photons, %.1f s\n", reference.last.photons,
+    std::printf("reference: %zu photons, radius %.3g m, %.1f s\n", reference.last.photons, static_cast<double>(ref.render.estimate.max_radius),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     // A scene whose lights store few or no photons gives errors against a black reference: say so.
     if (!reference.last.note.empty()) std::printf("reference: %s\n", reference.last.note.c_str());
-    std::printf("%-14s %-11s %8s %10s %10s\n", "strategy", "estimate", "photons", "ms/frame", "rel_rmse");
+    std::printf("%-14s %-11s %8s %8s %10s %10s\n", "strategy", "estimate", "photons", "radius_m", "ms/frame", "rel_rmse");
     std::ofstream out = csv("gi_accuracy.csv");
-    if (out) out << "strategy,estimate,photons,ms_per_frame,relative_rmse,reference_photons\n";
-    for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected, gi::Strategy::Importon})
-      for (gi::IndirectEstimate est : {gi::IndirectEstimate::Nearest, gi::IndirectEstimate::Precomputed})
-        for (std::uint32_t n : {5000u, 10000u, 20000u, 40000u, 80000u}) {
-          gi::GiPassSettings s = base_settings(st, est);
-          s.photons = n;
-          gi::GiPass pass;
-          pass.set_scene(scene);
-          const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
-          const double e = relative_rmse(r.gi, reference.gi, area, 640);
-          const char* en = est == gi::IndirectEstimate::Nearest ? "nearest" : "precomputed";
-          std::printf("%-14s %-11s %8u %10.1f %10.4f\n", gi::to_string(st), en, n, r.total_ms, e);
-          std::fflush(stdout);
-          if (out) out << gi::to_string(st) << "," << en << "," << n << "," << r.total_ms << "," << e << "," << reference_photons << "\n";
-        }
+    if (out) out << "strategy,estimate,photons,ms_per_frame,relative_rmse,reference_photons,nn_radius_m\n";
+    for (const float radius : radii)
+      for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected, gi::Strategy::Importon})
+        for (gi::IndirectEstimate est : {gi::IndirectEstimate::Nearest, gi::IndirectEstimate::Precomputed})
+          for (std::uint32_t n : {5000u, 10000u, 20000u, 40000u, 80000u}) {
+            gi::GiPassSettings s = base_settings(st, est);
+            s.photons = n;
+            s.render.estimate.max_radius = radius;
+            gi::GiPass pass;
+            pass.set_scene(scene);
+            const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
+            const double e = relative_rmse(r.gi, reference.gi, area, 640);
+            const char* en = est == gi::IndirectEstimate::Nearest ? "nearest" : "precomputed";
+            std::printf("%-14s %-11s %8u %8.3g %10.1f %10.4f\n", gi::to_string(st), en, n, static_cast<double>(radius), r.total_ms, e);
+            std::fflush(stdout);
+            if (out)
+              out << gi::to_string(st) << "," << en << "," << n << "," << r.total_ms << "," << e << "," << reference_photons
+                  << "," << radius << "\n";
+          }
   }
   if (section("radius")) {
     // The gaze area's size against photons: the hybrid image (GI in the area, local illumination
