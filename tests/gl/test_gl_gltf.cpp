@@ -65,6 +65,18 @@ TEST(GlGltf, AMirroredSeamUnderANormalMapTiltsEachHalfItsOwnWay) {
   expect_mirrored_seam(s.camera, render(BackendKind::OpenGL, s), render(BackendKind::OpenGL, without_normal_maps(s)));
 }
 
+// Single-sided materials are back-face culled, with the winding a mirroring node turns round.
+TEST(GlGltf, SingleSidedBackFacesAreCulled) {
+  TempDir dir;
+  const GltfSidedQuads quads;
+  const Scene s = load_scene(write_gltf(dir.path, "sided", quads.doc(), quads.bin()),
+                             {{"camera.width", "192"}, {"camera.height", "128"}});
+  expect_sided_quads(s.camera, render(BackendKind::OpenGL, s));
+  BackendSettings prepass;
+  prepass.depth_prepass = true;
+  expect_sided_quads(s.camera, render(BackendKind::OpenGL, s, prepass));
+}
+
 // The two backends shade the same textures with the same BRDF: the images agree wherever both see
 // the same object (texture filtering differs by design: derivatives against ray cones, and the
 // GPU's filtering precision).

@@ -218,6 +218,71 @@ inline void expect_mirrored_seam(const render::Camera& cam, const render::GBuffe
   }
 }
 
+// Single- and double-sided materials (glTF 2.0 §3.9.6: a single-sided material's back faces are
+// culled; a node whose world matrix has a negative determinant turns the winding round). Unit quads
+// 1.2 apart, the camera node at z = 4 looking down -Z:
+//   top row     "front"        counter-clockwise towards the camera, single-sided: drawn
+//               "back"         clockwise towards the camera (its back), single-sided: culled
+//               "back_double"  the same back, double-sided: drawn
+//   bottom row  "mirrored"     "front" under scale (-1, 1, 1): clockwise on screen, yet its front
+struct GltfSidedQuads {
+  static glm::vec3 centre(int quad) {
+    return {1.2f * static_cast<float>(quad % 3 - 1), quad < 3 ? 0.6f : -0.6f, 0.0f};
+  }
+  GltfBin bin() const {
+    GltfBin b;
+    b.add(std::vector<glm::vec3>{{-0.5f, -0.5f, 0}, {0.5f, -0.5f, 0}, {0.5f, 0.5f, 0}, {-0.5f, 0.5f, 0}});
+    b.add(std::vector<glm::vec3>(4, glm::vec3(0, 0, 1)));
+    b.add(std::vector<glm::vec3>(4, glm::vec3(0, 0, -1)));
+    b.add(std::vector<std::uint16_t>{0, 1, 2, 0, 2, 3});
+    b.add(std::vector<std::uint16_t>{0, 2, 1, 0, 3, 2});
+    return b;
+  }
+  GltfJson doc() const {
+    GltfJson d = {{"asset", {{"version", "2.0"}}}};
+    d["extensionsUsed"] = GltfJson::array({"KHR_lights_punctual"});
+    d["extensions"] = GltfJson::parse(
+        R"({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 40, "color": [1, 1, 1]}]}})");
+    d["accessors"] = GltfJson::parse(R"([
+        {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-0.5, -0.5, 0], "max": [0.5, 0.5, 0]},
+        {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+        {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3"},
+        {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"},
+        {"bufferView": 4, "componentType": 5123, "count": 6, "type": "SCALAR"}])");
+    d["materials"] = GltfJson::parse(R"([{"name": "single", "pbrMetallicRoughness": {"metallicFactor": 0}},
+        {"name": "double", "doubleSided": true, "pbrMetallicRoughness": {"metallicFactor": 0}}])");
+    d["meshes"] = GltfJson::parse(R"([
+        {"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 3, "material": 0}]},
+        {"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 2}, "indices": 4, "material": 0}]},
+        {"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 2}, "indices": 4, "material": 1}]}])");
+    d["cameras"] = GltfJson::parse(R"([{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 20}}])");
+    GltfJson nodes = GltfJson::array();
+    const char* names[4] = {"front", "back", "back_double", "mirrored"};
+    const int meshes[4] = {0, 1, 2, 0};
+    for (int k = 0; k < 4; ++k) {
+      const glm::vec3 c = centre(k == 3 ? 3 : k);
+      nodes.push_back({{"name", names[k]}, {"mesh", meshes[k]}, {"translation", {c.x, c.y, c.z}}});
+    }
+    nodes[3]["scale"] = {-1, 1, 1};
+    nodes.push_back({{"name", "eye"}, {"camera", 0}, {"translation", {0, 0, 4}}});
+    nodes.push_back({{"name", "lamp"}, {"translation", {0, 0, 3}}, {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+    d["nodes"] = nodes;
+    d["scenes"] = GltfJson::parse(R"([{"nodes": [0, 1, 2, 3, 4, 5]}])");
+    d["scene"] = 0;
+    return d;
+  }
+};
+
+// What each quad of GltfSidedQuads shows: the culled back none, every other quad itself.
+inline void expect_sided_quads(const render::Camera& cam, const render::GBuffer& g) {
+  const char* names[4] = {"front (single-sided)", "back (single-sided)", "back (double-sided)", "mirrored front"};
+  for (int k = 0; k < 4; ++k) {
+    const std::uint32_t id = g.object_id[pixel_of(cam, g, GltfSidedQuads::centre(k))];
+    if (k == 1) EXPECT_EQ(id, 0u) << names[k] << ": a single-sided material's back face is culled";
+    else EXPECT_NE(id, 0u) << names[k] << " must be drawn";
+  }
+}
+
 // The scene with every normal map removed.
 inline render::Scene without_normal_maps(render::Scene s) {
   for (render::Material& m : s.materials) m.pbr.normal_texture.reset();

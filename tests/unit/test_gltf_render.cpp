@@ -100,6 +100,25 @@ TEST(GltfRender, AMirroredSeamUnderANormalMapTiltsEachHalfItsOwnWay) {
   expect_mirrored_seam(s.camera, render(s), render(without_normal_maps(s)));
 }
 
+// Single-sided materials are back-face culled, with the winding a mirroring node turns round.
+TEST(GltfRender, SingleSidedBackFacesAreCulled) {
+  TempDir dir;
+  const GltfSidedQuads quads;
+  const Scene s = load_scene(write_gltf(dir.path, "sided", quads.doc(), quads.bin()),
+                             {{"camera.width", "192"}, {"camera.height", "128"}});
+  expect_sided_quads(s.camera, render(s));
+  EmbreeOptions instanced;
+  instanced.geometry = EmbreeGeometry::Instanced;
+  EmbreeBackend b(instanced);
+  b.set_scene(s);
+  GBuffer g;
+  b.render(FrameTime{}, BackendSettings{}, g);
+  expect_sided_quads(s.camera, g);
+  // Culling is the camera's: a shadow ray still meets the culled quad's back.
+  SurfaceHit hit;
+  EXPECT_TRUE(b.intersect({0, 0.6f, 4}, {0, 0, -1}, 0, 10, RayVisibility::All, hit));
+}
+
 namespace {
 
 std::filesystem::path write_json(const std::filesystem::path& dir, const std::string& name, const std::string& text) {

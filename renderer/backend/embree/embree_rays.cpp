@@ -84,6 +84,7 @@ void trace_single(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_
                   std::uint32_t y1, TileHits& hits) {
   RTCIntersectContext ic;
   rtcInitIntersectContext(&ic);
+  cull_back_faces(ic, scene);  // the camera sees single-sided materials from the front only
   ic.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   for (std::uint32_t y = y0; y < y1; ++y) {
     for (std::uint32_t x = x0; x < x1; ++x) {
@@ -103,6 +104,7 @@ void trace_packets(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32
   using P = Packet<N>;
   RTCIntersectContext ic;
   rtcInitIntersectContext(&ic);
+  cull_back_faces(ic, scene);  // the camera sees single-sided materials from the front only
   ic.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   for (std::uint32_t by = y0; by < y1; by += P::bh) {
     for (std::uint32_t bx = x0; bx < x1; bx += P::bw) {
@@ -144,6 +146,7 @@ void trace_stream(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_
                   std::uint32_t y1, TileHits& hits) {
   RTCIntersectContext ic;
   rtcInitIntersectContext(&ic);
+  cull_back_faces(ic, scene);  // the camera sees single-sided materials from the front only
   ic.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   std::array<RTCRayHit, kTile * kTile> rh{};
   unsigned count = 0;
@@ -171,6 +174,7 @@ void trace_peeled(RTCScene scene, const Frame& f, std::uint32_t x0, std::uint32_
                   std::uint32_t y1, bool instanced, std::uint32_t peel, TileHits& hits) {
   RTCIntersectContext ic;
   rtcInitIntersectContext(&ic);
+  cull_back_faces(ic, scene);  // the camera sees single-sided materials from the front only
   for (std::uint32_t y = y0; y < y1; ++y) {
     for (std::uint32_t x = x0; x < x1; ++x) {
       Hit out;  // miss unless another object is found

@@ -78,10 +78,10 @@ RTCGeometry new_triangle_geometry(RTCDevice device, const PreparedMesh& mesh) {
   return g;
 }
 
-// Embree's filter for AlphaTest: a hit whose alpha is below the cutoff is no hit.
+// Embree's filter for an alpha test: a hit whose alpha is below the cutoff is no hit.
 void alpha_filter(const RTCFilterFunctionNArguments* args) {
-  const auto* test = static_cast<const AlphaTest*>(args->geometryUserPtr);
-  if (test == nullptr) return;
+  const auto* test = static_cast<const HitFilter*>(args->geometryUserPtr);
+  if (test == nullptr || !test->alpha_tested) return;
   const PreparedMesh& m = *test->mesh;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
@@ -93,10 +93,26 @@ void alpha_filter(const RTCFilterFunctionNArguments* args) {
     for (std::uint32_t set = 0; set < 2; ++set) {
       const auto& tc = m.texcoords[set];
       if (!tc.empty()) point.uv[set] = w * tc[idx[0]] + u * tc[idx[1]] + v * tc[idx[2]];
-      point.lod[set] = -1e30f;  // the base level (see AlphaTest)
+      point.lod[set] = -1e30f;  // the base level (see HitFilter)
     }
     if (!m.colors.empty()) point.color = w * m.colors[idx[0]] + u * m.colors[idx[1]] + v * m.colors[idx[2]];
     if (pbr_alpha(*test->scene, *test->material, point) < test->material->alpha_cutoff) args->valid[i] = 0;
+  }
+}
+
+// The camera's context filter: a hit on the back of a single-sided triangle is no hit. Embree's
+// geometry normal Ng points to the side from which the triangle's vertices run counter-clockwise
+// (glTF's and OpenGL's front), so a front face has Ng against the ray and a back face along it.
+void back_face_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* f = static_cast<const HitFilter*>(args->geometryUserPtr);
+  if (f == nullptr || !f->single_sided) return;
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const glm::vec3 ng(RTCHitN_Ng_x(args->hit, args->N, i), RTCHitN_Ng_y(args->hit, args->N, i),
+                       RTCHitN_Ng_z(args->hit, args->N, i));
+    const glm::vec3 d(RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
+                      RTCRayN_dir_z(args->ray, args->N, i));
+    if (f->front_sign * glm::dot(ng, d) > 0.0f) args->valid[i] = 0;
   }
 }
 
@@ -109,22 +125,39 @@ bool invertible(const glm::mat4& m) {
 
 namespace embree_detail {
 
-void set_alpha_test(RTCGeometry g, const AlphaTest* test) {
-  rtcSetGeometryUserData(g, const_cast<AlphaTest*>(test));
+void set_hit_filter(RTCGeometry g, const HitFilter* filter) {
+  rtcSetGeometryUserData(g, const_cast<HitFilter*>(filter));
+  if (!filter->alpha_tested) return;
   rtcSetGeometryIntersectFilterFunction(g, &alpha_filter);
   rtcSetGeometryOccludedFilterFunction(g, &alpha_filter);
+}
+
+void cull_back_faces(RTCIntersectContext& context, RTCScene scene) {
+  // Embree refuses (asserts on) a context filter in a scene built without the flag.
+  if ((rtcGetSceneFlags(scene) & RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION) != 0) context.filter = &back_face_filter;
 }
 
 }  // namespace embree_detail
 
 namespace {
 
-// The filter's data for a mesh drawn with an alpha-tested material (owned by `im`); null when the
-// material is opaque.
-const AlphaTest* alpha_test_for(EmbreeBackend::Impl& im, const Material& m, const PreparedMesh& mesh) {
-  if (m.type != MaterialType::MetallicRoughness || !m.pbr.alpha_tested()) return nullptr;
-  im.alpha_tests.push_back(std::make_unique<AlphaTest>(AlphaTest{&im.scene, &m.pbr, &mesh}));
-  return im.alpha_tests.back().get();
+bool single_sided(const Material& m) { return m.type == MaterialType::MetallicRoughness && !m.pbr.double_sided; }
+bool alpha_tested(const Material& m) { return m.type == MaterialType::MetallicRoughness && m.pbr.alpha_tested(); }
+
+// The filter data for a mesh drawn with material `m` (owned by `im`); null when it needs none.
+const HitFilter* hit_filter_for(EmbreeBackend::Impl& im, const Material& m, const PreparedMesh& mesh, float front_sign) {
+  if (!alpha_tested(m) && !single_sided(m)) return nullptr;
+  im.hit_filters.push_back(
+      std::make_unique<HitFilter>(HitFilter{&im.scene, &m.pbr, &mesh, alpha_tested(m), single_sided(m), front_sign}));
+  return im.hit_filters.back().get();
+}
+
+// The scene flags for `s`: a context filter when some object is single-sided (cull_back_faces).
+RTCSceneFlags filter_flags(const Scene& s) {
+  const bool any = std::any_of(s.objects.begin(), s.objects.end(), [&](const Object& o) {
+    return o.material < s.materials.size() && single_sided(s.materials[o.material]);
+  });
+  return any ? RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION : RTC_SCENE_FLAG_NONE;
 }
 
 // Instanced mode: one object-space BVH per distinct mesh, and per alpha-tested material using it
@@ -132,13 +165,14 @@ const AlphaTest* alpha_test_for(EmbreeBackend::Impl& im, const Material& m, cons
 using MeshScenes = std::map<std::pair<const PreparedMesh*, const Material*>, RTCScene>;
 RTCScene instanced_mesh_scene(EmbreeBackend::Impl& im, MeshScenes& scenes, const PreparedMesh& pm, const Material& m,
                               const std::string& object) {
-  const bool alpha_tested = m.type == MaterialType::MetallicRoughness && m.pbr.alpha_tested();
-  RTCScene& ms = scenes[{&pm, alpha_tested ? &m : nullptr}];
+  RTCScene& ms = scenes[{&pm, alpha_tested(m) || single_sided(m) ? &m : nullptr}];
   if (ms != nullptr) return ms;
   ms = rtcNewScene(im.device);
+  rtcSetSceneFlags(ms, filter_flags(im.scene));
   im.mesh_scenes.push_back(ms);
   RTCGeometry tri = new_triangle_geometry(im.device, pm);
-  if (const AlphaTest* alpha = alpha_test_for(im, m, pm)) set_alpha_test(tri, alpha);
+  // In object space the winding is the file's: a mirroring instance transform turns Ng and the ray alike.
+  if (const HitFilter* filter = hit_filter_for(im, m, pm, 1.0f)) set_hit_filter(tri, filter);
   rtcCommitGeometry(tri);
   rtcAttachGeometry(ms, tri);
   rtcReleaseGeometry(tri);
@@ -173,8 +207,9 @@ void EmbreeBackend::set_scene(const Scene& scene) {
                                         [](const Object& o) { return o.animation.has_value(); });
 
   im.top = rtcNewScene(im.device);
+  rtcSetSceneFlags(im.top, filter_flags(s));
   if (any_animated) {
-    rtcSetSceneFlags(im.top, RTC_SCENE_FLAG_DYNAMIC);
+    rtcSetSceneFlags(im.top, RTC_SCENE_FLAG_DYNAMIC | filter_flags(s));
     rtcSetSceneBuildQuality(im.top, RTC_BUILD_QUALITY_LOW);
   }
 
@@ -217,7 +252,9 @@ void EmbreeBackend::set_scene(const Scene& scene) {
         auto* vertices = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
         if (vertices != nullptr) write_world_vertices(vertices, *pm, r.committed);
         if (r.animated) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_LOW);
-        if (const AlphaTest* alpha = alpha_test_for(im, *r.material, *pm)) set_alpha_test(g, alpha);
+        // World-space vertices: a mirroring transform (negative determinant) has turned Ng round.
+        const float front = glm::determinant(glm::mat3(r.committed)) < 0 ? -1.0f : 1.0f;
+        if (const HitFilter* filter = hit_filter_for(im, *r.material, *pm, front)) set_hit_filter(g, filter);
       }
       if (emitter) rtcSetGeometryMask(g, kMaskEmitter);
       if (!r.lod_active) rtcDisableGeometry(g);

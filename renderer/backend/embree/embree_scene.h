@@ -60,18 +60,33 @@ struct PreparedMesh {
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
 
-// What an alpha-tested material's filter function reads (Embree geometry user data): MASK (and
-// BLEND) materials drop hits whose base-colour alpha is below the cutoff, for every ray, primary
-// and shadow alike. The alpha is read at the texture's base level in both backends, so a distant
-// leaf does not fade away with the mip chain's averaged alpha (it may alias instead).
-struct AlphaTest {
+// What a geometry's hit filters read (Embree geometry user data), for a material that is alpha-tested
+// or single-sided (or both):
+//  - alpha test: MASK (and BLEND) materials drop hits whose base-colour alpha is below the cutoff,
+//    for every ray, primary and shadow alike. The alpha is read at the texture's base level in both
+//    backends, so a distant leaf does not fade away with the mip chain's averaged alpha (it may alias
+//    instead).
+//  - back-face culling (glTF: a material that is not doubleSided): the camera's rays (the G-buffer,
+//    its lens samples and peeled layers, through cull_back_faces) drop hits on the back of the
+//    triangle, as the raster backend culls them; shadow rays, photons and GI paths see both sides.
+//    front_sign is +1, or -1 for a flattened object whose transform mirrors (negative determinant:
+//    glTF turns the winding round there, and the world-space geometry normal has turned with it).
+struct HitFilter {
   const Scene* scene = nullptr;
   const PbrParameters* material = nullptr;
   const PreparedMesh* mesh = nullptr;
+  bool alpha_tested = false;
+  bool single_sided = false;
+  float front_sign = 1.0f;
 };
 
-// Installs the alpha test on a triangle geometry (intersection and occlusion filters).
-void set_alpha_test(RTCGeometry g, const AlphaTest* test);
+// Installs a geometry's filter data and, for an alpha test, its intersection and occlusion filters.
+void set_hit_filter(RTCGeometry g, const HitFilter* filter);
+
+// Makes an intersect context drop back-face hits on single-sided geometry: a context filter, where
+// `scene` was built with RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION (set_scene sets it when any object
+// is single-sided; elsewhere the context is left as it is).
+void cull_back_faces(RTCIntersectContext& context, RTCScene scene);
 
 struct ObjectRecord {
   std::size_t object = 0;  // index into Impl::scene.objects
@@ -100,7 +115,7 @@ struct EmbreeBackend::Impl {
   Scene scene;
   bool has_scene = false;
   std::vector<embree_detail::ObjectRecord> records;  // one per attached object; geomID in `top` = position here
-  std::vector<std::unique_ptr<embree_detail::AlphaTest>> alpha_tests;  // user data of alpha-tested geometry
+  std::vector<std::unique_ptr<embree_detail::HitFilter>> hit_filters;  // user data of filtered geometry
   std::atomic<std::uint64_t> shadow_rays{0};
   EmbreeFrameStats stats;
 
@@ -115,10 +130,10 @@ struct EmbreeBackend::Impl {
   void release_scene() {
     records.clear();
     if (top != nullptr) rtcReleaseScene(top);
-    alpha_tests.clear();  // after the scenes that point at them
     top = nullptr;
     for (RTCScene s : mesh_scenes) rtcReleaseScene(s);
     mesh_scenes.clear();
+    hit_filters.clear();  // after the scenes that point at them
     has_scene = false;
   }
 

@@ -43,7 +43,7 @@ void begin_gbuffer_pass(GLuint fbo, std::uint32_t width, std::uint32_t height, c
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDepthMask(GL_TRUE);
-  glDisable(GL_CULL_FACE);  // surfaces are seen from both sides, as by the ray caster
+  glDisable(GL_CULL_FACE);  // surfaces are seen from both sides (draw_objects culls single-sided glTF materials)
   glDisable(GL_BLEND);
 }
 
@@ -412,6 +412,23 @@ const GlBackend::GpuMesh* GlBackend::mesh_for(std::size_t i, const std::vector<s
   return gpu.index_count == 0 ? nullptr : &gpu;
 }
 
+namespace {
+
+// Back-face culling for a single-sided glTF material (every other material is seen from both sides,
+// as by the ray caster). A transform with a negative determinant turns the winding round (glTF
+// 2.0 §3.7.4): its front faces run clockwise on screen.
+void set_culling(const Material& m, const glm::mat4& model) {
+  if (m.type != MaterialType::MetallicRoughness || m.pbr.double_sided) {
+    glDisable(GL_CULL_FACE);
+    return;
+  }
+  glEnable(GL_CULL_FACE);
+  glCullFace(GL_BACK);
+  glFrontFace(glm::determinant(glm::mat3(model)) < 0 ? GL_CW : GL_CCW);
+}
+
+}  // namespace
+
 void GlBackend::draw_objects(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                              DrawSubset subset, bool camera_moved) {
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
@@ -422,9 +439,11 @@ void GlBackend::draw_objects(const Scene& scene, const FrameTime& time, const st
     if (subset != DrawSubset::All && alpha_tested(m) != (subset == DrawSubset::AlphaTested)) continue;
     set_object_uniforms(o, m, time, camera_moved);
     set_material_textures(m);
+    set_culling(m, o.transform_at(time.now_s).matrix());
     glBindVertexArray(gpu->vao);
     glDrawElements(GL_TRIANGLES, gpu->index_count, GL_UNSIGNED_INT, nullptr);
   }
+  glDisable(GL_CULL_FACE);
 }
 
 void GlBackend::draw_depth(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
@@ -438,9 +457,11 @@ void GlBackend::draw_depth(const Scene& scene, const FrameTime& time, const std:
     if (gpu == nullptr || alpha_tested(scene.materials[scene.objects[i].material])) continue;
     const glm::mat4 model = scene.objects[i].transform_at(time.now_s).matrix();
     glUniformMatrix4fv(loc_depth_model_, 1, GL_FALSE, glm::value_ptr(model));
+    set_culling(scene.materials[scene.objects[i].material], model);
     glBindVertexArray(gpu->vao);
     glDrawElements(GL_TRIANGLES, gpu->index_count, GL_UNSIGNED_INT, nullptr);
   }
+  glDisable(GL_CULL_FACE);
   glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
 }
 
