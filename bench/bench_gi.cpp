@@ -26,6 +26,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -204,13 +205,18 @@ int main(int argc, char** argv) {
   app.add_option("--frames", frames, "frames per measurement (the first 2 warm the gaze-directed map up)")
       ->check(CLI::Range(3, 100));
   app.add_option("--nn-radii", radii_text,
-                 "the accuracy section's radiance-estimate radii in metres (gi.nn_radius), comma-separated: Table 8.3's "
+                 "the accuracy section's radiance-estimate radii in metres (gi.nn_radius), comma-separated, or auto "
+                 "(fovea-render's default: sqrt(nnn A / (pi photons)), per photon count): Table 8.3's "
                  "0.3 m suits a 2 m room, a larger scene's photons lie further apart; the reference uses the smallest");
   app.add_option("--csv-dir", csv_dir, "write one CSV per section into this directory");
   CLI11_PARSE(app, argc, argv);
 
-  std::vector<float> radii;
+  std::vector<float> radii;  // 0: auto
   for (const std::string& t : split(radii_text)) {
+    if (t == "auto") {
+      radii.push_back(0.0f);
+      continue;
+    }
     char* end = nullptr;
     const double r = std::strtod(t.c_str(), &end);
     if (end == t.c_str() || *end != '\0' || !(r >= 1e-4) || !(r <= 1000)) {
@@ -435,7 +441,11 @@ int main(int argc, char** argv) {
     gi::GiPassSettings ref = base_settings(gi::Strategy::Traditional, gi::IndirectEstimate::Nearest);
     ref.photons = reference_photons;
     // The many-photon reference finds its nearest photons close by: the smallest radius biases it least.
-    ref.render.estimate.max_radius = *std::min_element(radii.begin(), radii.end());
+    std::vector<float> given;
+    std::copy_if(radii.begin(), radii.end(), std::back_inserter(given), [](float r) { return r > 0; });
+    const double surfaces_m2 = gi::surface_area_m2(scene);
+    ref.render.estimate.max_radius = given.empty() ? gi::auto_nn_radius(surfaces_m2, ref.render.estimate.nearest, reference_photons)
+                                                   : *std::min_element(given.begin(), given.end());
     gi::GiPass ref_pass;
     ref_pass.set_scene(scene);
     const auto t0 = std::chrono::steady_clock::now();
@@ -453,17 +463,20 @@ int main(int argc, char** argv) {
           for (std::uint32_t n : {5000u, 10000u, 20000u, 40000u, 80000u}) {
             gi::GiPassSettings s = base_settings(st, est);
             s.photons = n;
-            s.render.estimate.max_radius = radius;
+            s.render.estimate.max_radius = radius > 0 ? radius : gi::auto_nn_radius(surfaces_m2, s.render.estimate.nearest, n);
             gi::GiPass pass;
             pass.set_scene(scene);
             const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
             const double e = relative_rmse(r.gi, reference.gi, area, 640);
             const char* en = est == gi::IndirectEstimate::Nearest ? "nearest" : "precomputed";
-            std::printf("%-14s %-11s %8u %8.3g %10.1f %10.4f\n", gi::to_string(st), en, n, static_cast<double>(radius), r.total_ms, e);
+            char shown[16] = "auto";
+            if (radius > 0) std::snprintf(shown, sizeof shown, "%.3g", static_cast<double>(radius));
+            std::printf("%-14s %-11s %8u %8s %10.1f %10.4f\n", gi::to_string(st), en, n, shown, r.total_ms, e);
             std::fflush(stdout);
             if (out)
               out << gi::to_string(st) << "," << en << "," << n << "," << r.total_ms << "," << e << "," << reference_photons
-                  << "," << radius << "\n";
+                  << ",";
+            if (out) (radius > 0 ? out << radius : out << "auto") << "\n";
           }
   }
   if (section("radius")) {

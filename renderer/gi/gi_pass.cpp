@@ -8,6 +8,7 @@
 #include <cassert>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 
 #include "backend/embree/embree_backend.h"
 #include "gi/eye_rays.h"
@@ -109,6 +110,34 @@ void record_map_stats(const PhotonMaps& maps, GiPassResult& r) {
 }
 
 }  // namespace
+
+double surface_area_m2(const Scene& scene) {
+  double area = 0;
+  for (const Object& o : scene.objects) {
+    if (!o.mesh) continue;
+    const glm::mat4 m = o.transform_at(0).matrix();
+    const Mesh& mesh = *o.mesh;
+    double a = 0;
+    for (std::size_t i = 0; i + 2 < mesh.indices.size(); i += 3) {
+      if (mesh.indices[i] >= mesh.positions.size() || mesh.indices[i + 1] >= mesh.positions.size() ||
+          mesh.indices[i + 2] >= mesh.positions.size())
+        continue;
+      const glm::vec3 p0 = m * glm::vec4(mesh.positions[mesh.indices[i]], 1.0f);
+      const glm::vec3 p1 = m * glm::vec4(mesh.positions[mesh.indices[i + 1]], 1.0f);
+      const glm::vec3 p2 = m * glm::vec4(mesh.positions[mesh.indices[i + 2]], 1.0f);
+      a += 0.5 * static_cast<double>(glm::length(glm::cross(p1 - p0, p2 - p0)));
+    }
+    if (std::isfinite(a)) area += a;
+  }
+  return area;
+}
+
+float auto_nn_radius(double area_m2, std::uint32_t nearest, std::uint32_t photons) {
+  constexpr float kTable83 = 0.3f;
+  if (!(area_m2 > 0) || !std::isfinite(area_m2) || nearest == 0 || photons == 0) return kTable83;
+  const double r = std::sqrt(static_cast<double>(nearest) * area_m2 / (std::numbers::pi * static_cast<double>(photons)));
+  return std::isfinite(r) && r > 0 ? static_cast<float>(std::clamp(r, 1e-4, 1000.0)) : kTable83;
+}
 
 const char* to_string(Strategy s) {
   switch (s) {

@@ -23,6 +23,15 @@ namespace fovea::render::gi {
 enum class Strategy { Traditional, GazeDirected, Importon };
 const char* to_string(Strategy s);
 
+// The scene's surface area in square metres: every object's full mesh, in world space at time 0.
+double surface_area_m2(const Scene& scene);
+
+// The radiance estimate's radius (NNRadius) for a scene of `area_m2` with `photons` stored: the
+// disc that holds `nearest` photons where they spread evenly over the surfaces, r = sqrt(k A /
+// (pi N)) (Jensen's density estimate read backwards). Table 8.3's 0.3 m is this rule for its 2 m
+// room; a 26 m courtyard needs metres. Falls back to 0.3 m when the area or counts are unusable.
+float auto_nn_radius(double area_m2, std::uint32_t nearest, std::uint32_t photons);
+
 struct GiPassSettings {
   Strategy strategy = Strategy::Traditional;
   std::uint32_t photons = 40000;          // stored in the global map (maxPhotons)

@@ -50,7 +50,7 @@ attention::FocusSettings focus_settings(const Settings& s, const Lens& lens) {
 
 // The gi.* settings (and shadows) as the gi pass's; gi.area=full shows GI everywhere (fovea 1, no CSF
 // periphery).
-gi::GiPassSettings gi_pass_settings(const Settings& s) {
+gi::GiPassSettings gi_pass_settings(const Settings& s, double scene_area_m2) {
   const auto count = [&](const char* key) { return static_cast<std::uint32_t>(std::lround(s.number(key))); };
   const bool full = s.is("gi.area", "full");
   gi::GiPassSettings gs;
@@ -64,7 +64,9 @@ gi::GiPassSettings gi_pass_settings(const Settings& s) {
   gs.trace_depth = count("gi.trace_depth");
   gs.seed = static_cast<std::uint64_t>(s.number("gi.seed"));
   gs.render.estimate.nearest = count("gi.nnn");
-  gs.render.estimate.max_radius = static_cast<float>(s.number("gi.nn_radius"));
+  gs.render.estimate.max_radius = s.is("gi.nn_radius", "auto")
+                                      ? gi::auto_nn_radius(scene_area_m2, gs.render.estimate.nearest, gs.photons)
+                                      : static_cast<float>(s.number("gi.nn_radius"));
   gs.render.estimate.filter = s.is("gi.filter", "disc") ? gi::EstimateFilter::Disc : gi::EstimateFilter::Cone;
   gs.render.caustic_estimate.filter = gs.render.estimate.filter;
   gs.render.indirect_estimate =
@@ -129,7 +131,8 @@ const FramePipeline::PassSettings& FramePipeline::pass_settings() const {
   if (parsed_valid_ && parsed_version_ == settings_.version()) return parsed_;
   parsed_.attention = attention_settings(settings_);
   parsed_.focus = focus_settings(settings_, scene_.camera.lens);
-  parsed_.gi = gi_pass_settings(settings_);
+  if (!(scene_area_m2_ >= 0)) scene_area_m2_ = gi::surface_area_m2(scene_);  // once per scene (NaN: not yet)
+  parsed_.gi = gi_pass_settings(settings_, scene_area_m2_);
   parsed_.lod = lod_policy_settings(settings_);
   parsed_.lod_budget_ms = settings_.number("lod.budget_ms");
   parsed_.tonemap = tonemap_params(settings_);
@@ -147,6 +150,7 @@ const FramePipeline::PassSettings& FramePipeline::pass_settings() const {
 
 void FramePipeline::scene_changed() {
   parsed_valid_ = false;  // the focus settings read the lens
+  scene_area_m2_ = std::nan("");  // gi.nn_radius=auto reads the surfaces
   backend_->set_scene(scene_);
   if (gi_pass_) gi_pass_->set_scene(scene_);
 }

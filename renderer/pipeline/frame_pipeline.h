@@ -15,6 +15,7 @@
 // the focus pass and again before the overlay. Every frame records the age of the gaze sample the
 // overlay drew at the moment the frame was complete (the GPU's fence, or the CPU image done) as
 // "gaze-age" in the timings, and the GPU passes' own times as "gpu.*".
+#include <cmath>
 #include <memory>
 
 #include "attention/attention.h"
@@ -196,6 +197,7 @@ class FramePipeline {
   mutable PassSettings parsed_;
   mutable std::uint64_t parsed_version_ = 0;
   mutable bool parsed_valid_ = false;
+  mutable double scene_area_m2_ = std::nan("");  // for gi.nn_radius=auto; NaN until measured
 
   GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run
   bool cpu_gbuffer_required_ = false;

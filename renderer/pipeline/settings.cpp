@@ -101,7 +101,9 @@ const std::vector<SettingSpec>& Settings::specs() {
        "photons stored in the caustic map per frame (traced only when the scene has specular or refractive surfaces)"},
       {"gi.trace_depth", "3", "number in [1, 1000]", "surface interactions per photon trace (pmTraceDepth, Table 8.3)"},
       {"gi.nnn", "240", "number in [1, 100000]", "nearest photons per radiance estimate (nNN, Table 8.3)"},
-      {"gi.nn_radius", "0.3", "number in [0.0001, 1000]", "search radius of the radiance estimate, metres (NNRadius, Table 8.3)"},
+      {"gi.nn_radius", "auto", "auto|number in [0.0001, 1000]",
+       "search radius of the radiance estimate, metres (NNRadius, Table 8.3's 0.3 m for its 2 m room); auto: the disc "
+       "that holds gi.nnn photons spread evenly over the scene's surfaces at gi.photons, sqrt(nnn A / (pi photons))"},
       {"gi.filter", "cone", "cone|disc", "radiance estimate filter: Jensen's cone filter (k = 1.1) or constant over the disc"},
       {"gi.estimate", "nearest", "nearest|precomputed",
        "indirect light per shading point from its gi.nnn nearest photons (Jensen & Pedersen §6.3.2), or from the nearest "
@@ -179,9 +181,12 @@ void check_value(const SettingSpec& spec, const std::string& value) {
     if (value != "true" && value != "false") bad();
     return;
   }
-  if (spec.allowed.rfind("number in [", 0) == 0) {
+  // "auto|number in [lo, hi]": the word, or a number in range.
+  const bool auto_or_number = spec.allowed.rfind("auto|number in [", 0) == 0;
+  if (auto_or_number && value == "auto") return;
+  if (spec.allowed.rfind("number in [", 0) == 0 || auto_or_number) {
     double lo = 0, hi = 0;
-    std::sscanf(spec.allowed.c_str(), "number in [%lf, %lf]", &lo, &hi);
+    std::sscanf(spec.allowed.c_str() + (auto_or_number ? 5 : 0), "number in [%lf, %lf]", &lo, &hi);
     std::size_t used = 0;
     double v = 0;
     try {

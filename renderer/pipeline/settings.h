@@ -13,7 +13,7 @@ namespace fovea::render {
 struct SettingSpec {
   std::string key;
   std::string default_value;
-  std::string allowed;      // "bool", "number in [a, b]", or "a|b|c"
+  std::string allowed;      // "bool", "number in [a, b]", "auto|number in [a, b]", or "a|b|c"
   std::string description;
 };
 

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 
 #include "backend/embree/embree_backend.h"
 #include "gi/gi_pass.h"
@@ -262,4 +264,32 @@ TEST(GiPass, TracingWithTheFramesBackendGivesTheSameImage) {
 }
 
 }  // namespace
+}  // namespace fovea::render::gi
+
+namespace fovea::render::gi {
+
+// gi.nn_radius=auto: Table 8.3's 0.3 m comes out of the density rule for the thesis's room and
+// counts; the radius falls as 1/sqrt(photons) and grows with the surfaces; unusable input gives 0.3.
+TEST(GiAutoRadius, IsTable83sRadiusInItsRoomAndScalesWithTheScene) {
+  const Scene room = cornell();
+  const double area = gi::surface_area_m2(room);
+  const float r = gi::auto_nn_radius(area, 240, 40000);
+  std::printf("cornell.json: %.1f m2 of surfaces, auto radius %.3f m at 40k photons\n", area, static_cast<double>(r));
+  EXPECT_GT(r, 0.15f);
+  EXPECT_LT(r, 0.45f);
+  EXPECT_NEAR(gi::auto_nn_radius(area, 240, 10000), 2 * r, 1e-4f * r);
+  // The same room 10 times larger in every direction: 100 times the area, 10 times the radius.
+  Scene large = room;
+  for (Object& o : large.objects) {
+    o.transform.scale *= 10.0f;
+    o.transform.translation *= 10.0f;
+  }
+  EXPECT_NEAR(gi::surface_area_m2(large), 100 * area, 1e-3 * area * 100);
+  EXPECT_NEAR(gi::auto_nn_radius(gi::surface_area_m2(large), 240, 40000), 10 * r, 1e-3f * r * 10);
+  for (const double bad : {0.0, -1.0, std::nan(""), std::numeric_limits<double>::infinity()})
+    EXPECT_EQ(gi::auto_nn_radius(bad, 240, 40000), 0.3f) << bad;
+  EXPECT_EQ(gi::auto_nn_radius(area, 0, 40000), 0.3f);
+  EXPECT_EQ(gi::auto_nn_radius(area, 240, 0), 0.3f);
+}
+
 }  // namespace fovea::render::gi

@@ -455,5 +455,12 @@ TEST(Settings, RejectUnknownKeysAndBadValuesNamingWhatIsAllowed) {
   EXPECT_NE(message("tonemap.exposure=-1").find("number in"), std::string::npos);
   EXPECT_NE(message("dof.method=magic").find("reference|accum|lee-mipmap"), std::string::npos);
   EXPECT_NE(message("novalue").find("expected key=value"), std::string::npos);
+  // "auto|number in [lo, hi]": the word or a number in range, nothing else.
+  EXPECT_EQ(s.text("gi.nn_radius"), "auto");
+  EXPECT_EQ(message("gi.nn_radius=1.5"), "accepted");
+  EXPECT_EQ(message("gi.nn_radius=auto"), "accepted");
+  EXPECT_NE(message("gi.nn_radius=0").find("allowed auto|number in [0.0001, 1000]"), std::string::npos);
+  EXPECT_NE(message("gi.nn_radius=autox").find("allowed auto|number in"), std::string::npos);
+  EXPECT_NE(message("gi.nn_radius=nan").find("allowed auto|number in"), std::string::npos);
   EXPECT_TRUE(s.flag("gi.enabled")) << "a refused assignment changes nothing";
 }
