@@ -157,8 +157,10 @@ void FramePipeline::scene_changed() {
 
 FramePlan FramePipeline::plan() const {
   const BackendCapabilities can = backend_->capabilities();
-  FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), can.per_pixel_lens,
-                                          &pass_settings().plan, gpu_refusal().empty(), can.software_rasteriser});
+  const PassSettings& parsed = pass_settings();
+  FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), can.per_pixel_lens, &parsed.plan,
+                                          gpu_refusal().empty(), can.software_rasteriser,
+                                          parsed.gi.render.estimate.max_radius});
   plan.placement = placement(plan);
   return plan;
 }

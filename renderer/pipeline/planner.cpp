@@ -207,6 +207,12 @@ PassRule gi_rule(const PlanContext& c) {
     why += "; no gaze source and attention.enabled=false: the gaze area stays at the screen centre";
   }
   if (t.gi_csf_periphery) why += "; periphery by CSF-driven ray casting (Murphy 2007)";
+  if (c.gi_nn_radius_m > 0) {
+    char radius[96];
+    std::snprintf(radius, sizeof radius, "; radiance estimate radius %.3g m%s", static_cast<double>(c.gi_nn_radius_m),
+                  s.is("gi.nn_radius", "auto") ? " (gi.nn_radius=auto: the scene's surfaces and gi.photons)" : "");
+    why += radius;
+  }
   return yes(why);
 }
 

@@ -71,6 +71,8 @@ struct PlanContext {
   // version is much slower there than their CPU version (attention: ~20x, bench/RESULTS.md) stay on
   // the CPU with device=auto.
   bool gpu_is_software = false;
+  // The radiance estimate's radius the gi pass will use (gi.nn_radius resolved; 0: not known here).
+  float gi_nn_radius_m = 0.0f;
   const PlanSettings& typed() const;  // *parsed; throws std::logic_error when unset
   // What the frame hands out: the display image (output=final) or the G-buffer (output=gbuffer).
   Resource output() const { return typed().output; }

@@ -119,6 +119,22 @@ TEST(Planner, DofRunsWithAThinLensAndSaysWhenAMethodCannotRun) {
   EXPECT_TRUE(plan_frame(PlanContext{scene, settings, true, false}).runs(PassId::Dof));
 }
 
+// The gi line names the radius the pass will use, and whether gi.nn_radius=auto chose it.
+TEST(Planner, TheGiReasonNamesTheRadianceEstimatesRadius) {
+  const Scene scene = make_scene({});
+  Settings settings;
+  settings.set("gi.enabled", "true");
+  PlanContext c{scene, settings, true};
+  c.gi_nn_radius_m = 2.5f;
+  const std::string why = plan_frame(c).explain();
+  EXPECT_NE(why.find("radiance estimate radius 2.5 m (gi.nn_radius=auto"), std::string::npos) << why;
+  settings.set("gi.nn_radius", "0.3");
+  c.gi_nn_radius_m = 0.3f;
+  const std::string set = plan_frame(c).explain();
+  EXPECT_NE(set.find("radiance estimate radius 0.3 m"), std::string::npos) << set;
+  EXPECT_EQ(set.find("gi.nn_radius=auto"), std::string::npos) << set;
+}
+
 TEST(Planner, EveryPassHasADeclaration) {
   ASSERT_EQ(pass_declarations().size(), static_cast<std::size_t>(kPassCount));
   for (std::size_t i = 0; i < pass_declarations().size(); ++i) {
