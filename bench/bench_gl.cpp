@@ -3,8 +3,10 @@
 // pays: render + glReadPixels of the five targets + row flip) and without (render + glFinish), at
 // 640x480 and 1024x768, for the procedural Cornell-like and many-objects scenes and every bundled
 // scene that loads. The Embree backend renders the same frames alongside as the reference cost.
+// ulod_blend/{fragment,compute}: ULOD's blend pass alone, both implementations side by side.
 // Needs a display: xvfb-run -a build/<dir>/bench/bench_gl
 #include <benchmark/benchmark.h>
+#include <epoxy/gl.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -16,6 +18,8 @@
 #include "../tests/gl/test_scenes.h"  // the procedural scenes the GL tests use
 #include "backend/backend.h"
 #include "backend/gl/gl_backend.h"
+#include "backend/gl/gl_program.h"
+#include "backend/gl/gl_ulod_blend.h"
 #include "scene/scene_loader.h"
 
 namespace {
@@ -78,6 +82,41 @@ void embree_render(benchmark::State& state, Scene s) {
   set_counters(state, s);
 }
 
+// ULOD's blend pass alone (issue 42), fragment against compute, side by side: a 1920x1080 frame where
+// a third of the pixels belong to one of 100 blending objects, ending with glFinish.
+void ulod_blend(benchmark::State& state, GlUlodBlend::Pass pass) {
+  GlBackend& backend = gl_backend();
+  backend.context().make_current();
+  constexpr std::uint32_t w = 1920, h = 1080;
+  std::vector<float> colour(std::size_t{4} * w * h, 0.5f);
+  std::vector<std::uint32_t> ids(std::size_t{w} * h);
+  for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<std::uint32_t>(i % 300);  // 1..99 blend
+  const auto upload = [&](GLenum internal, GLenum format, GLenum type, const void* data) {
+    const unsigned t = gl::make_texture(internal, format, type, w, h);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w, h, format, type, data);
+    return t;
+  };
+  const unsigned drawn = upload(GL_RGBA32F, GL_RGBA, GL_FLOAT, colour.data());
+  const unsigned next = upload(GL_RGBA32F, GL_RGBA, GL_FLOAT, colour.data());
+  const unsigned id_tex = upload(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, ids.data());
+  std::vector<std::uint32_t> blending;
+  std::vector<float> factors;
+  for (std::uint32_t id = 1; id < 100; ++id) {
+    blending.push_back(id);
+    factors.push_back(0.5f);
+  }
+  GlUlodBlend blend(backend.context().features().at_least(4, 3));
+  if (pass == GlUlodBlend::Pass::Compute && !blend.has_compute()) {
+    state.SkipWithError("no OpenGL 4.3 compute");
+    return;
+  }
+  for (auto _ : state) {
+    blend.run({drawn, id_tex, w, h}, {next, id_tex, w, h}, blending, factors, pass);
+    glFinish();
+  }
+  for (unsigned t : {drawn, next, id_tex}) glDeleteTextures(1, &t);
+}
+
 void register_scene(const std::string& name, Scene s) {
   for (const auto& [w, h] : {std::pair{640u, 480u}, std::pair{1024u, 768u}}) {
     s.camera.width = w;
@@ -100,6 +139,10 @@ void register_scene(const std::string& name, Scene s) {
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   std::printf("GL renderer: %s\n", gl_backend().context().renderer().c_str());
+  for (const auto& [name, pass] : {std::pair{"fragment", GlUlodBlend::Pass::Fragment}, std::pair{"compute", GlUlodBlend::Pass::Compute}})
+    benchmark::RegisterBenchmark((std::string("ulod_blend/") + name + "/1920x1080").c_str(), ulod_blend, pass)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
   register_scene("cornell-procedural", testing::cornell_box());
   register_scene("many-objects-120", testing::many_objects(120));
   const std::filesystem::path dir = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes";

@@ -309,13 +309,16 @@ void GlFrame::ulod_blend(const FrameTime& time, const BackendSettings& next, con
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::ulod_blend before the G-buffer was rendered");
-  if (!ulod_) ulod_ = std::make_unique<GlUlodBlend>();
+  const GlFeatures& features = backend_.context().features();
+  if (!ulod_) ulod_ = std::make_unique<GlUlodBlend>(features.at_least(4, 3));
   BackendSettings aside = next;
   aside.width = t.width;
   aside.height = t.height;
   begin_timed("gpu.ulod");
   const GlGBufferTextures n = backend_.render_aside(time, aside);
-  ulod_->run({t.color, t.object_id, t.width, t.height}, {n.color, n.object_id, n.width, n.height}, ids, blend);
+  // In place where compute pays (no copy of the colour image); the fragment pass elsewhere.
+  const auto pass = ulod_->has_compute() && features.compute_pays() ? GlUlodBlend::Pass::Compute : GlUlodBlend::Pass::Fragment;
+  ulod_->run({t.color, t.object_id, t.width, t.height}, {n.color, n.object_id, n.width, n.height}, ids, blend, pass);
   end_timed();
   check("GlFrame::ulod_blend");
 }

@@ -38,12 +38,38 @@ void main() {
 }
 )";
 
+// The same blend in place: the drawn colour as a read-write image, only blending pixels touched.
+constexpr const char* kBlendCompute = R"(#version 430 core
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(rgba32f, binding = 0) uniform image2D u_drawn;
+uniform sampler2D u_next, u_factors;
+uniform usampler2D u_drawn_ids, u_next_ids, u_ids;
+uniform int u_count;
+uniform ivec2 u_size;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_size.x || p.y >= u_size.y) return;
+  uint id = texelFetch(u_drawn_ids, p, 0).r;
+  if (id == 0u || texelFetch(u_next_ids, p, 0).r != id) return;
+  int lo = 0, hi = u_count;
+  while (lo < hi) {
+    int mid = (lo + hi) >> 1;
+    if (texelFetch(u_ids, ivec2(mid, 0), 0).r < id) lo = mid + 1; else hi = mid;
+  }
+  if (lo >= u_count || texelFetch(u_ids, ivec2(lo, 0), 0).r != id) return;
+  float f = texelFetch(u_factors, ivec2(lo, 0), 0).r;
+  vec4 drawn = imageLoad(u_drawn, p);
+  imageStore(u_drawn, p, vec4((1.0 - f) * drawn.rgb + f * texelFetch(u_next, p, 0).rgb, drawn.a));
+}
+)";
+
 using gl::delete_texture;
 
 }  // namespace
 
-GlUlodBlend::GlUlodBlend() {
+GlUlodBlend::GlUlodBlend(bool compute) {
   program_ = gl::link_program(gl::kFullscreenVertex, kBlend, "GlUlodBlend");
+  if (compute) compute_program_ = gl::link_compute_program(kBlendCompute, "GlUlodBlend (compute)");
   glGenVertexArrays(1, &vao_);
   glGenFramebuffers(1, &fbo_);
   gl::check_error("GlUlodBlend", "construction");
@@ -51,18 +77,24 @@ GlUlodBlend::GlUlodBlend() {
 
 GlUlodBlend::~GlUlodBlend() {
   glDeleteProgram(program_);
+  if (compute_program_ != 0) glDeleteProgram(compute_program_);
   glDeleteVertexArrays(1, &vao_);
   glDeleteFramebuffers(1, &fbo_);
   for (unsigned* t : {&result_, &table_ids_, &table_blend_}) delete_texture(*t);
 }
 
-void GlUlodBlend::ensure(std::uint32_t width, std::uint32_t height, std::size_t objects) {
+// The fragment pass's result image, sized to the frame.
+void GlUlodBlend::ensure_result(std::uint32_t width, std::uint32_t height) {
   if (width != width_ || height != height_ || result_ == 0) {
     delete_texture(result_);
     result_ = gl::make_texture(GL_RGBA32F, GL_RGBA, GL_FLOAT, width, height);
     width_ = width;
     height_ = height;
   }
+}
+
+// The table of blending objects, grown to hold `objects`.
+void GlUlodBlend::ensure_table(std::size_t objects) {
   if (objects > capacity_ || table_ids_ == 0) {
     GLint max_size = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
@@ -79,7 +111,7 @@ void GlUlodBlend::ensure(std::uint32_t width, std::uint32_t height, std::size_t 
 }
 
 void GlUlodBlend::run(const Image& drawn, const Image& next, const std::vector<std::uint32_t>& ids,
-                      const std::vector<float>& blend) {
+                      const std::vector<float>& blend, Pass pass) {
   if (ids.size() != blend.size()) {
     throw std::invalid_argument("GlUlodBlend: " + std::to_string(blend.size()) + " blend factors for " +
                                 std::to_string(ids.size()) + " objects");
@@ -89,8 +121,18 @@ void GlUlodBlend::run(const Image& drawn, const Image& next, const std::vector<s
                                 std::to_string(next.height) + ", the drawn one " + std::to_string(drawn.width) + "x" +
                                 std::to_string(drawn.height));
   }
+  if (pass == Pass::Compute && !has_compute()) {
+    throw std::invalid_argument("GlUlodBlend: the compute pass needs OpenGL 4.3 (built without it)");
+  }
   if (drawn.width == 0 || drawn.height == 0 || ids.empty()) return;
-  // The table: ids ascending (the first of a repeated id), factors clamped to [0, 1] (NaN: 0).
+  if (pass == Pass::Fragment) ensure_result(drawn.width, drawn.height);
+  upload_table(ids, blend);
+  if (pass == Pass::Compute) run_compute(drawn, next);
+  else run_fragment(drawn, next);
+}
+
+// The table: ids ascending (the first of a repeated id), factors clamped to [0, 1] (NaN: 0).
+void GlUlodBlend::upload_table(const std::vector<std::uint32_t>& ids, const std::vector<float>& blend) {
   std::vector<std::size_t> order(ids.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ids[a] < ids[b]; });
@@ -101,14 +143,16 @@ void GlUlodBlend::run(const Image& drawn, const Image& next, const std::vector<s
     sorted.push_back(ids[i]);
     factors.push_back(std::isfinite(blend[i]) ? std::clamp(blend[i], 0.0f, 1.0f) : 0.0f);
   }
-  ensure(drawn.width, drawn.height, sorted.size());
+  ensure_table(sorted.size());
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-  const auto count = static_cast<GLsizei>(sorted.size());
+  count_ = static_cast<int>(sorted.size());
   glBindTexture(GL_TEXTURE_2D, table_ids_);
-  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, count, 1, GL_RED_INTEGER, GL_UNSIGNED_INT, sorted.data());
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, count_, 1, GL_RED_INTEGER, GL_UNSIGNED_INT, sorted.data());
   glBindTexture(GL_TEXTURE_2D, table_blend_);
-  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, count, 1, GL_RED, GL_FLOAT, factors.data());
+  glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, count_, 1, GL_RED, GL_FLOAT, factors.data());
+}
 
+void GlUlodBlend::run_fragment(const Image& drawn, const Image& next) {
   const auto w = static_cast<GLsizei>(drawn.width), h = static_cast<GLsizei>(drawn.height);
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
   glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, result_, 0);
@@ -125,7 +169,7 @@ void GlUlodBlend::run(const Image& drawn, const Image& next, const std::vector<s
   gl::bind_sampler(3, next.object_id, program_, "u_next_ids");
   gl::bind_sampler(4, table_ids_, program_, "u_ids");
   gl::bind_sampler(5, table_blend_, program_, "u_factors");
-  glUniform1i(glGetUniformLocation(program_, "u_count"), count);
+  glUniform1i(glGetUniformLocation(program_, "u_count"), count_);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   // The result replaces the drawn colour (a pass cannot read and write one texture).
   glReadBuffer(GL_COLOR_ATTACHMENT0);
@@ -135,7 +179,27 @@ void GlUlodBlend::run(const Image& drawn, const Image& next, const std::vector<s
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   glBindVertexArray(0);
   glUseProgram(0);
-  gl::check_error("GlUlodBlend", "run");
+  gl::check_error("GlUlodBlend", "run (fragment)");
+}
+
+void GlUlodBlend::run_compute(const Image& drawn, const Image& next) {
+  glUseProgram(compute_program_);
+  glBindImageTexture(0, drawn.color, 0, GL_FALSE, 0, GL_READ_WRITE, GL_RGBA32F);
+  gl::bind_sampler(1, next.color, compute_program_, "u_next");
+  gl::bind_sampler(2, drawn.object_id, compute_program_, "u_drawn_ids");
+  gl::bind_sampler(3, next.object_id, compute_program_, "u_next_ids");
+  gl::bind_sampler(4, table_ids_, compute_program_, "u_ids");
+  gl::bind_sampler(5, table_blend_, compute_program_, "u_factors");
+  glUniform1i(glGetUniformLocation(compute_program_, "u_count"), count_);
+  glUniform2i(glGetUniformLocation(compute_program_, "u_size"), static_cast<GLint>(drawn.width),
+              static_cast<GLint>(drawn.height));
+  glDispatchCompute((drawn.width + 7) / 8, (drawn.height + 7) / 8, 1);
+  // Every later pass samples, attaches, reads back or copies the blended colour.
+  glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT |
+                  GL_TEXTURE_UPDATE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT);
+  glBindImageTexture(0, 0, 0, GL_FALSE, 0, GL_READ_WRITE, GL_RGBA32F);
+  glUseProgram(0);
+  gl::check_error("GlUlodBlend", "run (compute)");
 }
 
 }  // namespace fovea::render

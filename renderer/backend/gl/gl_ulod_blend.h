@@ -6,6 +6,11 @@
 // levels gets (1 - f) drawn + f next, f the object's blend factor; every other pixel keeps its colour.
 // The result replaces the drawn image's colour texture, so every later pass (dof, the tone map) reads
 // the blended colour as it would read the G-buffer's.
+//
+// Two implementations (issue 42): a fragment pass that renders the blended image aside and copies it
+// back (a pass cannot read and write one texture), and an OpenGL 4.3 compute pass that blends in
+// place (each invocation reads and writes only its own texel, and skips every pixel that keeps its
+// colour), with no copy. GlFrame takes the compute pass where compute pays (GlFeatures::compute_pays).
 #include <cstdint>
 #include <vector>
 
@@ -13,8 +18,11 @@ namespace fovea::render {
 
 class GlUlodBlend {
  public:
-  // Compiles the pass on the current context; throws std::runtime_error with the driver's log.
-  GlUlodBlend();
+  enum class Pass { Fragment, Compute };
+  // Compiles the passes on the current context (the compute pass only with `compute`: OpenGL 4.3);
+  // throws std::runtime_error with the driver's log.
+  explicit GlUlodBlend(bool compute);
+  bool has_compute() const { return compute_program_ != 0; }
   ~GlUlodBlend();
   GlUlodBlend(const GlUlodBlend&) = delete;
   GlUlodBlend& operator=(const GlUlodBlend&) = delete;
@@ -26,11 +34,18 @@ class GlUlodBlend {
   // `ids` and `blend`: the blending objects and their factors (clamped to [0, 1]; ids in any order,
   // the first of a repeated id counts). Throws std::invalid_argument when they differ in length or
   // the images in size.
-  void run(const Image& drawn, const Image& next, const std::vector<std::uint32_t>& ids, const std::vector<float>& blend);
+  // Pass::Compute without has_compute() throws std::invalid_argument.
+  void run(const Image& drawn, const Image& next, const std::vector<std::uint32_t>& ids, const std::vector<float>& blend,
+           Pass pass = Pass::Fragment);
 
  private:
-  void ensure(std::uint32_t width, std::uint32_t height, std::size_t objects);
-  unsigned program_ = 0, vao_ = 0, fbo_ = 0, result_ = 0, table_ids_ = 0, table_blend_ = 0;
+  void ensure_result(std::uint32_t width, std::uint32_t height);
+  void ensure_table(std::size_t objects);
+  void upload_table(const std::vector<std::uint32_t>& ids, const std::vector<float>& blend);
+  void run_fragment(const Image& drawn, const Image& next);
+  void run_compute(const Image& drawn, const Image& next);
+  unsigned program_ = 0, compute_program_ = 0, vao_ = 0, fbo_ = 0, result_ = 0, table_ids_ = 0, table_blend_ = 0;
+  int count_ = 0;  // blending objects in the table
   std::uint32_t width_ = 0, height_ = 0;
   std::size_t capacity_ = 0;
 };
