@@ -18,8 +18,10 @@ using namespace fovea::test;
 
 namespace {
 
-GBuffer render(const Scene& s) {
-  EmbreeBackend b;
+GBuffer render(const Scene& s, EmbreeGeometry geometry = EmbreeGeometry::Flattened) {
+  EmbreeOptions options;
+  options.geometry = geometry;
+  EmbreeBackend b(options);
   b.set_scene(s);
   GBuffer g;
   b.render(FrameTime{}, BackendSettings{}, g);
@@ -81,12 +83,7 @@ TEST(GltfRender, TexturedQuadsShowTheSpecificationsPoints) {
   ASSERT_EQ(s.textures.size(), 4u);
   expect_textured_quads(s.camera, render(s), render(without_normal_maps(s)));
   // Instanced geometry: the alpha test sits on the instanced mesh's own BVH.
-  EmbreeOptions instanced;
-  instanced.geometry = EmbreeGeometry::Instanced;
-  EmbreeBackend b(instanced);
-  b.set_scene(s);
-  GBuffer g;
-  b.render(FrameTime{}, BackendSettings{}, g);
+  const GBuffer g = render(s, EmbreeGeometry::Instanced);
   EXPECT_EQ(g.object_id[pixel_of(s.camera, g, GltfTexturedQuads::centre(1) + glm::vec3(-0.25f, 0, 0))], 0u);
   EXPECT_EQ(g.object_id[pixel_of(s.camera, g, GltfTexturedQuads::centre(1) + glm::vec3(0.25f, 0, 0))], 2u);
 }
@@ -107,14 +104,10 @@ TEST(GltfRender, SingleSidedBackFacesAreCulled) {
   const Scene s = load_scene(write_gltf(dir.path, "sided", quads.doc(), quads.bin()),
                              {{"camera.width", "192"}, {"camera.height", "128"}});
   expect_sided_quads(s.camera, render(s));
-  EmbreeOptions instanced;
-  instanced.geometry = EmbreeGeometry::Instanced;
-  EmbreeBackend b(instanced);
-  b.set_scene(s);
-  GBuffer g;
-  b.render(FrameTime{}, BackendSettings{}, g);
-  expect_sided_quads(s.camera, g);
+  expect_sided_quads(s.camera, render(s, EmbreeGeometry::Instanced));
   // Culling is the camera's: a shadow ray still meets the culled quad's back.
+  EmbreeBackend b;
+  b.set_scene(s);
   SurfaceHit hit;
   EXPECT_TRUE(b.intersect({0, 0.6f, 4}, {0, 0, -1}, 0, 10, RayVisibility::All, hit));
 }

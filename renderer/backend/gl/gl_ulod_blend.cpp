@@ -15,25 +15,39 @@ namespace fovea::render {
 
 namespace {
 
-// The blending objects sorted by id (a binary search per pixel), with their factors.
-constexpr const char* kBlend = R"(#version 330 core
-uniform sampler2D u_drawn, u_next, u_factors;
-uniform usampler2D u_drawn_ids, u_next_ids, u_ids;
+// The blending objects sorted by id, with their factors. Both passes' factor of object `id` from the sorted table (a binary search); false: not blending.
+constexpr const char* kLookup = R"(
+uniform usampler2D u_ids;
+uniform sampler2D u_factors;
 uniform int u_count;
+bool blend_factor(uint id, out float f) {
+  int lo = 0, hi = u_count;
+  while (lo < hi) {
+    int mid = (lo + hi) >> 1;
+    if (texelFetch(u_ids, ivec2(mid, 0), 0).r < id) lo = mid + 1; else hi = mid;
+  }
+  f = 0.0;
+  if (lo >= u_count || texelFetch(u_ids, ivec2(lo, 0), 0).r != id) return false;
+  f = texelFetch(u_factors, ivec2(lo, 0), 0).r;
+  return true;
+}
+)";
+
+// The fragment pass: declarations, kLookup, main.
+constexpr const char* kBlend = R"(#version 330 core
+uniform sampler2D u_drawn, u_next;
+uniform usampler2D u_drawn_ids, u_next_ids;
 out vec4 o;
+)";
+constexpr const char* kBlendMain = R"(
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
   vec4 drawn = texelFetch(u_drawn, p, 0);
   o = drawn;
   uint id = texelFetch(u_drawn_ids, p, 0).r;
   if (id == 0u || texelFetch(u_next_ids, p, 0).r != id) return;
-  int lo = 0, hi = u_count;
-  while (lo < hi) {
-    int mid = (lo + hi) >> 1;
-    if (texelFetch(u_ids, ivec2(mid, 0), 0).r < id) lo = mid + 1; else hi = mid;
-  }
-  if (lo >= u_count || texelFetch(u_ids, ivec2(lo, 0), 0).r != id) return;
-  float f = texelFetch(u_factors, ivec2(lo, 0), 0).r;
+  float f;
+  if (!blend_factor(id, f)) return;
   o = vec4((1.0 - f) * drawn.rgb + f * texelFetch(u_next, p, 0).rgb, drawn.a);
 }
 )";
@@ -42,22 +56,18 @@ void main() {
 constexpr const char* kBlendCompute = R"(#version 430 core
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(rgba32f, binding = 0) uniform image2D u_drawn;
-uniform sampler2D u_next, u_factors;
-uniform usampler2D u_drawn_ids, u_next_ids, u_ids;
-uniform int u_count;
+uniform sampler2D u_next;
+uniform usampler2D u_drawn_ids, u_next_ids;
 uniform ivec2 u_size;
+)";
+constexpr const char* kBlendComputeMain = R"(
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   if (p.x >= u_size.x || p.y >= u_size.y) return;
   uint id = texelFetch(u_drawn_ids, p, 0).r;
   if (id == 0u || texelFetch(u_next_ids, p, 0).r != id) return;
-  int lo = 0, hi = u_count;
-  while (lo < hi) {
-    int mid = (lo + hi) >> 1;
-    if (texelFetch(u_ids, ivec2(mid, 0), 0).r < id) lo = mid + 1; else hi = mid;
-  }
-  if (lo >= u_count || texelFetch(u_ids, ivec2(lo, 0), 0).r != id) return;
-  float f = texelFetch(u_factors, ivec2(lo, 0), 0).r;
+  float f;
+  if (!blend_factor(id, f)) return;
   vec4 drawn = imageLoad(u_drawn, p);
   imageStore(u_drawn, p, vec4((1.0 - f) * drawn.rgb + f * texelFetch(u_next, p, 0).rgb, drawn.a));
 }
@@ -68,8 +78,12 @@ using gl::delete_texture;
 }  // namespace
 
 GlUlodBlend::GlUlodBlend(bool compute) {
-  program_ = gl::link_program(gl::kFullscreenVertex, kBlend, "GlUlodBlend");
-  if (compute) compute_program_ = gl::link_compute_program(kBlendCompute, "GlUlodBlend (compute)");
+  const std::string fragment = std::string(kBlend) + kLookup + kBlendMain;
+  program_ = gl::link_program(gl::kFullscreenVertex, fragment.c_str(), "GlUlodBlend");
+  if (compute) {
+    const std::string source = std::string(kBlendCompute) + kLookup + kBlendComputeMain;
+    compute_program_ = gl::link_compute_program(source.c_str(), "GlUlodBlend (compute)");
+  }
   glGenVertexArrays(1, &vao_);
   glGenFramebuffers(1, &fbo_);
   gl::check_error("GlUlodBlend", "construction");
