@@ -33,7 +33,8 @@ last_flooding = max(i for i, line in enumerate(lines) if "FLOODING" in line)
 before = [o for o, _ in shown[:last_flooding + 1]]
 assert last_flooding >= 2 and len(shown) > last_flooding + 1, f"{len(shown)} STATUS lines, flooding until {last_flooding}"
 spread = max(before) - min(before)
-assert spread < 5, f"the offset STATUS showed moved by {spread:.3f} ms before the flood ended"
+assert spread < 5, (f"the offset STATUS showed moved by {spread:.3f} ms before the flood ended: "
+                    f"{[round(o, 3) for o in before]} ms")
 bad = [d for _, d in shown if d != "?" and abs(int(d)) >= 1000]
 assert not bad, f"STATUS showed drifts of {bad} ppm"
 print(f"   STATUS: the offset within {spread:.3f} ms before and during the flood; drifts shown "

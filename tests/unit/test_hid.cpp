@@ -830,7 +830,9 @@ TEST(HidClock, FollowsASlowTrackerClockWithinItsDriftAllowance) {
 
 TEST(HidClock, ResetsAndGapsReanchor) {
   TrackerClock clock(1e-6, 32);
+  EXPECT_FALSE(clock.anchored());  // what a status line must not show as an offset of 0
   EXPECT_EQ(clock.map(1'000'000, 10'000'000'000), 10'000'000'000);
+  EXPECT_TRUE(clock.anchored());
   EXPECT_EQ(clock.map(1'004'000, 10'004'000'000), 10'004'000'000);
   EXPECT_EQ(clock.map(10, 10'008'000'000), 10'008'000'000);  // counter went backwards: reset
   EXPECT_EQ(clock.resets(), 1u);
@@ -838,6 +840,7 @@ TEST(HidClock, ResetsAndGapsReanchor) {
   EXPECT_EQ(clock.map(100'004'010, 10'016'000'000), 10'016'000'000);  // 100 s jump in 4 ms
   EXPECT_EQ(clock.resets(), 2u);
   clock.reset();  // reconnect: next report anchors afresh (not counted as a reset)
+  EXPECT_FALSE(clock.anchored());
   EXPECT_EQ(clock.map(7, 20'000'000'000), 20'000'000'000);
   EXPECT_EQ(clock.resets(), 2u);
 }

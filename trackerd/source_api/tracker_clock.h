@@ -31,6 +31,8 @@ class TrackerClock {
     first_full_window_.reset();
   }
   std::uint64_t resets() const { return resets_; }
+  // Whether a report anchored the mapping since construction or the last reset().
+  bool anchored() const { return anchored_; }
   std::int64_t offset_ns() const { return offset_ns_; }
   // How fast the tracker's clock runs against the host's, in parts per million (positive: the
   // offset host - tracker grows, the tracker is slow): the change of the best offset since the

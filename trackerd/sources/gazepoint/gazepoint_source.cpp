@@ -75,10 +75,12 @@ std::string GazepointSource::status_detail() const {
   std::string out = std::to_string(s.records) + " records (" + std::to_string(s.valid) + " valid), " +
                     std::to_string(s.malformed) + " malformed, " + std::to_string(s.counter_gaps) + " missing by CNT" +
                     arrivals_.status();
-  if (s.records > 0) {
+  // The clock part only once a TIME anchored it: between a first record's count and its mapping,
+  // STATUS would otherwise show an offset of 0.
+  if (s.clock_offset_ns) {
     char clock[160];
     std::snprintf(clock, sizeof clock, ", clock offset %.3f ms, drift %s ppm, delay p50 %.2f / p99 %.2f ms",
-                  static_cast<double>(s.clock_offset_ns) / 1e6,
+                  static_cast<double>(*s.clock_offset_ns) / 1e6,
                   s.clock_drift_ppm ? std::to_string(static_cast<long>(std::lround(*s.clock_drift_ppm))).c_str() : "?",
                   static_cast<double>(s.delay_p50_ns) / 1e6, static_cast<double>(s.delay_p99_ns) / 1e6);
     out += clock;
@@ -145,10 +147,13 @@ void GazepointSource::serve(int fd) {
   }
   // A new connection may be a restarted Gazepoint Control, with a new clock and counter.
   clock_.reset();
+  paced_clock_ = {};
   last_counter_.reset();
   silence_reported_ = false;
   {
     std::lock_guard lock(mutex_);
+    stats_.clock_offset_ns.reset();  // the old server's mapping says nothing of the new one's
+    stats_.clock_drift_ppm.reset();
     stats_.connected = true;
     ++stats_.connects;
   }
@@ -233,7 +238,7 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
   }
   // The arrival rules before the clock (arrival_guard.h): a flood must not teach it its time.
   const net::ArrivalGuard::Admission a = arrivals_.admit(receive_ns);
-  if (a.within_pace && !a.flooding) paced_clock_ = {clock_.offset_ns(), clock_.drift_ppm()};
+  if (a.within_pace && !a.flooding && clock_.anchored()) paced_clock_ = {clock_.offset_ns(), clock_.drift_ppm()};
   {
     std::lock_guard lock(mutex_);
     if (r.counter && last_counter_ && *r.counter > *last_counter_ + 1) stats_.counter_gaps += *r.counter - *last_counter_ - 1;
@@ -276,8 +281,10 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
   if (!a.flooding) {
     delays_.add(receive_ns - mapped);
     std::lock_guard lock(mutex_);
-    stats_.clock_offset_ns = clock_.offset_ns();
-    stats_.clock_drift_ppm = clock_.drift_ppm();
+    if (clock_.anchored()) {
+      stats_.clock_offset_ns = clock_.offset_ns();
+      stats_.clock_drift_ppm = clock_.drift_ppm();
+    }
     stats_.clock_resets = clock_.resets();
     if (++delay_samples_ % 64 == 1) {
       stats_.delay_p50_ns = delays_.percentile(0.5);

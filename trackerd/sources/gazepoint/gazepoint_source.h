@@ -40,7 +40,7 @@ struct GazepointStats {
   std::uint64_t connects = 0;     // successful connections (1 + reconnections)
   std::uint64_t clock_resets = 0;
   std::optional<std::pair<std::uint32_t, std::uint32_t>> screen;  // what SCREEN_SIZE said
-  std::int64_t clock_offset_ns = 0;            // host - tracker
+  std::optional<std::int64_t> clock_offset_ns;  // host - tracker; none until a record's TIME anchors the clock
   std::optional<double> clock_drift_ppm;
   std::int64_t delay_p50_ns = 0, delay_p99_ns = 0;  // receive time - mapped time, last 1024 records
   std::string last_malformed;                  // why the last refused line was refused
@@ -69,7 +69,7 @@ class GazepointSource final : public net::ReaderSource {
   std::uint64_t delay_samples_ = 0;  // records added to delays_
   // The clock's offset and drift before the last record that arrived within the declared pace:
   // what STATUS shows from a flood's start until the clock anchors afresh.
-  std::pair<std::int64_t, std::optional<double>> paced_clock_{0, std::nullopt};
+  std::pair<std::optional<std::int64_t>, std::optional<double>> paced_clock_;
   bool silence_reported_ = false;  // "no gaze records" is the problem now
 
   mutable std::mutex mutex_;  // guards stats_
