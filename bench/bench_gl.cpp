@@ -4,6 +4,9 @@
 // 640x480 and 1024x768, for the procedural Cornell-like and many-objects scenes and every bundled
 // scene that loads. The Embree backend renders the same frames alongside as the reference cost.
 // ulod_blend/{fragment,compute}: ULOD's blend pass alone, both implementations side by side.
+// lee_mipmap/{fragment,compute}/f{11.2,2.8,0.7}: Lee 2009 ch. 4's DOF alone on attention.json's
+// G-buffer at 1920x1080, focused at 4 m, at f/11.2, f/2.8 (the scene's) and f/0.7: both
+// implementations at three CoCs in one run (issue 42: cost independent of the CoC).
 // Needs a display: xvfb-run -a build/<dir>/bench/bench_gl
 #include <benchmark/benchmark.h>
 #include <epoxy/gl.h>
@@ -19,7 +22,9 @@
 #include "backend/backend.h"
 #include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_program.h"
+#include "backend/gl/gl_lee_mipmap.h"
 #include "backend/gl/gl_ulod_blend.h"
+#include "dof/lens.h"
 #include "scene/scene_loader.h"
 
 namespace {
@@ -117,6 +122,51 @@ void ulod_blend(benchmark::State& state, GlUlodBlend::Pass pass) {
   for (unsigned t : {drawn, next, id_tex}) glDeleteTextures(1, &t);
 }
 
+// attention.json's G-buffer at 1920x1080, uploaded once as the DOF's input textures.
+struct DofFrame {
+  Scene scene;
+  unsigned color = 0, depth = 0;
+};
+const DofFrame& dof_frame() {
+  static const DofFrame frame = [] {
+    DofFrame f;
+    f.scene = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes/attention.json");
+    f.scene.camera.width = 1920;
+    f.scene.camera.height = 1080;
+    GlBackend& backend = gl_backend();
+    backend.set_scene(f.scene);
+    GBuffer g;
+    backend.render({}, {}, g);
+    backend.context().make_current();
+    std::vector<float> staging;
+    gl::upload_top_first(f.color, GL_RGB32F, GL_RGB, &g.color[0].x, g.width, g.height, 3, staging);
+    gl::upload_top_first(f.depth, GL_R32F, GL_RED, g.depth.data(), g.width, g.height, 1, staging);
+    return f;
+  }();
+  return frame;
+}
+
+void lee_mipmap(benchmark::State& state, GlLeeMipmap::Pass pass, double f_number) {
+  const DofFrame& f = dof_frame();
+  gl_backend().context().make_current();
+  Camera camera = f.scene.camera;
+  camera.lens.aperture_m = camera.lens.focal_length_m / f_number;
+  const dof::CocModel coc = dof::coc_model(camera, {}, 4.0, dof::CocProjection::Sensor);
+  GlLeeMipmap mipmap(gl_backend().context().features().at_least(4, 3));
+  if (pass == GlLeeMipmap::Pass::Compute && !mipmap.has_compute()) {
+    state.SkipWithError("no OpenGL 4.3 compute");
+    return;
+  }
+  const GlDofInput in{f.color, f.depth, f.scene.camera.width, f.scene.camera.height};
+  mipmap.run(in, coc, {}, pass);  // the targets made outside the timing
+  glFinish();
+  for (auto _ : state) {
+    mipmap.run(in, coc, {}, pass);
+    glFinish();
+  }
+  state.counters["K_px"] = coc.terms().k;
+}
+
 void register_scene(const std::string& name, Scene s) {
   for (const auto& [w, h] : {std::pair{640u, 480u}, std::pair{1024u, 768u}}) {
     s.camera.width = w;
@@ -143,6 +193,12 @@ int main(int argc, char** argv) {
     benchmark::RegisterBenchmark((std::string("ulod_blend/") + name + "/1920x1080").c_str(), ulod_blend, pass)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
+  for (const auto& [name, pass] : {std::pair{"fragment", GlLeeMipmap::Pass::Fragment}, std::pair{"compute", GlLeeMipmap::Pass::Compute}})
+    for (const auto& [f_name, f_number] : {std::pair{"f11.2", 11.2}, std::pair{"f2.8", 2.8}, std::pair{"f0.7", 0.7}})
+      benchmark::RegisterBenchmark((std::string("lee_mipmap/") + name + "/" + f_name + "/1920x1080").c_str(), lee_mipmap,
+                                   pass, f_number)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
   register_scene("cornell-procedural", testing::cornell_box());
   register_scene("many-objects-120", testing::many_objects(120));
   const std::filesystem::path dir = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes";

@@ -32,6 +32,8 @@
 # reads only the pixels it looks at: nothing is read back whole); "attention-cpu" = the same with
 # attention.device=cpu (colour, depth and ids read back for the CPU's attention). "ulod" = the
 # scene's effects with lod.policy=ulod (its blend of levels on the GPU path's GPU, gpu.ulod).
+# Any of these with "+fragment" or "+compute" appended sets frame.effect_passes (the tone map,
+# lee-mipmap and ULOD's blend as fragment or compute passes; without: auto, compute on a GPU).
 #
 # Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
 #   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
@@ -60,30 +62,36 @@ for scene in $SCENES; do
     w=${size%x*} h=${size#*x}
     for effects in $EFFECTS; do
       extra=()
+      what=${effects%+fragment}
+      what=${what%+compute}
       case $effects in
-        base) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false) ;;
-        base-allplanes) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+        *+fragment) extra=(--set frame.effect_passes=fragment) ;;
+        *+compute) extra=(--set frame.effect_passes=compute) ;;
+      esac
+      case $what in
+        base) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false) ;;
+        base-allplanes) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                                --set debug.gbuffer_planes=all) ;;
-        base-noprepass) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+        base-noprepass) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                                --set frame.gbuffer_pass=forward --set frame.depth_prepass=false) ;;
-        base-forward) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+        base-forward) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                              --set frame.gbuffer_pass=forward) ;;
-        base-visibility) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+        base-visibility) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                                 --set frame.gbuffer_pass=visibility) ;;
-        dof) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed) ;;
-        dof-f*) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
-                       --scene-set camera.lens.f_number="${effects#dof-f}") ;;
-        dof-cpu) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed --set dof.device=cpu) ;;
-        dof-schedl) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
+        dof) extra+=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed) ;;
+        dof-f*) extra+=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
+                       --scene-set camera.lens.f_number="${what#dof-f}") ;;
+        dof-cpu) extra+=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed --set dof.device=cpu) ;;
+        dof-schedl) extra+=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
                            --set dof.method=schedl-layered) ;;
-        dof-splat) extra=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
+        dof-splat) extra+=(--set lod.enabled=false --set gi.enabled=false --set focus.mode=fixed
                           --set dof.method=lee-splat) ;;
-        attention) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+        attention) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                           --set focus.mode=attention --set overlay.focus=true --set attention.device=gpu) ;;
-        attention-cpu) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
+        attention-cpu) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                               --set focus.mode=attention --set overlay.focus=true --set attention.device=cpu) ;;
-        ulod) extra=(--set gi.enabled=false --set lod.policy=ulod) ;;
-        gi) extra=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
+        ulod) extra+=(--set gi.enabled=false --set lod.policy=ulod) ;;
+        gi) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac
       for gpu in false true; do
@@ -131,7 +139,7 @@ print("| scene | size | effects | readback frame p50/p99 ms | gpu frame p50/p99 
 print("|---|---|---|---|---|---|---|---|---|")
 for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
     name = os.path.basename(d)[: -len("-readback")]
-    scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w.-]+)$", name).groups()
+    scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w.+-]+)$", name).groups()
     a, b = load(d), load(os.path.join(runs, name + "-gpu"))
     fa, fb = a["frame"], b["frame"]
     ga, gb = a["gaze-age"], b["gaze-age"]
@@ -144,7 +152,7 @@ if embree:
     print("| scene | size | effects | embree frame p50/p99 ms | gaze age embree p50/p99 ms |")
     print("|---|---|---|---|---|")
     for d in embree:
-        scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w.-]+)$", os.path.basename(d)[: -len("-embree")]).groups()
+        scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w.+-]+)$", os.path.basename(d)[: -len("-embree")]).groups()
         e = load(d)
         print(f"| {scene} | {size} | {effects} | {pct(e['frame'], 50):.2f} / {pct(e['frame'], 99):.2f} | "
               f"{pct(e['gaze-age'], 50):.2f} / {pct(e['gaze-age'], 99):.2f} |")

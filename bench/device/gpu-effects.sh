@@ -13,6 +13,8 @@
 #                                   target <= 0.5 ms) and with attention.device=cpu
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
 #   ulod                            the scene with lod.policy=ulod (its blend on the GPU: gpu.ulod)
+#   dof-fN+fragment, ulod+fragment  the same with frame.effect_passes=fragment: the fragment passes
+#                                   against the compute passes auto takes on a GPU (issue 42), same run
 # Results: stdout and $OUT/gpu-effects.md, the runs in $OUT/gpu-effects-runs.tar.xz. The agreement
 # of the GL passes with the CPU implementation does not depend on the card's speed and is tested
 # here (tests/gl/test_gl_lee_mipmap.cpp); the frames' plan.txt files carry the where line.
@@ -36,5 +38,5 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --back
 grep -E "where|  run   (dof|attention)" "$probe/plan.txt"
 
 OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
-  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-cpu dof-schedl dof-splat scene ulod" | tee "$OUT/gpu-effects.md"
+  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-f11.2+fragment dof-f2.8+fragment dof-f0.7+fragment dof-cpu dof-schedl dof-splat scene ulod ulod+fragment" | tee "$OUT/gpu-effects.md"
 tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs && rm -rf "$OUT/runs"

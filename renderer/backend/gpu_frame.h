@@ -19,14 +19,19 @@
 
 namespace fovea::render {
 
+// Which implementation a GPU pass with two runs (issue 42): the fragment pass (OpenGL 3.3) or the
+// compute pass (OpenGL 4.3); Auto: compute where it is the faster (a GPU with compute shaders, not a
+// software rasteriser).
+enum class GpuPass { Auto, Fragment, Compute };
+
 // The tone map's parameters as the GPU pass takes them (passes/tonemap.h: same operators).
 struct GpuTonemap {
   enum class Op { Reinhard, Clamp, Exponential };
   Op op = Op::Reinhard;
   float exposure = 1.0f;
-  // Fragment or compute pass (same formula, same bytes); Auto: compute where it is the faster (a GPU
-  // with compute shaders, not a software rasteriser). Compute without compute shaders is refused.
-  enum class Pass { Auto, Fragment, Compute };
+  // Fragment or compute pass (same formula, same bytes); Auto: as set_effect_passes says. Compute
+  // without compute shaders is refused.
+  using Pass = GpuPass;
   Pass pass = Pass::Auto;
 };
 
@@ -57,6 +62,11 @@ class GpuFrame {
   virtual ~GpuFrame() = default;
   // "" when the GPU passes can run on this device; else why not (one line, for the log and --explain).
   virtual const std::string& unavailable_reason() const = 0;
+  // The implementation of the passes that have a fragment and a compute one (the tone map's Auto,
+  // dof_lee_mipmap, ulod_blend): frame.effect_passes. Compute where the device has none runs the
+  // fragment passes; effect_passes(asked) says which would run, and why where it is not what was asked.
+  virtual void set_effect_passes(GpuPass) {}
+  virtual std::string effect_passes(GpuPass /*asked*/) const { return "fragment"; }
   // The device, for people: "OpenGL 4.5 (llvmpipe ...)".
   virtual std::string description() const = 0;
   // Renders the G-buffer into GPU textures (Backend::render's settings; readback is ignored) and

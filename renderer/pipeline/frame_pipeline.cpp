@@ -141,6 +141,9 @@ const FramePipeline::PassSettings& FramePipeline::pass_settings() const {
   parsed_.shadows = settings_.flag("shadows");
   parsed_.depth_prepass = settings_.flag("frame.depth_prepass");
   parsed_.visibility_buffer = visibility_buffer();
+  parsed_.effect_passes = settings_.is("frame.effect_passes", "compute")    ? GpuPass::Compute
+                          : settings_.is("frame.effect_passes", "fragment") ? GpuPass::Fragment
+                                                                            : GpuPass::Auto;
   parsed_.finite_checks = settings_.flag("debug.finite_checks");
   parsed_.gaze_area_deg = settings_.flag("gi.enabled") ? settings_.number("gi.gaze_area_deg") : 0.0;
   parsed_version_ = settings_.version();
@@ -215,7 +218,7 @@ std::string FramePipeline::placement(const FramePlan& plan) const {
     if (p.runs && !p.on_gpu && !p.reads_where_the_gbuffer_lies.empty())
       looks += std::string(looks.empty() ? "" : "; ") + declaration(p.id).name + ": " + p.reads_where_the_gbuffer_lies;
   return "gpu        " + gpu_->description() + ": G-buffer (" + how + ")" + on_gpu +
-         " on the GPU; G-buffer planes written: " +
+         " on the GPU (effect passes: " + gpu_->effect_passes(pass_settings().effect_passes) + "); G-buffer planes written: " +
          to_string(planes_written(plan)) + "; read back: " + to_string(planes_read_on_cpu(plan)) +
          (looks.empty() ? "" : " (" + looks + ")");
 }
@@ -331,6 +334,7 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   bs.visibility_buffer = ps.visibility_buffer;
   f.read_back = planes_read_on_cpu(f.plan);
   f.written = planes_written(f.plan);
+  gpu_->set_effect_passes(ps.effect_passes);
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
   {
     auto r = timer.scope("gbuffer.readback");

@@ -190,6 +190,7 @@ class FramePipeline {
     PlanSettings plan;  // what the planner's rules decide on
     DofPassSettings dof;
     bool shadows = false, depth_prepass = true, visibility_buffer = false, finite_checks = false;
+    GpuPass effect_passes = GpuPass::Auto;  // frame.effect_passes
     double gaze_area_deg = 0;  // gi.gaze_area_deg when gi.enabled (the overlay's area ring), else 0
   };
   // Parsed again only when the settings' version moved or the scene changed (a cache: const).

@@ -60,16 +60,18 @@ void expect_bounded(const dof::DofInput& in, const RgbImage& out, const char* wh
     }
 }
 
-class GlLeeMipmapTest : public ::testing::Test {
+// Every test runs on both implementations: the fragment passes and the compute passes.
+class GlLeeMipmapTest : public ::testing::TestWithParam<GlLeeMipmap::Pass> {
  protected:
   void SetUp() override {
     backend_ = std::make_unique<GlBackend>();
     backend_->context().make_current();
-    gl_ = std::make_unique<GlLeeMipmap>();
+    gl_ = std::make_unique<GlLeeMipmap>(backend_->context().features().at_least(4, 3));
+    if (GetParam() == GlLeeMipmap::Pass::Compute && !gl_->has_compute()) GTEST_SKIP() << "no OpenGL 4.3 compute";
   }
   RgbImage on_gpu(const dof::DofInput& in, const LeeMipmapSettings& s = {}) {
     RgbImage out;
-    gl_->run_image(in, s, out);
+    gl_->run_image(in, s, out, nullptr, GetParam());
     return out;
   }
   static RgbImage on_cpu(const dof::DofInput& in, const LeeMipmapSettings& s = {}) {
@@ -87,12 +89,21 @@ class GlLeeMipmapTest : public ::testing::Test {
   std::unique_ptr<GlLeeMipmap> gl_;
 };
 
+class GlLeeMipmapPassChoice : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    backend_ = std::make_unique<GlBackend>();
+    backend_->context().make_current();
+  }
+  std::unique_ptr<GlBackend> backend_;
+};
+
 using SceneImage = test::DofSceneImage;
 SceneImage scene_image(GlBackend& backend, const char* name, double focus_m, double k_px) {
   return test::dof_scene_image(backend, name, focus_m, k_px, 256, 192);
 }
 
-TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceOnTheBundledScenes) {
+TEST_P(GlLeeMipmapTest, AgreesWithTheCpuReferenceOnTheBundledScenes) {
   struct Case {
     const char* scene;
     double focus_m;
@@ -109,7 +120,7 @@ TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceOnTheBundledScenes) {
   }
 }
 
-TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceWithEverySetting) {
+TEST_P(GlLeeMipmapTest, AgreesWithTheCpuReferenceWithEverySetting) {
   const SceneImage im = scene_image(*backend_, "attention.json", 2.9, 32.0);
   for (int variant = 0; variant < 7; ++variant) {
     LeeMipmapSettings s;
@@ -126,7 +137,7 @@ TEST_F(GlLeeMipmapTest, AgreesWithTheCpuReferenceWithEverySetting) {
   expect_agree(fg.input(), {}, "foreground blur");
 }
 
-TEST_F(GlLeeMipmapTest, PinholeAndInFocusImagesAreCopiedExactly) {
+TEST_P(GlLeeMipmapTest, PinholeAndInFocusImagesAreCopiedExactly) {
   DofImage im(31, 17, glm::vec3(0.25f, 3.0f, 1e6f), 1.0f);
   im.color[5] = {kNaN, kInf, -kInf};
   im.color[6] = {-1.0f, 2.0f, 0.0f};
@@ -144,7 +155,7 @@ TEST_F(GlLeeMipmapTest, PinholeAndInFocusImagesAreCopiedExactly) {
   EXPECT_EQ(0, std::memcmp(f.data(), focused.color.data(), f.size() * sizeof(glm::vec3)));
 }
 
-TEST_F(GlLeeMipmapTest, StabilityCatalogueSpecialDepths) {
+TEST_P(GlLeeMipmapTest, StabilityCatalogueSpecialDepths) {
   const CocModel lens = dof::test::lens_with_k(300);
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -168,7 +179,7 @@ TEST_F(GlLeeMipmapTest, StabilityCatalogueSpecialDepths) {
   }
 }
 
-TEST_F(GlLeeMipmapTest, StabilityCatalogueColoursAndLenses) {
+TEST_P(GlLeeMipmapTest, StabilityCatalogueColoursAndLenses) {
   const CocModel lens = dof::test::lens_with_k(300);
   DofImage dirty(50, 40, glm::vec3(0.5f), static_cast<float>(lens.depth_far_for_coc(20.0)));
   dirty.color[10] = {kNaN, kInf, -kInf};
@@ -206,7 +217,7 @@ TEST_F(GlLeeMipmapTest, StabilityCatalogueColoursAndLenses) {
   }
 }
 
-TEST_F(GlLeeMipmapTest, StabilityCatalogueTinyAndDegenerateSizes) {
+TEST_P(GlLeeMipmapTest, StabilityCatalogueTinyAndDegenerateSizes) {
   const CocModel lens = dof::test::lens_with_k(300);
   for (auto [w, h] : {std::pair{1u, 1u}, {1u, 2u}, {2u, 1u}, {1u, 37u}, {53u, 1u}, {2u, 2u}, {3u, 5u}, {1u, 1024u}}) {
     DofImage im(w, h, glm::vec3(0.4f), 100.0f);
@@ -219,7 +230,7 @@ TEST_F(GlLeeMipmapTest, StabilityCatalogueTinyAndDegenerateSizes) {
   }
 }
 
-TEST_F(GlLeeMipmapTest, RandomInputsAgreeAndReuseTheirTargets) {
+TEST_P(GlLeeMipmapTest, RandomInputsAgreeAndReuseTheirTargets) {
   std::mt19937 rng(1234);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   std::uniform_real_distribution<double> ud(0.0, 1.0);
@@ -245,6 +256,35 @@ TEST_F(GlLeeMipmapTest, RandomInputsAgreeAndReuseTheirTargets) {
     expect_agree(im.input(lens), s, "random");
   }
 }
+
+// The compute passes run the fragment passes' GLSL functions: the two agree to float rounding, not
+// only within the tolerance of the CPU reference.
+TEST_P(GlLeeMipmapTest, TheComputeAndFragmentPassesAgree) {
+  if (GetParam() != GlLeeMipmap::Pass::Compute) GTEST_SKIP() << "compared once, from the compute side";
+  for (double k : {4.0, 64.0}) {
+    const SceneImage im = scene_image(*backend_, "attention.json", 2.9, k);
+    RgbImage fragment, compute;
+    // Compute first, on targets no fragment pass wrote (each test makes its own GlLeeMipmap).
+    gl_->run_image(im.input(), {}, compute, nullptr, GlLeeMipmap::Pass::Compute);
+    gl_->run_image(im.input(), {}, fragment, nullptr, GlLeeMipmap::Pass::Fragment);
+    EXPECT_GE(psnr_shown(compute, fragment), 80.0) << "K " << k;
+  }
+}
+
+TEST_F(GlLeeMipmapPassChoice, TheComputePassRefusesWhereItWasNotBuilt) {
+  GlLeeMipmap fragment_only(false);
+  EXPECT_FALSE(fragment_only.has_compute());
+  RgbImage out;
+  DofImage im(8, 8, glm::vec3(0.5f), 2.0f);
+  EXPECT_THROW(fragment_only.run_image(im.input(dof::test::lens_with_k(20)), {}, out, nullptr, GlLeeMipmap::Pass::Compute),
+               std::invalid_argument);
+}
+
+INSTANTIATE_TEST_SUITE_P(Passes, GlLeeMipmapTest,
+                         ::testing::Values(GlLeeMipmap::Pass::Fragment, GlLeeMipmap::Pass::Compute),
+                         [](const ::testing::TestParamInfo<GlLeeMipmap::Pass>& param) {
+                           return param.param == GlLeeMipmap::Pass::Compute ? "Compute" : "Fragment";
+                         });
 
 }  // namespace
 }  // namespace fovea::render

@@ -316,8 +316,8 @@ void GlFrame::ulod_blend(const FrameTime& time, const BackendSettings& next, con
   aside.height = t.height;
   begin_timed("gpu.ulod");
   const GlGBufferTextures n = backend_.render_aside(time, aside);
-  // In place where compute pays (no copy of the colour image); the fragment pass elsewhere.
-  const auto pass = ulod_->has_compute() && features.compute_pays() ? GlUlodBlend::Pass::Compute : GlUlodBlend::Pass::Fragment;
+  // In place where compute pays (no copy of the colour image), or as set; the fragment pass elsewhere.
+  const auto pass = ulod_->has_compute() && effect_compute() ? GlUlodBlend::Pass::Compute : GlUlodBlend::Pass::Fragment;
   ulod_->run({t.color, t.object_id, t.width, t.height}, {n.color, n.object_id, n.width, n.height}, ids, blend, pass);
   end_timed();
   check("GlFrame::ulod_blend");
@@ -352,9 +352,13 @@ void GlFrame::dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSetti
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::dof_lee_mipmap before the G-buffer was rendered");
-  if (!lee_mipmap_) lee_mipmap_ = std::make_unique<GlLeeMipmap>();
+  const GlFeatures& features = backend_.context().features();
+  if (!lee_mipmap_) lee_mipmap_ = std::make_unique<GlLeeMipmap>(features.at_least(4, 3));
+  // Compute passes where they pay (no rasteriser and no framebuffer switch per level), or as set.
+  const auto pass = lee_mipmap_->has_compute() && effect_compute() ? GlLeeMipmap::Pass::Compute
+                                                                   : GlLeeMipmap::Pass::Fragment;
   begin_timed("gpu.dof");
-  lee_mipmap_->run(GlDofInput{t.color, t.depth, t.width, t.height}, coc, settings);
+  lee_mipmap_->run(GlDofInput{t.color, t.depth, t.width, t.height}, coc, settings, pass);
   end_timed();
   hdr_source_ = HdrSource::Dof;
   dof_output_ = lee_mipmap_->output();
@@ -500,6 +504,20 @@ void GlFrame::ensure_display(std::uint32_t tw, std::uint32_t th) {
   display_th_ = th;
 }
 
+bool GlFrame::effect_compute(GpuPass asked) const {
+  if (!backend_.context().features().at_least(4, 3)) return false;
+  return asked == GpuPass::Compute || (asked == GpuPass::Auto && compute_faster_);
+}
+
+std::string GlFrame::effect_passes(GpuPass asked) const {
+  if (effect_compute(asked)) return "compute";
+  if (asked == GpuPass::Fragment) return "fragment";
+  if (!backend_.context().features().at_least(4, 3)) {
+    return "fragment: compute passes need OpenGL 4.3, this context is " + backend_.context().features().version();
+  }
+  return "fragment: frame.effect_passes=auto on a software rasteriser";
+}
+
 // Binds the display image's framebuffer over the image's part of it, with `program`.
 void GlFrame::begin_fullscreen_pass(unsigned program) {
   const GlGBufferTextures t = backend_.textures();
@@ -524,7 +542,7 @@ void GlFrame::tonemap(const GpuTonemap& params) {
                                 std::to_string(t.height));
   }
   const bool compute = params.pass == GpuTonemap::Pass::Compute ? tonemap_compute_ != 0
-                       : params.pass == GpuTonemap::Pass::Auto  ? compute_faster_
+                       : params.pass == GpuTonemap::Pass::Auto  ? tonemap_compute_ != 0 && effect_compute()
                                                                 : false;
   if (params.pass == GpuTonemap::Pass::Compute && !compute) {
     throw std::invalid_argument("GlFrame::tonemap: a compute pass needs OpenGL 4.3, this context is " +

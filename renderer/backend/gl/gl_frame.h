@@ -29,6 +29,8 @@ class GlFrame final : public GpuFrame {
   GlFrame& operator=(const GlFrame&) = delete;
 
   const std::string& unavailable_reason() const override { return unavailable_; }
+  void set_effect_passes(GpuPass pass) override { effect_pass_ = pass; }
+  std::string effect_passes(GpuPass asked) const override;
   std::string description() const override;
   void render_gbuffer(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes,
                       GBuffer& out) override;
@@ -68,12 +70,16 @@ class GlFrame final : public GpuFrame {
   void ensure_display(std::uint32_t texture_width, std::uint32_t texture_height);
   void begin_fullscreen_pass(unsigned program);
   unsigned hdr_input() const;  // the texture this frame's tone map reads (hdr_source_)
+  // The effect passes run as compute passes when `asked` (the device decides Auto and can refuse).
+  bool effect_compute(GpuPass asked) const;
+  bool effect_compute() const { return effect_compute(effect_pass_); }
 
   GlBackend& backend_;
   std::string unavailable_;
   unsigned tonemap_program_ = 0, overlay_program_ = 0, vao_ = 0;
   unsigned tonemap_compute_ = 0;  // GL 4.3: the tone map as a compute pass
-  bool compute_faster_ = false;   // ... on a GPU, not a software rasteriser (GpuTonemap::Pass::Auto)
+  bool compute_faster_ = false;   // ... on a GPU, not a software rasteriser (GpuPass::Auto)
+  GpuPass effect_pass_ = GpuPass::Auto;  // set_effect_passes
   unsigned display_fbo_ = 0, display_texture_ = 0;
   std::uint32_t display_tw_ = 0, display_th_ = 0;
   unsigned hdr_texture_ = 0;

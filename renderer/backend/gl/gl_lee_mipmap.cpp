@@ -18,8 +18,14 @@ namespace fovea::render {
 namespace {
 
 
+// Each pass is one GLSL function of its texel, run by a fragment shader (OpenGL 3.3) or a compute
+// shader (OpenGL 4.3, writing images): the same code, so both implementations agree texel for texel
+// up to the texture unit's filtering, which both use alike.
+constexpr const char* kFragmentVersion = "#version 330 core\n";
+constexpr const char* kComputeVersion = "#version 430 core\nlayout(local_size_x = 8, local_size_y = 8) in;\n";
+
 // lee_mipmap_detail.h's constants and eq. 4.6, shared by the passes.
-constexpr const char* kCommon = R"(#version 330 core
+constexpr const char* kCommon = R"(
 const float kTiny = 1e-18;      // the geometric blend's floor for 0 (log2 stays finite)
 const float kHuge = 1e18;       // and its ceiling
 const float kFarDepth = 1e30;   // non-finite depth: the far limit, kept finite for averaging
@@ -37,8 +43,6 @@ constexpr const char* kBasePass = R"(
 uniform sampler2D u_color, u_depth;
 uniform int u_form;  // CocModel::Terms::Form: 0 zero, 1 regular, 2 focus at infinity
 uniform float u_k, u_df, u_ef_px, u_cap, u_scale;
-layout(location = 0) out vec4 o_color;
-layout(location = 1) out vec4 o_zs;
 float coc(float d) {
   if (u_form == 0) return 0.0;
   float b;
@@ -54,8 +58,7 @@ float coc(float d) {
   b = abs(b);
   return (isnan(b) || isinf(b)) ? u_cap : min(b, u_cap);
 }
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+void base_texel(ivec2 p, out vec4 o_color, out vec4 o_zs) {
   vec3 c = texelFetch(u_color, p, 0).rgb;
   o_color = vec4(clamp(vec3(clean(c.r), clean(c.g), clean(c.b)), kTiny, kHuge), 0.0);
   float d = texelFetch(u_depth, p, 0).r;
@@ -65,6 +68,24 @@ void main() {
   o_zs = vec4(z, s, s, 0.0);
 }
 )";
+constexpr const char* kBaseFragment = R"(
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out vec4 o_zs;
+void main() { base_texel(ivec2(gl_FragCoord.xy), o_color, o_zs); }
+)";
+constexpr const char* kBaseCompute = R"(
+layout(rgba32f, binding = 0) writeonly uniform image2DRect u_out_color;
+layout(rgba32f, binding = 1) writeonly uniform image2DRect u_out_zs;
+uniform ivec2 u_size;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_size.x || p.y >= u_size.y) return;
+  vec4 c, zs;
+  base_texel(p, c, zs);
+  imageStore(u_out_color, p, c);
+  imageStore(u_out_zs, p, zs);
+}
+)";
 
 // Steps 2-3 and eq. 4.10 for level l from level l - 1 (in the other parity's atlas).
 constexpr const char* kLevelPass = R"(
@@ -72,9 +93,6 @@ uniform sampler2DRect u_color, u_zs;  // the atlases holding level l - 1
 uniform ivec2 u_src_origin, u_src, u_dst_origin, u_dst;
 uniform bool u_aniso;
 uniform float u_zf, u_delta;
-layout(location = 0) out vec4 o_color;
-layout(location = 1) out vec4 o_zs;
-layout(location = 2) out vec4 o_don;
 // lee_mipmap_detail.h's Taps: eq. 4.1's [1 2 1] / 4 as three bilinear taps one source texel apart around
 // the destination texel's centre, i.e. four texels, clamped to the edge.
 void taps(int i, int sw, int dw, out int idx[4], out float w[4]) {
@@ -91,8 +109,8 @@ void taps(int i, int sw, int dw, out int idx[4], out float w[4]) {
     w[k + 1] += g * f;
   }
 }
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy) - u_dst_origin;
+// Level l's texel p (relative to its region).
+void level_texel(ivec2 p, out vec4 o_color, out vec4 o_zs, out vec4 o_don) {
   int ix[4], iy[4];
   float wx[4], wy[4];
   taps(p.x, u_src.x, u_dst.x, ix, wx);
@@ -129,6 +147,26 @@ void main() {
   o_don = vec4(rho, 0.0, 0.0, 0.0);
 }
 )";
+constexpr const char* kLevelFragment = R"(
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out vec4 o_zs;
+layout(location = 2) out vec4 o_don;
+void main() { level_texel(ivec2(gl_FragCoord.xy) - u_dst_origin, o_color, o_zs, o_don); }
+)";
+constexpr const char* kLevelCompute = R"(
+layout(rgba32f, binding = 0) writeonly uniform image2DRect u_out_color;
+layout(rgba32f, binding = 1) writeonly uniform image2DRect u_out_zs;
+layout(r32f, binding = 2) writeonly uniform image2DRect u_out_don;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_dst.x || p.y >= u_dst.y) return;
+  vec4 c, zs, don;
+  level_texel(p, c, zs, don);
+  imageStore(u_out_color, u_dst_origin + p, c);
+  imageStore(u_out_zs, u_dst_origin + p, zs);
+  imageStore(u_out_don, u_dst_origin + p, don);
+}
+)";
 
 // Steps 4-5 per output pixel. A level is read through its region of the atlases: bilinear by the
 // texture unit, the coordinate clamped to the region's outer texel centres (GL_CLAMP_TO_EDGE within
@@ -140,7 +178,6 @@ uniform ivec2 u_origin[16], u_lsize[16];
 uniform int u_top, u_max_level;
 uniform float u_ks, u_diag;  // u_diag: 1/sqrt 2 (circular, Fig. 4.4b) or 1
 uniform bool u_smooth, u_geometric;
-out vec4 o_color;
 // The 3x3 neighbourhood of eq. 4.8 and its binomial weights (lee_mipmap_detail.h's Neighbourhood); y is
 // negated so the samples are summed in the CPU's order (its rows run top-down).
 const float kW[9] = float[9](0.25, 0.125, 0.125, 0.125, 0.125, 0.0625, 0.0625, 0.0625, 0.0625);
@@ -180,13 +217,13 @@ vec4 unchanged(ivec2 p) {
   vec3 c = texelFetch(u_input, p, 0).rgb;
   return vec4(finite(c.r), finite(c.g), finite(c.b), 1.0);
 }
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
-  if (u_top < 1) { o_color = unchanged(p); return; }
-  vec2 uv = gl_FragCoord.xy / vec2(u_lsize[0]);
+// The output's texel p.
+vec4 final_texel(ivec2 p) {
+  if (u_top < 1) return unchanged(p);
+  vec2 uv = (vec2(p) + 0.5) / vec2(u_lsize[0]);
   // M as top_mipmap_level chooses it, from the image's largest DoB (the max pyramid's top texel).
   float smax = ((u_top & 1) == 0 ? texelFetch(u_zs_even, u_origin[u_top]) : texelFetch(u_zs_odd, u_origin[u_top])).z;
-  if (!(smax > 0.0)) { o_color = unchanged(p); return; }
+  if (!(smax > 0.0)) return unchanged(p);
   int M = max(1, int(floor(level_of(smax, u_ks))));
   if (u_max_level > 0) M = min(M, u_max_level);
   M = min(M, u_top);
@@ -209,7 +246,7 @@ void main() {
     }
   }
   float m = min(level_of(sigma, u_ks), float(M + 1));  // Lee 2009, eq. 4.6
-  if (!(m > 0.0)) { o_color = copied(p); return; }
+  if (!(m > 0.0)) return copied(p);
   int l = int(m);
   float beta = m - float(l);
   if (l > M) { l = M; beta = 1.0; }
@@ -228,15 +265,43 @@ void main() {
       hi = max(hi, max(a, b));
     }
   }
-  o_color = vec4(clamp(res, vec3(0.0), hi), 1.0);
+  return vec4(clamp(res, vec3(0.0), hi), 1.0);
+}
+)";
+constexpr const char* kFinalFragment = R"(
+out vec4 o_color;
+void main() { o_color = final_texel(ivec2(gl_FragCoord.xy)); }
+)";
+constexpr const char* kFinalCompute = R"(
+layout(rgba32f, binding = 0) writeonly uniform image2D u_out;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_lsize[0].x || p.y >= u_lsize[0].y) return;
+  imageStore(u_out, p, final_texel(p));
 }
 )";
 
 void check(const char* where) { gl::check_error("GlLeeMipmap", where); }
 
-unsigned link(const char* body, const char* what) {
-  const std::string source = std::string(kCommon) + body;
+unsigned link(const char* body, const char* main, const char* what) {
+  const std::string source = std::string(kFragmentVersion) + kCommon + body + main;
   return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
+}
+
+unsigned link_compute(const char* body, const char* main, const char* what) {
+  const std::string source = std::string(kComputeVersion) + kCommon + body + main;
+  return gl::link_compute_program(source.c_str(), what);
+}
+
+// Every later pass reads what a compute pass wrote through a sampler, an image, a framebuffer, a
+// copy or a readback.
+constexpr GLbitfield kComputeWritten = GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                                       GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
+                                       GL_PIXEL_BUFFER_BARRIER_BIT;
+
+void dispatch(glm::ivec2 size) {
+  glDispatchCompute(static_cast<GLuint>((size.x + 7) / 8), static_cast<GLuint>((size.y + 7) / 8), 1);
+  glMemoryBarrier(kComputeWritten);
 }
 
 int mip_size(std::uint32_t n, int level) { return std::max(1, static_cast<int>(n >> level)); }
@@ -252,10 +317,15 @@ void delete_texture(unsigned& t) {
 
 }  // namespace
 
-GlLeeMipmap::GlLeeMipmap() {
-  base_program_ = link(kBasePass, "GlLeeMipmap base pass");
-  level_program_ = link(kLevelPass, "GlLeeMipmap level pass");
-  final_program_ = link(kFinalPass, "GlLeeMipmap final pass");
+GlLeeMipmap::GlLeeMipmap(bool compute) {
+  base_program_[0] = link(kBasePass, kBaseFragment, "GlLeeMipmap base pass");
+  level_program_[0] = link(kLevelPass, kLevelFragment, "GlLeeMipmap level pass");
+  final_program_[0] = link(kFinalPass, kFinalFragment, "GlLeeMipmap final pass");
+  if (compute) {
+    base_program_[1] = link_compute(kBasePass, kBaseCompute, "GlLeeMipmap base pass (compute)");
+    level_program_[1] = link_compute(kLevelPass, kLevelCompute, "GlLeeMipmap level pass (compute)");
+    final_program_[1] = link_compute(kFinalPass, kFinalCompute, "GlLeeMipmap final pass (compute)");
+  }
   glGenVertexArrays(1, &vao_);
   glGenFramebuffers(1, &fbo_);
   glGenQueries(2, queries_);
@@ -269,8 +339,9 @@ GlLeeMipmap::~GlLeeMipmap() {
   glDeleteQueries(2, queries_);
   if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
   if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
-  for (unsigned p : {base_program_, level_program_, final_program_})
-    if (p != 0) glDeleteProgram(p);
+  for (int i = 0; i < 2; ++i)
+    for (unsigned p : {base_program_[i], level_program_[i], final_program_[i]})
+      if (p != 0) glDeleteProgram(p);
 }
 
 // Levels 0..top (every level of a GL mipmap, up to 1 texel along the longer side: the CPU's
@@ -338,7 +409,7 @@ void GlLeeMipmap::draw_into(GLenum target, std::initializer_list<unsigned> textu
 }
 
 void GlLeeMipmap::base_pass(const GlDofInput& in, const dof::CocModel& coc, const dof::LeeMipmapSettings& s) {
-  const unsigned p = base_program_;
+  const unsigned p = base_program_[compute_ ? 1 : 0];
   glUseProgram(p);
   bind(0, GL_TEXTURE_2D, in.color, p, "u_color");
   bind(1, GL_TEXTURE_2D, in.depth, p, "u_depth");
@@ -355,11 +426,18 @@ void GlLeeMipmap::base_pass(const GlDofInput& in, const dof::CocModel& coc, cons
   glUniform1f(glGetUniformLocation(p, "u_ef_px"), to_float(t.ef_px));
   glUniform1f(glGetUniformLocation(p, "u_cap"), to_float(t.cap));
   glUniform1f(glGetUniformLocation(p, "u_scale"), to_float(dob));
-  draw_into(GL_TEXTURE_RECTANGLE, {atlas_[0].color, atlas_[0].zs}, origin_[0], size_[0]);
+  if (compute_) {
+    glUniform2i(glGetUniformLocation(p, "u_size"), size_[0].x, size_[0].y);
+    glBindImageTexture(0, atlas_[0].color, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(1, atlas_[0].zs, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    dispatch(size_[0]);
+  } else {
+    draw_into(GL_TEXTURE_RECTANGLE, {atlas_[0].color, atlas_[0].zs}, origin_[0], size_[0]);
+  }
 }
 
 void GlLeeMipmap::level_pass(int level, float zf, const dof::LeeMipmapSettings& s) {
-  const unsigned p = level_program_;
+  const unsigned p = level_program_[compute_ ? 1 : 0];
   glUseProgram(p);
   const Atlas& src = atlas_[(level - 1) & 1];
   const Atlas& dst = atlas_[level & 1];
@@ -373,11 +451,18 @@ void GlLeeMipmap::level_pass(int level, float zf, const dof::LeeMipmapSettings& 
   glUniform1i(glGetUniformLocation(p, "u_aniso"), s.anisotropic ? 1 : 0);
   glUniform1f(glGetUniformLocation(p, "u_zf"), zf);
   glUniform1f(glGetUniformLocation(p, "u_delta"), std::isfinite(s.delta) ? static_cast<float>(s.delta) : 0.0f);
-  draw_into(GL_TEXTURE_RECTANGLE, {dst.color, dst.zs, dst.don}, dor, ds);
+  if (compute_) {
+    glBindImageTexture(0, dst.color, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(1, dst.zs, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(2, dst.don, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32F);
+    dispatch(ds);
+  } else {
+    draw_into(GL_TEXTURE_RECTANGLE, {dst.color, dst.zs, dst.don}, dor, ds);
+  }
 }
 
 void GlLeeMipmap::final_pass(const GlDofInput& in, int top, const dof::LeeMipmapSettings& s) {
-  const unsigned p = final_program_;
+  const unsigned p = final_program_[compute_ ? 1 : 0];
   glUseProgram(p);
   bind(0, GL_TEXTURE_2D, in.color, p, "u_input");
   bind(1, GL_TEXTURE_RECTANGLE, atlas_[0].color, p, "u_color_even");
@@ -395,11 +480,20 @@ void GlLeeMipmap::final_pass(const GlDofInput& in, int top, const dof::LeeMipmap
   glUniform1f(glGetUniformLocation(p, "u_diag"), s.circular ? 0.70710678f : 1.0f);
   glUniform1i(glGetUniformLocation(p, "u_smooth"), s.smooth_foreground ? 1 : 0);
   glUniform1i(glGetUniformLocation(p, "u_geometric"), s.geometric ? 1 : 0);
-  draw_into(GL_TEXTURE_2D, {output_}, {0, 0}, size_[0]);
+  if (compute_) {
+    glBindImageTexture(0, output_, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    dispatch(size_[0]);
+  } else {
+    draw_into(GL_TEXTURE_2D, {output_}, {0, 0}, size_[0]);
+  }
 }
 
-void GlLeeMipmap::run(const GlDofInput& in, const dof::CocModel& coc, const dof::LeeMipmapSettings& s) {
+void GlLeeMipmap::run(const GlDofInput& in, const dof::CocModel& coc, const dof::LeeMipmapSettings& s, Pass pass) {
   if (in.width == 0 || in.height == 0) throw std::invalid_argument("GlLeeMipmap::run: an empty image");
+  if (pass == Pass::Compute && !has_compute()) {
+    throw std::invalid_argument("GlLeeMipmap: the compute passes need OpenGL 4.3 (built without them)");
+  }
+  compute_ = pass == Pass::Compute;
   ensure_targets(in.width, in.height);
   glDisable(GL_DEPTH_TEST);
   glDisable(GL_SCISSOR_TEST);
@@ -414,6 +508,9 @@ void GlLeeMipmap::run(const GlDofInput& in, const dof::CocModel& coc, const dof:
     for (int l = 1; l <= top_; ++l) level_pass(l, zf, s);
   }
   final_pass(in, pinhole ? 0 : top_, s);
+  if (compute_) {
+    for (GLuint unit = 0; unit < 3; ++unit) glBindImageTexture(unit, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+  }
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   glBindVertexArray(0);
   glUseProgram(0);
@@ -422,14 +519,14 @@ void GlLeeMipmap::run(const GlDofInput& in, const dof::CocModel& coc, const dof:
 }
 
 void GlLeeMipmap::run_image(const dof::DofInput& in, const dof::LeeMipmapSettings& s, dof::RgbImage& out,
-                            double* gpu_ms) {
+                            double* gpu_ms, Pass pass) {
   const std::uint32_t w = in.width, h = in.height;
   out.assign(in.pixels(), glm::vec3(0.0f));
   if (in.pixels() == 0 || in.color == nullptr) return;
   const unsigned color = gl::upload_top_first(upload_color_, GL_RGB32F, GL_RGB, &in.color[0].x, w, h, 3, staging_);
   const unsigned depth = gl::upload_top_first(upload_depth_, GL_R32F, GL_RED, in.depth, w, h, 1, staging_);
   glQueryCounter(queries_[0], GL_TIMESTAMP);
-  run(GlDofInput{color, depth, w, h}, in.coc, s);
+  run(GlDofInput{color, depth, w, h}, in.coc, s, pass);
   glQueryCounter(queries_[1], GL_TIMESTAMP);
   gl::read_rgb_top_first(fbo_, output_, w, h, out, staging_);
   if (gpu_ms != nullptr) *gpu_ms = gl::elapsed_ms(queries_);

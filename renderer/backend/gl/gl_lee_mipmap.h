@@ -21,7 +21,11 @@
 // largest input, a looser bound of the same quantity). tests/gl/test_gl_lee_mipmap.cpp states the
 // tolerance (PSNR against the CPU reference) and bench/RESULTS.md the measured agreement.
 //
-// Needs a current OpenGL 3.3 context (float colour attachments, several draw buffers: core there).
+// Two implementations of the same passes (issue 42): fragment passes (OpenGL 3.3: float colour
+// attachments, several draw buffers) and compute passes (OpenGL 4.3) that write the atlases and the
+// output as images, with no framebuffer, no rasteriser and no blending unit between. Each pass's body
+// is one GLSL function of its texel shared by both, so they agree up to the device's arithmetic.
+// GlFrame takes the compute passes where compute pays (GlFeatures::compute_pays).
 #include <cstdint>
 #include <initializer_list>
 #include <vector>
@@ -43,22 +47,27 @@ struct GlDofInput {
 
 class GlLeeMipmap {
  public:
-  // Compiles the passes on the current context; throws std::runtime_error with the driver's log.
-  GlLeeMipmap();
+  enum class Pass { Fragment, Compute };
+  // Compiles the passes on the current context (the compute passes only with `compute`: OpenGL 4.3);
+  // throws std::runtime_error with the driver's log.
+  explicit GlLeeMipmap(bool compute = false);
+  bool has_compute() const { return base_program_[1] != 0; }
   ~GlLeeMipmap();
   GlLeeMipmap(const GlLeeMipmap&) = delete;
   GlLeeMipmap& operator=(const GlLeeMipmap&) = delete;
 
   // Submits the passes (does not wait). The result is output(): RGBA32F, width x height, bottom-up.
   // A pinhole model copies the input (non-finite and negative colour as 0, as the CPU reference).
-  void run(const GlDofInput& in, const dof::CocModel& coc, const dof::LeeMipmapSettings& s);
+  // Pass::Compute without has_compute() throws std::invalid_argument.
+  void run(const GlDofInput& in, const dof::CocModel& coc, const dof::LeeMipmapSettings& s, Pass pass = Pass::Fragment);
   unsigned output() const { return output_; }
   int levels_built() const { return top_; }  // the top level built (M <= top is chosen on the GPU)
 
   // For tests and benchmarks: `in` (row 0 at the top, as dof_image.h) goes up, the passes run, the
   // result comes back into `out` (row 0 at the top). gpu_ms: the passes alone (timestamp queries),
   // without the upload and the readback.
-  void run_image(const dof::DofInput& in, const dof::LeeMipmapSettings& s, dof::RgbImage& out, double* gpu_ms = nullptr);
+  void run_image(const dof::DofInput& in, const dof::LeeMipmapSettings& s, dof::RgbImage& out, double* gpu_ms = nullptr,
+                 Pass pass = Pass::Fragment);
 
  private:
   static constexpr int kMaxLevels = 16;  // levels 0..15: an image side below 65536 px
@@ -68,7 +77,9 @@ class GlLeeMipmap {
   void final_pass(const GlDofInput& in, int top, const dof::LeeMipmapSettings& s);  // top 0: a copy
   void draw_into(unsigned target, std::initializer_list<unsigned> textures, glm::ivec2 origin, glm::ivec2 size);
 
-  unsigned base_program_ = 0, level_program_ = 0, final_program_ = 0, vao_ = 0, fbo_ = 0;
+  // [0]: the fragment passes, [1]: the compute passes (0 when not built).
+  unsigned base_program_[2] = {0, 0}, level_program_[2] = {0, 0}, final_program_[2] = {0, 0}, vao_ = 0, fbo_ = 0;
+  bool compute_ = false;  // the passes of the current run
   // The mipmaps of colour I (RGBA32F), ZBN (RGBA32F: Z, B, the largest B at or below, unused) and
   // the DoN (R32F; level l from level l - 1), each level in a region of an atlas (rectangle
   // textures): the even levels in atlas_[0], the odd ones in atlas_[1], so a pass reads level l - 1
