@@ -7,6 +7,9 @@
 // lee_mipmap/{fragment,compute}/f{11.2,2.8,0.7}: Lee 2009 ch. 4's DOF alone on attention.json's
 // G-buffer at 1920x1080, focused at 4 m, at f/11.2, f/2.8 (the scene's) and f/0.7: both
 // implementations at three CoCs in one run (issue 42: cost independent of the CoC).
+// schedl_layered/{fragment,compute}/f{2.8,0.7}: Schedl & Wimmer's layered DOF, M = 3 (the visible
+// layer and two peeled ones), on the same G-buffer: the fragment box blur against the compute
+// pass's running sums.
 // Needs a display: xvfb-run -a build/<dir>/bench/bench_gl
 #include <benchmark/benchmark.h>
 #include <epoxy/gl.h>
@@ -23,6 +26,7 @@
 #include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_program.h"
 #include "backend/gl/gl_lee_mipmap.h"
+#include "backend/gl/gl_schedl_layered.h"
 #include "backend/gl/gl_ulod_blend.h"
 #include "dof/lens.h"
 #include "scene/scene_loader.h"
@@ -126,6 +130,7 @@ void ulod_blend(benchmark::State& state, GlUlodBlend::Pass pass) {
 struct DofFrame {
   Scene scene;
   unsigned color = 0, depth = 0;
+  unsigned peeled_color[2] = {0, 0}, peeled_depth[2] = {0, 0};  // the first two layers behind it
 };
 const DofFrame& dof_frame() {
   static const DofFrame frame = [] {
@@ -141,6 +146,15 @@ const DofFrame& dof_frame() {
     std::vector<float> staging;
     gl::upload_top_first(f.color, GL_RGB32F, GL_RGB, &g.color[0].x, g.width, g.height, 3, staging);
     gl::upload_top_first(f.depth, GL_R32F, GL_RED, g.depth.data(), g.width, g.height, 1, staging);
+    for (std::uint32_t k = 0; k < 2; ++k) {
+      BackendSettings peel;
+      peel.peel = k + 1;
+      GBuffer layer;
+      backend.render({}, peel, layer);
+      backend.context().make_current();
+      gl::upload_top_first(f.peeled_color[k], GL_RGB32F, GL_RGB, &layer.color[0].x, layer.width, layer.height, 3, staging);
+      gl::upload_top_first(f.peeled_depth[k], GL_R32F, GL_RED, layer.depth.data(), layer.width, layer.height, 1, staging);
+    }
     return f;
   }();
   return frame;
@@ -165,6 +179,30 @@ void lee_mipmap(benchmark::State& state, GlLeeMipmap::Pass pass, double f_number
     glFinish();
   }
   state.counters["K_px"] = coc.terms().k;
+}
+
+void schedl_layered(benchmark::State& state, GlSchedlLayered::Pass pass, double f_number) {
+  const DofFrame& f = dof_frame();
+  gl_backend().context().make_current();
+  Camera camera = f.scene.camera;
+  camera.lens.aperture_m = camera.lens.focal_length_m / f_number;
+  const dof::CocModel coc = dof::coc_model(camera, {}, 4.0, dof::CocProjection::Sensor);
+  GlSchedlLayered schedl(gl_backend().context().features().at_least(4, 3));
+  if (pass == GlSchedlLayered::Pass::Compute && !schedl.has_compute()) {
+    state.SkipWithError("no OpenGL 4.3 compute");
+    return;
+  }
+  const std::uint32_t w = f.scene.camera.width, h = f.scene.camera.height;
+  const GlDofInput in{f.color, f.depth, w, h};
+  const std::vector<GlDofInput> peeled{{f.peeled_color[0], f.peeled_depth[0], w, h}, {f.peeled_color[1], f.peeled_depth[1], w, h}};
+  dof::SchedlStats stats = schedl.run(in, peeled, coc, {}, pass);
+  glFinish();
+  for (auto _ : state) {
+    stats = schedl.run(in, peeled, coc, {}, pass);
+    glFinish();
+  }
+  state.counters["K_px"] = coc.terms().k;
+  state.counters["layers"] = stats.layers;
 }
 
 void register_scene(const std::string& name, Scene s) {
@@ -197,6 +235,12 @@ int main(int argc, char** argv) {
     for (const auto& [f_name, f_number] : {std::pair{"f11.2", 11.2}, std::pair{"f2.8", 2.8}, std::pair{"f0.7", 0.7}})
       benchmark::RegisterBenchmark((std::string("lee_mipmap/") + name + "/" + f_name + "/1920x1080").c_str(), lee_mipmap,
                                    pass, f_number)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
+  for (const auto& [name, pass] : {std::pair{"fragment", GlSchedlLayered::Pass::Fragment}, std::pair{"compute", GlSchedlLayered::Pass::Compute}})
+    for (const auto& [f_name, f_number] : {std::pair{"f2.8", 2.8}, std::pair{"f0.7", 0.7}})
+      benchmark::RegisterBenchmark((std::string("schedl_layered/") + name + "/" + f_name + "/1920x1080").c_str(),
+                                   schedl_layered, pass, f_number)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
   register_scene("cornell-procedural", testing::cornell_box());

@@ -46,12 +46,14 @@ void expect_bounded(const RgbImage& out, float max_in, const std::string& what) 
     }
 }
 
-class GlSchedlLayeredTest : public ::testing::Test {
+// Every test runs with both box blurs: the fragment pass and the compute pass's running sums.
+class GlSchedlLayeredTest : public ::testing::TestWithParam<GlSchedlLayered::Pass> {
  protected:
   void SetUp() override {
     backend_ = std::make_unique<GlBackend>();
     backend_->context().make_current();
-    gl_ = std::make_unique<GlSchedlLayered>();
+    gl_ = std::make_unique<GlSchedlLayered>(backend_->context().features().at_least(4, 3));
+    if (GetParam() == GlSchedlLayered::Pass::Compute && !gl_->has_compute()) GTEST_SKIP() << "no OpenGL 4.3 compute";
   }
   // The GPU within the tolerance of the CPU, with the same layers cut; both bounded by max_in.
   // Returns the PSNR against the CPU.
@@ -61,7 +63,7 @@ class GlSchedlLayeredTest : public ::testing::Test {
     dof::SchedlStats cs, gs;
     dof::schedl_layered(in, peeled, {}, cpu, &cs);
     backend_->context().make_current();
-    gs = gl_->run_image(in, peeled, {}, gpu);
+    gs = gl_->run_image(in, peeled, {}, gpu, nullptr, GetParam());
     expect_bounded(gpu, max_in, what);
     EXPECT_EQ(gs.layers, cs.layers) << what;
     EXPECT_EQ(gs.focus_layer, cs.focus_layer) << what;
@@ -73,7 +75,7 @@ class GlSchedlLayeredTest : public ::testing::Test {
   std::unique_ptr<GlSchedlLayered> gl_;
 };
 
-TEST_F(GlSchedlLayeredTest, AgreesWithTheCpuReferenceOnTheBundledScenesPeeledLayers) {
+TEST_P(GlSchedlLayeredTest, AgreesWithTheCpuReferenceOnTheBundledScenesPeeledLayers) {
   std::unique_ptr<Backend> embree = make_backend(BackendKind::Embree);
   struct Case {
     const char* scene;
@@ -111,7 +113,7 @@ TEST_F(GlSchedlLayeredTest, AgreesWithTheCpuReferenceOnTheBundledScenesPeeledLay
   }
 }
 
-TEST_F(GlSchedlLayeredTest, StabilityCatalogueNonFiniteAndExtremeDepthsAndColours) {
+TEST_P(GlSchedlLayeredTest, StabilityCatalogueNonFiniteAndExtremeDepthsAndColours) {
   const std::vector<float> depths = {0.0f, -1.0f, kInf, -kInf, kNaN, 1e-30f, 1e30f, 3e38f, 1.0f, 2.0f};
   DofImage im(20, 20, glm::vec3(0.0f), 0.0f, glm::vec3(kNaN));
   for (std::size_t i = 0; i < 400; ++i) {
@@ -124,7 +126,7 @@ TEST_F(GlSchedlLayeredTest, StabilityCatalogueNonFiniteAndExtremeDepthsAndColour
                "non-finite and extreme");
 }
 
-TEST_F(GlSchedlLayeredTest, StabilityCatalogueDegenerateSizesAndLenses) {
+TEST_P(GlSchedlLayeredTest, StabilityCatalogueDegenerateSizesAndLenses) {
   for (auto [w, h] : {std::pair{1u, 1u}, {1u, 37u}, {37u, 1u}, {2u, 1u}}) {
     DofImage im(w, h, glm::vec3(0.4f), 0.0f);
     for (std::size_t i = 0; i < im.depth.size(); ++i) im.depth[i] = 0.5f + static_cast<float>(i);
@@ -144,11 +146,11 @@ TEST_F(GlSchedlLayeredTest, StabilityCatalogueDegenerateSizesAndLenses) {
   pinhole.aperture_m = 0;
   DofImage flat(16, 12, glm::vec3(0.3f, -1.0f, kNaN), 2.0f);
   RgbImage out;
-  gl_->run_image(flat.input(pinhole), {}, {}, out);
+  gl_->run_image(flat.input(pinhole), {}, {}, out, nullptr, GetParam());
   for (const glm::vec3& c : out) EXPECT_EQ(c, glm::vec3(0.3f, 0.0f, 0.0f));  // the input, sanitised
 }
 
-TEST_F(GlSchedlLayeredTest, RandomInputsAgree) {
+TEST_P(GlSchedlLayeredTest, RandomInputsAgree) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   for (int t = 0; t < 20; ++t) {
@@ -167,6 +169,50 @@ TEST_F(GlSchedlLayeredTest, RandomInputsAgree) {
     expect_agree(im.input(lens), {{im.hidden_color.data(), im.hidden_depth.data()}}, max_in, "random " + std::to_string(t));
   }
 }
+
+// Lines long enough for several of the compute pass's segments, boxes wider than a segment, and a
+// stripe of HDR light (1e6) beside dark pixels (0.5): the running sums leave no residue where the
+// light left the window, and agree with the fragment pass's direct sums.
+TEST_P(GlSchedlLayeredTest, WideBoxesOverLongLinesAndHdrLightAgree) {
+  for (const double k : {20.0, 200.0}) {
+    DofImage im(600, 90, glm::vec3(0.5f), 8.0f);
+    float max_in = 0.5f;
+    for (std::uint32_t y = 0; y < 90; ++y)
+      for (std::uint32_t x = 0; x < 600; ++x) {
+        const std::size_t i = std::size_t{y} * 600 + x;
+        if (x >= 280 && x < 284) im.color[i] = glm::vec3(1e6f, 1e6f * 0.5f, 1.0f);
+        if ((x / 37 + y / 23) % 2 == 0) im.color[i].y += 0.25f;
+        im.depth[i] = x < 300 ? 2.0f : 8.0f;
+        max_in = std::max({max_in, im.color[i].x, im.color[i].y, im.color[i].z});
+      }
+    const double db = expect_agree(im.input(dof::test::lens_with_k(k, 8.0)), {}, max_in, "K " + std::to_string(k));
+    std::printf("600x90, HDR stripe, K %.0f px: GL vs CPU %.1f dB\n", k, db);
+    if (GetParam() == GlSchedlLayered::Pass::Compute) {
+      RgbImage fragment, compute;
+      gl_->run_image(im.input(dof::test::lens_with_k(k, 8.0)), {}, {}, compute, nullptr, GlSchedlLayered::Pass::Compute);
+      gl_->run_image(im.input(dof::test::lens_with_k(k, 8.0)), {}, {}, fragment, nullptr, GlSchedlLayered::Pass::Fragment);
+      EXPECT_GE(test::psnr_shown(compute, fragment), 60.0) << "K " << k;
+    }
+  }
+}
+
+TEST(GlSchedlLayeredPassChoice, TheComputePassRefusesWhereItWasNotBuilt) {
+  GlBackend backend;
+  backend.context().make_current();
+  GlSchedlLayered fragment_only(false);
+  EXPECT_FALSE(fragment_only.has_compute());
+  RgbImage out;
+  DofImage im(8, 8, glm::vec3(0.5f), 2.0f);
+  EXPECT_THROW(fragment_only.run_image(im.input(dof::test::lens_with_k(20)), {}, {}, out, nullptr,
+                                       GlSchedlLayered::Pass::Compute),
+               std::invalid_argument);
+}
+
+INSTANTIATE_TEST_SUITE_P(Passes, GlSchedlLayeredTest,
+                         ::testing::Values(GlSchedlLayered::Pass::Fragment, GlSchedlLayered::Pass::Compute),
+                         [](const ::testing::TestParamInfo<GlSchedlLayered::Pass>& param) {
+                           return param.param == GlSchedlLayered::Pass::Compute ? "Compute" : "Fragment";
+                         });
 
 }  // namespace
 }  // namespace fovea::render

@@ -370,7 +370,7 @@ dof::SchedlStats GlFrame::dof_schedl_layered(const FrameTime& time, const Backen
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::dof_schedl_layered before the G-buffer was rendered");
-  if (!schedl_) schedl_ = std::make_unique<GlSchedlLayered>();
+  if (!schedl_) schedl_ = std::make_unique<GlSchedlLayered>(backend_.context().features().at_least(4, 3));
   std::vector<GlDofInput> peeled;
   if (layers > 1) {
     begin_timed("gpu.peel");
@@ -379,7 +379,9 @@ dof::SchedlStats GlFrame::dof_schedl_layered(const FrameTime& time, const Backen
     for (std::uint32_t n = 1; n < layers; ++n) peeled.push_back({p.result_color(n), p.result_depth(n), t.width, t.height});
   }
   begin_timed("gpu.dof");
-  const dof::SchedlStats stats = schedl_->run(GlDofInput{t.color, t.depth, t.width, t.height}, peeled, coc, {});
+  const auto pass = schedl_->has_compute() && effect_compute() ? GlSchedlLayered::Pass::Compute
+                                                               : GlSchedlLayered::Pass::Fragment;
+  const dof::SchedlStats stats = schedl_->run(GlDofInput{t.color, t.depth, t.width, t.height}, peeled, coc, {}, pass);
   end_timed();
   hdr_source_ = HdrSource::Dof;
   dof_output_ = schedl_->output();

@@ -134,6 +134,49 @@ void main() {
 }
 )";
 
+// Step 3 as a compute pass (OpenGL 4.3): the same box, but each invocation slides it along a segment
+// of one line (a row, or a column) with a running sum, so a pixel costs two reads and (2r + 1) /
+// u_segment for the segment's first window, not 2r + 1: O(1) per pixel for r up to the segment. The
+// running sum is compensated (Neumaier), so light that leaves the window leaves no residue in the
+// dark beside it (HDR 1e6 against 0.5); a sum that overflowed is summed afresh.
+constexpr const char* kBoxCompute = R"(#version 430 core
+layout(local_size_x = 64) in;
+uniform sampler2D u_src;
+layout(rgba32f, binding = 0) writeonly uniform image2D u_dst;
+uniform ivec2 u_size, u_dir;
+uniform int u_r, u_segment;
+ivec2 texel(int i, int line) {
+  return u_dir.x == 1 ? ivec2(clamp(i, 0, u_size.x - 1), line) : ivec2(line, clamp(i, 0, u_size.y - 1));
+}
+void add(inout precise vec4 s, inout precise vec4 c, vec4 v) {
+  precise vec4 t = s + v;
+  c += mix((v - t) + s, (s - t) + v, greaterThanEqual(abs(s), abs(v)));
+  s = t;
+}
+void window(int x, int line, out precise vec4 s, out precise vec4 c) {
+  s = vec4(0.0);
+  c = vec4(0.0);
+  for (int j = x - u_r; j <= x + u_r; ++j) add(s, c, texelFetch(u_src, texel(j, line), 0));
+}
+void main() {
+  int along = u_dir.x == 1 ? u_size.x : u_size.y, lines = u_dir.x == 1 ? u_size.y : u_size.x;
+  int id = int(gl_GlobalInvocationID.x);
+  if (id >= lines * ((along + u_segment - 1) / u_segment)) return;
+  // Neighbouring invocations take neighbouring lines at one place along them (coherent reads).
+  int line = id % lines, x0 = (id / lines) * u_segment, x1 = min(x0 + u_segment, along);
+  precise vec4 s, c;
+  window(x0, line, s, c);
+  float inv = 1.0 / float(2 * u_r + 1);
+  for (int x = x0; x < x1; ++x) {
+    imageStore(u_dst, texel(x, line), (s + c) * inv);
+    if (x + 1 == x1) break;
+    add(s, c, texelFetch(u_src, texel(x + u_r + 1, line), 0));
+    add(s, c, -texelFetch(u_src, texel(x - u_r, line), 0));
+    if (any(isinf(s)) || any(isnan(s)) || any(isinf(c)) || any(isnan(c))) window(x + 1, line, s, c);
+  }
+}
+)";
+
 // Step 4: I' = L^_{kf-1} over (L_kf over L^_{kf+1}) (eq. 13), normalised (§3.3.1).
 constexpr const char* kComposite = R"(
 uniform sampler2D u_front, u_layer, u_back;
@@ -189,7 +232,8 @@ void del(unsigned& t) {
 
 }  // namespace
 
-GlSchedlLayered::GlSchedlLayered() {
+GlSchedlLayered::GlSchedlLayered(bool compute) {
+  if (compute) box_compute_ = gl::link_compute_program(kBoxCompute, "GlSchedlLayered box blur (compute)");
   pack_program_ = link({kPack}, "GlSchedlLayered pack");
   reduce_first_ = link({kLayers, kReduceFirst}, "GlSchedlLayered reduction");
   reduce_next_ = link({kReduceNext}, "GlSchedlLayered reduction (halving)");
@@ -209,7 +253,7 @@ GlSchedlLayered::~GlSchedlLayered() {
   glDeleteQueries(2, queries_);
   if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
   if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
-  for (unsigned p : {pack_program_, reduce_first_, reduce_next_, matte_program_, box_program_, composite_program_})
+  for (unsigned p : {pack_program_, reduce_first_, reduce_next_, matte_program_, box_program_, box_compute_, composite_program_})
     if (p != 0) glDeleteProgram(p);
 }
 
@@ -303,6 +347,10 @@ void GlSchedlLayered::matte(const dof::SchedlAnchors& an, int k, int mode, unsig
 
 void GlSchedlLayered::gaussian(unsigned image, double sigma) {
   if (!(sigma > 0.3)) return;
+  if (compute_) {
+    gaussian_compute(image, sigma);
+    return;
+  }
   const unsigned p = box_program_;
   glUseProgram(p);
   glUniform2i(glGetUniformLocation(p, "u_size"), static_cast<GLint>(width_), static_cast<GLint>(height_));
@@ -316,6 +364,34 @@ void GlSchedlLayered::gaussian(unsigned image, double sigma) {
     glUniform2i(glGetUniformLocation(p, "u_dir"), 0, 1);
     draw_into(image, width_, height_);
   }
+}
+
+// The boxes of gaussian() by running sums (kBoxCompute): along rows into scratch_, along columns back.
+void GlSchedlLayered::gaussian_compute(unsigned image, double sigma) {
+  const unsigned p = box_compute_;
+  glUseProgram(p);
+  glUniform2i(glGetUniformLocation(p, "u_size"), static_cast<GLint>(width_), static_cast<GLint>(height_));
+  const auto pass = [&](unsigned from, unsigned to, int r, glm::ivec2 dir) {
+    // A segment of at least r pixels keeps the first window's 2r + 1 reads at most ~2 a pixel; at
+    // most 128, so a 1080-pixel line still spreads over 9 invocations.
+    const int segment = std::clamp(r, 16, 128);
+    const auto along = static_cast<int>(dir.x == 1 ? width_ : height_), lines = static_cast<int>(dir.x == 1 ? height_ : width_);
+    const auto invocations = static_cast<std::uint32_t>(lines * ((along + segment - 1) / segment));
+    glUniform1i(glGetUniformLocation(p, "u_r"), r);
+    glUniform1i(glGetUniformLocation(p, "u_segment"), segment);
+    glUniform2i(glGetUniformLocation(p, "u_dir"), dir.x, dir.y);
+    bind(0, from, p, "u_src");
+    glBindImageTexture(0, to, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glDispatchCompute((invocations + 63) / 64, 1, 1);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT |
+                    GL_TEXTURE_UPDATE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT);
+  };
+  for (const int r : dof::schedl_box_radii(sigma)) {
+    if (r <= 0) continue;
+    pass(image, scratch_, r, {1, 0});
+    pass(scratch_, image, r, {0, 1});
+  }
+  glBindImageTexture(0, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
 }
 
 void GlSchedlLayered::composite(unsigned front, unsigned back, bool copy, float max_in) {
@@ -333,9 +409,13 @@ void GlSchedlLayered::composite(unsigned front, unsigned back, bool copy, float 
 }
 
 dof::SchedlStats GlSchedlLayered::run(const GlDofInput& visible, const std::vector<GlDofInput>& peeled,
-                                      const dof::CocModel& coc, const dof::SchedlSettings& s) {
+                                      const dof::CocModel& coc, const dof::SchedlSettings& s, Pass pass) {
   const auto start = std::chrono::steady_clock::now();
   if (visible.width == 0 || visible.height == 0) throw std::invalid_argument("GlSchedlLayered::run: an empty image");
+  if (pass == Pass::Compute && !has_compute()) {
+    throw std::invalid_argument("GlSchedlLayered: the compute box blur needs OpenGL 4.3 (built without it)");
+  }
+  compute_ = pass == Pass::Compute;
   ensure(visible.width, visible.height);
   // The peeled layers that carry colour and depth, as the CPU's input_layers keeps them.
   std::vector<GlDofInput> layers;
@@ -399,7 +479,7 @@ dof::SchedlStats GlSchedlLayered::run(const GlDofInput& visible, const std::vect
 }
 
 dof::SchedlStats GlSchedlLayered::run_image(const dof::DofInput& in, const std::vector<dof::PeeledLayer>& peeled,
-                                            const dof::SchedlSettings& s, dof::RgbImage& out, double* gpu_ms) {
+                                            const dof::SchedlSettings& s, dof::RgbImage& out, double* gpu_ms, Pass pass) {
   const std::uint32_t w = in.width, h = in.height;
   out.assign(in.pixels(), glm::vec3(0.0f));
   if (in.pixels() == 0 || in.color == nullptr) return {};
@@ -415,7 +495,7 @@ dof::SchedlStats GlSchedlLayered::run_image(const dof::DofInput& in, const std::
   std::vector<GlDofInput> layers;
   for (std::size_t l = 0; l < peeled.size(); ++l) layers.push_back(as_gl(l + 1, peeled[l].color, peeled[l].depth));
   glQueryCounter(queries_[0], GL_TIMESTAMP);
-  const dof::SchedlStats stats = run(visible, layers, in.coc, s);
+  const dof::SchedlStats stats = run(visible, layers, in.coc, s, pass);
   glQueryCounter(queries_[1], GL_TIMESTAMP);
   gl::read_rgb_top_first(fbo_, output_, w, h, out, staging_);
   if (gpu_ms != nullptr) *gpu_ms = gl::elapsed_ms(queries_);

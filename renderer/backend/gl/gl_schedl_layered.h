@@ -16,6 +16,10 @@
 // anchors and depths are compared in float; tests/gl/test_gl_schedl_layered.cpp states the tolerance.
 // The input layers are packed (colour and depth in one texture each) so that eight of them and an
 // accumulator fit OpenGL 3.3's 16 texture units.
+//
+// Pass::Compute (OpenGL 4.3, issue 42) runs step 3 as separable running sums in a compute pass: O(1)
+// per pixel however wide the box (the fragment pass reads r + 1 bilinear pairs), compensated so HDR
+// light leaves no residue; the other steps are the same passes. GlFrame takes it where compute pays.
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -29,21 +33,27 @@ class GlSchedlLayered {
  public:
   static constexpr int kMaxInputLayers = 8;  // dof.layers' range: the visible one and 7 peeled
 
-  GlSchedlLayered();  // compiles the passes on the current context; throws std::runtime_error
+  enum class Pass { Fragment, Compute };
+  // Compiles the passes on the current context (the compute box blur only with `compute`: OpenGL
+  // 4.3); throws std::runtime_error with the driver's log.
+  explicit GlSchedlLayered(bool compute = false);
+  bool has_compute() const { return box_compute_ != 0; }
   ~GlSchedlLayered();
   GlSchedlLayered(const GlSchedlLayered&) = delete;
   GlSchedlLayered& operator=(const GlSchedlLayered&) = delete;
 
   // `visible` and `peeled` (the layers behind it, front to back, at most kMaxInputLayers - 1): the
   // result is output(), RGBA32F, bottom-up. Waits for the reduction (a few floats) before the layers.
+  // Pass::Compute without has_compute() throws std::invalid_argument.
   dof::SchedlStats run(const GlDofInput& visible, const std::vector<GlDofInput>& peeled, const dof::CocModel& coc,
-                       const dof::SchedlSettings& s);
+                       const dof::SchedlSettings& s, Pass pass = Pass::Fragment);
   unsigned output() const { return output_; }
 
   // For tests and benchmarks: the images (row 0 at the top) go up, the passes run, the result comes
   // back. gpu_ms: the passes alone (timestamp queries), the reduction's wait included.
   dof::SchedlStats run_image(const dof::DofInput& in, const std::vector<dof::PeeledLayer>& peeled,
-                             const dof::SchedlSettings& s, dof::RgbImage& out, double* gpu_ms = nullptr);
+                             const dof::SchedlSettings& s, dof::RgbImage& out, double* gpu_ms = nullptr,
+                             Pass pass = Pass::Fragment);
 
  private:
   struct Range {
@@ -59,12 +69,15 @@ class GlSchedlLayered {
   // (the front cascade), 2 L_k over acc (the back cascade).
   void matte(const dof::SchedlAnchors& an, int k, int mode, unsigned acc, unsigned to);
   void gaussian(unsigned image, double sigma);  // in place, through scratch_
+  void gaussian_compute(unsigned image, double sigma);
   // The composite into output_ (front, back: 0 where there is no such cascade; copy: the input).
   void composite(unsigned front, unsigned back, bool copy, float max_in);
   void draw_into(unsigned texture, std::uint32_t w, std::uint32_t h);
 
   unsigned pack_program_ = 0, reduce_first_ = 0, reduce_next_ = 0, matte_program_ = 0, box_program_ = 0,
            composite_program_ = 0;
+  unsigned box_compute_ = 0;  // 0: not built
+  bool compute_ = false;      // this run's box blur
   unsigned vao_ = 0, fbo_ = 0, queries_[2] = {0, 0};
   // Full-size RGBA32F images: the packed inputs, the cascades' accumulators (two each, ping-pong),
   // L_kf, blur scratch, the output.
