@@ -388,6 +388,32 @@ TEST(GlFramePipeline, TheComputeEffectPassesMakeTheFragmentPassesFrames) {
   EXPECT_LE(d.max_level, 1) << d.pixels << " pixels differ";
 }
 
+// ULOD's next levels drawn aside by the G-buffer pass the frame takes: with the visibility buffer
+// (the compute resolve, on GPUs) the blended frames are the forward pass's.
+TEST(GlFramePipeline, UlodsAsideDrawTakesTheFramesGBufferPass) {
+  Image8 images[2];
+  for (const char* gbuffer_pass : {"visibility", "forward"}) {
+    SCOPED_TRACE(gbuffer_pass);
+    Settings s;
+    s.set("frame.gbuffer_pass", gbuffer_pass);
+    s.set("lod.policy", "ulod");
+    s.set("dof.enabled", "false");
+    s.set("tonemap.exact", "true");
+    std::unique_ptr<GazeInput> gaze = make_gaze_input("none");
+    FramePipeline pipeline(bundled("attention.json", 160, 120), s, std::make_unique<GlBackend>(), *gaze);
+    PassTimer timer;
+    for (std::uint64_t i = 0; i < 3; ++i) {
+      const double t = 0.1 * static_cast<double>(i);
+      const FramePipeline::Frame f = pipeline.render(i, t, i == 0 ? 0.0 : t - 0.1, t, timer);
+      ASSERT_TRUE(f.on_gpu) << f.plan.explain();
+    }
+    EXPECT_EQ(timer.summary().count("gpu.ulod"), 1u) << "no object between levels: nothing blended";
+    images[std::string(gbuffer_pass) == "visibility" ? 0 : 1] = pipeline.read_display();
+  }
+  const Difference d = compare(images[0], images[1]);
+  EXPECT_LE(d.pixels, 40u) << "max " << d.max_level;  // where two surfaces touch, either may win
+}
+
 // attention.device=gpu (backend/gl/gl_attention.h) against attention.device=cpu in the frame: the
 // same objects, pixel counts and depths, the same attention within float sums, over frames of an
 // animation (the Kalman filter and the temporal context see the same values), with the finite checks

@@ -161,7 +161,8 @@ glm::uvec2 GlBackend::begin_render(const BackendSettings& settings) {
   return {settings.width > 0 ? settings.width : cam.width, settings.height > 0 ? settings.height : cam.height};
 }
 
-GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSettings& settings) {
+GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSettings& settings,
+                                         const GBufferPlanes& planes) {
   const glm::uvec2 size = begin_render(settings);
   const std::uint32_t width = size.x, height = size.y;
   if (aside_.fbo == 0 || aside_.width != width || aside_.height != height) {
@@ -174,10 +175,15 @@ GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSe
     aside_.width = width;
     aside_.height = height;
   }
-  // As the frame's forward pass draws (the same pre-pass), so that both images pick the same surface
-  // where two touch.
-  draw_forward(aside_.fbo, time, settings.lens, settings.lod_levels, width, height, GBufferPlanes::all(),
-               settings.depth_prepass);
+  // As the frame's G-buffer pass draws (the same pass, the same pre-pass), so that both images pick
+  // the same surface where two touch; on GPUs the visibility buffer's compute shading is the faster.
+  if (settings.visibility_buffer && !pbr_scene_ && ensure_visibility()) {
+    const FrameView frame = frame_view(scene_->camera, time, settings.lens);
+    draw_visibility(*scene_, time, settings.lod_levels, frame, frame.view != frame.view_prev, width, height, planes,
+                    {aside_.textures, aside_.z, width, height});
+  } else {
+    draw_forward(aside_.fbo, time, settings.lens, settings.lod_levels, width, height, planes, settings.depth_prepass);
+  }
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   check_gl("GlBackend::render_aside");
   return {aside_.textures[kColor], aside_.textures[kDepth], aside_.textures[kId], aside_.textures[kNormal],
@@ -266,7 +272,8 @@ void GlBackend::draw(const FrameTime& time, const LensSample& lens, const std::v
   }
   if (visibility_buffer && ensure_visibility()) {
     const FrameView frame = frame_view(cam, time, lens);
-    draw_visibility(scene, time, lod_levels, frame, frame.view != frame.view_prev, width, height, planes);
+    draw_visibility(scene, time, lod_levels, frame, frame.view != frame.view_prev, width, height, planes,
+                    {textures_, z_buffer_, fb_width_, fb_height_});
     check_gl("GlBackend::render (visibility buffer)");
     return;
   }
@@ -331,7 +338,7 @@ bool GlBackend::ensure_visibility() {
 // The objects of this frame (their chosen levels) as the visibility pass's draws.
 void GlBackend::draw_visibility(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                                 const FrameView& frame, bool camera_moved, std::uint32_t width, std::uint32_t height,
-                                const GBufferPlanes& planes) {
+                                const GBufferPlanes& planes, const Targets& targets) {
   std::vector<GlVisibilityPass::Draw> draws;
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const GpuMesh* gpu = mesh_for(i, lod_levels);
@@ -353,7 +360,7 @@ void GlBackend::draw_visibility(const Scene& scene, const FrameTime& time, const
                                     scene.camera.far_m,
                                     scene.ambient,
                                     light_sample_count_};
-  visibility_->render(view, draws, z_buffer_, fb_width_, fb_height_, textures_, planes);
+  visibility_->render(view, draws, targets.z, targets.width, targets.height, targets.textures, planes);
 }
 
 GlBackend::FrameView GlBackend::frame_view(const Camera& cam, const FrameTime& time, const LensSample& lens) {

@@ -86,10 +86,12 @@ class GlBackend final : public Backend {
   // Peels layers 1..`layers` behind the visible one (settings: time's lens, LOD levels; its peel is
   // ignored) into targets of their own, left on the GPU; the frame's G-buffer textures are untouched.
   const GlPeeling& peel_on_gpu(const FrameTime& time, const BackendSettings& settings, std::uint32_t layers);
-  // Renders the scene (settings' lens, LOD levels and size; forward shading) into targets of its
-  // own, left on the GPU: the frame's G-buffer textures are untouched (ULOD's next levels, blended
-  // where the frame lies). Valid until the next call.
-  GlGBufferTextures render_aside(const FrameTime& time, const BackendSettings& settings);
+  // Renders the scene (settings' lens, LOD levels, size, and G-buffer pass: the visibility buffer
+  // where settings.visibility_buffer and the frame could take it, else forward shading) into targets
+  // of its own, left on the GPU: the frame's G-buffer textures are untouched (ULOD's next levels,
+  // blended where the frame lies). Only `planes` are written. Valid until the next call.
+  GlGBufferTextures render_aside(const FrameTime& time, const BackendSettings& settings,
+                                 const GBufferPlanes& planes = GBufferPlanes::all());
   // Makes the G-buffer's five plane textures (colour RGBA32F, depth R32F, id R32UI, normal RGBA32F,
   // motion RG32F) at width x height and attaches them to the bound framebuffer's colour attachments 0-4.
   static void attach_gbuffer_textures(unsigned (&textures)[5], std::uint32_t width, std::uint32_t height);
@@ -140,9 +142,15 @@ class GlBackend final : public Backend {
   // The visibility-buffer pass, built on first use; false (and one stderr line, once) where the
   // context or the scene cannot have it.
   bool ensure_visibility();
+  // Into the frame's targets (textures_, z_buffer_) or render_aside's.
+  struct Targets {
+    const unsigned* textures;  // the five planes
+    unsigned z;
+    std::uint32_t width, height;  // the framebuffer's
+  };
   void draw_visibility(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                        const FrameView& frame, bool camera_moved, std::uint32_t width, std::uint32_t height,
-                       const GBufferPlanes& planes);
+                       const GBufferPlanes& planes, const Targets& targets);
   // BackendSettings::depth_prepass: the z-buffer of every object, nothing else.
   void draw_depth(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                   const FrameView& frame);

@@ -315,7 +315,7 @@ void GlFrame::ulod_blend(const FrameTime& time, const BackendSettings& next, con
   aside.width = t.width;
   aside.height = t.height;
   begin_timed("gpu.ulod");
-  const GlGBufferTextures n = backend_.render_aside(time, aside);
+  const GlGBufferTextures n = backend_.render_aside(time, aside, GBufferPlanes{.color = true, .object_id = true});
   // In place where compute pays (no copy of the colour image), or as set; the fragment pass elsewhere.
   const auto pass = ulod_->has_compute() && effect_compute() ? GlUlodBlend::Pass::Compute : GlUlodBlend::Pass::Fragment;
   ulod_->run({t.color, t.object_id, t.width, t.height}, {n.color, n.object_id, n.width, n.height}, ids, blend, pass);

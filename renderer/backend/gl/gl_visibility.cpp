@@ -3,6 +3,7 @@
 
 #include <epoxy/gl.h>
 
+#include <algorithm>
 #include <cstring>
 #include <glm/gtc/type_ptr.hpp>
 #include <stdexcept>
@@ -128,9 +129,21 @@ void GlVisibilityPass::set_meshes(const std::vector<const Mesh*>& meshes) {
 }
 
 // The id target (RG32UI: 1 + draw, primitive) sharing the G-buffer's z-buffer.
+// The id target grows to the largest framebuffer seen and keeps its size: the frame's targets and
+// render_aside's alternate every frame (ULOD), and only the z-buffer is attached anew for each.
 void GlVisibilityPass::ensure_target(unsigned z_buffer, std::uint32_t width, std::uint32_t height) {
-  if (fbo_ != 0 && fbo_z_ == z_buffer && fb_width_ == width && fb_height_ == height) return;
+  if (fbo_ != 0 && fbo_z_ == z_buffer && fb_width_ >= width && fb_height_ >= height) return;
   if (fbo_ == 0) glGenFramebuffers(1, &fbo_);
+  if (fbo_ != 0 && ids_ != 0 && fb_width_ >= width && fb_height_ >= height) {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, z_buffer);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      throw std::runtime_error("GlVisibilityPass: id framebuffer incomplete");
+    fbo_z_ = z_buffer;
+    return;
+  }
+  width = std::max(width, fb_width_);
+  height = std::max(height, fb_height_);
   if (ids_ != 0) glDeleteTextures(1, &ids_);
   glGenTextures(1, &ids_);
   glBindTexture(GL_TEXTURE_2D, ids_);
