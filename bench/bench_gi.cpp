@@ -492,9 +492,13 @@ int main(int argc, char** argv) {
     const gi::GazeArea full{{320.0f, 240.0f}, 401.0f};
     std::printf("\n== gaze-area size against photons: CSF-weighted relative RMSE over the image against a full-screen "
                 "traditional map with %u photons, 640x480%s\n", reference_photons, on_scene(&scene).c_str());
+    // Every map's radiance estimate at the radius fovea-render's default (gi.nn_radius=auto) gives its
+    // photon count: the governor's front applies these options without a radius of their own.
+    const double area_m2 = gi::surface_area_m2(scene);
     gi::GiPassSettings ref = base_settings(gi::Strategy::Traditional, gi::IndirectEstimate::Nearest);
     ref.photons = reference_photons;
     ref.fovea = 1.0f;
+    ref.render.estimate.max_radius = gi::auto_nn_radius(area_m2, ref.render.estimate.nearest, reference_photons);
     gi::GiPass ref_pass;
     ref_pass.set_scene(scene);
     const Run reference = run_frames(ref_pass, scene, full, ref, local, 1, 0);
@@ -502,12 +506,13 @@ int main(int argc, char** argv) {
     std::printf("%-14s %-11s %8s %8s %10s %10s %10s\n", "strategy", "estimate", "photons", "area", "ms/frame", "csf_rmse",
                 "area_rmse");
     std::ofstream out = csv("gi_radius.csv");
-    if (out) out << "strategy,estimate,photons,area_deg,ms_per_frame,csf_weighted_rmse,area_rmse,reference_photons\n";
+    if (out) out << "strategy,estimate,photons,area_deg,ms_per_frame,csf_weighted_rmse,area_rmse,reference_photons,nn_radius_m\n";
     for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected})
       for (std::uint32_t n : {10000u, 40000u, 80000u})
         for (double deg : {10.0, 20.0, 40.0, 0.0}) {  // 0: the full screen
           gi::GiPassSettings s = base_settings(st, gi::IndirectEstimate::Precomputed);
           s.photons = n;
+          s.render.estimate.max_radius = gi::auto_nn_radius(area_m2, s.render.estimate.nearest, n);
           const gi::GazeArea area = deg > 0 ? gi::gaze_area(scene.display, 640, 480, gaze, deg) : full;
           if (deg == 0) s.fovea = 1.0f;
           gi::GiPass pass;
@@ -520,7 +525,7 @@ int main(int argc, char** argv) {
           std::fflush(stdout);
           if (out)
             out << gi::to_string(st) << ",precomputed," << n << "," << deg << "," << r.total_ms << "," << e << "," << ea << ","
-                << reference_photons << "\n";
+                << reference_photons << "," << s.render.estimate.max_radius << "\n";
         }
   }
   return 0;
