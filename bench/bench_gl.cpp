@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -34,6 +35,13 @@
 namespace {
 
 using namespace fovea::render;
+
+// The repository's root: FOVEA_SOURCE_DIR from the environment (the GPU machine runs this binary in
+// a copy of the tree elsewhere, bench/device/gpu-effects.sh), else where it was built from.
+std::filesystem::path source_dir() {
+  const char* dir = std::getenv("FOVEA_SOURCE_DIR");
+  return dir != nullptr && *dir != '\0' ? std::filesystem::path(dir) : std::filesystem::path(FOVEA_SOURCE_DIR);
+}
 
 GlBackend& gl_backend() {
   static GlBackend backend;
@@ -135,7 +143,7 @@ struct DofFrame {
 const DofFrame& dof_frame() {
   static const DofFrame frame = [] {
     DofFrame f;
-    f.scene = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes/attention.json");
+    f.scene = load_scene(source_dir() / "renderer/scenes/attention.json");
     f.scene.camera.width = 1920;
     f.scene.camera.height = 1080;
     GlBackend& backend = gl_backend();
@@ -245,7 +253,7 @@ int main(int argc, char** argv) {
           ->UseRealTime();
   register_scene("cornell-procedural", testing::cornell_box());
   register_scene("many-objects-120", testing::many_objects(120));
-  const std::filesystem::path dir = std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes";
+  const std::filesystem::path dir = source_dir() / "renderer" / "scenes";
   std::vector<std::filesystem::path> files;
   if (std::filesystem::is_directory(dir)) {
     for (const auto& entry : std::filesystem::directory_iterator(dir)) {

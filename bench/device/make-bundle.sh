@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# Packs fovea-render (and make_gltf_standin, where built) and the shared libraries they need (from ldd)
+# Packs fovea-render (and make_gltf_standin and bench_gl, where built) and the shared libraries they need (from ldd)
 # into .gpu-bundle/bundle.tar.xz, for
 # the GPU machine, which has no package registry: bench/device/gpu-frame.sh unpacks and runs it there.
 # Left out: glibc (the machine's own is newer), libstdc++/libgcc_s (likewise), and the OpenGL/EGL
@@ -21,12 +21,14 @@ trap 'rm -rf "$stage"' EXIT
 mkdir -p "$stage/lib"
 strip --strip-debug -o "$stage/fovea-render.bin" "$BIN"
 # The glTF stand-in's generator (bench/device/gpu-gltf.sh makes the scene there: 28 MB of data stays here).
-STANDIN=$BUILD/bench/make_gltf_standin
+# bench_gl: the effect passes alone, fragment against compute (gpu-effects.sh).
 EXTRA=()
-if [ -x "$STANDIN" ]; then
-  strip --strip-debug -o "$stage/make_gltf_standin.bin" "$STANDIN"
-  EXTRA=("$STANDIN")
-fi
+for tool in make_gltf_standin bench_gl; do
+  if [ -x "$BUILD/bench/$tool" ]; then
+    strip --strip-debug -o "$stage/$tool.bin" "$BUILD/bench/$tool"
+    EXTRA+=("$BUILD/bench/$tool")
+  fi
+done
 for bin in "$BIN" "${EXTRA[@]}"; do ldd "$bin"; done | awk '$3 ~ /^\// {print $3}' | sort -u |
   grep -vE '/(libc|libm|libpthread|libdl|librt|libresolv|ld-linux-x86-64|libstdc\+\+|libgcc_s|libGL|libEGL|libGLX|libGLdispatch|libOpenGL)[.-]' |
   while read -r lib; do cp -L "$lib" "$stage/lib/"; done
@@ -38,10 +40,12 @@ here=$(dirname "$(readlink -f "$0")")
 LD_LIBRARY_PATH="$here/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" exec "$here/fovea-render.bin" "$@"
 W
 chmod +x "$stage/fovea-render"
-if [ -x "$STANDIN" ]; then
-  sed 's/fovea-render\.bin/make_gltf_standin.bin/' "$stage/fovea-render" >"$stage/make_gltf_standin"
-  chmod +x "$stage/make_gltf_standin"
-fi
+for tool in make_gltf_standin bench_gl; do
+  if [ -f "$stage/$tool.bin" ]; then
+    sed "s/fovea-render\.bin/$tool.bin/" "$stage/fovea-render" >"$stage/$tool"
+    chmod +x "$stage/$tool"
+  fi
+done
 tar -C "$stage" -cf - . | xz -T0 -6 >"$DEST/bundle.tar.xz"
 (cd "$DEST/glvnd" && apt-get download libegl1 libglvnd0 libopengl0 libgl1 libglx0 >/dev/null 2>&1) ||
   echo "make-bundle: could not download libglvnd's packages (apt-get update first?); the machine's own must do" >&2
