@@ -30,7 +30,9 @@
 // gl_schedl_layered.h, gl_lee_splat.h: on the ray tracer's peeled layers, the peeling not timed) on the same
 // G-buffer through EGL (llvmpipe here, a GPU where there is one): ms/frame is the wall time with the
 // upload and the readback a GPU-resident frame does not do; gpu_ms the passes alone (timestamp
-// queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's. The CSV's
+// queries), and vs_cpu_db the PSNR of the GL image against the CPU implementation's. The "... gl
+// compute" rows are the same with the compute passes (OpenGL 4.3: lee-mipmap's passes, schedl-layered's
+// box blurs; frame.effect_passes), where the context has them. The CSV's
 // device column names where each row ran ("cpu", or the OpenGL renderer): bench/make_fronts.py
 // builds the governor's per-device fronts from it.
 //
@@ -381,8 +383,9 @@ int main(int argc, char** argv) {
     try {
       gl_context = std::make_unique<GlBackend>();
       gl_context->context().make_current();
-      gl_mipmap = std::make_unique<GlLeeMipmap>();
-      gl_schedl = std::make_unique<GlSchedlLayered>();
+      const bool compute = gl_context->context().features().at_least(4, 3);
+      gl_mipmap = std::make_unique<GlLeeMipmap>(compute);
+      gl_schedl = std::make_unique<GlSchedlLayered>(compute);
       gl_splat = std::make_unique<GlLeeSplat>();
       gl_device = "OpenGL " + gl_context->context().features().version() + " (" + gl_context->context().renderer() + ")";
       std::printf("gl rows on %s\n", gl_device.c_str());
@@ -526,12 +529,16 @@ int main(int argc, char** argv) {
                          },
                          nullptr, nullptr, 0.25});
       if (gl_mipmap) {
-        for (const double dob : {0.5, 0.25}) {
-          LeeMipmapSettings ls;
-          ls.dob_per_coc = dob;
-          methods.push_back({dob == 0.5 ? "lee-mipmap gl" : "lee-mipmap gl sigma=C/4",
-                             [&, ls](RgbImage& out) { gl_mipmap->run_image(in, ls, out, &gl_ms); }, &gl_ms,
-                             [&, ls](RgbImage& out) { mip.run(in, ls, out); }});
+        for (const GlLeeMipmap::Pass pass : {GlLeeMipmap::Pass::Fragment, GlLeeMipmap::Pass::Compute}) {
+          if (pass == GlLeeMipmap::Pass::Compute && !gl_mipmap->has_compute()) continue;
+          const std::string name = pass == GlLeeMipmap::Pass::Compute ? "lee-mipmap gl compute" : "lee-mipmap gl";
+          for (const double dob : {0.5, 0.25}) {
+            LeeMipmapSettings ls;
+            ls.dob_per_coc = dob;
+            methods.push_back({dob == 0.5 ? name : name + " sigma=C/4",
+                               [&, ls, pass](RgbImage& out) { gl_mipmap->run_image(in, ls, out, &gl_ms, pass); }, &gl_ms,
+                               [&, ls](RgbImage& out) { mip.run(in, ls, out); }});
+          }
         }
       }
       methods.push_back({"lee-splat no hidden", [&](RgbImage& out) {
@@ -587,17 +594,20 @@ int main(int argc, char** argv) {
         p2.peel = 2;
         backend.render({}, p1, peel1);
         backend.render({}, p2, peel2);
-        methods.push_back({"schedl-layered gl M=3",
-                           [&](RgbImage& out) {
-                             gl_schedl->run_image(in, {{peel1.color.data(), peel1.depth.data()},
-                                                       {peel2.color.data(), peel2.depth.data()}},
-                                                  SchedlSettings{}, out, &gl_ms);
-                           },
-                           &gl_ms, [&](RgbImage& out) {
-                             schedl_layered(in, {{peel1.color.data(), peel1.depth.data()},
-                                                 {peel2.color.data(), peel2.depth.data()}},
-                                            SchedlSettings{}, out);
-                           }});
+        for (const GlSchedlLayered::Pass pass : {GlSchedlLayered::Pass::Fragment, GlSchedlLayered::Pass::Compute}) {
+          if (pass == GlSchedlLayered::Pass::Compute && !gl_schedl->has_compute()) continue;
+          methods.push_back({pass == GlSchedlLayered::Pass::Compute ? "schedl-layered gl compute M=3" : "schedl-layered gl M=3",
+                             [&, pass](RgbImage& out) {
+                               gl_schedl->run_image(in, {{peel1.color.data(), peel1.depth.data()},
+                                                         {peel2.color.data(), peel2.depth.data()}},
+                                                    SchedlSettings{}, out, &gl_ms, pass);
+                             },
+                             &gl_ms, [&](RgbImage& out) {
+                               schedl_layered(in, {{peel1.color.data(), peel1.depth.data()},
+                                                   {peel2.color.data(), peel2.depth.data()}},
+                                              SchedlSettings{}, out);
+                             }});
+        }
       }
       methods.push_back({"accum (embree 16 views)", [&](RgbImage& out) {
                            DofReference a(backend, {}, {}, s.camera.lens, cs.focus_m, ReferenceKind::Accumulation, 1);

@@ -65,13 +65,21 @@ def dof_device_fronts(results):
     --methods "lee-splat,schedl-layered M=3,schedl-layered gl M=3" with the same size and reference). Options:
     the CPU methods (dof.device=cpu: read back, filtered, uploaded) at their wall time (lee-splat's and
     schedl-layered's with their peeled renders), and the GL implementations (dof.device=gpu) at their GPU
-    time, the pass's cost in a GPU-resident frame (without gpu.peel); one reference for both."""
+    time, the pass's cost in a GPU-resident frame (without gpu.peel), each implementation a point of
+    its own (frame.effect_passes=fragment, or compute for the "gl compute" rows where the run had
+    them); one reference for all."""
     cpu = {"lee-mipmap": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.5"},
            "lee-mipmap sigma=C/4": {"dof.method": "lee-mipmap", "dof.sigma_per_coc": "0.25"},
            "lee-splat": {"dof.method": "lee-splat"},
            "schedl-layered M=3": {"dof.method": "schedl-layered", "dof.layers": "3"}}
     gpu = {"lee-mipmap gl": cpu["lee-mipmap"], "lee-mipmap gl sigma=C/4": cpu["lee-mipmap sigma=C/4"],
            "lee-splat gl": cpu["lee-splat"], "schedl-layered gl M=3": cpu["schedl-layered M=3"]}
+    # The passes with a compute implementation: the fragment rows say so, the compute rows are points too.
+    for m in ("lee-mipmap gl", "lee-mipmap gl sigma=C/4", "schedl-layered gl M=3"):
+        gpu[m] = dict(gpu[m], **{"frame.effect_passes": "fragment"})
+    gpu["lee-mipmap gl compute"] = dict(gpu["lee-mipmap gl"], **{"frame.effect_passes": "compute"})
+    gpu["lee-mipmap gl compute sigma=C/4"] = dict(gpu["lee-mipmap gl sigma=C/4"], **{"frame.effect_passes": "compute"})
+    gpu["schedl-layered gl compute M=3"] = dict(gpu["schedl-layered gl M=3"], **{"frame.effect_passes": "compute"})
     fronts = []
     for path in sorted(glob.glob(os.path.join(results, "**", "bench_dof_gl.csv"), recursive=True)):
         rows = [r for r in csv.DictReader(open(path)) if r["mean_coc_px"] == "16"]
