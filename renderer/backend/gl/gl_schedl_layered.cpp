@@ -18,7 +18,25 @@ namespace fovea::render {
 namespace {
 
 
-constexpr const char* kCommon = R"(#version 330 core
+// Every pass but the box blur is one GLSL function of its output texel, shade(p), run by a fragment
+// shader (kFragmentMain) or a compute shader (kComputeMain, OpenGL 4.3) that writes it as an image.
+constexpr const char* kFragmentVersion = "#version 330 core\n";
+constexpr const char* kComputeVersion = "#version 430 core\nlayout(local_size_x = 8, local_size_y = 8) in;\n";
+constexpr const char* kFragmentMain = R"(
+out vec4 o;
+void main() { o = shade(ivec2(gl_FragCoord.xy)); }
+)";
+constexpr const char* kComputeMain = R"(
+layout(rgba32f, binding = 0) writeonly uniform image2D u_out;
+uniform ivec2 u_out_size;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_out_size.x || p.y >= u_out_size.y) return;
+  imageStore(u_out, p, shade(p));
+}
+)";
+
+constexpr const char* kCommon = R"(
 const float kInf = uintBitsToFloat(0x7f800000u);
 float finite_or_zero(float v) { return (isnan(v) || isinf(v)) ? 0.0 : v; }
 // schedl_layered.cpp's sanitized(): NaN, Inf and negative light read as 0.
@@ -31,11 +49,9 @@ vec4 over(vec4 a, vec4 b) { return a + (1.0 - a.a) * b; }  // premultiplied A ov
 constexpr const char* kPack = R"(
 uniform sampler2D u_color, u_depth;
 uniform bool u_has_depth;
-out vec4 o;
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+vec4 shade(ivec2 p) {
   float z = u_has_depth ? texelFetch(u_depth, p, 0).r : kInf;
-  o = vec4(sanitized(texelFetch(u_color, p, 0).rgb), isnan(z) ? kInf : max(z, 0.0));
+  return vec4(sanitized(texelFetch(u_color, p, 0).rgb), isnan(z) ? kInf : max(z, 0.0));
 }
 )";
 
@@ -58,9 +74,7 @@ vec4 layer(int l, ivec2 p) {
 // Step 1: per pixel (nearest finite depth, farthest finite depth, largest visible channel), then
 // halving 2x2 to one texel.
 constexpr const char* kReduceFirst = R"(
-out vec4 o;
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+vec4 shade(ivec2 p) {
   float zmin = kInf, zmax = 0.0;
   for (int l = 0; l < 8; ++l) {
     if (l >= u_inputs) break;
@@ -68,21 +82,20 @@ void main() {
     if (!isinf(z)) { zmin = min(zmin, z); zmax = max(zmax, z); }
   }
   vec3 c = layer(0, p).rgb;
-  o = vec4(zmin, zmax, max(c.r, max(c.g, c.b)), 0.0);
+  return vec4(zmin, zmax, max(c.r, max(c.g, c.b)), 0.0);
 }
 )";
 constexpr const char* kReduceNext = R"(
 uniform sampler2D u_src;
 uniform ivec2 u_src_size;
-out vec4 o;
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy) * 2;
+vec4 shade(ivec2 dst) {
+  ivec2 p = dst * 2;
   vec4 r = texelFetch(u_src, p, 0);
   for (int k = 1; k < 4; ++k) {
     vec4 q = texelFetch(u_src, min(p + ivec2(k & 1, k >> 1), u_src_size - 1), 0);
     r = vec4(min(r.x, q.x), max(r.y, q.y), max(r.z, q.z), 0.0);
   }
-  o = r;
+  return r;
 }
 )";
 
@@ -92,7 +105,6 @@ uniform sampler2D u_acc;
 uniform int u_mode;                // 0: L_k; 1: acc over L_k (front cascade); 2: L_k over acc (back)
 uniform float u_a, u_b, u_c, u_e;  // z_{k-2}, z_{k-1}, z_k, z_{k+1} (+-inf beyond the front and back layers)
 uniform bool u_a_finite, u_e_finite;
-out vec4 o;
 float w_dot(float d) {  // eq. 3
   if (d >= u_b && d <= u_c) return 1.0;
   if (d > u_a && d < u_b && u_a_finite && u_b > u_a) return (d - u_a) / (u_b - u_a);
@@ -102,8 +114,7 @@ float w_full(float d) {  // eq. 4
   if (d > u_c && d < u_e && u_e_finite && u_e > u_c) return (u_e - d) / (u_e - u_c);
   return w_dot(d);
 }
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+vec4 shade(ivec2 p) {
   vec4 acc = vec4(0.0);
   for (int l = 0; l < 8; ++l) {
     if (l >= u_inputs) break;
@@ -112,7 +123,7 @@ void main() {
     if (a > 0.0) acc = over(acc, vec4(in_l.rgb * a, a));
   }
   vec4 prev = texelFetch(u_acc, p, 0);
-  o = u_mode == 1 ? over(prev, acc) : u_mode == 2 ? over(acc, prev) : acc;
+  return u_mode == 1 ? over(prev, acc) : u_mode == 2 ? over(acc, prev) : acc;
 }
 )";
 
@@ -182,9 +193,7 @@ constexpr const char* kComposite = R"(
 uniform sampler2D u_front, u_layer, u_back;
 uniform bool u_has_front, u_has_back, u_copy;
 uniform float u_max_in;
-out vec4 o;
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+vec4 shade(ivec2 p) {
   vec3 result = layer(0, p).rgb;  // no coverage (or nothing blurs): the input
   if (!u_copy) {
     vec4 r = texelFetch(u_layer, p, 0);
@@ -195,17 +204,32 @@ void main() {
       result = clamp(vec3(finite_or_zero(c.r), finite_or_zero(c.g), finite_or_zero(c.b)), 0.0, u_max_in);
     }
   }
-  o = vec4(result, 1.0);
+  return vec4(result, 1.0);
 }
 )";
 
 void check(const char* where) { gl::check_error("GlSchedlLayered", where); }
 
-unsigned link(std::initializer_list<const char*> parts, const char* what) {
-  std::string source = kCommon;
+// A fragment pass of kCommon and `parts` (which end in a main of their own, or in shade(): then
+// kFragmentMain follows).
+unsigned link(std::initializer_list<const char*> parts, const char* what, bool shade = true) {
+  std::string source = std::string(kFragmentVersion) + kCommon;
   for (const char* p : parts) source += p;
+  if (shade) source += kFragmentMain;
   return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
 }
+
+// The same shade() as a compute pass.
+unsigned link_compute(std::initializer_list<const char*> parts, const char* what) {
+  std::string source = std::string(kComputeVersion) + kCommon;
+  for (const char* p : parts) source += p;
+  source += kComputeMain;
+  return gl::link_compute_program(source.c_str(), what);
+}
+
+constexpr GLbitfield kComputeWritten = GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                                       GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
+                                       GL_PIXEL_BUFFER_BARRIER_BIT;
 
 unsigned rgba32f(std::uint32_t w, std::uint32_t h) {
   unsigned t = 0;
@@ -233,13 +257,18 @@ void del(unsigned& t) {
 }  // namespace
 
 GlSchedlLayered::GlSchedlLayered(bool compute) {
-  if (compute) box_compute_ = gl::link_compute_program(kBoxCompute, "GlSchedlLayered box blur (compute)");
-  pack_program_ = link({kPack}, "GlSchedlLayered pack");
-  reduce_first_ = link({kLayers, kReduceFirst}, "GlSchedlLayered reduction");
-  reduce_next_ = link({kReduceNext}, "GlSchedlLayered reduction (halving)");
-  matte_program_ = link({kLayers, kMatte}, "GlSchedlLayered matting");
-  box_program_ = link({kBox}, "GlSchedlLayered box blur");
-  composite_program_ = link({kLayers, kComposite}, "GlSchedlLayered composite");
+  passes_[0] = {link({kPack}, "GlSchedlLayered pack"), link({kLayers, kReduceFirst}, "GlSchedlLayered reduction"),
+                link({kReduceNext}, "GlSchedlLayered reduction (halving)"),
+                link({kLayers, kMatte}, "GlSchedlLayered matting"), link({kLayers, kComposite}, "GlSchedlLayered composite")};
+  box_program_ = link({kBox}, "GlSchedlLayered box blur", false);
+  if (compute) {
+    box_compute_ = gl::link_compute_program(kBoxCompute, "GlSchedlLayered box blur (compute)");
+    passes_[1] = {link_compute({kPack}, "GlSchedlLayered pack (compute)"),
+                  link_compute({kLayers, kReduceFirst}, "GlSchedlLayered reduction (compute)"),
+                  link_compute({kReduceNext}, "GlSchedlLayered reduction, halving (compute)"),
+                  link_compute({kLayers, kMatte}, "GlSchedlLayered matting (compute)"),
+                  link_compute({kLayers, kComposite}, "GlSchedlLayered composite (compute)")};
+  }
   glGenVertexArrays(1, &vao_);
   glGenFramebuffers(1, &fbo_);
   glGenQueries(2, queries_);
@@ -253,7 +282,10 @@ GlSchedlLayered::~GlSchedlLayered() {
   glDeleteQueries(2, queries_);
   if (fbo_ != 0) glDeleteFramebuffers(1, &fbo_);
   if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
-  for (unsigned p : {pack_program_, reduce_first_, reduce_next_, matte_program_, box_program_, box_compute_, composite_program_})
+  for (const Passes& ps : passes_)
+    for (unsigned p : {ps.pack, ps.reduce_first, ps.reduce_next, ps.matte, ps.composite})
+      if (p != 0) glDeleteProgram(p);
+  for (unsigned p : {box_program_, box_compute_})
     if (p != 0) glDeleteProgram(p);
 }
 
@@ -286,7 +318,15 @@ void GlSchedlLayered::ensure(std::uint32_t width, std::uint32_t height) {
   check("GlSchedlLayered::ensure");
 }
 
-void GlSchedlLayered::draw_into(unsigned texture, std::uint32_t w, std::uint32_t h) {
+// `program`'s pass over w x h texels of `texture`: a draw, or a dispatch writing it as an image.
+void GlSchedlLayered::draw_into(unsigned program, unsigned texture, std::uint32_t w, std::uint32_t h) {
+  if (compute_ && program != box_program_) {
+    glUniform2i(glGetUniformLocation(program, "u_out_size"), static_cast<GLint>(w), static_cast<GLint>(h));
+    glBindImageTexture(0, texture, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glDispatchCompute((w + 7) / 8, (h + 7) / 8, 1);
+    glMemoryBarrier(kComputeWritten);
+    return;
+  }
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
   glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, texture, 0);
   glDrawBuffer(GL_COLOR_ATTACHMENT0);
@@ -301,36 +341,39 @@ void GlSchedlLayered::bind_layers(unsigned program) const {
 }
 
 void GlSchedlLayered::pack(const GlDofInput& visible, const std::vector<GlDofInput>& peeled) {
-  const unsigned p = pack_program_;
+  const unsigned p = passes().pack;
   glUseProgram(p);
   for (int l = 0; l < inputs_; ++l) {
     const GlDofInput& in = l == 0 ? visible : peeled[static_cast<std::size_t>(l - 1)];
     bind(0, in.color, p, "u_color");
     bind(1, in.depth, p, "u_depth");
     glUniform1i(glGetUniformLocation(p, "u_has_depth"), in.depth != 0 ? 1 : 0);
-    draw_into(packed_[static_cast<std::size_t>(l)], width_, height_);
+    draw_into(p, packed_[static_cast<std::size_t>(l)], width_, height_);
   }
 }
 
 GlSchedlLayered::Range GlSchedlLayered::reduce() {
-  glUseProgram(reduce_first_);
-  bind_layers(reduce_first_);
-  draw_into(reduction_[0], width_, height_);
-  glUseProgram(reduce_next_);
+  const unsigned first = passes().reduce_first, next = passes().reduce_next;
+  glUseProgram(first);
+  bind_layers(first);
+  draw_into(first, reduction_[0], width_, height_);
+  glUseProgram(next);
   for (std::size_t i = 1; i < reduction_.size(); ++i) {
-    bind(0, reduction_[i - 1], reduce_next_, "u_src");
-    glUniform2i(glGetUniformLocation(reduce_next_, "u_src_size"), static_cast<GLint>(reduction_sizes_[i - 1].first),
+    bind(0, reduction_[i - 1], next, "u_src");
+    glUniform2i(glGetUniformLocation(next, "u_src_size"), static_cast<GLint>(reduction_sizes_[i - 1].first),
                 static_cast<GLint>(reduction_sizes_[i - 1].second));
-    draw_into(reduction_[i], reduction_sizes_[i].first, reduction_sizes_[i].second);
+    draw_into(next, reduction_[i], reduction_sizes_[i].first, reduction_sizes_[i].second);
   }
   float texel[4] = {0, 0, 0, 0};
-  glReadBuffer(GL_COLOR_ATTACHMENT0);  // the last level, still attached
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);  // the last level (a compute pass attached nothing)
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, reduction_.back(), 0);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
   glReadPixels(0, 0, 1, 1, GL_RGBA, GL_FLOAT, texel);
   return {texel[0], texel[1], texel[2]};
 }
 
 void GlSchedlLayered::matte(const dof::SchedlAnchors& an, int k, int mode, unsigned acc, unsigned to) {
-  const unsigned p = matte_program_;
+  const unsigned p = passes().matte;
   glUseProgram(p);
   bind_layers(p);
   bind(kMaxInputLayers, acc, p, "u_acc");
@@ -342,7 +385,7 @@ void GlSchedlLayered::matte(const dof::SchedlAnchors& an, int k, int mode, unsig
   glUniform1f(glGetUniformLocation(p, "u_e"), f(an.anchor(k + 1)));
   glUniform1i(glGetUniformLocation(p, "u_a_finite"), std::isfinite(an.anchor(k - 2)) ? 1 : 0);
   glUniform1i(glGetUniformLocation(p, "u_e_finite"), std::isfinite(an.anchor(k + 1)) ? 1 : 0);
-  draw_into(to, width_, height_);
+  draw_into(p, to, width_, height_);
 }
 
 void GlSchedlLayered::gaussian(unsigned image, double sigma) {
@@ -359,10 +402,10 @@ void GlSchedlLayered::gaussian(unsigned image, double sigma) {
     glUniform1i(glGetUniformLocation(p, "u_r"), r);
     bind(0, image, p, "u_src");
     glUniform2i(glGetUniformLocation(p, "u_dir"), 1, 0);
-    draw_into(scratch_, width_, height_);
+    draw_into(p, scratch_, width_, height_);
     bind(0, scratch_, p, "u_src");
     glUniform2i(glGetUniformLocation(p, "u_dir"), 0, 1);
-    draw_into(image, width_, height_);
+    draw_into(p, image, width_, height_);
   }
 }
 
@@ -395,7 +438,7 @@ void GlSchedlLayered::gaussian_compute(unsigned image, double sigma) {
 }
 
 void GlSchedlLayered::composite(unsigned front, unsigned back, bool copy, float max_in) {
-  const unsigned p = composite_program_;
+  const unsigned p = passes().composite;
   glUseProgram(p);
   bind_layers(p);
   bind(kMaxInputLayers, front != 0 ? front : layer_, p, "u_front");
@@ -405,7 +448,7 @@ void GlSchedlLayered::composite(unsigned front, unsigned back, bool copy, float 
   glUniform1i(glGetUniformLocation(p, "u_has_back"), back != 0 ? 1 : 0);
   glUniform1i(glGetUniformLocation(p, "u_copy"), copy ? 1 : 0);
   glUniform1f(glGetUniformLocation(p, "u_max_in"), max_in);
-  draw_into(output_, width_, height_);
+  draw_into(p, output_, width_, height_);
 }
 
 dof::SchedlStats GlSchedlLayered::run(const GlDofInput& visible, const std::vector<GlDofInput>& peeled,
@@ -469,6 +512,7 @@ dof::SchedlStats GlSchedlLayered::run(const GlDofInput& visible, const std::vect
     stats.layers = K;
     stats.focus_layer = kf;
   }
+  if (compute_) glBindImageTexture(0, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   glBindVertexArray(0);
   glUseProgram(0);

@@ -17,9 +17,10 @@
 // The input layers are packed (colour and depth in one texture each) so that eight of them and an
 // accumulator fit OpenGL 3.3's 16 texture units.
 //
-// Pass::Compute (OpenGL 4.3, issue 42) runs step 3 as separable running sums in a compute pass: O(1)
-// per pixel however wide the box (the fragment pass reads r + 1 bilinear pairs), compensated so HDR
-// light leaves no residue; the other steps are the same passes. GlFrame takes it where compute pays.
+// Pass::Compute (OpenGL 4.3, issue 42) runs every step as compute passes: steps 1, 2 and 4 are the
+// fragment passes' GLSL (one function of the output texel, called by either kind of shader), step 3
+// separable running sums: O(1) per pixel however wide the box (the fragment pass reads r + 1 bilinear
+// pairs), compensated. GlFrame takes them where compute pays (frame.effect_passes).
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -72,10 +73,15 @@ class GlSchedlLayered {
   void gaussian_compute(unsigned image, double sigma);
   // The composite into output_ (front, back: 0 where there is no such cascade; copy: the input).
   void composite(unsigned front, unsigned back, bool copy, float max_in);
-  void draw_into(unsigned texture, std::uint32_t w, std::uint32_t h);
+  void draw_into(unsigned program, unsigned texture, std::uint32_t w, std::uint32_t h);
 
-  unsigned pack_program_ = 0, reduce_first_ = 0, reduce_next_ = 0, matte_program_ = 0, box_program_ = 0,
-           composite_program_ = 0;
+  // The passes as shade() functions: [0] fragment passes, [1] compute passes (0 when not built).
+  struct Passes {
+    unsigned pack = 0, reduce_first = 0, reduce_next = 0, matte = 0, composite = 0;
+  };
+  Passes passes_[2];
+  const Passes& passes() const { return passes_[compute_ ? 1 : 0]; }
+  unsigned box_program_ = 0;
   unsigned box_compute_ = 0;  // 0: not built
   bool compute_ = false;      // this run's box blur
   unsigned vao_ = 0, fbo_ = 0, queries_[2] = {0, 0};
