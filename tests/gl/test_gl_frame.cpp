@@ -361,31 +361,34 @@ TEST(GlFramePipeline, BothPathsMakeTheSameFramesOnTheBundledScenes) {
   }
 }
 
-// frame.effect_passes: the compute passes (tone map, lee-mipmap, ULOD's blend) make the frames the
+// frame.effect_passes: the compute passes (tone map, lee-mipmap or schedl-layered, ULOD's blend) make the frames the
 // fragment passes make (the same GLSL per texel), and --explain's where line says which ran.
 TEST(GlFramePipeline, TheComputeEffectPassesMakeTheFragmentPassesFrames) {
-  Image8 images[2];
-  for (const char* passes : {"compute", "fragment"}) {
-    SCOPED_TRACE(passes);
-    Settings s;
-    s.set("frame.effect_passes", passes);
-    s.set("lod.policy", "ulod");
-    s.set("tonemap.exact", "true");
-    std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
-    gaze->set_cursor(0.4, 0.55);
-    FramePipeline pipeline(bundled("attention.json", 160, 120), s, std::make_unique<GlBackend>(), *gaze);
-    PassTimer timer;
-    for (std::uint64_t i = 0; i < 3; ++i) {
-      const double t = 0.1 * static_cast<double>(i);
-      const FramePipeline::Frame f = pipeline.render(i, t, i == 0 ? 0.0 : t - 0.1, t, timer);
-      ASSERT_TRUE(f.on_gpu) << f.plan.explain();
-      EXPECT_NE(f.plan.placement.find("effect passes: " + std::string(passes)), std::string::npos) << f.plan.placement;
+  for (const char* method : {"lee-mipmap", "schedl-layered"}) {
+    Image8 images[2];
+    for (const char* passes : {"compute", "fragment"}) {
+      SCOPED_TRACE(std::string(method) + ", " + passes);
+      Settings s;
+      s.set("frame.effect_passes", passes);
+      s.set("dof.method", method);
+      s.set("lod.policy", "ulod");
+      s.set("tonemap.exact", "true");
+      std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
+      gaze->set_cursor(0.4, 0.55);
+      FramePipeline pipeline(bundled("attention.json", 160, 120), s, std::make_unique<GlBackend>(), *gaze);
+      PassTimer timer;
+      for (std::uint64_t i = 0; i < 3; ++i) {
+        const double t = 0.1 * static_cast<double>(i);
+        const FramePipeline::Frame f = pipeline.render(i, t, i == 0 ? 0.0 : t - 0.1, t, timer);
+        ASSERT_TRUE(f.on_gpu) << f.plan.explain();
+        EXPECT_NE(f.plan.placement.find("effect passes: " + std::string(passes)), std::string::npos) << f.plan.placement;
+      }
+      EXPECT_EQ(timer.summary().count("gpu.dof"), 1u);
+      images[std::string(passes) == "compute" ? 0 : 1] = pipeline.read_display();
     }
-    EXPECT_EQ(timer.summary().count("gpu.dof"), 1u);
-    images[std::string(passes) == "compute" ? 0 : 1] = pipeline.read_display();
+    const Difference d = compare(images[0], images[1]);
+    EXPECT_LE(d.max_level, 1) << method << ": " << d.pixels << " pixels differ";
   }
-  const Difference d = compare(images[0], images[1]);
-  EXPECT_LE(d.max_level, 1) << d.pixels << " pixels differ";
 }
 
 // ULOD's next levels drawn aside by the G-buffer pass the frame takes: with the visibility buffer
