@@ -168,12 +168,17 @@ const DofFrame& dof_frame() {
   return frame;
 }
 
+// The scene's lens at f-number `f_number`, focused at 4 m.
+dof::CocModel lens_at(const Scene& scene, double f_number) {
+  Camera camera = scene.camera;
+  camera.lens.aperture_m = camera.lens.focal_length_m / f_number;
+  return dof::coc_model(camera, {}, 4.0, dof::CocProjection::Sensor);
+}
+
 void lee_mipmap(benchmark::State& state, GlLeeMipmap::Pass pass, double f_number) {
   const DofFrame& f = dof_frame();
   gl_backend().context().make_current();
-  Camera camera = f.scene.camera;
-  camera.lens.aperture_m = camera.lens.focal_length_m / f_number;
-  const dof::CocModel coc = dof::coc_model(camera, {}, 4.0, dof::CocProjection::Sensor);
+  const dof::CocModel coc = lens_at(f.scene, f_number);
   GlLeeMipmap mipmap(gl_backend().context().features().at_least(4, 3));
   if (pass == GlLeeMipmap::Pass::Compute && !mipmap.has_compute()) {
     state.SkipWithError("no OpenGL 4.3 compute");
@@ -192,9 +197,7 @@ void lee_mipmap(benchmark::State& state, GlLeeMipmap::Pass pass, double f_number
 void schedl_layered(benchmark::State& state, GlSchedlLayered::Pass pass, double f_number) {
   const DofFrame& f = dof_frame();
   gl_backend().context().make_current();
-  Camera camera = f.scene.camera;
-  camera.lens.aperture_m = camera.lens.focal_length_m / f_number;
-  const dof::CocModel coc = dof::coc_model(camera, {}, 4.0, dof::CocProjection::Sensor);
+  const dof::CocModel coc = lens_at(f.scene, f_number);
   GlSchedlLayered schedl(gl_backend().context().features().at_least(4, 3));
   if (pass == GlSchedlLayered::Pass::Compute && !schedl.has_compute()) {
     state.SkipWithError("no OpenGL 4.3 compute");

@@ -21,8 +21,6 @@ namespace {
 // Each pass is one GLSL function of its texel, run by a fragment shader (OpenGL 3.3) or a compute
 // shader (OpenGL 4.3, writing images): the same code, so both implementations agree texel for texel
 // up to the texture unit's filtering, which both use alike.
-constexpr const char* kFragmentVersion = "#version 330 core\n";
-constexpr const char* kComputeVersion = "#version 430 core\nlayout(local_size_x = 8, local_size_y = 8) in;\n";
 
 // lee_mipmap_detail.h's constants and eq. 4.6, shared by the passes.
 constexpr const char* kCommon = R"(
@@ -284,24 +282,18 @@ void main() {
 void check(const char* where) { gl::check_error("GlLeeMipmap", where); }
 
 unsigned link(const char* body, const char* main, const char* what) {
-  const std::string source = std::string(kFragmentVersion) + kCommon + body + main;
+  const std::string source = std::string(gl::kFragmentVersion) + kCommon + body + main;
   return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
 }
 
 unsigned link_compute(const char* body, const char* main, const char* what) {
-  const std::string source = std::string(kComputeVersion) + kCommon + body + main;
+  const std::string source = std::string(gl::kComputeVersion8x8) + kCommon + body + main;
   return gl::link_compute_program(source.c_str(), what);
 }
 
-// Every later pass reads what a compute pass wrote through a sampler, an image, a framebuffer, a
-// copy or a readback.
-constexpr GLbitfield kComputeWritten = GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
-                                       GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
-                                       GL_PIXEL_BUFFER_BARRIER_BIT;
-
 void dispatch(glm::ivec2 size) {
   glDispatchCompute(static_cast<GLuint>((size.x + 7) / 8), static_cast<GLuint>((size.y + 7) / 8), 1);
-  glMemoryBarrier(kComputeWritten);
+  glMemoryBarrier(gl::kComputeWrittenBarrier);
 }
 
 int mip_size(std::uint32_t n, int level) { return std::max(1, static_cast<int>(n >> level)); }

@@ -80,6 +80,17 @@ inline GLuint link_compute_program(const char* source, const char* what) {
   return checked_link(program, what);
 }
 
+// The effect passes with a fragment and a compute implementation (issue 42) share their GLSL after
+// one of these version lines; the compute one declares 8x8 work groups.
+inline constexpr const char* kFragmentVersion = "#version 330 core\n";
+inline constexpr const char* kComputeVersion8x8 = "#version 430 core\nlayout(local_size_x = 8, local_size_y = 8) in;\n";
+
+// After a compute pass: what it wrote is read next through a sampler, an image, a framebuffer, a
+// copy or a readback.
+inline constexpr GLbitfield kComputeWrittenBarrier = GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                                                     GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
+                                                     GL_PIXEL_BUFFER_BARRIER_BIT;
+
 // One triangle over the viewport (draw 3 vertices, no buffers); the fragment shaders address texels
 // with gl_FragCoord.
 inline constexpr const char* kFullscreenVertex = R"(#version 330 core

@@ -20,8 +20,6 @@ namespace {
 
 // Every pass but the box blur is one GLSL function of its output texel, shade(p), run by a fragment
 // shader (kFragmentMain) or a compute shader (kComputeMain, OpenGL 4.3) that writes it as an image.
-constexpr const char* kFragmentVersion = "#version 330 core\n";
-constexpr const char* kComputeVersion = "#version 430 core\nlayout(local_size_x = 8, local_size_y = 8) in;\n";
 constexpr const char* kFragmentMain = R"(
 out vec4 o;
 void main() { o = shade(ivec2(gl_FragCoord.xy)); }
@@ -213,7 +211,7 @@ void check(const char* where) { gl::check_error("GlSchedlLayered", where); }
 // A fragment pass of kCommon and `parts` (which end in a main of their own, or in shade(): then
 // kFragmentMain follows).
 unsigned link(std::initializer_list<const char*> parts, const char* what, bool shade = true) {
-  std::string source = std::string(kFragmentVersion) + kCommon;
+  std::string source = std::string(gl::kFragmentVersion) + kCommon;
   for (const char* p : parts) source += p;
   if (shade) source += kFragmentMain;
   return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
@@ -221,15 +219,11 @@ unsigned link(std::initializer_list<const char*> parts, const char* what, bool s
 
 // The same shade() as a compute pass.
 unsigned link_compute(std::initializer_list<const char*> parts, const char* what) {
-  std::string source = std::string(kComputeVersion) + kCommon;
+  std::string source = std::string(gl::kComputeVersion8x8) + kCommon;
   for (const char* p : parts) source += p;
   source += kComputeMain;
   return gl::link_compute_program(source.c_str(), what);
 }
-
-constexpr GLbitfield kComputeWritten = GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
-                                       GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
-                                       GL_PIXEL_BUFFER_BARRIER_BIT;
 
 unsigned rgba32f(std::uint32_t w, std::uint32_t h) {
   unsigned t = 0;
@@ -324,7 +318,7 @@ void GlSchedlLayered::draw_into(unsigned program, unsigned texture, std::uint32_
     glUniform2i(glGetUniformLocation(program, "u_out_size"), static_cast<GLint>(w), static_cast<GLint>(h));
     glBindImageTexture(0, texture, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
     glDispatchCompute((w + 7) / 8, (h + 7) / 8, 1);
-    glMemoryBarrier(kComputeWritten);
+    glMemoryBarrier(gl::kComputeWrittenBarrier);
     return;
   }
   glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
@@ -426,8 +420,7 @@ void GlSchedlLayered::gaussian_compute(unsigned image, double sigma) {
     bind(0, from, p, "u_src");
     glBindImageTexture(0, to, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
     glDispatchCompute((invocations + 63) / 64, 1, 1);
-    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT |
-                    GL_TEXTURE_UPDATE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT);
+    glMemoryBarrier(gl::kComputeWrittenBarrier);
   };
   for (const int r : dof::schedl_box_radii(sigma)) {
     if (r <= 0) continue;

@@ -209,8 +209,7 @@ void GlUlodBlend::run_compute(const Image& drawn, const Image& next) {
               static_cast<GLint>(drawn.height));
   glDispatchCompute((drawn.width + 7) / 8, (drawn.height + 7) / 8, 1);
   // Every later pass samples, attaches, reads back or copies the blended colour.
-  glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT |
-                  GL_TEXTURE_UPDATE_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT);
+  glMemoryBarrier(gl::kComputeWrittenBarrier);
   glBindImageTexture(0, 0, 0, GL_FALSE, 0, GL_READ_WRITE, GL_RGBA32F);
   glUseProgram(0);
   gl::check_error("GlUlodBlend", "run (compute)");
