@@ -1,0 +1,143 @@
+// SPDX-License-Identifier: Apache-2.0
+// The frame pipeline's two passes that keep state of their own across frames beside the G-buffer:
+// level-of-detail selection (with ULOD's blend) and the gi pass (frame_pipeline.h).
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "backend/embree/embree_backend.h"
+#include "pipeline/frame_pipeline.h"
+
+namespace fovea::render {
+
+void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer) {
+  if (!gi_pass_) {
+    // One instance of the scene in Embree: the frame's own when it ray traces (its BVH, its levels of
+    // detail), else a ray tracer beside the raster backend.
+    gi_tracer_ = dynamic_cast<EmbreeBackend*>(backend_.get());
+    if (gi_tracer_ != nullptr) {
+      gi_pass_ = std::make_unique<gi::GiPass>(*gi_tracer_);
+    } else {
+      gi_pass_ = std::make_unique<gi::GiPass>();
+      gi_pass_->set_scene(scene_);
+    }
+  }
+  // The frame's levels, whatever the backend rendered last (ULOD's next-coarser levels, a peeled layer).
+  if (gi_tracer_ != nullptr) gi_tracer_->set_lod_levels(lod_levels_);
+  const Settings& s = settings_;
+  gi_frame_ = Frame::Gi{};
+  // Where: the gaze point, else the most attended object, else the screen centre; or everything.
+  const Camera& cam = scene_.camera;
+  const bool full = s.is("gi.area", "full");
+  glm::vec2 centre(0.5f);
+  if (full) {
+    gi_frame_.follows = "full screen";
+  } else if (gaze_.available()) {
+    centre = {static_cast<float>(f.gaze.x), static_cast<float>(f.gaze.y)};
+    gi_frame_.follows = "gaze";
+  } else if (f.attention != nullptr && !f.attention->objects.empty()) {
+    centre = {static_cast<float>(f.attention->objects.front().screen_x), static_cast<float>(f.attention->objects.front().screen_y)};
+    gi_frame_.follows = "attention";
+  } else {
+    gi_frame_.follows = "screen centre";
+  }
+  if (full) {
+    gi_frame_.area.center_px = {0.5f * static_cast<float>(cam.width), 0.5f * static_cast<float>(cam.height)};
+    gi_frame_.area.radius_px = 0.5f * std::hypot(static_cast<float>(cam.width), static_cast<float>(cam.height)) + 1.0f;
+  } else {
+    gi_frame_.area = gi::gaze_area(scene_.display, cam.width, cam.height, centre, s.number("gi.gaze_area_deg"));
+  }
+  gi::GiPassSettings gs = pass_settings().gi;
+  // On the GPU-resident path the inset is composited on the GPU (the tone map's input), unless the
+  // CSF periphery replaces the local image, which is then made on the CPU anyway.
+  gi_inset_on_gpu_ = f.on_gpu && !gs.csf_periphery;
+  gs.composite = !gi_inset_on_gpu_;
+  gi_fovea_ = gs.fovea;
+  // The frame's G-buffer holds the area's first hits when the frame's backend is the GI's ray tracer.
+  const GBuffer* primary =
+      gi_tracer_ != nullptr && !f.on_gpu && settings_.is("debug.gi_first_hits", "gbuffer") ? &gbuffer_ : nullptr;
+  const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_, primary);
+  timer.record("gi.photons", r.photons_ms);
+  timer.record("gi.index", r.index_ms);
+  if (gs.render.indirect_estimate == gi::IndirectEstimate::Precomputed) timer.record("gi.precompute", r.precompute_ms);
+  timer.record("gi.render", r.render_ms);
+  timer.record("gi.composite", r.composite_ms);
+  if (gs.csf_periphery) timer.record("gi.periphery", r.periphery_ms);
+  gi_frame_.csf = r.csf;
+  gi_frame_.strategy = gi::to_string(r.strategy);
+  gi_frame_.render = r.render;
+  gi_frame_.gaze = r.gaze;
+  gi_frame_.photons = r.photons;
+  gi_frame_.caustic_photons = r.caustic_photons;
+  gi_frame_.importons = r.importons;
+  gi_frame_.emitted = r.emitted;
+  gi_frame_.note = r.note;
+}
+
+void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& drawn) {
+  // Lee 2009 §7.3 with Giegl et al.'s unpopping LOD: each object is drawn at floor(L) and at the next
+  // level, and the two images are blended by frac(L), so a continuous L never pops between levels.
+  // One more G-buffer render when any object is between levels.
+  BackendSettings next = drawn;
+  if (!lod::ulod_next_levels(scene_, lod_frame_.selection, next.lod_levels)) return;
+  lod::ulod_pixel_mask(gbuffer_, lod_frame_.selection, next.pixel_mask);
+  next.readback = {.color = true, .object_id = true};  // the blend reads nothing else
+  backend_->render(time, next, ulod_next_);
+  lod::ulod_blend(gbuffer_, ulod_next_, lod_frame_.selection);
+}
+
+// blend_ulod where the frame lies: the next levels drawn aside on the GPU and blended there, so the
+// G-buffer's colour is the blended one for every later pass and nothing is read back or uploaded.
+void FramePipeline::blend_ulod_on_gpu(const FrameTime& time, const BackendSettings& drawn) {
+  BackendSettings next = drawn;
+  if (!lod::ulod_next_levels(scene_, lod_frame_.selection, next.lod_levels)) return;
+  ulod_ids_.clear();
+  ulod_factors_.clear();
+  for (const lod::Selection& sel : lod_frame_.selection) {
+    if (!(sel.blend > 0) || sel.blend_to == sel.drawn) continue;
+    ulod_ids_.push_back(sel.id);
+    ulod_factors_.push_back(static_cast<float>(std::clamp(sel.blend, 0.0, 1.0)));
+  }
+  gpu_->ulod_blend(time, next, ulod_ids_, ulod_factors_);
+}
+
+void FramePipeline::run_lod_select(const GazeState& gaze, double now_s, double previous_s, double last_frame_ms) {
+  const PassSettings& parsed = pass_settings();
+  const lod::PolicySettings& ps = parsed.lod;
+  lod_selector_.set_settings(ps);
+  if (lod_selector_.budget().target_ms != parsed.lod_budget_ms) lod_selector_.set_budget_ms(parsed.lod_budget_ms);
+  lod_frame_ = Frame::Lod{};
+  lod_frame_.policy = lod::to_string(ps.policy);
+  const attention::AttentionFrame& att = attention_.last();
+  lod::ViewInputs in;
+  in.now_s = now_s;
+  in.previous_s = previous_s;
+  in.gaze_x = gaze.x;
+  in.gaze_y = gaze.y;
+  // Only Brown's policy reads the last frame (luminance contrast); the planner reads its colour and
+  // ids back for it on the GPU path, and only for it.
+  in.last_frame = ps.policy == lod::Policy::Brown ? &gbuffer_ : nullptr;
+  in.attention = [&att](std::uint32_t id) {
+    for (const attention::ObjectAttention& a : att.objects)
+      if (a.id == id) return a.attention;
+    return 0.0;
+  };
+  std::vector<std::size_t> object_of;
+  const std::vector<lod::ObjectView> views = lod::object_views(scene_, in, lod_bounds_, object_of);
+  // ULOD: S_o relative to the frame's most attended object, whether it has a chain or not.
+  const double top_attention = att.objects.empty() ? std::numeric_limits<double>::quiet_NaN() : att.objects.front().attention;
+  lod_selector_.set_in_saccade(gaze.in_saccade);
+  const std::vector<lod::Selection>& sel = lod_selector_.select(views, last_frame_ms, top_attention);
+  lod_levels_.assign(scene_.objects.size(), 0);
+  for (std::size_t k = 0; k < sel.size(); ++k) {
+    const std::size_t i = object_of[k];
+    lod_levels_[i] = static_cast<std::uint8_t>(std::clamp(sel[k].drawn, 0, 255));
+    lod_frame_.triangles += views[k].level_triangles[static_cast<std::size_t>(std::clamp(sel[k].drawn, 0, views[k].levels - 1))];
+    lod_frame_.full_triangles += views[k].level_triangles[0];
+  }
+  lod_frame_.selection = sel;
+  lod_frame_.budget = lod_selector_.budget();
+  lod_frame_.switches = lod_selector_.switches();
+}
+
+}  // namespace fovea::render
