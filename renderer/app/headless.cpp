@@ -2,6 +2,7 @@
 // Headless rendering: frames to PNG (and EXR), per-frame per-pass timings to CSV, a progress bar.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -27,15 +28,15 @@ void progress(std::uint64_t done, std::uint64_t total, double ms_per_frame) {
   std::fflush(stderr);
 }
 
-std::string frame_name(const std::string& dir, std::uint64_t i, const char* ext) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "frame-%06llu.%s", static_cast<unsigned long long>(i), ext);
+std::string frame_name(const std::string& dir, std::uint64_t i, const char* ext, const char* eye = "") {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "frame-%06llu%s.%s", static_cast<unsigned long long>(i), eye, ext);
   return (std::filesystem::path(dir) / buf).string();
 }
 
 // The run's CSV files, in the order they were always declared (and so closed in reverse).
 struct CsvLogs {
-  std::ofstream gaze, focus, gi, lod, governor;
+  std::ofstream gaze, focus, gi, lod, governor, stereo;
 };
 
 // Refuses a run without frames or an output directory before anything is loaded.
@@ -72,6 +73,7 @@ void write_plan(const RenderOptions& o, const FramePipeline& pipeline, const Gaz
   std::ofstream plan(fs::path(o.out_dir) / "plan.txt");
   plan << "scene " << o.scene_path << "\nbackend " << pipeline.backend().name() << "\ngaze " << gaze.description()
        << "\n" << pipeline.plan().explain();
+  if (!pipeline.stereo_summary().empty()) plan << pipeline.stereo_summary() << "\n";
 }
 
 // gaze.csv always; governor.csv with a governor. The per-pass files open on the first frame their pass runs.
@@ -216,6 +218,59 @@ void write_lod_row(std::ofstream& lod_log, const std::string& out_dir, std::uint
   lod_log << ll << '"' << levels << "\"\n";
 }
 
+// A stereo frame: the left eye (every pass), its image kept, then the right eye (the shared work
+// reused, FramePipeline::Eye), written side by side as one PNG (left | right, 2W x H: what a headset's
+// display or a stereo video player takes), each eye's HDR colour as EXR when asked. gaze.csv gets
+// the left eye's row; stereo.csv both eyes' gaze points and the fixation depth.
+void render_stereo_frame(const RenderOptions& o, FramePipeline& pipeline, PassTimer& timer, std::uint64_t i,
+                         double clock, double& previous, bool realtime, CsvLogs& logs, Image8& side_by_side) {
+  using Eye = FramePipeline::Eye;
+  const double before = i == 0 ? clock : previous;
+  FramePipeline::Frame f[2];
+  bool png = false;  // an image to show (output=gbuffer has none: EXR only)
+  for (int e = 0; e < 2; ++e) {
+    f[e] = pipeline.render(i, clock, before, clock, timer, realtime, e == 0 ? Eye::Left : Eye::Right);
+    if (o.no_images) continue;
+    const Image8* image = f[e].image;
+    if (f[e].on_gpu) {
+      auto r = timer.scope(e == 0 ? "readback.display" : "right.readback.display");
+      image = &pipeline.read_display();
+    }
+    png = image != nullptr;
+    if (image != nullptr) {
+      if (e == 0) side_by_side.resize(2 * image->width, image->height);
+      const std::size_t row = std::size_t{3} * image->width, x0 = e == 0 ? 0 : row;
+      for (std::size_t y = 0; y < image->height; ++y) {
+        std::copy_n(image->rgb.data() + y * row, row, side_by_side.rgb.data() + 2 * y * row + x0);
+      }
+    }
+    if (!f[e].on_gpu && (o.exr || image == nullptr)) {
+      write_exr(frame_name(o.out_dir, i, "exr", e == 0 ? "-left" : "-right"), f[e].gbuffer->width,
+                f[e].gbuffer->height, f[e].gbuffer->color);
+    }
+  }
+  previous = clock;
+  if (png) {
+    auto t = timer.scope("write");
+    write_png(frame_name(o.out_dir, i, "png"), side_by_side);
+  }
+  write_gaze_row(logs.gaze, i, clock, f[0]);
+  if (f[0].focus != nullptr) write_focus_row(logs.focus, o.out_dir, i, *f[0].focus);
+  if (f[0].gi != nullptr) write_gi_row(logs.gi, o.out_dir, i, *f[0].gi);
+  if (f[0].lod != nullptr) write_lod_row(logs.lod, o.out_dir, i, *f[0].lod);
+  if (!logs.stereo.is_open()) {
+    logs.stereo.open(fs::path(o.out_dir) / "stereo.csv");
+    logs.stereo << "frame,ipd_m,fixation_m,left_gaze_x,right_gaze_x,gaze_y,left_shift_x,right_shift_x,"
+                   "left_age_at_completion_ms,right_age_at_completion_ms\n";
+  }
+  char line[320];
+  std::snprintf(line, sizeof line, "%llu,%.4f,%.4f,%.5f,%.5f,%.5f,%.5f,%.5f,%.3f,%.3f\n",
+                static_cast<unsigned long long>(i), static_cast<double>(pipeline.scene().camera.ipd_m),
+                f[0].fixation_m, f[0].gaze.x, f[1].gaze.x, f[0].gaze.y, f[0].eye_gaze_shift_x, f[1].eye_gaze_shift_x,
+                f[0].gaze_age_at_completion_ms, f[1].gaze_age_at_completion_ms);
+  logs.stereo << line;
+}
+
 // One frame's files: its images, then its rows in gaze.csv and in the per-pass CSVs whose pass ran.
 void write_frame_files(const RenderOptions& o, std::uint64_t i, double clock, FramePipeline& pipeline,
                        const FramePipeline::Frame& f, PassTimer& timer, CsvLogs& logs) {
@@ -245,6 +300,12 @@ int run_headless(const RenderOptions& o) {
 
   LoadReport load;
   Scene scene = load_render_scene(o, &load);
+  const bool stereo = scene.camera.stereo;
+  if (stereo && governor) {
+    std::fprintf(stderr, "fovea-render: --budget-ms with a stereo camera: the governor's fronts are measured for "
+                         "one view, not yet for two; render the stereo frames without a budget\n");
+    return 2;
+  }
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
   const auto backend_start = std::chrono::steady_clock::now();
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
@@ -262,8 +323,14 @@ int run_headless(const RenderOptions& o) {
   double previous = 0;
   CsvLogs logs;
   open_csv_logs(logs, o.out_dir, governor != nullptr);
+  Image8 side_by_side;
   for (std::uint64_t i = 0; i < o.frames; ++i) {
     const double clock = frame_clock_s(i, o.fps, realtime, start);
+    if (stereo) {
+      render_stereo_frame(o, pipeline, timer, i, clock, previous, realtime, logs, side_by_side);
+      if (tty) progress(i + 1, o.frames, timer.last_ms("frame") + timer.last_ms("right.frame"));
+      continue;
+    }
     const FramePipeline::Frame f = render_one_frame(pipeline, governor.get(), timer, i, clock, previous, realtime);
     if (governor) write_governor_row(logs.governor, governor->state(), i);
     write_frame_files(o, i, clock, pipeline, f, timer, logs);

@@ -39,6 +39,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--set", sets, "render setting key=value (repeatable; --list-settings shows them)");
   app.add_option("--scene-set", scene_sets, "scene override path=value, e.g. camera.width=320 (repeatable)");
+  bool stereo = false;
+  app.add_flag("--stereo", stereo,
+               "render two views, the eyes camera.ipd_m apart (default 0.063 m; --scene-set camera.ipd_m=M), each "
+               "camera.width x camera.height: attention, levels of detail, focus and photon maps once per frame, the "
+               "rest per eye; headless PNGs are left | right side by side (same as --scene-set camera.stereo=true)");
   app.add_flag("--explain", o.explain, "print the frame plan (which passes run and why) and exit");
   app.add_flag("-v,--verbose", o.verbose,
                "print what loading cost, phase by phase (parse, textures, lod, backend; headless runs also "
@@ -85,6 +90,7 @@ int main(int argc, char** argv) {
       if (eq == std::string::npos || eq == 0) throw std::invalid_argument("--scene-set \"" + s + "\": expected path=value");
       o.scene_overrides.push_back({s.substr(0, eq), s.substr(eq + 1)});
     }
+    if (stereo) o.scene_overrides.push_back({"camera.stereo", "true"});
     if (list_objects) {
       print_objects(load_scene(o.scene_path, o.scene_overrides, o.camera));
       return 0;
@@ -96,6 +102,7 @@ int main(int argc, char** argv) {
       std::printf("frame plan for %s (%s backend, gaze %s):\n", o.scene_path.c_str(), backend.c_str(),
                   gaze->description().c_str());
       std::printf("%s", pipeline.plan().explain().c_str());
+      if (!pipeline.stereo_summary().empty()) std::printf("%s\n", pipeline.stereo_summary().c_str());
       return 0;
     }
     return o.headless ? run_headless(o) : run_viewer(o);

@@ -137,26 +137,34 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
   std::fflush(stdout);
 }
 
-// Puts the frame on the window and swaps: from the GPU where it lies (Frame::on_gpu), else the CPU
-// image uploaded. Records the gaze's age when the swap returned ("gaze-age.swap").
+// Puts the frame on the window (a stereo frame's eye on its half): from the GPU where it lies
+// (Frame::on_gpu), else the CPU image uploaded.
+void draw(GlContext& window, const FramePipeline::Frame& f, FramePipeline& pipeline, std::vector<std::uint8_t>& rgba,
+          GlContext::Region region) {
+  window.make_current();
+  if (f.on_gpu) {
+    const GpuFrame::Texture d = pipeline.gpu_frame()->display_texture();
+    if (d.id != 0) window.present_texture(d.id, d.width, d.height, d.texture_width, d.texture_height, region);
+  } else if (f.image != nullptr) {
+    rgba.resize(std::size_t{f.image->width} * f.image->height * 4);
+    for (std::size_t p = 0; p < std::size_t{f.image->width} * f.image->height; ++p) {
+      rgba[4 * p + 0] = f.image->rgb[3 * p + 0];
+      rgba[4 * p + 1] = f.image->rgb[3 * p + 1];
+      rgba[4 * p + 2] = f.image->rgb[3 * p + 2];
+      rgba[4 * p + 3] = 255;
+    }
+    window.present(rgba, f.image->width, f.image->height, region);
+  }
+}
+
+// Draws the frame (one view: the whole window; stereo: the right eye beside the left drawn before)
+// and swaps. Records the gaze's age when the swap returned ("gaze-age.swap").
 void show(GlContext& window, const FramePipeline::Frame& f, FramePipeline& pipeline, std::vector<std::uint8_t>& rgba,
           PassTimer& timer) {
   {
     auto t = timer.scope("display");
-    window.make_current();
-    if (f.on_gpu) {
-      const GpuFrame::Texture d = pipeline.gpu_frame()->display_texture();
-      if (d.id != 0) window.present_texture(d.id, d.width, d.height, d.texture_width, d.texture_height);
-    } else if (f.image != nullptr) {
-      rgba.resize(std::size_t{f.image->width} * f.image->height * 4);
-      for (std::size_t p = 0; p < std::size_t{f.image->width} * f.image->height; ++p) {
-        rgba[4 * p + 0] = f.image->rgb[3 * p + 0];
-        rgba[4 * p + 1] = f.image->rgb[3 * p + 1];
-        rgba[4 * p + 2] = f.image->rgb[3 * p + 2];
-        rgba[4 * p + 3] = 255;
-      }
-      window.present(rgba, f.image->width, f.image->height);
-    }
+    draw(window, f, pipeline, rgba,
+         f.eye == FramePipeline::Eye::Right ? GlContext::Region::RightHalf : GlContext::Region::Whole);
     window.swap_buffers();
   }
   const double swapped =
@@ -172,7 +180,12 @@ int run_viewer(const RenderOptions& o) {
   GlContextOptions co;
   co.visible = true;
   co.title = "fovea-render: " + scene.name;
-  co.width = static_cast<int>(scene.camera.width);
+  const bool stereo = scene.camera.stereo;
+  if (stereo && o.budget_ms > 0) {
+    throw std::invalid_argument("--budget-ms with a stereo camera: the governor's fronts are measured for one view, "
+                                "not yet for two; view the stereo frames without a budget");
+  }
+  co.width = static_cast<int>(scene.camera.width) * (stereo ? 2 : 1);  // stereo: left | right
   co.height = static_cast<int>(scene.camera.height);
   GlContext window(co);
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
@@ -191,6 +204,7 @@ int run_viewer(const RenderOptions& o) {
   glfwSetKeyCallback(window.window(), on_key);
   std::printf("%s", kHelp);
   std::printf("%s", pipeline.plan().explain().c_str());
+  if (stereo) std::printf("%s\n", pipeline.stereo_summary().c_str());
   std::fflush(stdout);
 
   PassTimer timer;
@@ -213,7 +227,14 @@ int run_viewer(const RenderOptions& o) {
     if (governor)
       governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(), pipeline.scene().camera.width,
                       pipeline.scene().camera.height, pipeline.settings());
-    const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer, true);
+    if (stereo) {  // the left eye first, drawn on its half; the right eye's show() swaps
+      const FramePipeline::Frame left =
+          pipeline.render(i, now, i == 0 ? now : previous, now, timer, true, FramePipeline::Eye::Left);
+      auto t = timer.scope("display");
+      draw(window, left, pipeline, rgba, GlContext::Region::LeftHalf);
+    }
+    const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer, true,
+                                                   stereo ? FramePipeline::Eye::Right : FramePipeline::Eye::Mono);
     if (governor) governor->observe(timer);
     previous = now;
     show(window, f, pipeline, rgba, timer);
@@ -226,7 +247,7 @@ int run_viewer(const RenderOptions& o) {
       char title[320];
       std::snprintf(title, sizeof title, "fovea-render %s | %.1f ms/frame%s | gaze %s (%.3f, %.3f) %s | age %.1f ms, "
                     "%.1f ms when shown | lost %llu",
-                    pipeline.backend().name().c_str(), timer.last_ms("frame"), gpu, gaze->description().c_str(), f.gaze.x,
+                    pipeline.backend().name().c_str(), timer.last_ms("frame") + timer.last_ms("right.frame"), gpu, gaze->description().c_str(), f.gaze.x,
                     f.gaze.y, f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
                     timer.last_ms("gaze-age.swap"), static_cast<unsigned long long>(f.gaze.lost));
       std::string full = title;

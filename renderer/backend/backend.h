@@ -85,6 +85,9 @@ class Backend {
   virtual BackendCapabilities capabilities() const = 0;
   // Builds acceleration structures / uploads meshes. Called again when the scene changes.
   virtual void set_scene(const Scene& scene) = 0;
+  // The camera of the scene set last changes (a stereo frame's other eye, the viewer's moves):
+  // nothing is built or uploaded again. Ignored before set_scene().
+  virtual void set_camera(const Camera& camera) = 0;
   // Renders the scene set last at the given time into `out` (resized to the camera's resolution).
   virtual void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) = 0;
   // The depth-peeled layers 1..out.size() behind the visible one (settings.peel is ignored), layer k

@@ -192,24 +192,13 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   result_ = GiPassResult{};
   result_.strategy = s.strategy;
   backend_->set_time(now_s);
-  const Scene& scene = backend_->scene();
   const bool gaze_directed = s.strategy == Strategy::GazeDirected;
   if (!gaze_directed) gaze_mapper_.reset();
 
-  // The first pass: the global map by strategy, and the caustic map for specular or refractive surfaces.
+  // A second eye's run keeps the maps (and their precomputed irradiance) of the first.
+  if (!s.reuse_maps) trace_maps(camera, now_s, area, s);
   auto t0 = std::chrono::steady_clock::now();
-  trace_global_map(camera, now_s, area, s);
-  maps_.caustic = {};
-  if (s.caustics && scene.has_specular_or_refractive() && s.caustic_photons > 0) {
-    maps_.caustic = trace_caustic_map(*backend_, s);
-  }
-  result_.photons_ms = ms_since(t0);
-
-  t0 = std::chrono::steady_clock::now();
-  maps_.index();
-  result_.index_ms = ms_since(t0);
-  if (s.render.indirect_estimate == IndirectEstimate::Precomputed) {
-    t0 = std::chrono::steady_clock::now();
+  if (!s.reuse_maps && s.render.indirect_estimate == IndirectEstimate::Precomputed) {
     maps_.precompute_irradiance(s.render.estimate, s.precompute_stride);
     result_.precompute_ms = ms_since(t0);
   }
@@ -240,8 +229,23 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   if (s.count_area_photons) result_.area_photons = photons_seen_in_area(*backend_, camera, now_s, area, maps_.global.photons);
   record_map_stats(maps_, result_);
   // The labelled map steers the next frame (it is not read again this frame).
-  if (gaze_directed) gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
+  if (gaze_directed && !s.keep_maps) gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
   return result_;
+}
+
+// The first pass: the global map by strategy and the caustic map for specular or refractive
+// surfaces, then their kd-trees.
+void GiPass::trace_maps(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s) {
+  auto t0 = std::chrono::steady_clock::now();
+  trace_global_map(camera, now_s, area, s);
+  maps_.caustic = {};
+  if (s.caustics && backend_->scene().has_specular_or_refractive() && s.caustic_photons > 0) {
+    maps_.caustic = trace_caustic_map(*backend_, s);
+  }
+  result_.photons_ms = ms_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  maps_.index();
+  result_.index_ms = ms_since(t0);
 }
 
 }  // namespace fovea::render::gi

@@ -57,6 +57,12 @@ struct GiPassSettings {
   bool label_gaze_photons = false;
   // Count the indirect photons visible inside the area (bench_gi's density measure; ~1 ray each).
   bool count_area_photons = false;
+  // A stereo frame's two eyes share one set of photon maps (they depend on the scene, not the view):
+  // the first eye's run traces them and keeps them (keep_maps: the gaze-directed mapper is not
+  // handed them yet), the second's reuses them (reuse_maps: nothing traced or indexed; the maps of
+  // the last run, which must be of the same scene time) and then hands them on, so the photons both
+  // eyes' areas used steer the next frame. Both false for one view.
+  bool keep_maps = false, reuse_maps = false;
 };
 
 struct GiPassResult {
@@ -98,6 +104,7 @@ class GiPass {
   const EmbreeBackend& backend() const { return *backend_; }
 
  private:
+  void trace_maps(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s);
   void trace_global_map(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s);
 
   std::unique_ptr<EmbreeBackend> own_;  // null when tracing with the frame's backend

@@ -3,7 +3,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
+#include <stdexcept>
 #include <unordered_map>
 
 #include "attention/focus_input.h"
@@ -168,6 +170,27 @@ FramePlan FramePipeline::plan() const {
   return plan;
 }
 
+std::string FramePipeline::stereo_summary() const {
+  const Camera& cam = scene_.camera;
+  if (!cam.stereo) return "";
+  char head[160];
+  std::snprintf(head, sizeof head, "stereo     two views of %ux%u, the eyes %.1f mm apart along the camera's right axis",
+                cam.width, cam.height, 1000.0 * static_cast<double>(cam.ipd_m));
+  const FramePlan p = plan();
+  std::string once, each;
+  for (const PlannedPass& pass : p.passes) {
+    if (!pass.runs) continue;
+    const bool shared = pass.id == PassId::Attention || pass.id == PassId::LodSelect || pass.id == PassId::Focus;
+    (shared ? once : each) += std::string(", ") + declaration(pass.id).name;
+  }
+  if (p.runs(PassId::Gi)) once += ", gi's photon maps";
+  return std::string(head) + ", parallel view axes; once per frame (left eye): " +
+         (once.empty() ? "nothing" : once.substr(2)) + "; per eye: " + (each.empty() ? "nothing" : each.substr(2)) +
+         "; each eye's gaze: the source's gaze point at the fixation depth (" +
+         (p.runs(PassId::Focus) ? "the focal depth of the frame before" : "infinity: the focus pass does not run") +
+         "; protocol v1 carries one gaze point, no per-eye gaze)";
+}
+
 std::string FramePipeline::device() const { return gpu_refusal().empty() ? gpu_->description() : "cpu"; }
 
 std::string FramePipeline::gpu_refusal() const {
@@ -225,6 +248,18 @@ std::string FramePipeline::placement(const FramePlan& plan) const {
 
 namespace {
 
+// The timer's prefix for one eye's render, ended however the render ends.
+class TimerPrefix {
+ public:
+  TimerPrefix(PassTimer& timer, std::string prefix) : timer_(timer) { timer_.set_prefix(std::move(prefix)); }
+  ~TimerPrefix() { timer_.set_prefix(""); }
+  TimerPrefix(const TimerPrefix&) = delete;
+  TimerPrefix& operator=(const TimerPrefix&) = delete;
+
+ private:
+  PassTimer& timer_;
+};
+
 // The module-boundary check (finite_check.h) on a G-buffer a pass wrote.
 void require_finite_gbuffer(const char* pass, const GBuffer& g) {
   require_finite(pass, "color", g.color, g.width);
@@ -248,36 +283,49 @@ void require_finite_attention(const attention::AttentionFrame& a) {
 // handed from the G-buffer through dof and gi to tonemap. On the GPU-resident path the G-buffer, the
 // tone map and the overlay run on the GPU and the CPU passes read what was read back of it.
 FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now_s, double previous_s,
-                                           double frame_clock_s, PassTimer& timer, bool frame_clock_is_wall) {
-  timer.begin_frame(frame_index, now_s);
+                                           double frame_clock_s, PassTimer& timer, bool frame_clock_is_wall, Eye eye) {
+  const bool right = eye == Eye::Right;  // reuses the left eye's shared work (Eye)
+  if (right && shared_.frame != frame_index) {
+    throw std::logic_error("FramePipeline::render: the right eye of frame " + std::to_string(frame_index) +
+                           " without its left eye");
+  }
+  if (!right) timer.begin_frame(frame_index, now_s);
+  TimerPrefix prefix(timer, right ? "right." : "");
   auto whole = timer.scope("frame");
   frame_start_wall_s_ = steady_seconds();
   frame_clock_s_ = frame_clock_s;
   clock_is_wall_ = frame_clock_is_wall;
   Frame f;
+  begin_eye(f, eye, frame_index);
   f.plan = plan();
   f.on_gpu = gpu_refusal().empty();
   const PassSettings& ps = pass_settings();
   const bool check = ps.finite_checks;
   if (dof_.settings() != ps.dof) dof_.set_settings(ps.dof);  // the coc map draws with them too
   step_gaze(f, frame_clock_s, timer);
-  lod_levels_.clear();
+  if (!right) lod_levels_.clear();
   gi_inset_on_gpu_ = false;
-  const bool attention_first =
-      f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) && ps.plan.lod_policy == lod::Policy::Ulod;
+  const bool attention_first = !right && f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) &&
+                               ps.plan.lod_policy == lod::Policy::Ulod;
+  if (right && f.plan.runs(PassId::Attention)) f.attention = shared_.attention;
   if (attention_first) step_attention_on_proxy(f, now_s, previous_s, check, timer);
-  if (f.plan.runs(PassId::LodSelect)) step_lod_select(f, now_s, previous_s, timer);
+  if (f.plan.runs(PassId::LodSelect)) {
+    if (!right) step_lod_select(f, now_s, previous_s, timer);
+    if (right && shared_.lod) f.lod = &lod_frame_;  // lod_levels_ stay the left eye's
+  }
   if (f.on_gpu) {
     step_gbuffer_on_gpu(f, now_s, previous_s, check, timer);
   } else {
     step_gbuffer(f, now_s, previous_s, check, timer);
   }
   f.gbuffer = &gbuffer_;
-  if (f.plan.runs(PassId::Attention) && !attention_first) step_attention(f, now_s, previous_s, check, timer);
+  if (!right && f.plan.runs(PassId::Attention) && !attention_first) step_attention(f, now_s, previous_s, check, timer);
   if (f.plan.runs(PassId::Focus)) {
     late_latch(f, timer);
-    step_focus(f, f.gaze_clock_s, check, timer);
+    if (!right) step_focus(f, f.gaze_clock_s, check, timer);
+    if (right) f.focus = shared_.focus;
   }
+  if (!right) end_shared_work(f);
   const std::vector<glm::vec3>* hdr = &gbuffer_.color;
   if (f.plan.runs(PassId::Dof)) hdr = &step_dof(f, now_s, previous_s, check, timer);
   if (f.plan.runs(PassId::Gi)) hdr = &step_gi(f, *hdr, now_s, check, timer);
@@ -303,8 +351,39 @@ void FramePipeline::late_latch(Frame& f, PassTimer& timer) {
   auto t = timer.scope("gaze");
   const double now_wall = steady_seconds();
   f.gaze_clock_s = frame_clock_s_ + (now_wall - frame_start_wall_s_);
-  f.gaze = gaze_.at(f.gaze_clock_s);
+  f.gaze = eye_gaze(f, gaze_.at(f.gaze_clock_s));
   latch_wall_s_ = now_wall;
+}
+
+void FramePipeline::begin_eye(Frame& f, Eye eye, std::uint64_t frame_index) {
+  f.eye = eye;
+  const float half = 0.5f * scene_.camera.ipd_m;
+  const float offset = eye == Eye::Left ? -half : eye == Eye::Right ? half : 0.0f;
+  if (scene_.camera.eye_offset_m != offset) {  // the camera alone: nothing is built again
+    scene_.camera.eye_offset_m = offset;
+    backend_->set_camera(scene_.camera);
+  }
+  if (eye == Eye::Left) {
+    shared_ = SharedByEyes{};
+    shared_.fixation_m = focus_ran_ ? focus_.last().focal_depth_m : std::numeric_limits<double>::infinity();
+  }
+  if (eye != Eye::Right) shared_.frame = frame_index;
+  if (eye == Eye::Mono) shared_.frame = ~std::uint64_t{0};  // no right eye follows
+  f.fixation_m = eye == Eye::Mono ? std::numeric_limits<double>::infinity() : shared_.fixation_m;
+}
+
+void FramePipeline::end_shared_work(const Frame& f) {
+  focus_ran_ = f.focus != nullptr;
+  shared_.attention = f.attention;
+  shared_.focus = f.focus;
+  shared_.lod = f.lod != nullptr;
+}
+
+GazeState FramePipeline::eye_gaze(Frame& f, const GazeState& source) const {
+  GazeState g = source;
+  f.eye_gaze_shift_x = scene_.camera.eye_shift_x(f.fixation_m);
+  g.x = std::clamp(g.x + f.eye_gaze_shift_x, 0.0, 1.0);
+  return g;
 }
 
 void FramePipeline::step_complete(Frame& f, PassTimer& timer) {
@@ -397,7 +476,7 @@ const Image8& FramePipeline::read_display() {
 void FramePipeline::step_gaze(Frame& f, double frame_clock_s, PassTimer& timer) {
   auto t = timer.scope("gaze");
   f.gaze_clock_s = frame_clock_s;
-  f.gaze = gaze_.at(frame_clock_s);
+  f.gaze = eye_gaze(f, gaze_.at(frame_clock_s));
   latch_wall_s_ = steady_seconds();
 }
 

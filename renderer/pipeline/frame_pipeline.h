@@ -16,6 +16,7 @@
 // overlay drew at the moment the frame was complete (the GPU's fence, or the CPU image done) as
 // "gaze-age" in the timings, and the GPU passes' own times as "gpu.*".
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "attention/attention.h"
@@ -42,6 +43,19 @@ class EmbreeBackend;
 class FramePipeline {
  public:
   FramePipeline(Scene scene, Settings settings, std::unique_ptr<Backend> backend, GazeInput& gaze);
+
+  // The view render() draws: the scene's camera, or one eye of a stereo frame (camera.stereo;
+  // Camera::eye_offset_m). A stereo frame is render(Left) then render(Right) with the same times and
+  // frame index. The left eye runs every pass the plan asks for; the right eye reuses what both eyes
+  // share, done once per frame: attention's object scores, the levels of detail (one level per object
+  // for both eyes: a level seen differently by each eye would be binocular rivalry), the focal depth
+  // (the eyes accommodate together) and the photon maps. It draws its own G-buffer, DOF, GI gather,
+  // tone map and overlay, timed under "right." names ("right.frame", "right.gbuffer", ...) in the
+  // left eye's timer frame. Each eye's gaze point is the source's (cyclopean) gaze point at the
+  // fixation depth seen from that eye (Camera::eye_shift_x): the focal depth of the frame before when
+  // the focus pass runs, else infinity (parallel eyes). Protocol v1 carries one gaze point per sample,
+  // so no source's per-eye gaze reaches the renderer yet.
+  enum class Eye { Mono, Left, Right };
 
   struct Frame {
     FramePlan plan;
@@ -82,6 +96,11 @@ class FramePipeline {
     std::size_t focus_pixels_read = 0;  // on_gpu: G-buffer pixels (depth and id) the focus pass read back
     double gaze_age_at_completion_ms = 0;  // the overlay's gaze sample's age when the frame was complete
     double completed_wall_s = 0;           // when it was complete (steady_clock seconds)
+    Eye eye = Eye::Mono;
+    // Stereo: the depth the eyes converge at, and how far this eye's gaze point was moved from the
+    // source's (normalised x; gaze.x is the moved point).
+    double fixation_m = std::numeric_limits<double>::infinity();
+    double eye_gaze_shift_x = 0;
   };
   // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
   // with gaze sampled at `frame_clock_s` on the gaze input. `frame_clock_is_wall`: the frame clock
@@ -89,7 +108,7 @@ class FramePipeline {
   // frame clock plus the time spent since the frame began; otherwise (frames on a schedule) the
   // sample stays the one of frame_clock_s, and its age at completion counts the frame's wall time.
   Frame render(std::uint64_t frame_index, double scene_time_s, double previous_time_s, double frame_clock_s,
-               PassTimer& timer, bool frame_clock_is_wall = false);
+               PassTimer& timer, bool frame_clock_is_wall = false, Eye eye = Eye::Mono);
 
   // The last frame's display image when it was made on the GPU (Frame::on_gpu), read back once.
   const Image8& read_display();
@@ -104,6 +123,8 @@ class FramePipeline {
   void require_cpu_gbuffer(bool required) { cpu_gbuffer_required_ = required; }
 
   FramePlan plan() const;
+  // What a stereo frame renders and shares, for --explain and plan.txt ("" for one view).
+  std::string stereo_summary() const;
   const Scene& scene() const { return scene_; }
   Scene& mutable_scene() { return scene_; }
   // Call after changing the scene (camera moves included) so the backend sees it.
@@ -171,6 +192,20 @@ class FramePipeline {
   void step_overlay_on_gpu(const Frame& f, PassTimer& timer);
   // Ends the frame: waits for the GPU (on_gpu), records the GPU times and the gaze's age then.
   void step_complete(Frame& f, PassTimer& timer);
+  // Stereo: puts the camera at the eye (the backend's too), and for the left eye fixes the frame's
+  // fixation depth and keeps what the right eye reuses.
+  void begin_eye(Frame& f, Eye eye, std::uint64_t frame_index);
+  void end_shared_work(const Frame& f);  // after focus: what the right eye reuses
+  // The gaze as this frame's eye sees it (Frame::eye_gaze_shift_x); the source's for Mono.
+  GazeState eye_gaze(Frame& f, const GazeState& source) const;
+  struct SharedByEyes {  // the left eye's, for the right eye of the same frame
+    const attention::AttentionFrame* attention = nullptr;
+    const attention::FocusResult* focus = nullptr;
+    bool lod = false, gi = false;
+    std::uint64_t frame = ~std::uint64_t{0};  // the left eye's frame index (none: ~0)
+    double fixation_m = std::numeric_limits<double>::infinity();
+  } shared_;
+  bool focus_ran_ = false;  // the focus pass ran in the frame before (its depth: the fixation's)
   // Reads the gaze input again (the frame clock advanced by the wall time spent when it is the wall
   // clock); timed as "gaze".
   void late_latch(Frame& f, PassTimer& timer);

@@ -53,13 +53,19 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_inset_on_gpu_ = f.on_gpu && !gs.csf_periphery;
   gs.composite = !gi_inset_on_gpu_;
   gi_fovea_ = gs.fovea;
+  // A stereo frame traces the photon maps once, for the left eye (GiPassSettings::keep_maps).
+  gs.keep_maps = f.eye == Eye::Left;
+  gs.reuse_maps = f.eye == Eye::Right && shared_.gi;
   // The frame's G-buffer holds the area's first hits when the frame's backend is the GI's ray tracer.
   const GBuffer* primary =
       gi_tracer_ != nullptr && !f.on_gpu && settings_.is("debug.gi_first_hits", "gbuffer") ? &gbuffer_ : nullptr;
   const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_, primary);
-  timer.record("gi.photons", r.photons_ms);
-  timer.record("gi.index", r.index_ms);
-  if (gs.render.indirect_estimate == gi::IndirectEstimate::Precomputed) timer.record("gi.precompute", r.precompute_ms);
+  if (f.eye == Eye::Left) shared_.gi = true;
+  if (!gs.reuse_maps) {
+    timer.record("gi.photons", r.photons_ms);
+    timer.record("gi.index", r.index_ms);
+    if (gs.render.indirect_estimate == gi::IndirectEstimate::Precomputed) timer.record("gi.precompute", r.precompute_ms);
+  }
   timer.record("gi.render", r.render_ms);
   timer.record("gi.composite", r.composite_ms);
   if (gs.csf_periphery) timer.record("gi.periphery", r.periphery_ms);

@@ -18,7 +18,8 @@ void PassTimer::begin_frame(std::uint64_t frame, double scene_time_s) {
   this_frame_.clear();
 }
 
-void PassTimer::record(const std::string& pass, double ms) {
+void PassTimer::record(const std::string& name, double ms) {
+  const std::string pass = prefix_ + name;
   if (!samples_.contains(pass)) order_.push_back(pass);
   samples_[pass].push_back(ms);
   this_frame_[pass] += ms;
@@ -32,12 +33,12 @@ void PassTimer::record(const std::string& pass, double ms) {
 }
 
 double PassTimer::last_ms(const std::string& pass) const {
-  const auto it = samples_.find(pass);
+  const auto it = samples_.find(prefix_ + pass);
   return it == samples_.end() || it->second.empty() ? 0.0 : it->second.back();
 }
 
 double PassTimer::frame_ms(const std::string& pass) const {
-  const auto it = this_frame_.find(pass);
+  const auto it = this_frame_.find(prefix_ + pass);
   return it == this_frame_.end() ? 0.0 : it->second;
 }
 

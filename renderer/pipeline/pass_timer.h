@@ -19,6 +19,10 @@ class PassTimer {
 
   void begin_frame(std::uint64_t frame, double scene_time_s);
   void record(const std::string& pass, double ms);
+  // Passes recorded from now on are named prefix + pass (a stereo frame's right eye: "right."), in
+  // the CSV, the summary and last_ms/frame_ms alike; "" ends it.
+  void set_prefix(std::string prefix) { prefix_ = std::move(prefix); }
+  const std::string& prefix() const { return prefix_; }
 
   class Scope {
    public:
@@ -55,6 +59,7 @@ class PassTimer {
   std::map<std::string, std::vector<double>> samples_;
   std::map<std::string, double> this_frame_;
   std::vector<std::string> order_;
+  std::string prefix_;
 };
 
 }  // namespace fovea::render

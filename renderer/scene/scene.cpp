@@ -97,11 +97,22 @@ Lens Lens::human_eye(double focus_distance_m) {
   return l;
 }
 
+glm::vec3 Camera::right() const { return glm::normalize(glm::cross(target - position, up)); }
+
+double Camera::eye_shift_x(double depth_m) const {
+  if (eye_offset_m == 0 || !(depth_m > 0) || std::isinf(depth_m)) return 0;
+  const double aspect = static_cast<double>(width) / static_cast<double>(height);
+  const double p00 = 1.0 / (aspect * std::tan(0.5 * glm::radians(static_cast<double>(vertical_fov_deg))));
+  return -p00 * static_cast<double>(eye_offset_m) / (2.0 * depth_m);
+}
+
 glm::vec3 Camera::position_at(double t) const {
-  return animation ? animation->apply(Transform{position, {}, {1, 1, 1}, std::nullopt}, t).translation : position;
+  const glm::vec3 eye = eye_offset_m != 0 ? right() * eye_offset_m : glm::vec3(0);
+  return (animation ? animation->apply(Transform{position, {}, {1, 1, 1}, std::nullopt}, t).translation : position) + eye;
 }
 
 glm::mat4 Camera::view_at(double t) const {
+  // The animation and the eye move position and target together: the view axes stay parallel.
   const glm::vec3 offset = position_at(t) - position;
   return glm::lookAt(position + offset, target + offset, up);
 }

@@ -174,6 +174,18 @@ struct Camera {
   float near_m = 0.05f, far_m = 100.0f;
   Lens lens;
   std::optional<Animation> animation;  // moves position and target together (rotation ignored)
+  // Stereo (camera.stereo, fovea-render --stereo): two views whose eyes lie ipd_m apart along the
+  // camera's right axis with parallel view axes, as a headset's. eye_offset_m is the view rendered
+  // now, along that axis: 0 the cyclopean camera (the scene's), -ipd/2 the left eye, +ipd/2 the
+  // right. The frame pipeline sets it; scene files do not.
+  bool stereo = false;
+  float ipd_m = 0.063f;
+  float eye_offset_m = 0;
+  glm::vec3 right() const;  // unit right axis of the view (target - position) x up
+  // Where a point of the cyclopean camera's image at view depth depth_m lies in this eye's image:
+  // its normalised x moves by -P00 eye_offset_m / (2 depth_m) (P00 the projection's x scale), its y
+  // not at all. 0 at infinite depth (parallel eyes) and for the cyclopean camera.
+  double eye_shift_x(double depth_m) const;
   glm::mat4 view_at(double t) const;
   glm::mat4 projection() const;  // OpenGL convention (clip z in [-1, 1]), y up
   glm::vec3 position_at(double t) const;

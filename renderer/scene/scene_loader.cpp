@@ -211,6 +211,9 @@ Camera Loader::camera(const Node& n, Camera c) {
   }
   if (auto v = get(n, "lens")) c.lens = lens(*v);
   if (auto v = get(n, "animation")) c.animation = animation(*v, true);
+  if (auto v = get(n, "stereo")) c.stereo = boolean(*v);
+  // 0.063 m is the adult mean; up to 1 m allows hyperstereo (a wider baseline for distant scenes).
+  if (auto v = get(n, "ipd_m")) c.ipd_m = number_f(*v, Range{0, 1, true, false, "m"});
   return c;
 }
 

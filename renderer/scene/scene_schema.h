@@ -19,7 +19,7 @@ enum class Kind {
 inline const Keys kSceneKeys{"name",    "camera",     "materials", "objects", "lights",
                       "ambient", "background", "display",   "gltf",    "comment"};
 inline const Keys kCameraKeys{"position", "target", "up", "vertical_fov_deg", "width", "height",
-                       "near", "far", "lens", "animation", "comment"};
+                       "near", "far", "lens", "animation", "stereo", "ipd_m", "comment"};
 inline const Keys kLensKeys{"type", "focal_length_mm", "f_number", "aperture_mm", "focus_distance_m", "image_distance_mm",
                      "comment"};
 inline const Keys kPinholeKeys{"type", "comment"};

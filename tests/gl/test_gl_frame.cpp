@@ -361,6 +361,40 @@ TEST(GlFramePipeline, BothPathsMakeTheSameFramesOnTheBundledScenes) {
   }
 }
 
+// A stereo frame where the frame lies: each eye's display image is the readback path's image of that
+// eye (the right eye reusing attention, levels and focus on both paths), and the eyes differ.
+TEST(GlFramePipeline, BothPathsMakeTheSameStereoFrames) {
+  Image8 images[2][2];  // [gpu][eye]
+  for (const bool gpu : {true, false}) {
+    SCOPED_TRACE(gpu ? "GPU path" : "readback path");
+    Settings s;
+    s.set("frame.gpu", gpu ? "true" : "false");
+    s.set("tonemap.exact", "true");
+    s.set("overlay.gaze", "false");
+    std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
+    gaze->set_cursor(0.4, 0.55);
+    Scene scene = bundled("attention.json", 160, 120);
+    scene.camera.stereo = true;
+    FramePipeline pipeline(std::move(scene), s, std::make_unique<GlBackend>(), *gaze);
+    PassTimer timer;
+    for (std::uint64_t i = 0; i < 2; ++i) {
+      const double t = 0.1 * static_cast<double>(i);
+      for (const FramePipeline::Eye eye : {FramePipeline::Eye::Left, FramePipeline::Eye::Right}) {
+        const FramePipeline::Frame f = pipeline.render(i, t, i == 0 ? 0.0 : t - 0.1, t, timer, false, eye);
+        ASSERT_EQ(f.on_gpu, gpu) << f.plan.explain();
+        images[gpu ? 0 : 1][eye == FramePipeline::Eye::Left ? 0 : 1] = gpu ? pipeline.read_display() : *f.image;
+      }
+    }
+    EXPECT_EQ(timer.summary().count("right.attention"), 0u);
+    EXPECT_EQ(timer.summary().count("right.gbuffer"), 1u);
+  }
+  for (int eye = 0; eye < 2; ++eye) {
+    const Difference d = compare(images[0][eye], images[1][eye]);
+    EXPECT_LE(d.pixels, 4u) << (eye == 0 ? "left" : "right") << " eye: max " << d.max_level;
+  }
+  EXPECT_GT(compare(images[0][0], images[0][1]).pixels, 100u) << "the eyes see the same image";
+}
+
 // frame.effect_passes: the compute passes (tone map, lee-mipmap or schedl-layered, ULOD's blend) make the frames the
 // fragment passes make (the same GLSL per texel), and --explain's where line says which ran.
 TEST(GlFramePipeline, TheComputeEffectPassesMakeTheFragmentPassesFrames) {

@@ -77,6 +77,12 @@ echo "== viewer under Xvfb, mouse gaze, 5 frames"
 "${XVFB[@]}" "$RENDER" --scene "$SCENES/cornell.json" "${SMALL[@]}" --backend gl --gaze mouse --frames 5 \
   >"$WORK/viewer.out" 2>&1 || fail "viewer: $(cat "$WORK/viewer.out")"
 grep -q "^frame " "$WORK/viewer.out" || fail "viewer printed no timing summary"
+for backend in gl embree; do  # stereo: both eyes side by side in the window, from the GPU or uploaded
+  "${XVFB[@]}" "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --backend $backend --gaze mouse --stereo \
+    --frames 4 >"$WORK/viewer-stereo.out" 2>&1 || fail "stereo viewer ($backend): $(cat "$WORK/viewer-stereo.out")"
+  grep -q "^right.frame " "$WORK/viewer-stereo.out" || fail "stereo viewer ($backend) drew no right eye"
+  grep -q "^stereo  *two views of 160x120" "$WORK/viewer-stereo.out" || fail "stereo viewer ($backend) plan"
+done
 
 echo "== the focus follows the recorded gaze (focus.csv), and only runs when something shows it"
 "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --headless --frames 12 --fps 10 --gaze "file:$REC" \
@@ -244,7 +250,38 @@ for phase in parse textures lod backend; do
 done
 out=$("$RENDER" --scene "$WORK/quads.glb" --scene-set lights.0.power=1 --list-objects 2>&1) \
   && fail "a glTF override other than the image size was accepted"
-grep -q "a glTF scene takes only camera.width and camera.height" <<<"$out" || fail "glTF override message: $out"
+grep -q "a glTF scene takes only camera.width, camera.height, camera.stereo and camera.ipd_m" <<<"$out" || fail "glTF override message: $out"
+
+echo "== --stereo: both eyes side by side, each eye's gaze, the shared passes once"
+# The PNG's width and height from its IHDR chunk (bytes 16-23, big-endian).
+png_size() { od -An -tu1 -j16 -N8 "$1" | awk '{print $1*16777216+$2*65536+$3*256+$4 "x" $5*16777216+$6*65536+$7*256+$8}'; }
+for backend in embree gl; do
+  runner=(); [ $backend = gl ] && runner=("${HEADLESS_GL[@]}")
+  "${runner[@]}" "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --backend $backend --stereo --headless \
+    --frames 3 --gaze none --out "$WORK/stereo-$backend" >"$WORK/stereo-$backend.log" 2>&1 \
+    || fail "--stereo with $backend: $(tail -5 "$WORK/stereo-$backend.log")"
+  [ "$(png_size "$WORK/stereo-$backend/frame-000002.png")" = 320x120 ] \
+    || fail "$backend stereo frame is $(png_size "$WORK/stereo-$backend/frame-000002.png"), not 320x120"
+  [ "$(wc -l <"$WORK/stereo-$backend/stereo.csv")" -eq 4 ] || fail "$backend stereo.csv: $(cat "$WORK/stereo-$backend/stereo.csv")"
+  # Frame 2 converges at the focus pass's depth: the left eye's gaze right of the right eye's.
+  awk -F, 'NR==4 && !($3 > 0 && $4 > $5 && $7 > 0 && $8 < 0) {exit 1}' "$WORK/stereo-$backend/stereo.csv" \
+    || fail "$backend stereo.csv gaze points: $(tail -1 "$WORK/stereo-$backend/stereo.csv")"
+  grep -q ",right.gbuffer," "$WORK/stereo-$backend/timings.csv" || fail "$backend: no right.gbuffer timing"
+  ! grep -q ",right.attention," "$WORK/stereo-$backend/timings.csv" || fail "$backend: attention ran for the right eye"
+  grep -q "^stereo  *two views of 160x120, the eyes 63.0 mm apart" "$WORK/stereo-$backend/plan.txt" \
+    || fail "$backend plan.txt lacks the stereo line: $(tail -2 "$WORK/stereo-$backend/plan.txt")"
+done
+out=$("$RENDER" --scene "$SCENES/attention.json" --stereo --explain --gaze none 2>&1) || fail "--stereo --explain: $out"
+grep -q "once per frame (left eye): attention, focus" <<<"$out" || fail "--stereo --explain: $out"
+out=$("$RENDER" --scene "$SCENES/attention.json" --stereo --budget-ms 50 --headless --frames 1 --gaze none \
+  --out "$WORK/stereo-budget" 2>&1) && fail "--stereo with --budget-ms accepted"
+grep -q "governor's fronts are measured for one view" <<<"$out" || fail "--stereo --budget-ms message: $out"
+out=$("$RENDER" --scene "$SCENES/attention.json" --scene-set camera.ipd_m=0 --stereo --explain 2>&1) \
+  && fail "camera.ipd_m=0 accepted"
+grep -q 'camera.ipd_m = 0' <<<"$out" || fail "camera.ipd_m=0 message: $out"
+"$RENDER" --scene "$WORK/quads.gltf" --stereo --scene-set camera.ipd_m=0.07 "${SMALL[@]}" --headless --frames 1 \
+  --gaze none --out "$WORK/stereo-gltf" >"$WORK/stereo-gltf.log" 2>&1 || fail "--stereo on a glTF: $(tail -3 "$WORK/stereo-gltf.log")"
+grep -q "^0,0.0700," "$WORK/stereo-gltf/stereo.csv" || fail "glTF stereo.csv: $(cat "$WORK/stereo-gltf/stereo.csv")"
 
 echo "== two render clients against one daemon"
 . "$(dirname "${BASH_SOURCE[0]}")/ports.sh"

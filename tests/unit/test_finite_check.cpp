@@ -72,6 +72,7 @@ class NanAtOnePixel : public Backend {
   std::string name() const override { return "nan-at-one-pixel"; }
   BackendCapabilities capabilities() const override { return inner_.capabilities(); }
   void set_scene(const Scene& scene) override { inner_.set_scene(scene); }
+  void set_camera(const Camera& camera) override { inner_.set_camera(camera); }
   void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override {
     inner_.render(time, settings, out);
     out.depth[out.index(5, 3)] = std::numeric_limits<float>::infinity();

@@ -64,7 +64,7 @@ TEST(GltfRender, OverridesAndCameraAreChecked) {
   TempDir dir;
   const GltfTwoQuads quads;
   const auto file = write_gltf_data_uri(dir.path, "quads", quads.doc(), quads.bin());
-  EXPECT_NE(load_error(file, {{"lights.0.power", "[1,1,1]"}}).find("a glTF scene takes only camera.width and camera.height"),
+  EXPECT_NE(load_error(file, {{"lights.0.power", "[1,1,1]"}}).find("a glTF scene takes only camera.width, camera.height, camera.stereo and camera.ipd_m"),
             std::string::npos);
   EXPECT_NE(load_error(file, {{"camera.width", "wide"}}).find("must be an integer in [1, 16384]"), std::string::npos);
   EXPECT_NE(load_error(file, {}, "top").find("(camera nodes: \"eye\")"), std::string::npos);

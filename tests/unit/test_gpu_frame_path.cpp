@@ -150,6 +150,7 @@ class FakeBackend final : public Backend {
     scene_ = scene;
     if (gpu_) gpu_->scene = &scene_;
   }
+  void set_camera(const Camera& camera) override { scene_.camera = camera; }
   void render(const FrameTime&, const BackendSettings& s, GBuffer& out) override {
     ++cpu_renders;
     fill(scene_, s, out);

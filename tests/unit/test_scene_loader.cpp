@@ -472,6 +472,22 @@ TEST(Parsing, DefaultsAndBasicValues) {
   EXPECT_EQ(parse_scene(unnamed.dump(), "dir/room.json", kFixtures).name, "room");
 }
 
+TEST(Parsing, StereoCamera) {
+  const Scene mono = parse(base_scene());
+  EXPECT_FALSE(mono.camera.stereo);
+  EXPECT_FLOAT_EQ(mono.camera.ipd_m, 0.063f);
+  EXPECT_EQ(mono.camera.eye_offset_m, 0.0f);
+  const Scene stereo = parse(base_scene(), {{"camera.stereo", "true"}, {"camera.ipd_m", "0.07"}});
+  EXPECT_TRUE(stereo.camera.stereo);
+  EXPECT_FLOAT_EQ(stereo.camera.ipd_m, 0.07f);
+  for (const char* bad : {"0", "-0.06", "1.5"}) {
+    const std::string msg = error_of(base_scene(), {{"camera.ipd_m", bad}});
+    expect_error(msg, "$.camera.ipd_m", bad);
+    EXPECT_CONTAINS(msg, "(0, 1]");
+  }
+  expect_error(error_of(base_scene(), {{"camera.stereo", "2"}}), "$.camera.stereo", "2");
+}
+
 TEST(Parsing, MaterialsAsArray) {
   Json doc = base_scene();
   doc["materials"] = Json::parse(R"([{"name": "white", "type": "lambertian"},

@@ -418,6 +418,10 @@ void EmbreeBackend::render(const FrameTime& time, const BackendSettings& setting
 
 const Scene& EmbreeBackend::scene() const { return impl_->scene; }
 
+void EmbreeBackend::set_camera(const Camera& camera) {
+  if (impl_->has_scene) impl_->scene.camera = camera;
+}
+
 bool EmbreeBackend::intersect(const glm::vec3& origin, const glm::vec3& direction, float t_min, float t_max,
                               RayVisibility visibility, SurfaceHit& hit) const {
   const Impl& im = *impl_;

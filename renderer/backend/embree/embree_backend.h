@@ -96,6 +96,7 @@ class EmbreeBackend final : public Backend {
   // Copies the scene (meshes are shared, not copied) and builds the acceleration structures.
   // Throws std::runtime_error naming the object if Embree rejects its geometry.
   void set_scene(const Scene& scene) override;
+  void set_camera(const Camera& camera) override;
   // Updates animated objects to time.now_s, then fills `out`. Renders the background only if no
   // scene was set.
   void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override;

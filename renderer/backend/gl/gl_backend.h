@@ -63,6 +63,9 @@ class GlBackend final : public Backend {
   // skipped, as by the Embree backend) and
   // std::runtime_error when the lights expand to more than gl::kMaxLightSamples samples.
   void set_scene(const Scene& scene) override;
+  void set_camera(const Camera& camera) override {
+    if (scene_) scene_->camera = camera;
+  }
   // settings.shadows is ignored: the raster backend has no shadows in this step. Renders the
   // background only (default camera) if no scene was set, like the Embree backend.
   void render(const FrameTime& time, const BackendSettings& settings, GBuffer& out) override;

@@ -402,7 +402,8 @@ void GlContext::create_present_resources() {
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
 }
 
-void GlContext::present(std::span<const std::uint8_t> rgba, std::uint32_t width, std::uint32_t height) {
+void GlContext::present(std::span<const std::uint8_t> rgba, std::uint32_t width, std::uint32_t height,
+                        Region region) {
   if (width == 0 || height == 0 || rgba.size() != std::size_t{width} * height * 4) {
     throw std::invalid_argument("GlContext::present: " + std::to_string(rgba.size()) + " bytes for a " +
                                 std::to_string(width) + "x" + std::to_string(height) +
@@ -413,11 +414,11 @@ void GlContext::present(std::span<const std::uint8_t> rgba, std::uint32_t width,
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, static_cast<GLsizei>(width), static_cast<GLsizei>(height), 0, GL_RGBA,
                GL_UNSIGNED_BYTE, rgba.data());
-  draw_present_quad(width, height, 1.0f, 1.0f, true);
+  draw_present_quad(width, height, 1.0f, 1.0f, true, region);
 }
 
 void GlContext::present_texture(unsigned texture, std::uint32_t width, std::uint32_t height,
-                                std::uint32_t texture_width, std::uint32_t texture_height) {
+                                std::uint32_t texture_width, std::uint32_t texture_height, Region region) {
   if (width == 0 || height == 0 || width > texture_width || height > texture_height) {
     throw std::invalid_argument("GlContext::present_texture: a " + std::to_string(width) + "x" +
                                 std::to_string(height) + " image in a " + std::to_string(texture_width) + "x" +
@@ -426,7 +427,7 @@ void GlContext::present_texture(unsigned texture, std::uint32_t width, std::uint
   begin_present("GlContext::present_texture");
   glBindTexture(GL_TEXTURE_2D, texture);
   draw_present_quad(width, height, static_cast<float>(width) / static_cast<float>(texture_width),
-                    static_cast<float>(height) / static_cast<float>(texture_height), false);
+                    static_cast<float>(height) / static_cast<float>(texture_height), false, region);
 }
 
 // What both presents need first: a window, this context current, the present resources, unit 0.
@@ -439,22 +440,26 @@ void GlContext::begin_present(const char* who) {
   glActiveTexture(GL_TEXTURE0);
 }
 
-// The bound texture to the default framebuffer, letterboxed (the largest viewport of the image's
-// aspect ratio that fits, centred).
+// The bound texture to the default framebuffer's region, letterboxed (the largest viewport of the
+// image's aspect ratio that fits, centred in the region).
 void GlContext::draw_present_quad(std::uint32_t width, std::uint32_t height, float u_max, float v_max,
-                                  bool top_row_first) {
+                                  bool top_row_first, Region region) {
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   const glm::ivec2 fb = framebuffer_size();
   glDisable(GL_DEPTH_TEST);
   glDisable(GL_SCISSOR_TEST);
   glDisable(GL_BLEND);
-  glViewport(0, 0, fb.x, fb.y);
-  glClearColor(0, 0, 0, 1);
-  glClear(GL_COLOR_BUFFER_BIT);
-  const double scale = std::min(static_cast<double>(fb.x) / width, static_cast<double>(fb.y) / height);
+  if (region != Region::RightHalf) {
+    glViewport(0, 0, fb.x, fb.y);
+    glClearColor(0, 0, 0, 1);
+    glClear(GL_COLOR_BUFFER_BIT);
+  }
+  const int area_x = region == Region::RightHalf ? fb.x / 2 : 0;
+  const int area_w = region == Region::Whole ? fb.x : fb.x / 2;
+  const double scale = std::min(static_cast<double>(area_w) / width, static_cast<double>(fb.y) / height);
   const int vw = std::max(1, static_cast<int>(std::lround(width * scale)));
   const int vh = std::max(1, static_cast<int>(std::lround(height * scale)));
-  glViewport((fb.x - vw) / 2, (fb.y - vh) / 2, vw, vh);
+  glViewport(area_x + (area_w - vw) / 2, (fb.y - vh) / 2, vw, vh);
   glUseProgram(present_program_);
   glUniform1i(glGetUniformLocation(present_program_, "u_image"), 0);
   glUniform2f(glGetUniformLocation(present_program_, "u_extent"), u_max, v_max);

@@ -85,10 +85,14 @@ class GlContext {
   static void poll_events();
   glm::ivec2 framebuffer_size() const;  // pixels (may differ from the window size on HiDPI)
 
+  // Where on the window present() draws: all of it, or one half (a stereo frame's eyes, side by
+  // side). Whole and LeftHalf clear the window first; RightHalf draws beside what is there.
+  enum class Region { Whole, LeftHalf, RightHalf };
   // Draws an image to the default framebuffer, scaled to fill it (aspect ratio kept, letterboxed),
   // with a fullscreen textured quad. `rgba` is 8-bit sRGB RGBA, width*height*4 bytes, row 0 at the
   // top. Does not swap buffers. Throws std::invalid_argument on a size mismatch.
-  void present(std::span<const std::uint8_t> rgba, std::uint32_t width, std::uint32_t height);
+  void present(std::span<const std::uint8_t> rgba, std::uint32_t width, std::uint32_t height,
+               Region region = Region::Whole);
   // Convenience: linear RGB in [0, 1] (values outside are clamped, NaN becomes 0) encoded to sRGB8.
   // Tone mapping belongs to the tonemap pass; this does none.
   void present(const std::vector<glm::vec3>& linear_rgb, std::uint32_t width, std::uint32_t height);
@@ -97,7 +101,7 @@ class GlContext {
   // its lower-left corner) to the default framebuffer like present(). The texture must be visible in
   // this context (made here or in a context given as GlContextOptions::share). Does not swap buffers.
   void present_texture(unsigned texture, std::uint32_t width, std::uint32_t height, std::uint32_t texture_width,
-                       std::uint32_t texture_height);
+                       std::uint32_t texture_height, Region region = Region::Whole);
 
   // The renderer string of the context (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)").
   std::string renderer() const { return renderer_; }
@@ -115,7 +119,8 @@ class GlContext {
   GlFeatures features_;
   void read_features();
   void begin_present(const char* who);
-  void draw_present_quad(std::uint32_t width, std::uint32_t height, float u_max, float v_max, bool top_row_first);
+  void draw_present_quad(std::uint32_t width, std::uint32_t height, float u_max, float v_max, bool top_row_first,
+                         Region region);
   // present() resources, created on first use.
   unsigned present_program_ = 0, present_vao_ = 0, present_texture_ = 0;
   std::vector<std::uint8_t> srgb_scratch_;

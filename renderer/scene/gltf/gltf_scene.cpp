@@ -420,10 +420,28 @@ Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<Scene
                       const std::string& camera, LoadReport* report) {
   GltfSceneOptions options;
   options.camera_name = camera;
+  std::optional<bool> stereo;
+  std::optional<float> ipd_m;
   for (const SceneOverride& o : overrides) {
+    if (o.path == "camera.stereo") {
+      if (o.value != "true" && o.value != "false") {
+        throw SceneError(path.string() + ": --scene-set camera.stereo=" + o.value + ": must be true or false");
+      }
+      stereo = o.value == "true";
+      continue;
+    }
+    if (o.path == "camera.ipd_m") {
+      char* end = nullptr;
+      const double v = std::strtod(o.value.c_str(), &end);
+      if (o.value.empty() || *end != '\0' || !(v > 0 && v <= 1)) {
+        throw SceneError(path.string() + ": --scene-set camera.ipd_m=" + o.value + ": must be a number in (0, 1] (m)");
+      }
+      ipd_m = static_cast<float>(v);
+      continue;
+    }
     if (o.path != "camera.width" && o.path != "camera.height") {
-      throw SceneError(path.string() + ": --scene-set " + o.path + ": a glTF scene takes only camera.width and "
-                       "camera.height overrides");
+      throw SceneError(path.string() + ": --scene-set " + o.path + ": a glTF scene takes only camera.width, "
+                       "camera.height, camera.stereo and camera.ipd_m overrides");
     }
     char* end = nullptr;
     const long v = std::strtol(o.value.c_str(), &end, 10);
@@ -447,6 +465,8 @@ Scene load_gltf_scene(const std::filesystem::path& path, const std::vector<Scene
     report->add_since("parse", start, std::to_string(triangles) + " triangles in " + std::to_string(asset.meshes.size()) + " meshes");
   }
   Scene scene = scene_from_gltf(asset, options, &warnings, report);
+  if (stereo) scene.camera.stereo = *stereo;
+  if (ipd_m) scene.camera.ipd_m = *ipd_m;
   for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   scene.source = path;
   return scene;
