@@ -34,6 +34,8 @@
 # scene's effects with lod.policy=ulod (its blend of levels on the GPU path's GPU, gpu.ulod).
 # Any of these with "+fragment" or "+compute" appended sets frame.effect_passes (the tone map,
 # lee-mipmap and ULOD's blend as fragment or compute passes; without: auto, compute on a GPU).
+# "+stereo" (last) renders both eyes (--stereo), each at the size given: the frame is then both
+# eyes' renders (frame + right.frame) and the gaze age the older eye's.
 #
 # Usage: bench/bench_gpu_frame.sh [RENDER] [FRAMES] [SIZES] [SCENES] [EFFECTS]
 #   RENDER   fovea-render binary (default build/default/renderer/fovea-render)
@@ -62,12 +64,14 @@ for scene in $SCENES; do
     w=${size%x*} h=${size#*x}
     for effects in $EFFECTS; do
       extra=()
-      what=${effects%+fragment}
-      what=${what%+compute}
-      case $effects in
-        *+fragment) extra=(--set frame.effect_passes=fragment) ;;
-        *+compute) extra=(--set frame.effect_passes=compute) ;;
+      what=${effects%+stereo}
+      [ "$what" != "$effects" ] && extra=(--stereo)
+      case $what in
+        *+fragment) extra+=(--set frame.effect_passes=fragment) ;;
+        *+compute) extra+=(--set frame.effect_passes=compute) ;;
       esac
+      what=${what%+fragment}
+      what=${what%+compute}
       case $what in
         base) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false) ;;
         base-allplanes) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
@@ -121,10 +125,14 @@ def pct(v, q):
     return v[min(len(v) - 1, max(0, round(q / 100 * (len(v) - 1))))]
 
 def load(path):
-    by = {}
+    by, frames = {}, {}
     for r in csv.DictReader(open(os.path.join(path, "timings.csv"))):
         if int(r["frame"]) >= warmup:
             by.setdefault(r["pass"], []).append(float(r["ms"]))
+            frames.setdefault(int(r["frame"]), {})[r["pass"]] = float(r["ms"])
+    if "right.frame" in by:  # stereo: the frame is both eyes' renders, its gaze age the older eye's
+        by["frame"] = [f["frame"] + f["right.frame"] for f in frames.values() if "right.frame" in f]
+        by["gaze-age"] = [max(f["gaze-age"], f["right.gaze-age"]) for f in frames.values() if "right.gaze-age" in f]
     return by
 
 renderer = ""
@@ -146,6 +154,22 @@ for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
     gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.ulod", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
     print(f"| {scene} | {size} | {effects} | {pct(fa, 50):.2f} / {pct(fa, 99):.2f} | {pct(fb, 50):.2f} / {pct(fb, 99):.2f} | "
           f"{pct(fa, 50) / pct(fb, 50):.2f} | {pct(ga, 50):.2f} / {pct(ga, 99):.2f} | {pct(gb, 50):.2f} / {pct(gb, 99):.2f} | {gpu_side} |")
+stereo = [d for d in sorted(glob.glob(os.path.join(runs, "*+stereo-*"))) if os.path.isdir(d)]
+if stereo:
+    # Each eye's own render in one process, frame after frame: what the right eye saves by reusing
+    # the left eye's attention, focus and photon maps (the passes it skipped, timed in the left eye).
+    print()
+    print("| run | left eye p50 ms | right eye p50 ms | right/left | done once, left eye p50 ms |")
+    print("|---|---|---|---|---|")
+    for d in stereo:
+        e = {}
+        for r in csv.DictReader(open(os.path.join(d, "timings.csv"))):
+            if int(r["frame"]) >= warmup:
+                e.setdefault(r["pass"], []).append(float(r["ms"]))
+        once = ", ".join(f"{p} {statistics.median(e[p]):.2f}" for p in ("attention", "focus", "lod-select", "gi.photons", "gi.index")
+                         if p in e and "right." + p not in e)
+        left, right = statistics.median(e["frame"]), statistics.median(e["right.frame"])
+        print(f"| {os.path.basename(d)} | {left:.2f} | {right:.2f} | {right / left:.2f} | {once or 'nothing'} |")
 embree = sorted(glob.glob(os.path.join(runs, "*-embree")))
 if embree:
     print()

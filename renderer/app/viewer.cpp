@@ -217,7 +217,7 @@ int run_viewer(const RenderOptions& o) {
     if (window.should_close()) break;
     const double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (navigate(window.window(), pipeline.mutable_scene().camera, i == 0 ? 0.0 : now - previous)) {
-      pipeline.scene_changed();
+      pipeline.camera_changed();
     }
     double cx = 0, cy = 0;
     glfwGetCursorPos(window.window(), &cx, &cy);

@@ -127,8 +127,10 @@ class FramePipeline {
   std::string stereo_summary() const;
   const Scene& scene() const { return scene_; }
   Scene& mutable_scene() { return scene_; }
-  // Call after changing the scene (camera moves included) so the backend sees it.
+  // Call after changing the scene so the backend sees it (the backend builds it again).
   void scene_changed();
+  // Call after moving the camera alone (the viewer's navigation): nothing is built again.
+  void camera_changed() { backend_->set_camera(scene_.camera); }
   Settings& settings() { return settings_; }
   const Backend& backend() const { return *backend_; }
 
