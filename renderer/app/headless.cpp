@@ -97,14 +97,20 @@ double frame_clock_s(std::uint64_t i, double fps, bool realtime, std::chrono::st
   return clock;
 }
 
+// The governor picks the frame's settings for all its views' pixels (a stereo frame's two eyes).
+void govern(Governor* governor, FramePipeline& pipeline) {
+  if (!governor) return;
+  const Camera& cam = pipeline.scene().camera;
+  governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(), cam.width * (cam.stereo ? 2u : 1u),
+                  cam.height, pipeline.settings());
+}
+
 // The governor picks the frame's settings, the pipeline renders it (motion vectors from the previous frame's
 // time), and the governor sees what it cost before anything else is timed.
 FramePipeline::Frame render_one_frame(FramePipeline& pipeline, Governor* governor, PassTimer& timer, std::uint64_t i,
                                       double clock, double& previous, bool realtime) {
   const double now = clock;
-  if (governor)
-    governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(), pipeline.scene().camera.width,
-                    pipeline.scene().camera.height, pipeline.settings());
+  govern(governor, pipeline);
   FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, clock, timer, realtime);
   previous = now;
   if (governor) governor->observe(timer);
@@ -222,10 +228,12 @@ void write_lod_row(std::ofstream& lod_log, const std::string& out_dir, std::uint
 // reused, FramePipeline::Eye), written side by side as one PNG (left | right, 2W x H: what a headset's
 // display or a stereo video player takes), each eye's HDR colour as EXR when asked. gaze.csv gets
 // the left eye's row; stereo.csv both eyes' gaze points and the fixation depth.
-void render_stereo_frame(const RenderOptions& o, FramePipeline& pipeline, PassTimer& timer, std::uint64_t i,
-                         double clock, double& previous, bool realtime, CsvLogs& logs, Image8& side_by_side) {
+void render_stereo_frame(const RenderOptions& o, FramePipeline& pipeline, Governor* governor, PassTimer& timer,
+                         std::uint64_t i, double clock, double& previous, bool realtime, CsvLogs& logs,
+                         Image8& side_by_side) {
   using Eye = FramePipeline::Eye;
   const double before = i == 0 ? clock : previous;
+  govern(governor, pipeline);  // once for both eyes; it sees both eyes' times after the right eye
   FramePipeline::Frame f[2];
   bool png = false;  // an image to show (output=gbuffer has none: EXR only)
   for (int e = 0; e < 2; ++e) {
@@ -250,6 +258,10 @@ void render_stereo_frame(const RenderOptions& o, FramePipeline& pipeline, PassTi
     }
   }
   previous = clock;
+  if (governor) {
+    governor->observe(timer);
+    write_governor_row(logs.governor, governor->state(), i);
+  }
   if (png) {
     auto t = timer.scope("write");
     write_png(frame_name(o.out_dir, i, "png"), side_by_side);
@@ -301,11 +313,6 @@ int run_headless(const RenderOptions& o) {
   LoadReport load;
   Scene scene = load_render_scene(o, &load);
   const bool stereo = scene.camera.stereo;
-  if (stereo && governor) {
-    std::fprintf(stderr, "fovea-render: --budget-ms with a stereo camera: the governor's fronts are measured for "
-                         "one view, not yet for two; render the stereo frames without a budget\n");
-    return 2;
-  }
   std::unique_ptr<GazeInput> gaze = make_gaze_input(o.gaze);
   const auto backend_start = std::chrono::steady_clock::now();
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
@@ -327,7 +334,7 @@ int run_headless(const RenderOptions& o) {
   for (std::uint64_t i = 0; i < o.frames; ++i) {
     const double clock = frame_clock_s(i, o.fps, realtime, start);
     if (stereo) {
-      render_stereo_frame(o, pipeline, timer, i, clock, previous, realtime, logs, side_by_side);
+      render_stereo_frame(o, pipeline, governor.get(), timer, i, clock, previous, realtime, logs, side_by_side);
       if (tty) progress(i + 1, o.frames, timer.last_ms("frame") + timer.last_ms("right.frame"));
       continue;
     }

@@ -181,10 +181,6 @@ int run_viewer(const RenderOptions& o) {
   co.visible = true;
   co.title = "fovea-render: " + scene.name;
   const bool stereo = scene.camera.stereo;
-  if (stereo && o.budget_ms > 0) {
-    throw std::invalid_argument("--budget-ms with a stereo camera: the governor's fronts are measured for one view, "
-                                "not yet for two; view the stereo frames without a budget");
-  }
   co.width = static_cast<int>(scene.camera.width) * (stereo ? 2 : 1);  // stereo: left | right
   co.height = static_cast<int>(scene.camera.height);
   GlContext window(co);
@@ -224,9 +220,10 @@ int run_viewer(const RenderOptions& o) {
     int ww = 1, wh = 1;
     glfwGetWindowSize(window.window(), &ww, &wh);
     gaze->set_cursor(cx / std::max(1, ww), cy / std::max(1, wh));
-    if (governor)
-      governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(), pipeline.scene().camera.width,
-                      pipeline.scene().camera.height, pipeline.settings());
+    if (governor)  // all the frame's pixels: both eyes' in stereo
+      governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(),
+                      pipeline.scene().camera.width * (stereo ? 2u : 1u), pipeline.scene().camera.height,
+                      pipeline.settings());
     if (stereo) {  // the left eye first, drawn on its half; the right eye's show() swaps
       const FramePipeline::Frame left =
           pipeline.render(i, now, i == 0 ? now : previous, now, timer, true, FramePipeline::Eye::Left);

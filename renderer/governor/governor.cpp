@@ -245,11 +245,13 @@ void Governor::plan() {
 }
 
 void Governor::observe(const PassTimer& timer) {
-  const double frame = timer.frame_ms("frame");
+  // A stereo frame's right eye records its passes as "right.<pass>" (0 when there is none).
+  const auto both_eyes = [&timer](const std::string& pass) { return timer.frame_ms(pass) + timer.frame_ms("right." + pass); };
+  const double frame = both_eyes("frame");
   double governed = 0;
   for (const Front* f : active_) {
     double measured = 0;
-    for (const std::string& p : f->passes) measured += timer.frame_ms(p);
+    for (const std::string& p : f->passes) measured += both_eyes(p);
     governed += measured;
     const auto it = chosen_.find(f->effect);
     if (it == chosen_.end() || !(measured > 0)) continue;

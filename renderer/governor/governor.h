@@ -74,7 +74,10 @@ class Governor {
   };
 
   // Before a frame: chooses (when due) and writes the chosen options into `settings`. `device`:
-  // FramePipeline::device(), matched against Front::device.
+  // FramePipeline::device(), matched against Front::device. width x height: the pixels of all the
+  // frame's views (a stereo frame: 2 x camera.width), which image-space fronts scale by.
+  // Stereo frames' right-eye passes ("right." names, FramePipeline::Eye) count in observe() as
+  // the same passes: an effect's time is both eyes', the frame's both renders.
   void apply(const FramePlan& plan, const std::string& backend, const std::string& device, std::uint32_t width,
              std::uint32_t height, Settings& settings);
   // After the frame: the passes' measured times update the corrections and the other passes' time.

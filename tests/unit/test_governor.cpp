@@ -115,6 +115,31 @@ TEST(Governor, AdaptsWhenMeasuredTimesDrift) {
   EXPECT_LE(g.state().predicted_ms, 60);
 }
 
+// A stereo frame: image-space fronts scale by both views' pixels, and observe() counts each pass in
+// both eyes (the right eye's as "right.<pass>") and the frame as both renders.
+TEST(Governor, AStereoFrameCountsBothEyes) {
+  Governor mono(60, parse_fronts(kFronts, "test")), stereo(60, parse_fronts(kFronts, "test"));
+  Settings a, b;
+  const FramePlan plan = plan_running({PassId::Dof, PassId::Gi});
+  mono.apply(plan, "embree", "cpu", 100, 100, a);
+  stereo.apply(plan, "embree", "cpu", 200, 100, b);
+  EXPECT_NEAR(stereo.state().choices.at(0).predicted_ms, 2 * mono.state().choices.at(0).predicted_ms, 1e-9);
+  PassTimer t;
+  t.begin_frame(0, 0);
+  t.record("dof", 20);
+  t.record("gi", 40);
+  t.record("frame", 65);
+  t.set_prefix("right.");
+  t.record("dof", 20);
+  t.record("gi", 4);  // the photon map was the left eye's
+  t.record("frame", 27);
+  t.set_prefix("");
+  stereo.observe(t);
+  EXPECT_NEAR(stereo.state().measured_ms, 92, 1e-9);
+  EXPECT_NEAR(stereo.state().other_ms, 92 - 40 - 44, 1e-9);
+  EXPECT_NEAR(stereo.state().choices.at(0).correction, 40.0 / 20.0, 1e-9);  // dof: 40 ms for a 2 x 10 ms front
+}
+
 TEST(Governor, SaysWhenNoCombinationMeetsTheBudget) {
   Governor g(12, parse_fronts(kFronts, "test"));
   Settings s;
