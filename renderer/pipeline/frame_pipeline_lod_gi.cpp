@@ -36,7 +36,14 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
     centre = {static_cast<float>(f.gaze.x), static_cast<float>(f.gaze.y)};
     gi_frame_.follows = "gaze";
   } else if (f.attention != nullptr && !f.attention->objects.empty()) {
-    centre = {static_cast<float>(f.attention->objects.front().screen_x), static_cast<float>(f.attention->objects.front().screen_y)};
+    const attention::ObjectAttention& top = f.attention->objects.front();
+    double x = top.screen_x;
+    if (f.eye == Eye::Right) {  // the left eye's attention frame: the object where the right eye sees it
+      Camera left = cam;
+      left.eye_offset_m = -cam.eye_offset_m;
+      x += cam.eye_shift_x(top.depth_m) - left.eye_shift_x(top.depth_m);
+    }
+    centre = {static_cast<float>(x), static_cast<float>(top.screen_y)};
     gi_frame_.follows = "attention";
   } else {
     gi_frame_.follows = "screen centre";

@@ -107,7 +107,8 @@ struct StereoRun {
   std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
   std::unique_ptr<FramePipeline> pipeline;
   PassTimer timer;
-  StereoRun(Scene s, const std::vector<std::string>& settings) {
+  StereoRun(Scene s, const std::vector<std::string>& settings, const std::string& gaze_spec = "mouse") {
+    gaze = make_gaze_input(gaze_spec);
     Settings set;
     for (const std::string& a : settings) set.set_assignment(a);
     gaze->set_cursor(0.5, 0.5);
@@ -197,6 +198,22 @@ TEST(StereoFrame, EachEyesGazeIsTheCyclopeanGazeAtTheFixationDepth) {
     EXPECT_NEAR(r.gaze.x, 0.5 + r.eye_gaze_shift_x, 1e-12);
     EXPECT_EQ(l.gaze.y, 0.5);
   }
+}
+
+// Without gaze the GI area follows the most attended object, which the attention frame (the left
+// eye's) places in the left eye's image: the right eye's area is where the right eye sees it.
+TEST(StereoFrame, TheGiAreaFollowsTheAttendedObjectInEachEye) {
+  StereoRun run(box_scene(0.2f), {"dof.enabled=false", "gi.enabled=true", "gi.photons=1000", "gi.gaze_area_deg=5"},
+                "none");
+  const FramePipeline::Frame left = run.pipeline->render(0, 0, 0, 0, run.timer, false, Eye::Left);
+  ASSERT_NE(left.gi, nullptr);
+  ASSERT_STREQ(left.gi->follows, "attention");
+  const double left_x = left.gi->area.center_px.x, left_box = centroid_x(*left.gbuffer, 1);
+  const FramePipeline::Frame right = run.pipeline->render(0, 0, 0, 0, run.timer, false, Eye::Right);
+  const double right_x = right.gi->area.center_px.x, right_box = centroid_x(*right.gbuffer, 1);
+  EXPECT_GT(left_box - right_box, 8);  // the disparity the area must follow
+  EXPECT_NEAR(left_x - 0.5, left_box, 1.0);   // pixel centres: the centroid of pixel x is x + 0.5
+  EXPECT_NEAR(right_x - 0.5, right_box, 1.0);
 }
 
 TEST(StereoFrame, ARightEyeWithoutItsLeftEyeIsRefused) {
