@@ -10,6 +10,9 @@
 // schedl_layered/{fragment,compute}/f{2.8,0.7}: Schedl & Wimmer's layered DOF, M = 3 (the visible
 // layer and two peeled ones), on the same G-buffer: the fragment box blur against the compute
 // pass's running sums.
+// attention/{fragment,compute}/map{64,128}: Lee 2009 ch. 3's pixel stage alone (GlAttention: resample,
+// pyramids, contrast, S_p, per-object sums and median depths, the per-object values read back) on
+// the same G-buffer at two saliency-map sizes.
 // Needs a display: xvfb-run -a build/<dir>/bench/bench_gl
 #include <benchmark/benchmark.h>
 #include <epoxy/gl.h>
@@ -24,6 +27,7 @@
 
 #include "../tests/gl/test_scenes.h"  // the procedural scenes the GL tests use
 #include "backend/backend.h"
+#include "backend/gl/gl_attention.h"
 #include "backend/gl/gl_backend.h"
 #include "backend/gl/gl_program.h"
 #include "backend/gl/gl_lee_mipmap.h"
@@ -137,7 +141,7 @@ void ulod_blend(benchmark::State& state, GlUlodBlend::Pass pass) {
 // attention.json's G-buffer at 1920x1080, uploaded once as the DOF's input textures.
 struct DofFrame {
   Scene scene;
-  unsigned color = 0, depth = 0;
+  unsigned color = 0, depth = 0, ids = 0;
   unsigned peeled_color[2] = {0, 0}, peeled_depth[2] = {0, 0};  // the first two layers behind it
 };
 const DofFrame& dof_frame() {
@@ -154,6 +158,14 @@ const DofFrame& dof_frame() {
     std::vector<float> staging;
     gl::upload_top_first(f.color, GL_RGB32F, GL_RGB, &g.color[0].x, g.width, g.height, 3, staging);
     gl::upload_top_first(f.depth, GL_R32F, GL_RED, g.depth.data(), g.width, g.height, 1, staging);
+    std::vector<std::uint32_t> ids(g.object_id.size());  // rows bottom-up, as OpenGL keeps them
+    for (std::uint32_t y = 0; y < g.height; ++y)
+      std::copy_n(g.object_id.begin() + std::ptrdiff_t{y} * g.width, g.width,
+                  ids.begin() + std::ptrdiff_t{g.height - 1 - y} * g.width);
+    f.ids = gl::make_texture(GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, g.width, g.height);
+    glBindTexture(GL_TEXTURE_2D, f.ids);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, static_cast<GLsizei>(g.width), static_cast<GLsizei>(g.height),
+                    GL_RED_INTEGER, GL_UNSIGNED_INT, ids.data());
     for (std::uint32_t k = 0; k < 2; ++k) {
       BackendSettings peel;
       peel.peel = k + 1;
@@ -216,6 +228,28 @@ void schedl_layered(benchmark::State& state, GlSchedlLayered::Pass pass, double 
   state.counters["layers"] = stats.layers;
 }
 
+void attention_pass(benchmark::State& state, GlAttention::Pass pass, int map_size) {
+  const DofFrame& f = dof_frame();
+  gl_backend().context().make_current();
+  GlAttention attention(gl_backend().context().features().at_least(4, 3));
+  if (pass == GlAttention::Pass::Compute && !attention.has_compute()) {
+    state.SkipWithError("no OpenGL 4.3 compute");
+    return;
+  }
+  attention::AttentionSettings s;
+  s.map_size = map_size;
+  GlAttentionObjects objects;
+  for (const Object& o : f.scene.objects) {
+    objects.ids.push_back(o.id);
+    objects.motion.push_back(0.0f);
+  }
+  const GlAttentionInput in{f.color, f.depth, f.ids, f.scene.camera.width, f.scene.camera.height};
+  std::vector<attention::ObjectPixels> out;
+  attention.run(in, f.scene.camera.near_m, f.scene.camera.far_m, s, objects, out, pass);  // targets made outside
+  for (auto _ : state) attention.run(in, f.scene.camera.near_m, f.scene.camera.far_m, s, objects, out, pass);
+  state.counters["objects"] = static_cast<double>(out.size());
+}
+
 void register_scene(const std::string& name, Scene s) {
   for (const auto& [w, h] : {std::pair{640u, 480u}, std::pair{1024u, 768u}}) {
     s.camera.width = w;
@@ -252,6 +286,12 @@ int main(int argc, char** argv) {
     for (const auto& [f_name, f_number] : {std::pair{"f2.8", 2.8}, std::pair{"f0.7", 0.7}})
       benchmark::RegisterBenchmark((std::string("schedl_layered/") + name + "/" + f_name + "/1920x1080").c_str(),
                                    schedl_layered, pass, f_number)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
+  for (const auto& [name, pass] : {std::pair{"fragment", GlAttention::Pass::Fragment}, std::pair{"compute", GlAttention::Pass::Compute}})
+    for (const int n : {64, 128})
+      benchmark::RegisterBenchmark((std::string("attention/") + name + "/map" + std::to_string(n) + "/1920x1080").c_str(),
+                                   attention_pass, pass, n)
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
   register_scene("cornell-procedural", testing::cornell_box());

@@ -63,7 +63,7 @@ class GpuFrame {
   // "" when the GPU passes can run on this device; else why not (one line, for the log and --explain).
   virtual const std::string& unavailable_reason() const = 0;
   // The implementation of the passes that have a fragment and a compute one (the tone map's Auto,
-  // dof_lee_mipmap, dof_schedl_layered, ulod_blend): frame.effect_passes. Compute where the device has none runs the
+  // attention_pixels, dof_lee_mipmap, dof_schedl_layered, ulod_blend): frame.effect_passes. Compute where the device has none runs the
   // fragment passes; effect_passes(asked) says which would run, and why where it is not what was asked.
   virtual void set_effect_passes(GpuPass) {}
   virtual std::string effect_passes(GpuPass /*asked*/) const { return "fragment"; }

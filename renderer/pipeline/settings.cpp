@@ -143,8 +143,8 @@ const std::vector<SettingSpec>& Settings::specs() {
        "= shade in the raster pass's fragment shader (GL 3.3); auto = visibility on a GPU with compute shaders, "
        "forward on a software rasteriser (llvmpipe), where it is the faster (bench/RESULTS.md)"},
       {"frame.effect_passes", "auto", "auto|compute|fragment",
-       "OpenGL backend: the passes with two implementations (the tone map, dof.method=lee-mipmap and "
-       "schedl-layered, ULOD's blend) as "
+       "OpenGL backend: the passes with two implementations (the tone map, attention's pixel stage, "
+       "dof.method=lee-mipmap and schedl-layered, ULOD's blend) as "
        "compute passes (GL 4.3; the fragment passes where compute is missing, as --explain says) or fragment passes "
        "(GL 3.3); auto = compute on a GPU with compute shaders, fragment on a software rasteriser (llvmpipe)"},
       {"debug.gi_first_hits", "gbuffer", "gbuffer|trace",

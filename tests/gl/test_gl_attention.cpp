@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <random>
@@ -51,12 +52,14 @@ double map_error(const std::vector<float>& a, const std::vector<float>& b) {
   return err / scale;
 }
 
-class GlAttentionTest : public ::testing::Test {
+// Every test runs on both implementations: the fragment passes and the compute passes.
+class GlAttentionTest : public ::testing::TestWithParam<GlAttention::Pass> {
  protected:
   void SetUp() override {
     backend_ = std::make_unique<GlBackend>();
     backend_->context().make_current();
-    gl_ = std::make_unique<GlAttention>();
+    gl_ = std::make_unique<GlAttention>(backend_->context().features().at_least(4, 3));
+    if (GetParam() == GlAttention::Pass::Compute && !gl_->has_compute()) GTEST_SKIP() << "no OpenGL 4.3 compute";
   }
 
   // The scene's objects with their B_m between the two times, as the pipeline hands them over.
@@ -76,7 +79,8 @@ class GlAttentionTest : public ::testing::Test {
     AttentionTracker cpu(s), gpu(s);
     const AttentionFrame& fc = cpu.update(g, scene, t, tp);
     std::vector<ObjectPixels> pixels;
-    gl_->run_gbuffer(g, scene.camera.near_m, scene.camera.far_m, s, objects_of(scene, gpu, t, tp), pixels);
+    gl_->run_gbuffer(g, scene.camera.near_m, scene.camera.far_m, s, objects_of(scene, gpu, t, tp), pixels, nullptr,
+                     GetParam());
     const AttentionFrame& fg = gpu.update_objects(pixels, s.map_size, scene, t, tp);
     std::vector<float> saliency, contrast[5];
     gl_->read_saliency(saliency);
@@ -121,7 +125,7 @@ GBuffer blank(std::uint32_t w, std::uint32_t h) {
   return g;
 }
 
-TEST_F(GlAttentionTest, AgreesWithTheCpuOnTheBundledScenes) {
+TEST_P(GlAttentionTest, AgreesWithTheCpuOnTheBundledScenes) {
   for (const char* name : {"attention.json", "occlusion.json", "cornell.json"}) {
     Scene scene = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes" / name);
     scene.camera.width = 320;
@@ -140,7 +144,7 @@ TEST_F(GlAttentionTest, AgreesWithTheCpuOnTheBundledScenes) {
   }
 }
 
-TEST_F(GlAttentionTest, AgreesWithTheCpuWithEverySetting) {
+TEST_P(GlAttentionTest, AgreesWithTheCpuWithEverySetting) {
   Scene scene = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes/attention.json");
   scene.camera.width = 333;  // not a multiple of any map size: uneven boxes
   scene.camera.height = 201;
@@ -160,7 +164,7 @@ TEST_F(GlAttentionTest, AgreesWithTheCpuWithEverySetting) {
 }
 
 // The stability catalogue's G-buffers, through the GPU.
-TEST_F(GlAttentionTest, HardCasesAgreeWithTheCpu) {
+TEST_P(GlAttentionTest, HardCasesAgreeWithTheCpu) {
   Scene scene = test::make_scene();
   test::add_object(scene, 1, {0, 0, -4}, 1.0f);
   test::add_object(scene, 2, {1, 0, -8}, 0.5f);
@@ -211,7 +215,7 @@ TEST_F(GlAttentionTest, HardCasesAgreeWithTheCpu) {
   }
 }
 
-TEST_F(GlAttentionTest, RandomGBuffersAndScenesAgreeWithTheCpu) {
+TEST_P(GlAttentionTest, RandomGBuffersAndScenesAgreeWithTheCpu) {
   std::mt19937 rng(1234);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   for (int trial = 0; trial < 8; ++trial) {
@@ -226,17 +230,64 @@ TEST_F(GlAttentionTest, RandomGBuffersAndScenesAgreeWithTheCpu) {
   }
 }
 
-TEST_F(GlAttentionTest, RefusesMotionValuesNotOnePerId) {
+TEST_P(GlAttentionTest, RefusesMotionValuesNotOnePerId) {
   GlAttentionObjects o;
   o.ids = {1, 2};
   o.motion = {0.0f};
   std::vector<ObjectPixels> out;
-  EXPECT_THROW(gl_->run_gbuffer(blank(8, 8), 0.1, 100, AttentionSettings{}, o, out), std::invalid_argument);
+  EXPECT_THROW(gl_->run_gbuffer(blank(8, 8), 0.1, 100, AttentionSettings{}, o, out, nullptr, GetParam()),
+               std::invalid_argument);
   AttentionSettings bad;
   bad.map_size = 10;
   o.motion = {0.0f, 0.0f};
-  EXPECT_THROW(gl_->run_gbuffer(blank(8, 8), 0.1, 100, bad, o, out), std::invalid_argument);
+  EXPECT_THROW(gl_->run_gbuffer(blank(8, 8), 0.1, 100, bad, o, out, nullptr, GetParam()), std::invalid_argument);
 }
+
+// The compute passes run the fragment passes' GLSL functions: the maps and the per-object values
+// agree to float rounding, not only within the tolerance of the CPU reference.
+TEST_P(GlAttentionTest, TheComputeAndFragmentPassesAgree) {
+  if (GetParam() != GlAttention::Pass::Compute) GTEST_SKIP() << "compared once, from the compute side";
+  const Scene scene = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes/attention.json");
+  GBuffer g;
+  backend_->set_scene(scene);
+  backend_->render(FrameTime{0.5, 0.45}, BackendSettings{}, g);
+  AttentionTracker tracker{AttentionSettings{}};
+  const GlAttentionObjects objects = objects_of(scene, tracker, 0.5, 0.45);
+  std::vector<ObjectPixels> out[2];
+  std::vector<float> saliency[2];
+  // Compute first, on targets no fragment pass wrote.
+  for (const GlAttention::Pass pass : {GlAttention::Pass::Compute, GlAttention::Pass::Fragment}) {
+    const int k = pass == GlAttention::Pass::Compute ? 0 : 1;
+    gl_->run_gbuffer(g, scene.camera.near_m, scene.camera.far_m, AttentionSettings{}, objects, out[k], nullptr, pass);
+    gl_->read_saliency(saliency[k]);
+  }
+  EXPECT_LE(map_error(saliency[0], saliency[1]), 1e-6);
+  ASSERT_EQ(out[0].size(), out[1].size());
+  ASSERT_GT(out[0].size(), 3u);
+  for (std::size_t i = 0; i < out[0].size(); ++i) {
+    EXPECT_EQ(out[0][i].id, out[1][i].id);
+    EXPECT_EQ(out[0][i].pixels, out[1][i].pixels);
+    EXPECT_EQ(out[0][i].depth_m, out[1][i].depth_m);
+    EXPECT_NEAR(out[0][i].sum_saliency, out[1][i].sum_saliency, 1e-5 * std::max(1.0, out[1][i].sum_saliency));
+  }
+}
+
+TEST(GlAttentionPassChoice, TheComputePassRefusesWhereItWasNotBuilt) {
+  GlBackend backend;
+  backend.context().make_current();
+  GlAttention fragment_only(false);
+  EXPECT_FALSE(fragment_only.has_compute());
+  std::vector<ObjectPixels> out;
+  EXPECT_THROW(fragment_only.run_gbuffer(blank(8, 8), 0.1, 100, AttentionSettings{}, GlAttentionObjects{}, out, nullptr,
+                                         GlAttention::Pass::Compute),
+               std::invalid_argument);
+}
+
+INSTANTIATE_TEST_SUITE_P(Passes, GlAttentionTest,
+                         ::testing::Values(GlAttention::Pass::Fragment, GlAttention::Pass::Compute),
+                         [](const ::testing::TestParamInfo<GlAttention::Pass>& param) {
+                           return param.param == GlAttention::Pass::Compute ? "Compute" : "Fragment";
+                         });
 
 }  // namespace
 }  // namespace fovea::render

@@ -395,7 +395,7 @@ TEST(GlFramePipeline, BothPathsMakeTheSameStereoFrames) {
   EXPECT_GT(compare(images[0][0], images[0][1]).pixels, 100u) << "the eyes see the same image";
 }
 
-// frame.effect_passes: the compute passes (tone map, lee-mipmap or schedl-layered, ULOD's blend) make the frames the
+// frame.effect_passes: the compute passes (tone map, attention, lee-mipmap or schedl-layered, ULOD's blend) make the frames the
 // fragment passes make (the same GLSL per texel), and --explain's where line says which ran.
 TEST(GlFramePipeline, TheComputeEffectPassesMakeTheFragmentPassesFrames) {
   for (const char* method : {"lee-mipmap", "schedl-layered"}) {
@@ -406,6 +406,7 @@ TEST(GlFramePipeline, TheComputeEffectPassesMakeTheFragmentPassesFrames) {
       s.set("frame.effect_passes", passes);
       s.set("dof.method", method);
       s.set("lod.policy", "ulod");
+      s.set("attention.device", "gpu");  // attention's pixel stage (on ULOD's proxy) on the GPU too
       s.set("tonemap.exact", "true");
       std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
       gaze->set_cursor(0.4, 0.55);
@@ -418,6 +419,7 @@ TEST(GlFramePipeline, TheComputeEffectPassesMakeTheFragmentPassesFrames) {
         EXPECT_NE(f.plan.placement.find("effect passes: " + std::string(passes)), std::string::npos) << f.plan.placement;
       }
       EXPECT_EQ(timer.summary().count("gpu.dof"), 1u);
+      EXPECT_EQ(timer.summary().count("gpu.attention"), 1u);
       images[std::string(passes) == "compute" ? 0 : 1] = pipeline.read_display();
     }
     const Difference d = compare(images[0], images[1]);

@@ -47,9 +47,8 @@ uniform int u_n, u_objects_count;
 uniform ivec2 u_size;
 uniform bool u_nearest, u_has_image, u_has_color, u_has_depth, u_has_ids;
 uniform float u_near, u_far, u_inv_range;
-layout(location = 0) out vec4 o_image;   // L, hue a, hue b, B_d
-layout(location = 1) out uint o_slot;    // the object's slot + 1; 0: background or not an object
-layout(location = 2) out float o_depth;  // nearest view depth, for the median
+// Outputs: o_image (L, hue a, hue b, B_d); o_slot (the object's slot + 1; 0: background or not an
+// object); o_depth (nearest view depth, for the median).
 
 int ceil_div(int a, int b) { return a >= 0 ? (a + b - 1) / b : -((-a) / b); }
 // Source pixels [lo, hi) of map pixel k along an axis of s pixels: centres in [k, k + 1) s / n, so
@@ -85,8 +84,7 @@ vec3 hls(vec3 c) {
   float a = clamp(h6, 0.0, 6.0) * 1.0471975511965976;  // 60 degrees
   return vec3(l, sat * cos(a), sat * sin(a));
 }
-void main() {
-  ivec2 m = ivec2(gl_FragCoord.xy);
+void shade(ivec2 m) {
   if (!u_has_image) { o_image = vec4(0.0); o_slot = 0u; o_depth = u_far; return; }
   ivec3 cx = source_range(m.x, u_size.x), cy = source_range(m.y, u_size.y);
   vec3 rgb = vec3(0.0);
@@ -167,9 +165,8 @@ constexpr const char* kPaint = R"(
 uniform usampler2D u_slots;
 uniform sampler2D u_counts, u_motion;
 uniform float u_pixels;
-out vec2 o;
-void main() {
-  uint slot1 = texelFetch(u_slots, ivec2(gl_FragCoord.xy), 0).r;
+void shade(ivec2 p) {
+  uint slot1 = texelFetch(u_slots, p, 0).r;
   if (slot1 == 0u) { o = vec2(0.0); return; }
   ivec2 t = slot_texel(int(slot1) - 1);
   o = vec2(texelFetch(u_counts, t, 0).r / u_pixels, texelFetch(u_motion, t, 0).r);
@@ -181,8 +178,6 @@ void main() {
 constexpr const char* kDown = R"(
 uniform sampler2D u_image, u_object;
 uniform ivec2 u_src;
-layout(location = 0) out vec4 o_image;
-layout(location = 1) out vec2 o_object;
 vec4 down(sampler2D t, ivec2 d) {
   int y0 = min(2 * d.y, u_src.y - 1), y1 = min(2 * d.y + 1, u_src.y - 1), x0 = 2 * d.x;
   if (x0 + 1 < u_src.x) {
@@ -191,8 +186,7 @@ vec4 down(sampler2D t, ivec2 d) {
   }
   return 0.5 * (texelFetch(t, ivec2(u_src.x - 1, y0), 0) + texelFetch(t, ivec2(u_src.x - 1, y1), 0));
 }
-void main() {
-  ivec2 d = ivec2(gl_FragCoord.xy);
+void shade(ivec2 d) {
   o_image = down(u_image, d);
   o_object = down(u_object, d).rg;
 }
@@ -205,8 +199,7 @@ uniform sampler2D u_i0, u_i1, u_i2, u_i3, u_i4, u_i5, u_i6, u_o0, u_o1, u_o2, u_
 uniform ivec2 u_dim[7];
 uniform int u_n;
 uniform bool u_image_group, u_object_group;
-layout(location = 0) out vec4 o_c0;  // C_l, C_h, C_d, C_s
-layout(location = 1) out vec4 o_c1;  // C_m
+// Outputs: o_c0 (C_l, C_h, C_d, C_s), o_c1 (C_m).
 vec4 magnified(sampler2D t, ivec2 m, ivec2 p) {
   vec2 s = (vec2(p) + 0.5) * vec2(m) / float(u_n) - 0.5;
   vec2 fl = floor(s), f = s - fl;
@@ -218,8 +211,7 @@ vec4 magnified(sampler2D t, ivec2 m, ivec2 p) {
   return top + f.y * (bottom - top);
 }
 float sane(float v) { return (isnan(v) || isinf(v) || v < 0.0) ? 0.0 : v; }
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+void shade(ivec2 p) {
   vec4 I[7], O[7];
   I[0] = texelFetch(u_i0, p, 0);
   O[0] = texelFetch(u_o0, p, 0);
@@ -249,10 +241,8 @@ void main() {
 constexpr const char* kReduce = R"(
 uniform sampler2D u_in0, u_in1;
 uniform ivec2 u_src;
-layout(location = 0) out vec4 o0;
-layout(location = 1) out vec4 o1;
-void main() {
-  ivec2 b = ivec2(gl_FragCoord.xy) * 8, e = min(b + 8, u_src);
+void shade(ivec2 p) {
+  ivec2 b = p * 8, e = min(b + 8, u_src);
   vec4 m0 = texelFetch(u_in0, b, 0), m1 = texelFetch(u_in1, b, 0);
   for (int y = b.y; y < e.y; ++y)
     for (int x = b.x; x < e.x; ++x) {
@@ -268,9 +258,7 @@ void main() {
 // contrast contributes nothing); stored with its negation, so one max reduction finds its range.
 constexpr const char* kWeigh = R"(
 uniform sampler2D u_c0, u_c1, u_max0, u_max1;
-out vec4 o;
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+void shade(ivec2 p) {
   vec4 c0 = texelFetch(u_c0, p, 0), m0 = texelFetch(u_max0, ivec2(0), 0);
   float c1 = texelFetch(u_c1, p, 0).r, m1 = texelFetch(u_max1, ivec2(0), 0).r;
   float sb = 0.0;
@@ -288,12 +276,11 @@ void main() {
 constexpr const char* kNormalise = R"(
 uniform sampler2D u_weighted, u_range;
 uniform bool u_all_off;
-out float o;
-void main() {
+void shade(ivec2 p) {
   if (u_all_off) { o = 1.0; return; }
   vec2 r = texelFetch(u_range, ivec2(0), 0).rg;
   float hi = r.x, lo = -r.y, span = hi - lo;
-  float sb = texelFetch(u_weighted, ivec2(gl_FragCoord.xy), 0).r;
+  float sb = texelFetch(u_weighted, p, 0).r;
   o = span > 1e-6 * max(1.0, hi) ? clamp((sb - lo) * (1.0 / span), 0.0, 1.0) : 0.0;
 }
 )";
@@ -303,16 +290,13 @@ void main() {
 // takes the element at n / 2 of the sorted depths).
 constexpr const char* kSelectInit = R"(
 uniform sampler2D u_counts;
-out uvec4 o;
-void main() { o = uvec4(0u, uint(texelFetch(u_counts, ivec2(gl_FragCoord.xy), 0).r) / 2u, 0u, 0u); }
+void shade(ivec2 p) { o = uvec4(0u, uint(texelFetch(u_counts, p, 0).r) / 2u, 0u, 0u); }
 )";
 constexpr const char* kSelect = R"(
 uniform usampler2D u_select;
 uniform sampler2D u_histogram;
 uniform int u_shift, u_objects_count;
-out uvec4 o;
-void main() {
-  ivec2 q = ivec2(gl_FragCoord.xy);
+void shade(ivec2 q) {
   int s = q.x + (q.y << 10);
   uvec2 st = texelFetch(u_select, q, 0).rg;
   o = uvec4(st, 0u, 0u);
@@ -330,10 +314,54 @@ void main() {
 }
 )";
 
-std::string fragment(const char* body) { return std::string("#version 330 core\n") + kSlotLayout + body; }
+// A pass's outputs: the variable shade() assigns, its GLSL type and its target's image format.
+struct Output {
+  const char* name;
+  const char* type;    // float, vec2, vec4, uint, uvec4
+  const char* format;  // the target texture's, for the compute pass's image
+};
 
-GLuint program(const char* body, const char* what) {
-  return gl::link_program(gl::kFullscreenVertex, fragment(body).c_str(), what);
+// Each full-screen pass is one GLSL function, shade(p), of its output texel p, which assigns the
+// pass's outputs; a fragment shader (OpenGL 3.3, a render target per output) or a compute shader
+// (OpenGL 4.3, an image per output) runs it, so both implementations compute the same values.
+std::string pass_source(const char* body, std::initializer_list<Output> outputs, bool compute) {
+  std::string src = compute ? gl::kComputeVersion8x8 : gl::kFragmentVersion;
+  src += kSlotLayout;
+  int i = 0;
+  for (const Output& o : outputs) {
+    const std::string index = std::to_string(i++);
+    if (compute) {
+      const bool integer = o.type[0] == 'u';
+      src += std::string(o.type) + " " + o.name + ";\nlayout(" + o.format + ", binding = " + index +
+             ") writeonly uniform " + (integer ? "uimage2D" : "image2D") + " u_out" + index + ";\n";
+    } else {
+      src += "layout(location = " + index + ") out " + o.type + " " + o.name + ";\n";
+    }
+  }
+  src += body;
+  if (!compute) return src + "void main() { shade(ivec2(gl_FragCoord.xy)); }\n";
+  src += "uniform ivec2 u_extent;\nvoid main() {\n  ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
+         "  if (p.x >= u_extent.x || p.y >= u_extent.y) return;\n  shade(p);\n";
+  i = 0;
+  for (const Output& o : outputs) {
+    const std::string t = o.type, name = o.name;
+    const std::string value = t == "vec4" || t == "uvec4" ? name
+                              : t == "vec2"               ? "vec4(" + name + ", 0.0, 0.0)"
+                              : t == "float"              ? "vec4(" + name + ", 0.0, 0.0, 0.0)"
+                                                          : "uvec4(" + name + ", 0u, 0u, 0u)";
+    src += "  imageStore(u_out" + std::to_string(i++) + ", p, " + value + ");\n";
+  }
+  return src + "}\n";
+}
+
+// The pass's fragment program ([0]) and, with `compute`, its compute program ([1]).
+void link_pass(unsigned (&programs)[2], const char* body, std::initializer_list<Output> outputs, bool compute,
+               const char* what) {
+  programs[0] = gl::link_program(gl::kFullscreenVertex, pass_source(body, outputs, false).c_str(), what);
+  if (compute) {
+    const std::string name = std::string(what) + " (compute)";
+    programs[1] = gl::link_compute_program(pass_source(body, outputs, true).c_str(), name.c_str());
+  }
 }
 
 using gl::delete_texture;
@@ -361,18 +389,24 @@ float from_sortable(std::uint32_t key) {
 
 }  // namespace
 
-GlAttention::GlAttention() {
-  resample_program_ = program(kResample, "GlAttention resample");
+GlAttention::GlAttention(bool compute) {
+  const Output rgba{"", "vec4", "rgba32f"};
+  link_pass(resample_program_, kResample,
+            {{"o_image", "vec4", "rgba32f"}, {"o_slot", "uint", "r32ui"}, {"o_depth", "float", "r32f"}}, compute,
+            "GlAttention resample");
   const std::string scatter_vertex = std::string("#version 330 core\n") + kSlotLayout + kScatterVertex;
   scatter_program_ = gl::link_program(scatter_vertex.c_str(), kScatterFragment, "GlAttention scatter");
-  paint_program_ = program(kPaint, "GlAttention paint");
-  down_program_ = program(kDown, "GlAttention pyramid");
-  contrast_program_ = program(kContrast, "GlAttention contrast");
-  reduce_program_ = program(kReduce, "GlAttention reduce");
-  weigh_program_ = program(kWeigh, "GlAttention weigh");
-  normalise_program_ = program(kNormalise, "GlAttention normalise");
-  select_init_program_ = program(kSelectInit, "GlAttention select init");
-  select_program_ = program(kSelect, "GlAttention select");
+  link_pass(paint_program_, kPaint, {{"o", "vec2", "rg32f"}}, compute, "GlAttention paint");
+  link_pass(down_program_, kDown, {{"o_image", "vec4", "rgba32f"}, {"o_object", "vec2", "rg32f"}}, compute,
+            "GlAttention pyramid");
+  link_pass(contrast_program_, kContrast, {{"o_c0", rgba.type, rgba.format}, {"o_c1", rgba.type, rgba.format}}, compute,
+            "GlAttention contrast");
+  link_pass(reduce_program_, kReduce, {{"o0", rgba.type, rgba.format}, {"o1", rgba.type, rgba.format}}, compute,
+            "GlAttention reduce");
+  link_pass(weigh_program_, kWeigh, {{"o", rgba.type, rgba.format}}, compute, "GlAttention weigh");
+  link_pass(normalise_program_, kNormalise, {{"o", "float", "r32f"}}, compute, "GlAttention normalise");
+  link_pass(select_init_program_, kSelectInit, {{"o", "uvec4", "rg32ui"}}, compute, "GlAttention select init");
+  link_pass(select_program_, kSelect, {{"o", "uvec4", "rg32ui"}}, compute, "GlAttention select");
   glGenVertexArrays(1, &vao_);
   glGenFramebuffers(1, &fbo_);
   glGenQueries(2, queries_);
@@ -380,9 +414,10 @@ GlAttention::GlAttention() {
 }
 
 GlAttention::~GlAttention() {
-  for (unsigned p : {resample_program_, scatter_program_, paint_program_, down_program_, contrast_program_,
-                     reduce_program_, weigh_program_, normalise_program_, select_init_program_, select_program_})
-    glDeleteProgram(p);
+  glDeleteProgram(scatter_program_);
+  for (const unsigned* pair : {resample_program_, paint_program_, down_program_, contrast_program_, reduce_program_,
+                               weigh_program_, normalise_program_, select_init_program_, select_program_})
+    for (int k = 0; k < 2; ++k) glDeleteProgram(pair[k]);
   ensure_map(0);
   object_capacity_ = 0;
   for (unsigned* t : {&object_ids_, &object_motion_, &counts_, &sums_, &histogram_, &select_[0], &select_[1],
@@ -483,8 +518,30 @@ void GlAttention::upload_objects(const GlAttentionObjects& objects) {
   glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, kSlotRow, rows, GL_RED, GL_FLOAT, motion.data());
 }
 
-void GlAttention::draw(std::initializer_list<unsigned> targets, int w, int h) {
-  gl::attach_targets(fbo_, targets);
+unsigned GlAttention::use(const unsigned (&programs)[2]) const {
+  const unsigned p = programs[compute_ ? 1 : 0];
+  glUseProgram(p);
+  return p;
+}
+
+// The current pass over w x h texels of its targets: a full-screen triangle into them, or a compute
+// dispatch writing them as images (the formats as the pass declared them).
+void GlAttention::draw(std::initializer_list<Target> targets, int w, int h) {
+  if (compute_) {
+    GLint p = 0;
+    glGetIntegerv(GL_CURRENT_PROGRAM, &p);
+    glUniform2i(glGetUniformLocation(static_cast<GLuint>(p), "u_extent"), w, h);
+    GLuint unit = 0;
+    for (const Target& t : targets) glBindImageTexture(unit++, t.texture, 0, GL_FALSE, 0, GL_WRITE_ONLY, t.format);
+    glDispatchCompute(static_cast<GLuint>((w + 7) / 8), static_cast<GLuint>((h + 7) / 8), 1);
+    // The next pass reads them as textures, the scatter's vertices and the readbacks as pixels.
+    glMemoryBarrier(gl::kComputeWrittenBarrier | GL_PIXEL_BUFFER_BARRIER_BIT);
+    return;
+  }
+  unsigned textures[3] = {0, 0, 0};
+  std::size_t n = 0;
+  for (const Target& t : targets) textures[n++] = t.texture;
+  gl::attach_targets(fbo_, std::span<const unsigned>(textures, n));
   glViewport(0, 0, w, h);
   glDrawArrays(GL_TRIANGLES, 0, 3);
 }
@@ -494,8 +551,7 @@ void GlAttention::resample(const GlAttentionInput& in, double near_m, double far
   const double z_range = (std::isfinite(far_m - near_m) && far_m > near_m) ? far_m - near_m : 1.0;
   const float fnear = static_cast<float>(std::isfinite(near_m) ? near_m : 0.0);
   const float ffar = static_cast<float>(std::isfinite(far_m) ? far_m : static_cast<double>(fnear) + 1.0);
-  const unsigned p = resample_program_;
-  glUseProgram(p);
+  const unsigned p = use(resample_program_);
   gl::bind_sampler(0, in.color, p, "u_color");
   gl::bind_sampler(1, in.depth, p, "u_depth");
   gl::bind_sampler(2, in.object_id, p, "u_ids");
@@ -511,7 +567,7 @@ void GlAttention::resample(const GlAttentionInput& in, double near_m, double far
   glUniform1f(glGetUniformLocation(p, "u_near"), fnear);
   glUniform1f(glGetUniformLocation(p, "u_far"), ffar);
   set_float(p, "u_inv_range", 1.0 / z_range);
-  draw({levels_[0].image, slots_, map_depth_}, n_, n_);
+  draw({{levels_[0].image, GL_RGBA32F}, {slots_, GL_R32UI}, {map_depth_, GL_R32F}}, n_, n_);
 }
 
 void GlAttention::scatter(int mode, unsigned target, int target_w, int target_h, int shift) {
@@ -540,26 +596,23 @@ void GlAttention::scatter(int mode, unsigned target, int target_w, int target_h,
 void GlAttention::paint_and_pyramids() {
   const int slot_rows = rows_for(object_capacity_, kSlotRow);
   scatter(0, counts_, kSlotRow, slot_rows, 0);
-  unsigned p = paint_program_;
-  glUseProgram(p);
+  unsigned p = use(paint_program_);
   gl::bind_sampler(0, slots_, p, "u_slots");
   gl::bind_sampler(1, counts_, p, "u_counts");
   gl::bind_sampler(2, object_motion_, p, "u_motion");
   set_float(p, "u_pixels", static_cast<double>(n_) * n_);
-  draw({levels_[0].object}, n_, n_);
-  p = down_program_;
-  glUseProgram(p);
+  draw({{levels_[0].object, GL_RG32F}}, n_, n_);
+  p = use(down_program_);
   for (int l = 1; l < kLevels; ++l) {
     gl::bind_sampler(0, levels_[l - 1].image, p, "u_image");
     gl::bind_sampler(1, levels_[l - 1].object, p, "u_object");
     set_ivec2(p, "u_src", levels_[l - 1].w, levels_[l - 1].h);
-    draw({levels_[l].image, levels_[l].object}, levels_[l].w, levels_[l].h);
+    draw({{levels_[l].image, GL_RGBA32F}, {levels_[l].object, GL_RG32F}}, levels_[l].w, levels_[l].h);
   }
 }
 
 void GlAttention::contrast(const FeatureGroups& groups) {
-  const unsigned p = contrast_program_;
-  glUseProgram(p);
+  const unsigned p = use(contrast_program_);
   static const char* kImage[kLevels] = {"u_i0", "u_i1", "u_i2", "u_i3", "u_i4", "u_i5", "u_i6"};
   static const char* kObject[kLevels] = {"u_o0", "u_o1", "u_o2", "u_o3", "u_o4", "u_o5", "u_o6"};
   GLint dims[2 * kLevels];
@@ -573,18 +626,17 @@ void GlAttention::contrast(const FeatureGroups& groups) {
   set_int(p, "u_n", n_);
   set_int(p, "u_image_group", groups.image);
   set_int(p, "u_object_group", groups.object);
-  draw({contrast_[0], contrast_[1]}, n_, n_);
+  draw({{contrast_[0], GL_RGBA32F}, {contrast_[1], GL_RGBA32F}}, n_, n_);
 }
 
 unsigned GlAttention::reduce_max(unsigned in0, unsigned in1) {
-  const unsigned p = reduce_program_;
-  glUseProgram(p);
+  const unsigned p = use(reduce_program_);
   int w = n_, h = n_;
   for (std::size_t k = 0; k < reduce_chain_[0].size(); ++k) {
     gl::bind_sampler(0, in0, p, "u_in0");
     gl::bind_sampler(1, in1, p, "u_in1");
     set_ivec2(p, "u_src", w, h);
-    draw({reduce_chain_[0][k], reduce_chain_[1][k]}, reduce_w_[k], reduce_h_[k]);
+    draw({{reduce_chain_[0][k], GL_RGBA32F}, {reduce_chain_[1][k], GL_RGBA32F}}, reduce_w_[k], reduce_h_[k]);
     in0 = reduce_chain_[0][k];
     in1 = reduce_chain_[1][k];
     w = reduce_w_[k];
@@ -597,20 +649,18 @@ unsigned GlAttention::reduce_max(unsigned in0, unsigned in1) {
 
 void GlAttention::saliency(const FeatureGroups& groups) {
   reduce_max(contrast_[0], contrast_[1]);
-  unsigned p = weigh_program_;
-  glUseProgram(p);
+  unsigned p = use(weigh_program_);
   gl::bind_sampler(0, contrast_[0], p, "u_c0");
   gl::bind_sampler(1, contrast_[1], p, "u_c1");
   gl::bind_sampler(2, reduced_[0], p, "u_max0");
   gl::bind_sampler(3, reduced_[1], p, "u_max1");
-  draw({weighted_}, n_, n_);
+  draw({{weighted_, GL_RGBA32F}}, n_, n_);
   const unsigned range = reduce_max(weighted_, weighted_);
-  p = normalise_program_;
-  glUseProgram(p);
+  p = use(normalise_program_);
   gl::bind_sampler(0, weighted_, p, "u_weighted");
   gl::bind_sampler(1, range, p, "u_range");
   set_int(p, "u_all_off", !groups.image && !groups.object);
-  draw({saliency_}, n_, n_);
+  draw({{saliency_, GL_R32F}}, n_, n_);
 }
 
 // Four rounds of 8 bits, most significant first: after the last, each object's key is its median's.
@@ -618,19 +668,17 @@ void GlAttention::median_depths() {
   const int slot_rows = rows_for(object_capacity_, kSlotRow);
   const int histogram_rows = rows_for(object_capacity_, kSlotRow / kBins);
   select_current_ = 0;
-  unsigned p = select_init_program_;
-  glUseProgram(p);
+  unsigned p = use(select_init_program_);
   gl::bind_sampler(0, counts_, p, "u_counts");
-  draw({select_[0]}, kSlotRow, slot_rows);
+  draw({{select_[0], GL_RG32UI}}, kSlotRow, slot_rows);
   for (int shift = 24; shift >= 0; shift -= 8) {
     scatter(2, histogram_, kSlotRow, histogram_rows, shift);
-    p = select_program_;
-    glUseProgram(p);
+    p = use(select_program_);
     gl::bind_sampler(0, select_[select_current_], p, "u_select");
     gl::bind_sampler(1, histogram_, p, "u_histogram");
     set_int(p, "u_shift", shift);
     set_int(p, "u_objects_count", static_cast<int>(objects_));
-    draw({select_[1 - select_current_]}, kSlotRow, slot_rows);
+    draw({{select_[1 - select_current_], GL_RG32UI}}, kSlotRow, slot_rows);
     select_current_ = 1 - select_current_;
   }
 }
@@ -666,8 +714,12 @@ void GlAttention::read_objects(std::vector<ObjectPixels>& out) {
 }
 
 void GlAttention::run(const GlAttentionInput& in, double near_m, double far_m, const AttentionSettings& s,
-                      const GlAttentionObjects& objects, std::vector<ObjectPixels>& out) {
+                      const GlAttentionObjects& objects, std::vector<ObjectPixels>& out, Pass pass) {
   s.check();
+  if (pass == Pass::Compute && !has_compute()) {
+    throw std::invalid_argument("GlAttention: the compute passes need OpenGL 4.3 (built without them)");
+  }
+  compute_ = pass == Pass::Compute;
   GLint vao = 0;
   glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vao);
   glBindVertexArray(vao_);
@@ -682,6 +734,9 @@ void GlAttention::run(const GlAttentionInput& in, double near_m, double far_m, c
   scatter(1, sums_, kSlotRow, rows_for(object_capacity_, kSlotRow / kBands), 0);
   median_depths();
   read_objects(out);
+  if (compute_) {
+    for (GLuint unit = 0; unit < 3; ++unit) glBindImageTexture(unit, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32F);
+  }
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   glBindVertexArray(static_cast<GLuint>(vao));
   gl::check_error("GlAttention", "run");
@@ -719,7 +774,8 @@ void GlAttention::read_contrast(std::vector<float> (&out)[5]) {
 }
 
 void GlAttention::run_gbuffer(const GBuffer& g, double near_m, double far_m, const AttentionSettings& s,
-                              const GlAttentionObjects& objects, std::vector<ObjectPixels>& out, double* gpu_ms) {
+                              const GlAttentionObjects& objects, std::vector<ObjectPixels>& out, double* gpu_ms,
+                              Pass pass) {
   const std::uint32_t w = g.width, h = g.height;
   const std::size_t npix = std::size_t{w} * h;
   const bool has_image = npix > 0;
@@ -742,7 +798,7 @@ void GlAttention::run_gbuffer(const GBuffer& g, double near_m, double far_m, con
     in.object_id = upload_ids_;
   }
   glQueryCounter(queries_[0], GL_TIMESTAMP);
-  run(in, near_m, far_m, s, objects, out);
+  run(in, near_m, far_m, s, objects, out, pass);
   glQueryCounter(queries_[1], GL_TIMESTAMP);
   if (gpu_ms != nullptr) *gpu_ms = gl::elapsed_ms(queries_);
 }

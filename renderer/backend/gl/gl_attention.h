@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
-// Lee 2009 chapter 3's pixel stage (attention/attention.h, the CPU reference) as OpenGL 3.3 passes,
+// Lee 2009 chapter 3's pixel stage (attention/attention.h, the CPU reference) as OpenGL passes,
 // as Lee's own implementation ran it (Fig. 3.3: the feature maps, their pyramids and eq. 3.4's
 // centre-surround differences as fragment shaders), followed by the per-object reduction of eq. 3.7
 // on the GPU. Only the per-object values are read back (16 x 4 + 1 numbers per scene object); the
@@ -24,7 +24,8 @@
 // GLSL's cos/sin for the hue vector (the CPU's table is within 3e-6 of them). tests/gl/
 // test_gl_attention.cpp states the tolerances; bench/RESULTS.md has the measured agreement.
 //
-// Needs a current OpenGL 3.3 context (integer textures, float blending, several draw buffers).
+// Needs a current OpenGL 3.3 context (integer textures, float blending, several draw buffers); the
+// compute passes OpenGL 4.3.
 #include <cstdint>
 #include <vector>
 
@@ -50,8 +51,16 @@ struct GlAttentionObjects {
 
 class GlAttention {
  public:
-  // Compiles the passes on the current context; throws std::runtime_error with the driver's log.
-  GlAttention();
+  // Every full-screen pass (resample, paint, pyramid, contrast, reductions, weigh, normalise, the
+  // radix select's) is one GLSL function of its output texel, run by a fragment shader (OpenGL 3.3)
+  // or a compute shader (OpenGL 4.3, writing images): the same values either way. The scatters
+  // (steps 2 and 7) stay point draws with additive blending in both: their sums are floats, and core
+  // OpenGL has no float atomics.
+  enum class Pass { Fragment, Compute };
+  // Compiles the passes on the current context (the compute ones too with `compute`, which needs
+  // OpenGL 4.3); throws std::runtime_error with the driver's log.
+  explicit GlAttention(bool compute = false);
+  bool has_compute() const { return resample_program_[1] != 0; }
   ~GlAttention();
   GlAttention(const GlAttention&) = delete;
   GlAttention& operator=(const GlAttention&) = delete;
@@ -59,9 +68,10 @@ class GlAttention {
   // The pixel stage on `in` with the camera's depth range [near_m, far_m] (eq. 3.1) and `s`'s
   // map_size, resample and groups: `out` gets one entry per listed object with pixels in the map.
   // Waits for the GPU (the per-object values are read back). Throws std::invalid_argument for
-  // settings that fail AttentionSettings::check() or motion values not one per id.
+  // settings that fail AttentionSettings::check(), motion values not one per id, or Pass::Compute
+  // without has_compute().
   void run(const GlAttentionInput& in, double near_m, double far_m, const attention::AttentionSettings& s,
-           const GlAttentionObjects& objects, std::vector<attention::ObjectPixels>& out);
+           const GlAttentionObjects& objects, std::vector<attention::ObjectPixels>& out, Pass pass = Pass::Fragment);
   int map_size() const { return n_; }
   // S_p of the last run, map_size^2, row 0 at the top (tests, overlays, the finite check).
   void read_saliency(std::vector<float>& out);
@@ -72,7 +82,7 @@ class GlAttention {
   // alone (timestamp queries), without the upload; the readback of the per-object values included.
   void run_gbuffer(const GBuffer& g, double near_m, double far_m, const attention::AttentionSettings& s,
                    const GlAttentionObjects& objects, std::vector<attention::ObjectPixels>& out,
-                   double* gpu_ms = nullptr);
+                   double* gpu_ms = nullptr, Pass pass = Pass::Fragment);
 
  private:
   static constexpr int kLevels = 7;  // as the CPU's pyramid: levels 0..6
@@ -91,11 +101,19 @@ class GlAttention {
   void saliency(const attention::FeatureGroups& groups);
   void median_depths();
   void read_objects(std::vector<attention::ObjectPixels>& out);
-  void draw(std::initializer_list<unsigned> targets, int w, int h);
+  struct Target {
+    unsigned texture;
+    unsigned format;  // GLenum internal format, for the compute pass's image binding
+  };
+  unsigned use(const unsigned (&programs)[2]) const;  // this run's implementation of the pass, made current
+  void draw(std::initializer_list<Target> targets, int w, int h);
 
-  unsigned resample_program_ = 0, scatter_program_ = 0, paint_program_ = 0, down_program_ = 0,
-           contrast_program_ = 0, reduce_program_ = 0, weigh_program_ = 0, normalise_program_ = 0,
-           select_init_program_ = 0, select_program_ = 0;
+  // Per full-screen pass: [0] its fragment program, [1] its compute program (0 when not built).
+  unsigned resample_program_[2] = {0, 0}, paint_program_[2] = {0, 0}, down_program_[2] = {0, 0},
+           contrast_program_[2] = {0, 0}, reduce_program_[2] = {0, 0}, weigh_program_[2] = {0, 0},
+           normalise_program_[2] = {0, 0}, select_init_program_[2] = {0, 0}, select_program_[2] = {0, 0};
+  unsigned scatter_program_ = 0;
+  bool compute_ = false;  // this run's passes are the compute ones
   unsigned vao_ = 0, fbo_ = 0;
   int n_ = 0;
   Level levels_[kLevels];

@@ -290,16 +290,23 @@ void GlFrame::upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width,
   check("GlFrame::upload_hdr");
 }
 
+// The attention passes (made on first use), and which implementation runs: compute where it pays
+// (frame.effect_passes), the fragment passes elsewhere.
+bool GlFrame::attention_compute() {
+  if (!attention_) attention_ = std::make_unique<GlAttention>(backend_.context().features().at_least(4, 3));
+  return attention_->has_compute() && effect_compute();
+}
+
 void GlFrame::attention_pixels(const attention::AttentionSettings& settings, double near_m, double far_m,
                                const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
                                std::vector<attention::ObjectPixels>& out) {
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::attention_pixels before the G-buffer was rendered");
-  if (!attention_) attention_ = std::make_unique<GlAttention>();
+  const GlAttention::Pass pass = attention_compute() ? GlAttention::Pass::Compute : GlAttention::Pass::Fragment;
   begin_timed("gpu.attention");
   attention_->run(GlAttentionInput{t.color, t.depth, t.object_id, t.width, t.height}, near_m, far_m, settings,
-                  GlAttentionObjects{ids, motion}, out);
+                  GlAttentionObjects{ids, motion}, out, pass);
   end_timed();
   check("GlFrame::attention_pixels");
 }
@@ -333,11 +340,11 @@ void GlFrame::attention_pixels_on(const FrameTime& time, const BackendSettings& 
                                   const std::vector<std::uint32_t>& ids, const std::vector<float>& motion,
                                   std::vector<attention::ObjectPixels>& out) {
   backend_.context().make_current();
-  if (!attention_) attention_ = std::make_unique<GlAttention>();
+  const GlAttention::Pass pass = attention_compute() ? GlAttention::Pass::Compute : GlAttention::Pass::Fragment;
   begin_timed("gpu.attention");
   const GlGBufferTextures t = backend_.render_aside(time, proxy);
   attention_->run(GlAttentionInput{t.color, t.depth, t.object_id, t.width, t.height}, near_m, far_m, settings,
-                  GlAttentionObjects{ids, motion}, out);
+                  GlAttentionObjects{ids, motion}, out, pass);
   end_timed();
   check("GlFrame::attention_pixels_on");
 }

@@ -89,6 +89,7 @@ class GlFrame final : public GpuFrame {
   enum class HdrSource { GBuffer, Upload, Dof };
   HdrSource hdr_source_ = HdrSource::GBuffer;
   std::unique_ptr<GlAttention> attention_;   // made on first use
+  bool attention_compute();                  // makes attention_; true: this frame runs its compute passes
   std::unique_ptr<GlLeeMipmap> lee_mipmap_;  // made on first use
   std::unique_ptr<GlLeeSplat> lee_splat_;    // made on first use
   std::unique_ptr<GlSchedlLayered> schedl_;  // made on first use

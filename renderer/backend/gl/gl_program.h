@@ -9,6 +9,7 @@
 #include <cstring>
 #include <initializer_list>
 #include <stdexcept>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -102,7 +103,7 @@ void main() {
 
 // Binds `fbo` with `textures` (at most 4, of texture target `target`) as its colour attachments
 // 0, 1, ..., the other attachments of 0..3 detached, and draws into all of them.
-inline void attach_targets(unsigned fbo, std::initializer_list<unsigned> textures, GLenum target = GL_TEXTURE_2D) {
+inline void attach_targets(unsigned fbo, std::span<const unsigned> textures, GLenum target = GL_TEXTURE_2D) {
   glBindFramebuffer(GL_FRAMEBUFFER, fbo);
   GLenum buffers[4] = {GL_NONE, GL_NONE, GL_NONE, GL_NONE};
   GLsizei n = 0;
@@ -115,6 +116,9 @@ inline void attach_targets(unsigned fbo, std::initializer_list<unsigned> texture
   for (GLsizei k = n; k < 4; ++k)
     glFramebufferTexture2D(GL_FRAMEBUFFER, static_cast<GLenum>(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, 0, 0);
   glDrawBuffers(n, buffers);
+}
+inline void attach_targets(unsigned fbo, std::initializer_list<unsigned> textures, GLenum target = GL_TEXTURE_2D) {
+  attach_targets(fbo, std::span<const unsigned>(textures.begin(), textures.size()), target);
 }
 
 // Throws std::runtime_error("<who>: OpenGL error N in <where>") when GL reports an error (and clears
