@@ -13,13 +13,14 @@
 #                                   target <= 0.5 ms) and with attention.device=cpu
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
 #   ulod                            the scene with lod.policy=ulod (its blend on the GPU: gpu.ulod)
-#   dof-fN+fragment, ulod+fragment  the same with frame.effect_passes=fragment: the fragment passes
-#                                   against the compute passes auto takes on a GPU (issue 42), same run
+#   dof-fN+fragment, ulod+fragment, the same with frame.effect_passes=fragment: the fragment passes
+#   attention+fragment              against the compute passes auto takes on a GPU (issue 42), same run
 # Then stereo at headset resolution (issue 42's target: 2 x 2160x2160 with the scene's effects
 # <= 11 ms, 90 Hz): "scene+stereo" and "base+stereo" at 2160x2160 per eye (STEREO_SIZE overrides),
 # the frame being both eyes' renders, with each eye's p50 and what the left eye did once for both.
-# Then the passes alone (bench_gl, where the bundle has it): lee-mipmap at f/11.2, 2.8, 0.7,
-# schedl-layered at f/2.8, 0.7 and ULOD's blend, fragment against compute at 1920x1080, each
+# Then the passes alone (bench_gl, where the bundle has it): attention's pixel stage at map 64 and
+# 128, lee-mipmap at f/11.2, 2.8, 0.7, schedl-layered at f/2.8, 0.7 and ULOD's blend, fragment
+# against compute at 1920x1080, each
 # ending with glFinish, into $OUT/gpu-passes.txt.
 # Results: stdout and $OUT/gpu-effects.md, the runs in $OUT/gpu-effects-runs.tar.xz. The agreement
 # of the GL passes with the CPU implementation does not depend on the card's speed and is tested
@@ -44,12 +45,12 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --back
 grep -E "where|  run   (dof|attention)" "$probe/plan.txt"
 
 OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
-  "base attention attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-f11.2+fragment dof-f2.8+fragment dof-f0.7+fragment dof-cpu dof-schedl dof-splat scene ulod ulod+fragment" | tee "$OUT/gpu-effects.md"
+  "base attention attention+fragment attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-f11.2+fragment dof-f2.8+fragment dof-f0.7+fragment dof-cpu dof-schedl dof-splat scene ulod ulod+fragment" | tee "$OUT/gpu-effects.md"
 OUT=$OUT/runs-stereo bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "${STEREO_SIZE:-2160x2160}" attention \
   "base+stereo scene+stereo" | tee "$OUT/gpu-stereo.md"
 tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs runs-stereo && rm -rf "$OUT/runs" "$OUT/runs-stereo"
 if [ -x "$run/bench_gl" ]; then
-  env -u DISPLAY FOVEA_SOURCE_DIR="$PWD" "$run/bench_gl" --benchmark_filter='lee_mipmap|schedl_layered|ulod_blend' \
+  env -u DISPLAY FOVEA_SOURCE_DIR="$PWD" "$run/bench_gl" --benchmark_filter='^attention/|lee_mipmap|schedl_layered|ulod_blend' \
     --benchmark_min_time=0.5 --benchmark_repetitions=3 --benchmark_report_aggregates_only=true | tee "$OUT/gpu-passes.txt"
 else
   echo "gpu-effects: the bundle has no bench_gl (build it before make-bundle.sh): the passes alone not measured"

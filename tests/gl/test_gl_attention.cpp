@@ -243,8 +243,9 @@ TEST_P(GlAttentionTest, RefusesMotionValuesNotOnePerId) {
   EXPECT_THROW(gl_->run_gbuffer(blank(8, 8), 0.1, 100, bad, o, out, nullptr, GetParam()), std::invalid_argument);
 }
 
-// The compute passes run the fragment passes' GLSL functions: the maps and the per-object values
-// agree to float rounding, not only within the tolerance of the CPU reference.
+// The compute passes run the fragment passes' GLSL functions, but for the resample, whose 64
+// invocations per map pixel add the box in another order: S_p agrees within the CPU reference's
+// tolerance (measured 3e-5), the per-object pixels and median depths exactly.
 TEST_P(GlAttentionTest, TheComputeAndFragmentPassesAgree) {
   if (GetParam() != GlAttention::Pass::Compute) GTEST_SKIP() << "compared once, from the compute side";
   const Scene scene = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer/scenes/attention.json");
@@ -261,7 +262,7 @@ TEST_P(GlAttentionTest, TheComputeAndFragmentPassesAgree) {
     gl_->run_gbuffer(g, scene.camera.near_m, scene.camera.far_m, AttentionSettings{}, objects, out[k], nullptr, pass);
     gl_->read_saliency(saliency[k]);
   }
-  EXPECT_LE(map_error(saliency[0], saliency[1]), 1e-6);
+  EXPECT_LE(map_error(saliency[0], saliency[1]), kMapTolerance);
   ASSERT_EQ(out[0].size(), out[1].size());
   ASSERT_GT(out[0].size(), 3u);
   for (std::size_t i = 0; i < out[0].size(); ++i) {

@@ -84,30 +84,33 @@ vec3 hls(vec3 c) {
   float a = clamp(h6, 0.0, 6.0) * 1.0471975511965976;  // 60 degrees
   return vec3(l, sat * cos(a), sat * sin(a));
 }
-void shade(ivec2 m) {
-  if (!u_has_image) { o_image = vec4(0.0); o_slot = 0u; o_depth = u_far; return; }
-  ivec3 cx = source_range(m.x, u_size.x), cy = source_range(m.y, u_size.y);
-  vec3 rgb = vec3(0.0);
-  float z = 0.0;
-  for (int sx = cx.x; sx < cx.y; ++sx) {
-    vec3 column = vec3(0.0);
-    float column_z = 0.0;
-    for (int sy = cy.x; sy < cy.y; ++sy) {
+// The sum of (clamped colour, depth) over source columns [x0, x1) step dx and rows [y0, y1) step dy,
+// per column over its rows, then over the columns (the CPU's order when both steps are 1).
+vec4 box_sum(int x0, int x1, int dx, int y0, int y1, int dy) {
+  vec4 sum = vec4(0.0);
+  for (int sx = x0; sx < x1; sx += dx) {
+    vec4 column = vec4(0.0);
+    for (int sy = y0; sy < y1; sy += dy) {
       ivec2 t = texel(sx, sy);
       if (u_has_color) {
         vec3 c = texelFetch(u_color, t, 0).rgb;
-        column += vec3(clamped(c.r), clamped(c.g), clamped(c.b));
+        column.rgb += vec3(clamped(c.r), clamped(c.g), clamped(c.b));
       }
       float d = u_far;  // background (id 0), NaN and no depth plane: the far plane
       if (u_has_depth && (!u_has_ids || texelFetch(u_ids, t, 0).r != 0u)) {
         float raw = texelFetch(u_depth, t, 0).r;
         d = isnan(raw) ? u_far : clamp(raw, u_near, u_far);
       }
-      column_z += d;
+      column.a += d;
     }
-    rgb += column;
-    z += column_z;
+    sum += column;
   }
+  return sum;
+}
+// A map pixel from its box's sum (HLS and eq. 3.1) and the pixel under its centre (slot, depth).
+void finish(ivec3 cx, ivec3 cy, vec4 sum) {
+  vec3 rgb = sum.rgb;
+  float z = sum.a;
   int count = (cx.y - cx.x) * (cy.y - cy.x);
   float inv = count > 0 ? 1.0 / float(count) : 0.0;
   rgb *= inv;
@@ -118,6 +121,49 @@ void shade(ivec2 m) {
   o_slot = slot_of(id);
   float raw = texelFetch(u_depth, t, 0).r;
   o_depth = (u_has_depth && id != 0u && !isnan(raw) && !isinf(raw)) ? clamp(raw, u_near, u_far) : u_far;
+}
+)";
+// The fragment pass: one map pixel's whole box per fragment.
+constexpr const char* kResampleShade = R"(
+void shade(ivec2 m) {
+  if (!u_has_image) { o_image = vec4(0.0); o_slot = 0u; o_depth = u_far; return; }
+  ivec3 cx = source_range(m.x, u_size.x), cy = source_range(m.y, u_size.y);
+  finish(cx, cy, box_sum(cx.x, cx.y, 1, cy.x, cy.y, 1));
+}
+)";
+// The compute pass: one 8x8 workgroup per map pixel, each invocation summing every eighth column and
+// row of the box, the 64 partial sums added in shared memory (a map pixel of a 1080p frame at 64x64
+// is a 30x17 box: one fragment fetching 510 texels thrice is latency-bound where there are only
+// n^2 fragments). The sums' order differs from the fragment pass's, by float rounding only.
+constexpr const char* kResampleCompute = R"(
+layout(rgba32f, binding = 0) writeonly uniform image2D u_out0;
+layout(r32ui, binding = 1) writeonly uniform uimage2D u_out1;
+layout(r32f, binding = 2) writeonly uniform image2D u_out2;
+shared vec4 partial[64];
+void main() {
+  ivec2 m = ivec2(gl_WorkGroupID.xy);
+  uint t = gl_LocalInvocationIndex;
+  if (!u_has_image) {
+    if (t == 0u) {
+      imageStore(u_out0, m, vec4(0.0));
+      imageStore(u_out1, m, uvec4(0u));
+      imageStore(u_out2, m, vec4(u_far, 0.0, 0.0, 0.0));
+    }
+    return;
+  }
+  ivec3 cx = source_range(m.x, u_size.x), cy = source_range(m.y, u_size.y);
+  ivec2 l = ivec2(gl_LocalInvocationID.xy);
+  partial[t] = box_sum(cx.x + l.x, cx.y, 8, cy.x + l.y, cy.y, 8);
+  barrier();
+  for (uint stride = 32u; stride > 0u; stride >>= 1u) {
+    if (t < stride) partial[t] += partial[t + stride];
+    barrier();
+  }
+  if (t != 0u) return;
+  finish(cx, cy, partial[0]);
+  imageStore(u_out0, m, o_image);
+  imageStore(u_out1, m, uvec4(o_slot, 0u, 0u, 0u));
+  imageStore(u_out2, m, vec4(o_depth, 0.0, 0.0, 0.0));
 }
 )";
 
@@ -391,9 +437,15 @@ float from_sortable(std::uint32_t key) {
 
 GlAttention::GlAttention(bool compute) {
   const Output rgba{"", "vec4", "rgba32f"};
-  link_pass(resample_program_, kResample,
-            {{"o_image", "vec4", "rgba32f"}, {"o_slot", "uint", "r32ui"}, {"o_depth", "float", "r32f"}}, compute,
+  const std::string resample = std::string(kResample) + kResampleShade;
+  link_pass(resample_program_, resample.c_str(),
+            {{"o_image", "vec4", "rgba32f"}, {"o_slot", "uint", "r32ui"}, {"o_depth", "float", "r32f"}}, false,
             "GlAttention resample");
+  if (compute) {
+    const std::string source = std::string(gl::kComputeVersion8x8) + kSlotLayout +
+                               "vec4 o_image;\nuint o_slot;\nfloat o_depth;\n" + kResample + kResampleCompute;
+    resample_program_[1] = gl::link_compute_program(source.c_str(), "GlAttention resample (compute)");
+  }
   const std::string scatter_vertex = std::string("#version 330 core\n") + kSlotLayout + kScatterVertex;
   scatter_program_ = gl::link_program(scatter_vertex.c_str(), kScatterFragment, "GlAttention scatter");
   link_pass(paint_program_, kPaint, {{"o", "vec2", "rg32f"}}, compute, "GlAttention paint");
@@ -567,7 +619,15 @@ void GlAttention::resample(const GlAttentionInput& in, double near_m, double far
   glUniform1f(glGetUniformLocation(p, "u_near"), fnear);
   glUniform1f(glGetUniformLocation(p, "u_far"), ffar);
   set_float(p, "u_inv_range", 1.0 / z_range);
-  draw({{levels_[0].image, GL_RGBA32F}, {slots_, GL_R32UI}, {map_depth_, GL_R32F}}, n_, n_);
+  if (!compute_) {
+    draw({{levels_[0].image, GL_RGBA32F}, {slots_, GL_R32UI}, {map_depth_, GL_R32F}}, n_, n_);
+    return;
+  }
+  glBindImageTexture(0, levels_[0].image, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+  glBindImageTexture(1, slots_, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32UI);
+  glBindImageTexture(2, map_depth_, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32F);
+  glDispatchCompute(static_cast<GLuint>(n_), static_cast<GLuint>(n_), 1);  // a workgroup per map pixel
+  glMemoryBarrier(gl::kComputeWrittenBarrier | GL_PIXEL_BUFFER_BARRIER_BIT);
 }
 
 void GlAttention::scatter(int mode, unsigned target, int target_w, int target_h, int shift) {
