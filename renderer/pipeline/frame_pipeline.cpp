@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "pipeline/frame_pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 #include <unordered_map>
@@ -365,10 +365,11 @@ void FramePipeline::begin_eye(Frame& f, Eye eye, std::uint64_t frame_index) {
   }
   if (eye == Eye::Left) {
     shared_ = SharedByEyes{};
+    shared_.frame = frame_index;
     shared_.fixation_m = focus_ran_ ? focus_.last().focal_depth_m : std::numeric_limits<double>::infinity();
+  } else if (eye == Eye::Mono) {
+    shared_.frame = ~std::uint64_t{0};  // no right eye follows
   }
-  if (eye != Eye::Right) shared_.frame = frame_index;
-  if (eye == Eye::Mono) shared_.frame = ~std::uint64_t{0};  // no right eye follows
   f.fixation_m = eye == Eye::Mono ? std::numeric_limits<double>::infinity() : shared_.fixation_m;
 }
 
