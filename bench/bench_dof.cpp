@@ -47,6 +47,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -319,7 +320,10 @@ int main(int argc, char** argv) {
     return std::any_of(method_filter.begin(), method_filter.end(),
                        [&](const std::string& f) { return name.rfind(f, 0) == 0; });
   };
-  const std::string src = FOVEA_SOURCE_DIR;
+  // The bundled scenes: FOVEA_SOURCE_DIR in the environment (a copy of the tree elsewhere, as on the
+  // device machine), else the tree this was built from.
+  const char* env_src = std::getenv("FOVEA_SOURCE_DIR");
+  const std::string src = env_src != nullptr && *env_src != '\0' ? env_src : FOVEA_SOURCE_DIR;
   std::vector<Case> cases = {{"background-blur", src + "/renderer/scenes/attention.json", 2.9},
                              {"foreground-blur", src + "/renderer/scenes/attention.json", 14.0},
                              {"partial-occlusion", src + "/renderer/scenes/occlusion.json", 6.0}};

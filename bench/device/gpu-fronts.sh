@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
+# The governor's depth-of-field front of a GPU (issue 42: "the GPU passes become points the governor
+# can choose"), in one command on the device machine: bench_dof's accuracy-against-time rows with the
+# CPU implementations beside the OpenGL ones (fragment and, where the context has OpenGL 4.3,
+# compute), at the size, CoC and reference the checked-in fronts use (1024x768, mean CoC 16 px,
+# 64-sample thin-lens ray tracing), into $OUT/bench_dof_gl.csv.
+#
+# Here:   cmake --build --preset default && bench/device/make-bundle.sh build/default
+# There:  the device tool's run with carry [".gpu-bundle"] and command
+#         OUT=$OUT bash bench/device/gpu-fronts.sh
+# Then here: copy the CSV to bench/results/device/<card>/bench_dof_gl.csv and run
+#         bench/make_fronts.py     (renderer/governor/fronts.json gains a front for that card: the
+#         governor takes it where FramePipeline::device() names the card; tests check the fronts)
+# SIZE=WxH and SAMPLES=N override 1024x768 and 64 (a quick check here:
+# SIZE=128x96 SAMPLES=4 bash bench/device/gpu-fronts.sh); a front for make_fronts needs the defaults.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+SIZE=${SIZE:-1024x768}
+SAMPLES=${SAMPLES:-64}
+OUT=${OUT:-$(mktemp -d)}
+mkdir -p "$OUT"
+. bench/device/unpack.sh
+[ -x "$run/bench_dof" ] || { echo "gpu-fronts: the bundle has no bench_dof (build it before make-bundle.sh)" >&2; exit 2; }
+methods="lee-mipmap,lee-mipmap sigma=C/4,lee-mipmap gl,lee-splat,lee-splat gl,schedl-layered M=3,schedl-layered gl"
+env -u DISPLAY FOVEA_SOURCE_DIR="$PWD" "$run/bench_dof" --size "$SIZE" --cocs 16 --samples "$SAMPLES" --repeats 5 \
+  --methods "$methods" --csv "$OUT/bench_dof_gl.csv" | tee "$OUT/gpu-fronts.txt"
+echo "gpu-fronts: $OUT/bench_dof_gl.csv ($(($(wc -l <"$OUT/bench_dof_gl.csv") - 1)) rows)"
