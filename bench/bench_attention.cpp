@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -84,23 +85,25 @@ struct GlRows {
   std::unique_ptr<GlBackend> context;
   std::unique_ptr<GlAttention> attention;
   std::string device;
-  std::map<int, attention::AttentionTracker> trackers;  // per map size: the object stage after the GPU's
+  // Per implementation (fragment, compute) and map size: the object stage after the GPU's.
+  std::map<int, attention::AttentionTracker> trackers[2];
   std::vector<float> saliency;
   std::vector<attention::ObjectPixels> pixels;
 };
 
 // One frame's pixel stage on the GPU and the object stage after it into `r`; `cpu` is the CPU's frame
 // of the same settings (the map the GPU's is compared with).
-void time_gl(GlRows& gl, int map, const GBuffer& g, const Scene& scene, double t, double previous,
-             const attention::AttentionFrame& cpu, Row* r) {
-  attention::AttentionTracker& tracker = gl.trackers.at(map);
+void time_gl(GlRows& gl, GlAttention::Pass pass, int map, const GBuffer& g, const Scene& scene, double t,
+             double previous, const attention::AttentionFrame& cpu, Row* r) {
+  attention::AttentionTracker& tracker = gl.trackers[pass == GlAttention::Pass::Compute ? 1 : 0].at(map);
   GlAttentionObjects objects;
   for (const Object& o : scene.objects) {
     objects.ids.push_back(o.id);
     objects.motion.push_back(tracker.object_motion(o, t, previous));
   }
   double gpu_ms = 0;
-  gl.attention->run_gbuffer(g, scene.camera.near_m, scene.camera.far_m, tracker.settings(), objects, gl.pixels, &gpu_ms);
+  gl.attention->run_gbuffer(g, scene.camera.near_m, scene.camera.far_m, tracker.settings(), objects, gl.pixels, &gpu_ms,
+                            pass);
   const auto start = Clock::now();
   const attention::AttentionFrame& f = tracker.update_objects(gl.pixels, map, scene, t, previous, gpu_ms * 1e-3);
   const double object_ms = ms_since(start);
@@ -179,7 +182,11 @@ int main(int argc, char** argv) {
   CLI::App app{"Attention tracking (Lee 2009 ch. 3) time per frame versus map size, with OpenCV saliency as a peer"};
   int frames = 40, rounds = 1;
   std::string csv_path, sizes_text = "512x512,960x540", maps_text = "64,128,256,512";
-  std::string scene_path = std::string(FOVEA_SOURCE_DIR) + "/renderer/scenes/attention.json";
+  // The bundled scene: FOVEA_SOURCE_DIR in the environment (a copy of the tree elsewhere, as on the
+  // device machine), else the tree this was built from.
+  const char* env_src = std::getenv("FOVEA_SOURCE_DIR");
+  std::string scene_path =
+      std::string(env_src != nullptr && *env_src != '\0' ? env_src : FOVEA_SOURCE_DIR) + "/renderer/scenes/attention.json";
   app.add_option("--frames", frames, "frames over the scene's 8 s animation")->check(CLI::Range(5, 100000));
   app.add_option("--rounds", rounds, "time every stored frame this many times (more samples, same frames)")
       ->check(CLI::Range(1, 1000));
@@ -196,7 +203,7 @@ int main(int argc, char** argv) {
     try {
       gl.context = std::make_unique<GlBackend>();
       gl.context->context().make_current();
-      gl.attention = std::make_unique<GlAttention>();
+      gl.attention = std::make_unique<GlAttention>(gl.context->context().features().at_least(4, 3));
       gl.device = "OpenGL " + gl.context->context().features().version() + " (" + gl.context->context().renderer() + ")";
       std::printf("gl rows on %s\n", gl.device.c_str());
     } catch (const std::exception& e) {
@@ -231,7 +238,7 @@ int main(int argc, char** argv) {
       attention::AttentionSettings s;
       s.map_size = m;
       trackers.emplace(m, attention::AttentionTracker(s));
-      gl.trackers.insert_or_assign(m, attention::AttentionTracker(s));
+      for (auto& by_map : gl.trackers) by_map.insert_or_assign(m, attention::AttentionTracker(s));
       s.resample = attention::Resample::Nearest;
       nearest.emplace(m, attention::AttentionTracker(s));
     }
@@ -262,9 +269,15 @@ int main(int argc, char** argv) {
           r.objects = fn.objects.size();
         }
         const auto& f = trackers.at(m).update(g, scene, t, previous);
-        if (gl.attention) {
+        if (gl.attention) {  // the fragment passes, and the compute passes where the context has them
           gl.context->context().make_current();
-          time_gl(gl, m, g, scene, t, previous, f, k == 0 && round == 0 ? nullptr : &row_for("fovea gl (GPU pixel stage)", m));
+          const bool warm_up = k == 0 && round == 0;
+          time_gl(gl, GlAttention::Pass::Fragment, m, g, scene, t, previous, f,
+                  warm_up ? nullptr : &row_for("fovea gl (GPU pixel stage)", m));
+          if (gl.attention->has_compute()) {
+            time_gl(gl, GlAttention::Pass::Compute, m, g, scene, t, previous, f,
+                    warm_up ? nullptr : &row_for("fovea gl compute (GPU pixel stage)", m));
+          }
         }
         cv::Mat small, out;
         auto start = Clock::now();

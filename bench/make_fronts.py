@@ -167,13 +167,16 @@ def attention_device_fronts(results):
         for r in rows:
             if not r["input"].endswith(" " + size) or r["map"] not in a1:
                 continue
-            where = {"fovea (Lee 2009)": "cpu", "fovea gl (GPU pixel stage)": "gpu"}.get(r["method"])
+            # Each GL implementation a point of its own (frame.effect_passes), where the run had it.
+            where, passes = {"fovea (Lee 2009)": ("cpu", None), "fovea gl (GPU pixel stage)": ("gpu", "fragment"),
+                             "fovea gl compute (GPU pixel stage)": ("gpu", "compute")}.get(r["method"], (None, None))
             if where is None:
                 continue
-            options.append({"label": f'{r["map"]}x{r["map"]} box, {where}',
-                            "settings": {"attention.map_size": r["map"], "attention.resample": "box",
-                                         "attention.device": where},
-                            "ms": float(r["total_median_ms"]), "accuracy": a1[r["map"]]})
+            settings = {"attention.map_size": r["map"], "attention.resample": "box", "attention.device": where}
+            if passes:
+                settings["frame.effect_passes"] = passes
+            options.append({"label": f'{r["map"]}x{r["map"]} box, {where}' + (" compute" if passes == "compute" else ""),
+                            "settings": settings, "ms": float(r["total_median_ms"]), "accuracy": a1[r["map"]]})
         fronts.append({"effect": "attention", "backend": "gl", "device": device_token(device),
                        "passes": ["attention", "gpu.attention"],
                        "metric": "A1 (share of frames the most attended object is the gazed one)", "higher_better": True,

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# Packs fovea-render (and make_gltf_standin, bench_gl and bench_dof, where built) and the shared libraries they need (from ldd)
+# Packs fovea-render (and make_gltf_standin, bench_gl, bench_dof and bench_attention, where built) and the shared libraries they need (from ldd)
 # into .gpu-bundle/bundle.tar.xz, for
 # the GPU machine, which has no package registry: bench/device/gpu-frame.sh unpacks and runs it there.
 # Left out: glibc (the machine's own is newer), libstdc++/libgcc_s (likewise), and the OpenGL/EGL
@@ -22,9 +22,10 @@ mkdir -p "$stage/lib"
 strip --strip-debug -o "$stage/fovea-render.bin" "$BIN"
 # The glTF stand-in's generator (bench/device/gpu-gltf.sh makes the scene there: 28 MB of data stays here).
 # bench_gl: the effect passes alone, fragment against compute (gpu-effects.sh).
-# bench_dof: the DOF methods' accuracy against time there, the governor's device front (gpu-fronts.sh).
+# bench_dof, bench_attention: the DOF's and attention's accuracy against time there, the governor's
+# device fronts (gpu-fronts.sh).
 EXTRA=()
-for tool in make_gltf_standin bench_gl bench_dof; do
+for tool in make_gltf_standin bench_gl bench_dof bench_attention; do
   if [ -x "$BUILD/bench/$tool" ]; then
     strip --strip-debug -o "$stage/$tool.bin" "$BUILD/bench/$tool"
     EXTRA+=("$BUILD/bench/$tool")
@@ -41,7 +42,7 @@ here=$(dirname "$(readlink -f "$0")")
 LD_LIBRARY_PATH="$here/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" exec "$here/fovea-render.bin" "$@"
 W
 chmod +x "$stage/fovea-render"
-for tool in make_gltf_standin bench_gl bench_dof; do
+for tool in make_gltf_standin bench_gl bench_dof bench_attention; do
   if [ -f "$stage/$tool.bin" ]; then
     sed "s/fovea-render\.bin/$tool.bin/" "$stage/fovea-render" >"$stage/$tool"
     chmod +x "$stage/$tool"
