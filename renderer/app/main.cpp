@@ -18,6 +18,27 @@ void print_objects(const fovea::render::Scene& scene) {
   }
 }
 
+// --list-settings: every render setting with its default, allowed values and meaning.
+void print_settings() {
+  for (const auto& s : fovea::render::Settings::specs()) {
+    std::printf("%-20s default %-15s allowed %s\n    %s\n", s.key.c_str(), s.default_value.c_str(), s.allowed.c_str(),
+                s.description.c_str());
+  }
+}
+
+// --set KEY=VALUE into the settings, --scene-set PATH=VALUE (and --stereo) into the scene overrides.
+// Throws std::invalid_argument naming the assignment that is malformed or unknown.
+void apply_assignments(fovea::render::RenderOptions& o, const std::vector<std::string>& sets,
+                       const std::vector<std::string>& scene_sets, bool stereo) {
+  for (const auto& s : sets) o.settings.set_assignment(s);
+  for (const auto& s : scene_sets) {
+    const auto eq = s.find('=');
+    if (eq == std::string::npos || eq == 0) throw std::invalid_argument("--scene-set \"" + s + "\": expected path=value");
+    o.scene_overrides.push_back({s.substr(0, eq), s.substr(eq + 1)});
+  }
+  if (stereo) o.scene_overrides.push_back({"camera.stereo", "true"});
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -71,10 +92,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   if (list_settings) {
-    for (const auto& s : Settings::specs()) {
-      std::printf("%-20s default %-15s allowed %s\n    %s\n", s.key.c_str(), s.default_value.c_str(), s.allowed.c_str(),
-                  s.description.c_str());
-    }
+    print_settings();
     return 0;
   }
   if (o.scene_path.empty()) {
@@ -84,13 +102,7 @@ int main(int argc, char** argv) {
   }
   o.backend = backend == "gl" ? BackendKind::OpenGL : BackendKind::Embree;
   try {
-    for (const auto& s : sets) o.settings.set_assignment(s);
-    for (const auto& s : scene_sets) {
-      const auto eq = s.find('=');
-      if (eq == std::string::npos || eq == 0) throw std::invalid_argument("--scene-set \"" + s + "\": expected path=value");
-      o.scene_overrides.push_back({s.substr(0, eq), s.substr(eq + 1)});
-    }
-    if (stereo) o.scene_overrides.push_back({"camera.stereo", "true"});
+    apply_assignments(o, sets, scene_sets, stereo);
     if (list_objects) {
       print_objects(load_scene(o.scene_path, o.scene_overrides, o.camera));
       return 0;

@@ -172,6 +172,40 @@ void show(GlContext& window, const FramePipeline::Frame& f, FramePipeline& pipel
   timer.record("gaze-age.swap", f.gaze_age_at_completion_ms + (swapped - f.completed_wall_s) * 1000.0);
 }
 
+// The title bar: frame time (and the GPU's own time when the frame is kept there), gaze, its age when
+// latched and when shown, loss, and the governor's choice.
+void set_title(GlContext& window, const FramePipeline& pipeline, const GazeInput& gaze, const FramePipeline::Frame& f,
+               const PassTimer& timer, const Governor* governor) {
+  // The GPU's own time for the frame's passes (timestamp queries), beside the CPU's frame time.
+  double gpu_ms = 0;
+  for (const char* pass : {"gpu.gbuffer", "gpu.upload", "gpu.tonemap", "gpu.overlay"}) gpu_ms += timer.frame_ms(pass);
+  char gpu[48] = "";
+  if (f.on_gpu) std::snprintf(gpu, sizeof gpu, " (frame on the GPU: %.2f ms there)", gpu_ms);
+  char title[320];
+  std::snprintf(title, sizeof title, "fovea-render %s | %.1f ms/frame%s | gaze %s (%.3f, %.3f) %s | age %.1f ms, "
+                "%.1f ms when shown | lost %llu",
+                pipeline.backend().name().c_str(), timer.last_ms("frame") + timer.last_ms("right.frame"), gpu,
+                gaze.description().c_str(), f.gaze.x, f.gaze.y,
+                f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
+                timer.last_ms("gaze-age.swap"), static_cast<unsigned long long>(f.gaze.lost));
+  std::string full = title;
+  if (governor) full += " | " + governor->state().summary();
+  glfwSetWindowTitle(window.window(), full.c_str());
+}
+
+// Renders the frame's views: one, or a stereo frame's left eye (drawn on its half at once) and then
+// its right eye. Returns the last view's frame, for show() to draw and swap.
+FramePipeline::Frame render_views(GlContext& window, FramePipeline& pipeline, std::vector<std::uint8_t>& rgba,
+                                  PassTimer& timer, std::uint64_t i, double now, double previous, bool stereo) {
+  if (!stereo) return pipeline.render(i, now, previous, now, timer, true);
+  const FramePipeline::Frame left = pipeline.render(i, now, previous, now, timer, true, FramePipeline::Eye::Left);
+  {
+    auto t = timer.scope("display");
+    draw(window, left, pipeline, rgba, GlContext::Region::LeftHalf);
+  }
+  return pipeline.render(i, now, previous, now, timer, true, FramePipeline::Eye::Right);
+}
+
 }  // namespace
 
 int run_viewer(const RenderOptions& o) {
@@ -224,32 +258,12 @@ int run_viewer(const RenderOptions& o) {
       governor->apply(pipeline.plan(), pipeline.backend().name(), pipeline.device(),
                       pipeline.scene().camera.width * (stereo ? 2u : 1u), pipeline.scene().camera.height,
                       pipeline.settings());
-    if (stereo) {  // the left eye first, drawn on its half; the right eye's show() swaps
-      const FramePipeline::Frame left =
-          pipeline.render(i, now, i == 0 ? now : previous, now, timer, true, FramePipeline::Eye::Left);
-      auto t = timer.scope("display");
-      draw(window, left, pipeline, rgba, GlContext::Region::LeftHalf);
-    }
-    const FramePipeline::Frame f = pipeline.render(i, now, i == 0 ? now : previous, now, timer, true,
-                                                   stereo ? FramePipeline::Eye::Right : FramePipeline::Eye::Mono);
+    const FramePipeline::Frame f = render_views(window, pipeline, rgba, timer, i, now, i == 0 ? now : previous, stereo);
     if (governor) governor->observe(timer);
     previous = now;
     show(window, f, pipeline, rgba, timer);
     if (i % 10 == 0) {
-      // The GPU's own time for the frame's passes (timestamp queries), beside the CPU's frame time.
-      double gpu_ms = 0;
-      for (const char* pass : {"gpu.gbuffer", "gpu.upload", "gpu.tonemap", "gpu.overlay"}) gpu_ms += timer.frame_ms(pass);
-      char gpu[48] = "";
-      if (f.on_gpu) std::snprintf(gpu, sizeof gpu, " (frame on the GPU: %.2f ms there)", gpu_ms);
-      char title[320];
-      std::snprintf(title, sizeof title, "fovea-render %s | %.1f ms/frame%s | gaze %s (%.3f, %.3f) %s | age %.1f ms, "
-                    "%.1f ms when shown | lost %llu",
-                    pipeline.backend().name().c_str(), timer.last_ms("frame") + timer.last_ms("right.frame"), gpu, gaze->description().c_str(), f.gaze.x,
-                    f.gaze.y, f.gaze.valid ? protocol::to_string(f.gaze.movement) : "no gaze", f.gaze.age_ms,
-                    timer.last_ms("gaze-age.swap"), static_cast<unsigned long long>(f.gaze.lost));
-      std::string full = title;
-      if (governor) full += " | " + governor->state().summary();
-      glfwSetWindowTitle(window.window(), full.c_str());
+      set_title(window, pipeline, *gaze, f, timer, governor.get());
       if (governor && i % 100 == 0) std::printf("governor: %s\n", governor->state().summary().c_str());
     }
   }
