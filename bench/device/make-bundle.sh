@@ -31,9 +31,36 @@ for tool in make_gltf_standin bench_gl bench_dof bench_attention; do
     EXTRA+=("$BUILD/bench/$tool")
   fi
 done
-for bin in "$BIN" "${EXTRA[@]}"; do ldd "$bin"; done | awk '$3 ~ /^\// {print $3}' | sort -u |
+# GDAL: OpenCV's imgcodecs links it (for GIS rasters, which fovea never reads) and with it some 40
+# libraries (PROJ, HDF5, Poppler, x265, ICU data...), 136 MB that would push the bundle over the 64 MiB
+# the device tool carries. The bundle gets a stand-in libgdal.so.32 instead, defining the functions
+# imgcodecs imports (it is linked BIND_NOW, so each must exist): registering does nothing, opening
+# opens nothing, and any other function aborts with a message.
+stub_gdal() {
+  local gdal imgcodecs
+  gdal=$(ldconfig -p | awk '$1 == "libgdal.so.32" {print $NF; exit}')
+  imgcodecs=$(ldconfig -p | awk '$1 == "libopencv_imgcodecs.so.406" {print $NF; exit}')
+  [ -n "$gdal" ] && [ -n "$imgcodecs" ] || return 0
+  mkdir -p "$stage/stub"
+  nm -D --defined-only "$gdal" | awk '{print $3}' | sort -u >"$stage/stub/defined"
+  {
+    echo '#include <stdio.h>'
+    echo '#include <stdlib.h>'
+    echo 'static void gone(const char *s) { fprintf(stderr, "fovea device bundle: %s called, but libgdal is a stand-in here (bench/device/make-bundle.sh)\n", s); abort(); }'
+    nm -D --undefined-only "$imgcodecs" | awk '{print $2}' | sort -u | comm -12 - "$stage/stub/defined" |
+      grep -vxE 'GDALAllRegister|GDALOpen' | while read -r sym; do echo "void $sym(void) { gone(\"$sym\"); }"; done
+    # imgcodecs registers its GDAL decoder on first use (GDALAllRegister: nothing to register here);
+    # GDALOpen, reached only with IMREAD_LOAD_GDAL, opens nothing.
+    echo 'void GDALAllRegister(void) {}'
+    echo 'void *GDALOpen(const char *path, int access) { (void)path; (void)access; return NULL; }'
+  } >"$stage/stub/gdal.c"
+  cc -shared -fPIC -O1 -o "$stage/stub/libgdal.so.32" -Wl,-soname,libgdal.so.32 "$stage/stub/gdal.c"
+}
+stub_gdal
+for bin in "$BIN" "${EXTRA[@]}"; do LD_LIBRARY_PATH="$stage/stub" ldd "$bin"; done | awk '$3 ~ /^\// {print $3}' | sort -u |
   grep -vE '/(libc|libm|libpthread|libdl|librt|libresolv|ld-linux-x86-64|libstdc\+\+|libgcc_s|libGL|libEGL|libGLX|libGLdispatch|libOpenGL)[.-]' |
   while read -r lib; do cp -L "$lib" "$stage/lib/"; done
+rm -rf "$stage/stub"
 cat >"$stage/fovea-render" <<'W'
 #!/bin/sh
 # The carried fovea-render with its carried libraries (only for this process: the machine's own
