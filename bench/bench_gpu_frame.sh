@@ -9,7 +9,8 @@
 # Reports per configuration, from each run's timings.csv (first WARMUP frames dropped: shader
 # compilation, first-touch allocations): the whole frame's p50/p99 in ms, the gaze age at completion
 # p50/p99 (the overlay's gaze sample's age when the GPU's fence signalled, or the CPU image was done),
-# and readback/gpu, the ratio of the frame p50s.
+# and readback/gpu, the ratio of the frame p50s. PATHS="true" runs the GPU path alone (the readback
+# columns then read "-"): what a device sweep with little time takes.
 #
 # Effects: "base" = G-buffer, tone map, gaze overlay only (dof, LOD and so attention and focus off);
 # "scene" = the scene's own effects (attention.json: attention, focus, LOD selection and DOF on the
@@ -53,6 +54,7 @@ SIZES=${3:-640x480 1280x720 1920x1080}
 SCENES=${4:-attention cornell}
 EFFECTS=${5:-base scene}
 WARMUP=${WARMUP:-3}
+PATHS=${PATHS:-false true}
 EMBREE=${EMBREE:-0}
 GAZE=file:tests/data/recordings/synthetic-250hz-62s.fgr
 if [ -n "${OUT:-}" ]; then RUNS=$OUT/runs; mkdir -p "$RUNS"; else RUNS=$(mktemp -d); trap 'rm -rf "$RUNS"' EXIT; fi
@@ -98,7 +100,7 @@ for scene in $SCENES; do
         gi) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
                    --set gi.caustic_photons=0) ;;
       esac
-      for gpu in false true; do
+      for gpu in $PATHS; do
         dir=$RUNS/$scene-$size-$effects-$([ $gpu = true ] && echo gpu || echo readback)
         env -u DISPLAY "$RENDER" --scene "renderer/scenes/$scene.json" --backend gl --headless --no-images \
           --frames "$FRAMES" --gaze "$GAZE" --scene-set camera.width="$w" --scene-set camera.height="$h" \
@@ -145,15 +147,22 @@ print()
 print("| scene | size | effects | readback frame p50/p99 ms | gpu frame p50/p99 ms | readback/gpu | "
       "gaze age readback p50/p99 ms | gaze age gpu p50/p99 ms | gpu-side ms per pass (p50) |")
 print("|---|---|---|---|---|---|---|---|---|")
-for d in sorted(glob.glob(os.path.join(runs, "*-readback"))):
-    name = os.path.basename(d)[: -len("-readback")]
+def p50_p99(v):
+    return f"{pct(v, 50):.2f} / {pct(v, 99):.2f}" if v else "-"
+
+for d in sorted(glob.glob(os.path.join(runs, "*-gpu"))):
+    if not os.path.isdir(d):
+        continue
+    name = os.path.basename(d)[: -len("-gpu")]
     scene, size, effects = re.match(r"(.+)-(\d+x\d+)-([\w.+-]+)$", name).groups()
-    a, b = load(d), load(os.path.join(runs, name + "-gpu"))
-    fa, fb = a["frame"], b["frame"]
-    ga, gb = a["gaze-age"], b["gaze-age"]
+    readback = os.path.join(runs, name + "-readback")
+    a, b = (load(readback) if os.path.isdir(readback) else {}), load(d)
+    fa, fb = a.get("frame", []), b["frame"]
+    ga, gb = a.get("gaze-age", []), b["gaze-age"]
     gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.ulod", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
-    print(f"| {scene} | {size} | {effects} | {pct(fa, 50):.2f} / {pct(fa, 99):.2f} | {pct(fb, 50):.2f} / {pct(fb, 99):.2f} | "
-          f"{pct(fa, 50) / pct(fb, 50):.2f} | {pct(ga, 50):.2f} / {pct(ga, 99):.2f} | {pct(gb, 50):.2f} / {pct(gb, 99):.2f} | {gpu_side} |")
+    ratio = f"{pct(fa, 50) / pct(fb, 50):.2f}" if fa else "-"
+    print(f"| {scene} | {size} | {effects} | {p50_p99(fa)} | {p50_p99(fb)} | "
+          f"{ratio} | {p50_p99(ga)} | {p50_p99(gb)} | {gpu_side} |")
 stereo = [d for d in sorted(glob.glob(os.path.join(runs, "*+stereo-*"))) if os.path.isdir(d)]
 if stereo:
     # Each eye's own render in one process, frame after frame: what the right eye saves by reusing

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # The perceptual effects on a machine with an NVIDIA GPU, in one command (issue 22's targets at
-# 1920x1080), whole attention.json frames on the GPU path against the readback path, same run, same
-# card (bench/bench_gpu_frame.sh; gpu-side ms per pass from timer queries):
+# 1920x1080), whole attention.json frames on the GPU-resident path, same run, same card
+# (bench/bench_gpu_frame.sh; gpu-side ms per pass from timer queries):
 #   dof-f11.2, dof-f2.8, dof-f0.7   lee-mipmap alone at a quarter, 1x and 4x the scene's aperture
 #                                   (gpu.dof: target <= 1 ms, independent of the CoC)
 #   dof-cpu                         the same DOF with dof.device=cpu (read back, CPU, upload)
@@ -29,11 +29,18 @@
 # Here:   cmake --build --preset default && bench/device/make-bundle.sh build/default
 # There:  the device tool's run with carry [".gpu-bundle"] and command
 #         OUT=$OUT bash bench/device/gpu-effects.sh [FRAMES]     (default 100)
-# SIZE=WxH overrides 1920x1080 (a quick check here: SIZE=320x240 bash bench/device/gpu-effects.sh 8).
+# SIZE=WxH overrides 1920x1080 (a quick check here: SIZE=320x240 bash bench/device/gpu-effects.sh 8);
+# EFFECTS, STEREO_EFFECTS (bench_gpu_frame.sh's names; empty: no stereo runs) and PASSES (bench_gl's
+# filter; empty: none) choose what runs. The GPU path alone by default (PATHS=true: the readback path's
+# figures are issue 21's, and took half of the time); PATHS="false true" adds it.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 FRAMES=${1:-100}
 SIZE=${SIZE:-1920x1080}
+EFFECTS=${EFFECTS:-base attention attention+fragment attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-f11.2+fragment dof-f2.8+fragment dof-f0.7+fragment dof-cpu dof-schedl dof-splat scene ulod ulod+fragment}
+STEREO_EFFECTS=${STEREO_EFFECTS-base+stereo scene+stereo}
+PASSES=${PASSES-^attention/|lee_mipmap|schedl_layered|ulod_blend}
+PATHS=${PATHS:-true}
 OUT=${OUT:-$(mktemp -d)}
 mkdir -p "$OUT"
 . bench/device/unpack.sh
@@ -44,13 +51,18 @@ env -u DISPLAY "$run/fovea-render" --scene renderer/scenes/attention.json --back
   --gaze none --out "$probe" >/dev/null
 grep -E "where|  run   (dof|attention)" "$probe/plan.txt"
 
-OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention \
-  "base attention attention+fragment attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-f11.2+fragment dof-f2.8+fragment dof-f0.7+fragment dof-cpu dof-schedl dof-splat scene ulod ulod+fragment" | tee "$OUT/gpu-effects.md"
-OUT=$OUT/runs-stereo bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "${STEREO_SIZE:-2160x2160}" attention \
-  "base+stereo scene+stereo" | tee "$OUT/gpu-stereo.md"
-tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs runs-stereo && rm -rf "$OUT/runs" "$OUT/runs-stereo"
-if [ -x "$run/bench_gl" ]; then
-  env -u DISPLAY FOVEA_SOURCE_DIR="$PWD" "$run/bench_gl" --benchmark_filter='^attention/|lee_mipmap|schedl_layered|ulod_blend' \
+export PATHS
+OUT=$OUT/runs bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "$SIZE" attention "$EFFECTS" | tee "$OUT/gpu-effects.md"
+if [ -n "$STEREO_EFFECTS" ]; then
+  OUT=$OUT/runs-stereo bench/bench_gpu_frame.sh "$run/fovea-render" "$FRAMES" "${STEREO_SIZE:-2160x2160}" attention \
+    "$STEREO_EFFECTS" | tee "$OUT/gpu-stereo.md"
+fi
+tar -C "$OUT" -cJf "$OUT/gpu-effects-runs.tar.xz" runs $([ -d "$OUT/runs-stereo" ] && echo runs-stereo) &&
+  rm -rf "$OUT/runs" "$OUT/runs-stereo"
+if [ -z "$PASSES" ]; then
+  echo "gpu-effects: PASSES is empty: the passes alone not measured"
+elif [ -x "$run/bench_gl" ]; then
+  env -u DISPLAY FOVEA_SOURCE_DIR="$PWD" "$run/bench_gl" --benchmark_filter="$PASSES" \
     --benchmark_min_time=0.5 --benchmark_repetitions=3 --benchmark_report_aggregates_only=true | tee "$OUT/gpu-passes.txt"
 else
   echo "gpu-effects: the bundle has no bench_gl (build it before make-bundle.sh): the passes alone not measured"

@@ -9,7 +9,7 @@
 # Here:   cmake --build --preset default && bench/device/make-bundle.sh build/default
 # There:  the device tool's run with carry [".gpu-bundle"], timeout_s 330, and command
 #         OUT=$OUT bash bench/device/gpu-sweep.sh [FRAMES]     (default 60)
-# PARTS="effects fronts gltf" and LIMITS="150 90 60" (seconds per part) override what runs; the
+# PARTS="effects fronts gltf" and LIMITS="120 120 45" (seconds per part) override what runs; the
 # parts' own variables (SIZE, STEREO_SIZE, ...) pass through. A quick check here:
 #   SIZE=160x120 STEREO_SIZE=160x160 OUT=/tmp/sweep bash bench/device/gpu-sweep.sh 4
 set -uo pipefail
@@ -17,7 +17,7 @@ cd "$(dirname "$0")/../.."
 FRAMES=${1:-60}
 OUT=${OUT:-$(mktemp -d)}
 PARTS=${PARTS:-effects fronts gltf}
-LIMITS=${LIMITS:-150 90 60}
+LIMITS=${LIMITS:-120 120 45}
 mkdir -p "$OUT"
 read -r -a limits <<<"$LIMITS"
 i=0
