@@ -55,6 +55,11 @@ struct BackendSettings {
   // triangle ids, then rebuild the planes and shade each pixel once in a compute pass
   // (GlVisibilityPass). Where the backend cannot, it draws the forward G-buffer and says so once.
   bool visibility_buffer = false;
+  // Raster backend, peeled layers (peel > 0, render_peeled_layers): peel through the visibility
+  // buffer where the backend can (each peeling draw writes triangle ids, each layer kept is shaded
+  // once; 1.7-2.3x faster than shading every draw even on llvmpipe, bench/RESULTS.md); false: the
+  // forward peel. The layers are the same.
+  bool peel_visibility = true;
   // Raster backend: render() draws into targets of its own (forward shading) and reads back from
   // there, so the G-buffer a GPU-resident frame keeps in the backend's textures stays as it is (the
   // DOF references render the scene again mid-frame). Embree ignores it.

@@ -608,6 +608,7 @@ const std::vector<glm::vec3>& FramePipeline::step_dof(Frame& f, double now_s, do
     const DofPassSettings& d = dof_.settings();
     BackendSettings peel;
     peel.lod_levels = lod_levels_;
+    peel.peel_visibility = !settings_.is("frame.gbuffer_pass", "forward");
     const bool peels = backend_->capabilities().peeling;
     if (d.method == DofMethod::SchedlLayered) {
       gpu_->dof_schedl_layered(FrameTime{now_s, previous_s}, peel, dof_.coc_model(scene_, focus_m), peels ? d.layers : 1u);

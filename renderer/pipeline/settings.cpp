@@ -71,7 +71,8 @@ const std::vector<SettingSpec>& Settings::specs() {
        "occlusion: a second render per frame (depth peeling on the raster backend: a few scene draws)"},
       {"dof.layers", "3", "number in [1, 8]",
        "schedl-layered: depth-peeled input layers M (the visible one and M - 1 objects behind it: M - 1 extra renders; "
-       "the raster backend peels with a scene draw per surface met)"},
+       "the raster backend peels with a scene draw per surface met, shading only the layers kept where it has "
+       "compute shaders)"},
       {"dof.aperture", "disc", "disc|gaussian|hexagon", "lee-splat: aperture shape of the splats (the IDF image)"},
       {"lod.enabled", "true", "bool", "level-of-detail selection for objects with LOD chains"},
       {"lod.proxy_resolution", "map", "map|full",
@@ -141,7 +142,9 @@ const std::vector<SettingSpec>& Settings::specs() {
        "OpenGL backend: visibility = rasterise triangle ids only, then rebuild the G-buffer and shade each pixel "
        "once in a compute pass (GL 4.3; falls back to forward with one log line where compute is missing); forward "
        "= shade in the raster pass's fragment shader (GL 3.3); auto = visibility on a GPU with compute shaders, "
-       "forward on a software rasteriser (llvmpipe), where it is the faster (bench/RESULTS.md)"},
+       "forward on a software rasteriser (llvmpipe), where it is the faster (bench/RESULTS.md). The DOF's depth "
+       "peeling goes through the visibility buffer wherever compute shaders are (faster on llvmpipe too: each "
+       "peeling draw writes triangle ids, each layer kept is shaded once) but with forward"},
       {"frame.effect_passes", "auto", "auto|compute|fragment",
        "OpenGL backend: the passes with two implementations (the tone map, attention's pixel stage, "
        "dof.method=lee-mipmap and schedl-layered, ULOD's blend) as "

@@ -860,19 +860,58 @@ TEST_F(BackendAgreementTest, BundledScenes) {
 // the ground: its bottom face and the ground are one depth) either is the next layer: the ray tracer
 // takes the one its BVH meets first, the rasteriser the one whose rounded depth is smaller, so up to
 // 0.2 % of the pixels may disagree away from edges (88 of 76,800 there at layer 2).
+// Both peels: the forward one (each draw shaded) and the visibility buffer's (GlPeeling::run_visibility:
+// each draw writes its triangle, each layer is shaded once), where the context has compute shaders.
 TEST_F(BackendAgreementTest, PeeledLayersAgreeWithTheRayTracer) {
-  for (std::uint32_t peel : {1u, 2u}) {
-    SCOPED_TRACE("peel " + std::to_string(peel));
-    BackendSettings peeled;
-    peeled.peel = peel;
-    expect_agreement(testing::cornell_box(320, 240), {{0, 0}}, false, peeled, peeled);
-    expect_agreement(testing::many_objects(120, 320, 240), {{0.0, 0.0}, {1.3, 1.25}}, false, peeled, peeled);
-    for (const char* name : {"attention.json", "occlusion.json"}) {
-      Scene s = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes" / name);
-      s.camera.width = 320;
-      s.camera.height = 240;
-      s.name = name;
-      expect_agreement(s, {{0.0, 0.0}}, false, peeled, peeled, 2e-3);
+  std::vector<bool> visibility{false};
+  if (gl_->capabilities().visibility_buffer) visibility.push_back(true);
+  for (const bool through_visibility : visibility) {
+    for (std::uint32_t peel : {1u, 2u}) {
+      SCOPED_TRACE("peel " + std::to_string(peel) + (through_visibility ? ", visibility buffer" : ", forward"));
+      BackendSettings peeled;
+      peeled.peel = peel;
+      BackendSettings gl = peeled;
+      gl.peel_visibility = through_visibility;
+      expect_agreement(testing::cornell_box(320, 240), {{0, 0}}, false, gl, peeled);
+      expect_agreement(testing::many_objects(120, 320, 240), {{0.0, 0.0}, {1.3, 1.25}}, false, gl, peeled);
+      for (const char* name : {"attention.json", "occlusion.json"}) {
+        Scene s = load_scene(std::filesystem::path(FOVEA_SOURCE_DIR) / "renderer" / "scenes" / name);
+        s.camera.width = 320;
+        s.camera.height = 240;
+        s.name = name;
+        expect_agreement(s, {{0.0, 0.0}}, false, gl, peeled, 2e-3);
+      }
+    }
+  }
+}
+
+// The visibility buffer's peel keeps the forward peel's fragments: the same object and depth at every
+// pixel of every layer, the colour and normal to float rounding (shaded from the ray's barycentrics).
+TEST_F(GlBackendTest, TheVisibilityPeelKeepsTheForwardPeelsLayers) {
+  if (!backend_->capabilities().visibility_buffer) GTEST_SKIP() << "no compute shaders on this context";
+  backend_->set_scene(testing::many_objects(60, 160, 120));
+  for (const FrameTime t : {FrameTime{0.0, 0.0}, FrameTime{1.3, 1.25}}) {
+    std::vector<GBuffer> forward(2), visibility(2);
+    BackendSettings f, v;
+    f.peel_visibility = false;
+    backend_->render_peeled_layers(t, f, forward);
+    backend_->render_peeled_layers(t, v, visibility);
+    for (std::size_t n = 0; n < 2; ++n) {
+      SCOPED_TRACE("layer " + std::to_string(n + 1));
+      EXPECT_EQ(forward[n].object_id, visibility[n].object_id);
+      ASSERT_EQ(forward[n].depth.size(), visibility[n].depth.size());
+      std::size_t color_off = 0;
+      for (std::size_t i = 0; i < forward[n].depth.size(); ++i) {
+        const float a = forward[n].depth[i], b = visibility[n].depth[i];
+        if (std::isinf(a) || std::isinf(b)) {
+          EXPECT_EQ(a, b) << "pixel " << i;
+        } else {
+          EXPECT_NEAR(a, b, 1e-4f * std::max(1.0f, a)) << "pixel " << i;
+        }
+        if (glm::length(forward[n].color[i] - visibility[n].color[i]) > 1e-3f * (1.0f + glm::length(forward[n].color[i])))
+          ++color_off;
+      }
+      EXPECT_LE(color_off, forward[n].depth.size() / 1000) << color_off << " pixels' colours differ";
     }
   }
 }

@@ -335,10 +335,17 @@ bool GlBackend::ensure_visibility() {
   }
 }
 
-// The objects of this frame (their chosen levels) as the visibility pass's draws.
 void GlBackend::draw_visibility(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                                 const FrameView& frame, bool camera_moved, std::uint32_t width, std::uint32_t height,
                                 const GBufferPlanes& planes, const Targets& targets) {
+  const VisibilityFrame f = visibility_frame(scene, time, lod_levels, frame, camera_moved, width, height);
+  visibility_->render(f.view, f.draws, targets.z, targets.width, targets.height, targets.textures, planes);
+}
+
+GlBackend::VisibilityFrame GlBackend::visibility_frame(const Scene& scene, const FrameTime& time,
+                                                       const std::vector<std::uint8_t>& lod_levels,
+                                                       const FrameView& frame, bool camera_moved, std::uint32_t width,
+                                                       std::uint32_t height) const {
   std::vector<GlVisibilityPass::Draw> draws;
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
     const GpuMesh* gpu = mesh_for(i, lod_levels);
@@ -360,7 +367,7 @@ void GlBackend::draw_visibility(const Scene& scene, const FrameTime& time, const
                                     scene.camera.far_m,
                                     scene.ambient,
                                     light_sample_count_};
-  visibility_->render(view, draws, targets.z, targets.width, targets.height, targets.textures, planes);
+  return {view, std::move(draws)};
 }
 
 GlBackend::FrameView GlBackend::frame_view(const Camera& cam, const FrameTime& time, const LensSample& lens) {
@@ -563,6 +570,20 @@ const GlPeeling& GlBackend::peel_on_gpu(const FrameTime& time, const BackendSett
   const Camera& cam = scene.camera;
   if (!peeling_) peeling_ = std::make_unique<GlPeeling>();
   const FrameView frame = frame_view(cam, time, settings.lens);
+  if (settings.peel_visibility && !pbr_scene_ && ensure_visibility()) {  // ids per draw; each layer shaded once
+    const VisibilityFrame f =
+        visibility_frame(scene, time, settings.lod_levels, frame, frame.view != frame.view_prev, width, height);
+    const auto draw_layer = [&](unsigned fbo, const GlPeeling::Against* against) {
+      visibility_->raster_peel(f.view, f.draws, fbo, against != nullptr ? against->depth : 0,
+                               against != nullptr ? against->state : 0);
+    };
+    const auto shade = [&](unsigned visibility, const unsigned planes[5]) {
+      visibility_->shade(f.view, f.draws, visibility, planes, GBufferPlanes::all());
+    };
+    peeling_->run_visibility(width, height, layers, draw_layer, shade);
+    check_gl("GlBackend::peel_on_gpu (visibility buffer)");
+    return *peeling_;
+  }
   const auto clear = [&](unsigned fbo) {
     begin_gbuffer_pass(fbo, width, height, GBufferPlanes::all());
     clear_gbuffer(scene);

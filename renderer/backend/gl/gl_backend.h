@@ -154,6 +154,14 @@ class GlBackend final : public Backend {
   void draw_visibility(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                        const FrameView& frame, bool camera_moved, std::uint32_t width, std::uint32_t height,
                        const GBufferPlanes& planes, const Targets& targets);
+  // The objects of this frame (their chosen levels) as the visibility pass's draws, and its view.
+  struct VisibilityFrame {
+    GlVisibilityPass::View view;
+    std::vector<GlVisibilityPass::Draw> draws;
+  };
+  VisibilityFrame visibility_frame(const Scene& scene, const FrameTime& time,
+                                   const std::vector<std::uint8_t>& lod_levels, const FrameView& frame,
+                                   bool camera_moved, std::uint32_t width, std::uint32_t height) const;
   // BackendSettings::depth_prepass: the z-buffer of every object, nothing else.
   void draw_depth(const Scene& scene, const FrameTime& time, const std::vector<std::uint8_t>& lod_levels,
                   const FrameView& frame);

@@ -75,6 +75,28 @@ void main() {
 }
 )";
 
+// The visibility peel's copy: the chosen step's depth, id and triangle (the planes come later).
+constexpr const char* kCopyVisibility = R"(
+uniform sampler2D u_depth;
+uniform usampler2D u_id, u_visibility, u_state;
+uniform uint u_layer;
+layout(location = 1) out float o_depth;
+layout(location = 2) out uint o_id;
+layout(location = 5) out uvec2 o_visibility;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  uint s = texelFetch(u_state, p, 0).y;
+  if ((s & kChosen) == 0u || (s & kMet) != u_layer) discard;
+  o_depth = texelFetch(u_depth, p, 0).r;
+  o_id = texelFetch(u_id, p, 0).r;
+  o_visibility = texelFetch(u_visibility, p, 0).xy;
+}
+)";
+
+// Attachments 1, 2 and 5: what the visibility peel's draws and copies write.
+constexpr GLenum kVisibilityBuffers[6] = {GL_NONE, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
+                                          GL_NONE, GL_NONE,              GL_COLOR_ATTACHMENT5};
+
 constexpr GLenum kBuffers[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
                                 GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
 
@@ -103,6 +125,7 @@ unsigned link(const char* body, const char* what) {
 GlPeeling::GlPeeling() {
   resolve_program_ = link(kResolve, "GlPeeling resolve");
   copy_program_ = link(kCopy, "GlPeeling copy");
+  copy_visibility_program_ = link(kCopyVisibility, "GlPeeling visibility copy");
   glGenVertexArrays(1, &vao_);
   glGenQueries(1, &query_);
   check("GlPeeling()");
@@ -114,12 +137,14 @@ GlPeeling::~GlPeeling() {
   if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
   if (resolve_program_ != 0) glDeleteProgram(resolve_program_);
   if (copy_program_ != 0) glDeleteProgram(copy_program_);
+  if (copy_visibility_program_ != 0) glDeleteProgram(copy_visibility_program_);
 }
 
 void GlPeeling::release() {
   for (Targets* t : targets()) {
     if (t->fbo != 0) glDeleteFramebuffers(1, &t->fbo);
     glDeleteTextures(5, t->textures);
+    if (t->visibility != 0) glDeleteTextures(1, &t->visibility);
     if (t->z != 0) glDeleteRenderbuffers(1, &t->z);
     *t = Targets{};
   }
@@ -146,6 +171,8 @@ void GlPeeling::ensure(std::uint32_t width, std::uint32_t height, std::uint32_t 
   for (Targets* t : targets()) {
     GlBackend::make_gbuffer_target(t->fbo, t->textures, t->z, width, height);
     complete("layer");
+    t->visibility = gl::make_texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, width, height);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT5, GL_TEXTURE_2D, t->visibility, 0);
   }
   for (State& s : state_) {
     glGenFramebuffers(1, &s.fbo);
@@ -178,9 +205,22 @@ void GlPeeling::resolve(const State& from, const State& to, std::uint32_t layers
 }
 
 void GlPeeling::copy_chosen(const State& state, std::uint32_t layer) {
-  const unsigned p = copy_program_;
   glBindFramebuffer(GL_FRAMEBUFFER, results_[layer - 1].fbo);
   glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
+  if (visibility_) {
+    const unsigned p = copy_visibility_program_;
+    glDrawBuffers(6, kVisibilityBuffers);
+    glUseProgram(p);
+    bind(0, layer_.textures[1], p, "u_depth");
+    bind(1, layer_.textures[2], p, "u_id");
+    bind(2, layer_.visibility, p, "u_visibility");
+    bind(3, state.ids, p, "u_state");
+    glUniform1ui(glGetUniformLocation(p, "u_layer"), layer);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    return;
+  }
+  const unsigned p = copy_program_;
+  glDrawBuffers(5, kBuffers);
   glUseProgram(p);
   bind(0, layer_.textures[0], p, "u_color");
   bind(1, layer_.textures[1], p, "u_depth");
@@ -196,7 +236,44 @@ void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t lay
                     const Clear& clear) {
   if (layers == 0) throw std::invalid_argument("GlPeeling::run: no layer behind the visible one asked for");
   ensure(width, height, layers);
+  visibility_ = false;
   for (const Targets& t : results_) clear(t.fbo);
+  peel(layers, draw);
+  check("GlPeeling::run");
+}
+
+void GlPeeling::run_visibility(std::uint32_t width, std::uint32_t height, std::uint32_t layers, const DrawLayer& draw,
+                               const Shade& shade) {
+  if (layers == 0) throw std::invalid_argument("GlPeeling::run_visibility: no layer behind the visible one asked for");
+  ensure(width, height, layers);
+  visibility_ = true;
+  for (const Targets& t : results_) clear_visibility(t.fbo);
+  const DrawLayer draw_cleared = [&](unsigned fbo, const Against* against) {
+    clear_visibility(fbo);
+    draw(fbo, against);
+  };
+  peel(layers, draw_cleared);
+  // Each layer's planes from the triangles it kept; a pixel without one shows the background.
+  for (const Targets& t : results_) shade(t.visibility, t.textures);
+  check("GlPeeling::run_visibility");
+}
+
+void GlPeeling::clear_visibility(unsigned fbo) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
+  glDisable(GL_SCISSOR_TEST);
+  glDrawBuffers(6, kVisibilityBuffers);
+  const GLfloat no_depth[4] = {0, 0, 0, 0};
+  const GLuint none[4] = {0, 0, 0, 0};
+  const GLfloat far_z = 1.0f;
+  glClearBufferfv(GL_COLOR, 1, no_depth);
+  glClearBufferuiv(GL_COLOR, 2, none);
+  glClearBufferuiv(GL_COLOR, 5, none);
+  glDepthMask(GL_TRUE);
+  glClearBufferfv(GL_DEPTH, 0, &far_z);
+}
+
+void GlPeeling::peel(std::uint32_t layers, const DrawLayer& draw) {
   draw(layer_.fbo, nullptr);
   steps_ = 1;
   const auto fullscreen = [&] {
@@ -226,7 +303,6 @@ void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t lay
   glUseProgram(0);
   glActiveTexture(GL_TEXTURE0);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  check("GlPeeling::run");
 }
 
 }  // namespace fovea::render

@@ -12,6 +12,12 @@
 // (an occlusion query) or after kMaxSteps (Embree's loop stops at 256 hits; a pixel still unresolved
 // then keeps the background).
 //
+// run_visibility peels through the visibility buffer instead (GL 4.3, a scene GlVisibilityPass
+// shades): each draw writes only view depth, object id and which triangle it kept, and each chosen
+// layer is shaded once at the end by the visibility pass's compute shading. The same layers (the
+// same fragments kept, by the same test), at a draw's cost without its shading: on GPUs whose raster
+// pipeline is a small part of the chip (the H200) the forward peel's shading was most of its 27-29 ms.
+//
 // Needs a current OpenGL 3.3 context; the scene is drawn by the caller (GlBackend), into targets of
 // its own, so the frame's G-buffer textures are left as they were.
 #include <cstdint>
@@ -43,6 +49,13 @@ class GlPeeling {
   // Peels layers 1..`layers` (>= 1) of a width x height image in one loop (layer n costs what
   // layers 1..n do); layer n is in result_fbo(n)'s five planes.
   void run(std::uint32_t width, std::uint32_t height, std::uint32_t layers, const DrawLayer& draw, const Clear& clear);
+  // The visibility-buffer peel: draw(fbo, against) rasterises view depth, object id and (1 + draw,
+  // primitive) into attachments 1, 2 and 5 of `fbo` (bound, cleared, its draw buffers set);
+  // shade(visibility, planes) writes a layer's five planes (colour, depth, id, normal, motion) from
+  // its visibility texture (0: the background).
+  using Shade = std::function<void(unsigned visibility, const unsigned planes[5])>;
+  void run_visibility(std::uint32_t width, std::uint32_t height, std::uint32_t layers, const DrawLayer& draw,
+                      const Shade& shade);
   unsigned result_fbo(std::uint32_t layer) const { return results_.at(layer - 1).fbo; }
   // Layer n's colour (RGBA32F) and depth (R32F) textures, for GPU passes that read the layers.
   unsigned result_color(std::uint32_t layer) const { return results_.at(layer - 1).textures[0]; }
@@ -50,8 +63,8 @@ class GlPeeling {
   int steps() const { return steps_; }  // scene draws of the last run (the unpeeled one included)
 
  private:
-  struct Targets {  // the G-buffer's five planes and a z-buffer
-    unsigned fbo = 0, textures[5] = {0, 0, 0, 0, 0}, z = 0;
+  struct Targets {  // the G-buffer's five planes, the visibility ids (attachment 5) and a z-buffer
+    unsigned fbo = 0, textures[5] = {0, 0, 0, 0, 0}, visibility = 0, z = 0;
   };
   struct State {  // one side of the ping-pong state
     unsigned fbo = 0, depth = 0, ids = 0;
@@ -59,10 +72,14 @@ class GlPeeling {
   void ensure(std::uint32_t width, std::uint32_t height, std::uint32_t layers);
   void release();
   std::vector<Targets*> targets();  // the draw's and the results'
+  // The loop both peels share: draws until no pixel gets a fragment, resolving and copying each step.
+  void peel(std::uint32_t layers, const DrawLayer& draw);
+  void clear_visibility(unsigned fbo);  // the visibility peel's draw target: no fragment anywhere
   void resolve(const State& from, const State& to, std::uint32_t layers, bool first);
   void copy_chosen(const State& state, std::uint32_t layer);
 
-  unsigned resolve_program_ = 0, copy_program_ = 0, vao_ = 0, query_ = 0;
+  unsigned resolve_program_ = 0, copy_program_ = 0, copy_visibility_program_ = 0, vao_ = 0, query_ = 0;
+  bool visibility_ = false;  // this run peels through the visibility buffer
   Targets layer_;
   std::vector<Targets> results_;  // layer n in results_[n - 1]
   State state_[2];

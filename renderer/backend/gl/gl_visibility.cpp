@@ -70,10 +70,20 @@ GlVisibilityPass::GlVisibilityPass(unsigned light_ubo) : light_ubo_(light_ubo) {
   const std::string resolve = std::string("#version 430 core\n") + gl::kShadingGlsl + gl::kVisibilityResolve;
   try {
     resolve_program_ = gl::link_compute_program(resolve.c_str(), "GlVisibilityPass resolve program");
+    peel_program_ = gl::link_program(gl::kPeelVisibilityVertex, gl::kPeelVisibilityFragment,
+                                     "GlVisibilityPass peel program");
   } catch (...) {
     glDeleteProgram(raster_program_);
+    glDeleteProgram(resolve_program_);
     throw;
   }
+  const auto peel_loc = [this](const char* name) { return glGetUniformLocation(peel_program_, name); };
+  peel_loc_ = {peel_loc("u_model"),     peel_loc("u_view"), peel_loc("u_proj"), peel_loc("u_draw"),
+               peel_loc("u_object_id"), peel_loc("u_eye"),  peel_loc("u_peel")};
+  glUseProgram(peel_program_);
+  glUniform1i(peel_loc("u_peel_depth"), 0);
+  glUniform1i(peel_loc("u_peel_state"), 1);
+  glUseProgram(0);
   const auto loc = [this](const char* name) { return glGetUniformLocation(resolve_program_, name); };
   loc_ = {loc("u_planes"), loc("u_view"), loc("u_view_prev"), loc("u_proj"), loc("u_inv_proj"), loc("u_inv_view"),
           loc("u_eye"), loc("u_size"), loc("u_background"), loc("u_far"), loc("u_ambient"), loc("u_light_count"),
@@ -89,6 +99,7 @@ GlVisibilityPass::GlVisibilityPass(unsigned light_ubo) : light_ubo_(light_ubo) {
 GlVisibilityPass::~GlVisibilityPass() {
   glDeleteProgram(raster_program_);
   glDeleteProgram(resolve_program_);
+  glDeleteProgram(peel_program_);
   glDeleteBuffers(1, &vertices_);
   glDeleteBuffers(1, &indices_);
   glDeleteBuffers(1, &draws_);
@@ -169,8 +180,41 @@ void GlVisibilityPass::render(const View& view, const std::vector<Draw>& draws, 
                               const GBufferPlanes& planes) {
   ensure_target(z_buffer, fb_width, fb_height);
   raster_ids(view, draws);
-  resolve(view, draws, targets, planes);
+  shade(view, draws, ids_, targets, planes);
   check("GlVisibilityPass::render");
+}
+
+void GlVisibilityPass::raster_peel(const View& view, const std::vector<Draw>& draws, unsigned fbo,
+                                   unsigned against_depth, unsigned against_state) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glViewport(0, 0, static_cast<GLsizei>(view.width), static_cast<GLsizei>(view.height));
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+  glUseProgram(peel_program_);
+  glUniformMatrix4fv(peel_loc_.view, 1, GL_FALSE, glm::value_ptr(view.view));
+  glUniformMatrix4fv(peel_loc_.proj, 1, GL_FALSE, glm::value_ptr(view.proj));
+  glUniform3fv(peel_loc_.eye, 1, glm::value_ptr(view.eye));
+  glUniform1i(peel_loc_.peel, against_depth != 0 ? 1 : 0);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, against_depth);
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_2D, against_state);
+  for (std::size_t k = 0; k < draws.size(); ++k) {
+    glUniformMatrix4fv(peel_loc_.model, 1, GL_FALSE, glm::value_ptr(draws[k].model));
+    glUniform1ui(peel_loc_.draw, static_cast<GLuint>(k + 1));
+    glUniform1ui(peel_loc_.object_id, draws[k].object_id);
+    glBindVertexArray(draws[k].vao);
+    glDrawElements(GL_TRIANGLES, draws[k].index_count, GL_UNSIGNED_INT, nullptr);
+  }
+  glBindVertexArray(0);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  glUseProgram(0);
+  check("GlVisibilityPass::raster_peel");
 }
 
 void GlVisibilityPass::raster_ids(const View& view, const std::vector<Draw>& draws) {
@@ -201,8 +245,8 @@ void GlVisibilityPass::raster_ids(const View& view, const std::vector<Draw>& dra
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
 }
 
-void GlVisibilityPass::resolve(const View& view, const std::vector<Draw>& draws, const unsigned targets[5],
-                               const GBufferPlanes& planes) {
+void GlVisibilityPass::shade(const View& view, const std::vector<Draw>& draws, unsigned visibility,
+                             const unsigned targets[5], const GBufferPlanes& planes) {
   std::vector<DrawStd430> packed;
   packed.reserve(draws.size());
   for (const Draw& d : draws) packed.push_back(pack(d, first_index_.at(d.mesh), first_vertex_.at(d.mesh)));
@@ -236,7 +280,7 @@ void GlVisibilityPass::resolve(const View& view, const std::vector<Draw>& draws,
   glUniform3fv(loc_.ambient, 1, glm::value_ptr(view.ambient));
   glUniform1i(loc_.light_count, view.light_count);
   glActiveTexture(GL_TEXTURE0);
-  glBindTexture(GL_TEXTURE_2D, ids_);
+  glBindTexture(GL_TEXTURE_2D, visibility);
   glUniform1i(loc_.visibility, 0);
   glDispatchCompute((view.width + 7) / 8, (view.height + 7) / 8, 1);
   // The planes are read next by texture fetches (the GPU passes), glReadPixels (the readback) or a

@@ -59,13 +59,26 @@ class GlVisibilityPass {
   void render(const View& view, const std::vector<Draw>& draws, unsigned z_buffer, std::uint32_t fb_width,
               std::uint32_t fb_height, const unsigned targets[5], const GBufferPlanes& planes);
 
+  // Depth peeling through the visibility buffer (GlPeeling::run_visibility): rasterises the draws
+  // into `fbo` (bound, cleared and sized by the caller: view depth at attachment 1, object id at 2,
+  // (1 + draw, primitive) at 5, a z-buffer), discarding fragments against the last layer's depth and
+  // state textures as the forward G-buffer's peel does; against_depth 0: the unpeeled layer.
+  void raster_peel(const View& view, const std::vector<Draw>& draws, unsigned fbo, unsigned against_depth,
+                   unsigned against_state);
+  // Writes `planes` of `targets` from a visibility texture (RG32UI: 1 + draw, primitive; 0: nothing
+  // there, the background) that raster_peel or render made with the same draws.
+  void shade(const View& view, const std::vector<Draw>& draws, unsigned visibility, const unsigned targets[5],
+             const GBufferPlanes& planes);
+
  private:
   void ensure_target(unsigned z_buffer, std::uint32_t width, std::uint32_t height);
   void raster_ids(const View& view, const std::vector<Draw>& draws);
-  void resolve(const View& view, const std::vector<Draw>& draws, const unsigned targets[5], const GBufferPlanes& planes);
 
-  unsigned raster_program_ = 0, resolve_program_ = 0;
+  unsigned raster_program_ = 0, resolve_program_ = 0, peel_program_ = 0;
   int loc_model_ = -1, loc_view_ = -1, loc_proj_ = -1, loc_draw_ = -1;
+  struct PeelUniforms {
+    int model = -1, view = -1, proj = -1, draw = -1, object_id = -1, eye = -1, peel = -1;
+  } peel_loc_;
   struct ResolveUniforms {
     int planes = -1, view = -1, view_prev = -1, proj = -1, inv_proj = -1, inv_view = -1, eye = -1, size = -1,
         background = -1, far_m = -1, ambient = -1, light_count = -1, visibility = -1;

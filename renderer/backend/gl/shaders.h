@@ -325,6 +325,53 @@ layout(location = 0) out uvec2 o_visibility;
 void main() { o_visibility = uvec2(u_draw, uint(gl_PrimitiveID)); }
 )";
 
+// Depth peeling through the visibility buffer (GlVisibilityPass::raster_peel, gl_peel.h): each
+// peeling draw writes the view depth and object id the peel's resolve reads, and which triangle it
+// kept (attachment 5), no shading; kVisibilityResolve shades each chosen layer once. The position and
+// view depth as kGBufferVertex computes them, and the discard of kGBufferFragment's u_peel branch, so
+// that both peels keep the same fragments.
+inline constexpr const char* kPeelVisibilityVertex = R"(#version 330 core
+layout(location = 0) in vec3 a_position;
+uniform mat4 u_model;
+uniform mat4 u_view, u_proj;
+out vec3 v_world;
+out float v_view_depth;
+invariant gl_Position;
+void main() {
+  vec4 world = u_model * vec4(a_position, 1.0);
+  vec4 view = u_view * world;
+  v_world = world.xyz;
+  v_view_depth = -view.z;
+  gl_Position = u_proj * view;
+}
+)";
+
+inline constexpr const char* kPeelVisibilityFragment = R"(#version 330 core
+uniform uint u_draw;       // 1 + the object's index in the frame's draw list
+uniform uint u_object_id;  // its Object::id
+uniform vec3 u_eye;
+uniform bool u_peel;  // false: the unpeeled layer
+uniform sampler2D u_peel_depth;
+uniform usampler2D u_peel_state;
+in vec3 v_world;
+in float v_view_depth;
+layout(location = 1) out float o_depth;
+layout(location = 2) out uint o_object_id;
+layout(location = 5) out uvec2 o_visibility;
+void main() {
+  if (u_peel) {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    float last = texelFetch(u_peel_depth, p, 0).r;
+    float cos_view = clamp(v_view_depth / max(length(v_world - u_eye), 1e-30), 0.0, 1.0);
+    if (v_view_depth <= last + max(1e-4 * cos_view, 1e-5 * last) || texelFetch(u_peel_state, p, 0).y >= 0x80000000u)
+      discard;
+  }
+  o_depth = v_view_depth;
+  o_object_id = u_object_id;
+  o_visibility = uvec2(u_draw, uint(gl_PrimitiveID));
+}
+)";
+
 // After "#version 430 core" and kShadingGlsl. One invocation per pixel: the triangle the raster pass
 // found there, intersected with the pixel centre's ray from the eye, gives the barycentrics the
 // fragment shader would have interpolated with (perspective-correct interpolation is exactly that
