@@ -16,20 +16,17 @@ namespace {
 
 // The state per pixel: .x the object met last, .y the objects met behind the visible one (low 16
 // bits), kChosen when this step's layer is the one asked for, kDone once resolved.
-constexpr const char* kStateBits = R"(#version 330 core
+constexpr const char* kStateBits = R"(
 const uint kDone = 0x80000000u, kChosen = 0x40000000u, kMet = 0xffffu;
 )";
 
 // After a draw: the new state from the layer drawn (its depth and id; id 0: no fragment beyond).
-constexpr const char* kResolve = R"(
+constexpr const char* kResolveStep = R"(
 uniform sampler2D u_layer_depth, u_last_depth;
 uniform usampler2D u_layer_id, u_state;
 uniform uint u_layers;  // the deepest layer asked for: a pixel is resolved when it has been met
 uniform bool u_first;  // the unpeeled layer: the visible object, nothing met yet
-layout(location = 0) out float o_depth;
-layout(location = 1) out uvec2 o_state;
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+void resolve_pixel(ivec2 p, out float o_depth, out uvec2 o_state) {
   float d = texelFetch(u_layer_depth, p, 0).r;
   uint id = texelFetch(u_layer_id, p, 0).r;
   if (u_first) {
@@ -50,6 +47,34 @@ void main() {
   o_depth = d;
   // kChosen: this step met a new object, whose planes are layer `met`.
   o_state = uvec2(id, met | (id != s.x && met <= u_layers ? kChosen : 0u) | (met >= u_layers ? kDone : 0u));
+}
+)";
+
+constexpr const char* kResolve = R"(
+layout(location = 0) out float o_depth;
+layout(location = 1) out uvec2 o_state;
+void main() { resolve_pixel(ivec2(gl_FragCoord.xy), o_depth, o_state); }
+)";
+
+// The visibility peel's step on GL 4.3 in one compute pass: the resolve, and the chosen pixels'
+// triangles stored straight into their layer (what kCopyVisibility does in one pass per layer).
+constexpr const char* kResolveCompute = R"(
+layout(local_size_x = 8, local_size_y = 8) in;
+uniform usampler2D u_layer_visibility;
+uniform ivec2 u_size;
+layout(r32f, binding = 0) uniform writeonly image2D u_out_depth;
+layout(rg32ui, binding = 1) uniform writeonly uimage2D u_out_state;
+layout(rg32ui, binding = 2) uniform writeonly uimage2DArray u_chosen;  // layer n at index n - 1
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_size.x || p.y >= u_size.y) return;
+  float depth;
+  uvec2 state;
+  resolve_pixel(p, depth, state);
+  imageStore(u_out_depth, p, vec4(depth, 0.0, 0.0, 0.0));
+  imageStore(u_out_state, p, uvec4(state, 0u, 0u));
+  if ((state.y & kChosen) != 0u)
+    imageStore(u_chosen, ivec3(p, int(state.y & kMet) - 1), uvec4(texelFetch(u_layer_visibility, p, 0).xy, 0u, 0u));
 }
 )";
 
@@ -116,14 +141,21 @@ void bind(int unit, unsigned texture, unsigned program, const char* name) {
 }
 
 unsigned link(const char* body, const char* what) {
-  const std::string source = std::string(kStateBits) + body;
+  const std::string source = std::string("#version 330 core\n") + kStateBits + body;
   return gl::link_program(gl::kFullscreenVertex, source.c_str(), what);
 }
+
+// GL 4.3: compute shaders, image stores, texture views (the chosen layers' array seen as 2D textures).
+bool has_compute() { return epoxy_gl_version() >= 43; }
 
 }  // namespace
 
 GlPeeling::GlPeeling() {
-  resolve_program_ = link(kResolve, "GlPeeling resolve");
+  resolve_program_ = link((std::string(kResolveStep) + kResolve).c_str(), "GlPeeling resolve");
+  if (has_compute()) {
+    const std::string source = std::string("#version 430 core\n") + kStateBits + kResolveStep + kResolveCompute;
+    resolve_compute_program_ = gl::link_compute_program(source.c_str(), "GlPeeling compute resolve");
+  }
   copy_program_ = link(kCopy, "GlPeeling copy");
   copy_visibility_program_ = link(kCopyVisibility, "GlPeeling visibility copy");
   glGenVertexArrays(1, &vao_);
@@ -138,6 +170,7 @@ GlPeeling::~GlPeeling() {
   if (resolve_program_ != 0) glDeleteProgram(resolve_program_);
   if (copy_program_ != 0) glDeleteProgram(copy_program_);
   if (copy_visibility_program_ != 0) glDeleteProgram(copy_visibility_program_);
+  if (resolve_compute_program_ != 0) glDeleteProgram(resolve_compute_program_);
 }
 
 void GlPeeling::release() {
@@ -145,10 +178,13 @@ void GlPeeling::release() {
     if (t->fbo != 0) glDeleteFramebuffers(1, &t->fbo);
     glDeleteTextures(5, t->textures);
     if (t->visibility != 0) glDeleteTextures(1, &t->visibility);
+    t->visibility = 0;
     if (t->z != 0) glDeleteRenderbuffers(1, &t->z);
     *t = Targets{};
   }
   results_.clear();
+  if (chosen_ != 0) glDeleteTextures(1, &chosen_);
+  chosen_ = 0;
   for (State& s : state_) {
     if (s.fbo != 0) glDeleteFramebuffers(1, &s.fbo);
     if (s.depth != 0) glDeleteTextures(1, &s.depth);
@@ -168,10 +204,28 @@ void GlPeeling::ensure(std::uint32_t width, std::uint32_t height, std::uint32_t 
   if (width == width_ && height == height_ && layer_.fbo != 0 && results_.size() == layers) return;
   release();
   results_.resize(layers);
+  if (resolve_compute_program_ != 0) {  // the layers' triangles in one array the compute resolve writes
+    glGenTextures(1, &chosen_);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, chosen_);
+    glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_RG32UI, static_cast<GLsizei>(width), static_cast<GLsizei>(height),
+                   static_cast<GLsizei>(layers));
+    glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+  }
   for (Targets* t : targets()) {
     GlBackend::make_gbuffer_target(t->fbo, t->textures, t->z, width, height);
     complete("layer");
-    t->visibility = gl::make_texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, width, height);
+    if (chosen_ != 0 && t != &layer_) {  // result n: a 2D view of the array's layer n - 1
+      const auto layer = static_cast<GLuint>(t - results_.data());
+      glGenTextures(1, &t->visibility);
+      glTextureView(t->visibility, GL_TEXTURE_2D, chosen_, GL_RG32UI, 0, 1, layer, 1);
+      glBindTexture(GL_TEXTURE_2D, t->visibility);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glBindTexture(GL_TEXTURE_2D, 0);
+    } else {
+      t->visibility = gl::make_texture(GL_RG32UI, GL_RG_INTEGER, GL_UNSIGNED_INT, width, height);
+    }
+    glBindFramebuffer(GL_FRAMEBUFFER, t->fbo);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT5, GL_TEXTURE_2D, t->visibility, 0);
   }
   for (State& s : state_) {
@@ -202,6 +256,26 @@ void GlPeeling::resolve(const State& from, const State& to, std::uint32_t layers
   glUniform1ui(glGetUniformLocation(p, "u_layers"), layers);
   glUniform1i(glGetUniformLocation(p, "u_first"), first ? 1 : 0);
   glDrawArrays(GL_TRIANGLES, 0, 3);
+}
+
+void GlPeeling::resolve_compute(const State& from, const State& to, std::uint32_t layers) {
+  const unsigned p = resolve_compute_program_;
+  glUseProgram(p);
+  bind(0, layer_.textures[1], p, "u_layer_depth");
+  bind(1, layer_.textures[2], p, "u_layer_id");
+  bind(2, from.depth, p, "u_last_depth");
+  bind(3, from.ids, p, "u_state");
+  bind(4, layer_.visibility, p, "u_layer_visibility");
+  glUniform1ui(glGetUniformLocation(p, "u_layers"), layers);
+  glUniform1i(glGetUniformLocation(p, "u_first"), 0);
+  glUniform2i(glGetUniformLocation(p, "u_size"), static_cast<GLint>(width_), static_cast<GLint>(height_));
+  glBindImageTexture(0, to.depth, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32F);
+  glBindImageTexture(1, to.ids, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RG32UI);
+  glBindImageTexture(2, chosen_, 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RG32UI);
+  glDispatchCompute((width_ + 7) / 8, (height_ + 7) / 8, 1);
+  // The next draw samples the state; the shading reads the chosen triangles by texture fetches.
+  glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
+  for (GLuint k = 0; k < 3; ++k) glBindImageTexture(k, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32F);
 }
 
 void GlPeeling::copy_chosen(const State& state, std::uint32_t layer) {
@@ -294,6 +368,11 @@ void GlPeeling::peel(std::uint32_t layers, const DrawLayer& draw) {
     GLuint any = 0;
     glGetQueryObjectuiv(query_, GL_QUERY_RESULT, &any);
     if (any == 0) break;  // no pixel has a surface farther along: every pixel is resolved
+    if (visibility_ && resolve_compute_program_ != 0) {
+      resolve_compute(state_[current], state_[1 - current], layers);
+      current = 1 - current;
+      continue;
+    }
     fullscreen();
     resolve(state_[current], state_[1 - current], layers, false);
     current = 1 - current;

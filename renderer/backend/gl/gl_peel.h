@@ -76,9 +76,13 @@ class GlPeeling {
   void peel(std::uint32_t layers, const DrawLayer& draw);
   void clear_visibility(unsigned fbo);  // the visibility peel's draw target: no fragment anywhere
   void resolve(const State& from, const State& to, std::uint32_t layers, bool first);
+  // The visibility peel's step on GL 4.3: the resolve and the chosen triangles in one compute pass.
+  void resolve_compute(const State& from, const State& to, std::uint32_t layers);
   void copy_chosen(const State& state, std::uint32_t layer);
 
   unsigned resolve_program_ = 0, copy_program_ = 0, copy_visibility_program_ = 0, vao_ = 0, query_ = 0;
+  unsigned resolve_compute_program_ = 0;  // 0 below GL 4.3
+  unsigned chosen_ = 0;  // GL 4.3: the results' triangles, one array layer each (their visibility textures are views)
   bool visibility_ = false;  // this run peels through the visibility buffer
   Targets layer_;
   std::vector<Targets> results_;  // layer n in results_[n - 1]
