@@ -32,7 +32,8 @@
 # attention.device=gpu (on the GPU path attention's pixel stage runs on the GPU and the focus pass
 # reads only the pixels it looks at: nothing is read back whole); "attention-cpu" = the same with
 # attention.device=cpu (colour, depth and ids read back for the CPU's attention). "ulod" = the
-# scene's effects with lod.policy=ulod (its blend of levels on the GPU path's GPU, gpu.ulod).
+# scene's effects with lod.policy=ulod (its blend of levels on the GPU path's GPU, gpu.ulod; the
+# next levels' render before it, gpu.ulod_render).
 # Any of these with "+fragment" or "+compute" appended sets frame.effect_passes (the tone map,
 # lee-mipmap and ULOD's blend as fragment or compute passes; without: auto, compute on a GPU).
 # "+stereo" (last) renders both eyes (--stereo), each at the size given: the frame is then both
@@ -159,7 +160,7 @@ for d in sorted(glob.glob(os.path.join(runs, "*-gpu"))):
     a, b = (load(readback) if os.path.isdir(readback) else {}), load(d)
     fa, fb = a.get("frame", []), b["frame"]
     ga, gb = a.get("gaze-age", []), b["gaze-age"]
-    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.ulod", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
+    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.ulod_render", "gpu.ulod", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
     ratio = f"{pct(fa, 50) / pct(fb, 50):.2f}" if fa else "-"
     print(f"| {scene} | {size} | {effects} | {p50_p99(fa)} | {p50_p99(fb)} | "
           f"{ratio} | {p50_p99(ga)} | {p50_p99(gb)} | {gpu_side} |")

@@ -62,7 +62,7 @@ for r in csv.DictReader(open(d + "/timings.csv")):
     f = int(r["frame"])
     if f == 0:
         continue  # warm-up
-    if r["pass"] in ("lod-select", "gbuffer.ulod", "gpu.ulod"):
+    if r["pass"] in ("lod-select", "gbuffer.ulod", "gpu.ulod_render", "gpu.ulod"):
         per_frame.setdefault(f, [0.0, 0.0])[0] += float(r["ms"])
     if r["pass"] == "frame":
         per_frame.setdefault(f, [0.0, 0.0])[1] = float(r["ms"])

@@ -12,7 +12,7 @@
 #   attention, attention-cpu        attention + focus, attention's pixel stage on the GPU (gpu.attention:
 #                                   target <= 0.5 ms) and with attention.device=cpu
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
-#   ulod                            the scene with lod.policy=ulod (its blend on the GPU: gpu.ulod)
+#   ulod                            the scene with lod.policy=ulod (its blend on the GPU: gpu.ulod; the next levels' render: gpu.ulod_render)
 #   dof-fN+fragment, ulod+fragment, the same with frame.effect_passes=fragment: the fragment passes
 #   attention+fragment              against the compute passes auto takes on a GPU (issue 42), same run
 # Then stereo at headset resolution (issue 42's target: 2 x 2160x2160 with the scene's effects

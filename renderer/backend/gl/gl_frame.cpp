@@ -321,10 +321,14 @@ void GlFrame::ulod_blend(const FrameTime& time, const BackendSettings& next, con
   BackendSettings aside = next;
   aside.width = t.width;
   aside.height = t.height;
-  begin_timed("gpu.ulod");
+  // Timed apart: the next levels' G-buffer (a second scene render, gpu.ulod_render) and the blend
+  // itself (gpu.ulod, issue 42's "ULOD blend" target).
+  begin_timed("gpu.ulod_render");
   const GlGBufferTextures n = backend_.render_aside(time, aside, GBufferPlanes{.color = true, .object_id = true});
+  end_timed();
   // In place where compute pays (no copy of the colour image), or as set; the fragment pass elsewhere.
   const auto pass = ulod_->has_compute() && effect_compute() ? GlUlodBlend::Pass::Compute : GlUlodBlend::Pass::Fragment;
+  begin_timed("gpu.ulod");
   ulod_->run({t.color, t.object_id, t.width, t.height}, {n.color, n.object_id, n.width, n.height}, ids, blend, pass);
   end_timed();
   check("GlFrame::ulod_blend");
