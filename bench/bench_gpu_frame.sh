@@ -9,7 +9,9 @@
 # Reports per configuration, from each run's timings.csv (first WARMUP frames dropped: shader
 # compilation, first-touch allocations): the whole frame's p50/p99 in ms, the gaze age at completion
 # p50/p99 (the overlay's gaze sample's age when the GPU's fence signalled, or the CPU image was done),
-# and readback/gpu, the ratio of the frame p50s. PATHS="true" runs the GPU path alone (the readback
+# and readback/gpu, the ratio of the frame p50s. A "+fragment" / "+compute" suffix forces the effect
+# passes' implementation (frame.effect_passes), "+forward" the forward G-buffer and depth peel
+# (frame.gbuffer_pass=forward: the baseline of the visibility buffer's), "+stereo" both eyes. PATHS="true" runs the GPU path alone (the readback
 # columns then read "-"): what a device sweep with little time takes.
 #
 # Effects: "base" = G-buffer, tone map, gaze overlay only (dof, LOD and so attention and focus off);
@@ -72,9 +74,11 @@ for scene in $SCENES; do
       case $what in
         *+fragment) extra+=(--set frame.effect_passes=fragment) ;;
         *+compute) extra+=(--set frame.effect_passes=compute) ;;
+        *+forward) extra+=(--set frame.gbuffer_pass=forward) ;;
       esac
       what=${what%+fragment}
       what=${what%+compute}
+      what=${what%+forward}
       case $what in
         base) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false) ;;
         base-allplanes) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
