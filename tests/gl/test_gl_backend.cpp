@@ -932,6 +932,31 @@ TEST_F(GlBackendTest, PeeledLayersInOneLoopAreTheLayersRenderedOneByOne) {
   }
 }
 
+// A ULOD frame renders two images aside every frame (the attention proxy at the map's size, the next
+// levels at the frame's): both sizes keep their targets, so alternating reallocates nothing and the
+// first image stays valid while the second is drawn.
+TEST_F(GlBackendTest, RendersAsideAtTwoSizesKeepTheirTargets) {
+  backend_->set_scene(testing::cornell_box(64, 48));
+  BackendSettings small;
+  small.width = 16;
+  small.height = 12;
+  const GlGBufferTextures a = backend_->render_aside({}, small);
+  const GlGBufferTextures b = backend_->render_aside({}, {});
+  EXPECT_NE(a.color, b.color);
+  EXPECT_EQ(b.width, 64u);
+  for (int frame = 0; frame < 3; ++frame) {
+    EXPECT_EQ(backend_->render_aside({}, small).color, a.color) << "frame " << frame;
+    EXPECT_EQ(backend_->render_aside({}, {}).color, b.color) << "frame " << frame;
+  }
+  // A third size takes the slot not drawn into last (the small one here); the full size stays.
+  BackendSettings third;
+  third.width = 32;
+  third.height = 24;
+  const GlGBufferTextures c = backend_->render_aside({}, third);
+  EXPECT_EQ(c.width, 32u);
+  EXPECT_EQ(backend_->render_aside({}, {}).color, b.color);
+}
+
 TEST_F(GlBackendTest, APeeledRenderLeavesTheFramesGBufferTextures) {
   const Scene s = testing::cornell_box(64, 48);
   backend_->set_scene(s);

@@ -147,10 +147,37 @@ void GlBackend::release_framebuffer() {
 }
 
 void GlBackend::release_aside() {
-  if (aside_.fbo != 0) glDeleteFramebuffers(1, &aside_.fbo);
-  glDeleteTextures(5, aside_.textures);
-  if (aside_.z != 0) glDeleteRenderbuffers(1, &aside_.z);
-  aside_ = Aside{};
+  for (Aside& a : asides_) {
+    if (a.fbo != 0) glDeleteFramebuffers(1, &a.fbo);
+    glDeleteTextures(5, a.textures);
+    if (a.z != 0) glDeleteRenderbuffers(1, &a.z);
+    a = Aside{};
+  }
+}
+
+// The slot of that size, else the one not drawn into last, made that size.
+GlBackend::Aside& GlBackend::aside_for(std::uint32_t width, std::uint32_t height) {
+  for (std::size_t k = 0; k < asides_.size(); ++k) {
+    if (asides_[k].fbo != 0 && asides_[k].width == width && asides_[k].height == height) {
+      aside_last_ = k;
+      return asides_[k];
+    }
+  }
+  const std::size_t k = asides_[0].fbo == 0 ? 0 : asides_[1].fbo == 0 ? 1 : 1 - aside_last_;
+  Aside& a = asides_[k];
+  if (a.fbo != 0) glDeleteFramebuffers(1, &a.fbo);
+  glDeleteTextures(5, a.textures);
+  if (a.z != 0) glDeleteRenderbuffers(1, &a.z);
+  a = Aside{};
+  const GLenum status = make_gbuffer_target(a.fbo, a.textures, a.z, width, height);
+  if (status != GL_FRAMEBUFFER_COMPLETE) {
+    release_aside();
+    throw std::runtime_error("GlBackend::render_aside: framebuffer incomplete (status " + hex(status) + ")");
+  }
+  a.width = width;
+  a.height = height;
+  aside_last_ = k;
+  return a;
 }
 
 glm::uvec2 GlBackend::begin_render(const BackendSettings& settings) {
@@ -165,29 +192,20 @@ GlGBufferTextures GlBackend::render_aside(const FrameTime& time, const BackendSe
                                          const GBufferPlanes& planes) {
   const glm::uvec2 size = begin_render(settings);
   const std::uint32_t width = size.x, height = size.y;
-  if (aside_.fbo == 0 || aside_.width != width || aside_.height != height) {
-    release_aside();
-    const GLenum status = make_gbuffer_target(aside_.fbo, aside_.textures, aside_.z, width, height);
-    if (status != GL_FRAMEBUFFER_COMPLETE) {
-      release_aside();
-      throw std::runtime_error("GlBackend::render_aside: framebuffer incomplete (status " + hex(status) + ")");
-    }
-    aside_.width = width;
-    aside_.height = height;
-  }
+  const Aside& aside = aside_for(width, height);
   // As the frame's G-buffer pass draws (the same pass, the same pre-pass), so that both images pick
   // the same surface where two touch; on GPUs the visibility buffer's compute shading is the faster.
   if (settings.visibility_buffer && !pbr_scene_ && ensure_visibility()) {
     const FrameView frame = frame_view(scene_->camera, time, settings.lens);
     draw_visibility(*scene_, time, settings.lod_levels, frame, frame.view != frame.view_prev, width, height, planes,
-                    {aside_.textures, aside_.z, width, height});
+                    {aside.textures, aside.z, width, height});
   } else {
-    draw_forward(aside_.fbo, time, settings.lens, settings.lod_levels, width, height, planes, settings.depth_prepass);
+    draw_forward(aside.fbo, time, settings.lens, settings.lod_levels, width, height, planes, settings.depth_prepass);
   }
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   check_gl("GlBackend::render_aside");
-  return {aside_.textures[kColor], aside_.textures[kDepth], aside_.textures[kId], aside_.textures[kNormal],
-          aside_.textures[kMotion], width, height, width, height};
+  return {aside.textures[kColor], aside.textures[kDepth], aside.textures[kId], aside.textures[kNormal],
+          aside.textures[kMotion], width, height, width, height};
 }
 
 void GlBackend::ensure_framebuffer(std::uint32_t width, std::uint32_t height) {
@@ -534,7 +552,7 @@ void GlBackend::render(const FrameTime& time, const BackendSettings& settings, G
   if (settings.keep_frame) {
     const GlGBufferTextures t = render_aside(time, settings);
     out.resize(t.width, t.height);
-    read_back_from(aside_.fbo, settings.readback, out);
+    read_back_from(asides_[aside_last_].fbo, settings.readback, out);
     return;
   }
   render_on_gpu(time, settings, GBufferPlanes::all());

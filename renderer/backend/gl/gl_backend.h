@@ -17,6 +17,7 @@
 // (BackendSettings::peel, gl_peel.h) into targets of its own, read back by render(). Not supported:
 // shadows (BackendSettings::shadows is ignored; the Embree backend casts shadow rays) and a lens point
 // per pixel (refused with the reason).
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -92,7 +93,8 @@ class GlBackend final : public Backend {
   // Renders the scene (settings' lens, LOD levels, size, and G-buffer pass: the visibility buffer
   // where settings.visibility_buffer and the frame could take it, else forward shading) into targets
   // of its own, left on the GPU: the frame's G-buffer textures are untouched (ULOD's next levels,
-  // blended where the frame lies). Only `planes` are written. Valid until the next call.
+  // blended where the frame lies). Only `planes` are written. Valid until the next call of that size
+  // or the second of other sizes (two sizes are kept).
   GlGBufferTextures render_aside(const FrameTime& time, const BackendSettings& settings,
                                  const GBufferPlanes& planes = GBufferPlanes::all());
   // Makes the G-buffer's five plane textures (colour RGBA32F, depth R32F, id R32UI, normal RGBA32F,
@@ -226,7 +228,12 @@ class GlBackend final : public Backend {
   struct Aside {  // render_aside's targets
     unsigned fbo = 0, z = 0, textures[5] = {0, 0, 0, 0, 0};
     std::uint32_t width = 0, height = 0;
-  } aside_;
+  };
+  // Two sizes kept: a ULOD frame renders the attention proxy (the map's size) and the next levels (the
+  // frame's) aside every frame, and reallocating targets twice a frame cost 2 ms on the H200.
+  std::array<Aside, 2> asides_;
+  std::size_t aside_last_ = 0;  // the slot the last render_aside drew into
+  Aside& aside_for(std::uint32_t width, std::uint32_t height);
   void release_aside();
   // The start of a render into targets of the backend's own: checks `settings`, a default scene if
   // none was set, the context current; returns the image's size (the camera's unless set).
