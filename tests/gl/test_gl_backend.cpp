@@ -932,6 +932,31 @@ TEST_F(GlBackendTest, PeeledLayersInOneLoopAreTheLayersRenderedOneByOne) {
   }
 }
 
+// The stability catalogue's tiny targets for both peels: 1x1, 1xN and Nx1 images peel, stay finite and
+// agree with each other (the compute resolve's 8x8 workgroups overhang such images on every side).
+TEST_F(GlBackendTest, BothPeelsHandleTinyAndDegenerateSizes) {
+  const bool visibility = backend_->capabilities().visibility_buffer;
+  for (const auto& [w, h] : {std::pair{1u, 1u}, std::pair{1u, 7u}, std::pair{9u, 1u}, std::pair{3u, 2u}}) {
+    SCOPED_TRACE(std::to_string(w) + "x" + std::to_string(h));
+    backend_->set_scene(testing::many_objects(30, w, h));
+    std::vector<GBuffer> forward(2), through_ids(2);
+    BackendSettings f;
+    f.peel_visibility = false;
+    backend_->render_peeled_layers({}, f, forward);
+    for (const GBuffer& g : forward) {
+      EXPECT_EQ(g.width, w);
+      EXPECT_EQ(g.height, h);
+      EXPECT_TRUE(all_finite(g));
+    }
+    if (!visibility) continue;
+    backend_->render_peeled_layers({}, {}, through_ids);
+    for (std::size_t n = 0; n < 2; ++n) {
+      EXPECT_TRUE(all_finite(through_ids[n]));
+      EXPECT_EQ(forward[n].object_id, through_ids[n].object_id) << "layer " << n + 1;
+    }
+  }
+}
+
 // A ULOD frame renders two images aside every frame (the attention proxy at the map's size, the next
 // levels at the frame's): both sizes keep their targets, so alternating reallocates nothing and the
 // first image stays valid while the second is drawn.
