@@ -390,7 +390,7 @@ int main(int argc, char** argv) {
       const bool compute = gl_context->context().features().at_least(4, 3);
       gl_mipmap = std::make_unique<GlLeeMipmap>(compute);
       gl_schedl = std::make_unique<GlSchedlLayered>(compute);
-      gl_splat = std::make_unique<GlLeeSplat>();
+      gl_splat = std::make_unique<GlLeeSplat>(compute);
       gl_device = "OpenGL " + gl_context->context().features().version() + " (" + gl_context->context().renderer() + ")";
       std::printf("gl rows on %s\n", gl_device.c_str());
     } catch (const std::exception& e) {
@@ -563,19 +563,22 @@ int main(int argc, char** argv) {
       GBuffer gl_hidden;
       if (gl_splat) {
         backend.render({}, peel, gl_hidden);
-        methods.push_back({"lee-splat gl",
-                           [&](RgbImage& out) {
-                             DofInput with = in;
-                             with.hidden_color = gl_hidden.color.data();
-                             with.hidden_depth = gl_hidden.depth.data();
-                             gl_splat->run_image(with, LeeSplatSettings{}, out, &gl_ms);
-                           },
-                           &gl_ms, [&](RgbImage& out) {
-                             DofInput with = in;
-                             with.hidden_color = gl_hidden.color.data();
-                             with.hidden_depth = gl_hidden.depth.data();
-                             lee_splat(with, LeeSplatSettings{}, out);
-                           }});
+        for (const GlLeeSplat::Pass pass : {GlLeeSplat::Pass::Fragment, GlLeeSplat::Pass::Compute}) {
+          if (pass == GlLeeSplat::Pass::Compute && !gl_splat->has_compute()) continue;
+          methods.push_back({pass == GlLeeSplat::Pass::Compute ? "lee-splat gl compute" : "lee-splat gl",
+                             [&, pass](RgbImage& out) {
+                               DofInput with = in;
+                               with.hidden_color = gl_hidden.color.data();
+                               with.hidden_depth = gl_hidden.depth.data();
+                               gl_splat->run_image(with, LeeSplatSettings{}, out, &gl_ms, pass);
+                             },
+                             &gl_ms, [&](RgbImage& out) {
+                               DofInput with = in;
+                               with.hidden_color = gl_hidden.color.data();
+                               with.hidden_depth = gl_hidden.depth.data();
+                               lee_splat(with, LeeSplatSettings{}, out);
+                             }});
+        }
       }
       // Schedl & Wimmer on M = 3 depth-peeled layers (the two peel renders are part of its time) and on
       // the visible layer alone (M = 1).

@@ -75,11 +75,12 @@ def dof_device_fronts(results):
     gpu = {"lee-mipmap gl": cpu["lee-mipmap"], "lee-mipmap gl sigma=C/4": cpu["lee-mipmap sigma=C/4"],
            "lee-splat gl": cpu["lee-splat"], "schedl-layered gl M=3": cpu["schedl-layered M=3"]}
     # The passes with a compute implementation: the fragment rows say so, the compute rows are points too.
-    for m in ("lee-mipmap gl", "lee-mipmap gl sigma=C/4", "schedl-layered gl M=3"):
+    for m in ("lee-mipmap gl", "lee-mipmap gl sigma=C/4", "schedl-layered gl M=3", "lee-splat gl"):
         gpu[m] = dict(gpu[m], **{"frame.effect_passes": "fragment"})
     gpu["lee-mipmap gl compute"] = dict(gpu["lee-mipmap gl"], **{"frame.effect_passes": "compute"})
     gpu["lee-mipmap gl compute sigma=C/4"] = dict(gpu["lee-mipmap gl sigma=C/4"], **{"frame.effect_passes": "compute"})
     gpu["schedl-layered gl compute M=3"] = dict(gpu["schedl-layered gl M=3"], **{"frame.effect_passes": "compute"})
+    gpu["lee-splat gl compute"] = dict(gpu["lee-splat gl"], **{"frame.effect_passes": "compute"})
     fronts = []
     for path in sorted(glob.glob(os.path.join(results, "**", "bench_dof_gl.csv"), recursive=True)):
         rows = [r for r in csv.DictReader(open(path)) if r["mean_coc_px"] == "16"]

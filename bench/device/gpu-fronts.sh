@@ -14,7 +14,7 @@
 # Then here: copy the CSVs to bench/results/device/<card>/ and run
 #         bench/make_fronts.py     (renderer/governor/fronts.json gains fronts for that card: the
 #         governor takes it where FramePipeline::device() names the card; tests check the fronts)
-# FRONTS="dof attention" chooses the fronts; SIZE=WxH, SAMPLES=N (bench_dof), FRAMES=N, SIZES=WxH,... and MAPS=N,... (bench_attention) override the
+# FRONTS="dof attention" chooses the fronts; METHODS (bench_dof's --methods), SIZE=WxH, SAMPLES=N (bench_dof), FRAMES=N, SIZES=WxH,... and MAPS=N,... (bench_attention) override the
 # defaults (a quick check here: SIZE=128x96 SAMPLES=4 FRAMES=5 SIZES=320x180 MAPS=64 bash
 # bench/device/gpu-fronts.sh); fronts for make_fronts need the defaults.
 set -euo pipefail
@@ -30,7 +30,7 @@ mkdir -p "$OUT"
 . bench/device/unpack.sh
 case " $FRONTS " in *" dof "*)
   [ -x "$run/bench_dof" ] || { echo "gpu-fronts: the bundle has no bench_dof (build it before make-bundle.sh)" >&2; exit 2; }
-  methods="lee-mipmap,lee-mipmap sigma=C/4,lee-mipmap gl,lee-splat,lee-splat gl,schedl-layered M=3,schedl-layered gl"
+  methods=${METHODS:-lee-mipmap,lee-mipmap sigma=C/4,lee-mipmap gl,lee-splat,lee-splat gl,schedl-layered M=3,schedl-layered gl}
   env -u DISPLAY FOVEA_SOURCE_DIR="$PWD" "$run/bench_dof" --size "$SIZE" --cocs 16 --samples "$SAMPLES" --repeats 5 \
     --methods "$methods" --csv "$OUT/bench_dof_gl.csv" | tee -a "$OUT/gpu-fronts.txt"
   echo "gpu-fronts: $OUT/bench_dof_gl.csv ($(($(wc -l <"$OUT/bench_dof_gl.csv") - 1)) rows)" ;;

@@ -43,16 +43,19 @@ constexpr double kMinPsnrDb = 40.0;
 
 using test::psnr_shown;
 
-class GlLeeSplatTest : public ::testing::Test {
+// Every test runs both implementations of the splat: the instanced quads with blending (OpenGL 3.3)
+// and the tiled gather in compute passes (OpenGL 4.3).
+class GlLeeSplatTest : public ::testing::TestWithParam<GlLeeSplat::Pass> {
  protected:
   void SetUp() override {
     backend_ = std::make_unique<GlBackend>();
     backend_->context().make_current();
-    gl_ = std::make_unique<GlLeeSplat>();
+    gl_ = std::make_unique<GlLeeSplat>(backend_->context().features().at_least(4, 3));
+    if (GetParam() == GlLeeSplat::Pass::Compute && !gl_->has_compute()) GTEST_SKIP() << "no OpenGL 4.3 compute";
   }
   RgbImage on_gpu(const dof::DofInput& in, const LeeSplatSettings& s = {}) {
     RgbImage out;
-    gl_->run_image(in, s, out);
+    gl_->run_image(in, s, out, nullptr, GetParam());
     return out;
   }
   static RgbImage on_cpu(const dof::DofInput& in, const LeeSplatSettings& s = {}) {
@@ -80,7 +83,7 @@ SceneImage scene_image(GlBackend& backend, const char* name, double focus_m, dou
   return test::dof_scene_image(backend, name, focus_m, k_px, 128, 96, true);
 }
 
-TEST_F(GlLeeSplatTest, AgreesWithTheCpuReferenceOnTheBundledScenesWithTheHiddenImage) {
+TEST_P(GlLeeSplatTest, AgreesWithTheCpuReferenceOnTheBundledScenesWithTheHiddenImage) {
   struct Case {
     const char* scene;
     double focus_m;
@@ -99,7 +102,7 @@ TEST_F(GlLeeSplatTest, AgreesWithTheCpuReferenceOnTheBundledScenesWithTheHiddenI
   }
 }
 
-TEST_F(GlLeeSplatTest, AgreesWithTheCpuReferenceWithEverySetting) {
+TEST_P(GlLeeSplatTest, AgreesWithTheCpuReferenceWithEverySetting) {
   const SceneImage im = scene_image(*backend_, "attention.json", 2.9, 12.0);
   for (int variant = 0; variant < 7; ++variant) {
     LeeSplatSettings s;
@@ -117,7 +120,7 @@ TEST_F(GlLeeSplatTest, AgreesWithTheCpuReferenceWithEverySetting) {
   EXPECT_THROW(gl_->run_image(im.input(true), reduced, out), std::invalid_argument);  // §5.3 stays on the CPU
 }
 
-TEST_F(GlLeeSplatTest, APinholeCopiesTheInputExactly) {
+TEST_P(GlLeeSplatTest, APinholeCopiesTheInputExactly) {
   DofImage im(31, 17, glm::vec3(0.25f, 3.0f, 1e6f), 1.0f);
   im.color[5] = {kNaN, kInf, -kInf};
   im.color[6] = {-1.0f, 2.0f, 0.0f};
@@ -133,7 +136,7 @@ TEST_F(GlLeeSplatTest, APinholeCopiesTheInputExactly) {
   }
 }
 
-TEST_F(GlLeeSplatTest, StabilityCatalogueDepthsColoursAndLenses) {
+TEST_P(GlLeeSplatTest, StabilityCatalogueDepthsColoursAndLenses) {
   const CocModel lens = dof::test::lens_with_k(60);
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -168,7 +171,7 @@ TEST_F(GlLeeSplatTest, StabilityCatalogueDepthsColoursAndLenses) {
   }
 }
 
-TEST_F(GlLeeSplatTest, StabilityCatalogueTinySizes) {
+TEST_P(GlLeeSplatTest, StabilityCatalogueTinySizes) {
   const CocModel lens = dof::test::lens_with_k(40);
   for (auto [w, h] : {std::pair{1u, 1u}, {1u, 2u}, {2u, 1u}, {1u, 37u}, {53u, 1u}, {3u, 5u}}) {
     DofImage im(w, h, glm::vec3(0.4f), 100.0f);
@@ -177,6 +180,49 @@ TEST_F(GlLeeSplatTest, StabilityCatalogueTinySizes) {
     expect_agree(im.input(lens), {}, "tiny " + std::to_string(w) + "x" + std::to_string(h));
   }
 }
+
+// The two implementations add the same splats in another order: the same image to float rounding.
+TEST_P(GlLeeSplatTest, TheComputeAndFragmentSplatsAgree) {
+  if (GetParam() != GlLeeSplat::Pass::Compute) GTEST_SKIP() << "compared once, from the compute side";
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<float> colour(0.0f, 4.0f), depth(0.3f, 30.0f);
+  DofImage im(61, 47, glm::vec3(0.0f), 1.0f);
+  for (auto& c : im.color) c = glm::vec3(colour(rng), colour(rng), colour(rng));
+  for (auto& c : im.hidden_color) c = glm::vec3(colour(rng), colour(rng), colour(rng));
+  for (std::size_t i = 0; i < im.depth.size(); ++i) {
+    im.depth[i] = depth(rng);
+    im.hidden_depth[i] = im.depth[i] + depth(rng);
+  }
+  const dof::DofInput in = im.input(dof::test::lens_with_k(30), true);
+  for (const Aperture a : {Aperture::Disc, Aperture::Gaussian, Aperture::Hexagon}) {
+    LeeSplatSettings s;
+    s.aperture = a;
+    RgbImage fragment, compute;
+    gl_->run_image(in, s, fragment, nullptr, GlLeeSplat::Pass::Fragment);
+    gl_->run_image(in, s, compute, nullptr, GlLeeSplat::Pass::Compute);
+    EXPECT_GE(psnr_shown(compute, fragment), 60.0) << "aperture " << static_cast<int>(a);
+    RgbImage again;
+    gl_->run_image(in, s, again, nullptr, GlLeeSplat::Pass::Compute);
+    EXPECT_EQ(std::memcmp(again.data(), compute.data(), compute.size() * sizeof(glm::vec3)), 0)
+        << "the compute splat adds in the same order every run";
+  }
+}
+
+TEST(GlLeeSplatPassChoice, TheComputeSplatRefusesWhereItWasNotBuilt) {
+  GlBackend backend;
+  backend.context().make_current();
+  GlLeeSplat fragment_only(false);
+  EXPECT_FALSE(fragment_only.has_compute());
+  DofImage im(8, 8, glm::vec3(0.5f), 2.0f);
+  RgbImage out;
+  EXPECT_THROW(fragment_only.run_image(im.input(dof::test::lens_with_k(10)), {}, out, nullptr, GlLeeSplat::Pass::Compute),
+               std::invalid_argument);
+}
+
+INSTANTIATE_TEST_SUITE_P(Passes, GlLeeSplatTest, ::testing::Values(GlLeeSplat::Pass::Fragment, GlLeeSplat::Pass::Compute),
+                         [](const ::testing::TestParamInfo<GlLeeSplat::Pass>& p) {
+                           return p.param == GlLeeSplat::Pass::Compute ? "Compute" : "Fragment";
+                         });
 
 }  // namespace
 }  // namespace fovea::render

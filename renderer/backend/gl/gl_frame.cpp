@@ -405,7 +405,10 @@ void GlFrame::dof_lee_splat(const FrameTime& time, const BackendSettings& peel_s
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::dof_lee_splat before the G-buffer was rendered");
-  if (!lee_splat_) lee_splat_ = std::make_unique<GlLeeSplat>();
+  if (!lee_splat_) lee_splat_ = std::make_unique<GlLeeSplat>(backend_.context().features().at_least(4, 3));
+  // The tiled gather where compute pays (no rasteriser, no blending), or as set; the quads elsewhere.
+  const auto pass = lee_splat_->has_compute() && effect_compute() ? GlLeeSplat::Pass::Compute
+                                                                  : GlLeeSplat::Pass::Fragment;
   GlDofInput hidden{};
   if (settings.use_hidden) {  // Lee §5.1.2's hidden image: the first layer behind the visible one
     begin_timed("gpu.peel");
@@ -414,7 +417,8 @@ void GlFrame::dof_lee_splat(const FrameTime& time, const BackendSettings& peel_s
     hidden = {p.result_color(1), p.result_depth(1), t.width, t.height};
   }
   begin_timed("gpu.dof");
-  lee_splat_->run(GlDofInput{t.color, t.depth, t.width, t.height}, settings.use_hidden ? &hidden : nullptr, coc, settings);
+  lee_splat_->run(GlDofInput{t.color, t.depth, t.width, t.height}, settings.use_hidden ? &hidden : nullptr, coc, settings,
+                  pass);
   end_timed();
   hdr_source_ = HdrSource::Dof;
   dof_output_ = lee_splat_->output();

@@ -18,7 +18,7 @@ namespace {
 // Shared by every pass: the image's size, top-down pixel coordinates (the CPU's) to texels (bottom-
 // up), and eq. 5.3's signed CoC as CocModel::signed_coc_px computes it, clamped to +-2 r_cap as
 // lee_splat.cpp's Frame::signed_coc.
-constexpr const char* kCommon = R"(#version 330 core
+constexpr const char* kCommon = R"(
 const float kInf = uintBitsToFloat(0x7f800000u);
 const float kRim = 1e-4;  // lee_splat.cpp's slack on footprint edges
 uniform ivec2 u_size;
@@ -194,6 +194,118 @@ void main() {
 }
 )";
 
+// 3 on OpenGL 4.3, as compute passes: the same sums as a tiled gather. First the reach, the largest
+// footprint's row count over every point (visible and hidden), by an atomic maximum; then one
+// 16x16 workgroup per tile of destination pixels walks the points within that reach of its tile in
+// batches of 256: each thread loads one pixel's points and keeps those whose footprint's bounding box
+// meets the tile, compacted in pixel order by a prefix sum (so every run adds in the same order),
+// and each thread adds the kept points that cover its pixel into its three layers (eq. 5.3), as the
+// fragment pass's blending does. No float atomics, no rasteriser.
+constexpr const char* kReach = R"(
+layout(local_size_x = 8, local_size_y = 8) in;
+uniform sampler2D u_source, u_hidden, u_ok;
+layout(std430, binding = 0) buffer Reach { uint u_reach; };
+void main() {
+  ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+  if (t.x >= u_size.x || t.y >= u_size.y) return;
+  float r = min(0.5 * abs(texelFetch(u_source, t, 0).a), u_rcap);
+  if (texelFetch(u_ok, t, 0).r > 0.5) r = max(r, min(0.5 * abs(texelFetch(u_hidden, t, 0).a), u_rcap));
+  atomicMax(u_reach, uint(floor(r + kRim)));
+}
+)";
+constexpr const char* kSplatCompute = R"(
+layout(local_size_x = 16, local_size_y = 16) in;
+uniform sampler2D u_source, u_hidden, u_ok, u_norm;
+uniform float u_delta;
+layout(std430, binding = 0) readonly buffer Reach { uint u_reach; };
+layout(rgba32f, binding = 0) uniform writeonly image2D u_front;
+layout(rgba32f, binding = 1) uniform writeonly image2D u_same;
+layout(rgba32f, binding = 2) uniform writeonly image2D u_behind;
+shared vec4 s_point[512];  // x, y (texels), r, B
+shared vec4 s_cw[512];     // premultiplied colour and weight of eq. 5.2; w < 0: a hidden point (-w)
+shared uint s_scan[256];
+// The point's footprint (rows = floor(r + rim) around it) meets the tile [lo, lo + 15]^2.
+bool meets(ivec2 p, float r, ivec2 lo) {
+  int rows = int(floor(r + kRim));
+  ivec2 d = max(max(lo - p, p - (lo + 15)), ivec2(0));
+  return d.x <= rows && d.y <= rows;
+}
+void main() {
+  ivec2 lo = ivec2(gl_WorkGroupID.xy) * 16;
+  ivec2 q = lo + ivec2(gl_LocalInvocationID.xy);
+  uint lid = gl_LocalInvocationIndex;
+  bool inside = q.x < u_size.x && q.y < u_size.y;
+  float bv = inside ? texelFetch(u_source, q, 0).a : 0.0, t = u_delta * abs(bv);
+  vec4 acc0 = vec4(0.0), acc1 = vec4(0.0), acc2 = vec4(0.0);
+  int reach = int(min(u_reach, 1u << 20));
+  ivec2 wlo = max(lo - reach, ivec2(0)), whi = min(lo + 15 + reach, u_size - 1);
+  int ww = whi.x - wlo.x + 1, n = ww * (whi.y - wlo.y + 1);
+  for (int base = 0; base < n; base += 256) {
+    // This thread's pixel's points that may reach the tile.
+    int i = base + int(lid);
+    vec4 pv = vec4(0.0), ph = vec4(0.0), cv = vec4(0.0), ch = vec4(0.0);
+    uint keep = 0u;  // bit 0: the visible point, bit 1: the hidden one
+    if (i < n) {
+      ivec2 p = wlo + ivec2(i % ww, i / ww);
+      vec2 k = texelFetch(u_norm, p, 0).rg;
+      vec4 src = texelFetch(u_source, p, 0);
+      float r = min(0.5 * abs(src.a), u_rcap);
+      if (meets(p, r, lo)) {
+        keep |= 1u;
+        pv = vec4(vec2(p), r, src.a);
+        cv = vec4(src.rgb * k.r, k.r);
+      }
+      if (texelFetch(u_ok, p, 0).r > 0.5) {
+        vec4 hid = texelFetch(u_hidden, p, 0);
+        float rh = min(0.5 * abs(hid.a), u_rcap);
+        if (meets(p, rh, lo)) {
+          keep |= 2u;
+          ph = vec4(vec2(p), rh, hid.a);
+          ch = vec4(hid.rgb * k.g, -k.g);
+        }
+      }
+    }
+    // Inclusive prefix sum of the kept counts (Hillis-Steele): pixel order, the same every run.
+    uint mine = bitCount(keep);
+    s_scan[lid] = mine;
+    barrier();
+    for (uint off = 1u; off < 256u; off <<= 1u) {
+      uint v = lid >= off ? s_scan[lid - off] : 0u;
+      barrier();
+      s_scan[lid] += v;
+      barrier();
+    }
+    uint at = s_scan[lid] - mine, m = s_scan[255];
+    if ((keep & 1u) != 0u) { s_point[at] = pv; s_cw[at] = cv; at += 1u; }
+    if ((keep & 2u) != 0u) { s_point[at] = ph; s_cw[at] = ch; }
+    barrier();
+    if (inside) {
+      for (uint j = 0u; j < m; ++j) {
+        vec4 P = s_point[j];
+        float dy = abs(float(q.y) - P.y), dx = abs(float(q.x) - P.x), r = P.z;
+        float hw = half_width(dy, r);
+        if (hw < 0.0 || dy > floor(r + kRim) || dx > floor(hw + kRim)) continue;
+        vec4 cw = s_cw[j];
+        int hidden = cw.a < 0.0 ? 1 : 0;
+        cw.a = abs(cw.a);
+        if (u_aperture == 1) {
+          float a = r > 0.0 ? 2.0 / (r * r) : 0.0;
+          cw *= exp(-dy * dy * a) * exp(-dx * dx * a);
+        }
+        float d = P.w - bv;
+        int l = max(hidden, int(d >= -t) + int(d > t));
+        if (l == 0) acc0 += cw; else if (l == 1) acc1 += cw; else acc2 += cw;
+      }
+    }
+    barrier();  // the next batch overwrites the shared points
+  }
+  if (!inside) return;
+  imageStore(u_front, q, acc0);
+  imageStore(u_same, q, acc1);
+  imageStore(u_behind, q, acc2);
+}
+)";
+
 // 4. Lee 2009, eq. 5.4: D <- L^2; D <- L^1 + (1 - L^1_a) D; D <- L^0 + (1 - L^0_a) D, each D divided
 // by its alpha (empty: 0); a pixel no splat covers keeps its source colour. u_copy: a pinhole lens,
 // the input itself (non-finite as 0), as the CPU returns it.
@@ -230,8 +342,13 @@ void main() {
 )";
 
 GLuint program(const char* body, const char* what) {
-  const std::string fragment = std::string(kCommon) + body;
+  const std::string fragment = std::string("#version 330 core\n") + kCommon + body;
   return gl::link_program(gl::kFullscreenVertex, fragment.c_str(), what);
+}
+
+GLuint compute_program(const char* body, const char* what) {
+  const std::string source = std::string("#version 430 core\n") + kCommon + body;
+  return gl::link_compute_program(source.c_str(), what);
 }
 
 float to_float(double v) {
@@ -243,12 +360,21 @@ int aperture_index(dof::Aperture a) { return a == dof::Aperture::Gaussian ? 1 : 
 
 }  // namespace
 
-GlLeeSplat::GlLeeSplat() {
+GlLeeSplat::GlLeeSplat(bool compute) {
   classify_program_ = program(kClassify, "GlLeeSplat classify");
   norm_program_ = program(kNorm, "GlLeeSplat normalise");
-  const std::string vertex = std::string(kCommon) + kSplatVertex, fragment = std::string(kCommon) + kSplatFragment;
+  const std::string header = std::string("#version 330 core\n") + kCommon;
+  const std::string vertex = header + kSplatVertex, fragment = header + kSplatFragment;
   splat_program_ = gl::link_program(vertex.c_str(), fragment.c_str(), "GlLeeSplat splat");
   compose_program_ = program(kCompose, "GlLeeSplat compose");
+  if (compute) {
+    reach_program_ = compute_program(kReach, "GlLeeSplat reach");
+    splat_compute_program_ = compute_program(kSplatCompute, "GlLeeSplat compute splat");
+    glGenBuffers(1, &reach_);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, reach_);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, sizeof(std::uint32_t), nullptr, GL_DYNAMIC_DRAW);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+  }
   glGenVertexArrays(1, &vao_);
   glGenFramebuffers(1, &fbo_);
   glGenQueries(2, queries_);
@@ -256,7 +382,10 @@ GlLeeSplat::GlLeeSplat() {
 }
 
 GlLeeSplat::~GlLeeSplat() {
-  for (unsigned p : {classify_program_, norm_program_, splat_program_, compose_program_}) glDeleteProgram(p);
+  for (unsigned p : {classify_program_, norm_program_, splat_program_, compose_program_, reach_program_,
+                     splat_compute_program_})
+    if (p != 0) glDeleteProgram(p);
+  if (reach_ != 0) glDeleteBuffers(1, &reach_);
   for (unsigned* t : {&source_, &hidden_, &hidden_ok_, &norm_, &layers_[0], &layers_[1], &layers_[2], &output_,
                       &upload_color_, &upload_depth_, &upload_hidden_color_, &upload_hidden_depth_})
     gl::delete_texture(*t);
@@ -359,6 +488,35 @@ void GlLeeSplat::splat(const dof::CocModel& coc, const dof::LeeSplatSettings& s)
   glDisable(GL_BLEND);
 }
 
+void GlLeeSplat::splat_compute(const dof::CocModel& coc, const dof::LeeSplatSettings& s) {
+  const std::uint32_t zero = 0;
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, reach_);
+  glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof zero, &zero);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, reach_);
+  unsigned p = reach_program_;
+  glUseProgram(p);
+  set_common(p, width_, height_, coc, s);
+  gl::bind_sampler(0, source_, p, "u_source");
+  gl::bind_sampler(1, hidden_, p, "u_hidden");
+  gl::bind_sampler(2, hidden_ok_, p, "u_ok");
+  glDispatchCompute((width_ + 7) / 8, (height_ + 7) / 8, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  p = splat_compute_program_;
+  glUseProgram(p);
+  set_common(p, width_, height_, coc, s);
+  glUniform1f(glGetUniformLocation(p, "u_delta"), to_float(std::isfinite(s.delta) ? std::max(0.0, s.delta) : 0.4));
+  gl::bind_sampler(0, source_, p, "u_source");
+  gl::bind_sampler(1, hidden_, p, "u_hidden");
+  gl::bind_sampler(2, hidden_ok_, p, "u_ok");
+  gl::bind_sampler(3, norm_, p, "u_norm");
+  for (GLuint k = 0; k < 3; ++k) glBindImageTexture(k, layers_[k], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+  glDispatchCompute((width_ + 15) / 16, (height_ + 15) / 16, 1);
+  glMemoryBarrier(gl::kComputeWrittenBarrier);
+  for (GLuint k = 0; k < 3; ++k) glBindImageTexture(k, 0, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
+}
+
 void GlLeeSplat::compose(bool copy, unsigned input_color) {
   const unsigned p = compose_program_;
   glUseProgram(p);
@@ -373,7 +531,10 @@ void GlLeeSplat::compose(bool copy, unsigned input_color) {
 }
 
 void GlLeeSplat::run(const GlDofInput& in, const GlDofInput* hidden, const dof::CocModel& coc,
-                     const dof::LeeSplatSettings& s) {
+                     const dof::LeeSplatSettings& s, Pass pass) {
+  if (pass == Pass::Compute && !has_compute()) {
+    throw std::invalid_argument("GlLeeSplat: the compute splat needs OpenGL 4.3 (built without it)");
+  }
   if (s.reduce > 1) {
     throw std::invalid_argument("GlLeeSplat: reduce = " + std::to_string(s.reduce) +
                                 " (Lee 2009 §5.3's reduced point array) runs on the CPU only (dof/lee_splat.h)");
@@ -395,7 +556,11 @@ void GlLeeSplat::run(const GlDofInput& in, const GlDofInput* hidden, const dof::
   const bool pinhole = coc.terms().form == dof::CocModel::Terms::Form::Zero;
   if (!pinhole) {
     normalise(coc, s);
-    splat(coc, s);
+    if (pass == Pass::Compute) {
+      splat_compute(coc, s);
+    } else {
+      splat(coc, s);
+    }
   }
   compose(pinhole, in.color);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -403,7 +568,8 @@ void GlLeeSplat::run(const GlDofInput& in, const GlDofInput* hidden, const dof::
   gl::check_error("GlLeeSplat", "run");
 }
 
-void GlLeeSplat::run_image(const dof::DofInput& in, const dof::LeeSplatSettings& s, dof::RgbImage& out, double* gpu_ms) {
+void GlLeeSplat::run_image(const dof::DofInput& in, const dof::LeeSplatSettings& s, dof::RgbImage& out, double* gpu_ms,
+                           Pass pass) {
   const std::uint32_t w = in.width, h = in.height;
   out.assign(in.pixels(), glm::vec3(0.0f));
   if (in.pixels() == 0 || in.color == nullptr) return;
@@ -422,7 +588,7 @@ void GlLeeSplat::run_image(const dof::DofInput& in, const dof::LeeSplatSettings&
   dof::CocModel coc = in.coc;
   if (in.depth == nullptr) coc.aperture_m = 0;  // no depth: nothing can be defocused (the CPU copies the input)
   glQueryCounter(queries_[0], GL_TIMESTAMP);
-  run(visible, with_hidden ? &hidden : nullptr, coc, s);
+  run(visible, with_hidden ? &hidden : nullptr, coc, s, pass);
   glQueryCounter(queries_[1], GL_TIMESTAMP);
   if (gpu_ms != nullptr) *gpu_ms = gl::elapsed_ms(queries_);
   gl::read_rgb_top_first(fbo_, output_, w, h, out, staging_);

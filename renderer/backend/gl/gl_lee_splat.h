@@ -12,6 +12,9 @@
 //      to one of the destination pixel's three layers (eq. 5.3: in front / same depth / behind,
 //      against that pixel's B_v and delta C_v) by additive blending into three float targets;
 //   4. compose: eq. 5.4 back to front with each composite divided by its alpha.
+// Pass::Compute (OpenGL 4.3, issue 42) does step 3 as a tiled gather in compute passes instead of
+// rasterised quads and blending (the same sums, added in pixel order: see kSplatCompute); GlFrame
+// takes it where compute pays (frame.effect_passes).
 // §5.3's reduced point array (LeeSplatSettings::reduce > 1) stays on the CPU; run() refuses it.
 //
 // Differences from the CPU reference, by design: float arithmetic where the CPU uses double (the
@@ -30,8 +33,11 @@ namespace fovea::render {
 
 class GlLeeSplat {
  public:
-  // Compiles the passes on the current context; throws std::runtime_error with the driver's log.
-  GlLeeSplat();
+  enum class Pass { Fragment, Compute };
+  // Compiles the passes on the current context (the compute splat only with `compute`: OpenGL 4.3);
+  // throws std::runtime_error with the driver's log.
+  explicit GlLeeSplat(bool compute = false);
+  bool has_compute() const { return splat_compute_program_ != 0; }
   ~GlLeeSplat();
   GlLeeSplat(const GlLeeSplat&) = delete;
   GlLeeSplat& operator=(const GlLeeSplat&) = delete;
@@ -39,23 +45,27 @@ class GlLeeSplat {
   // Submits the passes (does not wait). `hidden`: the hidden image H (colour and depth of the first
   // peeled layer, the same size as `in`), or null; used when s.use_hidden. The result is output():
   // RGBA32F, in's size, bottom-up. Throws std::invalid_argument for s.reduce > 1 (§5.3 runs on the
-  // CPU only) or a hidden image of another size.
-  void run(const GlDofInput& in, const GlDofInput* hidden, const dof::CocModel& coc, const dof::LeeSplatSettings& s);
+  // CPU only), a hidden image of another size, or Pass::Compute without has_compute().
+  void run(const GlDofInput& in, const GlDofInput* hidden, const dof::CocModel& coc, const dof::LeeSplatSettings& s,
+           Pass pass = Pass::Fragment);
   unsigned output() const { return output_; }
 
   // For tests and benchmarks: `in` (row 0 at the top, as dof_image.h, with its hidden image if any)
   // goes up, the passes run, the result comes back into `out`. gpu_ms: the passes alone.
-  void run_image(const dof::DofInput& in, const dof::LeeSplatSettings& s, dof::RgbImage& out, double* gpu_ms = nullptr);
+  void run_image(const dof::DofInput& in, const dof::LeeSplatSettings& s, dof::RgbImage& out, double* gpu_ms = nullptr,
+                 Pass pass = Pass::Fragment);
 
  private:
   void ensure_targets(std::uint32_t width, std::uint32_t height);
   void classify(const GlDofInput& in, const GlDofInput* hidden, const dof::CocModel& coc, const dof::LeeSplatSettings& s);
   void normalise(const dof::CocModel& coc, const dof::LeeSplatSettings& s);
   void splat(const dof::CocModel& coc, const dof::LeeSplatSettings& s);
+  void splat_compute(const dof::CocModel& coc, const dof::LeeSplatSettings& s);
   void compose(bool copy, unsigned input_color);  // copy: a pinhole, the input as it is
   void draw_into(std::initializer_list<unsigned> targets);
 
   unsigned classify_program_ = 0, norm_program_ = 0, splat_program_ = 0, compose_program_ = 0, vao_ = 0, fbo_ = 0;
+  unsigned reach_program_ = 0, splat_compute_program_ = 0, reach_ = 0;  // 0: built without compute
   // Per pixel: source (rgb, B_v), hidden (rgb, B_h), hidden passed (r: 1 or 0); per point: k_n
   // (r: the visible point's, g: the hidden point's); the three layers (premultiplied rgb, alpha).
   unsigned source_ = 0, hidden_ = 0, hidden_ok_ = 0, norm_ = 0, layers_[3] = {0, 0, 0}, output_ = 0;
