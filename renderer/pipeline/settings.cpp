@@ -147,7 +147,7 @@ const std::vector<SettingSpec>& Settings::specs() {
        "peeling draw writes triangle ids, each layer kept is shaded once) but with forward"},
       {"frame.effect_passes", "auto", "auto|compute|fragment",
        "OpenGL backend: the passes with two implementations (the tone map, attention's pixel stage, "
-       "dof.method=lee-mipmap and schedl-layered, ULOD's blend) as "
+       "dof.method=lee-mipmap, schedl-layered and lee-splat, ULOD's blend) as "
        "compute passes (GL 4.3; the fragment passes where compute is missing, as --explain says) or fragment passes "
        "(GL 3.3); auto = compute on a GPU with compute shaders, fragment on a software rasteriser (llvmpipe)"},
       {"debug.gi_first_hits", "gbuffer", "gbuffer|trace",
