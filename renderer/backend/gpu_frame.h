@@ -67,6 +67,13 @@ class GpuFrame {
   // fragment passes; effect_passes(asked) says which would run, and why where it is not what was asked.
   virtual void set_effect_passes(GpuPass) {}
   virtual std::string effect_passes(GpuPass /*asked*/) const { return "fragment"; }
+  // The passes a frame's plan may run on the GPU, built ahead of their first use (each compiles its
+  // programs, tens of milliseconds): ULOD's blend starts only once an object is between levels, and
+  // its first frame carried the compile (66 ms on the H200, the ULOD run's p99).
+  struct Prepare {
+    bool attention = false, ulod_blend = false, lee_mipmap = false, schedl_layered = false, lee_splat = false;
+  };
+  virtual void prepare(const Prepare&) {}
   // The device, for people: "OpenGL 4.5 (llvmpipe ...)".
   virtual std::string description() const = 0;
   // Renders the G-buffer into GPU textures (Backend::render's settings; readback is ignored) and

@@ -404,6 +404,20 @@ void FramePipeline::step_complete(Frame& f, PassTimer& timer) {
   timer.record("gaze-age", f.gaze_age_at_completion_ms);
 }
 
+// What this plan may run where the frame lies (GpuFrame::prepare builds it before its first use).
+GpuFrame::Prepare FramePipeline::gpu_passes(const FramePlan& plan) const {
+  GpuFrame::Prepare p;
+  p.attention = plan.runs(PassId::Attention) && plan.at(PassId::Attention).on_gpu;
+  p.ulod_blend = plan.runs(PassId::LodSelect) && pass_settings().plan.lod_policy == lod::Policy::Ulod;
+  if (plan.runs(PassId::Dof) && plan.at(PassId::Dof).on_gpu) {
+    const DofMethod m = dof_.settings().method;
+    p.lee_mipmap = m == DofMethod::LeeMipmap;
+    p.schedl_layered = m == DofMethod::SchedlLayered;
+    p.lee_splat = m == DofMethod::LeeSplat;
+  }
+  return p;
+}
+
 void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer) {
   auto t = timer.scope("gbuffer");
   const PassSettings& ps = pass_settings();
@@ -415,6 +429,7 @@ void FramePipeline::step_gbuffer_on_gpu(Frame& f, double now_s, double previous_
   f.read_back = planes_read_on_cpu(f.plan);
   f.written = planes_written(f.plan);
   gpu_->set_effect_passes(ps.effect_passes);
+  gpu_->prepare(gpu_passes(f.plan));
   gpu_->render_gbuffer(FrameTime{now_s, previous_s}, bs, f.written, gbuffer_);
   {
     auto r = timer.scope("gbuffer.readback");

@@ -188,6 +188,8 @@ class FramePipeline {
                                         PassTimer& timer);
   void step_tonemap(Frame& f, const std::vector<glm::vec3>& hdr, PassTimer& timer);
   void step_overlay(const Frame& f, PassTimer& timer);
+  // The GPU passes this plan may run, for GpuFrame::prepare.
+  GpuFrame::Prepare gpu_passes(const FramePlan& plan) const;
   // The GPU-resident path's steps (Frame::on_gpu).
   void step_gbuffer_on_gpu(Frame& f, double now_s, double previous_s, bool check, PassTimer& timer);
   void step_tonemap_on_gpu(const Frame& f, const std::vector<glm::vec3>& hdr, bool hdr_from_cpu, PassTimer& timer);

@@ -41,6 +41,7 @@ class FakeGpuFrame final : public GpuFrame {
   explicit FakeGpuFrame(std::string unavailable) : unavailable_(std::move(unavailable)) {}
   const std::string& unavailable_reason() const override { return unavailable_; }
   std::string description() const override { return "fake GPU"; }
+  void prepare(const Prepare& p) override { prepared = p; }
   void render_gbuffer(const FrameTime&, const BackendSettings& s, const GBufferPlanes& planes, GBuffer& out) override {
     calls.push_back("gbuffer");
     written = planes;
@@ -132,6 +133,7 @@ class FakeGpuFrame final : public GpuFrame {
   bool visibility_buffer = false;  // what the last G-buffer was asked to be drawn with
   GpuOverlay last_overlay;
   int map_size = 0;
+  Prepare prepared;  // what the last frame asked to be built ahead of its first use
 
  private:
   std::string unavailable_;
@@ -192,15 +194,18 @@ struct Run {
   PassTimer timer;
 };
 
+// `coarser_level`: the box gets a level of detail (the same mesh), so lod-select runs.
 std::unique_ptr<Run> render_one(bool thin_lens, const std::vector<std::string>& settings, bool with_gpu = true,
-                                const std::string& unavailable = "") {
+                                const std::string& unavailable = "", bool coarser_level = false) {
   auto run = std::make_unique<Run>();
   Settings s;
   for (const std::string& a : settings) s.set_assignment(a);
   run->gaze->set_cursor(0.5, 0.5);
   auto backend = std::make_unique<FakeBackend>(with_gpu, unavailable);
   run->backend = backend.get();
-  run->pipeline = std::make_unique<FramePipeline>(scene(thin_lens), s, std::move(backend), *run->gaze);
+  Scene sc = scene(thin_lens);
+  if (coarser_level) sc.objects[0].lods.push_back(LodLevel{sc.objects[0].mesh, 0.01f});
+  run->pipeline = std::make_unique<FramePipeline>(std::move(sc), s, std::move(backend), *run->gaze);
   run->frame = run->pipeline->render(0, 0, 0, 0, run->timer);
   return run;
 }
@@ -316,6 +321,34 @@ TEST(GpuFramePath, GpuPassesRunInPipelineOrderAndEndWithTheFence) {
                                          "dof",     "tonemap",   "overlay",   "finish"};
   EXPECT_EQ(run->backend->gpu_->calls, want);
   EXPECT_EQ(run->backend->cpu_renders, 0);  // no second render of the G-buffer on the CPU path
+}
+
+// Each frame names the GPU passes its plan may run before the G-buffer (GpuFrame::prepare): their
+// programs compile then, not in the frame a pass starts (ULOD's blend, once an object is between levels).
+TEST(GpuFramePath, TheFramePreparesThePassesItsPlanMayRun) {
+  struct Row {
+    std::vector<std::string> settings;
+    GpuFrame::Prepare want;
+  };
+  const Row rows[] = {
+      {{}, {.attention = true, .lee_mipmap = true}},
+      {{"focus.mode=fixed", "dof.method=lee-splat"}, {.lee_splat = true}},
+      {{"focus.mode=fixed", "dof.method=schedl-layered"}, {.schedl_layered = true}},
+      {{"focus.mode=fixed", "dof.device=cpu"}, {}},
+      {{"lod.policy=ulod", "focus.mode=fixed", "dof.enabled=false"}, {.attention = true, .ulod_blend = true}},
+  };
+  for (const Row& row : rows) {
+    std::string name;
+    for (const std::string& kv : row.settings) name += kv + " ";
+    SCOPED_TRACE(name);
+    const auto run = render_one(true, row.settings, true, "", true);
+    const GpuFrame::Prepare& got = run->backend->gpu_->prepared;
+    EXPECT_EQ(got.attention, row.want.attention);
+    EXPECT_EQ(got.ulod_blend, row.want.ulod_blend);
+    EXPECT_EQ(got.lee_mipmap, row.want.lee_mipmap);
+    EXPECT_EQ(got.schedl_layered, row.want.schedl_layered);
+    EXPECT_EQ(got.lee_splat, row.want.lee_splat);
+  }
 }
 
 TEST(GpuFramePath, SchedlLayeredRunsOnTheGpuWithItsLayers) {

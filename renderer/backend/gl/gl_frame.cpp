@@ -292,6 +292,20 @@ void GlFrame::upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width,
 
 // The attention passes (made on first use), and which implementation runs: compute where it pays
 // (frame.effect_passes), the fragment passes elsewhere.
+void GlFrame::prepare(const Prepare& passes) {
+  const bool compute = backend_.context().features().at_least(4, 3);
+  if (!(passes.attention && !attention_) && !(passes.ulod_blend && !ulod_) && !(passes.lee_mipmap && !lee_mipmap_) &&
+      !(passes.schedl_layered && !schedl_) && !(passes.lee_splat && !lee_splat_))
+    return;
+  backend_.context().make_current();
+  if (passes.attention && !attention_) attention_ = std::make_unique<GlAttention>(compute);
+  if (passes.ulod_blend && !ulod_) ulod_ = std::make_unique<GlUlodBlend>(compute);
+  if (passes.lee_mipmap && !lee_mipmap_) lee_mipmap_ = std::make_unique<GlLeeMipmap>(compute);
+  if (passes.schedl_layered && !schedl_) schedl_ = std::make_unique<GlSchedlLayered>(compute);
+  if (passes.lee_splat && !lee_splat_) lee_splat_ = std::make_unique<GlLeeSplat>(compute);
+  check("GlFrame::prepare");
+}
+
 bool GlFrame::attention_compute() {
   if (!attention_) attention_ = std::make_unique<GlAttention>(backend_.context().features().at_least(4, 3));
   return attention_->has_compute() && effect_compute();

@@ -30,6 +30,7 @@ class GlFrame final : public GpuFrame {
 
   const std::string& unavailable_reason() const override { return unavailable_; }
   void set_effect_passes(GpuPass pass) override { effect_pass_ = pass; }
+  void prepare(const Prepare& passes) override;
   std::string effect_passes(GpuPass asked) const override;
   std::string description() const override;
   void render_gbuffer(const FrameTime& time, const BackendSettings& settings, const GBufferPlanes& planes,
