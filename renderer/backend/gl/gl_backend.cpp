@@ -69,7 +69,7 @@ GlBackend::GlBackend(GlPlatform platform, const GlContext* share)
     : context_(GlContextOptions{.visible = false, .platform = platform, .title = "fovea-gl-backend", .width = 16,
                                 .height = 16, .vsync = false, .share = share}) {
   context_.make_current();
-  const std::string fragment = std::string("#version 330 core\n") + gl::kShadingGlsl + gl::kGBufferFragment;
+  const std::string fragment = std::string("#version 330 core\n") + gl::kShadingGlsl + gl::kPeelTest + gl::kGBufferFragment;
   program_ = gl::link_program(gl::kGBufferVertex, fragment.c_str(), "GlBackend G-buffer program");
   const auto loc = [this](const char* name) { return glGetUniformLocation(program_, name); };
   loc_model_ = loc("u_model");

@@ -468,8 +468,8 @@ void GlLeeSplat::normalise(const dof::CocModel& coc, const dof::LeeSplatSettings
   glDrawArrays(GL_TRIANGLES, 0, 3);
 }
 
-void GlLeeSplat::splat(const dof::CocModel& coc, const dof::LeeSplatSettings& s) {
-  const unsigned p = splat_program_;
+// The splat passes' program with its inputs: kCommon's uniforms, eq. 5.3's delta and the points.
+void GlLeeSplat::use_splat_program(unsigned p, const dof::CocModel& coc, const dof::LeeSplatSettings& s) {
   glUseProgram(p);
   set_common(p, width_, height_, coc, s);
   glUniform1f(glGetUniformLocation(p, "u_delta"), to_float(std::isfinite(s.delta) ? std::max(0.0, s.delta) : 0.4));
@@ -477,6 +477,10 @@ void GlLeeSplat::splat(const dof::CocModel& coc, const dof::LeeSplatSettings& s)
   gl::bind_sampler(1, hidden_, p, "u_hidden");
   gl::bind_sampler(2, hidden_ok_, p, "u_ok");
   gl::bind_sampler(3, norm_, p, "u_norm");
+}
+
+void GlLeeSplat::splat(const dof::CocModel& coc, const dof::LeeSplatSettings& s) {
+  use_splat_program(splat_program_, coc, s);
   draw_into({layers_[0], layers_[1], layers_[2]});
   const float zero[4] = {0, 0, 0, 0};
   for (int k = 0; k < 3; ++k) glClearBufferfv(GL_COLOR, k, zero);
@@ -494,22 +498,10 @@ void GlLeeSplat::splat_compute(const dof::CocModel& coc, const dof::LeeSplatSett
   glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof zero, &zero);
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, reach_);
-  unsigned p = reach_program_;
-  glUseProgram(p);
-  set_common(p, width_, height_, coc, s);
-  gl::bind_sampler(0, source_, p, "u_source");
-  gl::bind_sampler(1, hidden_, p, "u_hidden");
-  gl::bind_sampler(2, hidden_ok_, p, "u_ok");
+  use_splat_program(reach_program_, coc, s);
   glDispatchCompute((width_ + 7) / 8, (height_ + 7) / 8, 1);
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  p = splat_compute_program_;
-  glUseProgram(p);
-  set_common(p, width_, height_, coc, s);
-  glUniform1f(glGetUniformLocation(p, "u_delta"), to_float(std::isfinite(s.delta) ? std::max(0.0, s.delta) : 0.4));
-  gl::bind_sampler(0, source_, p, "u_source");
-  gl::bind_sampler(1, hidden_, p, "u_hidden");
-  gl::bind_sampler(2, hidden_ok_, p, "u_ok");
-  gl::bind_sampler(3, norm_, p, "u_norm");
+  use_splat_program(splat_compute_program_, coc, s);
   for (GLuint k = 0; k < 3; ++k) glBindImageTexture(k, layers_[k], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
   glDispatchCompute((width_ + 15) / 16, (height_ + 15) / 16, 1);
   glMemoryBarrier(gl::kComputeWrittenBarrier);

@@ -61,6 +61,7 @@ class GlLeeSplat {
   void normalise(const dof::CocModel& coc, const dof::LeeSplatSettings& s);
   void splat(const dof::CocModel& coc, const dof::LeeSplatSettings& s);
   void splat_compute(const dof::CocModel& coc, const dof::LeeSplatSettings& s);
+  void use_splat_program(unsigned program, const dof::CocModel& coc, const dof::LeeSplatSettings& s);
   void compose(bool copy, unsigned input_color);  // copy: a pinhole, the input as it is
   void draw_into(std::initializer_list<unsigned> targets);
 

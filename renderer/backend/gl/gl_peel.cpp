@@ -57,7 +57,8 @@ void main() { resolve_pixel(ivec2(gl_FragCoord.xy), o_depth, o_state); }
 )";
 
 // The visibility peel's step on GL 4.3 in one compute pass: the resolve, and the chosen pixels'
-// triangles stored straight into their layer (what kCopyVisibility does in one pass per layer).
+// triangles stored straight into their layer (the forward peel copies each layer's planes in a pass
+// of its own, kCopy).
 constexpr const char* kResolveCompute = R"(
 layout(local_size_x = 8, local_size_y = 8) in;
 uniform usampler2D u_layer_visibility;
@@ -100,25 +101,7 @@ void main() {
 }
 )";
 
-// The visibility peel's copy: the chosen step's depth, id and triangle (the planes come later).
-constexpr const char* kCopyVisibility = R"(
-uniform sampler2D u_depth;
-uniform usampler2D u_id, u_visibility, u_state;
-uniform uint u_layer;
-layout(location = 1) out float o_depth;
-layout(location = 2) out uint o_id;
-layout(location = 5) out uvec2 o_visibility;
-void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
-  uint s = texelFetch(u_state, p, 0).y;
-  if ((s & kChosen) == 0u || (s & kMet) != u_layer) discard;
-  o_depth = texelFetch(u_depth, p, 0).r;
-  o_id = texelFetch(u_id, p, 0).r;
-  o_visibility = texelFetch(u_visibility, p, 0).xy;
-}
-)";
-
-// Attachments 1, 2 and 5: what the visibility peel's draws and copies write.
+// Attachments 1, 2 and 5: what the visibility peel's draws write.
 constexpr GLenum kVisibilityBuffers[6] = {GL_NONE, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
                                           GL_NONE, GL_NONE,              GL_COLOR_ATTACHMENT5};
 
@@ -157,7 +140,6 @@ GlPeeling::GlPeeling() {
     resolve_compute_program_ = gl::link_compute_program(source.c_str(), "GlPeeling compute resolve");
   }
   copy_program_ = link(kCopy, "GlPeeling copy");
-  copy_visibility_program_ = link(kCopyVisibility, "GlPeeling visibility copy");
   glGenVertexArrays(1, &vao_);
   glGenQueries(1, &query_);
   check("GlPeeling()");
@@ -169,7 +151,6 @@ GlPeeling::~GlPeeling() {
   if (vao_ != 0) glDeleteVertexArrays(1, &vao_);
   if (resolve_program_ != 0) glDeleteProgram(resolve_program_);
   if (copy_program_ != 0) glDeleteProgram(copy_program_);
-  if (copy_visibility_program_ != 0) glDeleteProgram(copy_visibility_program_);
   if (resolve_compute_program_ != 0) glDeleteProgram(resolve_compute_program_);
 }
 
@@ -281,18 +262,6 @@ void GlPeeling::resolve_compute(const State& from, const State& to, std::uint32_
 void GlPeeling::copy_chosen(const State& state, std::uint32_t layer) {
   glBindFramebuffer(GL_FRAMEBUFFER, results_[layer - 1].fbo);
   glViewport(0, 0, static_cast<GLsizei>(width_), static_cast<GLsizei>(height_));
-  if (visibility_) {
-    const unsigned p = copy_visibility_program_;
-    glDrawBuffers(6, kVisibilityBuffers);
-    glUseProgram(p);
-    bind(0, layer_.textures[1], p, "u_depth");
-    bind(1, layer_.textures[2], p, "u_id");
-    bind(2, layer_.visibility, p, "u_visibility");
-    bind(3, state.ids, p, "u_state");
-    glUniform1ui(glGetUniformLocation(p, "u_layer"), layer);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    return;
-  }
   const unsigned p = copy_program_;
   glDrawBuffers(5, kBuffers);
   glUseProgram(p);
@@ -319,6 +288,9 @@ void GlPeeling::run(std::uint32_t width, std::uint32_t height, std::uint32_t lay
 void GlPeeling::run_visibility(std::uint32_t width, std::uint32_t height, std::uint32_t layers, const DrawLayer& draw,
                                const Shade& shade) {
   if (layers == 0) throw std::invalid_argument("GlPeeling::run_visibility: no layer behind the visible one asked for");
+  if (resolve_compute_program_ == 0) {  // the visibility pass shading the layers needs GL 4.3 too
+    throw std::logic_error("GlPeeling::run_visibility: needs OpenGL 4.3 (compute shaders)");
+  }
   ensure(width, height, layers);
   visibility_ = true;
   for (const Targets& t : results_) clear_visibility(t.fbo);
@@ -368,7 +340,7 @@ void GlPeeling::peel(std::uint32_t layers, const DrawLayer& draw) {
     GLuint any = 0;
     glGetQueryObjectuiv(query_, GL_QUERY_RESULT, &any);
     if (any == 0) break;  // no pixel has a surface farther along: every pixel is resolved
-    if (visibility_ && resolve_compute_program_ != 0) {
+    if (visibility_) {
       resolve_compute(state_[current], state_[1 - current], layers);
       current = 1 - current;
       continue;

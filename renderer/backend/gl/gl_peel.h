@@ -54,6 +54,7 @@ class GlPeeling {
   // shade(visibility, planes) writes a layer's five planes (colour, depth, id, normal, motion) from
   // its visibility texture (0: the background).
   using Shade = std::function<void(unsigned visibility, const unsigned planes[5])>;
+  // Needs OpenGL 4.3 (its step is one compute pass; the shading too): std::logic_error otherwise.
   void run_visibility(std::uint32_t width, std::uint32_t height, std::uint32_t layers, const DrawLayer& draw,
                       const Shade& shade);
   unsigned result_fbo(std::uint32_t layer) const { return results_.at(layer - 1).fbo; }
@@ -80,7 +81,7 @@ class GlPeeling {
   void resolve_compute(const State& from, const State& to, std::uint32_t layers);
   void copy_chosen(const State& state, std::uint32_t layer);
 
-  unsigned resolve_program_ = 0, copy_program_ = 0, copy_visibility_program_ = 0, vao_ = 0, query_ = 0;
+  unsigned resolve_program_ = 0, copy_program_ = 0, vao_ = 0, query_ = 0;
   unsigned resolve_compute_program_ = 0;  // 0 below GL 4.3
   unsigned chosen_ = 0;  // GL 4.3: the results' triangles, one array layer each (their visibility textures are views)
   bool visibility_ = false;  // this run peels through the visibility buffer

@@ -70,8 +70,8 @@ GlVisibilityPass::GlVisibilityPass(unsigned light_ubo) : light_ubo_(light_ubo) {
   const std::string resolve = std::string("#version 430 core\n") + gl::kShadingGlsl + gl::kVisibilityResolve;
   try {
     resolve_program_ = gl::link_compute_program(resolve.c_str(), "GlVisibilityPass resolve program");
-    peel_program_ = gl::link_program(gl::kPeelVisibilityVertex, gl::kPeelVisibilityFragment,
-                                     "GlVisibilityPass peel program");
+    const std::string peel = std::string("#version 330 core\n") + gl::kPeelTest + gl::kPeelVisibilityFragment;
+    peel_program_ = gl::link_program(gl::kPeelVisibilityVertex, peel.c_str(), "GlVisibilityPass peel program");
   } catch (...) {
     glDeleteProgram(raster_program_);
     glDeleteProgram(resolve_program_);

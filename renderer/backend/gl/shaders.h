@@ -182,7 +182,21 @@ vec3 shade_pbr(vec3 x, vec3 n, vec3 eye, vec3 base, float metallic, float roughn
 }
 )";
 
-// After "#version 330 core" and kShadingGlsl.
+// Depth peeling (gl_peel.h), shared by the forward G-buffer's and the visibility buffer's peel so that
+// both keep the same fragments: true for a fragment not farther than the last layer's by the Embree
+// backend's step past its last hit (max(1e-4, 1e-5 t) in distance t, here in view depth), or at a
+// pixel already resolved.
+inline constexpr const char* kPeelTest = R"(
+uniform sampler2D u_peel_depth;
+uniform usampler2D u_peel_state;
+bool peeled_away(ivec2 p, float view_depth, vec3 world, vec3 eye) {
+  float last = texelFetch(u_peel_depth, p, 0).r;
+  float cos_view = clamp(view_depth / max(length(world - eye), 1e-30), 0.0, 1.0);
+  return view_depth <= last + max(1e-4 * cos_view, 1e-5 * last) || texelFetch(u_peel_state, p, 0).y >= 0x80000000u;
+}
+)";
+
+// After "#version 330 core", kShadingGlsl and kPeelTest.
 inline constexpr const char* kGBufferFragment = R"(
 in vec3 v_world;
 in vec3 v_normal;
@@ -211,11 +225,8 @@ uniform bool u_alpha_test;
 uniform float u_alpha_cutoff;
 uniform int u_tex_present, u_tex_set1;
 uniform sampler2D u_tex_base, u_tex_mr, u_tex_normal, u_tex_occlusion, u_tex_emissive;
-// Depth peeling (gl_peel.h): keep only fragments farther than the last layer's, by the Embree
-// backend's epsilon, at pixels not yet resolved.
+// Depth peeling (gl_peel.h, kPeelTest): keep only fragments farther than the last layer's.
 uniform bool u_peel;
-uniform sampler2D u_peel_depth;
-uniform usampler2D u_peel_state;
 
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out float o_depth;
@@ -275,14 +286,8 @@ void main() {
     if (dot(n, u_eye - v_world) < 0.0) n = -n;
     front = n;
   }
-  if (u_peel) {  // after the derivatives: they need every fragment of the quad
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    // Embree's step past the last hit along the ray, max(1e-4, 1e-5 t) in distance t, in view depth.
-    float last = texelFetch(u_peel_depth, p, 0).r;
-    float cos_view = clamp(v_view_depth / max(length(v_world - u_eye), 1e-30), 0.0, 1.0);
-    if (v_view_depth <= last + max(1e-4 * cos_view, 1e-5 * last) || texelFetch(u_peel_state, p, 0).y >= 0x80000000u)
-      discard;
-  }
+  // After the derivatives: they need every fragment of the quad.
+  if (u_peel && peeled_away(ivec2(gl_FragCoord.xy), v_view_depth, v_world, u_eye)) discard;
 
   if (u_pbr) {
     vec3 base = clamp((u_base_color * v_color * tex_base).rgb, 0.0, 1.0);
@@ -328,8 +333,8 @@ void main() { o_visibility = uvec2(u_draw, uint(gl_PrimitiveID)); }
 // Depth peeling through the visibility buffer (GlVisibilityPass::raster_peel, gl_peel.h): each
 // peeling draw writes the view depth and object id the peel's resolve reads, and which triangle it
 // kept (attachment 5), no shading; kVisibilityResolve shades each chosen layer once. The position and
-// view depth as kGBufferVertex computes them, and the discard of kGBufferFragment's u_peel branch, so
-// that both peels keep the same fragments.
+// view depth as kGBufferVertex computes them, and kGBufferFragment's discard (kPeelTest), so that both
+// peels keep the same fragments.
 inline constexpr const char* kPeelVisibilityVertex = R"(#version 330 core
 layout(location = 0) in vec3 a_position;
 uniform mat4 u_model;
@@ -346,26 +351,19 @@ void main() {
 }
 )";
 
-inline constexpr const char* kPeelVisibilityFragment = R"(#version 330 core
+// After "#version 330 core" and kPeelTest.
+inline constexpr const char* kPeelVisibilityFragment = R"(
 uniform uint u_draw;       // 1 + the object's index in the frame's draw list
 uniform uint u_object_id;  // its Object::id
 uniform vec3 u_eye;
 uniform bool u_peel;  // false: the unpeeled layer
-uniform sampler2D u_peel_depth;
-uniform usampler2D u_peel_state;
 in vec3 v_world;
 in float v_view_depth;
 layout(location = 1) out float o_depth;
 layout(location = 2) out uint o_object_id;
 layout(location = 5) out uvec2 o_visibility;
 void main() {
-  if (u_peel) {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    float last = texelFetch(u_peel_depth, p, 0).r;
-    float cos_view = clamp(v_view_depth / max(length(v_world - u_eye), 1e-30), 0.0, 1.0);
-    if (v_view_depth <= last + max(1e-4 * cos_view, 1e-5 * last) || texelFetch(u_peel_state, p, 0).y >= 0x80000000u)
-      discard;
-  }
+  if (u_peel && peeled_away(ivec2(gl_FragCoord.xy), v_view_depth, v_world, u_eye)) discard;
   o_depth = v_view_depth;
   o_object_id = u_object_id;
   o_visibility = uvec2(u_draw, uint(gl_PrimitiveID));
