@@ -143,8 +143,8 @@ const std::vector<SettingSpec>& Settings::specs() {
        "once in a compute pass (GL 4.3; falls back to forward with one log line where compute is missing); forward "
        "= shade in the raster pass's fragment shader (GL 3.3); auto = visibility on a GPU with compute shaders, "
        "forward on a software rasteriser (llvmpipe), where it is the faster (bench/RESULTS.md). The DOF's depth "
-       "peeling goes through the visibility buffer wherever compute shaders are (faster on llvmpipe too: each "
-       "peeling draw writes triangle ids, each layer kept is shaded once) but with forward"},
+       "peeling goes through the visibility buffer wherever compute shaders are, with auto too (each peeling draw "
+       "writes triangle ids, each layer kept is shaded once: faster on llvmpipe as well); forward peels forward"},
       {"frame.effect_passes", "auto", "auto|compute|fragment",
        "OpenGL backend: the passes with two implementations (the tone map, attention's pixel stage, "
        "dof.method=lee-mipmap, schedl-layered and lee-splat, ULOD's blend) as "
