@@ -36,31 +36,31 @@ done
 # the device tool carries. The bundle gets a stand-in libgdal.so.32 instead, defining the functions
 # imgcodecs imports (it is linked BIND_NOW, so each must exist): registering does nothing, opening
 # opens nothing, and any other function aborts with a message.
-stub_gdal() {
+standin_gdal() {
   local gdal imgcodecs
   gdal=$(ldconfig -p | awk '$1 == "libgdal.so.32" {print $NF; exit}')
   imgcodecs=$(ldconfig -p | awk '$1 == "libopencv_imgcodecs.so.406" {print $NF; exit}')
   [ -n "$gdal" ] && [ -n "$imgcodecs" ] || return 0
-  mkdir -p "$stage/stub"
-  nm -D --defined-only "$gdal" | awk '{print $3}' | sort -u >"$stage/stub/defined"
+  mkdir -p "$stage/standin"
+  nm -D --defined-only "$gdal" | awk '{print $3}' | sort -u >"$stage/standin/defined"
   {
     echo '#include <stdio.h>'
     echo '#include <stdlib.h>'
     echo 'static void gone(const char *s) { fprintf(stderr, "fovea device bundle: %s called, but libgdal is a stand-in here (bench/device/make-bundle.sh)\n", s); abort(); }'
-    nm -D --undefined-only "$imgcodecs" | awk '{print $2}' | sort -u | comm -12 - "$stage/stub/defined" |
+    nm -D --undefined-only "$imgcodecs" | awk '{print $2}' | sort -u | comm -12 - "$stage/standin/defined" |
       grep -vxE 'GDALAllRegister|GDALOpen' | while read -r sym; do echo "void $sym(void) { gone(\"$sym\"); }"; done
     # imgcodecs registers its GDAL decoder on first use (GDALAllRegister: nothing to register here);
     # GDALOpen, reached only with IMREAD_LOAD_GDAL, opens nothing.
     echo 'void GDALAllRegister(void) {}'
     echo 'void *GDALOpen(const char *path, int access) { (void)path; (void)access; return NULL; }'
-  } >"$stage/stub/gdal.c"
-  cc -shared -fPIC -O1 -o "$stage/stub/libgdal.so.32" -Wl,-soname,libgdal.so.32 "$stage/stub/gdal.c"
+  } >"$stage/standin/gdal.c"
+  cc -shared -fPIC -O1 -o "$stage/standin/libgdal.so.32" -Wl,-soname,libgdal.so.32 "$stage/standin/gdal.c"
 }
-stub_gdal
-for bin in "$BIN" "${EXTRA[@]}"; do LD_LIBRARY_PATH="$stage/stub" ldd "$bin"; done | awk '$3 ~ /^\// {print $3}' | sort -u |
+standin_gdal
+for bin in "$BIN" "${EXTRA[@]}"; do LD_LIBRARY_PATH="$stage/standin" ldd "$bin"; done | awk '$3 ~ /^\// {print $3}' | sort -u |
   grep -vE '/(libc|libm|libpthread|libdl|librt|libresolv|ld-linux-x86-64|libstdc\+\+|libgcc_s|libGL|libEGL|libGLX|libGLdispatch|libOpenGL)[.-]' |
   while read -r lib; do cp -L "$lib" "$stage/lib/"; done
-rm -rf "$stage/stub"
+rm -rf "$stage/standin"
 cat >"$stage/fovea-render" <<'W'
 #!/bin/sh
 # The carried fovea-render with its carried libraries (only for this process: the machine's own

@@ -290,8 +290,8 @@ void GlFrame::upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t width,
   check("GlFrame::upload_hdr");
 }
 
-// The attention passes (made on first use), and which implementation runs: compute where it pays
-// (frame.effect_passes), the fragment passes elsewhere.
+// The one place the effect passes are built: ahead of their first use when the plan says (each pass
+// function asks for its own on first use too), with their compute passes where the context has GL 4.3.
 void GlFrame::prepare(const Prepare& passes) {
   const bool compute = backend_.context().features().at_least(4, 3);
   if (!(passes.attention && !attention_) && !(passes.ulod_blend && !ulod_) && !(passes.lee_mipmap && !lee_mipmap_) &&
@@ -306,8 +306,10 @@ void GlFrame::prepare(const Prepare& passes) {
   check("GlFrame::prepare");
 }
 
+// The attention passes, and which implementation runs: compute where it pays (frame.effect_passes),
+// the fragment passes elsewhere.
 bool GlFrame::attention_compute() {
-  if (!attention_) attention_ = std::make_unique<GlAttention>(backend_.context().features().at_least(4, 3));
+  prepare({.attention = true});
   return attention_->has_compute() && effect_compute();
 }
 
@@ -330,8 +332,7 @@ void GlFrame::ulod_blend(const FrameTime& time, const BackendSettings& next, con
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::ulod_blend before the G-buffer was rendered");
-  const GlFeatures& features = backend_.context().features();
-  if (!ulod_) ulod_ = std::make_unique<GlUlodBlend>(features.at_least(4, 3));
+  prepare({.ulod_blend = true});
   BackendSettings aside = next;
   aside.width = t.width;
   aside.height = t.height;
@@ -377,8 +378,7 @@ void GlFrame::dof_lee_mipmap(const dof::CocModel& coc, const dof::LeeMipmapSetti
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::dof_lee_mipmap before the G-buffer was rendered");
-  const GlFeatures& features = backend_.context().features();
-  if (!lee_mipmap_) lee_mipmap_ = std::make_unique<GlLeeMipmap>(features.at_least(4, 3));
+  prepare({.lee_mipmap = true});
   // Compute passes where they pay (no rasteriser and no framebuffer switch per level), or as set.
   const auto pass = lee_mipmap_->has_compute() && effect_compute() ? GlLeeMipmap::Pass::Compute
                                                                    : GlLeeMipmap::Pass::Fragment;
@@ -395,7 +395,7 @@ dof::SchedlStats GlFrame::dof_schedl_layered(const FrameTime& time, const Backen
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::dof_schedl_layered before the G-buffer was rendered");
-  if (!schedl_) schedl_ = std::make_unique<GlSchedlLayered>(backend_.context().features().at_least(4, 3));
+  prepare({.schedl_layered = true});
   std::vector<GlDofInput> peeled;
   if (layers > 1) {
     begin_timed("gpu.peel");
@@ -419,7 +419,7 @@ void GlFrame::dof_lee_splat(const FrameTime& time, const BackendSettings& peel_s
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();
   if (t.color == 0) throw std::logic_error("GlFrame::dof_lee_splat before the G-buffer was rendered");
-  if (!lee_splat_) lee_splat_ = std::make_unique<GlLeeSplat>(backend_.context().features().at_least(4, 3));
+  prepare({.lee_splat = true});
   // The tiled gather where compute pays (no rasteriser, no blending), or as set; the quads elsewhere.
   const auto pass = lee_splat_->has_compute() && effect_compute() ? GlLeeSplat::Pass::Compute
                                                                   : GlLeeSplat::Pass::Fragment;
