@@ -39,6 +39,18 @@ void apply_assignments(fovea::render::RenderOptions& o, const std::vector<std::s
   if (stereo) o.scene_overrides.push_back({"camera.stereo", "true"});
 }
 
+// --explain: the frame plan. The backend starts too: where the frame runs (the GPU path, what it
+// reads back) is its answer.
+void print_plan(const fovea::render::RenderOptions& o, const std::string& backend) {
+  using namespace fovea::render;
+  const auto gaze = make_gaze_input(o.gaze);
+  FramePipeline pipeline(load_render_scene(o), o.settings, make_backend(o.backend), *gaze);
+  std::printf("frame plan for %s (%s backend, gaze %s):\n", o.scene_path.c_str(), backend.c_str(),
+              gaze->description().c_str());
+  std::printf("%s", pipeline.plan().explain().c_str());
+  if (!pipeline.stereo_summary().empty()) std::printf("%s\n", pipeline.stereo_summary().c_str());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -108,13 +120,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (o.explain) {
-      // The backend starts too: where the frame runs (the GPU path, what it reads back) is its answer.
-      const auto gaze = make_gaze_input(o.gaze);
-      FramePipeline pipeline(load_render_scene(o), o.settings, make_backend(o.backend), *gaze);
-      std::printf("frame plan for %s (%s backend, gaze %s):\n", o.scene_path.c_str(), backend.c_str(),
-                  gaze->description().c_str());
-      std::printf("%s", pipeline.plan().explain().c_str());
-      if (!pipeline.stereo_summary().empty()) std::printf("%s\n", pipeline.stereo_summary().c_str());
+      print_plan(o, backend);
       return 0;
     }
     return o.headless ? run_headless(o) : run_viewer(o);
