@@ -128,7 +128,7 @@ void on_key(GLFWwindow* w, int key, int, int action, int) {
       break;
     }
     case GLFW_KEY_U:
-      s.set("gi.estimate", s.is("gi.estimate", "nearest") ? "precomputed" : "nearest");
+      s.set("gi.estimate", s.is("gi.estimate", "precomputed") ? "auto" : "precomputed");
       std::printf("gi.estimate=%s\n", s.text("gi.estimate").c_str());
       break;
     case GLFW_KEY_X: std::printf("%s", ks->pipeline->plan().explain().c_str()); break;

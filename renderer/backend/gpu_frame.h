@@ -57,6 +57,43 @@ struct GpuCompletion {
   std::vector<std::pair<std::string, double>> pass_ms;  // "gpu.gbuffer", "gpu.tonemap", ... in order
 };
 
+// One photon as the GPU gather reads it (gi/photon_map.h's Photon: where it landed, its power, its
+// direction of travel).
+struct GpuPhoton {
+  glm::vec3 position{0.0f}, power{0.0f}, incoming{0.0f};
+};
+
+// The hybrid renderer's GI of the gaze area gathered where the G-buffer lies (GpuFrame::gi_gather;
+// gi/GI.md "On the GPU"): photons traced on the CPU, gathered per pixel by radius.
+struct GpuGiGather {
+  struct Map {  // one photon map and its radiance estimate (gi/photon_map.h EstimateSettings, fixed_radius)
+    const std::vector<GpuPhoton>* photons = nullptr;  // null or empty: no light from this map
+    float radius = 0;                                 // metres; every photon within it on the front side
+    bool cone = true;                                 // Jensen's cone filter, else the disc's constant
+    float cone_k = 1.1f;
+  };
+  Map indirect, caustic;
+  // The materials whose pixels are gathered here (gi::gbuffer_materials: diffuse and glossy, eq. 5.22's
+  // f_r = kd + ks (n.h)^n); every other object's pixels take `traced`.
+  struct Surface {
+    std::uint32_t object_id = 0;
+    glm::vec3 kd{0.0f}, ks{0.0f};
+    float shininess = 1.0f;
+  };
+  std::vector<Surface> surfaces;
+  // The eye rays (gi/eye_rays.h): through image point (px, py), y down, the direction
+  // right (2 px / w - 1) + up (1 - 2 py / h) - back (right and up scaled by the half-angles' tangents),
+  // with unit forward component, so the G-buffer's depth is the distance along it.
+  glm::vec3 eye{0.0f}, right{1, 0, 0}, up{0, 1, 0}, back{0, 0, 1};
+  glm::vec3 background{0.0f};  // misses
+  glm::vec3 ambient{0.0f};     // taken out of the raster's colour as kd * ambient (0: kept)
+  // The CPU's values of the pixels it traced (gi/gi_render.h skip_gbuffer_pixels), full image, row 0
+  // at the top; read only where a pixel's object is not among `surfaces`. Null: such pixels are 0.
+  const std::vector<glm::vec3>* traced = nullptr;
+  glm::vec2 centre_px{0.0f};  // the area (image pixels, y down) and Algorithm 8.4's fovea fraction
+  float radius_px = 0, fovea_fraction = 0.7f;
+};
+
 class GpuFrame {
  public:
   virtual ~GpuFrame() = default;
@@ -138,6 +175,15 @@ class GpuFrame {
   // this frame's tone map blends it over its HDR input.
   virtual void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height,
                             glm::vec2 centre_px, float radius_px, float fovea_fraction) = 0;
+  // The same inset made where the G-buffer lies (issue 42): each pixel of the area is the raster's
+  // direct light (its ambient taken out) plus the photons within each map's radius weighted by the
+  // pixel's BRDF, or the CPU's traced value where the G-buffer cannot answer. Throws
+  // std::invalid_argument when `traced` is not the image's size; a device without compute shaders
+  // throws std::logic_error (gi_gather_unavailable() says why first).
+  virtual void gi_gather(const GpuGiGather& gather) = 0;
+  virtual std::string gi_gather_unavailable() const { return "this GPU frame has no GI gather"; }
+  // The last gi_gather's GI image: full image size, row 0 at the top, 0 outside the area's box. Waits.
+  virtual void read_gi(std::vector<glm::vec3>& gi) = 0;
   // HDR colour (the G-buffer's, or the upload of this frame; with this frame's inset composited) to
   // the 8-bit display image (sRGB).
   virtual void tonemap(const GpuTonemap& params) = 0;

@@ -101,6 +101,8 @@ class GiPass {
   // The GI of the area alone (HDR, 0 outside it) from the last run.
   const std::vector<glm::vec3>& gi_image() const { return gi_color_; }
   const GiPassResult& last() const { return result_; }
+  // The last run's photon maps (a GPU gather reads them).
+  const PhotonMaps& maps() const { return maps_; }
   const EmbreeBackend& backend() const { return *backend_; }
 
  private:

@@ -302,18 +302,16 @@ namespace {
 class GBufferFirstHits {
  public:
   enum class Kind { Trace, Miss, Hit };
-  GBufferFirstHits(const GBuffer* g, const Camera& camera, const Scene& scene) {
+  // `need_normal` false: Hit pixels are not shaded here (skip_gbuffer_pixels), the normal plane may be empty.
+  GBufferFirstHits(const GBuffer* g, const Camera& camera, const Scene& scene, bool need_normal) {
     const std::size_t n = std::size_t{camera.width} * camera.height;
     if (g == nullptr || g->width != camera.width || g->height != camera.height || g->depth.size() != n ||
-        g->normal.size() != n || g->object_id.size() != n)
+        (need_normal && g->normal.size() != n) || g->object_id.size() != n)
       return;
     g_ = g;
-    for (const Object& o : scene.objects) {
-      const Material* m = o.material < scene.materials.size() ? &scene.materials[o.material] : nullptr;
-      const auto [at, added] = material_of_.emplace(o.id, m);
-      if (!added && at->second != m) at->second = nullptr;  // an id shared by materials: traced instead
-    }
+    material_of_ = gbuffer_materials(scene);
   }
+  bool available() const { return g_ != nullptr; }
   // Pixel i's first hit along `dir` from `eye`: a miss, a diffuse or glossy hit (filled in), or Trace
   // (no G-buffer, or a mirror, glass or emitter: a refraction needs the geometric normal's side).
   Kind at(std::size_t i, const glm::vec3& eye, const glm::vec3& dir, SurfaceHit& hit) const {
@@ -323,13 +321,10 @@ class GBufferFirstHits {
     const auto found = material_of_.find(id);
     const Material* m = found != material_of_.end() ? found->second : nullptr;
     const float depth = g_->depth[i];
-    // PBR materials are traced: their textures need the hit's coordinates, which the G-buffer lacks.
-    if (m == nullptr || !m->is_diffuse_or_glossy() || m->type == MaterialType::MetallicRoughness ||
-        !std::isfinite(depth) || !(depth > 0))
-      return Kind::Trace;
+    if (m == nullptr || !std::isfinite(depth) || !(depth > 0)) return Kind::Trace;
     hit.t = depth;
     hit.position = eye + dir * depth;  // EyeRays' directions have a unit forward component
-    hit.normal = g_->normal[i];        // faces the camera: the side the ray arrives on
+    hit.normal = i < g_->normal.size() ? g_->normal[i] : glm::vec3(0.0f);  // faces the camera: the side the ray arrives on
     hit.geometric_normal = hit.normal;
     hit.object_id = id;
     hit.material = m;
@@ -353,6 +348,18 @@ std::uint64_t label_in_gaze_region(std::vector<Photon>& photons, const std::vect
 }
 
 }  // namespace
+
+std::unordered_map<std::uint32_t, const Material*> gbuffer_materials(const Scene& scene) {
+  std::unordered_map<std::uint32_t, const Material*> out;
+  for (const Object& o : scene.objects) {
+    const Material* m = o.material < scene.materials.size() ? &scene.materials[o.material] : nullptr;
+    // PBR materials are traced: their textures need the hit's coordinates, which the G-buffer lacks.
+    if (m != nullptr && (!m->is_diffuse_or_glossy() || m->type == MaterialType::MetallicRoughness)) m = nullptr;
+    const auto [at, added] = out.emplace(o.id, m);
+    if (!added && at->second != m) at->second = nullptr;  // an id shared by materials: traced instead
+  }
+  return out;
+}
 
 void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double now_s, PhotonMaps& maps,
                       const GazeArea& area, const GiRenderSettings& s, std::vector<glm::vec3>& hdr, GiStats* stats,
@@ -381,7 +388,8 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
     lights.ambient = s.ambient ? backend.scene().ambient : glm::vec3(0.0f);
     std::vector<std::uint8_t> seen_indirect(mark ? maps.global.photons.size() : 0), seen_caustic(mark ? maps.caustic.photons.size() : 0);
     const Tracer tracer{backend, lights, maps, s, seen_indirect.data(), seen_caustic.data()};
-    const GBufferFirstHits first_hits(primary, camera, backend.scene());
+    const GBufferFirstHits first_hits(primary, camera, backend.scene(), !s.skip_gbuffer_pixels);
+    const bool skip = s.skip_gbuffer_pixels && first_hits.available();
     std::atomic<std::uint64_t> reused{0};
     tbb::enumerable_thread_specific<Tracer::Local> locals;
     std::atomic<std::uint64_t> pixels{0};
@@ -398,7 +406,12 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
             const glm::vec3 dir = eye.direction(x, y);
             ++count;
             SurfaceHit hit;
-            switch (first_hits.at(i, eye.eye, dir, hit)) {
+            const GBufferFirstHits::Kind kind = first_hits.at(i, eye.eye, dir, hit);
+            if (skip && kind != GBufferFirstHits::Kind::Trace) {
+              --count;  // the caller's pixel
+              continue;
+            }
+            switch (kind) {
               case GBufferFirstHits::Kind::Trace: hdr[i] = tracer.radiance(eye.eye, dir, 0, local, mark); break;
               case GBufferFirstHits::Kind::Miss:  // the eye ray, answered by the G-buffer
                 ++local.rays;

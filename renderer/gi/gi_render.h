@@ -17,6 +17,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <unordered_map>
 #include <vector>
 
 #include "fovea/protocol/display_geometry.h"
@@ -96,7 +97,16 @@ struct GiRenderSettings {
   bool indirect = true;
   bool caustics = true;
   bool ambient = false;  // keep local illumination's ambient term inside the area (false: photons replace it)
+  // With `primary`: pixels the G-buffer answers (misses, diffuse and glossy first hits) are left as
+  // they are, for the caller to shade (the GPU gather, backend/gpu_frame.h gi_gather); only the
+  // pixels that must be traced are. `primary` then needs depth and ids only.
+  bool skip_gbuffer_pixels = false;
 };
+
+// Per object id, the material whose first hits the G-buffer answers (diffuse and glossy, not a glTF
+// material, whose textures need the hit's coordinates), or null where the pixel must be traced: a
+// mirror, glass, an emitter, a glTF material, an id that several materials share.
+std::unordered_map<std::uint32_t, const Material*> gbuffer_materials(const Scene& scene);
 
 struct GiStats {
   std::uint64_t pixels = 0;           // shaded inside the area

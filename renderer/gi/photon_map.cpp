@@ -145,6 +145,13 @@ void PhotonMap::nearest(const glm::vec3& x, std::uint32_t k, float max_radius, N
   }
 }
 
+std::vector<std::uint32_t> PhotonMap::indexed() const {
+  std::vector<std::uint32_t> out;
+  out.reserve(nodes_.size());
+  for (const Node& node : nodes_) out.push_back(node.photon);
+  return out;
+}
+
 void PhotonMap::within(const glm::vec3& x, float radius, std::vector<std::uint32_t>& out) const {
   out.clear();
   if (!(radius > 0) || nodes_.empty() || !finite3(x)) return;
@@ -172,12 +179,24 @@ glm::vec3 PhotonMap::flux_density(const glm::vec3& x, const glm::vec3& n, const 
                                   std::vector<std::uint32_t>* used) const {
   if (used) used->clear();
   scratch.clear();
-  if (s.nearest == 0 || !(s.max_radius > 0) || nodes_.empty() || !finite3(x) || !finite3(n)) return glm::vec3(0.0f);
+  if ((s.nearest == 0 && !s.fixed_radius) || !(s.max_radius > 0) || nodes_.empty() || !finite3(x) || !finite3(n))
+    return glm::vec3(0.0f);
   float r2 = std::isfinite(s.max_radius) ? s.max_radius * s.max_radius : std::numeric_limits<float>::max();
   std::vector<std::pair<float, std::uint32_t>> heap;
-  heap.reserve(std::min<std::size_t>(s.nearest, nodes_.size()));
   // Only photons that arrived at the front side of this surface (Jensen 2001, §7.2).
-  locate(nodes_, photons_, x, s.nearest, [&n](const Photon& p) { return glm::dot(p.incoming, n) < 0.0f; }, heap, r2);
+  const auto front = [&n](const Photon& p) { return glm::dot(p.incoming, n) < 0.0f; };
+  if (s.fixed_radius) {
+    if (!std::isfinite(s.max_radius)) return glm::vec3(0.0f);  // every photon of the scene: no disc to divide by
+    within(x, s.max_radius, scratch.index);
+    for (std::uint32_t i : scratch.index) {
+      const glm::vec3 d = photons_[i].position - x;
+      if (front(photons_[i])) heap.emplace_back(glm::dot(d, d), i);
+    }
+    scratch.index.clear();
+  } else {
+    heap.reserve(std::min<std::size_t>(s.nearest, nodes_.size()));
+    locate(nodes_, photons_, x, s.nearest, front, heap, r2);
+  }
   if (heap.empty() || !(r2 > 0) || !std::isfinite(r2)) return glm::vec3(0.0f);
   const float r = std::sqrt(r2);
   const float k = std::max(1.0f, std::isfinite(s.cone_k) ? s.cone_k : 1.0f);

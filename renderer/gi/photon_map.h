@@ -70,6 +70,11 @@ struct EstimateSettings {
   float max_radius = 0.3f;      // NNRadius, metres (Table 8.3)
   EstimateFilter filter = EstimateFilter::Cone;
   float cone_k = 1.1f;  // Jensen's k >= 1 (values below 1 are read as 1)
+  // Every photon within max_radius, the disc's radius max_radius (`nearest` is not read): the radius
+  // gather of GPU photon mapping (a hash grid cannot keep the k nearest cheaply), and its CPU
+  // reference. Where photons are dense it averages over a larger disc than the k nearest would
+  // (more blur, less noise); where sparse, over fewer photons (more noise).
+  bool fixed_radius = false;
 };
 
 class PhotonMap {
@@ -83,6 +88,8 @@ class PhotonMap {
   std::size_t size() const { return nodes_.size(); }
   bool empty() const { return nodes_.empty(); }
   std::span<const Photon> photons() const { return photons_; }
+  // The indexed photons (indices into photons()), in the tree's order: what a copy of the map needs.
+  std::vector<std::uint32_t> indexed() const;
 
   // The (up to) k nearest indexed photons within max_radius of x that pass `accept` (all when empty).
   // k = 0 or max_radius <= 0 (or NaN): none. Results nearest first.

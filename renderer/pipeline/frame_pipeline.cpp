@@ -73,6 +73,8 @@ gi::GiPassSettings gi_pass_settings(const Settings& s, double scene_area_m2) {
   gs.render.caustic_estimate.filter = gs.render.estimate.filter;
   gs.render.indirect_estimate =
       s.is("gi.estimate", "precomputed") ? gi::IndirectEstimate::Precomputed : gi::IndirectEstimate::Nearest;
+  // gi.estimate=auto gathers by radius where the gather runs on the GPU (FramePipeline::run_gi).
+  gs.render.estimate.fixed_radius = gs.render.caustic_estimate.fixed_radius = s.is("gi.estimate", "radius");
   gs.render.ray_depth = count("gi.ray_depth");
   gs.render.shadows = s.flag("shadows");
   gs.precompute_stride = count("gi.precompute_stride");
@@ -165,7 +167,8 @@ FramePlan FramePipeline::plan() const {
   const PassSettings& parsed = pass_settings();
   FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), can.per_pixel_lens, &parsed.plan,
                                           gpu_refusal().empty(), can.software_rasteriser,
-                                          parsed.gi.render.estimate.max_radius});
+                                          parsed.gi.render.estimate.max_radius,
+                                          gpu_ != nullptr ? gpu_->gi_gather_unavailable() : std::string()});
   plan.placement = placement(plan);
   return plan;
 }
@@ -304,7 +307,7 @@ FramePipeline::Frame FramePipeline::render(std::uint64_t frame_index, double now
   if (dof_.settings() != ps.dof) dof_.set_settings(ps.dof);  // the coc map draws with them too
   step_gaze(f, frame_clock_s, timer);
   if (!right) lod_levels_.clear();
-  gi_inset_on_gpu_ = false;
+  gi_inset_on_gpu_ = gi_gathered_on_gpu_ = false;
   const bool attention_first = !right && f.plan.runs(PassId::LodSelect) && f.plan.runs(PassId::Attention) &&
                                ps.plan.lod_policy == lod::Policy::Ulod;
   if (right && f.plan.runs(PassId::Attention)) f.attention = shared_.attention;
@@ -443,7 +446,7 @@ void FramePipeline::step_tonemap_on_gpu(const Frame& f, const std::vector<glm::v
                                         PassTimer& timer) {
   auto t = timer.scope("tonemap");
   if (hdr_from_cpu) gpu_->upload_hdr(hdr, f.gbuffer->width, f.gbuffer->height);
-  if (f.gi != nullptr && gi_inset_on_gpu_) {
+  if (f.gi != nullptr && gi_inset_on_gpu_ && !gi_gathered_on_gpu_) {  // gathered: the inset is already there
     gpu_->upload_inset(gi_pass_->gi_image(), f.gbuffer->width, f.gbuffer->height, f.gi->area.center_px,
                        f.gi->area.radius_px, gi_fovea_);
   }
@@ -649,6 +652,7 @@ const std::vector<glm::vec3>& FramePipeline::step_gi(Frame& f, const std::vector
   auto t = timer.scope("gi");
   run_gi(f, hdr, now_s, timer);
   f.gi = &gi_frame_;
+  if (gi_gathered_on_gpu_) return hdr;  // gathered where the G-buffer lies; the GPU's tone map composites it
   if (gi_inset_on_gpu_) {  // the GPU's tone map composites the inset over `hdr`
     if (check) require_finite("gi", "GI of the gaze area", gi_pass_->gi_image(), gbuffer_.width);
     return hdr;

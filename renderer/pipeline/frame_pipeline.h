@@ -242,6 +242,15 @@ class FramePipeline {
   GpuFrame* gpu_ = nullptr;  // the backend's, when it has one that can run
   bool cpu_gbuffer_required_ = false;
   bool gi_inset_on_gpu_ = false; // this frame's GI inset is composited by the GPU's tone map
+  bool gi_gathered_on_gpu_ = false;  // ... and was gathered there (gi.device)
+  GBuffer gi_area_ids_;              // the gaze area's ids and depth read back for the GPU gather (the rest stale)
+  std::vector<GpuPhoton> gi_photons_[2];  // the maps as the GPU gather takes them: indirect, caustic
+  // Reads back the area's ids and depth (the pixels the CPU traces for the GPU gather).
+  const GBuffer& read_gi_area_ids(const gi::GazeArea& area, PassTimer& timer);
+  // Hands the area's gather to the GPU (the maps of the last gi run, the CPU's traced pixels).
+  void gather_gi_on_gpu(const gi::GiPassSettings& gs, double now_s, PassTimer& timer);
+  std::vector<float> gi_rect_depth_;
+  std::vector<std::uint32_t> gi_rect_ids_;
   float gi_fovea_ = 0.7f;        // its fovea fraction (Algorithm 8.4)
   double frame_clock_s_ = 0;     // this frame's
   bool clock_is_wall_ = false;

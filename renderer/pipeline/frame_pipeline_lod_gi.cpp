@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "backend/embree/embree_backend.h"
+#include "gi/eye_rays.h"
 #include "pipeline/frame_pipeline.h"
 
 namespace fovea::render {
@@ -56,9 +57,15 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   }
   gi::GiPassSettings gs = pass_settings().gi;
   // On the GPU-resident path the inset is composited on the GPU (the tone map's input), unless the
-  // CSF periphery replaces the local image, which is then made on the CPU anyway.
+  // CSF periphery replaces the local image, which is then made on the CPU anyway. With gi.device the
+  // GPU gathers it too: the CPU traces the photons and the pixels the G-buffer cannot answer.
+  gi_gathered_on_gpu_ = f.on_gpu && f.plan.at(PassId::Gi).on_gpu;
   gi_inset_on_gpu_ = f.on_gpu && !gs.csf_periphery;
   gs.composite = !gi_inset_on_gpu_;
+  if (gi_gathered_on_gpu_) {
+    gs.render.estimate.fixed_radius = gs.render.caustic_estimate.fixed_radius = true;
+    gs.render.skip_gbuffer_pixels = true;
+  }
   gi_fovea_ = gs.fovea;
   // A stereo frame traces the photon maps once, for the left eye (GiPassSettings::keep_maps).
   gs.keep_maps = f.eye == Eye::Left;
@@ -66,7 +73,9 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   // The frame's G-buffer holds the area's first hits when the frame's backend is the GI's ray tracer.
   const GBuffer* primary =
       gi_tracer_ != nullptr && !f.on_gpu && settings_.is("debug.gi_first_hits", "gbuffer") ? &gbuffer_ : nullptr;
+  if (gi_gathered_on_gpu_) primary = &read_gi_area_ids(gi_frame_.area, timer);
   const gi::GiPassResult& r = gi_pass_->run(cam, now_s, gi_frame_.area, gs, local, hybrid_, primary);
+  if (gi_gathered_on_gpu_) gather_gi_on_gpu(gs, now_s, timer);
   if (f.eye == Eye::Left) shared_.gi = true;
   if (!gs.reuse_maps) {
     timer.record("gi.photons", r.photons_ms);
@@ -85,6 +94,69 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_frame_.importons = r.importons;
   gi_frame_.emitted = r.emitted;
   gi_frame_.note = r.note;
+}
+
+const GBuffer& FramePipeline::read_gi_area_ids(const gi::GazeArea& area, PassTimer& timer) {
+  auto t = timer.scope("gi.ids");
+  const Camera& cam = scene_.camera;
+  GBuffer& g = gi_area_ids_;
+  if (g.width != cam.width || g.height != cam.height) {
+    g.width = cam.width;
+    g.height = cam.height;
+    g.depth.assign(g.size(), 0.0f);
+    g.object_id.assign(g.size(), 0);
+  }
+  // The circle's pixel rows and columns, as render_gaze_area visits them; the rest stays stale (unread).
+  const float r = std::isfinite(area.radius_px) ? std::max(area.radius_px, 0.0f) : 0.0f;
+  const auto clip = [](float v, std::uint32_t hi) {
+    return std::isfinite(v) ? static_cast<std::uint32_t>(std::clamp(v, 0.0f, static_cast<float>(hi))) : 0u;
+  };
+  const std::uint32_t x0 = clip(std::floor(area.center_px.x - r), cam.width), x1 = clip(std::ceil(area.center_px.x + r), cam.width);
+  const std::uint32_t y0 = clip(std::floor(area.center_px.y - r), cam.height), y1 = clip(std::ceil(area.center_px.y + r), cam.height);
+  if (x1 <= x0 || y1 <= y0) return g;
+  gpu_->read_rect(x0, y0, x1, y1, gi_rect_depth_, gi_rect_ids_);
+  const std::uint32_t w = x1 - x0;
+  for (std::uint32_t y = y0; y < y1; ++y)
+    for (std::uint32_t x = x0; x < x1; ++x) {
+      const std::size_t from = std::size_t{y - y0} * w + (x - x0);
+      g.depth[g.index(x, y)] = gi_rect_depth_[from];
+      g.object_id[g.index(x, y)] = gi_rect_ids_[from];
+    }
+  return g;
+}
+
+void FramePipeline::gather_gi_on_gpu(const gi::GiPassSettings& gs, double now_s, PassTimer& timer) {
+  auto t = timer.scope("gi.gather");
+  const gi::PhotonMaps& maps = gi_pass_->maps();
+  const auto pack = [](const gi::PhotonMap& map, std::vector<GpuPhoton>& out) {
+    out.clear();
+    const std::span<const gi::Photon> photons = map.photons();
+    for (const std::uint32_t i : map.indexed()) out.push_back({photons[i].position, photons[i].power, photons[i].incoming});
+  };
+  pack(maps.indirect, gi_photons_[0]);
+  pack(maps.caustics, gi_photons_[1]);
+  GpuGiGather g;
+  const auto map_of = [](const std::vector<GpuPhoton>& photons, const gi::EstimateSettings& e, bool on) {
+    return GpuGiGather::Map{on ? &photons : nullptr, e.max_radius, e.filter == gi::EstimateFilter::Cone, e.cone_k};
+  };
+  g.indirect = map_of(gi_photons_[0], gs.render.estimate, gs.render.indirect);
+  g.caustic = map_of(gi_photons_[1], gs.render.caustic_estimate, gs.render.caustics);
+  for (const auto& [id, m] : gi::gbuffer_materials(scene_)) {
+    if (m == nullptr) continue;  // traced on the CPU
+    g.surfaces.push_back({id, m->kd, m->is_glossy() ? m->ks : glm::vec3(0.0f), m->shininess});
+  }
+  const gi::EyeRays eye(scene_.camera, now_s);
+  g.eye = eye.eye;
+  g.right = eye.right * eye.tan_x;
+  g.up = eye.up * eye.tan_y;
+  g.back = eye.back;
+  g.background = scene_.background;
+  g.ambient = gs.render.ambient ? glm::vec3(0.0f) : scene_.ambient;
+  g.traced = &gi_pass_->gi_image();
+  g.centre_px = gi_frame_.area.center_px;
+  g.radius_px = gi_frame_.area.radius_px;
+  g.fovea_fraction = gs.fovea;
+  gpu_->gi_gather(g);
 }
 
 void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& drawn) {

@@ -51,6 +51,10 @@ PlanSettings plan_settings(const Settings& s) {
   p.gi_caustics = s.flag("gi.caustics");
   p.gi_full_area = s.is("gi.area", "full");
   p.gi_csf_periphery = s.is("gi.periphery", "csf") && !p.gi_full_area;
+  p.gi_device = parse_device(s.text("gi.device"));
+  p.gi_estimate = s.text("gi.estimate");
+  p.gi_strategy = s.text("gi.strategy");
+  p.shadows = s.flag("shadows");
   p.overlay_gaze = s.flag("overlay.gaze");
   p.overlay_focus = s.flag("overlay.focus");
   p.overlay_map = s.text("overlay.map");
@@ -183,6 +187,25 @@ PassRule dof_rule(const PlanContext& c) {
   return rule;
 }
 
+// What keeps the GI gather off the GPU in a GPU-resident frame ("" : nothing). Photons are traced on
+// the CPU either way; the GPU gathers by radius, from the raster's direct light.
+std::string gi_gpu_blocker(const PlanContext& c) {
+  const PlanSettings& t = c.typed();
+  if (!c.gpu_gi_unavailable.empty()) return c.gpu_gi_unavailable;
+  if (t.gi_estimate == "nearest" || t.gi_estimate == "precomputed")
+    return "gi.estimate=" + t.gi_estimate + " is the CPU's (the GPU gathers every photon within the radius)";
+  if (t.gi_strategy == "gaze-directed") return "gi.strategy=gaze-directed labels the photons the area used on the CPU";
+  if (t.shadows) return "shadows=true: the GPU's direct light has no shadow rays";
+  if (t.gi_csf_periphery) return "gi.periphery=csf makes the periphery on the CPU";
+  if (c.gpu_is_software && t.gi_device == PassDevice::Auto)
+    return "gi.device=auto on a software rasteriser, where the CPU's kd-tree gather is faster";
+  return "";
+}
+
+bool gi_on_gpu(const PlanContext& c) {
+  return c.gpu_resident && c.typed().gi_device != PassDevice::Cpu && gi_gpu_blocker(c).empty();
+}
+
 // Only with light to carry; the caustic map only with specular or refractive surfaces to focus it.
 PassRule gi_rule(const PlanContext& c) {
   const Settings& s = c.settings;
@@ -213,7 +236,9 @@ PassRule gi_rule(const PlanContext& c) {
                   s.is("gi.nn_radius", "auto") ? " (gi.nn_radius=auto: the scene's surfaces and gi.photons)" : "");
     why += radius;
   }
-  return yes(why);
+  PassRule rule = yes(why);
+  place(rule, c, t.gi_device, "gi.device", gi_gpu_blocker(c), true);
+  return rule;
 }
 
 PassRule tonemap_rule(const PlanContext&) { return yes("output=final is a display image"); }
@@ -260,7 +285,15 @@ GBufferPlanes dof_reads(const FramePlan&, const PlanSettings& s) {
   return s.dof_method == DofMethod::Reference || s.dof_method == DofMethod::Accum ? GBufferPlanes{}
                                                                         : GBufferPlanes{.color = true, .depth = true};
 }
-// gi: nothing. It traces its own rays; its inset is composited over the HDR colour where that lies.
+// gi on the CPU: nothing (it traces its own rays; its inset is composited over the HDR colour where
+// that lies). Gathering on the GPU: depth, ids and normals where they lie (the colour is always
+// written), and the ids and depth of the area's box read back for the pixels the CPU traces.
+GBufferPlanes gi_reads(const FramePlan& plan, const PlanSettings&) {
+  return plan.at(PassId::Gi).on_gpu ? GBufferPlanes{.depth = true, .object_id = true, .normal = true} : GBufferPlanes{};
+}
+const char* gi_gathers_where_the_gbuffer_lies(const FramePlan& plan, const PlanSettings&) {
+  return plan.at(PassId::Gi).on_gpu ? "the area's ids and depth, for the pixels it traces" : nullptr;
+}
 GBufferPlanes tonemap_reads(const FramePlan&, const PlanSettings&) { return {.color = true}; }
 // The focus outline (ids) or iso-depth line (depth); G-buffer maps read every plane.
 GBufferPlanes overlay_reads(const FramePlan& plan, const PlanSettings& s) {
@@ -300,7 +333,7 @@ const std::vector<PassDecl>& pass_declarations() {
        {R::HdrColor}, "the lens", dof_rule, dof_reads, dof_on_gpu},
       {PassId::Gi, "gi",
        {{R::HdrColor}, {R::Attention, "no gaze source (its gaze area)", gi_area_follows_attention}}, {R::GiInset},
-       "scene (its own rays), gaze", gi_rule},
+       "scene (its own rays), gaze", gi_rule, gi_reads, gi_on_gpu, false, gi_gathers_where_the_gbuffer_lies},
       {PassId::Tonemap, "tonemap", {{R::HdrColor}, {R::GiInset}}, {R::Display}, "tonemap.*", tonemap_rule,
        tonemap_reads, always},
       {PassId::Overlay, "overlay",

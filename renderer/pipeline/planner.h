@@ -50,6 +50,9 @@ struct PlanSettings {
   DofMethod dof_method = DofMethod::LeeMipmap;
   PassDevice dof_device = PassDevice::Auto;
   bool gi = false, gi_caustics = true, gi_full_area = false, gi_csf_periphery = false;
+  PassDevice gi_device = PassDevice::Auto;
+  std::string gi_estimate = "auto", gi_strategy = "traditional";
+  bool shadows = false;
   bool overlay_gaze = true, overlay_focus = false;
   std::string overlay_map = "none";
   bool operator==(const PlanSettings&) const = default;
@@ -73,6 +76,8 @@ struct PlanContext {
   bool gpu_is_software = false;
   // The radiance estimate's radius the gi pass will use (gi.nn_radius resolved; 0: not known here).
   float gi_nn_radius_m = 0.0f;
+  // Why the GPU frame cannot gather GI (GpuFrame::gi_gather_unavailable; "" : it can).
+  std::string gpu_gi_unavailable{};
   const PlanSettings& typed() const;  // *parsed; throws std::logic_error when unset
   // What the frame hands out: the display image (output=final) or the G-buffer (output=gbuffer).
   Resource output() const { return typed().output; }

@@ -106,9 +106,14 @@ const std::vector<SettingSpec>& Settings::specs() {
        "search radius of the radiance estimate, metres (NNRadius, Table 8.3's 0.3 m for its 2 m room); auto: the disc "
        "that holds gi.nnn photons spread evenly over the scene's surfaces at gi.photons, sqrt(nnn A / (pi photons))"},
       {"gi.filter", "cone", "cone|disc", "radiance estimate filter: Jensen's cone filter (k = 1.1) or constant over the disc"},
-      {"gi.estimate", "nearest", "nearest|precomputed",
-       "indirect light per shading point from its gi.nnn nearest photons (Jensen & Pedersen §6.3.2), or from the nearest "
-       "photon's precomputed irradiance (Christensen 1999; diffuse only, much faster)"},
+      {"gi.estimate", "auto", "auto|nearest|radius|precomputed",
+       "indirect light per shading point from its gi.nnn nearest photons (Jensen & Pedersen §6.3.2), from every photon "
+       "within gi.nn_radius (the GPU gather's estimate), or from the nearest photon's precomputed irradiance "
+       "(Christensen 1999; diffuse only, much faster); auto: radius where the gather runs on the GPU, else nearest"},
+      {"gi.device", "auto", "auto|cpu|gpu",
+       "where the gaze area's photons are gathered: on the GPU where the frame lies (photons still traced by Embree on "
+       "the CPU; the raster's direct light, no shadows; mirrors, glass and glTF materials traced on the CPU), or on the "
+       "CPU; auto: the GPU where the frame is GPU-resident on a real GPU and nothing needs the CPU's gather"},
       {"gi.precompute_stride", "4", "number in [1, 1000]", "gi.estimate=precomputed: irradiance at every n-th indirect photon"},
       {"gi.strategy", "traditional", "traditional|gaze-directed|importon",
        "how the photon map is built: uniform emission (ch. 6), steered by the last frame's gaze photons (ch. 8: emission "

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -130,6 +131,40 @@ TEST(GiPhotonMap, FluxDensityOfAUniformGridIsPowerPerArea) {
   const glm::vec3 l = map.flux_density({0, 0, 0}, up, s, scratch,
                                        [](const Photon&) { return glm::vec3(1.0f / std::numbers::pi_v<float>); });
   EXPECT_NEAR(l.x, expected / std::numbers::pi_v<float>, 0.05f * expected);
+}
+
+// The radius gather (EstimateSettings::fixed_radius): every front-side photon within max_radius, over
+// the disc of max_radius, whatever `nearest` says; against brute force with both filters.
+TEST(GiPhotonMap, FixedRadiusGathersEveryPhotonInTheDisc) {
+  std::vector<Photon> photons = random_photons(3000, 11);
+  for (std::size_t i = 0; i < photons.size(); i += 3) photons[i].incoming = glm::vec3(0, 1, 0);  // the back side
+  for (std::size_t i = 0; i < photons.size(); ++i) photons[i].power = glm::vec3(0.001f * static_cast<float>(i % 7 + 1));
+  PhotonMap map;
+  map.build_all(photons);
+  Neighbours scratch;
+  const glm::vec3 up(0, 1, 0), x(0.1f, -0.2f, 0.05f);
+  for (const EstimateFilter filter : {EstimateFilter::Disc, EstimateFilter::Cone}) {
+    EstimateSettings s;
+    s.fixed_radius = true;
+    s.nearest = 1;  // not read
+    s.max_radius = 0.3f;
+    s.filter = filter;
+    const float k = s.cone_k, r = s.max_radius;
+    double sum = 0;
+    for (const Photon& p : photons) {
+      const float d = glm::length(p.position - x);
+      if (d >= r || glm::dot(p.incoming, up) >= 0) continue;
+      sum += static_cast<double>(p.power.x * (filter == EstimateFilter::Cone ? std::max(0.0f, 1.0f - d / (k * r)) : 1.0f));
+    }
+    const double norm = filter == EstimateFilter::Cone ? 1.0 - 2.0 / (3.0 * static_cast<double>(k)) : 1.0;
+    const double want = sum / (norm * std::numbers::pi * static_cast<double>(r * r));
+    EXPECT_NEAR(static_cast<double>(map.flux_density(x, up, s, scratch).x), want, 1e-5 * want);
+    EXPECT_NEAR(scratch.radius2, r * r, 1e-7f);
+  }
+  EstimateSettings none;
+  none.fixed_radius = true;
+  none.max_radius = std::numeric_limits<float>::infinity();  // no disc to divide by
+  EXPECT_EQ(map.flux_density(x, up, none, scratch), glm::vec3(0.0f));
 }
 
 }  // namespace

@@ -172,7 +172,9 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
       {"the focus outline reads depth and ids on the GPU; focus without attention reads them back", {.thin_lens = true},
        {"dof.enabled=false", "focus.mode=gaze", "overlay.focus=true"}, {.depth = true, .object_id = true},
        {.color = true, .depth = true, .object_id = true}},
-      {"gi reads nothing", {}, {"gi.enabled=true"}, {}, {.color = true}},
+      {"gi on the CPU reads nothing", {}, {"gi.enabled=true", "gi.device=cpu"}, {}, {.color = true}},
+      {"gi gathering on the GPU reads depth, ids and normals where they lie", {}, {"gi.enabled=true"}, {},
+       {.color = true, .depth = true, .object_id = true, .normal = true}},
   };
   for (const Row& row : rows) {
     SCOPED_TRACE(row.name);
@@ -185,11 +187,11 @@ TEST(Planner, GBufferPlanesReadFollowFromThePassesThatRun) {
     EXPECT_EQ(planes_read_on_cpu(plan), row.on_cpu) << plan.explain();
     EXPECT_EQ(planes_read(plan), row.all) << plan.explain();
   }
-  // The passes with a GPU implementation: the G-buffer, attention, the tone map, the overlay, and dof
-  // for some methods.
+  // The passes with a GPU implementation: the G-buffer, attention, the tone map, the overlay, dof for
+  // some methods, and gi's gather.
   for (const PassDecl& d : pass_declarations()) {
     EXPECT_EQ(d.on_gpu != nullptr, d.id == PassId::GBuffer || d.id == PassId::Attention || d.id == PassId::Tonemap ||
-                                       d.id == PassId::Overlay || d.id == PassId::Dof)
+                                       d.id == PassId::Overlay || d.id == PassId::Dof || d.id == PassId::Gi)
         << d.name;
   }
 }
@@ -257,6 +259,50 @@ TEST(Planner, AttentionRunsOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
   ASSERT_TRUE(plan.runs(PassId::Attention)) << plan.explain();
   EXPECT_TRUE(plan.at(PassId::Attention).on_gpu) << plan.at(PassId::Attention).reason;
   EXPECT_FALSE(planes_read_on_cpu(plan).any()) << plan.explain();
+}
+
+// gi.device: the gather on the GPU where the frame lies, unless something needs the CPU's; why not.
+TEST(Planner, GiGathersOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
+  struct Row {
+    const char* name;
+    std::vector<std::string> settings;
+    bool resident, software;
+    const char* device_says;  // "" : the frame can gather
+    bool runs, on_gpu;
+    const char* says;
+  };
+  const Row rows[] = {
+      {"a GPU-resident frame on a GPU", {}, true, false, "", true, true, "on the GPU"},
+      {"the readback path: on the CPU", {}, false, false, "", true, false, "follows the gaze"},
+      {"gi.device=cpu", {"gi.device=cpu"}, true, false, "", true, false, "on the CPU: gi.device=cpu"},
+      {"the k nearest are the CPU's", {"gi.estimate=nearest"}, true, false, "", true, false,
+       "gi.estimate=nearest is the CPU's"},
+      {"precomputed irradiance is the CPU's", {"gi.estimate=precomputed"}, true, false, "", true, false,
+       "gi.estimate=precomputed is the CPU's"},
+      {"the gaze-directed labels", {"gi.strategy=gaze-directed"}, true, false, "", true, false, "labels the photons"},
+      {"shadow rays", {"shadows=true"}, true, false, "", true, false, "no shadow rays"},
+      {"the CSF periphery", {"gi.periphery=csf"}, true, false, "", true, false, "gi.periphery=csf"},
+      {"a software rasteriser with auto", {}, true, true, "", true, false, "software rasteriser"},
+      {"a software rasteriser with gi.device=gpu", {"gi.device=gpu"}, true, true, "", true, true, "on the GPU"},
+      {"no compute shaders", {}, true, false, "the GPU gather needs compute shaders", true, false, "needs compute"},
+      {"gi.device=gpu without compute shaders: later", {"gi.device=gpu"}, true, false,
+       "the GPU gather needs compute shaders", false, false, "gi.device=gpu: the GPU gather needs compute shaders"},
+  };
+  const Scene scene = make_scene({});
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.name);
+    Settings settings;
+    settings.set("gi.enabled", "true");
+    for (const std::string& a : row.settings) settings.set_assignment(a);
+    PlanContext c{scene, settings, true};
+    c.gpu_resident = row.resident;
+    c.gpu_is_software = row.software;
+    c.gpu_gi_unavailable = row.device_says;
+    const FramePlan plan = plan_frame(c);
+    EXPECT_EQ(plan.runs(PassId::Gi), row.runs) << plan.explain();
+    EXPECT_EQ(plan.at(PassId::Gi).on_gpu, row.on_gpu) << plan.explain();
+    EXPECT_NE(plan.at(PassId::Gi).reason.find(row.says), std::string::npos) << plan.at(PassId::Gi).reason;
+  }
 }
 
 TEST(Planner, DofRunsOnTheGpuWhereItsMethodCanAndSaysWhyNot) {

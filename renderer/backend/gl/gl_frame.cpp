@@ -17,6 +17,7 @@
 #include "backend/gl/gl_lee_splat.h"
 #include "backend/gl/gl_ulod_blend.h"
 #include "backend/gl/gl_lee_mipmap.h"
+#include "backend/gl/gl_photon_gather.h"
 #include "backend/gl/gl_schedl_layered.h"
 #include "backend/gl/gl_program.h"
 
@@ -151,6 +152,29 @@ void main() {
   o_color = vec4(floor(clamp(c, 0.0, 1.0) * 255.0 + 0.5) / 255.0, 1.0);
 }
 )";
+
+// The inset's box (image pixels, y down, [x0, x1) x [y0, y1)): the circle's bounding box and one more
+// pixel, clipped to the image; false when there is no area or nothing of it on the image
+// (hybrid_composite's guards).
+bool inset_box(glm::vec2 centre_px, float radius_px, std::uint32_t width, std::uint32_t height, glm::ivec2& origin,
+               glm::ivec2& size) {
+  if (!(radius_px > 0) || !std::isfinite(radius_px) || !std::isfinite(centre_px.x) || !std::isfinite(centre_px.y)) return false;
+  const auto clamp_to = [](double v, std::uint32_t hi) {
+    return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(hi)));
+  };
+  const int x0 = clamp_to(static_cast<double>(std::floor(centre_px.x - radius_px)), width);
+  const int x1 = clamp_to(static_cast<double>(std::ceil(centre_px.x + radius_px) + 1.0f), width);
+  const int y0 = clamp_to(static_cast<double>(std::floor(centre_px.y - radius_px)), height);
+  const int y1 = clamp_to(static_cast<double>(std::ceil(centre_px.y + radius_px) + 1.0f), height);
+  if (x1 <= x0 || y1 <= y0) return false;
+  origin = {x0, y0};
+  size = {x1 - x0, y1 - y0};
+  return true;
+}
+
+float fovea_px(float fovea_fraction, float radius_px) {
+  return std::clamp(std::isfinite(fovea_fraction) ? fovea_fraction : 0.7f, 0.0f, 1.0f) * radius_px;
+}
 
 double steady_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -479,16 +503,9 @@ void GlFrame::upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width
                                 std::to_string(width) + "x" + std::to_string(height));
   }
   inset_.active = false;
-  // hybrid_composite's guards: no area, nothing to blend.
-  if (!(radius_px > 0) || !std::isfinite(radius_px) || !std::isfinite(centre_px.x) || !std::isfinite(centre_px.y)) return;
-  const auto clamp_to = [](double v, std::uint32_t hi) {
-    return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(hi)));
-  };
-  const int x0 = clamp_to(static_cast<double>(std::floor(centre_px.x - radius_px)), width);
-  const int x1 = clamp_to(static_cast<double>(std::ceil(centre_px.x + radius_px) + 1.0f), width);
-  const int y0 = clamp_to(static_cast<double>(std::floor(centre_px.y - radius_px)), height);
-  const int y1 = clamp_to(static_cast<double>(std::ceil(centre_px.y + radius_px) + 1.0f), height);
-  if (x1 <= x0 || y1 <= y0) return;
+  glm::ivec2 origin, size;
+  if (!inset_box(centre_px, radius_px, width, height, origin, size)) return;
+  const int x0 = origin.x, y0 = origin.y, x1 = origin.x + size.x, y1 = origin.y + size.y;
   backend_.context().make_current();
   if (inset_.texture == 0) {
     glGenTextures(1, &inset_.texture);
@@ -509,8 +526,48 @@ void GlFrame::upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width
   glPixelStorei(GL_UNPACK_SKIP_ROWS, 0);
   end_timed();
   check("GlFrame::upload_inset");
-  const float fovea = std::clamp(std::isfinite(fovea_fraction) ? fovea_fraction : 0.7f, 0.0f, 1.0f) * radius_px;
-  inset_ = Inset{true, inset_.texture, {x0, y0}, {x1 - x0, y1 - y0}, centre_px, radius_px, fovea};
+  inset_ = Inset{true, inset_.texture, inset_.texture, origin, size, centre_px, radius_px, fovea_px(fovea_fraction, radius_px)};
+}
+
+std::string GlFrame::gi_gather_unavailable() const {
+  return GlPhotonGather::unavailable_reason(backend_.context().features());
+}
+
+void GlFrame::gi_gather(const GpuGiGather& gather) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  if (t.color == 0) throw std::logic_error("GlFrame::gi_gather before the G-buffer was rendered");
+  if (gather.traced != nullptr && gather.traced->size() != std::size_t{t.width} * t.height) {
+    throw std::invalid_argument("GlFrame::gi_gather: " + std::to_string(gather.traced->size()) + " traced pixels for " +
+                                std::to_string(t.width) + "x" + std::to_string(t.height));
+  }
+  inset_.active = false;
+  glm::ivec2 origin, size;
+  if (!inset_box(gather.centre_px, gather.radius_px, t.width, t.height, origin, size)) return;
+  if (!gather_) {
+    const std::string why = gi_gather_unavailable();
+    if (!why.empty()) throw std::logic_error("GlFrame::gi_gather: " + why);
+    gather_ = std::make_unique<GlPhotonGather>();
+  }
+  begin_timed("gpu.gi");
+  gather_->run({t.color, t.depth, t.object_id, t.normal, t.width, t.height}, gather, origin, size);
+  end_timed();
+  check("GlFrame::gi_gather");
+  inset_ = Inset{true, inset_.texture, gather_->output(), origin, size, gather.centre_px, gather.radius_px,
+                 fovea_px(gather.fovea_fraction, gather.radius_px)};
+}
+
+void GlFrame::read_gi(std::vector<glm::vec3>& gi) {
+  backend_.context().make_current();
+  const GlGBufferTextures t = backend_.textures();
+  gi.assign(std::size_t{t.width} * t.height, glm::vec3(0.0f));
+  if (!gather_ || !inset_.active || inset_.shown != gather_->output()) return;
+  std::vector<glm::vec3> box;
+  gather_->read(box);
+  for (int y = 0; y < inset_.size.y; ++y)
+    for (int x = 0; x < inset_.size.x; ++x)
+      gi[std::size_t(inset_.origin.y + y) * t.width + std::size_t(inset_.origin.x + x)] =
+          box[std::size_t(y) * std::size_t(inset_.size.x) + std::size_t(x)];
 }
 
 void GlFrame::ensure_display(std::uint32_t tw, std::uint32_t th) {
@@ -593,7 +650,7 @@ void GlFrame::tonemap(const GpuTonemap& params) {
   glUniform1i(loc("u_inset"), inset_.active ? 1 : 0);
   if (inset_.active) {
     glActiveTexture(GL_TEXTURE1);
-    glBindTexture(GL_TEXTURE_2D, inset_.texture);
+    glBindTexture(GL_TEXTURE_2D, inset_.shown);
     glUniform1i(loc("u_inset_gi"), 1);
     glActiveTexture(GL_TEXTURE0);
     glUniform2i(loc("u_inset_origin"), inset_.origin.x, inset_.origin.y);

@@ -18,6 +18,7 @@ class GlAttention;
 class GlBackend;
 class GlLeeMipmap;
 class GlLeeSplat;
+class GlPhotonGather;
 class GlSchedlLayered;
 class GlUlodBlend;
 
@@ -57,6 +58,9 @@ class GlFrame final : public GpuFrame {
   void read_hdr(std::vector<glm::vec3>& hdr) override;
   void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
                     float radius_px, float fovea_fraction) override;
+  void gi_gather(const GpuGiGather& gather) override;
+  std::string gi_gather_unavailable() const override;
+  void read_gi(std::vector<glm::vec3>& gi) override;
   void tonemap(const GpuTonemap& params) override;
   void overlay(const GpuOverlay& overlay) override;
   GpuCompletion finish() override;
@@ -95,10 +99,12 @@ class GlFrame final : public GpuFrame {
   std::unique_ptr<GlLeeSplat> lee_splat_;    // made on first use
   std::unique_ptr<GlSchedlLayered> schedl_;  // made on first use
   std::unique_ptr<GlUlodBlend> ulod_;        // made on first use
+  std::unique_ptr<GlPhotonGather> gather_;   // made on first use
   unsigned dof_output_ = 0;                  // the texture the last GPU dof wrote
   struct Inset {
     bool active = false;  // this frame has one
-    unsigned texture = 0;
+    unsigned texture = 0;  // upload_inset's
+    unsigned shown = 0;    // what the tone map reads: `texture`, or the GPU gather's output
     glm::ivec2 origin{0}, size{0};  // its box in image pixels (y down)
     glm::vec2 centre{0.0f};
     float radius = 0, fovea = 0;    // pixels
