@@ -22,7 +22,9 @@
 # visibility buffer's compute pass (frame.gbuffer_pass); "base-noprepass" = base-forward shading
 # every surface drawn (frame.depth_prepass=false: what the depth pre-pass saves);
 # "gi" = base with the hybrid renderer (20k photons traced by Embree on the CPU, the inset
-# composited on the GPU); "dof" = base with the scene's lens and lee-mipmap focused at the lens's own
+# composited on the GPU; gi.device=auto: gathered on a GPU, on the CPU under llvmpipe); "gi-gpu" /
+# "gi-cpu" = the same radius gather forced onto the GPU / the CPU (gi.device, gi.estimate=radius);
+# "gi-nearest" = the CPU's k-nearest estimate (Table 8.3's nNN = 240: the thesis's); "dof" = base with the scene's lens and lee-mipmap focused at the lens's own
 # distance (focus.mode=fixed: the DOF alone; on the GPU path it runs on the GPU, nothing is read
 # back); "dof-cpu" = dof with dof.device=cpu (the GPU path reads colour and depth back for the CPU's
 # lee-mipmap and uploads its colour: what running it on the GPU saves). The scene's own effects
@@ -102,8 +104,13 @@ for scene in $SCENES; do
         attention-cpu) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=false
                               --set focus.mode=attention --set overlay.focus=true --set attention.device=cpu) ;;
         ulod) extra+=(--set gi.enabled=false --set lod.policy=ulod) ;;
-        gi) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
-                   --set gi.caustic_photons=0) ;;
+        gi*) extra+=(--set dof.enabled=false --set lod.enabled=false --set gi.enabled=true --set gi.photons=20000
+                    --set gi.caustic_photons=0)
+             case $what in
+               gi-gpu) extra+=(--set gi.device=gpu) ;;
+               gi-cpu) extra+=(--set gi.device=cpu --set gi.estimate=radius) ;;
+               gi-nearest) extra+=(--set gi.device=cpu --set gi.estimate=nearest) ;;
+             esac ;;
       esac
       for gpu in $PATHS; do
         dir=$RUNS/$scene-$size-$effects-$([ $gpu = true ] && echo gpu || echo readback)
@@ -164,10 +171,23 @@ for d in sorted(glob.glob(os.path.join(runs, "*-gpu"))):
     a, b = (load(readback) if os.path.isdir(readback) else {}), load(d)
     fa, fb = a.get("frame", []), b["frame"]
     ga, gb = a.get("gaze-age", []), b["gaze-age"]
-    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.ulod_render", "gpu.ulod", "gpu.peel", "gpu.dof", "gpu.tonemap", "gpu.overlay") if p in b)
+    gpu_side = ", ".join(f'{p[4:]} {statistics.median(b[p]):.2f}' for p in ("gpu.gbuffer", "gpu.attention", "gpu.ulod_render", "gpu.ulod", "gpu.peel", "gpu.dof", "gpu.gi", "gpu.tonemap", "gpu.overlay") if p in b)
     ratio = f"{pct(fa, 50) / pct(fb, 50):.2f}" if fa else "-"
     print(f"| {scene} | {size} | {effects} | {p50_p99(fa)} | {p50_p99(fb)} | "
           f"{ratio} | {p50_p99(ga)} | {p50_p99(gb)} | {gpu_side} |")
+gi_runs = [d for d in sorted(glob.glob(os.path.join(runs, "*-gi*-gpu"))) if os.path.isdir(d)]
+if gi_runs:
+    # The GI pass's own stages on the GPU path, CPU ms p50: photons traced (or waited for, with
+    # gi.overlap), kd-trees, the area's ids read back, the CPU's pixels, the gather handed over; and
+    # the GPU's gather.
+    stages = ("gi.photons", "gi.index", "gi.ids", "gi.render", "gi.gather", "gi", "gpu.gi", "gpu.upload")
+    print()
+    print("| run | " + " | ".join(stages) + " |")
+    print("|---|" + "---|" * len(stages))
+    for d in gi_runs:
+        b = load(d)
+        cells = [f"{statistics.median(b[p]):.2f}" if p in b else "-" for p in stages]
+        print(f"| {os.path.basename(d)[: -len('-gpu')]} | " + " | ".join(cells) + " |")
 stereo = [d for d in sorted(glob.glob(os.path.join(runs, "*+stereo-*"))) if os.path.isdir(d)]
 if stereo:
     # Each eye's own render in one process, frame after frame: what the right eye saves by reusing
