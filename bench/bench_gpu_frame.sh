@@ -180,7 +180,7 @@ if gi_runs:
     # The GI pass's own stages on the GPU path, CPU ms p50: photons traced (or waited for, with
     # gi.overlap), kd-trees, the area's ids read back, the CPU's pixels, the gather handed over; and
     # the GPU's gather.
-    stages = ("gi.photons", "gi.index", "gi.ids", "gi.render", "gi.gather", "gi", "gpu.gi", "gpu.upload")
+    stages = ("gi.photons", "gi.photons_overlapped", "gi.index", "gi.ids", "gi.render", "gi.gather", "gi", "gpu.gi", "gpu.upload")
     print()
     print("| run | " + " | ".join(stages) + " |")
     print("|---|" + "---|" * len(stages))

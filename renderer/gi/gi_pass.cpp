@@ -100,6 +100,12 @@ CsfReconstruction csf_periphery(const EmbreeBackend& backend, const Camera& came
 }
 
 // The maps' sizes and the first note (fewer photons than asked, or power scaling held) for the result.
+// What decides the maps' photons (a change in any of them: the worker's maps are not this frame's).
+bool same_maps_settings(const GiPassSettings& a, const GiPassSettings& b) {
+  return a.photons == b.photons && a.caustic_photons == b.caustic_photons && a.caustics == b.caustics &&
+         a.trace_depth == b.trace_depth && a.seed == b.seed && a.strategy == b.strategy;
+}
+
 void record_map_stats(const PhotonMaps& maps, GiPassResult& r) {
   r.photons = maps.global.photons.size();
   r.caustic_photons = maps.caustic.photons.size();
@@ -150,9 +156,10 @@ const char* to_string(Strategy s) {
 
 GiPass::GiPass() : own_(std::make_unique<EmbreeBackend>()), backend_(own_.get()) {}
 GiPass::GiPass(EmbreeBackend& shared) : backend_(&shared), has_scene_(true) {}
-GiPass::~GiPass() = default;
+GiPass::~GiPass() { drop_next_maps(); }
 
 void GiPass::set_scene(const Scene& scene) {
+  drop_next_maps();                  // traced in the old scene, and the backend is about to change
   if (own_) own_->set_scene(scene);  // a shared backend has the scene from its owner
   has_scene_ = true;
   gaze_mapper_.reset();  // last frame's paths belong to the old scene
@@ -191,12 +198,24 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   assert(&out != &local && "GiPass::run: out may not alias local (gi_pass.h)");
   result_ = GiPassResult{};
   result_.strategy = s.strategy;
+  // The worker traces with the backend as the last frame left it: done before the time moves on.
+  const auto waiting = std::chrono::steady_clock::now();
+  if (next_.done.valid()) next_.done.wait();
+  next_.waited_ms = ms_since(waiting);
   backend_->set_time(now_s);
   const bool gaze_directed = s.strategy == Strategy::GazeDirected;
   if (!gaze_directed) gaze_mapper_.reset();
 
   // A second eye's run keeps the maps (and their precomputed irradiance) of the first.
-  if (!s.reuse_maps) trace_maps(camera, now_s, area, s);
+  const bool overlap = can_overlap(s);
+  if (!overlap) drop_next_maps();
+  if (!s.reuse_maps) {
+    if (overlap) {
+      take_overlapped_maps(camera, now_s, area, s);
+    } else {
+      trace_maps(camera, now_s, area, s);
+    }
+  }
   auto t0 = std::chrono::steady_clock::now();
   if (!s.reuse_maps && s.render.indirect_estimate == IndirectEstimate::Precomputed) {
     maps_.precompute_irradiance(s.render.estimate, s.precompute_stride);
@@ -230,7 +249,56 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   record_map_stats(maps_, result_);
   // The labelled map steers the next frame (it is not read again this frame).
   if (gaze_directed && !s.keep_maps) gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
+  // The next frame's maps, while this frame goes on (a stereo frame's once its second eye is done).
+  if (overlap && !s.keep_maps) start_next_maps(s);
   return result_;
+}
+
+bool GiPass::can_overlap(const GiPassSettings& s) const {
+  return s.overlap && own_ != nullptr && s.strategy == Strategy::Traditional;
+}
+
+void GiPass::take_overlapped_maps(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s) {
+  if (!next_.done.valid() || !same_maps_settings(next_.settings, s)) {
+    drop_next_maps();
+    trace_maps(camera, now_s, area, s);
+    return;
+  }
+  next_.done.get();  // ready (run waited); rethrows what the worker threw
+  result_.photons_ms = next_.waited_ms;
+  result_.overlapped = true;
+  result_.overlapped_trace_ms = next_.trace_ms;
+  maps_ = std::move(next_.maps);  // the trees' spans move with the photons' buffers
+  next_.maps = PhotonMaps{};
+}
+
+// The worker traces with the backend at the time this frame set; the next run waits for it before it
+// sets the backend's time again.
+void GiPass::start_next_maps(const GiPassSettings& s) {
+  next_.settings = s;
+  next_.done = std::async(std::launch::async, [this] {
+    const auto t0 = std::chrono::steady_clock::now();
+    TraceSettings ts;
+    ts.stored_photons = next_.settings.photons;
+    ts.max_depth = next_.settings.trace_depth;
+    ts.seed = next_.settings.seed;
+    next_.maps.global = trace_photons(*backend_, ts);
+    next_.maps.caustic = {};
+    if (next_.settings.caustics && backend_->scene().has_specular_or_refractive() && next_.settings.caustic_photons > 0)
+      next_.maps.caustic = trace_caustic_map(*backend_, next_.settings);
+    next_.maps.index();
+    next_.trace_ms = ms_since(t0);
+  });
+}
+
+void GiPass::drop_next_maps() {
+  if (next_.done.valid()) {
+    try {
+      next_.done.get();
+    } catch (const std::exception&) {  // its maps are not used; this frame traces its own and says why if it fails too
+    }
+  }
+  next_.maps = PhotonMaps{};
 }
 
 // The first pass: the global map by strategy and the caustic map for specular or refractive

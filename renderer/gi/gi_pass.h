@@ -6,6 +6,7 @@
 // the frame's own Embree backend when the frame has one (one BVH of the scene, at the frame's
 // levels of detail), else with an Embree backend of its own (beside the raster backend).
 #include <cstdint>
+#include <future>
 #include <memory>
 #include <string>
 #include <vector>
@@ -63,6 +64,14 @@ struct GiPassSettings {
   // the last run, which must be of the same scene time) and then hands them on, so the photons both
   // eyes' areas used steer the next frame. Both false for one view.
   bool keep_maps = false, reuse_maps = false;
+  // Trace the next frame's photon maps on a worker thread once this frame's are used (issue 42: CPU
+  // tracing overlapped with the GPU's gather and the next frame's G-buffer), so a frame waits only for
+  // what is left of it. A frame then renders with the maps traced at the previous frame's scene time:
+  // one frame late where objects or lights move (the first frame, and a frame after set_scene or a
+  // change of settings, traces its own). Taken only with the traditional strategy (gaze-directed
+  // photons follow this frame's labels, importons this frame's area) and an Embree backend of the
+  // pass's own (the frame's renders meanwhile); otherwise ignored.
+  bool overlap = false;
 };
 
 struct GiPassResult {
@@ -77,6 +86,10 @@ struct GiPassResult {
   std::string note;              // fewer photons than asked and why, or power scaling held
   // Stage times, milliseconds.
   double photons_ms = 0, index_ms = 0, precompute_ms = 0, render_ms = 0, composite_ms = 0;
+  // With overlap: the maps came from the worker (photons_ms then is the wait for it, index_ms 0), and
+  // what tracing and indexing them took there.
+  bool overlapped = false;
+  double overlapped_trace_ms = 0;
 };
 
 class GiPass {
@@ -107,6 +120,12 @@ class GiPass {
 
  private:
   void trace_maps(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s);
+  // overlap: this frame's maps from the worker when it traced them with these settings (waits), else
+  // traced here; and the worker started on the next frame's.
+  bool can_overlap(const GiPassSettings& s) const;
+  void take_overlapped_maps(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s);
+  void start_next_maps(const GiPassSettings& s);
+  void drop_next_maps();  // waits for the worker and forgets its maps
   void trace_global_map(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s);
 
   std::unique_ptr<EmbreeBackend> own_;  // null when tracing with the frame's backend
@@ -116,6 +135,13 @@ class GiPass {
   GazePhotonMapper gaze_mapper_;
   ImportonMap importons_;
   std::vector<glm::vec3> gi_color_, periphery_;
+  struct Next {  // the worker's maps of the next frame
+    std::future<void> done;
+    PhotonMaps maps;
+    GiPassSettings settings;  // what they were traced with
+    double trace_ms = 0;
+    double waited_ms = 0;  // by this run, before it set the backend's time
+  } next_;
   GiPassResult result_;
 };
 

@@ -75,6 +75,7 @@ gi::GiPassSettings gi_pass_settings(const Settings& s, double scene_area_m2) {
       s.is("gi.estimate", "precomputed") ? gi::IndirectEstimate::Precomputed : gi::IndirectEstimate::Nearest;
   // gi.estimate=auto gathers by radius where the gather runs on the GPU (FramePipeline::run_gi).
   gs.render.estimate.fixed_radius = gs.render.caustic_estimate.fixed_radius = s.is("gi.estimate", "radius");
+  gs.overlap = s.is("gi.overlap", "true");  // auto: FramePipeline::run_gi
   gs.render.ray_depth = count("gi.ray_depth");
   gs.render.shadows = s.flag("shadows");
   gs.precompute_stride = count("gi.precompute_stride");

@@ -65,6 +65,7 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   if (gi_gathered_on_gpu_) {
     gs.render.estimate.fixed_radius = gs.render.caustic_estimate.fixed_radius = true;
     gs.render.skip_gbuffer_pixels = true;
+    gs.overlap = gs.overlap || settings_.is("gi.overlap", "auto");
   }
   gi_fovea_ = gs.fovea;
   // A stereo frame traces the photon maps once, for the left eye (GiPassSettings::keep_maps).
@@ -78,8 +79,12 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   if (gi_gathered_on_gpu_) gather_gi_on_gpu(gs, now_s, timer);
   if (f.eye == Eye::Left) shared_.gi = true;
   if (!gs.reuse_maps) {
-    timer.record("gi.photons", r.photons_ms);
-    timer.record("gi.index", r.index_ms);
+    timer.record("gi.photons", r.photons_ms);  // with overlap: the wait for the worker
+    if (r.overlapped) {
+      timer.record("gi.photons_overlapped", r.overlapped_trace_ms);
+    } else {
+      timer.record("gi.index", r.index_ms);
+    }
     if (gs.render.indirect_estimate == gi::IndirectEstimate::Precomputed) timer.record("gi.precompute", r.precompute_ms);
   }
   timer.record("gi.render", r.render_ms);

@@ -110,6 +110,10 @@ const std::vector<SettingSpec>& Settings::specs() {
        "indirect light per shading point from its gi.nnn nearest photons (Jensen & Pedersen §6.3.2), from every photon "
        "within gi.nn_radius (the GPU gather's estimate), or from the nearest photon's precomputed irradiance "
        "(Christensen 1999; diffuse only, much faster); auto: radius where the gather runs on the GPU, else nearest"},
+      {"gi.overlap", "auto", "auto|true|false",
+       "trace the next frame's photons on a worker thread while the frame goes on (the frame then uses the maps traced "
+       "during the last one: one frame late where things move); traditional strategy only; auto: where the gather "
+       "runs on the GPU"},
       {"gi.device", "auto", "auto|cpu|gpu",
        "where the gaze area's photons are gathered: on the GPU where the frame lies (photons still traced by Embree on "
        "the CPU; the raster's direct light, no shadows; mirrors, glass and glTF materials traced on the CPU), or on the "

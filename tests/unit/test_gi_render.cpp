@@ -263,6 +263,49 @@ TEST(GiPass, TracingWithTheFramesBackendGivesTheSameImage) {
   EXPECT_EQ(shared.last().composite_ms, 0.0);
 }
 
+// GiPassSettings::overlap: the next frame's maps are traced while the frame goes on; on a static
+// scene (same seed, same photons) every frame is the frame traced in place. A change of settings or
+// scene traces in place again; the shared backend and other strategies never overlap.
+TEST(GiPass, OverlappedTracingGivesTheSameFramesOnAStaticScene) {
+  const Scene scene = cornell(64, 48);
+  GiPassSettings s;
+  s.photons = 3000;
+  s.caustic_photons = 0;
+  const GazeArea area{{30.0f, 22.0f}, 16.0f};
+  const std::vector<glm::vec3> local(std::size_t{64} * 48, glm::vec3(0.25f));
+  GiPass in_place, overlapped;
+  in_place.set_scene(scene);
+  overlapped.set_scene(scene);
+  GiPassSettings o = s;
+  o.overlap = true;
+  std::vector<glm::vec3> a, b;
+  for (int frame = 0; frame < 3; ++frame) {
+    SCOPED_TRACE(frame);
+    in_place.run(scene.camera, 0.0, area, s, local, a);
+    overlapped.run(scene.camera, 0.0, area, o, local, b);
+    EXPECT_EQ(overlapped.last().overlapped, frame > 0);  // the first frame has nothing traced ahead
+    EXPECT_EQ(a, b);
+    EXPECT_EQ(in_place.last().photons, overlapped.last().photons);
+  }
+  o.photons = 2000;  // the worker traced 3000: this frame traces its own
+  overlapped.run(scene.camera, 0.0, area, o, local, b);
+  EXPECT_FALSE(overlapped.last().overlapped);
+  EXPECT_LE(overlapped.last().photons, 2100u);
+  overlapped.set_scene(scene);  // drops what the worker traced
+  overlapped.run(scene.camera, 0.0, area, o, local, b);
+  EXPECT_FALSE(overlapped.last().overlapped);
+  o.strategy = Strategy::Importon;  // follows this frame's area: never overlapped
+  overlapped.run(scene.camera, 0.0, area, o, local, b);
+  overlapped.run(scene.camera, 0.0, area, o, local, b);
+  EXPECT_FALSE(overlapped.last().overlapped);
+  EmbreeBackend frame;
+  frame.set_scene(scene);
+  GiPass shared(frame);  // the frame's backend renders meanwhile: never overlapped
+  shared.run(scene.camera, 0.0, area, s, local, b);
+  shared.run(scene.camera, 0.0, area, s, local, b);
+  EXPECT_FALSE(shared.last().overlapped);
+}
+
 }  // namespace
 }  // namespace fovea::render::gi
 
