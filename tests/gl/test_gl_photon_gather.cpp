@@ -11,6 +11,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <limits>
+#include <stdexcept>
 #include <memory>
 #include <string>
 #include <vector>
@@ -162,6 +164,71 @@ TEST(GlPhotonGather, ThePhotonsAddLightAndNothingOutsideTheAreaIsWritten) {
     }
   }
   EXPECT_GT(inside, 0.0);
+}
+
+// The hard cases (issue 42's stability catalogue for the gather): an area off the screen or of NaN
+// radius (nothing), larger than the screen, 1x1 and 1xN images, radii 0, NaN and infinite, photons of
+// 1e6 W and 1e12 m away, non-finite photons, no gathered material; every value stays finite, and a
+// traced image of the wrong size is refused by name.
+TEST(GlPhotonGather, HardCasesStayFiniteAndBadInputIsRefused) {
+  for (const glm::uvec2 size : {glm::uvec2(160, 120), glm::uvec2(1, 1), glm::uvec2(1, 40), glm::uvec2(40, 1)}) {
+    SCOPED_TRACE(std::to_string(size.x) + "x" + std::to_string(size.y));
+    const Scene scene = bundled("cornell.json", size.x, size.y);
+    GlBackend gl;
+    GpuFrame* gpu = gl.gpu_frame();
+    if (!gpu->gi_gather_unavailable().empty()) GTEST_SKIP() << gpu->gi_gather_unavailable();
+    gl.set_scene(scene);
+    GBuffer g;
+    gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);
+    std::vector<GpuPhoton> photons;
+    for (int i = 0; i < 500; ++i) {
+      const float t = static_cast<float>(i) / 500.0f;
+      photons.push_back({{2.0f * t - 1.0f, 0.0f, -t}, glm::vec3(i % 2 ? 1e6f : 1e-3f), {0, -1, 0}});
+    }
+    photons.push_back({glm::vec3(1e12f), glm::vec3(1.0f), {0, -1, 0}});
+    photons.push_back({glm::vec3(-1e12f, 3e11f, 0), glm::vec3(1.0f), {0, -1, 0}});
+    const gi::EyeRays eye(scene.camera, 0.0);
+    const glm::vec2 middle(0.5f * static_cast<float>(size.x), 0.5f * static_cast<float>(size.y));
+    struct Case {
+      glm::vec2 centre;
+      float radius_px, radius_m;
+      bool surfaces;
+    };
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    for (const Case& c : {Case{{-500, -500}, 20, 0.4f, true}, Case{middle, nan, 0.4f, true}, Case{middle, 1e5f, 0.4f, true},
+                          Case{middle, 30, 0.0f, true}, Case{middle, 30, nan, true}, Case{middle, 30, inf, true},
+                          Case{middle, 30, 0.4f, false}, Case{{nan, 3}, 30, 0.4f, true}}) {
+      GpuGiGather in;
+      in.indirect = {&photons, c.radius_m, true, 1.1f};
+      in.caustic = {&photons, c.radius_m, false, nan};
+      if (c.surfaces) in.surfaces.push_back({1, glm::vec3(0.8f), glm::vec3(0.5f), 1e6f});
+      in.eye = eye.eye;
+      in.right = eye.right * eye.tan_x;
+      in.up = eye.up * eye.tan_y;
+      in.back = eye.back;
+      in.ambient = scene.ambient;
+      in.centre_px = c.centre;
+      in.radius_px = c.radius_px;
+      ASSERT_NO_THROW(gpu->gi_gather(in));
+      std::vector<glm::vec3> gi;
+      gpu->read_gi(gi);
+      ASSERT_EQ(gi.size(), std::size_t{size.x} * size.y);
+      for (const glm::vec3& v : gi) ASSERT_TRUE(std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z));
+      gpu->tonemap({GpuTonemap::Op::Reinhard, 1.0f});
+      gpu->finish();
+    }
+    GpuGiGather bad;
+    const std::vector<glm::vec3> wrong(3, glm::vec3(0.0f));
+    bad.traced = &wrong;
+    bad.centre_px = middle;
+    bad.radius_px = 10;
+    try {
+      gpu->gi_gather(bad);
+      ADD_FAILURE() << "a traced image of 3 pixels was taken";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("3 traced pixels"), std::string::npos) << e.what();
+    }
+  }
 }
 
 // Whole frames: gi.device=gpu against gi.device=cpu with the same estimate, the GPU-resident path both.
