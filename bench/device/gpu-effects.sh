@@ -13,6 +13,10 @@
 #                                   target <= 0.5 ms) and with attention.device=cpu
 #   scene                           attention + focus + LOD + lee-mipmap (target: frame <= 4 ms)
 #   ulod                            the scene with lod.policy=ulod (its blend on the GPU: gpu.ulod; the next levels' render: gpu.ulod_render)
+#   gi, gi-cpu                      the hybrid renderer, 20k photons traced by Embree on the CPU (on a
+#                                   worker thread, gi.overlap): gathered on the GPU (gi.device=auto) and
+#                                   by the CPU's radius estimate (gi.device=cpu), same estimate (target:
+#                                   the gaze area <= 4 ms); the GI stages in a table of their own
 #   dof-fN+fragment, ulod+fragment, the same with frame.effect_passes=fragment: the fragment passes
 #   attention+fragment              against the compute passes auto takes on a GPU (issue 42), same run
 # Then stereo at headset resolution (issue 42's target: 2 x 2160x2160 with the scene's effects
@@ -37,7 +41,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 FRAMES=${1:-100}
 SIZE=${SIZE:-1920x1080}
-EFFECTS=${EFFECTS:-base attention attention+fragment attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-f11.2+fragment dof-f2.8+fragment dof-f0.7+fragment dof-cpu dof-schedl dof-splat scene ulod ulod+fragment}
+EFFECTS=${EFFECTS:-base attention attention+fragment attention-cpu dof-f11.2 dof-f2.8 dof-f0.7 dof-f11.2+fragment dof-f2.8+fragment dof-f0.7+fragment dof-cpu dof-schedl dof-splat scene ulod ulod+fragment gi gi-cpu}
 STEREO_EFFECTS=${STEREO_EFFECTS-base+stereo scene+stereo}
 PASSES=${PASSES-^attention/|lee_mipmap|schedl_layered|ulod_blend}
 PATHS=${PATHS:-true}

@@ -238,6 +238,7 @@ PassRule gi_rule(const PlanContext& c) {
   }
   PassRule rule = yes(why);
   place(rule, c, t.gi_device, "gi.device", gi_gpu_blocker(c), true);
+  if (gi_on_gpu(c)) rule.reason += " (the gather; photons traced by Embree on the CPU)";
   return rule;
 }
 
