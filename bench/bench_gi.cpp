@@ -459,19 +459,23 @@ int main(int argc, char** argv) {
     if (out) out << "strategy,estimate,photons,ms_per_frame,relative_rmse,reference_photons,nn_radius_m\n";
     for (const float radius : radii)
       for (gi::Strategy st : {gi::Strategy::Traditional, gi::Strategy::GazeDirected, gi::Strategy::Importon})
-        for (gi::IndirectEstimate est : {gi::IndirectEstimate::Nearest, gi::IndirectEstimate::Precomputed})
+        // radius: every photon within the radius, the GPU gather's estimate (gi.estimate=radius; not with
+        // the gaze-directed strategy, whose labels the GPU does not make).
+        for (const std::string en : {"nearest", "radius", "precomputed"})
           for (std::uint32_t n : {5000u, 10000u, 20000u, 40000u, 80000u}) {
-            gi::GiPassSettings s = base_settings(st, est);
+            if (en == "radius" && st == gi::Strategy::GazeDirected) continue;
+            gi::GiPassSettings s = base_settings(st, en == "precomputed" ? gi::IndirectEstimate::Precomputed
+                                                                       : gi::IndirectEstimate::Nearest);
+            s.render.estimate.fixed_radius = s.render.caustic_estimate.fixed_radius = en == "radius";
             s.photons = n;
             s.render.estimate.max_radius = radius > 0 ? radius : gi::auto_nn_radius(surfaces_m2, s.render.estimate.nearest, n);
             gi::GiPass pass;
             pass.set_scene(scene);
             const Run r = run_frames(pass, scene, area, s, local, frames, warmup);
             const double e = relative_rmse(r.gi, reference.gi, area, 640);
-            const char* en = est == gi::IndirectEstimate::Nearest ? "nearest" : "precomputed";
             char shown[16] = "auto";
             if (radius > 0) std::snprintf(shown, sizeof shown, "%.3g", static_cast<double>(radius));
-            std::printf("%-14s %-11s %8u %8s %10.1f %10.4f\n", gi::to_string(st), en, n, shown, r.total_ms, e);
+            std::printf("%-14s %-11s %8u %8s %10.1f %10.4f\n", gi::to_string(st), en.c_str(), n, shown, r.total_ms, e);
             std::fflush(stdout);
             if (out)
               out << gi::to_string(st) << "," << en << "," << n << "," << r.total_ms << "," << e << "," << reference_photons
