@@ -179,6 +179,16 @@ bool GazeArea::contains(float x, float y) const {
   return dx * dx + dy * dy <= radius_px * radius_px;
 }
 
+PixelBox pixel_box(const GazeArea& area, std::uint32_t width, std::uint32_t height) {
+  const float r = area.radius_px;
+  if (!std::isfinite(r) || !(r > 0) || !std::isfinite(area.center_px.x) || !std::isfinite(area.center_px.y)) return {};
+  const auto clip = [](float v, std::uint32_t hi) {
+    return static_cast<std::uint32_t>(std::clamp(v, 0.0f, static_cast<float>(hi)));
+  };
+  return {clip(std::floor(area.center_px.x - r), width), clip(std::floor(area.center_px.y - r), height),
+          clip(std::ceil(area.center_px.x + r), width), clip(std::ceil(area.center_px.y + r), height)};
+}
+
 GazeArea gaze_area(const protocol::DisplayGeometry& display, std::uint32_t width, std::uint32_t height,
                    glm::vec2 gaze_normalized, double diameter_deg) {
   GazeArea a;
@@ -372,16 +382,8 @@ void render_gaze_area(const EmbreeBackend& backend, const Camera& camera, double
   const bool usable = eye.ok && std::isfinite(area.center_px.x) && std::isfinite(area.center_px.y) &&
                       std::isfinite(area.radius_px) && area.radius_px > 0;
   if (usable) {
-    // The pixel rows and columns the circle touches, clipped to the image (a gaze point off the
-    // screen still renders the part of its area that is on it).
-    const float r = area.radius_px;
-    const auto clip = [](float v, std::uint32_t hi) {
-      return static_cast<std::uint32_t>(std::clamp(v, 0.0f, static_cast<float>(hi)));
-    };
-    const std::uint32_t x0 = clip(std::floor(area.center_px.x - r), camera.width);
-    const std::uint32_t x1 = clip(std::ceil(area.center_px.x + r), camera.width);
-    const std::uint32_t y0 = clip(std::floor(area.center_px.y - r), camera.height);
-    const std::uint32_t y1 = clip(std::ceil(area.center_px.y + r), camera.height);
+    // A gaze point off the screen still renders the part of its area that is on it.
+    const auto [x0, y0, x1, y1] = pixel_box(area, camera.width, camera.height);
     Scene lights;
     lights.lights = backend.scene().lights;
     lights.background = backend.scene().background;

@@ -39,6 +39,13 @@ struct GazeArea {
   bool contains(float x, float y) const;
 };
 
+// The pixel rows [y0, y1) and columns [x0, x1) a gaze area's circle touches, clipped to a width x
+// height image (empty where nothing of it is on the image, or its centre or radius is not finite).
+struct PixelBox {
+  std::uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+PixelBox pixel_box(const GazeArea& area, std::uint32_t width, std::uint32_t height);
+
 // The area a visual angle of `diameter_deg` subtends around gaze point (normalised screen
 // coordinates, [0, 1]^2, y down) on `display`, for an image `width` x `height` that fills the
 // screen (eqs. 2.1-2.2). A non-finite gaze point gives the screen centre.

@@ -11,23 +11,10 @@
 
 namespace fovea::render {
 
-void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer) {
-  if (!gi_pass_) {
-    // One instance of the scene in Embree: the frame's own when it ray traces (its BVH, its levels of
-    // detail), else a ray tracer beside the raster backend.
-    gi_tracer_ = dynamic_cast<EmbreeBackend*>(backend_.get());
-    if (gi_tracer_ != nullptr) {
-      gi_pass_ = std::make_unique<gi::GiPass>(*gi_tracer_);
-    } else {
-      gi_pass_ = std::make_unique<gi::GiPass>();
-      gi_pass_->set_scene(scene_);
-    }
-  }
-  // The frame's levels, whatever the backend rendered last (ULOD's next-coarser levels, a peeled layer).
-  if (gi_tracer_ != nullptr) gi_tracer_->set_lod_levels(lod_levels_);
+// Where GI is ray traced: around the gaze point, else the most attended object, else the screen
+// centre; or everything (gi.area=full).
+void FramePipeline::place_gi_area(const Frame& f) {
   const Settings& s = settings_;
-  gi_frame_ = Frame::Gi{};
-  // Where: the gaze point, else the most attended object, else the screen centre; or everything.
   const Camera& cam = scene_.camera;
   const bool full = s.is("gi.area", "full");
   glm::vec2 centre(0.5f);
@@ -55,6 +42,25 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   } else {
     gi_frame_.area = gi::gaze_area(scene_.display, cam.width, cam.height, centre, s.number("gi.gaze_area_deg"));
   }
+}
+
+void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer) {
+  if (!gi_pass_) {
+    // One instance of the scene in Embree: the frame's own when it ray traces (its BVH, its levels of
+    // detail), else a ray tracer beside the raster backend.
+    gi_tracer_ = dynamic_cast<EmbreeBackend*>(backend_.get());
+    if (gi_tracer_ != nullptr) {
+      gi_pass_ = std::make_unique<gi::GiPass>(*gi_tracer_);
+    } else {
+      gi_pass_ = std::make_unique<gi::GiPass>();
+      gi_pass_->set_scene(scene_);
+    }
+  }
+  // The frame's levels, whatever the backend rendered last (ULOD's next-coarser levels, a peeled layer).
+  if (gi_tracer_ != nullptr) gi_tracer_->set_lod_levels(lod_levels_);
+  gi_frame_ = Frame::Gi{};
+  place_gi_area(f);
+  const Camera& cam = scene_.camera;
   gi::GiPassSettings gs = pass_settings().gi;
   // On the GPU-resident path the inset is composited on the GPU (the tone map's input), unless the
   // CSF periphery replaces the local image, which is then made on the CPU anyway. With gi.device the
@@ -112,12 +118,8 @@ const GBuffer& FramePipeline::read_gi_area_ids(const gi::GazeArea& area, PassTim
     g.object_id.assign(g.size(), 0);
   }
   // The circle's pixel rows and columns, as render_gaze_area visits them; the rest stays stale (unread).
-  const float r = std::isfinite(area.radius_px) ? std::max(area.radius_px, 0.0f) : 0.0f;
-  const auto clip = [](float v, std::uint32_t hi) {
-    return std::isfinite(v) ? static_cast<std::uint32_t>(std::clamp(v, 0.0f, static_cast<float>(hi))) : 0u;
-  };
-  const std::uint32_t x0 = clip(std::floor(area.center_px.x - r), cam.width), x1 = clip(std::ceil(area.center_px.x + r), cam.width);
-  const std::uint32_t y0 = clip(std::floor(area.center_px.y - r), cam.height), y1 = clip(std::ceil(area.center_px.y + r), cam.height);
+  const gi::PixelBox box = gi::pixel_box(area, cam.width, cam.height);
+  const std::uint32_t x0 = box.x0, x1 = box.x1, y0 = box.y0, y1 = box.y1;
   if (x1 <= x0 || y1 <= y0) return g;
   gpu_->read_rect(x0, y0, x1, y1, gi_rect_depth_, gi_rect_ids_);
   const std::uint32_t w = x1 - x0;
