@@ -181,7 +181,8 @@ class GpuFrame {
   // std::invalid_argument when `traced` is not the image's size; a device without compute shaders
   // throws std::logic_error (gi_gather_unavailable() says why first).
   virtual void gi_gather(const GpuGiGather& gather) = 0;
-  virtual std::string gi_gather_unavailable() const { return "this GPU frame has no GI gather"; }
+  // Why gi_gather cannot run here for maps of up to `photons` photons ("" : it can).
+  virtual std::string gi_gather_unavailable(std::size_t /*photons*/) const { return "this GPU frame has no GI gather"; }
   // The last gi_gather's GI image: full image size, row 0 at the top, 0 outside the area's box. Waits.
   virtual void read_gi(std::vector<glm::vec3>& gi) = 0;
   // HDR colour (the G-buffer's, or the upload of this frame; with this frame's inset composited) to

@@ -163,13 +163,21 @@ void FramePipeline::scene_changed() {
   if (gi_pass_) gi_pass_->set_scene(scene_);
 }
 
+// Why the GPU frame cannot gather GI with these settings ("" : it can): the maps' photons as asked,
+// and the last emission round's overshoot (photon_tracer.h: at most 8192 a round), must fit.
+std::string FramePipeline::gpu_gi_unavailable(const gi::GiPassSettings& gs) const {
+  if (gpu_ == nullptr) return "";
+  const std::size_t photons = std::size_t{std::max(gs.photons, gs.caustic_photons)} + 8192;
+  return gpu_->gi_gather_unavailable(photons);
+}
+
 FramePlan FramePipeline::plan() const {
   const BackendCapabilities can = backend_->capabilities();
   const PassSettings& parsed = pass_settings();
   FramePlan plan = plan_frame(PlanContext{scene_, settings_, gaze_.available(), can.per_pixel_lens, &parsed.plan,
                                           gpu_refusal().empty(), can.software_rasteriser,
                                           parsed.gi.render.estimate.max_radius,
-                                          gpu_ != nullptr ? gpu_->gi_gather_unavailable() : std::string()});
+                                          gpu_gi_unavailable(parsed.gi)});
   plan.placement = placement(plan);
   return plan;
 }

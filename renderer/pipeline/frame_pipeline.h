@@ -173,6 +173,7 @@ class FramePipeline {
   std::vector<glm::vec3> gpu_checked_;  // a GPU pass's colour read back for the finite check (debug only)
   Frame::Gi gi_frame_;
   void place_gi_area(const Frame& f);  // gi_frame_'s area and what it follows
+  std::string gpu_gi_unavailable(const gi::GiPassSettings& gs) const;
   // Places the gaze area, runs the gi pass over `local` into hybrid_, records its stage times.
   void run_gi(const Frame& f, const std::vector<glm::vec3>& local, double now_s, PassTimer& timer);
   // render()'s steps, in pipeline order: each times its pass under its timings.csv name, runs it,

@@ -55,7 +55,7 @@ Gathered gather_both(const Scene& scene, const gi::GazeArea& area, gi::EstimateF
   GlBackend gl;
   GpuFrame* gpu = gl.gpu_frame();
   EXPECT_TRUE(gpu->unavailable_reason().empty()) << gpu->unavailable_reason();
-  if (!gpu->gi_gather_unavailable().empty()) return {};
+  if (!gpu->gi_gather_unavailable(0).empty()) return {};
   gl.set_scene(scene);
   GBuffer g;
   gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);
@@ -176,7 +176,7 @@ TEST(GlPhotonGather, HardCasesStayFiniteAndBadInputIsRefused) {
     const Scene scene = bundled("cornell.json", size.x, size.y);
     GlBackend gl;
     GpuFrame* gpu = gl.gpu_frame();
-    if (!gpu->gi_gather_unavailable().empty()) GTEST_SKIP() << gpu->gi_gather_unavailable();
+    if (!gpu->gi_gather_unavailable(0).empty()) GTEST_SKIP() << gpu->gi_gather_unavailable(0);
     gl.set_scene(scene);
     GBuffer g;
     gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);

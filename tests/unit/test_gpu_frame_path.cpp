@@ -66,7 +66,7 @@ class FakeGpuFrame final : public GpuFrame {
     calls.push_back("gi_gather");
     EXPECT_GT(g.radius_px, 0.0f);
   }
-  std::string gi_gather_unavailable() const override { return "the fake has no GI gather"; }
+  std::string gi_gather_unavailable(std::size_t) const override { return "the fake has no GI gather"; }
   void read_gi(std::vector<glm::vec3>& gi) override { gi.clear(); }
   void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t w, std::uint32_t h) override {
     calls.push_back("upload");

@@ -529,8 +529,9 @@ void GlFrame::upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width
   inset_ = Inset{true, inset_.texture, inset_.texture, origin, size, centre_px, radius_px, fovea_px(fovea_fraction, radius_px)};
 }
 
-std::string GlFrame::gi_gather_unavailable() const {
-  return GlPhotonGather::unavailable_reason(backend_.context().features());
+std::string GlFrame::gi_gather_unavailable(std::size_t photons) const {
+  backend_.context().make_current();
+  return GlPhotonGather::unavailable_reason(backend_.context().features(), photons);
 }
 
 void GlFrame::gi_gather(const GpuGiGather& gather) {
@@ -545,7 +546,7 @@ void GlFrame::gi_gather(const GpuGiGather& gather) {
   glm::ivec2 origin, size;
   if (!inset_box(gather.centre_px, gather.radius_px, t.width, t.height, origin, size)) return;
   if (!gather_) {
-    const std::string why = gi_gather_unavailable();
+    const std::string why = gi_gather_unavailable(0);
     if (!why.empty()) throw std::logic_error("GlFrame::gi_gather: " + why);
     gather_ = std::make_unique<GlPhotonGather>();
   }

@@ -59,7 +59,7 @@ class GlFrame final : public GpuFrame {
   void upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width, std::uint32_t height, glm::vec2 centre_px,
                     float radius_px, float fovea_fraction) override;
   void gi_gather(const GpuGiGather& gather) override;
-  std::string gi_gather_unavailable() const override;
+  std::string gi_gather_unavailable(std::size_t photons) const override;
   void read_gi(std::vector<glm::vec3>& gi) override;
   void tonemap(const GpuTonemap& params) override;
   void overlay(const GpuOverlay& overlay) override;

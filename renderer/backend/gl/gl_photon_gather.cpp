@@ -220,8 +220,15 @@ std::uint32_t table_size(std::uint32_t photons) {
 
 }  // namespace
 
-std::string GlPhotonGather::unavailable_reason(const GlFeatures& features) {
+std::string GlPhotonGather::unavailable_reason(const GlFeatures& features, std::size_t photons) {
   if (!features.at_least(4, 3)) return "the GPU gather needs compute shaders (OpenGL 4.3), this context is " + features.version();
+  GLint64 max_block = 0;
+  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+  const double bytes = 48.0 * static_cast<double>(photons);
+  if (bytes > static_cast<double>(max_block)) {
+    return std::to_string(photons) + " photons need a " + std::to_string(static_cast<long long>(bytes) >> 20) +
+           " MiB storage buffer on the GPU; the device allows " + std::to_string(max_block >> 20) + " MiB";
+  }
   return "";
 }
 
@@ -249,7 +256,13 @@ void GlPhotonGather::build(Grid& grid, const GpuGiGather::Map& map) {
   const std::vector<GpuPhoton>* photons = map.photons;
   grid.count = 0;
   if (photons == nullptr || photons->empty() || !(map.radius > 0) || !std::isfinite(map.radius)) return;
-  const std::size_t n = std::min<std::size_t>(photons->size(), std::size_t{1} << 30);
+  const std::size_t n = photons->size();
+  GLint64 max_block = 0;
+  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+  if (48.0 * static_cast<double>(n) > static_cast<double>(max_block)) {  // the plan should have kept it on the CPU
+    throw std::length_error("GlPhotonGather: " + std::to_string(n) + " photons exceed the device's storage-buffer size (" +
+                            std::to_string(max_block) + " bytes)");
+  }
   grid.count = static_cast<std::uint32_t>(n);
   grid.table = table_size(grid.count);
   grid.cell = map.radius;

@@ -30,8 +30,10 @@ namespace fovea::render {
 
 class GlPhotonGather {
  public:
-  // Why this context cannot run it ("" when it can): compute shaders and storage buffers (GL 4.3).
-  static std::string unavailable_reason(const GlFeatures& features);
+  // Why this context cannot run it ("" when it can): compute shaders and storage buffers (GL 4.3),
+  // and one storage buffer of `photons` photons (48 bytes each) within the device's limit. The context
+  // must be current.
+  static std::string unavailable_reason(const GlFeatures& features, std::size_t photons = 0);
   // Compiles its programs on the current context; throws std::runtime_error with the driver's log.
   GlPhotonGather();
   ~GlPhotonGather();
