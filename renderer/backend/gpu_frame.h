@@ -61,6 +61,8 @@ struct GpuCompletion {
 // direction of travel).
 struct GpuPhoton {
   glm::vec3 position{0.0f}, power{0.0f}, incoming{0.0f};
+  std::uint32_t light = 0;   // the emitting light (gi::Photon::light)
+  bool traditional = true;   // emitted by the naive emitter (gi::EmissionKind::Traditional), else gaze-emitted
 };
 
 // The hybrid renderer's GI of the gaze area gathered where the G-buffer lies (GpuFrame::gi_gather;
@@ -73,6 +75,12 @@ struct GpuGiGather {
     float cone_k = 1.1f;
   };
   Map indirect, caustic;
+  // Label the indirect photons the area's pixels used and sum their flux density per light and kind
+  // (gi/gi_render.h's marking, for the gaze-directed mapper: read_gi_labels). At most kMaxLabelLights
+  // lights.
+  bool label = false;
+  std::uint32_t lights = 0;
+  static constexpr std::uint32_t kMaxLabelLights = 16;
   // The materials whose pixels are gathered here (gi::gbuffer_materials: diffuse and glossy, eq. 5.22's
   // f_r = kd + ks (n.h)^n); every other object's pixels take `traced`.
   struct Surface {
@@ -185,6 +193,11 @@ class GpuFrame {
   virtual std::string gi_gather_unavailable(std::size_t /*photons*/) const { return "this GPU frame has no GI gather"; }
   // The last gi_gather's GI image: full image size, row 0 at the top, 0 outside the area's box. Waits.
   virtual void read_gi(std::vector<glm::vec3>& gi) = 0;
+  // The last gi_gather's labels (with GpuGiGather::label): per indirect photon (its index in
+  // indirect.photons) 1 where a pixel used it, and per light the summed flux density (mean channel
+  // power / r^2 over the pixels) of traditional and of gaze-emitted photons. Waits.
+  virtual void read_gi_labels(std::vector<std::uint8_t>& used, std::vector<double>& traditional,
+                              std::vector<double>& gaze) = 0;
   // HDR colour (the G-buffer's, or the upload of this frame; with this frame's inset composited) to
   // the 8-bit display image (sRGB).
   virtual void tonemap(const GpuTonemap& params) = 0;

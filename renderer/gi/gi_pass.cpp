@@ -248,10 +248,32 @@ const GiPassResult& GiPass::run(const Camera& camera, double now_s, const GazeAr
   if (s.count_area_photons) result_.area_photons = photons_seen_in_area(*backend_, camera, now_s, area, maps_.global.photons);
   record_map_stats(maps_, result_);
   // The labelled map steers the next frame (it is not read again this frame).
-  if (gaze_directed && !s.keep_maps) gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
+  finish_deferred_ = gaze_directed && !s.keep_maps && s.defer_gaze_finish;
+  if (gaze_directed && !s.keep_maps && !s.defer_gaze_finish) gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
   // The next frame's maps, while this frame goes on (a stereo frame's once its second eye is done).
   if (overlap && !s.keep_maps) start_next_maps(s);
   return result_;
+}
+
+void GiPass::add_labels(const std::vector<std::uint32_t>& used, const std::vector<double>& traditional,
+                        const std::vector<double>& gaze) {
+  std::vector<Photon>& photons = maps_.global.photons;
+  for (const std::uint32_t i : used) {
+    if (i >= photons.size() || (photons[i].flags & kInGazeRegion) != 0) continue;
+    photons[i].flags |= kInGazeRegion;
+    ++result_.render.photons_used;
+  }
+  GiStats& r = result_.render;
+  r.traditional_flux.resize(std::max(r.traditional_flux.size(), traditional.size()), 0.0);
+  r.gaze_flux.resize(std::max(r.gaze_flux.size(), gaze.size()), 0.0);
+  for (std::size_t l = 0; l < traditional.size(); ++l) r.traditional_flux[l] += traditional[l];
+  for (std::size_t l = 0; l < gaze.size(); ++l) r.gaze_flux[l] += gaze[l];
+}
+
+void GiPass::finish_gaze_frame() {
+  if (!finish_deferred_) return;
+  finish_deferred_ = false;
+  gaze_mapper_.finish_frame(std::move(maps_.global), result_.render);
 }
 
 bool GiPass::can_overlap(const GiPassSettings& s) const {

@@ -72,6 +72,9 @@ struct GiPassSettings {
   // photons follow this frame's labels, importons this frame's area) and an Embree backend of the
   // pass's own (the frame's renders meanwhile); otherwise ignored.
   bool overlap = false;
+  // The caller labels more of the photons this run used (the GPU gather: add_labels) and then calls
+  // finish_gaze_frame, instead of run handing the labelled map to the gaze-directed mapper itself.
+  bool defer_gaze_finish = false;
 };
 
 struct GiPassResult {
@@ -116,6 +119,14 @@ class GiPass {
   const GiPassResult& last() const { return result_; }
   // The last run's photon maps (a GPU gather reads them).
   const PhotonMaps& maps() const { return maps_; }
+  // What a GPU gather labelled of the last run's photons (indices into maps().global.photons) and the
+  // flux density it gathered per light from traditional and gaze-emitted photons (GiStats'): added to
+  // the run's own labels and sums, as render_gaze_area's marking does.
+  void add_labels(const std::vector<std::uint32_t>& used, const std::vector<double>& traditional,
+                  const std::vector<double>& gaze);
+  // After a run with defer_gaze_finish: the labelled map to the gaze-directed mapper (it steers the
+  // next frame). Nothing when that run did not defer.
+  void finish_gaze_frame();
   const EmbreeBackend& backend() const { return *backend_; }
 
  private:
@@ -131,6 +142,7 @@ class GiPass {
   std::unique_ptr<EmbreeBackend> own_;  // null when tracing with the frame's backend
   EmbreeBackend* backend_ = nullptr;    // own_ or the frame's
   bool has_scene_ = false;
+  bool finish_deferred_ = false;  // the last run left finish_gaze_frame to the caller
   PhotonMaps maps_;
   GazePhotonMapper gaze_mapper_;
   ImportonMap importons_;

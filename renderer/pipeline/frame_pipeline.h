@@ -247,6 +247,7 @@ class FramePipeline {
   bool gi_gathered_on_gpu_ = false;  // ... and was gathered there (gi.device)
   GBuffer gi_area_ids_;              // the gaze area's ids and depth read back for the GPU gather (the rest stale)
   std::vector<GpuPhoton> gi_photons_[2];  // the maps as the GPU gather takes them: indirect, caustic
+  std::vector<std::uint32_t> gi_photon_index_[2];  // ... and each one's index in its trace's photons
   // Reads back the area's ids and depth (the pixels the CPU traces for the GPU gather).
   const GBuffer& read_gi_area_ids(const gi::GazeArea& area, PassTimer& timer);
   // Hands the area's gather to the GPU (the maps of the last gi run, the CPU's traced pixels).

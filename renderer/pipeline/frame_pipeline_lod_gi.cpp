@@ -72,6 +72,7 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
     gs.render.estimate.fixed_radius = gs.render.caustic_estimate.fixed_radius = true;
     gs.render.skip_gbuffer_pixels = true;
     gs.overlap = gs.overlap || settings_.is("gi.overlap", "auto");
+    gs.defer_gaze_finish = true;  // the GPU's labels first (gather_gi_on_gpu)
   }
   gi_fovea_ = gs.fovea;
   // A stereo frame traces the photon maps once, for the left eye (GiPassSettings::keep_maps).
@@ -135,13 +136,17 @@ const GBuffer& FramePipeline::read_gi_area_ids(const gi::GazeArea& area, PassTim
 void FramePipeline::gather_gi_on_gpu(const gi::GiPassSettings& gs, double now_s, PassTimer& timer) {
   auto t = timer.scope("gi.gather");
   const gi::PhotonMaps& maps = gi_pass_->maps();
-  const auto pack = [](const gi::PhotonMap& map, std::vector<GpuPhoton>& out) {
+  const auto pack = [](const gi::PhotonMap& map, std::vector<GpuPhoton>& out, std::vector<std::uint32_t>& index) {
     out.clear();
+    index = map.indexed();
     const std::span<const gi::Photon> photons = map.photons();
-    for (const std::uint32_t i : map.indexed()) out.push_back({photons[i].position, photons[i].power, photons[i].incoming});
+    for (const std::uint32_t i : index) {
+      const gi::Photon& p = photons[i];
+      out.push_back({p.position, p.power, p.incoming, p.light, p.kind == gi::EmissionKind::Traditional});
+    }
   };
-  pack(maps.indirect, gi_photons_[0]);
-  pack(maps.caustics, gi_photons_[1]);
+  pack(maps.indirect, gi_photons_[0], gi_photon_index_[0]);
+  pack(maps.caustics, gi_photons_[1], gi_photon_index_[1]);
   GpuGiGather g;
   const auto map_of = [](const std::vector<GpuPhoton>& photons, const gi::EstimateSettings& e, bool on) {
     return GpuGiGather::Map{on ? &photons : nullptr, e.max_radius, e.filter == gi::EstimateFilter::Cone, e.cone_k};
@@ -163,7 +168,20 @@ void FramePipeline::gather_gi_on_gpu(const gi::GiPassSettings& gs, double now_s,
   g.centre_px = gi_frame_.area.center_px;
   g.radius_px = gi_frame_.area.radius_px;
   g.fovea_fraction = gs.fovea;
+  // The gaze-directed mapper steers the next frame by the photons this one used (§8.4.4).
+  g.label = gs.strategy == gi::Strategy::GazeDirected || gs.label_gaze_photons;
+  g.lights = static_cast<std::uint32_t>(scene_.lights.size());
   gpu_->gi_gather(g);
+  if (!g.label) return;
+  auto wait = timer.scope("gi.labels");
+  std::vector<std::uint8_t> used;
+  std::vector<double> traditional, gaze;
+  gpu_->read_gi_labels(used, traditional, gaze);
+  std::vector<std::uint32_t> photons;
+  for (std::size_t i = 0; i < used.size() && i < gi_photon_index_[0].size(); ++i)
+    if (used[i] != 0) photons.push_back(gi_photon_index_[0][i]);
+  gi_pass_->add_labels(photons, traditional, gaze);
+  if (!gs.keep_maps) gi_pass_->finish_gaze_frame();
 }
 
 void FramePipeline::blend_ulod(const FrameTime& time, const BackendSettings& drawn) {

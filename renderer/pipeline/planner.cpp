@@ -2,6 +2,7 @@
 #include "pipeline/planner.h"
 
 #include "attention/attention.h"
+#include "backend/gpu_frame.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -194,7 +195,9 @@ std::string gi_gpu_blocker(const PlanContext& c) {
   if (!c.gpu_gi_unavailable.empty()) return c.gpu_gi_unavailable;
   if (t.gi_estimate == "nearest" || t.gi_estimate == "precomputed")
     return "gi.estimate=" + t.gi_estimate + " is the CPU's (the GPU gathers every photon within the radius)";
-  if (t.gi_strategy == "gaze-directed") return "gi.strategy=gaze-directed labels the photons the area used on the CPU";
+  if (t.gi_strategy == "gaze-directed" && c.scene.lights.size() > GpuGiGather::kMaxLabelLights)
+    return "gi.strategy=gaze-directed with " + std::to_string(c.scene.lights.size()) + " lights: the GPU labels photons of " +
+           std::to_string(GpuGiGather::kMaxLabelLights) + " at most";
   if (t.shadows) return "shadows=true: the GPU's direct light has no shadow rays";
   if (t.gi_csf_periphery) return "gi.periphery=csf makes the periphery on the CPU";
   if (c.gpu_is_software && t.gi_device == PassDevice::Auto)

@@ -9,6 +9,7 @@
 // gi.device=gpu against gi.device=cpu with gi.estimate=radius. Runs through EGL with DISPLAY unset.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -166,6 +167,76 @@ TEST(GlPhotonGather, ThePhotonsAddLightAndNothingOutsideTheAreaIsWritten) {
   EXPECT_GT(inside, 0.0);
 }
 
+// The gaze-directed mapper's labels (§8.4.4): the photons the area used and their flux density per
+// light and kind, from the GPU as render_gaze_area's marking gives them on the CPU, same photons.
+TEST(GlPhotonGather, TheGpuLabelsThePhotonsTheAreaUsedAsTheCpuDoes) {
+  const Scene scene = bundled("cornell.json", 160, 120);
+  GlBackend gl;
+  GpuFrame* gpu = gl.gpu_frame();
+  if (!gpu->gi_gather_unavailable(0).empty()) GTEST_SKIP() << gpu->gi_gather_unavailable(0);
+  gl.set_scene(scene);
+  GBuffer g;
+  gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);
+  gpu->read_back(GBufferPlanes::all(), g);
+  EmbreeBackend embree;
+  embree.set_scene(scene);
+  gi::PhotonMaps maps;
+  gi::TraceSettings ts;
+  ts.stored_photons = 20000;
+  maps.global = gi::trace_photons(embree, ts);
+  for (std::size_t i = 0; i < maps.global.photons.size(); i += 3) maps.global.photons[i].kind = gi::EmissionKind::NewGaze;
+  maps.index();
+  const gi::GazeArea area{{80, 60}, 45};
+  gi::GiRenderSettings rs;
+  rs.estimate = {240, 0.4f, gi::EstimateFilter::Cone, 1.1f, true};
+  rs.shadows = false;
+  std::vector<glm::vec3> cpu;
+  gi::GiStats stats;
+  gi::render_gaze_area(embree, scene.camera, 0.0, maps, area, rs, cpu, &stats, true, &g);
+  std::vector<std::uint32_t> cpu_used;
+  for (std::uint32_t i = 0; i < maps.global.photons.size(); ++i)
+    if (maps.global.photons[i].flags & gi::kInGazeRegion) cpu_used.push_back(i);
+
+  const std::vector<std::uint32_t> index = maps.indirect.indexed();
+  std::vector<GpuPhoton> photons;
+  for (std::uint32_t i : index) {
+    const gi::Photon& p = maps.global.photons[i];
+    photons.push_back({p.position, p.power, p.incoming, p.light, p.kind == gi::EmissionKind::Traditional});
+  }
+  GpuGiGather in;
+  in.indirect = {&photons, 0.4f, true, 1.1f};
+  for (const auto& [id, m] : gi::gbuffer_materials(scene))
+    if (m != nullptr) in.surfaces.push_back({id, m->kd, m->is_glossy() ? m->ks : glm::vec3(0.0f), m->shininess});
+  const gi::EyeRays eye(scene.camera, 0.0);
+  in.eye = eye.eye;
+  in.right = eye.right * eye.tan_x;
+  in.up = eye.up * eye.tan_y;
+  in.back = eye.back;
+  in.ambient = scene.ambient;
+  in.centre_px = area.center_px;
+  in.radius_px = area.radius_px;
+  in.label = true;
+  in.lights = static_cast<std::uint32_t>(scene.lights.size());
+  gpu->gi_gather(in);
+  std::vector<std::uint8_t> used;
+  std::vector<double> traditional, gaze;
+  gpu->read_gi_labels(used, traditional, gaze);
+  ASSERT_EQ(used.size(), photons.size());
+  std::vector<std::uint32_t> gpu_used;
+  for (std::size_t k = 0; k < used.size(); ++k)
+    if (used[k]) gpu_used.push_back(index[k]);
+  std::sort(gpu_used.begin(), gpu_used.end());
+  EXPECT_GT(cpu_used.size(), 1000u);
+  EXPECT_EQ(gpu_used, cpu_used);
+  ASSERT_EQ(traditional.size(), stats.traditional_flux.size());
+  for (std::size_t l = 0; l < traditional.size(); ++l) {
+    EXPECT_GT(stats.traditional_flux[l], 0.0);
+    EXPECT_GT(stats.gaze_flux[l], 0.0);
+    EXPECT_NEAR(traditional[l], stats.traditional_flux[l], 1e-4 * stats.traditional_flux[l]);
+    EXPECT_NEAR(gaze[l], stats.gaze_flux[l], 1e-4 * stats.gaze_flux[l]);
+  }
+}
+
 // The hard cases (issue 42's stability catalogue for the gather): an area off the screen or of NaN
 // radius (nothing), larger than the screen, 1x1 and 1xN images, radii 0, NaN and infinite, photons of
 // 1e6 W and 1e12 m away, non-finite photons, no gathered material; every value stays finite, and a
@@ -234,26 +305,45 @@ TEST(GlPhotonGather, HardCasesStayFiniteAndBadInputIsRefused) {
 // Whole frames: gi.device=gpu against gi.device=cpu with the same estimate, the GPU-resident path both.
 TEST(GlPhotonGather, TheFramesGatherOnTheGpuAsOnTheCpu) {
   Scene scene = bundled("cornell.json", 160, 120);
-  const auto frame = [&](const char* device) {
+  double last_scale = 0;  // the gaze-directed mapper's power scale s in the last frame
+  const auto frame = [&](const char* device, int frames, const char* strategy = "traditional") {
     Settings s;
     for (const char* a : {"gi.enabled=true", "gi.photons=20000", "gi.estimate=radius", "tonemap.operator=exponential",
                           "tonemap.exposure=0.4", "tonemap.exact=true"})
       s.set_assignment(a);
     s.set("gi.device", device);
+    s.set("gi.strategy", strategy);
     std::unique_ptr<GazeInput> gaze = make_gaze_input("mouse");
     gaze->set_cursor(0.45, 0.55);
     FramePipeline pipeline(scene, s, std::make_unique<GlBackend>(), *gaze);
     PassTimer timer;
-    const FramePipeline::Frame f = pipeline.render(0, 0.0, 0.0, 0.0, timer);
-    EXPECT_TRUE(f.on_gpu) << f.plan.explain();
-    EXPECT_EQ(f.plan.at(PassId::Gi).on_gpu, std::string(device) == "gpu") << f.plan.explain();
+    for (int i = 0; i < frames; ++i) {
+      const double t = 0.1 * i;
+      const FramePipeline::Frame f = pipeline.render(static_cast<std::uint64_t>(i), t, i == 0 ? 0.0 : t - 0.1, t, timer);
+      EXPECT_TRUE(f.on_gpu) << f.plan.explain();
+      EXPECT_EQ(f.plan.at(PassId::Gi).on_gpu, std::string(device) == "gpu") << f.plan.explain();
+      if (i + 1 == frames && f.gi != nullptr) last_scale = f.gi->gaze.scale;
+    }
     return pipeline.read_display();
   };
-  const Image8 gpu = frame("gpu"), cpu = frame("cpu");
+  const Image8 gpu = frame("gpu", 1), cpu = frame("cpu", 1);
   ASSERT_EQ(gpu.rgb.size(), cpu.rgb.size());
   std::size_t off = 0;
   for (std::size_t i = 0; i < gpu.rgb.size(); ++i) off += std::abs(int{gpu.rgb[i]} - int{cpu.rgb[i]}) > 2 ? 1u : 0u;
   EXPECT_LE(off, gpu.rgb.size() / 1000) << "channels off by more than 2 levels";
+
+  // Gaze-directed: the GPU's labels steer the next frames (emission map, power scale) as the CPU's
+  // do. The CPU ray traces the area's first hits, the GPU reads the raster's, so a few labels differ
+  // and the frames drift apart a little.
+  const Image8 gpu_gd = frame("gpu", 4, "gaze-directed");
+  const double gpu_scale = last_scale;
+  const Image8 cpu_gd = frame("cpu", 4, "gaze-directed");
+  EXPECT_GT(gpu_scale, 0.0);
+  EXPECT_NE(gpu_scale, 1.0);  // measured from the labels (1 is the scale held before any)
+  EXPECT_NEAR(gpu_scale, last_scale, 0.05 * last_scale);
+  off = 0;
+  for (std::size_t i = 0; i < gpu_gd.rgb.size(); ++i) off += std::abs(int{gpu_gd.rgb[i]} - int{cpu_gd.rgb[i]}) > 4 ? 1u : 0u;
+  EXPECT_LE(off, gpu_gd.rgb.size() / 100) << "channels off by more than 4 levels";
 }
 
 }  // namespace

@@ -68,6 +68,11 @@ class FakeGpuFrame final : public GpuFrame {
   }
   std::string gi_gather_unavailable(std::size_t) const override { return "the fake has no GI gather"; }
   void read_gi(std::vector<glm::vec3>& gi) override { gi.clear(); }
+  void read_gi_labels(std::vector<std::uint8_t>& used, std::vector<double>& t, std::vector<double>& g) override {
+    used.clear();
+    t.clear();
+    g.clear();
+  }
   void upload_hdr(const std::vector<glm::vec3>& hdr, std::uint32_t w, std::uint32_t h) override {
     calls.push_back("upload");
     EXPECT_EQ(hdr.size(), std::size_t{w} * h);

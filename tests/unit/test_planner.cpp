@@ -6,6 +6,7 @@
 #include <algorithm>
 
 #include "attention/attention.h"
+#include "backend/gpu_frame.h"
 #include "pipeline/planner.h"
 #include "scene/geometry.h"
 
@@ -279,7 +280,8 @@ TEST(Planner, GiGathersOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
        "gi.estimate=nearest is the CPU's"},
       {"precomputed irradiance is the CPU's", {"gi.estimate=precomputed"}, true, false, "", true, false,
        "gi.estimate=precomputed is the CPU's"},
-      {"the gaze-directed labels", {"gi.strategy=gaze-directed"}, true, false, "", true, false, "labels the photons"},
+      {"gaze-directed: the GPU labels the photons used", {"gi.strategy=gaze-directed"}, true, false, "", true, true,
+       "on the GPU"},
       {"shadow rays", {"shadows=true"}, true, false, "", true, false, "no shadow rays"},
       {"the CSF periphery", {"gi.periphery=csf"}, true, false, "", true, false, "gi.periphery=csf"},
       {"a software rasteriser with auto", {}, true, true, "", true, false, "software rasteriser"},
@@ -288,6 +290,17 @@ TEST(Planner, GiGathersOnTheGpuWhereTheFrameLiesAndSaysWhyNot) {
       {"gi.device=gpu without compute shaders: later", {"gi.device=gpu"}, true, false,
        "the GPU gather needs compute shaders", false, false, "gi.device=gpu: the GPU gather needs compute shaders"},
   };
+  Scene many_lights = make_scene({});
+  many_lights.lights.resize(GpuGiGather::kMaxLabelLights + 1, many_lights.lights.front());
+  Settings gaze_directed;
+  gaze_directed.set("gi.enabled", "true");
+  gaze_directed.set("gi.strategy", "gaze-directed");
+  PlanContext labels{many_lights, gaze_directed, true};
+  labels.gpu_resident = true;
+  const FramePlan too_many = plan_frame(labels);
+  EXPECT_FALSE(too_many.at(PassId::Gi).on_gpu);
+  EXPECT_NE(too_many.at(PassId::Gi).reason.find("17 lights: the GPU labels photons of 16 at most"), std::string::npos)
+      << too_many.at(PassId::Gi).reason;
   const Scene scene = make_scene({});
   for (const Row& row : rows) {
     SCOPED_TRACE(row.name);

@@ -558,6 +558,15 @@ void GlFrame::gi_gather(const GpuGiGather& gather) {
                  fovea_px(gather.fovea_fraction, gather.radius_px)};
 }
 
+void GlFrame::read_gi_labels(std::vector<std::uint8_t>& used, std::vector<double>& traditional,
+                             std::vector<double>& gaze) {
+  backend_.context().make_current();
+  used.clear();
+  traditional.clear();
+  gaze.clear();
+  if (gather_) gather_->read_labels(used, traditional, gaze);
+}
+
 void GlFrame::read_gi(std::vector<glm::vec3>& gi) {
   backend_.context().make_current();
   const GlGBufferTextures t = backend_.textures();

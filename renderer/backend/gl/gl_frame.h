@@ -61,6 +61,8 @@ class GlFrame final : public GpuFrame {
   void gi_gather(const GpuGiGather& gather) override;
   std::string gi_gather_unavailable(std::size_t photons) const override;
   void read_gi(std::vector<glm::vec3>& gi) override;
+  void read_gi_labels(std::vector<std::uint8_t>& used, std::vector<double>& traditional,
+                      std::vector<double>& gaze) override;
   void tonemap(const GpuTonemap& params) override;
   void overlay(const GpuOverlay& overlay) override;
   GpuCompletion finish() override;

@@ -4,6 +4,7 @@
 #include <epoxy/gl.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -110,6 +111,14 @@ uniform vec3 u_eye, u_right, u_up, u_back, u_background, u_ambient;
 uniform uint u_count[2], u_mask[2];
 uniform float u_inv_cell[2], u_r[2], u_cone_k[2];
 uniform bool u_cone[2];
+// Labelling (the gaze-directed mapper's): the indirect photons used, and per invocation the flux
+// density it gathered per light, traditional photons in [0, 16), gaze-emitted in [16, 32).
+layout(std430, binding = 7) buffer Labels { uint labels[]; };
+layout(std430, binding = 8) writeonly buffer Partials { float partials[]; };
+uniform bool u_label;
+uniform uint u_lights;
+float flux[32];
+shared float group_flux[64][32];
 const float kPi = 3.14159265358979;
 bool finite3(vec3 v) { return !any(isnan(v)) && !any(isinf(v)); }
 vec3 brdf(vec3 n, vec3 v, vec3 incoming, vec3 kd, vec3 ks, float shininess) {
@@ -139,7 +148,13 @@ vec3 gatherMAP(vec3 x, vec3 n, vec3 v, vec3 kd, vec3 ks, float shininess) {
           vec3 incoming = photonsMAP[3u * i + 2u].xyz;
           if (dot(incoming, n) >= 0.0) continue;  // arrived at the other side (Jensen 2001, 7.2)
           float w = u_cone[MAP] ? max(0.0, 1.0 - sqrt(d2) / (k * r)) : 1.0;  // Jensen 2001, eq. 7.7
-          sum += w * photonsMAP[3u * i + 1u].xyz * brdf(n, v, incoming, kd, ks, shininess);
+          vec3 power = photonsMAP[3u * i + 1u].xyz;
+          sum += w * power * brdf(n, v, incoming, kd, ks, shininess);
+          if (MAP == 0 && u_label) {  // gi_render.cpp's accumulate_flux_by_kind, and the label
+            labels[i] = 1u;
+            uint tag = floatBitsToUint(photonsMAP[3u * i].w), light = tag & 255u;
+            if (light < u_lights) flux[((tag >> 8) != 0u ? 16u : 0u) + light] += (power.x + power.y + power.z) / (3.0 * r2);
+          }
         }
       }
   float norm = u_cone[MAP] ? 1.0 - 2.0 / (3.0 * k) : 1.0;
@@ -177,12 +192,24 @@ vec3 shade(ivec2 px, ivec2 b) {
   return finite3(l) ? l : vec3(0.0);
 }
 void main() {
+  for (int k = 0; k < 32; ++k) flux[k] = 0.0;
   ivec2 b = ivec2(gl_GlobalInvocationID.xy);
-  if (b.x >= u_box.x || b.y >= u_box.y) return;
-  ivec2 px = u_origin + b;
-  vec2 q = vec2(px) + 0.5 - u_centre;
-  vec3 c = dot(q, q) <= u_radius * u_radius ? shade(px, b) : vec3(0.0);  // gi::GazeArea::contains
-  imageStore(u_out, b, vec4(c, 1.0));
+  if (b.x < u_box.x && b.y < u_box.y) {
+    ivec2 px = u_origin + b;
+    vec2 q = vec2(px) + 0.5 - u_centre;
+    vec3 c = dot(q, q) <= u_radius * u_radius ? shade(px, b) : vec3(0.0);  // gi::GazeArea::contains
+    imageStore(u_out, b, vec4(c, 1.0));
+  }
+  if (!u_label) return;  // uniform: the whole work group leaves or none
+  // The work group's sums per light and kind (a column each), for the CPU to add up.
+  uint t = gl_LocalInvocationIndex;
+  for (int k = 0; k < 32; ++k) group_flux[t][k] = flux[k];
+  barrier();
+  if (t < 32u) {
+    float total = 0.0;
+    for (uint j = 0u; j < 64u; ++j) total += group_flux[j][t];
+    partials[(gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 32u + t] = total;
+  }
 }
 )";
 
@@ -246,7 +273,8 @@ GlPhotonGather::~GlPhotonGather() {
   for (Grid& g : grids_)
     for (unsigned* b : {&g.photons, &g.counts, &g.starts, &g.sorted})
       if (*b != 0) glDeleteBuffers(1, b);
-  if (surfaces_ != 0) glDeleteBuffers(1, &surfaces_);
+  for (unsigned* b : {&surfaces_, &labels_, &partials_})
+    if (*b != 0) glDeleteBuffers(1, b);
   gl::delete_texture(traced_);
   gl::delete_texture(output_);
 }
@@ -270,7 +298,9 @@ void GlPhotonGather::build(Grid& grid, const GpuGiGather::Map& map) {
   std::vector<glm::vec4> packed(3 * n);
   for (std::size_t i = 0; i < n; ++i) {
     const GpuPhoton& p = (*photons)[i];
-    packed[3 * i] = glm::vec4(p.position, 0.0f);
+    // w: the light and the kind (gaze-emitted: bit 8) for the labels, as the float of those bits.
+    packed[3 * i] = glm::vec4(p.position, std::bit_cast<float>(std::min<std::uint32_t>(p.light, 255u) |
+                                                               (p.traditional ? 0u : 1u << 8)));
     packed[3 * i + 1] = glm::vec4(p.power, 0.0f);
     packed[3 * i + 2] = glm::vec4(p.incoming, 0.0f);
   }
@@ -369,6 +399,10 @@ void GlPhotonGather::gather(const GBufferInput& g, const GpuGiGather& in, glm::i
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3 * m + 2, grid.sorted != 0 ? grid.sorted : surfaces_);
   }
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, surfaces_);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, labelled_ ? labels_ : surfaces_);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 8, labelled_ ? partials_ : surfaces_);
+  glUniform1i(loc("u_label"), labelled_ ? 1 : 0);
+  glUniform1ui(loc("u_lights"), label_lights_);
   glUniform1i(loc("u_surfaces"), surface_count_);
   gl::bind_sampler(0, g.color, p, "u_color");
   gl::bind_sampler(1, g.depth, p, "u_depth");
@@ -416,7 +450,46 @@ void GlPhotonGather::run(const GBufferInput& gbuffer, const GpuGiGather& in, glm
   build(grids_[1], in.caustic);
   upload_surfaces(in.surfaces);
   upload_traced(in, gbuffer.width, origin, size);
+  prepare_labels(in, size);
   gather(gbuffer, in, origin, size);
+}
+
+// A cleared label per indirect photon and room for each work group's sums.
+void GlPhotonGather::prepare_labels(const GpuGiGather& in, glm::ivec2 size) {
+  labelled_ = in.label && grids_[0].count > 0;
+  label_lights_ = std::min(in.lights, GpuGiGather::kMaxLabelLights);
+  label_groups_ = static_cast<std::uint32_t>((size.x + 7) / 8) * static_cast<std::uint32_t>((size.y + 7) / 8);
+  if (!labelled_) return;
+  const std::size_t label_bytes = std::size_t{grids_[0].count} * sizeof(std::uint32_t);
+  ensure_buffer(labels_, labels_bytes_, label_bytes);
+  ensure_buffer(partials_, partials_bytes_, std::size_t{label_groups_} * 32 * sizeof(float));
+  const std::uint32_t zero = 0;
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, labels_);
+  glClearBufferSubData(GL_SHADER_STORAGE_BUFFER, GL_R32UI, 0, static_cast<GLsizeiptr>(label_bytes), GL_RED_INTEGER,
+                       GL_UNSIGNED_INT, &zero);
+}
+
+void GlPhotonGather::read_labels(std::vector<std::uint8_t>& used, std::vector<double>& traditional,
+                                 std::vector<double>& gaze) const {
+  used.clear();
+  traditional.assign(label_lights_, 0.0);
+  gaze.assign(label_lights_, 0.0);
+  if (!labelled_) return;
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  std::vector<std::uint32_t> words(grids_[0].count);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, labels_);
+  glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(words.size() * sizeof(std::uint32_t)), words.data());
+  used.reserve(words.size());
+  for (std::uint32_t w : words) used.push_back(w != 0 ? 1 : 0);
+  std::vector<float> partial(std::size_t{label_groups_} * 32);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, partials_);
+  glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(partial.size() * sizeof(float)), partial.data());
+  for (std::size_t g = 0; g < label_groups_; ++g)
+    for (std::uint32_t l = 0; l < label_lights_; ++l) {
+      traditional[l] += static_cast<double>(partial[g * 32 + l]);
+      gaze[l] += static_cast<double>(partial[g * 32 + 16 + l]);
+    }
+  check("GlPhotonGather::read_labels");
 }
 
 void GlPhotonGather::read(std::vector<glm::vec3>& box) const {

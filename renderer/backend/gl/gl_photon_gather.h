@@ -51,6 +51,8 @@ class GlPhotonGather {
   unsigned output() const { return output_; }
   // The last run's box, RGB, row 0 at the top.
   void read(std::vector<glm::vec3>& box) const;
+  // The last run's labels (GpuFrame::read_gi_labels); empty without GpuGiGather::label.
+  void read_labels(std::vector<std::uint8_t>& used, std::vector<double>& traditional, std::vector<double>& gaze) const;
 
  private:
   struct Grid {
@@ -68,6 +70,12 @@ class GlPhotonGather {
   Grid grids_[2];  // indirect, caustic
   unsigned surfaces_ = 0, traced_ = 0, output_ = 0;
   std::size_t surface_capacity_ = 0;
+  // Labelling: a word per indirect photon, and per work group of the gather 2 x kMaxLabelLights sums.
+  unsigned labels_ = 0, partials_ = 0;
+  std::size_t labels_bytes_ = 0, partials_bytes_ = 0;
+  bool labelled_ = false;
+  std::uint32_t label_lights_ = 0, label_groups_ = 0;
+  void prepare_labels(const GpuGiGather& gather, glm::ivec2 size);
   int surface_count_ = 0;
   bool has_traced_ = false;
   glm::ivec2 output_size_{0}, traced_size_{0};
