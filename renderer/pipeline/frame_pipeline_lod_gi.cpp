@@ -6,8 +6,8 @@
 #include <limits>
 
 #include "backend/embree/embree_backend.h"
-#include "gi/eye_rays.h"
 #include "pipeline/frame_pipeline.h"
+#include "pipeline/gi_gather_input.h"
 
 namespace fovea::render {
 
@@ -136,41 +136,17 @@ const GBuffer& FramePipeline::read_gi_area_ids(const gi::GazeArea& area, PassTim
 void FramePipeline::gather_gi_on_gpu(const gi::GiPassSettings& gs, double now_s, PassTimer& timer) {
   auto t = timer.scope("gi.gather");
   const gi::PhotonMaps& maps = gi_pass_->maps();
-  const auto pack = [](const gi::PhotonMap& map, std::vector<GpuPhoton>& out, std::vector<std::uint32_t>& index) {
-    out.clear();
-    index = map.indexed();
-    const std::span<const gi::Photon> photons = map.photons();
-    for (const std::uint32_t i : index) {
-      const gi::Photon& p = photons[i];
-      out.push_back({p.position, p.power, p.incoming, p.light, p.kind == gi::EmissionKind::Traditional});
-    }
-  };
-  pack(maps.indirect, gi_photons_[0], gi_photon_index_[0]);
-  pack(maps.caustics, gi_photons_[1], gi_photon_index_[1]);
-  GpuGiGather g;
+  pack_gpu_photons(maps.indirect, gi_photons_[0], gi_photon_index_[0]);
+  pack_gpu_photons(maps.caustics, gi_photons_[1], gi_photon_index_[1]);
+  GpuGiGather g = gi_gather_input(scene_, scene_.camera, now_s, gi_frame_.area, gs.fovea, gs.render.ambient);
   const auto map_of = [](const std::vector<GpuPhoton>& photons, const gi::EstimateSettings& e, bool on) {
     return GpuGiGather::Map{on ? &photons : nullptr, e.max_radius, e.filter == gi::EstimateFilter::Cone, e.cone_k};
   };
   g.indirect = map_of(gi_photons_[0], gs.render.estimate, gs.render.indirect);
   g.caustic = map_of(gi_photons_[1], gs.render.caustic_estimate, gs.render.caustics);
-  for (const auto& [id, m] : gi::gbuffer_materials(scene_)) {
-    if (m == nullptr) continue;  // traced on the CPU
-    g.surfaces.push_back({id, m->kd, m->is_glossy() ? m->ks : glm::vec3(0.0f), m->shininess});
-  }
-  const gi::EyeRays eye(scene_.camera, now_s);
-  g.eye = eye.eye;
-  g.right = eye.right * eye.tan_x;
-  g.up = eye.up * eye.tan_y;
-  g.back = eye.back;
-  g.background = scene_.background;
-  g.ambient = gs.render.ambient ? glm::vec3(0.0f) : scene_.ambient;
   g.traced = &gi_pass_->gi_image();
-  g.centre_px = gi_frame_.area.center_px;
-  g.radius_px = gi_frame_.area.radius_px;
-  g.fovea_fraction = gs.fovea;
   // The gaze-directed mapper steers the next frame by the photons this one used (§8.4.4).
   g.label = gs.strategy == gi::Strategy::GazeDirected || gs.label_gaze_photons;
-  g.lights = static_cast<std::uint32_t>(scene_.lights.size());
   gpu_->gi_gather(g);
   if (!g.label) return;
   auto wait = timer.scope("gi.labels");

@@ -20,12 +20,12 @@
 
 #include "backend/embree/embree_backend.h"
 #include "backend/gl/gl_backend.h"
-#include "gi/eye_rays.h"
 #include "gi/gi_render.h"
 #include "gi/photon_tracer.h"
 #include "hdr_compare.h"
 #include "gaze/gaze_input.h"
 #include "pipeline/frame_pipeline.h"
+#include "pipeline/gi_gather_input.h"
 #include "scene/scene_loader.h"
 
 namespace fovea::render {
@@ -40,10 +40,41 @@ Scene bundled(const char* name, std::uint32_t w, std::uint32_t h) {
 
 std::vector<GpuPhoton> gpu_photons(const gi::PhotonMap& map) {
   std::vector<GpuPhoton> out;
-  const auto photons = map.photons();
-  for (std::uint32_t i : map.indexed()) out.push_back({photons[i].position, photons[i].power, photons[i].incoming});
+  std::vector<std::uint32_t> index;
+  pack_gpu_photons(map, out, index);
   return out;
 }
+
+// The scene's G-buffer rendered where it lies (and read back), beside an Embree backend of the same
+// scene that traces the photons.
+struct TwoBackends {
+  explicit TwoBackends(const Scene& scene) {
+    gl.set_scene(scene);
+    embree.set_scene(scene);
+    gpu = gl.gpu_frame();
+    EXPECT_TRUE(gpu->unavailable_reason().empty()) << gpu->unavailable_reason();
+    gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);
+    gpu->read_back(GBufferPlanes::all(), g);
+  }
+  bool can_gather() const { return gpu->gi_gather_unavailable(0).empty(); }
+  // 20k global photons, and 5k caustic ones where the scene can focus them.
+  gi::PhotonMaps trace() const {
+    gi::PhotonMaps maps;
+    gi::TraceSettings ts;
+    ts.stored_photons = 20000;
+    maps.global = gi::trace_photons(embree, ts);
+    if (embree.scene().has_specular_or_refractive()) {
+      ts.mode = gi::TraceMode::Caustic;
+      ts.stored_photons = 5000;
+      maps.caustic = gi::trace_photons(embree, ts);
+    }
+    return maps;
+  }
+  GlBackend gl;
+  EmbreeBackend embree;
+  GpuFrame* gpu = nullptr;
+  GBuffer g;
+};
 
 struct Gathered {
   std::vector<glm::vec3> cpu, gpu;
@@ -53,57 +84,28 @@ struct Gathered {
 // One scene: the G-buffer on the GPU (and read back), photons traced by Embree, the area gathered by
 // both.
 Gathered gather_both(const Scene& scene, const gi::GazeArea& area, gi::EstimateFilter filter, float radius_m) {
-  GlBackend gl;
-  GpuFrame* gpu = gl.gpu_frame();
-  EXPECT_TRUE(gpu->unavailable_reason().empty()) << gpu->unavailable_reason();
-  if (!gpu->gi_gather_unavailable(0).empty()) return {};
-  gl.set_scene(scene);
-  GBuffer g;
-  gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);
-  gpu->read_back(GBufferPlanes::all(), g);
-
-  EmbreeBackend embree;
-  embree.set_scene(scene);
-  gi::PhotonMaps maps;
-  gi::TraceSettings ts;
-  ts.stored_photons = 20000;
-  maps.global = gi::trace_photons(embree, ts);
-  if (scene.has_specular_or_refractive()) {
-    gi::TraceSettings cs = ts;
-    cs.mode = gi::TraceMode::Caustic;
-    cs.stored_photons = 5000;
-    maps.caustic = gi::trace_photons(embree, cs);
-  }
+  TwoBackends b(scene);
+  if (!b.can_gather()) return {};
+  gi::PhotonMaps maps = b.trace();
   maps.index();
   gi::GiRenderSettings rs;
   rs.estimate = {240, radius_m, filter, 1.1f, true};
   rs.caustic_estimate = {60, 0.5f * radius_m, filter, 1.1f, true};
   rs.shadows = false;
   Gathered out;
-  gi::render_gaze_area(embree, scene.camera, 0.0, maps, area, rs, out.cpu, nullptr, false, &g);
-  for (std::uint32_t y = 0; y < g.height; ++y)
-    for (std::uint32_t x = 0; x < g.width; ++x)
+  gi::render_gaze_area(b.embree, scene.camera, 0.0, maps, area, rs, out.cpu, nullptr, false, &b.g);
+  for (std::uint32_t y = 0; y < b.g.height; ++y)
+    for (std::uint32_t x = 0; x < b.g.width; ++x)
       out.pixels += area.contains(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f) ? 1u : 0u;
 
   // The GPU: the same photons; the CPU's image as the traced pixels (it reads only those).
   const std::vector<GpuPhoton> indirect = gpu_photons(maps.indirect), caustic = gpu_photons(maps.caustics);
-  GpuGiGather in;
+  GpuGiGather in = gi_gather_input(scene, scene.camera, 0.0, area, 0.7f);
   in.indirect = {&indirect, rs.estimate.max_radius, filter == gi::EstimateFilter::Cone, 1.1f};
   in.caustic = {&caustic, rs.caustic_estimate.max_radius, filter == gi::EstimateFilter::Cone, 1.1f};
-  for (const auto& [id, m] : gi::gbuffer_materials(scene))
-    if (m != nullptr) in.surfaces.push_back({id, m->kd, m->is_glossy() ? m->ks : glm::vec3(0.0f), m->shininess});
-  const gi::EyeRays eye(scene.camera, 0.0);
-  in.eye = eye.eye;
-  in.right = eye.right * eye.tan_x;
-  in.up = eye.up * eye.tan_y;
-  in.back = eye.back;
-  in.background = scene.background;
-  in.ambient = scene.ambient;
   in.traced = &out.cpu;
-  in.centre_px = area.center_px;
-  in.radius_px = area.radius_px;
-  gpu->gi_gather(in);
-  gpu->read_gi(out.gpu);
+  b.gpu->gi_gather(in);
+  b.gpu->read_gi(out.gpu);
   return out;
 }
 
@@ -171,19 +173,9 @@ TEST(GlPhotonGather, ThePhotonsAddLightAndNothingOutsideTheAreaIsWritten) {
 // light and kind, from the GPU as render_gaze_area's marking gives them on the CPU, same photons.
 TEST(GlPhotonGather, TheGpuLabelsThePhotonsTheAreaUsedAsTheCpuDoes) {
   const Scene scene = bundled("cornell.json", 160, 120);
-  GlBackend gl;
-  GpuFrame* gpu = gl.gpu_frame();
-  if (!gpu->gi_gather_unavailable(0).empty()) GTEST_SKIP() << gpu->gi_gather_unavailable(0);
-  gl.set_scene(scene);
-  GBuffer g;
-  gpu->render_gbuffer({}, {}, GBufferPlanes::all(), g);
-  gpu->read_back(GBufferPlanes::all(), g);
-  EmbreeBackend embree;
-  embree.set_scene(scene);
-  gi::PhotonMaps maps;
-  gi::TraceSettings ts;
-  ts.stored_photons = 20000;
-  maps.global = gi::trace_photons(embree, ts);
+  TwoBackends b(scene);
+  if (!b.can_gather()) GTEST_SKIP() << b.gpu->gi_gather_unavailable(0);
+  gi::PhotonMaps maps = b.trace();
   for (std::size_t i = 0; i < maps.global.photons.size(); i += 3) maps.global.photons[i].kind = gi::EmissionKind::NewGaze;
   maps.index();
   const gi::GazeArea area{{80, 60}, 45};
@@ -192,35 +184,21 @@ TEST(GlPhotonGather, TheGpuLabelsThePhotonsTheAreaUsedAsTheCpuDoes) {
   rs.shadows = false;
   std::vector<glm::vec3> cpu;
   gi::GiStats stats;
-  gi::render_gaze_area(embree, scene.camera, 0.0, maps, area, rs, cpu, &stats, true, &g);
+  gi::render_gaze_area(b.embree, scene.camera, 0.0, maps, area, rs, cpu, &stats, true, &b.g);
   std::vector<std::uint32_t> cpu_used;
   for (std::uint32_t i = 0; i < maps.global.photons.size(); ++i)
     if (maps.global.photons[i].flags & gi::kInGazeRegion) cpu_used.push_back(i);
 
-  const std::vector<std::uint32_t> index = maps.indirect.indexed();
   std::vector<GpuPhoton> photons;
-  for (std::uint32_t i : index) {
-    const gi::Photon& p = maps.global.photons[i];
-    photons.push_back({p.position, p.power, p.incoming, p.light, p.kind == gi::EmissionKind::Traditional});
-  }
-  GpuGiGather in;
+  std::vector<std::uint32_t> index;
+  pack_gpu_photons(maps.indirect, photons, index);
+  GpuGiGather in = gi_gather_input(scene, scene.camera, 0.0, area, 0.7f);
   in.indirect = {&photons, 0.4f, true, 1.1f};
-  for (const auto& [id, m] : gi::gbuffer_materials(scene))
-    if (m != nullptr) in.surfaces.push_back({id, m->kd, m->is_glossy() ? m->ks : glm::vec3(0.0f), m->shininess});
-  const gi::EyeRays eye(scene.camera, 0.0);
-  in.eye = eye.eye;
-  in.right = eye.right * eye.tan_x;
-  in.up = eye.up * eye.tan_y;
-  in.back = eye.back;
-  in.ambient = scene.ambient;
-  in.centre_px = area.center_px;
-  in.radius_px = area.radius_px;
   in.label = true;
-  in.lights = static_cast<std::uint32_t>(scene.lights.size());
-  gpu->gi_gather(in);
+  b.gpu->gi_gather(in);
   std::vector<std::uint8_t> used;
   std::vector<double> traditional, gaze;
-  gpu->read_gi_labels(used, traditional, gaze);
+  b.gpu->read_gi_labels(used, traditional, gaze);
   ASSERT_EQ(used.size(), photons.size());
   std::vector<std::uint32_t> gpu_used;
   for (std::size_t k = 0; k < used.size(); ++k)
@@ -258,7 +236,6 @@ TEST(GlPhotonGather, HardCasesStayFiniteAndBadInputIsRefused) {
     }
     photons.push_back({glm::vec3(1e12f), glm::vec3(1.0f), {0, -1, 0}});
     photons.push_back({glm::vec3(-1e12f, 3e11f, 0), glm::vec3(1.0f), {0, -1, 0}});
-    const gi::EyeRays eye(scene.camera, 0.0);
     const glm::vec2 middle(0.5f * static_cast<float>(size.x), 0.5f * static_cast<float>(size.y));
     struct Case {
       glm::vec2 centre;
@@ -269,17 +246,11 @@ TEST(GlPhotonGather, HardCasesStayFiniteAndBadInputIsRefused) {
     for (const Case& c : {Case{{-500, -500}, 20, 0.4f, true}, Case{middle, nan, 0.4f, true}, Case{middle, 1e5f, 0.4f, true},
                           Case{middle, 30, 0.0f, true}, Case{middle, 30, nan, true}, Case{middle, 30, inf, true},
                           Case{middle, 30, 0.4f, false}, Case{{nan, 3}, 30, 0.4f, true}}) {
-      GpuGiGather in;
+      GpuGiGather in = gi_gather_input(scene, scene.camera, 0.0, gi::GazeArea{c.centre, c.radius_px}, 0.7f);
       in.indirect = {&photons, c.radius_m, true, 1.1f};
       in.caustic = {&photons, c.radius_m, false, nan};
+      in.surfaces.clear();
       if (c.surfaces) in.surfaces.push_back({1, glm::vec3(0.8f), glm::vec3(0.5f), 1e6f});
-      in.eye = eye.eye;
-      in.right = eye.right * eye.tan_x;
-      in.up = eye.up * eye.tan_y;
-      in.back = eye.back;
-      in.ambient = scene.ambient;
-      in.centre_px = c.centre;
-      in.radius_px = c.radius_px;
       ASSERT_NO_THROW(gpu->gi_gather(in));
       std::vector<glm::vec3> gi;
       gpu->read_gi(gi);
