@@ -100,6 +100,14 @@ void FramePipeline::run_gi(const Frame& f, const std::vector<glm::vec3>& local, 
   gi_frame_.csf = r.csf;
   gi_frame_.strategy = gi::to_string(r.strategy);
   gi_frame_.render = r.render;
+  if (gi_gathered_on_gpu_) {  // gi.csv's pixels: the area's, the GPU's and the CPU's; rays stay the CPU's
+    const gi::PixelBox box = gi::pixel_box(gi_frame_.area, cam.width, cam.height);
+    std::uint64_t pixels = 0;
+    for (std::uint32_t y = box.y0; y < box.y1; ++y)
+      for (std::uint32_t x = box.x0; x < box.x1; ++x)
+        pixels += gi_frame_.area.contains(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f) ? 1u : 0u;
+    gi_frame_.render.pixels = pixels;
+  }
   gi_frame_.gaze = r.gaze;
   gi_frame_.photons = r.photons;
   gi_frame_.caustic_photons = r.caustic_photons;
