@@ -99,13 +99,13 @@ CsfReconstruction csf_periphery(const EmbreeBackend& backend, const Camera& came
   return render_csf(scene.display, camera.width, camera.height, gaze, s.csf, object_at, colour_at);
 }
 
-// The maps' sizes and the first note (fewer photons than asked, or power scaling held) for the result.
 // What decides the maps' photons (a change in any of them: the worker's maps are not this frame's).
 bool same_maps_settings(const GiPassSettings& a, const GiPassSettings& b) {
   return a.photons == b.photons && a.caustic_photons == b.caustic_photons && a.caustics == b.caustics &&
          a.trace_depth == b.trace_depth && a.seed == b.seed && a.strategy == b.strategy;
 }
 
+// The maps' sizes and the first note (fewer photons than asked, or power scaling held) for the result.
 void record_map_stats(const PhotonMaps& maps, GiPassResult& r) {
   r.photons = maps.global.photons.size();
   r.caustic_photons = maps.caustic.photons.size();
