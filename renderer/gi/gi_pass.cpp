@@ -53,8 +53,19 @@ std::size_t photons_seen_in_area(const EmbreeBackend& backend, const Camera& cam
       std::plus<>());
 }
 
-// The caustic map (light -> specular -> diffuse) for scenes with specular or refractive surfaces.
+// The global map's trace settings (maxPhotons, pmTraceDepth, the seed).
+TraceSettings global_trace_settings(const GiPassSettings& s) {
+  TraceSettings ts;
+  ts.stored_photons = s.photons;
+  ts.max_depth = s.trace_depth;
+  ts.seed = s.seed;
+  return ts;
+}
+
+// The caustic map (light -> specular -> diffuse) for scenes with specular or refractive surfaces;
+// empty for the others, or when the settings ask for none.
 PhotonTraceResult trace_caustic_map(const EmbreeBackend& backend, const GiPassSettings& s) {
+  if (!s.caustics || s.caustic_photons == 0 || !backend.scene().has_specular_or_refractive()) return {};
   TraceSettings cs;
   cs.mode = TraceMode::Caustic;
   cs.stored_photons = s.caustic_photons;
@@ -168,10 +179,7 @@ void GiPass::set_scene(const Scene& scene) {
 // The global map by strategy: traditional, gaze-directed (steered by last frame's labelled map), or
 // emitted towards the importons the gaze area sees.
 void GiPass::trace_global_map(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s) {
-  TraceSettings ts;
-  ts.stored_photons = s.photons;
-  ts.max_depth = s.trace_depth;
-  ts.seed = s.seed;
+  TraceSettings ts = global_trace_settings(s);
   if (s.strategy == Strategy::GazeDirected) {
     GazeDirectedSettings gs = s.gaze;
     gs.max_photons = s.photons;
@@ -300,14 +308,9 @@ void GiPass::start_next_maps(const GiPassSettings& s) {
   next_.settings = s;
   next_.done = std::async(std::launch::async, [this] {
     const auto t0 = std::chrono::steady_clock::now();
-    TraceSettings ts;
-    ts.stored_photons = next_.settings.photons;
-    ts.max_depth = next_.settings.trace_depth;
-    ts.seed = next_.settings.seed;
-    next_.maps.global = trace_photons(*backend_, ts);
-    next_.maps.caustic = {};
-    if (next_.settings.caustics && backend_->scene().has_specular_or_refractive() && next_.settings.caustic_photons > 0)
-      next_.maps.caustic = trace_caustic_map(*backend_, next_.settings);
+    // trace_maps for the traditional strategy, the only one overlapped (can_overlap).
+    next_.maps.global = trace_photons(*backend_, global_trace_settings(next_.settings));
+    next_.maps.caustic = trace_caustic_map(*backend_, next_.settings);
     next_.maps.index();
     next_.trace_ms = ms_since(t0);
   });
@@ -328,10 +331,7 @@ void GiPass::drop_next_maps() {
 void GiPass::trace_maps(const Camera& camera, double now_s, const GazeArea& area, const GiPassSettings& s) {
   auto t0 = std::chrono::steady_clock::now();
   trace_global_map(camera, now_s, area, s);
-  maps_.caustic = {};
-  if (s.caustics && backend_->scene().has_specular_or_refractive() && s.caustic_photons > 0) {
-    maps_.caustic = trace_caustic_map(*backend_, s);
-  }
+  maps_.caustic = trace_caustic_map(*backend_, s);
   result_.photons_ms = ms_since(t0);
   t0 = std::chrono::steady_clock::now();
   maps_.index();

@@ -476,6 +476,11 @@ void GlContext::read_features() {
   features_.timer_query = features_.at_least(3, 3) || epoxy_has_gl_extension("GL_ARB_timer_query");
   features_.sync = features_.at_least(3, 2) || epoxy_has_gl_extension("GL_ARB_sync");
   features_.compute = features_.at_least(4, 3) || epoxy_has_gl_extension("GL_ARB_compute_shader");
+  if (features_.at_least(4, 3)) {
+    GLint64 max_block = 0;
+    glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+    features_.max_storage_block = max_block;
+  }
   const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   const std::string renderer = name != nullptr ? name : "";
   for (const char* software : {"llvmpipe", "softpipe", "SwiftShader", "Software Rasterizer"})

@@ -50,6 +50,9 @@ struct GlFeatures {
   // A software rasteriser (Mesa's llvmpipe/softpipe, SwiftShader): fragment and compute shaders run
   // on the same CPU cores, so moving shading to compute buys nothing (bench/RESULTS.md).
   bool software = false;
+  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE, bytes (GL 4.3; 0 without storage buffers): the largest buffer
+  // one compute pass may read, asked once here rather than by every frame's plan.
+  std::int64_t max_storage_block = 0;
   // Compute passes pay here: compute shaders (GL 4.3) on a GPU, not a software rasteriser. The
   // visibility buffer and the compute tone map follow this one rule (bench/RESULTS.md).
   bool compute_pays() const { return at_least(4, 3) && !software; }

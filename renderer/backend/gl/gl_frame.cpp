@@ -530,7 +530,6 @@ void GlFrame::upload_inset(const std::vector<glm::vec3>& gi, std::uint32_t width
 }
 
 std::string GlFrame::gi_gather_unavailable(std::size_t photons) const {
-  backend_.context().make_current();
   return GlPhotonGather::unavailable_reason(backend_.context().features(), photons);
 }
 
@@ -548,7 +547,7 @@ void GlFrame::gi_gather(const GpuGiGather& gather) {
   if (!gather_) {
     const std::string why = gi_gather_unavailable(0);
     if (!why.empty()) throw std::logic_error("GlFrame::gi_gather: " + why);
-    gather_ = std::make_unique<GlPhotonGather>();
+    gather_ = std::make_unique<GlPhotonGather>(backend_.context().features());
   }
   begin_timed("gpu.gi");
   gather_->run({t.color, t.depth, t.object_id, t.normal, t.width, t.height}, gather, origin, size);

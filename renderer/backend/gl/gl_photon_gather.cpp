@@ -249,8 +249,7 @@ std::uint32_t table_size(std::uint32_t photons) {
 
 std::string GlPhotonGather::unavailable_reason(const GlFeatures& features, std::size_t photons) {
   if (!features.at_least(4, 3)) return "the GPU gather needs compute shaders (OpenGL 4.3), this context is " + features.version();
-  GLint64 max_block = 0;
-  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+  const std::int64_t max_block = features.max_storage_block;
   const double bytes = 48.0 * static_cast<double>(photons);
   if (bytes > static_cast<double>(max_block)) {
     return std::to_string(photons) + " photons need a " + std::to_string(static_cast<long long>(bytes) >> 20) +
@@ -259,7 +258,7 @@ std::string GlPhotonGather::unavailable_reason(const GlFeatures& features, std::
   return "";
 }
 
-GlPhotonGather::GlPhotonGather() {
+GlPhotonGather::GlPhotonGather(const GlFeatures& features) : max_storage_block_(features.max_storage_block) {
   count_program_ = gl::link_compute_program(photon_pass(kCountMain).c_str(), "GlPhotonGather count");
   scan_program_ = gl::link_compute_program(kScan, "GlPhotonGather scan");
   scatter_program_ = gl::link_compute_program(photon_pass(kScatterMain).c_str(), "GlPhotonGather scatter");
@@ -285,11 +284,9 @@ void GlPhotonGather::build(Grid& grid, const GpuGiGather::Map& map) {
   grid.count = 0;
   if (photons == nullptr || photons->empty() || !(map.radius > 0) || !std::isfinite(map.radius)) return;
   const std::size_t n = photons->size();
-  GLint64 max_block = 0;
-  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
-  if (48.0 * static_cast<double>(n) > static_cast<double>(max_block)) {  // the plan should have kept it on the CPU
+  if (48.0 * static_cast<double>(n) > static_cast<double>(max_storage_block_)) {  // the plan should have kept it on the CPU
     throw std::length_error("GlPhotonGather: " + std::to_string(n) + " photons exceed the device's storage-buffer size (" +
-                            std::to_string(max_block) + " bytes)");
+                            std::to_string(max_storage_block_) + " bytes)");
   }
   grid.count = static_cast<std::uint32_t>(n);
   grid.table = table_size(grid.count);

@@ -31,11 +31,10 @@ namespace fovea::render {
 class GlPhotonGather {
  public:
   // Why this context cannot run it ("" when it can): compute shaders and storage buffers (GL 4.3),
-  // and one storage buffer of `photons` photons (48 bytes each) within the device's limit. The context
-  // must be current.
+  // and one storage buffer of `photons` photons (48 bytes each) within the device's limit.
   static std::string unavailable_reason(const GlFeatures& features, std::size_t photons = 0);
   // Compiles its programs on the current context; throws std::runtime_error with the driver's log.
-  GlPhotonGather();
+  explicit GlPhotonGather(const GlFeatures& features);
   ~GlPhotonGather();
   GlPhotonGather(const GlPhotonGather&) = delete;
   GlPhotonGather& operator=(const GlPhotonGather&) = delete;
@@ -66,6 +65,7 @@ class GlPhotonGather {
   void upload_surfaces(const std::vector<GpuGiGather::Surface>& surfaces);
   void gather(const GBufferInput& gbuffer, const GpuGiGather& gather, glm::ivec2 origin, glm::ivec2 size);
 
+  std::int64_t max_storage_block_ = 0;  // GlFeatures::max_storage_block
   unsigned count_program_ = 0, scan_program_ = 0, scatter_program_ = 0, gather_program_ = 0;
   Grid grids_[2];  // indirect, caustic
   unsigned surfaces_ = 0, traced_ = 0, output_ = 0;
