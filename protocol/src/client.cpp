@@ -282,6 +282,9 @@ void GazeClient::handle(const Message& m, std::int64_t now) {
     case MessageType::Marker:
       handle_marker(m, now);
       return;
+    case MessageType::GazeEyes:
+      handle_eyes(m);
+      return;
     default: {
       std::lock_guard lock(mutex_);
       ++stats_.rejected;
@@ -347,6 +350,7 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
   const bool provisional = !is_sample && std::get<GazeEvent>(m.payload).provisional();
   const std::uint32_t stream = is_sample ? kStreamSamples : provisional ? kStreamProvisional : kStreamEvents;
   if ((options_.streams & stream) == 0) return;
+  GazeSample delivered;
   {
     std::lock_guard lock(mutex_);
     SequenceTracker& tracker = is_sample ? sample_seq_ : provisional ? provisional_seq_ : event_seq_;
@@ -359,7 +363,9 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
     // Map the server's send time to our clock; meaningful once a TIME_SYNC exchange has completed.
     a.latency_ns = now - (m.header.send_time_ns - stats_.clock_offset_ns);
     if (is_sample) {
-      const auto& s = std::get<GazeSample>(m.payload);
+      GazeSample s = std::get<GazeSample>(m.payload);
+      attach_eyes(s, m.header.sequence);
+      delivered = s;
       latest_ = s;
       if (queue_.size() >= options_.queue_capacity) {
         queue_.pop_front();
@@ -378,10 +384,34 @@ void GazeClient::handle_gaze(const Message& m, std::int64_t now) {
     }
   }
   if (is_sample) {
-    if (on_sample_) on_sample_(std::get<GazeSample>(m.payload), a);
+    if (on_sample_) on_sample_(delivered, a);
   } else if (on_event_) {
     on_event_(std::get<GazeEvent>(m.payload), a);
   }
+}
+
+// GAZE_EYES comes just before its GAZE_SAMPLE (same sequence); it is kept until then. Asked for
+// only with kStreamEyes: from a server that was not asked, it is not trusted.
+void GazeClient::handle_eyes(const Message& m) {
+  std::lock_guard lock(mutex_);
+  if (state_ != State::Subscribed || (options_.streams & kStreamEyes) == 0) {
+    ++stats_.rejected;
+    return;
+  }
+  pending_eyes_ = std::make_pair(m.header.sequence, std::get<GazeEyes>(m.payload));
+}
+
+// The held GAZE_EYES into the sample it belongs to: same sequence and capture time. One lost or
+// reordered leaves the sample as the server's cyclopean gaze alone, never another sample's eyes.
+void GazeClient::attach_eyes(GazeSample& s, std::uint64_t sequence) {
+  if (!pending_eyes_) return;
+  const auto& [held_sequence, eyes] = *pending_eyes_;
+  if (held_sequence == sequence && eyes.tracker_time_ns == s.tracker_time_ns) {
+    s.left_gaze = eyes.left;
+    s.right_gaze = eyes.right;
+    ++stats_.eye_samples;
+  }
+  if (held_sequence <= sequence) pending_eyes_.reset();
 }
 
 namespace {

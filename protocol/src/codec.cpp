@@ -31,6 +31,7 @@ const char* to_string(MessageType t) {
     case MessageType::ControlRequest: return "CONTROL_REQUEST";
     case MessageType::ControlReply: return "CONTROL_REPLY";
     case MessageType::Marker: return "MARKER";
+    case MessageType::GazeEyes: return "GAZE_EYES";
   }
   return "?";
 }
@@ -123,6 +124,7 @@ std::size_t size_of(MessageType t) {
     case MessageType::ControlRequest: return 72;  // as large as CONTROL_REPLY: no amplification
     case MessageType::ControlReply: return 72;
     case MessageType::Marker: return 104;
+    case MessageType::GazeEyes: return 48;
   }
   return 0;
 }
@@ -160,6 +162,12 @@ struct Writer {
     f32(off + 8, e.pupil_diameter_mm);
     f32(off + 12, e.pupil_glint_x_px);
     f32(off + 16, e.pupil_glint_y_px);
+  }
+  void eye_gaze(std::size_t off, const EyeGaze& e) {
+    f32(off, e.x);
+    f32(off + 4, e.y);
+    f32(off + 8, e.x_deg);
+    f32(off + 12, e.y_deg);
   }
 
   void operator()(const Hello& m) {
@@ -262,6 +270,13 @@ struct Writer {
     put<std::uint8_t>(32, m.flags);
     text(40, m.label);
   }
+  void operator()(const GazeEyes& m) {
+    put<std::int64_t>(0, m.tracker_time_ns);
+    put<std::uint8_t>(8, m.left.flags);
+    put<std::uint8_t>(9, m.right.flags);
+    eye_gaze(16, m.left);
+    eye_gaze(32, m.right);
+  }
 };
 
 // ---- reading ---------------------------------------------------------------------------------
@@ -349,6 +364,17 @@ struct Reader {
     e.pupil_diameter_mm = f32_at_least(off + 8, 0.0f);
     e.pupil_glint_x_px = f32(off + 12);
     e.pupil_glint_y_px = f32(off + 16);
+    return e;
+  }
+  // An eye without the valid bit carries zeros: nothing on the wire is both present and meaningless.
+  EyeGaze eye_gaze(std::size_t off, std::uint8_t eye_flags) {
+    EyeGaze e;
+    e.flags = eye_flags;
+    e.x = f32(off);
+    e.y = f32(off + 4);
+    e.x_deg = f32(off + 8);
+    e.y_deg = f32(off + 12);
+    if (!e.valid() && (e.x != 0 || e.y != 0 || e.x_deg != 0 || e.y_deg != 0)) fail(DecodeError::OutOfRange, off);
     return e;
   }
   template <typename E>
@@ -538,6 +564,18 @@ struct Reader {
     return m;
   }
 
+  // Payload layout: PROTOCOL.md §4.18. At least one eye is valid (else the message says nothing).
+  GazeEyes read_gaze_eyes() {
+    GazeEyes m;
+    m.tracker_time_ns = get<std::int64_t>(0);
+    const std::uint8_t left = flags(8, kEyeGazeFlagMask), right = flags(9, kEyeGazeFlagMask);
+    zero(10, 6);
+    m.left = eye_gaze(16, left);
+    m.right = eye_gaze(32, right);
+    if (result && !m.left.valid() && !m.right.valid()) fail(DecodeError::OutOfRange, 8);
+    return m;
+  }
+
   Payload read(MessageType t) {
     switch (t) {
       case MessageType::Hello: return read_hello();
@@ -556,6 +594,7 @@ struct Reader {
       case MessageType::ControlRequest: return read_control_request();
       case MessageType::ControlReply: return read_control_reply();
       case MessageType::Marker: return read_marker();
+      case MessageType::GazeEyes: return read_gaze_eyes();
     }
     fail(DecodeError::UnknownType, 0);
     return StatusRequest{};

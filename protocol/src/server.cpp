@@ -206,7 +206,31 @@ std::uint64_t GazeServer::publish(const GazeSample& sample) { return publish(sam
 std::uint64_t GazeServer::publish(const GazeSample& sample, std::int64_t host_receive_ns) {
   std::unique_lock lock(mutex_);
   ++stats_.samples_published;
+  if (sample.has_eye_gaze()) send_eyes(lock, sample, host_receive_ns);
   return send_stream(lock, kStreamSamples, next_sample_seq_, host_receive_ns, sample);
+}
+
+// A sample's per-eye gaze as GAZE_EYES, to kStreamEyes subscribers only (unicast: a v1 receiver of
+// the multicast group would reject the type), just before the GAZE_SAMPLE whose sequence it carries,
+// so that a client holds it when the sample arrives and delivers the two as one.
+void GazeServer::send_eyes(const std::unique_lock<std::mutex>& held, const GazeSample& sample,
+                           std::int64_t origin_ns) {
+  assert(held.owns_lock() && held.mutex() == &mutex_ && "send_eyes: the caller must hold mutex_");
+  (void)held;
+  targets_.clear();
+  for (const auto& [id, s] : sessions_) {
+    if ((s.streams & kStreamEyes) != 0) targets_.push_back(s.address);
+  }
+  if (targets_.empty()) return;
+  Message m{Header{}, GazeEyes{sample.tracker_time_ns, sample.left_gaze, sample.right_gaze}};
+  m.header.sequence = next_sample_seq_;  // the sample's, sent next
+  m.header.origin_time_ns = origin_ns;
+  m.header.send_time_ns = monotonic_ns();
+  std::array<std::uint8_t, kMaxDatagramSize> buf{};
+  const std::size_t n = encode_into(m, buf);
+  const std::size_t sent = socket_.send_to_many(targets_, std::span<const std::uint8_t>(buf.data(), n));
+  stats_.datagrams_sent += sent;
+  stats_.send_failures += targets_.size() - sent;
 }
 
 std::uint64_t GazeServer::publish(const Marker& marker) {

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field, replace
 from typing import Callable, Deque, Dict, List, Optional, Tuple
 
 from . import protocol
-from .protocol import (DEFAULT_PORT, MARKER_CLIENT_TIME, STREAM_EVENTS, STREAM_MARKERS, STREAM_PROVISIONAL,
-                       STREAM_SAMPLES, Challenge, ErrorCode, GazeEvent, GazeSample, Heartbeat, Hello, Marker,
+from .protocol import (DEFAULT_PORT, MARKER_CLIENT_TIME, STREAM_EVENTS, STREAM_EYES, STREAM_MARKERS,
+                       STREAM_PROVISIONAL, STREAM_SAMPLES, Challenge, ErrorCode, GazeEvent, GazeSample, Heartbeat, Hello, Marker,
                        Message, MessageType, ProtocolError, StatusReply, StatusRequest, Subscribe, Subscribed,
                        TimeSyncReply, TimeSyncRequest, Unsubscribe)
 
@@ -258,6 +258,7 @@ class ClientStats:
     markers_sent: int = 0
     markers_confirmed: int = 0
     markers_unconfirmed: int = 0
+    eye_samples: int = 0  # samples delivered with their GAZE_EYES (STREAM_EYES)
     rejected: int = 0  # datagrams that failed to decode, came from elsewhere, or were not ours
     decode_errors: Dict[str, int] = field(default_factory=dict)
     queue_dropped: int = 0
@@ -286,7 +287,8 @@ class GazeClient:
     ...     sample = client.latest()
 
     streams: STREAM_SAMPLES | STREAM_EVENTS by default; add STREAM_MARKERS to receive markers (and to
-    have mark() retransmit until confirmed), or pass provisional=True for provisional events.
+    have mark() retransmit until confirmed), or pass provisional=True for provisional events. With
+    STREAM_EYES, samples from a binocular source carry each eye's gaze (left_gaze, right_gaze).
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, *,
@@ -327,6 +329,7 @@ class GazeClient:
         self._subscribe_attempts = 0
         self._session: Optional[Subscribed] = None
         self._latest: Optional[GazeSample] = None
+        self._pending_eyes: Optional[Tuple[int, protocol.GazeEyes]] = None
         self._latest_arrival: Optional[Arrival] = None
         self._samples: Deque[Tuple[GazeSample, Arrival]] = collections.deque()
         self._events: Deque[Tuple[object, Arrival]] = collections.deque()
@@ -556,6 +559,9 @@ class GazeClient:
             self._on_gaze(m, now)
         elif t == MessageType.MARKER:
             self._on_marker(m, now)
+        elif t == MessageType.GAZE_EYES and self._state == _SUBSCRIBED and self.streams & STREAM_EYES:
+            with self._lock:
+                self._pending_eyes = (m.header.sequence, m.payload)  # joined to the sample that follows
         else:
             with self._lock:
                 self._stats.rejected += 1
@@ -635,6 +641,7 @@ class GazeClient:
             arrival = Arrival(m.header.sequence, now, now - self._clock.to_client_ns(m.header.send_time_ns),
                               m.header.origin_time_ns)
             if stream == STREAM_SAMPLES:
+                self._join_eyes(m.payload, m.header.sequence)
                 self._latest, self._latest_arrival = m.payload, arrival
                 self._enqueue(self._samples, (m.payload, arrival))
             else:
@@ -642,6 +649,17 @@ class GazeClient:
         callback = self.on_sample if stream == STREAM_SAMPLES else self.on_event
         if callback:
             callback(m.payload, arrival)
+
+    def _join_eyes(self, sample: GazeSample, sequence: int) -> None:
+        """The held GAZE_EYES into its sample (same sequence and capture time), never into another."""
+        if self._pending_eyes is None:
+            return
+        held_sequence, eyes = self._pending_eyes
+        if held_sequence == sequence and eyes.tracker_time_ns == sample.tracker_time_ns:
+            sample.left_gaze, sample.right_gaze = eyes.left, eyes.right
+            self._stats.eye_samples += 1
+        if held_sequence <= sequence:
+            self._pending_eyes = None
 
     def _enqueue(self, queue: Deque, item: tuple) -> None:
         if len(queue) >= self._queue_size:

@@ -29,11 +29,13 @@ STREAM_SAMPLES = 0x1
 STREAM_EVENTS = 0x2
 STREAM_MARKERS = 0x4
 STREAM_PROVISIONAL = 0x8
-STREAM_MASK = STREAM_SAMPLES | STREAM_EVENTS | STREAM_MARKERS | STREAM_PROVISIONAL
+STREAM_EYES = 0x10  # GAZE_EYES: each eye's point of gaze, joined to its sample (PROTOCOL.md section 4.18)
+STREAM_MASK = STREAM_SAMPLES | STREAM_EVENTS | STREAM_MARKERS | STREAM_PROVISIONAL | STREAM_EYES
 
 GAZE_VALID = 0x1
 EYE_PUPIL_VALID = 0x1
 EYE_GLINT_VALID = 0x2
+EYE_GAZE_VALID = 0x1
 EVENT_PROVISIONAL = 0x1
 EVENT_RETRACTED = 0x2
 MARKER_CLIENT_TIME = 0x1
@@ -56,6 +58,7 @@ class MessageType(enum.IntEnum):
     CONTROL_REQUEST = 14
     CONTROL_REPLY = 15
     MARKER = 16
+    GAZE_EYES = 17
 
 
 class EyeMovement(enum.IntEnum):
@@ -228,6 +231,21 @@ class Unsubscribe:
 
 
 @dataclass
+class EyeGaze:
+    """One eye's point of gaze, in GazeSample's coordinates; all zero unless valid."""
+
+    flags: int = 0
+    x: float = 0.0
+    y: float = 0.0
+    x_deg: float = 0.0
+    y_deg: float = 0.0
+
+    @property
+    def valid(self) -> bool:
+        return bool(self.flags & EYE_GAZE_VALID)
+
+
+@dataclass
 class GazeSample:
     tracker_time_ns: int = 0
     x: float = 0.0
@@ -240,6 +258,9 @@ class GazeSample:
     flags: int = 0
     left: EyeData = field(default_factory=EyeData)
     right: EyeData = field(default_factory=EyeData)
+    # Each eye's gaze, from the GAZE_EYES sent with this sample (STREAM_EYES; not in GAZE_SAMPLE's bytes).
+    left_gaze: EyeGaze = field(default_factory=EyeGaze, compare=True)
+    right_gaze: EyeGaze = field(default_factory=EyeGaze, compare=True)
 
     @property
     def valid(self) -> bool:
@@ -339,9 +360,18 @@ class Marker:
         return bool(self.flags & MARKER_CLIENT_TIME)
 
 
+@dataclass
+class GazeEyes:
+    """GAZE_EYES (17): the per-eye gaze of the GAZE_SAMPLE with the same sequence and tracker time."""
+
+    tracker_time_ns: int = 0
+    left: EyeGaze = field(default_factory=EyeGaze)
+    right: EyeGaze = field(default_factory=EyeGaze)
+
+
 Payload = Union[Hello, Challenge, Subscribe, Subscribed, Heartbeat, Unsubscribe, GazeSample, GazeEvent,
                 StatusRequest, StatusReply, TimeSyncRequest, TimeSyncReply, Error, ControlRequest, ControlReply,
-                Marker]
+                Marker, GazeEyes]
 
 
 @dataclass
@@ -454,6 +484,27 @@ def _eye(prefix: str, off: int) -> List[Any]:
             _Num(f"{prefix}.pupil_glint_x_px", off + 12, "f"), _Num(f"{prefix}.pupil_glint_y_px", off + 16, "f")]
 
 
+def _eye_gaze(prefix: str, off: int) -> List[Any]:
+    return [_Num(f"{prefix}.x", off, "f"), _Num(f"{prefix}.y", off + 4, "f"), _Num(f"{prefix}.x_deg", off + 8, "f"),
+            _Num(f"{prefix}.y_deg", off + 12, "f"), _Check(f"{prefix}.x", off, _invalid_eye_is_zero(prefix))]
+
+
+def _invalid_eye_is_zero(prefix: str) -> Callable[[Dict[str, Any]], Optional[Tuple[DecodeError, str]]]:
+    def rule(values: Dict[str, Any]) -> Optional[Tuple[DecodeError, str]]:
+        if values[f"{prefix}.flags"] & EYE_GAZE_VALID:
+            return None
+        if any(values[f"{prefix}.{k}"] != 0 for k in ("x", "y", "x_deg", "y_deg")):
+            return DecodeError.OUT_OF_RANGE, "an eye without the valid bit carries zeros"
+        return None
+    return rule
+
+
+def _some_eye_valid(values: Dict[str, Any]) -> Optional[Tuple[DecodeError, str]]:
+    if (values["left.flags"] | values["right.flags"]) & EYE_GAZE_VALID:
+        return None
+    return DecodeError.OUT_OF_RANGE, "neither eye is valid"
+
+
 def _marker_time(values: Dict[str, Any]) -> Optional[Tuple[DecodeError, str]]:
     if values["flags"] & MARKER_CLIENT_TIME == 0 and values["time_ns"] != values["received_ns"]:
         return DecodeError.OUT_OF_RANGE, "without flag bit 0 time_ns must equal received_ns"
@@ -507,7 +558,7 @@ _LAYOUTS: Dict[MessageType, Tuple[type, int, List[Any]]] = {
         _Num("client_send_ns", 0, "q"), _Num("server_receive_ns", 8, "q"), _Num("server_send_ns", 16, "q")]),
     MessageType.ERROR: (Error, 8, [
         _Num("code", 0, "H", (_enum(ErrorCode, 1, 8),), ErrorCode),
-        _Num("request_type", 2, "B", (_enum(MessageType, 1, 16),), MessageType),
+        _Num("request_type", 2, "B", (_enum(MessageType, 1, 17),), MessageType),
         _Num("supported_version", 3, "B"), _Reserved(4, 4)]),
     MessageType.CONTROL_REQUEST: (ControlRequest, 72, [
         _Num("command", 0, "B", (_enum(ControlCommand, 1, 4),), ControlCommand), _Reserved(1, 7),
@@ -520,10 +571,15 @@ _LAYOUTS: Dict[MessageType, Tuple[type, int, List[Any]]] = {
         _Num("session_id", 0, "Q"), _Num("marker_id", 8, "Q", (_non_zero,)), _Num("time_ns", 16, "q"),
         _Num("received_ns", 24, "q"), _Num("flags", 32, "B", (_flag_bits(MARKER_CLIENT_TIME),)),
         _Check("time_ns", 16, _marker_time), _Reserved(33, 7), _Text("label", 40, 64, label=True)]),
+    MessageType.GAZE_EYES: (GazeEyes, 48, [
+        _Num("tracker_time_ns", 0, "q"), _Num("left.flags", 8, "B", (_flag_bits(EYE_GAZE_VALID),)),
+        _Num("right.flags", 9, "B", (_flag_bits(EYE_GAZE_VALID),)), _Reserved(10, 6), *_eye_gaze("left", 16),
+        *_eye_gaze("right", 32), _Check("left.flags", 8, _some_eye_valid)]),
 }
 
 _TYPE_OF_CLASS = {cls: t for t, (cls, _, _) in _LAYOUTS.items()}
 _NESTED = {"display": DisplayGeometry, "left": EyeData, "right": EyeData}
+_NESTED_IN = {GazeEyes: {"left": EyeGaze, "right": EyeGaze}}  # where a class nests other types
 
 
 def payload_size(t: Union[MessageType, int]) -> int:
@@ -604,7 +660,7 @@ def _build(cls: type, values: Dict[str, Any]) -> Any:
         else:
             top[name] = value
     for outer, fields in nested.items():
-        top[outer] = _NESTED[outer](**fields)
+        top[outer] = _NESTED_IN.get(cls, _NESTED)[outer](**fields)
     return cls(**top)
 
 
@@ -613,7 +669,7 @@ def decode_payload(t: Union[MessageType, int], payload: bytes, base_offset: int 
     try:
         t = MessageType(t)
     except ValueError:
-        raise ProtocolError(DecodeError.UNKNOWN_TYPE, 0, "type", f"{t} is not a message type (1..16)") from None
+        raise ProtocolError(DecodeError.UNKNOWN_TYPE, 0, "type", f"{t} is not a message type (1..17)") from None
     cls, size, layout = _LAYOUTS[t]
     msg = t.name
     if len(payload) != size:
@@ -649,8 +705,8 @@ def decode(datagram: bytes) -> Message:
     if datagram[4] != VERSION:
         raise ProtocolError(DecodeError.BAD_VERSION, 4, "version", f"{datagram[4]}, this decoder speaks {VERSION}")
     raw_type = datagram[5]
-    if not 1 <= raw_type <= 16:
-        raise ProtocolError(DecodeError.UNKNOWN_TYPE, 5, "type", f"{raw_type} is not a message type (1..16)")
+    if not 1 <= raw_type <= 17:
+        raise ProtocolError(DecodeError.UNKNOWN_TYPE, 5, "type", f"{raw_type} is not a message type (1..17)")
     t = MessageType(raw_type)
     length, sequence, origin, send = struct.unpack_from("<HQqq", datagram, 6)
     size = payload_size(t)

@@ -57,6 +57,9 @@ def canonical():
                                                                "recording to /var/lib/fovea/session-01.fgr")),
         "marker": p.Message(header(3), p.Marker(0, 0x0F0E0D0C0B0A0908, 1_000_000_000, 1_002_000_000,
                                                 p.MARKER_CLIENT_TIME, "trial 7: stimulus on")),
+        "gaze_eyes": p.Message(header(1000), p.GazeEyes(1_000_000_000,
+                                                        p.EyeGaze(1, 0.46875, 0.25, -1.46875, -6.5625),
+                                                        p.EyeGaze(1, 0.53125, 0.25, 1.46875, -6.5625))),
         "gaze_event_provisional": p.Message(header(7, origin=999_960_000, send=999_972_000), provisional),
         "gaze_event_retracted": p.Message(header(8, origin=999_960_000),
                                           protocol.replace(provisional, flags=p.EVENT_PROVISIONAL | p.EVENT_RETRACTED)),
@@ -84,7 +87,7 @@ class GoldenVectors(unittest.TestCase):
 
     def test_payload_sizes_match_the_table(self):
         sizes = {1: 48, 2: 32, 3: 32, 4: 80, 5: 16, 6: 8, 7: 76, 8: 48, 9: 128, 10: 128, 11: 24, 12: 24, 13: 8,
-                 14: 72, 15: 72, 16: 104}
+                 14: 72, 15: 72, 16: 104, 17: 48}
         for t, size in sizes.items():
             self.assertEqual(protocol.payload_size(t), size)
 
@@ -135,7 +138,7 @@ class StrictDecoding(unittest.TestCase):
         self.assertRejected(data + bytes(500), DecodeError.TOO_LONG, 512, "datagram")
 
     def test_header(self):
-        self.assertRejected(self.patched("heartbeat", 5, "B", 17), DecodeError.UNKNOWN_TYPE, 5, "type")
+        self.assertRejected(self.patched("heartbeat", 5, "B", 18), DecodeError.UNKNOWN_TYPE, 5, "type")
         self.assertRejected(self.patched("heartbeat", 5, "B", 0), DecodeError.UNKNOWN_TYPE, 5, "type")
 
     def test_non_finite_floats(self):
@@ -157,7 +160,7 @@ class StrictDecoding(unittest.TestCase):
             ("gaze_event", 34, "B", 4, DecodeError.RESERVED_NOT_ZERO, "flags"),
             ("gaze_event", 48, "q", -1, DecodeError.OUT_OF_RANGE, "duration_ns"),
             ("subscribe", 56, "I", 0, DecodeError.OUT_OF_RANGE, "streams"),
-            ("subscribe", 56, "I", 0x10, DecodeError.OUT_OF_RANGE, "streams"),
+            ("subscribe", 56, "I", 0x20, DecodeError.OUT_OF_RANGE, "streams"),
             ("subscribed", 72, "I", 0, DecodeError.OUT_OF_RANGE, "display.width_px"),
             ("subscribed", 76, "I", 65537, DecodeError.OUT_OF_RANGE, "display.height_px"),
             ("subscribed", 96, "d", 100.5, DecodeError.OUT_OF_RANGE, "display.viewing_distance_m"),
@@ -165,7 +168,7 @@ class StrictDecoding(unittest.TestCase):
             ("status_reply", 88, "q", -1, DecodeError.OUT_OF_RANGE, "uptime_ns"),
             ("status_reply", 124, "B", 3, DecodeError.OUT_OF_RANGE, "source_state"),
             ("error", 32, "H", 9, DecodeError.OUT_OF_RANGE, "code"),
-            ("error", 34, "B", 17, DecodeError.OUT_OF_RANGE, "request_type"),
+            ("error", 34, "B", 18, DecodeError.OUT_OF_RANGE, "request_type"),
             ("control_request", 32, "B", 5, DecodeError.OUT_OF_RANGE, "command"),
             ("control_reply", 33, "B", 3, DecodeError.OUT_OF_RANGE, "result"),
             ("marker", 40, "Q", 0, DecodeError.OUT_OF_RANGE, "marker_id"),
@@ -176,6 +179,23 @@ class StrictDecoding(unittest.TestCase):
             with self.subTest(name=name, field=field, value=value):
                 reported = 48 if (name, field) == ("marker", "time_ns") else offset
                 self.assertRejected(self.patched(name, offset, fmt, value), reason, reported, field)
+
+    def test_gaze_eyes_rules(self):
+        # Flags beyond bit 0, reserved bytes, an invalid eye that is not all zero, neither eye valid.
+        self.assertRejected(self.patched("gaze_eyes", 41, "B", 3), DecodeError.RESERVED_NOT_ZERO, 41, "right.flags")
+        self.assertRejected(self.patched("gaze_eyes", 47, "B", 1), DecodeError.RESERVED_NOT_ZERO, 47, "reserved")
+        self.assertRejected(self.patched("gaze_eyes", 40, "B", 0), DecodeError.OUT_OF_RANGE, 48, "left.x")
+        no_eye = bytearray(golden("gaze_eyes"))
+        no_eye[40:42] = bytes(2)
+        no_eye[48:80] = bytes(32)
+        self.assertRejected(no_eye, DecodeError.OUT_OF_RANGE, 40, "left.flags")
+        self.assertRejected(self.patched("gaze_eyes", 72, "f", float("nan")), DecodeError.NON_FINITE, 72, "right.x_deg")
+        one_eye = bytearray(golden("gaze_eyes"))
+        one_eye[41] = 0
+        one_eye[64:80] = bytes(16)
+        eyes = protocol.decode(bytes(one_eye)).payload
+        self.assertTrue(eyes.left.valid)
+        self.assertFalse(eyes.right.valid)
 
     def test_reserved_bytes(self):
         for name, offset in (("hello", 72), ("hello", 79), ("challenge", 60), ("heartbeat", 44), ("subscribed", 111),

@@ -185,7 +185,7 @@ TEST(Control, HandlerMayReconfigureTheServerLiveWithoutDroppingSessions) {
   // The existing session survives (max_subscribers 1 = this one), keeps streaming and keeps its
   // lease; a second subscriber is refused by the new limit.
   for (int i = 0; i < 20; ++i) {
-    server.publish(GazeSample{monotonic_ns(), 0.5f, 0.5f, 0, 0, 0, 1.0f, EyeMovement::Fixation, kGazeValid, {}, {}});
+    server.publish(GazeSample{monotonic_ns(), 0.5f, 0.5f, 0, 0, 0, 1.0f, EyeMovement::Fixation, kGazeValid, {}, {}, {}, {}});
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(700));  // a heartbeat or two

@@ -898,3 +898,69 @@ TEST(ProvisionalEvents, ReachOnlyTheirSubscribersOnTheirOwnCounter) {
   EXPECT_EQ(b.stats().events.lost, 0u);
   EXPECT_EQ(b.stats().provisional.received, 0u);
 }
+
+// Issue 42 (stereo with per-eye gaze): GAZE_EYES goes only to subscribers of the eye stream, just
+// before its sample; their samples arrive with both eyes joined, everyone else's as before, and the
+// sample stream's numbering is the same for both (GAZE_EYES takes no sequence of its own).
+TEST(EyeStream, JoinsEachEyesGazeToItsSampleForItsSubscribersOnly) {
+  GazeServer server(server_options());
+  ClientOptions with = client_options(server.local_endpoint());
+  with.streams = kStreamSamples | kStreamEyes;
+  ClientOptions without = client_options(server.local_endpoint());
+  without.streams = kStreamSamples;
+  struct Seen {
+    std::mutex mu;
+    std::vector<std::pair<GazeSample, std::uint64_t>> samples;
+  } seen_with, seen_without;
+  GazeClient a(with), b(without);
+  for (auto [client, seen] : {std::pair{&a, &seen_with}, std::pair{&b, &seen_without}}) {
+    client->on_sample([seen](const GazeSample& s, const Arrival& arrival) {
+      std::lock_guard lock(seen->mu);
+      seen->samples.emplace_back(s, arrival.sequence);
+    });
+    client->start();
+  }
+  ASSERT_TRUE(a.wait_subscribed(2000));
+  ASSERT_TRUE(b.wait_subscribed(2000));
+
+  // Samples 0, 2, 4 are binocular; 1 and 3 come from a moment the tracker saw one eye or none.
+  for (int i = 0; i < 5; ++i) {
+    GazeSample s;
+    s.tracker_time_ns = monotonic_ns() + i;
+    s.x = 0.5f, s.y = 0.5f, s.flags = kGazeValid;
+    if (i % 2 == 0) {
+      s.left_gaze = EyeGaze{kEyeGazeValid, 0.48f + 0.001f * static_cast<float>(i), 0.5f, -0.7f, 0.0f};
+      s.right_gaze = EyeGaze{kEyeGazeValid, 0.52f, 0.5f, 0.7f, 0.0f};
+    } else if (i == 1) {
+      s.right_gaze = EyeGaze{kEyeGazeValid, 0.51f, 0.49f, 0.35f, -0.35f};
+    }
+    server.publish(s);
+  }
+  for (int i = 0; i < 200 && (a.stats().samples.received < 5 || b.stats().samples.received < 5); ++i) {
+    std::this_thread::sleep_for(5ms);
+  }
+  std::lock_guard la(seen_with.mu), lb(seen_without.mu);
+  ASSERT_EQ(seen_with.samples.size(), 5u);
+  ASSERT_EQ(seen_without.samples.size(), 5u);
+  for (int i = 0; i < 5; ++i) {
+    const GazeSample& s = seen_with.samples[static_cast<std::size_t>(i)].first;
+    EXPECT_EQ(seen_with.samples[static_cast<std::size_t>(i)].second, seen_without.samples[static_cast<std::size_t>(i)].second);
+    if (i % 2 == 0) {
+      ASSERT_TRUE(s.left_gaze.valid() && s.right_gaze.valid()) << i;
+      EXPECT_FLOAT_EQ(s.left_gaze.x, 0.48f + 0.001f * static_cast<float>(i));
+      EXPECT_FLOAT_EQ(s.right_gaze.x_deg, 0.7f);
+    } else if (i == 1) {
+      EXPECT_FALSE(s.left_gaze.valid());
+      ASSERT_TRUE(s.right_gaze.valid());
+      EXPECT_FLOAT_EQ(s.right_gaze.y_deg, -0.35f);
+    } else {
+      EXPECT_FALSE(s.has_eye_gaze()) << "sample 3 has no eyes: it must not get sample 2's";
+    }
+    EXPECT_FALSE(seen_without.samples[static_cast<std::size_t>(i)].first.has_eye_gaze());
+  }
+  EXPECT_EQ(a.stats().eye_samples, 4u);
+  EXPECT_EQ(a.stats().samples.lost, 0u);
+  EXPECT_EQ(a.stats().rejected, 0u);
+  EXPECT_EQ(b.stats().eye_samples, 0u);
+  EXPECT_EQ(b.stats().rejected, 0u) << "a client that did not ask is never sent GAZE_EYES";
+}

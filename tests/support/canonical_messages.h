@@ -105,6 +105,13 @@ inline std::vector<std::pair<std::string, protocol::Message>> canonical_messages
   Header mh = header(3);
   mh.origin_time_ns = marker.time_ns;
   out.emplace_back("marker", Message{mh, marker});
+  // The per-eye gaze of the canonical sample (same sequence and time): the eyes 1/32 of the screen
+  // either side of the cyclopean point, as when looking at something behind a stereo display.
+  GazeEyes eyes;
+  eyes.tracker_time_ns = 1'000'000'000;
+  eyes.left = EyeGaze{kEyeGazeValid, 0.46875f, 0.25f, -1.46875f, -6.5625f};
+  eyes.right = EyeGaze{kEyeGazeValid, 0.53125f, 0.25f, 1.46875f, -6.5625f};
+  out.emplace_back("gaze_eyes", Message{header(1000), eyes});
   // A provisional saccade onset (on the provisional stream, its own counter), said 12 ms after the
   // onset, and its retraction once the final labels have passed without confirming it.
   GazeEvent provisional;

@@ -208,7 +208,8 @@ TEST(Decoder, RejectsOutOfRangeFieldsAndReservedBits) {
   EXPECT_EQ(mutate(0, [](auto& b) { b[H + 47] = 1; }), DecodeError::ReservedNotZero);
   // SUBSCRIBE (index 2): no streams, unknown stream bits
   EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 0); }), DecodeError::OutOfRange);
-  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 16); }), DecodeError::OutOfRange);
+  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, 32); }), DecodeError::OutOfRange);
+  EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, kStreamEyes); }), DecodeError::Ok);
   EXPECT_EQ(mutate(2, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 24, kStreamProvisional); }), DecodeError::Ok);
   // SUBSCRIBED (index 3): zero-sized display, negative distance
   EXPECT_EQ(mutate(3, [](auto& b) { wire::store_le<std::uint32_t>(b, H + 40, 0); }), DecodeError::OutOfRange);
@@ -259,6 +260,43 @@ TEST(Decoder, MarkerLabelsArePrintableUtf8AndItsFieldsConsistent) {
     b[H + 32] = 0;
     wire::store_le<std::int64_t>(b, H + 16, 1'002'000'000);
   }));
+}
+
+// GAZE_EYES (PROTOCOL.md §4.18): flag bits, reserved bytes, zeros for an invalid eye, one eye at least.
+TEST(Decoder, GazeEyesCarriesAtLeastOneValidEyeAndZerosForAnInvalidOne) {
+  const auto messages = fovea::test::canonical_messages();
+  const std::size_t index = 16;
+  ASSERT_EQ(messages[index].first, "gaze_eyes");
+  const auto mutate = [&](auto&& f) {
+    auto bytes = encode(messages[index].second);
+    f(bytes);
+    Message out;
+    const DecodeResult r = decode(bytes, out);
+    return std::pair{r, out};
+  };
+  constexpr std::size_t H = kHeaderSize;
+  const auto result = [](const DecodeResult& r) { return std::pair{r.error, r.offset}; };
+  EXPECT_EQ(result(mutate([](auto& b) { b[H + 9] = 0x02; }).first), std::pair(DecodeError::ReservedNotZero, H + 9));
+  EXPECT_EQ(mutate([](auto& b) { b[H + 15] = 1; }).first.error, DecodeError::ReservedNotZero);
+  EXPECT_EQ(result(mutate([](auto& b) { wire::store_le<float>(b, H + 40, std::numeric_limits<float>::infinity()); }).first),
+            std::pair(DecodeError::NonFinite, H + 40));
+  // The left eye marked invalid but its numbers left in: refused, at the eye's first field.
+  EXPECT_EQ(result(mutate([](auto& b) { b[H + 8] = 0; }).first), std::pair(DecodeError::OutOfRange, H + 16));
+  // Only the right eye: fine. Neither: refused.
+  const auto [right_only, eyes] = mutate([](auto& b) {
+    b[H + 8] = 0;
+    std::fill(b.begin() + H + 16, b.begin() + H + 32, 0);
+  });
+  ASSERT_TRUE(right_only);
+  const auto& e = std::get<GazeEyes>(eyes.payload);
+  EXPECT_FALSE(e.left.valid());
+  EXPECT_TRUE(e.right.valid());
+  EXPECT_FLOAT_EQ(e.right.x, 0.53125f);
+  EXPECT_EQ(result(mutate([](auto& b) {
+              b[H + 8] = b[H + 9] = 0;
+              std::fill(b.begin() + H + 16, b.begin() + H + 48, 0);
+            }).first),
+            std::pair(DecodeError::OutOfRange, H + 8));
 }
 
 TEST(Decoder, SurvivesAHundredThousandRandomDatagrams) {

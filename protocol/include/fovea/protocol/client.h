@@ -52,6 +52,7 @@ struct ClientStats {
   std::uint64_t markers_sent = 0;         // by mark(), retransmissions not counted
   std::uint64_t markers_confirmed = 0;    // came back on the marker stream
   std::uint64_t markers_unconfirmed = 0;  // given up after kMarkerAttempts sends without a copy back
+  std::uint64_t eye_samples = 0;       // samples delivered with their GAZE_EYES (kStreamEyes)
   std::uint64_t rejected = 0;          // datagrams that failed to decode or came from elsewhere
   std::uint64_t queue_dropped = 0;
   std::uint64_t subscriptions = 0;     // successful SUBSCRIBED, first one included
@@ -129,6 +130,8 @@ class GazeClient {
   void handle(const Message& m, std::int64_t now);
   void handle_gaze(const Message& m, std::int64_t now);
   void handle_marker(const Message& m, std::int64_t now);
+  void handle_eyes(const Message& m);
+  void attach_eyes(GazeSample& s, std::uint64_t sequence);  // mutex_ held
   void resend_markers(std::int64_t now);
   void on_time_sync(const TimeSyncReply& t, std::int64_t now);
   void begin_handshake(std::int64_t now, bool fresh);
@@ -155,6 +158,7 @@ class GazeClient {
   std::condition_variable subscribed_cv_;
   std::optional<Subscribed> session_;
   std::optional<GazeSample> latest_;
+  std::optional<std::pair<std::uint64_t, GazeEyes>> pending_eyes_;  // the last GAZE_EYES, until its sample
   std::deque<std::pair<GazeSample, Arrival>> queue_;
   SequenceTracker sample_seq_, event_seq_, marker_seq_, provisional_seq_;
   struct PendingMarker {

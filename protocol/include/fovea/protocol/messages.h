@@ -36,8 +36,9 @@ enum class MessageType : std::uint8_t {
   ControlRequest = 14,
   ControlReply = 15,
   Marker = 16,
+  GazeEyes = 17,
 };
-inline constexpr std::uint8_t kMaxMessageType = 16;
+inline constexpr std::uint8_t kMaxMessageType = 17;
 const char* to_string(MessageType t);
 
 // Subscription stream bits.
@@ -46,7 +47,11 @@ inline constexpr std::uint32_t kStreamEvents = 1u << 1;
 inline constexpr std::uint32_t kStreamMarkers = 1u << 2;
 // Provisional GAZE_EVENTs (kEventProvisional) and their retractions, on a stream of their own.
 inline constexpr std::uint32_t kStreamProvisional = 1u << 3;
-inline constexpr std::uint32_t kStreamMask = kStreamSamples | kStreamEvents | kStreamMarkers | kStreamProvisional;
+// Each eye's own point of gaze (GAZE_EYES, sent just before the GAZE_SAMPLE it belongs to) from
+// sources that measure both eyes; opt-in, so that v1 clients never see a message type they lack.
+inline constexpr std::uint32_t kStreamEyes = 1u << 4;
+inline constexpr std::uint32_t kStreamMask =
+    kStreamSamples | kStreamEvents | kStreamMarkers | kStreamProvisional | kStreamEyes;
 
 struct Header {
   MessageType type = MessageType::Hello;
@@ -142,6 +147,21 @@ struct EyeData {
 inline constexpr std::uint8_t kGazeValid = 1u << 0;
 inline constexpr std::uint8_t kGazeFlagMask = kGazeValid;
 
+// One eye's point of gaze on the screen, in the sample's coordinates (PROTOCOL.md §4.18). A
+// binocular tracker measures each eye; the sample's x, y is their combination (cyclopean), which is
+// all a monocular client needs. A stereo display needs each eye's: the two differ by the
+// disparity of what is looked at, and a tracker's per-eye noise is independent.
+inline constexpr std::uint8_t kEyeGazeValid = 1u << 0;
+inline constexpr std::uint8_t kEyeGazeFlagMask = kEyeGazeValid;
+
+struct EyeGaze {
+  std::uint8_t flags = 0;  // kEyeGazeValid
+  float x = 0, y = 0;          // normalized screen coordinates, as GazeSample's
+  float x_deg = 0, y_deg = 0;  // visual angle from screen centre
+  bool valid() const { return (flags & kEyeGazeValid) != 0; }
+  friend bool operator==(const EyeGaze&, const EyeGaze&) = default;
+};
+
 struct GazeSample {
   std::int64_t tracker_time_ns = 0;
   float x = 0, y = 0;          // normalized screen coordinates, origin top-left, y down
@@ -151,7 +171,18 @@ struct GazeSample {
   EyeMovement state = EyeMovement::Unknown;
   std::uint8_t flags = 0;  // kGazeValid
   EyeData left, right;
+  // Each eye's point of gaze where the source measures both (not part of GAZE_SAMPLE's payload: a
+  // server sends them as GAZE_EYES to kStreamEyes subscribers, and a client puts them back here).
+  EyeGaze left_gaze, right_gaze;
+  bool has_eye_gaze() const { return left_gaze.valid() || right_gaze.valid(); }
   friend bool operator==(const GazeSample&, const GazeSample&) = default;
+};
+
+// GAZE_EYES (17): the per-eye gaze of the GAZE_SAMPLE with the same sequence and tracker time.
+struct GazeEyes {
+  std::int64_t tracker_time_ns = 0;
+  EyeGaze left, right;
+  friend bool operator==(const GazeEyes&, const GazeEyes&) = default;
 };
 
 enum class EventPhase : std::uint8_t { Start = 1, End = 2 };
@@ -274,7 +305,7 @@ struct Marker {
 
 using Payload = std::variant<Hello, Challenge, Subscribe, Subscribed, Heartbeat, Unsubscribe, GazeSample,
                              GazeEvent, StatusRequest, StatusReply, TimeSyncRequest, TimeSyncReply, Error,
-                             ControlRequest, ControlReply, Marker>;
+                             ControlRequest, ControlReply, Marker, GazeEyes>;
 
 MessageType type_of(const Payload& p);
 
