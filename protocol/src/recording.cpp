@@ -81,12 +81,14 @@ std::optional<RecordingHeader> parse_header(std::span<const std::uint8_t> d) {
 }
 
 // Decodes one record at the start of `d`; returns its size, or 0 if no intact record starts there.
-std::size_t parse_record(std::span<const std::uint8_t> d, Record& out) {
+// A GAZE_EYES record (the per-eye gaze of the sample record before it) goes to `eyes`, not `out`.
+std::size_t parse_record(std::span<const std::uint8_t> d, Record& out, std::optional<GazeEyes>* eyes = nullptr) {
   if (d.size() < kMinRecord || std::memcmp(d.data(), kSync, 4) != 0) return 0;
   const auto type_raw = d[4];
   if (type_raw != static_cast<std::uint8_t>(MessageType::GazeSample) &&
       type_raw != static_cast<std::uint8_t>(MessageType::GazeEvent) &&
-      type_raw != static_cast<std::uint8_t>(MessageType::Marker)) {
+      type_raw != static_cast<std::uint8_t>(MessageType::Marker) &&
+      type_raw != static_cast<std::uint8_t>(MessageType::GazeEyes)) {
     return 0;
   }
   const auto type = static_cast<MessageType>(type_raw);
@@ -101,6 +103,11 @@ std::size_t parse_record(std::span<const std::uint8_t> d, Record& out) {
   if (load_le<std::uint32_t>(d, 8 + body) != crc32c(d.subspan(4, 4 + body))) return 0;
   Payload p;
   if (!decode_payload(type, d.subspan(kRecordPrefix + extra, body - 8 - extra), p)) return 0;
+  if (type == MessageType::GazeEyes) {
+    if (eyes != nullptr) *eyes = std::get<GazeEyes>(p);
+    out.sequence = load_le<std::uint64_t>(d, 8);
+    return total;
+  }
   out.sequence = load_le<std::uint64_t>(d, 8);
   out.host_receive_ns.reset();
   if (extra != 0) out.host_receive_ns = load_le<std::int64_t>(d, kRecordPrefix);
@@ -152,23 +159,41 @@ std::vector<std::uint8_t> encode_recording_header(const RecordingHeader& h) {
   return b;
 }
 
+namespace {
+
+// One record's bytes: sync, type, flags, length, sequence, [receive time], payload, CRC.
+std::vector<std::uint8_t> encode_one_record(const Payload& p, std::uint64_t sequence,
+                                            const std::optional<std::int64_t>& host_receive_ns) {
+  const MessageType type = type_of(p);
+  const auto& r = host_receive_ns;
+  const std::size_t extra = r ? 8 : 0;
+  const std::size_t body = 8 + extra + payload_size(type);
+  std::vector<std::uint8_t> b(8 + body + kRecordCrc, 0);
+  std::memcpy(b.data(), kSync, 4);
+  b[4] = static_cast<std::uint8_t>(type);
+  b[5] = r ? kRecordHasReceiveTime : 0;
+  store_le<std::uint16_t>(b, 6, static_cast<std::uint16_t>(body));
+  store_le<std::uint64_t>(b, 8, sequence);
+  if (r) store_le<std::int64_t>(b, kRecordPrefix, *r);
+  encode_payload(p, std::span<std::uint8_t>(b).subspan(kRecordPrefix + extra, body - 8 - extra));
+  store_le<std::uint32_t>(b, 8 + body, crc32c(std::span<const std::uint8_t>(b).subspan(4, 4 + body)));
+  return b;
+}
+
+}  // namespace
+
 std::vector<std::uint8_t> encode_record(const Record& r) {
   const Payload p = std::visit([](const auto& v) -> Payload { return v; }, r.item);
   const MessageType type = type_of(p);
   if (r.host_receive_ns && type != MessageType::GazeSample) {
     throw std::invalid_argument("only gaze samples carry a host receive time in a recording");
   }
-  const std::size_t extra = r.host_receive_ns ? 8 : 0;
-  const std::size_t body = 8 + extra + payload_size(type);
-  std::vector<std::uint8_t> b(8 + body + kRecordCrc, 0);
-  std::memcpy(b.data(), kSync, 4);
-  b[4] = static_cast<std::uint8_t>(type);
-  b[5] = r.host_receive_ns ? kRecordHasReceiveTime : 0;
-  store_le<std::uint16_t>(b, 6, static_cast<std::uint16_t>(body));
-  store_le<std::uint64_t>(b, 8, r.sequence);
-  if (r.host_receive_ns) store_le<std::int64_t>(b, kRecordPrefix, *r.host_receive_ns);
-  encode_payload(p, std::span<std::uint8_t>(b).subspan(kRecordPrefix + extra, body - 8 - extra));
-  store_le<std::uint32_t>(b, 8 + body, crc32c(std::span<const std::uint8_t>(b).subspan(4, 4 + body)));
+  std::vector<std::uint8_t> b = encode_one_record(p, r.sequence, r.host_receive_ns);
+  // A sample's per-eye gaze follows it as a GAZE_EYES record of the same sequence (RECORDING.md).
+  if (const auto* s = std::get_if<GazeSample>(&r.item); s != nullptr && s->has_eye_gaze()) {
+    const auto eyes = encode_one_record(GazeEyes{s->tracker_time_ns, s->left_gaze, s->right_gaze}, r.sequence, {});
+    b.insert(b.end(), eyes.begin(), eyes.end());
+  }
   return b;
 }
 
@@ -253,8 +278,26 @@ std::string RecoveryReport::describe() const {
          " damaged region(s)";
   }
   if (truncated_tail) s += "; file ends inside a record";
+  if (eyes_unjoined > 0) s += "; " + std::to_string(eyes_unjoined) + " per-eye record(s) without their sample";
   return s;
 }
+
+namespace {
+
+// A GAZE_EYES record belongs to the sample record just before it (same sequence and capture time);
+// one that does not (its sample was damaged) is counted, never joined to another sample.
+void join_eyes(Recording& rec, std::uint64_t sequence, const GazeEyes& eyes) {
+  GazeSample* s = rec.records.empty() ? nullptr : std::get_if<GazeSample>(&rec.records.back().item);
+  if (s != nullptr && rec.records.back().sequence == sequence && s->tracker_time_ns == eyes.tracker_time_ns &&
+      !s->has_eye_gaze()) {
+    s->left_gaze = eyes.left;
+    s->right_gaze = eyes.right;
+  } else {
+    ++rec.report.eyes_unjoined;
+  }
+}
+
+}  // namespace
 
 Recording parse_recording(std::span<const std::uint8_t> data) {
   Recording rec;
@@ -278,7 +321,14 @@ Recording parse_recording(std::span<const std::uint8_t> data) {
   bool in_damage = false;
   while (pos < data.size()) {
     Record r;
-    const std::size_t n = parse_record(data.subspan(pos), r);
+    std::optional<GazeEyes> eyes;
+    const std::size_t n = parse_record(data.subspan(pos), r, &eyes);
+    if (n > 0 && eyes) {
+      join_eyes(rec, r.sequence, *eyes);
+      pos += n;
+      in_damage = false;
+      continue;
+    }
     if (n > 0) {
       rec.records.push_back(std::move(r));
       pos += n;

@@ -27,6 +27,8 @@ _RECORD_CRC = 4
 _MIN_RECORD = _RECORD_PREFIX + _RECORD_CRC
 _HAS_RECEIVE_TIME = 0x1
 _RECORD_TYPES = (MessageType.GAZE_SAMPLE, MessageType.GAZE_EVENT, MessageType.MARKER)
+# GAZE_EYES: a sample's per-eye gaze, right after the sample's record, joined into it when read.
+_PARSED_TYPES = _RECORD_TYPES + (MessageType.GAZE_EYES,)
 
 Item = Union[GazeSample, GazeEvent, Marker]
 
@@ -95,6 +97,7 @@ class RecoveryReport:
     damaged_regions: int = 0  # maximal runs of bytes that were not intact records
     bytes_skipped: int = 0
     truncated_tail: bool = False  # the last damaged region runs to the end of the file
+    eyes_unjoined: int = 0  # GAZE_EYES records whose sample record was not just before them
 
     def describe(self) -> str:
         s = f"{self.records} intact records"
@@ -104,6 +107,8 @@ class RecoveryReport:
             s += f"; skipped {self.bytes_skipped} bytes in {self.damaged_regions} damaged region(s)"
         if self.truncated_tail:
             s += "; file ends inside a record"
+        if self.eyes_unjoined:
+            s += f"; {self.eyes_unjoined} per-eye record(s) without their sample"
         return s
 
 
@@ -183,7 +188,7 @@ def _parse_record(data: bytes, pos: int) -> Optional[tuple]:
     if len(data) - pos < _MIN_RECORD or data[pos:pos + 4] != SYNC:
         return None
     type_raw, flags, body = struct.unpack_from("<BBH", data, pos + 4)
-    if type_raw not in _RECORD_TYPES:
+    if type_raw not in _PARSED_TYPES:
         return None
     t = MessageType(type_raw)
     if flags & ~_HAS_RECEIVE_TIME or (flags and t != MessageType.GAZE_SAMPLE):
@@ -212,11 +217,30 @@ def encode_record(r: Record) -> bytes:
         raise ValueError(f"a recording holds samples, events and markers, not {t.name}")
     if r.host_receive_ns is not None and t != MessageType.GAZE_SAMPLE:
         raise ValueError("only gaze samples carry a host receive time in a recording")
-    payload = protocol.encode_payload(r.item)
-    receive = b"" if r.host_receive_ns is None else struct.pack("<q", r.host_receive_ns)
-    body = struct.pack("<BBHQ", t, _HAS_RECEIVE_TIME if receive else 0, 8 + len(receive) + len(payload), r.sequence)
+    out = _encode_one(t, protocol.encode_payload(r.item), r.sequence, r.host_receive_ns)
+    s = r.item
+    if isinstance(s, GazeSample) and (s.left_gaze.valid or s.right_gaze.valid):
+        eyes = protocol.GazeEyes(s.tracker_time_ns, s.left_gaze, s.right_gaze)
+        out += _encode_one(MessageType.GAZE_EYES, protocol.encode_payload(eyes), r.sequence, None)
+    return out
+
+
+def _encode_one(t: MessageType, payload: bytes, sequence: int, host_receive_ns: Optional[int]) -> bytes:
+    receive = b"" if host_receive_ns is None else struct.pack("<q", host_receive_ns)
+    body = struct.pack("<BBHQ", t, _HAS_RECEIVE_TIME if receive else 0, 8 + len(receive) + len(payload), sequence)
     body += receive + payload
     return SYNC + body + struct.pack("<I", crc32c(body))
+
+
+def _join_eyes(records: List[Record], sequence: int, eyes: "protocol.GazeEyes", report: "RecoveryReport") -> None:
+    """A GAZE_EYES record into the sample record just before it (same sequence and time), else counted."""
+    last = records[-1] if records else None
+    s = last.item if last else None
+    if (isinstance(s, GazeSample) and last.sequence == sequence and s.tracker_time_ns == eyes.tracker_time_ns
+            and not (s.left_gaze.valid or s.right_gaze.valid)):
+        s.left_gaze, s.right_gaze = eyes.left, eyes.right
+    else:
+        report.eyes_unjoined += 1
 
 
 def _contains_a_record(data: bytes) -> bool:
@@ -245,6 +269,11 @@ def parse_recording(data: bytes) -> Recording:
     in_damage = False
     while pos < len(data):
         parsed = _parse_record(data, pos)
+        if parsed and isinstance(parsed[0].item, protocol.GazeEyes):
+            _join_eyes(records, parsed[0].sequence, parsed[0].item, report)
+            pos += parsed[1]
+            in_damage = False
+            continue
         if parsed:
             records.append(parsed[0])
             pos += parsed[1]

@@ -89,6 +89,27 @@ class Format(unittest.TestCase):
         self.assertEqual(rec.report.describe(), "200 intact records")
         self.assertTrue(rec.report.header_valid)
 
+    def test_per_eye_gaze_follows_its_sample_and_is_joined_back(self):
+        records = []
+        for i in range(4):
+            s = protocol.GazeSample(1_000_000_000 + i * 4_000_000, 0.5, 0.5, flags=protocol.GAZE_VALID)
+            if i != 2:
+                s.left_gaze = protocol.EyeGaze(1, 0.5, 0.5, -0.25, 0.0)
+            if i in (0, 3):
+                s.right_gaze = protocol.EyeGaze(1, 0.5, 0.5, 0.25, 0.0)
+            records.append(Record(100 + i, s))
+        self.assertEqual(len(encode_record(records[0])), 96 + 68)
+        self.assertEqual(len(encode_record(records[2])), 96)
+        data, _ = encode_file(test_header(), records)
+        rec = parse_recording(data)
+        self.assertEqual(rec.records, records)
+        self.assertEqual(rec.report.describe(), "4 intact records")
+        bad = bytearray(data)
+        bad[HEADER_SIZE + 40] ^= 0xFF
+        rec = parse_recording(bytes(bad))
+        self.assertEqual(rec.records, records[1:])
+        self.assertEqual(rec.report.eyes_unjoined, 1)
+
     def test_writer_refuses_invalid_content(self):
         with self.assertRaises(ValueError):
             encode_record(Record(0, protocol.GazeSample(x=float("nan"))))

@@ -340,6 +340,42 @@ TEST(RecordingFile, WriterAndReaderRoundTrip) {
   EXPECT_EQ(read_bytes(path), encode_file(h, records).bytes);
 }
 
+// A binocular source's samples keep each eye's gaze through a file: a GAZE_EYES record after the
+// sample's, joined back when read; one whose sample record was lost is counted, never misplaced.
+TEST(RecordingFile, PerEyeGazeFollowsItsSampleAndIsJoinedBack) {
+  const TempDir dir;
+  const std::string path = dir.file("eyes.fgr");
+  std::vector<Record> records;
+  for (std::uint64_t i = 0; i < 4; ++i) {
+    GazeSample s;
+    s.tracker_time_ns = 1'000'000'000 + static_cast<std::int64_t>(i) * 4'000'000;
+    s.x = 0.5f, s.y = 0.5f, s.flags = kGazeValid;
+    if (i != 2) s.left_gaze = EyeGaze{kEyeGazeValid, 0.49f, 0.5f, -0.3f, 0.0f};
+    if (i == 0 || i == 3) s.right_gaze = EyeGaze{kEyeGazeValid, 0.51f, 0.5f, 0.3f, 0.0f};
+    records.emplace_back(100 + i, s, i == 1 ? std::optional<std::int64_t>(s.tracker_time_ns + 5'000'000) : std::nullopt);
+  }
+  EXPECT_EQ(encode_record(records[0]).size(), 96u + 68u) << "the sample record, then its 68-byte GAZE_EYES record";
+  EXPECT_EQ(encode_record(records[2]).size(), 96u) << "no eye gaze: the sample record alone";
+  {
+    RecordingWriter w(path, test_header());
+    for (const Record& r : records) w.append(r);
+  }
+  Recording rec = read_recording(path);
+  EXPECT_EQ(rec.records, records);
+  EXPECT_EQ(rec.report.records, 4u);
+  EXPECT_EQ(rec.report.describe(), "4 intact records");
+
+  // Damage the first sample's record: its eyes stay unjoined (not given to anything else).
+  std::vector<std::uint8_t> bytes = read_bytes(path);
+  bytes[kRecordingHeaderSize + 40] ^= 0xFF;
+  rec = parse_recording(bytes);
+  ASSERT_EQ(rec.records.size(), 3u);
+  EXPECT_EQ(rec.records[0], records[1]);
+  EXPECT_EQ(rec.report.eyes_unjoined, 1u);
+  EXPECT_NE(rec.report.describe().find("1 per-eye record(s) without their sample"), std::string::npos)
+      << rec.report.describe();
+}
+
 // ---- truncation and damage -------------------------------------------------------------------
 
 // Write N records, cut the file at every byte offset within the last three records: the reader

@@ -55,6 +55,7 @@ struct Record {
 std::string recording_device_name(const std::string& description);
 
 std::vector<std::uint8_t> encode_recording_header(const RecordingHeader& h);
+// A record's bytes; a sample with per-eye gaze is followed by its GAZE_EYES record (RECORDING.md).
 std::vector<std::uint8_t> encode_record(const Record& r);
 
 class RecordingWriter {
@@ -89,6 +90,7 @@ struct RecoveryReport {
   std::uint64_t damaged_regions = 0;   // runs of bytes that were not intact records
   std::uint64_t bytes_skipped = 0;     // total bytes in those runs
   bool truncated_tail = false;         // the file ends inside a record
+  std::uint64_t eyes_unjoined = 0;     // GAZE_EYES records whose sample record was not just before them
   std::string describe() const;
 };
 
