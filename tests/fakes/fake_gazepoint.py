@@ -33,6 +33,7 @@ from fakelib import add_flood_options, flood_due, flood_next_ns, make_log, now_n
 
 log = make_log("fake_gazepoint")
 
+EYE_DISPARITY = 0.01  # each eye's point this far (screen widths) left and right of the best point
 ENABLE_IDS = tuple("ENABLE_SEND_" + n for n in (
     "DATA COUNTER TIME TIME_TICK POG_FIX POG_BEST POG_LEFT POG_RIGHT "
     "PUPIL_LEFT PUPIL_RIGHT EYE_LEFT EYE_RIGHT").split())
@@ -116,6 +117,11 @@ def record_fields(client, rate, t):
               ("FPOGD", "%.5f" % dur), ("FPOGID", str(cnt // FIX_LEN)), ("FPOGV", "1")]
     if on["ENABLE_SEND_POG_BEST"]:
         f += [("BPOGX", best[0]), ("BPOGY", best[1]), ("BPOGV", best[2])]
+    # Each eye's point: EYE_DISPARITY either side of the best point (its mean), valid with it.
+    for side, sign in (("LEFT", -1), ("RIGHT", 1)):
+        if on["ENABLE_SEND_POG_" + side]:
+            ex = "%.5f" % (x + sign * EYE_DISPARITY) if valid else "0.00000"
+            f += [(side[0] + "POGX", ex), (side[0] + "POGY", best[1]), (side[0] + "POGV", best[2])]
     for side, cx in (("LEFT", "0.40000"), ("RIGHT", "0.60000")):
         if on["ENABLE_SEND_PUPIL_" + side]:
             s = side[0]

@@ -76,4 +76,32 @@ for client in "ab":
     print(f"   {client}: receive time after the tracker's: p50 {delays[len(delays) // 2]/1e6:.1f} ms, max {delays[-1]/1e6:.1f} ms")
 print(f"   the daemon read all {records} records and refused all {malformed} malformed lines")
 PY
+echo "== each eye's point of gaze (LPOG, RPOG) reaches a client of the eye stream, joined to its sample"
+start_fake fake_gazepoint.py --rate 150
+port=$(free_udp_port)
+"$TRACKERD" --source "gazepoint:127.0.0.1:$FAKE_PORT" --port "$port" --control-socket none >"$WORK/d.log" 2>&1 &
+DPID=$!
+PYTHONPATH="$SRC/python" /usr/bin/python3 - "$port" <<'PY' || fail "per-eye gaze"
+import sys, time
+from fovea import protocol
+from fovea.client import GazeClient
+with GazeClient("127.0.0.1", int(sys.argv[1]), streams=protocol.STREAM_SAMPLES | protocol.STREAM_EYES) as c:
+    c.wait_subscribed(3.0)
+    time.sleep(1.5)
+    got = c.poll_samples()
+    stats = c.stats()
+valid = [s for s, _ in got if s.valid]
+eyes = [s for s in valid if s.left_gaze.valid and s.right_gaze.valid]
+assert len(valid) > 100, f"{len(valid)} valid samples"
+assert len(eyes) == len(valid), f"{len(eyes)} of {len(valid)} valid samples have both eyes"
+assert stats.eye_samples == len([s for s, _ in got if s.left_gaze.valid or s.right_gaze.valid])
+for s in eyes:
+    # The fake puts the eyes 0.01 screen widths either side of its best point, at its height.
+    assert abs(s.right_gaze.x - s.left_gaze.x - 0.02) < 2e-5, (s.left_gaze, s.right_gaze)
+    assert abs((s.left_gaze.x + s.right_gaze.x) / 2 - s.x) < 1e-5, (s.x, s.left_gaze, s.right_gaze)
+    assert s.left_gaze.y == s.y and s.right_gaze.y == s.y
+    assert s.left_gaze.x_deg < s.x_deg < s.right_gaze.x_deg
+print(f"   {len(eyes)} samples with both eyes, 0.02 screen widths apart around the combined point")
+PY
+stop "$DPID"; DPID=""
 echo "PASS"

@@ -114,6 +114,19 @@ TEST(CalibrationStage, ScreenInputCorrectsTheTrackersOwnGaze) {
   EXPECT_TRUE(out.flags & protocol::kGazeValid);
   EXPECT_NEAR(out.x * 1920, 500, 1e-3);
   EXPECT_NEAR(out.y * 1080, 300, 1e-3);
+  // Each eye's point goes through the same correction (a binocular tracker's, for a stereo view).
+  protocol::GazeSample eyes = s;
+  eyes.left_gaze = protocol::EyeGaze{protocol::kEyeGazeValid, static_cast<float>((480.0 + 12) / 1920),
+                                     static_cast<float>((300.0 - 6) / 1080), 0, 0};
+  GazeItem eyes_item = eyes;
+  stage->apply(eyes_item);
+  const auto& eyes_out = std::get<protocol::GazeSample>(eyes_item);
+  ASSERT_TRUE(eyes_out.left_gaze.valid());
+  EXPECT_NEAR(eyes_out.left_gaze.x * 1920, 480, 1e-3);
+  EXPECT_NEAR(eyes_out.left_gaze.y * 1080, 300, 1e-3);
+  const auto deg = protocol::normalized_to_degrees(display, {eyes_out.left_gaze.x, eyes_out.left_gaze.y});
+  EXPECT_NEAR(eyes_out.left_gaze.x_deg, deg.x, 1e-4);
+  EXPECT_FALSE(eyes_out.right_gaze.valid()) << "an eye the tracker did not see stays unseen";
   // An invalid tracker sample stays invalid.
   protocol::GazeSample invalid;
   GazeItem inv = invalid;

@@ -98,6 +98,29 @@ TEST(OpenGaze, RecordsWithBadValuesAreRefusedNeverHalfUsed) {
   EXPECT_TRUE(parse_record(element(R"(<REC BPOGX="-0.2" BPOGY="1.3" BPOGV="1" />)"), error)) << error;
 }
 
+// Each eye's point of gaze (ENABLE_SEND_POG_LEFT / _RIGHT), the stereo renderer's per-eye gaze:
+// kept when its V flag says valid, absent otherwise, refused when beyond -1..2 screens or malformed.
+TEST(OpenGaze, EachEyesPointOfGaze) {
+  std::string error;
+  const auto r = parse_record(element(R"(<REC BPOGX="0.50000" BPOGY="0.25000" BPOGV="1" LPOGX="0.48000" )"
+                                      R"(LPOGY="0.25100" LPOGV="1" RPOGX="0.52000" RPOGY="0.24900" RPOGV="0" />)"),
+                              error);
+  ASSERT_TRUE(r) << error;
+  ASSERT_TRUE(r->left_pog);
+  EXPECT_DOUBLE_EQ(r->left_pog->x, 0.48);
+  EXPECT_DOUBLE_EQ(r->left_pog->y, 0.251);
+  EXPECT_FALSE(r->right_pog) << "RPOGV=0";
+  const auto monocular = parse_record(element(R"(<REC BPOGX="0.5" BPOGY="0.5" BPOGV="1" />)"), error);
+  ASSERT_TRUE(monocular);
+  EXPECT_FALSE(monocular->left_pog || monocular->right_pog) << "a tracker not sending them: the best point only";
+  EXPECT_NE(record_error(R"(<REC BPOGX="0.5" BPOGY="0.5" BPOGV="1" LPOGX="7" LPOGY="0.5" LPOGV="1" />)").find("LPOGX, LPOGY"),
+            std::string::npos);
+  EXPECT_NE(record_error(R"(<REC BPOGX="0.5" BPOGY="0.5" BPOGV="1" RPOGX="x" RPOGY="0.5" RPOGV="1" />)").find("RPOGX"),
+            std::string::npos);
+  EXPECT_NE(record_error(R"(<REC BPOGX="0.5" BPOGY="0.5" BPOGV="1" RPOGX="0.5" RPOGY="0.5" RPOGV="yes" />)").find("RPOGV"),
+            std::string::npos);
+}
+
 TEST(OpenGaze, ScreenSizeAndStartCommands) {
   const auto size = screen_size(element(R"(<ACK ID="SCREEN_SIZE" X="0" Y="0" WIDTH="2560" HEIGHT="1440" />)"));
   ASSERT_TRUE(size);
@@ -108,12 +131,15 @@ TEST(OpenGaze, ScreenSizeAndStartCommands) {
   const auto commands = start_commands();
   ASSERT_FALSE(commands.empty());
   EXPECT_EQ(commands.back(), "<SET ID=\"ENABLE_SEND_DATA\" STATE=\"1\" />\r\n") << "data last, once all is enabled";
-  bool best = false;
+  bool best = false, left = false, right = false;
   for (const auto& c : commands) {
     best |= c == "<SET ID=\"ENABLE_SEND_POG_BEST\" STATE=\"1\" />\r\n";
+    left |= c == "<SET ID=\"ENABLE_SEND_POG_LEFT\" STATE=\"1\" />\r\n";
+    right |= c == "<SET ID=\"ENABLE_SEND_POG_RIGHT\" STATE=\"1\" />\r\n";
     EXPECT_EQ(c.substr(c.size() - 2), "\r\n");
   }
   EXPECT_TRUE(best);
+  EXPECT_TRUE(left && right) << "each eye's point of gaze, for stereo displays";
 }
 
 TEST(OpenGaze, SourceSpecs) {

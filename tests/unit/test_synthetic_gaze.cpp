@@ -53,6 +53,43 @@ TEST(SyntheticGaze, SameSeedSameStreamOtherSeedOtherStream) {
   EXPECT_NE(a, c);
 }
 
+// synthetic:binocular (issue 42, per-eye gaze for stereo): the same sample stream as without it;
+// each valid sample has both eyes, their mean the sample's point, each off it by noise_deg RMS.
+TEST(SyntheticGaze, BinocularAddsEachEyesGazeAroundTheSamplesPoint) {
+  SyntheticGazeOptions bino;
+  bino.binocular = true;
+  const auto plain = generate(250, 10, 5), eyes = generate(250, 10, 5, bino);
+  ASSERT_EQ(plain.size(), eyes.size());
+  double sum_sq = 0;
+  std::size_t valid = 0, invalid = 0;
+  for (std::size_t i = 0; i < plain.size(); ++i) {
+    const auto* p = std::get_if<GazeSample>(&plain[i]);
+    if (p == nullptr) {
+      EXPECT_EQ(plain[i], eyes[i]);
+      continue;
+    }
+    GazeSample e = std::get<GazeSample>(eyes[i]);
+    EXPECT_FALSE(p->has_eye_gaze());
+    if ((e.flags & protocol::kGazeValid) == 0) {
+      EXPECT_FALSE(e.has_eye_gaze()) << "no eye gaze in a blink";
+      ++invalid;
+      continue;
+    }
+    ASSERT_TRUE(e.left_gaze.valid() && e.right_gaze.valid());
+    EXPECT_NEAR((e.left_gaze.x_deg + e.right_gaze.x_deg) / 2, e.x_deg, 1e-4);
+    EXPECT_NEAR((e.left_gaze.y + e.right_gaze.y) / 2, e.y, 1e-5);
+    const auto n = protocol::degrees_to_normalized(protocol::DisplayGeometry{}, {e.left_gaze.x_deg, e.left_gaze.y_deg});
+    EXPECT_NEAR(e.left_gaze.x, n.x, 1e-5) << "normalised and degrees agree";
+    sum_sq += std::pow(e.left_gaze.x_deg - e.x_deg, 2);
+    ++valid;
+    e.left_gaze = e.right_gaze = {};
+    EXPECT_EQ(e, *p) << "sample " << i << ": the cyclopean sample is unchanged";
+  }
+  EXPECT_GT(valid, 2000u);
+  EXPECT_GT(invalid, 0u) << "10 s hold blinks";
+  EXPECT_NEAR(std::sqrt(sum_sq / static_cast<double>(valid)), SyntheticGazeOptions{}.noise_deg, 0.003);
+}
+
 TEST(SyntheticGaze, MovementsHaveRealisticStatistics) {
   const auto items = generate(1000, 120, 11);  // 1 kHz resolves saccade velocity profiles
   std::map<EyeMovement, int> ends;

@@ -150,17 +150,27 @@ int cmd_watch(const Common& c, unsigned every, bool events_only, bool provisiona
   };
   return run_client(
       c, "watch",
-      (events_only ? kStreamEvents : kStreamSamples | kStreamEvents) | kStreamMarkers | (provisional ? kStreamProvisional : 0u),
+      (events_only ? kStreamEvents : kStreamSamples | kStreamEvents | kStreamEyes) | kStreamMarkers |
+          (provisional ? kStreamProvisional : 0u),
       [&](GazeClient& client) {
         client.on_sample([&](const GazeSample& s, const Arrival& a) {
           std::lock_guard lock(out_mutex);
           if (count++ % every != 0) return;
           if (s.flags & kGazeValid) {
-            std::printf("%9.3fs #%-7llu %-8s x=%.4f y=%.4f (%+6.2f°, %+6.2f°) %6.1f°/s conf %.2f\n",
+            // A binocular source's eyes (the per-eye stream): each eye's point in degrees.
+            std::string eyes;
+            for (const auto& [side, e] : {std::pair{"L", &s.left_gaze}, std::pair{"R", &s.right_gaze}}) {
+              if (!e->valid()) continue;
+              char buf[48];
+              std::snprintf(buf, sizeof buf, " %s(%+6.2f°, %+6.2f°)", side, static_cast<double>(e->x_deg),
+                            static_cast<double>(e->y_deg));
+              eyes += buf;
+            }
+            std::printf("%9.3fs #%-7llu %-8s x=%.4f y=%.4f (%+6.2f°, %+6.2f°) %6.1f°/s conf %.2f%s\n",
                         rel(s.tracker_time_ns), static_cast<unsigned long long>(a.sequence), to_string(s.state),
                         static_cast<double>(s.x), static_cast<double>(s.y), static_cast<double>(s.x_deg),
                         static_cast<double>(s.y_deg), static_cast<double>(s.angular_velocity_deg_s),
-                        static_cast<double>(s.confidence));
+                        static_cast<double>(s.confidence), eyes.c_str());
           } else {
             // Eye-camera sources without a calibration still publish the pupil: show it.
             std::string pupil;
@@ -264,7 +274,7 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
   std::string device = "fovea-trackerd at " + c.server;
   DisplayGeometry header_display;
   int rc = run_client(
-      c, "record", kStreamSamples | kStreamEvents | kStreamMarkers,
+      c, "record", kStreamSamples | kStreamEvents | kStreamMarkers | kStreamEyes,
       [&](GazeClient& client) {
         const auto write = [&](Record r) {
           // The client resubscribes on its own (a daemon restart); a daemon restarted with another

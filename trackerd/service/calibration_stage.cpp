@@ -63,6 +63,8 @@ class MappedCalibration final : public CalibrationStage {
     s->x_deg = static_cast<float>(deg.x);
     s->y_deg = static_cast<float>(deg.y);
     s->flags = static_cast<std::uint8_t>(s->flags | protocol::kGazeValid);
+    map_eye_gaze(s->left_gaze);
+    map_eye_gaze(s->right_gaze);
   }
 
  private:
@@ -77,9 +79,33 @@ class MappedCalibration final : public CalibrationStage {
     return calib::Point{eye->pupil_glint_x_px, eye->pupil_glint_y_px};
   }
 
+  // Each eye's point of gaze through the same screen map as the combined one. A pupil-glint
+  // calibration maps one eye's camera features to the screen and has nothing for the other eye's
+  // tracker-made point: that eye gaze is dropped rather than published unmapped beside mapped gaze.
+  void map_eye_gaze(protocol::EyeGaze& e) const {
+    if (!e.valid()) return;
+    if (pupil_glint_) {
+      e = protocol::EyeGaze{};
+      return;
+    }
+    const calib::Point px =
+        cal_.apply({static_cast<double>(e.x) * display_.width_px, static_cast<double>(e.y) * display_.height_px});
+    const double nx = px.x / display_.width_px, ny = px.y / display_.height_px;
+    if (!std::isfinite(nx) || !std::isfinite(ny) || std::abs(nx) > 100 || std::abs(ny) > 100) {
+      e = protocol::EyeGaze{};
+      return;
+    }
+    const protocol::Degrees deg = protocol::normalized_to_degrees(display_, {nx, ny});
+    e.x = static_cast<float>(nx);
+    e.y = static_cast<float>(ny);
+    e.x_deg = static_cast<float>(deg.x);
+    e.y_deg = static_cast<float>(deg.y);
+  }
+
   static void invalidate(protocol::GazeSample& s) {
     s.flags = static_cast<std::uint8_t>(s.flags & ~protocol::kGazeValid);
     s.x = s.y = s.x_deg = s.y_deg = 0;
+    s.left_gaze = s.right_gaze = protocol::EyeGaze{};
   }
 
   calib::Calibration cal_;

@@ -114,7 +114,8 @@ double PowerLawNoise::next(double white) {
   return scale_ * sum;
 }
 
-SyntheticGaze::SyntheticGaze(SyntheticGazeOptions options) : options_(options), rng_(options.seed) {
+SyntheticGaze::SyntheticGaze(SyntheticGazeOptions options)
+    : options_(options), rng_(options.seed), eye_rng_(options.seed ^ 0x9E3779B97F4A7C15ULL) {
   if (options_.noise_alpha != 0) {  // NaN and negatives too: the filter refuses them
     const auto taps = static_cast<std::size_t>(std::max(16.0, options_.rate_hz));  // one second
     noise_x_.emplace(options_.noise_alpha, taps);
@@ -128,8 +129,8 @@ SyntheticGaze::SyntheticGaze(SyntheticGazeOptions options) : options_(options), 
 
 std::string SyntheticGaze::description() const {
   char buf[96];
-  std::snprintf(buf, sizeof buf, "synthetic (seed %llu, %.0f Hz)", static_cast<unsigned long long>(options_.seed),
-                options_.rate_hz);
+  std::snprintf(buf, sizeof buf, "synthetic (seed %llu, %.0f Hz%s)", static_cast<unsigned long long>(options_.seed),
+                options_.rate_hz, options_.binocular ? ", binocular" : "");
   return buf;
 }
 
@@ -358,6 +359,7 @@ void SyntheticGaze::step() {
   const Vec2 tracked{eye.x + offset.x, eye.y + offset.y};
   GazeSample s = measured_sample(t_ns, tracked, velocity);
   add_pupil_and_eye_cameras(s, tracked, dt, t);
+  if (options_.binocular) add_eye_gaze(s);
   pending_.push_back(s);
 }
 
@@ -519,6 +521,22 @@ void SyntheticGaze::add_pupil_and_eye_cameras(GazeSample& s, const Vec2& eye, do
     s.left = eye_camera_data(eye, pupil_mm, +3.0);
     s.right = eye_camera_data(eye, pupil_mm, -3.0);
   }
+}
+
+// Each eye's point: the sample's point -/+ an independent offset per axis (left -, right +), drawn
+// for every sample (blinks too) so the stream does not depend on validity.
+void SyntheticGaze::add_eye_gaze(GazeSample& s) {
+  std::normal_distribution<double> unit(0.0, 1.0);  // scaled below: noise_deg may be 0
+  const Vec2 d{options_.noise_deg * unit(eye_rng_), options_.noise_deg * unit(eye_rng_)};
+  if ((s.flags & protocol::kGazeValid) == 0) return;
+  const auto eye = [&](double sign) {
+    const Degrees deg{static_cast<double>(s.x_deg) + sign * d.x, static_cast<double>(s.y_deg) + sign * d.y};
+    const auto n = protocol::degrees_to_normalized(options_.display, deg);
+    return protocol::EyeGaze{protocol::kEyeGazeValid, static_cast<float>(n.x), static_cast<float>(n.y),
+                             static_cast<float>(deg.x), static_cast<float>(deg.y)};
+  };
+  s.left_gaze = eye(-1);
+  s.right_gaze = eye(+1);
 }
 
 // A 640x480 eye camera per eye; the pupil moves ~4 px per degree and the pupil-glint vector

@@ -45,6 +45,12 @@ struct SyntheticGazeOptions {
   // (Niehorster, Zemblys & Holmqvist 2021, Behav Res Methods 53:311), and Niehorster, Zemblys,
   // Beelders & Holmqvist 2020 (Behav Res Methods 52:2515) ask that methods be tested across signal
   // types. noise_deg stays the noise's standard deviation. Outside [0, 2] the constructor throws.
+  // Each eye's point of gaze too (GazeSample::left_gaze, right_gaze; PROTOCOL.md §4.18), as a
+  // binocular tracker reports it: the sample's point plus and minus an independent offset of
+  // noise_deg RMS per axis, so that their mean is the sample's point (a tracker's combined gaze) and
+  // each eye is noisier than it. Its draws come from a random stream of their own: the sample
+  // stream is the same with it as without.
+  bool binocular = false;
   double noise_alpha = 0;
   // Blinks as a video tracker records them: the eye rotates downward 1-2 deg as the lid starts to
   // close and is back before it reopens (Riggs, Kelly, Manning & Moore 1987, IOVS 28:334; shaped
@@ -123,6 +129,7 @@ class SyntheticGaze final : public GazeSource {
   protocol::GazeSample measured_sample(std::int64_t t_ns, const Vec2& tracked, double velocity);
   void add_pupil_and_eye_cameras(protocol::GazeSample& s, const Vec2& eye, double dt, double t);
   protocol::EyeData eye_camera_data(const Vec2& eye, double pupil_mm, double vergence_px);
+  void add_eye_gaze(protocol::GazeSample& s);
   void start_segment(Segment s, std::int64_t t_ns);
   void end_segment(std::int64_t t_ns);
   Segment plan_after(const Segment& finished);
@@ -161,6 +168,7 @@ class SyntheticGaze final : public GazeSource {
   PupilMotion pupil_motion_ = PupilMotion::None;
   // noise_alpha > 0: coloured tracker noise per axis.
   std::optional<PowerLawNoise> noise_x_, noise_y_;
+  std::mt19937_64 eye_rng_;  // binocular: the per-eye offsets' own stream
 };
 
 }  // namespace fovea::trackerd

@@ -135,12 +135,18 @@ namespace {
 
 // ---- the factories, one per row ---------------------------------------------------------------
 
+std::string check_synthetic_spec(const std::string& spec) {
+  if (spec == "synthetic" || spec == "synthetic:binocular") return {};
+  return "--source " + spec + ": the synthetic viewer takes \"synthetic\" or \"synthetic:binocular\"";
+}
+
 std::unique_ptr<GazeSource> make_synthetic(const service::DaemonConfig& c, std::int64_t start_time_ns) {
   const double rate = c.source.rate_hz > 0 ? c.source.rate_hz : 250;
   if (!(rate >= 1 && rate <= 10000)) {
     throw std::invalid_argument("--rate " + std::to_string(rate) + " is outside 1..10000 Hz");
   }
   SyntheticGazeOptions so;
+  so.binocular = c.source.spec == "synthetic:binocular";
   so.rate_hz = rate;
   so.seed = c.source.seed;
   so.display = c.display.value_or(protocol::DisplayGeometry{});
@@ -273,7 +279,8 @@ using Arg = SourceKind::Argument;
 
 // clang-format off
 constexpr SourceKind kSourceKinds[] = {
-  {"synthetic",     Arg::None,     "synthetic",          "seeded model viewer",                    nullptr, make_synthetic},
+  {"synthetic",     Arg::Optional, "synthetic[:binocular]", "seeded model viewer; binocular: each eye's gaze too, "
+                                                         "for stereo displays", check_synthetic_spec, make_synthetic},
   {"synthetic-eye", Arg::None,     "synthetic-eye",      "rendered infrared eye images of that viewer through the eye "
                                                          "pipeline, with its factory calibration", nullptr, make_synthetic_eye},
   {"replay:",       Arg::Required, "replay:FILE",        ".fgr or .csv",                           nullptr, make_replay},

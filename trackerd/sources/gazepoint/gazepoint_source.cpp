@@ -58,6 +58,19 @@ bool send_all(int fd, const std::string& text) {
 }
 
 
+// One eye's point of gaze as the protocol's EyeGaze (invalid and zero when the tracker had none).
+protocol::EyeGaze eye_gaze(const protocol::DisplayGeometry& display, const std::optional<Record::Point>& pog) {
+  protocol::EyeGaze e;
+  if (!pog) return e;
+  const protocol::Degrees d = protocol::normalized_to_degrees(display, {pog->x, pog->y});
+  e.flags = protocol::kEyeGazeValid;
+  e.x = static_cast<float>(pog->x);
+  e.y = static_cast<float>(pog->y);
+  e.x_deg = static_cast<float>(d.x);
+  e.y_deg = static_cast<float>(d.y);
+  return e;
+}
+
 }  // namespace
 
 GazepointSource::GazepointSource(GazepointSpec spec, protocol::DisplayGeometry display, double nominal_rate_hz)
@@ -270,6 +283,8 @@ void GazepointSource::handle_record(const Record& r, std::int64_t receive_ns) {
     s.confidence = 1;
     s.flags = protocol::kGazeValid;
   }
+  s.left_gaze = eye_gaze(display_, r.left_pog);
+  s.right_gaze = eye_gaze(display_, r.right_pog);
   if (r.left_pupil_mm) {
     s.left.flags |= protocol::kEyePupilValid;
     s.left.pupil_diameter_mm = static_cast<float>(*r.left_pupil_mm);

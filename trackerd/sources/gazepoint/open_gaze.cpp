@@ -168,13 +168,28 @@ std::optional<Record> parse_record(const Element& rec, std::string& error) {
   r.left_pupil_mm = pupil("LPUPILD", "LPUPILV");
   r.right_pupil_mm = pupil("RPUPILD", "RPUPILV");
   if (!problem.empty()) return fail(problem);
+  // An eye's point of gaze, kept only when valid and within the same -1..2 screens as the best one.
+  const auto eye_pog = [&](const char* kx, const char* ky, const char* kv) -> std::optional<Record::Point> {
+    const auto ex = number(kx), ey = number(ky);
+    const auto ev = flag(kv);
+    if (!ex || !ey || !ev || !*ev) return std::nullopt;
+    if (*ex < -1 || *ex > 2 || *ey < -1 || *ey > 2) {
+      problem = std::string(kx) + ", " + ky + " = " + std::to_string(*ex) + ", " + std::to_string(*ey) +
+                " is beyond -1..2 screens";
+      return std::nullopt;
+    }
+    return Record::Point{*ex, *ey};
+  };
+  r.left_pog = eye_pog("LPOGX", "LPOGY", "LPOGV");
+  r.right_pog = eye_pog("RPOGX", "RPOGY", "RPOGV");
+  if (!problem.empty()) return fail(problem);
   return r;
 }
 
 std::vector<std::string> start_commands() {
   std::vector<std::string> out;
-  for (const char* id : {"ENABLE_SEND_COUNTER", "ENABLE_SEND_TIME", "ENABLE_SEND_POG_BEST", "ENABLE_SEND_EYE_LEFT",
-                         "ENABLE_SEND_EYE_RIGHT"}) {
+  for (const char* id : {"ENABLE_SEND_COUNTER", "ENABLE_SEND_TIME", "ENABLE_SEND_POG_BEST", "ENABLE_SEND_POG_LEFT",
+                         "ENABLE_SEND_POG_RIGHT", "ENABLE_SEND_EYE_LEFT", "ENABLE_SEND_EYE_RIGHT"}) {
     out.push_back(std::string("<SET ID=\"") + id + "\" STATE=\"1\" />\r\n");
   }
   out.push_back("<GET ID=\"SCREEN_SIZE\" />\r\n");

@@ -52,6 +52,10 @@ struct Record {
   double best_x = 0, best_y = 0;          // BPOGX, BPOGY: fraction of the screen, origin top-left
   bool best_valid = false;                // BPOGV
   std::optional<double> left_pupil_mm, right_pupil_mm;  // LPUPILD, RPUPILD (metres on the wire), when valid
+  // LPOGX/LPOGY, RPOGX/RPOGY: each eye's point of gaze, fraction of the screen, when LPOGV/RPOGV say
+  // valid (ENABLE_SEND_POG_LEFT / _RIGHT); the best point above combines them.
+  struct Point { double x = 0, y = 0; };
+  std::optional<Point> left_pog, right_pog;
 };
 // A REC element as a record, or nullopt with `error`: BPOGX, BPOGY and BPOGV are required (fovea
 // enables them); every number must parse whole and be finite; the point of gaze, valid or not, must
