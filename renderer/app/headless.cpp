@@ -227,7 +227,7 @@ void write_lod_row(std::ofstream& lod_log, const std::string& out_dir, std::uint
 // A stereo frame: the left eye (every pass), its image kept, then the right eye (the shared work
 // reused, FramePipeline::Eye), written side by side as one PNG (left | right, 2W x H: what a headset's
 // display or a stereo video player takes), each eye's HDR colour as EXR when asked. gaze.csv gets
-// the left eye's row; stereo.csv both eyes' gaze points and the fixation depth.
+// the left eye's row; stereo.csv both eyes' gaze points, where each came from, and the fixation depth.
 void render_stereo_frame(const RenderOptions& o, FramePipeline& pipeline, Governor* governor, PassTimer& timer,
                          std::uint64_t i, double clock, double& previous, bool realtime, CsvLogs& logs,
                          Image8& side_by_side) {
@@ -273,13 +273,16 @@ void render_stereo_frame(const RenderOptions& o, FramePipeline& pipeline, Govern
   if (!logs.stereo.is_open()) {
     logs.stereo.open(fs::path(o.out_dir) / "stereo.csv");
     logs.stereo << "frame,ipd_m,fixation_m,left_gaze_x,right_gaze_x,gaze_y,left_shift_x,right_shift_x,"
-                   "left_age_at_completion_ms,right_age_at_completion_ms\n";
+                   "left_age_at_completion_ms,right_age_at_completion_ms,left_gaze_from,right_gaze_from,right_gaze_y\n";
   }
-  char line[320];
-  std::snprintf(line, sizeof line, "%llu,%.4f,%.4f,%.5f,%.5f,%.5f,%.5f,%.5f,%.3f,%.3f\n",
+  // Where each eye's point came from: the tracker's measurement of that eye, or the vergence on the
+  // fixation depth from the one (cyclopean) point.
+  const auto from = [](const FramePipeline::Frame& e) { return e.eye_gaze_measured ? "tracker" : "vergence"; };
+  char line[384];
+  std::snprintf(line, sizeof line, "%llu,%.4f,%.4f,%.5f,%.5f,%.5f,%.5f,%.5f,%.3f,%.3f,%s,%s,%.5f\n",
                 static_cast<unsigned long long>(i), static_cast<double>(pipeline.scene().camera.ipd_m),
                 f[0].fixation_m, f[0].gaze.x, f[1].gaze.x, f[0].gaze.y, f[0].eye_gaze_shift_x, f[1].eye_gaze_shift_x,
-                f[0].gaze_age_at_completion_ms, f[1].gaze_age_at_completion_ms);
+                f[0].gaze_age_at_completion_ms, f[1].gaze_age_at_completion_ms, from(f[0]), from(f[1]), f[1].gaze.y);
   logs.stereo << line;
 }
 

@@ -68,13 +68,19 @@ class MouseGaze final : public GazeInput {
   std::uint64_t fixations_ = 0;
 };
 
+std::optional<GazeState::Point> eye_point(const protocol::EyeGaze& e) {
+  if (!e.valid()) return std::nullopt;
+  return GazeState::Point{e.x, e.y};
+}
+
 class UdpGaze final : public GazeInput {
  public:
   explicit UdpGaze(const std::string& address) : address_(address) {
     protocol::ClientOptions o;
     o.server = protocol::parse_endpoint(address, protocol::kDefaultPort);
     // Provisional events too: the focus refocuses at a fixation's landing, not ~110 ms later.
-    o.streams = protocol::kStreamSamples | protocol::kStreamEvents | protocol::kStreamProvisional;
+    // Each eye's gaze where the tracker has both: a stereo frame shows each eye its own point.
+    o.streams = protocol::kStreamSamples | protocol::kStreamEvents | protocol::kStreamProvisional | protocol::kStreamEyes;
     o.name = "fovea-render";
     client_ = std::make_unique<protocol::GazeClient>(o);
     client_->on_event([this](const protocol::GazeEvent& e, const protocol::Arrival& a) { events_.on_event(e, a.receive_ns); });
@@ -88,6 +94,8 @@ class UdpGaze final : public GazeInput {
       if (state_.valid) {
         state_.x = sample->x;
         state_.y = sample->y;
+        state_.left_eye = eye_point(sample->left_gaze);
+        state_.right_eye = eye_point(sample->right_gaze);
       }
       state_.movement = sample->state;
       state_.in_saccade = sample->state == protocol::EyeMovement::Saccade;

@@ -4,6 +4,7 @@
 // the frame clock (deterministic headless runs), the mouse, or nothing (screen centre).
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "fovea/protocol/messages.h"
@@ -24,6 +25,11 @@ struct GazeState {
   // The movement comes from provisional events (udp): `movement`, the sample's final label, then
   // trails the eye by the classifier's window and in_saccade says what the eye does now.
   bool provisional = false;
+  // Each eye's own point of gaze (normalized, as x, y) where the source measures both eyes: udp from
+  // a binocular tracker (the eye stream, PROTOCOL.md §4.18). nullopt: the stereo renderer derives
+  // that eye's point from x, y and the fixation depth (FramePipeline::eye_gaze).
+  struct Point { double x = 0.5, y = 0.5; };
+  std::optional<Point> left_eye, right_eye;
 };
 
 class GazeInput {

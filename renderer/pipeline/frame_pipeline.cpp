@@ -392,8 +392,19 @@ void FramePipeline::end_shared_work(const Frame& f) {
   shared_.lod = f.lod != nullptr;
 }
 
+// A stereo eye's gaze: the tracker's point for this eye where the source measures it (a
+// binocular tracker: each eye's point on the screen is where it looks in its own view), else the
+// source's point moved by the vergence on the fixation depth (Camera::eye_shift_x).
 GazeState FramePipeline::eye_gaze(Frame& f, const GazeState& source) const {
   GazeState g = source;
+  const auto& measured = f.eye == Eye::Left ? source.left_eye : f.eye == Eye::Right ? source.right_eye : std::nullopt;
+  f.eye_gaze_measured = measured.has_value();
+  if (measured) {
+    g.x = std::clamp(measured->x, 0.0, 1.0);
+    g.y = std::clamp(measured->y, 0.0, 1.0);
+    f.eye_gaze_shift_x = g.x - source.x;
+    return g;
+  }
   f.eye_gaze_shift_x = scene_.camera.eye_shift_x(f.fixation_m);
   g.x = std::clamp(g.x + f.eye_gaze_shift_x, 0.0, 1.0);
   return g;

@@ -101,6 +101,7 @@ class FramePipeline {
     // source's (normalised x; gaze.x is the moved point).
     double fixation_m = std::numeric_limits<double>::infinity();
     double eye_gaze_shift_x = 0;
+    bool eye_gaze_measured = false;  // gaze is the tracker's point for this eye, not the vergence's
   };
   // Renders the frame at scene time `scene_time_s` (the previous frame's time for motion vectors)
   // with gaze sampled at `frame_clock_s` on the gaze input. `frame_clock_is_wall`: the frame clock

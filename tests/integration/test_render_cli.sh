@@ -310,4 +310,17 @@ for d in live-embree live-gl; do
   received=$(cut -d, -f8 <<<"$last")
   [ "$received" -gt 100 ] || fail "$d received only $received gaze samples: $last"
 done
+
+echo "== --stereo on a binocular daemon: each eye sees its own measured gaze point"
+BPORT=$(free_udp_port)
+"$TRACKERD" --source synthetic:binocular --port $BPORT >"$WORK/daemon-bino.log" 2>&1 &
+PIDS+=($!)
+for _ in $(seq 1 50); do "$CTL" --server 127.0.0.1:$BPORT status >/dev/null 2>&1 && break; sleep 0.1; done
+"$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --stereo --headless --frames 8 --fps 10 --no-images \
+  --gaze udp://127.0.0.1:$BPORT --out "$WORK/stereo-bino" >"$WORK/stereo-bino.log" 2>&1 \
+  || fail "--stereo with binocular gaze: $(tail -5 "$WORK/stereo-bino.log")"
+# Once samples flow, each eye's point is the tracker's (columns 11, 12), and the eyes differ: each
+# eye's own noise (the synthetic viewer's), not a shift by the vergence.
+awk -F, 'NR > 4 && $11 == "tracker" && $12 == "tracker" && ($4 != $5 || $6 != $13) {n++} END {exit !(n >= 3)}' \
+  "$WORK/stereo-bino/stereo.csv" || fail "binocular stereo.csv: $(cat "$WORK/stereo-bino/stereo.csv")"
 echo "PASS"

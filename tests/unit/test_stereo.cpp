@@ -200,6 +200,55 @@ TEST(StereoFrame, EachEyesGazeIsTheCyclopeanGazeAtTheFixationDepth) {
   }
 }
 
+// A binocular tracker's gaze: each eye's measured point, one eye lost in the last frame.
+class BinocularGaze final : public GazeInput {
+ public:
+  std::string description() const override { return "binocular test gaze"; }
+  GazeState at(double t) override {
+    GazeState g;
+    g.valid = true;
+    g.x = 0.5, g.y = 0.4;
+    g.left_eye = GazeState::Point{0.53, 0.41};
+    if (t < 0.05) g.right_eye = GazeState::Point{0.47, 0.39};
+    return g;
+  }
+};
+
+// Issue 42: "per-eye gaze where the source has both eyes, cyclopean otherwise". Each eye is shown
+// its own measured point, not the cyclopean point moved by the vergence; an eye the tracker lost
+// falls back to the vergence.
+TEST(StereoFrame, EachEyeSeesItsOwnMeasuredGazeWhereTheTrackerHasBothEyes) {
+  BinocularGaze gaze;
+  Settings set;
+  set.set_assignment("dof.enabled=true");
+  FramePipeline pipeline(box_scene(0.063f), set, std::make_unique<EmbreeBackend>(), gaze);
+  PassTimer timer;
+  for (std::uint64_t i = 0; i < 3; ++i) {
+    const double t = static_cast<double>(i) / 30;
+    const FramePipeline::Frame l = pipeline.render(i, t, t, t, timer, false, Eye::Left);
+    const FramePipeline::Frame r = pipeline.render(i, t, t, t, timer, false, Eye::Right);
+    EXPECT_TRUE(l.eye_gaze_measured);
+    EXPECT_DOUBLE_EQ(l.gaze.x, 0.53);
+    EXPECT_DOUBLE_EQ(l.gaze.y, 0.41);
+    EXPECT_NEAR(l.eye_gaze_shift_x, 0.03, 1e-12);
+    if (i < 2) {
+      EXPECT_TRUE(r.eye_gaze_measured);
+      EXPECT_DOUBLE_EQ(r.gaze.x, 0.47);
+      EXPECT_DOUBLE_EQ(r.gaze.y, 0.39);
+    } else {
+      EXPECT_FALSE(r.eye_gaze_measured) << "the right eye lost: from the vergence";
+      Camera right_eye = pipeline.scene().camera;
+      right_eye.eye_offset_m = 0.0315f;
+      EXPECT_NEAR(r.gaze.x, 0.5 + right_eye.eye_shift_x(r.fixation_m), 1e-12);
+      EXPECT_DOUBLE_EQ(r.gaze.y, 0.4);
+    }
+  }
+  // A one-view frame shows the combined point.
+  const FramePipeline::Frame mono = pipeline.render(3, 0.1, 0.1, 0.1, timer);
+  EXPECT_FALSE(mono.eye_gaze_measured);
+  EXPECT_DOUBLE_EQ(mono.gaze.x, 0.5);
+}
+
 // Without gaze the GI area follows the most attended object, which the attention frame (the left
 // eye's) places in the left eye's image: the right eye's area is where the right eye sees it.
 TEST(StereoFrame, TheGiAreaFollowsTheAttendedObjectInEachEye) {
