@@ -44,6 +44,8 @@ import tempfile
 
 import numpy as np
 
+from classify_scoring import event_f1, events_of, kappa
+
 CODER = {1: "fixation", 2: "saccade", 3: "pso", 4: "pursuit", 5: "blink"}
 CLASSES = ("fixation", "saccade", "pso", "blink")  # the classes this data set holds
 METHODS = ("ivvt", "ivt", "idt", "lee2009")
@@ -128,52 +130,6 @@ def provisional_latencies(truth, t_ms, events):
             else:
                 out["fixation"].append(t_ms[hit] - landing)
     return out, missed
-
-
-def kappa(truth, predicted, c):
-    """Cohen's kappa of class c against the rest; nan when undefined."""
-    t = np.asarray(truth) == c
-    p = np.asarray(predicted) == c
-    n = len(t)
-    po = np.mean(t == p)
-    pe = (t.sum() * p.sum() + (n - t.sum()) * (n - p.sum())) / (n * n)
-    return float("nan") if pe >= 1.0 else float((po - pe) / (1 - pe))
-
-
-def events_of(labels, c):
-    """Runs of class c as half-open [start, end) sample intervals."""
-    out, start = [], None
-    for i, label in enumerate(labels):
-        if label == c and start is None:
-            start = i
-        elif label != c and start is not None:
-            out.append((start, i))
-            start = None
-    if start is not None:
-        out.append((start, len(labels)))
-    return out
-
-
-def event_f1(truth, predicted, c, min_iou=0.5):
-    """Startsev et al. 2019: a hit is a pair of same-class events with IoU >= min_iou, each used once."""
-    true_events, found = events_of(truth, c), events_of(predicted, c)
-    hits, j = 0, 0
-    used = set()
-    for ts, te in true_events:
-        while j < len(found) and found[j][1] <= ts:
-            j += 1
-        k = j
-        while k < len(found) and found[k][0] < te:
-            fs, fe = found[k]
-            inter = min(te, fe) - max(ts, fs)
-            union = max(te, fe) - min(ts, fs)
-            if k not in used and inter / union >= min_iou:
-                used.add(k)
-                hits += 1
-                break
-            k += 1
-    fp, fn = len(found) - hits, len(true_events) - hits
-    return float("nan") if hits + fp + fn == 0 else 2 * hits / (2 * hits + fp + fn)
 
 
 def onset_latencies(truth, predicted, final_ms, t_ms, c):
