@@ -158,7 +158,7 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   expect_problem("[classifier]\nmethod = \"a\\u001b[2J\"\n", {"unknown method \"a\\x1b[2J\""});
   expect_problem("[source]\nspeed = -1.5\n", {"test.toml:2:", "source.speed", "(0, 1000]"});
   expect_problem("[source]\nloop = \"yes\"\n", {"test.toml:2:", "source.loop", "true or false"});
-  expect_problem("[source]\nspec = \"\"\n", {"test.toml:2:", "source.spec", "synthetic, synthetic-eye, replay:FILE"});
+  expect_problem("[source]\nspec = \"\"\n", {"test.toml:2:", "source.spec", "synthetic[:binocular], synthetic-eye, replay:FILE"});
   expect_problem("[display]\nwidth_px = 1920\n", {"test.toml:1:", "display.height_px", "missing"});
   expect_problem("[display]\nwidth_px = 0\nheight_px = 1080\nwidth_mm = 531\nheight_mm = 299\ndistance_mm = 650\n",
                  {"test.toml:2:", "display.width_px", "1..65536"});
