@@ -34,7 +34,7 @@ import tempfile
 
 import numpy as np
 
-from classify_scoring import confusion, event_counts, f1_of, kappa_of
+from classify_scoring import confusion, event_counts, events_of, f1_of, kappa_of
 
 CLASSES = ("fixation", "saccade", "pursuit")
 CODER = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
@@ -100,14 +100,43 @@ def classify(ctl, in_path, out_path, geometry, method, extra):
     cmd = [ctl, "classify", in_path, out_path, str(RATE_HZ), str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
            "%g" % dist_mm, "--method", method, "--force", "--final-times"] + extra
     subprocess.run(cmd, check=True, capture_output=True, text=True)
-    labels, final_ms = [], []
+    labels, final_ms, raw = [], [], []
     with open(out_path) as f:
         next(f)
         for line in f:
             fields = line.rstrip("\n").split(",")
+            raw.append(fields[1])
             labels.append(FOVEA.get(fields[1], "other"))
             final_ms.append(float(fields[2]))
-    return labels, np.array(final_ms)
+    return labels, np.array(final_ms), raw
+
+
+def where_wrong(truth, predicted, raw, c):
+    """Where class c's sample errors lie: the expert's c samples missed before the detected event
+    starts, after it ends, or in events missed whole (with fovea's own labels there), and false c
+    samples before the expert's onset, after its offset, or in events the expert has none of (with the
+    expert's labels there)."""
+    out = {"missed_start": 0, "missed_end": 0, "missed_whole": 0, "false_start": 0, "false_end": 0,
+           "false_whole": 0, "fovea_in_missed_end": {}, "expert_in_false_whole": {}}
+    te, pe = events_of(truth, c), events_of(predicted, c)
+    for events, other, kind in ((te, pe, "missed"), (pe, te, "false")):
+        j = 0
+        for a, b in events:
+            while j < len(other) and other[j][1] <= a:
+                j += 1
+            overlap = [e for e in other[j:] if e[0] < b]
+            if not overlap:
+                out[kind + "_whole"] += b - a
+                if kind == "false":
+                    for i in range(a, b):
+                        out["expert_in_false_whole"][truth[i]] = out["expert_in_false_whole"].get(truth[i], 0) + 1
+                continue
+            out[kind + "_start"] += max(0, overlap[0][0] - a)
+            out[kind + "_end"] += max(0, b - overlap[-1][1])
+            if kind == "missed":
+                for i in range(max(a, overlap[-1][1]), b):
+                    out["fovea_in_missed_end"][raw[i]] = out["fovea_in_missed_end"].get(raw[i], 0) + 1
+    return out
 
 
 def score(truth, predicted):
@@ -138,8 +167,10 @@ def run_recording(args, path, tmp):
     out = {"video": os.path.basename(os.path.dirname(path)), "methods": {}, "latency": {}}
     t_ms = t_us / 1000.0
     for m in args.methods:
-        labels, final_ms = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, m, args.extra)
+        labels, final_ms, raw = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, m, args.extra)
         out["methods"][m] = score(truth, labels)
+        if args.diagnose and m == args.methods[0]:
+            out["diagnosis"] = {c: where_wrong(truth, labels, raw, c) for c in CLASSES}
         late = final_ms - t_ms
         out["latency"][m] = {c: late[[l == c for l in labels]].tolist() for c in CLASSES}
     # The student coders against the expert, on the rows that have their labels (most recordings
@@ -165,6 +196,7 @@ def main():
     ap.add_argument("--per-video", action="store_true", help="also print each held-out video's figures")
     ap.add_argument("--pso-as", choices=("fixation", "saccade"), default="fixation",
                     help="the class fovea's pso counts as (GazeCom has none; default fixation, as the issue scores)")
+    ap.add_argument("--diagnose", action="store_true", help="where the first method's errors lie, per class")
     args = ap.parse_args()
     FOVEA["pso"] = args.pso_as
     args.methods = [m for m in args.methods.split(",") if m]
@@ -226,9 +258,36 @@ def report(args, results, n_files):
         for v in videos:
             print(f"| {v} | " + " | ".join(
                 " / ".join(f"{summary['per_video'][v][m][c]['f1']:.2f}" for c in CLASSES) for m in args.methods) + " |")
+    if args.diagnose:
+        summary["diagnosis"] = diagnose(args.methods[0], results)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(summary, f, indent=1)
+
+
+def diagnose(method, results):
+    """Sums where_wrong over the recordings and prints it."""
+    total = {}
+    for r in results:
+        for c, d in r["diagnosis"].items():
+            t = total.setdefault(c, {})
+            for k, v in d.items():
+                if isinstance(v, dict):
+                    into = t.setdefault(k, {})
+                    for label, n in v.items():
+                        into[label] = into.get(label, 0) + n
+                else:
+                    t[k] = t.get(k, 0) + v
+    print(f"\nWhere {method}'s sample errors lie (samples; the expert's events against the detected ones):\n")
+    print("| class | missed before onset | missed after offset | missed whole events | false before onset "
+          "| false after offset | false whole events | fovea's labels in the missed ends | the expert's in false events |")
+    print("|---|---:|---:|---:|---:|---:|---:|---|---|")
+    fmt = lambda d: ", ".join(f"{k} {v}" for k, v in sorted(d.items(), key=lambda kv: -kv[1]))
+    for c, t in total.items():
+        print(f"| {c} | {t['missed_start']} | {t['missed_end']} | {t['missed_whole']} | {t['false_start']} | "
+              f"{t['false_end']} | {t['false_whole']} | {fmt(t.get('fovea_in_missed_end', {}))} | "
+              f"{fmt(t.get('expert_in_false_whole', {}))} |")
+    return total
 
 
 if __name__ == "__main__":

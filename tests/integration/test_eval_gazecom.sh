@@ -54,7 +54,7 @@ with open(sys.argv[3], "w") as f:
         f.write(f"{t},{'lost' if x == 'nan' else 'fixation'},{float(t) + 100}\n")
 PY
 chmod +x "$WORK/fake-ctl"
-/usr/bin/python3 "$SRC/bench/eval_classify_gazecom.py" "$WORK/fake-ctl" --data "$WORK/gc" --methods fake \
+/usr/bin/python3 "$SRC/bench/eval_classify_gazecom.py" "$WORK/fake-ctl" --data "$WORK/gc" --methods fake --diagnose \
   --json "$WORK/fake.json" >"$WORK/fake.txt" 2>&1 || fail "harness: $(cat "$WORK/fake.txt")"
 /usr/bin/python3 - "$WORK/fake.json" <<'PY' || fail "harness figures: $(cat "$WORK/fake.txt")"
 import json, math, sys
@@ -69,6 +69,12 @@ assert f["saccade"]["f1"] == 0.0 and f["pursuit"]["event_f1"] == 0.0, f
 assert s["pooled"]["coder 1"]["pursuit"]["f1"] == 1.0 and "coder 2" not in s["pooled"], s["pooled"].keys()
 assert s["latency_ms"]["fake"]["fixation"]["p50"] == 100.0, s["latency_ms"]
 assert s["recordings"] == 1 and list(s["per_video"]) == ["clip"], s
+# --diagnose: fixation [0,6) inside the detected [0,10): 4 false after the offset, the expert's
+# saccade and pursuit there missed whole; fovea's labels in missed ends: none.
+d = s["diagnosis"]
+assert d["fixation"]["false_end"] == 4 and d["fixation"]["missed_whole"] == 0, d["fixation"]
+assert d["saccade"]["missed_whole"] == 2 and d["pursuit"]["missed_whole"] == 2, d
+assert d["saccade"]["false_whole"] == 0 and d["fixation"]["fovea_in_missed_end"] == {}, d
 PY
 
 GAZECOM="$SRC/../shared/data/gazecom"
