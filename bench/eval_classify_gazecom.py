@@ -111,6 +111,35 @@ def classify(ctl, in_path, out_path, geometry, method, extra):
     return labels, np.array(final_ms), raw
 
 
+def speed_deg_s(geometry, t_us, x, y, conf):
+    """Gaze speed per sample, central differences of the per-axis angles (nan at track loss)."""
+    w_px, h_px, w_mm, h_mm, dist_mm = geometry
+    lost = ((x == 0) & (y == 0)) | (conf <= 0)
+    xd = np.degrees(np.arctan((x / w_px - 0.5) * w_mm / dist_mm))
+    yd = np.degrees(np.arctan((y / h_px - 0.5) * h_mm / dist_mm))
+    xd[lost] = yd[lost] = np.nan
+    t = t_us / 1e6
+    return np.hypot(np.gradient(xd, t), np.gradient(yd, t))
+
+
+def saccade_edge_speeds(truth, predicted, speed):
+    """For each expert saccade that one detected saccade overlaps (no loss inside): the speed at the
+    expert's first and last sample and at the detected event's."""
+    out = {"expert_onset": [], "expert_offset": [], "method_onset": [], "method_offset": []}
+    found = events_of(predicted, "saccade")
+    j = 0
+    for a, b in events_of(truth, "saccade"):
+        while j < len(found) and found[j][1] <= a:
+            j += 1
+        overlap = [e for e in found[j:] if e[0] < b]
+        if len(overlap) != 1 or not np.isfinite(speed[min(a, overlap[0][0]):max(b, overlap[0][1])]).all():
+            continue
+        fs, fe = overlap[0]
+        for key, i in (("expert_onset", a), ("expert_offset", b - 1), ("method_onset", fs), ("method_offset", fe - 1)):
+            out[key].append(float(speed[i]))
+    return out
+
+
 def where_wrong(truth, predicted, raw, c):
     """Where class c's sample errors lie: the expert's c samples missed before the detected event
     starts, after it ends, or in events missed whole (with fovea's own labels there), and false c
@@ -171,6 +200,7 @@ def run_recording(args, path, tmp):
         out["methods"][m] = score(truth, labels)
         if args.diagnose and m == args.methods[0]:
             out["diagnosis"] = {c: where_wrong(truth, labels, raw, c) for c in CLASSES}
+            out["edges"] = saccade_edge_speeds(truth, labels, speed_deg_s(geometry, t_us, x, y, conf))
         late = final_ms - t_ms
         out["latency"][m] = {c: late[[l == c for l in labels]].tolist() for c in CLASSES}
     # The student coders against the expert, on the rows that have their labels (most recordings
@@ -278,12 +308,20 @@ def diagnose(method, results):
                         into[label] = into.get(label, 0) + n
                 else:
                     t[k] = t.get(k, 0) + v
+    edges = {k: np.concatenate([np.array(r["edges"][k]) for r in results]) for k in results[0]["edges"]}
+    total["saccade_edge_speed_p50"] = {k: float(np.median(v)) if len(v) else None for k, v in edges.items()}
+    quartiles = lambda k: " / ".join("%.0f" % q for q in np.percentile(edges[k], [25, 50, 75])) if len(edges[k]) else "-"
+    print(f"\nSpeed at the saccade's edges, °/s (p25 / p50 / p75, {len(edges['expert_onset'])} expert saccades that one "
+          f"detected saccade overlaps): expert onset {quartiles('expert_onset')}, {method}'s onset "
+          f"{quartiles('method_onset')}; expert offset {quartiles('expert_offset')}, {method}'s offset "
+          f"{quartiles('method_offset')}")
     print(f"\nWhere {method}'s sample errors lie (samples; the expert's events against the detected ones):\n")
     print("| class | missed before onset | missed after offset | missed whole events | false before onset "
           "| false after offset | false whole events | fovea's labels in the missed ends | the expert's in false events |")
     print("|---|---:|---:|---:|---:|---:|---:|---|---|")
     fmt = lambda d: ", ".join(f"{k} {v}" for k, v in sorted(d.items(), key=lambda kv: -kv[1]))
-    for c, t in total.items():
+    for c in CLASSES:
+        t = total[c]
         print(f"| {c} | {t['missed_start']} | {t['missed_end']} | {t['missed_whole']} | {t['false_start']} | "
               f"{t['false_end']} | {t['false_whole']} | {fmt(t.get('fovea_in_missed_end', {}))} | "
               f"{fmt(t.get('expert_in_false_whole', {}))} |")

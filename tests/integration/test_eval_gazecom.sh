@@ -81,7 +81,7 @@ GAZECOM="$SRC/../shared/data/gazecom"
 if [ -f "$GAZECOM/gazecom-ground-truth.tar.xz" ]; then
   echo "== the real fovea-ctl on three GazeCom recordings"
   XDG_CACHE_HOME="$WORK/cache" /usr/bin/python3 "$SRC/bench/eval_classify_gazecom.py" "$CTL" --data "$GAZECOM" \
-    --limit 3 --methods ivvt,ivt --json "$WORK/real.json" >"$WORK/real.txt" 2>&1 || fail "real run: $(cat "$WORK/real.txt")"
+    --limit 3 --methods ivvt,ivt --diagnose --json "$WORK/real.json" >"$WORK/real.txt" 2>&1 || fail "real run: $(cat "$WORK/real.txt")"
   /usr/bin/python3 - "$WORK/real.json" <<'PY' || fail "real figures: $(cat "$WORK/real.txt")"
 import json, sys
 s = json.load(open(sys.argv[1]))
@@ -91,6 +91,9 @@ for m in ("ivvt", "ivt"):
     assert 0.6 < f["fixation"]["f1"] <= 1 and 0.4 < f["saccade"]["f1"] <= 1, (m, f)
 # ivt labels no pursuit at all; ivvt does
 assert s["pooled"]["ivt"]["pursuit"]["f1"] == 0.0 and s["pooled"]["ivvt"]["pursuit"]["f1"] > 0, s["pooled"]
+# --diagnose: saccade speeds at the edges are real speeds, well below a saccade's peak
+edge = s["diagnosis"]["saccade_edge_speed_p50"]
+assert all(v is not None and 0 < v < 200 for v in edge.values()), edge
 PY
 else
   echo "   (no GazeCom at $GAZECOM: the real-data part is skipped)"
