@@ -277,7 +277,7 @@ grep -q "once per frame (left eye): attention, focus" <<<"$out" || fail "--stere
 "$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --stereo --budget-ms 500 --headless --frames 3 --gaze none \
   --out "$WORK/stereo-budget" >"$WORK/stereo-budget.log" 2>&1 || fail "--stereo --budget-ms: $(tail -3 "$WORK/stereo-budget.log")"
 [ "$(wc -l <"$WORK/stereo-budget/governor.csv")" -eq 4 ] || fail "stereo governor.csv: $(cat "$WORK/stereo-budget/governor.csv")"
-awk -F, '$3 == "frame" || $3 == "right.frame" {sum[$1] += $4} END {for (f in sum) print f "," sum[f]}' \
+awk -F, '$3 == "frame" || $3 == "right.frame" {sum[$1] += $4} END {for (f in sum) printf "%s,%.4f\n", f, sum[f]}' \
   "$WORK/stereo-budget/timings.csv" | sort -n >"$WORK/stereo-budget/both.txt"
 while IFS=, read -r f ms; do
   both=$(grep "^$f," "$WORK/stereo-budget/both.txt" | cut -d, -f2)
