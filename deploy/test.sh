@@ -61,7 +61,14 @@ else
   summary+=("packages: skipped (dpkg-buildpackage or debhelper missing; deploy/install-deps.sh installs them)")
 fi
 
-run_suite "asan+ubsan" asan
+# Under ASan the OpenGL tests (label gl) run Mesa's llvmpipe instrumented: 686 of the suite's 2,380
+# test-seconds on 2 cores (2026-11-30), for code the release suite above runs unchanged. They are
+# left out of this pass to keep CI inside its time limit; FOVEA_ASAN_GL=1 puts them back.
+if [ "${FOVEA_ASAN_GL:-0}" = 1 ]; then
+  run_suite "asan+ubsan" asan
+else
+  run_suite "asan+ubsan (without the gl label)" asan -LE gl
+fi
 
 if command -v clang++ >/dev/null 2>&1; then
   echo "=== libFuzzer: configure + build"
