@@ -174,15 +174,26 @@ std::vector<SubscriberInfo> GazeServer::subscribers() const {
 
 std::uint64_t GazeServer::send_stream(const std::unique_lock<std::mutex>& held, std::uint32_t stream_bit,
                                       std::uint64_t& sequence, std::int64_t origin_ns, const Payload& p) {
-  // The caller holds mutex_, so all subscribers see the same sequence numbers in the same order.
-  assert(held.owns_lock() && held.mutex() == &mutex_ && "send_stream: the caller must hold mutex_");
+  send_to_subscribers(held, stream_bit, sequence, origin_ns, p, true);
+  return sequence++;
+}
+
+// One datagram to every session subscribed to `stream_bit` (and to the multicast group when asked),
+// carrying `sequence`. The caller holds mutex_, so all subscribers see the same sequence numbers in
+// the same order.
+void GazeServer::send_to_subscribers(const std::unique_lock<std::mutex>& held, std::uint32_t stream_bit,
+                                     std::uint64_t sequence, std::int64_t origin_ns, const Payload& p,
+                                     bool to_group) {
+  assert(held.owns_lock() && held.mutex() == &mutex_ && "send_to_subscribers: the caller must hold mutex_");
   (void)held;
   targets_.clear();
   for (const auto& [id, s] : sessions_) {
     if ((s.streams & stream_bit) != 0) targets_.push_back(s.address);
   }
+  if (!to_group && targets_.empty()) return;  // nobody asked: nothing to encode
+  const bool group = to_group && multicast_socket_.valid();
   Message m{Header{}, p};
-  m.header.sequence = sequence++;
+  m.header.sequence = sequence;
   m.header.origin_time_ns = origin_ns;
   m.header.send_time_ns = monotonic_ns();
   std::array<std::uint8_t, kMaxDatagramSize> buf{};
@@ -191,14 +202,13 @@ std::uint64_t GazeServer::send_stream(const std::unique_lock<std::mutex>& held, 
   const std::size_t sent = socket_.send_to_many(targets_, datagram);
   stats_.datagrams_sent += sent;
   stats_.send_failures += targets_.size() - sent;
-  if (multicast_socket_.valid()) {
+  if (group) {
     if (multicast_socket_.send_to(options_.multicast->group, datagram)) {
       ++stats_.datagrams_sent;
     } else {
       ++stats_.send_failures;
     }
   }
-  return m.header.sequence;
 }
 
 std::uint64_t GazeServer::publish(const GazeSample& sample) { return publish(sample, sample.tracker_time_ns); }
@@ -211,26 +221,13 @@ std::uint64_t GazeServer::publish(const GazeSample& sample, std::int64_t host_re
 }
 
 // A sample's per-eye gaze as GAZE_EYES, to kStreamEyes subscribers only (unicast: a v1 receiver of
-// the multicast group would reject the type), just before the GAZE_SAMPLE whose sequence it carries,
-// so that a client holds it when the sample arrives and delivers the two as one.
+// the multicast group would reject the type), just before the GAZE_SAMPLE whose sequence it carries
+// (the sample stream's counter, not advanced), so that a client holds it when the sample arrives and
+// delivers the two as one.
 void GazeServer::send_eyes(const std::unique_lock<std::mutex>& held, const GazeSample& sample,
                            std::int64_t origin_ns) {
-  assert(held.owns_lock() && held.mutex() == &mutex_ && "send_eyes: the caller must hold mutex_");
-  (void)held;
-  targets_.clear();
-  for (const auto& [id, s] : sessions_) {
-    if ((s.streams & kStreamEyes) != 0) targets_.push_back(s.address);
-  }
-  if (targets_.empty()) return;
-  Message m{Header{}, GazeEyes{sample.tracker_time_ns, sample.left_gaze, sample.right_gaze}};
-  m.header.sequence = next_sample_seq_;  // the sample's, sent next
-  m.header.origin_time_ns = origin_ns;
-  m.header.send_time_ns = monotonic_ns();
-  std::array<std::uint8_t, kMaxDatagramSize> buf{};
-  const std::size_t n = encode_into(m, buf);
-  const std::size_t sent = socket_.send_to_many(targets_, std::span<const std::uint8_t>(buf.data(), n));
-  stats_.datagrams_sent += sent;
-  stats_.send_failures += targets_.size() - sent;
+  send_to_subscribers(held, kStreamEyes, next_sample_seq_, origin_ns,
+                      GazeEyes{sample.tracker_time_ns, sample.left_gaze, sample.right_gaze}, false);
 }
 
 std::uint64_t GazeServer::publish(const Marker& marker) {

@@ -153,6 +153,8 @@ class GazeServer {
   void handle_unsubscribe(const Unsubscribe& un, const Endpoint& from);
   std::uint64_t send_marker(const std::unique_lock<std::mutex>& held, const Marker& published);
   void send_eyes(const std::unique_lock<std::mutex>& held, const GazeSample& sample, std::int64_t origin_ns);
+  void send_to_subscribers(const std::unique_lock<std::mutex>& held, std::uint32_t stream_bit, std::uint64_t sequence,
+                           std::int64_t origin_ns, const Payload& p, bool to_group);
   void handle_marker(const std::unique_lock<std::mutex>& held, const Marker& marker, std::uint64_t seq,
                      const Endpoint& from, std::int64_t received_ns);
   SubscriberInfo& new_session(const Endpoint& from);
