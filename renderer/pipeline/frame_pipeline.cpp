@@ -198,9 +198,9 @@ std::string FramePipeline::stereo_summary() const {
   if (p.runs(PassId::Gi)) once += ", gi's photon maps";
   return std::string(head) + ", parallel view axes; once per frame (left eye): " +
          (once.empty() ? "nothing" : once.substr(2)) + "; per eye: " + (each.empty() ? "nothing" : each.substr(2)) +
-         "; each eye's gaze: the source's gaze point at the fixation depth (" +
-         (p.runs(PassId::Focus) ? "the focal depth of the frame before" : "infinity: the focus pass does not run") +
-         "; protocol v1 carries one gaze point, no per-eye gaze)";
+         "; each eye's gaze: its own where the source measures both eyes (udp:// from a binocular tracker), "
+         "else the source's gaze point at the fixation depth (" +
+         (p.runs(PassId::Focus) ? "the focal depth of the frame before" : "infinity: the focus pass does not run") + ")";
 }
 
 std::string FramePipeline::device() const { return gpu_refusal().empty() ? gpu_->description() : "cpu"; }
