@@ -71,6 +71,21 @@ PY
 
 # flood_and_record SOURCE SECONDS: the daemon on SOURCE (log d.log, STATUS to the notify listener);
 # one client records SECONDS of it (r.fgr, r.csv); then the fake and the daemon stop cleanly.
+# wait_for_flood_to_end: the daemon drains what the fake wrote during its flood at its own pace (under
+# ASan about 8000 records a second, so a 3 s flood of 57000 lasts 7 s there); wait up to 30 s for it
+# to log the flood's end and for a STATUS line after that, so the checks see the clock after it.
+wait_for_flood_to_end() {
+  local i
+  for i in $(seq 300); do
+    if grep -q "the flood ended" "$WORK/d.log" 2>/dev/null &&
+       [ -n "$(grep "STATUS=" "$WORK/notify.log" 2>/dev/null | tail -n 1 | grep -v FLOODING)" ]; then
+      return 0
+    fi
+    sleep 0.1
+  done
+  fail "the daemon did not report the flood's end within 30 s"
+}
+
 flood_and_record() {
   local port
   port=$(free_udp_port)
@@ -80,6 +95,7 @@ flood_and_record() {
   sleep 0.3
   "$CTL" --server "127.0.0.1:$port" record --duration "$2" "$WORK/r.fgr" >"$WORK/r.out" 2>&1 \
     || fail "the client: $(cat "$WORK/r.out")"
+  wait_for_flood_to_end
   stop "$FPID"; FPID=""
   stop "$DPID"; DPID=""
   "$CTL" convert "$WORK/r.fgr" "$WORK/r.csv" >/dev/null 2>&1 || fail "convert r.fgr"
