@@ -15,13 +15,15 @@ are scored against `handlabeller_final`:
 - event level: F1 with a hit where a detected and a coder event of the class overlap with
   intersection over union >= 0.5 (Startsev et al. 2019), counts pooled over recordings;
 - leave-one-video-out: each video's recordings scored with what was fitted on the other 17. The
-  methods here have no parameters fitted to GazeCom, so their held-out score is the pooled one; the
-  per-video table shows how much the videos differ;
+  rule-based methods have no parameters fitted to GazeCom, so their held-out score is the pooled one;
+  the learned `gbt` is scored with --lovo DIR, each video by the model bench/train_classifier.py
+  --lovo fitted without it (the built-in model has seen every video: its pooled score is not a
+  held-out one); the per-video table shows how much the videos differ;
 - the final labels' latency: final_ms - t_ms per sample (`--final-times`), p50 / p99 per class;
 - the student coders against the expert, on the recordings that have their labels: the ceiling.
 
 Usage: bench/eval_classify_gazecom.py FOVEA_CTL [--data DIR_OR_TAR] [--every N] [--limit N]
-       [--methods ivvt,ivt,...] [--extra-args "..."] [--json OUT.json] [--per-video]
+       [--methods ivvt,gbt,...] [--lovo DIR] [--extra-args "..."] [--json OUT.json] [--per-video]
 """
 import argparse
 import concurrent.futures
@@ -196,7 +198,10 @@ def run_recording(args, path, tmp):
     out = {"video": os.path.basename(os.path.dirname(path)), "methods": {}, "latency": {}}
     t_ms = t_us / 1000.0
     for m in args.methods:
-        labels, final_ms, raw = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, m, args.extra)
+        extra = list(args.extra)
+        if args.lovo and m == "gbt":  # the model fitted without this recording's video
+            extra += ["--model", os.path.join(args.lovo, out["video"] + ".trees")]
+        labels, final_ms, raw = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, m, extra)
         out["methods"][m] = score(truth, labels)
         if args.diagnose and m == args.methods[0]:
             out["diagnosis"] = {c: where_wrong(truth, labels, raw, c) for c in CLASSES}
@@ -221,6 +226,8 @@ def main():
     ap.add_argument("--limit", type=int, default=0, help="at most N recordings (0: all)")
     ap.add_argument("--methods", default="ivvt", help="comma-separated fovea-ctl classify methods")
     ap.add_argument("--extra-args", default="", help="more fovea-ctl classify arguments, e.g. --offline")
+    ap.add_argument("--lovo", help="DIR of bench/train_classifier.py --lovo: method gbt labels each recording "
+                    "with DIR/<its video>.trees, fitted on the other videos")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--per-video", action="store_true", help="also print each held-out video's figures")

@@ -48,7 +48,7 @@ from classify_scoring import event_f1, events_of, kappa
 
 CODER = {1: "fixation", 2: "saccade", 3: "pso", 4: "pursuit", 5: "blink"}
 CLASSES = ("fixation", "saccade", "pso", "blink")  # the classes this data set holds
-METHODS = ("ivvt", "ivt", "idt", "lee2009")
+METHODS = ("ivvt", "gbt", "ivt", "idt", "lee2009")
 
 
 def load_geometry(data_dir):

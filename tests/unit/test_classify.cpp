@@ -282,12 +282,12 @@ TEST(Classify, BlinkFromPupilAspect) {
   for (auto& x : s) x.pupil_aspect = 0.95;
   for (std::size_t i = 20; i < 30; ++i) s[i].pupil_aspect = 0.5;
   s[40].pupil_aspect = 0.69;
-  s[41].pupil_aspect = 0.71;
+  s[50].pupil_aspect = 0.71;  // apart from the blink before: gbt learned that coders call its neighbours noise
   for (const auto& m : method_names()) {
     const auto l = classify_all(m, 60, s);
     EXPECT_EQ(share(l, 20, 30, Label::Blink), 1.0) << m;
     EXPECT_EQ(l[40], Label::Blink) << m;
-    EXPECT_NE(l[41], Label::Blink) << m;
+    EXPECT_NE(l[50], Label::Blink) << m;
     EXPECT_NE(l[10], Label::Blink) << m;
   }
 }

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "classify/pipeline.h"
+#include "classify/trees_core.h"
 
 namespace fovea::trackerd::classify {
 
@@ -28,6 +29,10 @@ const std::vector<ClassifierInfo>& classifiers() {
        "I-VVT (Komogortsev & Karpov 2013): saccades by a noise-adaptive velocity threshold with onset/offset "
        "and PSO detection after Nystrom & Holmqvist 2010; pursuit vs fixation by low-pass velocity as in "
        "REMoDNaV (Dar et al. 2021); gap fill-in 75 ms"},
+      {"gbt",
+       "gradient-boosted trees (issue 43) over multi-scale speed, direction-consistency and dispersion "
+       "features (Larsson et al. 2015; Startsev et al. 2019) of +-256 ms around each sample, trained on "
+       "GazeCom's expert labels (bench/train_classifier.py); gap fill-in 75 ms"},
       {"ivt",
        "I-VT after the Tobii I-VT filter (Olsen 2012): 20 ms velocity window, 30 deg/s, gap fill-in 75 ms, "
        "merge fixations within 75 ms and 0.5 deg, discard fixations under 60 ms"},
@@ -58,6 +63,10 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
     throw std::invalid_argument("classifier " + name + ": display geometry: " + err);
   }
   const FrontendOptions standard;  // 75 ms gap fill-in, blink for losses up to 0.5 s
+  if (name == "gbt") {
+    return make_trees_pipeline(options.model_path.empty() ? builtin_trees_model() : load_trees_model(options.model_path),
+                               options.display);
+  }
   if (name == "ivvt") return std::make_unique<Pipeline>(name, standard, make_ivvt_core());
   if (name == "ivt") return std::make_unique<Pipeline>(name, standard, make_ivt_core());
   if (name == "idt") {

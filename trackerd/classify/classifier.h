@@ -68,6 +68,8 @@ const std::vector<ClassifierInfo>& classifiers();
 struct ClassifierOptions {
   double nominal_rate_hz = 250;  // a hint only; every method works on the sample times
   protocol::DisplayGeometry display;
+  // gbt: a tree model file (bench/train_classifier.py) instead of the one built in; "" = built in.
+  std::string model_path;
 };
 
 // Throws std::invalid_argument naming the method and listing the known ones (also for a rate that

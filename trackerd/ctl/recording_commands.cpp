@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -14,7 +15,9 @@
 
 #include "classify/classifier.h"
 #include "classify/evaluate.h"
+#include "classify/features.h"
 #include "classify/provisional.h"
+#include "classify/trees_core.h"
 #include "ctl/bids_export.h"
 #include "ctl/commands.h"
 #include "fovea/protocol/bounded_file.h"
@@ -377,7 +380,35 @@ struct ClassifyArgs {
   std::uint32_t w_px = 0, h_px = 0;
   std::optional<std::string> lost_at;  // --lost-at X,Y
   bool force = false, renumber = false, final_times = false, provisional = false;
+  std::string model_path;    // --model (gbt)
+  std::string features_out;  // --features-out F.npy (and F.npy.names)
 };
+
+// The gbt method's features of every input row as a NumPy .npy file (float32, rows x features) and
+// their names, one per line, in PATH.names: what bench/train_classifier.py trains on.
+void write_features_npy(const std::string& path, const std::vector<fovea::trackerd::classify::Sample>& samples,
+                        const DisplayGeometry& display) {
+  namespace cl = fovea::trackerd::classify;
+  const std::vector<float> m = cl::feature_matrix(samples, display);
+  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(samples.size()) + ", " +
+                       std::to_string(cl::kFeatureCount) + "), }";
+  header.append(63 - (10 + header.size()) % 64, ' ');  // the magic, version and length are 10 bytes
+  header += '\n';
+  const std::string tmp = path + ".partial-" + std::to_string(getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    const char magic[] = {'\x93', 'N', 'U', 'M', 'P', 'Y', 1, 0};
+    const std::uint16_t len = static_cast<std::uint16_t>(header.size());
+    const char len_le[] = {static_cast<char>(len & 0xff), static_cast<char>(len >> 8)};
+    out.write(magic, sizeof magic).write(len_le, 2) << header;
+    static_assert(std::endian::native == std::endian::little, "the .npy is written as '<f4'");
+    out.write(reinterpret_cast<const char*>(m.data()), static_cast<std::streamsize>(m.size() * sizeof(float)));
+    std::ofstream names(path + ".names", std::ios::trunc);
+    for (const std::string& n : cl::feature_names()) names << n << '\n';
+    if (!out.flush() || !names.flush()) throw std::runtime_error(path + ": write failed");
+  }
+  std::filesystem::rename(tmp, path);
+}
 
 // "saccade_start@T;..." for the provisional events a row made known (T: the event's time, ms).
 std::string provisional_cell(const std::vector<fovea::trackerd::classify::ProvisionalEvent>& events) {
@@ -436,7 +467,9 @@ int cmd_classify(const ClassifyArgs& a) {
     cl::ClassifierOptions options;
     options.nominal_rate_hz = a.rate_hz;
     options.display = g;
+    options.model_path = a.model_path;
     const cl::OnlineLabels result = cl::classify_online(a.method, options, input.samples);
+    if (!a.features_out.empty()) write_features_npy(a.features_out, input.samples, g);
 
     std::vector<cl::ProvisionalEvent> provisional;
     const std::map<std::string, std::size_t> counts = write_classify_labels(tmp, input, result, a, provisional);
@@ -535,6 +568,12 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
                      "add a column provisional: the provisional events (saccade start/end, fixation start, as the "
                      "daemon sends them before the final labels) each row made known, as KIND_PHASE@T_MS joined "
                      "by ';'; reports how many the final labels confirmed and retracted");
+  classify->add_option("--model", cls.model_path,
+                       "gbt: a tree model written by bench/train_classifier.py instead of the built-in one")
+      ->check(CLI::ExistingFile);
+  classify->add_option("--features-out", cls.features_out,
+                       "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
+                       "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
 
   return {
       {convert, [o] { return cmd_convert_any(o->cv); }},

@@ -1,0 +1,208 @@
+// SPDX-License-Identifier: Apache-2.0
+// The learned method's parts (issue 43): the tree format and its evaluation (trees.h), the
+// multi-scale features (features.h) and the built-in model.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "classify/classifier.h"
+#include "classify/features.h"
+#include "classify/trees.h"
+#include "classify/trees_core.h"
+
+using namespace fovea::trackerd::classify;
+
+namespace {
+
+const std::vector<std::string> kTwo = {"a", "b"};
+
+// Two classes; tree 0 (class 0): a <= 1 (NaN right) -> +2 else -1; tree 1 (class 1): b <= 0.5 (NaN
+// left) -> 0 else +3.
+const char* kModel = R"(# a comment
+fovea-trees 1
+features 2 a b
+classes 2 fixation saccade
+baseline 0.5 0
+trees 2
+tree 0 3
+0 1 0 1 2 0
+-1 0 0 0 0 2
+-1 0 0 0 0 -1
+tree 1 3
+1 0.5 1 1 2 0
+-1 0 0 0 0 0
+-1 0 0 0 0 3
+)";
+
+std::string parse_error(const std::string& text, const std::vector<std::string>& features = kTwo) {
+  try {
+    TreeEnsemble::parse(text, "m.trees", features);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string replaced(std::string s, const std::string& from, const std::string& to) {
+  s.replace(s.find(from), from.size(), to);
+  return s;
+}
+
+}  // namespace
+
+TEST(Trees, EvaluatesSplitsMissingValuesAndBaseline) {
+  const TreeEnsemble m = TreeEnsemble::parse(kModel, "m.trees", kTwo);
+  EXPECT_EQ(m.tree_count(), 2u);
+  EXPECT_EQ(m.node_count(), 6u);
+  double s[2];
+  const float nan = std::nanf("");
+  const auto run = [&](float a, float b) {
+    const float f[2] = {a, b};
+    return m.predict(f, s);
+  };
+  EXPECT_EQ(run(1.0f, 0.5f), 0);  // <= goes left: 0.5 + 2 against 0
+  EXPECT_DOUBLE_EQ(s[0], 2.5);
+  EXPECT_DOUBLE_EQ(s[1], 0.0);
+  EXPECT_EQ(run(1.5f, 0.7f), 1);  // -0.5 against 3
+  EXPECT_DOUBLE_EQ(s[0], -0.5);
+  EXPECT_EQ(run(nan, nan), 1);  // a NaN: right in tree 0 (0.5 - 1), left in tree 1 (0)
+  EXPECT_DOUBLE_EQ(s[0], -0.5);
+  EXPECT_DOUBLE_EQ(s[1], 0.0);
+}
+
+TEST(Trees, DamagedModelsAreRefusedNamingTheLineAndTheProblem) {
+  EXPECT_EQ(parse_error(kModel), "");
+  EXPECT_EQ(parse_error(replaced(kModel, "fovea-trees 1", "fovea-trees 2")), "m.trees:2: format version is not 1");
+  EXPECT_NE(parse_error(kModel, {"a", "c"}).find("m.trees:3: the model was trained on other features"), std::string::npos);
+  EXPECT_EQ(parse_error(replaced(kModel, "tree 1 3", "tree 2 3")), "m.trees:11: tree class '2' is not an integer in [0, 1]");
+  EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 1 0 0 2 0")),
+            "m.trees:8: a split node's children must follow it");
+  EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 1 0 1 3 0")), "m.trees:8: node right '3' is not an integer in [0, 2]");
+  EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "5 1 0 1 2 0")), "m.trees:8: node feature '5' is not an integer in [-1, 1]");
+  EXPECT_EQ(parse_error(replaced(kModel, "baseline 0.5 0", "baseline 0.5 nan")), "m.trees:5: baseline 'nan' is not a finite number");
+  EXPECT_EQ(parse_error(replaced(kModel, "-1 0 0 0 0 3\n", "")), "m.trees:14: ends where node feature should be");
+  EXPECT_EQ(parse_error(std::string(kModel) + "tree"), "m.trees:15: unexpected text after the last tree");
+  EXPECT_EQ(parse_error(replaced(kModel, "trees 2", "trees 99999999999")),
+            "m.trees:6: tree count '99999999999' is not an integer in [1, 4194304]");
+  EXPECT_EQ(parse_error(""), "m.trees:1: ends where fovea-trees should be");
+}
+
+TEST(Trees, AModelsClassesMustBeLabels) {
+  std::string features = "features " + std::to_string(kFeatureCount);
+  for (const auto& n : feature_names()) features += " " + n;
+  const std::string model = replaced(kModel, "features 2 a b", features);
+  EXPECT_NO_THROW(TreesModel(model, "m.trees"));
+  try {
+    TreesModel(replaced(model, "saccade", "wobble"), "m.trees");
+    FAIL() << "a class that is no label was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), "m.trees: class 'wobble' is none of fixation, saccade, pso, pursuit, noise, blink, lost");
+  }
+}
+
+TEST(Trees, TheBuiltInModelLoadsAndMatchesThisBuildsFeatures) {
+  const auto m = builtin_trees_model();
+  ASSERT_TRUE(m);
+  EXPECT_GE(m->trees().class_names().size(), 3u);
+  EXPECT_GT(m->trees().tree_count(), 0u);
+}
+
+namespace {
+
+std::deque<Prepared> line(double rate_hz, double seconds, double vx_deg_s, double noise_deg = 0) {
+  std::deque<Prepared> buf;
+  std::uint64_t seed = 7;
+  const auto gauss = [&] {  // a fixed pseudo-random stream, Box-Muller
+    const auto u = [&] {
+      seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+      return (static_cast<double>(seed >> 11) + 0.5) / 9007199254740992.0;
+    };
+    return std::sqrt(-2 * std::log(u())) * std::cos(2 * M_PI * u());
+  };
+  for (int k = 0; k < static_cast<int>(seconds * rate_hz); ++k) {
+    const double t = k / rate_hz;
+    buf.push_back({static_cast<std::uint64_t>(k), t, -5 + vx_deg_s * t + noise_deg * gauss(), 1 + noise_deg * gauss(),
+                   Prepared::Kind::Gaze});
+  }
+  return buf;
+}
+
+std::size_t at(const char* name) {
+  const auto& n = feature_names();
+  return static_cast<std::size_t>(std::find(n.begin(), n.end(), name) - n.begin());
+}
+
+}  // namespace
+
+TEST(Features, AnEvenMovementHasItsSpeedAtEveryScaleAndAnyRate) {
+  ASSERT_EQ(feature_names().size(), static_cast<std::size_t>(kFeatureCount));
+  for (double rate : {250.0, 500.0, 1000.0}) {
+    const std::deque<Prepared> buf = line(rate, 1.0, 10.0);
+    float f[kFeatureCount];
+    sample_features(buf, buf.size() / 2, fovea::protocol::DisplayGeometry{}, f);
+    for (const char* n : {"speed_c_4ms", "speed_b_16ms", "speed_f_64ms", "speed_c_256ms"}) {
+      EXPECT_NEAR(f[at(n)], 10.0, 0.02) << n << " at " << rate << " Hz";
+    }
+    EXPECT_NEAR(f[at("cos_32ms")], 1.0, 1e-5);
+    EXPECT_NEAR(f[at("straight_128ms")], 1.0, 1e-5);
+    // RMS spread of an even line over +-D: D v / sqrt(3).
+    EXPECT_NEAR(f[at("disp_128ms")], 0.128 * 10 / std::sqrt(3.0), 0.02);
+    EXPECT_FLOAT_EQ(f[at("loss_before_s")], static_cast<float>(kFeatureReachS));
+    EXPECT_FLOAT_EQ(f[at("filled")], 0.0f);
+    EXPECT_NEAR(f[at("noise_deg")], 0.0, 1e-4);
+  }
+}
+
+TEST(Features, NoiseIsStillAndCrooked) {
+  const std::deque<Prepared> buf = line(500, 1.0, 0.0, 0.05);
+  float f[kFeatureCount];
+  sample_features(buf, 250, fovea::protocol::DisplayGeometry{}, f);
+  EXPECT_LT(f[at("straight_256ms")], 0.2f);
+  EXPECT_LT(f[at("speed_c_256ms")], 0.5f);
+  EXPECT_NEAR(f[at("disp_256ms")], 0.05 * std::sqrt(2.0), 0.015);
+  // |second difference| of 2-D noise is Rayleigh with scale sqrt(6) sigma: median 1.1774 of that.
+  EXPECT_NEAR(f[at("noise_deg")], 0.05 * std::sqrt(6.0) * 1.1774, 0.03);
+}
+
+TEST(Features, ALossCutsTheScalesThatReachItAndSaysHowFarItIs) {
+  std::deque<Prepared> buf = line(250, 1.0, 2.0);
+  for (std::size_t k = 130; k < 140; ++k) buf[k].kind = Prepared::Kind::Blink;  // 520-556 ms
+  float f[kFeatureCount];
+  sample_features(buf, 125, fovea::protocol::DisplayGeometry{}, f);  // 500 ms: the loss starts 20 ms later
+  EXPECT_TRUE(std::isfinite(f[at("speed_c_16ms")]));
+  EXPECT_TRUE(std::isnan(f[at("speed_c_32ms")]));
+  EXPECT_TRUE(std::isnan(f[at("disp_256ms")]));
+  EXPECT_NEAR(f[at("loss_after_s")], 0.020, 1e-6);
+  EXPECT_FLOAT_EQ(f[at("loss_before_s")], static_cast<float>(kFeatureReachS));
+  sample_features(buf, 135, fovea::protocol::DisplayGeometry{}, f);  // in the loss: no gaze
+  EXPECT_TRUE(std::isnan(f[at("speed_c_4ms")]));
+  EXPECT_TRUE(std::isnan(f[at("noise_deg")]));
+  EXPECT_NEAR(f[at("loss_before_s")], 0.004, 1e-6);
+}
+
+TEST(Features, TheMatrixHasOneRowPerInputAndNanForRejectedTimes) {
+  std::vector<Sample> s;
+  for (int k = 0; k < 100; ++k) s.push_back({k * 0.004, 0.01 * k, 0, true});
+  s[50].t_s = s[49].t_s;  // time standing still: rejected
+  const std::vector<float> m = feature_matrix(s, fovea::protocol::DisplayGeometry{});
+  ASSERT_EQ(m.size(), s.size() * kFeatureCount);
+  EXPECT_TRUE(std::isnan(m[50 * std::size_t{kFeatureCount} + at("loss_before_s")]));
+  EXPECT_NEAR(m[60 * std::size_t{kFeatureCount} + at("speed_c_8ms")], 2.5, 1e-3);  // 0.01 deg per 4 ms
+}
+
+TEST(Features, GazeOffTheDisplaySaysHowFar) {
+  // The default display: 531.3 mm wide at 650 mm, so its edges are atan(265.65 / 650) = 22.23 deg out.
+  std::deque<Prepared> buf = line(250, 1.0, 0.0);
+  for (auto& p : buf) p.x = 30;
+  float f[kFeatureCount];
+  sample_features(buf, 100, fovea::protocol::DisplayGeometry{}, f);
+  EXPECT_NEAR(f[at("offscreen_deg")], 30 - std::atan(265.65 / 650) * 180 / M_PI, 0.01);
+  for (auto& p : buf) p.x = 20;
+  sample_features(buf, 100, fovea::protocol::DisplayGeometry{}, f);
+  EXPECT_EQ(f[at("offscreen_deg")], 0.0f);
+}
