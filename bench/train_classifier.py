@@ -18,7 +18,7 @@ GazeCom (../shared/data/gazecom, see its README): Dorr et al. 2010 (recordings),
 own; a model trained on it carries the data's terms (trackerd/classify/models/README.md).
 
 Usage: bench/train_classifier.py FOVEA_CTL (--out FILE | --lovo DIR) [--data DIR_OR_TAR] [--every N]
-       [--stride N] [--iterations N] [--leaves N] [--jobs N]
+       [--stride-ms MS] [--augment N] [--iterations N] [--leaves N] [--jobs N]
 """
 import argparse
 import concurrent.futures
@@ -38,22 +38,67 @@ CLASS_NAMES = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
 NOISE_NEAR_LOSS_S = 0.100  # trees_core.h, kNoiseNearLossS
 
 
-def features_of(ctl, path, cache):
-    """(features float32 rows x F, expert labels int) of one recording, cached per fovea-ctl build."""
-    npy = os.path.join(cache, os.path.basename(path) + ".npy")
-    lab = npy + ".labels.npy"
-    if not (os.path.exists(npy) and os.path.exists(lab)):
+def as_other_tracker(t_us, x, y, conf, final, geometry, rng):
+    """The recording as another tracker might have recorded the same eye movements: at another rate
+    (62.5 or 125 Hz by keeping every 4th or 2nd sample; 500 or 1000 Hz by linear interpolation), with
+    white noise of 0.02-0.35 deg RMS per axis (log-uniform) and 0-2 drop-outs a second (exponential
+    length, mean 20 ms, at most 200 ms, as sim/synthetic_gaze's). The labels go with the movement:
+    each new sample takes the label of the original sample nearest in time. GazeCom alone is one
+    tracker at one rate and one noise level; trees fitted to it alone fall apart on others."""
+    w_px, h_px, w_mm, h_mm, dist_mm = geometry
+    lost = ((x == 0) & (y == 0)) | (conf <= 0) | ~np.isfinite(x) | ~np.isfinite(y)
+    xd = np.degrees(np.arctan((x / w_px - 0.5) * w_mm / dist_mm))
+    yd = np.degrees(np.arctan((y / h_px - 0.5) * h_mm / dist_mm))
+    t = t_us / 1e6
+    rate = float(rng.choice([62.5, 125.0, 250.0, 500.0, 1000.0]))
+    if rate < RATE_HZ:
+        keep = np.arange(0, len(t), int(round(RATE_HZ / rate)))
+        nt, nx, ny, nlost, nlab = t[keep], xd[keep], yd[keep], lost[keep], np.asarray(final)[keep]
+    else:
+        nt = np.arange(t[0], t[-1], 1.0 / rate) if rate > RATE_HZ else t
+        j = np.clip(np.searchsorted(t, nt, side="right") - 1, 0, len(t) - 2)
+        w = np.clip((nt - t[j]) / np.maximum(t[j + 1] - t[j], 1e-9), 0, 1)
+        nx = xd[j] + w * (xd[j + 1] - xd[j])
+        ny = yd[j] + w * (yd[j + 1] - yd[j])
+        nlost = lost[j] | (lost[j + 1] & (w > 0))
+        nlab = np.asarray(final)[np.where(w < 0.5, j, j + 1)]
+    sigma = float(np.exp(rng.uniform(np.log(0.02), np.log(0.35))))
+    nx = nx + sigma * rng.standard_normal(len(nt))
+    ny = ny + sigma * rng.standard_normal(len(nt))
+    drops_per_s = rng.uniform(0, 2)
+    nlost = nlost.copy()
+    for start in rng.uniform(nt[0], nt[-1], rng.poisson(drops_per_s * (nt[-1] - nt[0]))):
+        nlost[(nt >= start) & (nt < start + min(0.2, rng.exponential(0.02)))] = True
+    px = (np.tan(np.radians(nx)) * dist_mm / w_mm + 0.5) * w_px
+    py = (np.tan(np.radians(ny)) * dist_mm / h_mm + 0.5) * h_px
+    return np.round(nt * 1e6).astype(np.int64), px, py, np.where(nlost, 0.0, 1.0), list(nlab), rate
+
+
+def features_of(ctl, path, copy, cache):
+    """(features float32 rows x F, expert labels int, rate) of a recording (copy 0) or of its copy
+    as another tracker would have recorded it (copy >= 1, seeded by name and copy), cached per
+    fovea-ctl build."""
+    stem = os.path.join(cache, os.path.basename(path) + ("" if copy == 0 else ".copy%d" % copy))
+    npy, lab, hz = stem + ".npy", stem + ".labels.npy", stem + ".rate"
+    if not (os.path.exists(npy) and os.path.exists(lab) and os.path.exists(hz)):
         geometry, t_us, x, y, conf, final, _, _ = read_arff(path)
+        rate = RATE_HZ
+        if copy:
+            seed = int.from_bytes(hashlib.sha256(f"{os.path.basename(path)} {copy}".encode()).digest()[:8], "little")
+            t_us, x, y, conf, final, rate = as_other_tracker(t_us, x, y, conf, final, geometry,
+                                                            np.random.default_rng(seed))
         with tempfile.TemporaryDirectory() as tmp:
             write_input(t_us, x, y, conf, os.path.join(tmp, "in.csv"))
             w_px, h_px, w_mm, h_mm, dist_mm = geometry
-            subprocess.run([ctl, "classify", os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv"), str(RATE_HZ),
+            subprocess.run([ctl, "classify", os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv"), "%g" % rate,
                             str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm, "%g" % dist_mm, "--method", "ivvt",
                             "--features-out", os.path.join(tmp, "f.npy")], check=True, capture_output=True)
             np.save(lab, np.array(final, dtype=np.int8))
+            with open(hz, "w") as f:
+                f.write("%g" % rate)
             os.replace(os.path.join(tmp, "f.npy"), npy)
             os.replace(os.path.join(tmp, "f.npy.names"), os.path.join(cache, "names"))
-    return np.load(npy), np.load(lab)
+    return np.load(npy), np.load(lab), float(open(hz).read())
 
 
 def build_key(ctl):
@@ -66,11 +111,14 @@ def build_key(ctl):
 
 
 def load_all(args, files):
+    """Every recording (copy 0) and args.augment copies of each: a list of (recording index,
+    features, labels, rate)."""
     cache = os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "fovea",
                          "gazecom-features", build_key(args.ctl))
     os.makedirs(cache, exist_ok=True)
+    units = [(i, c) for c in range(args.augment + 1) for i in range(len(files))]
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        data = list(pool.map(lambda p: features_of(args.ctl, p, cache), files))
+        data = list(pool.map(lambda u: (u[0],) + features_of(args.ctl, files[u[0]], u[1], cache), units))
     names = open(os.path.join(cache, "names")).read().split()
     return data, names
 
@@ -83,14 +131,15 @@ def fit(x, y, args):
     return clf
 
 
-def training_rows(data, keep, stride):
-    """Every stride-th labelled sample with gaze features of the recordings in keep."""
+def training_rows(data, keep, stride_ms):
+    """A labelled sample with gaze features every stride_ms of the recordings (and copies) whose
+    recording index is in keep."""
     xs, ys = [], []
-    for (f, lab), k in zip(data, keep):
-        if not k:
+    for i, f, lab, rate in data:
+        if i not in keep:
             continue
-        rows = np.arange(0, len(lab), stride)
-        rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, 0:1]).all(axis=1) & ~np.isnan(f[rows, -1])]
+        rows = np.arange(0, len(lab), max(1, int(round(stride_ms * rate / 1000.0))))
+        rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, -1])]
         xs.append(f[rows])
         ys.append(lab[rows])
     return np.concatenate(xs), np.concatenate(ys)
@@ -126,8 +175,10 @@ def labels(clf, f, names):
     p = clf.predict_proba(f)
     near = (np.minimum(f[:, names.index("loss_before_s")], f[:, names.index("loss_after_s")]).astype(np.float64)
             < NOISE_NEAR_LOSS_S) | (f[:, names.index("offscreen_deg")] > 0)
-    noise = list(clf.classes_).index(4)
     best = p.argmax(axis=1)
+    if 4 not in clf.classes_:
+        return clf.classes_[best]
+    noise = list(clf.classes_).index(4)
     movement = np.where(np.arange(p.shape[1]) == noise, -np.inf, p).argmax(axis=1)
     return clf.classes_[np.where((best == noise) & ~near, movement, best)]
 
@@ -137,14 +188,14 @@ def check_model(args, clf, path, data, files, which, names):
     (the C++ adds nothing after the trees but what it does to samples without gaze)."""
     mismatched, total = 0, 0
     for i in which:
-        f, _ = data[i]
+        f = next(u[1] for u in data if u[0] == i)
         geometry, t_us, x, y, conf, _, _, _ = read_arff(files[i])
         with tempfile.TemporaryDirectory() as tmp:
             write_input(t_us, x, y, conf, os.path.join(tmp, "in.csv"))
             w_px, h_px, w_mm, h_mm, dist_mm = geometry
             subprocess.run([args.ctl, "classify", os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv"),
                             str(RATE_HZ), str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm, "%g" % dist_mm, "--method",
-                            "gbt", "--model", path], check=True, capture_output=True)
+                            "gbt", "--model", path, "--trees-only"], check=True, capture_output=True)
             got = [line.split(",")[1] for line in open(os.path.join(tmp, "out.csv")).read().splitlines()[1:]]
         gaze = ~np.isnan(f[:, -1])
         want = np.array([CLASS_NAMES[int(c)] for c in labels(clf, f[gaze], names)])
@@ -166,7 +217,9 @@ def main():
     out.add_argument("--out", help="write one model fitted on every recording here")
     out.add_argument("--lovo", help="write DIR/<video>.trees, each fitted without that video")
     ap.add_argument("--every", type=int, default=1, help="every N-th recording (sorted by video, observer)")
-    ap.add_argument("--stride", type=int, default=4, help="train on every N-th sample of a recording")
+    ap.add_argument("--stride-ms", type=float, default=16, help="train on a sample every this many ms")
+    ap.add_argument("--augment", type=int, default=1,
+                    help="copies of each recording as other trackers would record it (as_other_tracker)")
     ap.add_argument("--iterations", type=int, default=60, help="boosting iterations (trees per class)")
     ap.add_argument("--leaves", type=int, default=31, help="leaves per tree at most")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
@@ -177,11 +230,12 @@ def main():
     videos = [os.path.basename(os.path.dirname(p)) for p in files]
     start = time.time()
     data, names = load_all(args, files)
-    print(f"train_classifier: features of {len(files)} recordings ({sum(len(l) for _, l in data)} samples, "
-          f"{len(names)} features) in {time.time() - start:.0f} s")
-    settings = f"iterations {args.iterations}, leaves {args.leaves}, every {args.stride}th sample"
+    print(f"train_classifier: features of {len(files)} recordings and {args.augment} copies of each "
+          f"({sum(len(u[2]) for u in data)} samples, {len(names)} features) in {time.time() - start:.0f} s")
+    settings = (f"iterations {args.iterations}, leaves {args.leaves}, a sample every {args.stride_ms:g} ms, "
+                f"{args.augment} copies as other trackers")
     if args.out:
-        x, y = training_rows(data, [True] * len(files), args.stride)
+        x, y = training_rows(data, set(range(len(files))), args.stride_ms)
         clf = fit(x, y, args)
         write_model(clf, names, args.out, f"{len(files)} GazeCom recordings, {len(x)} samples; {settings}")
         check_model(args, clf, args.out, data, files, range(0, len(files), max(1, len(files) // 4)), names)
@@ -189,7 +243,7 @@ def main():
         return
     os.makedirs(args.lovo, exist_ok=True)
     for v in sorted(set(videos)):
-        x, y = training_rows(data, [w != v for w in videos], args.stride)
+        x, y = training_rows(data, {i for i, w in enumerate(videos) if w != v}, args.stride_ms)
         clf = fit(x, y, args)
         path = os.path.join(args.lovo, v + ".trees")
         write_model(clf, names, path, f"GazeCom without {v}: {len(x)} samples; {settings}")

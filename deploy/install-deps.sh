@@ -32,6 +32,7 @@ PACKAGES=(
   # tests, benchmarks, report plots
   libgtest-dev libgmock-dev googletest libbenchmark-dev python3 python3-matplotlib
   python3-zmq python3-msgpack         # the fake Pupil Capture of the tests (tests/fakes/)
+  python3-sklearn                     # bench/train_classifier.py: fits the gbt classifier's trees
   # packaging: the Python package (python/), the Debian packages (debian/)
   python3-setuptools python3-pip python3-wheel
   debhelper dh-python fakeroot lintian python3-all pybuild-plugin-pyproject python3-build python3-installer

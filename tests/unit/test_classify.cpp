@@ -463,6 +463,24 @@ TEST(Classify, PostSaccadicOscillation) {
   EXPECT_EQ(share(classify_all("ivvt", 1000, clean), 0, clean.size(), Label::Pso), 0.0);
 }
 
+TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixation) {
+  const auto [s, off] = saccade_then(10, [](double dt) {
+    return 0.5 * std::exp(-dt / 0.015) * std::sin(2 * std::numbers::pi * 25 * dt);
+  });
+  ClassifierOptions o;
+  o.nominal_rate_hz = 1000;
+  const auto with = classify_all("gbt", o, s);
+  o.trees_only = true;
+  const auto trees = classify_all("gbt", o, s);
+  const auto ivvt = classify_all("ivvt", 1000, s);
+  EXPECT_EQ(share(trees, 0, s.size(), Label::Pso), 0.0);  // GazeCom's coders have no PSO class
+  EXPECT_GT(share(with, index_at(s, off + 0.008), index_at(s, off + 0.02), Label::Pso), 0.9);
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const bool takes = ivvt[i] == Label::Pso && (trees[i] == Label::Saccade || trees[i] == Label::Fixation);
+    ASSERT_EQ(with[i], takes ? Label::Pso : trees[i]) << i;
+  }
+}
+
 TEST(Classify, ThePsosSlowSwingBackIsPsoToo) {
   // A pupil-based tracker's PSO overshoots and returns (Hooge et al. 2015): here the eye lands
   // 0.4 deg beyond the target and comes back within ~50 ms, slower than the landing itself, so the

@@ -73,6 +73,13 @@ TEST(Trees, EvaluatesSplitsMissingValuesAndBaseline) {
   EXPECT_EQ(run(nan, nan), 1);  // a NaN: right in tree 0 (0.5 - 1), left in tree 1 (0)
   EXPECT_DOUBLE_EQ(s[0], -0.5);
   EXPECT_DOUBLE_EQ(s[1], 0.0);
+  // scikit-learn splits numbers from NaN with the threshold inf: every number goes left.
+  const TreeEnsemble inf = TreeEnsemble::parse(replaced(kModel, "0 1 0 1 2 0", "0 inf 0 1 2 0"), "m.trees", kTwo);
+  const float big[2] = {3e38f, 0.0f}, missing[2] = {nan, 0.0f};
+  inf.predict(big, s);
+  EXPECT_DOUBLE_EQ(s[0], 2.5);
+  inf.predict(missing, s);
+  EXPECT_DOUBLE_EQ(s[0], -0.5);
 }
 
 TEST(Trees, DamagedModelsAreRefusedNamingTheLineAndTheProblem) {
@@ -85,6 +92,8 @@ TEST(Trees, DamagedModelsAreRefusedNamingTheLineAndTheProblem) {
   EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 1 0 1 3 0")), "m.trees:8: node right '3' is not an integer in [0, 2]");
   EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "5 1 0 1 2 0")), "m.trees:8: node feature '5' is not an integer in [-1, 1]");
   EXPECT_EQ(parse_error(replaced(kModel, "baseline 0.5 0", "baseline 0.5 nan")), "m.trees:5: baseline 'nan' is not a finite number");
+  EXPECT_EQ(parse_error(replaced(kModel, "-1 0 0 0 0 2", "-1 0 0 0 0 inf")), "m.trees:9: node value 'inf' is not a finite number");
+  EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 nan 0 1 2 0")), "m.trees:8: node threshold 'nan' is not a number");
   EXPECT_EQ(parse_error(replaced(kModel, "-1 0 0 0 0 3\n", "")), "m.trees:14: ends where node feature should be");
   EXPECT_EQ(parse_error(std::string(kModel) + "tree"), "m.trees:15: unexpected text after the last tree");
   EXPECT_EQ(parse_error(replaced(kModel, "trees 2", "trees 99999999999")),

@@ -70,6 +70,8 @@ struct ClassifierOptions {
   protocol::DisplayGeometry display;
   // gbt: a tree model file (bench/train_classifier.py) instead of the one built in; "" = built in.
   std::string model_path;
+  // gbt: the trees' labels alone, without ivvt's PSO (what bench/train_classifier.py checks).
+  bool trees_only = false;
 };
 
 // Throws std::invalid_argument naming the method and listing the known ones (also for a rate that

@@ -33,12 +33,14 @@ class Tokens {
     }
     return v;
   }
-  double number(const char* what) {
+  // infinite_ok: +-inf are taken (a split that sends every number one way and only NaN the other
+  // has the threshold inf); NaN never is.
+  double number(const char* what, bool infinite_ok = false) {
     const std::string w = word(what);
     double v = 0;
     const auto [end, ec] = std::from_chars(w.data(), w.data() + w.size(), v);
-    if (ec != std::errc() || end != w.data() + w.size() || !std::isfinite(v)) {
-      fail(std::string(what) + " '" + w + "' is not a finite number");
+    if (ec != std::errc() || end != w.data() + w.size() || std::isnan(v) || (!infinite_ok && std::isinf(v))) {
+      fail(std::string(what) + " '" + w + (infinite_ok ? "' is not a number" : "' is not a finite number"));
     }
     return v;
   }
@@ -107,7 +109,7 @@ TreeEnsemble TreeEnsemble::parse(const std::string& text, const std::string& ori
     for (long k = 0; k < count; ++k) {
       Node n;
       n.feature = static_cast<int>(in.integer("node feature", -1, static_cast<long>(features.size()) - 1));
-      const double threshold = in.number("node threshold");
+      const double threshold = in.number("node threshold", true);
       n.missing_left = in.integer("node missing_left", 0, 1) == 1;
       const long left = in.integer("node left", 0, count - 1), right = in.integer("node right", 0, count - 1);
       const double value = in.number("node value");

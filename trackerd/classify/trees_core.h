@@ -36,10 +36,12 @@ std::shared_ptr<const TreesModel> load_trees_model(const std::string& path);  //
 
 // Called with each sample's input index and its kFeatureCount features as the core labels it.
 using FeatureSink = std::function<void(std::uint64_t index, const float* features)>;
-// The `gbt` pipeline: the standard front end and the trees core. model null: every gaze sample is
-// labelled unknown (feature extraction only).
+// The `gbt` pipeline: the standard front end (without the lid rule) and the trees core; with_pso:
+// ivvt's PSO where the trees say saccade or fixation (trees_core.cpp, WithPsoCore). model null:
+// every gaze sample is labelled unknown (feature extraction only).
 std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const TreesModel> model,
-                                                      const protocol::DisplayGeometry& display, FeatureSink sink = {});
+                                                      const protocol::DisplayGeometry& display, bool with_pso,
+                                                      FeatureSink sink = {});
 
 // The features of every input sample exactly as the `gbt` pipeline computes them online, row-major,
 // kFeatureCount per row; NaN rows for samples the pipeline rejected (bad times).

@@ -381,6 +381,7 @@ struct ClassifyArgs {
   std::optional<std::string> lost_at;  // --lost-at X,Y
   bool force = false, renumber = false, final_times = false, provisional = false;
   std::string model_path;    // --model (gbt)
+  bool trees_only = false;   // --trees-only (gbt)
   std::string features_out;  // --features-out F.npy (and F.npy.names)
 };
 
@@ -468,6 +469,7 @@ int cmd_classify(const ClassifyArgs& a) {
     options.nominal_rate_hz = a.rate_hz;
     options.display = g;
     options.model_path = a.model_path;
+    options.trees_only = a.trees_only;
     const cl::OnlineLabels result = cl::classify_online(a.method, options, input.samples);
     if (!a.features_out.empty()) write_features_npy(a.features_out, input.samples, g);
 
@@ -571,6 +573,9 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
   classify->add_option("--model", cls.model_path,
                        "gbt: a tree model written by bench/train_classifier.py instead of the built-in one")
       ->check(CLI::ExistingFile);
+  classify->add_flag("--trees-only", cls.trees_only,
+                     "gbt: the trees' labels alone, without ivvt's PSO (what bench/train_classifier.py compares "
+                     "with scikit-learn)");
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
