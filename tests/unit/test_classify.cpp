@@ -475,9 +475,13 @@ TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixation) {
   const auto ivvt = classify_all("ivvt", 1000, s);
   EXPECT_EQ(share(trees, 0, s.size(), Label::Pso), 0.0);  // GazeCom's coders have no PSO class
   EXPECT_GT(share(with, index_at(s, off + 0.008), index_at(s, off + 0.02), Label::Pso), 0.9);
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    const bool takes = ivvt[i] == Label::Pso && (trees[i] == Label::Saccade || trees[i] == Label::Fixation);
-    ASSERT_EQ(with[i], takes ? Label::Pso : trees[i]) << i;
+  for (std::size_t i = 0; i < s.size(); ++i) {  // (`with` is smoothed: its trees' labels are not `trees`)
+    if (with[i] == Label::Pso) {
+      ASSERT_EQ(ivvt[i], Label::Pso) << i;
+    }
+    if (ivvt[i] == Label::Pso) {
+      ASSERT_TRUE(with[i] != Label::Saccade && with[i] != Label::Fixation) << i;
+    }
   }
 }
 

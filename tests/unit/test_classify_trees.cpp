@@ -215,3 +215,26 @@ TEST(Features, GazeOffTheDisplaySaysHowFar) {
   sample_features(buf, 100, fovea::protocol::DisplayGeometry{}, f);
   EXPECT_EQ(f[at("offscreen_deg")], 0.0f);
 }
+
+TEST(Trees, SmoothingCallsASaccadeByTheShortWindowAndTheRestByTheLongOne) {
+  std::string features = "features " + std::to_string(kFeatureCount);
+  for (const auto& n : feature_names()) features += " " + n;
+  const std::string text = replaced(replaced(replaced(kModel, "features 2 a b", features), "classes 2 fixation saccade",
+                                             "classes 4 fixation saccade pursuit noise"),
+                                    "baseline 0.5 0", "baseline 0 0 0 0");
+  const TreesModel m(text, "m.trees");
+  const double sacc_near[4] = {0.3, 0.4, 0.2, 0.1}, wide[4] = {0.3, 0.35, 0.25, 0.1};
+  EXPECT_EQ(m.smoothed_label(sacc_near, wide, false), Label::Saccade);
+  const double fix_near[4] = {0.5, 0.4, 0.05, 0.05};
+  EXPECT_EQ(m.smoothed_label(fix_near, wide, false), Label::Fixation);  // the wide window's saccade does not count
+  const double pursuit_wide[4] = {0.3, 0.1, 0.5, 0.1};
+  EXPECT_EQ(m.smoothed_label(fix_near, pursuit_wide, false), Label::Pursuit);
+  const double noise_wide[4] = {0.2, 0.1, 0.25, 0.45};
+  EXPECT_EQ(m.smoothed_label(fix_near, noise_wide, true), Label::Blink);     // near a loss: the coders' noise
+  EXPECT_EQ(m.smoothed_label(fix_near, noise_wide, false), Label::Pursuit);  // elsewhere the best movement
+  double p[4];
+  const std::vector<float> f(kFeatureCount, 0.5f);
+  m.probabilities(f.data(), p);
+  EXPECT_NEAR(p[0] + p[1] + p[2] + p[3], 1.0, 1e-12);
+  EXPECT_NEAR(p[0] / p[2], std::exp(2.0), 1e-9);  // tree 0 adds 2 to fixation (0.5 <= 1), pursuit has no tree
+}

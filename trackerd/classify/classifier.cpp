@@ -65,7 +65,7 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
   const FrontendOptions standard;  // 75 ms gap fill-in, blink for losses up to 0.5 s
   if (name == "gbt") {
     return make_trees_pipeline(options.model_path.empty() ? builtin_trees_model() : load_trees_model(options.model_path),
-                               options.display, !options.trees_only);
+                               options.display, options.trees_only);
   }
   if (name == "ivvt") return std::make_unique<Pipeline>(name, standard, make_ivvt_core());
   if (name == "ivt") return std::make_unique<Pipeline>(name, standard, make_ivt_core());

@@ -70,7 +70,8 @@ struct ClassifierOptions {
   protocol::DisplayGeometry display;
   // gbt: a tree model file (bench/train_classifier.py) instead of the one built in; "" = built in.
   std::string model_path;
-  // gbt: the trees' labels alone, without ivvt's PSO (what bench/train_classifier.py checks).
+  // gbt: each sample's trees' label alone, neither smoothed nor with ivvt's PSO (what
+  // bench/train_classifier.py checks against scikit-learn).
   bool trees_only = false;
 };
 

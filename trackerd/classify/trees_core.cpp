@@ -4,6 +4,7 @@
 // bench/train_classifier.py. A sample is labelled once the stream has reached kFeatureReachS past
 // it, so the core's latency is that reach; samples without gaze keep the front end's blink/lost.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <deque>
@@ -31,33 +32,105 @@ Label label_of_class(const std::string& name, const std::string& origin) {
                               "' is none of fixation, saccade, pso, pursuit, noise, blink, lost");
 }
 
+// One sample's scores on their way to a label.
+struct Scored {
+  Labeled out;       // index and, for a sample without gaze, its front-end label
+  double t = 0;
+  bool gaze = false;
+  bool noise_ok = false;      // TreesModel::noise_allowed
+  std::uint64_t run = 0;      // gaze run: a sample without gaze ends one
+  std::array<double, kMaxTreeClasses> p{};  // class probabilities
+};
+
 class TreesCore final : public Core {
  public:
-  TreesCore(std::shared_ptr<const TreesModel> model, const protocol::DisplayGeometry& display, FeatureSink sink)
-      : model_(std::move(model)), display_(display), sink_(std::move(sink)) {}
+  TreesCore(std::shared_ptr<const TreesModel> model, const protocol::DisplayGeometry& display, bool smooth,
+            FeatureSink sink)
+      : model_(std::move(model)), display_(display), smooth_(smooth && model_), sink_(std::move(sink)) {}
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
+    newest_t_ = p.t;
     buf_.push_back(p);
-    while (next_ < buf_.size() && buf_[next_].t + kFeatureReachS <= p.t) label_next(out);
+    while (next_ < buf_.size() && buf_[next_].t + kFeatureReachS <= p.t) score_next(out);
     trim();
+    if (smooth_) label_smoothed(out, false);
   }
   void flush(std::vector<Labeled>& out) override {
-    while (next_ < buf_.size()) label_next(out);
+    while (next_ < buf_.size()) score_next(out);
     buf_.clear();
     next_ = 0;
+    if (smooth_) label_smoothed(out, true);
   }
-  double latency_s() const override { return kFeatureReachS; }
+  double latency_s() const override { return kFeatureReachS + (smooth_ ? kSmoothLongS : 0.0); }
 
  private:
-  void label_next(std::vector<Labeled>& out) {
+  // The features and the trees' scores of the next sample: its label at once (no smoothing), or
+  // into scored_ to be smoothed.
+  void score_next(std::vector<Labeled>& out) {
     const Prepared& p = buf_[next_];
     float f[kFeatureCount];
     sample_features(buf_, next_, display_, f);
     if (sink_) sink_(p.index, f);
-    Label label = p.kind == Prepared::Kind::Lost ? Label::Lost : Label::Blink;
-    if (p.has_gaze()) label = model_ ? model_->label(f) : Label::Unknown;
-    out.push_back({p.index, label});
+    Scored s;
+    s.out = {p.index, p.kind == Prepared::Kind::Lost ? Label::Lost : Label::Blink};
+    s.t = p.t;
+    s.gaze = p.has_gaze();
+    if (!s.gaze) ++run_;
+    s.run = run_;
     ++next_;
+    if (s.gaze) {
+      if (!model_) {
+        s.out.label = Label::Unknown;
+      } else if (!smooth_) {
+        s.out.label = model_->label(f);
+      } else {
+        model_->probabilities(f, s.p.data());
+        s.noise_ok = TreesModel::noise_allowed(f);
+      }
+    }
+    if (smooth_) {
+      scored_.push_back(s);
+    } else {
+      out.push_back(s.out);
+    }
+  }
+  // Labels every scored sample whose smoothing window is complete: the stream has reached the
+  // latency past it (every sample within kSmoothLongS after it has arrived and been scored), or a
+  // later gaze run has begun (everything, at the end of the stream).
+  void label_smoothed(std::vector<Labeled>& out, bool all) {
+    while (labelled_ < scored_.size()) {
+      const Scored& s = scored_[labelled_];
+      if (!all && scored_.back().run == s.run && s.t > newest_t_ - latency_s()) break;
+      Labeled l = s.out;
+      if (s.gaze) {
+        std::array<double, kMaxTreeClasses> near{}, wide{};
+        window_mean(labelled_, kSmoothShortS, near);
+        window_mean(labelled_, kSmoothLongS, wide);
+        l.label = model_->smoothed_label(near.data(), wide.data(), s.noise_ok);
+      }
+      out.push_back(l);
+      ++labelled_;
+    }
+    // Keep what the next label's window reaches back to.
+    while (labelled_ > 0 && (labelled_ == scored_.size() || scored_[labelled_].t - scored_.front().t > kSmoothLongS)) {
+      scored_.pop_front();
+      --labelled_;
+    }
+  }
+  // The mean class probabilities over the samples of j's gaze run within +-half of it.
+  void window_mean(std::size_t j, double half, std::array<double, kMaxTreeClasses>& mean) const {
+    const Scored& c = scored_[j];
+    double n = 0;
+    const auto add = [&](const Scored& s) {
+      for (std::size_t k = 0; k < mean.size(); ++k) mean[k] += s.p[k];
+      n += 1;
+    };
+    add(c);
+    for (std::size_t k = j; k-- > 0 && scored_[k].run == c.run && c.t - scored_[k].t <= half;) add(scored_[k]);
+    for (std::size_t k = j + 1; k < scored_.size() && scored_[k].run == c.run && scored_[k].t - c.t <= half; ++k) {
+      add(scored_[k]);
+    }
+    for (double& m : mean) m /= n;
   }
   // Keep what the next sample's features reach back to: the samples within kFeatureReachS before
   // it and the one just beyond (interpolation's other end).
@@ -69,9 +142,14 @@ class TreesCore final : public Core {
   }
   std::shared_ptr<const TreesModel> model_;
   protocol::DisplayGeometry display_;
+  bool smooth_;
   FeatureSink sink_;
   std::deque<Prepared> buf_;
-  std::size_t next_ = 0;  // the first sample not yet labelled
+  std::size_t next_ = 0;  // the first sample not yet scored
+  std::deque<Scored> scored_;
+  std::size_t labelled_ = 0;  // the first of scored_ not yet labelled
+  std::uint64_t run_ = 0;
+  double newest_t_ = 0;  // the newest pushed sample's time
 };
 
 // The trees and ivvt side by side on the same prepared samples: the trees' labels, but where ivvt
@@ -130,24 +208,53 @@ extern const std::string kModelText;
 
 TreesModel::TreesModel(const std::string& text, const std::string& origin)
     : trees_(TreeEnsemble::parse(text, origin, feature_names())) {
+  if (trees_.class_names().size() > kMaxTreeClasses) {
+    throw std::invalid_argument(origin + ": " + std::to_string(trees_.class_names().size()) + " classes (at most " +
+                                std::to_string(kMaxTreeClasses) + ")");
+  }
   for (const std::string& c : trees_.class_names()) labels_.push_back(label_of_class(c, origin));
 }
 
 Label TreesModel::label(const float* features) const {
-  double scores[64];
+  double scores[kMaxTreeClasses];
   const auto best = static_cast<std::size_t>(trees_.predict(features, scores));
   if (labels_[best] != Label::Blink || noise_allowed(features)) return labels_[best];
-  // Elsewhere the coders' noise is GazeCom's own: odd stretches of gaze. On other trackers what
-  // looks like it is mostly fast, large saccades (an EyeLink 1000's at 1000 Hz went to noise by the
-  // thousand): the front end already removes what no eye can do, so here the best class that is a
-  // movement wins.
+  return labels_[best_movement(scores, best)];
+}
+
+std::size_t TreesModel::best_movement(const double* scores, std::size_t fallback) const {
+  // Away from a loss and off-screen gaze the coders' noise is GazeCom's own: odd stretches of gaze.
+  // On other trackers what looks like it is mostly fast, large saccades (an EyeLink 1000's at 1000
+  // Hz went to noise by the thousand): the front end already removes what no eye can do, so there
+  // the best class that is a movement wins.
   std::size_t movement = labels_.size();
   for (std::size_t c = 0; c < labels_.size(); ++c) {
     if (labels_[c] != Label::Blink && labels_[c] != Label::Lost && (movement == labels_.size() || scores[c] > scores[movement])) {
       movement = c;
     }
   }
-  return movement < labels_.size() ? labels_[movement] : labels_[best];
+  return movement < labels_.size() ? movement : fallback;
+}
+
+void TreesModel::probabilities(const float* features, double* p) const {
+  const std::size_t k = labels_.size();
+  trees_.predict(features, p);
+  const double top = *std::max_element(p, p + k);
+  double sum = 0;
+  for (std::size_t c = 0; c < k; ++c) sum += p[c] = std::exp(p[c] - top);  // softmax, as scikit-learn's
+  for (std::size_t c = 0; c < k; ++c) p[c] /= sum;
+}
+
+Label TreesModel::smoothed_label(const double* near, const double* wide, bool noise_ok) const {
+  const std::size_t k = labels_.size();
+  const auto saccade = static_cast<std::size_t>(std::find(labels_.begin(), labels_.end(), Label::Saccade) - labels_.begin());
+  if (saccade < k && std::max_element(near, near + k) == near + saccade) return Label::Saccade;
+  double rest[kMaxTreeClasses];
+  std::copy(wide, wide + k, rest);
+  if (saccade < k) rest[saccade] = -1;  // the short window said no saccade
+  const auto best = static_cast<std::size_t>(std::max_element(rest, rest + k) - rest);
+  if (labels_[best] != Label::Blink || noise_ok) return labels_[best];
+  return labels_[best_movement(rest, best)];
 }
 
 bool TreesModel::noise_allowed(const float* features) {
@@ -171,20 +278,20 @@ std::shared_ptr<const TreesModel> load_trees_model(const std::string& path) {
 }
 
 std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const TreesModel> model,
-                                                      const protocol::DisplayGeometry& display, bool with_pso,
+                                                      const protocol::DisplayGeometry& display, bool trees_only,
                                                       FeatureSink sink) {
   // The trees learned the lid's artefact around blinks from the coders' noise labels (and the
   // loss times among the features): the front end's lid rule would only overrule them.
   FrontendOptions o;
   o.lid_opening_max_s = 0;
-  std::unique_ptr<Core> trees = std::make_unique<TreesCore>(std::move(model), display, std::move(sink));
+  std::unique_ptr<Core> trees = std::make_unique<TreesCore>(std::move(model), display, !trees_only, std::move(sink));
   return std::make_unique<Pipeline>(
-      "gbt", o, with_pso ? std::make_unique<WithPsoCore>(std::move(trees), make_ivvt_core()) : std::move(trees));
+      "gbt", o, trees_only ? std::move(trees) : std::make_unique<WithPsoCore>(std::move(trees), make_ivvt_core()));
 }
 
 std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display) {
   std::vector<float> m(samples.size() * kFeatureCount, std::numeric_limits<float>::quiet_NaN());
-  auto pipeline = make_trees_pipeline(nullptr, display, false, [&](std::uint64_t index, const float* f) {
+  auto pipeline = make_trees_pipeline(nullptr, display, true, [&](std::uint64_t index, const float* f) {
     std::copy(f, f + kFeatureCount, m.begin() + static_cast<std::ptrdiff_t>(index * kFeatureCount));
   });
   std::vector<Labeled> out;

@@ -18,15 +18,29 @@ namespace fovea::trackerd::classify {
 // blink where a loss of data is within kNoiseNearLossS (the lid's artefacts around it) or the gaze
 // is off the display; elsewhere the best of the movement classes wins.
 inline constexpr double kNoiseNearLossS = 0.100;
+// Smoothing (issue 43): a single sample's trees flip between classes, splitting one pursuit or
+// fixation into many events. A saccade is called where the class probabilities averaged over
+// +-kSmoothShortS make it the most likely (saccades are short); any other class by the average over
+// +-kSmoothLongS. Measured on held-out GazeCom videos: event F1 0.65 / 0.87 / 0.08 -> 0.89 / 0.93 /
+// 0.38 (fixation / saccade / pursuit) at no cost in sample F1.
+inline constexpr double kSmoothShortS = 0.008;
+inline constexpr double kSmoothLongS = 0.048;
+inline constexpr std::size_t kMaxTreeClasses = 8;
 class TreesModel {
  public:
-  // Throws std::invalid_argument naming origin and what is wrong.
+  // Throws std::invalid_argument naming origin and what is wrong (also more than kMaxTreeClasses).
   TreesModel(const std::string& text, const std::string& origin);
+  // One sample's label from its own scores (the noise rule applied): what scikit-learn predicts.
   Label label(const float* features) const;
+  // Class probabilities (softmax of the raw scores) into p[0..classes).
+  void probabilities(const float* features, double* p) const;
+  // The label from probabilities averaged over the short and the long window (above).
+  Label smoothed_label(const double* near, const double* wide, bool noise_ok) const;
   static bool noise_allowed(const float* features);
   const TreeEnsemble& trees() const { return trees_; }
 
  private:
+  std::size_t best_movement(const double* scores, std::size_t fallback) const;
   TreeEnsemble trees_;
   std::vector<Label> labels_;  // per class
 };
@@ -36,11 +50,12 @@ std::shared_ptr<const TreesModel> load_trees_model(const std::string& path);  //
 
 // Called with each sample's input index and its kFeatureCount features as the core labels it.
 using FeatureSink = std::function<void(std::uint64_t index, const float* features)>;
-// The `gbt` pipeline: the standard front end (without the lid rule) and the trees core; with_pso:
-// ivvt's PSO where the trees say saccade or fixation (trees_core.cpp, WithPsoCore). model null:
-// every gaze sample is labelled unknown (feature extraction only).
+// The `gbt` pipeline: the standard front end (without the lid rule), the trees core with its
+// smoothing, and ivvt's PSO where the trees say saccade or fixation (trees_core.cpp, WithPsoCore).
+// trees_only: each sample's own trees' label, neither smoothed nor with PSO (what scikit-learn
+// predicts). model null: every gaze sample is labelled unknown (feature extraction only).
 std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const TreesModel> model,
-                                                      const protocol::DisplayGeometry& display, bool with_pso,
+                                                      const protocol::DisplayGeometry& display, bool trees_only,
                                                       FeatureSink sink = {});
 
 // The features of every input sample exactly as the `gbt` pipeline computes them online, row-major,

@@ -574,8 +574,8 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
                        "gbt: a tree model written by bench/train_classifier.py instead of the built-in one")
       ->check(CLI::ExistingFile);
   classify->add_flag("--trees-only", cls.trees_only,
-                     "gbt: the trees' labels alone, without ivvt's PSO (what bench/train_classifier.py compares "
-                     "with scikit-learn)");
+                     "gbt: each sample's own trees' label, neither smoothed nor with ivvt's PSO (what "
+                     "bench/train_classifier.py compares with scikit-learn)");
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
