@@ -32,7 +32,8 @@ const std::vector<ClassifierInfo>& classifiers() {
       {"gbt",
        "gradient-boosted trees (issue 43) over multi-scale speed, direction-consistency and dispersion "
        "features (Larsson et al. 2015; Startsev et al. 2019) of +-256 ms around each sample, trained on "
-       "GazeCom's expert labels (bench/train_classifier.py); gap fill-in 75 ms"},
+       "GazeCom's expert labels and copies of them as other trackers would record them "
+       "(bench/train_classifier.py), smoothed over +-8/48 ms; PSO by ivvt's rule; gap fill-in 75 ms"},
       {"ivt",
        "I-VT after the Tobii I-VT filter (Olsen 2012): 20 ms velocity window, 30 deg/s, gap fill-in 75 ms, "
        "merge fixations within 75 ms and 0.5 deg, discard fixations under 60 ms"},

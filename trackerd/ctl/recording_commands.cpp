@@ -503,36 +503,8 @@ int cmd_classify(const ClassifyArgs& a) {
   }
 }
 
-}  // namespace
-
-std::vector<Command> add_recording_commands(CLI::App& app) {
-  struct Options {
-    ConvertArgs cv;
-    std::string info_path;
-    ClassifyArgs cls;
-  };
-  auto o = std::make_shared<Options>();
-  auto& [cv, info_path, cls] = *o;
-  auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files), or "
-                                                "export a recording to a BIDS dataset (--format bids)");
-  convert->add_option("IN", cv.in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
-  convert->add_option("OUT", cv.out_path, "output .fgr or .csv; with --format bids the BIDS dataset directory")->required();
-  convert->add_flag("--force", cv.force, "replace OUT if it exists (not with --format bids)");
-  convert->add_option("--format", cv.format,
-                      "auto (by OUT's extension: .fgr or .csv), fgr, csv, or bids: OUT is a BIDS dataset directory "
-                      "(eye-tracking physio + physioevents, BIDS 1.10; never replaces a file)")
-      ->check(CLI::IsMember({"auto", "fgr", "csv", "bids"}))
-      ->capture_default_str();
-  convert->add_option("--subject", cv.bids.subject, "--format bids: the sub-<label> (letters and digits)");
-  convert->add_option("--task", cv.bids.task, "--format bids: the task-<label>");
-  convert->add_option("--session", cv.bids.session, "--format bids: the ses-<label> (default: none)");
-  convert->add_option("--run", cv.bids.run, "--format bids: the run-<index> (digits; default: none)");
-  convert->add_option("--recording", cv.bids.recording, "--format bids: the recording-<label>")->capture_default_str();
-
-  auto* info = app.add_subcommand("info", "describe a recording: display, rate, span, events, integrity");
-  info->add_option("FILE", info_path, ".fgr or .csv file")->required()->check(CLI::ExistingFile);
-
-  // classify: offline eye-movement classification (trackerd/CLASSIFY.md)
+// classify: offline eye-movement classification (trackerd/CLASSIFY.md)
+CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
   auto* classify = app.add_subcommand("classify", "label every gaze sample of a CSV (t_ms,x_px,y_px) as fixation, "
                                                   "saccade, pso, pursuit, blink, lost or unknown");
   classify->add_option("IN", cls.in_path, "input CSV with header t_ms,x_px,y_px (nan or an empty x_px/y_px marks a lost sample)")
@@ -579,6 +551,40 @@ std::vector<Command> add_recording_commands(CLI::App& app) {
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
+
+  return classify;
+}
+
+}  // namespace
+
+std::vector<Command> add_recording_commands(CLI::App& app) {
+  struct Options {
+    ConvertArgs cv;
+    std::string info_path;
+    ClassifyArgs cls;
+  };
+  auto o = std::make_shared<Options>();
+  auto& [cv, info_path, cls] = *o;
+  auto* convert = app.add_subcommand("convert", "convert between .fgr and .csv (also repairs damaged .fgr files), or "
+                                                "export a recording to a BIDS dataset (--format bids)");
+  convert->add_option("IN", cv.in_path, "input .fgr or .csv")->required()->check(CLI::ExistingFile);
+  convert->add_option("OUT", cv.out_path, "output .fgr or .csv; with --format bids the BIDS dataset directory")->required();
+  convert->add_flag("--force", cv.force, "replace OUT if it exists (not with --format bids)");
+  convert->add_option("--format", cv.format,
+                      "auto (by OUT's extension: .fgr or .csv), fgr, csv, or bids: OUT is a BIDS dataset directory "
+                      "(eye-tracking physio + physioevents, BIDS 1.10; never replaces a file)")
+      ->check(CLI::IsMember({"auto", "fgr", "csv", "bids"}))
+      ->capture_default_str();
+  convert->add_option("--subject", cv.bids.subject, "--format bids: the sub-<label> (letters and digits)");
+  convert->add_option("--task", cv.bids.task, "--format bids: the task-<label>");
+  convert->add_option("--session", cv.bids.session, "--format bids: the ses-<label> (default: none)");
+  convert->add_option("--run", cv.bids.run, "--format bids: the run-<index> (digits; default: none)");
+  convert->add_option("--recording", cv.bids.recording, "--format bids: the recording-<label>")->capture_default_str();
+
+  auto* info = app.add_subcommand("info", "describe a recording: display, rate, span, events, integrity");
+  info->add_option("FILE", info_path, ".fgr or .csv file")->required()->check(CLI::ExistingFile);
+
+  CLI::App* classify = add_classify_command(app, cls);
 
   return {
       {convert, [o] { return cmd_convert_any(o->cv); }},
