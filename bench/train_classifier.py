@@ -38,6 +38,16 @@ CLASS_NAMES = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
 NOISE_NEAR_LOSS_S = 0.100  # trees_core.h, kNoiseNearLossS
 
 
+def classify(ctl, tmp, gaze, geometry, rate, extra):
+    """fovea-ctl classify on one recording (t_us, x, y, conf) in directory tmp: its labels."""
+    write_input(*gaze, os.path.join(tmp, "in.csv"))
+    w_px, h_px, w_mm, h_mm, dist_mm = geometry
+    subprocess.run([ctl, "classify", os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv"), "%g" % rate,
+                    str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm, "%g" % dist_mm] + extra,
+                   check=True, capture_output=True)
+    return [line.split(",")[1] for line in open(os.path.join(tmp, "out.csv")).read().splitlines()[1:]]
+
+
 def as_other_tracker(t_us, x, y, conf, final, geometry, rng):
     """The recording as another tracker might have recorded the same eye movements: at another rate
     (62.5 or 125 Hz by keeping every 4th or 2nd sample; 500 or 1000 Hz by linear interpolation), with
@@ -88,11 +98,7 @@ def features_of(ctl, path, copy, cache):
             t_us, x, y, conf, final, rate = as_other_tracker(t_us, x, y, conf, final, geometry,
                                                             np.random.default_rng(seed))
         with tempfile.TemporaryDirectory() as tmp:
-            write_input(t_us, x, y, conf, os.path.join(tmp, "in.csv"))
-            w_px, h_px, w_mm, h_mm, dist_mm = geometry
-            subprocess.run([ctl, "classify", os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv"), "%g" % rate,
-                            str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm, "%g" % dist_mm, "--method", "ivvt",
-                            "--features-out", os.path.join(tmp, "f.npy")], check=True, capture_output=True)
+            classify(ctl, tmp, (t_us, x, y, conf), geometry, rate, ["--features-out", os.path.join(tmp, "f.npy")])
             np.save(lab, np.array(final, dtype=np.int8))
             with open(hz, "w") as f:
                 f.write("%g" % rate)
@@ -191,12 +197,8 @@ def check_model(args, clf, path, data, files, which, names):
         f = next(u[1] for u in data if u[0] == i)
         geometry, t_us, x, y, conf, _, _, _ = read_arff(files[i])
         with tempfile.TemporaryDirectory() as tmp:
-            write_input(t_us, x, y, conf, os.path.join(tmp, "in.csv"))
-            w_px, h_px, w_mm, h_mm, dist_mm = geometry
-            subprocess.run([args.ctl, "classify", os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv"),
-                            str(RATE_HZ), str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm, "%g" % dist_mm, "--method",
-                            "gbt", "--model", path, "--trees-only"], check=True, capture_output=True)
-            got = [line.split(",")[1] for line in open(os.path.join(tmp, "out.csv")).read().splitlines()[1:]]
+            got = classify(args.ctl, tmp, (t_us, x, y, conf), geometry, RATE_HZ,
+                           ["--method", "gbt", "--model", path, "--trees-only"])
         gaze = ~np.isnan(f[:, -1])
         want = np.array([CLASS_NAMES[int(c)] for c in labels(clf, f[gaze], names)])
         got = np.array(got)[gaze]

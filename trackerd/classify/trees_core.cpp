@@ -1,13 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 // The learned method, `gbt` (issue 43): each sample's multi-scale features (features.h) go through a
 // gradient-boosted tree ensemble (trees.h) trained on human-coded recordings by
-// bench/train_classifier.py. A sample is labelled once the stream has reached kFeatureReachS past
-// it, so the core's latency is that reach; samples without gaze keep the front end's blink/lost.
+// bench/train_classifier.py. A sample is scored once the stream has reached kFeatureReachS past it
+// and labelled once its smoothing window (kSmoothLongS) is scored too; ivvt's core beside it gives
+// the PSO. Samples without gaze keep the front end's blink/lost.
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <deque>
+#include <limits>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -157,7 +158,7 @@ class TreesCore final : public Core {
 // saccade or fixation, pso. GazeCom's coders have no PSO class (the trees learned to count it into
 // the saccade or the fixation); the EyeLink coder and Andersson et al. 2017's (the Lund set) label it
 // apart, and a saccade that swallows its PSO costs their saccade and fixation agreement (on the
-// EyeLink set, fixation+saccade kappa 0.79 -> 0.83 with this). Both cores label in input order, so
+// EyeLink set, fixation+saccade kappa 0.78 -> 0.82 with this). Both cores label in input order, so
 // their outputs pair up index by index.
 class WithPsoCore final : public Core {
  public:
@@ -184,14 +185,14 @@ class WithPsoCore final : public Core {
       out.push_back(l);
     }
     t_at_ += n, i_at_ += n;
-    compact(from_trees_, t_at_);
-    compact(from_ivvt_, i_at_);
+    drop_paired(from_trees_, t_at_);
+    drop_paired(from_ivvt_, i_at_);
   }
-  static void compact(std::vector<Labeled>& v, std::size_t& at) {
-    if (at == v.size()) {
-      v.clear();
-      at = 0;
-    }
+  // The cores' latencies differ, so one side always holds a few unpaired labels: drop what was
+  // paired every time (clearing only when a side is empty would let the other grow without end).
+  static void drop_paired(std::vector<Labeled>& v, std::size_t& at) {
+    v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(at));
+    at = 0;
   }
   std::unique_ptr<Core> trees_, ivvt_;
   std::vector<Labeled> from_trees_, from_ivvt_;
