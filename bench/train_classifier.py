@@ -1,24 +1,34 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: Apache-2.0
-"""Trains the `gbt` classifier's tree model on GazeCom's expert labels (issue 43).
+"""Trains the `gbt` classifier's tree models on GazeCom's expert labels (issue 43).
 
-Features come from fovea-ctl itself (`classify --method gbt --features-out`), so training and the
-daemon see exactly the same numbers; scikit-learn's HistGradientBoostingClassifier (Debian's
-python3-sklearn) fits the trees, and they are written in fovea's own text format
-(trackerd/classify/trees.h), which the C++ evaluates without scikit-learn. After writing a model the
-script checks that fovea-ctl with it gives scikit-learn's own predictions on held-back recordings.
+Features come from fovea-ctl itself (`classify --method gbt --features-out / --context-out`), so
+training and the daemon see exactly the same numbers; scikit-learn's HistGradientBoostingClassifier
+(Debian's python3-sklearn) fits the trees, and they are written in fovea's own text format
+(trackerd/classify/trees.h and trees_core.h), which the C++ evaluates without scikit-learn. After
+writing a model the script checks that fovea-ctl with it gives scikit-learn's own predictions on
+held-back recordings.
 
-  --out FILE                 one model on every recording given (the built-in model:
-                             trackerd/classify/models/gazecom.trees)
+Two stages (trees_core.h, GbtModel): the first over each sample's features (features.h), the second
+over the first's probabilities around the sample (context.h), once with the daemon's look-ahead
+(online) and once with the whole reach (offline). The second stage must learn from first-stage
+probabilities on recordings that stage did not see (stacking), so its rows come from each video's
+leave-one-video-out first stage: --lovo's DIR/<video>.frame.trees (fitted when missing, reused when
+present with the same settings).
+
   --lovo DIR                 leave-one-video-out: DIR/<video>.trees fitted on the other 17 videos,
                              for bench/eval_classify_gazecom.py --lovo DIR
+  --out FILE --lovo DIR      one model on every recording (the built-in one:
+                             trackerd/classify/models/gazecom.trees); DIR as above, for the
+                             second stage's rows
 
 GazeCom (../shared/data/gazecom, see its README): Dorr et al. 2010 (recordings), Agtzidis, Startsev
 & Dorr 2016 and Startsev, Agtzidis & Dorr 2019 (labels). The copy here states no licence of its
 own; a model trained on it carries the data's terms (trackerd/classify/models/README.md).
 
-Usage: bench/train_classifier.py FOVEA_CTL (--out FILE | --lovo DIR) [--data DIR_OR_TAR] [--every N]
-       [--stride-ms MS] [--augment N] [--iterations N] [--leaves N] [--jobs N]
+Usage: bench/train_classifier.py FOVEA_CTL [--out FILE] --lovo DIR [--data DIR_OR_TAR] [--every N]
+       [--stride-ms MS] [--augment N] [--iterations N] [--leaves N] [--context-stride-ms MS]
+       [--context-iterations N] [--frame-only] [--jobs N]
 """
 import argparse
 import concurrent.futures
@@ -36,6 +46,8 @@ from eval_classify_gazecom import RATE_HZ, read_arff, unpacked, write_input  # n
 
 CLASS_NAMES = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
 NOISE_NEAR_LOSS_S = 0.100  # trees_core.h, kNoiseNearLossS
+ONLINE_LOOKAHEAD_S = 0.032  # trees_core.h, kOnlineLookaheadS
+OFFLINE_LOOKAHEAD_S = 0.512  # context.h, kContextReachS
 
 
 def classify(ctl, tmp, gaze, geometry, rate, extra):
@@ -84,26 +96,41 @@ def as_other_tracker(t_us, x, y, conf, final, geometry, rng):
     return np.round(nt * 1e6).astype(np.int64), px, py, np.where(nlost, 0.0, 1.0), list(nlab), rate
 
 
+def recording(path, copy):
+    """(gaze (t_us, x, y, conf), geometry, expert labels, rate) of a recording (copy 0) or of its copy
+    as another tracker would have recorded it (copy >= 1, seeded by name and copy)."""
+    geometry, t_us, x, y, conf, final, _, _ = read_arff(path)
+    rate = RATE_HZ
+    if copy:
+        seed = int.from_bytes(hashlib.sha256(f"{os.path.basename(path)} {copy}".encode()).digest()[:8], "little")
+        t_us, x, y, conf, final, rate = as_other_tracker(t_us, x, y, conf, final, geometry,
+                                                        np.random.default_rng(seed))
+    return (t_us, x, y, conf), geometry, final, rate
+
+
+def matrix_out(ctl, path, copy, option, extra=()):
+    """fovea-ctl's --features-out or --context-out matrix of a recording or copy, and its names."""
+    gaze, geometry, _, rate = recording(path, copy)
+    with tempfile.TemporaryDirectory() as tmp:
+        classify(ctl, tmp, gaze, geometry, rate, list(extra) + [option, os.path.join(tmp, "f.npy")])
+        return np.load(os.path.join(tmp, "f.npy")), open(os.path.join(tmp, "f.npy.names")).read().split()
+
+
 def features_of(ctl, path, copy, cache):
-    """(features float32 rows x F, expert labels int, rate) of a recording (copy 0) or of its copy
-    as another tracker would have recorded it (copy >= 1, seeded by name and copy), cached per
+    """(features float32 rows x F, expert labels int, rate) of a recording or copy, cached per
     fovea-ctl build."""
     stem = os.path.join(cache, os.path.basename(path) + ("" if copy == 0 else ".copy%d" % copy))
     npy, lab, hz = stem + ".npy", stem + ".labels.npy", stem + ".rate"
     if not (os.path.exists(npy) and os.path.exists(lab) and os.path.exists(hz)):
-        geometry, t_us, x, y, conf, final, _, _ = read_arff(path)
-        rate = RATE_HZ
-        if copy:
-            seed = int.from_bytes(hashlib.sha256(f"{os.path.basename(path)} {copy}".encode()).digest()[:8], "little")
-            t_us, x, y, conf, final, rate = as_other_tracker(t_us, x, y, conf, final, geometry,
-                                                            np.random.default_rng(seed))
-        with tempfile.TemporaryDirectory() as tmp:
-            classify(ctl, tmp, (t_us, x, y, conf), geometry, rate, ["--features-out", os.path.join(tmp, "f.npy")])
-            np.save(lab, np.array(final, dtype=np.int8))
-            with open(hz, "w") as f:
-                f.write("%g" % rate)
-            os.replace(os.path.join(tmp, "f.npy"), npy)
-            os.replace(os.path.join(tmp, "f.npy.names"), os.path.join(cache, "names"))
+        _, _, final, rate = recording(path, copy)
+        m, names = matrix_out(ctl, path, copy, "--features-out")
+        np.save(lab, np.array(final, dtype=np.int8))
+        with open(hz, "w") as f:
+            f.write("%g" % rate)
+        with open(os.path.join(cache, "names"), "w") as f:
+            f.write("\n".join(names) + "\n")
+        np.save(npy + ".partial.npy", m)
+        os.replace(npy + ".partial.npy", npy)
     return np.load(npy), np.load(lab), float(open(hz).read())
 
 
@@ -129,9 +156,9 @@ def load_all(args, files):
     return data, names
 
 
-def fit(x, y, args):
+def fit(x, y, iterations, leaves):
     from sklearn.ensemble import HistGradientBoostingClassifier
-    clf = HistGradientBoostingClassifier(max_iter=args.iterations, max_leaf_nodes=args.leaves, learning_rate=0.1,
+    clf = HistGradientBoostingClassifier(max_iter=iterations, max_leaf_nodes=leaves, learning_rate=0.1,
                                          l2_regularization=1.0, early_stopping=False, random_state=0)
     clf.fit(x, y)
     return clf
@@ -189,25 +216,106 @@ def labels(clf, f, names):
     return clf.classes_[np.where((best == noise) & ~near, movement, best)]
 
 
-def check_model(args, clf, path, data, files, which, names):
+def check_model(args, clf, path, files, which, extra=(), stage1=None):
     """fovea-ctl with the written model must label the held-back recordings as scikit-learn does
-    (the C++ adds nothing after the trees but what it does to samples without gaze)."""
+    (the C++ adds nothing after the trees but what it does to samples without gaze). stage1: the
+    first-stage model whose probabilities the second-stage model clf reads (None: clf is a first
+    stage)."""
     mismatched, total = 0, 0
     for i in which:
-        f = next(u[1] for u in data if u[0] == i)
-        geometry, t_us, x, y, conf, _, _, _ = read_arff(files[i])
+        if stage1 is None:
+            f, names = matrix_out(args.ctl, files[i], 0, "--features-out")
+        else:
+            f, names = matrix_out(args.ctl, files[i], 0, "--context-out", ["--model", stage1])
+            if "--offline" not in extra:
+                f = online_columns(f, names)
+        gaze_t, geometry, _, rate = recording(files[i], 0)
         with tempfile.TemporaryDirectory() as tmp:
-            got = classify(args.ctl, tmp, (t_us, x, y, conf), geometry, RATE_HZ,
-                           ["--method", "gbt", "--model", path, "--trees-only"])
-        gaze = ~np.isnan(f[:, -1])
+            got = classify(args.ctl, tmp, gaze_t, geometry, rate, ["--method", "gbt", "--model", path, "--trees-only"] + list(extra))
+        gaze = ~np.isnan(f[:, names.index("offscreen_deg")])
         want = np.array([CLASS_NAMES[int(c)] for c in labels(clf, f[gaze], names)])
         got = np.array(got)[gaze]
         got = np.where(got == "blink", "noise", got)
         mismatched += int((want != got).sum())
         total += len(want)
-    print(f"train_classifier: fovea-ctl and scikit-learn disagree on {mismatched} of {total} samples")
+    print(f"train_classifier: fovea-ctl and scikit-learn disagree on {mismatched} of {total} samples ({os.path.basename(path)} {' '.join(extra)})")
     if mismatched:
         sys.exit(f"train_classifier: {path} does not reproduce scikit-learn's predictions in fovea-ctl")
+
+
+def reach_s(name):
+    """How far ahead of its sample a context feature looks (context.h, context_feature_reach_s)."""
+    tail = name.rsplit("_p", 1)
+    if len(tail) == 2 and tail[1].endswith("ms") and tail[1][:-2].isdigit():
+        return int(tail[1][:-2]) / 1000.0
+    return 0.0
+
+
+def online_columns(f, names, lookahead=ONLINE_LOOKAHEAD_S):
+    """The context features as the daemon computes them: NaN where a feature looks further ahead."""
+    f = f.copy()
+    f[:, [k for k, n in enumerate(names) if reach_s(n) > lookahead + 1e-9]] = np.nan
+    return f
+
+
+def frame_lovo(args, data, names, files, videos, settings, start):
+    """DIR/<video>.frame.trees for every video, fitted without it (reused where present with these
+    settings)."""
+    os.makedirs(args.lovo, exist_ok=True)
+    for v in sorted(set(videos)):
+        path = os.path.join(args.lovo, v + ".frame.trees")
+        if os.path.exists(path) and open(path).readline().rstrip().endswith(settings):
+            continue
+        x, y = training_rows(data, {i for i, w in enumerate(videos) if w != v}, args.stride_ms)
+        clf = fit(x, y, args.iterations, args.leaves)
+        write_model(clf, names, path, f"GazeCom without {v}: {len(x)} samples; {settings}")
+        check_model(args, clf, path, files, [i for i, w in enumerate(videos) if w == v][:1])
+        print(f"train_classifier: {path} ({len(x)} samples) at {time.time() - start:.0f} s", flush=True)
+
+
+def context_rows(args, files, videos, start):
+    """Every recording's (and copy's) second-stage rows, a sample every --context-stride-ms, from the
+    first stage fitted without its video: a list of (recording index, features, labels); and the
+    feature names."""
+    def unit(u):
+        i, copy = u
+        f, names = matrix_out(args.ctl, files[i], copy, "--context-out",
+                              ["--model", os.path.join(args.lovo, videos[i] + ".frame.trees")])
+        _, _, final, rate = recording(files[i], copy)
+        lab = np.array(final, dtype=np.int8)
+        rows = np.arange(0, len(lab), max(1, int(round(args.context_stride_ms * rate / 1000.0))))
+        rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, names.index("offscreen_deg")])]
+        return (i, f[rows], lab[rows]), names
+    units = [(i, c) for c in range(args.augment + 1) for i in range(len(files))]
+    with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
+        out = list(pool.map(unit, units))
+    print(f"train_classifier: second-stage features of {len(units)} recordings and copies at {time.time() - start:.0f} s",
+          flush=True)
+    return [o[0] for o in out], out[0][1]
+
+
+def fit_context(args, rows, names, keep):
+    """The online and the offline second stage on the rows of the recordings in keep."""
+    x = np.concatenate([f for i, f, _ in rows if i in keep])
+    y = np.concatenate([lab for i, _, lab in rows if i in keep])
+    offline = fit(x, y, args.context_iterations, args.leaves)
+    online = fit(online_columns(x, names), y, args.context_iterations, args.leaves)
+    return online, offline, len(x)
+
+
+def write_bundle(path, frame_path, online, offline, context_names, note):
+    """A fovea-gbt model (trees_core.h): the first stage's text, then the two second stages."""
+    with tempfile.TemporaryDirectory() as tmp:
+        parts = []
+        for name, clf in (("online", online), ("offline", offline)):
+            write_model(clf, context_names, os.path.join(tmp, name), note)
+            parts.append((name, open(os.path.join(tmp, name)).read()))
+    lines = ["# fovea gbt model: " + note, "fovea-gbt 1", "stage frame", open(frame_path).read().rstrip("\n"),
+             "stage online %g" % ONLINE_LOOKAHEAD_S, parts[0][1].rstrip("\n"),
+             "stage offline %g" % OFFLINE_LOOKAHEAD_S, parts[1][1].rstrip("\n")]
+    with open(path + ".partial", "w") as f:
+        f.write("\n".join(lines) + "\n")
+    os.replace(path + ".partial", path)
 
 
 def main():
@@ -215,15 +323,17 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("ctl", help="the fovea-ctl binary")
     ap.add_argument("--data", default=os.path.join(here, "..", "..", "shared", "data", "gazecom"))
-    out = ap.add_mutually_exclusive_group(required=True)
-    out.add_argument("--out", help="write one model fitted on every recording here")
-    out.add_argument("--lovo", help="write DIR/<video>.trees, each fitted without that video")
+    ap.add_argument("--out", help="write one model fitted on every recording here")
+    ap.add_argument("--lovo", required=True, help="DIR/<video>.trees, each fitted without that video")
     ap.add_argument("--every", type=int, default=1, help="every N-th recording (sorted by video, observer)")
-    ap.add_argument("--stride-ms", type=float, default=16, help="train on a sample every this many ms")
+    ap.add_argument("--stride-ms", type=float, default=16, help="train the first stage on a sample every this many ms")
     ap.add_argument("--augment", type=int, default=1,
                     help="copies of each recording as other trackers would record it (as_other_tracker)")
     ap.add_argument("--iterations", type=int, default=60, help="boosting iterations (trees per class)")
     ap.add_argument("--leaves", type=int, default=31, help="leaves per tree at most")
+    ap.add_argument("--context-stride-ms", type=float, default=48, help="the second stage's sample spacing")
+    ap.add_argument("--context-iterations", type=int, default=30, help="the second stage's boosting iterations")
+    ap.add_argument("--frame-only", action="store_true", help="no second stage (the first stage's model alone)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
     root = unpacked(args.data)
@@ -236,22 +346,42 @@ def main():
           f"({sum(len(u[2]) for u in data)} samples, {len(names)} features) in {time.time() - start:.0f} s")
     settings = (f"iterations {args.iterations}, leaves {args.leaves}, a sample every {args.stride_ms:g} ms, "
                 f"{args.augment} copies as other trackers")
+    frame_lovo(args, data, names, files, videos, settings, start)
+    if not args.frame_only:
+        rows, context_names = context_rows(args, files, videos, start)
+        settings2 = settings + (f"; second stage: iterations {args.context_iterations}, a sample every "
+                                f"{args.context_stride_ms:g} ms")
     if args.out:
         x, y = training_rows(data, set(range(len(files))), args.stride_ms)
-        clf = fit(x, y, args)
-        write_model(clf, names, args.out, f"{len(files)} GazeCom recordings, {len(x)} samples; {settings}")
-        check_model(args, clf, args.out, data, files, range(0, len(files), max(1, len(files) // 4)), names)
+        clf = fit(x, y, args.iterations, args.leaves)
+        note = f"{len(files)} GazeCom recordings, {len(x)} samples; {settings}"
+        check_at = range(0, len(files), max(1, len(files) // 4))
+        if args.frame_only:
+            write_model(clf, names, args.out, note)
+            check_model(args, clf, args.out, files, check_at)
+        else:
+            frame_path = args.out + ".frame"
+            write_model(clf, names, frame_path, note)
+            online, offline, n2 = fit_context(args, rows, context_names, set(range(len(files))))
+            write_bundle(args.out, frame_path, online, offline, context_names,
+                         f"{len(files)} GazeCom recordings, {len(x)} samples ({n2} in the second stage); {settings2}")
+            check_model(args, online, args.out, files, check_at, (), frame_path)
+            check_model(args, offline, args.out, files, check_at, ("--offline",), frame_path)
+            os.remove(frame_path)
         print(f"train_classifier: wrote {args.out} ({len(x)} samples) in {time.time() - start:.0f} s")
         return
-    os.makedirs(args.lovo, exist_ok=True)
+    if args.frame_only:
+        return
     for v in sorted(set(videos)):
-        x, y = training_rows(data, {i for i, w in enumerate(videos) if w != v}, args.stride_ms)
-        clf = fit(x, y, args)
+        keep = {i for i, w in enumerate(videos) if w != v}
+        online, offline, n2 = fit_context(args, rows, context_names, keep)
         path = os.path.join(args.lovo, v + ".trees")
-        write_model(clf, names, path, f"GazeCom without {v}: {len(x)} samples; {settings}")
-        held = [i for i, w in enumerate(videos) if w == v]
-        check_model(args, clf, path, data, files, held[:1], names)
-        print(f"train_classifier: {path} ({len(x)} samples) at {time.time() - start:.0f} s", flush=True)
+        frame_path = os.path.join(args.lovo, v + ".frame.trees")
+        write_bundle(path, frame_path, online, offline, context_names, f"GazeCom without {v}: {n2} samples; {settings2}")
+        held = [i for i, w in enumerate(videos) if w == v][:1]
+        check_model(args, online, path, files, held, (), frame_path)
+        check_model(args, offline, path, files, held, ("--offline",), frame_path)
+        print(f"train_classifier: {path} ({n2} samples) at {time.time() - start:.0f} s", flush=True)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@
 set -u
 CTL=$1 SRC=$2
 WORK=$(mktemp -d)
-trap 'rm -rf "$WORK"' EXIT
+trap '[ -n "${KEEP:-}" ] || rm -rf "$WORK"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 
 echo "== a made-up GazeCom: 2 videos x 2 recordings of 12 s"
@@ -49,18 +49,25 @@ for video in ("clip_a", "clip_b"):
                 out.write(f"{t * 4000},{px:.2f},{py:.2f},{0 if label == 4 else 1},{label},?,{label}\n")
 PY
 
-echo "== one model on everything, one per video held out"
+echo "== one model per video held out, then one on everything"
 export XDG_CACHE_HOME="$WORK/cache"
-/usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" --data "$WORK/gc" --out "$WORK/m.trees" --iterations 8 \
-  --leaves 15 --augment 1 >"$WORK/train.txt" 2>&1 || fail "train: $(cat "$WORK/train.txt")"
+opts=(--data "$WORK/gc" --iterations 6 --leaves 7 --context-iterations 4 --context-stride-ms 16 --augment 1)
+/usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" >"$WORK/lovo.txt" 2>&1 \
+  || fail "lovo: $(cat "$WORK/lovo.txt")"
+cat "$WORK/lovo.txt"
+for v in clip_a clip_b; do
+  [ -f "$WORK/lovo/$v.trees" ] && [ -f "$WORK/lovo/$v.frame.trees" ] || fail "lovo wrote $(ls "$WORK/lovo")"
+  grep -q "GazeCom without $v" "$WORK/lovo/$v.trees" || fail "$v's model does not say what it left out"
+  grep -q "^stage offline 0.512$" "$WORK/lovo/$v.trees" || fail "$v's model has no offline stage"
+done
+grep -q "4 recordings and 1 copies of each" "$WORK/lovo.txt" || fail "the copies were not made"
+[ "$(grep -c "disagree on 0 of" "$WORK/lovo.txt")" = 6 ] || fail "not every stage checked exact: $(cat "$WORK/lovo.txt")"
+/usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" --out "$WORK/m.trees" \
+  >"$WORK/train.txt" 2>&1 || fail "train: $(cat "$WORK/train.txt")"
 cat "$WORK/train.txt"
-grep -q "disagree on 0 of" "$WORK/train.txt" || fail "no exactness check in: $(cat "$WORK/train.txt")"
-grep -q "4 recordings and 1 copies of each" "$WORK/train.txt" || fail "the copies were not made"
-head -1 "$WORK/m.trees" | grep -q "iterations 8, leaves 15" || fail "the model does not say how it was fitted"
-/usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" --data "$WORK/gc" --lovo "$WORK/lovo" --iterations 4 \
-  --leaves 7 --augment 0 >"$WORK/lovo.txt" 2>&1 || fail "lovo: $(cat "$WORK/lovo.txt")"
-[ -f "$WORK/lovo/clip_a.trees" ] && [ -f "$WORK/lovo/clip_b.trees" ] || fail "lovo wrote $(ls "$WORK/lovo")"
-grep -q "GazeCom without clip_a" "$WORK/lovo/clip_a.trees" || fail "clip_a's model does not say what it left out"
+! grep -q "frame.trees (" "$WORK/train.txt" || fail "the first stages fitted before were fitted again"
+[ "$(grep -c "disagree on 0 of" "$WORK/train.txt")" = 2 ] || fail "no exactness check in: $(cat "$WORK/train.txt")"
+head -1 "$WORK/m.trees" | grep -q "iterations 6, leaves 7" || fail "the model does not say how it was fitted"
 
 echo "== fovea-ctl labels with the model and refuses a damaged one"
 in="$WORK/in.csv"
@@ -68,10 +75,20 @@ in="$WORK/in.csv"
 "$CTL" classify "$in" "$WORK/out.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/m.trees" 2>"$WORK/err" \
   || fail "classify with the model: $(cat "$WORK/err")"
 [ "$(wc -l <"$WORK/out.csv")" = 501 ] || fail "one label per row: $(wc -l <"$WORK/out.csv")"
-sed 's/^fovea-trees 1$/fovea-trees 7/' "$WORK/m.trees" >"$WORK/bad.trees"
-if "$CTL" classify "$in" "$WORK/bad.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/bad.trees" 2>"$WORK/err"; then
-  fail "a damaged model was taken"
-fi
-grep -q "bad.trees:2: format version is not 1" "$WORK/err" || fail "the error does not name file and line: $(cat "$WORK/err")"
-[ ! -e "$WORK/bad.csv" ] || fail "a damaged model left an output"
+"$CTL" classify "$in" "$WORK/off.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/m.trees" --offline \
+  2>"$WORK/err" || fail "classify --offline with the model: $(cat "$WORK/err")"
+grep -q "online latency 8[0-9][0-9] ms" "$WORK/err" || fail "--offline does not wait for its look-ahead: $(cat "$WORK/err")"
+online_at=$(grep -n "^stage online" "$WORK/m.trees" | cut -d: -f1)
+check_refused() {  # sed-expression error-text
+  sed "$1" "$WORK/m.trees" >"$WORK/bad.trees"
+  if "$CTL" classify "$in" "$WORK/bad.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/bad.trees" 2>"$WORK/err"; then
+    fail "a damaged model was taken ($1)"
+  fi
+  grep -qF "$2" "$WORK/err" || fail "the error does not name file, line and fault: $(cat "$WORK/err")"
+  [ ! -e "$WORK/bad.csv" ] || fail "a damaged model left an output"
+}
+check_refused 's/^fovea-trees 1$/fovea-trees 7/' "bad.trees:5: format version is not 1"
+check_refused 's/^stage online 0.032$/stage online 2/' "bad.trees:$online_at: 'stage online' needs one look-ahead"
+check_refused 's/^stage frame$/stage frames/' "bad.trees:3: stage 'frames' is none of frame, online, offline"
+check_refused "$((online_at + 4))s/^classes [0-9]* /classes 0 /" "bad.trees:$((online_at + 4)): classes '0' is not an integer"
 echo "PASS"

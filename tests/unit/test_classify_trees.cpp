@@ -115,10 +115,10 @@ TEST(Trees, AModelsClassesMustBeLabels) {
 }
 
 TEST(Trees, TheBuiltInModelLoadsAndMatchesThisBuildsFeatures) {
-  const auto m = builtin_trees_model();
+  const auto m = builtin_gbt_model();
   ASSERT_TRUE(m);
-  EXPECT_GE(m->trees().class_names().size(), 3u);
-  EXPECT_GT(m->trees().tree_count(), 0u);
+  EXPECT_GE(m->frame().trees().class_names().size(), 3u);
+  EXPECT_GT(m->frame().trees().tree_count(), 0u);
 }
 
 namespace {

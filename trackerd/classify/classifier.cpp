@@ -65,8 +65,11 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
   }
   const FrontendOptions standard;  // 75 ms gap fill-in, blink for losses up to 0.5 s
   if (name == "gbt") {
-    return make_trees_pipeline(options.model_path.empty() ? builtin_trees_model() : load_trees_model(options.model_path),
-                               options.display, options.trees_only);
+    GbtOptions o;
+    o.offline = options.offline;
+    o.trees_only = options.trees_only;
+    return make_trees_pipeline(options.model_path.empty() ? builtin_gbt_model() : load_gbt_model(options.model_path),
+                               options.display, std::move(o));
   }
   if (name == "ivvt") return std::make_unique<Pipeline>(name, standard, make_ivvt_core());
   if (name == "ivt") return std::make_unique<Pipeline>(name, standard, make_ivt_core());

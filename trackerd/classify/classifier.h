@@ -73,6 +73,10 @@ struct ClassifierOptions {
   // gbt: each sample's trees' label alone, neither smoothed nor with ivvt's PSO (what
   // bench/train_classifier.py checks against scikit-learn).
   bool trees_only = false;
+  // Label for analysis, not live: the whole recording is at hand, so labels may wait for as much of
+  // it as helps. gbt: its offline second stage (context.h, the whole reach) instead of the online
+  // one; the other methods label the same either way.
+  bool offline = false;
 };
 
 // Throws std::invalid_argument naming the method and listing the known ones (also for a rate that

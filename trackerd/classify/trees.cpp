@@ -14,7 +14,8 @@ constexpr long kMaxCount = 1L << 22;  // any count in a model: bounds what a dam
 // Whitespace-separated tokens with their line numbers; '#' starts a comment to the end of the line.
 class Tokens {
  public:
-  Tokens(const std::string& text, std::string origin) : text_(text), origin_(std::move(origin)) {}
+  Tokens(const std::string& text, std::string origin, int first_line)
+      : text_(text), origin_(std::move(origin)), line_(first_line) {}
 
   std::string word(const char* what) {
     skip_space();
@@ -72,7 +73,7 @@ class Tokens {
   const std::string& text_;
   std::string origin_;
   std::size_t pos_ = 0;
-  int line_ = 1;
+  int line_;
 };
 
 std::vector<std::string> names(Tokens& in, const char* keyword, long max) {
@@ -86,8 +87,8 @@ std::vector<std::string> names(Tokens& in, const char* keyword, long max) {
 }  // namespace
 
 TreeEnsemble TreeEnsemble::parse(const std::string& text, const std::string& origin,
-                                 const std::vector<std::string>& expected_features) {
-  Tokens in(text, origin);
+                                 const std::vector<std::string>& expected_features, int first_line) {
+  Tokens in(text, origin, first_line);
   in.expect("fovea-trees");
   if (in.integer("format version", 0, kMaxCount) != 1) in.fail("format version is not 1");
   const std::vector<std::string> features = names(in, "features", 4096);

@@ -21,12 +21,14 @@
 
 namespace fovea::trackerd::classify {
 
+inline constexpr std::size_t kMaxTreeClasses = 8;  // what fovea's models may have: fixed-size score arrays
+
 class TreeEnsemble {
  public:
   // Throws std::invalid_argument naming `origin`, the line and what is wrong; `expected_features`
-  // must equal the model's list.
+  // must equal the model's list. first_line: the text's first line's number in its file.
   static TreeEnsemble parse(const std::string& text, const std::string& origin,
-                            const std::vector<std::string>& expected_features);
+                            const std::vector<std::string>& expected_features, int first_line = 1);
   const std::vector<std::string>& class_names() const { return classes_; }
   std::size_t tree_count() const { return trees_.size(); }
   std::size_t node_count() const { return nodes_.size(); }

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "classify/context.h"
 #include "classify/features.h"
 #include "classify/pipeline.h"
 #include "classify/trees.h"
@@ -43,52 +44,101 @@ struct Scored {
   std::array<double, kMaxTreeClasses> p{};  // class probabilities
 };
 
+// Three streaming steps, each waiting only as long as the next needs: the first stage scores a
+// sample once the stream has reached kFeatureReachS past it; the second (where the model has one,
+// or context features are asked for) once the first has scored the look-ahead past it; smoothing
+// labels it once its window (kSmoothLongS) has been through both.
 class TreesCore final : public Core {
  public:
-  TreesCore(std::shared_ptr<const TreesModel> model, const protocol::DisplayGeometry& display, bool smooth,
-            FeatureSink sink)
-      : model_(std::move(model)), display_(display), smooth_(smooth && model_), sink_(std::move(sink)) {}
+  TreesCore(std::shared_ptr<const GbtModel> model, const protocol::DisplayGeometry& display, GbtOptions options)
+      : model_(std::move(model)),
+        display_(display),
+        smooth_(!options.trees_only && model_),
+        context_(model_ ? model_->context(options.offline) : nullptr),
+        staged_(context_ != nullptr || options.context_sink),
+        lookahead_s_(context_ ? model_->lookahead_s(options.offline) : staged_ ? kContextReachS : 0.0),
+        classes_(model_ ? model_->frame().class_count() : 0),
+        frame_sink_(std::move(options.frame_sink)),
+        context_sink_(std::move(options.context_sink)) {}
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     newest_t_ = p.t;
     buf_.push_back(p);
     while (next_ < buf_.size() && buf_[next_].t + kFeatureReachS <= p.t) score_next(out);
     trim();
+    if (staged_) contextualize(out, false);
     if (smooth_) label_smoothed(out, false);
   }
   void flush(std::vector<Labeled>& out) override {
     while (next_ < buf_.size()) score_next(out);
     buf_.clear();
     next_ = 0;
+    if (staged_) contextualize(out, true);
     if (smooth_) label_smoothed(out, true);
   }
-  double latency_s() const override { return kFeatureReachS + (smooth_ ? kSmoothLongS : 0.0); }
+  double latency_s() const override {
+    return kFeatureReachS + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? kSmoothLongS : 0.0);
+  }
 
  private:
-  // The features and the trees' scores of the next sample: its label at once (no smoothing), or
-  // into scored_ to be smoothed.
+  // The features and the first stage's scores of the next sample, on to the second stage or
+  // straight to a label (trees only) or to smoothing.
   void score_next(std::vector<Labeled>& out) {
     const Prepared& p = buf_[next_];
-    float f[kFeatureCount];
-    sample_features(buf_, next_, display_, f);
-    if (sink_) sink_(p.index, f);
+    ContextSample c;
+    sample_features(buf_, next_, display_, c.frame.data());
+    if (frame_sink_) frame_sink_(p.index, c.frame.data());
     Scored s;
     s.out = {p.index, p.kind == Prepared::Kind::Lost ? Label::Lost : Label::Blink};
-    s.t = p.t;
-    s.gaze = p.has_gaze();
+    s.t = c.t = p.t;
+    s.gaze = c.gaze = p.has_gaze();
     if (!s.gaze) ++run_;
     s.run = run_;
     ++next_;
-    if (s.gaze) {
-      if (!model_) {
-        s.out.label = Label::Unknown;
-      } else if (!smooth_) {
-        s.out.label = model_->label(f);
-      } else {
-        model_->probabilities(f, s.p.data());
-        s.noise_ok = TreesModel::noise_allowed(f);
-      }
+    if (s.gaze) s.noise_ok = TreesModel::noise_allowed(c.frame.data());
+    if (s.gaze && !model_) s.out.label = Label::Unknown;
+    if (s.gaze && model_) model_->frame().probabilities(c.frame.data(), c.p.data());
+    if (staged_) {
+      push_context(ctx_, c, classes_);
+      pending_.push_back(s);
+      return;
     }
+    if (s.gaze && model_) {
+      if (!smooth_) s.out.label = model_->frame().label(c.frame.data(), s.noise_ok);
+      s.p = c.p;
+    }
+    deliver(s, out);
+  }
+  // The second stage of every first-stage-scored sample whose look-ahead has been scored too (all,
+  // at the end of the stream).
+  void contextualize(std::vector<Labeled>& out, bool all) {
+    std::array<float, kMaxContextFeatures> f;
+    while (ctx_next_ < ctx_.size() && (all || ctx_.back().t >= ctx_[ctx_next_].t + lookahead_s_)) {
+      context_features(ctx_, ctx_next_, classes_, lookahead_s_, f.data());
+      Scored s = pending_.front();
+      pending_.pop_front();
+      if (context_sink_) context_sink_(s.out.index, f.data());
+      if (s.gaze && context_) {
+        if (smooth_) {
+          context_->probabilities(f.data(), s.p.data());
+        } else {
+          s.out.label = context_->label(f.data(), s.noise_ok);
+        }
+      } else if (s.gaze && model_) {  // context features asked for, but no second stage to use them
+        s.p = ctx_[ctx_next_].p;
+        if (!smooth_) s.out.label = model_->frame().label(ctx_[ctx_next_].frame.data(), s.noise_ok);
+      }
+      ++ctx_next_;
+      deliver(s, out);
+    }
+    // Keep what the next sample's context reaches back to, and the one just before.
+    const double next_t = ctx_next_ < ctx_.size() ? ctx_[ctx_next_].t : ctx_.empty() ? 0.0 : ctx_.back().t;
+    while (ctx_next_ >= 2 && next_t - ctx_[1].t >= kContextReachS) {
+      ctx_.pop_front();
+      --ctx_next_;
+    }
+  }
+  void deliver(const Scored& s, std::vector<Labeled>& out) {
     if (smooth_) {
       scored_.push_back(s);
     } else {
@@ -99,6 +149,7 @@ class TreesCore final : public Core {
   // latency past it (every sample within kSmoothLongS after it has arrived and been scored), or a
   // later gaze run has begun (everything, at the end of the stream).
   void label_smoothed(std::vector<Labeled>& out, bool all) {
+    const TreesModel& last = context_ ? *context_ : model_->frame();
     while (labelled_ < scored_.size()) {
       const Scored& s = scored_[labelled_];
       if (!all && scored_.back().run == s.run && s.t > newest_t_ - latency_s()) break;
@@ -107,7 +158,7 @@ class TreesCore final : public Core {
         std::array<double, kMaxTreeClasses> near{}, wide{};
         window_mean(labelled_, kSmoothShortS, near);
         window_mean(labelled_, kSmoothLongS, wide);
-        l.label = model_->smoothed_label(near.data(), wide.data(), s.noise_ok);
+        l.label = last.smoothed_label(near.data(), wide.data(), s.noise_ok);
       }
       out.push_back(l);
       ++labelled_;
@@ -141,12 +192,19 @@ class TreesCore final : public Core {
       --next_;
     }
   }
-  std::shared_ptr<const TreesModel> model_;
+  std::shared_ptr<const GbtModel> model_;
   protocol::DisplayGeometry display_;
   bool smooth_;
-  FeatureSink sink_;
+  const TreesModel* context_;  // the second stage used (owned by model_), or null
+  bool staged_;                // whether samples go through the second stage's buffer
+  double lookahead_s_;
+  std::size_t classes_;        // the first stage's
+  FeatureSink frame_sink_, context_sink_;
   std::deque<Prepared> buf_;
   std::size_t next_ = 0;  // the first sample not yet scored
+  std::deque<ContextSample> ctx_;
+  std::size_t ctx_next_ = 0;   // the first of ctx_ not through the second stage
+  std::deque<Scored> pending_;  // ctx_[ctx_next_...]'s own
   std::deque<Scored> scored_;
   std::size_t labelled_ = 0;  // the first of scored_ not yet labelled
   std::uint64_t run_ = 0;
@@ -207,8 +265,7 @@ extern const char* const kModelName;
 extern const std::string kModelText;
 }  // namespace builtin
 
-TreesModel::TreesModel(const std::string& text, const std::string& origin)
-    : trees_(TreeEnsemble::parse(text, origin, feature_names())) {
+TreesModel::TreesModel(TreeEnsemble trees, const std::string& origin) : trees_(std::move(trees)) {
   if (trees_.class_names().size() > kMaxTreeClasses) {
     throw std::invalid_argument(origin + ": " + std::to_string(trees_.class_names().size()) + " classes (at most " +
                                 std::to_string(kMaxTreeClasses) + ")");
@@ -216,10 +273,13 @@ TreesModel::TreesModel(const std::string& text, const std::string& origin)
   for (const std::string& c : trees_.class_names()) labels_.push_back(label_of_class(c, origin));
 }
 
-Label TreesModel::label(const float* features) const {
+TreesModel::TreesModel(const std::string& text, const std::string& origin)
+    : TreesModel(TreeEnsemble::parse(text, origin, feature_names()), origin) {}
+
+Label TreesModel::label(const float* features, bool noise_ok) const {
   double scores[kMaxTreeClasses];
   const auto best = static_cast<std::size_t>(trees_.predict(features, scores));
-  if (labels_[best] != Label::Blink || noise_allowed(features)) return labels_[best];
+  if (labels_[best] != Label::Blink || noise_ok) return labels_[best];
   return labels_[best_movement(scores, best)];
 }
 
@@ -258,42 +318,132 @@ Label TreesModel::smoothed_label(const double* near, const double* wide, bool no
   return labels_[best_movement(rest, best)];
 }
 
-bool TreesModel::noise_allowed(const float* features) {
+bool TreesModel::noise_allowed(const float* frame_features) {
   static const std::size_t before = feature_index("loss_before_s"), after = feature_index("loss_after_s"),
                            offscreen = feature_index("offscreen_deg");
-  return static_cast<double>(std::min(features[before], features[after])) < kNoiseNearLossS || features[offscreen] > 0;
+  return static_cast<double>(std::min(frame_features[before], frame_features[after])) < kNoiseNearLossS ||
+         frame_features[offscreen] > 0;
 }
 
-std::shared_ptr<const TreesModel> builtin_trees_model() {
-  static const std::shared_ptr<const TreesModel> model =
-      std::make_shared<const TreesModel>(builtin::kModelText, std::string("built-in model ") + builtin::kModelName);
+namespace {
+
+// The first word of a model's text, past comments and blank lines, and its line.
+std::pair<std::string, int> first_word(const std::string& text) {
+  std::istringstream in(text);
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    std::istringstream words(line);
+    std::string w;
+    if (words >> w && w[0] != '#') return {w, n};
+  }
+  return {"", 1};
+}
+
+}  // namespace
+
+GbtModel::GbtModel(const std::string& text, const std::string& origin) {
+  const auto [word, line] = first_word(text);
+  if (word == "fovea-trees") {  // the first stage alone
+    frame_ = std::make_unique<TreesModel>(text, origin);
+    return;
+  }
+  const auto fail = [&origin](int at, const std::string& what) {
+    throw std::invalid_argument(origin + ":" + std::to_string(at) + ": " + what);
+  };
+  if (word != "fovea-gbt") fail(line, "expected 'fovea-gbt' or 'fovea-trees', found '" + word + "'");
+  std::istringstream in(text);
+  std::string l, header, body;
+  int n = 0, header_line = 0;
+  const auto end_stage = [&] {
+    if (!header.empty()) add_stage(header, body, origin, header_line);
+    body.clear();
+  };
+  while (std::getline(in, l)) {
+    ++n;
+    std::istringstream words(l);
+    std::string w;
+    words >> w;
+    if (n == line) {
+      std::string version;
+      if (!(words >> version) || version != "1") fail(n, "format version is not 1");
+      body.clear();
+    } else if (w == "stage") {
+      end_stage();
+      header = l;
+      header_line = n;
+    } else if (header.empty() && !w.empty() && w[0] != '#' && n > line) {
+      fail(n, "expected 'stage', found '" + w + "'");
+    } else {
+      body += l;
+    }
+    body += '\n';  // blank lines keep the ensemble's line numbers
+  }
+  end_stage();
+  if (!frame_) fail(n, "no 'stage frame'");
+}
+
+void GbtModel::add_stage(const std::string& header, const std::string& text, const std::string& origin, int line) {
+  std::istringstream words(header);
+  std::string stage, name, extra;
+  double lookahead = 0;
+  words >> stage >> name;
+  const auto fail = [&](const std::string& what) {
+    throw std::invalid_argument(origin + ":" + std::to_string(line) + ": " + what);
+  };
+  // The ensemble's own lines start after the header; body holds one line per line of the file from
+  // there (the header's own line is blank in it).
+  if (name == "frame") {
+    if (frame_) fail("a second 'stage frame'");
+    if (words >> extra) fail("'stage frame' takes nothing after it");
+    frame_ = std::make_unique<TreesModel>(TreeEnsemble::parse(text, origin, feature_names(), line), origin);
+    return;
+  }
+  if (name != "online" && name != "offline") fail("stage '" + name + "' is none of frame, online, offline");
+  if (!frame_) fail("'stage " + name + "' before 'stage frame'");
+  if (!(words >> lookahead) || !(lookahead > 0 && lookahead <= kContextReachS) || (words >> extra)) {
+    fail("'stage " + name + "' needs one look-ahead in seconds, in (0, " + std::to_string(kContextReachS) + "]");
+  }
+  std::unique_ptr<TreesModel>& slot = name == "online" ? online_ : offline_;
+  if (slot) fail("a second 'stage " + name + "'");
+  slot = std::make_unique<TreesModel>(
+      TreeEnsemble::parse(text, origin, context_feature_names(frame_->trees().class_names()), line), origin);
+  (name == "online" ? online_lookahead_s_ : offline_lookahead_s_) = lookahead;
+}
+
+std::shared_ptr<const GbtModel> builtin_gbt_model() {
+  static const std::shared_ptr<const GbtModel> model =
+      std::make_shared<const GbtModel>(builtin::kModelText, std::string("built-in model ") + builtin::kModelName);
   return model;
 }
 
-std::shared_ptr<const TreesModel> load_trees_model(const std::string& path) {
+std::shared_ptr<const GbtModel> load_gbt_model(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("model " + path + ": cannot be read");
   std::ostringstream text;
   text << in.rdbuf();
-  return std::make_shared<const TreesModel>(text.str(), path);
+  return std::make_shared<const GbtModel>(text.str(), path);
 }
 
-std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const TreesModel> model,
-                                                      const protocol::DisplayGeometry& display, bool trees_only,
-                                                      FeatureSink sink) {
+std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const GbtModel> model,
+                                                      const protocol::DisplayGeometry& display, GbtOptions options) {
   // The trees learned the lid's artefact around blinks from the coders' noise labels (and the
   // loss times among the features): the front end's lid rule would only overrule them.
   FrontendOptions o;
   o.lid_opening_max_s = 0;
-  std::unique_ptr<Core> trees = std::make_unique<TreesCore>(std::move(model), display, !trees_only, std::move(sink));
+  const bool trees_only = options.trees_only;
+  std::unique_ptr<Core> trees = std::make_unique<TreesCore>(std::move(model), display, std::move(options));
   return std::make_unique<Pipeline>(
       "gbt", o, trees_only ? std::move(trees) : std::make_unique<WithPsoCore>(std::move(trees), make_ivvt_core()));
 }
 
-std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display) {
-  std::vector<float> m(samples.size() * kFeatureCount, std::numeric_limits<float>::quiet_NaN());
-  auto pipeline = make_trees_pipeline(nullptr, display, true, [&](std::uint64_t index, const float* f) {
-    std::copy(f, f + kFeatureCount, m.begin() + static_cast<std::ptrdiff_t>(index * kFeatureCount));
+namespace {
+
+// Runs the pipeline over samples, each sink call's row into a matrix of `width` columns.
+std::vector<float> matrix_of(const std::vector<Sample>& samples, std::size_t width,
+                             const std::function<std::unique_ptr<OnlineClassifier>(FeatureSink)>& make) {
+  std::vector<float> m(samples.size() * width, std::numeric_limits<float>::quiet_NaN());
+  auto pipeline = make([&](std::uint64_t index, const float* f) {
+    std::copy(f, f + width, m.begin() + static_cast<std::ptrdiff_t>(index * width));
   });
   std::vector<Labeled> out;
   for (const Sample& s : samples) {
@@ -302,6 +452,28 @@ std::vector<float> feature_matrix(const std::vector<Sample>& samples, const prot
   }
   pipeline->flush(out);
   return m;
+}
+
+}  // namespace
+
+std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display) {
+  return matrix_of(samples, kFeatureCount, [&](FeatureSink sink) {
+    GbtOptions o;
+    o.trees_only = true;
+    o.frame_sink = std::move(sink);
+    return make_trees_pipeline(nullptr, display, std::move(o));
+  });
+}
+
+std::vector<float> context_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display,
+                                  std::shared_ptr<const GbtModel> model) {
+  const std::size_t width = context_feature_names(model->frame().trees().class_names()).size();
+  return matrix_of(samples, width, [&](FeatureSink sink) {
+    GbtOptions o;
+    o.trees_only = true;
+    o.context_sink = std::move(sink);
+    return make_trees_pipeline(model, display, std::move(o));
+  });
 }
 
 }  // namespace fovea::trackerd::classify

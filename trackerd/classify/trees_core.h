@@ -14,9 +14,9 @@
 
 namespace fovea::trackerd::classify {
 
-// A tree ensemble over features.h's features whose classes are labels. The coders' noise is a
-// blink where a loss of data is within kNoiseNearLossS (the lid's artefacts around it) or the gaze
-// is off the display; elsewhere the best of the movement classes wins.
+// A tree ensemble whose classes are labels. The coders' noise is a blink where a loss of data is
+// within kNoiseNearLossS (the lid's artefacts around it) or the gaze is off the display; elsewhere
+// the best of the movement classes wins.
 inline constexpr double kNoiseNearLossS = 0.100;
 // Smoothing (issue 43): a single sample's trees flip between classes, splitting one pursuit or
 // fixation into many events. A saccade is called where the class probabilities averaged over
@@ -25,19 +25,22 @@ inline constexpr double kNoiseNearLossS = 0.100;
 // 0.38 (fixation / saccade / pursuit) at no cost in sample F1.
 inline constexpr double kSmoothShortS = 0.008;
 inline constexpr double kSmoothLongS = 0.048;
-inline constexpr std::size_t kMaxTreeClasses = 8;
 class TreesModel {
  public:
   // Throws std::invalid_argument naming origin and what is wrong (also more than kMaxTreeClasses).
+  TreesModel(TreeEnsemble trees, const std::string& origin);
+  // A model over features.h's features alone, from a "fovea-trees" text.
   TreesModel(const std::string& text, const std::string& origin);
   // One sample's label from its own scores (the noise rule applied): what scikit-learn predicts.
-  Label label(const float* features) const;
+  Label label(const float* features, bool noise_ok) const;
   // Class probabilities (softmax of the raw scores) into p[0..classes).
   void probabilities(const float* features, double* p) const;
   // The label from probabilities averaged over the short and the long window (above).
   Label smoothed_label(const double* near, const double* wide, bool noise_ok) const;
-  static bool noise_allowed(const float* features);
+  // Whether the coders' noise may be called, from a sample's features.h features.
+  static bool noise_allowed(const float* frame_features);
   const TreeEnsemble& trees() const { return trees_; }
+  std::size_t class_count() const { return labels_.size(); }
 
  private:
   std::size_t best_movement(const double* scores, std::size_t fallback) const;
@@ -45,21 +48,60 @@ class TreesModel {
   std::vector<Label> labels_;  // per class
 };
 
-std::shared_ptr<const TreesModel> builtin_trees_model();  // parsed once
-std::shared_ptr<const TreesModel> load_trees_model(const std::string& path);  // throws std::invalid_argument
+// The look-ahead of the daemon's second stage (context.h): 32 ms past the first stage's reach. On
+// held-out GazeCom videos the second stage's pursuit gain offline was ... of which this keeps ...
+inline constexpr double kOnlineLookaheadS = 0.032;
 
-// Called with each sample's input index and its kFeatureCount features as the core labels it.
+// The `gbt` model: the first stage over each sample's features (features.h) and, optionally, second
+// stages over the first's probabilities around the sample (context.h), one for the daemon (online,
+// short look-ahead) and one for `fovea-ctl classify --offline` (the whole reach). Its text is either
+// a "fovea-trees" ensemble (the first stage alone) or a bundle:
+//
+//   fovea-gbt 1
+//   stage frame                        then a fovea-trees ensemble over features.h's features
+//   stage online LOOKAHEAD_S           then one over context.h's features (optional)
+//   stage offline LOOKAHEAD_S          likewise (optional)
+//
+// Throws std::invalid_argument naming origin, the line and what is wrong.
+class GbtModel {
+ public:
+  GbtModel(const std::string& text, const std::string& origin);
+  const TreesModel& frame() const { return *frame_; }
+  // The second stage for online or offline labelling and its look-ahead; null where there is none.
+  const TreesModel* context(bool offline) const { return (offline ? offline_ : online_).get(); }
+  double lookahead_s(bool offline) const { return offline ? offline_lookahead_s_ : online_lookahead_s_; }
+
+ private:
+  void add_stage(const std::string& header, const std::string& text, const std::string& origin, int line);
+  std::unique_ptr<TreesModel> frame_, online_, offline_;
+  double online_lookahead_s_ = 0, offline_lookahead_s_ = 0;
+};
+
+std::shared_ptr<const GbtModel> builtin_gbt_model();  // parsed once
+std::shared_ptr<const GbtModel> load_gbt_model(const std::string& path);  // throws std::invalid_argument
+
+// Called with each sample's input index and its features as the core computes them.
 using FeatureSink = std::function<void(std::uint64_t index, const float* features)>;
+struct GbtOptions {
+  bool offline = false;     // the offline second stage (the whole reach) instead of the online one
+  bool trees_only = false;  // the last stage's own label per sample: neither smoothed nor with PSO
+                            // (what scikit-learn predicts)
+  FeatureSink frame_sink;   // each sample's kFeatureCount features.h features
+  FeatureSink context_sink;  // each sample's context features (context.h) with the whole reach, from
+                             // the model's first stage (the model need have no second stage)
+};
 // The `gbt` pipeline: the standard front end (without the lid rule), the trees core with its
 // smoothing, and ivvt's PSO where the trees say saccade or fixation (trees_core.cpp, WithPsoCore).
-// trees_only: each sample's own trees' label, neither smoothed nor with PSO (what scikit-learn
-// predicts). model null: every gaze sample is labelled unknown (feature extraction only).
-std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const TreesModel> model,
-                                                      const protocol::DisplayGeometry& display, bool trees_only,
-                                                      FeatureSink sink = {});
+// model null: every gaze sample is labelled unknown (frame features only).
+std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const GbtModel> model,
+                                                      const protocol::DisplayGeometry& display, GbtOptions options);
 
 // The features of every input sample exactly as the `gbt` pipeline computes them online, row-major,
 // kFeatureCount per row; NaN rows for samples the pipeline rejected (bad times).
 std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display);
+// The same for the context features (context.h, the whole reach) from the model's first stage:
+// context_feature_names(model.frame() classes).size() per row.
+std::vector<float> context_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display,
+                                  std::shared_ptr<const GbtModel> model);
 
 }  // namespace fovea::trackerd::classify

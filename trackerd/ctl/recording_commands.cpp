@@ -17,6 +17,7 @@
 #include "classify/evaluate.h"
 #include "classify/features.h"
 #include "classify/provisional.h"
+#include "classify/context.h"
 #include "classify/trees_core.h"
 #include "ctl/bids_export.h"
 #include "ctl/commands.h"
@@ -382,17 +383,17 @@ struct ClassifyArgs {
   bool force = false, renumber = false, final_times = false, provisional = false;
   std::string model_path;    // --model (gbt)
   bool trees_only = false;   // --trees-only (gbt)
+  bool offline = false;      // --offline
   std::string features_out;  // --features-out F.npy (and F.npy.names)
+  std::string context_out;   // --context-out F.npy (and F.npy.names)
 };
 
-// The gbt method's features of every input row as a NumPy .npy file (float32, rows x features) and
-// their names, one per line, in PATH.names: what bench/train_classifier.py trains on.
-void write_features_npy(const std::string& path, const std::vector<fovea::trackerd::classify::Sample>& samples,
-                        const DisplayGeometry& display) {
-  namespace cl = fovea::trackerd::classify;
-  const std::vector<float> m = cl::feature_matrix(samples, display);
-  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(samples.size()) + ", " +
-                       std::to_string(cl::kFeatureCount) + "), }";
+// A matrix of float32 rows as a NumPy .npy file and its column names, one per line, in PATH.names:
+// what bench/train_classifier.py trains on. Written beside and renamed: PATH is whole or absent.
+void write_npy(const std::string& path, const std::vector<float>& m, const std::vector<std::string>& names) {
+  const std::size_t rows = names.empty() ? 0 : m.size() / names.size();
+  std::string header = "{'descr': '<f4', 'fortran_order': False, 'shape': (" + std::to_string(rows) + ", " +
+                       std::to_string(names.size()) + "), }";
   header.append(63 - (10 + header.size()) % 64, ' ');  // the magic, version and length are 10 bytes
   header += '\n';
   const std::string tmp = path + ".partial-" + std::to_string(getpid());
@@ -404,11 +405,24 @@ void write_features_npy(const std::string& path, const std::vector<fovea::tracke
     out.write(magic, sizeof magic).write(len_le, 2) << header;
     static_assert(std::endian::native == std::endian::little, "the .npy is written as '<f4'");
     out.write(reinterpret_cast<const char*>(m.data()), static_cast<std::streamsize>(m.size() * sizeof(float)));
-    std::ofstream names(path + ".names", std::ios::trunc);
-    for (const std::string& n : cl::feature_names()) names << n << '\n';
-    if (!out.flush() || !names.flush()) throw std::runtime_error(path + ": write failed");
+    std::ofstream names_out(path + ".names", std::ios::trunc);
+    for (const std::string& n : names) names_out << n << '\n';
+    if (!out.flush() || !names_out.flush()) throw std::runtime_error(path + ": write failed");
   }
   std::filesystem::rename(tmp, path);
+}
+
+// --features-out and --context-out: the gbt method's first-stage features of every input row, and
+// the second stage's (with the whole reach, from the model's first stage).
+void write_feature_files(const ClassifyArgs& a, const std::vector<fovea::trackerd::classify::Sample>& samples,
+                         const DisplayGeometry& display) {
+  namespace cl = fovea::trackerd::classify;
+  if (!a.features_out.empty()) write_npy(a.features_out, cl::feature_matrix(samples, display), cl::feature_names());
+  if (!a.context_out.empty()) {
+    const auto model = a.model_path.empty() ? cl::builtin_gbt_model() : cl::load_gbt_model(a.model_path);
+    write_npy(a.context_out, cl::context_matrix(samples, display, model),
+              cl::context_feature_names(model->frame().trees().class_names()));
+  }
 }
 
 // "saccade_start@T;..." for the provisional events a row made known (T: the event's time, ms).
@@ -470,8 +484,9 @@ int cmd_classify(const ClassifyArgs& a) {
     options.display = g;
     options.model_path = a.model_path;
     options.trees_only = a.trees_only;
+    options.offline = a.offline;
     const cl::OnlineLabels result = cl::classify_online(a.method, options, input.samples);
-    if (!a.features_out.empty()) write_features_npy(a.features_out, input.samples, g);
+    write_feature_files(a, input.samples, g);
 
     std::vector<cl::ProvisionalEvent> provisional;
     const std::map<std::string, std::size_t> counts = write_classify_labels(tmp, input, result, a, provisional);
@@ -548,9 +563,16 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
   classify->add_flag("--trees-only", cls.trees_only,
                      "gbt: each sample's own trees' label, neither smoothed nor with ivvt's PSO (what "
                      "bench/train_classifier.py compares with scikit-learn)");
+  classify->add_flag("--offline", cls.offline,
+                     "label for analysis: gbt uses its offline second stage, which looks 512 ms ahead of each "
+                     "sample instead of the daemon's 32 ms (other methods label the same either way)");
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
+  classify->add_option("--context-out", cls.context_out,
+                       "F.npy: also write the gbt method's second-stage features of every row (the first stage's "
+                       "probabilities around it, from --model's or the built-in first stage) and their names to "
+                       "F.npy.names, for training");
 
   return classify;
 }

@@ -1,0 +1,194 @@
+// SPDX-License-Identifier: Apache-2.0
+// The learned method's second stage (issue 43): the context features (context.h) and the two-stage
+// model bundle (trees_core.h, GbtModel).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <deque>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "classify/context.h"
+#include "classify/features.h"
+#include "classify/trees_core.h"
+
+using namespace fovea::trackerd::classify;
+
+namespace {
+
+const std::vector<std::string> kClasses = {"fixation", "saccade"};
+constexpr std::size_t kK = 2;
+
+std::size_t at(const std::string& name) {
+  const auto names = context_feature_names(kClasses);
+  const auto it = std::find(names.begin(), names.end(), name);
+  if (it == names.end()) throw std::out_of_range(name);
+  return static_cast<std::size_t>(it - names.begin());
+}
+
+// 250 Hz for `n` samples; p_fixation = i / 1000 (so a window's mean is its middle sample's), and
+// no gaze at the samples in `lost`.
+std::deque<ContextSample> stream(std::size_t n, const std::vector<std::size_t>& lost = {}) {
+  std::deque<ContextSample> buf;
+  for (std::size_t i = 0; i < n; ++i) {
+    ContextSample s;
+    s.t = 10.0 + static_cast<double>(i) * 0.004;
+    s.gaze = std::find(lost.begin(), lost.end(), i) == lost.end();
+    s.p[0] = static_cast<double>(i) / 1000.0;
+    s.p[1] = 1 - s.p[0];
+    s.frame.fill(0.25f);
+    push_context(buf, s, kK);
+  }
+  return buf;
+}
+
+std::vector<float> features_of(const std::deque<ContextSample>& buf, std::size_t i, double lookahead) {
+  std::vector<float> f(context_feature_names(kClasses).size());
+  context_features(buf, i, kK, lookahead, f.data());
+  return f;
+}
+
+}  // namespace
+
+TEST(Context, NamesAndHowFarEachLooksAhead) {
+  const auto names = context_feature_names(kClasses);
+  EXPECT_EQ(names.size(), kK + 2 * kContextOffsetsS.size() * kK + 2 * kContextWindowsS.size() * (kK + 1) +
+                              static_cast<std::size_t>(kFeatureCount));
+  EXPECT_LE(names.size(), kMaxContextFeatures);
+  EXPECT_EQ(names.front(), "p_fixation");
+  EXPECT_EQ(names.back(), feature_names().back());
+  EXPECT_DOUBLE_EQ(context_feature_reach_s("p_saccade_p32ms"), 0.032);
+  EXPECT_DOUBLE_EQ(context_feature_reach_s("gaze_p512ms"), 0.512);
+  EXPECT_DOUBLE_EQ(context_feature_reach_s("mean_fixation_m128ms"), 0.0);
+  EXPECT_DOUBLE_EQ(context_feature_reach_s("speed_c_4ms"), 0.0);   // a frame feature
+  EXPECT_DOUBLE_EQ(context_feature_reach_s("p_fixation"), 0.0);
+  EXPECT_DOUBLE_EQ(context_feature_reach_s("cos_p_ms"), 0.0);      // not a number of ms
+}
+
+TEST(Context, OffsetsAndWindowsReadTheRightSamples) {
+  const auto buf = stream(400);
+  const auto f = features_of(buf, 200, kContextReachS);
+  EXPECT_FLOAT_EQ(f[at("p_fixation")], 0.200f);
+  EXPECT_FLOAT_EQ(f[at("p_fixation_m8ms")], 0.198f);   // 2 samples back
+  EXPECT_FLOAT_EQ(f[at("p_fixation_p512ms")], 0.328f);  // 128 ahead
+  EXPECT_FLOAT_EQ(f[at("p_saccade_m128ms")], 1 - 0.168f);
+  // [t - 32 ms, t): samples 192..199, mean 195.5; (t, t + 32 ms]: 201..208, mean 204.5
+  EXPECT_NEAR(f[at("mean_fixation_m32ms")], 0.1955, 1e-6);
+  EXPECT_NEAR(f[at("mean_fixation_p32ms")], 0.2045, 1e-6);
+  EXPECT_NEAR(f[at("mean_saccade_p128ms")], 1 - 0.2165, 1e-6);  // 201..232
+  EXPECT_FLOAT_EQ(f[at("gaze_m512ms")], 1.0f);
+  EXPECT_FLOAT_EQ(f[at("speed_c_4ms")], 0.25f);  // the frame features ride along
+}
+
+TEST(Context, NothingLooksFurtherAheadThanTheLookAhead) {
+  const auto buf = stream(400);
+  const auto full = features_of(buf, 200, kContextReachS);
+  const auto online = features_of(buf, 200, 0.032);
+  const auto names = context_feature_names(kClasses);
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    if (context_feature_reach_s(names[k]) > 0.032) {
+      EXPECT_TRUE(std::isnan(online[k])) << names[k];
+    } else {
+      EXPECT_EQ(online[k], full[k]) << names[k];  // and the rest is the same numbers
+    }
+  }
+}
+
+TEST(Context, LossesAndTheStreamsEnds) {
+  const auto buf = stream(100, {48, 49, 50, 51});
+  const auto f = features_of(buf, 46, kContextReachS);
+  EXPECT_TRUE(std::isnan(f[at("p_fixation_p8ms")]));  // sample 48 has no gaze
+  // (t, t + 32 ms]: 47..54 of which 48-51 lost: the mean over the gaze ones, the share of them
+  EXPECT_NEAR(f[at("mean_fixation_p32ms")], (0.047 + 0.052 + 0.053 + 0.054) / 4, 1e-6);
+  EXPECT_FLOAT_EQ(f[at("gaze_p32ms")], 0.5f);
+  EXPECT_TRUE(std::isnan(f[at("p_fixation_m256ms")]));  // before the stream's start
+  EXPECT_TRUE(std::isnan(f[at("p_fixation_p512ms")]));  // after its end
+  const auto first = features_of(buf, 0, kContextReachS);
+  EXPECT_TRUE(std::isnan(first[at("mean_fixation_m32ms")]));  // an empty window
+  EXPECT_TRUE(std::isnan(first[at("gaze_m32ms")]));
+  const auto lost = features_of(buf, 49, kContextReachS);
+  EXPECT_TRUE(std::isnan(lost[at("p_fixation")]));
+  EXPECT_FLOAT_EQ(lost[at("p_fixation_m8ms")], 0.047f);
+}
+
+TEST(Context, APauseInTheStreamIsNoNeighbour) {
+  std::deque<ContextSample> buf = stream(50);
+  ContextSample late;
+  late.t = buf.back().t + 5.0;  // the tracker paused for 5 s
+  late.gaze = true;
+  push_context(buf, late, kK);
+  const auto f = features_of(buf, 49, kContextReachS);
+  EXPECT_TRUE(std::isnan(f[at("p_fixation_p512ms")]));
+  EXPECT_TRUE(std::isnan(f[at("mean_fixation_p512ms")]));
+}
+
+namespace {
+
+std::string ensemble(const std::vector<std::string>& features, const std::string& classes) {
+  std::string s = "fovea-trees 1\nfeatures " + std::to_string(features.size());
+  for (const auto& n : features) s += " " + n;
+  return s + "\nclasses 2 " + classes + "\nbaseline 0 0\ntrees 1\ntree 0 1\n-1 0 0 0 0 1\n";
+}
+
+std::string bundle() {
+  const auto ctx = context_feature_names(kClasses);
+  return "# two stages\nfovea-gbt 1\nstage frame\n" + ensemble(feature_names(), "fixation saccade") +
+         "stage online 0.032\n" + ensemble(ctx, "fixation pursuit") + "stage offline 0.512\n" +
+         ensemble(ctx, "fixation saccade");
+}
+
+std::string model_error(const std::string& text) {
+  try {
+    GbtModel(text, "m.gbt");
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string replaced(std::string s, const std::string& from, const std::string& to) {
+  s.replace(s.find(from), from.size(), to);
+  return s;
+}
+
+}  // namespace
+
+TEST(GbtModel, ABundleHoldsTheFirstStageAndBothSecondStages) {
+  const GbtModel m(bundle(), "m.gbt");
+  EXPECT_EQ(m.frame().trees().class_names(), kClasses);
+  ASSERT_NE(m.context(false), nullptr);
+  ASSERT_NE(m.context(true), nullptr);
+  EXPECT_EQ(m.context(false)->trees().class_names()[1], "pursuit");
+  EXPECT_DOUBLE_EQ(m.lookahead_s(false), 0.032);
+  EXPECT_DOUBLE_EQ(m.lookahead_s(true), 0.512);
+  const GbtModel frame_only(ensemble(feature_names(), "fixation saccade"), "m.trees");  // the older format
+  EXPECT_EQ(frame_only.context(false), nullptr);
+  EXPECT_EQ(frame_only.context(true), nullptr);
+  const GbtModel offline_only(replaced(bundle(), "stage online 0.032\n" + ensemble(context_feature_names(kClasses), "fixation pursuit"), ""), "m");
+  EXPECT_EQ(offline_only.context(false), nullptr);
+  EXPECT_NE(offline_only.context(true), nullptr);
+}
+
+TEST(GbtModel, ADamagedBundleIsRefusedWithFileAndLine) {
+  EXPECT_EQ(model_error(replaced(bundle(), "fovea-gbt 1", "fovea-gbt 2")), "m.gbt:2: format version is not 1");
+  EXPECT_EQ(model_error(replaced(bundle(), "fovea-gbt 1", "fovea-gbz 1")),
+            "m.gbt:2: expected 'fovea-gbt' or 'fovea-trees', found 'fovea-gbz'");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage frame", "stage frames")),
+            "m.gbt:3: stage 'frames' is none of frame, online, offline");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.6")),
+            "m.gbt:11: 'stage online' needs one look-ahead in seconds, in (0, 0.512000]");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online")),
+            "m.gbt:11: 'stage online' needs one look-ahead in seconds, in (0, 0.512000]");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage offline 0.512", "stage online 0.5")), "m.gbt:19: a second 'stage online'");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage frame\n", "frame\n")), "m.gbt:3: expected 'stage', found 'frame'");
+  // A second stage must read the context of the first's classes: here it names other features.
+  const std::string other = replaced(bundle(), "stage frame\n" + ensemble(feature_names(), "fixation saccade"),
+                                     "stage frame\n" + ensemble(feature_names(), "fixation pursuit"));
+  EXPECT_NE(model_error(other).find("m.gbt:13: the model was trained on other features"), std::string::npos);
+  // The ensembles' own errors carry the file's line numbers.
+  EXPECT_EQ(model_error(replaced(bundle(), "tree 0 1\n-1 0 0 0 0 1\nstage online", "tree 0 1\n-1 0 0 0 0 nan\nstage online")),
+            "m.gbt:10: node value 'nan' is not a finite number");
+  EXPECT_EQ(model_error("fovea-gbt 1\n"), "m.gbt:1: no 'stage frame'");
+  EXPECT_EQ(model_error(""), "m.gbt:1: expected 'fovea-gbt' or 'fovea-trees', found ''");
+}
