@@ -23,7 +23,7 @@ are scored against `handlabeller_final`:
 - the student coders against the expert, on the recordings that have their labels: the ceiling.
 
 Usage: bench/eval_classify_gazecom.py FOVEA_CTL [--data DIR_OR_TAR] [--every N] [--limit N]
-       [--methods ivvt,gbt,...] [--lovo DIR] [--extra-args "..."] [--json OUT.json] [--per-video]
+       [--methods ivvt,gbt,gbt+offline,...] [--lovo DIR] [--extra-args "..."] [--json OUT.json] [--per-video]
 """
 import argparse
 import concurrent.futures
@@ -198,10 +198,11 @@ def run_recording(args, path, tmp):
     out = {"video": os.path.basename(os.path.dirname(path)), "methods": {}, "latency": {}}
     t_ms = t_us / 1000.0
     for m in args.methods:
-        extra = list(args.extra)
-        if args.lovo and m == "gbt":  # the model fitted without this recording's video
+        method, *flags = m.split("+")  # gbt+offline: fovea-ctl classify --method gbt --offline
+        extra = list(args.extra) + ["--" + f for f in flags]
+        if args.lovo and method == "gbt":  # the model fitted without this recording's video
             extra += ["--model", os.path.join(args.lovo, out["video"] + ".trees")]
-        labels, final_ms, raw = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, m, extra)
+        labels, final_ms, raw = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, method, extra)
         out["methods"][m] = score(truth, labels)
         if args.diagnose and m == args.methods[0]:
             out["diagnosis"] = {c: where_wrong(truth, labels, raw, c) for c in CLASSES}
@@ -224,7 +225,8 @@ def main():
     ap.add_argument("--data", default=os.path.join(here, "..", "..", "shared", "data", "gazecom"))
     ap.add_argument("--every", type=int, default=1, help="every N-th recording (sorted by video, observer)")
     ap.add_argument("--limit", type=int, default=0, help="at most N recordings (0: all)")
-    ap.add_argument("--methods", default="ivvt", help="comma-separated fovea-ctl classify methods")
+    ap.add_argument("--methods", default="ivvt", help="comma-separated fovea-ctl classify methods; METHOD+FLAG "
+                    "adds --FLAG (gbt+offline: the offline second stage beside the online one)")
     ap.add_argument("--extra-args", default="", help="more fovea-ctl classify arguments, e.g. --offline")
     ap.add_argument("--lovo", help="DIR of bench/train_classifier.py --lovo: method gbt labels each recording "
                     "with DIR/<its video>.trees, fitted on the other videos")

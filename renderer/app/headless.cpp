@@ -7,6 +7,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <stdexcept>
+#include <vector>
 #include <thread>
 
 #include "app/render_options.h"
@@ -36,7 +39,7 @@ std::string frame_name(const std::string& dir, std::uint64_t i, const char* ext,
 
 // The run's CSV files, in the order they were always declared (and so closed in reverse).
 struct CsvLogs {
-  std::ofstream gaze, focus, gi, lod, governor, stereo;
+  std::ofstream gaze, focus, gi, lod, governor, stereo, objects;
 };
 
 // Refuses a run without frames or an output directory before anything is loaded.
@@ -286,6 +289,44 @@ void render_stereo_frame(const RenderOptions& o, FramePipeline& pipeline, Govern
   logs.stereo << line;
 }
 
+// objects.csv (--log-objects): per frame, each object with pixels in the G-buffer: how many, their
+// centre (normalised, x right, y down) and median depth.
+void write_objects_rows(std::ofstream& log, const std::string& out_dir, std::uint64_t i, const GBuffer& g,
+                        const Scene& scene) {
+  if (!log.is_open()) {
+    log.open(fs::path(out_dir) / "objects.csv");
+    log << "frame,object,name,pixels,x,y,median_depth_m\n";
+  }
+  if (g.object_id.size() != g.size() || g.depth.size() != g.size()) {
+    throw std::runtime_error("--log-objects: this frame's G-buffer has no object ids or depths");
+  }
+  struct Seen {
+    double sx = 0, sy = 0;
+    std::vector<float> depth;
+  };
+  std::map<std::uint32_t, Seen> seen;
+  for (std::uint32_t y = 0; y < g.height; ++y) {
+    for (std::uint32_t x = 0; x < g.width; ++x) {
+      const std::uint32_t id = g.object_id[g.index(x, y)];
+      if (id == 0) continue;
+      Seen& s = seen[id];
+      s.sx += x + 0.5;
+      s.sy += y + 0.5;
+      s.depth.push_back(g.depth[g.index(x, y)]);
+    }
+  }
+  for (auto& [id, s] : seen) {
+    const double n = static_cast<double>(s.depth.size());
+    auto mid = s.depth.begin() + static_cast<std::ptrdiff_t>(s.depth.size() / 2);
+    std::nth_element(s.depth.begin(), mid, s.depth.end());
+    const Object* o = scene.object_by_id(id);
+    char row[160];
+    std::snprintf(row, sizeof row, ",%zu,%.5f,%.5f,%.4f\n", s.depth.size(), s.sx / n / g.width, s.sy / n / g.height,
+                  static_cast<double>(*mid));
+    log << i << ',' << id << ',' << (o != nullptr ? o->name : std::string()) << row;
+  }
+}
+
 // One frame's files: its images, then its rows in gaze.csv and in the per-pass CSVs whose pass ran.
 void write_frame_files(const RenderOptions& o, std::uint64_t i, double clock, FramePipeline& pipeline,
                        const FramePipeline::Frame& f, PassTimer& timer, CsvLogs& logs) {
@@ -294,6 +335,7 @@ void write_frame_files(const RenderOptions& o, std::uint64_t i, double clock, Fr
   if (f.focus != nullptr) write_focus_row(logs.focus, o.out_dir, i, *f.focus);
   if (f.gi != nullptr) write_gi_row(logs.gi, o.out_dir, i, *f.gi);
   if (f.lod != nullptr) write_lod_row(logs.lod, o.out_dir, i, *f.lod);
+  if (o.log_objects) write_objects_rows(logs.objects, o.out_dir, i, *f.gbuffer, pipeline.scene());
 }
 
 // stdout: what was rendered where, the per-pass timing table and the governor's last state.
@@ -321,7 +363,7 @@ int run_headless(const RenderOptions& o) {
   FramePipeline pipeline(std::move(scene), o.settings, make_backend(o.backend), *gaze);
   load.add_since("backend", backend_start, backend_load_note(o.backend));
   if (o.verbose) std::fprintf(stderr, "fovea-render: %s\n", load.summary().c_str());
-  pipeline.require_cpu_gbuffer(o.exr);  // the EXR is the G-buffer's colour
+  pipeline.require_cpu_gbuffer(o.exr || o.log_objects);  // the EXR is the G-buffer's colour
   write_plan(o, pipeline, *gaze);
   PassTimer timer((fs::path(o.out_dir) / "timings.csv").string());
   // The load phases as the first rows of frame 0 (load.parse, load.textures, load.lod, load.backend).

@@ -91,6 +91,10 @@ int main(int argc, char** argv) {
                "headless: write no frame images, only the CSVs and plan.txt (benchmarks: a frame kept on the GPU is "
                "then never read back)")
       ->excludes(exr);
+  app.add_flag("--log-objects", o.log_objects,
+               "headless: also write objects.csv, where each object shows each frame (its pixels, their centre in "
+               "normalised screen coordinates and their median depth): the truth for gaze measurements such as "
+               "bench/bench_pursuit_focus.py");
   app.add_flag("--realtime", o.realtime, "headless: pace frames on the wall clock (default with udp:// gaze)");
   app.add_option("--budget-ms", o.budget_ms,
                  "frame-time budget: the governor picks each running effect's settings (DOF method, GI photons and "

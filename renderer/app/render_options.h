@@ -29,6 +29,7 @@ struct RenderOptions {
   std::string out_dir;
   bool exr = false;
   bool no_images = false;  // headless: CSVs and plan.txt only
+  bool log_objects = false;  // headless: objects.csv, where each object shows each frame
   bool realtime = false;  // pace frames on the wall clock (default with live gaze)
   double budget_ms = 0;   // > 0: the governor picks effect settings to hold this frame time
   std::string fronts_path;  // the governor's fronts (empty: the built-in ones)

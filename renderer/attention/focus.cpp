@@ -205,7 +205,7 @@ void FocusTracker::reset() {
   result_.focal_depth_m = result_.target_depth_m = settings_.fixed_depth_m;
   target_ = from_ = Target{};
   last_time_s_ = transition_elapsed_s_ = filter_velocity_ = 0;
-  last_fixations_ = 0;
+  last_fixations_ = last_pursuits_ = 0;
   started_ = gaze_target_ = false;
 }
 
@@ -331,18 +331,20 @@ FocusTracker::Target FocusTracker::pick_target(const FrameView& f, const FocusGa
   return next;
 }
 
-// The gaze modes: refocus at a fixation onset, hold the target through saccades and blinks.
+// The gaze modes: refocus at a fixation or pursuit onset, hold the target through saccades and blinks.
 FocusTracker::Target FocusTracker::follow_gaze(const FrameView& f, const FocusGaze& gaze, bool& held) {
   Target next = target_;
   const bool with_attention = settings_.mode == FocusMode::GazeAndAttention;
   const bool can_look = gaze.available && gaze.valid && !gaze.saccade_or_blink;
   const bool visible = !gaze_target_ || target_.kind != Target::Kind::Object || f.object_depth(target_.object);
-  const bool onset = gaze.fixations != last_fixations_;
+  const bool onset =
+      gaze.fixations != last_fixations_ || (settings_.refocus_on_pursuit && gaze.pursuits != last_pursuits_);
   if (can_look && (!gaze_target_ || onset || !visible)) {
-    // Refocus: the first gaze, a fixation onset, or the focused object has gone.
+    // Refocus: the first gaze, a fixation or pursuit onset, or the focused object has gone.
     next = pick_gaze(f, gaze.x, gaze.y, with_attention);
     gaze_target_ = true;
     last_fixations_ = gaze.fixations;
+    last_pursuits_ = gaze.pursuits;
   } else if (gaze_target_ && !visible) {
     // The focused object went during a saccade or blink: whatever is now where the fixation was.
     next = pick_gaze(f, target_.x, target_.y, with_attention);

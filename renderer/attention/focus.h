@@ -6,7 +6,8 @@
 //  - attention: the focal depth is the depth of the most attended object; when no foreground object
 //    is visible (or its attention falls below `min_attention`), the depth at the screen centre.
 //  - gaze: the object under the gaze point (item buffer), refocused at fixation onset (a new
-//    fixation in the gaze stream) and held during saccades and blinks.
+//    fixation in the gaze stream) and at pursuit onset (the eye took up a moving object: issue 43),
+//    and held during saccades and blinks.
 //  - gaze+attention: trackers err by 1-2 deg (Jensen & Pedersen 2009, Table 4.1), so the gazed object
 //    is chosen among the foreground objects with pixels within `gaze_radius_deg` of the gaze point:
 //    the one with the highest attention S_o wins (Lee §6.3's ambiguity); with no foreground object
@@ -35,6 +36,7 @@ struct FocusSettings {
   double gaze_radius_deg = 1.5;  // how far from the gaze point an object may be and still be the gazed one
   double min_attention = 1e-3;   // below: no foreground object is attended (screen-centre depth)
   double fixed_depth_m = 2.0;    // FocusMode::Fixed (the lens' focus distance)
+  bool refocus_on_pursuit = true; // a pursuit onset refocuses as a fixation onset does
   void check() const;            // std::invalid_argument naming the bad field
   bool operator==(const FocusSettings&) const = default;
 };
@@ -46,6 +48,7 @@ struct FocusGaze {
   double x = 0.5, y = 0.5;       // normalised screen coordinates
   bool saccade_or_blink = false; // the stream says the eye is moving or closed: hold the focus
   std::uint64_t fixations = 0;   // fixation onsets seen so far (a change = a new fixation: refocus)
+  std::uint64_t pursuits = 0;    // pursuit onsets seen so far (a change: refocus, with refocus_on_pursuit)
 };
 
 struct FocusResult {
@@ -133,7 +136,7 @@ class FocusTracker {
   double last_time_s_ = 0;
   double transition_elapsed_s_ = 0;  // t of eq. 6.1: the frame gaps summed since the change (never backwards)
   double filter_velocity_ = 0;    // low-pass state (the position is result_.focal_depth_m)
-  std::uint64_t last_fixations_ = 0;
+  std::uint64_t last_fixations_ = 0, last_pursuits_ = 0;
   bool started_ = false;
   bool gaze_target_ = false;      // target_ was picked from the gaze (gaze modes hold it until the next fixation)
 };

@@ -20,6 +20,7 @@ inline FocusGaze focus_gaze_from(const GazeState& state, bool available) {
   g.saccade_or_blink = state.in_saccade || !state.valid ||
                        (!state.provisional && state.movement == protocol::EyeMovement::Blink);
   g.fixations = state.fixations;
+  g.pursuits = state.pursuits;
   return g;
 }
 

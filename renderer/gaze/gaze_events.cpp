@@ -38,6 +38,7 @@ void GazeEventTracker::on_event(const protocol::GazeEvent& e, std::int64_t recei
     }
     return;
   }
+  if (e.kind == EyeMovement::Pursuit && e.phase == EventPhase::Start) ++pursuits_;
   if (!fixation_start) return;
   const auto it = std::find_if(counted_.begin(), counted_.end(), near);
   if (it != counted_.end()) {
@@ -50,6 +51,11 @@ void GazeEventTracker::on_event(const protocol::GazeEvent& e, std::int64_t recei
 std::uint64_t GazeEventTracker::fixations() const {
   std::lock_guard lock(mu_);
   return fixations_;
+}
+
+std::uint64_t GazeEventTracker::pursuits() const {
+  std::lock_guard lock(mu_);
+  return pursuits_;
 }
 
 bool GazeEventTracker::provisional() const {

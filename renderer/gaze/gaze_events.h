@@ -20,6 +20,7 @@ class GazeEventTracker {
  public:
   void on_event(const protocol::GazeEvent& e, std::int64_t received_ns);
   std::uint64_t fixations() const;
+  std::uint64_t pursuits() const;  // final Pursuit Start events (pursuit has no provisional events)
   bool provisional() const;  // provisional events have arrived (the daemon sends them)
   bool in_saccade(std::int64_t now_ns) const;
 
@@ -28,7 +29,7 @@ class GazeEventTracker {
 
  private:
   mutable std::mutex mu_;
-  std::uint64_t fixations_ = 0;
+  std::uint64_t fixations_ = 0, pursuits_ = 0;
   std::deque<std::int64_t> counted_;  // onsets of provisional fixations counted (the last 64)
   bool provisional_ = false;
   bool saccade_open_ = false;

@@ -106,6 +106,7 @@ class UdpGaze final : public GazeInput {
       state_.latency_p99_ms = static_cast<double>(stats.latency_p99_ns) / 1e6;
     }
     state_.fixations = events_.fixations();
+    state_.pursuits = events_.pursuits();
     state_.provisional = events_.provisional();
     if (state_.provisional) state_.in_saccade = events_.in_saccade(protocol::monotonic_ns());
     return state_;
@@ -136,6 +137,10 @@ class FileGaze final : public GazeInput {
       if (const auto* s = std::get_if<protocol::GazeSample>(&r.item)) samples_.push_back(*s);
       if (const auto* e = std::get_if<protocol::GazeEvent>(&r.item)) {
         any_event = true;
+        if (e->kind == protocol::EyeMovement::Pursuit && e->phase == protocol::EventPhase::Start &&
+            !e->provisional()) {
+          pursuit_onsets_ns_.push_back(e->start_time_ns);
+        }
         if (e->kind == protocol::EyeMovement::Fixation && e->phase == protocol::EventPhase::Start) {
           fixation_onsets_ns_.push_back(e->start_time_ns);
         }
@@ -146,15 +151,17 @@ class FileGaze final : public GazeInput {
       return a.tracker_time_ns < b.tracker_time_ns;
     });
     if (!any_event) {
-      // No events (CSV keeps none): a fixation starts where a sample's state turns to Fixation.
+      // No events (CSV keeps none): a fixation (pursuit) starts where a sample's state turns to it.
       for (std::size_t i = 0; i < samples_.size(); ++i) {
-        if (samples_[i].state == protocol::EyeMovement::Fixation &&
-            (i == 0 || samples_[i - 1].state != protocol::EyeMovement::Fixation)) {
-          fixation_onsets_ns_.push_back(samples_[i].tracker_time_ns);
-        }
+        const auto turns_to = [&](protocol::EyeMovement m) {
+          return samples_[i].state == m && (i == 0 || samples_[i - 1].state != m);
+        };
+        if (turns_to(protocol::EyeMovement::Fixation)) fixation_onsets_ns_.push_back(samples_[i].tracker_time_ns);
+        if (turns_to(protocol::EyeMovement::Pursuit)) pursuit_onsets_ns_.push_back(samples_[i].tracker_time_ns);
       }
     }
     std::sort(fixation_onsets_ns_.begin(), fixation_onsets_ns_.end());
+    std::sort(pursuit_onsets_ns_.begin(), pursuit_onsets_ns_.end());
   }
   std::string description() const override { return "file:" + path_; }
   GazeState at(double t) override {
@@ -177,8 +184,11 @@ class FileGaze final : public GazeInput {
     }
     g.age_ms = static_cast<double>(target - it->tracker_time_ns) / 1e6;
     g.received = index + 1;
-    g.fixations = static_cast<std::uint64_t>(
-        std::upper_bound(fixation_onsets_ns_.begin(), fixation_onsets_ns_.end(), target) - fixation_onsets_ns_.begin());
+    const auto seen = [target](const std::vector<std::int64_t>& onsets) {
+      return static_cast<std::uint64_t>(std::upper_bound(onsets.begin(), onsets.end(), target) - onsets.begin());
+    };
+    g.fixations = seen(fixation_onsets_ns_);
+    g.pursuits = seen(pursuit_onsets_ns_);
     return g;
   }
 
@@ -186,6 +196,7 @@ class FileGaze final : public GazeInput {
   std::string path_;
   std::vector<protocol::GazeSample> samples_;
   std::vector<std::int64_t> fixation_onsets_ns_;  // Fixation Start times, sorted
+  std::vector<std::int64_t> pursuit_onsets_ns_;   // (final) Pursuit Start times, sorted
 };
 
 }  // namespace

@@ -19,6 +19,7 @@ struct GazeState {
   std::uint64_t received = 0, lost = 0;
   double latency_p99_ms = 0;
   std::uint64_t fixations = 0;   // fixation onsets (GAZE_EVENT Fixation Start) seen so far; a change = a new fixation
+  std::uint64_t pursuits = 0;    // pursuit onsets (GAZE_EVENT Pursuit Start) seen so far: the eye took up a moving thing
   // A saccade is in flight now, as best known: udp with provisional events, from them (gaze_events.h);
   // otherwise the sample's movement is Saccade.
   bool in_saccade = false;
@@ -49,7 +50,9 @@ class GazeInput {
 // counts the recording's Fixation Start events up to the replay time (a recording without events, as
 // CSV is, counts samples whose state turns to Fixation instead); mouse counts a fixation when the
 // cursor has stayed within 1 deg (on the default display geometry) for 100 ms after moving; none
-// never counts one.
+// never counts one. Pursuit onsets (GazeState::pursuits) likewise from the Pursuit Start events
+// (final only: there are no provisional ones) or the samples whose state turns to Pursuit; mouse and
+// none never count one.
 // "udp://HOST:PORT", "file:REC.fgr" (or .csv), "mouse", "none". Throws std::invalid_argument for a
 // bad spec and std::runtime_error when the source cannot start (unreadable recording).
 std::unique_ptr<GazeInput> make_gaze_input(const std::string& spec);

@@ -46,6 +46,7 @@ attention::FocusSettings focus_settings(const Settings& s, const Lens& lens) {
   f.transition_s = s.number("focus.transition_ms") / 1000.0;
   f.cutoff_hz = s.number("focus.cutoff_hz");
   f.gaze_radius_deg = s.number("focus.gaze_radius_deg");
+  f.refocus_on_pursuit = s.flag("focus.refocus_on_pursuit");
   if (std::isfinite(lens.focus_distance_m) && lens.focus_distance_m > 0) f.fixed_depth_m = lens.focus_distance_m;
   return f;
 }
@@ -214,7 +215,7 @@ std::string FramePipeline::gpu_refusal() const {
   if (!settings_.flag("frame.gpu")) return "frame.gpu=false";
   if (!settings_.is("output", "final")) return "output=" + settings_.text("output") + " reads the whole G-buffer";
   if (!settings_.is("overlay.map", "none")) return "overlay.map=" + settings_.text("overlay.map") + " is drawn on the CPU";
-  if (cpu_gbuffer_required_) return "the G-buffer is written out (--exr)";
+  if (cpu_gbuffer_required_) return "the G-buffer is read on the CPU (--exr, --log-objects)";
   return "";
 }
 

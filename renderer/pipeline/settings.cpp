@@ -48,6 +48,8 @@ const std::vector<SettingSpec>& Settings::specs() {
       {"focus.cutoff_hz", "1", "number in [0.01, 2]", "cut-off of the low-pass focus transition (Lee 2009 §6.1: <= 2 Hz)"},
       {"focus.gaze_radius_deg", "1.5", "number in [0, 10]",
        "gaze+attention: objects with pixels this close to the gaze point compete on attention (tracker error 1-2 deg)"},
+      {"focus.refocus_on_pursuit", "true", "bool",
+       "gaze modes: a pursuit onset (the eye takes up a moving object) refocuses as a fixation onset does"},
       {"dof.enabled", "true", "bool", "depth of field for thin-lens cameras"},
       {"dof.method", "lee-mipmap", "reference|accum|lee-mipmap|lee-splat|schedl-layered",
        "depth-of-field algorithm: reference = thin-lens distributed ray tracing (Embree), accum = the "

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <numbers>
 #include <thread>
@@ -14,6 +15,7 @@
 #include "attention/focus.h"
 #include "attention/focus_input.h"
 #include "fovea/protocol/clock.h"
+#include "fovea/protocol/csv.h"
 #include "fovea/protocol/recording.h"
 #include "fovea/protocol/server.h"
 #include "gaze/gaze_events.h"
@@ -387,6 +389,26 @@ TEST(FocusGaze, RefocusesOnlyAtFixationOnsetAndHoldsDuringSaccades) {
   EXPECT_DOUBLE_EQ(second.last().focal_depth_m, 9.0);
 }
 
+TEST(FocusGaze, RefocusesAtPursuitOnsetUnlessTurnedOff) {
+  // The eye lands on the right cup and pursues it with no fixation between (the fixation count stays
+  // 5): a pursuit onset is a new thing looked at.
+  for (const bool on : {true, false}) {
+    World w = two_cups();
+    FocusSettings s = settings(FocusMode::Gaze, 0.0);
+    s.refocus_on_pursuit = on;
+    FocusTracker focus(s);
+    EXPECT_EQ(focus.update(0.0, w.g, w.scene, nullptr, gaze_at(0.4, 0.5, 5), w.display).object, 1u);
+    FocusGaze pursuing = gaze_at(0.6, 0.5, 5);
+    pursuing.pursuits = 1;
+    EXPECT_EQ(focus.update(0.1, w.g, w.scene, nullptr, pursuing, w.display).object, on ? 2u : 1u) << on;
+    // Later pursuit onsets refocus again, and only once each.
+    pursuing.x = 0.4;
+    EXPECT_EQ(focus.update(0.2, w.g, w.scene, nullptr, pursuing, w.display).object, on ? 2u : 1u) << on;
+    pursuing.pursuits = 2;
+    EXPECT_EQ(focus.update(0.3, w.g, w.scene, nullptr, pursuing, w.display).object, 1u) << on;
+  }
+}
+
 TEST(FocusGaze, NoGazeYetUsesTheScreenCentre) {
   World w = two_cups();
   w.paint(1, 90, 40, 110, 60, 2.0f);  // the left cup at the centre
@@ -645,6 +667,8 @@ TEST(GazeFixations, FileReplayCountsFixationStartEventsUpToTheReplayTime) {
     event(fovea::protocol::EyeMovement::Saccade, fovea::protocol::EventPhase::Start, 0.5);
     event(fovea::protocol::EyeMovement::Fixation, fovea::protocol::EventPhase::End, 0.5);
     event(fovea::protocol::EyeMovement::Fixation, fovea::protocol::EventPhase::Start, 0.6);
+    event(fovea::protocol::EyeMovement::Pursuit, fovea::protocol::EventPhase::Start, 0.8);
+    event(fovea::protocol::EyeMovement::Pursuit, fovea::protocol::EventPhase::End, 0.9);
   }
   auto file = make_gaze_input("file:" + path.string());
   EXPECT_EQ(file->at(0.0).fixations, 0u);
@@ -654,7 +678,40 @@ TEST(GazeFixations, FileReplayCountsFixationStartEventsUpToTheReplayTime) {
   EXPECT_EQ(file->at(0.6).fixations, 2u);
   EXPECT_EQ(file->at(5.0).fixations, 2u);
   EXPECT_EQ(file->at(0.1).fixations, 0u);  // replay is a function of time: earlier frames see fewer
+  EXPECT_EQ(file->at(0.79).pursuits, 0u);
+  EXPECT_EQ(file->at(0.8).pursuits, 1u);
+  EXPECT_EQ(file->at(5.0).pursuits, 1u);
   EXPECT_TRUE(file->at(0.3).valid);        // samples as before
+  fs::remove(path);
+}
+
+TEST(GazeFixations, ACsvRecordingsOnsetsAreWhereTheSamplesStateTurns) {
+  namespace fs = std::filesystem;
+  using fovea::protocol::EyeMovement;
+  const fs::path path = fs::temp_directory_path() / ("fovea_test_focus_" + std::to_string(::getpid()) + ".csv");
+  fovea::protocol::Recording rec;
+  rec.header.device = "test";
+  rec.header.nominal_rate_hz = 100;
+  // 100 Hz: fixation, saccade, pursuit, saccade, fixation, pursuit (0.1 s each).
+  const EyeMovement states[] = {EyeMovement::Fixation, EyeMovement::Saccade, EyeMovement::Pursuit,
+                                EyeMovement::Saccade,  EyeMovement::Fixation, EyeMovement::Pursuit};
+  for (int i = 0; i < 60; ++i) {
+    fovea::protocol::GazeSample s;
+    s.tracker_time_ns = 1'000'000'000 + i * 10'000'000LL;
+    s.flags = fovea::protocol::kGazeValid;
+    s.state = states[i / 10];
+    rec.records.push_back({static_cast<std::uint64_t>(i), s});
+  }
+  {
+    std::ofstream out(path);
+    fovea::protocol::write_csv(out, rec);
+  }
+  auto file = make_gaze_input("file:" + path.string());
+  EXPECT_EQ(file->at(0.15).fixations, 1u);
+  EXPECT_EQ(file->at(0.15).pursuits, 0u);
+  EXPECT_EQ(file->at(0.2).pursuits, 1u);
+  EXPECT_EQ(file->at(0.45).fixations, 2u);
+  EXPECT_EQ(file->at(0.5).pursuits, 2u);
   fs::remove(path);
 }
 
@@ -838,6 +895,12 @@ TEST(GazeFixations, ProvisionalOnsetsCountOnceAndSaccadesFlyUntilTheyLand) {
   t.on_event(event(EyeMovement::Saccade, EventPhase::Start, 4000, kEventProvisional), 4005 * ms);
   EXPECT_TRUE(t.in_saccade(4200 * ms));
   EXPECT_FALSE(t.in_saccade(4206 * ms));
+  // Pursuit onsets: final events only (the daemon says none provisionally).
+  EXPECT_EQ(t.pursuits(), 0u);
+  t.on_event(event(EyeMovement::Pursuit, EventPhase::Start, 5000, 0), 5300 * ms);
+  t.on_event(event(EyeMovement::Pursuit, EventPhase::End, 5000, 0), 5600 * ms);
+  EXPECT_EQ(t.pursuits(), 1u);
+  EXPECT_EQ(t.fixations(), 3u);
 }
 
 // End to end: a daemon's provisional fixation onset reaches the renderer's udp gaze input.
