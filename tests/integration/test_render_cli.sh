@@ -94,6 +94,22 @@ grep -q "gaze+attention: " "$WORK/focus/focus.csv" || fail "focus.csv why: $(cat
 grep -q "run   attention" "$WORK/focus/plan.txt" || fail "attention did not run for the focus: $(cat "$WORK/focus/plan.txt")"
 [ -e "$WORK/full/focus.csv" ] && fail "focus ran although nothing consumes it"
 
+echo "== --log-objects: where each object shows each frame (objects.csv), the moving ones moving"
+"$RENDER" --scene "$SCENES/attention.json" "${SMALL[@]}" --headless --frames 10 --fps 5 --gaze none --no-images \
+  --log-objects --out "$WORK/objects" >"$WORK/objects.log" 2>&1 || fail "objects run: $(tail -5 "$WORK/objects.log")"
+head -1 "$WORK/objects/objects.csv" | grep -qx "frame,object,name,pixels,x,y,median_depth_m" \
+  || fail "objects.csv header: $(head -1 "$WORK/objects/objects.csv")"
+/usr/bin/python3 - "$WORK/objects/objects.csv" <<'PY' || fail "objects.csv: $(head -20 "$WORK/objects/objects.csv")"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+track = lambda name, key: [float(r[key]) for r in rows if r["name"] == name]
+assert len({r["frame"] for r in rows}) == 10, "a row set per frame"
+assert max(track("red_ball", "x")) - min(track("red_ball", "x")) > 0.1, "red_ball moves left-right"
+assert max(track("approaching_ball", "median_depth_m")) - min(track("approaching_ball", "median_depth_m")) > 2, "approaching_ball comes closer"
+assert max(track("blob", "x")) - min(track("blob", "x")) < 1e-3, "blob stays"
+assert all(0 <= float(r["x"]) <= 1 and 0 <= float(r["y"]) <= 1 and int(r["pixels"]) > 0 for r in rows)
+PY
+
 echo "== depth of field: every method headless, the CoC overlay, the raster backend's reference"
 # f/0.5: CoCs of several pixels even at 160x120.
 DOF=(--scene "$SCENES/attention.json" "${SMALL[@]}" --scene-set camera.lens.f_number=0.5 --headless --frames 2 --fps 10
