@@ -48,7 +48,7 @@ from classify_scoring import event_f1, events_of, kappa
 
 CODER = {1: "fixation", 2: "saccade", 3: "pso", 4: "pursuit", 5: "blink"}
 CLASSES = ("fixation", "saccade", "pso", "blink")  # the classes this data set holds
-METHODS = ("ivvt", "gbt", "ivt", "idt", "lee2009")
+METHODS = ("ivvt", "gbt", "gbt+offline", "ivt", "idt", "lee2009")  # METHOD+FLAG: fovea-ctl classify --FLAG
 
 
 def load_geometry(data_dir):
@@ -84,8 +84,9 @@ def classify(ctl, in_path, out_path, rate_hz, geometry, method, provisional=None
     """Labels and final times; with `provisional` (a dict) also the provisional events, as
     (kind_phase, event time ms, row index that made it known), and the confirmed/retracted counts."""
     w_px, h_px, w_mm, h_mm, dist_mm = geometry
+    method, *flags = method.split("+")
     cmd = [ctl, "classify", in_path, out_path, "%g" % rate_hz, str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
-           "%g" % dist_mm, "--method", method, "--force", "--final-times"]
+           "%g" % dist_mm, "--method", method, "--force", "--final-times"] + ["--" + f for f in flags]
     if provisional is not None:
         cmd.append("--provisional")
     run = subprocess.run(cmd, check=True, capture_output=True, text=True)

@@ -47,7 +47,8 @@ struct Scored {
 // Three streaming steps, each waiting only as long as the next needs: the first stage scores a
 // sample once the stream has reached kFeatureReachS past it; the second (where the model has one,
 // or context features are asked for) once the first has scored the look-ahead past it; smoothing
-// labels it once its window (kSmoothLongS) has been through both.
+// labels it once its window (kSmoothLongS, online after a second stage kSmoothLongAfterContextS) has
+// been through both.
 class TreesCore final : public Core {
  public:
   TreesCore(std::shared_ptr<const GbtModel> model, const protocol::DisplayGeometry& display, GbtOptions options)
@@ -57,6 +58,7 @@ class TreesCore final : public Core {
         context_(model_ ? model_->context(options.offline) : nullptr),
         staged_(context_ != nullptr || options.context_sink),
         lookahead_s_(context_ ? model_->lookahead_s(options.offline) : staged_ ? kContextReachS : 0.0),
+        smooth_long_s_(context_ && !options.offline ? kSmoothLongAfterContextS : kSmoothLongS),
         classes_(model_ ? model_->frame().class_count() : 0),
         frame_sink_(std::move(options.frame_sink)),
         context_sink_(std::move(options.context_sink)) {}
@@ -77,7 +79,7 @@ class TreesCore final : public Core {
     if (smooth_) label_smoothed(out, true);
   }
   double latency_s() const override {
-    return kFeatureReachS + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? kSmoothLongS : 0.0);
+    return kFeatureReachS + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? smooth_long_s_ : 0.0);
   }
 
  private:
@@ -113,7 +115,9 @@ class TreesCore final : public Core {
   // at the end of the stream).
   void contextualize(std::vector<Labeled>& out, bool all) {
     std::array<float, kMaxContextFeatures> f;
-    while (ctx_next_ < ctx_.size() && (all || ctx_.back().t >= ctx_[ctx_next_].t + lookahead_s_)) {
+    // Every sample up to the look-ahead has been scored once the stream has reached the features'
+    // reach past it (also where it paused: nothing later can fall within the look-ahead).
+    while (ctx_next_ < ctx_.size() && (all || newest_t_ >= ctx_[ctx_next_].t + lookahead_s_ + kFeatureReachS)) {
       context_features(ctx_, ctx_next_, classes_, lookahead_s_, f.data());
       Scored s = pending_.front();
       pending_.pop_front();
@@ -146,7 +150,7 @@ class TreesCore final : public Core {
     }
   }
   // Labels every scored sample whose smoothing window is complete: the stream has reached the
-  // latency past it (every sample within kSmoothLongS after it has arrived and been scored), or a
+  // latency past it (every sample within the long window after it has arrived and been scored), or a
   // later gaze run has begun (everything, at the end of the stream).
   void label_smoothed(std::vector<Labeled>& out, bool all) {
     const TreesModel& last = context_ ? *context_ : model_->frame();
@@ -157,14 +161,14 @@ class TreesCore final : public Core {
       if (s.gaze) {
         std::array<double, kMaxTreeClasses> near{}, wide{};
         window_mean(labelled_, kSmoothShortS, near);
-        window_mean(labelled_, kSmoothLongS, wide);
+        window_mean(labelled_, smooth_long_s_, wide);
         l.label = last.smoothed_label(near.data(), wide.data(), s.noise_ok);
       }
       out.push_back(l);
       ++labelled_;
     }
     // Keep what the next label's window reaches back to.
-    while (labelled_ > 0 && (labelled_ == scored_.size() || scored_[labelled_].t - scored_.front().t > kSmoothLongS)) {
+    while (labelled_ > 0 && (labelled_ == scored_.size() || scored_[labelled_].t - scored_.front().t > smooth_long_s_)) {
       scored_.pop_front();
       --labelled_;
     }
@@ -198,6 +202,7 @@ class TreesCore final : public Core {
   const TreesModel* context_;  // the second stage used (owned by model_), or null
   bool staged_;                // whether samples go through the second stage's buffer
   double lookahead_s_;
+  double smooth_long_s_;       // the long smoothing window (trees_core.h)
   std::size_t classes_;        // the first stage's
   FeatureSink frame_sink_, context_sink_;
   std::deque<Prepared> buf_;

@@ -25,6 +25,9 @@ inline constexpr double kNoiseNearLossS = 0.100;
 // 0.38 (fixation / saccade / pursuit) at no cost in sample F1.
 inline constexpr double kSmoothShortS = 0.008;
 inline constexpr double kSmoothLongS = 0.048;
+// After a second stage (whose context already spans +-512 ms) the long window is shorter, so the
+// labels stay within ivvt's latency bound: 256 ms reach + 32 ms look-ahead + 16 ms = 304 ms.
+inline constexpr double kSmoothLongAfterContextS = 0.016;
 class TreesModel {
  public:
   // Throws std::invalid_argument naming origin and what is wrong (also more than kMaxTreeClasses).
