@@ -1,17 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
-// The learned method's second stage (issue 43): the context features (context.h) and the two-stage
-// model bundle (trees_core.h, GbtModel).
+// The learned method's second stage (issue 43): the context features (context.h). The two-stage
+// model bundle's tests are in test_classify_trees.cpp.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <deque>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "classify/context.h"
 #include "classify/features.h"
-#include "classify/trees_core.h"
 
 using namespace fovea::trackerd::classify;
 
@@ -121,74 +119,4 @@ TEST(Context, APauseInTheStreamIsNoNeighbour) {
   const auto f = features_of(buf, 49, kContextReachS);
   EXPECT_TRUE(std::isnan(f[at("p_fixation_p512ms")]));
   EXPECT_TRUE(std::isnan(f[at("mean_fixation_p512ms")]));
-}
-
-namespace {
-
-std::string ensemble(const std::vector<std::string>& features, const std::string& classes) {
-  std::string s = "fovea-trees 1\nfeatures " + std::to_string(features.size());
-  for (const auto& n : features) s += " " + n;
-  return s + "\nclasses 2 " + classes + "\nbaseline 0 0\ntrees 1\ntree 0 1\n-1 0 0 0 0 1\n";
-}
-
-std::string bundle() {
-  const auto ctx = context_feature_names(kClasses);
-  return "# two stages\nfovea-gbt 1\nstage frame\n" + ensemble(feature_names(), "fixation saccade") +
-         "stage online 0.032\n" + ensemble(ctx, "fixation pursuit") + "stage offline 0.512\n" +
-         ensemble(ctx, "fixation saccade");
-}
-
-std::string model_error(const std::string& text) {
-  try {
-    GbtModel(text, "m.gbt");
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "";
-}
-
-std::string replaced(std::string s, const std::string& from, const std::string& to) {
-  s.replace(s.find(from), from.size(), to);
-  return s;
-}
-
-}  // namespace
-
-TEST(GbtModel, ABundleHoldsTheFirstStageAndBothSecondStages) {
-  const GbtModel m(bundle(), "m.gbt");
-  EXPECT_EQ(m.frame().trees().class_names(), kClasses);
-  ASSERT_NE(m.context(false), nullptr);
-  ASSERT_NE(m.context(true), nullptr);
-  EXPECT_EQ(m.context(false)->trees().class_names()[1], "pursuit");
-  EXPECT_DOUBLE_EQ(m.lookahead_s(false), 0.032);
-  EXPECT_DOUBLE_EQ(m.lookahead_s(true), 0.512);
-  const GbtModel frame_only(ensemble(feature_names(), "fixation saccade"), "m.trees");  // the older format
-  EXPECT_EQ(frame_only.context(false), nullptr);
-  EXPECT_EQ(frame_only.context(true), nullptr);
-  const GbtModel offline_only(replaced(bundle(), "stage online 0.032\n" + ensemble(context_feature_names(kClasses), "fixation pursuit"), ""), "m");
-  EXPECT_EQ(offline_only.context(false), nullptr);
-  EXPECT_NE(offline_only.context(true), nullptr);
-}
-
-TEST(GbtModel, ADamagedBundleIsRefusedWithFileAndLine) {
-  EXPECT_EQ(model_error(replaced(bundle(), "fovea-gbt 1", "fovea-gbt 2")), "m.gbt:2: format version is not 1");
-  EXPECT_EQ(model_error(replaced(bundle(), "fovea-gbt 1", "fovea-gbz 1")),
-            "m.gbt:2: expected 'fovea-gbt' or 'fovea-trees', found 'fovea-gbz'");
-  EXPECT_EQ(model_error(replaced(bundle(), "stage frame", "stage frames")),
-            "m.gbt:3: stage 'frames' is none of frame, online, offline");
-  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.6")),
-            "m.gbt:11: 'stage online' needs one look-ahead in seconds, in (0, 0.512000]");
-  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online")),
-            "m.gbt:11: 'stage online' needs one look-ahead in seconds, in (0, 0.512000]");
-  EXPECT_EQ(model_error(replaced(bundle(), "stage offline 0.512", "stage online 0.5")), "m.gbt:19: a second 'stage online'");
-  EXPECT_EQ(model_error(replaced(bundle(), "stage frame\n", "frame\n")), "m.gbt:3: expected 'stage', found 'frame'");
-  // A second stage must read the context of the first's classes: here it names other features.
-  const std::string other = replaced(bundle(), "stage frame\n" + ensemble(feature_names(), "fixation saccade"),
-                                     "stage frame\n" + ensemble(feature_names(), "fixation pursuit"));
-  EXPECT_NE(model_error(other).find("m.gbt:13: the model was trained on other features"), std::string::npos);
-  // The ensembles' own errors carry the file's line numbers.
-  EXPECT_EQ(model_error(replaced(bundle(), "tree 0 1\n-1 0 0 0 0 1\nstage online", "tree 0 1\n-1 0 0 0 0 nan\nstage online")),
-            "m.gbt:10: node value 'nan' is not a finite number");
-  EXPECT_EQ(model_error("fovea-gbt 1\n"), "m.gbt:1: no 'stage frame'");
-  EXPECT_EQ(model_error(""), "m.gbt:1: expected 'fovea-gbt' or 'fovea-trees', found ''");
 }
