@@ -70,8 +70,8 @@ struct ClassifierOptions {
   protocol::DisplayGeometry display;
   // gbt: a tree model file (bench/train_classifier.py) instead of the one built in; "" = built in.
   std::string model_path;
-  // gbt: each sample's trees' label alone, neither smoothed nor with ivvt's PSO (what
-  // bench/train_classifier.py checks against scikit-learn).
+  // gbt: each sample's label from the model's last stage alone, neither smoothed nor with ivvt's
+  // PSO (what bench/train_classifier.py checks against scikit-learn).
   bool trees_only = false;
   // Label for analysis, not live: the whole recording is at hand, so labels may wait for as much of
   // it as helps. gbt: its offline second stage (context.h, the whole reach) instead of the online

@@ -561,8 +561,8 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
                        "gbt: a tree model written by bench/train_classifier.py instead of the built-in one")
       ->check(CLI::ExistingFile);
   classify->add_flag("--trees-only", cls.trees_only,
-                     "gbt: each sample's own trees' label, neither smoothed nor with ivvt's PSO (what "
-                     "bench/train_classifier.py compares with scikit-learn)");
+                     "gbt: each sample's own label from the model's last stage, neither smoothed nor with ivvt's "
+                     "PSO (what bench/train_classifier.py compares with scikit-learn)");
   classify->add_flag("--offline", cls.offline,
                      "label for analysis: gbt uses its offline second stage, which looks 512 ms ahead of each "
                      "sample instead of the daemon's 32 ms (other methods label the same either way)");
