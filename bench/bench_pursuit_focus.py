@@ -21,6 +21,9 @@ focus.refocus_on_pursuit on and off, focus.mode=gaze, and scored from focus.csv:
   delay      ms from each pursuit's start until the focus is on its object (median over pursuits)
   still      share of the fixation frames focused on the fixated object
   depth err  median |focal depth - the pursued object's depth| over the pursuit frames, m
+  LOD full   share of red_ball's pursuit frames drawn at its full level, and of the frames while the
+             eye fixates elsewhere (red_ball is given a chain of simplified levels, LOD_CHAIN, and
+             lod.policy=gaze picks levels by eccentricity from the gaze point)
 
 Usage: bench/bench_pursuit_focus.py FOVEA_RENDER FOVEA_CTL [--methods ivvt,gbt] [--fps 30] [--width 320]
        [--seed 1] [--keep DIR]
@@ -42,6 +45,7 @@ RATE_HZ = 500
 NOISE_DEG = 0.05
 PURSUIT_GAIN = 0.9
 CATCH_UP_DEG = 1.0
+LOD_OBJECT, LOD_CHAIN = "red_ball", "[0.5,0.25,0.1]"
 # (what the eye does, on which object, for how long in s): fixations on still objects at other
 # depths than the pursued ones, so a focus left behind shows.
 SCRIPT = [("fixation", "mirror_ball", 1.0), ("pursuit", "red_ball", 2.5), ("fixation", "mirror_ball", 1.0),
@@ -203,8 +207,35 @@ def known_at_each_sample(samples, labels, final, provisional=None):
     return known
 
 
+def lod_levels(lod_csv, object_id):
+    """frame -> the level drawn of object_id (lod.csv's "id:level ..." cells)."""
+    levels = {}
+    with open(lod_csv) as f:
+        for r in csv.DictReader(f):
+            for cell in r["levels"].split():
+                oid, level = cell.split(":")
+                if int(oid) == object_id:
+                    levels[int(r["frame"])] = int(level)
+    return levels
+
+
+def lod_full(levels, segments, fps, pursued):
+    """The share of frames LOD_OBJECT is drawn at its full level (0): while pursued, and not."""
+    counts = {True: [0, 0], False: [0, 0]}
+    for kind, name, a, b in segments:
+        on = kind == "pursuit" and name == LOD_OBJECT
+        if on != pursued:
+            continue
+        for i in range(int(math.ceil(a * fps)), int(b * fps)):
+            if i in levels:
+                counts[on][0] += levels[i] == 0
+                counts[on][1] += 1
+    n, d = counts[pursued]
+    return n / max(1, d)
+
+
 def score(focus_csv, tracks, ids, segments, fps):
-    """The figures of one run (the module's docstring) from its focus.csv."""
+    """The figures of one run (the module's docstring) from its focus.csv and lod.csv."""
     with open(focus_csv) as f:
         rows = {int(r["frame"]): r for r in csv.DictReader(f)}
     pursued = [0, 0]
@@ -222,8 +253,10 @@ def score(focus_csv, tracks, ids, segments, fps):
         else:
             still[0] += sum(on)
             still[1] += len(on)
+    levels = lod_levels(os.path.join(os.path.dirname(focus_csv), "lod.csv"), ids[LOD_OBJECT])
     return {"pursued": pursued[0] / max(1, pursued[1]), "delay_ms": statistics.median(delays),
-            "still": still[0] / max(1, still[1]), "depth_err_m": statistics.median(depth_err) if depth_err else float("nan")}
+            "still": still[0] / max(1, still[1]), "depth_err_m": statistics.median(depth_err) if depth_err else float("nan"),
+            "lod_pursued": lod_full(levels, segments, fps, True), "lod_else": lod_full(levels, segments, fps, False)}
 
 
 def main():
@@ -236,7 +269,9 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--keep", help="keep the runs' files here")
     args = ap.parse_args()
-    display = Display(json.load(open(SCENE))["display"])
+    scene = json.load(open(SCENE))
+    display = Display(scene["display"])
+    lod_index = [o["name"] for o in scene["objects"]].index(LOD_OBJECT)
     duration = sum(d for _, _, d in SCRIPT) + 1
     frames = int(duration * args.fps)
     tmp_obj = tempfile.TemporaryDirectory()
@@ -253,8 +288,8 @@ def main():
         runs.append((m + "+provisional", known_at_each_sample(samples, labels, final, provisional)))
     print(f"{len(samples)} gaze samples at {RATE_HZ} Hz over {samples[-1][0]:.1f} s; {frames} frames at {args.fps} fps "
           f"of attention.json at {args.width} px; focus.mode=gaze\n")
-    print("| labels | refocus_on_pursuit | pursued | delay ms | still | depth err m |")
-    print("|---|---|---:|---:|---:|---:|")
+    print("| labels | refocus_on_pursuit | pursued | delay ms | still | depth err m | LOD full: pursued / not |")
+    print("|---|---|---:|---:|---:|---:|---:|")
     for name, known in runs:
         rec = os.path.join(tmp, f"{name}.replay.csv")
         replay_csv(rec, samples, known, display)
@@ -262,10 +297,11 @@ def main():
             out = os.path.join(tmp, f"{name}-{on}")
             render(args.render, out, args.fps, frames, args.width,
                    ["--gaze", "file:" + rec, "--set", "focus.mode=gaze", "--set", "overlay.focus=true",
-                    "--set", f"focus.refocus_on_pursuit={on}"])
+                    "--set", f"focus.refocus_on_pursuit={on}", "--set", "lod.policy=gaze",
+                    "--scene-set", f"objects.{lod_index}.lod.simplify={LOD_CHAIN}"])
             s = score(os.path.join(out, "focus.csv"), tracks, ids, segments, args.fps)
-            print(f"| {name} | {on} | {s['pursued']:.2f} | {s['delay_ms']:.0f} | {s['still']:.2f} | {s['depth_err_m']:.2f} |",
-                  flush=True)
+            print(f"| {name} | {on} | {s['pursued']:.2f} | {s['delay_ms']:.0f} | {s['still']:.2f} | {s['depth_err_m']:.2f} "
+                  f"| {s['lod_pursued']:.2f} / {s['lod_else']:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
