@@ -76,6 +76,8 @@ class TreesCore final : public Core {
     buf_.clear();
     next_ = 0;
     if (staged_) contextualize(out, true);
+    ctx_.clear();  // the stream has ended: no later context may reach back into it
+    ctx_next_ = 0;
     if (smooth_) label_smoothed(out, true);
   }
   double latency_s() const override {
