@@ -62,7 +62,16 @@ for client in "ab":
         times = by_point[key]
         i = bisect.bisect_left(times, t)
         errors.append(min(abs(times[j] - t) for j in (i - 1, i) if 0 <= j < len(times)))
-    assert len(rows) > 0.5 * 5 * 200, f"{client}: only {len(rows)} samples in 5 s at 200 Hz"
+    # Half of what the fake published while the client recorded, apart from the restart's gap (not
+    # of 200 Hz x 5 s: on a starved machine the Python fake itself falls behind its rate, and the
+    # daemon takes longer to find the moved publisher; what is published before it subscribes is
+    # gone, as with Pupil Capture itself).
+    got = sorted(int(r[1]) for r in rows)
+    gap = max(zip(got, got[1:]), key=lambda g: g[1] - g[0])
+    assert gap[1] - gap[0] < 3e9, f"{client}: no samples for {(gap[1] - gap[0]) / 1e9:.1f} s around the restart"
+    published = sum(got[0] <= c <= got[-1] and not gap[0] < c < gap[1] for times in by_point.values() for c in times)
+    assert len(rows) > 100 and len(rows) > 0.5 * published, \
+        f"{client}: only {len(rows)} samples of the {published} the fake published meanwhile (restart gap aside)"
     errors.sort()
     late = sum(e > bound_ns for e in errors)
     print(f"   {client}: {len(rows)} samples, time error p50 {errors[len(errors)//2]/1e6:.3f} ms, "
