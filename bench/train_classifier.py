@@ -110,9 +110,10 @@ def recording(path, copy):
     return (t_us, x, y, conf), geometry, final, rate
 
 
-def matrix_out(ctl, path, copy, option, extra=()):
-    """fovea-ctl's --features-out or --context-out matrix of a recording or copy, and its names."""
-    gaze, geometry, _, rate = recording(path, copy)
+def matrix_out(ctl, rec, option, extra=()):
+    """fovea-ctl's --features-out or --context-out matrix of a recording or copy (recording()'s
+    tuple), and its names."""
+    gaze, geometry, _, rate = rec
     with tempfile.TemporaryDirectory() as tmp:
         classify(ctl, tmp, gaze, geometry, rate, list(extra) + [option, os.path.join(tmp, "f.npy")])
         return np.load(os.path.join(tmp, "f.npy")), open(os.path.join(tmp, "f.npy.names")).read().split()
@@ -124,8 +125,9 @@ def features_of(ctl, path, copy, cache):
     stem = os.path.join(cache, os.path.basename(path) + ("" if copy == 0 else ".copy%d" % copy))
     npy, lab, hz = stem + ".npy", stem + ".labels.npy", stem + ".rate"
     if not (os.path.exists(npy) and os.path.exists(lab) and os.path.exists(hz)):
-        _, _, final, rate = recording(path, copy)
-        m, names = matrix_out(ctl, path, copy, "--features-out")
+        rec = recording(path, copy)
+        _, _, final, rate = rec
+        m, names = matrix_out(ctl, rec, "--features-out")
         np.save(lab, np.array(final, dtype=np.int8))
         with open(hz, "w") as f:
             f.write("%g" % rate)
@@ -225,13 +227,14 @@ def check_model(args, clf, path, files, which, extra=(), stage1=None):
     stage)."""
     mismatched, total = 0, 0
     for i in which:
+        rec = recording(files[i], 0)
         if stage1 is None:
-            f, names = matrix_out(args.ctl, files[i], 0, "--features-out")
+            f, names = matrix_out(args.ctl, rec, "--features-out")
         else:
-            f, names = matrix_out(args.ctl, files[i], 0, "--context-out", ["--model", stage1])
+            f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", stage1])
             if "--offline" not in extra:
                 f = online_columns(f, names)
-        gaze_t, geometry, _, rate = recording(files[i], 0)
+        gaze_t, geometry, _, rate = rec
         with tempfile.TemporaryDirectory() as tmp:
             got = classify(args.ctl, tmp, gaze_t, geometry, rate, ["--method", "gbt", "--model", path, "--trees-only"] + list(extra))
         gaze = ~np.isnan(f[:, names.index("offscreen_deg")])
@@ -281,9 +284,10 @@ def context_rows(args, files, videos, start):
     feature names."""
     def unit(u):
         i, copy = u
-        f, names = matrix_out(args.ctl, files[i], copy, "--context-out",
+        rec = recording(files[i], copy)
+        f, names = matrix_out(args.ctl, rec, "--context-out",
                               ["--model", os.path.join(args.lovo, videos[i] + ".frame.trees")])
-        _, _, final, rate = recording(files[i], copy)
+        _, _, final, rate = rec
         lab = np.array(final, dtype=np.int8)
         rows = np.arange(0, len(lab), max(1, int(round(args.context_stride_ms * rate / 1000.0))))
         rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, names.index("offscreen_deg")])]
