@@ -9,7 +9,9 @@
 // after a true fixation or saccade onset the online classifier's final label said so (two tables),
 // and the provisional events' latency, misses and retractions (three tables).
 //
-//   bench_classify [--seconds S] [--seeds N]     (defaults: 120 s of gaze per seed, 3 seeds)
+//   bench_classify [--seconds S] [--seeds N] [--methods A,B] [--accuracy-only]
+//     defaults: 120 s of gaze per seed, 3 seeds, every method, every table. --methods keeps the main
+//     table to those methods; --accuracy-only prints that table and the cost summary alone.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -176,15 +178,50 @@ void print_provisional(const double* rates, const Condition& c, double seconds, 
   }
 }
 
+// The methods named in a comma-separated list, in classifiers() order; every one for "".
+std::vector<ClassifierInfo> chosen_methods(const std::string& list) {
+  std::vector<ClassifierInfo> out;
+  for (const ClassifierInfo& m : classifiers()) {
+    if (list.empty() || ("," + list + ",").find("," + m.name + ",") != std::string::npos) out.push_back(m);
+  }
+  if (out.empty()) {
+    std::fprintf(stderr, "bench_classify: --methods %s names no method\n", list.c_str());
+    std::exit(2);
+  }
+  return out;
+}
+
+// Cost per sample, median and range over the table's cells, per method: the side-by-side figure.
+void print_cost_summary(const std::vector<ClassifierInfo>& methods, const std::vector<std::vector<double>>& ns) {
+  std::printf("\nCost per sample over the table's %zu cells (same run): median, min, max ns\n\n", ns.front().size());
+  std::printf("| method | median ns | min ns | max ns |\n|---|---:|---:|---:|\n");
+  for (std::size_t k = 0; k < methods.size(); ++k) {
+    std::vector<double> v = ns[k];
+    std::sort(v.begin(), v.end());
+    std::printf("| %s | %.0f | %.0f | %.0f |\n", methods[k].name.c_str(), quantile(v, 0.5), v.front(), v.back());
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   double seconds = 120;
   int seeds = 3;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (std::strcmp(argv[i], "--seconds") == 0) seconds = std::atof(argv[i + 1]);
-    else if (std::strcmp(argv[i], "--seeds") == 0) seeds = std::atoi(argv[i + 1]);
+  std::string method_list;
+  bool accuracy_only = false;
+  for (int i = 1; i < argc; ++i) {
+    const bool has_value = i + 1 < argc;
+    if (std::strcmp(argv[i], "--seconds") == 0 && has_value) seconds = std::atof(argv[++i]);
+    else if (std::strcmp(argv[i], "--seeds") == 0 && has_value) seeds = std::atoi(argv[++i]);
+    else if (std::strcmp(argv[i], "--methods") == 0 && has_value) method_list = argv[++i];
+    else if (std::strcmp(argv[i], "--accuracy-only") == 0) accuracy_only = true;
+    else {
+      std::fprintf(stderr, "bench_classify: unknown or incomplete argument %s\n", argv[i]);
+      return 2;
+    }
   }
+  const std::vector<ClassifierInfo> methods = chosen_methods(method_list);
+  std::vector<std::vector<double>> cost_ns(methods.size());
   const double rates[] = {60, 250, 500, 1000};
   std::vector<Condition> conditions;
   conditions.push_back({"clean (0.03 deg)", {}});
@@ -232,7 +269,8 @@ int main(int argc, char** argv) {
         degrade(l.samples, d);
         data.push_back(std::move(l));
       }
-      for (const ClassifierInfo& m : classifiers()) {
+      for (std::size_t mi = 0; mi < methods.size(); ++mi) {
+        const ClassifierInfo& m = methods[mi];
         std::vector<Label> truth, predicted;
         double ns = 0;
         std::size_t n = 0;
@@ -261,10 +299,13 @@ int main(int argc, char** argv) {
                     fmt(class_kappa(truth, predicted, Label::Blink)).c_str(),
                     fmt(overall_kappa(truth, predicted)).c_str(), 100 * pso / total, 100 * unknown / total,
                     ns / static_cast<double>(n), make_classifier(m.name, rate)->latency_s() * 1000);
+        cost_ns[mi].push_back(ns / static_cast<double>(n));
         std::fflush(stdout);
       }
     }
   }
+  print_cost_summary(methods, cost_ns);
+  if (accuracy_only) return 0;
   print_event_f1(rates, {&noisy, &realistic, &pink, &filtered}, seconds, seeds);
   print_onset_latency(rates, noisy, seconds, seeds);
   print_onset_latency(rates, realistic, seconds, seeds);

@@ -89,6 +89,49 @@ TEST(Trees, EvaluatesSplitsMissingValuesAndBaseline) {
   EXPECT_DOUBLE_EQ(s[0], -0.5);
 }
 
+// The walk compares float features with float thresholds: the largest float at or below the file's
+// double, which splits every float exactly as the double does.
+TEST(Trees, FloatFeaturesSplitExactlyAsAtTheFilesDoubleThreshold) {
+  const TreeEnsemble m = TreeEnsemble::parse(replaced(kModel, "0 1 0 1 2 0", "0 0.1 0 1 2 0"), "m.trees", kTwo);
+  double s[2];
+  const float above = 0.1f;  // 0.100000001490116...: above the double 0.1
+  ASSERT_GT(static_cast<double>(above), 0.1);
+  const float below = std::nextafter(above, 0.0f);
+  const float f_above[2] = {above, 0.0f}, f_below[2] = {below, 0.0f};
+  m.predict(f_above, s);
+  EXPECT_DOUBLE_EQ(s[0], -0.5);
+  m.predict(f_below, s);
+  EXPECT_DOUBLE_EQ(s[0], 2.5);
+  // Thresholds beyond float's range: every finite float goes left of 1e300, right of -1e300.
+  const float big[2] = {3e38f, 0.0f};
+  TreeEnsemble::parse(replaced(kModel, "0 1 0 1 2 0", "0 1e300 0 1 2 0"), "m.trees", kTwo).predict(big, s);
+  EXPECT_DOUBLE_EQ(s[0], 2.5);
+  const float small[2] = {-3e38f, 0.0f};
+  TreeEnsemble::parse(replaced(kModel, "0 1 0 1 2 0", "0 -1e300 0 1 2 0"), "m.trees", kTwo).predict(small, s);
+  EXPECT_DOUBLE_EQ(s[0], -0.5);
+}
+
+// Deeper trees whose nodes the file lists breadth first (as scikit-learn may) walk as the file says.
+TEST(Trees, NodesInAnyOrderAfterTheirParentWalkAsTheFileSays) {
+  // a <= 0 ? (b <= 0 ? 1 : 2) : (b <= 5 ? 3 : 4), nodes listed root, both splits, then the leaves
+  // in an order of their own.
+  const std::string model = replaced(kModel, "trees 2\ntree 0 3\n0 1 0 1 2 0\n-1 0 0 0 0 2\n-1 0 0 0 0 -1\n",
+                                     "trees 2\ntree 0 7\n0 0 0 1 2 0\n1 0 0 6 5 0\n1 5 0 3 4 0\n"
+                                     "-1 0 0 0 0 3\n-1 0 0 0 0 4\n-1 0 0 0 0 2\n-1 0 0 0 0 1\n");
+  const TreeEnsemble m = TreeEnsemble::parse(model, "m.trees", kTwo);
+  EXPECT_EQ(m.node_count(), 10u);
+  double s[2];
+  const auto leaf = [&](float a, float b) {
+    const float f[2] = {a, b};
+    m.predict(f, s);
+    return s[0] - 0.5;
+  };
+  EXPECT_DOUBLE_EQ(leaf(-1, -1), 1);
+  EXPECT_DOUBLE_EQ(leaf(-1, 1), 2);
+  EXPECT_DOUBLE_EQ(leaf(1, 1), 3);
+  EXPECT_DOUBLE_EQ(leaf(1, 6), 4);
+}
+
 TEST(Trees, DamagedModelsAreRefusedNamingTheLineAndTheProblem) {
   EXPECT_EQ(parse_error(kModel), "");
   EXPECT_EQ(parse_error(replaced(kModel, "fovea-trees 1", "fovea-trees 2")), "m.trees:2: format version is not 1");
@@ -97,6 +140,10 @@ TEST(Trees, DamagedModelsAreRefusedNamingTheLineAndTheProblem) {
   EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 1 0 0 2 0")),
             "m.trees:8: a split node's children must follow it");
   EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 1 0 1 3 0")), "m.trees:8: node right '3' is not an integer in [0, 2]");
+  // A node that is both children (or no node's): a walk could meet it twice.
+  EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 1 0 1 1 0")), "m.trees:10: tree 0: node 1 is the child of 2 splits, not 1");
+  EXPECT_EQ(parse_error(replaced(kModel, "tree 0 3", "tree 0 65536")),
+            "m.trees:7: node count '65536' is not an integer in [1, 65535]");
   EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "5 1 0 1 2 0")), "m.trees:8: node feature '5' is not an integer in [-1, 1]");
   EXPECT_EQ(parse_error(replaced(kModel, "baseline 0.5 0", "baseline 0.5 nan")), "m.trees:5: baseline 'nan' is not a finite number");
   EXPECT_EQ(parse_error(replaced(kModel, "-1 0 0 0 0 2", "-1 0 0 0 0 inf")), "m.trees:9: node value 'inf' is not a finite number");

@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "classify/trees.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -84,6 +86,29 @@ std::vector<std::string> names(Tokens& in, const char* keyword, long max) {
   return out;
 }
 
+// The largest float <= t: for every float x, x <= t exactly when x <= float_at_or_below(t).
+float float_at_or_below(double t) {
+  float f = static_cast<float>(t);
+  if (static_cast<double>(f) > t) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// Why a tree's nodes (as in the file, children after parents) do not form one tree: every node but
+// the root must be the child of exactly one split (else a walk could meet it twice and a hostile
+// file could make the depth-first copy exponential). "" if they do.
+std::string tree_fault(const std::vector<TreeEnsemble::FileNode>& tree) {
+  std::vector<int> parents(tree.size(), 0);
+  for (const auto& n : tree) {
+    if (n.feature < 0) continue;
+    ++parents[static_cast<std::size_t>(n.left)];
+    ++parents[static_cast<std::size_t>(n.right)];
+  }
+  for (std::size_t k = 1; k < tree.size(); ++k) {
+    if (parents[k] != 1) return "node " + std::to_string(k) + " is the child of " + std::to_string(parents[k]) + " splits, not 1";
+  }
+  return "";
+}
+
 }  // namespace
 
 TreeEnsemble TreeEnsemble::parse(const std::string& text, const std::string& origin,
@@ -102,40 +127,73 @@ TreeEnsemble TreeEnsemble::parse(const std::string& text, const std::string& ori
   for (std::size_t c = 0; c < m.classes_.size(); ++c) m.baseline_.push_back(in.number("baseline"));
   in.expect("trees");
   const long trees = in.integer("tree count", 1, kMaxCount);
+  std::vector<FileNode> tree;
   for (long t = 0; t < trees; ++t) {
     in.expect("tree");
     const int cls = static_cast<int>(in.integer("tree class", 0, static_cast<long>(m.classes_.size()) - 1));
-    const long count = in.integer("node count", 1, kMaxCount);
-    const int root = static_cast<int>(m.nodes_.size());
+    const long count = in.integer("node count", 1, static_cast<long>(kMaxTreeNodes));
+    tree.clear();
     for (long k = 0; k < count; ++k) {
-      Node n;
-      n.feature = static_cast<int>(in.integer("node feature", -1, static_cast<long>(features.size()) - 1));
-      const double threshold = in.number("node threshold", true);
+      FileNode n;
+      n.feature = in.integer("node feature", -1, static_cast<long>(features.size()) - 1);
+      n.threshold = in.number("node threshold", true);
       n.missing_left = in.integer("node missing_left", 0, 1) == 1;
-      const long left = in.integer("node left", 0, count - 1), right = in.integer("node right", 0, count - 1);
-      const double value = in.number("node value");
-      if (n.feature >= 0 && (left <= k || right <= k)) in.fail("a split node's children must follow it");
-      n.left = root + static_cast<int>(left);
-      n.right = root + static_cast<int>(right);
-      n.value = n.feature >= 0 ? threshold : value;
-      m.nodes_.push_back(n);
+      n.left = in.integer("node left", 0, count - 1), n.right = in.integer("node right", 0, count - 1);
+      n.value = in.number("node value");
+      if (n.feature >= 0 && (n.left <= k || n.right <= k)) in.fail("a split node's children must follow it");
+      tree.push_back(n);
     }
-    m.trees_.push_back({cls, root});
+    if (const std::string fault = tree_fault(tree); !fault.empty()) in.fail("tree " + std::to_string(t) + ": " + fault);
+    m.root_.push_back(static_cast<std::int32_t>(m.nodes_.size()));
+    m.class_.push_back(cls);
+    m.add_depth_first(tree);
   }
   in.expect_end();
   return m;
 }
 
+// Each node, then its left subtree, then its right (an explicit stack: a hostile file's chain of
+// kMaxTreeNodes would overflow a recursion's).
+void TreeEnsemble::add_depth_first(const std::vector<FileNode>& tree) {
+  constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+  struct Pending {
+    long node;
+    std::size_t parent;  // the split whose right child this is (kNone: a left child or the root)
+  };
+  std::vector<Pending> todo{{0, kNone}};
+  while (!todo.empty()) {
+    const Pending p = todo.back();
+    todo.pop_back();
+    const std::size_t self = nodes_.size();
+    if (p.parent != kNone) nodes_[p.parent].right = static_cast<std::uint16_t>(self - p.parent);
+    const FileNode& f = tree[static_cast<std::size_t>(p.node)];
+    Node n;
+    if (f.feature >= 0) {
+      n.threshold = float_at_or_below(f.threshold);
+      n.feature = static_cast<std::uint16_t>(f.feature) | (f.missing_left ? kMissingLeft : 0);
+      todo.push_back({f.right, self});
+      todo.push_back({f.left, kNone});
+    } else {
+      n.threshold = std::numeric_limits<float>::quiet_NaN();
+    }
+    nodes_.push_back(n);
+    value_.push_back(f.feature >= 0 ? 0.0 : f.value);
+  }
+}
+
 int TreeEnsemble::predict(const float* features, double* scores) const {
   for (std::size_t c = 0; c < baseline_.size(); ++c) scores[c] = baseline_[c];
-  for (const Tree& t : trees_) {
-    const Node* n = &nodes_[static_cast<std::size_t>(t.root)];
-    while (n->feature >= 0) {
-      const double x = features[n->feature];
-      const bool left = std::isnan(x) ? n->missing_left : x <= n->value;
-      n = &nodes_[static_cast<std::size_t>(left ? n->left : n->right)];
+  const Node* nodes = nodes_.data();
+  for (std::size_t t = 0; t < root_.size(); ++t) {
+    std::uint32_t at = static_cast<std::uint32_t>(root_[t]);
+    for (;;) {
+      const Node n = nodes[at];
+      if (n.right == 0) break;
+      const float v = features[n.feature & ~kMissingLeft];
+      const bool left = v <= n.threshold || (v != v && (n.feature & kMissingLeft) != 0);
+      at += left ? 1u : n.right;
     }
-    scores[t.cls] += n->value;
+    scores[class_[t]] += value_[at];
   }
   int best = 0;
   for (std::size_t c = 1; c < baseline_.size(); ++c) {
