@@ -160,9 +160,9 @@ def load_all(args, files):
     return data, names
 
 
-def fit(x, y, iterations, leaves):
+def fit(x, y, iterations, leaves, learning_rate):
     from sklearn.ensemble import HistGradientBoostingClassifier
-    clf = HistGradientBoostingClassifier(max_iter=iterations, max_leaf_nodes=leaves, learning_rate=0.1,
+    clf = HistGradientBoostingClassifier(max_iter=iterations, max_leaf_nodes=leaves, learning_rate=learning_rate,
                                          l2_regularization=1.0, early_stopping=False, random_state=0)
     clf.fit(x, y)
     return clf
@@ -197,7 +197,7 @@ def write_model(clf, names, path, note):
         lines.append(f"tree {k} {len(nodes)}")
         for n in nodes:
             if n["is_leaf"]:
-                lines.append("-1 0 0 0 0 %.9g" % n["value"])
+                lines.append("-1 0 0 0 0 %.17g" % n["value"])
             else:
                 lines.append("%d %.17g %d %d %d 0" % (n["feature_idx"], n["num_threshold"], n["missing_go_to_left"],
                                                      n["left"], n["right"]))
@@ -272,7 +272,7 @@ def frame_lovo(args, data, names, files, videos, settings, start):
         if os.path.exists(path) and open(path).readline().rstrip().endswith(settings):
             continue
         x, y = training_rows(data, {i for i, w in enumerate(videos) if w != v}, args.stride_ms)
-        clf = fit(x, y, args.iterations, args.leaves)
+        clf = fit(x, y, args.iterations, args.leaves, args.learning_rate)
         write_model(clf, names, path, f"GazeCom without {v}: {len(x)} samples; {settings}")
         check_model(args, clf, path, files, [i for i, w in enumerate(videos) if w == v][:1])
         print(f"train_classifier: {path} ({len(x)} samples) at {time.time() - start:.0f} s", flush=True)
@@ -304,8 +304,8 @@ def fit_context(args, rows, names, keep):
     """The online and the offline second stage on the rows of the recordings in keep."""
     x = np.concatenate([f for i, f, _ in rows if i in keep])
     y = np.concatenate([lab for i, _, lab in rows if i in keep])
-    offline = fit(x, y, args.context_iterations, args.leaves)
-    online = fit(online_columns(x, names), y, args.context_iterations, args.leaves)
+    offline = fit(x, y, args.context_iterations, args.context_leaves, args.learning_rate)
+    online = fit(online_columns(x, names), y, args.context_iterations, args.context_leaves, args.learning_rate)
     return online, offline, len(x)
 
 
@@ -335,10 +335,16 @@ def main():
     ap.add_argument("--stride-ms", type=float, default=16, help="train the first stage on a sample every this many ms")
     ap.add_argument("--augment", type=int, default=1,
                     help="copies of each recording as other trackers would record it (as_other_tracker)")
-    ap.add_argument("--iterations", type=int, default=60, help="boosting iterations (trees per class)")
-    ap.add_argument("--leaves", type=int, default=31, help="leaves per tree at most")
+    # Fewer, larger trees cost less per sample for the same fit (trackerd/CLASSIFY.md, cost): on 12
+    # videos, scored on the other 6, the first stage alone gives sample F1 0.931 / 0.883 / 0.534
+    # (fixation / saccade / pursuit) with 60 iterations of 31 leaves at a rate of 0.1 (240 trees) and
+    # 0.932 / 0.885 / 0.542 with 20 of 127 at 0.2 (80 trees).
+    ap.add_argument("--iterations", type=int, default=20, help="boosting iterations (trees per class)")
+    ap.add_argument("--leaves", type=int, default=127, help="leaves per tree at most")
+    ap.add_argument("--learning-rate", type=float, default=0.2, help="both stages' boosting learning rate")
     ap.add_argument("--context-stride-ms", type=float, default=128, help="the second stage's sample spacing")
-    ap.add_argument("--context-iterations", type=int, default=30, help="the second stage's boosting iterations")
+    ap.add_argument("--context-iterations", type=int, default=10, help="the second stage's boosting iterations")
+    ap.add_argument("--context-leaves", type=int, default=127, help="the second stage's leaves per tree at most")
     ap.add_argument("--frame-only", action="store_true", help="no second stage (the first stage's model alone)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
@@ -350,14 +356,17 @@ def main():
     data, names = load_all(args, files)
     print(f"train_classifier: features of {len(files)} recordings and {args.augment} copies of each "
           f"({sum(len(u[2]) for u in data)} samples, {len(names)} features) in {time.time() - start:.0f} s")
-    settings = (f"iterations {args.iterations}, leaves {args.leaves}, a sample every {args.stride_ms:g} ms, "
-                f"{args.augment} copies as other trackers")
+    # The features' build (fovea-ctl's content) is part of the settings: a first stage fitted on other
+    # features is not reused.
+    settings = (f"iterations {args.iterations}, leaves {args.leaves}, learning rate {args.learning_rate:g}, a sample "
+                f"every {args.stride_ms:g} ms, {args.augment} copies as other trackers, features of fovea-ctl "
+                f"{build_key(args.ctl)}")
     frame_lovo(args, data, names, files, videos, settings, start)
     rows = context_names = settings2 = None
     if not args.frame_only:
         rows, context_names = context_rows(args, files, videos, start)
-        settings2 = settings + (f"; second stage: iterations {args.context_iterations}, a sample every "
-                                f"{args.context_stride_ms:g} ms")
+        settings2 = settings + (f"; second stage: iterations {args.context_iterations}, leaves "
+                                f"{args.context_leaves}, a sample every {args.context_stride_ms:g} ms")
     if args.out:
         write_full_model(args, data, names, files, settings, settings2, rows, context_names, start)
     if args.frame_only:
@@ -379,7 +388,7 @@ def write_full_model(args, data, names, files, settings, settings2, rows, contex
     """--out: the first stage on every recording and, unless --frame-only, both second stages on
     every recording's out-of-fold rows; checked against scikit-learn."""
     x, y = training_rows(data, set(range(len(files))), args.stride_ms)
-    clf = fit(x, y, args.iterations, args.leaves)
+    clf = fit(x, y, args.iterations, args.leaves, args.learning_rate)
     note = f"{len(files)} GazeCom recordings, {len(x)} samples; {settings}"
     check_at = range(0, len(files), max(1, len(files) // 4))
     if rows is None:

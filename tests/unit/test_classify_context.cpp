@@ -100,7 +100,10 @@ TEST(Context, LossesAndTheStreamsEnds) {
   // (t, t + 32 ms]: 47..54 of which 48-51 lost: the mean over the gaze ones, the share of them
   EXPECT_NEAR(f[at("mean_fixation_p32ms")], (0.047 + 0.052 + 0.053 + 0.054) / 4, 1e-6);
   EXPECT_FLOAT_EQ(f[at("gaze_p32ms")], 0.5f);
-  EXPECT_TRUE(std::isnan(f[at("p_fixation_m256ms")]));  // before the stream's start
+  // D before: the furthest sample within (D/2, D]; 46 is 184 ms into the stream.
+  EXPECT_TRUE(std::isnan(f[at("p_fixation_m512ms")]));  // none: before the stream's start
+  EXPECT_FLOAT_EQ(f[at("p_fixation_m256ms")], 0.0f);     // the stream's first sample
+  EXPECT_FLOAT_EQ(f[at("p_fixation_m128ms")], 0.014f);   // 46 - 32
   EXPECT_TRUE(std::isnan(f[at("p_fixation_p512ms")]));  // after its end
   const auto first = features_of(buf, 0, kContextReachS);
   EXPECT_TRUE(std::isnan(first[at("mean_fixation_m32ms")]));  // an empty window

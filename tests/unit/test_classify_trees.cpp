@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <deque>
 #include <stdexcept>
 #include <string>
@@ -256,6 +257,125 @@ TEST(Features, TheMatrixHasOneRowPerInputAndNanForRejectedTimes) {
   ASSERT_EQ(m.size(), s.size() * kFeatureCount);
   EXPECT_TRUE(std::isnan(m[50 * std::size_t{kFeatureCount} + at("loss_before_s")]));
   EXPECT_NEAR(m[60 * std::size_t{kFeatureCount} + at("speed_c_8ms")], 2.5, 1e-3);  // 0.01 deg per 4 ms
+}
+
+namespace {
+
+// A random walk with saccade-like jumps and losses, at 1000 Hz: what the window's sums must follow.
+std::deque<Prepared> wander(std::size_t n, double x0 = 0) {
+  std::deque<Prepared> buf;
+  std::uint64_t seed = 11;
+  const auto u = [&] {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(seed >> 11) / 9007199254740992.0;
+  };
+  double x = x0, y = 2;
+  for (std::size_t k = 0; k < n; ++k) {
+    x += 0.02 * (u() - 0.5) + (u() < 0.002 ? 5 * (u() - 0.5) : 0);
+    y += 0.02 * (u() - 0.5);
+    const bool lost = k % 1500 >= 1400 && k % 1500 < 1420;  // 20 ms losses
+    buf.push_back({k, static_cast<double>(k) * 0.001, x, y, lost ? Prepared::Kind::Blink : Prepared::Kind::Gaze});
+  }
+  return buf;
+}
+
+// disp and straight of buf[i] at scale d computed directly: the samples within +-d (none beyond a
+// loss: the caller picks i away from them), the path through them in each step's starting frame.
+std::pair<double, double> direct_disp_straight(const std::deque<Prepared>& buf, std::size_t i, double d) {
+  const TangentMap tm = tangent_map(buf[i].x, buf[i].y);
+  std::vector<TangentVector> p;
+  double path = 0;
+  std::size_t prev = 0;
+  for (std::size_t k = 0; k < buf.size(); ++k) {
+    if (std::abs(buf[k].t - buf[i].t) > d + 1e-9) continue;
+    p.push_back(tm(buf[k].x - buf[i].x, buf[k].y - buf[i].y));
+    if (p.size() > 1) {
+      const TangentVector s = tangent_map(buf[prev].x, buf[prev].y)(buf[k].x - buf[prev].x, buf[k].y - buf[prev].y);
+      path += std::sqrt(s.x * s.x + s.y * s.y);
+    }
+    prev = k;
+  }
+  double mx = 0, my = 0;
+  for (const auto& v : p) mx += v.x, my += v.y;
+  mx /= static_cast<double>(p.size()), my /= static_cast<double>(p.size());
+  double ss = 0;
+  for (const auto& v : p) ss += (v.x - mx) * (v.x - mx) + (v.y - my) * (v.y - my);
+  // The interpolated ends lie on the samples at exactly +-d here (1000 Hz, d whole ms).
+  const double net = std::hypot(p.back().x - p.front().x, p.back().y - p.front().y);
+  return {std::sqrt(ss / static_cast<double>(p.size())), net / path};
+}
+
+}  // namespace
+
+// The window's running sums give what summing the samples around each one gives, across its chunks'
+// boundaries and far from where the gaze started.
+TEST(Features, RunningSumsMatchTheDirectSums) {
+  const std::deque<Prepared> buf = wander(5000, 30);
+  FeatureWindow w;
+  for (const Prepared& p : buf) w.push(p);
+  float f[kFeatureCount];
+  for (std::size_t i : {300u, 1023u, 1024u, 1100u, 2047u, 3300u, 4100u}) {  // 400 ms from losses
+    w.features(i, fovea::protocol::DisplayGeometry{}, f);
+    for (const char* scale : {"4ms", "32ms", "256ms"}) {
+      const double d = std::stod(scale) / 1000;
+      const auto [disp, straight] = direct_disp_straight(buf, i, d);
+      EXPECT_NEAR(f[at((std::string("disp_") + scale).c_str())], disp, 1e-5 + 1e-4 * disp) << i << " " << scale;
+      EXPECT_NEAR(f[at((std::string("straight_") + scale).c_str())], straight, 1e-5) << i << " " << scale;
+    }
+  }
+}
+
+// Online the window holds only the reach around the sample being scored; its features must be the
+// very numbers of a window that holds the whole recording (so training and the daemon agree).
+TEST(Features, AStreamingWindowGivesTheWholeRecordingsNumbers) {
+  const std::deque<Prepared> buf = wander(12000);
+  FeatureWindow whole, stream;
+  for (const Prepared& p : buf) whole.push(p);
+  std::size_t next = 0, dropped = 0, compared = 0;
+  float a[kFeatureCount], b[kFeatureCount];
+  for (std::size_t k = 0; k < buf.size(); ++k) {
+    stream.push(buf[k]);
+    for (; next < buf.size() && buf[next].t + kFeatureReachS <= buf[k].t; ++next) {
+      whole.features(next, fovea::protocol::DisplayGeometry{}, a);
+      stream.features(next - dropped, fovea::protocol::DisplayGeometry{}, b);
+      ASSERT_EQ(0, std::memcmp(a, b, sizeof a)) << "sample " << next;
+      ++compared;
+    }
+    // Keep one sample beyond the reach behind the next to score, as TreesCore does.
+    while (next > dropped + 1 && buf[next].t - buf[dropped + 1].t >= kFeatureReachS) {
+      stream.pop_front(1);
+      ++dropped;
+    }
+  }
+  EXPECT_GT(compared, 11000u);
+  EXPECT_GT(dropped, 10000u);  // past the compaction (kCompactRows) several times
+}
+
+// Hours of 1000 Hz gaze far from the screen's centre: the sums restart every chunk, so a fixation's
+// spread is what it was at the start.
+TEST(Features, TheSumsDoNotDriftOverALongStream) {
+  FeatureWindow w;
+  float first[kFeatureCount], later[kFeatureCount];
+  const auto fixation = [](std::size_t k) {  // a fixed, jittered point at 35 deg
+    return Prepared{k, static_cast<double>(k) * 0.001, 35 + 0.01 * static_cast<double>((k * 7919) % 13) / 13.0,
+                    -20 + 0.01 * static_cast<double>((k * 104729) % 17) / 17.0, Prepared::Kind::Gaze};
+  };
+  constexpr std::size_t kSamples = 600000;  // 10 minutes
+  std::size_t dropped = 0;
+  for (std::size_t k = 0; k < kSamples; ++k) {
+    w.push(fixation(k));
+    if (k == 2000) w.features(1000 - dropped, fovea::protocol::DisplayGeometry{}, first);
+    if (k > 1600) {
+      w.pop_front(1);
+      ++dropped;
+    }
+  }
+  // The same phase of the jitter (both patterns repeat every 13 * 17 samples).
+  const std::size_t i = 1000 + 221 * ((kSamples - 2000) / 221);
+  w.features(i - dropped, fovea::protocol::DisplayGeometry{}, later);
+  for (const char* n : {"disp_4ms", "disp_256ms", "straight_256ms", "noise_deg"}) {
+    EXPECT_NEAR(later[at(n)], first[at(n)], 1e-6 * std::abs(static_cast<double>(first[at(n)])) + 1e-9) << n;
+  }
 }
 
 TEST(Features, GazeOffTheDisplaySaysHowFar) {

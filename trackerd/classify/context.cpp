@@ -18,19 +18,20 @@ std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t) {
       std::partition_point(buf.begin(), buf.end(), [t](const ContextSample& s) { return s.t < t; }) - buf.begin());
 }
 
-// The sample nearest in time to t + d (d < 0: before), of the two around it on that side; none
-// (buf.size()) where the stream does not reach so far or the nearest lies more than |d|/2 from it
-// (a pause in the stream, not a neighbour).
+// The sample d from sample i (d < 0: before): the furthest from i that is at most |d| (and
+// kContextSlackS) away and over |d|/2 away, so never beyond the look-ahead whatever the rate; none
+// (buf.size()) where there is no such sample (a pause in the stream, or a rate too low for d).
 std::size_t at_offset(const std::deque<ContextSample>& buf, std::size_t i, double d) {
-  const double want = buf[i].t + d;
-  const std::size_t j = first_at_or_after(buf, want);  // candidates: j - 1 and j
-  if ((d > 0 && j == buf.size()) || (d < 0 && j == 0 && buf[0].t != want)) return buf.size();
-  std::size_t best = buf.size();
-  for (std::size_t k : {j - 1, j}) {
-    if (k >= buf.size() || (d > 0 && k <= i) || (d < 0 && k >= i)) continue;  // j - 1 wraps at 0
-    if (best == buf.size() || std::abs(buf[k].t - want) < std::abs(buf[best].t - want)) best = k;
+  const double t = buf[i].t;
+  std::size_t k = buf.size();
+  if (d > 0) {
+    const std::size_t j = first_at_or_after(buf, t + d + kContextSlackS);  // the first beyond
+    if (j > i + 1) k = j - 1;
+  } else {
+    const std::size_t j = first_at_or_after(buf, t + d - kContextSlackS);  // the first at or after t + d
+    if (j < i) k = j;
   }
-  return best < buf.size() && std::abs(buf[best].t - want) <= std::abs(d) / 2 ? best : buf.size();
+  return k < buf.size() && std::abs(buf[k].t - t) > std::abs(d) / 2 ? k : buf.size();
 }
 
 // The running totals just after sample k (before it plus its own).

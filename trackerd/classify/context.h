@@ -8,7 +8,8 @@
 // models of Startsev, Agtzidis & Dorr 2019 (1D-CNN-BLSTM) and Elmadjian et al. 2023 (TCN) learn
 // end to end. Per sample, K stage-1 classes:
 //   p_<c>                    the sample's own probabilities
-//   p_<c>_mD / p_<c>_pD      at the sample nearest D before / after it (D 8-512 ms, doubling)
+//   p_<c>_mD / p_<c>_pD      at the sample D before / after it: the last at or within D (D 8-512 ms,
+//                            doubling), if it lies beyond D/2 (else, at a pause or a low rate, NaN)
 //   mean_<c>_mW / _pW        mean over the gaze samples within W before / after it (W 32, 128, 512 ms)
 //   gaze_mW / gaze_pW        the share of those windows' samples that have gaze
 //   and the sample's own frame features (features.h)
@@ -34,6 +35,10 @@ namespace fovea::trackerd::classify {
 inline constexpr std::array<double, 7> kContextOffsetsS = {0.008, 0.016, 0.032, 0.064, 0.128, 0.256, 0.512};
 inline constexpr std::array<double, 3> kContextWindowsS = {0.032, 0.128, 0.512};
 inline constexpr double kContextReachS = 0.512;
+// Times within this of each other count as one: a sample 32 ms after another at 250 Hz is
+// 0.032000000000001 s after it, as the times are summed, and the online stage must take it as the
+// one 32 ms ahead, as the offline stage does (it waits this much longer for it to be scored).
+inline constexpr double kContextSlackS = 1e-6;
 inline constexpr std::size_t kMaxContextFeatures =
     kMaxTreeClasses * (1 + 2 * kContextOffsetsS.size() + 2 * kContextWindowsS.size()) + 2 * kContextWindowsS.size() +
     kFeatureCount;

@@ -11,108 +11,15 @@ namespace {
 
 constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 constexpr double kNoiseHalfS = 0.128;
-constexpr std::size_t kNoiseMaxTriples = 64;
+constexpr std::size_t kCompactRows = 4096;  // pop_front moves the rows once this many are dropped
+// Times this close are the same time: a sample d after the centre, as rounding gives it (5.076 -
+// 5.072 = 0.0040000000000004), is the point at d, not a hair before it, so a 250 Hz scale of 4 ms
+// reads that sample itself, not an interpolation 1e-13 of the way to the next (whose direction,
+// where the gaze stood still, would be noise). Trackers stamp samples in microseconds at best.
+constexpr double kSameTimeS = 1e-9;
 
-// std::hypot guards against overflow at a cost (a third of the features' time at 1000 Hz); gaze
-// displacements are a few tens of degrees at most.
+// std::hypot guards against overflow at a cost; gaze displacements are a few tens of degrees at most.
 double length(double x, double y) { return std::sqrt(x * x + y * y); }
-
-// A sample of the run around the centre: time and displacement from the centre sample (tangent
-// frame at the centre, degrees).
-struct Point {
-  double t = 0, x = 0, y = 0;
-};
-
-// The centre's gaze run on one side (step -1: back, +1: forward) into `out`, the centre first, up
-// to the first sample at or beyond kFeatureReachS (needed to interpolate there). Returns the time
-// to the sample without gaze that ended the run, or kFeatureReachS where none did within it (also
-// where the buffer, i.e. the stream, ends first).
-double run_side(const std::deque<Prepared>& buf, std::size_t i, int step, const TangentMap& tm, std::vector<Point>& out) {
-  out.clear();
-  const Prepared& c = buf[i];
-  for (std::ptrdiff_t k = static_cast<std::ptrdiff_t>(i); k >= 0 && k < static_cast<std::ptrdiff_t>(buf.size());
-       k += step) {
-    const Prepared& p = buf[static_cast<std::size_t>(k)];
-    const double dt = std::abs(p.t - c.t);
-    if (!p.has_gaze()) return std::min(dt, kFeatureReachS);
-    const TangentVector d = tm(p.x - c.x, p.y - c.y);
-    out.push_back({dt, d.x, d.y});
-    if (dt >= kFeatureReachS) break;
-  }
-  return kFeatureReachS;
-}
-
-// The displacement at |t| = d on one side, interpolated; false where the run ends sooner. The
-// scales ascend, so the search goes on from `from`, the last segment found.
-bool position_at(const std::vector<Point>& side, double d, std::size_t& from, Point& p) {
-  for (std::size_t k = std::max<std::size_t>(from, 1); k < side.size(); ++k) {
-    if (side[k].t < d) continue;
-    from = k;
-    const Point& a = side[k - 1];
-    const Point& b = side[k];
-    const double w = b.t > a.t ? (d - a.t) / (b.t - a.t) : 1.0;
-    p = {d, a.x + w * (b.x - a.x), a.y + w * (b.y - a.y)};
-    return true;
-  }
-  from = side.size();
-  return false;
-}
-
-// Time from a sample to the nearest sample without gaze on one side, capped at the reach.
-double time_to_loss(const std::deque<Prepared>& buf, std::size_t i, int step) {
-  for (std::ptrdiff_t k = static_cast<std::ptrdiff_t>(i) + step;
-       k >= 0 && k < static_cast<std::ptrdiff_t>(buf.size()); k += step) {
-    const Prepared& p = buf[static_cast<std::size_t>(k)];
-    const double dt = std::abs(p.t - buf[i].t);
-    if (dt > kFeatureReachS) break;
-    if (!p.has_gaze()) return dt;
-  }
-  return kFeatureReachS;
-}
-
-// Running sums over the samples of the window, grown one scale at a time.
-struct WindowSums {
-  double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, path = 0;
-  void add(const Point& p) {
-    n += 1, sx += p.x, sy += p.y, sxx += p.x * p.x, syy += p.y * p.y;
-  }
-  // Take in one side's samples out to |t| <= d; k counts those already in.
-  void grow(const std::vector<Point>& side, double d, std::size_t& k) {
-    while (k < side.size() && side[k].t <= d) {
-      add(side[k]);
-      path += length(side[k].x - side[k - 1].x, side[k].y - side[k - 1].y);
-      ++k;
-    }
-  }
-  double rms_spread() const {
-    const double mx = sx / n, my = sy / n;
-    return std::sqrt(std::max(0.0, sxx / n - mx * mx + syy / n - my * my));
-  }
-};
-
-// The tracker's noise: the median magnitude of second differences within +-kNoiseHalfS, of at most
-// kNoiseMaxTriples evenly spread (at 1000 Hz there are 256; the median of 64 is as good and 4x
-// cheaper).
-float noise_deg(const std::vector<Point>& back, const std::vector<Point>& fwd, std::vector<Point>& seq,
-                std::vector<double>& d2) {
-  seq.clear();
-  for (std::size_t k = back.size(); k-- > 1;) {
-    if (back[k].t <= kNoiseHalfS) seq.push_back(back[k]);
-  }
-  for (const Point& p : fwd) {
-    if (p.t <= kNoiseHalfS) seq.push_back(p);
-  }
-  if (seq.size() < 3) return kNaNf;
-  const std::size_t triples = seq.size() - 2;
-  const std::size_t stride = (triples + kNoiseMaxTriples - 1) / kNoiseMaxTriples;
-  d2.clear();
-  for (std::size_t k = 1; k + 1 < seq.size(); k += stride) {
-    d2.push_back(length(seq[k - 1].x - 2 * seq[k].x + seq[k + 1].x, seq[k - 1].y - 2 * seq[k].y + seq[k + 1].y));
-  }
-  auto mid = d2.begin() + static_cast<std::ptrdiff_t>(d2.size() / 2);
-  std::nth_element(d2.begin(), mid, d2.end());
-  return static_cast<float>(*mid);
-}
 
 // How far the gaze lies outside the display: the angle to the nearest point of it.
 float offscreen_deg(const protocol::DisplayGeometry& display, double x, double y) {
@@ -120,34 +27,6 @@ float offscreen_deg(const protocol::DisplayGeometry& display, double x, double y
   const protocol::Normalized on{std::clamp(n.x, 0.0, 1.0), std::clamp(n.y, 0.0, 1.0)};
   if (on.x == n.x && on.y == n.y) return 0.0f;
   return static_cast<float>(protocol::angle_between_deg(protocol::normalized_to_degrees(display, on), {x, y}));
-}
-
-// The reusable buffers of one thread's feature computation (no allocation per sample).
-struct Scratch {
-  std::vector<Point> back, fwd, seq;
-  std::vector<double> d2;
-};
-
-void scale_features(const std::vector<Point>& back, const std::vector<Point>& fwd, double d, WindowSums& sums,
-                    std::size_t& kb, std::size_t& kf, std::size_t& sb, std::size_t& sf, float* out) {
-  sums.grow(back, d, kb);
-  sums.grow(fwd, d, kf);
-  Point pb, pf;
-  if (!position_at(back, d, sb, pb) || !position_at(fwd, d, sf, pf)) {
-    std::fill(out, out + kFeaturesPerScale, kNaNf);
-    return;
-  }
-  const double nb = length(pb.x, pb.y), nf = length(pf.x, pf.y);
-  const double net = length(pf.x - pb.x, pf.y - pb.y);
-  // The path through the window's samples plus the interpolated ends beyond its outermost ones.
-  const double path = sums.path + length(pb.x - back[kb - 1].x, pb.y - back[kb - 1].y) +
-                      length(pf.x - fwd[kf - 1].x, pf.y - fwd[kf - 1].y);
-  out[0] = static_cast<float>(net / (2 * d));
-  out[1] = static_cast<float>(nb / d);
-  out[2] = static_cast<float>(nf / d);
-  out[3] = nb > 0 && nf > 0 ? static_cast<float>((-pb.x * pf.x - pb.y * pf.y) / (nb * nf)) : 0.0f;
-  out[4] = static_cast<float>(sums.rms_spread());
-  out[5] = path > 0 ? static_cast<float>(net / path) : 1.0f;
 }
 
 }  // namespace
@@ -172,31 +51,189 @@ std::size_t feature_index(const std::string& name) {
   return static_cast<std::size_t>(it - n.begin());
 }
 
-void sample_features(const std::deque<Prepared>& buf, std::size_t i, const protocol::DisplayGeometry& display,
-                     float* out) {
-  const Prepared& c = buf[i];
+void FeatureWindow::clear() {
+  rows_.clear();
+  front_ = 0;
+  base_ = 0;
+  last_loss_ = -1;
+  last_ = before_last_ = Row{};
+}
+
+void FeatureWindow::pop_front(std::size_t n) {
+  front_ = std::min(rows_.size(), front_ + n);
+  if (front_ >= kCompactRows && 2 * front_ >= rows_.size()) {
+    rows_.erase(rows_.begin(), rows_.begin() + static_cast<std::ptrdiff_t>(front_));
+    base_ += static_cast<std::int64_t>(front_);
+    front_ = 0;
+  }
+}
+
+void FeatureWindow::push(const Prepared& p) {
+  const std::int64_t k = end();
+  Row r;
+  r.t = p.t;
+  r.x = p.x;
+  r.y = p.y;
+  r.gaze = p.has_gaze();
+  r.filled = p.kind == Prepared::Kind::Filled;
+  r.prev_loss = last_loss_;
+  if (!r.gaze) {
+    for (std::int64_t j = std::max(last_loss_, first()); j < k; ++j) rows_[static_cast<std::size_t>(j - base_)].next_loss = k;
+    last_loss_ = k;
+  }
+  // The sums go on from the previous row's, kept here (not read from rows_, which may have dropped
+  // it), so they are the same however much the window holds.
+  if (k % static_cast<std::int64_t>(kChunkSamples) != 0) {
+    r.sums = last_.sums;
+    r.ref_x = last_.ref_x;
+    r.ref_y = last_.ref_y;
+  }
+  if (r.gaze) {
+    if (r.sums.n == 0) r.ref_x = r.x, r.ref_y = r.y;  // the chunk's first gaze sample
+    const double dx = r.x - r.ref_x, dy = r.y - r.ref_y;
+    r.sums.n += 1, r.sums.x += dx, r.sums.y += dy;
+    r.sums.xx += dx * dx, r.sums.xy += dx * dy, r.sums.yy += dy * dy;
+    if (k > 0 && last_.gaze) {
+      // Each step's rotation in the tangent frame where it starts, and the previous row's |second
+      // difference| in its own.
+      const TangentMap m = tangent_map(last_.x, last_.y);
+      const TangentVector step = m(r.x - last_.x, r.y - last_.y);
+      r.sums.path += length(step.x, step.y);
+      if (k > 1 && before_last_.gaze && k - 1 >= first()) {
+        const TangentVector d2 = m(before_last_.x - 2 * last_.x + r.x, before_last_.y - 2 * last_.y + r.y);
+        rows_[static_cast<std::size_t>(k - 1 - base_)].d2 = length(d2.x, d2.y);
+      }
+    }
+  }
+  rows_.push_back(r);
+  before_last_ = last_;
+  last_ = r;
+}
+
+FeatureWindow::Centred FeatureWindow::centred_sums(std::int64_t a, std::int64_t b, double cx, double cy) const {
+  Centred c;
+  const auto chunk = static_cast<std::int64_t>(kChunkSamples);
+  for (std::int64_t lo = a; lo <= b;) {
+    const std::int64_t hi = std::min(b, (lo / chunk + 1) * chunk - 1);
+    const Row& h = at(hi);
+    const Row& l = at(lo);
+    Sums s = h.sums;
+    if (lo == a && !(lo % chunk == 0)) {
+      // Without the rows before lo: lo's inclusive sums less its own part.
+      const double dx = l.x - l.ref_x, dy = l.y - l.ref_y;
+      s.n -= l.sums.n - 1, s.x -= l.sums.x - dx, s.y -= l.sums.y - dy;
+      s.xx -= l.sums.xx - dx * dx, s.xy -= l.sums.xy - dx * dy, s.yy -= l.sums.yy - dy * dy;
+    }
+    // The steps into lo+1 .. hi (and into lo from a chunk's start: the step across the boundary).
+    c.path += lo == a ? h.sums.path - l.sums.path : h.sums.path;
+    const double dx = h.ref_x - cx, dy = h.ref_y - cy;
+    c.n += s.n;
+    c.sx += s.x + s.n * dx;
+    c.sy += s.y + s.n * dy;
+    c.sxx += s.xx + 2 * dx * s.x + s.n * dx * dx;
+    c.sxy += s.xy + dx * s.y + dy * s.x + s.n * dx * dy;
+    c.syy += s.yy + 2 * dy * s.y + s.n * dy * dy;
+    lo = hi + 1;
+  }
+  return c;
+}
+
+float FeatureWindow::noise(std::int64_t a, std::int64_t b) const {
+  if (b - a < 2) return kNaNf;
+  const std::int64_t triples = b - a - 1;
+  const std::int64_t stride = (triples + static_cast<std::int64_t>(kNoiseMaxTriples) - 1) /
+                              static_cast<std::int64_t>(kNoiseMaxTriples);
+  std::array<double, kNoiseMaxTriples> d2{};
+  std::size_t n = 0;
+  for (std::int64_t k = a + 1; k < b && n < d2.size(); k += stride) d2[n++] = at(k).d2;
+  auto mid = d2.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(d2.begin(), mid, d2.begin() + static_cast<std::ptrdiff_t>(n));
+  return static_cast<float>(*mid);
+}
+
+void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& display, float* out) const {
+  const std::int64_t ci = first() + static_cast<std::int64_t>(i);
+  const Row& c = at(ci);
   float* tail = out + kFeatureScalesS.size() * kFeaturesPerScale;
-  tail[2] = c.kind == Prepared::Kind::Filled ? 1.0f : 0.0f;
-  if (!c.has_gaze()) {
-    std::fill(out, tail + 5, kNaNf);
-    tail[0] = static_cast<float>(time_to_loss(buf, i, -1));
-    tail[1] = static_cast<float>(time_to_loss(buf, i, +1));
+  const auto loss_time = [&](std::int64_t j) {
+    if (j < first() || j >= end()) return static_cast<float>(kFeatureReachS);
+    return static_cast<float>(std::min(std::abs(at(j).t - c.t), kFeatureReachS));
+  };
+  tail[0] = loss_time(c.prev_loss);
+  tail[1] = loss_time(c.next_loss);
+  tail[2] = c.filled ? 1.0f : 0.0f;
+  if (!c.gaze) {
+    std::fill(out, tail, kNaNf);
+    tail[2] = tail[3] = tail[4] = kNaNf;
     return;
   }
-  thread_local Scratch scratch;
+  // The centre's run among the rows held: [lo, hi].
+  const std::int64_t lo = std::max(first(), c.prev_loss + 1);
+  const std::int64_t hi = c.next_loss >= 0 ? c.next_loss - 1 : end() - 1;
+  const auto row_it = [&](std::int64_t j) { return rows_.begin() + static_cast<std::ptrdiff_t>(j - base_); };
+  const auto index_of = [&](std::vector<Row>::const_iterator it) { return base_ + (it - rows_.begin()); };
+  // The first row at or after ci that is d or more after the centre (hi + 1: none in the run), and
+  // the first row from lo that is less than d before it.
+  const auto ahead = [&](double d) {
+    return index_of(
+        std::partition_point(row_it(ci), row_it(hi + 1), [&](const Row& r) { return r.t - c.t < d - kSameTimeS; }));
+  };
+  const auto within_before = [&](double d) {
+    return index_of(
+        std::partition_point(row_it(lo), row_it(ci), [&](const Row& r) { return c.t - r.t >= d - kSameTimeS; }));
+  };
   const TangentMap tm = tangent_map(c.x, c.y);
-  tail[0] = static_cast<float>(run_side(buf, i, -1, tm, scratch.back));
-  tail[1] = static_cast<float>(run_side(buf, i, +1, tm, scratch.fwd));
-  const std::vector<Point>& back = scratch.back;
-  const std::vector<Point>& fwd = scratch.fwd;
-  WindowSums sums;
-  sums.add(back[0]);
-  std::size_t kb = 1, kf = 1, sb = 1, sf = 1;
   for (std::size_t s = 0; s < kFeatureScalesS.size(); ++s) {
-    scale_features(back, fwd, kFeatureScalesS[s], sums, kb, kf, sb, sf, out + s * kFeaturesPerScale);
+    const double d = kFeatureScalesS[s];
+    float* o = out + s * kFeaturesPerScale;
+    const std::int64_t f = ahead(d), w = within_before(d);  // rows f-1, f and w-1, w bracket t +- d
+    if (f > hi || w == lo) {
+      std::fill(o, o + kFeaturesPerScale, kNaNf);
+      continue;
+    }
+    const std::int64_t bj = w - 1;  // the row d or more before the centre
+    // The point at time offset u (from the centre) between rows r0 and r1 (offsets u0 <= u <= u1).
+    const auto between = [&](const Row& r0, const Row& r1, double u) {
+      const double u0 = r0.t - c.t, u1 = r1.t - c.t;
+      const double v = std::abs(u - u0) <= kSameTimeS ? 0.0 : std::abs(u1 - u) <= kSameTimeS ? 1.0 : (u - u0) / (u1 - u0);
+      return tm(r0.x + v * (r1.x - r0.x) - c.x, r0.y + v * (r1.y - r0.y) - c.y);
+    };
+    const TangentVector pb = between(at(bj), at(bj + 1), -d), pf = between(at(f - 1), at(f), d);
+    // The window's samples: |t - t_c| <= d.
+    const std::int64_t a = c.t - at(bj).t <= d + kSameTimeS ? bj : bj + 1;
+    const std::int64_t b = at(f).t - c.t <= d + kSameTimeS ? f : f - 1;
+    const Centred sum = centred_sums(a, b, c.x, c.y);
+    const double mx = sum.sx / sum.n, my = sum.sy / sum.n;
+    const double cxx = sum.sxx / sum.n - mx * mx, cxy = sum.sxy / sum.n - mx * my, cyy = sum.syy / sum.n - my * my;
+    // trace(M cov M^T): the spread in the centre's tangent frame.
+    const double spread2 = (tm.xx * tm.xx + tm.yx * tm.yx) * cxx + 2 * (tm.xx * tm.xy + tm.yx * tm.yy) * cxy +
+                           (tm.xy * tm.xy + tm.yy * tm.yy) * cyy;
+    const TangentVector ea = tm(at(a).x - c.x, at(a).y - c.y), eb = tm(at(b).x - c.x, at(b).y - c.y);
+    const double nb = length(pb.x, pb.y), nf = length(pf.x, pf.y);
+    const double net = length(pf.x - pb.x, pf.y - pb.y);
+    // The path through the window's samples plus the interpolated ends beyond its outermost ones.
+    const double path = sum.path + length(pb.x - ea.x, pb.y - ea.y) + length(pf.x - eb.x, pf.y - eb.y);
+    o[0] = static_cast<float>(net / (2 * d));
+    o[1] = static_cast<float>(nb / d);
+    o[2] = static_cast<float>(nf / d);
+    o[3] = nb > 0 && nf > 0 ? static_cast<float>((-pb.x * pf.x - pb.y * pf.y) / (nb * nf)) : 0.0f;
+    o[4] = static_cast<float>(std::sqrt(std::max(0.0, spread2)));
+    o[5] = path > 0 ? static_cast<float>(net / path) : 1.0f;
   }
-  tail[3] = noise_deg(back, fwd, scratch.seq, scratch.d2);
+  // The noise's window: the run's rows within +-kNoiseHalfS.
+  const std::int64_t na = index_of(std::partition_point(
+      row_it(lo), row_it(ci), [&](const Row& r) { return c.t - r.t > kNoiseHalfS + kSameTimeS; }));
+  const std::int64_t nb = index_of(std::partition_point(
+      row_it(ci), row_it(hi + 1), [&](const Row& r) { return r.t - c.t <= kNoiseHalfS + kSameTimeS; }));
+  tail[3] = noise(na, nb - 1);
   tail[4] = offscreen_deg(display, c.x, c.y);
+}
+
+void sample_features(const std::deque<Prepared>& buf, std::size_t i, const protocol::DisplayGeometry& display,
+                     float* out) {
+  FeatureWindow w;
+  for (const Prepared& p : buf) w.push(p);
+  w.features(i, display, out);
 }
 
 }  // namespace fovea::trackerd::classify

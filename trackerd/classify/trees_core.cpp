@@ -66,6 +66,7 @@ class TreesCore final : public Core {
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     newest_t_ = p.t;
     buf_.push_back(p);
+    window_.push(p);
     while (next_ < buf_.size() && buf_[next_].t + kFeatureReachS <= p.t) score_next(out);
     trim();
     if (staged_) contextualize(out, false);
@@ -74,6 +75,7 @@ class TreesCore final : public Core {
   void flush(std::vector<Labeled>& out) override {
     while (next_ < buf_.size()) score_next(out);
     buf_.clear();
+    window_.clear();
     next_ = 0;
     if (staged_) contextualize(out, true);
     ctx_.clear();  // the stream has ended: no later context may reach back into it
@@ -90,7 +92,7 @@ class TreesCore final : public Core {
   void score_next(std::vector<Labeled>& out) {
     const Prepared& p = buf_[next_];
     ContextSample c;
-    sample_features(buf_, next_, display_, c.frame.data());
+    window_.features(next_, display_, c.frame.data());
     if (frame_sink_) frame_sink_(p.index, c.frame.data());
     Scored s;
     s.out = {p.index, p.kind == Prepared::Kind::Lost ? Label::Lost : Label::Blink};
@@ -119,7 +121,7 @@ class TreesCore final : public Core {
     std::array<float, kMaxContextFeatures> f;
     // Every sample up to the look-ahead has been scored once the stream has reached the features'
     // reach past it (also where it paused: nothing later can fall within the look-ahead).
-    while (ctx_next_ < ctx_.size() && (all || newest_t_ >= ctx_[ctx_next_].t + lookahead_s_ + kFeatureReachS)) {
+    while (ctx_next_ < ctx_.size() && (all || newest_t_ >= ctx_[ctx_next_].t + lookahead_s_ + kContextSlackS + kFeatureReachS)) {
       context_features(ctx_, ctx_next_, classes_, lookahead_s_, f.data());
       Scored s = pending_.front();
       pending_.pop_front();
@@ -195,6 +197,7 @@ class TreesCore final : public Core {
   void trim() {
     while (next_ >= 2 && buf_[next_].t - buf_[1].t >= kFeatureReachS) {
       buf_.pop_front();
+      window_.pop_front(1);
       --next_;
     }
   }
@@ -208,6 +211,7 @@ class TreesCore final : public Core {
   std::size_t classes_;        // the first stage's
   FeatureSink frame_sink_, context_sink_;
   std::deque<Prepared> buf_;
+  FeatureWindow window_;  // the same samples as buf_, with the running sums of their features
   std::size_t next_ = 0;  // the first sample not yet scored
   std::deque<ContextSample> ctx_;
   std::size_t ctx_next_ = 0;   // the first of ctx_ not through the second stage
