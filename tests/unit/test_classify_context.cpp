@@ -10,6 +10,7 @@
 
 #include "classify/context.h"
 #include "classify/features.h"
+#include "classify/trees_core.h"
 
 using namespace fovea::trackerd::classify;
 
@@ -122,4 +123,56 @@ TEST(Context, APauseInTheStreamIsNoNeighbour) {
   const auto f = features_of(buf, 49, kContextReachS);
   EXPECT_TRUE(std::isnan(f[at("p_fixation_p512ms")]));
   EXPECT_TRUE(std::isnan(f[at("mean_fixation_p512ms")]));
+}
+
+namespace {
+
+// Every sample's context features as the built-in model's online (or offline) stage reads them.
+std::vector<std::vector<float>> stage_inputs(const std::vector<Sample>& samples, bool offline) {
+  std::vector<std::vector<float>> rows(samples.size());
+  GbtOptions o;
+  o.offline = offline;
+  o.trees_only = true;
+  o.context_sink = [&](std::uint64_t index, const float* f) {
+    const auto width = context_feature_names(builtin_gbt_model()->frame().trees().class_names()).size();
+    rows[index].assign(f, f + width);
+  };
+  auto pipeline = make_trees_pipeline(builtin_gbt_model(), fovea::protocol::DisplayGeometry{}, std::move(o));
+  std::vector<Labeled> out;
+  for (const Sample& s : samples) pipeline->push(s, out);
+  pipeline->flush(out);
+  return rows;
+}
+
+}  // namespace
+
+// What bench/train_classifier.py trains the daemon's stage on (the offline features with every
+// column that reaches beyond the look-ahead blank) must be what the daemon computes, sample by
+// sample, also where times are sums that round (t += 1/60 s) and rates do not divide the offsets.
+TEST(Context, TheDaemonsStageReadsWhatItWasTrainedOn) {
+  const auto model = builtin_gbt_model();
+  ASSERT_TRUE(model->context(false));
+  const auto names = context_feature_names(model->frame().trees().class_names());
+  for (double rate : {60.0, 250.0, 1000.0}) {
+    std::vector<Sample> s;
+    double t = 3.0;
+    for (int k = 0; k < static_cast<int>(4 * rate); ++k, t += 1 / rate) {
+      const double phase = std::fmod(t, 1.0);  // fixation, a saccade, a slow pursuit, again
+      const double x = phase < 0.4 ? 0.0 : phase < 0.45 ? 160 * (phase - 0.4) : 8 + 10 * (phase - 0.45);
+      s.push_back({t, x, 1.0, k % 97 != 50});  // and a lost sample now and then
+    }
+    const auto online = stage_inputs(s, false), full = stage_inputs(s, true);
+    std::size_t compared = 0;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      ASSERT_EQ(online[i].size(), names.size()) << "sample " << i << " at " << rate << " Hz was not staged";
+      for (std::size_t k = 0; k < names.size(); ++k) {
+        const bool blank = context_feature_reach_s(names[k]) > model->lookahead_s(false) + 1e-9;
+        const float want = blank ? std::nanf("") : full[i][k];
+        ASSERT_TRUE(std::isnan(want) ? std::isnan(online[i][k]) : online[i][k] == want)
+            << names[k] << " of sample " << i << " at " << rate << " Hz: " << online[i][k] << " online, " << want;
+        ++compared;
+      }
+    }
+    EXPECT_GT(compared, s.size() * names.size() - 1);
+  }
 }
