@@ -164,8 +164,8 @@ class TreesCore final : public Core {
       Labeled l = s.out;
       if (s.gaze) {
         std::array<double, kMaxTreeClasses> near{}, wide{};
-        window_mean(labelled_, kSmoothShortS, near);
-        window_mean(labelled_, smooth_long_s_, wide);
+        window_mean(labelled_, kSmoothShortS, last.class_count(), near);
+        window_mean(labelled_, smooth_long_s_, last.class_count(), wide);
         l.label = last.smoothed_label(near.data(), wide.data(), s.noise_ok);
       }
       out.push_back(l);
@@ -178,11 +178,12 @@ class TreesCore final : public Core {
     }
   }
   // The mean class probabilities over the samples of j's gaze run within +-half of it.
-  void window_mean(std::size_t j, double half, std::array<double, kMaxTreeClasses>& mean) const {
+  // The classes past `classes` stay 0.
+  void window_mean(std::size_t j, double half, std::size_t classes, std::array<double, kMaxTreeClasses>& mean) const {
     const Scored& c = scored_[j];
     double n = 0;
     const auto add = [&](const Scored& s) {
-      for (std::size_t k = 0; k < mean.size(); ++k) mean[k] += s.p[k];
+      for (std::size_t k = 0; k < classes; ++k) mean[k] += s.p[k];
       n += 1;
     };
     add(c);
@@ -190,7 +191,7 @@ class TreesCore final : public Core {
     for (std::size_t k = j + 1; k < scored_.size() && scored_[k].run == c.run && scored_[k].t - c.t <= half; ++k) {
       add(scored_[k]);
     }
-    for (double& m : mean) m /= n;
+    for (std::size_t k = 0; k < classes; ++k) mean[k] /= n;
   }
   // Keep what the next sample's features reach back to: the samples within kFeatureReachS before
   // it and the one just beyond (interpolation's other end).
