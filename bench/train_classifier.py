@@ -182,6 +182,12 @@ def training_rows(data, keep, stride_ms):
     return np.concatenate(xs), np.concatenate(ys)
 
 
+def num(x):
+    """A double as the shortest text that reads back as exactly it (Python's repr): the model's
+    scores are then scikit-learn's bit for bit, in about half the text of %.17g."""
+    return repr(float(x))
+
+
 def write_model(clf, names, path, note):
     """The fitted trees in trackerd/classify/trees.h's format."""
     classes = [CLASS_NAMES[int(c)] for c in clf.classes_]
@@ -189,7 +195,7 @@ def write_model(clf, names, path, note):
     if len(classes) == 2:
         sys.exit("train_classifier: two classes give one tree per iteration; the format needs one per class")
     lines = ["# fovea gbt model: " + note, "fovea-trees 1", f"features {len(names)} " + " ".join(names),
-             f"classes {len(classes)} " + " ".join(classes), "baseline " + " ".join("%.17g" % b for b in baseline)]
+             f"classes {len(classes)} " + " ".join(classes), "baseline " + " ".join(num(b) for b in baseline)]
     trees = [(k, p) for iteration in clf._predictors for k, p in enumerate(iteration)]
     lines.append(f"trees {len(trees)}")
     for k, p in trees:
@@ -197,9 +203,9 @@ def write_model(clf, names, path, note):
         lines.append(f"tree {k} {len(nodes)}")
         for n in nodes:
             if n["is_leaf"]:
-                lines.append("-1 0 0 0 0 %.17g" % n["value"])
+                lines.append("-1 0 0 0 0 " + num(n["value"]))
             else:
-                lines.append("%d %.17g %d %d %d 0" % (n["feature_idx"], n["num_threshold"], n["missing_go_to_left"],
+                lines.append("%d %s %d %d %d 0" % (n["feature_idx"], num(n["num_threshold"]), n["missing_go_to_left"],
                                                      n["left"], n["right"]))
     with open(path + ".partial", "w") as f:
         f.write("\n".join(lines) + "\n")

@@ -233,6 +233,16 @@ TEST(Features, NoiseIsStillAndCrooked) {
   EXPECT_NEAR(f[at("noise_deg")], 0.05 * std::sqrt(6.0) * 1.1774, 0.03);
 }
 
+// A still eye on a tracker that reports whole pixels: no movement, so no straight one either.
+TEST(Features, StillGazeIsNoStraightMovement) {
+  const std::deque<Prepared> buf = line(250, 1.0, 0.0);
+  float f[kFeatureCount];
+  sample_features(buf, 125, fovea::protocol::DisplayGeometry{}, f);
+  for (const char* n : {"straight_4ms", "straight_256ms", "speed_c_64ms", "disp_128ms", "cos_32ms"}) {
+    EXPECT_EQ(f[at(n)], 0.0f) << n;
+  }
+}
+
 TEST(Features, ALossCutsTheScalesThatReachItAndSaysHowFarItIs) {
   std::deque<Prepared> buf = line(250, 1.0, 2.0);
   for (std::size_t k = 130; k < 140; ++k) buf[k].kind = Prepared::Kind::Blink;  // 520-556 ms

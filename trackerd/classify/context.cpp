@@ -12,10 +12,27 @@ constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 
 std::string ms(double s) { return std::to_string(static_cast<int>(std::lround(s * 1000))) + "ms"; }
 
-// The first sample at or after time t (buf.size() if none).
-std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t) {
+// The first sample at or after time t (buf.size() if none), searched outward from buf[from]
+// (galloping, then bisecting): the targets lie near the sample whose context is computed, and a
+// search over the whole 1 s buffer (1000 samples and more at 1000 Hz, each a few hundred bytes)
+// was the second stage's largest cost. The same index as a plain binary search.
+std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t, std::size_t from) {
+  const auto before_t = [t](const ContextSample& s) { return s.t < t; };
+  const std::size_t n = buf.size();
+  std::size_t lo = 0, hi = n;  // the answer lies in [lo, hi]
+  if (from < n && buf[from].t < t) {
+    lo = from + 1;
+    for (std::size_t step = 1; lo + step - 1 < n && buf[lo + step - 1].t < t; step *= 2) lo += step;
+    hi = std::min(n, lo + (lo - from));
+  } else if (from < n) {
+    hi = from;
+    for (std::size_t step = 1; hi >= step && buf[hi - step].t >= t; step *= 2) hi -= step;
+    lo = hi >= (from - hi) + 1 ? hi - (from - hi) - 1 : 0;
+  }
   return static_cast<std::size_t>(
-      std::partition_point(buf.begin(), buf.end(), [t](const ContextSample& s) { return s.t < t; }) - buf.begin());
+      std::partition_point(buf.begin() + static_cast<std::ptrdiff_t>(lo), buf.begin() + static_cast<std::ptrdiff_t>(hi),
+                           before_t) -
+      buf.begin());
 }
 
 // The sample d from sample i (d < 0: before): the furthest from i that is at most |d| (and
@@ -25,10 +42,10 @@ std::size_t at_offset(const std::deque<ContextSample>& buf, std::size_t i, doubl
   const double t = buf[i].t;
   std::size_t k = buf.size();
   if (d > 0) {
-    const std::size_t j = first_at_or_after(buf, t + d + kContextSlackS);  // the first beyond
+    const std::size_t j = first_at_or_after(buf, t + d + kContextSlackS, i);  // the first beyond
     if (j > i + 1) k = j - 1;
   } else {
-    const std::size_t j = first_at_or_after(buf, t + d - kContextSlackS);  // the first at or after t + d
+    const std::size_t j = first_at_or_after(buf, t + d - kContextSlackS, i);  // the first at or after t + d
     if (j < i) k = j;
   }
   return k < buf.size() && std::abs(buf[k].t - t) > std::abs(d) / 2 ? k : buf.size();
@@ -127,9 +144,9 @@ void context_features(const std::deque<ContextSample>& buf, std::size_t i, std::
       if (sign > 0 && !visible(w)) {
         std::fill(o, o + classes + 1, kNaNf);
       } else if (sign < 0) {  // [t - w, t): from the first sample at or after t - w up to this one
-        window(before(buf[first_at_or_after(buf, s.t - w)]), before(s), classes, o);
+        window(before(buf[first_at_or_after(buf, s.t - w, i)]), before(s), classes, o);
       } else {  // (t, t + w]: from the one after this up to the last at or before t + w
-        const std::size_t last = first_at_or_after(buf, std::nextafter(s.t + w, 1e300));
+        const std::size_t last = first_at_or_after(buf, std::nextafter(s.t + w, 1e300), i);
         window(after(s, classes), last < buf.size() ? before(buf[last]) : after(buf.back(), classes), classes, o);
       }
       o += classes + 1;

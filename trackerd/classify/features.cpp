@@ -218,7 +218,9 @@ void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& dis
     o[2] = static_cast<float>(nf / d);
     o[3] = nb > 0 && nf > 0 ? static_cast<float>((-pb.x * pf.x - pb.y * pf.y) / (nb * nf)) : 0.0f;
     o[4] = static_cast<float>(std::sqrt(std::max(0.0, spread2)));
-    o[5] = path > 0 ? static_cast<float>(net / path) : 1.0f;
+    // Gaze that did not move at all (a still eye on a tracker that reports whole pixels) made no
+    // straight movement: 0, as noise, not 1 (a model read 1 as pursuit there).
+    o[5] = path > 0 ? static_cast<float>(net / path) : 0.0f;
   }
   // The noise's window: the run's rows within +-kNoiseHalfS.
   const std::int64_t na = index_of(std::partition_point(

@@ -11,7 +11,7 @@
 //   speed_b   |p(t) - p(t-D)| / D, speed_f  |p(t+D) - p(t)| / D   before and after: a saccade's edge
 //   cos       cosine between p(t) - p(t-D) and p(t+D) - p(t)      direction consistency
 //   disp      RMS distance of the window's samples from their mean, deg    spatial spread
-//   straight  |net displacement| / path length over the window      1 for a line, ~0 for noise
+//   straight  |net displacement| / path length over the window      1 for a line, ~0 for noise, 0 still
 // p(t +- D) interpolated linearly between the samples around t +- D, so the features mean the same
 // at 250, 500 or 1000 Hz. Where the run does not reach t - D or t + D the scale's features are NaN
 // (the trees send NaN down a learned branch). Displacements are the eye's rotation in the tangent
