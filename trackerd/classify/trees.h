@@ -20,7 +20,7 @@
 // Evaluation (issue 43's cost bound): a walk is a chain of dependent loads, so the nodes are small
 // and near each other: 8 bytes, depth first (a split's left child is the next node), thresholds as
 // floats (the largest float <= the file's double: for float features exactly the same split). On
-// the built-in model's first stage this walks GazeCom samples 15 % faster than 24-byte nodes in the
+// a first stage of 240 trees of 31 leaves this walks GazeCom samples 15 % faster than 24-byte nodes in the
 // file's order, with the same scores bit for bit; walking 8 trees at once without branches was
 // slower here (every lane waits for the deepest: 10 steps per tree where a walk takes 5.9).
 #include <cstdint>
