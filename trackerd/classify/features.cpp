@@ -151,6 +151,42 @@ float FeatureWindow::noise(std::int64_t a, std::int64_t b) const {
   return static_cast<float>(*mid);
 }
 
+// One scale's features of row ci, whose run reaches rows bj (the last d or more before it) and f
+// (the first d or more after it).
+void FeatureWindow::scale_features(std::int64_t ci, std::int64_t bj, std::int64_t f, const TangentMap& tm, double d,
+                                   float* o) const {
+  const Row& c = at(ci);
+  // The point at time offset u (from the centre) between rows r0 and r1 (offsets u0 <= u <= u1).
+  const auto between = [&](const Row& r0, const Row& r1, double u) {
+    const double u0 = r0.t - c.t, u1 = r1.t - c.t;
+    const double v = std::abs(u - u0) <= kSameTimeS ? 0.0 : std::abs(u1 - u) <= kSameTimeS ? 1.0 : (u - u0) / (u1 - u0);
+    return tm(r0.x + v * (r1.x - r0.x) - c.x, r0.y + v * (r1.y - r0.y) - c.y);
+  };
+  const TangentVector pb = between(at(bj), at(bj + 1), -d), pf = between(at(f - 1), at(f), d);
+  // The window's samples: |t - t_c| <= d.
+  const std::int64_t a = c.t - at(bj).t <= d + kSameTimeS ? bj : bj + 1;
+  const std::int64_t b = at(f).t - c.t <= d + kSameTimeS ? f : f - 1;
+  const Centred sum = centred_sums(a, b, c.x, c.y);
+  const double mx = sum.sx / sum.n, my = sum.sy / sum.n;
+  const double cxx = sum.sxx / sum.n - mx * mx, cxy = sum.sxy / sum.n - mx * my, cyy = sum.syy / sum.n - my * my;
+  // trace(M cov M^T): the spread in the centre's tangent frame.
+  const double spread2 = (tm.xx * tm.xx + tm.yx * tm.yx) * cxx + 2 * (tm.xx * tm.xy + tm.yx * tm.yy) * cxy +
+                         (tm.xy * tm.xy + tm.yy * tm.yy) * cyy;
+  const TangentVector ea = tm(at(a).x - c.x, at(a).y - c.y), eb = tm(at(b).x - c.x, at(b).y - c.y);
+  const double nb = length(pb.x, pb.y), nf = length(pf.x, pf.y);
+  const double net = length(pf.x - pb.x, pf.y - pb.y);
+  // The path through the window's samples plus the interpolated ends beyond its outermost ones.
+  const double path = sum.path + length(pb.x - ea.x, pb.y - ea.y) + length(pf.x - eb.x, pf.y - eb.y);
+  o[0] = static_cast<float>(net / (2 * d));
+  o[1] = static_cast<float>(nb / d);
+  o[2] = static_cast<float>(nf / d);
+  o[3] = nb > 0 && nf > 0 ? static_cast<float>((-pb.x * pf.x - pb.y * pf.y) / (nb * nf)) : 0.0f;
+  o[4] = static_cast<float>(std::sqrt(std::max(0.0, spread2)));
+  // Gaze that did not move at all (a still eye on a tracker that reports whole pixels) made no
+  // straight movement: 0, as noise, not 1 (a model read 1 as pursuit there).
+  o[5] = path > 0 ? static_cast<float>(net / path) : 0.0f;
+}
+
 void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& display, float* out) const {
   const std::int64_t ci = first() + static_cast<std::int64_t>(i);
   const Row& c = at(ci);
@@ -191,36 +227,7 @@ void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& dis
       std::fill(o, o + kFeaturesPerScale, kNaNf);
       continue;
     }
-    const std::int64_t bj = w - 1;  // the row d or more before the centre
-    // The point at time offset u (from the centre) between rows r0 and r1 (offsets u0 <= u <= u1).
-    const auto between = [&](const Row& r0, const Row& r1, double u) {
-      const double u0 = r0.t - c.t, u1 = r1.t - c.t;
-      const double v = std::abs(u - u0) <= kSameTimeS ? 0.0 : std::abs(u1 - u) <= kSameTimeS ? 1.0 : (u - u0) / (u1 - u0);
-      return tm(r0.x + v * (r1.x - r0.x) - c.x, r0.y + v * (r1.y - r0.y) - c.y);
-    };
-    const TangentVector pb = between(at(bj), at(bj + 1), -d), pf = between(at(f - 1), at(f), d);
-    // The window's samples: |t - t_c| <= d.
-    const std::int64_t a = c.t - at(bj).t <= d + kSameTimeS ? bj : bj + 1;
-    const std::int64_t b = at(f).t - c.t <= d + kSameTimeS ? f : f - 1;
-    const Centred sum = centred_sums(a, b, c.x, c.y);
-    const double mx = sum.sx / sum.n, my = sum.sy / sum.n;
-    const double cxx = sum.sxx / sum.n - mx * mx, cxy = sum.sxy / sum.n - mx * my, cyy = sum.syy / sum.n - my * my;
-    // trace(M cov M^T): the spread in the centre's tangent frame.
-    const double spread2 = (tm.xx * tm.xx + tm.yx * tm.yx) * cxx + 2 * (tm.xx * tm.xy + tm.yx * tm.yy) * cxy +
-                           (tm.xy * tm.xy + tm.yy * tm.yy) * cyy;
-    const TangentVector ea = tm(at(a).x - c.x, at(a).y - c.y), eb = tm(at(b).x - c.x, at(b).y - c.y);
-    const double nb = length(pb.x, pb.y), nf = length(pf.x, pf.y);
-    const double net = length(pf.x - pb.x, pf.y - pb.y);
-    // The path through the window's samples plus the interpolated ends beyond its outermost ones.
-    const double path = sum.path + length(pb.x - ea.x, pb.y - ea.y) + length(pf.x - eb.x, pf.y - eb.y);
-    o[0] = static_cast<float>(net / (2 * d));
-    o[1] = static_cast<float>(nb / d);
-    o[2] = static_cast<float>(nf / d);
-    o[3] = nb > 0 && nf > 0 ? static_cast<float>((-pb.x * pf.x - pb.y * pf.y) / (nb * nf)) : 0.0f;
-    o[4] = static_cast<float>(std::sqrt(std::max(0.0, spread2)));
-    // Gaze that did not move at all (a still eye on a tracker that reports whole pixels) made no
-    // straight movement: 0, as noise, not 1 (a model read 1 as pursuit there).
-    o[5] = path > 0 ? static_cast<float>(net / path) : 0.0f;
+    scale_features(ci, w - 1, f, tm, d, o);
   }
   // The noise's window: the run's rows within +-kNoiseHalfS.
   const std::int64_t na = index_of(std::partition_point(

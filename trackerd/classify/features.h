@@ -92,6 +92,7 @@ class FeatureWindow {
     double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, path = 0;
   };
   Centred centred_sums(std::int64_t a, std::int64_t b, double cx, double cy) const;
+  void scale_features(std::int64_t ci, std::int64_t bj, std::int64_t f, const TangentMap& tm, double d, float* o) const;
   float noise(std::int64_t a, std::int64_t b) const;
 
   std::vector<Row> rows_;
