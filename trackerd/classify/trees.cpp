@@ -160,10 +160,10 @@ void TreeEnsemble::add_depth_first(const std::vector<FileNode>& tree) {
     long node;
     std::size_t parent;  // the split whose right child this is (kNone: a left child or the root)
   };
-  std::vector<Pending> todo{{0, kNone}};
-  while (!todo.empty()) {
-    const Pending p = todo.back();
-    todo.pop_back();
+  std::vector<Pending> stack{{0, kNone}};
+  while (!stack.empty()) {
+    const Pending p = stack.back();
+    stack.pop_back();
     const std::size_t self = nodes_.size();
     if (p.parent != kNone) nodes_[p.parent].right = static_cast<std::uint16_t>(self - p.parent);
     const FileNode& f = tree[static_cast<std::size_t>(p.node)];
@@ -171,8 +171,8 @@ void TreeEnsemble::add_depth_first(const std::vector<FileNode>& tree) {
     if (f.feature >= 0) {
       n.threshold = float_at_or_below(f.threshold);
       n.feature = static_cast<std::uint16_t>(f.feature) | (f.missing_left ? kMissingLeft : 0);
-      todo.push_back({f.right, self});
-      todo.push_back({f.left, kNone});
+      stack.push_back({f.right, self});
+      stack.push_back({f.left, kNone});
     } else {
       n.threshold = std::numeric_limits<float>::quiet_NaN();
     }
