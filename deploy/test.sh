@@ -13,12 +13,17 @@ bash deploy/install-deps.sh || exit 1
 
 status=0
 summary=()
+phase_start=$SECONDS
+# phase NAME: the seconds since the previous phase ended, for the summary (CI has a time limit).
+phase() { summary+=("  ($1: $((SECONDS - phase_start)) s)"); phase_start=$SECONDS; }
 run_suite() {  # name preset ctest-args...
   local name=$1 preset=$2; shift 2
   echo "=== $name: configure + build"
+  local built=$SECONDS
   if ! cmake --preset "$preset" >/dev/null || ! cmake --build --preset "$preset" -j "$JOBS"; then
     summary+=("$name: BUILD FAILED"); status=1; return
   fi
+  summary+=("  ($name configure + build: $((SECONDS - built)) s)")
   echo "=== $name: ctest"
   local log
   log=$(mktemp)
@@ -38,7 +43,9 @@ else
   summary+=("liblsl: none (no ../shared/third_party source): the LSL parts and their tests are skipped")
 fi
 
+phase "dependencies and liblsl"
 run_suite "release" default
+phase "release build and tests"
 
 # The accuracy-cost report, quick: every effect's sweep in ~2 minutes, checked against the baseline.
 echo "=== accuracy-cost report (fovea-bench report --quick)"
@@ -47,6 +54,7 @@ if bench/fovea-bench report --quick --force --out build/report-quick --check-bas
 else
   summary+=("report --quick: FAILED (see build/report-quick/report.html)"); status=1
 fi
+phase "report --quick"
 
 # The Debian packages: built from a copy of the tree (tests off: they ran above) and checked
 # (contents, --version, systemd-analyze verify, the SDK example, import fovea, lintian).
@@ -60,6 +68,7 @@ if command -v dpkg-buildpackage >/dev/null 2>&1 && command -v dh >/dev/null 2>&1
 else
   summary+=("packages: skipped (dpkg-buildpackage or debhelper missing; deploy/install-deps.sh installs them)")
 fi
+phase "packages"
 
 # Under ASan the OpenGL tests (label gl) run Mesa's llvmpipe instrumented: 686 of the suite's 2,380
 # test-seconds on 2 cores (2026-11-30), for code the release suite above runs unchanged. They are
@@ -69,6 +78,7 @@ if [ "${FOVEA_ASAN_GL:-0}" = 1 ]; then
 else
   run_suite "asan+ubsan (without the gl label)" asan -LE gl
 fi
+phase "asan+ubsan build and tests"
 
 if command -v clang++ >/dev/null 2>&1; then
   echo "=== libFuzzer: configure + build"
@@ -85,6 +95,8 @@ if command -v clang++ >/dev/null 2>&1; then
 else
   summary+=("libfuzzer: skipped (no clang++)")
 fi
+phase "libfuzzer"
+summary+=("  (in all: $SECONDS s)")
 
 echo
 echo "=== summary"
