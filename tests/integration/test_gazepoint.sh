@@ -28,13 +28,16 @@ echo "== every sample a client got is a record the fake sent: point, validity, t
 /usr/bin/python3 - "$WORK" <<'PY' || fail "samples do not match what the fake sent"
 import bisect, csv, re, sys
 work = sys.argv[1]
-truth, malformed = [], None
+truth, malformed, connected_at, last_cnt = [], None, [], None
 for line in open(f"{work}/truth.csv"):
     if line.startswith("# malformed"):
         malformed = int(line.split()[-1])
     elif line[0].isdigit():
         cnt, send_ns, t, x, y, v = line.strip().split(",")
         truth.append((int(send_ns), float(x), float(y), v == "1"))
+        if last_cnt is None or int(cnt) < last_cnt:  # CNT restarts with each connection
+            connected_at.append(int(send_ns))
+        last_cnt = int(cnt)
 # The records by what they say (the trajectory repeats every 2 s, and CNT restarts with a
 # connection): a sample is the record with its point and validity taken nearest its time.
 by_point = {}
@@ -56,16 +59,24 @@ for client in "ab":
         assert key in by_point, f"{client}: ({x}, {y}, valid={valid}) at {t} is no record the fake sent (y flipped?)"
         times = by_point[key]
         i = bisect.bisect_left(times, t)
-        errors.append(min(abs(times[j] - t) for j in (i - 1, i) if 0 <= j < len(times)))
+        error, taken = min((abs(times[j] - t), times[j]) for j in (i - 1, i) if 0 <= j < len(times))
+        errors.append(error)
+        if error > 1_000_000:
+            since = min((taken - c for c in connected_at if c <= taken), default=None)
+            # The clock learns the offset from the records that reach it soonest: until one arrives
+            # promptly (a loaded machine may delay the first bursts) it maps by what it has seen.
+            # After that nothing may be late: a daemon that stamped arrival would be late throughout.
+            assert since is not None and since < 250_000_000, \
+                f"{client}: a sample taken {since} ns after its connection began is off by {error/1e6:.2f} ms"
     assert len(rows) > 0.5 * 5 * 150, f"{client}: only {len(rows)} samples in 5 s at 150 Hz"
     errors.sort()
     p50, p98, worst = errors[len(errors) // 2], errors[int(len(errors) * 0.98)], errors[-1]
     late = sum(e > 1_000_000 for e in errors)
     print(f"   {client}: {len(rows)} samples, time error p50 {p50/1e6:.3f} ms, p98 {p98/1e6:.3f} ms, "
           f"max {worst/1e6:.3f} ms, {late} over 1 ms")
-    # The first burst after each (re)connection is stamped on arrival: the clock has seen nothing
-    # better yet. Those are the only samples allowed past 1 ms: 3 per connection, 2 connections.
-    assert late <= 8, f"{client}: {late} times are off by more than 1 ms"
+    # Only the first bursts of each connection may be late (asserted above): at most 250 ms of
+    # 150 Hz, 2 connections; on an idle machine it is the first burst's 3.
+    assert late <= 2 * 38, f"{client}: {late} times are off by more than 1 ms"
     assert worst < 40_000_000, f"{client}: a time is off by {worst/1e6:.1f} ms"
     # Both times kept: the tracker's (mapped) and when the record reached the daemon, later by the
     # burst's wait (records go out 4 at a time: up to 20 ms).
