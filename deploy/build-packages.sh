@@ -1,26 +1,30 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # Builds fovea's Debian packages and checks what they hold (issue 26 item 4; README "Install"):
-#   deploy/build-packages.sh [--out DIR] [--check-only DIR] [--tests]
+#   deploy/build-packages.sh [--out DIR] [--check-only DIR] [--tests] [--quick]
 # Copies the tree (tracked and untracked, not ignored) to a scratch directory, runs
 # `dpkg-buildpackage -us -uc -b` there (with DEB_BUILD_OPTIONS=nocheck unless --tests: deploy/test.sh
 # runs the test suite on its own), copies the .deb files to DIR (default build/packages), then checks
 # them: each package's file list, every program's --version from the extracted files, the unit with
 # `systemd-analyze verify` (when present), the C++ example built against the extracted -dev package
 # with CMake and pkg-config, `import fovea` from python3-fovea, and lintian (its findings printed;
-# errors fail). --check-only DIR checks .deb files already built. Needs dpkg-buildpackage (dpkg-dev)
-# and debhelper: deploy/install-deps.sh installs them.
+# errors fail). --check-only DIR checks .deb files already built. --quick builds unoptimised
+# (DEB_BUILD_OPTIONS=noopt): the same files and checks in about half the time, for deploy/test.sh;
+# such packages are for checking, not for installing. Needs dpkg-buildpackage (dpkg-dev) and
+# debhelper: deploy/install-deps.sh installs them.
 set -euo pipefail
 SRC=$(cd "$(dirname "$0")/.." && pwd)
 OUT=$SRC/build/packages
 CHECK_ONLY=""
 NOCHECK=nocheck
+NOOPT=""
 while [ $# -gt 0 ]; do
   case $1 in
     --out) OUT=$2; shift ;;
     --check-only) CHECK_ONLY=$2; shift ;;
     --tests) NOCHECK="" ;;
-    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+    --quick) NOOPT=noopt ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "build-packages: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
   shift
@@ -42,11 +46,12 @@ build() {
   (cd "$SRC" && git ls-files -z --cached --others --exclude-standard | xargs -0 cp --parents -t "$tree" 2>/dev/null) ||
     (cd "$SRC" && git ls-files -z --cached --others --exclude-standard | while IFS= read -r -d '' f; do
        [ -e "$f" ] && cp --parents -P -t "$tree" "$f"; done)
-  echo "build-packages: dpkg-buildpackage -us -uc -b in $tree (DEB_BUILD_OPTIONS=${NOCHECK:-<tests on>})"
+  local options="$NOCHECK $NOOPT parallel=$(nproc)"
+  echo "build-packages: dpkg-buildpackage -us -uc -b in $tree (DEB_BUILD_OPTIONS=$options)"
   local start=$SECONDS
   # Debian's own interpreters and tools only: a python3 from pyenv or a venv earlier in PATH would
   # build the Python package for itself.
-  (cd "$tree" && env -u CMAKE_PREFIX_PATH PATH=/usr/sbin:/usr/bin:/sbin:/bin DEB_BUILD_OPTIONS="$NOCHECK parallel=$(nproc)" \
+  (cd "$tree" && env -u CMAKE_PREFIX_PATH PATH=/usr/sbin:/usr/bin:/sbin:/bin DEB_BUILD_OPTIONS="$options" \
      dpkg-buildpackage -us -uc -b >"$WORK/build.log" 2>&1) ||
     { tail -n 40 "$WORK/build.log" >&2; fail "dpkg-buildpackage failed (log above)"; }
   echo "build-packages: built in $((SECONDS - start)) s"

@@ -56,11 +56,12 @@ else
 fi
 phase "report --quick"
 
-# The Debian packages: built from a copy of the tree (tests off: they ran above) and checked
-# (contents, --version, systemd-analyze verify, the SDK example, import fovea, lintian).
+# The Debian packages: built from a copy of the tree (tests off: they ran above; unoptimised,
+# --quick: the checks are about what the packages hold, not their speed) and checked (contents,
+# --version, systemd-analyze verify, the SDK example, import fovea, lintian).
 if command -v dpkg-buildpackage >/dev/null 2>&1 && command -v dh >/dev/null 2>&1; then
   echo "=== Debian packages (deploy/build-packages.sh)"
-  if bash deploy/build-packages.sh --out build/packages; then
+  if bash deploy/build-packages.sh --quick --out build/packages; then
     summary+=("packages: built and checked (build/packages)")
   else
     summary+=("packages: FAILED"); status=1
@@ -84,7 +85,7 @@ if command -v clang++ >/dev/null 2>&1; then
   echo "=== libFuzzer: configure + build"
   if cmake --preset fuzz >/dev/null && cmake --build build/fuzz -j "$JOBS" --target fuzz_decoder fuzz_recording fuzz_hid_descriptor fuzz_control_request fuzz_open_gaze fuzz_pupil_payload fuzz_gltf; then
     log=$(mktemp)
-    ctest --test-dir build/fuzz -R libfuzzer --output-on-failure 2>&1 | tee "$log"
+    ctest --test-dir build/fuzz -R libfuzzer -j "$JOBS" --output-on-failure 2>&1 | tee "$log"
     rc=${PIPESTATUS[0]}
     summary+=("libfuzzer: $(grep -E 'tests passed|tests failed' "$log" | tail -n 1)")
     rm -f "$log"

@@ -33,7 +33,10 @@ print(f"   STATUS showed it in {len(flooding)} of {len(status)} lines: "
 d = re.findall(r"(\d+) dropped over the 4x cap in (\d+) floods?", log)
 assert d, "the stop line does not count what was dropped"
 dropped, floods = int(d[-1][0]), int(d[-1][1])
-assert dropped > 10 * cap and floods == 1, f"{dropped} dropped in {floods} floods"
+# More than 2 s of the cap: the daemon counts only what it read, and a slow build reads far less
+# than the fake sends (under ASan on a loaded machine, ~2,000/s of 13,000/s; the transport's queue
+# drops the rest uncounted), so 10x the cap failed there while the cap itself held.
+assert dropped > 2 * cap and floods == 1, f"{dropped} dropped in {floods} floods"
 print(f"   the stop line: {dropped} dropped over the 4x cap in {floods} flood")
 
 rows = list(csv.DictReader(line for line in open(f"{work}/r.csv") if not line.startswith("#")))

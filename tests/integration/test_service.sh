@@ -5,7 +5,7 @@
 # with a changed configuration that keeps existing subscribers, control commands from an allowed
 # and a disallowed network, no leaked file descriptors, and a clean SIGTERM.
 set -u
-TRACKERD=$1 CTL=$2 SRC=$3
+TRACKERD=$1 CTL=$2 SRC=$3 FLOOD=$4  # FLOOD: tests/tools/control_flood.cpp
 WORK=$(mktemp -d)
 PIDS=()
 cleanup() { for p in "${PIDS[@]}"; do kill -9 "$p" 2>/dev/null; done; rm -rf "$WORK"; }
@@ -188,14 +188,15 @@ echo "== a flood of control commands starves neither status nor the subscribers"
 # 5/5 and a subscribed watcher lose its lease and ~9 s of gaze while reporting lost=0. Control now
 # has its own socket and thread, apart from the thread that answers status and heartbeats.
 # Beyond 50 a second they are answered "too many" and not executed; every one is answered.
-flood() { for _ in $(seq 1 150); do "$CTL" --server "$SRV" record-stop 2>&1; done >"$WORK/flood.$1"; }
-F=(); for k in 1 2 3 4; do flood $k & F+=($!); done
+F=(); for k in 1 2 3 4; do "$FLOOD" "$SRV" 150 >"$WORK/flood.$k" 2>&1 & F+=($!); done
 ok=0
 for _ in 1 2 3 4 5; do "$CTL" --server "$SRV" status >/dev/null 2>&1 && ok=$((ok + 1)); sleep 0.3; done
 wait "${F[@]}"
 [ $ok -eq 5 ] || fail "status answered $ok of 5 times during a control flood"
 answered=$(cat "$WORK"/flood.* | grep -c "failed: not recording\|refused: too many control requests")
 [ "$answered" -eq 600 ] || fail "$answered of the flood's 600 requests were answered: $(sort "$WORK"/flood.* | uniq -c | head)"
+refused=$(cat "$WORK"/flood.* | grep -c "refused: too many control requests")
+[ "$refused" -gt 0 ] || fail "none of 600 requests in ~2 s was refused: the limit of 50 a second does not hold"
 
 echo "== the long-lived subscribers never noticed"
 kill -INT $W $R; wait $W; rw=$?; wait $R; rr=$?
