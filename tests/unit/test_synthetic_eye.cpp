@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -247,6 +248,69 @@ TEST(SyntheticEye, GlintsAreBrightInTheImage) {
   for (const auto& g : t.glints) EXPECT_EQ(img.at<std::uint8_t>(static_cast<int>(g.y), static_cast<int>(g.x)), 255);
 }
 
+// The mean grey level of the pixels whose signed distance from e's boundary lies in [d0, d1),
+// away from the glints.
+double mean_in_band(const cv::Mat& img, const EyeTruth& t, double d0, double d1) {
+  double sum = 0;
+  int n = 0;
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      const cv::Point2d p(x + 0.5, y + 0.5);
+      const double d = signed_distance(t.pupil, p);
+      if (d < d0 || d >= d1) continue;
+      bool near_glint = false;
+      for (const auto& g : t.glints) near_glint = near_glint || std::hypot(p.x - g.x, p.y - g.y) < 6;
+      if (near_glint) continue;
+      sum += img.at<std::uint8_t>(y, x);
+      ++n;
+    }
+  return n ? sum / n : std::nan("");
+}
+
+TEST(SyntheticEye, ADarkIrisStandsTheGivenLevelsAboveThePupil) {
+  for (double contrast : {5.0, 9.0, 15.0}) {
+    SyntheticEyeOptions o = clean();
+    o.eyelashes = false;
+    o.pupil_iris_contrast = contrast;
+    SyntheticEye eye(o);
+    EyeTruth t;
+    const cv::Mat img = eye.render(0, -5, 1, &t);  // looking up a little: the lid's shadow stays off the pupil
+    const double pupil = mean_in_band(img, t, -1e9, -2), iris = mean_in_band(img, t, 1.5, 3);
+    EXPECT_NEAR(iris - pupil, contrast, 1.0) << "contrast " << contrast;
+  }
+  SyntheticEye natural(clean());
+  EyeTruth t;
+  const cv::Mat img = natural.render(0, -5, 1, &t);
+  EXPECT_GT(mean_in_band(img, t, 1.5, 3) - mean_in_band(img, t, -1e9, -2), 60);  // the instance's own iris
+}
+
+TEST(SyntheticEye, WeakLightScalesTheLevelsNotTheNoise) {
+  SyntheticEyeOptions o = clean();
+  o.eyelashes = false;
+  SyntheticEye full(o);
+  o.exposure = 0.3;
+  SyntheticEye weak(o);
+  EyeTruth t;
+  const cv::Mat a = full.render(0, -5, 1, &t), b = weak.render(0, -5, 1, nullptr);
+  for (auto [d0, d1] : {std::pair{-1e9, -2.0}, std::pair{1.5, 3.0}, std::pair{30.0, 40.0}})
+    EXPECT_NEAR(mean_in_band(b, t, d0, d1), 0.3 * mean_in_band(a, t, d0, d1), 0.6) << "band " << d0;
+  // The same noise on the weaker signal.
+  o.noise_sigma = 4;
+  o.exposure = 1;
+  SyntheticEye noisy_full(o);
+  o.exposure = 0.3;
+  SyntheticEye noisy_weak(o);
+  const cv::Mat na = noisy_full.render(0, -5, 1, nullptr), nb = noisy_weak.render(0, -5, 1, nullptr);
+  cv::Mat da, db;
+  cv::subtract(na, a, da, cv::noArray(), CV_32F);
+  cv::subtract(nb, b, db, cv::noArray(), CV_32F);
+  cv::Scalar ma, sa, mb, sb;
+  cv::meanStdDev(da, ma, sa);
+  cv::meanStdDev(db, mb, sb);
+  EXPECT_NEAR(sa[0], 4, 0.4);
+  EXPECT_NEAR(sb[0], 4, 0.4);
+}
+
 TEST(SyntheticEye, ClosedEyeShowsNoPupil) {
   SyntheticEye eye(clean());
   EyeTruth open, shut;
@@ -356,6 +420,10 @@ TEST(SyntheticEye, InvalidOptionsThrowNamingTheField) {
   expect_throw([&](SyntheticEyeOptions& o) { o.defocus_px = nan; }, "defocus_px");
   expect_throw([](SyntheticEyeOptions& o) { o.motion_blur_px = -2; }, "motion_blur_px");
   expect_throw([](SyntheticEyeOptions& o) { o.illumination_gradient = 2; }, "illumination_gradient");
+  expect_throw([](SyntheticEyeOptions& o) { o.exposure = 0; }, "exposure");
+  expect_throw([&](SyntheticEyeOptions& o) { o.exposure = nan; }, "exposure");
+  expect_throw([](SyntheticEyeOptions& o) { o.pupil_iris_contrast = 1; }, "pupil_iris_contrast");
+  expect_throw([](SyntheticEyeOptions& o) { o.pupil_iris_contrast = -5; }, "pupil_iris_contrast");
   expect_throw([](SyntheticEyeOptions& o) { o.camera.position_mm.x = INFINITY; }, "camera.position_mm");
   expect_throw([](SyntheticEyeOptions& o) { o.camera.position_mm = {0, 0, 5}; }, "camera.position_mm");
   expect_throw([](SyntheticEyeOptions& o) { o.camera.look_at_mm = o.camera.position_mm; }, "camera.look_at_mm");

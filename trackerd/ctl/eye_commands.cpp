@@ -152,8 +152,19 @@ int cmd_detect_pupil(const std::vector<std::string>& images, const std::string& 
   return status;
 }
 
-int cmd_synth_eye(const std::string& dir, int count, const std::string& size, bool hard, std::uint64_t seed,
-                  const std::string& leds) {
+struct SynthEyeArgs {
+  std::string dir, size = "320x240", leds = "2";
+  int count = 20;
+  bool hard = false;
+  std::uint64_t seed = 1;
+  double pupil_iris_contrast = 0, exposure = 1;
+};
+
+int cmd_synth_eye(const SynthEyeArgs& a) {
+  const std::string& dir = a.dir;
+  const std::string& size = a.size;
+  const int count = a.count;
+  const bool hard = a.hard;
   try {
     unsigned w = 0, h = 0;
     char tail = 0;
@@ -175,11 +186,13 @@ int cmd_synth_eye(const std::string& dir, int count, const std::string& size, bo
     eye::SyntheticEyeOptions o;
     o.width = static_cast<int>(w);
     o.height = static_cast<int>(h);
-    o.seed = seed;
-    o.leds = eye::LedLayout::parse(leds);
+    o.seed = a.seed;
+    o.leds = eye::LedLayout::parse(a.leds);
     if (hard) o = eye::with_hard_conditions(o);
+    o.pupil_iris_contrast = a.pupil_iris_contrast;
+    o.exposure = a.exposure;
     eye::SyntheticEye generator(o);
-    std::mt19937_64 rng(seed ^ 0x5eed5eedULL);  // the gazes; the generator draws its noise from its own
+    std::mt19937_64 rng(a.seed ^ 0x5eed5eedULL);  // the gazes; the generator draws its noise from its own
     std::uniform_real_distribution<double> angle(-20.0, 20.0);
     std::string csv =
         "file,pupil_x,pupil_y,major,minor,angle_deg,closed,glint_count,glints,pupil_glint_x,pupil_glint_y\n";
@@ -203,8 +216,11 @@ int cmd_synth_eye(const std::string& dir, int count, const std::string& size, bo
       csv += "\n";
     }
     write_new_file((std::filesystem::path(dir) / "truth.csv").string(), csv, false);
+    std::string conditions = hard ? " (hard conditions)" : "";
+    if (a.pupil_iris_contrast > 0) conditions += " (dark iris: " + fixed3(a.pupil_iris_contrast) + " levels above the pupil)";
+    if (a.exposure != 1) conditions += " (exposure " + fixed3(a.exposure) + ")";
     std::fprintf(stderr, "fovea-ctl synth-eye: wrote %d image(s) %ux%u%s and truth.csv to %s\n", count, w, h,
-                 hard ? " (hard conditions)" : "", dir.c_str());
+                 conditions.c_str(), dir.c_str());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fovea-ctl synth-eye: %s\n", e.what());
@@ -389,13 +405,7 @@ Command add_detect_pupil_command(CLI::App& app) {
 
 // synth-eye: test images for the detector, with their exact truth.
 Command add_synth_eye_command(CLI::App& app) {
-  struct Options {
-    std::string dir, size = "320x240", leds = "2";
-    int count = 20;
-    bool hard = false;
-    std::uint64_t seed = 1;
-  };
-  auto o = std::make_shared<Options>();
+  auto o = std::make_shared<SynthEyeArgs>();
   auto* synth_eye = app.add_subcommand(
       "synth-eye", "write synthetic infrared eye images (eye_0000.png, ...) with their exact truth (truth.csv) "
                    "for gazes drawn uniformly within +-20 degrees");
@@ -408,7 +418,16 @@ Command add_synth_eye_command(CLI::App& app) {
   synth_eye->add_option("--seed", o->seed, "random seed (same seed, same images)")->capture_default_str();
   synth_eye->add_option("--leds", o->leds, "LED layout: a preset 0..5 or \"x,y;x,y;...\" in mm")
       ->capture_default_str();
-  return {synth_eye, [o] { return cmd_synth_eye(o->dir, o->count, o->size, o->hard, o->seed, o->leds); }};
+  synth_eye->add_option("--pupil-iris-contrast", o->pupil_iris_contrast,
+                        "a dark iris: grey levels between the pupil and the iris next to it, 2..150 "
+                        "(dark-brown irises under infrared: 5..15; 0: each eye's own, about 80)")
+      ->check(CLI::Range(0.0, 150.0))
+      ->capture_default_str();
+  synth_eye->add_option("--exposure", o->exposure,
+                        "weak or strong infrared light: every lit level times this, 0.05..2 (the sensor noise stays)")
+      ->check(CLI::Range(0.05, 2.0))
+      ->capture_default_str();
+  return {synth_eye, [o] { return cmd_synth_eye(*o); }};
 }
 
 // synth-calibration: a recorded calibration session of the synthetic viewer.

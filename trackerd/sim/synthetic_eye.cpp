@@ -135,6 +135,8 @@ void SyntheticEyeOptions::validate() const {
   check_range("defocus_px", defocus_px, 0, 32);
   check_range("eyelid_cover", eyelid_cover, 0, 1);
   check_range("illumination_gradient", illumination_gradient, 0, 1);
+  check_range("exposure", exposure, 0.05, 2);
+  if (pupil_iris_contrast != 0) check_range("pupil_iris_contrast (0: the iris's own)", pupil_iris_contrast, 2, 150);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -60,6 +60,13 @@ struct SyntheticEyeOptions {
   bool eyelashes = true;
   bool glasses_reflection = false;   // large soft reflections from spectacle lenses
   double illumination_gradient = 0.0;  // 0..1: strength of uneven illumination (a tilted gradient + vignette)
+  // Weak infrared light: every level the LEDs light (the eye, skin, glints, spectacle reflections)
+  // times this, 0.05..2, while the sensor's noise stays: 0.3 leaves a third of the signal.
+  double exposure = 1.0;
+  // A dark iris: 0 keeps the instance's iris (about 80 grey levels above its pupil next to it); 2..150
+  // sets how many grey levels the iris next to the pupil stands above the pupil, its texture scaled
+  // with it. Dark-brown irises under infrared: 5..15 (issue 44; real desk-mounted sets: about 9).
+  double pupil_iris_contrast = 0.0;
   // Puts one glint exactly on the pupil boundary in every frame: the pupil radius is set (within
   // 1..4 mm) so that the boundary passes through the glint nearest to it; when no radius in that
   // range does, that LED is displaced for the frame (EyeTruth::leds_used says where).

@@ -20,6 +20,7 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
   pupil = rng.uniform(17, 27);
   lash = rng.uniform(44, 56);
   draw_iris_texture(rng);
+  if (o.pupil_iris_contrast > 0) darken_iris(o.pupil_iris_contrast);
   draw_skin_waves(rng, o);
   lid_skew_upper = rng.uniform(-0.18, 0.18);
   lid_skew_lower = rng.uniform(-0.15, 0.15);
@@ -50,6 +51,15 @@ void SyntheticEye::Look::draw_iris_texture(SplitMix& rng) {
   for (int it = 0; it < kTheta; ++it)
     inner += static_cast<double>(iris_at(0, it)) + static_cast<double>(iris_at(1, it));
   iris_inner = inner / (2.0 * kTheta);
+}
+
+// A dark iris: the texture pulled towards the pupil's level so that the iris next to the pupil is
+// `contrast` grey levels above it, its variation shrinking in proportion (a dark-brown iris under
+// infrared light is dark and nearly featureless). No random draws: the rest of the look is the same.
+void SyntheticEye::Look::darken_iris(double contrast) {
+  const double scale = contrast / std::max(iris_inner - pupil, 1.0);
+  for (float& v : iris) v = static_cast<float>(pupil + (static_cast<double>(v) - pupil) * scale);
+  iris_inner = pupil + contrast;
 }
 
 // Angular variation shared by every radius: six harmonics with amplitude falling as 1/sqrt(k).

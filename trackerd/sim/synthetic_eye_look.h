@@ -46,6 +46,7 @@ struct SyntheticEye::Look {
   // each fills some of the fields above.
   float& iris_at(int ir, int it);
   void draw_iris_texture(synthetic::SplitMix& rng);
+  void darken_iris(double contrast);
   static std::vector<double> iris_low_frequency(synthetic::SplitMix& rng);
   void add_collarette_and_limbal_ring(const std::vector<double>& low, const std::vector<double>& col_phase);
   void add_iris_fibres(synthetic::SplitMix& rng);

@@ -467,6 +467,7 @@ cv::Mat SyntheticEye::render(double yaw_deg, double pitch_deg, double openness, 
   if (o.eyelashes && !look.lashes.empty()) RenderStages::draw_eyelashes(img, fr.lids, look, ppm);
   if (o.illumination_gradient > 0) apply_uneven_illumination(img, o.illumination_gradient, look.gradient_dir);
   if (o.glasses_reflection) RenderStages::add_spectacle_reflections(img, look);
+  if (o.exposure != 1.0) img *= o.exposure;  // all of it is the LEDs' light
   apply_optics(img, o);
   cv::Mat out = sensor_readout(img, o.noise_sigma, noise_seed);
   if (truth) *truth = fr.truth;
