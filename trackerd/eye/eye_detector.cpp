@@ -7,6 +7,7 @@
 #include "eye/detector_stages.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -25,6 +26,8 @@ constexpr double kToPublic = 0.5;
 
 constexpr std::size_t kCandidates = 8;  // pupil candidates fitted per search
 constexpr double kClearPupil = 0.9;     // a fit this confident ends the search
+constexpr double kDiscInside = 0.1;     // a fit inside the winner this confident, and darker inside
+constexpr double kDiscOutline = 0.9;    // along this share of its outline, makes the winner doubtful
 
 }  // namespace
 
@@ -65,6 +68,7 @@ struct FrameSearch {
   cv::Rect frame;
   std::vector<EyeDetector::CandidateFit>* candidates = nullptr;  // every fitted candidate, when asked for
   std::mt19937 rng{12345};  // deterministic RANSAC: the same frame gives the same answer
+  bool inside = false;      // a search inside a fitted candidate (search_inside): it does not recurse
 };
 
 // One search's outcome: the best pupil fit (or why there is none) and the glints of the window.
@@ -182,8 +186,74 @@ PupilAttempt fit_candidate(FrameSearch& search, const Blob& blob, const GlintCan
   return a;
 }
 
+PupilAttempt search_window(FrameSearch& search, const cv::Rect& window);
+
+// The sensor noise's standard deviation in `img` (8-bit): the median absolute difference of
+// horizontal neighbours, robust to the edges in it (1.4826 MAD / sqrt 2 for Gaussian noise).
+double noise_sigma(const cv::Mat& img) {
+  std::array<int, 256> hist{};
+  int n = 0;
+  for (int y = 0; y < img.rows; y += 2) {
+    const std::uint8_t* row = img.ptr<std::uint8_t>(y);
+    for (int x = 1; x < img.cols; ++x, ++n) ++hist[static_cast<std::size_t>(std::abs(row[x] - row[x - 1]))];
+  }
+  int seen = 0, median = 0;
+  while (median < 255 && (seen += hist[static_cast<std::size_t>(median)]) < (n + 1) / 2) ++median;
+  // An integer median of small differences is coarse: half a level at least.
+  return 1.4826 * std::max(0.5, static_cast<double>(median)) / std::sqrt(2.0);
+}
+
+// Local contrast normalisation inside a fitted candidate (issue 44): the window blurred (sigma 1 px,
+// which keeps the stretched noise down) and stretched so that its darkest 2 % lie at 20 and its
+// median at 100 grey levels, at most 12x. Writes `out` (the frame's size) inside `window` only.
+// False when the window is flat: median - darkest under 3 levels or under 4 sigma of the blurred
+// noise (the inside of a pupil, where a noisy sensor's speckle would otherwise be stretched into
+// "pupils").
+bool normalise_contrast(const cv::Mat& grey, const cv::Rect& window, cv::Mat& out) {
+  cv::Mat1f blurred;
+  grey(window).convertTo(blurred, CV_32F);
+  cv::GaussianBlur(blurred, blurred, cv::Size(0, 0), 1.0);
+  cv::Mat levels;
+  blurred.convertTo(levels, CV_8U);
+  const double lo = percentile(levels, 0.02), mid = percentile(levels, 0.5);
+  constexpr double kBlurNoiseGain = 0.282;  // a Gaussian of sigma 1 px leaves 1 / (2 sqrt(pi)) of white noise
+  if (mid - lo < std::max(3.0, 4 * kBlurNoiseGain * noise_sigma(grey(window)))) return false;
+  const double gain = std::min(12.0, 80.0 / (mid - lo));
+  out.create(grey.size(), CV_8U);
+  blurred.convertTo(out(window), CV_8U, gain, 20 - gain * lo);
+  return true;
+}
+
+// A dark iris is itself a dark disc in a bright surround (the sclera), and often the strongest
+// candidate, while the pupil inside it is darker by only a few grey levels (issue 44: about 9 in
+// desk-mounted sets). So inside a fitted candidate the search runs again on the contrast-normalised
+// window, for discs up to 0.75 of its minor radius near its centre: a confident one is the pupil,
+// and the candidate was the iris. Inside a real pupil the window is flat and nothing is searched.
+// Returns the inner fit whatever its confidence (search_window decides), nullopt when none.
+std::optional<PupilAttempt> search_inside(FrameSearch& search, const PupilAttempt& outer) {
+  const Ellipse& e = outer.ellipse;
+  const double r = e.minor / 2;
+  const double rmax = std::min(search.rmax, 0.75 * r);
+  if (rmax < search.rmin * 1.2) return std::nullopt;
+  const double half = 0.85 * r;
+  const cv::Rect window = cv::Rect(static_cast<int>(e.centre.x - half), static_cast<int>(e.centre.y - half),
+                                   static_cast<int>(2 * half) + 1, static_cast<int>(2 * half) + 1) &
+                          search.frame;
+  if (window.width < 8 || window.height < 8) return std::nullopt;
+  cv::Mat normalised;
+  if (!normalise_contrast(search.grey, window, normalised)) return std::nullopt;
+  FrameSearch inner{search.settings, normalised, search.smooth, search.small, search.integral, search.size,
+                    search.rmin, rmax, window, search.candidates};
+  inner.inside = true;
+  PupilAttempt found = search_window(inner, window);
+  if (found.confidence <= 0) return std::nullopt;
+  const cv::Point2d off = found.ellipse.centre - e.centre;
+  if (std::hypot(off.x, off.y) > 0.5 * r) return std::nullopt;
+  return found;
+}
+
 // Candidates in the window, best blob response first; the most confident fit wins (a clear
-// pupil ends the search early).
+// pupil ends the search early); then a darker disc inside the winner is looked for (search_inside).
 PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
   PupilAttempt best;
   best.glints = find_glints(search.grey, window, search.size);
@@ -201,6 +271,18 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
       best = std::move(a);
     }
     if (best.confidence >= kClearPupil) break;
+  }
+  if (best.ok && search.settings.search_inside && !search.inside) {
+    // A doubtful fit inside that is darker than its surround all round its outline still says the
+    // winner is an iris: no pupil rather than a wrong one (the whole frame is searched next when
+    // this was the ROI). Doubtful fits inside a veiled real pupil are darker along half their
+    // outline or less (bench_eye's glasses set), and do not count.
+    std::optional<PupilAttempt> pupil = search_inside(search, best);
+    if (pupil && (pupil->ok || (pupil->confidence >= kDiscInside && pupil->evidence.outline >= kDiscOutline))) {
+      pupil->glints = std::move(best.glints);  // found on the frame itself, not the normalised window
+      if (!pupil->ok) pupil->why = "a darker disc inside the best candidate (a dark iris?), but no confident pupil";
+      best = std::move(*pupil);
+    }
   }
   return best;
 }

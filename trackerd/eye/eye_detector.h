@@ -36,6 +36,9 @@ struct DetectorSettings {
   EdgeMethod edges = EdgeMethod::Rays;
   FitMethod fit = FitMethod::Ransac;
   int rays = 64;                  // rays cast for edge points (EdgeMethod::Rays)
+  // Look for a darker disc inside the winning candidate on its contrast-normalised window: the pupil
+  // inside a dark iris taken for the pupil (issue 44; eye/EYE.md step 6b).
+  bool search_inside = true;
   // Pupil radius range as fractions of min(width, height); everything else scales with the image.
   double min_pupil_radius = 0.02, max_pupil_radius = 0.25;
   double blink_aspect = 0.7;      // Lee 2009 §3.5.2: minor/major below this (relative to the eye's open aspect) is a blink
