@@ -66,6 +66,10 @@ std::vector<ImageSet> all_sets() {
     o.motion_blur_angle_deg = 30;
     o.defocus_px = 1.5;
   });
+  add("long-lashes", [](eye::SyntheticEyeOptions& o) {  // issue 44: lashes hanging across the pupil
+    o.eyelash_length = 2.5;
+    o.eyelid_cover = 0.15;
+  }, false, "low-contrast");
   add("glasses", [](eye::SyntheticEyeOptions& o) {
     o.glasses_reflection = true;
     o.illumination_gradient = 0.4;

@@ -311,6 +311,26 @@ TEST(SyntheticEye, WeakLightScalesTheLevelsNotTheNoise) {
   EXPECT_NEAR(sb[0], 4, 0.4);
 }
 
+TEST(SyntheticEye, LongLashesHangOverThePupilsBorder) {
+  SyntheticEyeOptions o = clean();
+  o.eyelid_cover = 0.15;  // the lid's margin, where the lashes grow, just over the pupil
+  SyntheticEye normal(o);
+  o.eyelash_length = 2.5;
+  SyntheticEye long_lashes(o);
+  EyeTruth t;
+  const cv::Mat a = normal.render(0, -5, 1, &t), b = long_lashes.render(0, -5, 1, nullptr);
+  // The longer lashes cross the pupil's border: the iris just outside it darkens where they lie.
+  // (Lashes only darken, so over the pupil itself they do not show: EYE.md, known limitations.)
+  int crossed = 0;
+  for (int y = 0; y < a.rows; ++y)
+    for (int x = 0; x < a.cols; ++x) {
+      const double d = signed_distance(t.pupil, {x + 0.5, y + 0.5});
+      if (d > 0.5 && d < 4)
+        crossed += static_cast<int>(a.at<std::uint8_t>(y, x)) - static_cast<int>(b.at<std::uint8_t>(y, x)) > 10;
+    }
+  EXPECT_GT(crossed, 10);
+}
+
 TEST(SyntheticEye, ClosedEyeShowsNoPupil) {
   SyntheticEye eye(clean());
   EyeTruth open, shut;
@@ -421,6 +441,7 @@ TEST(SyntheticEye, InvalidOptionsThrowNamingTheField) {
   expect_throw([](SyntheticEyeOptions& o) { o.motion_blur_px = -2; }, "motion_blur_px");
   expect_throw([](SyntheticEyeOptions& o) { o.illumination_gradient = 2; }, "illumination_gradient");
   expect_throw([](SyntheticEyeOptions& o) { o.exposure = 0; }, "exposure");
+  expect_throw([](SyntheticEyeOptions& o) { o.eyelash_length = 5; }, "eyelash_length");
   expect_throw([&](SyntheticEyeOptions& o) { o.exposure = nan; }, "exposure");
   expect_throw([](SyntheticEyeOptions& o) { o.pupil_iris_contrast = 1; }, "pupil_iris_contrast");
   expect_throw([](SyntheticEyeOptions& o) { o.pupil_iris_contrast = -5; }, "pupil_iris_contrast");

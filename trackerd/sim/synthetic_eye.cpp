@@ -136,6 +136,7 @@ void SyntheticEyeOptions::validate() const {
   check_range("eyelid_cover", eyelid_cover, 0, 1);
   check_range("illumination_gradient", illumination_gradient, 0, 1);
   check_range("exposure", exposure, 0.05, 2);
+  check_range("eyelash_length", eyelash_length, 0.2, 4);
   if (pupil_iris_contrast != 0) check_range("pupil_iris_contrast (0: the iris's own)", pupil_iris_contrast, 2, 150);
 }
 

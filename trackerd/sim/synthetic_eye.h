@@ -58,6 +58,7 @@ struct SyntheticEyeOptions {
   double defocus_px = 0.0;           // radius of a disc (defocus) blur
   double eyelid_cover = 0.0;         // fraction of the pupil's vertical extent covered by the upper lid, 0..1
   bool eyelashes = true;
+  double eyelash_length = 1.0;       // every lash times this, 0.2..4: at 2.5 the long ones hang across the pupil
   bool glasses_reflection = false;   // large soft reflections from spectacle lenses
   double illumination_gradient = 0.0;  // 0..1: strength of uneven illumination (a tilted gradient + vignette)
   // Weak infrared light: every level the LEDs light (the eye, skin, glints, spectacle reflections)

@@ -25,6 +25,7 @@ SyntheticEye::Look::Look(const SyntheticEyeOptions& o) {
   lid_skew_upper = rng.uniform(-0.18, 0.18);
   lid_skew_lower = rng.uniform(-0.15, 0.15);
   draw_lashes(rng);
+  for (Lash& l : lashes) l.length_mm *= o.eyelash_length;  // after the draws: the same lashes, longer
   draw_spectacle_reflections(rng, o);
   const double ga = rng.uniform(0, 2 * kPi);
   gradient_dir = {std::cos(ga), std::sin(ga)};
