@@ -205,7 +205,8 @@ double noise_sigma(const cv::Mat& img) {
 
 // Local contrast normalisation inside a fitted candidate (issue 44): the window blurred (sigma 1 px,
 // which keeps the stretched noise down) and stretched so that its darkest 2 % lie at 20 and its
-// median at 100 grey levels, at most 12x. Writes `out` (the frame's size) inside `window` only.
+// median at 100 grey levels, at most 12x. `out` is the frame's size, the window's edges replicated
+// outside it (the stages' blurs read a pixel beyond the window they are given).
 // False when the window is flat: median - darkest under 3 levels or under 4 sigma of the blurred
 // noise (the inside of a pupil, where a noisy sensor's speckle would otherwise be stretched into
 // "pupils").
@@ -219,8 +220,10 @@ bool normalise_contrast(const cv::Mat& grey, const cv::Rect& window, cv::Mat& ou
   constexpr double kBlurNoiseGain = 0.282;  // a Gaussian of sigma 1 px leaves 1 / (2 sqrt(pi)) of white noise
   if (mid - lo < std::max(3.0, 4 * kBlurNoiseGain * noise_sigma(grey(window)))) return false;
   const double gain = std::min(12.0, 80.0 / (mid - lo));
-  out.create(grey.size(), CV_8U);
-  blurred.convertTo(out(window), CV_8U, gain, 20 - gain * lo);
+  cv::Mat stretched;
+  blurred.convertTo(stretched, CV_8U, gain, 20 - gain * lo);
+  cv::copyMakeBorder(stretched, out, window.y, grey.rows - window.y - window.height, window.x,
+                     grey.cols - window.x - window.width, cv::BORDER_REPLICATE);
   return true;
 }
 
