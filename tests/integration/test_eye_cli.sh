@@ -19,6 +19,19 @@ grep -q "not empty" <<<"$out" || fail "unclear refusal: $out"
 "$CTL" synth-eye --out "$WORK/hard" --count 3 --hard --size 160x120 2>/dev/null || fail "synth-eye --hard"
 out=$("$CTL" synth-eye --out "$WORK/bad" --size 10x10 2>&1) && fail "tiny size accepted"
 grep -q -- "--size" <<<"$out" || fail "unclear size message: $out"
+out=$("$CTL" synth-eye --out "$WORK/bad-iris" --pupil-iris-contrast 1 2>&1) && fail "contrast 1 accepted"
+grep -q "pupil_iris_contrast.*= 1: allowed 2..150" <<<"$out" || fail "unclear contrast message: $out"
+[ ! -e "$WORK/bad-iris" ] || fail "a refused synth-eye created its directory"
+
+echo "== dark irises (issue 44): detect-pupil finds the pupil, not the iris"
+"$CTL" synth-eye --out "$WORK/dark" --count 8 --seed 5 --pupil-iris-contrast 9 2>/dev/null || fail "synth-eye --pupil-iris-contrast"
+(cd "$WORK/dark" && "$CTL" detect-pupil eye_*.png --leds 2 >"$WORK/dark.csv" 2>/dev/null) || fail "detect-pupil on dark irises"
+# Within 1.5 px and the pupil's size (major within 25 %), not the iris's, in at least 7 of 8.
+good=$(awk -F, 'NR==FNR { if (FNR > 1) { tx[$1] = $2; ty[$1] = $3; tm[$1] = $4 } next }
+                FNR > 1 && $2 != "" { dx = $2 - tx[$1]; dy = $3 - ty[$1]; r = $4 / tm[$1]
+                                      if (dx*dx + dy*dy <= 2.25 && r > 0.75 && r < 1.25) n++ }
+                END { print n + 0 }' "$WORK/dark/truth.csv" "$WORK/dark.csv")
+[ "$good" -ge 7 ] || fail "only $good of 8 dark-iris pupils found: $(paste -d'\n' "$WORK/dark/truth.csv" "$WORK/dark.csv")"
 
 echo "== detect-pupil finds the pupils synth-eye drew"
 (cd "$WORK/eyes" && "$CTL" detect-pupil eye_*.png --leds 2 --out "$WORK/det.csv" >"$WORK/det.out" 2>"$WORK/det.err") \

@@ -174,6 +174,15 @@ int cmd_synth_eye(const SynthEyeArgs& a) {
     if (count < 1 || count > 100000) {
       throw std::runtime_error("--count " + std::to_string(count) + " is outside 1..100000");
     }
+    eye::SyntheticEyeOptions o;
+    o.width = static_cast<int>(w);
+    o.height = static_cast<int>(h);
+    o.seed = a.seed;
+    o.leds = eye::LedLayout::parse(a.leds);
+    if (hard) o = eye::with_hard_conditions(o);
+    o.pupil_iris_contrast = a.pupil_iris_contrast;
+    o.exposure = a.exposure;
+    eye::SyntheticEye generator(o);  // checks the options before anything is created
     std::error_code ec;
     if (std::filesystem::exists(dir, ec)) {
       if (!std::filesystem::is_directory(dir, ec)) throw std::runtime_error(dir + " exists and is not a directory");
@@ -183,15 +192,6 @@ int cmd_synth_eye(const SynthEyeArgs& a) {
     } else if (!std::filesystem::create_directories(dir, ec)) {
       throw std::runtime_error("cannot create " + dir + ": " + ec.message());
     }
-    eye::SyntheticEyeOptions o;
-    o.width = static_cast<int>(w);
-    o.height = static_cast<int>(h);
-    o.seed = a.seed;
-    o.leds = eye::LedLayout::parse(a.leds);
-    if (hard) o = eye::with_hard_conditions(o);
-    o.pupil_iris_contrast = a.pupil_iris_contrast;
-    o.exposure = a.exposure;
-    eye::SyntheticEye generator(o);
     std::mt19937_64 rng(a.seed ^ 0x5eed5eedULL);  // the gazes; the generator draws its noise from its own
     std::uniform_real_distribution<double> angle(-20.0, 20.0);
     std::string csv =
