@@ -11,7 +11,8 @@
 //
 //   bench_eye [--frames N] [--csv FILE] [--sizes 320x240,...] [--sets clean,eyelid-30,...]
 //             [--variants default,baseline,...]   (a variant by the first word of its name)
-//   bench_eye --fit-confidence [--frames N]   refits the confidence model (prints the coefficients)
+//   bench_eye --fit-confidence [--frames N] [--samples-csv FILE]   refits the confidence model (prints the
+//             coefficients; the CSV gets every fitted candidate's evidence and error)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -279,66 +280,121 @@ std::array<double, eye::kConfidenceFeatures> fit_logistic(const std::vector<std:
   return w;
 }
 
-int fit_confidence(int frames) {
-  // Training and held-out frames come from different seeds, over every condition and resolution.
-  struct Sample {
-    eye::PupilEvidence evidence;
-    double error;
-  };
-  const auto collect = [&](std::uint64_t seed_base) {
-    std::vector<Sample> samples;
-    std::uint64_t seed = seed_base;
-    for (const cv::Size size : {cv::Size(192, 192), cv::Size(320, 240), cv::Size(640, 480)})
-      for (const auto& set : all_sets()) {
-        if (set.closed) continue;
-        const auto sequence = render_sequence(set, size, frames, ++seed);
-        eye::DetectorSettings s;
-        s.leds = eye::LedLayout::preset(2);
-        s.min_confidence = 0;
-        eye::EyeDetector detector(s);
-        // Every fitted candidate, not only the winners: the confidence also chooses among them.
-        for (const auto& f : sequence) {
-          std::vector<eye::EyeDetector::CandidateFit> candidates;
-          detector.reset();
-          detector.detect(f.image, &candidates);
-          for (const auto& c : candidates)
-            samples.push_back({c.evidence, std::hypot(c.ellipse.centre.x - f.truth.pupil.centre.x,
-                                                      c.ellipse.centre.y - f.truth.pupil.centre.y)});
-        }
+struct ConfidenceSample {
+  eye::PupilEvidence evidence;
+  double confidence = 0;  // as the detector computed it (for answers: as reported)
+  double error = 0;       // centre, px
+  double size_error = 0;  // |major - true major| / true major
+  std::string set, resolution;
+  bool iris = false;      // a set with a dark iris (pupil_iris_contrast): its iris is a pupil-like disc
+};
+
+struct ConfidenceSamples {
+  std::vector<ConfidenceSample> candidates;  // every candidate the detector fitted
+  std::vector<ConfidenceSample> answers;     // the pupil each frame reported
+};
+
+// Every condition and resolution, rendered from seeds after `seed_base` (training and held-out
+// frames come from different seeds).
+ConfidenceSamples collect_confidence_samples(int frames, std::uint64_t seed_base) {
+  ConfidenceSamples out;
+  std::uint64_t seed = seed_base;
+  for (const cv::Size size : {cv::Size(192, 192), cv::Size(320, 240), cv::Size(640, 480)})
+    for (const auto& set : all_sets()) {
+      if (set.closed) continue;
+      const auto sequence = render_sequence(set, size, frames, ++seed);
+      eye::DetectorSettings s;
+      s.leds = eye::LedLayout::preset(2);
+      s.min_confidence = 0;
+      eye::EyeDetector detector(s);
+      const std::string resolution = std::to_string(size.width) + "x" + std::to_string(size.height);
+      const auto sample = [&](const eye::PupilEvidence& evidence, double confidence, const eye::Ellipse& e,
+                              const eye::Ellipse& truth) {
+        return ConfidenceSample{evidence, confidence, std::hypot(e.centre.x - truth.centre.x, e.centre.y - truth.centre.y),
+                                std::abs(e.major - truth.major) / truth.major, set.name, resolution,
+                                set.options.pupil_iris_contrast > 0};
+      };
+      for (const auto& f : sequence) {
+        std::vector<eye::EyeDetector::CandidateFit> candidates;
+        detector.reset();
+        const eye::EyeMeasurement m = detector.detect(f.image, &candidates);
+        for (const auto& c : candidates)
+          out.candidates.push_back(sample(c.evidence, c.confidence, c.ellipse, f.truth.pupil));
+        if (m.pupil_found) out.answers.push_back(sample(m.evidence, m.confidence, m.pupil, f.truth.pupil));
       }
-    return samples;
-  };
-  const auto train = collect(1000), test = collect(5000);
-  std::vector<std::array<double, eye::kConfidenceFeatures>> x;
-  std::vector<int> y;
-  for (const auto& s : train) {
-    x.push_back(eye::confidence_features(s.evidence));
-    y.push_back(s.error <= 1.0 ? 1 : 0);
+    }
+  return out;
+}
+
+// Every fitted candidate's evidence and error, for studying the confidence model outside (CSV).
+bool write_samples(const std::string& path, const ConfidenceSamples& train, const ConfidenceSamples& test) {
+  std::ofstream out(path);
+  if (!out) {
+    std::cerr << "cannot write " << path << "\n";
+    return false;
   }
-  const auto w = fit_logistic(x, y);
-  std::printf("confidence model fitted on %zu frames (P(error <= 1 px)):\nconstexpr std::array<double, 6> kConfidenceModel{", train.size());
-  for (std::size_t i = 0; i < w.size(); ++i) std::printf("%s%.4f", i ? ", " : "", w[i]);
-  std::printf("};\n\nheld-out reliability (%zu frames), with the model now compiled in:\n", test.size());
-  std::printf("%-12s %8s %14s %16s\n", "confidence", "frames", "mean predicted", "observed <= 1px");
+  out << "split,resolution,set,support,outline,residual_px,contrast,aspect,confidence,error_px,size_error\n";
+  for (const auto* part : {&train, &test})
+    for (const auto& s : part->candidates)
+      out << (part == &train ? "train" : "test") << "," << s.resolution << "," << s.set << "," << s.evidence.support
+          << "," << s.evidence.outline << "," << s.evidence.residual_px << "," << s.evidence.contrast << ","
+          << s.evidence.aspect << "," << s.confidence << "," << s.error << ","
+          << s.size_error << "\n";
+  return static_cast<bool>(out);
+}
+
+// The reliability table of `samples` (confidence as the detector computed it against the observed
+// share within 1 px) and its expected calibration error.
+void print_reliability(const char* title, const std::vector<const ConfidenceSample*>& samples) {
   constexpr int bins = 5;
   std::array<double, bins> predicted{}, observed{};
   std::array<int, bins> count{};
-  for (const auto& s : test) {
-    const double c = eye::confidence_of(s.evidence);
-    const int b = std::min(bins - 1, static_cast<int>(c * bins));
-    predicted[static_cast<std::size_t>(b)] += c;
-    observed[static_cast<std::size_t>(b)] += s.error <= 1.0 ? 1 : 0;
-    ++count[static_cast<std::size_t>(b)];
+  for (const ConfidenceSample* s : samples) {
+    const auto b = static_cast<std::size_t>(std::min(bins - 1, static_cast<int>(s->confidence * bins)));
+    predicted[b] += s->confidence;
+    observed[b] += s->error <= 1.0 ? 1 : 0;
+    ++count[b];
   }
+  std::printf("\n%s (%zu):\n%-12s %8s %14s %16s\n", title, samples.size(), "confidence", "count", "mean predicted",
+              "observed <= 1px");
   double ece = 0;
   for (std::size_t b = 0; b < bins; ++b) {
     if (!count[b]) continue;
     const double p = predicted[b] / count[b], o = observed[b] / count[b];
-    ece += std::abs(p - o) * count[b] / static_cast<double>(test.size());
+    ece += std::abs(p - o) * count[b] / static_cast<double>(samples.size());
     std::printf("[%.1f, %.1f)   %8d %14.3f %16.3f\n", static_cast<double>(b) / bins, static_cast<double>(b + 1) / bins,
                 count[b], p, o);
   }
   std::printf("expected calibration error: %.3f\n", ece);
+}
+
+// Fits the model on the training candidates, except those of the dark-iris sets: there the iris is
+// a disc as pupil-like as the pupil by every piece of local evidence, and step 6b (the search inside
+// the winner), not the confidence, tells them apart. Held-out reliability is printed for the
+// candidates of both kinds of set and for the answers of all of them.
+int fit_confidence(int frames, const std::string& samples_path) {
+  const ConfidenceSamples train = collect_confidence_samples(frames, 1000);
+  const ConfidenceSamples test = collect_confidence_samples(frames, 5000);
+  if (!samples_path.empty() && !write_samples(samples_path, train, test)) return 1;
+  std::vector<std::array<double, eye::kConfidenceFeatures>> x;
+  std::vector<int> y;
+  for (const auto& s : train.candidates) {
+    if (s.iris) continue;
+    x.push_back(eye::confidence_features(s.evidence));
+    y.push_back(s.error <= 1.0 ? 1 : 0);
+  }
+  const auto w = fit_logistic(x, y);
+  std::printf("confidence model fitted on %zu candidates (P(error <= 1 px)):\n"
+              "constexpr std::array<double, 6> kConfidenceModel{",
+              x.size());
+  for (std::size_t i = 0; i < w.size(); ++i) std::printf("%s%.4f", i ? ", " : "", w[i]);
+  std::printf("};\n\nheld-out reliability with the model now compiled in:\n");
+  std::vector<const ConfidenceSample*> plain, iris, answers;
+  for (const auto& s : test.candidates) (s.iris ? iris : plain).push_back(&s);
+  for (const auto& s : test.answers) answers.push_back(&s);
+  print_reliability("candidates, sets without a dark iris", plain);
+  print_reliability("candidates, dark-iris sets (not fitted: step 6b decides there)", iris);
+  print_reliability("answers (the pupil reported), every set", answers);
   return 0;
 }
 
@@ -357,9 +413,11 @@ int main(int argc, char** argv) {
   app.add_option("--variants", variants_text,
                  "detector variants to run, by the first word of their names: default,ds1,...,baseline (default: all)");
   app.add_flag("--fit-confidence", refit, "refit the logistic confidence model and print its reliability");
+  std::string samples_path;
+  app.add_option("--samples-csv", samples_path, "with --fit-confidence: write every fitted candidate's evidence and error");
   CLI11_PARSE(app, argc, argv);
   cv::setNumThreads(1);  // ms/frame on one core
-  if (refit) return fit_confidence(frames);
+  if (refit) return fit_confidence(frames, samples_path);
 
   std::vector<cv::Size> sizes;
   try {

@@ -111,7 +111,9 @@ std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const GlintCandidates&
 // An eyelid crossing the pupil leaves a run of edge points along the lid margin: nearly straight
 // across the pupil, where the pupil's own outline is strongly curved. Such runs (a line holding
 // many points over a span the pupil's curvature cannot keep straight) are removed before the
-// ellipse fit, so RANSAC does not trade arc points for a flattened ellipse through the lid.
+// ellipse fit, so RANSAC does not trade arc points for a flattened ellipse through the lid. A run
+// that one ellipse through all the points also follows is kept: the flat side of a pupil seen
+// far off-axis (minor/major 0.3-0.5) is as straight over as long a span (issue 44).
 void remove_eyelid_lines(std::vector<EdgePoint>& edges, double radius, std::mt19937& rng) {
   const double tolerance = std::max(1.2, 0.04 * radius);
   for (int lid = 0; lid < 2 && edges.size() >= 8; ++lid) {
@@ -137,6 +139,7 @@ void remove_eyelid_lines(std::vector<EdgePoint>& edges, double radius, std::mt19
       if (on.size() > best.size()) best.swap(on);
     }
     if (best.size() < std::max<std::size_t>(6, edges.size() / 10)) return;
+    if (one_ellipse_explains(edges, best, tolerance)) return;  // an off-axis pupil's flat side
     std::vector<char> drop(edges.size(), 0);
     for (std::size_t i : best) drop[i] = 1;
     std::vector<EdgePoint> kept;

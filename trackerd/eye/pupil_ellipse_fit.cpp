@@ -247,6 +247,19 @@ std::optional<Ellipse> refit_on_inliers(const std::vector<cv::Point2d>& pts, Fit
 
 }  // namespace
 
+bool one_ellipse_explains(const std::vector<EdgePoint>& edges, const std::vector<std::size_t>& run, double tolerance) {
+  std::vector<cv::Point2d> pts(edges.size());
+  for (std::size_t i = 0; i < edges.size(); ++i) pts[i] = edges[i].p;
+  const std::optional<Ellipse> e = fit_direct(pts);
+  if (!e || e->minor / e->major < 0.2) return false;
+  const Conic q = conic_of(*e);
+  const auto near = [&](std::size_t i) { return q.distance(pts[i]) < tolerance; };
+  std::size_t all = 0, on_run = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) all += near(i) ? 1U : 0U;
+  for (std::size_t i : run) on_run += near(i) ? 1U : 0U;
+  return 10 * all >= 9 * pts.size() && 10 * on_run >= 9 * run.size();
+}
+
 std::optional<FitResult> fit_pupil(const std::vector<EdgePoint>& edges, FitMethod method, const cv::Point2d& origin,
                                    double rmin, double rmax, std::mt19937& rng) {
   const std::size_t n = edges.size();
