@@ -67,8 +67,9 @@ std::vector<ImageSet> all_sets() {
     o.motion_blur_angle_deg = 30;
     o.defocus_px = 1.5;
   });
-  add("long-lashes", [](eye::SyntheticEyeOptions& o) {  // issue 44: lashes hanging across the pupil
+  add("long-lashes", [](eye::SyntheticEyeOptions& o) {  // issue 44: lit lashes hanging across the pupil
     o.eyelash_length = 2.5;
+    o.lit_lashes = true;
     o.eyelid_cover = 0.15;
   }, false, "low-contrast");
   add("glasses", [](eye::SyntheticEyeOptions& o) {
@@ -90,6 +91,12 @@ std::vector<ImageSet> all_sets() {
     o.exposure = 0.6;
     o.illumination_gradient = 0.4;
     o.defocus_px = 1.5;
+  }, false, "low-contrast");
+  add("dark-iris-lashes", [](eye::SyntheticEyeOptions& o) {  // 9 levels, lit lashes across pupil and iris
+    o.pupil_iris_contrast = 9;
+    o.eyelash_length = 2.5;
+    o.lit_lashes = true;
+    o.eyelid_cover = 0.15;
   }, false, "low-contrast");
   add("off-axis", [](eye::SyntheticEyeOptions& o) {  // a camera low and to the side: strongly elliptical pupils
     o.camera.position_mm = {26, 26, 26};

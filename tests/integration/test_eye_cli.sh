@@ -22,6 +22,11 @@ grep -q -- "--size" <<<"$out" || fail "unclear size message: $out"
 out=$("$CTL" synth-eye --out "$WORK/bad-iris" --pupil-iris-contrast 1 2>&1) && fail "contrast 1 accepted"
 grep -q "pupil_iris_contrast.*= 1: allowed 2..150" <<<"$out" || fail "unclear contrast message: $out"
 [ ! -e "$WORK/bad-iris" ] || fail "a refused synth-eye created its directory"
+out=$("$CTL" synth-eye --out "$WORK/bad-lashes" --lash-length 9 2>&1) && fail "lash length 9 accepted"
+grep -q -- "--lash-length" <<<"$out" || fail "unclear lash-length message: $out"
+"$CTL" synth-eye --out "$WORK/lashes" --count 2 --lash-length 2.5 --lit-lashes 2>"$WORK/lashes.err" \
+  || fail "synth-eye --lit-lashes: $(cat "$WORK/lashes.err")"
+grep -q "(lashes 2.500x) (lit lashes)" "$WORK/lashes.err" || fail "lit lashes not reported: $(cat "$WORK/lashes.err")"
 
 echo "== dark irises (issue 44): detect-pupil finds the pupil, not the iris"
 "$CTL" synth-eye --out "$WORK/dark" --count 8 --seed 5 --pupil-iris-contrast 9 2>/dev/null || fail "synth-eye --pupil-iris-contrast"

@@ -320,7 +320,7 @@ TEST(SyntheticEye, LongLashesHangOverThePupilsBorder) {
   EyeTruth t;
   const cv::Mat a = normal.render(0, -5, 1, &t), b = long_lashes.render(0, -5, 1, nullptr);
   // The longer lashes cross the pupil's border: the iris just outside it darkens where they lie.
-  // (Lashes only darken, so over the pupil itself they do not show: EYE.md, known limitations.)
+  // (Unlit lashes only darken, so over the pupil itself they do not show: see LitLashesShowOverThePupil.)
   int crossed = 0;
   for (int y = 0; y < a.rows; ++y)
     for (int x = 0; x < a.cols; ++x) {
@@ -329,6 +329,27 @@ TEST(SyntheticEye, LongLashesHangOverThePupilsBorder) {
         crossed += static_cast<int>(a.at<std::uint8_t>(y, x)) - static_cast<int>(b.at<std::uint8_t>(y, x)) > 10;
     }
   EXPECT_GT(crossed, 10);
+}
+
+// Lashes lit by the LEDs are at their own level everywhere: grey lines across the (darker) pupil.
+TEST(SyntheticEye, LitLashesShowOverThePupil) {
+  SyntheticEyeOptions o = clean();
+  o.eyelid_cover = 0.15;
+  o.eyelash_length = 2.5;
+  SyntheticEye unlit(o);
+  o.lit_lashes = true;
+  SyntheticEye lit(o);
+  EyeTruth t;
+  const cv::Mat a = unlit.render(0, -5, 1, &t), b = lit.render(0, -5, 1, nullptr);
+  int brighter = 0, darker = 0;
+  for (int y = 0; y < a.rows; ++y)
+    for (int x = 0; x < a.cols; ++x) {
+      const int d = static_cast<int>(b.at<std::uint8_t>(y, x)) - static_cast<int>(a.at<std::uint8_t>(y, x));
+      if (signed_distance(t.pupil, {x + 0.5, y + 0.5}) < -1.5) brighter += d > 10;  // inside the pupil
+      darker += d < -10;
+    }
+  EXPECT_GT(brighter, 10);
+  EXPECT_EQ(darker, 0);  // where the unlit lashes darkened, the lit ones are no darker
 }
 
 TEST(SyntheticEye, ClosedEyeShowsNoPupil) {

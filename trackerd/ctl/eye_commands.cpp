@@ -157,7 +157,8 @@ struct SynthEyeArgs {
   int count = 20;
   bool hard = false;
   std::uint64_t seed = 1;
-  double pupil_iris_contrast = 0, exposure = 1;
+  double pupil_iris_contrast = 0, exposure = 1, eyelash_length = 1;
+  bool lit_lashes = false;
 };
 
 int cmd_synth_eye(const SynthEyeArgs& a) {
@@ -182,6 +183,8 @@ int cmd_synth_eye(const SynthEyeArgs& a) {
     if (hard) o = eye::with_hard_conditions(o);
     o.pupil_iris_contrast = a.pupil_iris_contrast;
     o.exposure = a.exposure;
+    o.eyelash_length = a.eyelash_length;
+    o.lit_lashes = a.lit_lashes;
     eye::SyntheticEye generator(o);  // checks the options before anything is created
     std::error_code ec;
     if (std::filesystem::exists(dir, ec)) {
@@ -219,6 +222,8 @@ int cmd_synth_eye(const SynthEyeArgs& a) {
     std::string conditions = hard ? " (hard conditions)" : "";
     if (a.pupil_iris_contrast > 0) conditions += " (dark iris: " + fixed3(a.pupil_iris_contrast) + " levels above the pupil)";
     if (a.exposure != 1) conditions += " (exposure " + fixed3(a.exposure) + ")";
+    if (a.eyelash_length != 1) conditions += " (lashes " + fixed3(a.eyelash_length) + "x)";
+    if (a.lit_lashes) conditions += " (lit lashes)";
     std::fprintf(stderr, "fovea-ctl synth-eye: wrote %d image(s) %ux%u%s and truth.csv to %s\n", count, w, h,
                  conditions.c_str(), dir.c_str());
     return 0;
@@ -427,6 +432,13 @@ Command add_synth_eye_command(CLI::App& app) {
                         "weak or strong infrared light: every lit level times this, 0.05..2 (the sensor noise stays)")
       ->check(CLI::Range(0.05, 2.0))
       ->capture_default_str();
+  synth_eye->add_option("--lash-length", o->eyelash_length,
+                        "every eyelash times this, 0.2..4 (at 2.5 the long ones hang across the pupil)")
+      ->check(CLI::Range(0.2, 4.0))
+      ->capture_default_str();
+  synth_eye->add_flag("--lit-lashes", o->lit_lashes,
+                      "lashes lit by the infrared LEDs: grey lines across the pupil, as infrared cameras see them "
+                      "(by default they only darken what they cover)");
   return {synth_eye, [o] { return cmd_synth_eye(*o); }};
 }
 

@@ -59,6 +59,10 @@ struct SyntheticEyeOptions {
   double eyelid_cover = 0.0;         // fraction of the pupil's vertical extent covered by the upper lid, 0..1
   bool eyelashes = true;
   double eyelash_length = 1.0;       // every lash times this, 0.2..4: at 2.5 the long ones hang across the pupil
+  // Lashes lit by the infrared LEDs: drawn at their own level over everything, so across the pupil
+  // (darker than a lash) they show as grey lines, as real infrared cameras see them; off, they only
+  // darken what they cover and vanish over the pupil.
+  bool lit_lashes = false;
   bool glasses_reflection = false;   // large soft reflections from spectacle lenses
   double illumination_gradient = 0.0;  // 0..1: strength of uneven illumination (a tilted gradient + vignette)
   // Weak infrared light: every level the LEDs light (the eye, skin, glints, spectacle reflections)

@@ -251,7 +251,7 @@ struct SyntheticEye::RenderStages {
   static double eye_level(const Shading& c, const RowShading& r, const LidDistances& ld, int x, double px,
                           double wave);
   static double iris_level(const Shading& c, double px, double py);
-  static void draw_eyelashes(cv::Mat1f& img, const Lids& lids, const Look& look, double ppm);
+  static void draw_eyelashes(cv::Mat1f& img, const Lids& lids, const Look& look, double ppm, bool lit);
   static void add_spectacle_reflections(cv::Mat1f& img, const Look& look);
 };
 
@@ -400,8 +400,10 @@ double SyntheticEye::RenderStages::iris_level(const Shading& c, double px, doubl
   return iris_v;
 }
 
-// Eyelashes over everything (they are in front of the eye), darkening towards their level.
-void SyntheticEye::RenderStages::draw_eyelashes(cv::Mat1f& img, const Lids& lids, const Look& look, double ppm) {
+// Eyelashes over everything (they are in front of the eye): darkening towards their level or, lit
+// (`lit_lashes`), at their own level, so lighter than the pupil they cross.
+void SyntheticEye::RenderStages::draw_eyelashes(cv::Mat1f& img, const Lids& lids, const Look& look, double ppm,
+                                               bool lit) {
   const int width = img.cols, height = img.rows;
   cv::Mat1f cover(height, width, 0.0f);
   std::vector<cv::Point2d> pts(8);
@@ -426,7 +428,7 @@ void SyntheticEye::RenderStages::draw_eyelashes(cv::Mat1f& img, const Lids& lids
     float* row = img.ptr<float>(y);
     const float* c = cover.ptr<float>(y);
     for (int x = 0; x < width; ++x)
-      if (c[x] > 0) row[x] += (std::min(row[x], level) - row[x]) * c[x];
+      if (c[x] > 0) row[x] += ((lit ? level : std::min(row[x], level)) - row[x]) * c[x];
   }
 }
 
@@ -464,7 +466,7 @@ cv::Mat SyntheticEye::render(double yaw_deg, double pitch_deg, double openness, 
 
   const std::vector<GlintSplat> splats = glint_splats(fr.glints, o.width, o.height);
   cv::Mat1f img = RenderStages::shade_pixels(RenderStages::shading(fr, look, o, ppm), splats);
-  if (o.eyelashes && !look.lashes.empty()) RenderStages::draw_eyelashes(img, fr.lids, look, ppm);
+  if (o.eyelashes && !look.lashes.empty()) RenderStages::draw_eyelashes(img, fr.lids, look, ppm, o.lit_lashes);
   if (o.illumination_gradient > 0) apply_uneven_illumination(img, o.illumination_gradient, look.gradient_dir);
   if (o.glasses_reflection) RenderStages::add_spectacle_reflections(img, look);
   if (o.exposure != 1.0) img *= o.exposure;  // all of it is the LEDs' light
