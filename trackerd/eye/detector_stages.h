@@ -99,10 +99,11 @@ struct EdgePoint {
   double contrast = 0;
 };
 
-// Starburst rays from `from` inside the pupil to the first sharp dark-to-bright step.
+// Starburst rays from `from` inside the pupil to the first sharp dark-to-bright step; with
+// `thin_px` > 0, not one that falls back within `thin_px` (a lash).
 std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
                                  const cv::Point2d& from, double pupil_level, double min_step, double max_length,
-                                 int rays);
+                                 int rays, double thin_px);
 // Canny edges around `from` whose gradient points away from it (dark inside).
 std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const GlintCandidates& glints, const cv::Point2d& from,
                                    double contrast, double max_length);

@@ -15,9 +15,12 @@ namespace fovea::trackerd::eye::stages {
 
 // Starburst (Li et al. 2005 §2.3): from a point inside the pupil, walk rays outwards to the first
 // dark-to-bright transition; the edge is where the profile crosses halfway between the pupil level
-// and the level just outside, interpolated between samples (sub-pixel).
+// and the level just outside, interpolated between samples (sub-pixel). With `thin_px` > 0, a rise
+// that falls back to the level before it within `thin_px` is a thin bright line -- a lash across the
+// pupil, lit by the infrared LEDs -- and is walked over (issue 44).
 std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
-                                 const cv::Point2d& from, double pupil_level, double min_step, double max_length, int rays) {
+                                 const cv::Point2d& from, double pupil_level, double min_step, double max_length, int rays,
+                                 double thin_px) {
   std::vector<EdgePoint> edges;
   edges.reserve(static_cast<std::size_t>(rays));
   constexpr double ds = 0.5;
@@ -41,10 +44,21 @@ std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, c
     const auto step_at = [&](int i) {
       return profile[static_cast<std::size_t>(i + half_span)] - profile[static_cast<std::size_t>(i - half_span)];
     };
+    const int thin = static_cast<int>(std::ceil(thin_px / ds));
+    const auto falls_back = [&](int i) {  // within thin_px after the rise, back near the level before it
+      const double before = profile[static_cast<std::size_t>(i - half_span)];
+      for (int j = i + half_span + 1; j <= i + half_span + thin && j < n; ++j)
+        if (profile[static_cast<std::size_t>(j)] < before + 0.5 * min_step) return true;
+      return false;
+    };
     int cross = -1;
     for (int i = half_span; i + half_span < n; ++i) {
       if (glinty[static_cast<std::size_t>(i)] || glinty[static_cast<std::size_t>(i + half_span)]) continue;
       if (step_at(i) > min_step && profile[static_cast<std::size_t>(i - half_span)] < pupil_level + 2 * min_step + 40) {
+        if (thin > 0 && falls_back(i)) {
+          i += half_span;  // over the line
+          continue;
+        }
         cross = i;
         break;
       }
