@@ -205,8 +205,8 @@ double noise_sigma(const cv::Mat& img) {
 }
 
 // Local contrast normalisation inside a fitted candidate (issue 44): the window blurred (sigma 1 px,
-// which keeps the stretched noise down) and stretched so that its darkest 2 % lie at 20 and its
-// median at 100 grey levels, at most 12x. `out` is the frame's size, the window's edges replicated
+// which keeps the stretched noise down), stretched so that its darkest 2 % lie at 20 and its
+// median at 100 grey levels, at most 12x, and opened (lashes removed). `out` is the frame's size, the window's edges replicated
 // outside it (the stages' blurs read a pixel beyond the window they are given).
 // False when the window is flat: median - darkest under 3 levels or under 4 sigma of the blurred
 // noise (the inside of a pupil, where a noisy sensor's speckle would otherwise be stretched into
@@ -223,6 +223,11 @@ bool normalise_contrast(const cv::Mat& grey, const cv::Rect& window, cv::Mat& ou
   const double gain = std::min(12.0, 80.0 / (mid - lo));
   cv::Mat stretched;
   blurred.convertTo(stretched, CV_8U, gain, 20 - gain * lo);
+  // Lit lashes across a pupil in a dark iris are stretched into bright lines as high as the pupil's
+  // own edge: a grey-level opening (erosion, then dilation) with a disc a little wider than a lash
+  // removes them and keeps the outline of the dark disc, whose curvature is far lower.
+  const int k = 2 * std::max(1, static_cast<int>(std::min(grey.cols, grey.rows) / 120)) + 1;  // 5 px at 240, 9 at 480
+  cv::morphologyEx(stretched, stretched, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
   cv::copyMakeBorder(stretched, out, window.y, grey.rows - window.y - window.height, window.x,
                      grey.cols - window.x - window.width, cv::BORDER_REPLICATE);
   return true;
