@@ -3,8 +3,8 @@
 //
 // For each resolution (192x192, 320x240, 640x480) and image set (clean; the hard conditions one at a
 // time and their union; all of them at once; the low-contrast conditions of issue 44 -- dark irises,
-// weak light, off-axis views -- and their union; closed eyes), renders a gaze sequence from the synthetic viewer and
-// runs every detector variant over it on one thread: pupil-centre error (median, 95th percentile,
+// weak light, lashes across the pupil, off-axis views -- and their union; closed eyes), renders a
+// gaze sequence from the synthetic viewer and runs every detector variant over it on one thread: pupil-centre error (median, 95th percentile,
 // px), detection rate, the share within 2 and 5 px, how often a confident answer (>= 0.8) is right
 // (within 5 px and the right size), false positives on closed eyes, and ms/frame. The peer baseline (threshold +
 // largest contour + cv::fitEllipse) runs on the same frames, so gains are measured ratios.
