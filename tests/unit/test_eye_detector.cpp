@@ -218,6 +218,20 @@ TEST(EyeDetector, GeneratedDarkIrisesAndWeakLight) {
   EXPECT_LT(quantile(weak.error, 0.95), 1.0);
 }
 
+// Issue 44: long lashes lit by the LEDs hang across the pupil as grey lines; the pupil is still
+// found, and not a piece of it between two lashes.
+TEST(EyeDetector, GeneratedLitLashesAcrossThePupil) {
+  SyntheticEyeOptions o;
+  o.seed = 430;
+  o.eyelash_length = 2.5;
+  o.lit_lashes = true;
+  o.eyelid_cover = 0.15;
+  const Errors e = run_generated(o, 40);
+  EXPECT_LE(e.missed, 2);
+  EXPECT_LE(e.wrong_size, 1);  // step 6b once took such pieces inside a confident pupil (3 of 40)
+  EXPECT_LT(quantile(e.error, 0.9), 1.0);
+}
+
 // Issue 44: an eye camera low and to the side sees the pupil strongly elliptical (minor/major
 // 0.3-0.5); its flat sides are as straight as a lid margin over the lid test's span. They were taken
 // for lids and removed, leaving a fit the confidence rejected (18 % found in bench_eye).

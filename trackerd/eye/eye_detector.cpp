@@ -28,6 +28,7 @@ constexpr std::size_t kCandidates = 8;  // pupil candidates fitted per search
 constexpr double kClearPupil = 0.9;     // a fit this confident ends the search
 constexpr double kDiscInside = 0.1;     // a fit inside the winner this confident, and darker inside
 constexpr double kDiscOutline = 0.9;    // along this share of its outline, makes the winner doubtful
+constexpr double kInsideOutline = 0.6;  // a disc inside the winner replaces it when darker along this share
 
 }  // namespace
 
@@ -205,16 +206,20 @@ double noise_sigma(const cv::Mat& img) {
 }
 
 // Local contrast normalisation inside a fitted candidate (issue 44): the window blurred (sigma 1 px,
-// which keeps the stretched noise down), stretched so that its darkest 2 % lie at 20 and its
-// median at 100 grey levels, at most 12x, and opened (lashes removed). `out` is the frame's size, the window's edges replicated
-// outside it (the stages' blurs read a pixel beyond the window they are given).
-// False when the window is flat: median - darkest under 3 levels or under 4 sigma of the blurred
-// noise (the inside of a pupil, where a noisy sensor's speckle would otherwise be stretched into
-// "pupils").
+// which keeps the stretched noise down), opened (grey-level erosion, then dilation, with a disc a
+// little wider than a lash: lit lashes across a pupil go, as bright lines that the stretch would
+// make as high as the pupil's own edge, while a dark disc's outline, far less curved, stays) and
+// stretched so that its darkest 2 % lie at 20 and its median at 100 grey levels, at most 12x.
+// `out` is the frame's size, the window's edges replicated outside it (the stages' blurs read a
+// pixel beyond the window they are given). False when the window is flat once opened: median -
+// darkest under 3 levels or under 4 sigma of the blurred noise (the inside of a pupil, lashes
+// across it or not, where a noisy sensor's speckle would otherwise be stretched into "pupils").
 bool normalise_contrast(const cv::Mat& grey, const cv::Rect& window, cv::Mat& out) {
   cv::Mat1f blurred;
   grey(window).convertTo(blurred, CV_32F);
   cv::GaussianBlur(blurred, blurred, cv::Size(0, 0), 1.0);
+  const int k = 2 * std::max(1, static_cast<int>(std::min(grey.cols, grey.rows) / 120)) + 1;  // 5 px at 240, 9 at 480
+  cv::morphologyEx(blurred, blurred, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
   cv::Mat levels;
   blurred.convertTo(levels, CV_8U);
   const double lo = percentile(levels, 0.02), mid = percentile(levels, 0.5);
@@ -223,11 +228,6 @@ bool normalise_contrast(const cv::Mat& grey, const cv::Rect& window, cv::Mat& ou
   const double gain = std::min(12.0, 80.0 / (mid - lo));
   cv::Mat stretched;
   blurred.convertTo(stretched, CV_8U, gain, 20 - gain * lo);
-  // Lit lashes across a pupil in a dark iris are stretched into bright lines as high as the pupil's
-  // own edge: a grey-level opening (erosion, then dilation) with a disc a little wider than a lash
-  // removes them and keeps the outline of the dark disc, whose curvature is far lower.
-  const int k = 2 * std::max(1, static_cast<int>(std::min(grey.cols, grey.rows) / 120)) + 1;  // 5 px at 240, 9 at 480
-  cv::morphologyEx(stretched, stretched, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(k, k)));
   cv::copyMakeBorder(stretched, out, window.y, grey.rows - window.y - window.height, window.x,
                      grey.cols - window.x - window.width, cv::BORDER_REPLICATE);
   return true;
@@ -282,12 +282,15 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
     if (best.confidence >= kClearPupil) break;
   }
   if (best.ok && search.settings.search_inside && !search.inside) {
-    // A doubtful fit inside that is darker than its surround all round its outline still says the
-    // winner is an iris: no pupil rather than a wrong one (the whole frame is searched next when
-    // this was the ROI). Doubtful fits inside a veiled real pupil are darker along half their
-    // outline or less (bench_eye's glasses set), and do not count.
+    // A confident disc inside replaces the winner only when darker than its surround along most
+    // of its outline, as a pupil is inside an iris: a piece of a real pupil between lit lashes is
+    // surrounded by pupil along half of it or more (bench_eye's long-lashes set). A doubtful fit
+    // inside that is darker all round still says the winner is an iris: no pupil rather than a
+    // wrong one (the whole frame is searched next when this was the ROI). Doubtful fits inside a
+    // veiled real pupil are darker along half their outline or less (the glasses set).
     std::optional<PupilAttempt> pupil = search_inside(search, best);
-    if (pupil && (pupil->ok || (pupil->confidence >= kDiscInside && pupil->evidence.outline >= kDiscOutline))) {
+    if (pupil && ((pupil->ok && pupil->evidence.outline >= kInsideOutline) ||
+                  (pupil->confidence >= kDiscInside && pupil->evidence.outline >= kDiscOutline))) {
       pupil->glints = std::move(best.glints);  // found on the frame itself, not the normalised window
       if (!pupil->ok) pupil->why = "a darker disc inside the best candidate (a dark iris?), but no confident pupil";
       best = std::move(*pupil);
