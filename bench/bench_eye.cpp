@@ -1,13 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 // Pupil-detector accuracy versus time on generated infrared eye sequences with exact ground truth.
 //
-// For each resolution (192x192, 320x240, 640x480) and image set (clean; the hard conditions one at a
-// time and their union; all of them at once; the low-contrast conditions of issue 44 -- dark irises,
-// weak light, lashes across the pupil, off-axis views -- and their union; closed eyes), renders a
-// gaze sequence from the synthetic viewer and runs every detector variant over it on one thread: pupil-centre error (median, 95th percentile,
-// px), detection rate, the share within 2 and 5 px, how often a confident answer (>= 0.8) is right
-// (within 5 px and the right size), false positives on closed eyes, and ms/frame. The peer baseline (threshold +
-// largest contour + cv::fitEllipse) runs on the same frames, so gains are measured ratios.
+// For each resolution (192x192, 320x240, 640x480) and image set (clean; the hard conditions one at
+// a time and their union; all of them at once; the low-contrast conditions of issue 44 -- dark
+// irises, weak light, lashes across the pupil, off-axis views -- and their union; closed eyes),
+// renders a gaze sequence from the synthetic viewer and runs every detector variant over it on one
+// thread: pupil-centre error (median, 95th percentile, px), detection rate, the share within 2 and
+// 5 px, how often a confident answer (>= 0.8) is right (within 5 px and the right size), false
+// positives on closed eyes, and ms/frame. The peer baseline (threshold + largest contour +
+// cv::fitEllipse) runs on the same frames, so gains are measured ratios.
 //
 //   bench_eye [--frames N] [--csv FILE] [--sizes 320x240,...] [--sets clean,eyelid-30,...]
 //             [--variants default,baseline,...]   (a variant by the first word of its name)
@@ -392,8 +393,8 @@ int fit_confidence(int frames, const std::string& samples_path) {
   }
   const auto w = fit_logistic(x, y);
   std::printf("confidence model fitted on %zu candidates (P(error <= 1 px)):\n"
-              "constexpr std::array<double, 6> kConfidenceModel{",
-              x.size());
+              "constexpr std::array<double, %zu> kConfidenceModel{",
+              x.size(), w.size());
   for (std::size_t i = 0; i < w.size(); ++i) std::printf("%s%.4f", i ? ", " : "", w[i]);
   std::printf("};\n\nheld-out reliability with the model now compiled in:\n");
   std::vector<const ConfidenceSample*> plain, iris, answers;
