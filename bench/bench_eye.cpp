@@ -406,6 +406,18 @@ int fit_confidence(int frames, const std::string& samples_path) {
   return 0;
 }
 
+// The table's CSV with its header; false (said on stderr) when it cannot be written.
+bool open_csv(const std::string& path, std::ofstream& csv) {
+  csv.open(path);
+  if (!csv) {
+    std::cerr << "cannot write " << path << "\n";
+    return false;
+  }
+  csv << "resolution,set,variant,frames,detected_pct,median_px,p95_px,within2_pct,within5_pct,"
+         "confident_answers,confident_within5_pct,false_positive_pct,ms_per_frame\n";
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -442,15 +454,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::ofstream csv;
-  if (!csv_path.empty()) {
-    csv.open(csv_path);
-    if (!csv) {
-      std::cerr << "cannot write " << csv_path << "\n";
-      return 1;
-    }
-    csv << "resolution,set,variant,frames,detected_pct,median_px,p95_px,within2_pct,within5_pct,"
-           "confident_answers,confident_within5_pct,false_positive_pct,ms_per_frame\n";
-  }
+  if (!csv_path.empty() && !open_csv(csv_path, csv)) return 1;
   std::vector<Variant> variants;
   for (const auto& v : all_variants()) {
     const std::string key = v.name.substr(0, v.name.find('('));
