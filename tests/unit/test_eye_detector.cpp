@@ -274,6 +274,28 @@ TEST(EyeDetectorStages, LidLinesAreNotAnEllipsesFlatSides) {
   st::remove_eyelid_lines(lid, 15, rng);
   EXPECT_LE(on_lid(lid), 2);  // the lid's run went
   EXPECT_GE(static_cast<std::ptrdiff_t>(lid.size()) - on_lid(lid), arc - 3);  // the arc stayed (but near the corners)
+  // A small pupil (radius 7 px, as at 160x120) under a lid 3 px deep: the tolerance (1.2 px) is a
+  // sixth of the radius, so one least-squares ellipse through every point bends to pass near the
+  // lid's chord; the outline without the chord still says where the pupil goes on.
+  const auto small_points = [](double cut_y) {
+    std::vector<st::EdgePoint> pts;
+    for (int i = 0; i < 48; ++i) {
+      const double t = 2 * 3.14159265358979 * i / 48;
+      cv::Point2d p(100 + 7 * std::cos(t), 100 + 7 * std::sin(t));
+      if (p.y < cut_y) p.y = cut_y;
+      pts.push_back({p, 50});
+    }
+    return pts;
+  };
+  for (std::uint32_t seed = 1; seed <= 20; ++seed) {
+    rng.seed(seed);
+    auto small = small_points(96);
+    const auto on_small_lid = std::count_if(small.begin(), small.end(), [](const st::EdgePoint& p) { return p.p.y < 96.5; });
+    ASSERT_GE(on_small_lid, 8);
+    st::remove_eyelid_lines(small, 7, rng);
+    EXPECT_LE(std::count_if(small.begin(), small.end(), [](const st::EdgePoint& p) { return p.p.y < 96.5; }), 2)
+        << "seed " << seed;
+  }
 }
 
 // The confidence predicts the error: confident pupils are accurate, doubtful ones often are not.

@@ -123,9 +123,10 @@ struct FitResult {
 std::optional<FitResult> fit_pupil(const std::vector<EdgePoint>& edges, FitMethod method, const cv::Point2d& origin,
                                    double rmin, double rmax, std::mt19937& rng);
 Ellipse from_rotated_rect(const cv::RotatedRect& r);
-// Whether one ellipse (least squares through every point) passes within `tolerance` px of nine in
-// ten of the points and of the points of `run`: a straight run that is the flat side of a strongly
-// elliptical pupil, not a lid margin (a lid meets the pupil's arc at corners no ellipse follows).
+// Whether the ellipse fitted (least squares) to the points outside `run` passes within `tolerance`
+// px of nine in ten of them and of nine in ten of the points of `run`: a straight run that is the
+// flat side of a strongly elliptical pupil, not a lid margin (a lid cuts the pupil's outline short,
+// so the rest of the outline continues beyond it).
 bool one_ellipse_explains(const std::vector<EdgePoint>& edges, const std::vector<std::size_t>& run, double tolerance);
 // A point on the ellipse at parameter t (internal pixel convention).
 cv::Point2d ellipse_point(const Ellipse& e, double t, double scale = 1.0);

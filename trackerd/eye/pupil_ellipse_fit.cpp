@@ -248,16 +248,21 @@ std::optional<Ellipse> refit_on_inliers(const std::vector<cv::Point2d>& pts, Fit
 }  // namespace
 
 bool one_ellipse_explains(const std::vector<EdgePoint>& edges, const std::vector<std::size_t>& run, double tolerance) {
-  std::vector<cv::Point2d> pts(edges.size());
-  for (std::size_t i = 0; i < edges.size(); ++i) pts[i] = edges[i].p;
-  const std::optional<Ellipse> e = fit_direct(pts);
+  std::vector<char> in_run(edges.size(), 0);
+  for (std::size_t i : run) in_run[i] = 1;
+  std::vector<cv::Point2d> rest;
+  for (std::size_t i = 0; i < edges.size(); ++i)
+    if (!in_run[i]) rest.push_back(edges[i].p);
+  if (rest.size() < 6) return false;
+  // Fitted without the run: a lid's chord lies inside the pupil's own outline (up to the cut cap's
+  // height away), where a least-squares ellipse through every point could bend to follow it.
+  const std::optional<Ellipse> e = fit_direct(rest);
   if (!e || e->minor / e->major < 0.2) return false;
   const Conic q = conic_of(*e);
-  const auto near = [&](std::size_t i) { return q.distance(pts[i]) < tolerance; };
-  std::size_t all = 0, on_run = 0;
-  for (std::size_t i = 0; i < pts.size(); ++i) all += near(i) ? 1U : 0U;
-  for (std::size_t i : run) on_run += near(i) ? 1U : 0U;
-  return 10 * all >= 9 * pts.size() && 10 * on_run >= 9 * run.size();
+  std::size_t near_rest = 0, near_run = 0;
+  for (const cv::Point2d& p : rest) near_rest += q.distance(p) < tolerance ? 1U : 0U;
+  for (std::size_t i : run) near_run += q.distance(edges[i].p) < tolerance ? 1U : 0U;
+  return 10 * near_rest >= 9 * rest.size() && 10 * near_run >= 9 * run.size();
 }
 
 std::optional<FitResult> fit_pupil(const std::vector<EdgePoint>& edges, FitMethod method, const cv::Point2d& origin,
