@@ -123,6 +123,7 @@ std::vector<Variant> all_variants() {
   add("ds1", [](eye::DetectorSettings& s) { s.coarse_downscale = 1; });
   add("ds4", [](eye::DetectorSettings& s) { s.coarse_downscale = 4; });
   add("no-inside", [](eye::DetectorSettings& s) { s.search_inside = false; });  // the detector before issue 44
+  add("no-edges", [](eye::DetectorSettings& s) { s.edge_candidates = false; });  // no PuRe-style edge candidates
   add("no-roi", [](eye::DetectorSettings& s) { s.roi_tracking = false; });
   add("rays32", [](eye::DetectorSettings& s) { s.rays = 32; });
   add("least-squares", [](eye::DetectorSettings& s) { s.fit = eye::FitMethod::LeastSquares; });

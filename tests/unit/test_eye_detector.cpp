@@ -117,11 +117,12 @@ struct Errors {
   int missed_edge_on = 0;  // misses of pupils seen nearly edge-on (minor/major < 0.2: none is accepted)
 };
 
-Errors run_generated(SyntheticEyeOptions o, int frames, bool search_inside = true) {
+Errors run_generated(SyntheticEyeOptions o, int frames, bool search_inside = true, bool edge_candidates = true) {
   SyntheticEye eye(o);
   DetectorSettings s;
   s.leds = o.leds;
   s.search_inside = search_inside;
+  s.edge_candidates = edge_candidates;
   EyeDetector d(s);
   Errors out;
   std::mt19937 rng(static_cast<unsigned>(o.seed));
@@ -244,6 +245,50 @@ TEST(EyeDetector, GeneratedOffAxisViews) {
   EXPECT_LE(e.missed, 10);
   EXPECT_EQ(e.wrong_size, 0);
   EXPECT_LT(quantile(e.error, 0.95), 0.5);
+}
+
+// Spectacle reflections and uneven light at 640x480: the pupil, veiled and lifted, is lighter than
+// the resolved lashes, so the darkest blobs are lashes; the edge candidates (EYE.md step 2b) offer it.
+TEST(EyeDetector, GeneratedGlassesAtHighResolution) {
+  Errors with, without;
+  for (std::uint64_t seed = 7000; seed < 7004; ++seed) {
+    SyntheticEyeOptions o;
+    o.seed = seed;
+    o.width = 640;
+    o.height = 480;
+    o.glasses_reflection = true;
+    o.illumination_gradient = 0.4;
+    const Errors a = run_generated(o, 10), b = run_generated(o, 10, true, false);
+    with.missed += a.missed;
+    with.wrong_size += a.wrong_size;
+    with.error.insert(with.error.end(), a.error.begin(), a.error.end());
+    without.missed += b.missed;
+  }
+  std::sort(with.error.begin(), with.error.end());
+  EXPECT_LE(with.missed, 2);
+  EXPECT_GT(without.missed, with.missed + 5) << "the frames no longer need the edge candidates";
+  EXPECT_EQ(with.wrong_size, 0);
+  EXPECT_LT(quantile(with.error, 0.9), 1.0);
+}
+
+// The edge candidates on a drawn frame: a pupil 30 levels below its surround and dark bars (lashes,
+// 70 levels below it) elsewhere. The darkest blobs are the bars; the edge candidates give the pupil.
+TEST(EyeDetectorStages, EdgeCandidatesFindAPupilLighterThanLashes) {
+  namespace st = fovea::trackerd::eye::stages;
+  cv::Mat img(240, 320, CV_8U, cv::Scalar(160));
+  cv::ellipse(img, cv::Point2d(180.3, 130.6), cv::Size2d(22, 18), 20, 0, 360, cv::Scalar(130), cv::FILLED, cv::LINE_AA);
+  for (int i = 0; i < 12; ++i)
+    cv::line(img, cv::Point(20 + 8 * i, 30), cv::Point(30 + 8 * i, 90), cv::Scalar(60), 3, cv::LINE_AA);
+  cv::Mat small, integral;
+  const cv::Rect frame(0, 0, img.cols, img.rows);
+  const auto blobs = st::find_dark_blobs(img, frame, 2, 4.8, 60, 8, small, integral);
+  ASSERT_FALSE(blobs.empty());
+  EXPECT_GT(std::hypot(blobs[0].centre.x - 180.3, blobs[0].centre.y - 130.6), 30) << "the darkest blob is a bar";
+  const auto edges = st::find_edge_candidates(small, frame, 4.8, 60, 4);
+  ASSERT_FALSE(edges.empty());
+  EXPECT_LT(std::hypot(edges[0].centre.x - 180.3, edges[0].centre.y - 130.6), 2.0);
+  EXPECT_NEAR(edges[0].radius, 18, 4);
+  EXPECT_GT(edges[0].surround - edges[0].inner, 15);
 }
 
 // The lid test itself: the straight run of a lid over a round pupil goes, an elliptical pupil's

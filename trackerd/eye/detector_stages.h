@@ -92,6 +92,14 @@ struct Blob {
 std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, int downscale, double rmin, double rmax,
                                   std::size_t count, cv::Mat& small, cv::Mat& integral);
 
+// --- pupil_edge_candidates.cpp
+
+// Up to `count` pupil candidates from curved edges with darker inside (PuRe-style, Santini 2018
+// §3.2-3.3), best first, on `small`: the search window (`window`, full resolution) downscaled as
+// find_dark_blobs left it. For frames where the pupil is not the darkest blob.
+std::vector<Blob> find_edge_candidates(const cv::Mat& small, const cv::Rect& window, double rmin, double rmax,
+                                       std::size_t count);
+
 // --- pupil_edges.cpp
 
 struct EdgePoint {

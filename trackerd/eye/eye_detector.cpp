@@ -25,6 +25,7 @@ namespace {
 constexpr double kToPublic = 0.5;
 
 constexpr std::size_t kCandidates = 8;  // pupil candidates fitted per search
+constexpr std::size_t kEdgeCandidates = 4;  // and from edges, when none of those is a clear pupil
 constexpr double kClearPupil = 0.9;     // a fit this confident ends the search
 constexpr double kDiscInside = 0.1;     // a fit inside the winner this confident, and darker inside
 constexpr double kDiscOutline = 0.9;    // along this share of its outline, makes the winner doubtful
@@ -280,6 +281,20 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
       best = std::move(a);
     }
     if (best.confidence >= kClearPupil) break;
+  }
+  if (best.confidence < kClearPupil && search.settings.edge_candidates && !search.inside) {
+    for (const Blob& blob : find_edge_candidates(search.small, window, search.rmin, search.rmax, kEdgeCandidates)) {
+      PupilAttempt a = fit_candidate(search, blob, best.glints);
+      if (search.candidates && a.confidence > 0)
+        search.candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
+                                              a.ellipse.minor, a.ellipse.angle_deg},
+                                      a.evidence, a.confidence});
+      if (a.confidence > best.confidence) {
+        a.glints = std::move(best.glints);
+        best = std::move(a);
+      }
+      if (best.confidence >= kClearPupil) break;
+    }
   }
   if (best.ok && search.settings.search_inside && !search.inside) {
     // A confident disc inside replaces the winner only when darker than its surround along most

@@ -3,8 +3,10 @@
 // Dark-pupil and corneal-glint detection on infrared eye-camera frames.
 //
 // Pupil: coarse localisation by a centre-surround (Haar-like) dark-blob response on an integral
-// image (Świrski, Bulling & Dodgson 2012, §3.1), edge points found along rays cast from that
-// centre (Starburst: Li, Winfield & Parkhurst 2005, §2.3) with glints masked out, a RANSAC
+// image (Świrski, Bulling & Dodgson 2012, §3.1) and, when none gives a clear pupil, from curved
+// edges with darker inside (PuRe: Santini, Fuhl & Kasneci 2018, §3.2); edge points found along
+// rays cast from the candidate's centre (Starburst: Li, Winfield & Parkhurst 2005, §2.3) with
+// glints masked out, a RANSAC
 // ellipse fit with an image-aware support check rejecting eyelid, eyelash and glint outliers
 // (Świrski 2012 §3.3; Fischler & Bolles 1981), then a least-squares refit on the inliers for a
 // sub-pixel centre. Confidence combines outline contrast, edge support and aspect ratio in the
@@ -39,6 +41,9 @@ struct DetectorSettings {
   // Look for a darker disc inside the winning candidate on its contrast-normalised window: the pupil
   // inside a dark iris taken for the pupil (issue 44; eye/EYE.md step 6b).
   bool search_inside = true;
+  // When no dark blob gives a clear pupil, candidates from curved edges with darker inside as well
+  // (PuRe-style): a pupil veiled by a spectacle reflection, or lighter than lashes (issue 44).
+  bool edge_candidates = true;
   // Pupil radius range as fractions of min(width, height); everything else scales with the image.
   double min_pupil_radius = 0.02, max_pupil_radius = 0.25;
   double blink_aspect = 0.7;      // Lee 2009 §3.5.2: minor/major below this (relative to the eye's open aspect) is a blink
