@@ -262,40 +262,33 @@ std::optional<PupilAttempt> search_inside(FrameSearch& search, const PupilAttemp
   return found;
 }
 
-// Candidates in the window, best blob response first; the most confident fit wins (a clear
-// pupil ends the search early); then a darker disc inside the winner is looked for (search_inside).
+// Candidates in the window, best blob response first, then (without a clear pupil yet) those from
+// curved edges; the most confident fit wins (a clear pupil ends the search early); then a darker
+// disc inside the winner is looked for (search_inside).
 PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
   PupilAttempt best;
   best.glints = find_glints(search.grey, window, search.size);
   const auto blobs = find_dark_blobs(search.grey, window, search.settings.coarse_downscale, search.rmin, search.rmax,
                                      kCandidates, search.small, search.integral);
   best.why = "no dark blob";
-  for (const Blob& blob : blobs) {
-    PupilAttempt a = fit_candidate(search, blob, best.glints);
-    if (search.candidates && a.confidence > 0)
-      search.candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
-                                            a.ellipse.minor, a.ellipse.angle_deg},
-                                    a.evidence, a.confidence});
-    if (a.confidence > best.confidence || (best.confidence == 0 && best.why == "no dark blob")) {
-      a.glints = std::move(best.glints);
-      best = std::move(a);
-    }
-    if (best.confidence >= kClearPupil) break;
-  }
-  if (best.confidence < kClearPupil && search.settings.edge_candidates && !search.inside) {
-    for (const Blob& blob : find_edge_candidates(search.small, window, search.rmin, search.rmax, kEdgeCandidates)) {
+  // Fits the candidates in order; the most confident wins, a clear pupil ends the search.
+  const auto fit_in_turn = [&](const std::vector<Blob>& candidates) {
+    for (const Blob& blob : candidates) {
       PupilAttempt a = fit_candidate(search, blob, best.glints);
       if (search.candidates && a.confidence > 0)
         search.candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
                                               a.ellipse.minor, a.ellipse.angle_deg},
                                       a.evidence, a.confidence});
-      if (a.confidence > best.confidence) {
+      if (a.confidence > best.confidence || (best.confidence == 0 && best.why == "no dark blob")) {
         a.glints = std::move(best.glints);
         best = std::move(a);
       }
-      if (best.confidence >= kClearPupil) break;
+      if (best.confidence >= kClearPupil) return;
     }
-  }
+  };
+  fit_in_turn(blobs);
+  if (best.confidence < kClearPupil && search.settings.edge_candidates && !search.inside)
+    fit_in_turn(find_edge_candidates(search.small, window, search.rmin, search.rmax, kEdgeCandidates));
   if (best.ok && search.settings.search_inside && !search.inside) {
     // A confident disc inside replaces the winner only when darker than its surround along most
     // of its outline, as a pupil is inside an iris: a piece of a real pupil between lit lashes is

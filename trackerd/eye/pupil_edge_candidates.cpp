@@ -102,7 +102,8 @@ std::vector<Blob> find_edge_candidates(const cv::Mat& small, const cv::Rect& win
     const cv::RotatedRect e = cv::fitEllipseDirect(c);
     const double minor = static_cast<double>(std::min(e.size.width, e.size.height)) / 2;
     const double major = static_cast<double>(std::max(e.size.width, e.size.height)) / 2;
-    if (!(minor >= rmin_s && major <= rmax_s && minor >= 0.3 * major)) continue;
+    if (!(minor >= rmin_s && major <= rmax_s && minor >= 0.3 * major)) continue;  // also NaN (degenerate curves)
+    if (!std::isfinite(e.center.x) || !std::isfinite(e.center.y)) continue;
     // The curve covers a wide arc of its ellipse (a lash or a lid margin is a flat piece of one).
     if (std::max(box.width, box.height) < 1.2 * minor) continue;
     const double residual = curve_residual(c, e);
