@@ -9,8 +9,8 @@
 # `systemd-analyze verify` (when present), the C++ example built against the extracted -dev package
 # with CMake and pkg-config, `import fovea` from python3-fovea, and lintian (its findings printed;
 # errors fail). --check-only DIR checks .deb files already built. --quick builds unoptimised
-# (DEB_BUILD_OPTIONS=noopt): the same files and checks in about half the time, for deploy/test.sh;
-# such packages are for checking, not for installing. Needs dpkg-buildpackage (dpkg-dev) and
+# (DEB_BUILD_OPTIONS=noopt) with line tables only (-g1): the same files and checks in about half
+# the time, for deploy/test.sh; such packages are for checking, not for installing. Needs dpkg-buildpackage (dpkg-dev) and
 # debhelper: deploy/install-deps.sh installs them.
 set -euo pipefail
 SRC=$(cd "$(dirname "$0")/.." && pwd)
@@ -18,12 +18,13 @@ OUT=$SRC/build/packages
 CHECK_ONLY=""
 NOCHECK=nocheck
 NOOPT=""
+GLEVEL=""
 while [ $# -gt 0 ]; do
   case $1 in
     --out) OUT=$2; shift ;;
     --check-only) CHECK_ONLY=$2; shift ;;
     --tests) NOCHECK="" ;;
-    --quick) NOOPT=noopt ;;
+    --quick) NOOPT=noopt; GLEVEL=-g1 ;;
     -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "build-packages: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
@@ -51,7 +52,7 @@ build() {
   local start=$SECONDS
   # Debian's own interpreters and tools only: a python3 from pyenv or a venv earlier in PATH would
   # build the Python package for itself.
-  (cd "$tree" && env -u CMAKE_PREFIX_PATH PATH=/usr/sbin:/usr/bin:/sbin:/bin DEB_BUILD_OPTIONS="$options" \
+  (cd "$tree" && env -u CMAKE_PREFIX_PATH PATH=/usr/sbin:/usr/bin:/sbin:/bin DEB_BUILD_OPTIONS="$options" DEB_CXXFLAGS_APPEND="$GLEVEL" DEB_CFLAGS_APPEND="$GLEVEL" \
      dpkg-buildpackage -us -uc -b >"$WORK/build.log" 2>&1) ||
     { tail -n 40 "$WORK/build.log" >&2; fail "dpkg-buildpackage failed (log above)"; }
   echo "build-packages: built in $((SECONDS - start)) s"
