@@ -710,9 +710,18 @@ void Daemon::shut_down() {
   if (const std::string detail = source_->status_detail(); !detail.empty()) {
     spdlog::info("{}: {}", protocol::escape_for_log(source_->description()), protocol::escape_for_log(detail, 1024));
   }
+  // liblsl 1.16's outlet destructor can crash while consumers are still connected: it frees its
+  // sample factory before the consumer queues that hold samples from it (sccn/liblsl#218, fixed
+  // after 1.16.2; fovea-trackerd died with SIGSEGV after "stopped" in 1 CI run of the LslOutlet
+  // test). The daemon exits next, so the outlet is left to the process's end: its streams go when
+  // the process does, as they would have a moment earlier. Held by a global so that LeakSanitizer
+  // sees it reachable (a plain pointer: no destructor runs at exit either).
+  if (lsl_) lsl_outlet_left_to_exit = lsl_.release();
 }
 
 }  // namespace
+
+LslOutlet* lsl_outlet_left_to_exit = nullptr;  // NOLINT(cppcoreguidelines-avoid-non-const-global-variables)
 
 int run_daemon(const service::DaemonConfig& config, const RunOptions& run, const DaemonSignals& signals,
                ConfigLoader reload_config) {

@@ -38,4 +38,9 @@ struct DaemonSignals {
 int run_daemon(const service::DaemonConfig& config, const RunOptions& run, const DaemonSignals& signals,
                ConfigLoader reload_config = {});
 
+class LslOutlet;
+// The daemon's LSL outlet once it has stopped: left open for the process's end, never destroyed
+// (liblsl 1.16's outlet destructor can crash while consumers are connected; daemon.cpp, shut_down).
+extern LslOutlet* lsl_outlet_left_to_exit;
+
 }  // namespace fovea::trackerd
