@@ -37,8 +37,13 @@ samples, future, lead = int(m.group(1)), int(m.group(2)), float(m.group(3))
 sent = re.search(r"sent (\d+) samples early, up to ([0-9.]+) ms", open(f"{work}/fake.log").read())
 print(f"   the daemon: {future} of {samples} samples from the future, up to {lead} ms ahead; "
       f"the fake: {sent.group(1)} sent early, up to {sent.group(2)} ms")
-# 20 of every 100 are early, by 2.25 to 45 ms; the transport takes some of that lead.
+# 20 of every 100 are early, by 2.25 to 45 ms; the transport takes some of that lead. The lead is
+# measured through the estimated clock offset, whose error grows with the delays' asymmetry: on a
+# loaded machine (the ASan suite on CI) it read 53.1 ms with a p99 delay of 10 ms. So the bound is
+# 45 ms plus the p99 delay the same stop line reports.
+delay = re.search(r"delay p50 [0-9.]+ / p99 ([0-9.]+) ms", log)
+p99 = float(delay.group(1)) if delay else 0.0
 assert 0.12 * samples <= future <= 0.22 * samples, f"{future} of {samples} counted; a fifth were early"
-assert 30 <= lead <= 45.5, f"the largest lead {lead} ms; the fake sent up to 45 ms early"
+assert 30 <= lead <= 45.5 + p99, f"the largest lead {lead} ms; the fake sent up to 45 ms early (p99 delay {p99} ms)"
 PY
 echo "PASS"
