@@ -61,6 +61,38 @@ def wait_for(predicate, timeout):
     return predicate()
 
 
+class CtlWatch:
+    """`fovea-ctl watch --events-only` (events and markers), its output collected line by line."""
+
+    def __init__(self, port):
+        self.proc = subprocess.Popen([CTL, "--server", f"127.0.0.1:{port}", "watch", "--events-only",
+                                      "--duration", "30"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                     text=True)
+        self.lines = []
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.lines.append(line)
+
+    def text(self):
+        return "".join(self.lines)
+
+    def wait_for(self, text, timeout):
+        return wait_for(lambda: any(text in line for line in list(self.lines)), timeout)
+
+    def stop(self):
+        self.proc.terminate()
+        try:
+            self.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        self.reader.join(5)
+        self.proc.stdout.close()
+
+
 @unittest.skipUnless(TRACKERD and os.access(TRACKERD, os.X_OK), "FOVEA_TRACKERD (path of fovea-trackerd) not set")
 class AgainstDaemon(unittest.TestCase):
     @classmethod
@@ -137,13 +169,21 @@ class AgainstDaemon(unittest.TestCase):
         self.assertLess(arrival.latency_ns, 100_000_000)
 
     def test_marker_round_trip_and_fovea_ctl_sees_it(self):
-        watch = None
-        if CTL:
-            watch = subprocess.Popen([CTL, "--server", f"127.0.0.1:{self.port}", "watch", "--events-only",
-                                      "--duration", "2.5"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                     text=True)
+        watch = CtlWatch(self.port) if CTL else None
+        try:
+            if watch:
+                # Its first event line shows it subscribed (a fixed pause was too short under ASan).
+                self.assertTrue(watch.wait_for("EVENT", 10.0), f"fovea-ctl watch printed no event: {watch.text()!r}")
+            self.check_marker_round_trip()
+            if watch:
+                for label in ('MARKER "python: stimulus on"', 'MARKER "flip"'):
+                    self.assertTrue(watch.wait_for(label, 5.0), f"{label} not in {watch.text()!r}")
+        finally:
+            if watch:
+                watch.stop()
+
+    def check_marker_round_trip(self):
         c = self.client(streams=ALL_STREAMS)
-        time.sleep(0.7)  # let fovea-ctl watch subscribe
         marker_id = c.mark("python: stimulus on")
         back = c.wait_marker(marker_id, 2.0)
         self.assertIsNotNone(back, "the marker did not come back on the marker stream")
@@ -160,10 +200,6 @@ class AgainstDaemon(unittest.TestCase):
         self.assertEqual(c.stats().markers_confirmed, 2)
         with self.assertRaises(ValueError):
             c.mark("two\nlines")
-        if watch:
-            out, _ = watch.communicate(timeout=10)
-            self.assertIn('MARKER "python: stimulus on"', out)
-            self.assertIn('MARKER "flip"', out)
 
     @unittest.skipUnless(CTL, "FOVEA_CTL (path of fovea-ctl) not set")
     def test_a_marker_sent_by_fovea_ctl_reaches_the_client(self):
