@@ -155,7 +155,9 @@ wait_status || fail "daemon for markers did not answer status"
 # marks below took longer than 3 s, and the second one missed a 3 s recording.
 "$CTL" --server "$SRV" record "$WORK/client-marked.fgr" --duration 120 2>"$WORK/client-marked.err" &
 CR=$!
-sleep 0.5
+# It creates the file once subscribed: a marker sent before then would not reach it.
+for _ in $(seq 200); do [ -s "$WORK/client-marked.fgr" ] && break; sleep 0.1; done
+[ -s "$WORK/client-marked.fgr" ] || fail "client record did not subscribe: $(cat "$WORK/client-marked.err")"
 "$CTL" --server "$SRV" mark 'trial 1, "go"' >"$WORK/mark1.out" 2>&1 || fail "mark failed: $(cat "$WORK/mark1.out")"
 grep -q 'marker "trial 1, "go"" at .* on the daemon.s clock (when it arrived)' "$WORK/mark1.out" \
   || fail "mark printed: $(cat "$WORK/mark1.out")"
@@ -165,7 +167,8 @@ out=$("$CTL" --server "$SRV" mark $'two\nlines' 2>&1); rc=$?
 [ $rc -eq 2 ] && grep -q 'marker label "two\\x0alines": byte 3 is a control character' <<<"$out" \
   || fail "a label with a newline: exit $rc, $out"
 out=$("$CTL" --server 127.0.0.1:$((PORT + 1)) mark "nobody" 2>&1) && fail "mark without a daemon succeeded"
-sleep 1  # the markers' datagrams reach the recording client
+# The markers' datagrams reach the recording client (it writes each record as it arrives).
+for _ in $(seq 100); do "$CTL" info "$WORK/client-marked.fgr" 2>/dev/null | grep -q "^markers     2$" && break; sleep 0.1; done
 kill -INT $CR; wait $CR || fail "client record failed: $(cat "$WORK/client-marked.err")"
 kill -TERM $DM; wait $DM
 "$CTL" info "$WORK/marked.fgr" | grep -q "^markers     2$" || fail "daemon recording: $("$CTL" info "$WORK/marked.fgr")"
