@@ -23,6 +23,7 @@
 #include <iostream>
 #include <map>
 #include <optional>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -178,6 +179,31 @@ std::vector<Frame> render_sequence(const ImageSet& set, cv::Size size, int frame
   return out;
 }
 
+// Eyes of the set looking anywhere within +-20 degrees across and +-15 down and up, uniformly, each
+// eye (seed) for kFramesPerLook frames: the gazes an eye camera sees beyond a screen's middle.
+constexpr int kFramesPerLook = 20;
+
+std::vector<Frame> render_anywhere(const ImageSet& set, cv::Size size, int frames, std::uint64_t seed) {
+  std::vector<Frame> out;
+  out.reserve(static_cast<std::size_t>(frames));
+  for (std::uint64_t look = 0; static_cast<int>(out.size()) < frames; ++look) {
+    eye::SyntheticEyeOptions o = set.options;
+    o.width = size.width;
+    o.height = size.height;
+    o.seed = seed * 1000 + 500 + look;
+    eye::SyntheticEye generator(o);
+    std::mt19937 rng(static_cast<unsigned>(o.seed));
+    std::uniform_real_distribution<double> angle(-20, 20);
+    for (int i = 0; i < kFramesPerLook && static_cast<int>(out.size()) < frames; ++i) {
+      Frame f;
+      const double yaw = angle(rng), pitch = 0.75 * angle(rng);
+      f.image = generator.render(yaw, pitch, set.closed ? 0.0 : 1.0, &f.truth);
+      out.push_back(std::move(f));
+    }
+  }
+  return out;
+}
+
 double quantile(std::vector<double> v, double q) {
   if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());
@@ -260,10 +286,9 @@ std::vector<cv::Size> parse_sizes(const std::string& text) {
   return sizes;
 }
 
-// Logistic regression by Newton's method (IRLS) with a small ridge, for the confidence model.
-std::array<double, eye::kConfidenceFeatures> fit_logistic(const std::vector<std::array<double, eye::kConfidenceFeatures>>& x,
-                                                          const std::vector<int>& y) {
-  constexpr std::size_t k = eye::kConfidenceFeatures;
+// Logistic regression by Newton's method (IRLS) with a small ridge, for the confidence models.
+template <std::size_t k>
+std::array<double, k> fit_logistic(const std::vector<std::array<double, k>>& x, const std::vector<int>& y) {
   std::array<double, k> w{};
   for (int iteration = 0; iteration < 50; ++iteration) {
     cv::Matx<double, k, k> hessian = cv::Matx<double, k, k>::eye() * 1e-3;
@@ -296,11 +321,13 @@ struct ConfidenceSample {
   double size_error = 0;  // |major - true major| / true major
   std::string set, resolution;
   bool iris = false;      // a set with a dark iris (pupil_iris_contrast): its iris is a pupil-like disc
+  double fit_confidence = 0, rival_confidence = 0;  // answers: the winning fit's own and its rival's
+  bool disc_inside = false;                         // answers: a darker disc was fitted inside
 };
 
 struct ConfidenceSamples {
   std::vector<ConfidenceSample> candidates;  // every candidate the detector fitted
-  std::vector<ConfidenceSample> answers;     // the pupil each frame reported
+  std::vector<ConfidenceSample> answers;     // the pupil each frame reported, with and without ROI tracking
 };
 
 // Every condition and resolution, rendered from seeds after `seed_base` (training and held-out
@@ -326,10 +353,37 @@ ConfidenceSamples collect_confidence_samples(int frames, std::uint64_t seed_base
       for (const auto& f : sequence) {
         std::vector<eye::EyeDetector::CandidateFit> candidates;
         detector.reset();
-        const eye::EyeMeasurement m = detector.detect(f.image, &candidates);
+        detector.detect(f.image, &candidates);
         for (const auto& c : candidates)
           out.candidates.push_back(sample(c.evidence, c.confidence, c.ellipse, f.truth.pupil));
-        if (m.pupil_found) out.answers.push_back(sample(m.evidence, m.confidence, m.pupil, f.truth.pupil));
+      }
+      // The answers as the detector gives them: following the sequence with its ROI, as the daemon
+      // does; on each frame alone, as `fovea-ctl detect-pupil` does, with the default min_confidence
+      // and with none (so the model also covers doubtful answers); and eyes looking anywhere within
+      // +-20 degrees (the viewer's gaze keeps near the screen's middle), tracked over each eye's frames.
+      const auto anywhere = render_anywhere(set, size, frames, seed);
+      struct Pass {
+        const std::vector<Frame>& frames;
+        int reset_every;  // frames; 0: never
+        double min_confidence;
+      };
+      for (const Pass& pass : {Pass{sequence, 0, 0.5}, Pass{sequence, 1, 0.5}, Pass{sequence, 1, 0.0},
+                               Pass{anywhere, kFramesPerLook, 0.5}}) {
+        eye::DetectorSettings answering;
+        answering.leds = s.leds;
+        answering.min_confidence = pass.min_confidence;
+        eye::EyeDetector answerer(answering);
+        for (std::size_t i = 0; i < pass.frames.size(); ++i) {
+          const Frame& f = pass.frames[i];
+          if (pass.reset_every > 0 && i % static_cast<std::size_t>(pass.reset_every) == 0) answerer.reset();
+          const eye::EyeMeasurement m = answerer.detect(f.image);
+          if (!m.pupil_found) continue;
+          ConfidenceSample a = sample(m.evidence, m.confidence, m.pupil, f.truth.pupil);
+          a.fit_confidence = m.fit_confidence;
+          a.rival_confidence = m.rival_confidence;
+          a.disc_inside = m.disc_inside;
+          out.answers.push_back(a);
+        }
       }
     }
   return out;
@@ -377,6 +431,52 @@ void print_reliability(const char* title, const std::vector<const ConfidenceSamp
   std::printf("expected calibration error: %.3f\n", ece);
 }
 
+// The weights w of the doubts d (the rival's confidence, a darker disc inside) in logit(answer) =
+// logit(fit confidence) + w . d (EYE.md step 6c): a logistic regression with the fit's logit as
+// offset, by Newton's method.
+std::array<double, 2> fit_answer_weights(const std::vector<ConfidenceSample>& answers) {
+  cv::Vec2d w(0, 0);
+  for (int iteration = 0; iteration < 50; ++iteration) {
+    cv::Matx22d curvature = cv::Matx22d::eye() * 1e-3;
+    cv::Vec2d gradient = w * 1e-3;
+    for (const auto& a : answers) {
+      const double c = std::clamp(a.fit_confidence, 1e-9, 1 - 1e-9);
+      const cv::Vec2d d(a.rival_confidence, a.disc_inside ? 1.0 : 0.0);
+      const double p = 1.0 / (1.0 + std::exp(-(std::log(c / (1 - c)) + w.dot(d))));
+      gradient += (p - (a.error <= 1.0 ? 1 : 0)) * d;
+      curvature += p * (1 - p) * (d * d.t());
+    }
+    const cv::Vec2d step = curvature.solve(gradient, cv::DECOMP_CHOLESKY);
+    w -= step;
+    if (std::max(std::abs(step[0]), std::abs(step[1])) < 1e-9) break;
+  }
+  return {w[0], w[1]};
+}
+
+// Issue 44's "no confident wrong answers", held out: per set (every size, with and without ROI
+// tracking), the answers at confidence >= 0.8 and the share of them right (within 5 px, the size
+// within 25 %), with the answer's confidence and with its fit's own.
+void print_confident_answers(const std::vector<ConfidenceSample>& answers) {
+  struct Count {
+    int confident = 0, right = 0, fit_confident = 0, fit_right = 0;
+  };
+  std::map<std::string, Count> by_set;
+  for (const auto& a : answers) {
+    const bool right = a.error <= 5 && a.size_error <= 0.25;
+    for (const std::string& key : {a.set, std::string("every set")}) {
+      Count& c = by_set[key];
+      if (a.confidence >= 0.8) c.confident += 1, c.right += right;
+      if (a.fit_confidence >= 0.8) c.fit_confident += 1, c.fit_right += right;
+    }
+  }
+  std::printf("\nanswers at confidence >= 0.8, held out: right (within 5 px, size within 25 %%)\n%-18s %22s %22s\n",
+              "set", "answer's confidence", "fit's own (before)");
+  const auto share = [](int right, int of) { return of ? 100.0 * right / of : 100.0; };
+  for (const auto& [set, c] : by_set)
+    std::printf("%-18s %5d  %6.1f %% right %7d  %6.1f %% right\n", set.c_str(), c.confident, share(c.right, c.confident),
+                c.fit_confident, share(c.fit_right, c.fit_confident));
+}
+
 // Fits the model on the training candidates, except those of the dark-iris sets: there the iris is
 // a disc as pupil-like as the pupil by every piece of local evidence, and step 6b (the search inside
 // the winner), not the confidence, tells them apart. Held-out reliability is printed for the
@@ -397,13 +497,26 @@ int fit_confidence(int frames, const std::string& samples_path) {
               "constexpr std::array<double, %zu> kConfidenceModel{",
               x.size(), w.size());
   for (std::size_t i = 0; i < w.size(); ++i) std::printf("%s%.4f", i ? ", " : "", w[i]);
-  std::printf("};\n\nheld-out reliability with the model now compiled in:\n");
+  std::printf("};\n");
+  // The answer model is fitted on the answers of the candidate model compiled in: after compiling a
+  // new candidate model, run this again for the weights that go with it.
+  const auto wa = fit_answer_weights(train.answers);
+  std::printf("answer model fitted on %zu answers (the candidate model compiled in):\n"
+              "inline constexpr std::array<double, 2> kAnswerWeights{%.3f, %.3f};\n",
+              train.answers.size(), wa[0], wa[1]);
+  std::printf("\nheld-out reliability with the models now compiled in:\n");
   std::vector<const ConfidenceSample*> plain, iris, answers;
   for (const auto& s : test.candidates) (s.iris ? iris : plain).push_back(&s);
   for (const auto& s : test.answers) answers.push_back(&s);
   print_reliability("candidates, sets without a dark iris", plain);
   print_reliability("candidates, dark-iris sets (not fitted: step 6b decides there)", iris);
   print_reliability("answers (the pupil reported), every set", answers);
+  std::vector<ConfidenceSample> unrecalibrated = test.answers;
+  for (auto& s : unrecalibrated) s.confidence = s.fit_confidence;
+  std::vector<const ConfidenceSample*> before;
+  for (const auto& s : unrecalibrated) before.push_back(&s);
+  print_reliability("the same answers with their fit's own confidence (before step 6c)", before);
+  print_confident_answers(test.answers);
   return 0;
 }
 

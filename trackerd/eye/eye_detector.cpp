@@ -57,6 +57,15 @@ void EyeDetector::reset() {
 
 namespace {
 
+// A fitted candidate, as the answer's confidence (step 6c) weighs it: a rival elsewhere, or a
+// darker disc inside the answer.
+struct ScoredFit {
+  cv::Point2d centre;
+  double major = 0;
+  double outline = 0;  // share of its outline darker inside
+  double confidence = 0;
+};
+
 // What every pupil search in one frame shares: the frame, its scale, the detector's reused buffers
 // and the random stream.
 struct FrameSearch {
@@ -69,6 +78,7 @@ struct FrameSearch {
   double rmin = 0, rmax = 0;  // pupil radius range, px
   cv::Rect frame;
   std::vector<EyeDetector::CandidateFit>* candidates = nullptr;  // every fitted candidate, when asked for
+  std::vector<ScoredFit>* fitted = nullptr;  // every fit's centre and confidence (the answer's rivals)
   std::mt19937 rng{12345};  // deterministic RANSAC: the same frame gives the same answer
   bool inside = false;      // a search inside a fitted candidate (search_inside): it does not recurse
 };
@@ -255,6 +265,7 @@ std::optional<PupilAttempt> search_inside(FrameSearch& search, const PupilAttemp
   FrameSearch inner{search.settings, normalised, search.smooth, search.small, search.integral, search.size,
                     search.rmin, rmax, window, search.candidates};
   inner.inside = true;
+  inner.fitted = search.fitted;
   PupilAttempt found = search_window(inner, window);
   if (found.confidence <= 0) return std::nullopt;
   const cv::Point2d off = found.ellipse.centre - e.centre;
@@ -275,6 +286,8 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
   const auto fit_in_turn = [&](const std::vector<Blob>& candidates) {
     for (const Blob& blob : candidates) {
       PupilAttempt a = fit_candidate(search, blob, best.glints);
+      if (search.fitted && a.confidence > 0)
+        search.fitted->push_back({a.ellipse.centre, a.ellipse.major, a.evidence.outline, a.confidence});
       if (search.candidates && a.confidence > 0)
         search.candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
                                               a.ellipse.minor, a.ellipse.angle_deg},
@@ -326,16 +339,41 @@ PupilAttempt find_pupil(FrameSearch& search, bool roi_tracking, const std::optio
   return found;
 }
 
+// What else the search fitted (step 6c): the most confident fit whose centre is farther than
+// max(3 px, a quarter of the winner's minor axis) from the winner's -- another place that looked like
+// the pupil (a disc the winner was found inside, a dark iris around its pupil, shares its centre and
+// is no rival) --, and whether a smaller disc near its centre is darker than its surround along
+// kInsideOutline of its outline: too doubtful for step 6b to take, yet a sign the winner is an iris.
+struct Doubts {
+  double rival = 0;
+  bool disc_inside = false;
+};
+
+Doubts doubts_about(const std::vector<ScoredFit>& fitted, const Ellipse& winner) {
+  const double apart = std::max(3.0, 0.25 * winner.minor);
+  Doubts d;
+  for (const ScoredFit& f : fitted) {
+    const double off = std::hypot(f.centre.x - winner.centre.x, f.centre.y - winner.centre.y);
+    if (off > apart) d.rival = std::max(d.rival, f.confidence);
+    else if (f.major < 0.7 * winner.major && f.outline >= kInsideOutline) d.disc_inside = true;
+  }
+  return d;
+}
+
 // Lee 2009 §3.5.2: minor/major below 0.7 is a blink. Lee's camera faced the eye; an eye camera
 // below the eye sees an open eye looking up at about 0.7 already, so the threshold applies
 // relative to this eye's recent open aspect (1 until one is known), learnt from clear open pupils.
-void report_pupil(const PupilAttempt& found, double blink_aspect, double& open_aspect, EyeMeasurement& result) {
+void report_pupil(const PupilAttempt& found, const Doubts& doubts, double blink_aspect, double& open_aspect,
+                  EyeMeasurement& result) {
   result.pupil_found = found.ok;
   result.evidence = found.evidence;
   result.why = found.ok ? std::string() : found.why;
   if (found.ok) {
     result.pupil = found.ellipse;
-    result.confidence = found.confidence;
+    result.fit_confidence = found.confidence;
+    result.rival_confidence = doubts.rival;
+    result.disc_inside = doubts.disc_inside;
+    result.confidence = answer_confidence(found.confidence, doubts.rival, doubts.disc_inside);
     const double reference = open_aspect > 0 ? open_aspect : 1.0;
     result.blink = found.ellipse.aspect() < blink_aspect * reference;
     if (!result.blink && found.confidence >= kClearPupil)
@@ -379,7 +417,8 @@ void report_glints(std::vector<Glint>& glints, const GlintReference& reference, 
 
 bool finite_measurement(const EyeMeasurement& result) {
   return finite(result.pupil.centre) && std::isfinite(result.pupil.major) && std::isfinite(result.pupil.minor) &&
-         std::isfinite(result.pupil.angle_deg) && std::isfinite(result.confidence);
+         std::isfinite(result.pupil.angle_deg) && std::isfinite(result.confidence) &&
+         std::isfinite(result.fit_confidence) && std::isfinite(result.rival_confidence);
 }
 
 // A measurement without a pupil (the eye counts as closed) saying why.
@@ -404,6 +443,8 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     const double rmax = std::max(rmin * 1.5, settings_.max_pupil_radius * size);
     const cv::Rect frame(0, 0, grey_.cols, grey_.rows);
     FrameSearch search{settings_, grey_, smooth_, small_, integral_, size, rmin, rmax, frame, candidates};
+    std::vector<ScoredFit> fitted;
+    search.fitted = &fitted;
 
     const PupilAttempt found = find_pupil(search, settings_.roi_tracking, last_pupil_, result.used_roi);
     if (found.ok) {
@@ -411,7 +452,8 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     } else {
       last_pupil_.reset();
     }
-    report_pupil(found, settings_.blink_aspect, open_aspect_, result);
+    report_pupil(found, found.ok ? doubts_about(fitted, found.ellipse) : Doubts{}, settings_.blink_aspect,
+                 open_aspect_, result);
 
     std::vector<Glint> glints = corneal_glints(found, size);
     const GlintReference reference = glint_reference(glints, settings_.leds, size, last_glint_scale_, last_reference_);

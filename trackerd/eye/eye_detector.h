@@ -73,10 +73,21 @@ inline constexpr std::size_t kConfidenceFeatures = 6;
 std::array<double, kConfidenceFeatures> confidence_features(const PupilEvidence& evidence);
 double confidence_of(const PupilEvidence& evidence);
 
+// The reported answer's confidence (eye/EYE.md step 6c): the winning fit's own confidence lowered by
+// what else the search fitted, logit(answer) = logit(fit) + kAnswerWeights[0] x rival +
+// kAnswerWeights[1] x disc_inside. rival: the most confident fit elsewhere in the frame (centre
+// farther than max(3 px, a quarter of the winner's minor axis)); disc_inside: a smaller disc near the
+// winner's centre darker than its surround along most of its outline (the winner is likely an iris).
+inline constexpr std::array<double, 2> kAnswerWeights{-5.747, -4.163};
+double answer_confidence(double fit_confidence, double rival_confidence, bool disc_inside);
+
 struct EyeMeasurement {
   bool pupil_found = false;
   Ellipse pupil;                  // valid when pupil_found
   double confidence = 0;          // [0, 1]: predicted probability that the centre is within 1 px; 0 when not found
+  double fit_confidence = 0;      // the winning fit's own confidence (from its evidence alone)
+  double rival_confidence = 0;    // the most confident fit elsewhere in the frame, 0 when none
+  bool disc_inside = false;       // a smaller disc darker than its surround was fitted inside the pupil
   PupilEvidence evidence;         // of the best candidate, also when it was rejected
   bool blink = false;             // no pupil, or aspect < blink_aspect
   std::vector<Glint> glints;      // near the pupil (or anywhere when no pupil), at most 8

@@ -79,4 +79,22 @@ double confidence_of(const PupilEvidence& evidence) {
   return clamp01(1.0 / (1.0 + std::exp(-z)));
 }
 
+// The answer's confidence. The weights are fitted by `bench_eye --fit-confidence` on the answers
+// over every condition (following gaze sequences with ROI tracking, each frame alone, and eyes
+// looking anywhere within +-20 degrees); the fit's own confidence keeps its weight of 1, so an answer
+// with neither doubt keeps the calibration the candidate model has (a free slope, fitted on the same
+// answers, learnt the mix of the training sets instead: most doubtful answers there are a dark iris
+// under lashes, wrong, and it called every doubtful fit wrong). The winner and its rival are
+// exclusive hypotheses, so their probabilities cannot sum to more than 1: where the two confidences
+// do, the winner is capped at its share, c / (c + rival) -- two fits as confident as each other are a
+// coin toss, which the training frames (one eye each) hardly hold.
+double answer_confidence(double fit_confidence, double rival_confidence, bool disc_inside) {
+  if (!std::isfinite(fit_confidence) || fit_confidence <= 0) return 0.0;
+  const double c = std::min(fit_confidence, 1 - 1e-9);
+  const double rival = std::isfinite(rival_confidence) ? std::clamp(rival_confidence, 0.0, 1.0) : 1.0;
+  const double z = std::log(c / (1 - c)) + kAnswerWeights[0] * rival + kAnswerWeights[1] * (disc_inside ? 1.0 : 0.0);
+  const double share = c + rival > 1 ? c / (c + rival) : 1.0;
+  return clamp01(std::min(1.0 / (1.0 + std::exp(-z)), share));
+}
+
 }  // namespace fovea::trackerd::eye
