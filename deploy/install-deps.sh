@@ -11,6 +11,7 @@ PACKAGES=(
   universal-ctags                     # dev/long-functions (function lengths)
   scdoc                               # the man pages (man/*.scd -> roff, at build time)
   clang libclang-rt-14-dev            # libFuzzer target and its sanitizer runtimes
+  ccache                              # deploy/test.sh: a rerun on a fresh clone recompiles only what changed
   # protocol, daemon and CLI
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libtomlplusplus-dev
   libsystemd-dev
