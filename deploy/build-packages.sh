@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: Apache-2.0
 # Builds fovea's Debian packages and checks what they hold (issue 26 item 4; README "Install"):
 #   deploy/build-packages.sh [--out DIR] [--check-only DIR] [--tests] [--quick]
-# Copies the tree (tracked and untracked, not ignored) to a scratch directory, runs
+# Copies the tree (tracked and untracked, not ignored) to build/package-work, runs
 # `dpkg-buildpackage -us -uc -b` there (with DEB_BUILD_OPTIONS=nocheck unless --tests: deploy/test.sh
 # runs the test suite on its own), copies the .deb files to DIR (default build/packages), then checks
 # them: each package's file list, every program's --version from the extracted files, the unit with
@@ -33,7 +33,11 @@ done
 for tool in dpkg-buildpackage dh dpkg-deb; do
   command -v "$tool" >/dev/null || { echo "build-packages: $tool not found (run deploy/install-deps.sh)" >&2; exit 3; }
 done
-WORK=$(mktemp -d)
+# A fixed scratch directory (inside the ignored build/): the compiler flags name it
+# (-ffile-prefix-map), so with deploy/test.sh's compiler cache a rebuild of unchanged files hits.
+WORK=$SRC/build/package-work
+rm -rf "$WORK"
+mkdir -p "$WORK"
 trap 'rm -rf "$WORK"' EXIT
 fail() { echo "build-packages: FAIL: $*" >&2; exit 1; }
 
