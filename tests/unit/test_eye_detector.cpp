@@ -421,9 +421,9 @@ TEST(EyeDetectorConfidence, AnswersAreDoubtedForRivalsAndDiscsInside) {
 // Issue 44: a dark iris (9 levels) under long lit lashes, the eye looking anywhere within +-20
 // degrees. Step 6b often finds no pupil inside the iris there, and the iris's own fit looks
 // confident (its outline is a sharp dark disc, lashes over a third of it): of the answers whose fit
-// alone was confident, two thirds were the iris (25 of 37 here). The answer's confidence (step 6c)
-// weighs the darker disc the search fitted inside it and the rivals elsewhere: 7 confident answers,
-// 5 right -- better, still short of issue 44's 98 % (EYE.md, Known limitations).
+// alone was confident, two thirds were the iris (24 of 37 here). The answer's confidence (step 6c)
+// weighs the darker disc the search fitted inside it and the rivals elsewhere: 5 confident answers,
+// 4 right -- better, still short of issue 44's 98 % (EYE.md, Known limitations).
 TEST(EyeDetector, ConfidentAnswersUnderLashesOverADarkIris) {
   int confident = 0, confident_right = 0, fit_confident = 0, fit_confident_right = 0;
   for (std::uint64_t seed = 440; seed < 500; seed += 10) {
