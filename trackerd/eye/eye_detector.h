@@ -78,7 +78,7 @@ double confidence_of(const PupilEvidence& evidence);
 // kAnswerWeights[1] x disc_inside. rival: the most confident fit elsewhere in the frame (centre
 // farther than max(3 px, a quarter of the winner's minor axis)); disc_inside: a smaller disc near the
 // winner's centre darker than its surround along most of its outline (the winner is likely an iris).
-inline constexpr std::array<double, 2> kAnswerWeights{-5.747, -4.163};
+inline constexpr std::array<double, 2> kAnswerWeights{-7.427, -3.826};
 double answer_confidence(double fit_confidence, double rival_confidence, bool disc_inside);
 
 struct EyeMeasurement {
