@@ -149,14 +149,20 @@ struct Frame {
 // the figure.
 constexpr int kFramesPerEye = 25;
 
+// The set's conditions on one eye (seed) at this size.
+eye::SyntheticEyeOptions eye_options(const ImageSet& set, cv::Size size, std::uint64_t seed) {
+  eye::SyntheticEyeOptions o = set.options;
+  o.width = size.width;
+  o.height = size.height;
+  o.seed = seed;
+  return o;
+}
+
 std::vector<Frame> render_sequence(const ImageSet& set, cv::Size size, int frames, std::uint64_t seed) {
   std::vector<Frame> out;
   out.reserve(static_cast<std::size_t>(frames));
   for (std::uint64_t look = 0; static_cast<int>(out.size()) < frames; ++look) {
-    eye::SyntheticEyeOptions o = set.options;
-    o.width = size.width;
-    o.height = size.height;
-    o.seed = seed * 1000 + look;
+    const eye::SyntheticEyeOptions o = eye_options(set, size, seed * 1000 + look);
     eye::SyntheticEye generator(o);
     fovea::trackerd::SyntheticGazeOptions g;
     g.rate_hz = 120;
@@ -187,10 +193,7 @@ std::vector<Frame> render_anywhere(const ImageSet& set, cv::Size size, int frame
   std::vector<Frame> out;
   out.reserve(static_cast<std::size_t>(frames));
   for (std::uint64_t look = 0; static_cast<int>(out.size()) < frames; ++look) {
-    eye::SyntheticEyeOptions o = set.options;
-    o.width = size.width;
-    o.height = size.height;
-    o.seed = seed * 1000 + 500 + look;
+    const eye::SyntheticEyeOptions o = eye_options(set, size, seed * 1000 + 500 + look);
     eye::SyntheticEye generator(o);
     std::mt19937 rng(static_cast<unsigned>(o.seed));
     std::uniform_real_distribution<double> angle(-20, 20);
