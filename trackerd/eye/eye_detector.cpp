@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <random>
+#include <span>
 #include <stdexcept>
 
 #include <opencv2/imgproc.hpp>
@@ -57,15 +58,6 @@ void EyeDetector::reset() {
 
 namespace {
 
-// A fitted candidate, as the answer's confidence (step 6c) weighs it: a rival elsewhere, or a
-// darker disc inside the answer.
-struct ScoredFit {
-  cv::Point2d centre;
-  double major = 0;
-  double outline = 0;  // share of its outline darker inside
-  double confidence = 0;
-};
-
 // What every pupil search in one frame shares: the frame, its scale, the detector's reused buffers
 // and the random stream.
 struct FrameSearch {
@@ -77,8 +69,9 @@ struct FrameSearch {
   double size = 0;         // the image's smaller side, px
   double rmin = 0, rmax = 0;  // pupil radius range, px
   cv::Rect frame;
-  std::vector<EyeDetector::CandidateFit>* candidates = nullptr;  // every fitted candidate, when asked for
-  std::vector<ScoredFit>* fitted = nullptr;  // every fit's centre and confidence (the answer's rivals)
+  // Every fitted candidate (in Ellipse's pixel convention): the answer's doubts (step 6c), and the
+  // caller's when asked for.
+  std::vector<EyeDetector::CandidateFit>* candidates = nullptr;
   std::mt19937 rng{12345};  // deterministic RANSAC: the same frame gives the same answer
   bool inside = false;      // a search inside a fitted candidate (search_inside): it does not recurse
 };
@@ -267,7 +260,6 @@ std::optional<PupilAttempt> search_inside(FrameSearch& search, const PupilAttemp
   FrameSearch inner{search.settings, normalised, search.smooth, search.small, search.integral, search.size,
                     search.rmin, rmax, window, search.candidates};
   inner.inside = true;
-  inner.fitted = search.fitted;
   PupilAttempt found = search_window(inner, window);
   if (found.confidence <= 0) return std::nullopt;
   const cv::Point2d off = found.ellipse.centre - e.centre;
@@ -288,8 +280,6 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
   const auto fit_in_turn = [&](const std::vector<Blob>& candidates) {
     for (const Blob& blob : candidates) {
       PupilAttempt a = fit_candidate(search, blob, best.glints);
-      if (search.fitted && a.confidence > 0)
-        search.fitted->push_back({a.ellipse.centre, a.ellipse.major, a.evidence.outline, a.confidence});
       if (search.candidates && a.confidence > 0)
         search.candidates->push_back({Ellipse{a.ellipse.centre + cv::Point2d(kToPublic, kToPublic), a.ellipse.major,
                                               a.ellipse.minor, a.ellipse.angle_deg},
@@ -351,13 +341,15 @@ struct Doubts {
   bool disc_inside = false;
 };
 
-Doubts doubts_about(const std::vector<ScoredFit>& fitted, const Ellipse& winner) {
+// `fitted` holds this frame's candidates, in Ellipse's pixel convention as `winner` is.
+Doubts doubts_about(std::span<const EyeDetector::CandidateFit> fitted, const Ellipse& winner) {
   const double apart = std::max(3.0, 0.25 * winner.minor);
   Doubts d;
-  for (const ScoredFit& f : fitted) {
-    const double off = std::hypot(f.centre.x - winner.centre.x, f.centre.y - winner.centre.y);
+  for (const EyeDetector::CandidateFit& f : fitted) {
+    const cv::Point2d c = f.ellipse.centre;
+    const double off = std::hypot(c.x - winner.centre.x, c.y - winner.centre.y);
     if (off > apart) d.rival = std::max(d.rival, f.confidence);
-    else if (f.major < 0.7 * winner.major && f.outline >= kInsideOutline) d.disc_inside = true;
+    else if (f.ellipse.major < 0.7 * winner.major && f.evidence.outline >= kInsideOutline) d.disc_inside = true;
   }
   return d;
 }
@@ -444,9 +436,10 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     const double rmin = std::max(2.0, settings_.min_pupil_radius * size);
     const double rmax = std::max(rmin * 1.5, settings_.max_pupil_radius * size);
     const cv::Rect frame(0, 0, grey_.cols, grey_.rows);
-    FrameSearch search{settings_, grey_, smooth_, small_, integral_, size, rmin, rmax, frame, candidates};
-    std::vector<ScoredFit> fitted;
-    search.fitted = &fitted;
+    std::vector<CandidateFit> own;
+    std::vector<CandidateFit>& fitted = candidates ? *candidates : own;
+    const std::size_t first = fitted.size();  // the caller's list may hold earlier frames' candidates
+    FrameSearch search{settings_, grey_, smooth_, small_, integral_, size, rmin, rmax, frame, &fitted};
 
     const PupilAttempt found = find_pupil(search, settings_.roi_tracking, last_pupil_, result.used_roi);
     if (found.ok) {
@@ -454,8 +447,10 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     } else {
       last_pupil_.reset();
     }
-    report_pupil(found, found.ok ? doubts_about(fitted, found.ellipse) : Doubts{}, settings_.blink_aspect,
-                 open_aspect_, result);
+    const Ellipse winner{found.ellipse.centre + cv::Point2d(kToPublic, kToPublic), found.ellipse.major,
+                         found.ellipse.minor, found.ellipse.angle_deg};
+    const Doubts doubts = found.ok ? doubts_about(std::span(fitted).subspan(first), winner) : Doubts{};
+    report_pupil(found, doubts, settings_.blink_aspect, open_aspect_, result);
 
     std::vector<Glint> glints = corneal_glints(found, size);
     const GlintReference reference = glint_reference(glints, settings_.leds, size, last_glint_scale_, last_reference_);
