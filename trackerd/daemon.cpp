@@ -23,12 +23,14 @@
 #include "service/calibration_stage.h"
 #include "fovea/protocol/bounded_file.h"
 #include "fovea/protocol/control_socket.h"
+#include "fovea/protocol/viewer_feed.h"
 #include "service/command_mailbox.h"
 #include "service/control_paths.h"
 #include "service/systemd_notify.h"
 #include "classify_stage.h"
 #include "lsl/lsl_outlet.h"
 #include "daemon_changes.h"
+#include "viewer_status.h"
 #include "sources/source_table.h"
 
 namespace fovea::trackerd {
@@ -81,6 +83,8 @@ class Daemon {
   void adopt_recording(PendingRecording& recording);
   std::string stop_recording();
   bool open_control_socket();
+  void open_viewer_feed(const std::string& control_path);
+  void publish_viewer_status(std::int64_t now);
   bool open_lsl_outlet_if_asked();
   void watch_server();
   void publish_control_view();
@@ -95,6 +99,9 @@ class Daemon {
 
   service::SystemdNotifier notifier_;
   service::CommandMailbox mailbox_;
+  // Declared before the source, so destroyed after it: the source offers it frames.
+  std::unique_ptr<protocol::ViewerFeedServer> viewer_;  // local viewers' feed; null: none
+  std::int64_t next_viewer_status_ns_ = 0;
   std::unique_ptr<GazeSource> source_;
   std::unique_ptr<service::CalibrationStage> calibration_;
   // A calibration loaded by the control command; kept over reloads until "configured" or a restart.
@@ -309,6 +316,7 @@ void Daemon::service_tick() {
   }
   notifier_.watchdog_tick(now);
   notifier_.status_tick(now, [&] { return status_line(); });
+  publish_viewer_status(now);
   if (now >= next_refusal_check_ns_) {
     next_refusal_check_ns_ = now + 1000 * kMs;
     const auto st = server_->stats();
@@ -334,6 +342,10 @@ std::string Daemon::status_line() const {
   s += ", calibration " + calibration_->description();
   if (recorder_) s += ", recording " + recording_path_;
   if (lsl_) s += ", LSL " + lsl_->status();
+  if (viewer_) {
+    const auto ef = viewer_->stats();
+    if (ef.readers > 0) s += ", " + std::to_string(ef.readers) + " viewer(s)";
+  }
   return s;
 }
 
@@ -484,11 +496,55 @@ bool Daemon::open_control_socket() {
           return handle_control(r, "the control socket (" + who.to_string() + ")");
         });
     spdlog::info("control commands from {} (mode 0660: this user and group)", protocol::escape_for_log(path));
+    open_viewer_feed(path);
     return true;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return false;
   }
+}
+
+// The feed for local viewers (fovea-monitor: PROTOCOL.md §17), beside the control socket and with its
+// permissions: eye images show the user's face. A daemon that cannot open it still tracks.
+void Daemon::open_viewer_feed(const std::string& control_path) {
+  const std::string path = protocol::viewer_socket_for(control_path);
+  try {
+    viewer_ = std::make_unique<protocol::ViewerFeedServer>(path, 0660);
+    source_->show_eye_frames(viewer_.get());
+    spdlog::info("viewer feed (daemon status{}) on {} (mode 0660)",
+                 source_->makes_eye_frames() ? ", eye images at most 30 Hz and 320x240" : "",
+                 protocol::escape_for_log(path));
+  } catch (const std::exception& e) {
+    spdlog::warn("no viewer feed: {}", e.what());
+  }
+}
+
+// Composed on the loop once a second, and only while a viewer listens (a few microseconds).
+void Daemon::publish_viewer_status(std::int64_t now) {
+  if (!viewer_ || viewer_->readers() == 0 || now < next_viewer_status_ns_) return;
+  next_viewer_status_ns_ = now + 1000 * kMs;
+  const auto st = server_->stats();
+  const auto feed = viewer_->stats();
+  ViewerStatus v;
+  v.time_ns = now;
+  v.source = source_->description();
+  v.source_problem = source_problem_;
+  v.source_detail = source_->status_detail();
+  v.nominal_rate_hz = source_->nominal_rate_hz();
+  v.display = display_;
+  v.samples_published = st.samples_published;
+  v.events_published = st.events_published;
+  v.markers_published = st.markers_published;
+  v.subscribers = st.subscribers;
+  v.classifier = classify_->description();
+  v.calibration = calibration_->description();
+  v.calibration_validation_json = calibration_->validation_json();
+  v.recording = recorder_ ? recording_path_ : std::string();
+  if (lsl_) v.lsl = lsl_->status();
+  v.viewers = feed.readers;
+  v.eye_frames_shown = feed.offered;
+  v.eye_frames_missed = feed.dropped;
+  viewer_->publish_status(to_json(v));
 }
 
 // The publishing loop tells the control side what it runs (daemon_changes.h), after every change.
@@ -698,6 +754,13 @@ void Daemon::shut_down() {
   mailbox_.close();
   if (reload_worker_.joinable()) reload_worker_.join();
   control_socket_.reset();
+  if (viewer_) {
+    source_->show_eye_frames(nullptr);
+    const auto ef = viewer_->stats();
+    spdlog::info("viewer feed: {} eye frames shown, {} sent, {} messages missed by slow viewers, {} viewers turned away",
+                 ef.offered, ef.sent, ef.dropped, ef.refused);
+    viewer_.reset();
+  }
   const auto st = server_->stats();
   server_->stop();
   spdlog::info(

@@ -258,6 +258,15 @@ std::optional<ValidationResult> validate_calibration(const std::vector<Validatio
     for (const auto& t : result->targets) vt += t.after.has_data() ? 1u : 0u;
     cal.validation["targets"] = vt;
     cal.validation["date"] = utc_now_iso8601();
+    // Each target's error vector, for the validation figure a viewer draws (fovea-monitor).
+    nlohmann::json points = nlohmann::json::array();
+    for (const auto& t : result->targets) {
+      points.push_back({{"target_px", {t.target_px.x, t.target_px.y}},
+                        {"mean_error_px", t.after.has_data() ? nlohmann::json::array({t.after.mean_error_px.x, t.after.mean_error_px.y})
+                                                             : nlohmann::json(nullptr)},
+                        {"accuracy_deg", t.after.has_data() ? nlohmann::json(t.after.accuracy_deg) : nlohmann::json(nullptr)}});
+    }
+    cal.validation["points"] = points;
   }
   return result;
 }

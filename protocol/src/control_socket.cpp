@@ -21,6 +21,7 @@
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/codec.h"
+#include "local_socket.h"
 
 namespace fovea::protocol {
 
@@ -28,60 +29,12 @@ namespace {
 
 std::system_error sys_error(const std::string& what) { return {errno, std::generic_category(), what}; }
 
-sockaddr_un address_of(const std::string& path) {
-  sockaddr_un a{};
-  a.sun_family = AF_UNIX;
-  if (path.empty() || path.size() >= sizeof a.sun_path) {
-    throw std::runtime_error("control socket " + escape_for_log(path) + ": a path of 1 to " +
-                             std::to_string(sizeof a.sun_path - 1) + " bytes is needed");
-  }
-  std::memcpy(a.sun_path, path.data(), path.size());
-  return a;
-}
-
-class Fd {
- public:
-  explicit Fd(int fd = -1) : fd_(fd) {}
-  ~Fd() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  Fd(const Fd&) = delete;
-  Fd& operator=(const Fd&) = delete;
-  int get() const { return fd_; }
-  int release() {
-    const int f = fd_;
-    fd_ = -1;
-    return f;
-  }
-
- private:
-  int fd_;
-};
+using local::Fd;
 
 void set_timeouts(int fd, int ms) {
   const timeval tv{ms / 1000, (ms % 1000) * 1000};
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
-}
-
-// A socket file left by a daemon that died is replaced; one a live daemon answers on, or a path
-// that is not a socket, is not.
-void clear_stale_socket(const std::string& path) {
-  struct stat st {};
-  if (::lstat(path.c_str(), &st) != 0) {
-    if (errno == ENOENT) return;
-    throw sys_error("control socket " + escape_for_log(path));
-  }
-  if (!S_ISSOCK(st.st_mode)) {
-    throw std::runtime_error("control socket " + escape_for_log(path) + ": exists and is not a socket; not replaced");
-  }
-  Fd probe(::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0));
-  const sockaddr_un a = address_of(path);
-  if (::connect(probe.get(), reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0) {
-    throw std::runtime_error("control socket " + escape_for_log(path) +
-                             ": another fovea-trackerd answers on it (choose another --port or --control-socket)");
-  }
-  if (::unlink(path.c_str()) != 0) throw sys_error("control socket " + escape_for_log(path) + ": removing a stale socket");
 }
 
 // A private directory we own (0700): created if missing; refused if it is a link, not ours, or
@@ -101,24 +54,7 @@ std::string PeerCredentials::to_string() const {
 
 ControlSocket::ControlSocket(const std::string& path, mode_t mode, LocalControlHandler handler, int receive_timeout_ms)
     : path_(path), handler_(std::move(handler)), receive_timeout_ms_(receive_timeout_ms) {
-  const sockaddr_un a = address_of(path);
-  clear_stale_socket(path);
-  Fd fd(::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC | SOCK_NONBLOCK, 0));
-  if (fd.get() < 0) throw sys_error("control socket " + escape_for_log(path));
-  // The file is created with the umask's mode: nobody but the owner for the moment until chmod.
-  const mode_t old = ::umask(0177);
-  const int bound = ::bind(fd.get(), reinterpret_cast<const sockaddr*>(&a), sizeof a);
-  const int bind_errno = errno;
-  ::umask(old);
-  if (bound != 0) {
-    errno = bind_errno;
-    throw sys_error("control socket " + escape_for_log(path) + ": bind");
-  }
-  if (::chmod(path.c_str(), mode) != 0 || ::listen(fd.get(), 8) != 0) {
-    const std::system_error e = sys_error("control socket " + escape_for_log(path));
-    ::unlink(path.c_str());
-    throw e;
-  }
+  Fd fd(local::listen_at(path, mode, 8, "control socket"));
   stop_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
   if (stop_fd_ < 0) {
     ::unlink(path.c_str());
@@ -210,15 +146,8 @@ void ControlSocket::serve_one(int fd) {
 std::optional<ControlReply> send_local_control(const std::string& path, const ControlRequest& request, int timeout_ms,
                                                std::string& error) {
   const std::string name = "control socket " + escape_for_log(path);
-  sockaddr_un a{};
-  try {
-    a = address_of(path);
-  } catch (const std::exception& e) {
-    error = e.what();
-    return std::nullopt;
-  }
-  Fd fd(::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0));
-  if (fd.get() < 0 || ::connect(fd.get(), reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) {
+  Fd fd(local::connect_to(path));
+  if (fd.get() < 0) {
     error = name + ": " + (errno == EACCES ? std::string("permission denied (control needs the daemon's group)")
                                           : std::string(std::strerror(errno)));
     return std::nullopt;

@@ -314,7 +314,7 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
 
 // Searches near the last pupil first (`used_roi` tells whether that found it); recovery: the whole frame.
 PupilAttempt find_pupil(FrameSearch& search, bool roi_tracking, const std::optional<Ellipse>& last_pupil,
-                        bool& used_roi) {
+                        bool& used_roi, cv::Rect& searched) {
   PupilAttempt found;
   if (roi_tracking && last_pupil) {
     const double half = 1.2 * last_pupil->major + 0.08 * search.size;
@@ -325,9 +325,13 @@ PupilAttempt find_pupil(FrameSearch& search, bool roi_tracking, const std::optio
     if (roi.width >= 8 && roi.height >= 8) {
       found = search_window(search, roi);
       used_roi = found.ok;
+      searched = roi;
     }
   }
-  if (!found.ok) found = search_window(search, search.frame);
+  if (!found.ok) {
+    found = search_window(search, search.frame);
+    searched = search.frame;
+  }
   return found;
 }
 
@@ -441,7 +445,7 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     const std::size_t first = fitted.size();  // the caller's list may hold earlier frames' candidates
     FrameSearch search{settings_, grey_, smooth_, small_, integral_, size, rmin, rmax, frame, &fitted};
 
-    const PupilAttempt found = find_pupil(search, settings_.roi_tracking, last_pupil_, result.used_roi);
+    const PupilAttempt found = find_pupil(search, settings_.roi_tracking, last_pupil_, result.used_roi, result.search_region);
     if (found.ok) {
       last_pupil_ = found.ellipse;
     } else {

@@ -95,6 +95,7 @@ struct EyeMeasurement {
   cv::Point2d pupil_glint;        // pupil centre - reference glint point, pixels
   std::string why;                // when no pupil: what failed ("no dark blob", "too few edge points", ...)
   bool used_roi = false;          // found within the tracked ROI (no full-frame search needed)
+  cv::Rect search_region;         // where the search looked last: the ROI when used_roi, else the frame
 };
 
 class EyeDetector {

@@ -8,6 +8,9 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "fovea/protocol/clock.h"
+#include "fovea/protocol/viewer_feed.h"
+
 namespace fovea::trackerd::eye {
 
 using protocol::GazeSample;
@@ -50,7 +53,48 @@ EyePipelineSource::EyePipelineSource(std::unique_ptr<FrameSource> frames, EyePip
 std::optional<GazeItem> EyePipelineSource::next() {
   std::optional<EyeFrame> frame = frames_->next(100);
   if (!frame) return std::nullopt;
-  return to_sample(detector_.detect(frame->image), frame->time_ns);
+  const std::int64_t t0 = protocol::monotonic_ns();
+  const EyeMeasurement m = detector_.detect(frame->image);
+  const std::int64_t detect_ns = protocol::monotonic_ns() - t0;
+  if (frames_out_ != nullptr && frames_out_->wants(frame->time_ns)) show(*frame, m, detect_ns);
+  return to_sample(m, frame->time_ns);
+}
+
+// The frame and the detector's result, for viewers (PROTOCOL.md §17): what the sample carries, plus
+// the ellipse, the glints and where the search looked.
+void EyePipelineSource::show(const EyeFrame& frame, const EyeMeasurement& m, std::int64_t detect_ns) {
+  const cv::Mat& image = frame.image;
+  if (image.type() != CV_8UC1 || image.cols > 65535 || image.rows > 65535) return;
+  protocol::EyeFrameInfo info;
+  info.frame = counts_.frames;
+  info.time_ns = frame.time_ns;
+  info.detect_ns = static_cast<std::uint32_t>(std::clamp<std::int64_t>(detect_ns, 0, UINT32_MAX));
+  info.source_width = static_cast<std::uint16_t>(image.cols);
+  info.source_height = static_cast<std::uint16_t>(image.rows);
+  const auto f = [](double v) { return std::isfinite(v) ? static_cast<float>(v) : 0.0f; };
+  if (m.pupil_found) {
+    info.flags |= protocol::kEyeFramePupil;
+    info.pupil_x = f(m.pupil.centre.x);
+    info.pupil_y = f(m.pupil.centre.y);
+    info.pupil_major = f(m.pupil.major);
+    info.pupil_minor = f(m.pupil.minor);
+    info.pupil_angle_deg = f(m.pupil.angle_deg);
+  }
+  if (m.blink) info.flags |= protocol::kEyeFrameBlink;
+  if (m.pupil_glint_valid) info.flags |= protocol::kEyeFrameGlint;
+  if (m.used_roi) info.flags |= protocol::kEyeFrameRoi;
+  info.confidence = f(std::clamp(m.confidence, 0.0, 1.0));
+  info.roi_x = static_cast<float>(m.search_region.x);
+  info.roi_y = static_cast<float>(m.search_region.y);
+  info.roi_width = static_cast<float>(m.search_region.width);
+  info.roi_height = static_cast<float>(m.search_region.height);
+  for (const Glint& g : m.glints) {
+    if (info.glint_count == protocol::kMaxEyeGlints) break;
+    info.glint_x[info.glint_count] = f(g.centre.x);
+    info.glint_y[info.glint_count] = f(g.centre.y);
+    ++info.glint_count;
+  }
+  frames_out_->offer(info, image.ptr<std::uint8_t>(0), image.cols, image.rows, image.step[0]);
 }
 
 GazeSample EyePipelineSource::to_sample(const EyeMeasurement& m, std::int64_t time_ns) {

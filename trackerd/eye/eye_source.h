@@ -68,12 +68,15 @@ class EyePipelineSource final : public GazeSource {
   bool ended() const override { return frames_->ended(); }
   std::string problem() const override;
   std::string status_detail() const override;
+  bool makes_eye_frames() const override { return true; }
+  void show_eye_frames(protocol::ViewerFeedServer* frames) override { frames_out_ = frames; }
 
   FrameSourceStatus frame_status() const { return frames_->status(); }
   EyePipelineCounts counts() const { return counts_; }
 
  private:
   protocol::GazeSample to_sample(const EyeMeasurement& m, std::int64_t time_ns);
+  void show(const EyeFrame& frame, const EyeMeasurement& m, std::int64_t detect_ns);
 
   std::unique_ptr<FrameSource> frames_;
   EyePipelineOptions options_;
@@ -81,6 +84,7 @@ class EyePipelineSource final : public GazeSource {
   std::string description_;
   EyePipelineCounts counts_;
   protocol::Normalized hold_{0.5, 0.5};  // last valid gaze, held while invalid
+  protocol::ViewerFeedServer* frames_out_ = nullptr;  // viewers of the eye images; null: none
 };
 
 }  // namespace fovea::trackerd::eye

@@ -36,6 +36,9 @@ class MappedCalibration final : public CalibrationStage {
     }
     return s;
   }
+  std::string validation_json() const override {
+    return cal_.validation.is_null() ? "null" : cal_.validation.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  }
 
   void apply(GazeItem& item) const override {
     auto* s = std::get_if<protocol::GazeSample>(&item);

@@ -27,6 +27,9 @@ class CalibrationStage {
   virtual ~CalibrationStage() = default;
   virtual std::string description() const = 0;  // for the log and STATUS= (names the file)
   virtual std::string summary() const = 0;      // short, without the file (63-byte control replies)
+  // The file's "validation" object as JSON text (overall figures and, from fovea-calibrate, each
+  // target's error vector: calibration/CALIBRATION.md), "null" when there is none.
+  virtual std::string validation_json() const { return "null"; }
   // Calibrates one item in place (samples; events pass unchanged).
   virtual void apply(GazeItem& item) const = 0;
 };

@@ -10,6 +10,10 @@
 #include "fovea/protocol/display_geometry.h"
 #include "fovea/protocol/recording.h"
 
+namespace fovea::protocol {
+class ViewerFeedServer;
+}
+
 namespace fovea::trackerd {
 
 using GazeItem = std::variant<protocol::GazeSample, protocol::GazeEvent>;
@@ -46,6 +50,11 @@ class GazeSource {
   // (e.g. the eye pipeline's "1200 frames, 1150 pupils, 40 blinks"); empty: none. Called on the
   // thread that calls next().
   virtual std::string status_detail() const { return {}; }
+  // Sources that see eye images (the eye pipeline): each frame, and what the detector found in it,
+  // is offered to `frames` (PROTOCOL.md §17; it takes one only when a viewer wants it, and never
+  // waits), from the thread that calls next(); null stops. Others ignore it.
+  virtual bool makes_eye_frames() const { return false; }
+  virtual void show_eye_frames(protocol::ViewerFeedServer* /*frames*/) {}
 };
 
 }  // namespace fovea::trackerd
