@@ -104,7 +104,7 @@ check() {
   dpkg-deb -e "$DEBS/fovea-trackerd_${version}_$arch.deb" "$WORK/control"
   grep -qx /etc/fovea/trackerd.toml "$WORK/control/conffiles" || fail "/etc/fovea/trackerd.toml is not a conffile"
   grep -q systemd-sysusers "$WORK/control/postinst" || fail "postinst does not create the fovea user (systemd-sysusers)"
-  expect fovea-tools /usr/bin/fovea-ctl /usr/bin/fovea-calibrate /usr/bin/fovea-lod /usr/share/man/man1/fovea-ctl.1.gz
+  expect fovea-tools /usr/bin/fovea-ctl /usr/bin/fovea-calibrate /usr/bin/fovea-lod /usr/bin/fovea-monitor /usr/share/man/man1/fovea-ctl.1.gz /usr/share/man/man1/fovea-monitor.1.gz
   expect fovea-render /usr/bin/fovea-render /usr/share/fovea/scenes/attention.json /usr/share/man/man1/fovea-render.1.gz
   expect libfovea-client0 "/usr/lib/$multiarch/libfovea-client.so.0"
   expect libfovea-client-dev /usr/include/fovea/protocol/client.h "/usr/lib/$multiarch/libfovea-client.so" \
@@ -114,7 +114,7 @@ check() {
   echo "build-packages: packages ($version):"
   for d in "$DEBS"/*.deb; do printf '  %-44s %8s bytes, installed %6s KiB\n' "$(basename "$d")" "$(stat -c %s "$d")" "$(dpkg-deb -f "$d" Installed-Size)"; done
 
-  for b in fovea-trackerd fovea-ctl fovea-calibrate fovea-lod fovea-render; do
+  for b in fovea-trackerd fovea-ctl fovea-calibrate fovea-lod fovea-monitor fovea-render; do
     v=$("$R/usr/bin/$b" --version 2>&1) || fail "$b --version: $v"
     [ "$v" = "$b ${version%%-*}" ] || fail "$b --version says '$v', the package is $version"
   done

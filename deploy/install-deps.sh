@@ -15,6 +15,7 @@ PACKAGES=(
   # protocol, daemon and CLI
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libtomlplusplus-dev
   libsystemd-dev
+  libboost-dev                        # fovea-monitor: Boost.Beast (HTTP and WebSocket, header-only)
   libsodium-dev                       # the subscription cookies' MAC and key (no hand-written cryptography)
   zlib1g-dev                          # gzip of the BIDS export's .tsv.gz files (fovea-ctl convert --format bids)
   # tracker hardware
@@ -34,10 +35,17 @@ PACKAGES=(
   libgtest-dev libgmock-dev googletest libbenchmark-dev python3 python3-matplotlib
   python3-zmq python3-msgpack         # the fake Pupil Capture of the tests (tests/fakes/)
   python3-sklearn                     # bench/train_classifier.py: fits the gbt classifier's trees
+  chromium                            # fovea-monitor's page tested in a real browser (headless; tests only)
   # packaging: the Python package (python/), the Debian packages (debian/)
   python3-setuptools python3-pip python3-wheel
   debhelper dh-python fakeroot lintian python3-all pybuild-plugin-pyproject python3-build python3-installer
 )
+
+# Node.js and npm run the browser test (tests/browser: puppeteer-core). A machine that has them
+# (any source) keeps its own; otherwise Debian's are installed.
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  PACKAGES+=(nodejs npm)
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -54,6 +54,13 @@ else
   summary+=("liblsl: none (no ../shared/third_party source): the LSL parts and their tests are skipped")
 fi
 
+# puppeteer-core for the browser test of fovea-monitor's page (tests/browser; the browser is Debian's
+# chromium, from install-deps). From the npm registry at the version package-lock.json pins.
+echo "=== npm ci (tests/browser: puppeteer-core)"
+if ! npm ci --prefix tests/browser --no-audit --no-fund --loglevel=error; then
+  summary+=("npm ci (tests/browser): FAILED: the browser test cannot run"); status=1
+fi
+
 phase "dependencies and liblsl"
 run_suite "release" default
 phase "release build and tests"
