@@ -241,6 +241,7 @@ void LiveFeed::viewer_loop() {
 // Binary to the page: [u32 little-endian length of the JSON][JSON: what the detector found, in the
 // camera's pixels][JPEG of the (downscaled) image].
 void LiveFeed::on_eye_frame(const protocol::EyeFrameMessage& f) {
+  if (web_.stats().sessions == 0) return;  // nobody looks: no JPEG (a page that opens gets the next frame)
   const std::int64_t t0 = monotonic_ns();
   std::vector<std::uint8_t> jpeg;
   const cv::Mat image(f.height, f.width, CV_8UC1, const_cast<std::uint8_t*>(f.pixels.data()));

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <optional>
 #include <cstdio>
 #include <thread>
 
@@ -68,18 +69,7 @@ void write_stats(const std::string& path, const fovea::monitor::WebStats& w, con
   std::fclose(out);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  using namespace fovea;
-  Args a;
-  CLI::App app{
-      "fovea-monitor: a live page in the browser showing what fovea-trackerd sees: the eye image with the detected "
-      "pupil, glints and search region, the gaze on the screen with its trail and labels, position and velocity over "
-      "time, and the daemon's health. It subscribes to the daemon like any client, reads eye images from the "
-      "daemon's viewer socket (same host, the daemon's group), and serves the page on loopback. Open the URL it "
-      "prints (it holds this run's token). From another machine: ssh -L 47880:127.0.0.1:47880 HOST, then open the "
-      "printed URL on your machine (MONITOR.md)."};
+void add_options(CLI::App& app, Args& a) {
   app.set_version_flag("--version", "fovea-monitor " FOVEA_VERSION);
   app.add_option("--server", a.server, "the daemon's gaze port, HOST:PORT")->capture_default_str();
   app.add_option("--listen", a.listen,
@@ -95,8 +85,10 @@ int main(int argc, char** argv) {
   app.add_option("--viewer-socket", a.viewer_socket, "the daemon's viewer socket (default: beside the control socket)");
   app.add_option("--duration", a.duration_s, "stop after this many seconds (0: until SIGINT/SIGTERM)");
   app.add_option("--stats-json", a.stats_json, "write the monitor's counters here when it stops (benchmarks)");
-  CLI11_PARSE(app, argc, argv);
+}
 
+// The options checked and turned into the feed's and the server's; an exit status when they are wrong.
+std::optional<int> configure(const Args& a, fovea::monitor::FeedOptions& fo, fovea::monitor::WebServerOptions& wo) {
   std::string ip;
   std::uint16_t port = 0;
   if (!split_listen(a.listen, ip, port)) {
@@ -115,11 +107,9 @@ int main(int argc, char** argv) {
                  "unencrypted (an SSH tunnel is safer)",
                  a.listen);
   }
-  monitor::FeedOptions fo;
-  monitor::WebServerOptions wo;
   try {
-    fo.server = protocol::parse_endpoint(a.server, protocol::kDefaultPort);
-    wo.hosts = monitor::allowed_hosts(ip, a.allow_hosts);
+    fo.server = fovea::protocol::parse_endpoint(a.server, fovea::protocol::kDefaultPort);
+    wo.hosts = fovea::monitor::allowed_hosts(ip, a.allow_hosts);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fovea-monitor: %s\n", e.what());
     return 2;
@@ -128,15 +118,13 @@ int main(int argc, char** argv) {
   fo.viewer_socket = a.viewer_socket;
   wo.listen_ip = ip;
   wo.port = port;
-  wo.token = monitor::new_token();
+  wo.token = fovea::monitor::new_token();
+  return std::nullopt;
+}
 
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  std::signal(SIGPIPE, SIG_IGN);
-
+// Serves until a signal (or --duration); 1 when the server cannot start.
+int serve(const Args& a, const fovea::monitor::FeedOptions& fo, const fovea::monitor::WebServerOptions& wo) {
+  using namespace fovea;
   try {
     // The page's handlers run on the server's thread: they see the feed only while it exists.
     std::atomic<monitor::LiveFeed*> feed_ptr{nullptr};
@@ -151,7 +139,7 @@ int main(int argc, char** argv) {
         });
     monitor::LiveFeed feed(fo, web);
     feed_ptr = &feed;
-    const std::string shown_ip = ip == "0.0.0.0" ? "127.0.0.1" : ip;
+    const std::string shown_ip = wo.listen_ip == "0.0.0.0" ? "127.0.0.1" : wo.listen_ip;
     std::printf("fovea-monitor: open http://%s:%u/?token=%s\n", shown_ip.c_str(), web.port(), wo.token.c_str());
     std::printf("  gaze from %s; viewer feed %s; control %s\n", fo.server.to_string().c_str(),
                 feed.viewer_socket().empty() ? "(no daemon control socket found on this host)" : feed.viewer_socket().c_str(),
@@ -170,4 +158,30 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;
+  CLI::App app{
+      "fovea-monitor: a live page in the browser showing what fovea-trackerd sees: the eye image with the detected "
+      "pupil, glints and search region, the gaze on the screen with its trail and labels, position and velocity over "
+      "time, and the daemon's health. It subscribes to the daemon like any client, reads eye images from the "
+      "daemon's viewer socket (same host, the daemon's group), and serves the page on loopback. Open the URL it "
+      "prints (it holds this run's token). From another machine: ssh -L 47880:127.0.0.1:47880 HOST, then open the "
+      "printed URL on your machine (MONITOR.md)."};
+  add_options(app, a);
+  CLI11_PARSE(app, argc, argv);
+  fovea::monitor::FeedOptions fo;
+  fovea::monitor::WebServerOptions wo;
+  if (const auto failed = configure(a, fo, wo)) return *failed;
+
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+  return serve(a, fo, wo);
 }

@@ -10,6 +10,11 @@
   const TRAIL_MS = 1500;
   const TIMELINE_MS = 5000;
   const KEEP_MS = 6000;
+  // The gaze panels are redrawn at most this often: at 60 Hz, software-rendered canvases (a browser
+  // without a GPU) cost the machine that also runs the daemon twice as much, for motion the eye
+  // barely tells apart.
+  const GAZE_DRAW_HZ = 30;
+  let lastGazeDraw = 0;
 
   const state = {
     connected: false, samples: 0, gaze: null, label: 'unknown', valid: false, eye_frames: 0, pupil: null,
@@ -87,7 +92,10 @@
     }
     for (const m of msg.markers) marks.push({ t: m.t_ms, kind: 'marker', what: m.label });
     while (marks.length > 200) marks.shift();
-    if (msg.age_ms !== null && msg.samples.length > 0) pendingLatency = { age: msg.age_ms, sent: msg.sent_unix_ms };
+    // The oldest batch not yet drawn: its samples waited longest.
+    if (msg.age_ms !== null && msg.samples.length > 0 && pendingLatency === null) {
+      pendingLatency = { age: msg.age_ms, sent: msg.sent_unix_ms };
+    }
     dirty.gaze = true;
   }
 
@@ -104,7 +112,7 @@
       state.pupil = meta.pupil ? { x: meta.pupil[0], y: meta.pupil[1] } : null;
       state.confidence = meta.confidence;
       state.detect_ms = meta.detect_ms;
-      if (meta.age_ms !== undefined) pendingEyeLatency = { age: meta.age_ms, sent: meta.sent_unix_ms };
+      if (meta.age_ms !== undefined && pendingEyeLatency === null) pendingEyeLatency = { age: meta.age_ms, sent: meta.sent_unix_ms };
       dirty.eye = true;
     }).catch(() => { state.errors += 1; });
   }
@@ -121,12 +129,15 @@
   function frame() {
     requestAnimationFrame(frame);
     if (dirty.eye) { drawEye(); dirty.eye = false; }
-    if (dirty.gaze) { drawScreen(); drawTimeline(); dirty.gaze = false; }
+    const t = performance.now();
+    if (dirty.gaze && t - lastGazeDraw >= 1000 / GAZE_DRAW_HZ - 4) {
+      drawScreen(); drawTimeline(); dirty.gaze = false; lastGazeDraw = t;
+    }
     if (dirty.status) { drawStatus(); dirty.status = false; }
     if (dirty.validation) { drawValidation(); dirty.validation = false; }
     // Drawn: the page's part of the latency ends here, on the same clock the monitor stamped.
     const now = performance.timeOrigin + performance.now();
-    if (pendingLatency) { record(latencies, pendingLatency.age + (now - pendingLatency.sent), state.latency); pendingLatency = null; }
+    if (pendingLatency && !dirty.gaze) { record(latencies, pendingLatency.age + (now - pendingLatency.sent), state.latency); pendingLatency = null; }
     if (pendingEyeLatency) { record(eyeLatencies, pendingEyeLatency.age + (now - pendingEyeLatency.sent), state.eye_latency); pendingEyeLatency = null; }
   }
 
@@ -195,17 +206,27 @@
     const newest = samples[samples.length - 1];
     if (!newest) return;
     const from = newest.t - TRAIL_MS;
-    let prev = null;
+    // One path per run of samples with the same label and fade step (at 1 kHz, 1,500 samples make
+    // a few dozen strokes, not 1,500).
+    let prev = null, key = null;
+    g.beginPath();
     for (const p of samples) {
       if (p.t < from || !p.valid) { prev = null; continue; }
       const x = p.x * display.width_px * s, y = p.y * display.height_px * s;
-      if (prev) {
+      const fade = Math.floor(8 * (p.t - from) / TRAIL_MS);
+      const k = `${p.label}/${fade}`;
+      if (k !== key) {
+        g.stroke();
         g.strokeStyle = COLOURS[p.label];
-        g.globalAlpha = 0.25 + 0.75 * (p.t - from) / TRAIL_MS;
-        g.beginPath(); g.moveTo(prev[0], prev[1]); g.lineTo(x, y); g.stroke();
+        g.globalAlpha = 0.25 + 0.75 * fade / 8;
+        g.beginPath();
+        if (prev) g.moveTo(prev[0], prev[1]);
+        key = k;
       }
+      if (prev) g.lineTo(x, y); else g.moveTo(x, y);
       prev = [x, y];
     }
+    g.stroke();
     g.globalAlpha = 1;
     for (const m of marks) {
       if (m.t < from || m.x === undefined) continue;
@@ -249,23 +270,35 @@
     const V = (v) => velTop + velH - Math.min(v, vmax) / vmax * velH;
     g.strokeStyle = '#1f2937';
     g.beginPath(); g.moveTo(0, Y(0)); g.lineTo(w, Y(0)); g.stroke();
-    for (let k = 0; k < samples.length; k += 1) {
-      const p = samples[k];
-      if (p.t < t0) continue;
-      g.fillStyle = COLOURS[p.label];
-      const next = samples[k + 1];
-      const x = X(p.t);
-      g.fillRect(x, bandTop, Math.max(1, (next ? X(next.t) : w) - x), bandH);
+    // Label bands: one rectangle per run of one label.
+    let runStart = null, runLabel = null;
+    const closeRun = (end) => {
+      if (runStart === null) return;
+      g.fillStyle = COLOURS[runLabel];
+      g.fillRect(X(runStart), bandTop, Math.max(1, X(end) - X(runStart)), bandH);
+    };
+    for (const p of samples) {
+      if (p.t < t0 || p.label === runLabel) continue;
+      closeRun(p.t);
+      runStart = p.t;
+      runLabel = p.label;
     }
+    closeRun(t1);
+    // A line through the samples, at most one point per pixel column (the column's last sample).
     const line = (value, colour, scale) => {
       g.strokeStyle = colour;
       g.beginPath();
-      let open = false;
-      for (const p of samples) {
+      let open = false, column = -1;
+      for (let k = 0; k < samples.length; k += 1) {
+        const p = samples[k];
         if (p.t < t0 || !p.valid) { open = false; continue; }
-        const x = X(p.t), y = scale(value(p));
+        const x = X(p.t);
+        const next = samples[k + 1];
+        if (open && next && next.valid && Math.floor(X(next.t)) === Math.floor(x) && Math.floor(x) === column) continue;
+        const y = scale(value(p));
         if (open) g.lineTo(x, y); else g.moveTo(x, y);
         open = true;
+        column = Math.floor(x);
       }
       g.stroke();
     };

