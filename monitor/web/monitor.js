@@ -379,6 +379,7 @@
     if (!d.calibration || d.calibration.description.startsWith('none')) { $('validation-info').textContent = 'no calibration loaded'; return; }
     if (points.length === 0) { $('validation-info').textContent = 'the calibration file has no per-target validation (made before fovea-calibrate recorded it)'; return; }
     const gain = 5;
+    g.lineWidth = 2;
     for (const p of points) {
       const [tx, ty] = p.target_px;
       g.strokeStyle = '#e5e7eb';

@@ -185,6 +185,27 @@ async function main() {
     check(seen.screen.n > 20, 'the screenshot shows the gaze trail on the screen', `${seen.screen.n} label-coloured pixels`);
     check(seen.validation.n > 20, 'the screenshot shows the validation\'s error vectors', `${seen.validation.n} red pixels`);
     check(pageErrors.length === 0, 'the page ran without errors (CSP violations included)', pageErrors.join('; '));
+
+    // ---- a user outside the daemon's group --------------------------------------------------------
+    // As root the test can be someone else: `nobody` may not use the control or viewer sockets. Its
+    // monitor shows gaze and STATUS, says why there are no eye images, and shows no controls.
+    if (process.getuid() === 0 && existsSync('/usr/bin/setpriv')) {
+      const other = start('/usr/bin/setpriv', ['--reuid=nobody', '--regid=nogroup', '--clear-groups', '--',
+        `${build}/monitor/fovea-monitor`, '--server', `127.0.0.1:${port}`, '--control-socket', control, '--listen', '127.0.0.1:0']);
+      const otherUrl = await until('the second monitor\'s URL', () => (other.output.match(/open (http:\/\/\S+)/) || [])[1]);
+      const p2 = await browser.newPage();
+      await p2.goto(otherUrl, { waitUntil: 'load' });
+      const s2 = await until('gaze and status on the read-only page', async () => {
+        const s = await p2.evaluate(() => JSON.parse(JSON.stringify(window.foveaMonitor.state)));
+        return s.samples > 50 && s.status.viewer_feed ? s : null;
+      });
+      check(s2.controls === false && await p2.$eval('#controls', (e) => e.hidden), 'a user without the control socket gets no controls');
+      check(s2.eye_frames === 0 && /permission denied/.test(s2.status.viewer_feed),
+        'a user outside the daemon\'s group sees no eye images, and the page says why', s2.status.viewer_feed);
+      await p2.close();
+    } else {
+      console.log('# skipped the other-user checks: not root, or no setpriv');
+    }
   } finally {
     await browser.close();
   }
