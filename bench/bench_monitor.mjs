@@ -11,14 +11,10 @@
 //
 // Usage: node bench/bench_monitor.mjs [--build build/default] [--source synthetic-eye|synthetic] [--rate 120]
 //                                     [--pairs 3] [--seconds 10] [--csv FILE]
-import { spawn } from 'node:child_process';
 import { existsSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import path from 'node:path';
-import { createRequire } from 'node:module';
-
-const require = createRequire(new URL('../tests/browser/package.json', import.meta.url));
-const puppeteer = require('puppeteer-core');
+import { launchChromium, sleep, start, until } from '../tests/browser/harness.mjs';
 
 const arg = (name, fallback) => {
   const i = process.argv.indexOf(`--${name}`);
@@ -41,7 +37,6 @@ const port = 47870;
 const dir = mkdtempSync(path.join(tmpdir(), 'fovea-bench-monitor-'));
 const ticks = 100;  // USER_HZ on Linux
 
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 function cpuSeconds(pid) {
   const f = readFileSync(`/proc/${pid}/stat`, 'utf8');
   const fields = f.slice(f.lastIndexOf(')') + 2).split(' ');
@@ -60,23 +55,6 @@ function browserSeconds() {
   }
   return total;
 }
-function start(program, args) {
-  const c = spawn(program, args, { stdio: ['ignore', 'pipe', 'pipe'] });
-  c.output = '';
-  c.stdout.on('data', (d) => { c.output += d; });
-  c.stderr.on('data', (d) => { c.output += d; });
-  return c;
-}
-async function until(what, f, ms = 15000) {
-  const end = Date.now() + ms;
-  while (Date.now() < end) {
-    const v = await f();
-    if (v) return v;
-    await sleep(100);
-  }
-  throw new Error(`timed out waiting for ${what}`);
-}
-
 // One window: a fresh `fovea-ctl watch` for the client's latency; the daemon's CPU over it.
 async function window(daemon, withMonitor, browser) {
   let monitor = null, page = null, extra = null;
@@ -147,11 +125,7 @@ async function main() {
   const daemon = start(`${build}/trackerd/fovea-trackerd`, ['--source', source, '--rate', String(rate),
     '--port', String(port), '--control-socket', path.join(dir, 'control.sock')]);
   await until('the daemon', () => existsSync(path.join(dir, 'control.sock')));
-  const browser = await puppeteer.launch({
-    executablePath: '/usr/bin/chromium', headless: true, userDataDir: path.join(dir, 'profile'),
-    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-      '--disable-component-update', '--disable-sync'],
-  });
+  const browser = await launchChromium(dir);
   const rows = [];
   try {
     await sleep(2000);  // the daemon settles

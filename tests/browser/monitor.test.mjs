@@ -8,16 +8,15 @@
 //
 // Usage: node monitor.test.mjs BUILD_DIR [SCREENSHOT.png]
 // Exit status 0 when every check passed; each check prints "ok" or "not ok" (TAP).
-import { spawn, execFileSync } from 'node:child_process';
+import { execFileSync } from 'node:child_process';
 import { mkdtempSync, rmSync, writeFileSync, existsSync } from 'node:fs';
 import http from 'node:http';
 import { tmpdir } from 'node:os';
 import path from 'node:path';
-import puppeteer from 'puppeteer-core';
+import { chromiumPath as chromium, launchChromium, start as spawnKept, until } from './harness.mjs';
 
 const build = path.resolve(process.argv[2] || 'build/default');
 const screenshotPath = process.argv[3] || '';
-const chromium = process.env.FOVEA_CHROMIUM || '/usr/bin/chromium';
 const port = 47950 + (process.pid % 40);  // the daemon's gaze port; the monitor takes any free one
 const dir = mkdtempSync(path.join(tmpdir(), 'fovea-browser-'));
 const children = [];
@@ -31,22 +30,9 @@ function check(ok, what, detail = '') {
 }
 
 function start(program, args) {
-  const child = spawn(program, args, { stdio: ['ignore', 'pipe', 'pipe'] });
-  child.output = '';
-  child.stdout.on('data', (d) => { child.output += d; });
-  child.stderr.on('data', (d) => { child.output += d; });
+  const child = spawnKept(program, args);
   children.push(child);
   return child;
-}
-
-async function until(what, condition, ms = 15000) {
-  const end = Date.now() + ms;
-  while (Date.now() < end) {
-    const v = await condition();
-    if (v) return v;
-    await new Promise((r) => setTimeout(r, 100));
-  }
-  throw new Error(`timed out waiting for ${what}`);
 }
 
 // A raw HTTP request (upgrade or not); resolves with the status code.
@@ -103,13 +89,7 @@ async function main() {
     'the WebSocket with this origin and the token is accepted');
 
   // ---- the page ----------------------------------------------------------------------------------
-  const browser = await puppeteer.launch({
-    executablePath: chromium,
-    headless: true,
-    userDataDir: path.join(dir, 'profile'),
-    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-      '--disable-component-update', '--disable-sync', '--use-gl=swiftshader', '--enable-unsafe-swiftshader'],
-  });
+  const browser = await launchChromium(dir);
   try {
     const page = await browser.newPage();
     const pageErrors = [];
