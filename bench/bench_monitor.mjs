@@ -10,7 +10,9 @@
 // image's.
 //
 // Usage: node bench/bench_monitor.mjs [--build build/default] [--source synthetic-eye|synthetic] [--rate 120]
+//                                     [--baseline none|extra-client] [--page chromium|none] [--pin]
 //                                     [--pairs 3] [--seconds 10] [--csv FILE]
+import { execFileSync } from 'node:child_process';
 import { existsSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import path from 'node:path';
@@ -33,6 +35,9 @@ const baseline = arg('baseline', 'none');
 // --page chromium: a page open in headless chromium while the monitor is attached; none: the
 // monitor alone (what it costs the daemon without a browser competing for this machine's cores).
 const pageMode = arg('page', 'chromium');
+// --pin: the daemon on CPU 0 and chromium on CPU 1 (taskset), as if the browser ran on another
+// machine; the monitor and the measuring client go where the scheduler puts them.
+const pin = process.argv.includes('--pin');
 const port = 47870;
 const dir = mkdtempSync(path.join(tmpdir(), 'fovea-bench-monitor-'));
 const ticks = 100;  // USER_HZ on Linux
@@ -42,13 +47,25 @@ function cpuSeconds(pid) {
   const fields = f.slice(f.lastIndexOf(')') + 2).split(' ');
   return (Number(fields[11]) + Number(fields[12])) / ticks;  // utime, stime
 }
-// The browser's processes together (browser, renderer, GPU, utility): what the page costs this machine.
-function browserSeconds() {
-  let total = 0;
+// The browser's processes (browser, zygotes, renderers, GPU, utility).
+function browserPids() {
+  const pids = [];
   for (const pid of readdirSync('/proc')) {
     if (!/^\d+$/.test(pid)) continue;
     try {
-      if (readFileSync(`/proc/${pid}/cmdline`, 'utf8').startsWith('/usr/lib/chromium/')) total += cpuSeconds(pid);
+      if (readFileSync(`/proc/${pid}/cmdline`, 'utf8').startsWith('/usr/lib/chromium/')) pids.push(pid);
+    } catch {
+      // gone meanwhile
+    }
+  }
+  return pids;
+}
+// What the page costs this machine: all of the browser's processes together.
+function browserSeconds() {
+  let total = 0;
+  for (const pid of browserPids()) {
+    try {
+      total += cpuSeconds(pid);
     } catch {
       // gone meanwhile
     }
@@ -126,6 +143,11 @@ async function main() {
     '--port', String(port), '--control-socket', path.join(dir, 'control.sock')]);
   await until('the daemon', () => existsSync(path.join(dir, 'control.sock')));
   const browser = await launchChromium(dir);
+  if (pin) {
+    // Renderers fork from the zygotes later and inherit their affinity.
+    execFileSync('taskset', ['-a', '-cp', '0', String(daemon.pid)]);
+    for (const pid of browserPids()) execFileSync('taskset', ['-a', '-cp', '1', pid]);
+  }
   const rows = [];
   try {
     await sleep(2000);  // the daemon settles
@@ -147,7 +169,7 @@ async function main() {
   if (csvPath) writeFileSync(csvPath, csv);
   const mean = (m, key) => { const v = rows.filter((r) => r.monitor === m).map((r) => r[key]); return v.reduce((a, b) => a + b, 0) / v.length; };
   const median = (key) => { const v = rows.filter((r) => r.monitor === 1).map((r) => r[key]).sort((a, b) => a - b); return v[Math.floor(v.length / 2)]; };
-  console.log(`\n${source} at ${rate} Hz, ${pairs} pairs of ${seconds} s windows (monitor off${baseline === 'extra-client' ? ', a second plain client instead' : ''} / on${pageMode === 'none' ? ', no page open' : ', a page open in chromium'}):`);
+  console.log(`\n${source} at ${rate} Hz, ${pairs} pairs of ${seconds} s windows (monitor off${baseline === 'extra-client' ? ', a second plain client instead' : ''} / on${pageMode === 'none' ? ', no page open' : ', a page open in chromium'}${pin ? '; daemon on CPU 0, chromium on CPU 1' : ''}):`);
   console.log(`samples to the client ${mean(0, 'client_samples').toFixed(0)} -> ${mean(1, 'client_samples').toFixed(0)} per window, ` +
     `lost ${mean(0, 'client_lost')} -> ${mean(1, 'client_lost')}`);
   console.log(`daemon CPU            ${mean(0, 'daemon_cpu_pct').toFixed(1)} % -> ${mean(1, 'daemon_cpu_pct').toFixed(1)} % of a core ` +
