@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <string>
 #include <thread>
 
@@ -85,7 +86,12 @@ TEST(LslSource, ReadsTheTrackersTrajectoryOnItsTimestampsAndAfterTheOutletRestar
   std::ofstream(quit) << "0\n";  // the daemon is done: the app may quit
   ASSERT_TRUE(wait_for(d.path / "app2.rc", 20));
   EXPECT_EQ(read_text(rc), "0\n") << read_text(log);
-  EXPECT_NE(read_text(log).find("1 losses"), std::string::npos) << "the loss is not in the status: " << read_text(log);
+  // The outlet's restart is one loss; a tracker app stalled past 1 s on a loaded machine makes another
+  // (seen once in a CI rehearsal: "2 losses", every sample still there), which is not what this tests.
+  std::smatch losses;
+  const std::string text = read_text(log);
+  ASSERT_TRUE(std::regex_search(text, losses, std::regex("([0-9]+) losses"))) << "no loss count in the status: " << text;
+  EXPECT_GE(std::stoi(losses[1]), 1) << "the loss is not in the status: " << text;
 
   std::map<std::int64_t, protocol::GazeSample> recorded;
   for (const auto& r : protocol::read_recording(fgr.string()).records)
