@@ -10,7 +10,7 @@
 // image's.
 //
 // Usage: node bench/bench_monitor.mjs [--build build/default] [--source synthetic-eye|synthetic] [--rate 120]
-//                                     [--baseline none|extra-client] [--page chromium|none] [--pin]
+//                                     [--baseline none|extra-client] [--page chromium|none] [--pin] [--daemon-nice N]
 //                                     [--pairs 3] [--seconds 10] [--csv FILE]
 import { execFileSync } from 'node:child_process';
 import { existsSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
@@ -38,6 +38,9 @@ const pageMode = arg('page', 'chromium');
 // --pin: the daemon on CPU 0 and chromium on CPU 1 (taskset), as if the browser ran on another
 // machine; the monitor and the measuring client go where the scheduler puts them.
 const pin = process.argv.includes('--pin');
+// --daemon-nice N: the daemon at this nice value (negative: before the browser), as a service unit's
+// Nice= would run it.
+const daemonNice = Number(arg('daemon-nice', '0'));
 const port = 47870;
 const dir = mkdtempSync(path.join(tmpdir(), 'fovea-bench-monitor-'));
 const ticks = 100;  // USER_HZ on Linux
@@ -139,8 +142,12 @@ async function main() {
   for (const p of [`${build}/trackerd/fovea-trackerd`, `${build}/monitor/fovea-monitor`, '/usr/bin/chromium']) {
     if (!existsSync(p)) throw new Error(`${p} is missing`);
   }
-  const daemon = start(`${build}/trackerd/fovea-trackerd`, ['--source', source, '--rate', String(rate),
-    '--port', String(port), '--control-socket', path.join(dir, 'control.sock')]);
+  const daemonArgs = ['--source', source, '--rate', String(rate), '--port', String(port), '--control-socket',
+    path.join(dir, 'control.sock')];
+  // nice execs the daemon: the child's pid is the daemon's.
+  const daemon = daemonNice !== 0
+    ? start('nice', ['-n', String(daemonNice), `${build}/trackerd/fovea-trackerd`, ...daemonArgs])
+    : start(`${build}/trackerd/fovea-trackerd`, daemonArgs);
   await until('the daemon', () => existsSync(path.join(dir, 'control.sock')));
   const browser = await launchChromium(dir);
   if (pin) {
@@ -169,7 +176,7 @@ async function main() {
   if (csvPath) writeFileSync(csvPath, csv);
   const mean = (m, key) => { const v = rows.filter((r) => r.monitor === m).map((r) => r[key]); return v.reduce((a, b) => a + b, 0) / v.length; };
   const median = (key) => { const v = rows.filter((r) => r.monitor === 1).map((r) => r[key]).sort((a, b) => a - b); return v[Math.floor(v.length / 2)]; };
-  console.log(`\n${source} at ${rate} Hz, ${pairs} pairs of ${seconds} s windows (monitor off${baseline === 'extra-client' ? ', a second plain client instead' : ''} / on${pageMode === 'none' ? ', no page open' : ', a page open in chromium'}${pin ? '; daemon on CPU 0, chromium on CPU 1' : ''}):`);
+  console.log(`\n${source} at ${rate} Hz, ${pairs} pairs of ${seconds} s windows (monitor off${baseline === 'extra-client' ? ', a second plain client instead' : ''} / on${pageMode === 'none' ? ', no page open' : ', a page open in chromium'}${pin ? '; daemon on CPU 0, chromium on CPU 1' : ''}${daemonNice ? `; daemon at nice ${daemonNice}` : ''}):`);
   console.log(`samples to the client ${mean(0, 'client_samples').toFixed(0)} -> ${mean(1, 'client_samples').toFixed(0)} per window, ` +
     `lost ${mean(0, 'client_lost')} -> ${mean(1, 'client_lost')}`);
   console.log(`daemon CPU            ${mean(0, 'daemon_cpu_pct').toFixed(1)} % -> ${mean(1, 'daemon_cpu_pct').toFixed(1)} % of a core ` +
