@@ -109,6 +109,11 @@ std::optional<int> configure(const Args& a, fovea::monitor::FeedOptions& fo, fov
   }
   try {
     fo.server = fovea::protocol::parse_endpoint(a.server, fovea::protocol::kDefaultPort);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fovea-monitor: --server: %s\n", e.what());
+    return 2;
+  }
+  try {
     wo.hosts = fovea::monitor::allowed_hosts(ip, a.allow_hosts);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fovea-monitor: %s\n", e.what());

@@ -195,12 +195,18 @@
     return c.width / display.width_px;
   }
 
-  function drawScreen() {
-    const c = $('screen');
+  // A screen-shaped panel, cleared: its canvas, context and the scale from screen pixels.
+  function screenPanel(id) {
+    const c = $(id);
     const g = c.getContext('2d');
     const s = screenScale(c);
     g.fillStyle = '#0b0d10';
     g.fillRect(0, 0, c.width, c.height);
+    return { c, g, s };
+  }
+
+  function drawScreen() {
+    const { c, g, s } = screenPanel('screen');
     g.strokeStyle = '#374151';
     g.strokeRect(0.5, 0.5, c.width - 1, c.height - 1);
     const newest = samples[samples.length - 1];
@@ -368,11 +374,7 @@
   }
 
   function drawValidation() {
-    const c = $('validation');
-    const g = c.getContext('2d');
-    const s = screenScale(c);
-    g.fillStyle = '#0b0d10';
-    g.fillRect(0, 0, c.width, c.height);
+    const { g, s } = screenPanel('validation');
     const d = state.daemon;
     const v = d.calibration && d.calibration.validation;
     const points = v && Array.isArray(v.points) ? v.points : [];

@@ -51,7 +51,7 @@ void check_info(const EyeFrameInfo& i) {
   if ((i.flags & ~kEyeFrameFlagsMask) != 0) throw std::invalid_argument("eye frame: undefined flag bits");
 }
 
-// Whole-factor box downscale so that the image fits max_w x max_h (a factor of 1 copies).
+// Whole-factor box downscale (factor >= 2).
 void downscale(const std::uint8_t* src, int w, int h, std::size_t stride, int factor, std::vector<std::uint8_t>& out,
                int& out_w, int& out_h) {
   out_w = w / factor;
@@ -251,8 +251,7 @@ void ViewerFeedServer::offer(const EyeFrameInfo& info, const std::uint8_t* pixel
                            std::size_t stride) {
   if (pixels == nullptr || width <= 0 || height <= 0 || stride < static_cast<std::size_t>(width)) return;
   if (!wants(info.time_ns)) return;
-  // Whole-factor downscale to fit the limits; the copy here is the loop's only cost (the sender
-  // downscales), bounded by the rate.
+  // The copy here is the loop's only cost (the sender downscales and encodes), bounded by the rate.
   slot_info_ = info;
   slot_width_ = width;
   slot_height_ = height;
@@ -320,12 +319,16 @@ void ViewerFeedServer::accept_readers() {
 void ViewerFeedServer::send_slot() {
   const int factor = std::max({1, (slot_width_ + options_.max_width - 1) / options_.max_width,
                                (slot_height_ + options_.max_height - 1) / options_.max_height});
+  // A frame that fits goes from the slot as it is; a larger one is downscaled first.
   std::vector<std::uint8_t> small;
-  int w = 0, h = 0;
-  downscale(slot_pixels_.data(), slot_width_, slot_height_, static_cast<std::size_t>(slot_width_), factor, small, w, h);
+  int w = slot_width_, h = slot_height_;
+  if (factor > 1) {
+    downscale(slot_pixels_.data(), slot_width_, slot_height_, static_cast<std::size_t>(slot_width_), factor, small, w, h);
+  }
+  const std::span<const std::uint8_t> pixels = factor > 1 ? std::span<const std::uint8_t>(small) : slot_pixels_;
   std::vector<std::uint8_t> bytes;
   try {
-    if (w > 0 && h > 0) bytes = encode_eye_frame(slot_info_, static_cast<std::uint16_t>(w), static_cast<std::uint16_t>(h), small);
+    if (w > 0 && h > 0) bytes = encode_eye_frame(slot_info_, static_cast<std::uint16_t>(w), static_cast<std::uint16_t>(h), pixels);
   } catch (const std::invalid_argument&) {
     bytes.clear();  // a detection result that cannot go on the wire: this frame is not shown
   }

@@ -105,30 +105,22 @@ TEST(ViewerFeedCodec, ReaderRejectsWhatTheSpecRejects) {
     EXPECT_FALSE(decode_eye_frame(b, error)) << why;
     EXPECT_NE(error.find(why), std::string::npos) << error;
   };
+  // One byte changed at a time: offset, value, what the error names.
+  const struct {
+    std::size_t at;
+    std::uint8_t value;
+    const char* why;
+  } bad_bytes[] = {{0, 'X', "magic"},        {4, 2, "version 2"},          {5, 0x10, "flag"},
+                   {32, 0, "allowed 1..1024"}, {76, 9, "more than 8 glints"}, {78, 1, "reserved"},
+                   {91, 0x3f, "unused glint"}};  // 32: width 0; 91: the second (unused) glint slot
+  for (const auto& c : bad_bytes) {
+    auto b = good;
+    b[c.at] = c.value;
+    rejects(b, c.why);
+  }
   auto b = good;
-  b[0] = 'X';
-  rejects(b, "magic");
-  b = good;
-  b[4] = 2;
-  rejects(b, "version 2");
-  b = good;
-  b[5] = 0x10;
-  rejects(b, "flag");
-  b = good;
   b.pop_back();
   rejects(b, "does not match");
-  b = good;
-  b[32] = 0;  // width 0
-  rejects(b, "allowed 1..1024");
-  b = good;
-  b[76] = 9;
-  rejects(b, "more than 8 glints");
-  b = good;
-  b[78] = 1;
-  rejects(b, "reserved");
-  b = good;
-  b[91] = 0x3f;  // the second (unused) glint slot
-  rejects(b, "unused glint");
   b = good;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(&b[56], &nan, 4);
