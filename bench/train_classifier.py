@@ -47,7 +47,6 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from eval_classify_gazecom import RATE_HZ, read_arff, unpacked, write_input  # noqa: E402
 
 CLASS_NAMES = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
-NOISE_NEAR_LOSS_S = 0.100  # trees_core.h, kNoiseNearLossS
 ONLINE_LOOKAHEAD_S = 0.032  # trees_core.h, kOnlineLookaheadS
 OFFLINE_LOOKAHEAD_S = 0.512  # context.h, kContextReachS
 
@@ -212,18 +211,10 @@ def write_model(clf, names, path, note):
     os.replace(path + ".partial", path)
 
 
-def labels(clf, f, names):
-    """The classes the C++ gives (trees_core.h, TreesModel::label): the coders' noise only within
-    NOISE_NEAR_LOSS_S of a loss or off the display, elsewhere the best other class."""
-    p = clf.predict_proba(f)
-    near = (np.minimum(f[:, names.index("loss_before_s")], f[:, names.index("loss_after_s")]).astype(np.float64)
-            < NOISE_NEAR_LOSS_S) | (f[:, names.index("offscreen_deg")] > 0)
-    best = p.argmax(axis=1)
-    if 4 not in clf.classes_:
-        return clf.classes_[best]
-    noise = list(clf.classes_).index(4)
-    movement = np.where(np.arange(p.shape[1]) == noise, -np.inf, p).argmax(axis=1)
-    return clf.classes_[np.where((best == noise) & ~near, movement, best)]
+def labels(clf, f):
+    """The classes scikit-learn predicts. The C++ (trees_core.h, TreesModel::label) names the coders'
+    noise `blink` near a loss or off the display and `unknown` elsewhere: both are noise here."""
+    return clf.predict(f)
 
 
 def check_model(args, clf, path, files, which, extra=(), stage1=None):
@@ -244,9 +235,9 @@ def check_model(args, clf, path, files, which, extra=(), stage1=None):
         with tempfile.TemporaryDirectory() as tmp:
             got = classify(args.ctl, tmp, gaze_t, geometry, rate, ["--method", "gbt", "--model", path, "--trees-only"] + list(extra))
         gaze = ~np.isnan(f[:, names.index("offscreen_deg")])
-        want = np.array([CLASS_NAMES[int(c)] for c in labels(clf, f[gaze], names)])
+        want = np.array([CLASS_NAMES[int(c)] for c in labels(clf, f[gaze])])
         got = np.array(got)[gaze]
-        got = np.where(got == "blink", "noise", got)
+        got = np.where((got == "blink") | (got == "unknown"), "noise", got)
         mismatched += int((want != got).sum())
         total += len(want)
     print(f"train_classifier: fovea-ctl and scikit-learn disagree on {mismatched} of {total} samples ({os.path.basename(path)} {' '.join(extra)})")

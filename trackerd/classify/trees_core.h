@@ -15,8 +15,8 @@
 namespace fovea::trackerd::classify {
 
 // A tree ensemble whose classes are labels. The coders' noise is a blink where a loss of data is
-// within kNoiseNearLossS (the lid's artefacts around it) or the gaze is off the display; elsewhere
-// the best of the movement classes wins.
+// within kNoiseNearLossS (the lid's artefacts around it) or the gaze is off the display; elsewhere it
+// is gaze that no movement class fits (GazeCom's odd stretches): unknown.
 inline constexpr double kNoiseNearLossS = 0.100;
 // Smoothing (issue 43): a single sample's trees flip between classes, splitting one pursuit or
 // fixation into many events. A saccade is called where the class probabilities averaged over
@@ -35,18 +35,18 @@ class TreesModel {
   // A model over features.h's features alone, from a "fovea-trees" text.
   TreesModel(const std::string& text, const std::string& origin);
   // One sample's label from its own scores (the noise rule applied): what scikit-learn predicts.
-  Label label(const float* features, bool noise_ok) const;
+  Label label(const float* features, bool near_loss) const;
   // Class probabilities (softmax of the raw scores) into p[0..classes).
   void probabilities(const float* features, double* p) const;
   // The label from probabilities averaged over the short and the long window (above).
-  Label smoothed_label(const double* near, const double* wide, bool noise_ok) const;
-  // Whether the coders' noise may be called, from a sample's features.h features.
-  static bool noise_allowed(const float* frame_features);
+  Label smoothed_label(const double* near, const double* wide, bool near_loss) const;
+  // Whether the coders' noise is a blink, from a sample's features.h features (above).
+  static bool noise_is_blink(const float* frame_features);
   const TreeEnsemble& trees() const { return trees_; }
   std::size_t class_count() const { return labels_.size(); }
 
  private:
-  std::size_t best_movement(const double* scores, std::size_t fallback) const;
+  Label named(std::size_t c, bool near_loss) const;
   TreeEnsemble trees_;
   std::vector<Label> labels_;  // per class
 };
