@@ -31,13 +31,23 @@ std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, c
   for (int r = 0; r < rays; ++r) {
     const double th = 2 * kPi * (r + 0.5) / rays;
     const double dx = std::cos(th), dy = std::sin(th);
-    int n = 0;
-    for (; n <= steps; ++n) {
-      const double x = from.x + n * ds * dx, y = from.y + n * ds * dy;
-      if (x < x_lo || y < y_lo || x > x_hi || y > y_hi) break;
-      profile[static_cast<std::size_t>(n)] = bilinear(smooth, x, y);
-      glinty[static_cast<std::size_t>(n)] = in_glint(glints, x, y) ? 1 : 0;
-    }
+    // The profile is sampled only as far as the search below looks: most rays stop at the pupil's
+    // edge, a fraction of max_length (sampling all of it took a third of the detector's time).
+    int n = 0;           // samples taken
+    bool ended = false;  // the ray has left `valid` (or reached max_length) after n samples
+    const auto have = [&](int k) {  // whether sample k exists, sampling up to it
+      while (n <= k && !ended) {
+        const double x = from.x + n * ds * dx, y = from.y + n * ds * dy;
+        if (n > steps || x < x_lo || y < y_lo || x > x_hi || y > y_hi) {
+          ended = true;
+          break;
+        }
+        profile[static_cast<std::size_t>(n)] = bilinear(smooth, x, y);
+        glinty[static_cast<std::size_t>(n)] = in_glint(glints, x, y) ? 1 : 0;
+        ++n;
+      }
+      return k < n;
+    };
     // The first sharp dark-to-bright step: a rise of min_step within 3 px. A soft veil (a
     // spectacle reflection, uneven light) rises over many pixels and is walked through.
     constexpr int half_span = 3;  // samples: +-1.5 px
@@ -47,12 +57,12 @@ std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, c
     const int thin = static_cast<int>(std::ceil(thin_px / ds));
     const auto falls_back = [&](int i) {  // within thin_px after the rise, back near the level before it
       const double before = profile[static_cast<std::size_t>(i - half_span)];
-      for (int j = i + half_span + 1; j <= i + half_span + thin && j < n; ++j)
+      for (int j = i + half_span + 1; j <= i + half_span + thin && have(j); ++j)
         if (profile[static_cast<std::size_t>(j)] < before + 0.5 * min_step) return true;
       return false;
     };
     int cross = -1;
-    for (int i = half_span; i + half_span < n; ++i) {
+    for (int i = half_span; have(i + half_span); ++i) {
       if (glinty[static_cast<std::size_t>(i)] || glinty[static_cast<std::size_t>(i + half_span)]) continue;
       if (step_at(i) > min_step && profile[static_cast<std::size_t>(i - half_span)] < pupil_level + 2 * min_step + 40) {
         if (thin > 0 && falls_back(i)) {
@@ -64,9 +74,10 @@ std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, c
       }
     }
     if (cross < 0) continue;
-    for (int i = cross + 1; i + half_span < n && i <= cross + 2 * half_span; ++i)  // the steepest point nearby
+    for (int i = cross + 1; i <= cross + 2 * half_span && have(i + half_span); ++i)  // the steepest point nearby
       if (step_at(i) > step_at(cross)) cross = i;
     bool contaminated = false;  // a glint straddling the edge moves it: drop the ray
+    have(cross + 8);  // every sample the edge's levels below may read
     for (int i = std::max(0, cross - 6); i <= std::min(n - 1, cross + 6); ++i)
       if (glinty[static_cast<std::size_t>(i)]) contaminated = true;
     if (contaminated) continue;

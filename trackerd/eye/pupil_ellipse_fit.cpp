@@ -36,7 +36,7 @@ struct Conic {
     const double x = (p.x - origin.x) / scale, y = (p.y - origin.y) / scale;
     const double q = a * x * x + b * x * y + c * y * y + d * x + e * y + f;
     const double gx = 2 * a * x + b * y + d, gy = b * x + 2 * c * y + e;
-    const double g = std::hypot(gx, gy);
+    const double g = std::sqrt(gx * gx + gy * gy);  // not std::hypot: no overflow here, and it is hot (RANSAC)
     if (g < 1e-12) return 1e9;
     return std::abs(q) / g * scale;
   }
