@@ -7,92 +7,139 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
 
 namespace fovea::trackerd::eye::stages {
 
+namespace {
+
+constexpr double kRayStepPx = 0.5;  // the profile's sample spacing along a ray
+constexpr int kHalfSpan = 3;        // samples: a step is a rise within +-1.5 px
+
+// The grey levels along one ray, sampled only as far as the search reads: most rays stop at the
+// pupil's edge, a fraction of their reach (sampling all of it took a third of the detector's time).
+class RayProfile {
+ public:
+  RayProfile(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints, int steps)
+      : smooth_(smooth), glints_(glints), steps_(steps), level_(static_cast<std::size_t>(steps) + 1),
+        glinty_(static_cast<std::size_t>(steps) + 1), x_lo_(valid.x), y_lo_(valid.y),
+        x_hi_(valid.x + valid.width - 1), y_hi_(valid.y + valid.height - 1) {}
+  void start(const cv::Point2d& from, double dx, double dy) {
+    from_ = from;
+    dx_ = dx;
+    dy_ = dy;
+    n_ = 0;
+    ended_ = false;
+  }
+  // Whether sample k exists (the ray has not left `valid` nor its reach by then), sampling up to it.
+  bool has(int k) {
+    while (n_ <= k && !ended_) {
+      const double x = from_.x + n_ * kRayStepPx * dx_, y = from_.y + n_ * kRayStepPx * dy_;
+      if (n_ > steps_ || x < x_lo_ || y < y_lo_ || x > x_hi_ || y > y_hi_) {
+        ended_ = true;
+        break;
+      }
+      level_[static_cast<std::size_t>(n_)] = bilinear(smooth_, x, y);
+      glinty_[static_cast<std::size_t>(n_)] = in_glint(glints_, x, y) ? 1 : 0;
+      ++n_;
+    }
+    return k < n_;
+  }
+  int taken() const { return n_; }  // samples taken so far
+  double at(int i) const { return level_[static_cast<std::size_t>(i)]; }
+  bool glint(int i) const { return glinty_[static_cast<std::size_t>(i)] != 0; }
+  double step_at(int i) const { return at(i + kHalfSpan) - at(i - kHalfSpan); }
+
+ private:
+  const cv::Mat& smooth_;
+  const GlintCandidates& glints_;
+  int steps_;
+  std::vector<double> level_;
+  std::vector<char> glinty_;
+  double x_lo_, y_lo_, x_hi_, y_hi_;
+  cv::Point2d from_;
+  double dx_ = 0, dy_ = 0;
+  int n_ = 0;
+  bool ended_ = false;
+};
+
+// The first sharp dark-to-bright step from a dark level: a rise of min_step within 3 px (a soft
+// veil -- a spectacle reflection, uneven light -- rises over many pixels and is walked through),
+// moved to the steepest point nearby; -1 when none. With thin > 0 samples, a rise that falls back to
+// the level before it within them is a thin bright line -- a lash across the pupil, lit by the
+// infrared LEDs -- and is walked over (issue 44).
+int first_step(RayProfile& ray, double pupil_level, double min_step, int thin) {
+  const auto falls_back = [&](int i) {
+    const double before = ray.at(i - kHalfSpan);
+    for (int j = i + kHalfSpan + 1; j <= i + kHalfSpan + thin && ray.has(j); ++j)
+      if (ray.at(j) < before + 0.5 * min_step) return true;
+    return false;
+  };
+  int cross = -1;
+  for (int i = kHalfSpan; ray.has(i + kHalfSpan); ++i) {
+    if (ray.glint(i) || ray.glint(i + kHalfSpan)) continue;
+    if (ray.step_at(i) > min_step && ray.at(i - kHalfSpan) < pupil_level + 2 * min_step + 40) {
+      if (thin > 0 && falls_back(i)) {
+        i += kHalfSpan;  // over the line
+        continue;
+      }
+      cross = i;
+      break;
+    }
+  }
+  if (cross < 0) return -1;
+  for (int i = cross + 1; i <= cross + 2 * kHalfSpan && ray.has(i + kHalfSpan); ++i)
+    if (ray.step_at(i) > ray.step_at(cross)) cross = i;
+  return cross;
+}
+
+// The edge at a step: where the profile crosses half-way between the levels either side of it,
+// interpolated between samples (sub-pixel), in samples from the ray's start, and the step's
+// contrast; nullopt when a glint straddles it (it would move the edge) or the levels do not differ.
+std::optional<std::pair<double, double>> edge_at(RayProfile& ray, int cross, double min_step) {
+  ray.has(cross + 8);  // every sample read below
+  const int n = ray.taken();
+  for (int i = std::max(0, cross - 6); i <= std::min(n - 1, cross + 6); ++i)
+    if (ray.glint(i)) return std::nullopt;
+  double inside = 1e9, outside = -1e9;
+  for (int i = std::max(0, cross - 8); i <= cross - 2; ++i) inside = std::min(inside, ray.at(i));
+  for (int i = cross + 2; i <= std::min(n - 1, cross + 8); ++i) outside = std::max(outside, ray.at(i));
+  if (!(outside - inside > min_step)) return std::nullopt;
+  const double half = (inside + outside) / 2;
+  int i = std::min(cross + kHalfSpan, n - 2);
+  while (i > std::max(0, cross - 2 * kHalfSpan) && ray.at(i) > half) --i;
+  const double v0 = ray.at(i), v1 = ray.at(i + 1);
+  if (!(v1 > v0) || v0 > half || v1 < half) return std::nullopt;
+  return std::make_pair(i + (half - v0) / (v1 - v0), outside - inside);
+}
+
+}  // namespace
+
 // Starburst (Li et al. 2005 §2.3): from a point inside the pupil, walk rays outwards to the first
 // dark-to-bright transition; the edge is where the profile crosses halfway between the pupil level
-// and the level just outside, interpolated between samples (sub-pixel). With `thin_px` > 0, a rise
-// that falls back to the level before it within `thin_px` is a thin bright line -- a lash across the
-// pupil, lit by the infrared LEDs -- and is walked over (issue 44).
+// and the level just outside, interpolated between samples (sub-pixel). With `thin_px` > 0, thin
+// bright lines across the pupil (lit lashes) are walked over (first_step).
 std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
                                  const cv::Point2d& from, double pupil_level, double min_step, double max_length, int rays,
                                  double thin_px) {
   std::vector<EdgePoint> edges;
   edges.reserve(static_cast<std::size_t>(rays));
-  constexpr double ds = 0.5;
-  const int steps = static_cast<int>(max_length / ds);
-  std::vector<double> profile(static_cast<std::size_t>(steps) + 1);
-  std::vector<char> glinty(static_cast<std::size_t>(steps) + 1);
-  const double x_lo = valid.x, y_lo = valid.y, x_hi = valid.x + valid.width - 1, y_hi = valid.y + valid.height - 1;
+  RayProfile ray(smooth, valid, glints, static_cast<int>(max_length / kRayStepPx));
+  const int thin = static_cast<int>(std::ceil(thin_px / kRayStepPx));
   for (int r = 0; r < rays; ++r) {
     const double th = 2 * kPi * (r + 0.5) / rays;
     const double dx = std::cos(th), dy = std::sin(th);
-    // The profile is sampled only as far as the search below looks: most rays stop at the pupil's
-    // edge, a fraction of max_length (sampling all of it took a third of the detector's time).
-    int n = 0;           // samples taken
-    bool ended = false;  // the ray has left `valid` (or reached max_length) after n samples
-    const auto have = [&](int k) {  // whether sample k exists, sampling up to it
-      while (n <= k && !ended) {
-        const double x = from.x + n * ds * dx, y = from.y + n * ds * dy;
-        if (n > steps || x < x_lo || y < y_lo || x > x_hi || y > y_hi) {
-          ended = true;
-          break;
-        }
-        profile[static_cast<std::size_t>(n)] = bilinear(smooth, x, y);
-        glinty[static_cast<std::size_t>(n)] = in_glint(glints, x, y) ? 1 : 0;
-        ++n;
-      }
-      return k < n;
-    };
-    // The first sharp dark-to-bright step: a rise of min_step within 3 px. A soft veil (a
-    // spectacle reflection, uneven light) rises over many pixels and is walked through.
-    constexpr int half_span = 3;  // samples: +-1.5 px
-    const auto step_at = [&](int i) {
-      return profile[static_cast<std::size_t>(i + half_span)] - profile[static_cast<std::size_t>(i - half_span)];
-    };
-    const int thin = static_cast<int>(std::ceil(thin_px / ds));
-    const auto falls_back = [&](int i) {  // within thin_px after the rise, back near the level before it
-      const double before = profile[static_cast<std::size_t>(i - half_span)];
-      for (int j = i + half_span + 1; j <= i + half_span + thin && have(j); ++j)
-        if (profile[static_cast<std::size_t>(j)] < before + 0.5 * min_step) return true;
-      return false;
-    };
-    int cross = -1;
-    for (int i = half_span; have(i + half_span); ++i) {
-      if (glinty[static_cast<std::size_t>(i)] || glinty[static_cast<std::size_t>(i + half_span)]) continue;
-      if (step_at(i) > min_step && profile[static_cast<std::size_t>(i - half_span)] < pupil_level + 2 * min_step + 40) {
-        if (thin > 0 && falls_back(i)) {
-          i += half_span;  // over the line
-          continue;
-        }
-        cross = i;
-        break;
-      }
-    }
+    ray.start(from, dx, dy);
+    const int cross = first_step(ray, pupil_level, min_step, thin);
     if (cross < 0) continue;
-    for (int i = cross + 1; i <= cross + 2 * half_span && have(i + half_span); ++i)  // the steepest point nearby
-      if (step_at(i) > step_at(cross)) cross = i;
-    bool contaminated = false;  // a glint straddling the edge moves it: drop the ray
-    have(cross + 8);  // every sample the edge's levels below may read
-    for (int i = std::max(0, cross - 6); i <= std::min(n - 1, cross + 6); ++i)
-      if (glinty[static_cast<std::size_t>(i)]) contaminated = true;
-    if (contaminated) continue;
-    // Levels either side of the step, and the half-way crossing between them (sub-pixel).
-    double inside = 1e9, outside = -1e9;
-    for (int i = std::max(0, cross - 8); i <= cross - 2; ++i) inside = std::min(inside, profile[static_cast<std::size_t>(i)]);
-    for (int i = cross + 2; i <= std::min(n - 1, cross + 8); ++i) outside = std::max(outside, profile[static_cast<std::size_t>(i)]);
-    if (!(outside - inside > min_step)) continue;
-    const double half = (inside + outside) / 2;
-    int i = std::min(cross + half_span, n - 2);
-    while (i > std::max(0, cross - 2 * half_span) && profile[static_cast<std::size_t>(i)] > half) --i;
-    const double v0 = profile[static_cast<std::size_t>(i)], v1 = profile[static_cast<std::size_t>(i + 1)];
-    if (!(v1 > v0) || v0 > half || v1 < half) continue;
-    const double t = (i + (half - v0) / (v1 - v0)) * ds;
-    edges.push_back({{from.x + t * dx, from.y + t * dy}, outside - inside});
+    const auto edge = edge_at(ray, cross, min_step);
+    if (!edge) continue;
+    const double t = edge->first * kRayStepPx;
+    edges.push_back({{from.x + t * dx, from.y + t * dy}, edge->second});
   }
   return edges;
 }
