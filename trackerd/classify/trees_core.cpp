@@ -258,9 +258,12 @@ class WithPsoCore final : public Core {
     drop_paired(from_trees_, t_at_);
     drop_paired(from_ivvt_, i_at_);
   }
-  // The cores' latencies differ, so one side always holds a few unpaired labels: drop what was
-  // paired every time (clearing only when a side is empty would let the other grow without end).
+  // The cores' latencies differ, so one side always holds unpaired labels (ivvt's side about 200 ms
+  // of them): drop what was paired once it is half of the side, not at every sample (that moved the
+  // ~200 others to the front for every sample at 1000 Hz), nor only when a side is empty (the other
+  // would grow without end).
   static void drop_paired(std::vector<Labeled>& v, std::size_t& at) {
+    if (2 * at < v.size()) return;
     v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(at));
     at = 0;
   }
