@@ -20,6 +20,9 @@ present with the same settings).
                              for bench/eval_classify_gazecom.py --lovo DIR
   --out FILE --lovo DIR      also one model on every recording (the built-in one:
                              trackerd/classify/models/gazecom.trees), written first
+  --nested V1,V2 --lovo DIR  also DIR/nested/<video>.trees: that video's second stages fitted on rows
+                             from first stages that never saw it (nested cross-validation; the plain
+                             bundles' rows come from first stages that saw it), ~20 min a video
 
 On GazeCom with the defaults, 2 cores: the first stages 35-50 min (once: reused), the second
 stages' features 8 min, the full model 10 min, the 18 leave-one-video-out bundles 45 min.
@@ -30,7 +33,7 @@ own; a model trained on it carries the data's terms (trackerd/classify/models/RE
 
 Usage: bench/train_classifier.py FOVEA_CTL [--out FILE] --lovo DIR [--data DIR_OR_TAR] [--every N]
        [--stride-ms MS] [--augment N] [--iterations N] [--leaves N] [--context-stride-ms MS]
-       [--context-iterations N] [--frame-only] [--jobs N]
+       [--context-iterations N] [--frame-only] [--nested VIDEOS] [--jobs N]
 """
 import argparse
 import concurrent.futures
@@ -275,26 +278,55 @@ def frame_lovo(args, data, names, files, videos, settings, start):
         print(f"train_classifier: {path} ({len(x)} samples) at {time.time() - start:.0f} s", flush=True)
 
 
+def context_unit(args, files, i, copy, model):
+    """One recording's (or copy's) second-stage rows, a sample every --context-stride-ms, from the
+    first stage `model`: ((recording index, features, labels), feature names)."""
+    rec = recording(files[i], copy)
+    f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", model])
+    _, _, final, rate = rec
+    lab = np.array(final, dtype=np.int8)
+    rows = np.arange(0, len(lab), max(1, int(round(args.context_stride_ms * rate / 1000.0))))
+    rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, names.index("offscreen_deg")])]
+    return (i, f[rows], lab[rows]), names
+
+
 def context_rows(args, files, videos, start):
-    """Every recording's (and copy's) second-stage rows, a sample every --context-stride-ms, from the
-    first stage fitted without its video: a list of (recording index, features, labels); and the
-    feature names."""
-    def unit(u):
-        i, copy = u
-        rec = recording(files[i], copy)
-        f, names = matrix_out(args.ctl, rec, "--context-out",
-                              ["--model", os.path.join(args.lovo, videos[i] + ".frame.trees")])
-        _, _, final, rate = rec
-        lab = np.array(final, dtype=np.int8)
-        rows = np.arange(0, len(lab), max(1, int(round(args.context_stride_ms * rate / 1000.0))))
-        rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, names.index("offscreen_deg")])]
-        return (i, f[rows], lab[rows]), names
+    """Every recording's (and copy's) second-stage rows from the first stage fitted without its
+    video: a list of (recording index, features, labels); and the feature names."""
     units = [(i, c) for c in range(args.augment + 1) for i in range(len(files))]
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        out = list(pool.map(unit, units))
+        out = list(pool.map(lambda u: context_unit(args, files, u[0], u[1],
+                                                   os.path.join(args.lovo, videos[u[0]] + ".frame.trees")), units))
     print(f"train_classifier: second-stage features of {len(units)} recordings and copies at {time.time() - start:.0f} s",
           flush=True)
     return [o[0] for o in out], out[0][1]
+
+
+def nested_lovo(args, data, names, files, videos, settings2, start):
+    """--nested: for each named held-out video V, second stages fitted on rows that no first stage
+    fitted with V produced (each other video U's from a first stage fitted without U and V: 17 fits),
+    bundled with V's own first stage into LOVO/nested/V.trees. The plain --lovo bundles' second stages
+    read rows from first stages that saw V; these show whether that leaks."""
+    out_dir = os.path.join(args.lovo, "nested")
+    os.makedirs(out_dir, exist_ok=True)
+    for v in args.nested.split(","):
+        rows, context_names = [], None
+        for u in sorted(set(videos) - {v}):
+            x, y = training_rows(data, {i for i, w in enumerate(videos) if w not in (u, v)}, args.stride_ms)
+            model = os.path.join(out_dir, f"{v}.without.{u}.frame.trees")
+            write_model(fit(x, y, args.iterations, args.leaves, args.learning_rate), names, model,
+                        f"GazeCom without {v} and {u}")
+            units = [(i, c) for c in range(args.augment + 1) for i, w in enumerate(videos) if w == u]
+            with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
+                got = list(pool.map(lambda t: context_unit(args, files, t[0], t[1], model), units))
+            rows += [g[0] for g in got]
+            context_names = got[0][1]
+            os.remove(model)
+        online, offline, n2 = fit_context(args, rows, context_names, {i for i, w in enumerate(videos) if w != v})
+        path = os.path.join(out_dir, v + ".trees")
+        write_bundle(path, os.path.join(args.lovo, v + ".frame.trees"), online, offline, context_names,
+                     f"GazeCom without {v}, nested (no first stage behind its rows saw {v}): {n2} samples; {settings2}")
+        print(f"train_classifier: {path} ({n2} samples) at {time.time() - start:.0f} s", flush=True)
 
 
 def fit_context(args, rows, names, keep):
@@ -343,12 +375,19 @@ def main():
     ap.add_argument("--context-iterations", type=int, default=10, help="the second stage's boosting iterations")
     ap.add_argument("--context-leaves", type=int, default=127, help="the second stage's leaves per tree at most")
     ap.add_argument("--frame-only", action="store_true", help="no second stage (the first stage's model alone)")
+    ap.add_argument("--nested", help="comma-separated videos: also LOVO/nested/<video>.trees, second stages on "
+                    "rows from first stages that never saw the video (17 first-stage fits a video)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
+    if args.nested and args.frame_only:
+        sys.exit("train_classifier: --nested needs the second stage (drop --frame-only)")
     root = unpacked(args.data)
     files = sorted(os.path.join(root, v, f) for v in os.listdir(root) for f in os.listdir(os.path.join(root, v))
                    if f.endswith(".arff"))[::args.every]
     videos = [os.path.basename(os.path.dirname(p)) for p in files]
+    for v in (args.nested.split(",") if args.nested else []):  # before hours of fitting, not after
+        if v not in videos:
+            sys.exit(f"train_classifier: --nested: no video '{v}' (videos: {', '.join(sorted(set(videos)))})")
     start = time.time()
     data, names = load_all(args, files)
     print(f"train_classifier: features of {len(files)} recordings and {args.augment} copies of each "
@@ -379,6 +418,8 @@ def main():
             check_model(args, online, path, files, held, (), frame_path)
             check_model(args, offline, path, files, held, ("--offline",), frame_path)
         print(f"train_classifier: {path} ({n2} samples) at {time.time() - start:.0f} s", flush=True)
+    if args.nested:
+        nested_lovo(args, data, names, files, videos, settings2, start)
 
 
 def write_full_model(args, data, names, files, settings, settings2, rows, context_names, start):

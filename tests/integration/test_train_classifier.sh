@@ -5,7 +5,8 @@
 # model, copy each recording as another tracker would record it, write the model in trees.h's
 # format and find fovea-ctl agreeing with scikit-learn on every sample (its own check); --lovo
 # must write one model per video. fovea-ctl must then label with the model, and refuse a damaged
-# one naming the file and line, writing nothing.
+# one naming the file and line, writing nothing. --nested, on three videos, must write a video's
+# second stages fitted on rows from first stages that never saw it, and refuse a video not there.
 # Usage: test_train_classifier.sh CTL SOURCE_DIR
 set -u
 CTL=$1 SRC=$2
@@ -14,10 +15,11 @@ trap '[ -n "${KEEP:-}" ] || rm -rf "$WORK"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 
 echo "== a made-up GazeCom: 2 videos x 2 recordings of 12 s"
-/usr/bin/python3 - "$WORK/gc/ground_truth" <<'PY' || fail "making the recordings"
+make_gazecom() {  # ROOT VIDEO,VIDEO,...
+/usr/bin/python3 - "$1" "$2" <<'PY'
 import math, os, random, sys
 root = sys.argv[1]
-for video in ("clip_a", "clip_b"):
+for video in sys.argv[2].split(","):
     os.makedirs(os.path.join(root, video))
     for observer in ("AAA", "BBB"):
         rng = random.Random(f"{video}{observer}")
@@ -48,6 +50,8 @@ for video in ("clip_a", "clip_b"):
                     px = py = 0
                 out.write(f"{t * 4000},{px:.2f},{py:.2f},{0 if label == 4 else 1},{label},?,{label}\n")
 PY
+}
+make_gazecom "$WORK/gc/ground_truth" clip_a,clip_b || fail "making the recordings"
 
 echo "== one model per video held out, then one on everything"
 export XDG_CACHE_HOME="$WORK/cache"
@@ -91,4 +95,20 @@ check_refused 's/^fovea-trees 1$/fovea-trees 7/' "bad.trees:5: format version is
 check_refused 's/^stage online 0.032$/stage online 2/' "bad.trees:$online_at: 'stage online' needs one look-ahead"
 check_refused 's/^stage frame$/stage frames/' "bad.trees:3: stage 'frames' is none of frame, online, offline"
 check_refused "$((online_at + 4))s/^classes [0-9]* /classes 0 /" "bad.trees:$((online_at + 4)): classes '0' is not an integer"
+
+echo "== --nested: a video's second stages from first stages that never saw it"
+make_gazecom "$WORK/gc3/ground_truth" clip_a,clip_b,clip_c || fail "making the recordings"
+opts3=(--data "$WORK/gc3" --iterations 6 --leaves 7 --context-iterations 4 --context-stride-ms 16 --augment 1)
+if /usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts3[@]}" --lovo "$WORK/lovo3" --nested clip_x \
+    >"$WORK/nested.txt" 2>&1; then
+  fail "--nested took a video that is not there"
+fi
+grep -q "no video 'clip_x' (videos: clip_a, clip_b, clip_c)" "$WORK/nested.txt" || fail "unclear: $(cat "$WORK/nested.txt")"
+/usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts3[@]}" --lovo "$WORK/lovo3" --nested clip_a \
+  >"$WORK/nested.txt" 2>&1 || fail "nested: $(cat "$WORK/nested.txt")"
+grep -q "nested (no first stage behind its rows saw clip_a)" "$WORK/lovo3/nested/clip_a.trees" \
+  || fail "the nested model does not say what it is: $(head -1 "$WORK/lovo3/nested/clip_a.trees")"
+[ "$(ls "$WORK/lovo3/nested")" = "clip_a.trees" ] || fail "nested left $(ls "$WORK/lovo3/nested")"
+"$CTL" classify "$in" "$WORK/nested.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/lovo3/nested/clip_a.trees" \
+  2>"$WORK/err" || fail "classify with the nested model: $(cat "$WORK/err")"
 echo "PASS"
