@@ -39,7 +39,7 @@ struct Scored {
   Labeled out;       // index and, for a sample without gaze, its front-end label
   double t = 0;
   bool gaze = false;
-  bool near_loss = false;     // TreesModel::noise_is_blink
+  bool noise_as_blink = false;  // TreesModel::noise_is_blink
   std::uint64_t run = 0;      // gaze run: a sample without gaze ends one
   std::array<double, kMaxTreeClasses> p{};  // class probabilities
 };
@@ -101,7 +101,7 @@ class TreesCore final : public Core {
     if (!s.gaze) ++run_;
     s.run = run_;
     ++next_;
-    if (s.gaze) s.near_loss = TreesModel::noise_is_blink(c.frame.data());
+    if (s.gaze) s.noise_as_blink = TreesModel::noise_is_blink(c.frame.data());
     if (s.gaze && !model_) s.out.label = Label::Unknown;
     if (s.gaze && model_) model_->frame().probabilities(c.frame.data(), c.p.data());
     if (staged_) {
@@ -110,7 +110,7 @@ class TreesCore final : public Core {
       return;
     }
     if (s.gaze && model_) {
-      if (!smooth_) s.out.label = model_->frame().label(c.frame.data(), s.near_loss);
+      if (!smooth_) s.out.label = model_->frame().label(c.frame.data(), s.noise_as_blink);
       s.p = c.p;
     }
     deliver(s, out);
@@ -130,11 +130,11 @@ class TreesCore final : public Core {
         if (smooth_) {
           context_->probabilities(f.data(), s.p.data());
         } else {
-          s.out.label = context_->label(f.data(), s.near_loss);
+          s.out.label = context_->label(f.data(), s.noise_as_blink);
         }
       } else if (s.gaze && model_) {  // context features asked for, but no second stage to use them
         s.p = ctx_[ctx_next_].p;
-        if (!smooth_) s.out.label = model_->frame().label(ctx_[ctx_next_].frame.data(), s.near_loss);
+        if (!smooth_) s.out.label = model_->frame().label(ctx_[ctx_next_].frame.data(), s.noise_as_blink);
       }
       ++ctx_next_;
       deliver(s, out);
@@ -166,7 +166,7 @@ class TreesCore final : public Core {
         std::array<double, kMaxTreeClasses> near{}, wide{};
         window_mean(labelled_, kSmoothShortS, last.class_count(), near);
         window_mean(labelled_, smooth_long_s_, last.class_count(), wide);
-        l.label = last.smoothed_label(near.data(), wide.data(), s.near_loss);
+        l.label = last.smoothed_label(near.data(), wide.data(), s.noise_as_blink);
       }
       out.push_back(l);
       ++labelled_;
@@ -291,17 +291,17 @@ TreesModel::TreesModel(TreeEnsemble trees, const std::string& origin) : trees_(s
 TreesModel::TreesModel(const std::string& text, const std::string& origin)
     : TreesModel(TreeEnsemble::parse(text, origin, feature_names()), origin) {}
 
-Label TreesModel::label(const float* features, bool near_loss) const {
+Label TreesModel::label(const float* features, bool noise_as_blink) const {
   double scores[kMaxTreeClasses];
-  return named(static_cast<std::size_t>(trees_.predict(features, scores)), near_loss);
+  return named(static_cast<std::size_t>(trees_.predict(features, scores)), noise_as_blink);
 }
 
-Label TreesModel::named(std::size_t c, bool near_loss) const {
+Label TreesModel::named(std::size_t c, bool noise_as_blink) const {
   // Away from a loss and off-screen gaze the coders' noise is GazeCom's own: odd stretches of gaze,
   // no movement. Calling them the likeliest movement instead (an earlier rule, from when the trees
   // called an EyeLink 1000's large saccades noise: they no longer do since they also learn copies
   // recorded as other trackers would) put fixations where the coders have none.
-  return labels_[c] == Label::Blink && !near_loss ? Label::Unknown : labels_[c];
+  return labels_[c] == Label::Blink && !noise_as_blink ? Label::Unknown : labels_[c];
 }
 
 void TreesModel::probabilities(const float* features, double* p) const {
@@ -313,14 +313,14 @@ void TreesModel::probabilities(const float* features, double* p) const {
   for (std::size_t c = 0; c < k; ++c) p[c] /= sum;
 }
 
-Label TreesModel::smoothed_label(const double* near, const double* wide, bool near_loss) const {
+Label TreesModel::smoothed_label(const double* near, const double* wide, bool noise_as_blink) const {
   const std::size_t k = labels_.size();
   const auto saccade = static_cast<std::size_t>(std::find(labels_.begin(), labels_.end(), Label::Saccade) - labels_.begin());
   if (saccade < k && std::max_element(near, near + k) == near + saccade) return Label::Saccade;
   double rest[kMaxTreeClasses];
   std::copy(wide, wide + k, rest);
   if (saccade < k) rest[saccade] = -1;  // the short window said no saccade
-  return named(static_cast<std::size_t>(std::max_element(rest, rest + k) - rest), near_loss);
+  return named(static_cast<std::size_t>(std::max_element(rest, rest + k) - rest), noise_as_blink);
 }
 
 bool TreesModel::noise_is_blink(const float* frame_features) {

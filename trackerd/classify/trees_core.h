@@ -35,18 +35,18 @@ class TreesModel {
   // A model over features.h's features alone, from a "fovea-trees" text.
   TreesModel(const std::string& text, const std::string& origin);
   // One sample's label from its own scores (the noise rule applied): what scikit-learn predicts.
-  Label label(const float* features, bool near_loss) const;
+  Label label(const float* features, bool noise_as_blink) const;
   // Class probabilities (softmax of the raw scores) into p[0..classes).
   void probabilities(const float* features, double* p) const;
   // The label from probabilities averaged over the short and the long window (above).
-  Label smoothed_label(const double* near, const double* wide, bool near_loss) const;
+  Label smoothed_label(const double* near, const double* wide, bool noise_as_blink) const;
   // Whether the coders' noise is a blink, from a sample's features.h features (above).
   static bool noise_is_blink(const float* frame_features);
   const TreeEnsemble& trees() const { return trees_; }
   std::size_t class_count() const { return labels_.size(); }
 
  private:
-  Label named(std::size_t c, bool near_loss) const;
+  Label named(std::size_t c, bool noise_as_blink) const;
   TreeEnsemble trees_;
   std::vector<Label> labels_;  // per class
 };
