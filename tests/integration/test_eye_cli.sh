@@ -27,6 +27,12 @@ grep -q -- "--lash-length" <<<"$out" || fail "unclear lash-length message: $out"
 "$CTL" synth-eye --out "$WORK/lashes" --count 2 --lash-length 2.5 --lit-lashes 2>"$WORK/lashes.err" \
   || fail "synth-eye --lit-lashes: $(cat "$WORK/lashes.err")"
 grep -q "(lashes 2.500x) (lit lashes)" "$WORK/lashes.err" || fail "lit lashes not reported: $(cat "$WORK/lashes.err")"
+out=$("$CTL" synth-eye --out "$WORK/bad-lid" --lid-cover 1.5 2>&1) && fail "lid cover 1.5 accepted"
+grep -q -- "--lid-cover" <<<"$out" || fail "unclear lid-cover message: $out"
+"$CTL" synth-eye --out "$WORK/lid" --count 2 --lid-cover 0.15 2>"$WORK/lid.err" || fail "synth-eye --lid-cover: $(cat "$WORK/lid.err")"
+grep -q "(upper lid over 0.150 of the pupil)" "$WORK/lid.err" || fail "lid cover not reported: $(cat "$WORK/lid.err")"
+"$CTL" synth-eye --out "$WORK/no-lid" --count 1 2>/dev/null || fail "synth-eye"
+cmp -s "$WORK/lid/eye_0000.png" "$WORK/no-lid/eye_0000.png" && fail "--lid-cover changed nothing"
 
 echo "== dark irises (issue 44): detect-pupil finds the pupil, not the iris"
 "$CTL" synth-eye --out "$WORK/dark" --count 8 --seed 5 --pupil-iris-contrast 9 2>/dev/null || fail "synth-eye --pupil-iris-contrast"

@@ -158,6 +158,7 @@ struct SynthEyeArgs {
   bool hard = false;
   std::uint64_t seed = 1;
   double pupil_iris_contrast = 0, exposure = 1, eyelash_length = 1;
+  double lid_cover = -1;  // < 0: as --hard (or not) says
   bool lit_lashes = false;
 };
 
@@ -185,6 +186,7 @@ int cmd_synth_eye(const SynthEyeArgs& a) {
     o.exposure = a.exposure;
     o.eyelash_length = a.eyelash_length;
     o.lit_lashes = a.lit_lashes;
+    if (a.lid_cover >= 0) o.eyelid_cover = a.lid_cover;
     eye::SyntheticEye generator(o);  // checks the options before anything is created
     std::error_code ec;
     if (std::filesystem::exists(dir, ec)) {
@@ -224,6 +226,7 @@ int cmd_synth_eye(const SynthEyeArgs& a) {
     if (a.exposure != 1) conditions += " (exposure " + fixed3(a.exposure) + ")";
     if (a.eyelash_length != 1) conditions += " (lashes " + fixed3(a.eyelash_length) + "x)";
     if (a.lit_lashes) conditions += " (lit lashes)";
+    if (a.lid_cover >= 0) conditions += " (upper lid over " + fixed3(a.lid_cover) + " of the pupil)";
     std::fprintf(stderr, "fovea-ctl synth-eye: wrote %d image(s) %ux%u%s and truth.csv to %s\n", count, w, h,
                  conditions.c_str(), dir.c_str());
     return 0;
@@ -439,6 +442,10 @@ Command add_synth_eye_command(CLI::App& app) {
   synth_eye->add_flag("--lit-lashes", o->lit_lashes,
                       "lashes lit by the infrared LEDs: grey lines across the pupil, as infrared cameras see them "
                       "(by default they only darken what they cover)");
+  synth_eye->add_option("--lid-cover", o->lid_cover,
+                        "share of the pupil's height the upper lid covers, 0..1, with the eye looking straight "
+                        "ahead (it drops further when the eye looks down; default 0, 0.3 with --hard)")
+      ->check(CLI::Range(0.0, 1.0));
   return {synth_eye, [o] { return cmd_synth_eye(*o); }};
 }
 
