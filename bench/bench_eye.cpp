@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <iostream>
@@ -30,6 +31,7 @@
 
 #include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "eye/eye_detector.h"
 #include "sim/synthetic_eye.h"
@@ -125,6 +127,7 @@ std::vector<Variant> all_variants() {
   add("ds4", [](eye::DetectorSettings& s) { s.coarse_downscale = 4; });
   add("no-inside", [](eye::DetectorSettings& s) { s.search_inside = false; });  // the detector before issue 44
   add("no-edges", [](eye::DetectorSettings& s) { s.edge_candidates = false; });  // no PuRe-style edge candidates
+  add("no-contour", [](eye::DetectorSettings& s) { s.contour_candidates = false; });  // no contour-integral candidates inside
   add("no-roi", [](eye::DetectorSettings& s) { s.roi_tracking = false; });
   add("rays32", [](eye::DetectorSettings& s) { s.rays = 32; });
   add("least-squares", [](eye::DetectorSettings& s) { s.fit = eye::FitMethod::LeastSquares; });
@@ -223,7 +226,9 @@ struct Result {
   int confident = 0;
 };
 
-Result evaluate(const Variant& variant, const std::vector<Frame>& frames, bool closed) {
+// `answers`, when given, gets the best pass's answers frame by frame.
+Result evaluate(const Variant& variant, const std::vector<Frame>& frames, bool closed,
+                std::vector<eye::EyeMeasurement>* answers = nullptr) {
   Result best;
   best.ms = 1e300;
   for (int repeat = 0; repeat < 2; ++repeat) {  // the faster of two passes: the machine is shared
@@ -272,9 +277,56 @@ Result evaluate(const Variant& variant, const std::vector<Frame>& frames, bool c
       if (confident > 0) r.confident_right = 100.0 * confident_right / confident;
     }
     best = r;
+    if (answers) *answers = std::move(found);
   }
   return best;
 }
+
+// --dump: every frame of a set as PNG and one CSV row per frame and variant (truth, answer, error),
+// to look at what the figures count. The directory must be new or empty.
+class FrameDump {
+ public:
+  explicit FrameDump(std::string dir) : dir_(std::move(dir)) {}
+  bool open() {
+    std::error_code ec;
+    std::filesystem::create_directories(dir_, ec);
+    if (!std::filesystem::is_directory(dir_) || !std::filesystem::is_empty(dir_, ec)) {
+      std::cerr << "--dump " << dir_ << ": not a new or empty directory\n";
+      return false;
+    }
+    csv_.open(std::filesystem::path(dir_) / "frames.csv");
+    csv_ << "file,variant,truth_x,truth_y,truth_major,truth_minor,truth_angle_deg,found,x,y,major,minor,angle_deg,"
+            "confidence,fit_confidence,error_px,why\n";
+    return static_cast<bool>(csv_);
+  }
+  void frames(const std::string& prefix, const std::vector<Frame>& frames) {
+    for (std::size_t i = 0; i < frames.size(); ++i) cv::imwrite(path(prefix, i), frames[i].image);
+  }
+  void answers(const std::string& prefix, const std::string& variant, const std::vector<Frame>& frames,
+               const std::vector<eye::EyeMeasurement>& found) {
+    for (std::size_t i = 0; i < frames.size() && i < found.size(); ++i) {
+      const auto& t = frames[i].truth.pupil;
+      const auto& a = found[i];
+      const double error = std::hypot(a.pupil.centre.x - t.centre.x, a.pupil.centre.y - t.centre.y);
+      std::string why = a.why;
+      std::replace(why.begin(), why.end(), ',', ';');
+      csv_ << std::filesystem::path(path(prefix, i)).filename().string() << "," << variant << "," << t.centre.x << ","
+           << t.centre.y << "," << t.major << "," << t.minor << "," << t.angle_deg << "," << a.pupil_found << ","
+           << a.pupil.centre.x << "," << a.pupil.centre.y << "," << a.pupil.major << "," << a.pupil.minor << ","
+           << a.pupil.angle_deg << "," << a.confidence << "," << a.fit_confidence << "," << error << "," << why
+           << "\n";
+    }
+  }
+
+ private:
+  std::string path(const std::string& prefix, std::size_t i) const {
+    char name[32];
+    std::snprintf(name, sizeof name, "_%04zu.png", i);
+    return (std::filesystem::path(dir_) / (prefix + name)).string();
+  }
+  std::string dir_;
+  std::ofstream csv_;
+};
 
 std::vector<cv::Size> parse_sizes(const std::string& text) {
   std::vector<cv::Size> sizes;
@@ -552,6 +604,10 @@ int main(int argc, char** argv) {
   app.add_flag("--fit-confidence", refit, "refit the logistic confidence model and print its reliability");
   std::string samples_path;
   app.add_option("--samples-csv", samples_path, "with --fit-confidence: write every fitted candidate's evidence and error");
+  std::string dump_dir;
+  app.add_option("--dump", dump_dir,
+                 "write every frame (SIZE_SET_NNNN.png) and each variant's answer for it (frames.csv) into this new "
+                 "or empty directory");
   CLI11_PARSE(app, argc, argv);
   cv::setNumThreads(1);  // ms/frame on one core
   if (refit) return fit_confidence(frames, samples_path);
@@ -572,6 +628,8 @@ int main(int argc, char** argv) {
   }
   std::ofstream csv;
   if (!csv_path.empty() && !open_csv(csv_path, csv)) return 1;
+  std::optional<FrameDump> dump;
+  if (!dump_dir.empty() && !dump.emplace(dump_dir).open()) return 1;
   std::vector<Variant> variants;
   for (const auto& v : all_variants()) {
     const std::string key = v.name.substr(0, v.name.find('('));
@@ -586,9 +644,13 @@ int main(int argc, char** argv) {
   std::uint64_t seed = 42;
   for (const auto size : sizes) {
     const std::string res = std::to_string(size.width) + "x" + std::to_string(size.height);
-    const auto report = [&](const std::string& set_name, const std::vector<Frame>& sequence, bool closed) {
+    const auto report = [&](const std::string& set_name, const std::vector<Frame>& sequence, bool closed, bool dumped) {
+      const std::string prefix = res + "_" + set_name;
+      if (dump && dumped) dump->frames(prefix, sequence);
       for (const auto& v : variants) {
-        const Result r = evaluate(v, sequence, closed);
+        std::vector<eye::EyeMeasurement> answers;
+        const Result r = evaluate(v, sequence, closed, dump && dumped ? &answers : nullptr);
+        if (dump && dumped) dump->answers(prefix, v.name, sequence, answers);
         std::printf("%-9s %-16s %-28s %7.1f %8.3f %8.3f %6.1f %6.1f %9.1f %7.1f %8.3f\n", res.c_str(),
                     set_name.c_str(), v.name.c_str(), r.detected, r.median, r.p95, r.within2, r.within5,
                     r.confident_right, r.false_positive, r.ms);
@@ -604,10 +666,10 @@ int main(int argc, char** argv) {
     std::map<std::string, std::vector<Frame>> unions;  // each group's conditions, one condition per frame
     for (const auto& set : sets) {
       auto sequence = render_sequence(set, size, frames, ++seed);
-      report(set.name, sequence, set.closed);
+      report(set.name, sequence, set.closed, true);
       if (!set.group.empty()) std::move(sequence.begin(), sequence.end(), std::back_inserter(unions[set.group]));
     }
-    for (const auto& [group, union_frames] : unions) report(group, union_frames, false);
+    for (const auto& [group, union_frames] : unions) report(group, union_frames, false, false);  // dumped as their sets
   }
   return 0;
 }

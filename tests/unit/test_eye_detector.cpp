@@ -123,16 +123,18 @@ struct Errors {
   bool doubts_only_lower = true;  // the answer's confidence never above its fit's
 };
 
-Errors run_generated(SyntheticEyeOptions o, int frames, bool search_inside = true, bool edge_candidates = true) {
+// `tweak` changes the detector's settings (nullptr: the defaults); gazes are drawn within
+// +-gaze_deg across and 0.75 of it down and up.
+Errors run_generated(SyntheticEyeOptions o, int frames, void (*tweak)(DetectorSettings&) = nullptr,
+                     double gaze_deg = 20) {
   SyntheticEye eye(o);
   DetectorSettings s;
   s.leds = o.leds;
-  s.search_inside = search_inside;
-  s.edge_candidates = edge_candidates;
+  if (tweak) tweak(s);
   EyeDetector d(s);
   Errors out;
   std::mt19937 rng(static_cast<unsigned>(o.seed));
-  std::uniform_real_distribution<double> angle(-20, 20);
+  std::uniform_real_distribution<double> angle(-gaze_deg, gaze_deg);
   for (int i = 0; i < frames; ++i) {
     EyeTruth truth;
     const cv::Mat img = eye.render(angle(rng), angle(rng) * 0.75, 1.0, &truth);
@@ -209,7 +211,7 @@ TEST(EyeDetector, GeneratedDarkIrisesAndWeakLight) {
     EXPECT_EQ(e.wrong_size, 0) << "contrast " << contrast;
     EXPECT_LT(quantile(e.error, 0.95), 1.0) << "contrast " << contrast;
     // Without the search inside the winning candidate, the iris is the answer.
-    const Errors iris = run_generated(o, 10, false);
+    const Errors iris = run_generated(o, 10, [](DetectorSettings& s) { s.search_inside = false; });
     EXPECT_GE(iris.wrong_size, 8) << "contrast " << contrast;
   }
   SyntheticEyeOptions o;
@@ -244,6 +246,38 @@ TEST(EyeDetector, GeneratedLitLashesAcrossThePupil) {
   EXPECT_LT(quantile(e.error, 0.9), 1.0);
 }
 
+// Issue 44: a dark iris (9 levels) under long lit lashes, the lid over the pupil's top, at 192x192
+// (the real dark-iris sets' size), eyes looking within +-10 degrees: no ray edge follows the pupil's
+// outline there. The contour integral (EYE.md step 6b) finds it and moves the fit onto it; without
+// it the iris is answered, or a piece of the pupil. When written: 86 of 160 within 2 px against 30,
+// 1 of 32 confident answers wrong against 3 of 13.
+TEST(EyeDetector, GeneratedDarkIrisUnderLashes) {
+  int with = 0, without = 0, frames = 0, confident = 0, wrong_confident = 0;
+  const auto within2 = [](const Errors& e) {
+    return static_cast<int>(std::count_if(e.error.begin(), e.error.end(), [](double x) { return x <= 2; }));
+  };
+  for (std::uint64_t seed = 460; seed < 468; ++seed) {
+    SyntheticEyeOptions o;
+    o.seed = seed;
+    o.width = o.height = 192;
+    o.pupil_iris_contrast = 9;
+    o.eyelash_length = 2.5;
+    o.lit_lashes = true;
+    o.eyelid_cover = 0.15;
+    const Errors a = run_generated(o, 20, nullptr, 10);
+    const Errors b = run_generated(o, 20, [](DetectorSettings& s) { s.contour_candidates = false; }, 10);
+    with += within2(a);
+    without += within2(b);
+    confident += a.confident;
+    wrong_confident += a.confident - a.confident_right;
+    frames += 20;
+  }
+  EXPECT_GE(with, 70) << with << " of " << frames << " within 2 px; without the contour integral " << without;
+  EXPECT_LE(without, 45) << without << " of " << frames;
+  EXPECT_GE(confident, 20);
+  EXPECT_LE(wrong_confident, 2) << wrong_confident << " of " << confident;
+}
+
 // Issue 44: an eye camera low and to the side sees the pupil strongly elliptical (minor/major
 // 0.3-0.5); its flat sides are as straight as a lid margin over the lid test's span. They were taken
 // for lids and removed, leaving a fit the confidence rejected (18 % found in bench_eye).
@@ -269,7 +303,8 @@ TEST(EyeDetector, GeneratedGlassesAtHighResolution) {
     o.height = 480;
     o.glasses_reflection = true;
     o.illumination_gradient = 0.4;
-    const Errors a = run_generated(o, 10), b = run_generated(o, 10, true, false);
+    const Errors a = run_generated(o, 10),
+                 b = run_generated(o, 10, [](DetectorSettings& s) { s.edge_candidates = false; });
     with.missed += a.missed;
     with.wrong_size += a.wrong_size;
     with.error.insert(with.error.end(), a.error.begin(), a.error.end());
@@ -300,6 +335,56 @@ TEST(EyeDetectorStages, EdgeCandidatesFindAPupilLighterThanLashes) {
   EXPECT_LT(std::hypot(edges[0].centre.x - 180.3, edges[0].centre.y - 130.6), 2.0);
   EXPECT_NEAR(edges[0].radius, 18, 4);
   EXPECT_GT(edges[0].surround - edges[0].inner, 15);
+}
+
+// The contour integral's stages (EYE.md step 6b) on a drawn window as step 6b gives it to them
+// (blurred, and opened when there are lashes): a pupil 9 levels darker than the iris around it,
+// sensor noise, and lit lashes across it or not.
+cv::Mat faint_pupil(const Ellipse& pupil, bool lashes) {
+  cv::Mat img(110, 110, CV_8U, cv::Scalar(60));
+  cv::ellipse(img, cv::RotatedRect(cv::Point2f(static_cast<float>(pupil.centre.x - 0.5), static_cast<float>(pupil.centre.y - 0.5)),
+                                   cv::Size2f(static_cast<float>(pupil.major), static_cast<float>(pupil.minor)),
+                                   static_cast<float>(pupil.angle_deg)),
+              cv::Scalar(51), cv::FILLED, cv::LINE_AA);
+  for (int i = 0; lashes && i < 14; ++i)
+    cv::line(img, cv::Point(18 + 6 * i, 10), cv::Point(26 + 5 * i, 100), cv::Scalar(90), 1, cv::LINE_AA);
+  cv::Mat noise(img.size(), CV_16S);
+  cv::randn(noise, 0, 2);
+  cv::Mat out;
+  img.convertTo(out, CV_16S);
+  out += noise;
+  out.convertTo(img, CV_8U);
+  cv::GaussianBlur(img, img, cv::Size(0, 0), 1.0);
+  if (lashes) cv::morphologyEx(img, img, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
+  return img;
+}
+
+TEST(EyeDetectorStages, TheContourIntegralFindsAFaintPupil) {
+  namespace st = fovea::trackerd::eye::stages;
+  const Ellipse truth{{55.3, 52.6}, 26, 21, 15};  // internal convention, as the stages use
+  const cv::Mat under_lashes = faint_pupil(truth, true);
+  const auto found =
+      st::find_contour_candidates(under_lashes, cv::Rect(0, 0, 110, 110), {52, 55}, 16, 6, 25, 2);
+  ASSERT_FALSE(found.empty());
+  EXPECT_LT(distance(found[0].centre, truth.centre), 2.0) << found[0].centre;
+  EXPECT_NEAR(found[0].radius, 12, 2.5);
+  EXPECT_TRUE(found[0].on_contour);
+  EXPECT_GT(found[0].surround - found[0].inner, 4);  // measured on the image: the pupil is darker
+  // From a fit 2 px off and 15 % small, the refinement moves onto the outline (read 2.5 px either
+  // side of it: within about a pixel, not the rays' tenth).
+  const Ellipse start{truth.centre + cv::Point2d(1.5, -1.4), 0.85 * truth.major, 0.85 * truth.minor, 30};
+  const Ellipse refined = st::refine_on_contour(faint_pupil(truth, false), start, 2.5);
+  EXPECT_LT(distance(refined.centre, truth.centre), 0.9) << refined.centre;
+  EXPECT_NEAR(refined.major, truth.major, 1.5);
+  EXPECT_NEAR(refined.minor, truth.minor, 1.5);
+  // Under lashes the centre still comes within a pixel; the outline is read 1-2 px inside where
+  // lashes run along it (the opening keeps them, joined to the iris: EYE.md Known limitations).
+  const Ellipse lashed = st::refine_on_contour(under_lashes, start, 2.5);
+  EXPECT_LT(distance(lashed.centre, truth.centre), 1.0) << lashed.centre;
+  EXPECT_GT(lashed.major, 0.8 * truth.major);
+  // It stays near where it starts: a fit of something else is not moved onto this pupil.
+  const Ellipse far{truth.centre + cv::Point2d(14, 8), truth.major, truth.minor, 15};
+  EXPECT_GT(distance(st::refine_on_contour(under_lashes, far, 2.5).centre, truth.centre), 8);
 }
 
 // The lid test itself: the straight run of a lid over a round pupil goes, an elliptical pupil's
@@ -430,9 +515,9 @@ TEST(EyeDetectorConfidence, AnswersAreDoubtedForRivalsAndDiscsInside) {
 // Issue 44: a dark iris (9 levels) under long lit lashes, the eye looking anywhere within +-20
 // degrees. Step 6b often finds no pupil inside the iris there, and the iris's own fit looks
 // confident (its outline is a sharp dark disc, lashes over a third of it): of the answers whose fit
-// alone was confident, two thirds were the iris (24 of 37 here). The answer's confidence (step 6c)
-// weighs the darker disc the search fitted inside it and the rivals elsewhere: 5 confident answers,
-// 4 right -- better, still short of issue 44's 98 % (EYE.md, Known limitations).
+// alone was confident, about half are the iris (19 of 42 here; 24 of 37 before the contour
+// integral of step 6b). The answer's confidence (step 6c) weighs the darker disc the search fitted
+// inside it and the rivals elsewhere: 9 confident answers, all right (4 of 5 before).
 TEST(EyeDetector, ConfidentAnswersUnderLashesOverADarkIris) {
   int confident = 0, confident_right = 0, fit_confident = 0, fit_confident_right = 0;
   for (std::uint64_t seed = 440; seed < 500; seed += 10) {
@@ -450,9 +535,9 @@ TEST(EyeDetector, ConfidentAnswersUnderLashesOverADarkIris) {
     fit_confident_right += e.fit_confident_right;
   }
   ASSERT_GE(fit_confident, 25) << fit_confident_right << " of " << fit_confident << "; answer: " << confident_right << " of " << confident;
-  EXPECT_LT(fit_confident_right, fit_confident / 2);  // the fit's own confidence: mostly the iris
   EXPECT_LE(confident, fit_confident / 4);
-  EXPECT_GE(confident_right, confident * 2 / 3) << confident_right << " of " << confident;
+  EXPECT_GE(confident, 5);
+  EXPECT_GE(confident_right, confident - 1) << confident_right << " of " << confident;
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 // eye_detector.cpp, which runs them; eye/EYE.md ("Detector") describes them in the order they run:
 //   glint_candidates.cpp   bright, round, saturated blobs, and the mask that keeps them out of the edge search
 //   pupil_candidates.cpp   dark centre-surround blobs on an integral image (Świrski 2012 §3.1)
+//   pupil_edge_candidates.cpp  curved edges with darker inside (PuRe, Santini 2018 §3.2-3.3)
+//   pupil_contour_candidates.cpp  circles the mean level rises fastest across (Daugman 2004 §2)
 //   pupil_edges.cpp        edge points (Starburst rays or Canny), eyelid runs removed
 //   pupil_ellipse_fit.cpp  RANSAC ellipse fit and least-squares refit (Świrski 2012 §3.3)
 //   pupil_confidence.cpp   the fit's evidence and the calibrated confidence (PuRe, Santini 2018 §3.4)
@@ -86,6 +88,9 @@ struct Blob {
   double radius = 0;   // full-resolution pixels
   double response = 0; // surround mean minus inner mean, grey levels
   double inner = 0, surround = 0;
+  // From the contour integral (find_contour_candidates): the radius is the outline's, and rays look
+  // for the strongest rise near it rather than the first.
+  bool on_contour = false;
 };
 
 // The best `count` dark blobs in `window`, best first (`small` and `integral` are reused buffers).
@@ -100,6 +105,19 @@ std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, i
 std::vector<Blob> find_edge_candidates(const cv::Mat& small, const cv::Rect& window, double rmin, double rmax,
                                        std::size_t count);
 
+// --- pupil_contour_candidates.cpp
+
+// Up to `count` pupil candidates in `window` of `grey`: the circles, centred within `reach` px of
+// `around`, with radii in [rmin, rmax] px, across which the mean level rises fastest, the two sectors
+// of eight that rise most left out (Daugman 2004 §2, eq. 1), best first. For a pupil barely darker
+// than the iris it is inside, with lashes across it (the search inside a fitted candidate).
+std::vector<Blob> find_contour_candidates(const cv::Mat& grey, const cv::Rect& window, const cv::Point2d& around,
+                                          double reach, double rmin, double rmax, std::size_t count);
+// The ellipse near `start` (internal pixel convention) across which the contour integral of `img`
+// rises most, read `across` px either side of the outline, sectors trimmed as above: the outline of
+// a fit on edge points that lashes and a weak edge scatter, moved onto the edge the whole outline shares.
+Ellipse refine_on_contour(const cv::Mat& img, const Ellipse& start, double across);
+
 // --- pupil_edges.cpp
 
 struct EdgePoint {
@@ -112,6 +130,11 @@ struct EdgePoint {
 std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
                                  const cv::Point2d& from, double pupil_level, double min_step, double max_length,
                                  int rays, double thin_px);
+// Rays from the centre of `around` to the strongest dark-to-bright step between `inner` and `outer`
+// times its outline's distance in each direction: the outline of a pupil whose shape is known
+// roughly (a contour candidate, a fit refined on the contour integral), lashes inside it passed over.
+std::vector<EdgePoint> band_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
+                                  const Ellipse& around, double inner, double outer, double min_step, int rays);
 // Canny edges around `from` whose gradient points away from it (dark inside).
 std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const GlintCandidates& glints, const cv::Point2d& from,
                                    double contrast, double max_length);

@@ -27,6 +27,8 @@ constexpr double kToPublic = 0.5;
 
 constexpr std::size_t kCandidates = 8;  // pupil candidates fitted per search
 constexpr std::size_t kEdgeCandidates = 4;  // and from edges, when none of those is a clear pupil
+constexpr std::size_t kContourCandidates = 2;  // and inside a winner, from the contour integral
+constexpr double kScatteredEdges = 0.7;  // inside a winner, a fit fewer rays than this share support is refined
 constexpr double kClearPupil = 0.9;     // a fit this confident ends the search
 constexpr double kDiscInside = 0.1;     // a fit inside the winner this confident, and darker inside
 constexpr double kDiscOutline = 0.9;    // along this share of its outline, makes the winner doubtful
@@ -74,6 +76,7 @@ struct FrameSearch {
   std::vector<EyeDetector::CandidateFit>* candidates = nullptr;
   std::mt19937 rng{12345};  // deterministic RANSAC: the same frame gives the same answer
   bool inside = false;      // a search inside a fitted candidate (search_inside): it does not recurse
+  const Ellipse* outer = nullptr;  // inside: the candidate searched in
 };
 
 // One search's outcome: the best pupil fit (or why there is none) and the glints of the window.
@@ -140,10 +143,14 @@ StarburstFit starburst_fit(FrameSearch& search, const Blob& blob, const GlintCan
   cv::Point2d from = blob.centre;
   StarburstFit out;
   for (int round = 0; round < 2; ++round) {
-    out.edges = settings.edges == EdgeMethod::Rays
-                    ? ray_edges(smooth, w.work, glints, from, w.pupil_level, min_step, w.reach, settings.rays,
-                                search.inside ? std::max(6.0, search.size / 40) : 0.0)
-                    : canny_edges(smooth, glints, from, w.contrast, std::max(3.0 * blob.radius, 8.0));
+    if (blob.on_contour)
+      out.edges = band_edges(smooth, w.work, glints, Ellipse{from, 2 * blob.radius, 2 * blob.radius, 0}, 0.6, 1.5,
+                             std::max(4.0, 0.5 * min_step), settings.rays);
+    else
+      out.edges = settings.edges == EdgeMethod::Rays
+                      ? ray_edges(smooth, w.work, glints, from, w.pupil_level, min_step, w.reach, settings.rays,
+                                  search.inside ? std::max(6.0, search.size / 40) : 0.0)
+                      : canny_edges(smooth, glints, from, w.contrast, std::max(3.0 * blob.radius, 8.0));
     remove_eyelid_lines(out.edges, blob.radius, search.rng);
     out.fit = fit_pupil(out.edges, settings.fit, from, search.rmin, search.rmax, search.rng);
     if (!out.fit) break;
@@ -183,10 +190,20 @@ PupilAttempt fit_candidate(FrameSearch& search, const Blob& blob, const GlintCan
   CandidateWindow w;
   if (!measure_pupil_level(search, blob, w, a)) return a;
   blur_work_window(search, blob, w);
-  const StarburstFit sb = starburst_fit(search, blob, glints, w);
+  StarburstFit sb = starburst_fit(search, blob, glints, w);
   if (!sb.fit) {
     a.why = sb.edges.size() < 6 ? "too few edge points" : "no ellipse fits the edge points";
     return a;
+  }
+  if (search.inside && search.settings.contour_candidates &&
+      static_cast<double>(sb.fit->inliers.size()) < kScatteredEdges * search.settings.rays) {
+    // Lashes and a weak outline scattered the edge points: the outline is moved onto the edge the
+    // whole of it shares (the contour integral), read across a little less than the opening's
+    // radius (normalise_contrast), as wide as what the opening leaves of lashes at the outline.
+    // Read that wide it places the outline within about a pixel; rays whose edges agree do ten
+    // times better, so a fit they support is left as it is (measured: bench/RESULTS.md, "The
+    // contour integral").
+    sb.fit->ellipse = refine_on_contour(search.grey, sb.fit->ellipse, std::max(2.5, search.size / 80));
   }
   score_fit(search, w, sb, a);
   return a;
@@ -260,6 +277,7 @@ std::optional<PupilAttempt> search_inside(FrameSearch& search, const PupilAttemp
   FrameSearch inner{search.settings, normalised, search.smooth, search.small, search.integral, search.size,
                     search.rmin, rmax, window, search.candidates};
   inner.inside = true;
+  inner.outer = &e;
   PupilAttempt found = search_window(inner, window);
   if (found.confidence <= 0) return std::nullopt;
   const cv::Point2d off = found.ellipse.centre - e.centre;
@@ -294,6 +312,12 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
   fit_in_turn(blobs);
   if (best.confidence < kClearPupil && search.settings.edge_candidates && !search.inside)
     fit_in_turn(find_edge_candidates(search.small, window, search.rmin, search.rmax, kEdgeCandidates));
+  if (best.confidence < kClearPupil && search.settings.contour_candidates && search.outer) {
+    // Pupils are a fifth of the iris's size or more: smaller circles are lash gaps and noise.
+    const double r = search.outer->minor / 2;
+    fit_in_turn(find_contour_candidates(search.grey, window, search.outer->centre, 0.5 * r,
+                                        std::max(search.rmin, 0.2 * r), search.rmax, kContourCandidates));
+  }
   if (best.ok && search.settings.search_inside && !search.inside) {
     // A confident disc inside replaces the winner only when darker than its surround along most
     // of its outline, as a pupil is inside an iris: a piece of a real pupil between lit lashes is

@@ -44,6 +44,10 @@ struct DetectorSettings {
   // When no dark blob gives a clear pupil, candidates from curved edges with darker inside as well
   // (PuRe-style): a pupil veiled by a spectacle reflection, or lighter than lashes (issue 44).
   bool edge_candidates = true;
+  // Inside the winning candidate (search_inside), candidates from the contour integral as well: the
+  // circles the mean level rises fastest across (Daugman 2004), for a pupil whose outline lashes
+  // split into arcs too short for an edge to follow (issue 44; eye/EYE.md step 6b).
+  bool contour_candidates = true;
   // Pupil radius range as fractions of min(width, height); everything else scales with the image.
   double min_pupil_radius = 0.02, max_pupil_radius = 0.25;
   double blink_aspect = 0.7;      // Lee 2009 §3.5.2: minor/major below this (relative to the eye's open aspect) is a blink

@@ -144,6 +144,39 @@ std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, c
   return edges;
 }
 
+// Each ray's strongest step within the band, when it rises by min_step: lit lashes inside the
+// outline and the lid or iris beyond it rise less or lie outside the band.
+std::vector<EdgePoint> band_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
+                                  const Ellipse& around, double inner, double outer, double min_step, int rays) {
+  std::vector<EdgePoint> edges;
+  edges.reserve(static_cast<std::size_t>(rays));
+  const double a = around.major / 2, b = around.minor / 2;
+  if (!(b > 0)) return edges;
+  const double th0 = around.angle_deg * kPi / 180.0;
+  RayProfile ray(smooth, valid, glints, static_cast<int>(outer * a / kRayStepPx) + 2 * kHalfSpan + 8);
+  for (int r = 0; r < rays; ++r) {
+    const double th = 2 * kPi * (r + 0.5) / rays;
+    const double dx = std::cos(th), dy = std::sin(th);
+    // The ellipse's distance from its centre in this direction.
+    const double u = std::cos(th - th0) / a, v = std::sin(th - th0) / b;
+    const double rho = 1 / std::sqrt(u * u + v * v);
+    const int first = std::max(kHalfSpan, static_cast<int>(inner * rho / kRayStepPx));
+    const int last = static_cast<int>(outer * rho / kRayStepPx);
+    ray.start(around.centre, dx, dy);
+    int cross = -1;
+    for (int i = first; i <= last && ray.has(i + kHalfSpan); ++i) {
+      if (ray.glint(i) || ray.glint(i + kHalfSpan)) continue;
+      if (ray.step_at(i) > min_step && (cross < 0 || ray.step_at(i) > ray.step_at(cross))) cross = i;
+    }
+    if (cross < 0) continue;
+    const auto edge = edge_at(ray, cross, min_step);
+    if (!edge) continue;
+    const double t = edge->first * kRayStepPx;
+    edges.push_back({{around.centre.x + t * dx, around.centre.y + t * dy}, edge->second});
+  }
+  return edges;
+}
+
 // Canny edges in the window whose gradient points away from the centre (dark inside).
 std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const GlintCandidates& glints, const cv::Point2d& from,
                                    double contrast, double max_length) {
