@@ -18,6 +18,11 @@ namespace {
 constexpr std::int64_t kMs = 1'000'000;
 constexpr int kRequestTimeoutMs = 1000;            // Pupil Remote answers in well under that
 constexpr std::int64_t kSyncEveryNs = 1000 * kMs;  // one "t" exchange a second
+// ... or every 100 ms while the fastest exchange kept is slower than 2 ms (the clock just started
+// or restarted on a busy machine): the mapping settles within a few exchanges of a quiet moment,
+// not a second later. A CI run saw 65 samples stamped 15 ms off after a restart when it waited.
+constexpr std::int64_t kSettleEveryNs = 100 * kMs;
+constexpr std::int64_t kSettledNs = 1 * kMs;  // uncertainty (half the round trip) counted as settled
 // A burst of exchanges when the clock starts (or restarts): the fastest of them sets the offset,
 // and Pupil Capture's answers wait on its busy main loop for a few ms at random.
 constexpr int kBurstExchanges = 16;
@@ -205,7 +210,6 @@ void PupilSource::serve(Connection& c) {
       for (int i = 0; i < 256 && handle_message(c, now); ++i) c.last_message_ns = now;
     }
     if (now >= c.next_sync_ns || clock_suspect()) {
-      c.next_sync_ns = now + kSyncEveryNs;
       const std::uint64_t resets = clock_.resets();
       if (!sync()) return lost("Pupil Remote stopped answering");
       for (int i = 1; i < kBurstExchanges && clock_.resets() != resets; ++i) {
@@ -215,6 +219,7 @@ void PupilSource::serve(Connection& c) {
       if ((clock_.resets() != resets || now - c.last_message_ns > kSilenceNs) && !find_publisher()) {
         return lost("no answer to \"SUB_PORT\"");
       }
+      c.next_sync_ns = now + (clock_.uncertainty_ns() > kSettledNs ? kSettleEveryNs : kSyncEveryNs);
     }
     if (now - last_surface_ns_ > kSurfaceStaleNs && now - c.last_message_ns < kSurfaceStaleNs && stats().scene_only > 0) {
       set_problem(Problem::SceneOnly, description() + ": only scene-camera gaze, no surface \"" + spec_.surface +
