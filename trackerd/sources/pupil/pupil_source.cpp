@@ -18,10 +18,12 @@ namespace {
 constexpr std::int64_t kMs = 1'000'000;
 constexpr int kRequestTimeoutMs = 1000;            // Pupil Remote answers in well under that
 constexpr std::int64_t kSyncEveryNs = 1000 * kMs;  // one "t" exchange a second
-// ... or every 100 ms while the fastest exchange kept is slower than 2 ms (the clock just started
-// or restarted on a busy machine): the mapping settles within a few exchanges of a quiet moment,
-// not a second later. A CI run saw 65 samples stamped 15 ms off after a restart when it waited.
+// ... or every 100 ms for 3 s after the clock (re)started while the fastest exchange kept is slower
+// than 2 ms (a busy machine): the mapping settles within a few exchanges of a quiet moment, not a
+// second later (a CI run saw 65 samples stamped 15 ms off after a restart when it waited). Not for
+// longer: over a network every exchange may be that slow, and Pupil Remote is not to be pestered.
 constexpr std::int64_t kSettleEveryNs = 100 * kMs;
+constexpr std::int64_t kSettleForNs = 3000 * kMs;
 constexpr std::int64_t kSettledNs = 1 * kMs;  // uncertainty (half the round trip) counted as settled
 // A burst of exchanges when the clock starts (or restarts): the fastest of them sets the offset,
 // and Pupil Capture's answers wait on its busy main loop for a few ms at random.
@@ -46,6 +48,7 @@ struct PupilSource::Connection {
   zmq::socket_t sub{context, zmq::socket_type::sub};
   std::uint16_t sub_port = 0;
   std::int64_t next_sync_ns = 0;
+  std::int64_t settle_until_ns = 0;  // the clock (re)started: exchanges may come faster until then
   std::int64_t last_message_ns = 0;
 
   explicit Connection(zmq::context_t& ctx) : context(ctx) {}
@@ -200,7 +203,8 @@ void PupilSource::serve(Connection& c) {
   spdlog::info("{}: connected (publisher on port {})", description(), c.sub_port);
   c.last_message_ns = protocol::monotonic_ns();
   last_surface_ns_ = c.last_message_ns;  // give the surface its 2 s before calling gaze scene-only
-  c.next_sync_ns = c.last_message_ns + kSyncEveryNs;
+  c.settle_until_ns = c.last_message_ns + kSettleForNs;
+  c.next_sync_ns = c.last_message_ns + (clock_.uncertainty_ns() > kSettledNs ? kSettleEveryNs : kSyncEveryNs);
   while (!stopping()) {
     zmq::pollitem_t item{c.sub.handle(), 0, ZMQ_POLLIN, 0};
     zmq::poll(&item, 1, std::chrono::milliseconds(50));
@@ -219,7 +223,9 @@ void PupilSource::serve(Connection& c) {
       if ((clock_.resets() != resets || now - c.last_message_ns > kSilenceNs) && !find_publisher()) {
         return lost("no answer to \"SUB_PORT\"");
       }
-      c.next_sync_ns = now + (clock_.uncertainty_ns() > kSettledNs ? kSettleEveryNs : kSyncEveryNs);
+      if (clock_.resets() != resets) c.settle_until_ns = now + kSettleForNs;
+      const bool settling = now < c.settle_until_ns && clock_.uncertainty_ns() > kSettledNs;
+      c.next_sync_ns = now + (settling ? kSettleEveryNs : kSyncEveryNs);
     }
     if (now - last_surface_ns_ > kSurfaceStaleNs && now - c.last_message_ns < kSurfaceStaleNs && stats().scene_only > 0) {
       set_problem(Problem::SceneOnly, description() + ": only scene-camera gaze, no surface \"" + spec_.surface +
