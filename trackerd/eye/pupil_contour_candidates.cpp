@@ -156,6 +156,7 @@ std::vector<Blob> find_contour_candidates(const cv::Mat& grey, const cv::Rect& w
 namespace {
 
 constexpr int kRefineSamples = 64;  // 8 per sector
+constexpr int kMaxMoves = 200;      // pattern-search sweeps that moved (a few dozen in practice)
 
 // The contour integral's rise across an ellipse: per sector, the mean of I(p + across n) -
 // I(p - across n) over its samples (n the outward normal), the sectors that rise most left out.
@@ -188,13 +189,14 @@ Ellipse refine_on_contour(const cv::Mat& img, const Ellipse& start, double acros
   // refinement moves the outline onto the edge, it does not look for another one.
   Ellipse best = start;
   double value = contour_rise(img, best, across);
-  double step = 0.5;  // px (the angle: 10 degrees per px of step)
+  double step = 0.5;  // px; the angle turns by 20 step / (major - minor) degrees, moving the outline ~step / 6
   const auto allowed = [&](const Ellipse& e) {
     return std::hypot(e.centre.x - start.centre.x, e.centre.y - start.centre.y) <= 0.25 * start.minor + 1 &&
            e.minor >= 0.7 * start.minor && e.major <= 1.4 * start.major && e.minor >= 0.3 * e.major &&
            e.minor <= e.major && e.minor > 2;
   };
-  while (step >= 0.06) {
+  // Each move must raise the rise; the count bounds the search on any image all the same.
+  for (int moves = 0; step >= 0.06 && moves < kMaxMoves;) {
     bool moved = false;
     for (int k = 0; k < 5; ++k)
       for (const double sign : {1.0, -1.0}) {
@@ -215,7 +217,8 @@ Ellipse refine_on_contour(const cv::Mat& img, const Ellipse& start, double acros
           moved = true;
         }
       }
-    if (!moved) step /= 2;
+    if (moved) ++moves;
+    else step /= 2;
   }
   best.angle_deg = std::fmod(std::fmod(best.angle_deg, 180.0) + 180.0, 180.0);
   return best;
