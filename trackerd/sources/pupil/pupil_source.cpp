@@ -53,6 +53,12 @@ struct PupilSource::Connection {
 
   explicit Connection(zmq::context_t& ctx) : context(ctx) {}
 
+  // The next "t" exchange: soon while the clock settles after a (re)start, else in a second.
+  void schedule_sync(std::int64_t now, std::int64_t uncertainty_ns) {
+    const bool settling = now < settle_until_ns && uncertainty_ns > kSettledNs;
+    next_sync_ns = now + (settling ? kSettleEveryNs : kSyncEveryNs);
+  }
+
   void open_remote(const PupilSpec& spec) {
     remote.set(zmq::sockopt::linger, 0);
     remote.set(zmq::sockopt::rcvtimeo, kRequestTimeoutMs);
@@ -153,6 +159,30 @@ void PupilSource::run() {
   }
 }
 
+// One "t" exchange fed to the clock (false: no valid answer); a jump restarts the order check.
+bool PupilSource::sync_clock(Connection& c) {
+  const std::int64_t sent = protocol::monotonic_ns();
+  const auto reply = c.request("t");
+  const std::int64_t received = protocol::monotonic_ns();
+  const auto t = reply ? parse_time_reply(*reply) : std::nullopt;
+  if (!t) return false;
+  const std::uint64_t resets = clock_.resets();
+  clock_.add(sent, received, *t);
+  std::lock_guard lock(mutex_);
+  if (clock_.resets() != resets) {
+    spdlog::info("{}: Pupil time jumped (Pupil Capture restarted?)", description());
+    last_timestamp_ = -1e300;  // the new clock may start below the old one
+  }
+  clock_suspect_ = false;
+  stats_.clock_exchanges = clock_.exchanges();
+  stats_.clock_resets = clock_.resets();
+  stats_.clock_offset_ns = clock_.offset_ns();
+  stats_.clock_uncertainty_ns = clock_.uncertainty_ns();
+  stats_.clock_last_rtt_ns = clock_.last_round_trip_ns();
+  stats_.clock_drift_ppm = clock_.drift_ppm();
+  return true;
+}
+
 // Connects (Pupil Remote, clock, publisher) and reads until Pupil Capture stops answering or the
 // source stops. Returns to be reconnected.
 void PupilSource::serve(Connection& c) {
@@ -160,28 +190,6 @@ void PupilSource::serve(Connection& c) {
   const auto lost = [&](const std::string& what) {
     set_problem(Problem::Lost, description() + ": " + what + " (is Pupil Capture running, with Pupil Remote on port " +
                 std::to_string(spec_.port) + "?); reconnecting every second");
-  };
-  const auto sync = [&]() -> bool {
-    const std::int64_t sent = protocol::monotonic_ns();
-    const auto reply = c.request("t");
-    const std::int64_t received = protocol::monotonic_ns();
-    const auto t = reply ? parse_time_reply(*reply) : std::nullopt;
-    if (!t) return false;
-    const std::uint64_t resets = clock_.resets();
-    clock_.add(sent, received, *t);
-    std::lock_guard lock(mutex_);
-    if (clock_.resets() != resets) {
-      spdlog::info("{}: Pupil time jumped (Pupil Capture restarted?)", description());
-      last_timestamp_ = -1e300;  // the new clock may start below the old one
-    }
-    clock_suspect_ = false;
-    stats_.clock_exchanges = clock_.exchanges();
-    stats_.clock_resets = clock_.resets();
-    stats_.clock_offset_ns = clock_.offset_ns();
-    stats_.clock_uncertainty_ns = clock_.uncertainty_ns();
-    stats_.clock_last_rtt_ns = clock_.last_round_trip_ns();
-    stats_.clock_drift_ppm = clock_.drift_ppm();
-    return true;
   };
   const auto find_publisher = [&]() -> bool {
     const auto reply = c.request("SUB_PORT");
@@ -191,7 +199,7 @@ void PupilSource::serve(Connection& c) {
     return true;
   };
   for (int i = 0; i < kBurstExchanges; ++i) {
-    if (!sync()) return lost("no answer to \"t\"");
+    if (!sync_clock(c)) return lost("no answer to \"t\"");
   }
   if (!find_publisher()) return lost("no answer to \"SUB_PORT\"");
   {
@@ -204,7 +212,7 @@ void PupilSource::serve(Connection& c) {
   c.last_message_ns = protocol::monotonic_ns();
   last_surface_ns_ = c.last_message_ns;  // give the surface its 2 s before calling gaze scene-only
   c.settle_until_ns = c.last_message_ns + kSettleForNs;
-  c.next_sync_ns = c.last_message_ns + (clock_.uncertainty_ns() > kSettledNs ? kSettleEveryNs : kSyncEveryNs);
+  c.schedule_sync(c.last_message_ns, clock_.uncertainty_ns());
   while (!stopping()) {
     zmq::pollitem_t item{c.sub.handle(), 0, ZMQ_POLLIN, 0};
     zmq::poll(&item, 1, std::chrono::milliseconds(50));
@@ -215,17 +223,16 @@ void PupilSource::serve(Connection& c) {
     }
     if (now >= c.next_sync_ns || clock_suspect()) {
       const std::uint64_t resets = clock_.resets();
-      if (!sync()) return lost("Pupil Remote stopped answering");
+      if (!sync_clock(c)) return lost("Pupil Remote stopped answering");
       for (int i = 1; i < kBurstExchanges && clock_.resets() != resets; ++i) {
-        if (!sync()) return lost("Pupil Remote stopped answering");
+        if (!sync_clock(c)) return lost("Pupil Remote stopped answering");
       }
       // A restarted Pupil Capture has a new clock, and its publisher may be on another port.
       if ((clock_.resets() != resets || now - c.last_message_ns > kSilenceNs) && !find_publisher()) {
         return lost("no answer to \"SUB_PORT\"");
       }
       if (clock_.resets() != resets) c.settle_until_ns = now + kSettleForNs;
-      const bool settling = now < c.settle_until_ns && clock_.uncertainty_ns() > kSettledNs;
-      c.next_sync_ns = now + (settling ? kSettleEveryNs : kSyncEveryNs);
+      c.schedule_sync(now, clock_.uncertainty_ns());
     }
     if (now - last_surface_ns_ > kSurfaceStaleNs && now - c.last_message_ns < kSurfaceStaleNs && stats().scene_only > 0) {
       set_problem(Problem::SceneOnly, description() + ": only scene-camera gaze, no surface \"" + spec_.surface +

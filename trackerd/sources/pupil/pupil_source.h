@@ -66,6 +66,7 @@ class PupilSource final : public net::ReaderSource {
   struct Connection;  // the ZeroMQ sockets of one connection to Pupil Capture
   void run();
   void serve(Connection& c);
+  bool sync_clock(Connection& c);
   bool handle_message(Connection& c, std::int64_t receive_ns);  // false: no message waiting
   void publish(const PupilGaze& g, bool screen, std::int64_t receive_ns);
   void count_malformed(const std::string& why);
