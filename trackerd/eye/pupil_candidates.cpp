@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <numeric>
 #include <vector>
 
@@ -27,8 +28,11 @@ struct TopBlobs {
   std::size_t count = 0;
   std::vector<Blob> top;
   std::vector<double> top_score;
+  double floor_ = 0;
+  bool floor_valid = false;
 
   void offer(const Blob& b, double score) {
+    floor_valid = false;
     std::size_t worst = 0;
     bool overlapped = false;
     for (std::size_t i = 0; i < top.size(); ++i) {
@@ -59,6 +63,17 @@ struct TopBlobs {
       top[worst] = b;
       top_score[worst] = score;
     }
+  }
+
+  // The score a new candidate must beat to be kept (-inf while fewer than `count` are kept);
+  // cached, as the scan asks for it at every position that passes the contrast test.
+  double floor() {
+    if (top.size() < count) return -std::numeric_limits<double>::infinity();
+    if (!floor_valid) {
+      floor_ = *std::min_element(top_score.begin(), top_score.end());
+      floor_valid = true;
+    }
+    return floor_;
   }
 
   std::vector<Blob> best_first() const {
@@ -110,7 +125,7 @@ std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, i
         // Contrast alone prefers the iris (a larger dark disc with a brighter surround); the pupil
         // is also the darkest disc, so its inner level counts against a candidate.
         const double score = response - inner_mean;
-        if (top.top.size() == count && score <= *std::min_element(top.top_score.begin(), top.top_score.end())) continue;
+        if (score <= top.floor()) continue;
         Blob b;
         b.centre = {window.x + (x + 0.5) * sx - 0.5, window.y + (y + 0.5) * sy - 0.5};
         b.radius = r_full;

@@ -16,6 +16,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -158,26 +159,44 @@ namespace {
 constexpr int kRefineSamples = 64;  // 8 per sector
 constexpr int kMaxMoves = 200;      // pattern-search sweeps that moved (a few dozen in practice)
 
+// The unit circle at the refinement's sample angles, t_i = 2 pi (i + 1/2) / kRefineSamples.
+struct UnitCircle {
+  std::array<double, kRefineSamples> cos{}, sin{};
+  UnitCircle() {
+    for (int i = 0; i < kRefineSamples; ++i) {
+      const double t = 2 * kPi * (i + 0.5) / kRefineSamples;
+      cos[static_cast<std::size_t>(i)] = std::cos(t);
+      sin[static_cast<std::size_t>(i)] = std::sin(t);
+    }
+  }
+};
+const UnitCircle kUnit;
+
 // The contour integral's rise across an ellipse: per sector, the mean of I(p + across n) -
 // I(p - across n) over its samples (n the outward normal), the sectors that rise most left out.
 double contour_rise(const cv::Mat& img, const Ellipse& e, double across) {
   const double th = e.angle_deg * kPi / 180.0;
   const double ca = std::cos(th), sa = std::sin(th);
   const double a = e.major / 2, b = e.minor / 2;
+  if (!(a > 0) || !(b > 0)) return -1e300;
+  // Every sample within the ellipse's bounding circle widened by `across`: inside the image, the
+  // clamps of bilinear() are not needed.
+  const double reach = std::max(a, b) + std::abs(across) + 1;
+  const bool inside = e.centre.x - reach >= 0 && e.centre.y - reach >= 0 && e.centre.x + reach < img.cols - 1 &&
+                      e.centre.y + reach < img.rows - 1;
   std::array<double, kSectors> sector{};
-  for (int i = 0; i < kRefineSamples; ++i) {
-    const double t = 2 * kPi * (i + 0.5) / kRefineSamples;
-    const double ct = std::cos(t), st = std::sin(t);
+  for (std::size_t i = 0; i < kRefineSamples; ++i) {
+    const double ct = kUnit.cos[i], st = kUnit.sin[i];
     const double px = a * ct, py = b * st;
     double nx = b * ct, ny = a * st;  // the outward normal, in the ellipse's frame
-    const double len = std::hypot(nx, ny);
-    if (!(len > 0)) return -1e300;
+    const double len = std::sqrt(nx * nx + ny * ny);  // a, b > 0: never 0, no overflow at pixel scale
     nx /= len;
     ny /= len;
     const cv::Point2d p(e.centre.x + px * ca - py * sa, e.centre.y + px * sa + py * ca);
     const cv::Point2d n(nx * ca - ny * sa, nx * sa + ny * ca);
-    sector[static_cast<std::size_t>(i * kSectors / kRefineSamples)] +=
-        bilinear(img, p.x + across * n.x, p.y + across * n.y) - bilinear(img, p.x - across * n.x, p.y - across * n.y);
+    const cv::Point2d out(p.x + across * n.x, p.y + across * n.y), in(p.x - across * n.x, p.y - across * n.y);
+    sector[i * kSectors / kRefineSamples] += inside ? bilinear_inside(img, out.x, out.y) - bilinear_inside(img, in.x, in.y)
+                                                    : bilinear(img, out.x, out.y) - bilinear(img, in.x, in.y);
   }
   return trimmed(sector) / (kRefineSamples / kSectors);
 }
@@ -191,11 +210,13 @@ Ellipse refine_on_contour(const cv::Mat& img, const Ellipse& start, double acros
   double value = contour_rise(img, best, across);
   double step = 0.5;  // px; the angle turns by 20 step / (major - minor) degrees, moving the outline ~step / 6
   const auto allowed = [&](const Ellipse& e) {
-    return std::hypot(e.centre.x - start.centre.x, e.centre.y - start.centre.y) <= 0.25 * start.minor + 1 &&
+    const double dx = e.centre.x - start.centre.x, dy = e.centre.y - start.centre.y, reach = 0.25 * start.minor + 1;
+    return dx * dx + dy * dy <= reach * reach &&
            e.minor >= 0.7 * start.minor && e.major <= 1.4 * start.major && e.minor >= 0.3 * e.major &&
            e.minor <= e.major && e.minor > 2;
   };
-  // Each move must raise the rise; the count bounds the search on any image all the same.
+  // Each move must raise the rise; the count bounds the search on any image all the same. Once a
+  // step forward along an axis raised it, the step back would return to a lower value: not tried.
   for (int moves = 0; step >= 0.06 && moves < kMaxMoves;) {
     bool moved = false;
     for (int k = 0; k < 5; ++k)
@@ -215,6 +236,7 @@ Ellipse refine_on_contour(const cv::Mat& img, const Ellipse& start, double acros
           value = v;
           best = e;
           moved = true;
+          break;
         }
       }
     if (moved) ++moves;

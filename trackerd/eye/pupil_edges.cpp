@@ -27,7 +27,8 @@ class RayProfile {
   RayProfile(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints, int steps)
       : smooth_(smooth), glints_(glints), steps_(steps), level_(static_cast<std::size_t>(steps) + 1),
         glinty_(static_cast<std::size_t>(steps) + 1), x_lo_(valid.x), y_lo_(valid.y),
-        x_hi_(valid.x + valid.width - 1), y_hi_(valid.y + valid.height - 1) {}
+        x_hi_(valid.x + valid.width - 1), y_hi_(valid.y + valid.height - 1), last_x_(smooth.cols - 1),
+        last_y_(smooth.rows - 1) {}
   void start(const cv::Point2d& from, double dx, double dy) {
     from_ = from;
     dx_ = dx;
@@ -43,7 +44,9 @@ class RayProfile {
         ended_ = true;
         break;
       }
-      level_[static_cast<std::size_t>(n_)] = bilinear(smooth_, x, y);
+      // Only samples on the image's last row or column (or off it) need bilinear()'s clamps.
+      const bool inside = x >= 0 && y >= 0 && x < last_x_ && y < last_y_;
+      level_[static_cast<std::size_t>(n_)] = inside ? bilinear_inside(smooth_, x, y) : bilinear(smooth_, x, y);
       glinty_[static_cast<std::size_t>(n_)] = in_glint(glints_, x, y) ? 1 : 0;
       ++n_;
     }
@@ -65,6 +68,7 @@ class RayProfile {
   double dx_ = 0, dy_ = 0;
   int n_ = 0;
   bool ended_ = false;
+  double last_x_, last_y_;  // the image's last column and row
 };
 
 // The first sharp dark-to-bright step from a dark level: a rise of min_step within 3 px (a soft
@@ -223,14 +227,14 @@ void remove_eyelid_lines(std::vector<EdgePoint>& edges, double radius, std::mt19
   const double tolerance = std::max(1.2, 0.04 * radius);
   for (int lid = 0; lid < 2 && edges.size() >= 8; ++lid) {
     std::uniform_int_distribution<std::size_t> pick(0, edges.size() - 1);
-    std::vector<std::size_t> best;
+    std::vector<std::size_t> best, on;
     for (int it = 0; it < 40; ++it) {
       const cv::Point2d a = edges[pick(rng)].p, b = edges[pick(rng)].p;
       const cv::Point2d d = b - a;
       const double len = std::hypot(d.x, d.y);
       if (len < 0.5 * radius) continue;
       const cv::Point2d u = d * (1.0 / len);
-      std::vector<std::size_t> on;
+      on.clear();
       double lo = 1e300, hi = -1e300;
       for (std::size_t i = 0; i < edges.size(); ++i) {
         const cv::Point2d v = edges[i].p - a;

@@ -33,7 +33,11 @@ struct Conic {
   }
   // First-order (Sampson) distance to the curve, in pixels.
   double distance(const cv::Point2d& p) const {
-    const double x = (p.x - origin.x) / scale, y = (p.y - origin.y) / scale;
+    return distance_at({(p.x - origin.x) / scale, (p.y - origin.y) / scale});
+  }
+  // The same for a point already in the conic's frame (relative to origin, divided by scale).
+  double distance_at(const cv::Point2d& local) const {
+    const double x = local.x, y = local.y;
     const double q = a * x * x + b * x * y + c * y * y + d * x + e * y + f;
     const double gx = 2 * a * x + b * y + d, gy = b * x + 2 * c * y + e;
     const double g = std::sqrt(gx * gx + gy * gy);  // not std::hypot: no overflow here, and it is hot (RANSAC)
@@ -183,6 +187,12 @@ std::vector<std::size_t> ransac_inliers(const std::vector<cv::Point2d>& pts, con
   double scale = 0;
   for (const auto& p : pts) scale += std::hypot(p.x - origin.x, p.y - origin.y);
   scale = std::max(1.0, scale / static_cast<double>(n));
+  // The points in the conics' frame once (every conic here shares origin and scale): the cost
+  // below reads each of them at every iteration.
+  std::vector<cv::Point2d> local(n);
+  for (std::size_t i = 0; i < n; ++i) local[i] = {(pts[i].x - origin.x) / scale, (pts[i].y - origin.y) / scale};
+  std::vector<std::size_t> inliers;
+  inliers.reserve(n);
   std::uniform_int_distribution<std::size_t> pick(0, n - 1);
   double best_cost = 1e300;
   const int iterations = 60;
@@ -203,9 +213,9 @@ std::vector<std::size_t> ransac_inliers(const std::vector<cv::Point2d>& pts, con
     if (!e || !bounds.plausible(*e)) continue;
     // MSAC cost: inliers cost their squared distance, outliers a constant.
     double cost = 0;
-    std::vector<std::size_t> inliers;
+    inliers.clear();
     for (std::size_t i = 0; i < n; ++i) {
-      const double d = conic->distance(pts[i]);
+      const double d = conic->distance_at(local[i]);
       if (d < tolerance) {
         cost += d * d;
         inliers.push_back(i);
