@@ -387,6 +387,28 @@ TEST(EyeDetectorStages, TheContourIntegralFindsAFaintPupil) {
   EXPECT_GT(distance(st::refine_on_contour(under_lashes, far, 2.5).centre, truth.centre), 8);
 }
 
+// The stages' fast reads give what the general ones give: bilinear_inside() the value bilinear()
+// clamps its way to, bit for bit, anywhere off the last row and column; in_glint() rounds half away
+// from zero as std::lround does.
+TEST(EyeDetectorStages, FastSamplesEqualTheClampedOnes) {
+  namespace st = fovea::trackerd::eye::stages;
+  cv::Mat img(37, 53, CV_8U);
+  cv::randu(img, 0, 256);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> x(0, 52 - 1e-9), y(0, 36 - 1e-9);
+  for (int i = 0; i < 5000; ++i) {
+    const double px = i < 4 ? (i % 2) * (52 - 1e-9) : x(rng), py = i < 4 ? (i / 2) * (36 - 1e-9) : y(rng);
+    ASSERT_EQ(st::bilinear_inside(img, px, py), st::bilinear(img, px, py)) << px << "," << py;
+  }
+  st::GlintCandidates g;
+  g.glints.push_back({});
+  g.window = cv::Rect(-3, -3, 9, 9);
+  g.mask = cv::Mat::zeros(9, 9, CV_8U);
+  g.mask.at<std::uint8_t>(3, 3) = 255;  // the pixel (0, 0)
+  for (const double v : {-0.5, -0.49, 0.0, 0.49, 0.5})
+    EXPECT_EQ(st::in_glint(g, v, 0), std::lround(v) == 0) << v;
+}
+
 // The lid test itself: the straight run of a lid over a round pupil goes, an elliptical pupil's
 // flat sides stay.
 TEST(EyeDetectorStages, LidLinesAreNotAnEllipsesFlatSides) {
