@@ -56,6 +56,7 @@ void EyeDetector::reset() {
   last_glint_scale_ = 0;
   last_reference_.reset();
   open_aspect_ = 0;
+  recent_count_ = recent_next_ = 0;
 }
 
 namespace {
@@ -479,6 +480,7 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
                          found.ellipse.minor, found.ellipse.angle_deg};
     const Doubts doubts = found.ok ? doubts_about(std::span(fitted).subspan(first), winner) : Doubts{};
     report_pupil(found, doubts, settings_.blink_aspect, open_aspect_, result);
+    if (found.ok) doubt_size_jumps(result);
 
     std::vector<Glint> glints = corneal_glints(found, size);
     const GlintReference reference = glint_reference(glints, settings_.leds, size, last_glint_scale_, last_reference_);
@@ -492,6 +494,30 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     last_pupil_.reset();
   }
   return result;
+}
+
+// A pupil changes size slowly: its light reflex at most halves it within half a second, and the
+// major axis stays the pupil's diameter however the eye turns. So an answer 1.8x larger or smaller
+// than the median of this eye's last clear fits (fit confidence >= kClearPupil) is likelier the iris
+// (a dark iris under the lid, fitted whole and confidently: issue 44) or a piece of the pupil, and
+// its confidence is held at 0.5 at most. Clear fits enter the median whatever their answer's
+// confidence, so a wrong size learnt first is outvoted by the next five clear pupils.
+void EyeDetector::doubt_size_jumps(EyeMeasurement& result) {
+  constexpr double kSizeJump = 1.8, kDoubtfulSize = 0.5;
+  const double major = result.pupil.major;
+  if (recent_count_ > 0) {
+    std::array<double, 9> held{};
+    std::copy_n(recent_major_.begin(), recent_count_, held.begin());
+    const auto mid = held.begin() + static_cast<std::ptrdiff_t>(recent_count_ / 2);
+    std::nth_element(held.begin(), mid, held.begin() + static_cast<std::ptrdiff_t>(recent_count_));
+    result.size_jump = major > kSizeJump * *mid || major * kSizeJump < *mid;
+    if (result.size_jump) result.confidence = std::min(result.confidence, kDoubtfulSize);
+  }
+  if (result.fit_confidence >= kClearPupil) {
+    recent_major_[recent_next_] = major;
+    recent_next_ = (recent_next_ + 1) % recent_major_.size();
+    recent_count_ = std::min(recent_count_ + 1, recent_major_.size());
+  }
 }
 
 EyeMeasurement detect_pupil_baseline(const cv::Mat& image) {

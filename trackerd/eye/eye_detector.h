@@ -92,6 +92,7 @@ struct EyeMeasurement {
   double fit_confidence = 0;      // the winning fit's own confidence (from its evidence alone)
   double rival_confidence = 0;    // the most confident fit elsewhere in the frame, 0 when none
   bool disc_inside = false;       // a smaller disc darker than its surround was fitted inside the pupil
+  bool size_jump = false;         // 1.8x larger or smaller than this eye's recent clear pupils: confidence <= 0.5
   PupilEvidence evidence;         // of the best candidate, also when it was rejected
   bool blink = false;             // no pupil, or aspect < blink_aspect
   std::vector<Glint> glints;      // near the pupil (or anywhere when no pupil), at most 8
@@ -116,16 +117,21 @@ class EyeDetector {
     double confidence = 0;
   };
   EyeMeasurement detect(const cv::Mat& image, std::vector<CandidateFit>* candidates);
-  void reset();  // forget the tracked ROI
+  void reset();  // forget the tracked ROI and what was learnt of this eye (its open aspect, its pupil's size)
 
  private:
+  void doubt_size_jumps(EyeMeasurement& result);
+
   DetectorSettings settings_;
   std::optional<Ellipse> last_pupil_;
   double last_glint_scale_ = 0;
   // Image of the LED layout's centroid in the last frame with paired glints: with one glint left,
   // the LED it belongs to is the one that keeps the reference where it was.
   std::optional<cv::Point2d> last_reference_;
-  double open_aspect_ = 0;  // running minor/major of this eye's confident open pupils (0: none yet)  // px per mm of the LED layout's glint image, from the last paired frame
+  double open_aspect_ = 0;  // running minor/major of this eye's confident open pupils (0: none yet)
+  // Major axes of the last clear pupil fits (ring buffer; `recent_count_` of them held).
+  std::array<double, 9> recent_major_{};
+  std::size_t recent_count_ = 0, recent_next_ = 0;
   cv::Mat grey_, integral_, small_, smooth_;  // reused buffers
 };
 
