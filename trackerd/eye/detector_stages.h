@@ -148,9 +148,10 @@ std::vector<EdgePoint> ray_edges(const cv::Mat& smooth, const cv::Rect& valid, c
 // roughly (a contour candidate, a fit refined on the contour integral), lashes inside it passed over.
 std::vector<EdgePoint> band_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
                                   const Ellipse& around, double inner, double outer, double min_step, int rays);
-// Canny edges around `from` whose gradient points away from it (dark inside).
-std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const GlintCandidates& glints, const cv::Point2d& from,
-                                   double contrast, double max_length);
+// Canny edges around `from` whose gradient points away from it (dark inside), within `valid` (the
+// part of `smooth` that is blurred).
+std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
+                                   const cv::Point2d& from, double contrast, double max_length);
 // Removes up to two straight runs of edge points (the lid margins) across a pupil of `radius`.
 void remove_eyelid_lines(std::vector<EdgePoint>& edges, double radius, std::mt19937& rng);
 

@@ -151,7 +151,7 @@ StarburstFit starburst_fit(FrameSearch& search, const Blob& blob, const GlintCan
       out.edges = settings.edges == EdgeMethod::Rays
                       ? ray_edges(smooth, w.work, glints, from, w.pupil_level, min_step, w.reach, settings.rays,
                                   search.inside ? std::max(6.0, search.size / 40) : 0.0)
-                      : canny_edges(smooth, glints, from, w.contrast, std::max(3.0 * blob.radius, 8.0));
+                      : canny_edges(smooth, w.work, glints, from, w.contrast, std::max(3.0 * blob.radius, 8.0));
     remove_eyelid_lines(out.edges, blob.radius, search.rng);
     out.fit = fit_pupil(out.edges, settings.fit, from, search.rmin, search.rmax, search.rng);
     if (!out.fit) break;

@@ -181,13 +181,16 @@ std::vector<EdgePoint> band_edges(const cv::Mat& smooth, const cv::Rect& valid, 
   return edges;
 }
 
-// Canny edges in the window whose gradient points away from the centre (dark inside).
-std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const GlintCandidates& glints, const cv::Point2d& from,
-                                   double contrast, double max_length) {
+// Canny edges in the window whose gradient points away from the centre (dark inside). Canny and
+// Sobel read a pixel or two beyond the window they are given, so it keeps 2 px inside `valid`: the
+// buffer beyond holds other windows' blur, or nothing yet.
+std::vector<EdgePoint> canny_edges(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints,
+                                   const cv::Point2d& from, double contrast, double max_length) {
   std::vector<EdgePoint> edges;
+  const cv::Rect inner(valid.x + 2, valid.y + 2, std::max(0, valid.width - 4), std::max(0, valid.height - 4));
   const cv::Rect window = cv::Rect(static_cast<int>(from.x - max_length), static_cast<int>(from.y - max_length),
                                    static_cast<int>(2 * max_length) + 1, static_cast<int>(2 * max_length) + 1) &
-                          cv::Rect(0, 0, smooth.cols, smooth.rows);
+                          inner & cv::Rect(0, 0, smooth.cols, smooth.rows);
   if (window.width < 3 || window.height < 3) return edges;
   cv::Mat canny, gx, gy;
   const double high = std::max(20.0, 1.2 * contrast), low = high / 2;
