@@ -506,14 +506,14 @@ void EyeDetector::doubt_size_jumps(EyeMeasurement& result) {
   constexpr double kSizeJump = 1.8, kDoubtfulSize = 0.5;
   const double major = result.pupil.major;
   if (recent_count_ > 0) {
-    std::array<double, 9> held{};
+    decltype(recent_major_) held{};
     std::copy_n(recent_major_.begin(), recent_count_, held.begin());
     const auto mid = held.begin() + static_cast<std::ptrdiff_t>(recent_count_ / 2);
     std::nth_element(held.begin(), mid, held.begin() + static_cast<std::ptrdiff_t>(recent_count_));
     result.size_jump = major > kSizeJump * *mid || major * kSizeJump < *mid;
     if (result.size_jump) result.confidence = std::min(result.confidence, kDoubtfulSize);
   }
-  if (result.fit_confidence >= kClearPupil) {
+  if (result.fit_confidence >= kClearPupil && std::isfinite(major) && major > 0) {  // NaN would break the median
     recent_major_[recent_next_] = major;
     recent_next_ = (recent_next_ + 1) % recent_major_.size();
     recent_count_ = std::min(recent_count_ + 1, recent_major_.size());
