@@ -112,8 +112,9 @@ async function main() {
     check(eyeRate >= 5 && eyeRate <= 33, 'eye images arrive, at most 30 a second',
       `${b.eye_frames - a.eye_frames} in ${seconds.toFixed(2)} s`);
     check(b.pupil !== null && b.confidence > 0.5, 'the pupil is found and drawn', JSON.stringify(b.pupil));
-    // 120 Hz from a release daemon; a sanitizer build's renders the synthetic eye at about 30 Hz.
-    check(b.samples > a.samples + 30, 'gaze samples keep coming', `${a.samples} -> ${b.samples} in ${seconds.toFixed(2)} s`);
+    // 120 Hz from a release daemon; a sanitizer build's renders the synthetic eye at about 25 Hz
+    // alone and 13 Hz beside the rest of its suite (ctest -j): at least 5 Hz, as the eye images.
+    check(b.samples - a.samples >= 5 * seconds, 'gaze samples keep coming', `${a.samples} -> ${b.samples} in ${seconds.toFixed(2)} s`);
     check(b.gaze && a.gaze && (b.gaze.x !== a.gaze.x || b.gaze.y !== a.gaze.y), 'the gaze moves',
       `(${a.gaze.x.toFixed(0)}, ${a.gaze.y.toFixed(0)}) -> (${b.gaze.x.toFixed(0)}, ${b.gaze.y.toFixed(0)}) px`);
     const labels = Object.keys(b.labels_seen).filter((k) => b.labels_seen[k] > 0);
