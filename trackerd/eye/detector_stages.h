@@ -33,9 +33,22 @@ inline double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1
 
 inline bool finite(const cv::Point2d& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
 
-// Grey levels of an 8-bit image.
+// bilinear() where (x, y) is known to lie in [0, cols - 1) x [0, rows - 1): read through row
+// pointers, without clamps.
+inline double bilinear_inside(const cv::Mat& img, double x, double y) {
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const double fx = x - x0, fy = y - y0;
+  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0) + x0;
+  const std::uint8_t* r1 = r0 + img.step[0];
+  const double v00 = r0[0], v01 = r0[1], v10 = r1[0], v11 = r1[1];
+  return (v00 * (1 - fx) + v01 * fx) * (1 - fy) + (v10 * (1 - fx) + v11 * fx) * fy;
+}
+
+// Grey levels of an 8-bit image; clamped to its edge on and beyond its last row and column (the
+// stages read thousands of samples a candidate, nearly all inside: those take the fast path).
 inline double bilinear(const cv::Mat& img, double x, double y) {
   const int w = img.cols, h = img.rows;
+  if (x >= 0 && y >= 0 && x < w - 1 && y < h - 1) return bilinear_inside(img, x, y);
   x = std::clamp(x, 0.0, static_cast<double>(w - 1));
   y = std::clamp(y, 0.0, static_cast<double>(h - 1));
   const int x0 = std::min(static_cast<int>(x), w - 2 < 0 ? 0 : w - 2);
@@ -44,17 +57,6 @@ inline double bilinear(const cv::Mat& img, double x, double y) {
   const double fx = x - x0, fy = y - y0;
   const double v00 = img.at<std::uint8_t>(y0, x0), v01 = img.at<std::uint8_t>(y0, x1);
   const double v10 = img.at<std::uint8_t>(y1, x0), v11 = img.at<std::uint8_t>(y1, x1);
-  return (v00 * (1 - fx) + v01 * fx) * (1 - fy) + (v10 * (1 - fx) + v11 * fx) * fy;
-}
-
-// bilinear() where (x, y) is known to lie in [0, cols - 1) x [0, rows - 1): the same value without
-// the clamps, read through row pointers (for the stages that read thousands of samples a candidate).
-inline double bilinear_inside(const cv::Mat& img, double x, double y) {
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const double fx = x - x0, fy = y - y0;
-  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0) + x0;
-  const std::uint8_t* r1 = r0 + img.step[0];
-  const double v00 = r0[0], v01 = r0[1], v10 = r1[0], v11 = r1[1];
   return (v00 * (1 - fx) + v01 * fx) * (1 - fy) + (v10 * (1 - fx) + v11 * fx) * fy;
 }
 

@@ -179,11 +179,6 @@ double contour_rise(const cv::Mat& img, const Ellipse& e, double across) {
   const double ca = std::cos(th), sa = std::sin(th);
   const double a = e.major / 2, b = e.minor / 2;
   if (!(a > 0) || !(b > 0)) return -1e300;
-  // Every sample within the ellipse's bounding circle widened by `across`: inside the image, the
-  // clamps of bilinear() are not needed.
-  const double reach = std::max(a, b) + std::abs(across) + 1;
-  const bool inside = e.centre.x - reach >= 0 && e.centre.y - reach >= 0 && e.centre.x + reach < img.cols - 1 &&
-                      e.centre.y + reach < img.rows - 1;
   std::array<double, kSectors> sector{};
   for (std::size_t i = 0; i < kRefineSamples; ++i) {
     const double ct = kUnit.cos[i], st = kUnit.sin[i];
@@ -195,8 +190,7 @@ double contour_rise(const cv::Mat& img, const Ellipse& e, double across) {
     const cv::Point2d p(e.centre.x + px * ca - py * sa, e.centre.y + px * sa + py * ca);
     const cv::Point2d n(nx * ca - ny * sa, nx * sa + ny * ca);
     const cv::Point2d out(p.x + across * n.x, p.y + across * n.y), in(p.x - across * n.x, p.y - across * n.y);
-    sector[i * kSectors / kRefineSamples] += inside ? bilinear_inside(img, out.x, out.y) - bilinear_inside(img, in.x, in.y)
-                                                    : bilinear(img, out.x, out.y) - bilinear(img, in.x, in.y);
+    sector[i * kSectors / kRefineSamples] += bilinear(img, out.x, out.y) - bilinear(img, in.x, in.y);
   }
   return trimmed(sector) / (kRefineSamples / kSectors);
 }

@@ -27,8 +27,7 @@ class RayProfile {
   RayProfile(const cv::Mat& smooth, const cv::Rect& valid, const GlintCandidates& glints, int steps)
       : smooth_(smooth), glints_(glints), steps_(steps), level_(static_cast<std::size_t>(steps) + 1),
         glinty_(static_cast<std::size_t>(steps) + 1), x_lo_(valid.x), y_lo_(valid.y),
-        x_hi_(valid.x + valid.width - 1), y_hi_(valid.y + valid.height - 1), last_x_(smooth.cols - 1),
-        last_y_(smooth.rows - 1) {}
+        x_hi_(valid.x + valid.width - 1), y_hi_(valid.y + valid.height - 1) {}
   void start(const cv::Point2d& from, double dx, double dy) {
     from_ = from;
     dx_ = dx;
@@ -44,9 +43,7 @@ class RayProfile {
         ended_ = true;
         break;
       }
-      // Only samples on the image's last row or column (or off it) need bilinear()'s clamps.
-      const bool inside = x >= 0 && y >= 0 && x < last_x_ && y < last_y_;
-      level_[static_cast<std::size_t>(n_)] = inside ? bilinear_inside(smooth_, x, y) : bilinear(smooth_, x, y);
+      level_[static_cast<std::size_t>(n_)] = bilinear(smooth_, x, y);
       glinty_[static_cast<std::size_t>(n_)] = in_glint(glints_, x, y) ? 1 : 0;
       ++n_;
     }
@@ -68,7 +65,6 @@ class RayProfile {
   double dx_ = 0, dy_ = 0;
   int n_ = 0;
   bool ended_ = false;
-  double last_x_, last_y_;  // the image's last column and row
 };
 
 // The first sharp dark-to-bright step from a dark level: a rise of min_step within 3 px (a soft
