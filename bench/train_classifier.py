@@ -11,13 +11,16 @@ held-back recordings.
 
 Two stages (trees_core.h, GbtModel): the first over each sample's features (features.h), the second
 over the first's probabilities around the sample (context.h), once with the daemon's look-ahead
-(online) and once with the whole reach (offline). The second stage must learn from first-stage
+(online) and once with the whole reach (offline). With --online-reach the online chain has a first
+stage of its own, over features that look less far ahead (the daemon's labels are final sooner);
+its second stage then learns from that first stage's probabilities. The second stage must learn from first-stage
 probabilities on recordings that stage did not see (stacking), so its rows come from each video's
 leave-one-video-out first stage: --lovo's DIR/<video>.frame.trees (fitted when missing, reused when
 present with the same settings).
 
   --lovo DIR                 leave-one-video-out: DIR/<video>.trees fitted on the other 17 videos,
                              for bench/eval_classify_gazecom.py --lovo DIR
+  --online-reach S           the online chain's first stage over features reaching S ahead
   --out FILE --lovo DIR      also one model on every recording (the built-in one:
                              trackerd/classify/models/gazecom.trees), written first
   --nested V1,V2 --lovo DIR  also DIR/nested/<video>.trees: that video's second stages fitted on rows
@@ -25,7 +28,11 @@ present with the same settings).
                              bundles' rows come from first stages that saw it), ~20 min a video
 
 On GazeCom with the defaults, 2 cores: the first stages 35-50 min (once: reused), the second
-stages' features 8 min, the full model 10 min, the 18 leave-one-video-out bundles 45 min.
+stages' features 8 min, the full model 10 min, the 18 leave-one-video-out bundles 45 min; with
+--online-reach the features and first stages again, and the second stages' features twice. The
+features are cached (XDG_CACHE_HOME/fovea/gazecom-features/KEY) and the first stages reused under
+a key that hashes the features fovea-ctl computes for one recording and its copy: a build that
+changed nothing in them reuses both.
 
 GazeCom (../shared/data/gazecom, see its README): Dorr et al. 2010 (recordings), Agtzidis, Startsev
 & Dorr 2016 and Startsev, Agtzidis & Dorr 2019 (labels). The copy here states no licence of its
@@ -33,7 +40,7 @@ own; a model trained on it carries the data's terms (trackerd/classify/models/RE
 
 Usage: bench/train_classifier.py FOVEA_CTL [--out FILE] --lovo DIR [--data DIR_OR_TAR] [--every N]
        [--stride-ms MS] [--augment N] [--iterations N] [--leaves N] [--context-stride-ms MS]
-       [--context-iterations N] [--frame-only] [--nested VIDEOS] [--jobs N]
+       [--context-iterations N] [--frame-only] [--nested VIDEOS] [--online-reach S] [--jobs N]
 """
 import argparse
 import concurrent.futures
@@ -51,6 +58,7 @@ from eval_classify_gazecom import RATE_HZ, read_arff, unpacked, write_input  # n
 
 CLASS_NAMES = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
 ONLINE_LOOKAHEAD_S = 0.032  # trees_core.h, kOnlineLookaheadS
+FULL_REACH_S = 0.256  # features.h, kFeatureReachS
 OFFLINE_LOOKAHEAD_S = 0.512  # context.h, kContextReachS
 
 
@@ -121,15 +129,20 @@ def matrix_out(ctl, rec, option, extra=()):
         return np.load(os.path.join(tmp, "f.npy")), open(os.path.join(tmp, "f.npy.names")).read().split()
 
 
-def features_of(ctl, path, copy, cache):
+def reach_args(reach):
+    """fovea-ctl's arguments for features reaching `reach` seconds ahead (features.h)."""
+    return [] if reach >= FULL_REACH_S else ["--features-reach", "%g" % reach]
+
+
+def features_of(ctl, path, copy, cache, reach):
     """(features float32 rows x F, expert labels int, rate) of a recording or copy, cached per
-    fovea-ctl build."""
+    features_key."""
     stem = os.path.join(cache, os.path.basename(path) + ("" if copy == 0 else ".copy%d" % copy))
     npy, lab, hz = stem + ".npy", stem + ".labels.npy", stem + ".rate"
     if not (os.path.exists(npy) and os.path.exists(lab) and os.path.exists(hz)):
         rec = recording(path, copy)
         _, _, final, rate = rec
-        m, names = matrix_out(ctl, rec, "--features-out")
+        m, names = matrix_out(ctl, rec, "--features-out", reach_args(reach))
         np.save(lab, np.array(final, dtype=np.int8))
         with open(hz, "w") as f:
             f.write("%g" % rate)
@@ -140,26 +153,31 @@ def features_of(ctl, path, copy, cache):
     return np.load(npy), np.load(lab), float(open(hz).read())
 
 
-def build_key(ctl):
-    """The cache directory's key: the fovea-ctl binary's content (its features may have changed)."""
+def features_key(ctl, files, reach):
+    """The cache's and the first stages' key: a hash of the features this fovea-ctl computes at this
+    reach for the first recording and its first copy (another rate, noise and drop-outs), so a build
+    whose features changed fits anew and one that only changed elsewhere reuses what was fitted."""
     h = hashlib.sha256()
-    with open(ctl, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
+    for copy in (0, 1):
+        m, names = matrix_out(ctl, recording(files[0], copy), "--features-out", reach_args(reach))
+        h.update(" ".join(names).encode())
+        h.update(np.ascontiguousarray(m).tobytes())
     return h.hexdigest()[:16]
 
 
-def load_all(args, files):
-    """Every recording (copy 0) and args.augment copies of each: a list of (recording index,
-    features, labels, rate)."""
+def load_all(args, files, reach):
+    """Every recording (copy 0) and args.augment copies of each, with features reaching `reach`
+    ahead: a list of (recording index, features, labels, rate), the feature names and the features'
+    key."""
+    key = features_key(args.ctl, files, reach)
     cache = os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "fovea",
-                         "gazecom-features", build_key(args.ctl))
+                         "gazecom-features", key)
     os.makedirs(cache, exist_ok=True)
     units = [(i, c) for c in range(args.augment + 1) for i in range(len(files))]
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        data = list(pool.map(lambda u: (u[0],) + features_of(args.ctl, files[u[0]], u[1], cache), units))
+        data = list(pool.map(lambda u: (u[0],) + features_of(args.ctl, files[u[0]], u[1], cache, reach), units))
     names = open(os.path.join(cache, "names")).read().split()
-    return data, names
+    return data, names, key
 
 
 def fit(x, y, iterations, leaves, learning_rate):
@@ -220,19 +238,21 @@ def labels(clf, f):
     return clf.predict(f)
 
 
-def check_model(args, clf, path, files, which, extra=(), stage1=None):
-    """fovea-ctl with the written model must label the held-back recordings as scikit-learn does
-    (the C++ adds nothing after the trees but what it does to samples without gaze). stage1: the
-    first-stage model whose probabilities the second-stage model clf reads (None: clf is a first
-    stage)."""
+def check_model(args, clf, path, files, which, extra=(), stage1=None, reach=None):
+    """fovea-ctl with the written model `path` (whose chain, online or with --offline in extra, ends
+    in clf) must label the held-back recordings as scikit-learn does (the C++ adds nothing after the
+    trees but what it does to samples without gaze). stage1: the model whose chain's first stage
+    gives the probabilities the second-stage model clf reads (None: clf is a first stage, over
+    features reaching `reach` ahead)."""
     mismatched, total = 0, 0
+    offline = "--offline" in extra
     for i in which:
         rec = recording(files[i], 0)
         if stage1 is None:
-            f, names = matrix_out(args.ctl, rec, "--features-out")
+            f, names = matrix_out(args.ctl, rec, "--features-out", reach_args(reach or FULL_REACH_S))
         else:
-            f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", stage1])
-            if "--offline" not in extra:
+            f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", stage1] + (["--offline"] if offline else []))
+            if not offline:
                 f = online_columns(f, names)
         gaze_t, geometry, _, rate = rec
         with tempfile.TemporaryDirectory() as tmp:
@@ -263,26 +283,50 @@ def online_columns(f, names, lookahead=ONLINE_LOOKAHEAD_S):
     return f
 
 
-def frame_lovo(args, data, names, files, videos, settings, start):
+def frame_lovo(args, data, names, files, videos, settings, start, reach=None):
     """DIR/<video>.frame.trees for every video, fitted without it (reused where present with these
-    settings)."""
+    settings); with a reach, DIR/<video>.frame-online.trees over features reaching that far ahead and
+    the online chain DIR/<video>.chain.trees (chain_path)."""
     os.makedirs(args.lovo, exist_ok=True)
     for v in sorted(set(videos)):
-        path = os.path.join(args.lovo, v + ".frame.trees")
+        path = os.path.join(args.lovo, v + (".frame-online.trees" if reach else ".frame.trees"))
         if os.path.exists(path) and open(path).readline().rstrip().endswith(settings):
+            if reach:
+                write_chain(args, v, reach)
             continue
         x, y = training_rows(data, {i for i, w in enumerate(videos) if w != v}, args.stride_ms)
         clf = fit(x, y, args.iterations, args.leaves, args.learning_rate)
         write_model(clf, names, path, f"GazeCom without {v}: {len(x)} samples; {settings}")
-        check_model(args, clf, path, files, [i for i, w in enumerate(videos) if w == v][:1])
+        held = [i for i, w in enumerate(videos) if w == v][:1]
+        if reach:
+            check_model(args, clf, write_chain(args, v, reach), files, held, reach=reach)
+        else:
+            check_model(args, clf, path, files, held)
         print(f"train_classifier: {path} ({len(x)} samples) at {time.time() - start:.0f} s", flush=True)
 
 
-def context_unit(args, files, i, copy, model):
+def chain_path(args, v):
+    """The model whose online chain's first stage is the one fitted without video v: its bundle of
+    both first stages (--online-reach) or its plain first stage."""
+    chain = os.path.join(args.lovo, v + ".chain.trees")
+    return chain if args.online_reach < FULL_REACH_S else os.path.join(args.lovo, v + ".frame.trees")
+
+
+def write_chain(args, v, reach):
+    """DIR/<v>.chain.trees: the first stages fitted without video v, the offline one and the online
+    one over features reaching `reach` ahead, as one bundle."""
+    path = os.path.join(args.lovo, v + ".chain.trees")
+    write_bundle(path, os.path.join(args.lovo, v + ".frame.trees"), note=f"GazeCom without {v}: first stages",
+                 frame_online=(os.path.join(args.lovo, v + ".frame-online.trees"), reach))
+    return path
+
+
+def context_unit(args, files, i, copy, model, offline):
     """One recording's (or copy's) second-stage rows, a sample every --context-stride-ms, from the
-    first stage `model`: ((recording index, features, labels), feature names)."""
+    first stage of `model`'s online or offline chain: ((recording index, features, labels), feature
+    names)."""
     rec = recording(files[i], copy)
-    f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", model])
+    f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", model] + (["--offline"] if offline else []))
     _, _, final, rate = rec
     lab = np.array(final, dtype=np.int8)
     rows = np.arange(0, len(lab), max(1, int(round(args.context_stride_ms * rate / 1000.0))))
@@ -290,15 +334,16 @@ def context_unit(args, files, i, copy, model):
     return (i, f[rows], lab[rows]), names
 
 
-def context_rows(args, files, videos, start):
-    """Every recording's (and copy's) second-stage rows from the first stage fitted without its
-    video: a list of (recording index, features, labels); and the feature names."""
+def context_rows(args, files, videos, start, offline):
+    """Every recording's (and copy's) second-stage rows from the first stage of the online or offline
+    chain fitted without its video: a list of (recording index, features, labels); and the feature
+    names."""
     units = [(i, c) for c in range(args.augment + 1) for i in range(len(files))]
+    model = (lambda v: os.path.join(args.lovo, v + ".frame.trees")) if offline else (lambda v: chain_path(args, v))
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        out = list(pool.map(lambda u: context_unit(args, files, u[0], u[1],
-                                                   os.path.join(args.lovo, videos[u[0]] + ".frame.trees")), units))
-    print(f"train_classifier: second-stage features of {len(units)} recordings and copies at {time.time() - start:.0f} s",
-          flush=True)
+        out = list(pool.map(lambda u: context_unit(args, files, u[0], u[1], model(videos[u[0]]), offline), units))
+    print(f"train_classifier: {'offline' if offline else 'online'} second-stage features of {len(units)} recordings "
+          f"and copies at {time.time() - start:.0f} s", flush=True)
     return [o[0] for o in out], out[0][1]
 
 
@@ -318,36 +363,42 @@ def nested_lovo(args, data, names, files, videos, settings2, start):
                         f"GazeCom without {v} and {u}")
             units = [(i, c) for c in range(args.augment + 1) for i, w in enumerate(videos) if w == u]
             with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-                got = list(pool.map(lambda t: context_unit(args, files, t[0], t[1], model), units))
+                got = list(pool.map(lambda t: context_unit(args, files, t[0], t[1], model, True), units))
             rows += [g[0] for g in got]
             context_names = got[0][1]
             os.remove(model)
-        online, offline, n2 = fit_context(args, rows, context_names, {i for i, w in enumerate(videos) if w != v})
+        online, offline, n2 = fit_context(args, rows, rows, context_names, {i for i, w in enumerate(videos) if w != v})
         path = os.path.join(out_dir, v + ".trees")
-        write_bundle(path, os.path.join(args.lovo, v + ".frame.trees"), online, offline, context_names,
+        write_bundle(path, os.path.join(args.lovo, v + ".frame.trees"), context_names, online, offline,
                      f"GazeCom without {v}, nested (no first stage behind its rows saw {v}): {n2} samples; {settings2}")
         print(f"train_classifier: {path} ({n2} samples) at {time.time() - start:.0f} s", flush=True)
 
 
-def fit_context(args, rows, names, keep):
-    """The online and the offline second stage on the rows of the recordings in keep."""
-    x = np.concatenate([f for i, f, _ in rows if i in keep])
-    y = np.concatenate([lab for i, _, lab in rows if i in keep])
+def fit_context(args, rows_online, rows_offline, names, keep):
+    """The online and the offline second stage on the rows of the recordings in keep, each from its
+    chain's first stage (the same rows where both chains share it)."""
+    def xy(rows):
+        return (np.concatenate([f for i, f, _ in rows if i in keep]),
+                np.concatenate([lab for i, _, lab in rows if i in keep]))
+    x, y = xy(rows_offline)
     offline = fit(x, y, args.context_iterations, args.context_leaves, args.learning_rate)
+    if rows_online is not rows_offline:
+        x, y = xy(rows_online)
     online = fit(online_columns(x, names), y, args.context_iterations, args.context_leaves, args.learning_rate)
     return online, offline, len(x)
 
 
-def write_bundle(path, frame_path, online, offline, context_names, note):
-    """A fovea-gbt model (trees_core.h): the first stage's text, then the two second stages."""
+def write_bundle(path, frame_path, context_names=None, online=None, offline=None, note="", frame_online=None):
+    """A fovea-gbt model (trees_core.h): the first stage's text, the online chain's own first stage
+    (frame_online: (its file, its reach) or None), then the two second stages (or none)."""
+    lines = ["# fovea gbt model: " + note, "fovea-gbt 1", "stage frame", open(frame_path).read().rstrip("\n")]
+    if frame_online:
+        lines += ["stage frame-online %g" % frame_online[1], open(frame_online[0]).read().rstrip("\n")]
     with tempfile.TemporaryDirectory() as tmp:
-        parts = []
-        for name, clf in (("online", online), ("offline", offline)):
-            write_model(clf, context_names, os.path.join(tmp, name), note)
-            parts.append((name, open(os.path.join(tmp, name)).read()))
-    lines = ["# fovea gbt model: " + note, "fovea-gbt 1", "stage frame", open(frame_path).read().rstrip("\n"),
-             "stage online %g" % ONLINE_LOOKAHEAD_S, parts[0][1].rstrip("\n"),
-             "stage offline %g" % OFFLINE_LOOKAHEAD_S, parts[1][1].rstrip("\n")]
+        for name, clf, lookahead in (("online", online, ONLINE_LOOKAHEAD_S), ("offline", offline, OFFLINE_LOOKAHEAD_S)):
+            if clf is not None:
+                write_model(clf, context_names, os.path.join(tmp, name), note)
+                lines += ["stage %s %g" % (name, lookahead), open(os.path.join(tmp, name)).read().rstrip("\n")]
     with open(path + ".partial", "w") as f:
         f.write("\n".join(lines) + "\n")
     os.replace(path + ".partial", path)
@@ -377,8 +428,15 @@ def main():
     ap.add_argument("--frame-only", action="store_true", help="no second stage (the first stage's model alone)")
     ap.add_argument("--nested", help="comma-separated videos: also LOVO/nested/<video>.trees, second stages on "
                     "rows from first stages that never saw the video (17 first-stage fits a video)")
+    ap.add_argument("--online-reach", type=float, default=FULL_REACH_S,
+                    help="the online chain's own first stage, over features reaching this many seconds ahead "
+                    "(features.h; shorter: the daemon's labels are final sooner); %g: the offline one" % FULL_REACH_S)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
+    if not 0 < args.online_reach <= FULL_REACH_S:
+        sys.exit(f"train_classifier: --online-reach must be in (0, {FULL_REACH_S:g}] s")
+    if args.nested and args.online_reach < FULL_REACH_S:
+        sys.exit("train_classifier: --nested is for the offline chain's rows only (drop --online-reach)")
     if args.nested and args.frame_only:
         sys.exit("train_classifier: --nested needs the second stage (drop --frame-only)")
     root = unpacked(args.data)
@@ -389,58 +447,82 @@ def main():
         if v not in videos:
             sys.exit(f"train_classifier: --nested: no video '{v}' (videos: {', '.join(sorted(set(videos)))})")
     start = time.time()
-    data, names = load_all(args, files)
+    data, names, key = load_all(args, files, FULL_REACH_S)
     print(f"train_classifier: features of {len(files)} recordings and {args.augment} copies of each "
           f"({sum(len(u[2]) for u in data)} samples, {len(names)} features) in {time.time() - start:.0f} s")
-    # The features' build (fovea-ctl's content) is part of the settings: a first stage fitted on other
-    # features is not reused.
+    # The features (their key) are part of the settings: a first stage fitted on other features is
+    # not reused.
     settings = (f"iterations {args.iterations}, leaves {args.leaves}, learning rate {args.learning_rate:g}, a sample "
-                f"every {args.stride_ms:g} ms, {args.augment} copies as other trackers, features of fovea-ctl "
-                f"{build_key(args.ctl)}")
+                f"every {args.stride_ms:g} ms, {args.augment} copies as other trackers, features {key}")
     frame_lovo(args, data, names, files, videos, settings, start)
-    rows = context_names = settings2 = None
+    data_online = settings_online = None
+    if args.online_reach < FULL_REACH_S:
+        data_online, _, key_online = load_all(args, files, args.online_reach)
+        settings_online = settings.replace(key, f"{key_online} ({args.online_reach:g} s ahead)")
+        frame_lovo(args, data_online, names, files, videos, settings_online, start, args.online_reach)
+    rows_online = rows_offline = context_names = settings2 = None
     if not args.frame_only:
-        rows, context_names = context_rows(args, files, videos, start)
-        settings2 = settings + (f"; second stage: iterations {args.context_iterations}, leaves "
-                                f"{args.context_leaves}, a sample every {args.context_stride_ms:g} ms")
+        rows_offline, context_names = context_rows(args, files, videos, start, True)
+        rows_online = context_rows(args, files, videos, start, False)[0] if data_online else rows_offline
+        settings2 = (settings_online or settings) + (
+            f"; second stage: iterations {args.context_iterations}, leaves "
+            f"{args.context_leaves}, a sample every {args.context_stride_ms:g} ms")
     if args.out:
-        write_full_model(args, data, names, files, settings, settings2, rows, context_names, start)
+        write_full_model(args, (data, data_online), names, files, settings2 or settings_online or settings,
+                         (rows_online, rows_offline), context_names, start)
     if args.frame_only:
         return
     for k, v in enumerate(sorted(set(videos))):
         keep = {i for i, w in enumerate(videos) if w != v}
-        online, offline, n2 = fit_context(args, rows, context_names, keep)
+        online, offline, n2 = fit_context(args, rows_online, rows_offline, context_names, keep)
         path = os.path.join(args.lovo, v + ".trees")
         frame_path = os.path.join(args.lovo, v + ".frame.trees")
-        write_bundle(path, frame_path, online, offline, context_names, f"GazeCom without {v}: {n2} samples; {settings2}")
+        frame_online = (os.path.join(args.lovo, v + ".frame-online.trees"), args.online_reach) if data_online else None
+        write_bundle(path, frame_path, context_names, online, offline, f"GazeCom without {v}: {n2} samples; {settings2}",
+                     frame_online)
         if k == 0:  # the same code writes every bundle: one exactness check is enough
             held = [i for i, w in enumerate(videos) if w == v][:1]
-            check_model(args, online, path, files, held, (), frame_path)
+            check_model(args, online, path, files, held, (), chain_path(args, v))
             check_model(args, offline, path, files, held, ("--offline",), frame_path)
         print(f"train_classifier: {path} ({n2} samples) at {time.time() - start:.0f} s", flush=True)
     if args.nested:
         nested_lovo(args, data, names, files, videos, settings2, start)
 
 
-def write_full_model(args, data, names, files, settings, settings2, rows, context_names, start):
-    """--out: the first stage on every recording and, unless --frame-only, both second stages on
-    every recording's out-of-fold rows; checked against scikit-learn."""
-    x, y = training_rows(data, set(range(len(files))), args.stride_ms)
+def write_full_model(args, data, names, files, settings, rows, context_names, start):
+    """--out: the first stage (and with --online-reach the online chain's own) on every recording
+    and, unless --frame-only, both second stages on every recording's out-of-fold rows (rows: the
+    online and the offline chain's); checked against scikit-learn."""
+    x, y = training_rows(data[0], set(range(len(files))), args.stride_ms)
     clf = fit(x, y, args.iterations, args.leaves, args.learning_rate)
     note = f"{len(files)} GazeCom recordings, {len(x)} samples; {settings}"
     check_at = range(0, len(files), max(1, len(files) // 4))
-    if rows is None:
-        write_model(clf, names, args.out, note)
+    frame_path, online_path, chain = args.out + ".frame", args.out + ".frame-online", args.out + ".chain"
+    write_model(clf, names, frame_path, note)
+    frame_online = None
+    if data[1] is not None:
+        xo, yo = training_rows(data[1], set(range(len(files))), args.stride_ms)
+        clf_online = fit(xo, yo, args.iterations, args.leaves, args.learning_rate)
+        write_model(clf_online, names, online_path, note)
+        frame_online = (online_path, args.online_reach)
+        write_bundle(chain, frame_path, note=note, frame_online=frame_online)
+        check_model(args, clf_online, chain, files, check_at, reach=args.online_reach)
+    if rows[0] is None and frame_online is None:
+        os.replace(frame_path, args.out)
         check_model(args, clf, args.out, files, check_at)
+    elif rows[0] is None:
+        os.replace(chain, args.out)
+        check_model(args, clf, args.out, files, check_at, ("--offline",))
     else:
-        frame_path = args.out + ".frame"
-        write_model(clf, names, frame_path, note)
-        online, offline, n2 = fit_context(args, rows, context_names, set(range(len(files))))
-        write_bundle(args.out, frame_path, online, offline, context_names,
-                     f"{len(files)} GazeCom recordings, {len(x)} samples ({n2} in the second stage); {settings2}")
-        check_model(args, online, args.out, files, check_at, (), frame_path)
+        online, offline, n2 = fit_context(args, rows[0], rows[1], context_names, set(range(len(files))))
+        write_bundle(args.out, frame_path, context_names, online, offline,
+                     f"{len(files)} GazeCom recordings, {len(x)} samples ({n2} in the second stage); {settings}",
+                     frame_online)
+        check_model(args, online, args.out, files, check_at, (), chain if frame_online else frame_path)
         check_model(args, offline, args.out, files, check_at, ("--offline",), frame_path)
-        os.remove(frame_path)
+    for p in (frame_path, online_path, chain):
+        if os.path.exists(p):
+            os.remove(p)
     print(f"train_classifier: wrote {args.out} ({len(x)} samples) at {time.time() - start:.0f} s", flush=True)
 
 

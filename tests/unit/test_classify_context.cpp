@@ -127,12 +127,14 @@ TEST(Context, APauseInTheStreamIsNoNeighbour) {
 
 namespace {
 
-// Every sample's context features as the built-in model's online (or offline) stage reads them.
-std::vector<std::vector<float>> stage_inputs(const std::vector<Sample>& samples, bool offline) {
+// Every sample's context features as the built-in model's online (or offline) stage reads them, or
+// (context_only) with the whole reach, as that chain's stage was trained on them.
+std::vector<std::vector<float>> stage_inputs(const std::vector<Sample>& samples, bool offline, bool context_only = false) {
   std::vector<std::vector<float>> rows(samples.size());
   GbtOptions o;
   o.offline = offline;
   o.trees_only = true;
+  o.context_only = context_only;
   o.context_sink = [&](std::uint64_t index, const float* f) {
     const auto width = context_feature_names(builtin_gbt_model()->frame().trees().class_names()).size();
     rows[index].assign(f, f + width);
@@ -161,7 +163,7 @@ TEST(Context, TheDaemonsStageReadsWhatItWasTrainedOn) {
       const double x = phase < 0.4 ? 0.0 : phase < 0.45 ? 160 * (phase - 0.4) : 8 + 10 * (phase - 0.45);
       s.push_back({t, x, 1.0, k % 97 != 50});  // and a lost sample now and then
     }
-    const auto online = stage_inputs(s, false), full = stage_inputs(s, true);
+    const auto online = stage_inputs(s, false), full = stage_inputs(s, false, true);
     std::size_t compared = 0;
     for (std::size_t i = 0; i < s.size(); ++i) {
       ASSERT_EQ(online[i].size(), names.size()) << "sample " << i << " at " << rate << " Hz was not staged";

@@ -337,28 +337,68 @@ TEST(Features, RunningSumsMatchTheDirectSums) {
 
 // Online the window holds only the reach around the sample being scored; its features must be the
 // very numbers of a window that holds the whole recording (so training and the daemon agree).
+// With a shorter reach ahead (the daemon's own first stage) the stream scores each sample that much
+// sooner, and must still compute what the whole recording gives.
 TEST(Features, AStreamingWindowGivesTheWholeRecordingsNumbers) {
   const std::deque<Prepared> buf = wander(12000);
-  FeatureWindow whole, stream;
-  for (const Prepared& p : buf) whole.push(p);
-  std::size_t next = 0, dropped = 0, compared = 0;
-  float a[kFeatureCount], b[kFeatureCount];
-  for (std::size_t k = 0; k < buf.size(); ++k) {
-    stream.push(buf[k]);
-    for (; next < buf.size() && buf[next].t + kFeatureReachS <= buf[k].t; ++next) {
-      whole.features(next, fovea::protocol::DisplayGeometry{}, a);
-      stream.features(next - dropped, fovea::protocol::DisplayGeometry{}, b);
-      ASSERT_EQ(0, std::memcmp(a, b, sizeof a)) << "sample " << next;
-      ++compared;
+  for (double reach : {kFeatureReachS, 0.064}) {
+    FeatureWindow whole, stream;
+    for (const Prepared& p : buf) whole.push(p);
+    std::size_t next = 0, dropped = 0, compared = 0;
+    float a[kFeatureCount], b[kFeatureCount];
+    for (std::size_t k = 0; k < buf.size(); ++k) {
+      stream.push(buf[k]);
+      for (; next < buf.size() && buf[next].t + reach <= buf[k].t; ++next) {
+        whole.features(next, fovea::protocol::DisplayGeometry{}, a, reach);
+        stream.features(next - dropped, fovea::protocol::DisplayGeometry{}, b, reach);
+        ASSERT_EQ(0, std::memcmp(a, b, sizeof a)) << "sample " << next << ", reach " << reach;
+        ++compared;
+      }
+      // Keep one sample beyond the reach behind the next to score, as TreesCore does.
+      while (next > dropped + 1 && buf[next].t - buf[dropped + 1].t >= kFeatureReachS) {
+        stream.pop_front(1);
+        ++dropped;
+      }
     }
-    // Keep one sample beyond the reach behind the next to score, as TreesCore does.
-    while (next > dropped + 1 && buf[next].t - buf[dropped + 1].t >= kFeatureReachS) {
-      stream.pop_front(1);
-      ++dropped;
-    }
+    EXPECT_GT(compared, 11000u);
+    EXPECT_GT(dropped, 10000u);  // past the compaction (kCompactRows) several times
   }
-  EXPECT_GT(compared, 11000u);
-  EXPECT_GT(dropped, 10000u);  // past the compaction (kCompactRows) several times
+}
+
+// A reach R ahead keeps every scale's past and ends the longer windows R ahead: an even movement
+// still has its speed, a straight path, and the spread of the shorter segment it covers; nothing
+// beyond R (not even a loss) changes a feature.
+TEST(Features, AShorterReachKeepsThePastAndEndsTheLongWindowsAtTheReach) {
+  constexpr double kReach = 0.064;
+  const std::deque<Prepared> buf = line(250, 1.0, 10.0);
+  const std::size_t i = 125;  // 500 ms
+  float full[kFeatureCount], near[kFeatureCount];
+  sample_features(buf, i, fovea::protocol::DisplayGeometry{}, full);
+  sample_features(buf, i, fovea::protocol::DisplayGeometry{}, near, kReach);
+  for (const char* n : {"speed_c_64ms", "disp_64ms", "straight_32ms", "speed_b_256ms", "cos_4ms", "loss_before_s"}) {
+    EXPECT_EQ(near[at(n)], full[at(n)]) << n;
+  }
+  for (const char* n : {"speed_c_256ms", "speed_f_256ms", "speed_c_128ms"}) EXPECT_NEAR(near[at(n)], 10.0, 0.02) << n;
+  EXPECT_NEAR(near[at("cos_256ms")], 1.0, 1e-5);
+  EXPECT_NEAR(near[at("straight_256ms")], 1.0, 1e-5);
+  // [t - 256 ms, t + 64 ms] of a line at 10 deg/s: 3.2 deg long, RMS spread 3.2 / sqrt(12).
+  EXPECT_NEAR(near[at("disp_256ms")], 3.2 / std::sqrt(12.0), 0.02);
+  EXPECT_FLOAT_EQ(near[at("loss_after_s")], static_cast<float>(kReach));
+
+  // Beyond the reach (and the sample that brackets it): a jump, then a loss. Nothing changes.
+  std::deque<Prepared> later = buf;
+  for (std::size_t k = i + 18; k < later.size(); ++k) later[k].x += 12;
+  for (std::size_t k = i + 30; k < i + 40; ++k) later[k].kind = Prepared::Kind::Blink;
+  float changed[kFeatureCount];
+  sample_features(later, i, fovea::protocol::DisplayGeometry{}, changed, kReach);
+  EXPECT_EQ(0, std::memcmp(near, changed, sizeof near));
+  // A loss within the reach ends the scales that reach it, as at the full reach.
+  for (std::size_t k = i + 10; k < i + 20; ++k) later[k].kind = Prepared::Kind::Blink;  // 40 ms ahead
+  sample_features(later, i, fovea::protocol::DisplayGeometry{}, changed, kReach);
+  EXPECT_NEAR(changed[at("loss_after_s")], 0.040, 1e-6);
+  EXPECT_TRUE(std::isnan(changed[at("speed_c_64ms")]));
+  EXPECT_TRUE(std::isnan(changed[at("speed_c_256ms")]));
+  EXPECT_TRUE(std::isfinite(changed[at("speed_c_32ms")]));
 }
 
 // Hours of 1000 Hz gaze far from the screen's centre: the sums restart every chunk, so a fixation's
@@ -442,6 +482,13 @@ std::string bundle() {
          ensemble(ctx, "fixation saccade");
 }
 
+// bundle() with the online chain's own first stage, over features reaching `reach` ahead.
+std::string bundle_with_frame_online(const std::string& reach = "0.064",
+                                     const std::string& classes = "fixation saccade") {
+  return replaced(bundle(), "stage online 0.032\n",
+                  "stage frame-online " + reach + "\n" + ensemble(feature_names(), classes) + "stage online 0.032\n");
+}
+
 std::string model_error(const std::string& text) {
   return error_of([&] { GbtModel(text, "m.gbt"); });
 }
@@ -464,12 +511,43 @@ TEST(GbtModel, ABundleHoldsTheFirstStageAndBothSecondStages) {
   EXPECT_NE(offline_only.context(true), nullptr);
 }
 
+// The daemon's chain may have a first stage of its own over features that reach less far ahead, so
+// that its labels are final sooner (latency: that reach + the second stage's look-ahead + the
+// smoothing); the offline chain keeps the whole reach.
+TEST(GbtModel, TheOnlineChainMayHaveItsOwnFirstStageWithAShorterReach) {
+  const auto m = std::make_shared<const GbtModel>(bundle_with_frame_online(), "m.gbt");
+  EXPECT_NE(&m->frame(false), &m->frame(true));
+  EXPECT_DOUBLE_EQ(m->reach_s(false), 0.064);
+  EXPECT_DOUBLE_EQ(m->reach_s(true), kFeatureReachS);
+  const GbtModel plain(bundle(), "m.gbt");
+  EXPECT_EQ(&plain.frame(false), &plain.frame(true));
+  EXPECT_DOUBLE_EQ(plain.reach_s(false), kFeatureReachS);
+  // The trees' own latency (trees_only: without the smoothing and ivvt's core beside them).
+  GbtOptions o;
+  o.trees_only = true;
+  const double front = make_trees_pipeline(nullptr, fovea::protocol::DisplayGeometry{}, o)->latency_s() - kFeatureReachS;
+  EXPECT_NEAR(make_trees_pipeline(m, fovea::protocol::DisplayGeometry{}, o)->latency_s() - front, 0.064 + 0.032, 1e-12);
+  o.offline = true;
+  EXPECT_NEAR(make_trees_pipeline(m, fovea::protocol::DisplayGeometry{}, o)->latency_s() - front, kFeatureReachS + 0.512,
+              1e-12);
+
+  EXPECT_EQ(model_error(bundle_with_frame_online("0.3")),
+            "m.gbt:11: 'stage frame-online' needs one reach ahead in seconds, in (0, 0.256000]");
+  EXPECT_EQ(model_error(bundle_with_frame_online("0")),
+            "m.gbt:11: 'stage frame-online' needs one reach ahead in seconds, in (0, 0.256000]");
+  EXPECT_EQ(model_error(bundle_with_frame_online("0.064", "fixation pursuit")),
+            "m.gbt:11: 'stage frame-online' has other classes than 'stage frame'");
+  const std::string after_online =
+      bundle() + "stage frame-online 0.064\n" + ensemble(feature_names(), "fixation saccade");
+  EXPECT_EQ(model_error(after_online), "m.gbt:27: 'stage frame-online' after 'stage online' (whose features it gives)");
+}
+
 TEST(GbtModel, ADamagedBundleIsRefusedWithFileAndLine) {
   EXPECT_EQ(model_error(replaced(bundle(), "fovea-gbt 1", "fovea-gbt 2")), "m.gbt:2: format version is not 1");
   EXPECT_EQ(model_error(replaced(bundle(), "fovea-gbt 1", "fovea-gbz 1")),
             "m.gbt:2: expected 'fovea-gbt' or 'fovea-trees', found 'fovea-gbz'");
   EXPECT_EQ(model_error(replaced(bundle(), "stage frame", "stage frames")),
-            "m.gbt:3: stage 'frames' is none of frame, online, offline");
+            "m.gbt:3: stage 'frames' is none of frame, frame-online, online, offline");
   EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.6")),
             "m.gbt:11: 'stage online' needs one look-ahead in seconds, in (0, 0.512000]");
   EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online")),

@@ -151,10 +151,10 @@ float FeatureWindow::noise(std::int64_t a, std::int64_t b) const {
   return static_cast<float>(*mid);
 }
 
-// One scale's features of row ci, whose run reaches rows bj (the last d or more before it) and f
-// (the first d or more after it).
+// One scale's features of row ci over [t - d, t + a] (a = d but where the reach is shorter), whose
+// run reaches rows bj (the last d or more before it) and f (the first a or more after it).
 void FeatureWindow::scale_features(std::int64_t ci, std::int64_t bj, std::int64_t f, const TangentMap& tm, double d,
-                                   float* o) const {
+                                   double a, float* o) const {
   const Row& c = at(ci);
   // The point at time offset u (from the centre) between rows r0 and r1 (offsets u0 <= u <= u1).
   const auto between = [&](const Row& r0, const Row& r1, double u) {
@@ -162,24 +162,24 @@ void FeatureWindow::scale_features(std::int64_t ci, std::int64_t bj, std::int64_
     const double v = std::abs(u - u0) <= kSameTimeS ? 0.0 : std::abs(u1 - u) <= kSameTimeS ? 1.0 : (u - u0) / (u1 - u0);
     return tm(r0.x + v * (r1.x - r0.x) - c.x, r0.y + v * (r1.y - r0.y) - c.y);
   };
-  const TangentVector pb = between(at(bj), at(bj + 1), -d), pf = between(at(f - 1), at(f), d);
-  // The window's samples: |t - t_c| <= d.
-  const std::int64_t a = c.t - at(bj).t <= d + kSameTimeS ? bj : bj + 1;
-  const std::int64_t b = at(f).t - c.t <= d + kSameTimeS ? f : f - 1;
-  const Centred sum = centred_sums(a, b, c.x, c.y);
+  const TangentVector pb = between(at(bj), at(bj + 1), -d), pf = between(at(f - 1), at(f), a);
+  // The window's samples: -d <= t - t_c <= a.
+  const std::int64_t first = c.t - at(bj).t <= d + kSameTimeS ? bj : bj + 1;
+  const std::int64_t last = at(f).t - c.t <= a + kSameTimeS ? f : f - 1;
+  const Centred sum = centred_sums(first, last, c.x, c.y);
   const double mx = sum.sx / sum.n, my = sum.sy / sum.n;
   const double cxx = sum.sxx / sum.n - mx * mx, cxy = sum.sxy / sum.n - mx * my, cyy = sum.syy / sum.n - my * my;
   // trace(M cov M^T): the spread in the centre's tangent frame.
   const double spread2 = (tm.xx * tm.xx + tm.yx * tm.yx) * cxx + 2 * (tm.xx * tm.xy + tm.yx * tm.yy) * cxy +
                          (tm.xy * tm.xy + tm.yy * tm.yy) * cyy;
-  const TangentVector ea = tm(at(a).x - c.x, at(a).y - c.y), eb = tm(at(b).x - c.x, at(b).y - c.y);
+  const TangentVector ea = tm(at(first).x - c.x, at(first).y - c.y), eb = tm(at(last).x - c.x, at(last).y - c.y);
   const double nb = length(pb.x, pb.y), nf = length(pf.x, pf.y);
   const double net = length(pf.x - pb.x, pf.y - pb.y);
   // The path through the window's samples plus the interpolated ends beyond its outermost ones.
   const double path = sum.path + length(pb.x - ea.x, pb.y - ea.y) + length(pf.x - eb.x, pf.y - eb.y);
-  o[0] = static_cast<float>(net / (2 * d));
+  o[0] = static_cast<float>(net / (d + a));
   o[1] = static_cast<float>(nb / d);
-  o[2] = static_cast<float>(nf / d);
+  o[2] = static_cast<float>(nf / a);
   o[3] = nb > 0 && nf > 0 ? static_cast<float>((-pb.x * pf.x - pb.y * pf.y) / (nb * nf)) : 0.0f;
   o[4] = static_cast<float>(std::sqrt(std::max(0.0, spread2)));
   // Gaze that did not move at all (a still eye on a tracker that reports whole pixels) made no
@@ -187,16 +187,17 @@ void FeatureWindow::scale_features(std::int64_t ci, std::int64_t bj, std::int64_
   o[5] = path > 0 ? static_cast<float>(net / path) : 0.0f;
 }
 
-void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& display, float* out) const {
+void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& display, float* out,
+                             double reach_s) const {
   const std::int64_t ci = first() + static_cast<std::int64_t>(i);
   const Row& c = at(ci);
   float* tail = out + kFeatureScalesS.size() * kFeaturesPerScale;
-  const auto loss_time = [&](std::int64_t j) {
-    if (j < first() || j >= end()) return static_cast<float>(kFeatureReachS);
-    return static_cast<float>(std::min(std::abs(at(j).t - c.t), kFeatureReachS));
+  const auto loss_time = [&](std::int64_t j, double cap) {
+    if (j < first() || j >= end()) return static_cast<float>(cap);
+    return static_cast<float>(std::min(std::abs(at(j).t - c.t), cap));
   };
-  tail[0] = loss_time(c.prev_loss);
-  tail[1] = loss_time(c.next_loss);
+  tail[0] = loss_time(c.prev_loss, kFeatureReachS);
+  tail[1] = loss_time(c.next_loss, reach_s);
   tail[2] = c.filled ? 1.0f : 0.0f;
   if (!c.gaze) {
     std::fill(out, tail, kNaNf);
@@ -220,29 +221,29 @@ void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& dis
   };
   const TangentMap tm = tangent_map(c.x, c.y);
   for (std::size_t s = 0; s < kFeatureScalesS.size(); ++s) {
-    const double d = kFeatureScalesS[s];
+    const double d = kFeatureScalesS[s], a = std::min(d, reach_s);
     float* o = out + s * kFeaturesPerScale;
-    const std::int64_t f = ahead(d), w = within_before(d);  // rows f-1, f and w-1, w bracket t +- d
+    const std::int64_t f = ahead(a), w = within_before(d);  // rows f-1, f and w-1, w bracket t + a, t - d
     if (f > hi || w == lo) {
       std::fill(o, o + kFeaturesPerScale, kNaNf);
       continue;
     }
-    scale_features(ci, w - 1, f, tm, d, o);
+    scale_features(ci, w - 1, f, tm, d, a, o);
   }
-  // The noise's window: the run's rows within +-kNoiseHalfS.
+  // The noise's window: the run's rows within kNoiseHalfS before and min(kNoiseHalfS, reach) after.
   const std::int64_t na = index_of(std::partition_point(
       row_it(lo), row_it(ci), [&](const Row& r) { return c.t - r.t > kNoiseHalfS + kSameTimeS; }));
   const std::int64_t nb = index_of(std::partition_point(
-      row_it(ci), row_it(hi + 1), [&](const Row& r) { return r.t - c.t <= kNoiseHalfS + kSameTimeS; }));
+      row_it(ci), row_it(hi + 1), [&](const Row& r) { return r.t - c.t <= std::min(kNoiseHalfS, reach_s) + kSameTimeS; }));
   tail[3] = noise(na, nb - 1);
   tail[4] = offscreen_deg(display, c.x, c.y);
 }
 
 void sample_features(const std::deque<Prepared>& buf, std::size_t i, const protocol::DisplayGeometry& display,
-                     float* out) {
+                     float* out, double reach_s) {
   FeatureWindow w;
   for (const Prepared& p : buf) w.push(p);
-  w.features(i, display, out);
+  w.features(i, display, out, reach_s);
 }
 
 }  // namespace fovea::trackerd::classify

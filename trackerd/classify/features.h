@@ -32,7 +32,11 @@
 // online and offline agree exactly.
 //
 // Every feature of sample i reads only samples within kFeatureReachS of it, so an online core
-// computes them kFeatureReachS after the sample arrives.
+// computes them kFeatureReachS after the sample arrives. A shorter reach R ahead (the daemon's
+// first stage, trees_core.h: labels sooner) keeps the past: a scale D > R spans [t - D, t + R]
+// (speed_c over D + R, speed_f and cos's second displacement over R), the noise's window ends R
+// after the sample and the time to the next loss is capped at R; the features are then computed R
+// after the sample, and a model must be trained on features of the same reach.
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -65,10 +69,12 @@ class FeatureWindow {
   void pop_front(std::size_t n);
   void clear();
   std::size_t size() const { return rows_.size() - front_; }
-  // The features of the i-th sample held (0: the oldest) into out[0..kFeatureCount). The window
-  // must reach kFeatureReachS either side of it (or the stream's ends) for them to be final. A
-  // sample without gaze gets NaN everywhere but the loss times and `filled`.
-  void features(std::size_t i, const protocol::DisplayGeometry& display, float* out) const;
+  // The features of the i-th sample held (0: the oldest) into out[0..kFeatureCount), with reach_s
+  // (in (0, kFeatureReachS]) ahead. The window must reach kFeatureReachS before it and reach_s
+  // after it (or the stream's ends) for them to be final. A sample without gaze gets NaN everywhere
+  // but the loss times and `filled`.
+  void features(std::size_t i, const protocol::DisplayGeometry& display, float* out,
+                double reach_s = kFeatureReachS) const;
 
  private:
   // Sums over a chunk's gaze samples up to a row, relative to the chunk's reference point.
@@ -92,7 +98,8 @@ class FeatureWindow {
     double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, path = 0;
   };
   Centred centred_sums(std::int64_t a, std::int64_t b, double cx, double cy) const;
-  void scale_features(std::int64_t ci, std::int64_t bj, std::int64_t f, const TangentMap& tm, double d, float* o) const;
+  void scale_features(std::int64_t ci, std::int64_t bj, std::int64_t f, const TangentMap& tm, double d, double a,
+                      float* o) const;
   float noise(std::int64_t a, std::int64_t b) const;
 
   std::vector<Row> rows_;
@@ -105,6 +112,6 @@ class FeatureWindow {
 // The features of buf[i] into out[0..kFeatureCount), through a FeatureWindow of all of buf (for
 // tests and one-off use; a stream keeps its own window).
 void sample_features(const std::deque<Prepared>& buf, std::size_t i, const protocol::DisplayGeometry& display,
-                     float* out);
+                     float* out, double reach_s = kFeatureReachS);
 
 }  // namespace fovea::trackerd::classify

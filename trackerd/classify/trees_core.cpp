@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The learned method, `gbt` (issue 43): each sample's multi-scale features (features.h) go through a
 // gradient-boosted tree ensemble (trees.h) trained on human-coded recordings by
-// bench/train_classifier.py. A sample is scored once the stream has reached kFeatureReachS past it
+// bench/train_classifier.py. A sample is scored once the stream has reached the features' reach past it
 // and labelled once its smoothing window (kSmoothLongS) is scored too; ivvt's core beside it gives
 // the PSO. Samples without gaze keep the front end's blink/lost.
 #include <algorithm>
@@ -45,7 +45,7 @@ struct Scored {
 };
 
 // Three streaming steps, each waiting only as long as the next needs: the first stage scores a
-// sample once the stream has reached kFeatureReachS past it; the second (where the model has one,
+// sample once the stream has reached its features' reach (reach_) past it; the second (where the model has one,
 // or context features are asked for) once the first has scored the look-ahead past it; smoothing
 // labels it once its window (kSmoothLongS, online after a second stage kSmoothLongAfterContextS) has
 // been through both.
@@ -55,11 +55,13 @@ class TreesCore final : public Core {
       : model_(std::move(model)),
         display_(display),
         smooth_(!options.trees_only && model_),
-        context_(model_ ? model_->context(options.offline) : nullptr),
+        frame_(model_ ? &model_->frame(options.offline) : nullptr),
+        reach_(model_ ? model_->reach_s(options.offline) : options.reach_s > 0 ? options.reach_s : kFeatureReachS),
+        context_(model_ && !options.context_only ? model_->context(options.offline) : nullptr),
         staged_(context_ != nullptr || options.context_sink),
         lookahead_s_(context_ ? model_->lookahead_s(options.offline) : staged_ ? kContextReachS : 0.0),
         smooth_long_s_(context_ && !options.offline ? kSmoothLongAfterContextS : kSmoothLongS),
-        classes_(model_ ? model_->frame().class_count() : 0),
+        classes_(frame_ ? frame_->class_count() : 0),
         frame_sink_(std::move(options.frame_sink)),
         context_sink_(std::move(options.context_sink)) {}
 
@@ -67,7 +69,7 @@ class TreesCore final : public Core {
     newest_t_ = p.t;
     buf_.push_back(p);
     window_.push(p);
-    while (next_ < buf_.size() && buf_[next_].t + kFeatureReachS <= p.t) score_next(out);
+    while (next_ < buf_.size() && buf_[next_].t + reach_ <= p.t) score_next(out);
     trim();
     if (staged_) contextualize(out, false);
     if (smooth_) label_smoothed(out, false);
@@ -83,7 +85,7 @@ class TreesCore final : public Core {
     if (smooth_) label_smoothed(out, true);
   }
   double latency_s() const override {
-    return kFeatureReachS + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? smooth_long_s_ : 0.0);
+    return reach_ + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? smooth_long_s_ : 0.0);
   }
 
  private:
@@ -92,7 +94,7 @@ class TreesCore final : public Core {
   void score_next(std::vector<Labeled>& out) {
     const Prepared& p = buf_[next_];
     ContextSample c;
-    window_.features(next_, display_, c.frame.data());
+    window_.features(next_, display_, c.frame.data(), reach_);
     if (frame_sink_) frame_sink_(p.index, c.frame.data());
     Scored s;
     s.out = {p.index, p.kind == Prepared::Kind::Lost ? Label::Lost : Label::Blink};
@@ -103,14 +105,14 @@ class TreesCore final : public Core {
     ++next_;
     if (s.gaze) s.noise_as_blink = TreesModel::noise_is_blink(c.frame.data());
     if (s.gaze && !model_) s.out.label = Label::Unknown;
-    if (s.gaze && model_) model_->frame().probabilities(c.frame.data(), c.p.data());
+    if (s.gaze && model_) frame_->probabilities(c.frame.data(), c.p.data());
     if (staged_) {
       push_context(ctx_, c, classes_);
       pending_.push_back(s);
       return;
     }
     if (s.gaze && model_) {
-      if (!smooth_) s.out.label = model_->frame().label(c.frame.data(), s.noise_as_blink);
+      if (!smooth_) s.out.label = frame_->label(c.frame.data(), s.noise_as_blink);
       s.p = c.p;
     }
     deliver(s, out);
@@ -121,7 +123,7 @@ class TreesCore final : public Core {
     std::array<float, kMaxContextFeatures> f;
     // Every sample up to the look-ahead has been scored once the stream has reached the features'
     // reach past it (also where it paused: nothing later can fall within the look-ahead).
-    while (ctx_next_ < ctx_.size() && (all || newest_t_ >= ctx_[ctx_next_].t + lookahead_s_ + kContextSlackS + kFeatureReachS)) {
+    while (ctx_next_ < ctx_.size() && (all || newest_t_ >= ctx_[ctx_next_].t + lookahead_s_ + kContextSlackS + reach_)) {
       context_features(ctx_, ctx_next_, classes_, lookahead_s_, f.data());
       Scored s = pending_.front();
       pending_.pop_front();
@@ -134,7 +136,7 @@ class TreesCore final : public Core {
         }
       } else if (s.gaze && model_) {  // context features asked for, but no second stage to use them
         s.p = ctx_[ctx_next_].p;
-        if (!smooth_) s.out.label = model_->frame().label(ctx_[ctx_next_].frame.data(), s.noise_as_blink);
+        if (!smooth_) s.out.label = frame_->label(ctx_[ctx_next_].frame.data(), s.noise_as_blink);
       }
       ++ctx_next_;
       deliver(s, out);
@@ -157,7 +159,7 @@ class TreesCore final : public Core {
   // latency past it (every sample within the long window after it has arrived and been scored), or a
   // later gaze run has begun (everything, at the end of the stream).
   void label_smoothed(std::vector<Labeled>& out, bool all) {
-    const TreesModel& last = context_ ? *context_ : model_->frame();
+    const TreesModel& last = context_ ? *context_ : *frame_;
     while (labelled_ < scored_.size()) {
       const Scored& s = scored_[labelled_];
       if (!all && scored_.back().run == s.run && s.t > newest_t_ - latency_s()) break;
@@ -205,6 +207,8 @@ class TreesCore final : public Core {
   std::shared_ptr<const GbtModel> model_;
   protocol::DisplayGeometry display_;
   bool smooth_;
+  const TreesModel* frame_;    // the chain's first stage (owned by model_), or null
+  double reach_;               // how far ahead its features reach (features.h)
   const TreesModel* context_;  // the second stage used (owned by model_), or null
   bool staged_;                // whether samples go through the second stage's buffer
   double lookahead_s_;
@@ -403,8 +407,24 @@ void GbtModel::add_stage(const std::string& header, const std::string& text, con
     frame_ = std::make_unique<TreesModel>(TreeEnsemble::parse(text, origin, feature_names(), line), origin);
     return;
   }
-  if (name != "online" && name != "offline") fail("stage '" + name + "' is none of frame, online, offline");
+  if (name != "frame-online" && name != "online" && name != "offline") {
+    fail("stage '" + name + "' is none of frame, frame-online, online, offline");
+  }
   if (!frame_) fail("'stage " + name + "' before 'stage frame'");
+  if (name == "frame-online") {
+    if (frame_online_) fail("a second 'stage frame-online'");
+    if (online_) fail("'stage frame-online' after 'stage online' (whose features it gives)");
+    double reach = 0;
+    if (!(words >> reach) || !(reach > 0 && reach <= kFeatureReachS) || (words >> extra)) {
+      fail("'stage frame-online' needs one reach ahead in seconds, in (0, " + std::to_string(kFeatureReachS) + "]");
+    }
+    frame_online_ = std::make_unique<TreesModel>(TreeEnsemble::parse(text, origin, feature_names(), line), origin);
+    if (frame_online_->trees().class_names() != frame_->trees().class_names()) {
+      fail("'stage frame-online' has other classes than 'stage frame'");
+    }
+    frame_online_reach_s_ = reach;
+    return;
+  }
   if (!(words >> lookahead) || !(lookahead > 0 && lookahead <= kContextReachS) || (words >> extra)) {
     fail("'stage " + name + "' needs one look-ahead in seconds, in (0, " + std::to_string(kContextReachS) + "]");
   }
@@ -461,21 +481,28 @@ std::vector<float> matrix_of(const std::vector<Sample>& samples, std::size_t wid
 
 }  // namespace
 
-std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display) {
+std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display,
+                                  double reach_s) {
+  if (!(reach_s > 0 && reach_s <= kFeatureReachS)) {
+    throw std::invalid_argument("the features' reach ahead must be in (0, " + std::to_string(kFeatureReachS) + "] s");
+  }
   return matrix_of(samples, kFeatureCount, [&](FeatureSink sink) {
     GbtOptions o;
     o.trees_only = true;
+    o.reach_s = reach_s;
     o.frame_sink = std::move(sink);
     return make_trees_pipeline(nullptr, display, std::move(o));
   });
 }
 
 std::vector<float> context_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display,
-                                  std::shared_ptr<const GbtModel> model) {
+                                  std::shared_ptr<const GbtModel> model, bool offline) {
   const std::size_t width = context_feature_names(model->frame().trees().class_names()).size();
   return matrix_of(samples, width, [&](FeatureSink sink) {
     GbtOptions o;
     o.trees_only = true;
+    o.offline = offline;
+    o.context_only = true;
     o.context_sink = std::move(sink);
     return make_trees_pipeline(model, display, std::move(o));
   });

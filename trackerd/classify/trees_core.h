@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "classify/features.h"
 #include "classify/pipeline.h"
 #include "classify/trees.h"
 
@@ -58,11 +59,15 @@ inline constexpr double kOnlineLookaheadS = 0.032;
 
 // The `gbt` model: the first stage over each sample's features (features.h) and, optionally, second
 // stages over the first's probabilities around the sample (context.h), one for the daemon (online,
-// short look-ahead) and one for `fovea-ctl classify --offline` (the whole reach). Its text is either
-// a "fovea-trees" ensemble (the first stage alone) or a bundle:
+// short look-ahead) and one for `fovea-ctl classify --offline` (the whole reach). The daemon's chain
+// may have a first stage of its own over features that reach less far ahead (features.h), so that
+// its labels are final sooner. Its text is either a "fovea-trees" ensemble (the first stage alone)
+// or a bundle:
 //
 //   fovea-gbt 1
 //   stage frame                        then a fovea-trees ensemble over features.h's features
+//   stage frame-online REACH_S         then one over the same features with REACH_S ahead (optional;
+//                                      without it the online chain's first stage is `frame`)
 //   stage online LOOKAHEAD_S           then one over context.h's features (optional)
 //   stage offline LOOKAHEAD_S          likewise (optional)
 //
@@ -70,15 +75,17 @@ inline constexpr double kOnlineLookaheadS = 0.032;
 class GbtModel {
  public:
   GbtModel(const std::string& text, const std::string& origin);
-  const TreesModel& frame() const { return *frame_; }
+  // The first stage of the online or the offline chain, and how far ahead its features reach.
+  const TreesModel& frame(bool offline = true) const { return offline || !frame_online_ ? *frame_ : *frame_online_; }
+  double reach_s(bool offline) const { return offline || !frame_online_ ? kFeatureReachS : frame_online_reach_s_; }
   // The second stage for online or offline labelling and its look-ahead; null where there is none.
   const TreesModel* context(bool offline) const { return (offline ? offline_ : online_).get(); }
   double lookahead_s(bool offline) const { return offline ? offline_lookahead_s_ : online_lookahead_s_; }
 
  private:
   void add_stage(const std::string& header, const std::string& text, const std::string& origin, int line);
-  std::unique_ptr<TreesModel> frame_, online_, offline_;
-  double online_lookahead_s_ = 0, offline_lookahead_s_ = 0;
+  std::unique_ptr<TreesModel> frame_, frame_online_, online_, offline_;
+  double frame_online_reach_s_ = kFeatureReachS, online_lookahead_s_ = 0, offline_lookahead_s_ = 0;
 };
 
 std::shared_ptr<const GbtModel> builtin_gbt_model();  // parsed once
@@ -91,8 +98,13 @@ struct GbtOptions {
   bool trees_only = false;  // the last stage's own label per sample: neither smoothed nor with PSO
                             // (what scikit-learn predicts)
   FeatureSink frame_sink;   // each sample's kFeatureCount features.h features
-  FeatureSink context_sink;  // each sample's context features (context.h) with the whole reach, from
-                             // the model's first stage (the model need have no second stage)
+  FeatureSink context_sink;  // each sample's context features (context.h) from the chain's first
+                             // stage, with its second stage's look-ahead (the whole reach where it
+                             // has none)
+  bool context_only = false;  // no second stage: the context features reach the whole kContextReachS
+                              // and the first stage labels (what a second stage is trained on)
+  double reach_s = 0;        // without a model: the features' reach ahead (0: kFeatureReachS); a
+                             // model's chain states its own
 };
 // The `gbt` pipeline: the standard front end (without the lid rule), the trees core with its
 // smoothing, and ivvt's PSO where the trees say saccade or fixation (trees_core.cpp, WithPsoCore).
@@ -102,10 +114,13 @@ std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const GbtM
 
 // The features of every input sample exactly as the `gbt` pipeline computes them online, row-major,
 // kFeatureCount per row; NaN rows for samples the pipeline rejected (bad times).
-std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display);
-// The same for the context features (context.h, the whole reach) from the model's first stage:
-// context_feature_names(model.frame() classes).size() per row.
+// reach_s: how far ahead they reach (features.h).
+std::vector<float> feature_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display,
+                                  double reach_s = kFeatureReachS);
+// The same for the context features (context.h, the whole reach) from the first stage of the
+// model's online or offline chain: context_feature_names(model.frame() classes).size() per row,
+// what the chain's second stage is trained on.
 std::vector<float> context_matrix(const std::vector<Sample>& samples, const protocol::DisplayGeometry& display,
-                                  std::shared_ptr<const GbtModel> model);
+                                  std::shared_ptr<const GbtModel> model, bool offline = true);
 
 }  // namespace fovea::trackerd::classify

@@ -385,6 +385,7 @@ struct ClassifyArgs {
   bool trees_only = false;   // --trees-only (gbt)
   bool offline = false;      // --offline
   std::string features_out;  // --features-out F.npy (and F.npy.names)
+  double features_reach_s = fovea::trackerd::classify::kFeatureReachS;  // --features-reach S
   std::string context_out;   // --context-out F.npy (and F.npy.names)
 };
 
@@ -412,15 +413,18 @@ void write_npy(const std::string& path, const std::vector<float>& m, const std::
   std::filesystem::rename(tmp, path);
 }
 
-// --features-out and --context-out: the gbt method's first-stage features of every input row, and
-// the second stage's (with the whole reach, from the model's first stage).
+// --features-out and --context-out: the gbt method's first-stage features of every input row (with
+// --features-reach ahead), and the second stage's (with the whole reach, from the first stage of the
+// model's online chain, or with --offline of its offline chain).
 void write_feature_files(const ClassifyArgs& a, const std::vector<fovea::trackerd::classify::Sample>& samples,
                          const DisplayGeometry& display) {
   namespace cl = fovea::trackerd::classify;
-  if (!a.features_out.empty()) write_npy(a.features_out, cl::feature_matrix(samples, display), cl::feature_names());
+  if (!a.features_out.empty()) {
+    write_npy(a.features_out, cl::feature_matrix(samples, display, a.features_reach_s), cl::feature_names());
+  }
   if (!a.context_out.empty()) {
     const auto model = a.model_path.empty() ? cl::builtin_gbt_model() : cl::load_gbt_model(a.model_path);
-    write_npy(a.context_out, cl::context_matrix(samples, display, model),
+    write_npy(a.context_out, cl::context_matrix(samples, display, model, a.offline),
               cl::context_feature_names(model->frame().trees().class_names()));
   }
 }
@@ -569,10 +573,16 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
+  classify->add_option("--features-reach", cls.features_reach_s,
+                       "S: --features-out's features look at most S seconds ahead of each row, as a first stage "
+                       "trained for a shorter latency computes them (a window longer than S ends S ahead)")
+      ->check(CLI::Range(0.001, fovea::trackerd::classify::kFeatureReachS))
+      ->capture_default_str();
   classify->add_option("--context-out", cls.context_out,
                        "F.npy: also write the gbt method's second-stage features of every row (the first stage's "
-                       "probabilities around it, from --model's or the built-in first stage) and their names to "
-                       "F.npy.names, for training");
+                       "probabilities up to 512 ms around it, from the first stage of --model's or the built-in "
+                       "model's online chain, or with --offline its offline chain) and their names to F.npy.names, "
+                       "for training");
 
   return classify;
 }
