@@ -31,7 +31,7 @@ a label the algorithm never gives). fovea's lost and unknown labels are "other" 
   A decimated EyeLink signal keeps EyeLink's filter and is no real 250 Hz tracker; it shows how the
   methods' rules hold when samples are fewer and noisier, not what another tracker's coder would say.
 
-Usage: bench/eval_classify_human.py FOVEA_CTL [DATA_DIR] [--json OUT.json] [--robustness]
+Usage: bench/eval_classify_human.py FOVEA_CTL [DATA_DIR] [--json OUT.json] [--robustness] [--model FILE]
 (DATA_DIR defaults to ../shared/data/irf-lookAtPoint_EL beside the checkout.)
 """
 import argparse
@@ -80,6 +80,9 @@ def scored(raw):
     return [l if l in CLASSES or l == "pursuit" else "other" for l in raw]
 
 
+MODEL = []  # --model FILE: fovea-ctl classify's arguments for gbt's model (the built-in one without)
+
+
 def classify(ctl, in_path, out_path, rate_hz, geometry, method, provisional=None):
     """Labels and final times; with `provisional` (a dict) also the provisional events, as
     (kind_phase, event time ms, row index that made it known), and the confirmed/retracted counts."""
@@ -87,6 +90,8 @@ def classify(ctl, in_path, out_path, rate_hz, geometry, method, provisional=None
     method, *flags = method.split("+")
     cmd = [ctl, "classify", in_path, out_path, "%g" % rate_hz, str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
            "%g" % dist_mm, "--method", method, "--force", "--final-times"] + ["--" + f for f in flags]
+    if method == "gbt":
+        cmd += MODEL
     if provisional is not None:
         cmd.append("--provisional")
     run = subprocess.run(cmd, check=True, capture_output=True, text=True)
@@ -195,7 +200,10 @@ def main():
     ap.add_argument("data", nargs="?", default=os.path.join(here, "..", "..", "shared", "data", "irf-lookAtPoint_EL"))
     ap.add_argument("--json", help="write the scores here")
     ap.add_argument("--robustness", action="store_true", help="also score decimated and noisier versions")
+    ap.add_argument("--model", help="gbt's model: a file of bench/train_classifier.py (default: the built-in one)")
     args = ap.parse_args()
+    if args.model:
+        MODEL[:] = ["--model", args.model]
     geometry = load_geometry(args.data)
     sessions = sorted(f for f in os.listdir(args.data) if f.endswith(".npy"))
     if not sessions:
