@@ -7,6 +7,8 @@
 # must write one model per video. fovea-ctl must then label with the model, and refuse a damaged
 # one naming the file and line, writing nothing. --nested, on three videos, must write a video's
 # second stages fitted on rows from first stages that never saw it, and refuse a video not there.
+# --online-reach must give the daemon's chain a first stage of its own over features that reach less
+# far ahead, each checked exact, reusing the first stages fitted before, and labels final sooner.
 # Usage: test_train_classifier.sh CTL SOURCE_DIR
 set -u
 CTL=$1 SRC=$2
@@ -93,8 +95,29 @@ check_refused() {  # sed-expression error-text
 }
 check_refused 's/^fovea-trees 1$/fovea-trees 7/' "bad.trees:5: format version is not 1"
 check_refused 's/^stage online 0.032$/stage online 2/' "bad.trees:$online_at: 'stage online' needs one look-ahead"
-check_refused 's/^stage frame$/stage frames/' "bad.trees:3: stage 'frames' is none of frame, online, offline"
+check_refused 's/^stage frame$/stage frames/' "bad.trees:3: stage 'frames' is none of frame, frame-online, online, offline"
 check_refused "$((online_at + 4))s/^classes [0-9]* /classes 0 /" "bad.trees:$((online_at + 4)): classes '0' is not an integer"
+
+echo "== --online-reach: the daemon's own first stage, over features 64 ms ahead"
+/usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" --out "$WORK/m64.trees" \
+  --online-reach 0.064 >"$WORK/reach.txt" 2>&1 || fail "online reach: $(cat "$WORK/reach.txt")"
+cat "$WORK/reach.txt"
+! grep -q "/clip_a.frame.trees (" "$WORK/reach.txt" || fail "the whole reach's first stages were fitted again"
+for v in clip_a clip_b; do
+  [ -f "$WORK/lovo/$v.frame-online.trees" ] && grep -q "^stage frame-online 0.064$" "$WORK/lovo/$v.trees" \
+    || fail "$v's bundle has no online first stage: $(grep '^stage' "$WORK/lovo/$v.trees")"
+done
+# 2 online first stages, the full model's 3 stages, and the first bundle's 2 second stages.
+[ "$(grep -c "disagree on 0 of" "$WORK/reach.txt")" = 7 ] || fail "not every stage checked exact: $(cat "$WORK/reach.txt")"
+[ "$(grep '^stage' "$WORK/m64.trees" | tr '\n' ' ')" = "stage frame stage frame-online 0.064 stage online 0.032 stage offline 0.512 " ] \
+  || fail "the model's stages: $(grep '^stage' "$WORK/m64.trees")"
+# The trees alone (no smoothing, no ivvt beside them): 75 ms fill-in + 64 ms reach + 32 ms look-ahead.
+"$CTL" classify "$in" "$WORK/r.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/m64.trees" --trees-only \
+  2>"$WORK/err" || fail "classify with the online-reach model: $(cat "$WORK/err")"
+grep -q "online latency 171 ms" "$WORK/err" || fail "the online chain does not label 64 ms after: $(cat "$WORK/err")"
+"$CTL" classify "$in" "$WORK/r.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/m64.trees" --trees-only \
+  --offline --force 2>"$WORK/err" || fail "classify --offline with the online-reach model: $(cat "$WORK/err")"
+grep -q "online latency 843 ms" "$WORK/err" || fail "the offline chain does not wait 256 + 512 ms: $(cat "$WORK/err")"
 
 echo "== --nested: a video's second stages from first stages that never saw it"
 make_gazecom "$WORK/gc3/ground_truth" clip_a,clip_b,clip_c || fail "making the recordings"

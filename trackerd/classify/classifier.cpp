@@ -31,9 +31,10 @@ const std::vector<ClassifierInfo>& classifiers() {
        "REMoDNaV (Dar et al. 2021); gap fill-in 75 ms"},
       {"gbt",
        "gradient-boosted trees (issue 43) over multi-scale speed, direction-consistency and dispersion "
-       "features (Larsson et al. 2015; Startsev et al. 2019) of +-256 ms around each sample, trained on "
+       "features (Larsson et al. 2015; Startsev et al. 2019) of 256 ms before and 64 ms after each sample "
+       "(--offline: 256 ms after), then over the first trees' class probabilities around it, trained on "
        "GazeCom's expert labels and copies of them as other trackers would record them "
-       "(bench/train_classifier.py), smoothed over +-8/48 ms; PSO by ivvt's rule; gap fill-in 75 ms"},
+       "(bench/train_classifier.py), smoothed; PSO by ivvt's rule; gap fill-in 75 ms"},
       {"ivt",
        "I-VT after the Tobii I-VT filter (Olsen 2012): 20 ms velocity window, 30 deg/s, gap fill-in 75 ms, "
        "merge fixations within 75 ms and 0.5 deg, discard fixations under 60 ms"},

@@ -568,8 +568,9 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
                      "gbt: each sample's own label from the model's last stage, neither smoothed nor with ivvt's "
                      "PSO (what bench/train_classifier.py compares with scikit-learn)");
   classify->add_flag("--offline", cls.offline,
-                     "label for analysis: gbt uses its offline second stage, which looks 512 ms ahead of each "
-                     "sample instead of the daemon's 32 ms (other methods label the same either way)");
+                     "label for analysis: gbt uses its offline chain, whose features look 256 ms and whose second "
+                     "stage 512 ms ahead of each sample instead of the daemon's 64 and 32 ms (other methods "
+                     "label the same either way)");
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
