@@ -194,7 +194,14 @@ first=$(sed -n '6p' "$WORK/marked.csv" | cut -d, -f2); last=$(tail -1 "$WORK/mar
 echo "== a replayed recording publishes its markers again"
 "$TRACKERD" --source "replay:$WORK/marked.fgr" --port $PORT --wait-subscribers 1 >"$WORK/replay-marked.log" 2>&1 &
 DR=$!; PIDS+=($DR)
-"$CTL" --server "$SRV" watch --events-only --duration 5 >"$WORK/replay-watch.out" 2>&1 || fail "watch of the replay: $(cat "$WORK/replay-watch.out")"
+# The watch lasts until the replay has ended (its markers are as late as the recording was slow:
+# a fixed 5 s watch on a loaded machine ended before the flip marker came).
+"$CTL" --server "$SRV" watch --events-only --duration 120 >"$WORK/replay-watch.out" 2>&1 &
+WR=$!; PIDS+=($WR)
+for _ in $(seq 1200); do grep -q "source ended" "$WORK/replay-marked.log" && break; sleep 0.1; done
+grep -q "source ended" "$WORK/replay-marked.log" || fail "the replay did not end: $(tail -3 "$WORK/replay-marked.log")"
+sleep 0.5  # the last datagrams reach the watch
+kill -INT $WR; wait $WR || fail "watch of the replay: $(cat "$WORK/replay-watch.out")"
 kill -TERM $DR; wait $DR
 grep -q 'MARKER "trial 1, "go"" (daemon.s receive time)' "$WORK/replay-watch.out" || fail "replay: $(grep -c MARKER "$WORK/replay-watch.out") markers: $(head -5 "$WORK/replay-watch.out")"
 grep -q 'MARKER "flip" (sender.s time)' "$WORK/replay-watch.out" || fail "replay lost the flip marker"
