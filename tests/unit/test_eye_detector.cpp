@@ -417,9 +417,10 @@ TEST(EyeDetectorStages, TheContourIntegralFindsAFaintPupil) {
   EXPECT_GT(distance(st::refine_on_contour(under_lashes, far, 2.5).centre, truth.centre), 8);
 }
 
-// The stages' fast reads give what the general ones give: bilinear_inside() the value bilinear()
-// clamps its way to, bit for bit, anywhere off the last row and column; in_glint() rounds half away
-// from zero as std::lround does.
+// The stages' fast reads give what the general ones give: bilinear_inside() (bilinear()'s inlined
+// path) the value bilinear_clamped() clamps its way to, bit for bit, anywhere off the last row and
+// column, and bilinear() beyond the image the edge's level; in_glint() rounds half away from zero as
+// std::lround does.
 TEST(EyeDetectorStages, FastSamplesEqualTheClampedOnes) {
   namespace st = fovea::trackerd::eye::stages;
   cv::Mat img(37, 53, CV_8U);
@@ -428,8 +429,11 @@ TEST(EyeDetectorStages, FastSamplesEqualTheClampedOnes) {
   std::uniform_real_distribution<double> x(0, 52 - 1e-9), y(0, 36 - 1e-9);
   for (int i = 0; i < 5000; ++i) {
     const double px = i < 4 ? (i % 2) * (52 - 1e-9) : x(rng), py = i < 4 ? (i / 2) * (36 - 1e-9) : y(rng);
-    ASSERT_EQ(st::bilinear_inside(img, px, py), st::bilinear(img, px, py)) << px << "," << py;
+    ASSERT_EQ(st::bilinear_inside(img, px, py), st::bilinear_clamped(img, px, py)) << px << "," << py;
   }
+  EXPECT_EQ(st::bilinear(img, -4.5, 0), img.at<std::uint8_t>(0, 0));
+  EXPECT_EQ(st::bilinear(img, 60, 40), img.at<std::uint8_t>(36, 52));
+  EXPECT_EQ(st::bilinear(img, 52, 0), img.at<std::uint8_t>(0, 52));
   st::GlintCandidates g;
   g.glints.push_back({});
   g.window = cv::Rect(-3, -3, 9, 9);

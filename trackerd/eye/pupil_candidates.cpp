@@ -16,12 +16,6 @@ namespace fovea::trackerd::eye::stages {
 
 namespace {
 
-// Sum over [x0, x1) x [y0, y1) from an integral image (CV_32S or CV_64F handled as 64F).
-double box_sum(const cv::Mat& integral, int x0, int y0, int x1, int y1) {
-  return integral.at<double>(y1, x1) - integral.at<double>(y0, x1) - integral.at<double>(y1, x0) +
-         integral.at<double>(y0, x0);
-}
-
 // The best `count` non-overlapping candidates offered so far (greedy non-maximum suppression): a
 // candidate overlapping a kept one replaces it only when it scores higher.
 struct TopBlobs {
@@ -111,13 +105,18 @@ std::vector<Blob> find_dark_blobs(const cv::Mat& grey, const cv::Rect& window, i
     const int step = std::max(1, inner / 3);
     const double inner_area = std::pow(2.0 * inner + 1, 2);
     for (int y = inner; y + inner < small.rows; y += step) {
+      // Row pointers into the integral image (the loop reads four corners of two boxes a position).
+      const double* in_top = integral.ptr<double>(y - inner);
+      const double* in_bottom = integral.ptr<double>(y + inner + 1);
+      const int oy0 = std::max(0, y - outer), oy1 = std::min(small.rows, y + outer + 1);
+      const double* out_top = integral.ptr<double>(oy0);
+      const double* out_bottom = integral.ptr<double>(oy1);
       for (int x = inner; x + inner < small.cols; x += step) {
-        const double inner_sum = box_sum(integral, x - inner, y - inner, x + inner + 1, y + inner + 1);
-        const int ox0 = std::max(0, x - outer), oy0 = std::max(0, y - outer);
-        const int ox1 = std::min(small.cols, x + outer + 1), oy1 = std::min(small.rows, y + outer + 1);
+        const double inner_sum = in_bottom[x + inner + 1] - in_top[x + inner + 1] - in_bottom[x - inner] + in_top[x - inner];
+        const int ox0 = std::max(0, x - outer), ox1 = std::min(small.cols, x + outer + 1);
         const double outer_area = static_cast<double>((ox1 - ox0) * (oy1 - oy0));
         if (outer_area <= inner_area * 1.5) continue;  // no surround left (at the border of a tiny image)
-        const double outer_sum = box_sum(integral, ox0, oy0, ox1, oy1);
+        const double outer_sum = out_bottom[ox1] - out_top[ox1] - out_bottom[ox0] + out_top[ox0];
         const double inner_mean = inner_sum / inner_area;
         const double ring_mean = (outer_sum - inner_sum) / (outer_area - inner_area);
         const double response = ring_mean - inner_mean;

@@ -91,7 +91,7 @@ std::optional<Ellipse> ellipse_of(Conic q) {
   const double y0 = (q.b * q.d - 2 * q.a * q.e) / det;
   const double f0 = q.a * x0 * x0 + q.b * x0 * y0 + q.c * y0 * y0 + q.d * x0 + q.e * y0 + q.f;
   // Eigenvalues of [[a, b/2], [b/2, c]].
-  const double mean = (q.a + q.c) / 2, diff = std::hypot((q.a - q.c) / 2, q.b / 2);
+  const double mean = (q.a + q.c) / 2, diff = norm2((q.a - q.c) / 2, q.b / 2);
   const double l1 = mean - diff, l2 = mean + diff;  // l1 <= l2: l1 belongs to the major axis
   if (!(l1 > 0) || !(-f0 > 0)) return std::nullopt;
   const double semi_major = std::sqrt(-f0 / l1), semi_minor = std::sqrt(-f0 / l2);
@@ -173,7 +173,7 @@ struct PupilBounds {
 
   bool plausible(const Ellipse& e) const {
     return e.major / 2 <= rmax * 1.6 && e.major / 2 >= rmin && e.minor / 2 >= rmin * 0.6 && e.minor / e.major > 0.2 &&
-           std::hypot(e.centre.x - origin.x, e.centre.y - origin.y) < rmax * 1.5;
+           norm2(e.centre.x - origin.x, e.centre.y - origin.y) < rmax * 1.5;
   }
 };
 
@@ -185,7 +185,7 @@ std::vector<std::size_t> ransac_inliers(const std::vector<cv::Point2d>& pts, con
   const cv::Point2d& origin = bounds.origin;
   std::vector<std::size_t> best_inliers;
   double scale = 0;
-  for (const auto& p : pts) scale += std::hypot(p.x - origin.x, p.y - origin.y);
+  for (const auto& p : pts) scale += norm2(p.x - origin.x, p.y - origin.y);
   scale = std::max(1.0, scale / static_cast<double>(n));
   // The points in the conics' frame once (every conic here shares origin and scale): the cost
   // below reads each of them at every iteration.
