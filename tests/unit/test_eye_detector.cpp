@@ -443,6 +443,27 @@ TEST(EyeDetectorStages, FastSamplesEqualTheClampedOnes) {
     EXPECT_EQ(st::in_glint(g, v, 0), std::lround(v) == 0) << v;
 }
 
+// Glints anywhere in the window are found, listed top to bottom then left to right (an order that
+// does not depend on how the components are labelled), and masked; a streak is no glint.
+TEST(EyeDetectorStages, GlintsAreFoundWhereverTheyLieInRasterOrder) {
+  namespace st = fovea::trackerd::eye::stages;
+  cv::Mat img(240, 320, CV_8U, cv::Scalar(90));
+  const std::vector<cv::Point> at = {{300, 200}, {12, 200}, {160, 10}, {40, 41}, {250, 40}};
+  for (const cv::Point& p : at) cv::circle(img, p, 2, cv::Scalar(255), cv::FILLED);
+  cv::line(img, {100, 120}, {140, 122}, cv::Scalar(255), 2);  // a reflection's streak
+  const cv::Rect window(4, 3, 310, 230);
+  const st::GlintCandidates g = st::find_glints(img, window, 240);
+  ASSERT_EQ(g.glints.size(), at.size());
+  const std::vector<cv::Point> expected = {{160, 10}, {250, 40}, {40, 41}, {12, 200}, {300, 200}};
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_NEAR(g.glints[i].centre.x, expected[i].x, 1e-9) << i;
+    EXPECT_NEAR(g.glints[i].centre.y, expected[i].y, 1e-9) << i;
+    EXPECT_TRUE(st::in_glint(g, expected[i].x, expected[i].y)) << i;
+  }
+  EXPECT_FALSE(st::in_glint(g, 120, 121));
+  EXPECT_TRUE(st::find_glints(cv::Mat(240, 320, CV_8U, cv::Scalar(90)), window, 240).glints.empty());
+}
+
 // The lid test itself: the straight run of a lid over a round pupil goes, an elliptical pupil's
 // flat sides stay.
 TEST(EyeDetectorStages, LidLinesAreNotAnEllipsesFlatSides) {

@@ -95,7 +95,7 @@ struct EyeMeasurement {
   bool size_jump = false;         // 1.8x larger or smaller than this eye's recent clear pupils: confidence <= 0.5
   PupilEvidence evidence;         // of the best candidate, also when it was rejected
   bool blink = false;             // no pupil, or aspect < blink_aspect
-  std::vector<Glint> glints;      // near the pupil (or anywhere when no pupil), at most 8
+  std::vector<Glint> glints;      // near the pupil, nearest first (without a pupil: anywhere, top to bottom), at most 8
   bool pupil_glint_valid = false;
   cv::Point2d pupil_glint;        // pupil centre - reference glint point, pixels
   std::string why;                // when no pupil: what failed ("no dark blob", "too few edge points", ...)

@@ -24,8 +24,12 @@ GlintCandidates find_glints(const cv::Mat& grey, const cv::Rect& window, double 
   const double threshold = std::max(hi - 0.3 * (hi - median), median + 35);
   cv::Mat bright;
   cv::threshold(region, bright, threshold, 255, cv::THRESH_BINARY);
+  // The components lie within the box around the bright pixels, usually a small part of the window:
+  // labelling only that box finds the same components at a fraction of the cost.
+  const cv::Rect box = cv::boundingRect(bright);
+  if (box.empty()) return out;
   cv::Mat labels, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(bright, labels, stats, centroids, 8, CV_32S);
+  const int n = cv::connectedComponentsWithStats(bright(box), labels, stats, centroids, 8, CV_32S);
   const double max_radius = std::max(2.0, 0.04 * image_size);
   const double max_area = kPi * max_radius * max_radius;
   for (int i = 1; i < n; ++i) {
@@ -35,7 +39,7 @@ GlintCandidates find_glints(const cv::Mat& grey, const cv::Rect& window, double 
     if (area < (image_size >= 160 ? 3 : 2) || area > max_area || bw > 2 * max_radius + 2 || bh > 2 * max_radius + 2) continue;
     if (std::max(bw, bh) > 3 * std::min(bw, bh) + 2) continue;  // streaks (glasses edges, lashes) are not glints
     // Intensity-weighted centroid over the component's box, above the threshold.
-    const int bx = stats.at<int>(i, cv::CC_STAT_LEFT), by = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int bx = box.x + stats.at<int>(i, cv::CC_STAT_LEFT), by = box.y + stats.at<int>(i, cv::CC_STAT_TOP);
     double sw = 0, sx = 0, sy = 0;
     for (int y = std::max(0, by - 1); y < std::min(region.rows, by + bh + 1); ++y)
       for (int x = std::max(0, bx - 1); x < std::min(region.cols, bx + bw + 1); ++x) {
@@ -59,9 +63,14 @@ GlintCandidates find_glints(const cv::Mat& grey, const cv::Rect& window, double 
     g.centre = {window.x + sx / sw, window.y + sy / sw};
     g.area_px = area;
     out.glints.push_back(g);
-    cv::Mat component = (labels(cv::Rect(bx, by, bw, bh)) == i);
+    cv::Mat component = (labels(cv::Rect(bx - box.x, by - box.y, bw, bh)) == i);
     out.mask(cv::Rect(bx, by, bw, bh)).setTo(255, component);
   }
+  // Top to bottom, then left to right: an order that does not depend on how the components were
+  // labelled (the detector without a pupil reports the first 8 in this order).
+  std::sort(out.glints.begin(), out.glints.end(), [](const Glint& a, const Glint& b) {
+    return a.centre.y != b.centre.y ? a.centre.y < b.centre.y : a.centre.x < b.centre.x;
+  });
   if (!out.glints.empty()) {
     const int grow = std::max(1, static_cast<int>(std::lround(image_size / 160.0)));
     cv::dilate(out.mask, out.mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * grow + 1, 2 * grow + 1)));
