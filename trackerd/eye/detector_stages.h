@@ -33,8 +33,9 @@ inline double clamp01(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1
 
 inline bool finite(const cv::Point2d& p) { return std::isfinite(p.x) && std::isfinite(p.y); }
 
-// sqrt(x^2 + y^2) where neither can overflow (pixel-scale values): std::hypot guards against that
-// at many times the cost, and the fits call it a few hundred times a candidate.
+// sqrt(x^2 + y^2) where the squares can neither overflow nor vanish (pixel-scale values, a conic's
+// coefficients in its scaled frame, whose pivots are >= 1e-12): std::hypot guards against that at
+// many times the cost, and the fits call it a few hundred times a candidate.
 inline double norm2(double x, double y) { return std::sqrt(x * x + y * y); }
 
 // bilinear() where (x, y) is known to lie in [0, cols - 1) x [0, rows - 1): read through row
