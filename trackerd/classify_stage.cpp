@@ -40,6 +40,7 @@ ClassifyStage::ClassifyStage(const std::string& method, double nominal_rate_hz, 
   if (method_ != "source") {
     classify::ClassifierOptions o;
     o.nominal_rate_hz = nominal_rate_hz > 0 ? nominal_rate_hz : 250;
+    o.display = display;  // gbt measures how far the gaze lies off it; lee2009's thresholds are in its units
     classifier_ = classify::make_classifier(method_, o);
   }
 }

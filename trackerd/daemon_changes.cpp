@@ -132,8 +132,10 @@ void reload_recording(const RunningView& view, PreparedReload& p) {
   }
 }
 
+// A new stage for a new method, or a new display (the stage labels on it and places its events
+// on it); it starts afresh, as at a method change.
 void reload_classifier(const RunningView& view, PreparedReload& p) {
-  if (p.next.classifier.method == view.config.classifier.method) return;
+  if (p.next.classifier.method == view.config.classifier.method && p.display == view.display) return;
   try {
     p.classifier = std::make_unique<ClassifyStage>(p.next.classifier.method, view.nominal_rate_hz, p.display);
   } catch (const std::exception& e) {

@@ -160,6 +160,21 @@ TEST(DaemonChanges, AReloadLoadsEverythingItNamesAndKeepsWhatFails) {
             "line 3: bad");
 }
 
+// The classification stage labels on the display (gbt measures how far the gaze lies off it) and
+// places its events on it: a new display gives a new stage, an unchanged configuration none.
+TEST(DaemonChanges, ANewDisplayGivesANewClassificationStage) {
+  const TempDir dir;
+  RunningView v = view_in(dir.path);
+  EXPECT_FALSE(prepare_reload(v, [&] { return v.config; }).classifier);
+  service::DaemonConfig next = v.config;
+  protocol::DisplayGeometry other = v.display;
+  other.viewing_distance_m *= 2;
+  next.display = other;
+  const PreparedReload p = prepare_reload(v, [&] { return next; });
+  ASSERT_TRUE(p.classifier);
+  EXPECT_TRUE(p.display == other);
+}
+
 // ---- the daemon ------------------------------------------------------------------------------
 
 std::uint16_t free_udp_port() {

@@ -227,6 +227,82 @@ TEST(ClassifyStage, SendsProvisionalEventsFirstAndRetractsOnlyWhatItSent) {
   EXPECT_EQ(check.confirmed() + check.retracted(), check.emitted()) << "after the flush nothing is pending";
 }
 
+// The stage labels with the display it is given (gbt's features measure how far the gaze lies off
+// it): its final events start where the labels of classify_all on that display change.
+TEST(ClassifyStage, LabelsOnTheConfiguredDisplay) {
+  protocol::DisplayGeometry small;  // about +-6 x +-3 deg: the synthetic viewer looks beyond it
+  small.width_m = 0.2;
+  small.height_m = 0.1;
+  small.viewing_distance_m = 1.0;
+  SyntheticGazeOptions so;
+  so.rate_hz = 250;
+  so.seed = 4;
+  SyntheticGaze source(so);
+  std::vector<GazeItem> items;
+  while (items.size() < 250 * 20) {  // its samples (its own events would only be dropped)
+    const auto item = source.next();
+    ASSERT_TRUE(item);
+    if (std::holds_alternative<protocol::GazeSample>(*item)) items.push_back(*item);
+  }
+
+  const auto final_starts = [&](ClassifyStage& stage) {
+    std::vector<std::pair<protocol::EyeMovement, std::int64_t>> starts;
+    std::vector<GazeItem> out;
+    const auto take = [&] {
+      for (const GazeItem& item : out) {
+        const auto* e = std::get_if<protocol::GazeEvent>(&item);
+        if (e != nullptr && !e->provisional() && e->phase == protocol::EventPhase::Start) {
+          starts.emplace_back(e->kind, e->start_time_ns);
+        }
+      }
+      out.clear();
+    };
+    for (const GazeItem& item : items) {
+      stage.process(item, out);
+      take();
+    }
+    stage.flush(out);
+    take();
+    return starts;
+  };
+  const auto expected_starts = [&](const protocol::DisplayGeometry& display) {
+    std::vector<Sample> samples;
+    std::vector<std::int64_t> ns;
+    for (const GazeItem& item : items) {
+      const auto& g = std::get<protocol::GazeSample>(item);
+      Sample cs;
+      cs.t_s = static_cast<double>(g.tracker_time_ns - std::get<protocol::GazeSample>(items[0]).tracker_time_ns) * 1e-9;
+      cs.valid = (g.flags & protocol::kGazeValid) != 0;
+      cs.x_deg = g.x_deg;
+      cs.y_deg = g.y_deg;
+      samples.push_back(cs);
+      ns.push_back(g.tracker_time_ns);
+    }
+    ClassifierOptions o;
+    o.nominal_rate_hz = 250;
+    o.display = display;
+    const std::vector<Label> labels = classify_all("gbt", o, samples);
+    std::vector<std::pair<protocol::EyeMovement, std::int64_t>> starts;
+    const auto movement = [](Label l) {  // as the stage sends them (PSO within the saccade)
+      return l == Label::Fixation ? protocol::EyeMovement::Fixation
+             : l == Label::Saccade || l == Label::Pso ? protocol::EyeMovement::Saccade
+             : l == Label::Pursuit ? protocol::EyeMovement::Pursuit
+             : l == Label::Blink   ? protocol::EyeMovement::Blink
+                                   : protocol::EyeMovement::Unknown;
+    };
+    for (std::size_t i = 0; i < labels.size(); ++i) {
+      const auto m = movement(labels[i]);
+      if (m != protocol::EyeMovement::Unknown && (i == 0 || movement(labels[i - 1]) != m)) starts.emplace_back(m, ns[i]);
+    }
+    return starts;
+  };
+  ClassifyStage on_small("gbt", 250, small);
+  const auto got = final_starts(on_small);
+  ASSERT_GT(got.size(), 20u);
+  EXPECT_EQ(got, expected_starts(small));
+  EXPECT_NE(got, expected_starts(protocol::DisplayGeometry{})) << "the display must matter here for the test to say anything";
+}
+
 // The tracker's heuristic filter of the realistic generator (evaluate.h, Stampe 1993 stage 1):
 // it removes one-sample spikes, keeps steps and ramps, and colours white noise (less power at high
 // frequencies: the lag-1 autocorrelation of the noise rises from ~0).
