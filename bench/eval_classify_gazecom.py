@@ -198,8 +198,8 @@ def run_recording(args, path, tmp):
     out = {"video": os.path.basename(os.path.dirname(path)), "methods": {}, "latency": {}}
     t_ms = t_us / 1000.0
     for m in args.methods:
-        method, *flags = m.split("+")  # gbt+offline: fovea-ctl classify --method gbt --offline
-        extra = list(args.extra) + ["--" + f for f in flags]
+        method, *flags = m.split("+")  # gbt+offline+pso=none: ... --method gbt --offline --pso none
+        extra = list(args.extra) + [a for f in flags for a in ["--" + f.split("=")[0]] + f.split("=")[1:2]]
         if args.lovo and method == "gbt":  # the model fitted without this recording's video
             extra += ["--model", os.path.join(args.lovo, out["video"] + ".trees")]
         labels, final_ms, raw = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, method, extra)
@@ -226,7 +226,8 @@ def main():
     ap.add_argument("--every", type=int, default=1, help="every N-th recording (sorted by video, observer)")
     ap.add_argument("--limit", type=int, default=0, help="at most N recordings (0: all)")
     ap.add_argument("--methods", default="ivvt", help="comma-separated fovea-ctl classify methods; METHOD+FLAG "
-                    "adds --FLAG (gbt+offline: the offline second stage beside the online one)")
+                    "adds --FLAG, METHOD+FLAG=V --FLAG V (gbt+offline: the offline second stage beside the "
+                    "online one; gbt+pso=none: without a PSO class)")
     ap.add_argument("--extra-args", default="", help="more fovea-ctl classify arguments, e.g. --offline")
     ap.add_argument("--lovo", help="DIR of bench/train_classifier.py --lovo: method gbt labels each recording "
                     "with DIR/<its video>.trees, fitted on the other videos")

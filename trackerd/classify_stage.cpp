@@ -35,19 +35,22 @@ double angle_deg(double ax, double ay, double bx, double by) {
 
 }  // namespace
 
-ClassifyStage::ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display)
+ClassifyStage::ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display,
+                             bool separate_pso)
     : method_(method.empty() ? classify::classifiers().front().name : method), display_(display) {
   if (method_ != "source") {
     classify::ClassifierOptions o;
     o.nominal_rate_hz = nominal_rate_hz > 0 ? nominal_rate_hz : 250;
     o.display = display;  // gbt measures how far the gaze lies off it; lee2009's thresholds are in its units
+    o.separate_pso = separate_pso;
     classifier_ = classify::make_classifier(method_, o);
+    if (!separate_pso) method_ += " without a PSO class";
   }
 }
 
 std::string ClassifyStage::description() const {
   if (!classifier_) return "source (the source's own labels and events are passed through)";
-  char buf[160];
+  char buf[224];
   std::snprintf(buf, sizeof buf,
                 "%s (labels final at most %.0f ms after the sample; sample state trails by up to that; provisional saccade events at once)",
                 method_.c_str(), classifier_->latency_s() * 1000);

@@ -22,8 +22,10 @@ namespace fovea::trackerd {
 
 class ClassifyStage {
  public:
-  // Throws std::invalid_argument for an unknown method (listing the known ones).
-  ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display);
+  // Throws std::invalid_argument for an unknown method (listing the known ones), or one that cannot
+  // label without a PSO class (classify::ClassifierOptions::separate_pso).
+  ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display,
+                bool separate_pso = true);
   std::string description() const;
   bool passthrough() const { return classifier_ == nullptr; }
   // Provisional events sent, confirmed by the final labels, and retracted so far.

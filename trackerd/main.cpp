@@ -38,7 +38,8 @@ constexpr int kExitConfig = 78;
 struct Flags {
   const svc::DaemonConfig defaults;
   svc::DaemonConfig d = defaults;  // receives the flag values; only flags given on the command line count
-  std::string config_path, display, multicast, log_level = defaults.log_level, record_path, calibration, classifier;
+  std::string config_path, display, multicast, log_level = defaults.log_level, record_path, calibration, classifier,
+      classifier_pso;
   std::string control_socket, control_dir;
   bool check_config = false, loop = false, append = false, lsl = false;
   trackerd::RunOptions run;
@@ -51,7 +52,8 @@ struct Flags {
   CLI::Option *o_eye = nullptr, *o_leds = nullptr, *o_downscale = nullptr, *o_no_roi = nullptr, *o_eye_size = nullptr,
               *o_eye_hard = nullptr, *o_eye_script = nullptr, *o_eye_head_offset = nullptr;
   CLI::Option *o_speed = nullptr, *o_loop = nullptr, *o_display = nullptr, *o_lease = nullptr, *o_max = nullptr,
-              *o_control_socket = nullptr, *o_control_dir = nullptr, *o_calibration = nullptr, *o_classifier = nullptr, *o_log = nullptr;
+              *o_control_socket = nullptr, *o_control_dir = nullptr, *o_calibration = nullptr, *o_classifier = nullptr,
+              *o_classifier_pso = nullptr, *o_log = nullptr;
 };
 
 // The option groups below are added in --help order; keep it when moving an option.
@@ -161,6 +163,11 @@ void add_processing_and_run_options(CLI::App& app, Flags& f) {
   f.o_classifier = app.add_option("--classifier", f.classifier,
                                   "online classifier: ivvt (default), gbt, ivt, idt, lee2009, or 'source' to pass "
                                   "the source's own labels and events (trackerd/CLASSIFY.md)");
+  f.o_classifier_pso = app.add_option("--classifier-pso", f.classifier_pso,
+                                      "gbt: separate (default): post-saccadic oscillations labelled apart, by ivvt's "
+                                      "rule beside the trees; none: no PSO class, the oscillation where GazeCom's "
+                                      "coders put it (within the saccade's end or the fixation), labels final sooner")
+                           ->check(CLI::IsMember({"separate", "none"}));
   app.add_option("--duration", f.run.duration_s, "stop after this many seconds (0: run until signalled)")
       ->capture_default_str();
   app.add_flag("--exit-at-end", f.run.exit_when_source_ends,
@@ -227,6 +234,7 @@ svc::CliOverrides cli_overrides(const Flags& f) {
     }
     cli.classifier_method = f.classifier;
   }
+  if (given(f.o_classifier_pso)) cli.classifier_pso = f.classifier_pso;
   if (given(f.o_log)) cli.log_level = f.log_level;
   if (given(f.o_eye)) cli.eye_side = f.eye_side;
   if (given(f.o_leds)) cli.eye_leds = f.leds;
@@ -245,6 +253,10 @@ trackerd::ConfigLoader config_loader(const std::string& config_path, const svc::
   return [config_path, cli] {
     svc::DaemonConfig c = config_path.empty() ? svc::DaemonConfig{} : svc::load_config(config_path);
     svc::apply_overrides(c, cli);
+    // The file's own pair was checked as it was read; a flag may pair a method with another's pso.
+    if (const std::string err = svc::check_classifier_pso(c.classifier.method, c.classifier.pso); !err.empty()) {
+      throw svc::ConfigError({"classifier.pso: " + err});
+    }
     return c;
   };
 }

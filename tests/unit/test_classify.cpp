@@ -485,6 +485,40 @@ TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixation) {
   }
 }
 
+// Without a PSO class (GazeCom's coders' convention) gbt gives its smoothed trees' labels: those
+// of the PSO run wherever ivvt's PSO did not replace them, the oscillation where the trees put it,
+// no ivvt core beside them (final as soon as the trees' labels); the other methods refuse it.
+TEST(Classify, GbtWithoutAPsoClassKeepsItsTreesLabelsAtTheTreesLatency) {
+  const auto [s, off] = saccade_then(10, [](double dt) {
+    return 0.5 * std::exp(-dt / 0.015) * std::sin(2 * std::numbers::pi * 25 * dt);
+  });
+  ClassifierOptions o;
+  o.nominal_rate_hz = 1000;
+  const auto with = classify_all("gbt", o, s);
+  o.separate_pso = false;
+  const auto without = classify_all("gbt", o, s);
+  EXPECT_EQ(share(without, 0, s.size(), Label::Pso), 0.0);
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (with[i] != Label::Pso) {
+      ASSERT_EQ(without[i], with[i]) << i;
+    } else {
+      ASSERT_TRUE(without[i] == Label::Saccade || without[i] == Label::Fixation) << i;
+      ++moved;
+    }
+  }
+  EXPECT_GT(moved, 5u);
+  ClassifierOptions separate = o;
+  separate.separate_pso = true;
+  EXPECT_LT(make_classifier("gbt", o)->latency_s(), make_classifier("gbt", separate)->latency_s());
+  try {
+    (void)make_classifier("ivvt", o);
+    ADD_FAILURE() << "ivvt without a PSO class";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "classifier ivvt: only gbt can label without a PSO class (ivvt's PSO is part of its rule)");
+  }
+}
+
 TEST(Classify, ThePsosSlowSwingBackIsPsoToo) {
   // A pupil-based tracker's PSO overshoots and returns (Hooge et al. 2015): here the eye lands
   // 0.4 deg beyond the target and comes back within ~50 ms, slower than the landing itself, so the

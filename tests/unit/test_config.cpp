@@ -97,7 +97,8 @@ control_allow = ["127.0.0.0/8", "192.168.1.0/24"]
 path = "/var/lib/fovea/x.fgr"
 append = true
 [classifier]
-method = "ivt"
+method = "gbt"
+pso = "none"
 [log]
 level = "debug"
 [[devices]]
@@ -156,6 +157,12 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   // "source" (the source's own labels and events) is a method the daemon knows, as --help says.
   EXPECT_TRUE(check_classifier_method("source").empty());
   expect_problem("[classifier]\nmethod = \"a\\u001b[2J\"\n", {"unknown method \"a\\x1b[2J\""});
+  // Without a PSO class only gbt can label (the default method, ivvt, finds its PSO by its rule).
+  expect_problem("[classifier]\npso = \"none\"\n", {"test.toml:2:", "classifier.pso", "for method gbt only (ivvt"});
+  expect_problem("[classifier]\nmethod = \"source\"\npso = \"none\"\n", {"test.toml:3:", "classifier.pso", "(source"});
+  expect_problem("[classifier]\nmethod = \"gbt\"\npso = \"saccade\"\n",
+                 {"test.toml:3:", "classifier.pso", "\"saccade\" is no PSO convention; allowed: separate, none"});
+  EXPECT_EQ(parse_config("[classifier]\nmethod = \"gbt\"\n", "t.toml").classifier.pso, "separate");
   expect_problem("[source]\nspeed = -1.5\n", {"test.toml:2:", "source.speed", "(0, 1000]"});
   expect_problem("[source]\nloop = \"yes\"\n", {"test.toml:2:", "source.loop", "true or false"});
   expect_problem("[source]\nspec = \"\"\n", {"test.toml:2:", "source.spec", "synthetic[:binocular], synthetic-eye, replay:FILE"});
@@ -259,6 +266,10 @@ TEST(Config, ReloadSeparatesLiveChangesFromRestartOnes) {
   EXPECT_TRUE(adopted.display.has_value());
   EXPECT_TRUE(diff(a, a).live.empty());
   EXPECT_TRUE(diff(a, a).needs_restart.empty());
+  const DaemonConfig gbt = parse_config("[classifier]\nmethod = \"gbt\"\n", "g.toml");
+  const DaemonConfig no_pso = parse_config("[classifier]\nmethod = \"gbt\"\npso = \"none\"\n", "n.toml");
+  EXPECT_TRUE(has(diff(gbt, no_pso).live, "classifier.pso separate -> none"));
+  EXPECT_EQ(adopt_live(gbt, no_pso).classifier.pso, "none");
 }
 
 TEST(Config, EyePipelineTable) {

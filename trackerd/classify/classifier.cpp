@@ -64,11 +64,16 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
   if (const std::string err = protocol::validate(options.display); !err.empty()) {
     throw std::invalid_argument("classifier " + name + ": display geometry: " + err);
   }
+  if (!options.separate_pso && name != "gbt") {
+    throw std::invalid_argument("classifier " + name + ": only gbt can label without a PSO class (" + name +
+                                "'s PSO is part of its rule)");
+  }
   const FrontendOptions standard;  // 75 ms gap fill-in, blink for losses up to 0.5 s
   if (name == "gbt") {
     GbtOptions o;
     o.offline = options.offline;
     o.trees_only = options.trees_only;
+    o.separate_pso = options.separate_pso;
     return make_trees_pipeline(options.model_path.empty() ? builtin_gbt_model() : load_gbt_model(options.model_path),
                                options.display, std::move(o));
   }

@@ -63,8 +63,8 @@ struct ClassifierInfo {
 // Every method this build knows; the first is the default (the best one, by the benchmark).
 const std::vector<ClassifierInfo>& classifiers();
 
-// What a method may need besides the samples. Only the Lee 2009 preset reads the display (its
-// thresholds are in normalized screen units per 60 Hz frame).
+// What a method may need besides the samples. Two read the display: the Lee 2009 preset (its
+// thresholds are in normalized screen units per 60 Hz frame) and gbt (how far the gaze lies off it).
 struct ClassifierOptions {
   double nominal_rate_hz = 250;  // a hint only; every method works on the sample times
   protocol::DisplayGeometry display;
@@ -73,6 +73,11 @@ struct ClassifierOptions {
   // gbt: each sample's label from the model's last stage alone, neither smoothed nor with ivvt's
   // PSO (what bench/train_classifier.py checks against scikit-learn).
   bool trees_only = false;
+  // gbt: a PSO class apart from the saccade and the fixation (ivvt's rule beside the trees: the
+  // EyeLink and the Lund coders' convention). false: none; the oscillation goes where the trees'
+  // training coders put it (GazeCom's: the saccade's end runs into it), at the trees' cost and latency
+  // alone. The other methods find their PSO as their rule does and reject false.
+  bool separate_pso = true;
   // Label for analysis, not live: the whole recording is at hand, so labels may wait for as much of
   // it as helps. gbt: its offline second stage (context.h, the whole reach) instead of the online
   // one; the other methods label the same either way.

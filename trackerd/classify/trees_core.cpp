@@ -455,10 +455,10 @@ std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const GbtM
   // loss times among the features): the front end's lid rule would only overrule them.
   FrontendOptions o;
   o.lid_opening_max_s = 0;
-  const bool trees_only = options.trees_only;
+  const bool with_pso = options.separate_pso && !options.trees_only;
   std::unique_ptr<Core> trees = std::make_unique<TreesCore>(std::move(model), display, std::move(options));
   return std::make_unique<Pipeline>(
-      "gbt", o, trees_only ? std::move(trees) : std::make_unique<WithPsoCore>(std::move(trees), make_ivvt_core()));
+      "gbt", o, with_pso ? std::make_unique<WithPsoCore>(std::move(trees), make_ivvt_core()) : std::move(trees));
 }
 
 namespace {

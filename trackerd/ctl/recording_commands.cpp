@@ -384,6 +384,7 @@ struct ClassifyArgs {
   std::string model_path;    // --model (gbt)
   bool trees_only = false;   // --trees-only (gbt)
   bool offline = false;      // --offline
+  std::string pso = "separate";  // --pso (gbt)
   std::string features_out;  // --features-out F.npy (and F.npy.names)
   double features_reach_s = fovea::trackerd::classify::kFeatureReachS;  // --features-reach S
   std::string context_out;   // --context-out F.npy (and F.npy.names)
@@ -489,6 +490,7 @@ int cmd_classify(const ClassifyArgs& a) {
     options.model_path = a.model_path;
     options.trees_only = a.trees_only;
     options.offline = a.offline;
+    options.separate_pso = a.pso != "none";
     const cl::OnlineLabels result = cl::classify_online(a.method, options, input.samples);
     write_feature_files(a, input.samples, g);
 
@@ -571,6 +573,13 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
                      "label for analysis: gbt uses its offline chain, whose features look 256 ms and whose second "
                      "stage 512 ms ahead of each sample instead of the daemon's 64 and 32 ms (other methods "
                      "label the same either way)");
+  classify->add_option("--pso", cls.pso,
+                       "gbt: separate: the post-saccadic oscillation labelled pso apart from the saccade and "
+                       "fixation, by ivvt's rule beside the trees (as the EyeLink and Lund coders label it); none: "
+                       "no pso label, the oscillation goes into the saccade or fixation as GazeCom's coders, whom "
+                       "the trees learned from, put it (cheaper, and final as soon as the trees' labels)")
+      ->check(CLI::IsMember({"separate", "none"}))
+      ->capture_default_str();
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");

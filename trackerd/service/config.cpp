@@ -33,6 +33,17 @@ std::string check_classifier_method(const std::string& method) {
          ", source (fovea-ctl classify --help describes the methods)";
 }
 
+std::string check_classifier_pso(const std::string& method, const std::string& pso) {
+  if (pso == "separate") return {};
+  if (pso != "none") return "\"" + protocol::escape_for_log(pso, 40) + "\" is no PSO convention; allowed: separate, none";
+  if (method == "source") return "pso = \"none\" is for method gbt only (source passes the source's own labels)";
+  if (method != "gbt") {
+    return "pso = \"none\" is for method gbt only (" + (method.empty() ? classify::classifiers().front().name : method) +
+           " finds its PSO by its own rule)";
+  }
+  return {};
+}
+
 namespace {
 
 std::string join(const std::vector<std::string>& v, const char* sep = "\n") {
@@ -352,16 +363,23 @@ void parse_calibration(Checker& c, const toml::table& t, CalibrationConfig& cali
   if (!calibration.file.empty()) check_calibration_file(c, *t.get("file"), calibration.file);
 }
 
-// [classifier]: the method name; the classify module validates it.
+// [classifier]: the method name (the classify module validates it) and the PSO convention.
 void parse_classifier(Checker& c, const toml::table& t, ClassifierConfig& classifier) {
-  c.only(t, "classifier.", {"method"});
+  c.only(t, "classifier.", {"method", "pso"});
   c.string(t, "classifier.", "method", classifier.method,
            "a classifier name or \"source\" (fovea-ctl classify --help describes them)");
+  c.string(t, "classifier.", "pso", classifier.pso, "separate, none");
   // Checked here, so --check-config refuses it and the daemon exits 78 (issue 23 item 10: it passed
   // the check, and the daemon then exited 2, which the unit restarts on).
   if (const auto* node = t.get("method"); node != nullptr && node->is_string()) {
     if (const std::string err = check_classifier_method(classifier.method); !err.empty()) {
       c.problem(node->source(), "classifier.method", err);
+    }
+  }
+  if (const auto* node = t.get("pso"); node != nullptr && node->is_string()) {
+    if (const std::string err = check_classifier_pso(classifier.method, classifier.pso); !err.empty()) {
+      c.problem(node->source(), "classifier.pso", err);
+      classifier.pso = "separate";
     }
   }
 }
@@ -535,6 +553,7 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
   if (o.record_path) c.record.path = *o.record_path;
   if (o.record_append) c.record.append = *o.record_append;
   if (o.classifier_method) c.classifier.method = *o.classifier_method;
+  if (o.classifier_pso) c.classifier.pso = *o.classifier_pso;
   if (o.calibration_file) c.calibration.file = *o.calibration_file;
   if (o.log_level) c.log_level = *o.log_level;
   if (o.eye_side) c.eye.side = *o.eye_side;
@@ -583,7 +602,7 @@ std::string to_toml(const DaemonConfig& c) {
   }
   out += "\n[record]\npath = " + quoted(c.record.path) + fmt::format("\nappend = {}\n", c.record.append);
   out += "\n[calibration]\nfile = " + quoted(c.calibration.file) + "\n";
-  out += "\n[classifier]\nmethod = " + quoted(c.classifier.method) + "\n";
+  out += "\n[classifier]\nmethod = " + quoted(c.classifier.method) + "\npso = " + quoted(c.classifier.pso) + "\n";
   out += "\n[eye]\nside = " + quoted(c.eye.side) + "\nleds = " + quoted(c.eye.leds) + "\n";
   out += fmt::format("pupil_downscale = {}\npupil_roi = {}\nsynthetic_width = {}\nsynthetic_height = {}\n"
                      "synthetic_hard = {}\n",
@@ -633,6 +652,7 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.live, "record.append", a.record.append, b.record.append);
   note(ch.live, "calibration.file", text(a.calibration.file), text(b.calibration.file));
   note(ch.live, "classifier.method", text(a.classifier.method), text(b.classifier.method));
+  note(ch.live, "classifier.pso", a.classifier.pso, b.classifier.pso);
   note(ch.live, "log.level", a.log_level, b.log_level);
   // Restart: the socket, the source and device discovery are set up once.
   note(ch.needs_restart, "source.spec", a.source.spec, b.source.spec);

@@ -71,6 +71,7 @@ struct CalibrationConfig {
 
 struct ClassifierConfig {
   std::string method;  // empty: the classify module's default; validated by that module
+  std::string pso = "separate";  // separate | none (gbt only): whether PSO is a class of its own
   friend bool operator==(const ClassifierConfig&, const ClassifierConfig&) = default;
 };
 
@@ -135,6 +136,8 @@ DaemonConfig parse_config(const std::string& text, const std::string& origin, co
 // "" when `method` is empty (the classify module's default) or a method this build knows; else
 // what is wrong, with the known names. parse_config checks [classifier] method with it.
 std::string check_classifier_method(const std::string& method);
+// "" when pso (separate | none) goes with method, else what is wrong: only gbt labels without a PSO class.
+std::string check_classifier_pso(const std::string& method, const std::string& pso);
 
 // Command-line values that override the file; unset members leave the file's value.
 struct CliOverrides {
@@ -156,6 +159,7 @@ struct CliOverrides {
   std::optional<bool> record_append;
   std::optional<bool> lsl_outlet;
   std::optional<std::string> classifier_method;
+  std::optional<std::string> classifier_pso;
   std::optional<std::string> calibration_file;
   std::optional<std::string> log_level;
   std::optional<std::string> eye_side;
