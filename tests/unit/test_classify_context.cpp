@@ -178,3 +178,48 @@ TEST(Context, TheDaemonsStageReadsWhatItWasTrainedOn) {
     EXPECT_GT(compared, s.size() * names.size() - 1);
   }
 }
+
+// The cursor (what the daemon's stage uses) finds what the searches find, sample after sample,
+// with the rate changing, a pause, losses, samples arriving at the end and leaving at the front,
+// at both look-aheads.
+TEST(Context, TheCursorFindsWhatTheSearchFinds) {
+  std::vector<double> times;
+  double t = 3.0;
+  for (int i = 0; i < 1500; ++i) {
+    t += i < 400 ? 0.004 : i < 900 ? 0.001 : i < 1000 ? 1.0 / 60 : 0.002;
+    if (i == 1200) t += 0.3;  // a pause
+    times.push_back(t);
+  }
+  for (double lookahead : {0.032, kContextReachS}) {
+    std::deque<ContextSample> buf;
+    ContextCursor cursor;
+    std::size_t next = 0, pushed = 0, compared = 0;
+    while (next < times.size()) {
+      // Push ahead of the sample to be featured (up to its look-ahead, as the stage does), in bursts.
+      while (pushed < times.size() && (pushed < next + buf.size() / 8 + 1 || times[pushed] <= times[next] + lookahead)) {
+        ContextSample s;
+        s.t = times[pushed];
+        s.gaze = pushed % 97 != 5;
+        s.p[0] = static_cast<double>(pushed % 13) / 13.0;
+        s.p[1] = 1 - s.p[0];
+        push_context(buf, s, kK);
+        ++pushed;
+      }
+      const std::size_t i = buf.size() - (pushed - next);
+      std::vector<float> searched = features_of(buf, i, lookahead), walked(searched.size());
+      context_features(buf, i, kK, lookahead, walked.data(), &cursor);
+      for (std::size_t k = 0; k < searched.size(); ++k) {
+        ASSERT_TRUE(searched[k] == walked[k] || (std::isnan(searched[k]) && std::isnan(walked[k])))
+            << "sample " << next << " feature " << context_feature_names(kClasses)[k];
+      }
+      ++compared;
+      ++next;
+      // Keep what the next sample reaches back to (as the stage trims), dropping in ones and twos.
+      while (buf.size() > pushed - next + 2 && times[next] - buf[1].t >= kContextReachS) {
+        buf.pop_front();
+        cursor.dropped_front(1);
+      }
+    }
+    EXPECT_EQ(compared, times.size());
+  }
+}

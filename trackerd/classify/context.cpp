@@ -38,14 +38,16 @@ std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t, st
 // The sample d from sample i (d < 0: before): the furthest from i that is at most |d| (and
 // kContextSlackS) away and over |d|/2 away, so never beyond the look-ahead whatever the rate; none
 // (buf.size()) where there is no such sample (a pause in the stream, or a rate too low for d).
-std::size_t at_offset(const std::deque<ContextSample>& buf, std::size_t i, double d) {
+// find(t): the first sample at or after t.
+template <class Find>
+std::size_t at_offset(const std::deque<ContextSample>& buf, std::size_t i, double d, Find find) {
   const double t = buf[i].t;
   std::size_t k = buf.size();
   if (d > 0) {
-    const std::size_t j = first_at_or_after(buf, t + d + kContextSlackS, i);  // the first beyond
+    const std::size_t j = find(t + d + kContextSlackS);  // the first beyond
     if (j > i + 1) k = j - 1;
   } else {
-    const std::size_t j = first_at_or_after(buf, t + d - kContextSlackS, i);  // the first at or after t + d
+    const std::size_t j = find(t + d - kContextSlackS);  // the first at or after t + d
     if (j < i) k = j;
   }
   return k < buf.size() && std::abs(buf[k].t - t) > std::abs(d) / 2 ? k : buf.size();
@@ -82,6 +84,13 @@ void probabilities_of(const std::deque<ContextSample>& buf, std::size_t j, std::
 }
 
 }  // namespace
+
+std::size_t ContextCursor::first_at_or_after(const std::deque<ContextSample>& buf, std::size_t slot, double t) {
+  std::size_t k = std::min(at_[slot], buf.size());
+  while (k < buf.size() && buf[k].t < t) ++k;
+  at_[slot] = k;
+  return k;
+}
 
 void push_context(std::deque<ContextSample>& buf, ContextSample s, std::size_t classes) {
   if (!buf.empty()) {
@@ -121,8 +130,12 @@ double context_feature_reach_s(const std::string& name) {
 }
 
 void context_features(const std::deque<ContextSample>& buf, std::size_t i, std::size_t classes, double lookahead_s,
-                      float* out) {
+                      float* out, ContextCursor* cursor) {
   const ContextSample& s = buf[i];
+  std::size_t slot = 0;  // each search its own cursor slot, in the same order at every sample
+  const auto find = [&](double t) {
+    return cursor ? cursor->first_at_or_after(buf, slot++, t) : first_at_or_after(buf, t, i);
+  };
   // Beyond the look-ahead a feature is NaN even where the buffer happens to reach (offline and
   // online then agree for every look-ahead).
   const auto visible = [lookahead_s](double reach) { return reach <= lookahead_s + 1e-9; };
@@ -134,7 +147,7 @@ void context_features(const std::deque<ContextSample>& buf, std::size_t i, std::
       if (sign > 0 && !visible(d)) {
         std::fill(o, o + classes, kNaNf);
       } else {
-        probabilities_of(buf, at_offset(buf, i, sign * d), classes, o);
+        probabilities_of(buf, at_offset(buf, i, sign * d, find), classes, o);
       }
       o += classes;
     }
@@ -144,9 +157,9 @@ void context_features(const std::deque<ContextSample>& buf, std::size_t i, std::
       if (sign > 0 && !visible(w)) {
         std::fill(o, o + classes + 1, kNaNf);
       } else if (sign < 0) {  // [t - w, t): from the first sample at or after t - w up to this one
-        window(before(buf[first_at_or_after(buf, s.t - w, i)]), before(s), classes, o);
+        window(before(buf[find(s.t - w)]), before(s), classes, o);
       } else {  // (t, t + w]: from the one after this up to the last at or before t + w
-        const std::size_t last = first_at_or_after(buf, std::nextafter(s.t + w, 1e300), i);
+        const std::size_t last = find(std::nextafter(s.t + w, 1e300));
         window(after(s, classes), last < buf.size() ? before(buf[last]) : after(buf.back(), classes), classes, o);
       }
       o += classes + 1;

@@ -82,6 +82,7 @@ class TreesCore final : public Core {
     if (staged_) contextualize(out, true);
     ctx_.clear();  // the stream has ended: no later context may reach back into it
     ctx_next_ = 0;
+    cursor_.reset();
     if (smooth_) label_smoothed(out, true);
   }
   double latency_s() const override {
@@ -124,7 +125,7 @@ class TreesCore final : public Core {
     // Every sample up to the look-ahead has been scored once the stream has reached the features'
     // reach past it (also where it paused: nothing later can fall within the look-ahead).
     while (ctx_next_ < ctx_.size() && (all || newest_t_ >= ctx_[ctx_next_].t + lookahead_s_ + kContextSlackS + reach_)) {
-      context_features(ctx_, ctx_next_, classes_, lookahead_s_, f.data());
+      context_features(ctx_, ctx_next_, classes_, lookahead_s_, f.data(), &cursor_);
       Scored s = pending_.front();
       pending_.pop_front();
       if (context_sink_) context_sink_(s.out.index, f.data());
@@ -145,6 +146,7 @@ class TreesCore final : public Core {
     const double next_t = ctx_next_ < ctx_.size() ? ctx_[ctx_next_].t : ctx_.empty() ? 0.0 : ctx_.back().t;
     while (ctx_next_ >= 2 && next_t - ctx_[1].t >= kContextReachS) {
       ctx_.pop_front();
+      cursor_.dropped_front(1);
       --ctx_next_;
     }
   }
@@ -220,6 +222,7 @@ class TreesCore final : public Core {
   std::size_t next_ = 0;  // the first sample not yet scored
   std::deque<ContextSample> ctx_;
   std::size_t ctx_next_ = 0;   // the first of ctx_ not through the second stage
+  ContextCursor cursor_;       // where ctx_next_'s context searches start
   std::deque<Scored> pending_;  // ctx_[ctx_next_...]'s own
   std::deque<Scored> scored_;
   std::size_t labelled_ = 0;  // the first of scored_ not yet labelled
