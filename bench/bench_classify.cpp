@@ -11,7 +11,8 @@
 //
 //   bench_classify [--seconds S] [--seeds N] [--methods A,B] [--accuracy-only]
 //     defaults: 120 s of gaze per seed, 3 seeds, every method, every table. --methods keeps the main
-//     table to those methods; --accuracy-only prints that table and the cost summary alone.
+//     table to those methods (gbt+pso=none: gbt without a PSO class, beside them); --accuracy-only
+//     prints that table and the cost summary alone.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -178,11 +179,27 @@ void print_provisional(const double* rates, const Condition& c, double seconds, 
   }
 }
 
-// The methods named in a comma-separated list, in classifiers() order; every one for "".
-std::vector<ClassifierInfo> chosen_methods(const std::string& list) {
-  std::vector<ClassifierInfo> out;
+// A method of the main table: a registered one, or gbt without a PSO class ("gbt+pso=none").
+struct Method {
+  std::string name;     // as printed
+  std::string method;   // the registry's name
+  bool separate_pso = true;
+  ClassifierOptions options(double rate_hz) const {
+    ClassifierOptions o;
+    o.nominal_rate_hz = rate_hz;
+    o.separate_pso = separate_pso;
+    return o;
+  }
+};
+
+// The methods named in a comma-separated list, in classifiers() order (gbt+pso=none after gbt);
+// every registered one for "".
+std::vector<Method> chosen_methods(const std::string& list) {
+  std::vector<Method> out;
+  const auto named = [&](const std::string& n) { return ("," + list + ",").find("," + n + ",") != std::string::npos; };
   for (const ClassifierInfo& m : classifiers()) {
-    if (list.empty() || ("," + list + ",").find("," + m.name + ",") != std::string::npos) out.push_back(m);
+    if (list.empty() || named(m.name)) out.push_back({m.name, m.name});
+    if (m.name == "gbt" && named("gbt+pso=none")) out.push_back({"gbt+pso=none", "gbt", false});
   }
   if (out.empty()) {
     std::fprintf(stderr, "bench_classify: --methods %s names no method\n", list.c_str());
@@ -192,7 +209,7 @@ std::vector<ClassifierInfo> chosen_methods(const std::string& list) {
 }
 
 // Cost per sample, median and range over the table's cells, per method: the side-by-side figure.
-void print_cost_summary(const std::vector<ClassifierInfo>& methods, const std::vector<std::vector<double>>& ns) {
+void print_cost_summary(const std::vector<Method>& methods, const std::vector<std::vector<double>>& ns) {
   std::printf("\nCost per sample over the table's %zu cells (same run): median, min, max ns\n\n", ns.front().size());
   std::printf("| method | median ns | min ns | max ns |\n|---|---:|---:|---:|\n");
   for (std::size_t k = 0; k < methods.size(); ++k) {
@@ -220,7 +237,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  const std::vector<ClassifierInfo> methods = chosen_methods(method_list);
+  const std::vector<Method> methods = chosen_methods(method_list);
   std::vector<std::vector<double>> cost_ns(methods.size());
   const double rates[] = {60, 250, 500, 1000};
   std::vector<Condition> conditions;
@@ -270,15 +287,13 @@ int main(int argc, char** argv) {
         data.push_back(std::move(l));
       }
       for (std::size_t mi = 0; mi < methods.size(); ++mi) {
-        const ClassifierInfo& m = methods[mi];
+        const Method& m = methods[mi];
         std::vector<Label> truth, predicted;
         double ns = 0;
         std::size_t n = 0;
         for (const Labelled& l : data) {
-          ClassifierOptions o;
-          o.nominal_rate_hz = rate;
           const auto t0 = std::chrono::steady_clock::now();
-          const std::vector<Label> p = classify_all(m.name, o, l.samples);
+          const std::vector<Label> p = classify_all(m.method, m.options(rate), l.samples);
           ns += static_cast<double>(
               std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count());
           n += l.samples.size();
@@ -298,7 +313,7 @@ int main(int argc, char** argv) {
                     fmt(class_kappa(truth, predicted, Label::Pursuit)).c_str(),
                     fmt(class_kappa(truth, predicted, Label::Blink)).c_str(),
                     fmt(overall_kappa(truth, predicted)).c_str(), 100 * pso / total, 100 * unknown / total,
-                    ns / static_cast<double>(n), make_classifier(m.name, rate)->latency_s() * 1000);
+                    ns / static_cast<double>(n), make_classifier(m.method, m.options(rate))->latency_s() * 1000);
         cost_ns[mi].push_back(ns / static_cast<double>(n));
         std::fflush(stdout);
       }

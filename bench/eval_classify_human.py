@@ -48,7 +48,8 @@ from classify_scoring import event_f1, events_of, kappa
 
 CODER = {1: "fixation", 2: "saccade", 3: "pso", 4: "pursuit", 5: "blink"}
 CLASSES = ("fixation", "saccade", "pso", "blink")  # the classes this data set holds
-METHODS = ("ivvt", "gbt", "gbt+offline", "ivt", "idt", "lee2009")  # METHOD+FLAG: fovea-ctl classify --FLAG
+# METHOD+FLAG: fovea-ctl classify --FLAG; METHOD+FLAG=V: --FLAG V
+METHODS = ("ivvt", "gbt", "gbt+offline", "gbt+pso=none", "ivt", "idt", "lee2009")
 
 
 def load_geometry(data_dir):
@@ -89,7 +90,8 @@ def classify(ctl, in_path, out_path, rate_hz, geometry, method, provisional=None
     w_px, h_px, w_mm, h_mm, dist_mm = geometry
     method, *flags = method.split("+")
     cmd = [ctl, "classify", in_path, out_path, "%g" % rate_hz, str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
-           "%g" % dist_mm, "--method", method, "--force", "--final-times"] + ["--" + f for f in flags]
+           "%g" % dist_mm, "--method", method, "--force", "--final-times"]
+    cmd += [a for f in flags for a in ["--" + f.split("=")[0]] + f.split("=")[1:2]]
     if method == "gbt":
         cmd += MODEL
     if provisional is not None:
