@@ -445,13 +445,17 @@ std::pair<std::vector<Sample>, double> saccade_then(double amplitude, double (*a
   });
   return {std::move(s), off};
 }
+// A 10 deg saccade whose landing wobbles: a damped 0.5 deg, 25 Hz oscillation (a PSO).
+std::pair<std::vector<Sample>, double> wobbling_saccade() {
+  return saccade_then(10, [](double dt) {
+    return 0.5 * std::exp(-dt / 0.015) * std::sin(2 * std::numbers::pi * 25 * dt);
+  });
+}
 }  // namespace
 
 TEST(Classify, PostSaccadicOscillation) {
-  // A damped 0.5 deg, 25 Hz wobble after landing (a PSO) is labelled pso, not saccade or fixation.
-  const auto [s, off] = saccade_then(10, [](double dt) {
-    return 0.5 * std::exp(-dt / 0.015) * std::sin(2 * std::numbers::pi * 25 * dt);
-  });
+  // The wobble after landing (a PSO) is labelled pso, not saccade or fixation.
+  const auto [s, off] = wobbling_saccade();
   const auto l = classify_all("ivvt", 1000, s);
   // The first, outward half-cycle continues the saccade's motion (the overshoot stays in the
   // saccade); the return swing is the PSO.
@@ -463,10 +467,8 @@ TEST(Classify, PostSaccadicOscillation) {
   EXPECT_EQ(share(classify_all("ivvt", 1000, clean), 0, clean.size(), Label::Pso), 0.0);
 }
 
-TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixation) {
-  const auto [s, off] = saccade_then(10, [](double dt) {
-    return 0.5 * std::exp(-dt / 0.015) * std::sin(2 * std::numbers::pi * 25 * dt);
-  });
+TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixationOrNoneWithoutAPsoClass) {
+  const auto [s, off] = wobbling_saccade();
   ClassifierOptions o;
   o.nominal_rate_hz = 1000;
   const auto with = classify_all("gbt", o, s);
@@ -483,18 +485,10 @@ TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixation) {
       ASSERT_TRUE(with[i] != Label::Saccade && with[i] != Label::Fixation) << i;
     }
   }
-}
-
-// Without a PSO class (GazeCom's coders' convention) gbt gives its smoothed trees' labels: those
-// of the PSO run wherever ivvt's PSO did not replace them, the oscillation where the trees put it,
-// no ivvt core beside them (final as soon as the trees' labels); the other methods refuse it.
-TEST(Classify, GbtWithoutAPsoClassKeepsItsTreesLabelsAtTheTreesLatency) {
-  const auto [s, off] = saccade_then(10, [](double dt) {
-    return 0.5 * std::exp(-dt / 0.015) * std::sin(2 * std::numbers::pi * 25 * dt);
-  });
-  ClassifierOptions o;
-  o.nominal_rate_hz = 1000;
-  const auto with = classify_all("gbt", o, s);
+  // Without a PSO class (GazeCom's coders' convention): its smoothed trees' labels, those of the PSO
+  // run wherever ivvt's PSO did not replace them, the oscillation where the trees put it, no ivvt
+  // core beside them (final as soon as the trees' labels); the other methods refuse it.
+  o.trees_only = false;
   o.separate_pso = false;
   const auto without = classify_all("gbt", o, s);
   EXPECT_EQ(share(without, 0, s.size(), Label::Pso), 0.0);
