@@ -10,6 +10,13 @@ GazeCom's recordings.
 import numpy as np
 
 
+def method_args(spec):
+    """A method as the scripts name it, METHOD[+FLAG[=V]...], as (METHOD, fovea-ctl classify arguments):
+    gbt+offline+pso=none -> ("gbt", ["--offline", "--pso", "none"])."""
+    method, *flags = spec.split("+")
+    return method, [a for f in flags for a in ["--" + f.split("=")[0]] + f.split("=")[1:2]]
+
+
 def kappa(truth, predicted, c):
     """Cohen's kappa of class c against the rest; nan when undefined."""
     t = np.asarray(truth) == c

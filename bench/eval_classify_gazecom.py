@@ -36,7 +36,7 @@ import tempfile
 
 import numpy as np
 
-from classify_scoring import confusion, event_counts, events_of, f1_of, kappa_of
+from classify_scoring import confusion, event_counts, events_of, f1_of, kappa_of, method_args
 
 CLASSES = ("fixation", "saccade", "pursuit")
 CODER = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
@@ -198,8 +198,8 @@ def run_recording(args, path, tmp):
     out = {"video": os.path.basename(os.path.dirname(path)), "methods": {}, "latency": {}}
     t_ms = t_us / 1000.0
     for m in args.methods:
-        method, *flags = m.split("+")  # gbt+offline+pso=none: ... --method gbt --offline --pso none
-        extra = list(args.extra) + [a for f in flags for a in ["--" + f.split("=")[0]] + f.split("=")[1:2]]
+        method, flags = method_args(m)  # gbt+offline+pso=none: ... --method gbt --offline --pso none
+        extra = list(args.extra) + flags
         if args.lovo and method == "gbt":  # the model fitted without this recording's video
             extra += ["--model", os.path.join(args.lovo, out["video"] + ".trees")]
         labels, final_ms, raw = classify(args.ctl, base + ".in.csv", base + ".out.csv", geometry, method, extra)

@@ -44,7 +44,7 @@ import tempfile
 
 import numpy as np
 
-from classify_scoring import event_f1, events_of, kappa
+from classify_scoring import event_f1, events_of, kappa, method_args
 
 CODER = {1: "fixation", 2: "saccade", 3: "pso", 4: "pursuit", 5: "blink"}
 CLASSES = ("fixation", "saccade", "pso", "blink")  # the classes this data set holds
@@ -88,10 +88,9 @@ def classify(ctl, in_path, out_path, rate_hz, geometry, method, provisional=None
     """Labels and final times; with `provisional` (a dict) also the provisional events, as
     (kind_phase, event time ms, row index that made it known), and the confirmed/retracted counts."""
     w_px, h_px, w_mm, h_mm, dist_mm = geometry
-    method, *flags = method.split("+")
+    method, flags = method_args(method)
     cmd = [ctl, "classify", in_path, out_path, "%g" % rate_hz, str(w_px), str(h_px), "%g" % w_mm, "%g" % h_mm,
-           "%g" % dist_mm, "--method", method, "--force", "--final-times"]
-    cmd += [a for f in flags for a in ["--" + f.split("=")[0]] + f.split("=")[1:2]]
+           "%g" % dist_mm, "--method", method, "--force", "--final-times"] + flags
     if method == "gbt":
         cmd += MODEL
     if provisional is not None:

@@ -12,27 +12,11 @@ constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 
 std::string ms(double s) { return std::to_string(static_cast<int>(std::lround(s * 1000))) + "ms"; }
 
-// The first sample at or after time t (buf.size() if none), searched outward from buf[from]
-// (galloping, then bisecting): the targets lie near the sample whose context is computed, and a
-// search over the whole 1 s buffer (1000 samples and more at 1000 Hz, each a few hundred bytes)
-// were 5 % of the time in bisections. The same index as a plain binary search.
-std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t, std::size_t from) {
-  const auto before_t = [t](const ContextSample& s) { return s.t < t; };
-  const std::size_t n = buf.size();
-  std::size_t lo = 0, hi = n;  // the answer lies in [lo, hi]
-  if (from < n && buf[from].t < t) {
-    lo = from + 1;
-    for (std::size_t step = 1; lo + step - 1 < n && buf[lo + step - 1].t < t; step *= 2) lo += step;
-    hi = std::min(n, lo + (lo - from));
-  } else if (from < n) {
-    hi = from;
-    for (std::size_t step = 1; hi >= step && buf[hi - step].t >= t; step *= 2) hi -= step;
-    lo = hi >= (from - hi) + 1 ? hi - (from - hi) - 1 : 0;
-  }
+// The first sample at or after time t (buf.size() if none), by bisection: context_features without
+// a cursor (ContextCursor walks to the same index).
+std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t) {
   return static_cast<std::size_t>(
-      std::partition_point(buf.begin() + static_cast<std::ptrdiff_t>(lo), buf.begin() + static_cast<std::ptrdiff_t>(hi),
-                           before_t) -
-      buf.begin());
+      std::partition_point(buf.begin(), buf.end(), [t](const ContextSample& s) { return s.t < t; }) - buf.begin());
 }
 
 // The sample d from sample i (d < 0: before): the furthest from i that is at most |d| (and
@@ -134,7 +118,7 @@ void context_features(const std::deque<ContextSample>& buf, std::size_t i, std::
   const ContextSample& s = buf[i];
   std::size_t slot = 0;  // each search its own cursor slot, in the same order at every sample
   const auto find = [&](double t) {
-    return cursor ? cursor->first_at_or_after(buf, slot++, t) : first_at_or_after(buf, t, i);
+    return cursor ? cursor->first_at_or_after(buf, slot++, t) : first_at_or_after(buf, t);
   };
   // Beyond the look-ahead a feature is NaN even where the buffer happens to reach (offline and
   // online then agree for every look-ahead).

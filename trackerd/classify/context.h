@@ -62,10 +62,10 @@ std::vector<std::string> context_feature_names(const std::vector<std::string>& c
 // How far ahead of the sample a named feature reaches, in seconds (0 for the sample and the past).
 double context_feature_reach_s(const std::string& name);
 
-// Where context_features' searches for one sample ended, so that the next sample's start there: its
-// targets (its time +- the offsets and windows) lie at or after them, as times only grow, and a
-// walk forward finds each in a step or two at a steady rate where a search from the sample takes
-// ten (they were 8 % of gbt's instructions). The same indices as the searches.
+// Where context_features' searches for one sample ended, so that the next sample's searches start
+// there: its targets (its time +- the offsets and windows) lie at or after them, as times only
+// grow, and a walk forward finds each in a step or two at a steady rate where a search takes ten
+// (they were 8 % of gbt's instructions). The same indices as a bisection.
 class ContextCursor {
  public:
   // buf lost its first n samples.

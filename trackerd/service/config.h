@@ -72,6 +72,7 @@ struct CalibrationConfig {
 struct ClassifierConfig {
   std::string method;  // empty: the classify module's default; validated by that module
   std::string pso = "separate";  // separate | none (gbt only): whether PSO is a class of its own
+  bool separate_pso() const { return pso != "none"; }
   friend bool operator==(const ClassifierConfig&, const ClassifierConfig&) = default;
 };
 
