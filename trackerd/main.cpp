@@ -255,7 +255,7 @@ trackerd::ConfigLoader config_loader(const std::string& config_path, const svc::
     svc::apply_overrides(c, cli);
     // The file's own pair was checked as it was read; a flag may pair a method with another's pso.
     if (const std::string err = svc::check_classifier_pso(c.classifier.method, c.classifier.pso); !err.empty()) {
-      throw svc::ConfigError({"classifier.pso: " + err});
+      throw svc::ConfigError({"classifier.pso (--classifier-pso): " + err});
     }
     return c;
   };
@@ -291,7 +291,7 @@ std::optional<svc::DaemonConfig> load_startup_config(const trackerd::ConfigLoade
   try {
     config = load();
   } catch (const svc::ConfigError& e) {
-    spdlog::error("configuration {} is invalid:\n{}", config_path, e.what());
+    spdlog::error("configuration {} is invalid:\n{}", config_path.empty() ? "(the flags alone)" : config_path, e.what());
     return std::nullopt;
   }
   spdlog::set_level(spdlog::level::from_str(config.log_level));  // the file's, unless --log-level
