@@ -23,6 +23,7 @@
 #include "classify/classifier.h"
 #include "classify/evaluate.h"
 #include "classify/pipeline.h"
+#include "classify/trees_core.h"
 #include "gaze_scripts.h"
 #include "sim/synthetic_labelled.h"
 #include "sim/synthetic_gaze.h"
@@ -510,6 +511,38 @@ TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixationOrNoneWithoutAPs
     ADD_FAILURE() << "ivvt without a PSO class";
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(), "classifier ivvt: only gbt can label without a PSO class (ivvt's PSO is part of its rule)");
+  }
+}
+
+// The smoothing's choice weighs pursuit by the model's chain weight (trees_core.h, GbtModel::weights)
+// or by the user's: more weight, more pursuit (taken from fixation), never a moved saccade.
+TEST(Classify, GbtsPursuitWeightTradesFixationForPursuitAndTheModelStatesItsOwn) {
+  const Labelled d = synthetic(250, 30, 5);
+  ClassifierOptions o;
+  o.nominal_rate_hz = 250;
+  const auto count = [&](double weight, Label l) {
+    o.pursuit_weight = weight;
+    const auto labels = classify_all("gbt", o, d.samples);
+    return std::count(labels.begin(), labels.end(), l);
+  };
+  const auto model = builtin_gbt_model();
+  const std::size_t pursuit = model->context(false)->class_of(Label::Pursuit);
+  ASSERT_LT(pursuit, model->weights(false).size());
+  EXPECT_EQ(count(0, Label::Pursuit), count(model->weights(false)[pursuit], Label::Pursuit));
+  const auto low = count(0.3, Label::Pursuit), high = count(4, Label::Pursuit);
+  EXPECT_GT(low, 0);
+  EXPECT_GT(high, low + 50);
+  EXPECT_EQ(count(0.3, Label::Saccade), count(4, Label::Saccade));
+  for (const double bad : {-1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    o.pursuit_weight = bad;
+    EXPECT_THROW((void)make_classifier("gbt", o), std::invalid_argument);
+  }
+  o.pursuit_weight = 2;
+  try {
+    (void)make_classifier("ivvt", o);
+    ADD_FAILURE() << "ivvt with a pursuit weight";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "classifier ivvt: only gbt weighs its classes (ivvt's pursuit is a rule's)");
   }
 }
 

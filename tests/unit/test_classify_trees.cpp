@@ -447,15 +447,23 @@ TEST(Trees, SmoothingCallsASaccadeByTheShortWindowAndTheRestByTheLongOneNoiseNea
                                              "classes 4 fixation saccade pursuit noise"),
                                     "baseline 0.5 0", "baseline 0 0 0 0");
   const TreesModel m(text, "m.trees");
+  const double ones[4] = {1, 1, 1, 1};
   const double sacc_near[4] = {0.3, 0.4, 0.2, 0.1}, wide[4] = {0.3, 0.35, 0.25, 0.1};
-  EXPECT_EQ(m.smoothed_label(sacc_near, wide, false), Label::Saccade);
+  EXPECT_EQ(m.smoothed_label(sacc_near, wide, ones, false), Label::Saccade);
   const double fix_near[4] = {0.5, 0.4, 0.05, 0.05};
-  EXPECT_EQ(m.smoothed_label(fix_near, wide, false), Label::Fixation);  // the wide window's saccade does not count
+  EXPECT_EQ(m.smoothed_label(fix_near, wide, ones, false), Label::Fixation);  // the wide window's saccade does not count
   const double pursuit_wide[4] = {0.3, 0.1, 0.5, 0.1};
-  EXPECT_EQ(m.smoothed_label(fix_near, pursuit_wide, false), Label::Pursuit);
+  EXPECT_EQ(m.smoothed_label(fix_near, pursuit_wide, ones, false), Label::Pursuit);
   const double noise_wide[4] = {0.2, 0.1, 0.25, 0.45};
-  EXPECT_EQ(m.smoothed_label(fix_near, noise_wide, true), Label::Blink);     // near a loss: the coders' noise
-  EXPECT_EQ(m.smoothed_label(fix_near, noise_wide, false), Label::Unknown);  // elsewhere no movement
+  EXPECT_EQ(m.smoothed_label(fix_near, noise_wide, ones, true), Label::Blink);     // near a loss: the coders' noise
+  EXPECT_EQ(m.smoothed_label(fix_near, noise_wide, ones, false), Label::Unknown);  // elsewhere no movement
+  // Weights tip the long window's choice (0.3 fixation against 0.25 x 1.5 pursuit), not the short
+  // window's saccade.
+  const double pursuit_weighed[4] = {1, 1, 1.5, 1};
+  EXPECT_EQ(m.smoothed_label(fix_near, wide, pursuit_weighed, false), Label::Pursuit);
+  EXPECT_EQ(m.smoothed_label(sacc_near, wide, pursuit_weighed, false), Label::Saccade);
+  EXPECT_EQ(m.class_of(Label::Pursuit), 2u);
+  EXPECT_EQ(m.class_of(Label::Pso), 4u);  // none
   double p[4];
   const std::vector<float> f(kFeatureCount, 0.5f);
   m.probabilities(f.data(), p);
@@ -540,6 +548,31 @@ TEST(GbtModel, TheOnlineChainMayHaveItsOwnFirstStageWithAShorterReach) {
   const std::string after_online =
       bundle() + "stage frame-online 0.064\n" + ensemble(feature_names(), "fixation saccade");
   EXPECT_EQ(model_error(after_online), "m.gbt:27: 'stage frame-online' after 'stage online' (whose features it gives)");
+}
+
+// A chain's class weights (trees_core.h): given after its second stage's look-ahead, one per class;
+// all 1 where the file gives none or the chain has no second stage.
+TEST(GbtModel, AChainsWeightsAreItsSecondStagesOnePerClass) {
+  const GbtModel weighed(replaced(bundle(), "stage online 0.032\n", "stage online 0.032 weights 1 1.75\n"), "m.gbt");
+  EXPECT_EQ(weighed.weights(false), (std::vector<double>{1, 1.75}));
+  EXPECT_EQ(weighed.weights(true), (std::vector<double>{1, 1}));
+  const GbtModel frame_only(ensemble(feature_names(), "fixation saccade"), "m.trees");
+  EXPECT_EQ(frame_only.weights(false), (std::vector<double>{1, 1}));
+
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 weights 1")),
+            "m.gbt:11: 'stage online' has 1 weights for its 2 classes");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 weights")),
+            "m.gbt:11: 'stage online' has 0 weights for its 2 classes");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage offline 0.512", "stage offline 0.512 weights 1 0")),
+            "m.gbt:19: 'stage offline': weight '0' is not a positive number");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage offline 0.512", "stage offline 0.512 weights 1 inf")),
+            "m.gbt:19: 'stage offline': weight 'inf' is not a positive number");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage offline 0.512", "stage offline 0.512 weights 1 2x")),
+            "m.gbt:19: 'stage offline': weight '2x' is not a positive number");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 1 2")),
+            "m.gbt:11: 'stage online' takes a look-ahead and then only 'weights', not '1'");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online weights 1 2")),
+            "m.gbt:11: 'stage online' needs one look-ahead in seconds, in (0, 0.512000]");
 }
 
 TEST(GbtModel, ADamagedBundleIsRefusedWithFileAndLine) {

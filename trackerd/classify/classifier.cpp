@@ -68,12 +68,21 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
     throw std::invalid_argument("classifier " + name + ": only gbt can label without a PSO class (" + name +
                                 "'s PSO is part of its rule)");
   }
+  if (!(options.pursuit_weight >= 0 && std::isfinite(options.pursuit_weight))) {
+    throw std::invalid_argument("classifier " + name + ": pursuit weight " + std::to_string(options.pursuit_weight) +
+                                " is not a positive number");
+  }
+  if (options.pursuit_weight > 0 && name != "gbt") {
+    throw std::invalid_argument("classifier " + name + ": only gbt weighs its classes (" + name +
+                                "'s pursuit is a rule's)");
+  }
   const FrontendOptions standard;  // 75 ms gap fill-in, blink for losses up to 0.5 s
   if (name == "gbt") {
     GbtOptions o;
     o.offline = options.offline;
     o.trees_only = options.trees_only;
     o.separate_pso = options.separate_pso;
+    o.pursuit_weight = options.pursuit_weight;
     return make_trees_pipeline(options.model_path.empty() ? builtin_gbt_model() : load_gbt_model(options.model_path),
                                options.display, std::move(o));
   }

@@ -82,6 +82,9 @@ struct ClassifierOptions {
   // it as helps. gbt: its offline second stage (context.h, the whole reach) instead of the online
   // one; the other methods label the same either way.
   bool offline = false;
+  // gbt: > 0, the weight of pursuit in the smoothing's choice instead of the model's own
+  // (trees_core.h, GbtModel::weights): above it calls pursuit sooner and more often, below less.
+  double pursuit_weight = 0;
 };
 
 // Throws std::invalid_argument naming the method and listing the known ones (also for a rate that

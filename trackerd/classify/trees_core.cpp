@@ -6,6 +6,7 @@
 // the PSO. Samples without gaze keep the front end's blink/lost.
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <deque>
 #include <limits>
@@ -62,6 +63,7 @@ class TreesCore final : public Core {
         lookahead_s_(context_ ? model_->lookahead_s(options.offline) : staged_ ? kContextReachS : 0.0),
         smooth_long_s_(context_ && !options.offline ? kSmoothLongAfterContextS : kSmoothLongS),
         classes_(frame_ ? frame_->class_count() : 0),
+        weights_(chain_weights(options)),
         frame_sink_(std::move(options.frame_sink)),
         context_sink_(std::move(options.context_sink)) {}
 
@@ -170,7 +172,7 @@ class TreesCore final : public Core {
         std::array<double, kMaxTreeClasses> near{}, wide{};
         window_mean(labelled_, kSmoothShortS, last.class_count(), near);
         window_mean(labelled_, smooth_long_s_, last.class_count(), wide);
-        l.label = last.smoothed_label(near.data(), wide.data(), s.noise_as_blink);
+        l.label = last.smoothed_label(near.data(), wide.data(), weights_.data(), s.noise_as_blink);
       }
       out.push_back(l);
       ++labelled_;
@@ -197,6 +199,21 @@ class TreesCore final : public Core {
     }
     for (std::size_t k = 0; k < classes; ++k) mean[k] /= n;
   }
+  // The weights the smoothing's long window gives the last stage's classes (GbtModel::weights).
+  std::array<double, kMaxTreeClasses> chain_weights(const GbtOptions& options) const {
+    std::array<double, kMaxTreeClasses> w;
+    w.fill(1.0);
+    if (!model_) return w;
+    if (context_) {  // a chain's weights are its second stage's (without it every class weighs 1)
+      const std::vector<double> given = model_->weights(options.offline);
+      std::copy(given.begin(), given.end(), w.begin());
+    }
+    const TreesModel& last = context_ ? *context_ : *frame_;
+    if (const std::size_t pursuit = last.class_of(Label::Pursuit); options.pursuit_weight > 0 && pursuit < w.size()) {
+      w[pursuit] = options.pursuit_weight;
+    }
+    return w;
+  }
   // Keep what the next sample's features reach back to: the samples within kFeatureReachS before
   // it and the one just beyond (interpolation's other end).
   void trim() {
@@ -216,6 +233,7 @@ class TreesCore final : public Core {
   double lookahead_s_;
   double smooth_long_s_;       // the long smoothing window (trees_core.h)
   std::size_t classes_;        // the first stage's
+  std::array<double, kMaxTreeClasses> weights_;  // the last stage's classes' in the smoothing
   FeatureSink frame_sink_, context_sink_;
   std::deque<Prepared> buf_;
   FeatureWindow window_;  // the same samples as buf_, with the running sums of their features
@@ -303,6 +321,10 @@ Label TreesModel::label(const float* features, bool noise_as_blink) const {
   return named(static_cast<std::size_t>(trees_.predict(features, scores)), noise_as_blink);
 }
 
+std::size_t TreesModel::class_of(Label l) const {
+  return static_cast<std::size_t>(std::find(labels_.begin(), labels_.end(), l) - labels_.begin());
+}
+
 Label TreesModel::named(std::size_t c, bool noise_as_blink) const {
   // Away from a loss and off-screen gaze the coders' noise is GazeCom's own: odd stretches of gaze,
   // no movement. Calling them the likeliest movement instead (an earlier rule, from when the trees
@@ -320,12 +342,13 @@ void TreesModel::probabilities(const float* features, double* p) const {
   for (std::size_t c = 0; c < k; ++c) p[c] /= sum;
 }
 
-Label TreesModel::smoothed_label(const double* near, const double* wide, bool noise_as_blink) const {
+Label TreesModel::smoothed_label(const double* near, const double* wide, const double* weights,
+                                 bool noise_as_blink) const {
   const std::size_t k = labels_.size();
-  const auto saccade = static_cast<std::size_t>(std::find(labels_.begin(), labels_.end(), Label::Saccade) - labels_.begin());
+  const std::size_t saccade = class_of(Label::Saccade);
   if (saccade < k && std::max_element(near, near + k) == near + saccade) return Label::Saccade;
   double rest[kMaxTreeClasses];
-  std::copy(wide, wide + k, rest);
+  for (std::size_t c = 0; c < k; ++c) rest[c] = wide[c] * weights[c];  // GbtModel::weights
   if (saccade < k) rest[saccade] = -1;  // the short window said no saccade
   return named(static_cast<std::size_t>(std::max_element(rest, rest + k) - rest), noise_as_blink);
 }
@@ -428,7 +451,21 @@ void GbtModel::add_stage(const std::string& header, const std::string& text, con
     frame_online_reach_s_ = reach;
     return;
   }
-  if (!(words >> lookahead) || !(lookahead > 0 && lookahead <= kContextReachS) || (words >> extra)) {
+  std::vector<double> weights;
+  bool has_weights = false;
+  if (words >> lookahead && words >> extra) {
+    if (extra != "weights") fail("'stage " + name + "' takes a look-ahead and then only 'weights', not '" + extra + "'");
+    has_weights = true;
+    for (std::string w; words >> w;) {
+      double v = 0;
+      const auto [end, err] = std::from_chars(w.data(), w.data() + w.size(), v);
+      if (err != std::errc() || end != w.data() + w.size() || !std::isfinite(v) || v <= 0) {
+        fail("'stage " + name + "': weight '" + w + "' is not a positive number");
+      }
+      weights.push_back(v);
+    }
+  }
+  if (!(lookahead > 0 && lookahead <= kContextReachS)) {
     fail("'stage " + name + "' needs one look-ahead in seconds, in (0, " + std::to_string(kContextReachS) + "]");
   }
   std::unique_ptr<TreesModel>& slot = name == "online" ? online_ : offline_;
@@ -436,6 +473,18 @@ void GbtModel::add_stage(const std::string& header, const std::string& text, con
   slot = std::make_unique<TreesModel>(
       TreeEnsemble::parse(text, origin, context_feature_names(frame_->trees().class_names()), line), origin);
   (name == "online" ? online_lookahead_s_ : offline_lookahead_s_) = lookahead;
+  if (has_weights && weights.size() != slot->class_count()) {
+    fail("'stage " + name + "' has " + std::to_string(weights.size()) + " weights for its " +
+         std::to_string(slot->class_count()) + " classes");
+  }
+  (name == "online" ? online_weights_ : offline_weights_) = weights;
+}
+
+std::vector<double> GbtModel::weights(bool offline) const {
+  const TreesModel* last = context(offline);
+  const std::vector<double>& given = offline ? offline_weights_ : online_weights_;
+  if (!given.empty()) return given;
+  return std::vector<double>(last ? last->class_count() : frame(offline).class_count(), 1.0);
 }
 
 std::shared_ptr<const GbtModel> builtin_gbt_model() {

@@ -39,12 +39,15 @@ class TreesModel {
   Label label(const float* features, bool noise_as_blink) const;
   // Class probabilities (softmax of the raw scores) into p[0..classes).
   void probabilities(const float* features, double* p) const;
-  // The label from probabilities averaged over the short and the long window (above).
-  Label smoothed_label(const double* near, const double* wide, bool noise_as_blink) const;
+  // The label from probabilities averaged over the short and the long window (above); the long
+  // window's choice weighs class k's mean by weights[k] (GbtModel::weights).
+  Label smoothed_label(const double* near, const double* wide, const double* weights, bool noise_as_blink) const;
   // Whether the coders' noise is a blink, from a sample's features.h features (above).
   static bool noise_is_blink(const float* frame_features);
   const TreeEnsemble& trees() const { return trees_; }
   std::size_t class_count() const { return labels_.size(); }
+  // The class labelled l, or class_count() where there is none.
+  std::size_t class_of(Label l) const;
 
  private:
   Label named(std::size_t c, bool noise_as_blink) const;
@@ -68,8 +71,16 @@ inline constexpr double kOnlineLookaheadS = 0.032;
 //   stage frame                        then a fovea-trees ensemble over features.h's features
 //   stage frame-online REACH_S         then one over the same features with REACH_S ahead (optional;
 //                                      without it the online chain's first stage is `frame`)
-//   stage online LOOKAHEAD_S           then one over context.h's features (optional)
-//   stage offline LOOKAHEAD_S          likewise (optional)
+//   stage online LOOKAHEAD_S [weights W_1 ... W_K]
+//                                      then one over context.h's features (optional)
+//   stage offline LOOKAHEAD_S [weights W_1 ... W_K]
+//                                      likewise (optional)
+//
+// A chain's weights (one per class of its second stage, each positive; 1 where not given) weigh the
+// long smoothing window's mean probabilities before it picks the class (TreesModel::smoothed_label).
+// The most probable class is not the choice that agrees best with the coders: pursuit is rarer than
+// fixation and looks like it for its first hundred milliseconds, so argmax calls it late and seldom.
+// bench/train_classifier.py fits the pursuit weight on videos each bundle did not see (kPursuitWeights).
 //
 // Throws std::invalid_argument naming origin, the line and what is wrong.
 class GbtModel {
@@ -81,11 +92,15 @@ class GbtModel {
   // The second stage for online or offline labelling and its look-ahead; null where there is none.
   const TreesModel* context(bool offline) const { return (offline ? offline_ : online_).get(); }
   double lookahead_s(bool offline) const { return offline ? offline_lookahead_s_ : online_lookahead_s_; }
+  // The chain's class weights (above), one per class of its last stage: all 1 without a second stage
+  // or where the file gives none.
+  std::vector<double> weights(bool offline) const;
 
  private:
   void add_stage(const std::string& header, const std::string& text, const std::string& origin, int line);
   std::unique_ptr<TreesModel> frame_, frame_online_, online_, offline_;
   double frame_online_reach_s_ = kFeatureReachS, online_lookahead_s_ = 0, offline_lookahead_s_ = 0;
+  std::vector<double> online_weights_, offline_weights_;  // empty: all 1
 };
 
 std::shared_ptr<const GbtModel> builtin_gbt_model();  // parsed once
@@ -107,6 +122,8 @@ struct GbtOptions {
                               // and the first stage labels (what a second stage is trained on)
   double reach_s = 0;        // without a model: the features' reach ahead (0: kFeatureReachS); a
                              // model's chain states its own
+  double pursuit_weight = 0;  // > 0: the chain's weight of pursuit (GbtModel::weights) instead of the
+                              // model's (fovea-ctl classify --pursuit-weight; what the training fits)
 };
 // The `gbt` pipeline: the standard front end (without the lid rule), the trees core with its
 // smoothing, and (separate_pso) ivvt's PSO where the trees say saccade or fixation (trees_core.cpp,

@@ -385,6 +385,7 @@ struct ClassifyArgs {
   bool trees_only = false;   // --trees-only (gbt)
   bool offline = false;      // --offline
   std::string pso = "separate";  // --pso (gbt)
+  double pursuit_weight = 0;     // --pursuit-weight (gbt; 0: the model's)
   std::string features_out;  // --features-out F.npy (and F.npy.names)
   double features_reach_s = fovea::trackerd::classify::kFeatureReachS;  // --features-reach S
   std::string context_out;   // --context-out F.npy (and F.npy.names)
@@ -491,6 +492,7 @@ int cmd_classify(const ClassifyArgs& a) {
     options.trees_only = a.trees_only;
     options.offline = a.offline;
     options.separate_pso = a.pso != "none";
+    options.pursuit_weight = a.pursuit_weight;
     const cl::OnlineLabels result = cl::classify_online(a.method, options, input.samples);
     write_feature_files(a, input.samples, g);
 
@@ -580,6 +582,11 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
                        "the trees learned from, put it (cheaper, and final as soon as the trees' labels)")
       ->check(CLI::IsMember({"separate", "none"}))
       ->capture_default_str();
+  classify->add_option("--pursuit-weight", cls.pursuit_weight,
+                       "W: gbt: weigh pursuit's smoothed probability by W when choosing among the classes but "
+                       "the saccade, instead of the model's own weight (the built-in model's: fitted on held-out "
+                       "GazeCom videos for F1); above it pursuit is called sooner and more often, below less")
+      ->check(CLI::PositiveNumber);
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
