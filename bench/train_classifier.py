@@ -26,10 +26,14 @@ present with the same settings).
   --nested V1,V2 --lovo DIR  also DIR/nested/<video>.trees: that video's second stages fitted on rows
                              from first stages that never saw it (nested cross-validation; the plain
                              bundles' rows come from first stages that saw it), ~20 min a video
+  --no-weights               leave the chains' pursuit weights at 1 (by default
+                             bench/fit_class_weights.py fits them on held-out videos once the
+                             bundles are written, ~20 min)
 
 On GazeCom with the defaults, 2 cores: the first stages 35-50 min (once: reused), the second
 stages' features 8 min, the full model 10 min, the 18 leave-one-video-out bundles 45 min; with
---online-reach the features and first stages again, and the second stages' features twice. The
+--online-reach the features and first stages again, and the second stages' features twice; the
+pursuit weights 20 min. The
 features are cached (XDG_CACHE_HOME/fovea/gazecom-features/KEY) and the first stages reused under
 a key that hashes the features fovea-ctl computes for one recording and its copy: a build that
 changed nothing in them reuses both.
@@ -40,7 +44,7 @@ own; a model trained on it carries the data's terms (trackerd/classify/models/RE
 
 Usage: bench/train_classifier.py FOVEA_CTL [--out FILE] --lovo DIR [--data DIR_OR_TAR] [--every N]
        [--stride-ms MS] [--augment N] [--iterations N] [--leaves N] [--context-stride-ms MS]
-       [--context-iterations N] [--frame-only] [--nested VIDEOS] [--online-reach S] [--jobs N]
+       [--context-iterations N] [--frame-only] [--nested VIDEOS] [--online-reach S] [--no-weights] [--jobs N]
 """
 import argparse
 import concurrent.futures
@@ -54,6 +58,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import fit_class_weights  # noqa: E402
 from eval_classify_gazecom import RATE_HZ, read_arff, unpacked, write_input  # noqa: E402
 
 CLASS_NAMES = {1: "fixation", 2: "saccade", 3: "pursuit", 4: "noise"}
@@ -431,6 +436,8 @@ def main():
     ap.add_argument("--online-reach", type=float, default=FULL_REACH_S,
                     help="the online chain's own first stage, over features reaching this many seconds ahead "
                     "(features.h; shorter: the daemon's labels are final sooner); %g: the offline one" % FULL_REACH_S)
+    ap.add_argument("--no-weights", action="store_true",
+                    help="do not fit the chains' pursuit weights (bench/fit_class_weights.py) after the bundles")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
     if not 0 < args.online_reach <= FULL_REACH_S:
@@ -485,6 +492,9 @@ def main():
             check_model(args, online, path, files, held, (), chain_path(args, v))
             check_model(args, offline, path, files, held, ("--offline",), frame_path)
         print(f"train_classifier: {path} ({n2} samples) at {time.time() - start:.0f} s", flush=True)
+    if not args.no_weights:  # on every 2nd recording (the script's own default) unless --every thinned them
+        fit_class_weights.fit(args.ctl, args.lovo, files if args.every > 1 else files[::2], args.out, jobs=args.jobs)
+        print(f"train_classifier: pursuit weights fitted at {time.time() - start:.0f} s", flush=True)
     if args.nested:
         nested_lovo(args, data, names, files, videos, settings2, start)
 

@@ -9,6 +9,9 @@
 # second stages fitted on rows from first stages that never saw it, and refuse a video not there.
 # --online-reach must give the daemon's chain a first stage of its own over features that reach less
 # far ahead, each checked exact, reusing the first stages fitted before, and labels final sooner.
+# The chains' pursuit weights must be fitted into every bundle's second stages (bench/
+# fit_class_weights.py), each bundle's on the other video, unless --no-weights; a bundle with the
+# wrong count of weights is refused naming its line.
 # Usage: test_train_classifier.sh CTL SOURCE_DIR
 set -u
 CTL=$1 SRC=$2
@@ -64,8 +67,13 @@ cat "$WORK/lovo.txt"
 for v in clip_a clip_b; do
   [ -f "$WORK/lovo/$v.trees" ] && [ -f "$WORK/lovo/$v.frame.trees" ] || fail "lovo wrote $(ls "$WORK/lovo")"
   grep -q "GazeCom without $v" "$WORK/lovo/$v.trees" || fail "$v's model does not say what it left out"
-  grep -q "^stage offline 0.512$" "$WORK/lovo/$v.trees" || fail "$v's model has no offline stage"
+  grep -q "^stage offline 0.512 weights 1 1 [0-9.]*$" "$WORK/lovo/$v.trees" \
+    || fail "$v's model has no offline stage with its weights: $(grep '^stage' "$WORK/lovo/$v.trees")"
+  grep -q "^stage online 0.032 weights 1 1 [0-9.]*$" "$WORK/lovo/$v.trees" || fail "$v's online stage has no weights"
+  grep -q "lovo/$v.trees: pursuit weight [0-9.]* online, [0-9.]* offline" "$WORK/lovo.txt" \
+    || fail "the weights fitted for $v are not reported: $(cat "$WORK/lovo.txt")"
 done
+grep -q "offline pursuit weight 2.5: mean 0\.[0-9]* (" "$WORK/lovo.txt" || fail "the weights' scores are not reported"
 grep -q "4 recordings and 1 copies of each" "$WORK/lovo.txt" || fail "the copies were not made"
 [ "$(grep -c "disagree on 0 of" "$WORK/lovo.txt")" = 4 ] || fail "not every stage checked exact: $(cat "$WORK/lovo.txt")"
 /usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" --out "$WORK/m.trees" \
@@ -74,6 +82,7 @@ cat "$WORK/train.txt"
 ! grep -q "frame.trees (" "$WORK/train.txt" || fail "the first stages fitted before were fitted again"
 [ "$(grep -c "disagree on 0 of" "$WORK/train.txt")" = 4 ] || fail "no exactness check in: $(cat "$WORK/train.txt")"
 head -1 "$WORK/m.trees" | grep -q "iterations 6, leaves 7" || fail "the model does not say how it was fitted"
+grep -q "m.trees: pursuit weight [0-9.]* online, [0-9.]* offline" "$WORK/train.txt" || fail "the model's weights unfitted"
 
 echo "== fovea-ctl labels with the model and refuses a damaged one"
 in="$WORK/in.csv"
@@ -94,13 +103,17 @@ check_refused() {  # sed-expression error-text
   [ ! -e "$WORK/bad.csv" ] || fail "a damaged model left an output"
 }
 check_refused 's/^fovea-trees 1$/fovea-trees 7/' "bad.trees:5: format version is not 1"
-check_refused 's/^stage online 0.032$/stage online 2/' "bad.trees:$online_at: 'stage online' needs one look-ahead"
+check_refused 's/^stage online 0.032 .*$/stage online 2/' "bad.trees:$online_at: 'stage online' needs one look-ahead"
+check_refused 's/^stage online 0.032 weights .*$/stage online 0.032 weights 1 1/' \
+  "bad.trees:$online_at: 'stage online' has 2 weights for its 3 classes"
+check_refused 's/^stage online 0.032 weights 1 /stage online 0.032 weights -1 /' \
+  "bad.trees:$online_at: 'stage online': weight '-1' is not a positive number"
 check_refused 's/^stage frame$/stage frames/' "bad.trees:3: stage 'frames' is none of frame, frame-online, online, offline"
 check_refused "$((online_at + 4))s/^classes [0-9]* /classes 0 /" "bad.trees:$((online_at + 4)): classes '0' is not an integer"
 
 echo "== --online-reach: the daemon's own first stage, over features 64 ms ahead"
 /usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" --out "$WORK/m64.trees" \
-  --online-reach 0.064 >"$WORK/reach.txt" 2>&1 || fail "online reach: $(cat "$WORK/reach.txt")"
+  --online-reach 0.064 --no-weights >"$WORK/reach.txt" 2>&1 || fail "online reach: $(cat "$WORK/reach.txt")"
 cat "$WORK/reach.txt"
 ! grep -q "/clip_a.frame.trees (" "$WORK/reach.txt" || fail "the whole reach's first stages were fitted again"
 for v in clip_a clip_b; do

@@ -1,0 +1,166 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
+"""Fits the `gbt` bundles' pursuit weight (issue 43): how much the smoothing's choice weighs
+pursuit's mean probability against the other classes' (trackerd/classify/trees_core.h,
+GbtModel::weights), once for the online and once for the offline chain.
+
+The most probable class is not the labelling that agrees best with the coders: pursuit is rarer
+than fixation and looks like it for its first hundred milliseconds, so argmax calls it late and
+seldom. The weight is chosen, from a grid, for the highest mean of the fixation, saccade and pursuit
+sample F1 (issue 43's measure) against GazeCom's expert, and only on videos the scored labels' model
+did not see: each recording is labelled by its own video's leave-one-video-out bundle
+(bench/train_classifier.py --lovo DIR), and
+
+- DIR/<video>.trees gets the weight that is best over the other 17 videos' recordings (so its own
+  video, on which bench/eval_classify_gazecom.py --lovo scores it, plays no part in the choice:
+  the other bundles that label those recordings did see it in training, as every bundle but one
+  sees any given video);
+- --out MODEL (the built-in one, fitted on every video) gets the weight best over all 18.
+
+Each recording goes through `fovea-ctl classify --pursuit-weight W` once per weight and chain, as a
+user would run it. The bundles are rewritten in place: the stage headers gain (or replace) their
+`weights`, nothing else changes.
+
+On GazeCom, every 2nd recording, 6 weights, 2 cores: about 20 min.
+
+Usage: bench/fit_class_weights.py FOVEA_CTL --lovo DIR [--out MODEL] [--data DIR_OR_TAR] [--every N]
+       [--weights 1,1.25,...] [--jobs N]
+"""
+import argparse
+import concurrent.futures
+import os
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from classify_scoring import f1_of  # noqa: E402
+from eval_classify_gazecom import CLASSES, CODER, classify, read_arff, score, unpacked, write_input  # noqa: E402
+
+WEIGHTS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5)
+CHAINS = ("online", "offline")
+
+
+def recording_counts(ctl, lovo, path, weights, tmp):
+    """{chain: {weight: sample confusions per class}} of one recording, labelled by its video's bundle."""
+    geometry, t_us, x, y, conf, final, _, _ = read_arff(path)
+    truth = [CODER.get(v, "other") for v in final]
+    video = os.path.basename(os.path.dirname(path))
+    base = os.path.join(tmp, video + "." + os.path.basename(path))
+    write_input(t_us, x, y, conf, base + ".in.csv")
+    out = {}
+    for chain in CHAINS:
+        for w in weights:
+            extra = ["--model", os.path.join(lovo, video + ".trees"), "--pursuit-weight", "%g" % w]
+            extra += ["--offline"] if chain == "offline" else []
+            labels = classify(ctl, base + ".in.csv", base + ".out.csv", geometry, "gbt", extra)[0]
+            out.setdefault(chain, {})[w] = {c: counts["sample"] for c, counts in score(truth, labels).items()}
+    return video, out
+
+
+def pooled(per_video, videos, chain, w):
+    total = {c: (0, 0, 0, 0) for c in CLASSES}
+    for v in videos:
+        for c in CLASSES:
+            total[c] = tuple(a + b for a, b in zip(total[c], per_video[v][chain][w][c]))
+    return total
+
+
+def mean_f1(total):
+    return sum(f1_of(*total[c][:3]) for c in CLASSES) / len(CLASSES)
+
+
+def best_weight(per_video, videos, chain, weights):
+    """The weight with the highest mean F1 over `videos`' pooled samples (the smaller on a tie)."""
+    return max(weights, key=lambda w: (round(mean_f1(pooled(per_video, videos, chain, w)), 9), -w))
+
+
+def with_weights(text, chosen):
+    """A fovea-gbt bundle's text with each chain's second-stage header stating its weights: 1 for
+    every class but pursuit, chosen[chain] for it."""
+    lines = text.split("\n")
+    found = 0
+    for i, line in enumerate(lines):
+        words = line.split()
+        if len(words) < 3 or words[0] != "stage" or words[1] not in chosen:
+            continue
+        classes = next(l.split()[2:] for l in lines[i + 1:] if l.startswith("classes "))
+        if "pursuit" not in classes:
+            sys.exit(f"fit_class_weights: 'stage {words[1]}' has no pursuit class ({' '.join(classes)})")
+        w = ["%g" % (chosen[words[1]] if c == "pursuit" else 1) for c in classes]
+        lines[i] = " ".join(words[:3] + ["weights"] + w)
+        found += 1
+    return "\n".join(lines), found
+
+
+def rewrite(path, chosen):
+    new, found = with_weights(open(path).read(), chosen)
+    if found != len(chosen):
+        sys.exit(f"fit_class_weights: {path} is no fovea-gbt bundle with an online and an offline second stage")
+    with open(path + ".partial", "w") as f:
+        f.write(new)
+    os.replace(path + ".partial", path)
+
+
+def fit(ctl, lovo, files, out=None, weights=WEIGHTS, jobs=None):
+    """Chooses and writes the weights (above); returns {bundle path: {chain: weight}}."""
+    videos = sorted({os.path.basename(os.path.dirname(p)) for p in files})
+    for v in videos:
+        if not os.path.exists(os.path.join(lovo, v + ".trees")):
+            sys.exit(f"fit_class_weights: no bundle {os.path.join(lovo, v + '.trees')} (bench/train_classifier.py --lovo)")
+    per_video = {}
+    with tempfile.TemporaryDirectory() as tmp, concurrent.futures.ThreadPoolExecutor(jobs or os.cpu_count() or 1) as pool:
+        for video, counts in pool.map(lambda p: recording_counts(ctl, lovo, p, weights, tmp), files):
+            for chain in CHAINS:
+                for w in weights:
+                    into = per_video.setdefault(video, {}).setdefault(chain, {}).setdefault(
+                        w, {c: (0, 0, 0, 0) for c in CLASSES})
+                    for c in CLASSES:
+                        into[c] = tuple(a + b for a, b in zip(into[c], counts[chain][w][c]))
+    chosen = {}
+    for v in videos:
+        others = [u for u in videos if u != v]
+        chosen[os.path.join(lovo, v + ".trees")] = {ch: best_weight(per_video, others, ch, weights) for ch in CHAINS}
+    if out:
+        chosen[out] = {ch: best_weight(per_video, videos, ch, weights) for ch in CHAINS}
+    report(per_video, videos, weights)
+    for path, w in chosen.items():
+        rewrite(path, w)
+        print(f"fit_class_weights: {path}: pursuit weight {w['online']:g} online, {w['offline']:g} offline", flush=True)
+    return chosen
+
+
+def report(per_video, videos, weights):
+    print("fit_class_weights: mean F1 (fixation / saccade / pursuit) over every video's recordings, each labelled "
+          "by its own held-out bundle:")
+    for chain in CHAINS:
+        for w in weights:
+            total = pooled(per_video, videos, chain, w)
+            print(f"  {chain:7s} pursuit weight {w:g}: mean {mean_f1(total):.4f} (" +
+                  " / ".join(f"{f1_of(*total[c][:3]):.3f}" for c in CLASSES) + ")")
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("ctl", help="the fovea-ctl binary")
+    ap.add_argument("--lovo", required=True, help="DIR of bench/train_classifier.py --lovo: DIR/<video>.trees")
+    ap.add_argument("--out", help="also this model fitted on every video (its weight: the best over all of them)")
+    ap.add_argument("--data", default=os.path.join(here, "..", "..", "shared", "data", "gazecom"))
+    ap.add_argument("--every", type=int, default=2, help="every N-th recording (sorted by video, observer)")
+    ap.add_argument("--weights", default=",".join("%g" % w for w in WEIGHTS), help="the grid of pursuit weights")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    args = ap.parse_args()
+    try:
+        weights = sorted({float(w) for w in args.weights.split(",") if w})
+    except ValueError:
+        sys.exit(f"fit_class_weights: --weights '{args.weights}' is not a comma-separated list of numbers")
+    if not weights or min(weights) <= 0:
+        sys.exit("fit_class_weights: --weights must be positive numbers")
+    root = unpacked(args.data)
+    files = sorted(os.path.join(root, v, f) for v in os.listdir(root) for f in os.listdir(os.path.join(root, v))
+                   if f.endswith(".arff"))[::args.every]
+    fit(args.ctl, args.lovo, files, args.out, weights, args.jobs)
+
+
+if __name__ == "__main__":
+    main()
