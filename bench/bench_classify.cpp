@@ -11,7 +11,8 @@
 //
 //   bench_classify [--seconds S] [--seeds N] [--methods A,B] [--accuracy-only]
 //     defaults: 120 s of gaze per seed, 3 seeds, every method, every table. --methods keeps the main
-//     table to those methods (gbt+pso=none: gbt without a PSO class, beside them); --accuracy-only
+//     table to those methods (gbt+pso=none: gbt without a PSO class, gbt+pursuit-weight=W: with that
+//     weight instead of its model's, beside them); --accuracy-only
 //     prints that table and the cost summary alone.
 #include <algorithm>
 #include <array>
@@ -179,27 +180,41 @@ void print_provisional(const double* rates, const Condition& c, double seconds, 
   }
 }
 
-// A method of the main table: a registered one, or gbt without a PSO class ("gbt+pso=none").
+// A method of the main table: a registered one, gbt without a PSO class ("gbt+pso=none") or gbt
+// with another pursuit weight than its model's ("gbt+pursuit-weight=W").
 struct Method {
   std::string name;     // as printed
   std::string method;   // the registry's name
   bool separate_pso = true;
+  double pursuit_weight = 0;  // 0: the model's
   ClassifierOptions options(double rate_hz) const {
     ClassifierOptions o;
     o.nominal_rate_hz = rate_hz;
     o.separate_pso = separate_pso;
+    o.pursuit_weight = pursuit_weight;
     return o;
   }
 };
 
-// The methods named in a comma-separated list, in classifiers() order (gbt+pso=none after gbt);
-// every registered one for "".
+// The methods named in a comma-separated list, in classifiers() order (gbt+pso=none and
+// gbt+pursuit-weight=W after gbt); every registered one for "".
 std::vector<Method> chosen_methods(const std::string& list) {
   std::vector<Method> out;
   const auto named = [&](const std::string& n) { return ("," + list + ",").find("," + n + ",") != std::string::npos; };
   for (const ClassifierInfo& m : classifiers()) {
     if (list.empty() || named(m.name)) out.push_back({m.name, m.name});
     if (m.name == "gbt" && named("gbt+pso=none")) out.push_back({"gbt+pso=none", "gbt", false});
+    for (std::size_t at = 0; m.name == "gbt" && (at = list.find("gbt+pursuit-weight=", at)) != std::string::npos;) {
+      const std::string item = list.substr(at, list.find(',', at) - at);
+      at += item.size();
+      char* end = nullptr;
+      const double w = std::strtod(item.c_str() + std::strlen("gbt+pursuit-weight="), &end);
+      if (*end != '\0' || !(w > 0) || !std::isfinite(w)) {
+        std::fprintf(stderr, "bench_classify: --methods: %s: the weight is not a positive number\n", item.c_str());
+        std::exit(2);
+      }
+      out.push_back({item, "gbt", true, w});
+    }
   }
   if (out.empty()) {
     std::fprintf(stderr, "bench_classify: --methods %s names no method\n", list.c_str());

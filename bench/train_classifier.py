@@ -26,14 +26,14 @@ present with the same settings).
   --nested V1,V2 --lovo DIR  also DIR/nested/<video>.trees: that video's second stages fitted on rows
                              from first stages that never saw it (nested cross-validation; the plain
                              bundles' rows come from first stages that saw it), ~20 min a video
-  --no-weights               leave the chains' pursuit weights at 1 (by default
-                             bench/fit_class_weights.py fits them on held-out videos once the
-                             bundles are written, ~20 min)
+  --no-weights               leave the online chain's pursuit weight at 1 (by default
+                             bench/fit_class_weights.py fits it on held-out videos once the
+                             bundles are written, ~10 min)
 
 On GazeCom with the defaults, 2 cores: the first stages 35-50 min (once: reused), the second
 stages' features 8 min, the full model 10 min, the 18 leave-one-video-out bundles 45 min; with
 --online-reach the features and first stages again, and the second stages' features twice; the
-pursuit weights 20 min. The
+online chain's pursuit weight 10 min. The
 features are cached (XDG_CACHE_HOME/fovea/gazecom-features/KEY) and the first stages reused under
 a key that hashes the features fovea-ctl computes for one recording and its copy: a build that
 changed nothing in them reuses both.
@@ -437,7 +437,7 @@ def main():
                     help="the online chain's own first stage, over features reaching this many seconds ahead "
                     "(features.h; shorter: the daemon's labels are final sooner); %g: the offline one" % FULL_REACH_S)
     ap.add_argument("--no-weights", action="store_true",
-                    help="do not fit the chains' pursuit weights (bench/fit_class_weights.py) after the bundles")
+                    help="do not fit the online chain's pursuit weight (bench/fit_class_weights.py) after the bundles")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
     if not 0 < args.online_reach <= FULL_REACH_S:
