@@ -11,7 +11,7 @@
 # far ahead, each checked exact, reusing the first stages fitted before, and labels final sooner.
 # The online chain's pursuit weight must be fitted into every bundle (bench/fit_class_weights.py),
 # each bundle's on the other video, unless --no-weights; a bundle with the wrong count of weights is
-# refused naming its line.
+# refused naming its line, and fovea-ctl's --pursuit-weight overrides the model's.
 # Usage: test_train_classifier.sh CTL SOURCE_DIR
 set -u
 CTL=$1 SRC=$2
@@ -93,6 +93,15 @@ in="$WORK/in.csv"
 "$CTL" classify "$in" "$WORK/off.csv" 250 1280 720 400 225 450 --method gbt --model "$WORK/m.trees" --offline \
   2>"$WORK/err" || fail "classify --offline with the model: $(cat "$WORK/err")"
 grep -q "online latency 8[0-9][0-9] ms" "$WORK/err" || fail "--offline does not wait for its look-ahead: $(cat "$WORK/err")"
+# --pursuit-weight overrides the model's: more pursuit above, less below; refused for ivvt and at 0.
+count_pursuit() { "$CTL" classify "$in" "$WORK/w.csv" 250 1280 720 400 225 450 --method "$1" --model "$WORK/m.trees" \
+  --pursuit-weight "$2" --force 2>"$WORK/err" && grep -c ",pursuit" "$WORK/w.csv"; }
+low=$(count_pursuit gbt 0.2) high=$(count_pursuit gbt 20)
+[ "${low:-x}" -lt "${high:-0}" ] 2>/dev/null || fail "--pursuit-weight 20 gave no more pursuit than 0.2: $low, $high"
+if count_pursuit ivvt 2 >/dev/null; then fail "ivvt took a pursuit weight"; fi
+grep -q "classifier ivvt: only gbt weighs its classes" "$WORK/err" || fail "unclear: $(cat "$WORK/err")"
+if count_pursuit gbt 0 >/dev/null; then fail "a pursuit weight of 0 was taken"; fi
+grep -q "pursuit-weight: Value 0 not in range" "$WORK/err" || fail "unclear: $(cat "$WORK/err")"
 online_at=$(grep -n "^stage online" "$WORK/m.trees" | cut -d: -f1)
 check_refused() {  # sed-expression error-text
   sed "$1" "$WORK/m.trees" >"$WORK/bad.trees"

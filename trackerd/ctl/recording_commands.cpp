@@ -586,7 +586,7 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
                        "W: gbt: weigh pursuit's smoothed probability by W when choosing among the classes but "
                        "the saccade, instead of the model's own weight (the built-in model's: fitted on held-out "
                        "GazeCom videos for F1); above it pursuit is called sooner and more often, below less")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(0.01, 100.0));
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
