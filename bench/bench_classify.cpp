@@ -199,16 +199,23 @@ struct Method {
 // The methods named in a comma-separated list, in classifiers() order (gbt+pso=none and
 // gbt+pursuit-weight=W after gbt); every registered one for "".
 std::vector<Method> chosen_methods(const std::string& list) {
+  std::vector<std::string> items;
+  for (std::size_t at = 0; at <= list.size();) {
+    const std::size_t end = std::min(list.find(',', at), list.size());
+    items.push_back(list.substr(at, end - at));
+    at = end + 1;
+  }
+  const auto named = [&](const std::string& n) { return std::find(items.begin(), items.end(), n) != items.end(); };
+  const std::string weighed = "gbt+pursuit-weight=";
   std::vector<Method> out;
-  const auto named = [&](const std::string& n) { return ("," + list + ",").find("," + n + ",") != std::string::npos; };
   for (const ClassifierInfo& m : classifiers()) {
     if (list.empty() || named(m.name)) out.push_back({m.name, m.name});
-    if (m.name == "gbt" && named("gbt+pso=none")) out.push_back({"gbt+pso=none", "gbt", false});
-    for (std::size_t at = 0; m.name == "gbt" && (at = list.find("gbt+pursuit-weight=", at)) != std::string::npos;) {
-      const std::string item = list.substr(at, list.find(',', at) - at);
-      at += item.size();
+    if (m.name != "gbt") continue;
+    if (named("gbt+pso=none")) out.push_back({"gbt+pso=none", "gbt", false});
+    for (const std::string& item : items) {
+      if (item.rfind(weighed, 0) != 0) continue;
       char* end = nullptr;
-      const double w = std::strtod(item.c_str() + std::strlen("gbt+pursuit-weight="), &end);
+      const double w = std::strtod(item.c_str() + weighed.size(), &end);
       if (*end != '\0' || !(w > 0) || !std::isfinite(w)) {
         std::fprintf(stderr, "bench_classify: --methods: %s: the weight is not a positive number\n", item.c_str());
         std::exit(2);

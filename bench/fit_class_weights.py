@@ -39,15 +39,15 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from classify_scoring import f1_of  # noqa: E402
-from eval_classify_gazecom import CLASSES, CODER, classify, read_arff, score, unpacked, write_input  # noqa: E402
+from eval_classify_gazecom import (CLASSES, CODER, add, classify, empty, figures, read_arff, score,  # noqa: E402
+                                   unpacked, write_input)
 
 WEIGHTS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5)
 CHAINS = ("online", "offline")
 
 
 def recording_counts(ctl, lovo, path, weights, chains, tmp):
-    """{chain: {weight: sample confusions per class}} of one recording, labelled by its video's bundle."""
+    """{chain: {weight: score()'s counts}} of one recording, labelled by its video's bundle."""
     geometry, t_us, x, y, conf, final, _, _ = read_arff(path)
     truth = [CODER.get(v, "other") for v in final]
     video = os.path.basename(os.path.dirname(path))
@@ -59,20 +59,19 @@ def recording_counts(ctl, lovo, path, weights, chains, tmp):
             extra = ["--model", os.path.join(lovo, video + ".trees"), "--pursuit-weight", "%g" % w]
             extra += ["--offline"] if chain == "offline" else []
             labels = classify(ctl, base + ".in.csv", base + ".out.csv", geometry, "gbt", extra)[0]
-            out.setdefault(chain, {})[w] = {c: counts["sample"] for c, counts in score(truth, labels).items()}
+            out.setdefault(chain, {})[w] = score(truth, labels)
     return video, out
 
 
 def pooled(per_video, videos, chain, w):
-    total = {c: (0, 0, 0, 0) for c in CLASSES}
+    total = empty()
     for v in videos:
-        for c in CLASSES:
-            total[c] = tuple(a + b for a, b in zip(total[c], per_video[v][chain][w][c]))
-    return total
+        add(total, per_video[v][chain][w])
+    return figures(total)
 
 
-def mean_f1(total):
-    return sum(f1_of(*total[c][:3]) for c in CLASSES) / len(CLASSES)
+def mean_f1(f):
+    return sum(f[c]["f1"] for c in CLASSES) / len(CLASSES)
 
 
 def best_weight(per_video, videos, chain, weights):
@@ -122,10 +121,7 @@ def fit(ctl, lovo, files, out=None, weights=WEIGHTS, jobs=None, chains=("online"
         for video, counts in pool.map(lambda p: recording_counts(ctl, lovo, p, weights, chains, tmp), files):
             for chain in chains:
                 for w in weights:
-                    into = per_video.setdefault(video, {}).setdefault(chain, {}).setdefault(
-                        w, {c: (0, 0, 0, 0) for c in CLASSES})
-                    for c in CLASSES:
-                        into[c] = tuple(a + b for a, b in zip(into[c], counts[chain][w][c]))
+                    add(per_video.setdefault(video, {}).setdefault(chain, {}).setdefault(w, empty()), counts[chain][w])
     chosen = {}
     for v in videos:
         others = [u for u in videos if u != v]
@@ -145,9 +141,9 @@ def report(per_video, videos, weights, chains):
           "by its own held-out bundle:")
     for chain in chains:
         for w in weights:
-            total = pooled(per_video, videos, chain, w)
-            print(f"  {chain:7s} pursuit weight {w:g}: mean {mean_f1(total):.4f} (" +
-                  " / ".join(f"{f1_of(*total[c][:3]):.3f}" for c in CLASSES) + ")")
+            f = pooled(per_video, videos, chain, w)
+            print(f"  {chain:7s} pursuit weight {w:g}: mean {mean_f1(f):.4f} (" +
+                  " / ".join(f"{f[c]['f1']:.3f}" for c in CLASSES) + ")")
 
 
 def main():

@@ -70,7 +70,7 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
   }
   if (!(options.pursuit_weight >= 0 && std::isfinite(options.pursuit_weight))) {
     throw std::invalid_argument("classifier " + name + ": pursuit weight " + std::to_string(options.pursuit_weight) +
-                                " is not a positive number");
+                                " is neither 0 (the model's) nor a positive number");
   }
   if (options.pursuit_weight > 0 && name != "gbt") {
     throw std::invalid_argument("classifier " + name + ": only gbt weighs its classes (" + name +
