@@ -123,7 +123,9 @@ void GazeServer::on_subscriber_change(std::function<void(const SubscriberInfo&, 
 
 void GazeServer::set_display(const DisplayGeometry& g) {
   std::lock_guard lock(mutex_);
+  if (options_.display == g) return;
   options_.display = g;
+  for (const auto& [id, session] : sessions_) reply(session.address, 0, subscribed_reply(session));
 }
 
 void GazeServer::set_nominal_rate(double hz) {

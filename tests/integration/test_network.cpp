@@ -238,6 +238,40 @@ TEST(Server, RefusesSubscribersBeyondItsLimit) {
   EXPECT_EQ(std::get<Error>(err->payload).code, ErrorCode::TooManySubscribers);
 }
 
+// A reload that changes the display tells every session at once (PROTOCOL.md §4.5): before, a
+// subscriber learnt it only if it happened to subscribe again (a stall of the daemon), so whether a
+// running `fovea-ctl record` ended depended on timing (CI's service_daemon failed on it).
+TEST(Server, AChangedDisplayIsSentToEverySessionUnaskedAndTheSessionsGoOn) {
+  GazeServer server(server_options());
+  RawPeer peer(server.local_endpoint());
+  const auto sub = peer.handshake(0);
+  ASSERT_TRUE(sub);
+  GazeClient client(client_options(server.local_endpoint()));
+  client.start();
+  ASSERT_TRUE(client.wait_subscribed(2000));
+
+  server.set_display(DisplayGeometry{});  // unchanged: nothing is sent
+  EXPECT_FALSE(peer.receive(MessageType::Subscribed, 300));
+
+  DisplayGeometry other;
+  other.width_px = 1280;
+  other.height_px = 1024;
+  other.width_m = 0.376;
+  server.set_display(other);
+  const auto pushed = peer.receive(MessageType::Subscribed, 1000);
+  ASSERT_TRUE(pushed);
+  EXPECT_EQ(pushed->header.sequence, 0u);
+  const auto& s = std::get<Subscribed>(pushed->payload);
+  EXPECT_EQ(s.session_id, sub->session_id);
+  EXPECT_EQ(s.display, other);
+  EXPECT_EQ(s.lease_ms, sub->lease_ms);
+  for (int i = 0; i < 100 && !(client.session()->display == other); ++i) std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(client.session()->display, other);
+  EXPECT_EQ(client.stats().subscriptions, 1u) << "the client kept its session";
+  EXPECT_EQ(server.subscribers().size(), 2u);
+  client.stop();
+}
+
 // Issue 23 item 4: 256 SUBSCRIBEs asking for 10-minute leases from one process locked every other
 // client out for 10 minutes. Now one address holds at most max_subscribers_per_address sessions,
 // another address still gets in, leases are capped at a minute, and the client knows why it was

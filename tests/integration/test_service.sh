@@ -168,6 +168,19 @@ echo "== SIGHUP reloads a changed configuration without dropping subscribers"
 write_config "$WORK/good.toml" 2000 1280 1024 $((PORT + 1)) '"127.0.0.0/8"'
 kill -HUP $DPID
 wait_for "$WORK/daemon.log" "reloaded: " || fail "no reload after SIGHUP"
+# The new display reaches the subscribers at once (an unasked SUBSCRIBED): the client's recording,
+# whose header names the old one, ends with a clear message and keeps what it wrote; the session
+# of the watcher goes on. Another recording takes its place as a long-lived subscriber.
+for _ in $(seq 1 100); do kill -0 $R 2>/dev/null || break; sleep 0.1; done
+kill -0 $R 2>/dev/null && fail "the client's recording went on into another display: $(cat "$WORK/record.err")"
+wait $R; rr=$?
+[ $rr -eq 1 ] || fail "record across the reloaded display exited $rr: $(cat "$WORK/record.err")"
+grep -q "the daemon's display changed from 1920x1080@.* to 1280x1024@.* (reloaded or restarted with another configuration); the recording ends here" \
+  "$WORK/record.err" || fail "unclear display-change message: $(cat "$WORK/record.err")"
+n=$("$CTL" info "$WORK/client.fgr" | awk '/^samples/{print $2}')
+[ "${n:-0}" -ge 100 ] || fail "the client's recording before the reload holds ${n:-0} samples"
+"$CTL" --server "$SRV" record "$WORK/client2.fgr" 2>"$WORK/record.err" &
+R=$!; PIDS+=($R)
 grep -q "network.port $PORT -> $((PORT + 1)): needs a restart" "$WORK/daemon.log" || fail "port change not reported as needing a restart"
 grep -q "applied: network.lease_ms 5000 -> 2000" "$WORK/daemon.log" || fail "lease change not applied"
 wait_for "$WORK/notify.log" "RELOADING=1" || fail "no RELOADING=1"

@@ -285,7 +285,7 @@ int cmd_record(const Common& c, const std::string& path, bool append) {
           if (!writer) return;
           if (session && !(session->display == header_display)) {
             failure = "the daemon's display changed from " + to_string(header_display) + " to " +
-                      to_string(session->display) + " (restarted with another configuration?); the recording ends "
+                      to_string(session->display) + " (reloaded or restarted with another configuration); the recording ends "
                       "here: record the new display into another file";
             writer.reset();
             stop_requested() = true;

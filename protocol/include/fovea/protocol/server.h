@@ -125,6 +125,8 @@ class GazeServer {
   std::uint64_t publish(const GazeEvent& event);
 
   void set_source_state(SourceState s) { source_state_.store(s); }
+  // A changed geometry is sent at once to every session in an unasked SUBSCRIBED (PROTOCOL.md
+  // §4.5): their normalized coordinates mean another screen from the next sample on.
   void set_display(const DisplayGeometry& g);
   void set_nominal_rate(double hz);
   // Live changes (e.g. on a configuration reload); existing sessions keep their address and
