@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <limits>
 
+#include <fmt/format.h>
+
 namespace fovea::trackerd {
 
 using protocol::EventPhase;
@@ -36,15 +38,17 @@ double angle_deg(double ax, double ay, double bx, double by) {
 }  // namespace
 
 ClassifyStage::ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display,
-                             bool separate_pso)
+                             bool separate_pso, double pursuit_weight)
     : method_(method.empty() ? classify::classifiers().front().name : method), display_(display) {
   if (method_ != "source") {
     classify::ClassifierOptions o;
     o.nominal_rate_hz = nominal_rate_hz > 0 ? nominal_rate_hz : 250;
     o.display = display;  // gbt measures how far the gaze lies off it; lee2009's thresholds are in its units
     o.separate_pso = separate_pso;
+    o.pursuit_weight = pursuit_weight;
     classifier_ = classify::make_classifier(method_, o);
     if (!separate_pso) method_ += " without a PSO class";
+    if (pursuit_weight > 0) method_ += fmt::format(" with pursuit weighed {}", pursuit_weight);
   }
 }
 

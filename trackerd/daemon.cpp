@@ -164,7 +164,7 @@ bool Daemon::start(std::int64_t start_ns) {
   try {
     classify_ = std::make_unique<ClassifyStage>(config_.classifier.method, source_->nominal_rate_hz(),
                                                 config_.display.value_or(source_->display()),
-                                                config_.classifier.separate_pso());
+                                                config_.classifier.separate_pso(), config_.classifier.pursuit_weight);
   } catch (const std::exception& e) {
     spdlog::error("classifier: {}", e.what());
     return false;

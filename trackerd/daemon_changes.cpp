@@ -132,13 +132,13 @@ void reload_recording(const RunningView& view, PreparedReload& p) {
   }
 }
 
-// A new stage for a new method or PSO convention, or a new display (the stage labels on it and
+// A new stage for a new method, PSO convention or pursuit weight, or a new display (the stage labels on it and
 // places its events on it); it starts afresh, as at a method change.
 void reload_classifier(const RunningView& view, PreparedReload& p) {
   if (p.next.classifier == view.config.classifier && p.display == view.display) return;
   try {
     p.classifier = std::make_unique<ClassifyStage>(p.next.classifier.method, view.nominal_rate_hz, p.display,
-                                                   p.next.classifier.separate_pso());
+                                                   p.next.classifier.separate_pso(), p.next.classifier.pursuit_weight);
   } catch (const std::exception& e) {
     spdlog::error("classifier {}: {}; keeping the running one", p.next.classifier.method, e.what());
     p.next.classifier = view.config.classifier;

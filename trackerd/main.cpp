@@ -43,6 +43,7 @@ struct Flags {
   std::string control_socket, control_dir;
   bool check_config = false, loop = false, append = false, lsl = false;
   trackerd::RunOptions run;
+  double classifier_pursuit_weight = 0;
   // The eye pipeline (camera:, video:, synthetic-eye).
   std::string eye_side = defaults.eye.side, leds, eye_size, eye_script, eye_head_offset;
   bool no_pupil_roi = false, eye_hard = false;
@@ -53,7 +54,7 @@ struct Flags {
               *o_eye_hard = nullptr, *o_eye_script = nullptr, *o_eye_head_offset = nullptr;
   CLI::Option *o_speed = nullptr, *o_loop = nullptr, *o_display = nullptr, *o_lease = nullptr, *o_max = nullptr,
               *o_control_socket = nullptr, *o_control_dir = nullptr, *o_calibration = nullptr, *o_classifier = nullptr,
-              *o_classifier_pso = nullptr, *o_log = nullptr;
+              *o_classifier_pso = nullptr, *o_classifier_pursuit_weight = nullptr, *o_log = nullptr;
 };
 
 // The option groups below are added in --help order; keep it when moving an option.
@@ -168,6 +169,11 @@ void add_processing_and_run_options(CLI::App& app, Flags& f) {
                                       "rule beside the trees; none: no PSO class, the oscillation where GazeCom's "
                                       "coders put it (within the saccade's end or the fixation), labels final sooner")
                            ->check(CLI::IsMember({"separate", "none"}));
+  f.o_classifier_pursuit_weight =
+      app.add_option("--classifier-pursuit-weight", f.classifier_pursuit_weight,
+                     "gbt: the weight of pursuit in the smoothing's choice, 0.01 to 100 (above 1 pursuit sooner "
+                     "and more often, below less); 0 (default): the model's own (trackerd/CLASSIFY.md, \"Pursuit "
+                     "weight\")");
   app.add_option("--duration", f.run.duration_s, "stop after this many seconds (0: run until signalled)")
       ->capture_default_str();
   app.add_flag("--exit-at-end", f.run.exit_when_source_ends,
@@ -235,6 +241,7 @@ svc::CliOverrides cli_overrides(const Flags& f) {
     cli.classifier_method = f.classifier;
   }
   if (given(f.o_classifier_pso)) cli.classifier_pso = f.classifier_pso;
+  if (given(f.o_classifier_pursuit_weight)) cli.classifier_pursuit_weight = f.classifier_pursuit_weight;
   if (given(f.o_log)) cli.log_level = f.log_level;
   if (given(f.o_eye)) cli.eye_side = f.eye_side;
   if (given(f.o_leds)) cli.eye_leds = f.leds;
@@ -256,6 +263,10 @@ trackerd::ConfigLoader config_loader(const std::string& config_path, const svc::
     // The file's own pair was checked as it was read; a flag may pair a method with another's pso.
     if (const std::string err = svc::check_classifier_pso(c.classifier.method, c.classifier.pso); !err.empty()) {
       throw svc::ConfigError({"classifier.pso (--classifier-pso): " + err});
+    }
+    if (const std::string err = svc::check_classifier_pursuit_weight(c.classifier.method, c.classifier.pursuit_weight);
+        !err.empty()) {
+      throw svc::ConfigError({"classifier.pursuit_weight (--classifier-pursuit-weight): " + err});
     }
     return c;
   };

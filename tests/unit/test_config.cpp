@@ -99,6 +99,7 @@ append = true
 [classifier]
 method = "gbt"
 pso = "none"
+pursuit_weight = 1.75
 [log]
 level = "debug"
 [[devices]]
@@ -114,6 +115,7 @@ name = "Tobii \"Pro\" Nano"
   EXPECT_TRUE(server_options(c).control_allow.empty()) << "control_allow is parsed but never given to the server";
   EXPECT_EQ(back.record, c.record);
   EXPECT_EQ(back.classifier, c.classifier);
+  EXPECT_EQ(c.classifier.pursuit_weight, 1.75);
   EXPECT_EQ(back.devices, c.devices);
   EXPECT_EQ(back.log_level, "debug");
   ASSERT_TRUE(back.display.has_value());
@@ -163,6 +165,19 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   expect_problem("[classifier]\nmethod = \"gbt\"\npso = \"saccade\"\n",
                  {"test.toml:3:", "classifier.pso", "\"saccade\" is no PSO convention; allowed: separate, none"});
   EXPECT_EQ(parse_config("[classifier]\nmethod = \"gbt\"\n", "t.toml").classifier.pso, "separate");
+  // Only gbt weighs its classes; 0 is the model's own weight, else 0.01..100 (as fovea-ctl classify).
+  expect_problem("[classifier]\npursuit_weight = 2\n",
+                 {"test.toml:2:", "classifier.pursuit_weight", "for method gbt only (ivvt's pursuit is a rule's"});
+  expect_problem("[classifier]\nmethod = \"source\"\npursuit_weight = 2\n",
+                 {"test.toml:3:", "classifier.pursuit_weight", "(source passes"});
+  expect_problem("[classifier]\nmethod = \"gbt\"\npursuit_weight = -1\n",
+                 {"test.toml:3:", "classifier.pursuit_weight", "[0, 100]"});
+  expect_problem("[classifier]\nmethod = \"gbt\"\npursuit_weight = 0.001\n",
+                 {"test.toml:3:", "classifier.pursuit_weight", "0.001 is out of range", "[0.01, 100]"});
+  expect_problem("[classifier]\nmethod = \"gbt\"\npursuit_weight = \"more\"\n",
+                 {"test.toml:3:", "classifier.pursuit_weight", "must be a number"});
+  EXPECT_EQ(parse_config("[classifier]\nmethod = \"gbt\"\npursuit_weight = 0\n", "t.toml").classifier.pursuit_weight, 0);
+  EXPECT_TRUE(check_classifier_pursuit_weight("ivvt", 0).empty());
   expect_problem("[source]\nspeed = -1.5\n", {"test.toml:2:", "source.speed", "(0, 1000]"});
   expect_problem("[source]\nloop = \"yes\"\n", {"test.toml:2:", "source.loop", "true or false"});
   expect_problem("[source]\nspec = \"\"\n", {"test.toml:2:", "source.spec", "synthetic[:binocular], synthetic-eye, replay:FILE"});
@@ -270,6 +285,9 @@ TEST(Config, ReloadSeparatesLiveChangesFromRestartOnes) {
   const DaemonConfig no_pso = parse_config("[classifier]\nmethod = \"gbt\"\npso = \"none\"\n", "n.toml");
   EXPECT_TRUE(has(diff(gbt, no_pso).live, "classifier.pso separate -> none"));
   EXPECT_EQ(adopt_live(gbt, no_pso).classifier.pso, "none");
+  const DaemonConfig weighed = parse_config("[classifier]\nmethod = \"gbt\"\npursuit_weight = 2.5\n", "w.toml");
+  EXPECT_TRUE(has(diff(gbt, weighed).live, "classifier.pursuit_weight 0 -> 2.5"));
+  EXPECT_EQ(adopt_live(gbt, weighed).classifier.pursuit_weight, 2.5);
 }
 
 TEST(Config, EyePipelineTable) {

@@ -313,6 +313,15 @@ TEST(ClassifyStage, GbtWithoutAPsoClassSaysSoAndOtherMethodsRefuseIt) {
   EXPECT_THROW(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}, false), std::invalid_argument);
 }
 
+// [classifier] pursuit_weight reaches the stage: gbt says so; ivvt, whose pursuit is a rule's, refuses it.
+TEST(ClassifyStage, APursuitWeightReachesGbtAndOtherMethodsRefuseIt) {
+  const ClassifyStage weighed("gbt", 250, protocol::DisplayGeometry{}, true, 2.5);
+  EXPECT_NE(weighed.description().find("gbt with pursuit weighed 2.5 (labels final"), std::string::npos)
+      << weighed.description();
+  EXPECT_EQ(ClassifyStage("gbt", 250, protocol::DisplayGeometry{}).description().find("weighed"), std::string::npos);
+  EXPECT_THROW(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}, true, 2.5), std::invalid_argument);
+}
+
 // The tracker's heuristic filter of the realistic generator (evaluate.h, Stampe 1993 stage 1):
 // it removes one-sample spikes, keeps steps and ramps, and colours white noise (less power at high
 // frequencies: the lag-1 autocorrelation of the noise rises from ~0).

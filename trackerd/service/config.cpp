@@ -44,6 +44,20 @@ std::string check_classifier_pso(const std::string& method, const std::string& p
   return {};
 }
 
+std::string check_classifier_pursuit_weight(const std::string& method, double weight) {
+  if (weight == 0) return {};
+  if (!(weight >= 0.01 && weight <= 100)) {
+    return fmt::format("{} is out of range; allowed: 0 (the model's own) or a number in [0.01, 100]", weight);
+  }
+  const std::string name = method.empty() ? classify::classifiers().front().name : method;
+  if (name != "gbt") {
+    return "a pursuit weight is for method gbt only (" +
+           (name == "source" ? std::string("source passes the source's own labels")
+                             : name + "'s pursuit is a rule's, not a weighed choice") + ")";
+  }
+  return {};
+}
+
 namespace {
 
 std::string join(const std::vector<std::string>& v, const char* sep = "\n") {
@@ -365,7 +379,7 @@ void parse_calibration(Checker& c, const toml::table& t, CalibrationConfig& cali
 
 // [classifier]: the method name (the classify module validates it) and the PSO convention.
 void parse_classifier(Checker& c, const toml::table& t, ClassifierConfig& classifier) {
-  c.only(t, "classifier.", {"method", "pso"});
+  c.only(t, "classifier.", {"method", "pso", "pursuit_weight"});
   c.string(t, "classifier.", "method", classifier.method,
            "a classifier name or \"source\" (fovea-ctl classify --help describes them)");
   c.string(t, "classifier.", "pso", classifier.pso, "separate, none");
@@ -380,6 +394,15 @@ void parse_classifier(Checker& c, const toml::table& t, ClassifierConfig& classi
     if (const std::string err = check_classifier_pso(classifier.method, classifier.pso); !err.empty()) {
       c.problem(node->source(), "classifier.pso", err);
       classifier.pso = "separate";
+    }
+  }
+  c.number(t, "classifier.", "pursuit_weight", classifier.pursuit_weight, 0, 100, false,
+           "(0: the model's own; gbt only)");
+  if (const auto* node = t.get("pursuit_weight"); node != nullptr && classifier.pursuit_weight != 0) {
+    if (const std::string err = check_classifier_pursuit_weight(classifier.method, classifier.pursuit_weight);
+        !err.empty()) {
+      c.problem(node->source(), "classifier.pursuit_weight", err);
+      classifier.pursuit_weight = 0;
     }
   }
 }
@@ -554,6 +577,7 @@ void apply_overrides(DaemonConfig& c, const CliOverrides& o) {
   if (o.record_append) c.record.append = *o.record_append;
   if (o.classifier_method) c.classifier.method = *o.classifier_method;
   if (o.classifier_pso) c.classifier.pso = *o.classifier_pso;
+  if (o.classifier_pursuit_weight) c.classifier.pursuit_weight = *o.classifier_pursuit_weight;
   if (o.calibration_file) c.calibration.file = *o.calibration_file;
   if (o.log_level) c.log_level = *o.log_level;
   if (o.eye_side) c.eye.side = *o.eye_side;
@@ -603,6 +627,7 @@ std::string to_toml(const DaemonConfig& c) {
   out += "\n[record]\npath = " + quoted(c.record.path) + fmt::format("\nappend = {}\n", c.record.append);
   out += "\n[calibration]\nfile = " + quoted(c.calibration.file) + "\n";
   out += "\n[classifier]\nmethod = " + quoted(c.classifier.method) + "\npso = " + quoted(c.classifier.pso) + "\n";
+  out += fmt::format("pursuit_weight = {}\n", c.classifier.pursuit_weight);
   out += "\n[eye]\nside = " + quoted(c.eye.side) + "\nleds = " + quoted(c.eye.leds) + "\n";
   out += fmt::format("pupil_downscale = {}\npupil_roi = {}\nsynthetic_width = {}\nsynthetic_height = {}\n"
                      "synthetic_hard = {}\n",
@@ -653,6 +678,7 @@ ConfigChanges diff(const DaemonConfig& a, const DaemonConfig& b) {
   note(ch.live, "calibration.file", text(a.calibration.file), text(b.calibration.file));
   note(ch.live, "classifier.method", text(a.classifier.method), text(b.classifier.method));
   note(ch.live, "classifier.pso", a.classifier.pso, b.classifier.pso);
+  note(ch.live, "classifier.pursuit_weight", a.classifier.pursuit_weight, b.classifier.pursuit_weight);
   note(ch.live, "log.level", a.log_level, b.log_level);
   // Restart: the socket, the source and device discovery are set up once.
   note(ch.needs_restart, "source.spec", a.source.spec, b.source.spec);

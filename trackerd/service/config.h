@@ -72,6 +72,7 @@ struct CalibrationConfig {
 struct ClassifierConfig {
   std::string method;  // empty: the classify module's default; validated by that module
   std::string pso = "separate";  // separate | none (gbt only): whether PSO is a class of its own
+  double pursuit_weight = 0;     // gbt only: pursuit's weight in the smoothing's choice; 0 = the model's
   bool separate_pso() const { return pso != "none"; }
   friend bool operator==(const ClassifierConfig&, const ClassifierConfig&) = default;
 };
@@ -139,6 +140,8 @@ DaemonConfig parse_config(const std::string& text, const std::string& origin, co
 std::string check_classifier_method(const std::string& method);
 // "" when pso (separate | none) goes with method, else what is wrong: only gbt labels without a PSO class.
 std::string check_classifier_pso(const std::string& method, const std::string& pso);
+// "" when pursuit_weight (0 = the model's, else 0.01..100) goes with method: only gbt weighs its classes.
+std::string check_classifier_pursuit_weight(const std::string& method, double weight);
 
 // Command-line values that override the file; unset members leave the file's value.
 struct CliOverrides {
@@ -161,6 +164,7 @@ struct CliOverrides {
   std::optional<bool> lsl_outlet;
   std::optional<std::string> classifier_method;
   std::optional<std::string> classifier_pso;
+  std::optional<double> classifier_pursuit_weight;
   std::optional<std::string> calibration_file;
   std::optional<std::string> log_level;
   std::optional<std::string> eye_side;
