@@ -12,7 +12,8 @@
 //   bench_classify [--seconds S] [--seeds N] [--methods A,B] [--accuracy-only]
 //     defaults: 120 s of gaze per seed, 3 seeds, every method, every table. --methods keeps the main
 //     table to those methods (gbt+pso=none: gbt without a PSO class, gbt+pursuit-weight=W: with that
-//     weight instead of its model's, beside them); --accuracy-only
+//     weight instead of its model's, gbt+pursuit-hold=MS: with that pursuit-onset hold, 0 none,
+//     beside them); --accuracy-only
 //     prints that table and the cost summary alone.
 #include <algorithm>
 #include <array>
@@ -21,6 +22,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -180,24 +182,27 @@ void print_provisional(const double* rates, const Condition& c, double seconds, 
   }
 }
 
-// A method of the main table: a registered one, gbt without a PSO class ("gbt+pso=none") or gbt
-// with another pursuit weight than its model's ("gbt+pursuit-weight=W").
+// A method of the main table: a registered one, gbt without a PSO class ("gbt+pso=none"), gbt
+// with another pursuit weight than its model's ("gbt+pursuit-weight=W") or another pursuit-onset
+// hold ("gbt+pursuit-hold=MS", ratio 0.3 and 20 ms as fovea-ctl's defaults; 0: none).
 struct Method {
   std::string name;     // as printed
   std::string method;   // the registry's name
   bool separate_pso = true;
   double pursuit_weight = 0;  // 0: the model's
+  std::optional<PursuitHold> pursuit_hold{};  // unset: the model's
   ClassifierOptions options(double rate_hz) const {
     ClassifierOptions o;
     o.nominal_rate_hz = rate_hz;
     o.separate_pso = separate_pso;
     o.pursuit_weight = pursuit_weight;
+    o.pursuit_hold = pursuit_hold;
     return o;
   }
 };
 
-// The methods named in a comma-separated list, in classifiers() order (gbt+pso=none and
-// gbt+pursuit-weight=W after gbt); every registered one for "".
+// The methods named in a comma-separated list, in classifiers() order (gbt+pso=none,
+// gbt+pursuit-weight=W and gbt+pursuit-hold=MS after gbt); every registered one for "".
 std::vector<Method> chosen_methods(const std::string& list) {
   std::vector<std::string> items;
   for (std::size_t at = 0; at <= list.size();) {
@@ -206,21 +211,27 @@ std::vector<Method> chosen_methods(const std::string& list) {
     at = end + 1;
   }
   const auto named = [&](const std::string& n) { return std::find(items.begin(), items.end(), n) != items.end(); };
-  const std::string weighed = "gbt+pursuit-weight=";
+  const std::string weighed = "gbt+pursuit-weight=", held = "gbt+pursuit-hold=";
   std::vector<Method> out;
   for (const ClassifierInfo& m : classifiers()) {
     if (list.empty() || named(m.name)) out.push_back({m.name, m.name});
     if (m.name != "gbt") continue;
     if (named("gbt+pso=none")) out.push_back({"gbt+pso=none", "gbt", false});
     for (const std::string& item : items) {
-      if (item.rfind(weighed, 0) != 0) continue;
+      const bool is_weight = item.rfind(weighed, 0) == 0;
+      if (!is_weight && item.rfind(held, 0) != 0) continue;
       char* end = nullptr;
-      const double w = std::strtod(item.c_str() + weighed.size(), &end);
-      if (*end != '\0' || !(w > 0) || !std::isfinite(w)) {
-        std::fprintf(stderr, "bench_classify: --methods: %s: the weight is not a positive number\n", item.c_str());
+      const double v = std::strtod(item.c_str() + (is_weight ? weighed : held).size(), &end);
+      if (*end != '\0' || !std::isfinite(v) || (is_weight ? !(v > 0) : !(v >= 0 && v <= 1000))) {
+        std::fprintf(stderr, "bench_classify: --methods: %s: %s\n", item.c_str(),
+                     is_weight ? "the weight is not a positive number" : "the hold is not 0 to 1000 ms");
         std::exit(2);
       }
-      out.push_back({item, "gbt", true, w});
+      if (is_weight) {
+        out.push_back({item, "gbt", true, v});
+      } else {
+        out.push_back({item, "gbt", true, 0, PursuitHold{v / 1000, 0.3, 0.02}});
+      }
     }
   }
   if (out.empty()) {

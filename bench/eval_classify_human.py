@@ -195,6 +195,7 @@ def robustness(ctl, data, geometry, sessions):
 
 
 def main():
+    global METHODS
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("ctl", help="the fovea-ctl binary")
@@ -202,9 +203,13 @@ def main():
     ap.add_argument("--json", help="write the scores here")
     ap.add_argument("--robustness", action="store_true", help="also score decimated and noisier versions")
     ap.add_argument("--model", help="gbt's model: a file of bench/train_classifier.py (default: the built-in one)")
+    ap.add_argument("--methods", default=",".join(METHODS),
+                    help="comma-separated fovea-ctl classify methods, the first the reference of the latency "
+                         "tables; METHOD+FLAG adds --FLAG, METHOD+FLAG=V --FLAG V (default: %(default)s)")
     args = ap.parse_args()
     if args.model:
         MODEL[:] = ["--model", args.model]
+    METHODS = tuple(args.methods.split(","))
     geometry = load_geometry(args.data)
     sessions = sorted(f for f in os.listdir(args.data) if f.endswith(".npy"))
     if not sessions:

@@ -471,6 +471,81 @@ TEST(Trees, SmoothingCallsASaccadeByTheShortWindowAndTheRestByTheLongOneNoiseNea
   EXPECT_NEAR(p[0] / p[2], std::exp(2.0), 1e-9);  // tree 0 adds 2 to fixation (0.5 <= 1), pursuit has no tree
 }
 
+// --- the pursuit-onset hold (trees_core.h, OnsetHold) -------------------------------------------
+
+namespace {
+
+// Labels at 250 Hz from a pattern: F a sure fixation, f a doubtful one, P pursuit, S saccade,
+// '|' a new gaze run (the next label's); what leaves the hold, as a pattern.
+struct HoldRun {
+  OnsetHold hold{0.100, 0.018};  // 100 ms to begin, 18 ms to last (5 samples, not 4)
+  std::vector<Labeled> out;
+  std::uint64_t next = 0, run = 0;
+  void push(const std::string& pattern, bool all = false) {
+    for (const char c : pattern) {
+      if (c == '|') {
+        ++run;
+        continue;
+      }
+      const Label l = c == 'P' ? Label::Pursuit : c == 'S' ? Label::Saccade : Label::Fixation;
+      hold.push({{next, l}, static_cast<double>(next) * 0.004, run, c == 'f'});
+      ++next;
+    }
+    hold.release(out, all);
+  }
+  std::string labels() const {
+    std::string s;
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      EXPECT_EQ(out[i].index, i) << "labels leave in input order";
+      s += out[i].label == Label::Pursuit ? 'P' : out[i].label == Label::Saccade ? 'S' : 'F';
+    }
+    return s;
+  }
+};
+
+}  // namespace
+
+TEST(OnsetHold, DoubtfulFixationsBeforeALastingPursuitStartItAndNothingElseWaits) {
+  HoldRun h;
+  h.push("FF");
+  EXPECT_EQ(h.labels(), "FF") << "nothing held: a sure label leaves at once";
+  h.push("fff");
+  EXPECT_EQ(h.labels(), "FF") << "doubtful fixations wait";
+  h.push("PPP");
+  EXPECT_EQ(h.labels(), "FF") << "a pursuit of 8 ms is not yet one of 18";
+  h.push("PPP");
+  EXPECT_EQ(h.labels(), "FFPPPPPPPPP") << "confirmed: the doubtful fixations are its start";
+  EXPECT_DOUBLE_EQ(h.hold.max_wait_s(), 0.118);
+}
+
+TEST(OnsetHold, AnythingButDoubtOrAPursuitTooShortOrTooLateLeavesAFixation) {
+  HoldRun sure;  // a sure fixation between
+  sure.push("ffFPPPPPPP");
+  EXPECT_EQ(sure.labels(), "FFFPPPPPPP");
+  HoldRun saccade;
+  saccade.push("ffSPPPPPPP");
+  EXPECT_EQ(saccade.labels(), "FFSPPPPPPP");
+  HoldRun run;  // a loss: the pursuit is another gaze run's
+  run.push("ff|PPPPPPP");
+  EXPECT_EQ(run.labels(), "FFPPPPPPP");
+  HoldRun short_pursuit;  // 8 ms of pursuit, then a sure fixation
+  short_pursuit.push("ffPPFFF");
+  EXPECT_EQ(short_pursuit.labels(), "FFPPFFF");
+  HoldRun flicker;  // a short pursuit, doubt again, then a lasting pursuit: all of it the pursuit's
+  flicker.push("ffPPffPPPPPP");
+  EXPECT_EQ(flicker.labels(), "PPPPPPPPPPPP");
+  // 30 doubtful fixations (120 ms) before the pursuit: only those within 100 ms of it start it.
+  HoldRun late;
+  late.push(std::string(30, 'f') + "PPPPPPP");
+  EXPECT_EQ(late.labels(), std::string(5, 'F') + std::string(25, 'P') + "PPPPPPP");
+  // The stream ends undecided: fixations.
+  HoldRun end;
+  end.push("fffPP");
+  EXPECT_EQ(end.labels(), "");
+  end.push("", true);
+  EXPECT_EQ(end.labels(), "FFFPP");
+}
+
 // --- the two-stage bundle (trees_core.h, GbtModel) ----------------------------------------------
 
 namespace {
@@ -570,9 +645,41 @@ TEST(GbtModel, AChainsWeightsAreItsSecondStagesOnePerClass) {
   EXPECT_EQ(model_error(replaced(bundle(), "stage offline 0.512", "stage offline 0.512 weights 1 2x")),
             "m.gbt:19: 'stage offline': weight '2x' is not a positive number");
   EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 1 2")),
-            "m.gbt:11: 'stage online' takes a look-ahead and then only 'weights', not '1'");
+            "m.gbt:11: 'stage online' takes a look-ahead and then only 'weights' and 'hold', not '1'");
   EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online weights 1 2")),
             "m.gbt:11: 'stage online' needs one look-ahead in seconds, in (0, 0.512000]");
+}
+
+// A chain's pursuit-onset hold (trees_core.h, OnsetHold): after the look-ahead, before or after the
+// weights; none where the file gives none.
+TEST(GbtModel, AChainsHoldFollowsItsLookAheadWithThreeNumbers) {
+  const GbtModel held(replaced(bundle(), "stage online 0.032\n", "stage online 0.032 hold 0.192 0.3 0.05\n"), "m.gbt");
+  EXPECT_EQ(held.hold(false), (PursuitHold{0.192, 0.3, 0.05}));
+  EXPECT_EQ(held.hold(true).hold_s, 0.0);
+  EXPECT_EQ(held.weights(false), (std::vector<double>{1, 1}));
+  const GbtModel both(replaced(bundle(), "stage online 0.032\n", "stage online 0.032 weights 1 2 hold 0.1 0.5 0\n"),
+                      "m.gbt");
+  EXPECT_EQ(both.weights(false), (std::vector<double>{1, 2}));
+  EXPECT_EQ(both.hold(false), (PursuitHold{0.1, 0.5, 0}));
+  const GbtModel first(replaced(bundle(), "stage online 0.032\n", "stage online 0.032 hold 0.1 0.5 0 weights 1 2\n"),
+                       "m.gbt");
+  EXPECT_EQ(first.weights(false), (std::vector<double>{1, 2}));
+  EXPECT_EQ(first.hold(false), (PursuitHold{0.1, 0.5, 0}));
+
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 hold 0.1 0.5")),
+            "m.gbt:11: 'stage online': 'hold' takes three numbers: HOLD_S RATIO MIN_S");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 hold 0.1 x 0")),
+            "m.gbt:11: 'stage online': 'hold' takes three numbers: HOLD_S RATIO MIN_S, not 'x'");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 hold 0.1 1.5 0")),
+            "m.gbt:11: 'stage online': a pursuit hold's ratio 1.500000 is not in (0, 1]");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 hold 0 0.5 0")),
+            "m.gbt:11: 'stage online': a hold of 0 s");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage offline 0.512", "stage offline 0.512 hold 2 0.5 0")),
+            "m.gbt:19: 'stage offline': a pursuit hold of 2.000000 s is not in [0, 1] s");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 hold 0.1 0.5 0 hold 0.1 0.5 0")),
+            "m.gbt:11: 'stage online' has a second 'hold'");
+  EXPECT_EQ(model_error(replaced(bundle(), "stage online 0.032", "stage online 0.032 weights 1 1 weights 1 1")),
+            "m.gbt:11: 'stage online' has a second 'weights'");
 }
 
 TEST(GbtModel, ADamagedBundleIsRefusedWithFileAndLine) {

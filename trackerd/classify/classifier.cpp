@@ -56,6 +56,15 @@ std::string known_names() {
 
 }  // namespace
 
+std::string check(const PursuitHold& h) {
+  if (!(h.hold_s >= 0 && h.hold_s <= 1)) return "a pursuit hold of " + std::to_string(h.hold_s) + " s is not in [0, 1] s";
+  if (!(h.ratio > 0 && h.ratio <= 1)) return "a pursuit hold's ratio " + std::to_string(h.ratio) + " is not in (0, 1]";
+  if (!(h.min_s >= 0 && h.min_s <= 1)) {
+    return "a pursuit hold's least pursuit of " + std::to_string(h.min_s) + " s is not in [0, 1] s";
+  }
+  return {};
+}
+
 std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const ClassifierOptions& options) {
   if (!std::isfinite(options.nominal_rate_hz) || options.nominal_rate_hz <= 0) {
     throw std::invalid_argument("classifier " + name + ": nominal rate " + std::to_string(options.nominal_rate_hz) +
@@ -76,6 +85,15 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
     throw std::invalid_argument("classifier " + name + ": only gbt weighs its classes (" + name +
                                 "'s pursuit is a rule's)");
   }
+  if (options.pursuit_hold) {
+    if (const std::string err = check(*options.pursuit_hold); !err.empty()) {
+      throw std::invalid_argument("classifier " + name + ": " + err);
+    }
+  }
+  if (options.pursuit_hold && options.pursuit_hold->hold_s > 0 && name != "gbt") {
+    throw std::invalid_argument("classifier " + name + ": only gbt holds doubtful fixations (" + name +
+                                "'s pursuit is a rule's)");
+  }
   const FrontendOptions standard;  // 75 ms gap fill-in, blink for losses up to 0.5 s
   if (name == "gbt") {
     GbtOptions o;
@@ -83,6 +101,7 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
     o.trees_only = options.trees_only;
     o.separate_pso = options.separate_pso;
     o.pursuit_weight = options.pursuit_weight;
+    o.pursuit_hold = options.pursuit_hold;
     return make_trees_pipeline(options.model_path.empty() ? builtin_gbt_model() : load_gbt_model(options.model_path),
                                options.display, std::move(o));
   }

@@ -7,6 +7,7 @@
 //
 // The methods, their parameters, sources and measured accuracy are documented in trackerd/CLASSIFY.md.
 #include <cstdint>
+#include <optional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -63,6 +64,19 @@ struct ClassifierInfo {
 // Every method this build knows; the first is the default (the best one, by the benchmark).
 const std::vector<ClassifierInfo>& classifiers();
 
+// gbt: pursuit onsets the smoothing calls late (trees_core.h, OnsetHold). A smoothed fixation is
+// doubtful where pursuit's weighted mean comes within `ratio` of fixation's; it waits up to
+// `hold_s` for a pursuit of at least `min_s` to follow through doubtful fixations alone, and is
+// then that pursuit's start. hold_s 0: none.
+struct PursuitHold {
+  double hold_s = 0;
+  double ratio = 0.3;
+  double min_s = 0.02;
+  friend bool operator==(const PursuitHold&, const PursuitHold&) = default;
+};
+// "" when usable, else what is wrong: hold_s and min_s in [0, 1] s, ratio in (0, 1].
+std::string check(const PursuitHold& h);
+
 // What a method may need besides the samples. Two read the display: the Lee 2009 preset (its
 // thresholds are in normalized screen units per 60 Hz frame) and gbt (how far the gaze lies off it).
 struct ClassifierOptions {
@@ -85,6 +99,8 @@ struct ClassifierOptions {
   // gbt: > 0, the weight of pursuit in the smoothing's choice instead of the model's own
   // (trees_core.h, GbtModel::weights): above it calls pursuit sooner and more often, below less.
   double pursuit_weight = 0;
+  // gbt: the pursuit-onset hold instead of the model's own (GbtModel::hold); unset: the model's.
+  std::optional<PursuitHold> pursuit_hold;
 };
 
 // Throws std::invalid_argument naming the method and listing the known ones (also for a rate that

@@ -64,6 +64,8 @@ class TreesCore final : public Core {
         smooth_long_s_(context_ && !options.offline ? kSmoothLongAfterContextS : kSmoothLongS),
         classes_(frame_ ? frame_->class_count() : 0),
         weights_(chain_weights(options)),
+        hold_params_(chain_hold(options)),
+        hold_(hold_params_.hold_s, hold_params_.min_s),
         frame_sink_(std::move(options.frame_sink)),
         context_sink_(std::move(options.context_sink)) {}
 
@@ -87,9 +89,7 @@ class TreesCore final : public Core {
     cursor_.reset();
     if (smooth_) label_smoothed(out, true);
   }
-  double latency_s() const override {
-    return reach_ + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? smooth_long_s_ : 0.0);
-  }
+  double latency_s() const override { return smoothed_latency_s() + hold_.max_wait_s(); }
 
  private:
   // The features and the first stage's scores of the next sample, on to the second stage or
@@ -166,22 +166,45 @@ class TreesCore final : public Core {
     const TreesModel& last = context_ ? *context_ : *frame_;
     while (labelled_ < scored_.size()) {
       const Scored& s = scored_[labelled_];
-      if (!all && scored_.back().run == s.run && s.t > newest_t_ - latency_s()) break;
-      Labeled l = s.out;
+      if (!all && scored_.back().run == s.run && s.t > newest_t_ - smoothed_latency_s()) break;
+      OnsetHold::Item h{s.out, s.t, s.run, false};
       if (s.gaze) {
         std::array<double, kMaxTreeClasses> near{}, wide{};
         window_mean(labelled_, kSmoothShortS, last.class_count(), near);
         window_mean(labelled_, smooth_long_s_, last.class_count(), wide);
-        l.label = last.smoothed_label(near.data(), wide.data(), weights_.data(), s.noise_as_blink);
+        h.l.label = last.smoothed_label(near.data(), wide.data(), weights_.data(), s.noise_as_blink);
+        h.doubtful = h.l.label == Label::Fixation && pursuit_doubt(last, wide);
       }
-      out.push_back(l);
+      if (hold_params_.hold_s > 0) {
+        hold_.push(h);
+      } else {
+        out.push_back(h.l);
+      }
       ++labelled_;
     }
+    if (hold_params_.hold_s > 0) hold_.release(out, all);
     // Keep what the next label's window reaches back to.
     while (labelled_ > 0 && (labelled_ == scored_.size() || scored_[labelled_].t - scored_.front().t > smooth_long_s_)) {
       scored_.pop_front();
       --labelled_;
     }
+  }
+  // How far behind the newest sample a smoothed label is made (before any hold).
+  double smoothed_latency_s() const {
+    return reach_ + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? smooth_long_s_ : 0.0);
+  }
+  // A fixation is doubtful where pursuit's weighted mean in the long window comes within
+  // the hold's ratio of fixation's: the pursuit may be starting, before its evidence wins.
+  bool pursuit_doubt(const TreesModel& last, const std::array<double, kMaxTreeClasses>& wide) const {
+    const std::size_t p = last.class_of(Label::Pursuit), f = last.class_of(Label::Fixation);
+    if (hold_params_.hold_s <= 0 || p >= last.class_count() || f >= last.class_count()) return false;
+    return wide[p] * weights_[p] >= hold_params_.ratio * wide[f] * weights_[f];
+  }
+  // The chain's hold, or the options' instead; none without smoothing (trees_only).
+  PursuitHold chain_hold(const GbtOptions& options) const {
+    if (!smooth_) return {};
+    if (options.pursuit_hold) return *options.pursuit_hold;
+    return model_ && context_ ? model_->hold(options.offline) : PursuitHold{};
   }
   // The mean class probabilities over the samples of j's gaze run within +-half of it.
   // The classes past `classes` stay 0.
@@ -234,6 +257,8 @@ class TreesCore final : public Core {
   double smooth_long_s_;       // the long smoothing window (trees_core.h)
   std::size_t classes_;        // the first stage's
   std::array<double, kMaxTreeClasses> weights_;  // the last stage's classes' in the smoothing
+  PursuitHold hold_params_;  // chain_hold
+  OnsetHold hold_;
   FeatureSink frame_sink_, context_sink_;
   std::deque<Prepared> buf_;
   FeatureWindow window_;  // the same samples as buf_, with the running sums of their features
@@ -453,16 +478,40 @@ void GbtModel::add_stage(const std::string& header, const std::string& text, con
   }
   std::vector<double> weights;
   bool has_weights = false;
-  if (words >> lookahead && words >> extra) {
-    if (extra != "weights") fail("'stage " + name + "' takes a look-ahead and then only 'weights', not '" + extra + "'");
-    has_weights = true;
-    for (std::string w; words >> w;) {
-      double v = 0;
-      const auto [end, err] = std::from_chars(w.data(), w.data() + w.size(), v);
-      if (err != std::errc() || end != w.data() + w.size() || !std::isfinite(v) || v <= 0) {
-        fail("'stage " + name + "': weight '" + w + "' is not a positive number");
+  PursuitHold hold;
+  std::vector<std::string> rest;
+  const bool has_lookahead = static_cast<bool>(words >> lookahead);
+  for (std::string w; has_lookahead && words >> w;) rest.push_back(w);
+  const auto number = [](const std::string& w, double& v) {
+    const auto [end, err] = std::from_chars(w.data(), w.data() + w.size(), v);
+    return err == std::errc() && end == w.data() + w.size() && std::isfinite(v);
+  };
+  for (std::size_t i = 0; i < rest.size();) {
+    if ((rest[i] == "weights" && has_weights) || (rest[i] == "hold" && hold.hold_s > 0)) {
+      fail("'stage " + name + "' has a second '" + rest[i] + "'");
+    }
+    if (rest[i] == "weights") {
+      has_weights = true;
+      for (++i; i < rest.size() && rest[i] != "hold" && rest[i] != "weights"; ++i) {
+        double v = 0;
+        if (!number(rest[i], v) || v <= 0) fail("'stage " + name + "': weight '" + rest[i] + "' is not a positive number");
+        weights.push_back(v);
       }
-      weights.push_back(v);
+    } else if (rest[i] == "hold") {
+      if (i + 3 >= rest.size()) fail("'stage " + name + "': 'hold' takes three numbers: HOLD_S RATIO MIN_S");
+      double* const fields[3] = {&hold.hold_s, &hold.ratio, &hold.min_s};
+      for (int k = 0; k < 3; ++k) {
+        if (!number(rest[i + 1 + static_cast<std::size_t>(k)], *fields[k])) {
+          fail("'stage " + name + "': 'hold' takes three numbers: HOLD_S RATIO MIN_S, not '" +
+               rest[i + 1 + static_cast<std::size_t>(k)] + "'");
+        }
+      }
+      if (const std::string err = check(hold); !err.empty() || hold.hold_s == 0) {
+        fail("'stage " + name + "': " + (err.empty() ? std::string("a hold of 0 s") : err));
+      }
+      i += 4;
+    } else {
+      fail("'stage " + name + "' takes a look-ahead and then only 'weights' and 'hold', not '" + rest[i] + "'");
     }
   }
   if (!(lookahead > 0 && lookahead <= kContextReachS)) {
@@ -478,6 +527,7 @@ void GbtModel::add_stage(const std::string& header, const std::string& text, con
          std::to_string(slot->class_count()) + " classes");
   }
   (name == "online" ? online_weights_ : offline_weights_) = weights;
+  (name == "online" ? online_hold_ : offline_hold_) = hold;
 }
 
 std::vector<double> GbtModel::weights(bool offline) const {
@@ -558,6 +608,42 @@ std::vector<float> context_matrix(const std::vector<Sample>& samples, const prot
     o.context_sink = std::move(sink);
     return make_trees_pipeline(model, display, std::move(o));
   });
+}
+
+// Pursuit onsets called late (GbtOptions::pursuit_hold_s): a doubtful fixation's verdict comes
+// from the labels after it in its gaze run. Through doubtful fixations alone, within hold_s a
+// pursuit begins that lasts min_run_s: the fixation is that pursuit's start. Anything else first
+// (a sure fixation, a saccade, a loss, another run), the hold running out, or a shorter pursuit
+// followed by anything but doubtful fixations: it stays a fixation.
+std::optional<Label> OnsetHold::verdict(std::size_t head) const {
+  const Item& h = held_[head];
+  std::optional<double> pursuit_from;  // where the pursuit now being followed began
+  for (std::size_t k = head + 1; k < held_.size(); ++k) {
+    const Item& later = held_[k];
+    if (later.run != h.run || (!pursuit_from && later.t - h.t > hold_s_)) return Label::Fixation;
+    if (later.l.label == Label::Pursuit) {
+      if (!pursuit_from) pursuit_from = later.t;
+      if (later.t - *pursuit_from >= min_run_s_) return Label::Pursuit;
+    } else if (later.doubtful) {
+      pursuit_from.reset();  // a pursuit too short to confirm, then doubt again: go on looking
+    } else {
+      return Label::Fixation;
+    }
+  }
+  return std::nullopt;
+}
+
+void OnsetHold::release(std::vector<Labeled>& out, bool all) {
+  while (!held_.empty()) {
+    Item& head = held_.front();
+    if (head.doubtful) {
+      const std::optional<Label> v = verdict(0);
+      if (!v && !all) return;  // undecided: wait for more labels
+      head.l.label = v.value_or(Label::Fixation);
+    }
+    out.push_back(head.l);
+    held_.pop_front();
+  }
 }
 
 }  // namespace fovea::trackerd::classify

@@ -4,8 +4,10 @@
 // every sample of a recording, for training (bench/train_classifier.py through `fovea-ctl classify
 // --features-out`).
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -71,9 +73,9 @@ inline constexpr double kOnlineLookaheadS = 0.032;
 //   stage frame                        then a fovea-trees ensemble over features.h's features
 //   stage frame-online REACH_S         then one over the same features with REACH_S ahead (optional;
 //                                      without it the online chain's first stage is `frame`)
-//   stage online LOOKAHEAD_S [weights W_1 ... W_K]
+//   stage online LOOKAHEAD_S [weights W_1 ... W_K] [hold HOLD_S RATIO MIN_S]
 //                                      then one over context.h's features (optional)
-//   stage offline LOOKAHEAD_S [weights W_1 ... W_K]
+//   stage offline LOOKAHEAD_S [weights W_1 ... W_K] [hold HOLD_S RATIO MIN_S]
 //                                      likewise (optional)
 //
 // A chain's weights (one per class of its second stage, each positive; 1 where not given) weigh the
@@ -81,6 +83,8 @@ inline constexpr double kOnlineLookaheadS = 0.032;
 // The most probable class is not the choice that agrees best with the coders: pursuit is rarer than
 // fixation and looks like it for its first hundred milliseconds, so argmax calls it late and seldom.
 // bench/train_classifier.py fits the pursuit weight on videos each bundle did not see (kPursuitWeights).
+// A chain's hold (classifier.h, PursuitHold; none where not given) moves the pursuit onsets its
+// smoothing calls late back to the doubtful fixations before them.
 //
 // Throws std::invalid_argument naming origin, the line and what is wrong.
 class GbtModel {
@@ -95,12 +99,15 @@ class GbtModel {
   // The chain's class weights (above), one per class of its last stage: all 1 without a second stage
   // or where the file gives none.
   std::vector<double> weights(bool offline) const;
+  // The chain's pursuit-onset hold (above); hold_s 0 where the file gives none.
+  PursuitHold hold(bool offline) const { return offline ? offline_hold_ : online_hold_; }
 
  private:
   void add_stage(const std::string& header, const std::string& text, const std::string& origin, int line);
   std::unique_ptr<TreesModel> frame_, frame_online_, online_, offline_;
   double frame_online_reach_s_ = kFeatureReachS, online_lookahead_s_ = 0, offline_lookahead_s_ = 0;
   std::vector<double> online_weights_, offline_weights_;  // empty: all 1
+  PursuitHold online_hold_, offline_hold_;
 };
 
 std::shared_ptr<const GbtModel> builtin_gbt_model();  // parsed once
@@ -124,6 +131,33 @@ struct GbtOptions {
                              // model's chain states its own
   double pursuit_weight = 0;  // > 0: the chain's weight of pursuit (GbtModel::weights) instead of the
                               // model's (fovea-ctl classify --pursuit-weight; what the training fits)
+  // The pursuit-onset hold (classifier.h, PursuitHold) instead of the chain's own (GbtModel::hold):
+  // onsets the smoothing calls late move back, and only the doubtful samples wait (OnsetHold).
+  std::optional<PursuitHold> pursuit_hold;
+};
+
+// The smoothed labels on their way out while a doubtful fixation waits for its verdict
+// (GbtOptions::pursuit_hold_s; trees_core.cpp): labels leave in input order, each as soon as
+// every doubtful fixation before it has its verdict.
+class OnsetHold {
+ public:
+  struct Item {
+    Labeled l;
+    double t = 0;
+    std::uint64_t run = 0;  // gaze run: the verdict looks only within the fixation's own
+    bool doubtful = false;  // a fixation that may be a pursuit's start
+  };
+  OnsetHold(double hold_s, double min_run_s) : hold_s_(hold_s), min_run_s_(min_run_s) {}
+  void push(const Item& item) { held_.push_back(item); }
+  // Every label whose turn has come into out; all (the stream's end): undecided ones as fixations.
+  void release(std::vector<Labeled>& out, bool all);
+  // How long a label may wait here at most: for the pursuit to begin, then to last.
+  double max_wait_s() const { return hold_s_ > 0 ? hold_s_ + min_run_s_ : 0.0; }
+
+ private:
+  std::optional<Label> verdict(std::size_t head) const;
+  double hold_s_, min_run_s_;
+  std::deque<Item> held_;
 };
 // The `gbt` pipeline: the standard front end (without the lid rule), the trees core with its
 // smoothing, and (separate_pso) ivvt's PSO where the trees say saccade or fixation (trees_core.cpp,

@@ -386,6 +386,9 @@ struct ClassifyArgs {
   bool offline = false;      // --offline
   std::string pso = "separate";  // --pso (gbt)
   double pursuit_weight = 0;     // --pursuit-weight (gbt; 0: the model's)
+  std::optional<double> pursuit_hold_ms;  // --pursuit-hold (gbt; 0: none; unset: the model's)
+  double pursuit_hold_ratio = 0.3;
+  double pursuit_hold_min_ms = 20;
   std::string features_out;  // --features-out F.npy (and F.npy.names)
   double features_reach_s = fovea::trackerd::classify::kFeatureReachS;  // --features-reach S
   std::string context_out;   // --context-out F.npy (and F.npy.names)
@@ -493,6 +496,9 @@ int cmd_classify(const ClassifyArgs& a) {
     options.offline = a.offline;
     options.separate_pso = a.pso != "none";
     options.pursuit_weight = a.pursuit_weight;
+    if (a.pursuit_hold_ms) {
+      options.pursuit_hold = cl::PursuitHold{*a.pursuit_hold_ms / 1000, a.pursuit_hold_ratio, a.pursuit_hold_min_ms / 1000};
+    }
     const cl::OnlineLabels result = cl::classify_online(a.method, options, input.samples);
     write_feature_files(a, input.samples, g);
 
@@ -584,9 +590,27 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
       ->capture_default_str();
   classify->add_option("--pursuit-weight", cls.pursuit_weight,
                        "W: gbt: weigh pursuit's smoothed probability by W when choosing among the classes but "
-                       "the saccade, instead of the model's own weight (the built-in model's: fitted on held-out "
-                       "GazeCom videos for F1); above it pursuit is called sooner and more often, below less")
+                       "the saccade, instead of the model's own weight (the built-in model's: 1); above it "
+                       "pursuit is called sooner and more often, below less")
       ->check(CLI::Range(0.01, 100.0));
+  auto* hold = classify->add_option(
+      "--pursuit-hold", cls.pursuit_hold_ms,
+      "MS: gbt: a smoothed fixation whose pursuit comes within --pursuit-hold-ratio of it waits up to MS for a "
+      "pursuit of --pursuit-hold-min to follow through such fixations alone, and is then that pursuit's start "
+      "(onsets the smoothing calls late move back; only those labels wait longer), instead of the model's own "
+      "hold; 0: none")
+      ->check(CLI::Range(0.0, 1000.0));
+  classify->add_option("--pursuit-hold-ratio", cls.pursuit_hold_ratio,
+                       "R: with --pursuit-hold: a fixation is doubtful where pursuit's weighted smoothed "
+                       "probability is at least R times fixation's")
+      ->check(CLI::Range(0.01, 1.0))
+      ->needs(hold)
+      ->capture_default_str();
+  classify->add_option("--pursuit-hold-min", cls.pursuit_hold_min_ms,
+                       "MS: with --pursuit-hold: how long the pursuit after a held fixation must last")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->needs(hold)
+      ->capture_default_str();
   classify->add_option("--features-out", cls.features_out,
                        "F.npy: also write the gbt method's features of every row (float32 rows x features, NaN "
                        "where a scale's window leaves the gaze run) and their names to F.npy.names, for training");
