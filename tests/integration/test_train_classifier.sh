@@ -9,9 +9,10 @@
 # second stages fitted on rows from first stages that never saw it, and refuse a video not there.
 # --online-reach must give the daemon's chain a first stage of its own over features that reach less
 # far ahead, each checked exact, reusing the first stages fitted before, and labels final sooner.
-# The online chain's pursuit weight must be fitted into every bundle (bench/fit_class_weights.py),
-# each bundle's on the other video, unless --no-weights; a bundle with the wrong count of weights is
-# refused naming its line, and fovea-ctl's --pursuit-weight overrides the model's.
+# The online chain's pursuit-onset hold (or none) must be fitted into every bundle
+# (bench/fit_class_weights.py), each bundle's on the other video, unless --no-weights; a bundle with
+# the wrong count of weights or a damaged hold is refused naming its line, and fovea-ctl's
+# --pursuit-weight and --pursuit-hold override the model's.
 # Usage: test_train_classifier.sh CTL SOURCE_DIR
 set -u
 CTL=$1 SRC=$2
@@ -69,11 +70,15 @@ for v in clip_a clip_b; do
   grep -q "GazeCom without $v" "$WORK/lovo/$v.trees" || fail "$v's model does not say what it left out"
   grep -q "^stage offline 0.512$" "$WORK/lovo/$v.trees" \
     || fail "$v's model has no offline stage (without weights): $(grep '^stage' "$WORK/lovo/$v.trees")"
-  grep -q "^stage online 0.032 weights 1 1 [0-9.]*$" "$WORK/lovo/$v.trees" || fail "$v's online stage has no weights"
-  grep -q "lovo/$v.trees: pursuit weight [0-9.]* online, [0-9.]* offline" "$WORK/lovo.txt" \
-    || fail "the weights fitted for $v are not reported: $(cat "$WORK/lovo.txt")"
+  grep -Eq "^stage online 0.032 weights 1 1 1( hold 0.144 0.[35] 0.02)?$" "$WORK/lovo/$v.trees" \
+    || fail "$v's online stage has no weights: $(grep '^stage online' "$WORK/lovo/$v.trees")"
+  grep -Eq "lovo/$v.trees: online weight 1(, hold 0.144 s ratio 0.[35] min 0.02 s)?, offline weight 1 \(not fitted\)" \
+    "$WORK/lovo.txt" || fail "the setting fitted for $v is not reported: $(cat "$WORK/lovo.txt")"
 done
-grep -q "online  pursuit weight 2.5: mean 0\.[0-9]* (" "$WORK/lovo.txt" || fail "the weights' scores are not reported"
+for s in "weight 1" "weight 1, hold 0.144 s ratio 0.3 min 0.02 s" "weight 1, hold 0.144 s ratio 0.5 min 0.02 s" \
+  "nested, the whole grid"; do
+  grep -q "online  $s: mean 0\.[0-9]* (" "$WORK/lovo.txt" || fail "the setting '$s' is not reported"
+done
 grep -q "4 recordings and 1 copies of each" "$WORK/lovo.txt" || fail "the copies were not made"
 [ "$(grep -c "disagree on 0 of" "$WORK/lovo.txt")" = 4 ] || fail "not every stage checked exact: $(cat "$WORK/lovo.txt")"
 /usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" --out "$WORK/m.trees" \
@@ -82,7 +87,8 @@ cat "$WORK/train.txt"
 ! grep -q "frame.trees (" "$WORK/train.txt" || fail "the first stages fitted before were fitted again"
 [ "$(grep -c "disagree on 0 of" "$WORK/train.txt")" = 4 ] || fail "no exactness check in: $(cat "$WORK/train.txt")"
 head -1 "$WORK/m.trees" | grep -q "iterations 6, leaves 7" || fail "the model does not say how it was fitted"
-grep -q "m.trees: pursuit weight [0-9.]* online, [0-9.]* offline" "$WORK/train.txt" || fail "the model's weights unfitted"
+grep -Eq "m.trees: online weight 1(, hold [0-9. a-z]*)?, offline weight 1 \(not fitted\)" "$WORK/train.txt" \
+  || fail "the model's setting unfitted"
 
 echo "== fovea-ctl labels with the model and refuses a damaged one"
 in="$WORK/in.csv"
@@ -102,6 +108,19 @@ if count_pursuit ivvt 2 >/dev/null; then fail "ivvt took a pursuit weight"; fi
 grep -q "classifier ivvt: only gbt weighs its classes" "$WORK/err" || fail "unclear: $(cat "$WORK/err")"
 if count_pursuit gbt 0 >/dev/null; then fail "a pursuit weight of 0 was taken"; fi
 grep -q "pursuit-weight: Value 0 not in range" "$WORK/err" || fail "unclear: $(cat "$WORK/err")"
+# --pursuit-hold instead of the model's: the fixations before a pursuit become its start when every
+# fixation is doubtful (ratio 0.01) and may wait a second; refused for ivvt, its options need it.
+count_held() { "$CTL" classify "$in" "$WORK/h.csv" 250 1280 720 400 225 450 --method "$1" --model "$WORK/m.trees" \
+  --pursuit-hold "$2" --pursuit-hold-ratio 0.01 --pursuit-hold-min 0 --force 2>"$WORK/err" && grep -c ",pursuit" "$WORK/h.csv"; }
+none=$(count_held gbt 0) held=$(count_held gbt 1000)
+echo "pursuit labels without a hold: $none, with: $held"
+[ "${none:-x}" -lt "${held:-0}" ] 2>/dev/null || fail "--pursuit-hold 1000 gave no more pursuit than none: $none, $held"
+if count_held ivvt 100 >/dev/null; then fail "ivvt took a pursuit hold"; fi
+grep -q "classifier ivvt: only gbt holds doubtful fixations" "$WORK/err" || fail "unclear: $(cat "$WORK/err")"
+if "$CTL" classify "$in" "$WORK/h.csv" 250 1280 720 400 225 450 --method gbt --pursuit-hold-min 10 --force 2>"$WORK/err"; then
+  fail "--pursuit-hold-min without --pursuit-hold was taken"
+fi
+grep -q "pursuit-hold-min requires --pursuit-hold" "$WORK/err" || fail "unclear: $(cat "$WORK/err")"
 online_at=$(grep -n "^stage online" "$WORK/m.trees" | cut -d: -f1)
 check_refused() {  # sed-expression error-text
   sed "$1" "$WORK/m.trees" >"$WORK/bad.trees"
@@ -117,6 +136,8 @@ check_refused 's/^stage online 0.032 weights .*$/stage online 0.032 weights 1 1/
   "bad.trees:$online_at: 'stage online' has 2 weights for its 3 classes"
 check_refused 's/^stage online 0.032 weights 1 /stage online 0.032 weights -1 /' \
   "bad.trees:$online_at: 'stage online': weight '-1' is not a positive number"
+check_refused 's/^stage online 0.032 weights \([0-9 .]*\).*$/stage online 0.032 weights \1 hold 0.144 2 0.02/' \
+  "bad.trees:$online_at: 'stage online': a pursuit hold's ratio 2.000000 is not in (0, 1]"
 check_refused 's/^stage frame$/stage frames/' "bad.trees:3: stage 'frames' is none of frame, frame-online, online, offline"
 check_refused "$((online_at + 4))s/^classes [0-9]* /classes 0 /" "bad.trees:$((online_at + 4)): classes '0' is not an integer"
 

@@ -546,6 +546,34 @@ TEST(Classify, GbtsPursuitWeightTradesFixationForPursuitAndTheModelStatesItsOwn)
   }
 }
 
+// The model's online chain holds doubtful fixations (trees_core.h, OnsetHold): against no hold, the
+// only labels that change are fixations turned pursuit, each run of them ending where a pursuit
+// begins; saccades never move; and a held label is final within the chain's bound.
+TEST(Classify, GbtsHoldTurnsOnlyFixationsBeforeAPursuitIntoItsStart) {
+  const Labelled d = synthetic(250, 30, 5);
+  ClassifierOptions o;
+  o.nominal_rate_hz = 250;
+  ASSERT_GT(builtin_gbt_model()->hold(false).hold_s, 0) << "the built-in model's online chain holds";
+  const OnlineLabels held = classify_online("gbt", o, d.samples);
+  o.pursuit_hold = PursuitHold{};  // none
+  const OnlineLabels plain = classify_online("gbt", o, d.samples);
+  ASSERT_EQ(held.labels.size(), plain.labels.size());
+  std::size_t changed = 0;
+  for (std::size_t i = 0; i < held.labels.size(); ++i) {
+    if (held.labels[i] == plain.labels[i]) continue;
+    ++changed;
+    ASSERT_EQ(plain.labels[i], Label::Fixation) << i;
+    ASSERT_EQ(held.labels[i], Label::Pursuit) << i;
+    std::size_t j = i;  // the run of turned fixations leads into a pursuit of the plain labels
+    while (j < held.labels.size() && held.labels[j] != plain.labels[j]) ++j;
+    ASSERT_LT(j, held.labels.size());
+    EXPECT_EQ(plain.labels[j], Label::Pursuit) << "the run from " << i << " ends in " << to_string(plain.labels[j]);
+    const double wait = held.final_t_s[i] - d.samples[i].t_s;
+    EXPECT_LE(wait, make_classifier("gbt", ClassifierOptions{})->latency_s() + 1e-9) << i;
+  }
+  EXPECT_GT(changed, 0u) << "no onset moved: the test shows nothing";
+}
+
 TEST(Classify, ThePsosSlowSwingBackIsPsoToo) {
   // A pupil-based tracker's PSO overshoots and returns (Hooge et al. 2015): here the eye lands
   // 0.4 deg beyond the target and comes back within ~50 ms, slower than the landing itself, so the
