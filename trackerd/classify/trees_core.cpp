@@ -442,6 +442,56 @@ GbtModel::GbtModel(const std::string& text, const std::string& origin) {
   if (!frame_) fail(n, "no 'stage frame'");
 }
 
+namespace {
+
+// What a second stage's header gives after its look-ahead: 'weights W_1 ... W_K' and
+// 'hold HOLD_S RATIO MIN_S', each at most once, in either order (trees_core.h, GbtModel).
+struct ChainOptions {
+  std::vector<double> weights;
+  bool has_weights = false;
+  PursuitHold hold;
+};
+
+bool finite_number(const std::string& w, double& v) {
+  const auto [end, err] = std::from_chars(w.data(), w.data() + w.size(), v);
+  return err == std::errc() && end == w.data() + w.size() && std::isfinite(v);
+}
+
+ChainOptions parse_chain_options(const std::vector<std::string>& rest, const std::string& stage,
+                                 const std::function<void(const std::string&)>& fail) {
+  ChainOptions c;
+  for (std::size_t i = 0; i < rest.size();) {
+    if ((rest[i] == "weights" && c.has_weights) || (rest[i] == "hold" && c.hold.hold_s > 0)) {
+      fail(stage + " has a second '" + rest[i] + "'");
+    }
+    if (rest[i] == "weights") {
+      c.has_weights = true;
+      for (++i; i < rest.size() && rest[i] != "hold" && rest[i] != "weights"; ++i) {
+        double v = 0;
+        if (!finite_number(rest[i], v) || v <= 0) fail(stage + ": weight '" + rest[i] + "' is not a positive number");
+        c.weights.push_back(v);
+      }
+    } else if (rest[i] == "hold") {
+      if (i + 3 >= rest.size()) fail(stage + ": 'hold' takes three numbers: HOLD_S RATIO MIN_S");
+      double* const fields[3] = {&c.hold.hold_s, &c.hold.ratio, &c.hold.min_s};
+      for (std::size_t k = 0; k < 3; ++k) {
+        if (!finite_number(rest[i + 1 + k], *fields[k])) {
+          fail(stage + ": 'hold' takes three numbers: HOLD_S RATIO MIN_S, not '" + rest[i + 1 + k] + "'");
+        }
+      }
+      if (const std::string err = check(c.hold); !err.empty() || c.hold.hold_s == 0) {
+        fail(stage + ": " + (err.empty() ? std::string("a hold of 0 s") : err));
+      }
+      i += 4;
+    } else {
+      fail(stage + " takes a look-ahead and then only 'weights' and 'hold', not '" + rest[i] + "'");
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
 void GbtModel::add_stage(const std::string& header, const std::string& text, const std::string& origin, int line) {
   std::istringstream words(header);
   std::string stage, name, extra;
@@ -476,44 +526,10 @@ void GbtModel::add_stage(const std::string& header, const std::string& text, con
     frame_online_reach_s_ = reach;
     return;
   }
-  std::vector<double> weights;
-  bool has_weights = false;
-  PursuitHold hold;
-  std::vector<std::string> rest;
   const bool has_lookahead = static_cast<bool>(words >> lookahead);
+  std::vector<std::string> rest;
   for (std::string w; has_lookahead && words >> w;) rest.push_back(w);
-  const auto number = [](const std::string& w, double& v) {
-    const auto [end, err] = std::from_chars(w.data(), w.data() + w.size(), v);
-    return err == std::errc() && end == w.data() + w.size() && std::isfinite(v);
-  };
-  for (std::size_t i = 0; i < rest.size();) {
-    if ((rest[i] == "weights" && has_weights) || (rest[i] == "hold" && hold.hold_s > 0)) {
-      fail("'stage " + name + "' has a second '" + rest[i] + "'");
-    }
-    if (rest[i] == "weights") {
-      has_weights = true;
-      for (++i; i < rest.size() && rest[i] != "hold" && rest[i] != "weights"; ++i) {
-        double v = 0;
-        if (!number(rest[i], v) || v <= 0) fail("'stage " + name + "': weight '" + rest[i] + "' is not a positive number");
-        weights.push_back(v);
-      }
-    } else if (rest[i] == "hold") {
-      if (i + 3 >= rest.size()) fail("'stage " + name + "': 'hold' takes three numbers: HOLD_S RATIO MIN_S");
-      double* const fields[3] = {&hold.hold_s, &hold.ratio, &hold.min_s};
-      for (int k = 0; k < 3; ++k) {
-        if (!number(rest[i + 1 + static_cast<std::size_t>(k)], *fields[k])) {
-          fail("'stage " + name + "': 'hold' takes three numbers: HOLD_S RATIO MIN_S, not '" +
-               rest[i + 1 + static_cast<std::size_t>(k)] + "'");
-        }
-      }
-      if (const std::string err = check(hold); !err.empty() || hold.hold_s == 0) {
-        fail("'stage " + name + "': " + (err.empty() ? std::string("a hold of 0 s") : err));
-      }
-      i += 4;
-    } else {
-      fail("'stage " + name + "' takes a look-ahead and then only 'weights' and 'hold', not '" + rest[i] + "'");
-    }
-  }
+  const ChainOptions chain = parse_chain_options(rest, "'stage " + name + "'", fail);
   if (!(lookahead > 0 && lookahead <= kContextReachS)) {
     fail("'stage " + name + "' needs one look-ahead in seconds, in (0, " + std::to_string(kContextReachS) + "]");
   }
@@ -522,12 +538,12 @@ void GbtModel::add_stage(const std::string& header, const std::string& text, con
   slot = std::make_unique<TreesModel>(
       TreeEnsemble::parse(text, origin, context_feature_names(frame_->trees().class_names()), line), origin);
   (name == "online" ? online_lookahead_s_ : offline_lookahead_s_) = lookahead;
-  if (has_weights && weights.size() != slot->class_count()) {
-    fail("'stage " + name + "' has " + std::to_string(weights.size()) + " weights for its " +
+  if (chain.has_weights && chain.weights.size() != slot->class_count()) {
+    fail("'stage " + name + "' has " + std::to_string(chain.weights.size()) + " weights for its " +
          std::to_string(slot->class_count()) + " classes");
   }
-  (name == "online" ? online_weights_ : offline_weights_) = weights;
-  (name == "online" ? online_hold_ : offline_hold_) = hold;
+  (name == "online" ? online_weights_ : offline_weights_) = chain.weights;
+  (name == "online" ? online_hold_ : offline_hold_) = chain.hold;
 }
 
 std::vector<double> GbtModel::weights(bool offline) const {
