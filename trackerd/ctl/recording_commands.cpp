@@ -532,45 +532,9 @@ int cmd_classify(const ClassifyArgs& a) {
   }
 }
 
-// classify: offline eye-movement classification (trackerd/CLASSIFY.md)
-CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
-  auto* classify = app.add_subcommand("classify", "label every gaze sample of a CSV (t_ms,x_px,y_px) as fixation, "
-                                                  "saccade, pso, pursuit, blink, lost or unknown");
-  classify->add_option("IN", cls.in_path, "input CSV with header t_ms,x_px,y_px (nan or an empty x_px/y_px marks a lost sample)")
-      ->required()
-      ->check(CLI::ExistingFile);
-  classify->add_option("OUT", cls.out_path, "output CSV t_ms,label, one row per input row (refuses to overwrite)")
-      ->required();
-  classify->add_option("RATE_HZ", cls.rate_hz, "nominal sample rate, Hz")->required();
-  classify->add_option("SCREEN_W_PX", cls.w_px, "screen width, pixels")->required();
-  classify->add_option("SCREEN_H_PX", cls.h_px, "screen height, pixels")->required();
-  classify->add_option("SCREEN_W_MM", cls.w_mm, "screen width, millimetres")->required();
-  classify->add_option("SCREEN_H_MM", cls.h_mm, "screen height, millimetres")->required();
-  classify->add_option("DIST_MM", cls.dist_mm, "eye-to-screen distance, millimetres")->required();
-  {
-    std::vector<std::string> names;
-    std::string help = "classification method:";
-    for (const auto& m : fovea::trackerd::classify::classifiers()) {
-      names.push_back(m.name);
-      help += "\n  " + m.name + (names.size() == 1 ? " (default)" : "") + ": " + m.summary;
-    }
-    classify->add_option("--method", cls.method, help)->check(CLI::IsMember(names))->capture_default_str();
-  }
-  classify->add_flag("--force", cls.force, "replace OUT if it exists");
-  classify->add_flag("--renumber", cls.renumber,
-                     "number rows at RATE_HZ where t_ms is missing, not a number or not after the previous row's "
-                     "(real exports hold NaN, zero or reset timestamps), and accept a header x_px,y_px without "
-                     "times; OUT shows the numbered times, and the count is reported");
-  classify->add_option("--lost-at", cls.lost_at,
-                       "X,Y: rows at exactly this point are lost samples too (many exports write a fixed point, often "
-                       "0,0, for them); the count is reported");
-  classify->add_flag("--final-times", cls.final_times,
-                     "add a column final_ms: the t_ms of the newest row pushed when the label became final (the "
-                     "classifier runs online, one row at a time, as in the daemon): final_ms - t_ms is its latency");
-  classify->add_flag("--provisional", cls.provisional,
-                     "add a column provisional: the provisional events (saccade start/end, fixation start, as the "
-                     "daemon sends them before the final labels) each row made known, as KIND_PHASE@T_MS joined "
-                     "by ';'; reports how many the final labels confirmed and retracted");
+// classify's options for the gbt method: its model, chains, smoothing and training outputs.
+void add_gbt_options(CLI::App& sub, ClassifyArgs& cls) {
+  auto* classify = &sub;
   classify->add_option("--model", cls.model_path,
                        "gbt: a tree model written by bench/train_classifier.py instead of the built-in one")
       ->check(CLI::ExistingFile);
@@ -624,6 +588,49 @@ CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
                        "probabilities up to 512 ms around it, from the first stage of --model's or the built-in "
                        "model's online chain, or with --offline its offline chain) and their names to F.npy.names, "
                        "for training");
+
+}
+
+// classify: offline eye-movement classification (trackerd/CLASSIFY.md)
+CLI::App* add_classify_command(CLI::App& app, ClassifyArgs& cls) {
+  auto* classify = app.add_subcommand("classify", "label every gaze sample of a CSV (t_ms,x_px,y_px) as fixation, "
+                                                  "saccade, pso, pursuit, blink, lost or unknown");
+  classify->add_option("IN", cls.in_path, "input CSV with header t_ms,x_px,y_px (nan or an empty x_px/y_px marks a lost sample)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  classify->add_option("OUT", cls.out_path, "output CSV t_ms,label, one row per input row (refuses to overwrite)")
+      ->required();
+  classify->add_option("RATE_HZ", cls.rate_hz, "nominal sample rate, Hz")->required();
+  classify->add_option("SCREEN_W_PX", cls.w_px, "screen width, pixels")->required();
+  classify->add_option("SCREEN_H_PX", cls.h_px, "screen height, pixels")->required();
+  classify->add_option("SCREEN_W_MM", cls.w_mm, "screen width, millimetres")->required();
+  classify->add_option("SCREEN_H_MM", cls.h_mm, "screen height, millimetres")->required();
+  classify->add_option("DIST_MM", cls.dist_mm, "eye-to-screen distance, millimetres")->required();
+  {
+    std::vector<std::string> names;
+    std::string help = "classification method:";
+    for (const auto& m : fovea::trackerd::classify::classifiers()) {
+      names.push_back(m.name);
+      help += "\n  " + m.name + (names.size() == 1 ? " (default)" : "") + ": " + m.summary;
+    }
+    classify->add_option("--method", cls.method, help)->check(CLI::IsMember(names))->capture_default_str();
+  }
+  classify->add_flag("--force", cls.force, "replace OUT if it exists");
+  classify->add_flag("--renumber", cls.renumber,
+                     "number rows at RATE_HZ where t_ms is missing, not a number or not after the previous row's "
+                     "(real exports hold NaN, zero or reset timestamps), and accept a header x_px,y_px without "
+                     "times; OUT shows the numbered times, and the count is reported");
+  classify->add_option("--lost-at", cls.lost_at,
+                       "X,Y: rows at exactly this point are lost samples too (many exports write a fixed point, often "
+                       "0,0, for them); the count is reported");
+  classify->add_flag("--final-times", cls.final_times,
+                     "add a column final_ms: the t_ms of the newest row pushed when the label became final (the "
+                     "classifier runs online, one row at a time, as in the daemon): final_ms - t_ms is its latency");
+  classify->add_flag("--provisional", cls.provisional,
+                     "add a column provisional: the provisional events (saccade start/end, fixation start, as the "
+                     "daemon sends them before the final labels) each row made known, as KIND_PHASE@T_MS joined "
+                     "by ';'; reports how many the final labels confirmed and retracted");
+  add_gbt_options(*classify, cls);
 
   return classify;
 }
