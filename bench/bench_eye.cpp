@@ -128,6 +128,7 @@ std::vector<Variant> all_variants() {
   add("no-inside", [](eye::DetectorSettings& s) { s.search_inside = false; });  // the detector before issue 44
   add("no-edges", [](eye::DetectorSettings& s) { s.edge_candidates = false; });  // no PuRe-style edge candidates
   add("no-contour", [](eye::DetectorSettings& s) { s.contour_candidates = false; });  // no contour-integral candidates inside
+  add("no-track-inside", [](eye::DetectorSettings& s) { s.track_inside = false; });  // every candidate anew, until a clear one
   add("no-roi", [](eye::DetectorSettings& s) { s.roi_tracking = false; });
   add("rays32", [](eye::DetectorSettings& s) { s.rays = 32; });
   add("least-squares", [](eye::DetectorSettings& s) { s.fit = eye::FitMethod::LeastSquares; });

@@ -30,6 +30,7 @@ constexpr std::size_t kEdgeCandidates = 4;  // and from edges, when none of thos
 constexpr std::size_t kContourCandidates = 2;  // and inside a winner, from the contour integral
 constexpr double kScatteredEdges = 0.7;  // inside a winner, a fit fewer rays than this share support is refined
 constexpr double kClearPupil = 0.9;     // a fit this confident ends the search
+constexpr double kTrackedPupil = 0.5;   // inside (track_inside), so does a fit this confident where the last was
 constexpr double kDiscInside = 0.1;     // a fit inside the winner this confident, and darker inside
 constexpr double kDiscOutline = 0.9;    // along this share of its outline, makes the winner doubtful
 constexpr double kInsideOutline = 0.6;  // a disc inside the winner replaces it when darker along this share
@@ -53,6 +54,8 @@ EyeDetector::EyeDetector(DetectorSettings settings) : settings_(std::move(settin
 
 void EyeDetector::reset() {
   last_pupil_.reset();
+  last_outer_.reset();
+  last_rival_ = 0;
   last_glint_scale_ = 0;
   last_reference_.reset();
   open_aspect_ = 0;
@@ -78,6 +81,9 @@ struct FrameSearch {
   std::mt19937 rng{12345};  // deterministic RANSAC: the same frame gives the same answer
   bool inside = false;      // a search inside a fitted candidate (search_inside): it does not recurse
   const Ellipse* outer = nullptr;  // inside: the candidate searched in
+  // track_inside: the pupil the last frame found inside a candidate (step 6b), which this search's
+  // inside searches follow (search_window); null: none.
+  const Ellipse* tracked = nullptr;
 };
 
 // One search's outcome: the best pupil fit (or why there is none) and the glints of the window.
@@ -88,6 +94,8 @@ struct PupilAttempt {
   PupilEvidence evidence;
   std::string why;
   GlintCandidates glints;
+  std::optional<Ellipse> outer;  // the candidate the pupil was found inside (search_inside), if it was
+  bool followed = false;  // found by following the last pupil inside (follow_inside): no rivals were fitted
 };
 
 // One candidate blob's grey levels and the blurred window its edge search reads.
@@ -212,6 +220,17 @@ PupilAttempt fit_candidate(FrameSearch& search, const Blob& blob, const GlintCan
 
 PupilAttempt search_window(FrameSearch& search, const cv::Rect& window);
 
+// Whether `fit` is a pupil (ok) where `last` was (track_inside): its centre within a tenth of last's
+// major axis (1.5 px at least) and its major axis within 15 % of last's. Between frames of a camera
+// at 60 Hz and more a fixating or pursuing eye moves less than that; after a saccade the fit is
+// elsewhere.
+bool follows(const Ellipse* last, const PupilAttempt& fit) {
+  if (last == nullptr || !fit.ok) return false;
+  const cv::Point2d d = fit.ellipse.centre - last->centre;
+  return std::sqrt(d.x * d.x + d.y * d.y) <= std::max(1.5, 0.1 * last->major) &&
+         fit.ellipse.major >= 0.85 * last->major && fit.ellipse.major * 0.85 <= last->major;
+}
+
 // The sensor noise's standard deviation in `img` (8-bit): the median absolute difference of
 // horizontal neighbours, robust to the edges in it (1.4826 MAD / sqrt 2 for Gaussian noise).
 double noise_sigma(const cv::Mat& img) {
@@ -279,6 +298,7 @@ std::optional<PupilAttempt> search_inside(FrameSearch& search, const PupilAttemp
                     search.rmin, rmax, window, search.candidates};
   inner.inside = true;
   inner.outer = &e;
+  inner.tracked = search.tracked;
   PupilAttempt found = search_window(inner, window);
   if (found.confidence <= 0) return std::nullopt;
   const cv::Point2d off = found.ellipse.centre - e.centre;
@@ -295,7 +315,13 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
   const auto blobs = find_dark_blobs(search.grey, window, search.settings.coarse_downscale, search.rmin, search.rmax,
                                      kCandidates, search.small, search.integral);
   best.why = "no dark blob";
-  // Fits the candidates in order; the most confident wins, a clear pupil ends the search.
+  // A clear pupil ends the search; inside a candidate, so does a confident fit where the last
+  // frame's pupil was (track_inside: under lashes no fit is clear, and every candidate was fitted).
+  const auto settled = [&] {
+    return best.confidence >= kClearPupil ||
+           (search.inside && best.confidence >= kTrackedPupil && follows(search.tracked, best));
+  };
+  // Fits the candidates in order; the most confident wins, until one settles the search.
   const auto fit_in_turn = [&](const std::vector<Blob>& candidates) {
     for (const Blob& blob : candidates) {
       PupilAttempt a = fit_candidate(search, blob, best.glints);
@@ -307,13 +333,13 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
         a.glints = std::move(best.glints);
         best = std::move(a);
       }
-      if (best.confidence >= kClearPupil) return;
+      if (settled()) return;
     }
   };
   fit_in_turn(blobs);
-  if (best.confidence < kClearPupil && search.settings.edge_candidates && !search.inside)
+  if (!settled() && search.settings.edge_candidates && !search.inside)
     fit_in_turn(find_edge_candidates(search.small, window, search.rmin, search.rmax, kEdgeCandidates));
-  if (best.confidence < kClearPupil && search.settings.contour_candidates && search.outer) {
+  if (!settled() && search.settings.contour_candidates && search.outer) {
     // Pupils are a fifth of the iris's size or more: smaller circles are lash gaps and noise.
     const double r = search.outer->minor / 2;
     fit_in_turn(find_contour_candidates(search.grey, window, search.outer->centre, 0.5 * r,
@@ -331,15 +357,34 @@ PupilAttempt search_window(FrameSearch& search, const cv::Rect& window) {
                   (pupil->confidence >= kDiscInside && pupil->evidence.outline >= kDiscOutline))) {
       pupil->glints = std::move(best.glints);  // found on the frame itself, not the normalised window
       if (!pupil->ok) pupil->why = "a darker disc inside the best candidate (a dark iris?), but no confident pupil";
+      pupil->outer = best.ellipse;
       best = std::move(*pupil);
     }
   }
   return best;
 }
 
+// track_inside: the last pupil was found inside a candidate (`last_outer`, a dark iris): the pupil is
+// looked for inside such a candidate around where it was, before the ROI's candidates are fitted
+// anew (under lashes the iris's fit is no better than a guess: the pupil is the steadier of the
+// two). Taken when it finds a pupil there, darker than its surround along as much of its outline as
+// search_window asks of a disc inside the winner.
+std::optional<PupilAttempt> follow_inside(FrameSearch& search, const Ellipse& last_pupil, const Ellipse& last_outer,
+                                          const cv::Rect& roi) {
+  PupilAttempt outer;
+  outer.ellipse = Ellipse{last_pupil.centre, last_outer.major, last_outer.minor, last_outer.angle_deg};
+  std::optional<PupilAttempt> pupil = search_inside(search, outer);
+  if (!pupil || pupil->evidence.outline < kInsideOutline || !follows(&last_pupil, *pupil)) return std::nullopt;
+  pupil->glints = find_glints(search.grey, roi, search.size);
+  pupil->outer = outer.ellipse;
+  pupil->followed = true;
+  return pupil;
+}
+
 // Searches near the last pupil first (`used_roi` tells whether that found it); recovery: the whole frame.
+// `last_outer`: the candidate the last pupil was found inside, if it was (track_inside).
 PupilAttempt find_pupil(FrameSearch& search, bool roi_tracking, const std::optional<Ellipse>& last_pupil,
-                        bool& used_roi, cv::Rect& searched) {
+                        const std::optional<Ellipse>& last_outer, bool& used_roi, cv::Rect& searched) {
   PupilAttempt found;
   if (roi_tracking && last_pupil) {
     const double half = 1.2 * last_pupil->major + 0.08 * search.size;
@@ -348,9 +393,17 @@ PupilAttempt find_pupil(FrameSearch& search, bool roi_tracking, const std::optio
                  static_cast<int>(2 * half), static_cast<int>(2 * half)) &
         search.frame;
     if (roi.width >= 8 && roi.height >= 8) {
-      found = search_window(search, roi);
-      used_roi = found.ok;
       searched = roi;
+      if (search.settings.track_inside && last_outer) {
+        search.tracked = &*last_pupil;
+        if (std::optional<PupilAttempt> pupil = follow_inside(search, *last_pupil, *last_outer, roi)) {
+          used_roi = true;
+          return std::move(*pupil);
+        }
+      }
+      found = search_window(search, roi);
+      search.tracked = nullptr;  // the whole frame's search follows nothing
+      used_roi = found.ok;
     }
   }
   if (!found.ok) {
@@ -470,15 +523,22 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     const std::size_t first = fitted.size();  // the caller's list may hold earlier frames' candidates
     FrameSearch search{settings_, grey_, smooth_, small_, integral_, size, rmin, rmax, frame, &fitted};
 
-    const PupilAttempt found = find_pupil(search, settings_.roi_tracking, last_pupil_, result.used_roi, result.search_region);
+    const PupilAttempt found = find_pupil(search, settings_.roi_tracking, last_pupil_, last_outer_, result.used_roi, result.search_region);
     if (found.ok) {
       last_pupil_ = found.ellipse;
+      last_outer_ = found.outer;
     } else {
       last_pupil_.reset();
+      last_outer_.reset();
     }
     const Ellipse winner{found.ellipse.centre + cv::Point2d(kToPublic, kToPublic), found.ellipse.major,
                          found.ellipse.minor, found.ellipse.angle_deg};
-    const Doubts doubts = found.ok ? doubts_about(std::span(fitted).subspan(first), winner) : Doubts{};
+    Doubts doubts = found.ok ? doubts_about(std::span(fitted).subspan(first), winner) : Doubts{};
+    // A followed pupil was not weighed against rivals (none were fitted): it keeps the doubt of the
+    // search it follows, else one doubted answer, followed, would become a confident one.
+    if (found.followed) doubts.rival = std::max(doubts.rival, last_rival_);
+    result.followed = found.followed;
+    last_rival_ = doubts.rival;
     report_pupil(found, doubts, settings_.blink_aspect, open_aspect_, result);
     if (found.ok) doubt_size_jumps(result);
 
@@ -488,10 +548,12 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     if (!finite_measurement(result)) {
       result = no_pupil("numerical failure");
       last_pupil_.reset();
+      last_outer_.reset();
     }
   } catch (const std::exception& e) {
     result = no_pupil(std::string("detector error: ") + e.what());
     last_pupil_.reset();
+    last_outer_.reset();
   }
   return result;
 }

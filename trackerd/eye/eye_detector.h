@@ -35,6 +35,10 @@ enum class FitMethod { Ransac, LeastSquares };  // RANSAC + inlier refit | one f
 struct DetectorSettings {
   int coarse_downscale = 2;       // 1, 2 or 4: coarse localisation runs on an image this much smaller
   bool roi_tracking = true;       // search near the last pupil first; fall back to the whole frame
+  // With it, when the last pupil was found inside a candidate (a dark iris, step 6b), look inside
+  // such a candidate around the last pupil first, and stop at a confident fit (0.5) where it was:
+  // under lashes no fit is clear (0.9) and every candidate was fitted (eye/EYE.md step 6b).
+  bool track_inside = true;
   EdgeMethod edges = EdgeMethod::Rays;
   FitMethod fit = FitMethod::Ransac;
   int rays = 64;                  // rays cast for edge points (EdgeMethod::Rays)
@@ -100,6 +104,7 @@ struct EyeMeasurement {
   cv::Point2d pupil_glint;        // pupil centre - reference glint point, pixels
   std::string why;                // when no pupil: what failed ("no dark blob", "too few edge points", ...)
   bool used_roi = false;          // found within the tracked ROI (no full-frame search needed)
+  bool followed = false;          // found by following the last pupil inside a dark iris (track_inside)
   cv::Rect search_region;         // where the search looked last: the ROI when used_roi, else the frame
 };
 
@@ -124,6 +129,8 @@ class EyeDetector {
 
   DetectorSettings settings_;
   std::optional<Ellipse> last_pupil_;
+  std::optional<Ellipse> last_outer_;  // the candidate last_pupil_ was found inside (search_inside), if it was
+  double last_rival_ = 0;  // the last answer's rival confidence (step 6c), which a followed answer keeps
   double last_glint_scale_ = 0;
   // Image of the LED layout's centroid in the last frame with paired glints: with one glint left,
   // the LED it belongs to is the one that keeps the reference where it was.
