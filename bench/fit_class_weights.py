@@ -24,14 +24,16 @@ did not see: each recording is labelled by its own video's leave-one-video-out b
 Each recording goes through `fovea-ctl classify --pursuit-weight W [--pursuit-hold MS ...]` once
 per setting and chain, as a user would run it. The bundles are rewritten in place: the fitted
 chains' stage headers gain (or replace) their `weights` and `hold` (none where the setting has
-none), the others lose both, nothing else changes. The report also gives the nested figures of the
+none), nothing else changes (a chain not fitted keeps what it had). The report also gives the nested figures of the
 weights alone (the grid without holds) beside the whole grid's: each video labelled with the setting
 chosen over the other 17, side by side from the same labels.
 
 Only the online chain by default: held out on all of GazeCom (bench/RESULTS.md, "Pursuit weight"),
 its fitted weights raise pursuit F1 0.685 -> 0.694, the offline chain's (1-1.5) gained nothing
 (pursuit 0.759 either way, fixation 0.946 -> 0.944): the offline chain sees pursuit's whole course
-and calls it without help.
+and calls it without help. Its hold does help a little (pursuit 0.774 -> 0.777, pursuit event F1
+0.602 -> 0.675 held out: bench/RESULTS.md, "The offline chain's hold"), so bench/train_classifier.py
+fits both chains' holds (TRAINING_HOLDS at TRAINING_WEIGHTS).
 
 On GazeCom, every 2nd recording, 6 settings, 2 cores: about 10 min a chain.
 
@@ -114,8 +116,8 @@ def best_setting(per_video, videos, chain, settings):
 
 def with_weights(text, chosen):
     """A fovea-gbt bundle's text with each chosen chain's second-stage header stating its weights (1
-    for every class but pursuit, chosen[chain]'s weight for it) and its hold if it has one, and the
-    other chain's stating neither; and how many second-stage headers it has."""
+    for every class but pursuit, chosen[chain]'s weight for it) and its hold if it has one, the other
+    chain's header as it was; and how many second-stage headers it has."""
     lines = text.split("\n")
     found = 0
     for i, line in enumerate(lines):
@@ -123,8 +125,7 @@ def with_weights(text, chosen):
         if len(words) < 3 or words[0] != "stage" or words[1] not in CHAINS:
             continue
         found += 1
-        if words[1] not in chosen:
-            lines[i] = " ".join(words[:3])
+        if words[1] not in chosen:  # not fitted: what it has stays
             continue
         classes = next(l.split()[2:] for l in lines[i + 1:] if l.startswith("classes "))
         if "pursuit" not in classes:
@@ -167,7 +168,7 @@ def fit(ctl, lovo, files, out=None, weights=WEIGHTS, jobs=None, chains=("online"
     for path, c in chosen.items():
         rewrite(path, c)
         print(f"fit_class_weights: {path}: " +
-              ", ".join(f"{ch} {setting_name(c[ch])}" if ch in c else f"{ch} weight 1 (not fitted)" for ch in CHAINS),
+              ", ".join(f"{ch} {setting_name(c[ch])}" if ch in c else f"{ch} as it was (not fitted)" for ch in CHAINS),
               flush=True)
     return chosen
 

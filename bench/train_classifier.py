@@ -26,14 +26,15 @@ present with the same settings).
   --nested V1,V2 --lovo DIR  also DIR/nested/<video>.trees: that video's second stages fitted on rows
                              from first stages that never saw it (nested cross-validation; the plain
                              bundles' rows come from first stages that saw it), ~20 min a video
-  --no-weights               give the online chain no pursuit-onset hold (by default
-                             bench/fit_class_weights.py fits it, or none, on held-out videos
-                             once the bundles are written, ~10 min; the pursuit weight stays 1)
+  --no-weights               give the chains no pursuit-onset hold (by default
+                             bench/fit_class_weights.py fits it, or none, for the online and the
+                             offline chain on held-out videos once the bundles are written, ~20 min;
+                             the pursuit weight stays 1)
 
 On GazeCom with the defaults, 2 cores: the first stages 35-50 min (once: reused), the second
 stages' features 8 min, the full model 10 min, the 18 leave-one-video-out bundles 45 min; with
 --online-reach the features and first stages again, and the second stages' features twice; the
-online chain's pursuit-onset hold 10 min. The
+chains' pursuit-onset holds 20 min. The
 features are cached (XDG_CACHE_HOME/fovea/gazecom-features/KEY) and the first stages reused under
 a key that hashes the features fovea-ctl computes for one recording and its copy: a build that
 changed nothing in them reuses both.
@@ -437,8 +438,7 @@ def main():
                     help="the online chain's own first stage, over features reaching this many seconds ahead "
                     "(features.h; shorter: the daemon's labels are final sooner); %g: the offline one" % FULL_REACH_S)
     ap.add_argument("--no-weights", action="store_true",
-                    help="do not fit the online chain's pursuit-onset hold (bench/fit_class_weights.py) after the "
-                    "bundles")
+                    help="do not fit the chains' pursuit-onset holds (bench/fit_class_weights.py) after the bundles")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
     if not 0 < args.online_reach <= FULL_REACH_S:
@@ -495,7 +495,8 @@ def main():
         print(f"train_classifier: {path} ({n2} samples) at {time.time() - start:.0f} s", flush=True)
     if not args.no_weights:  # on every 2nd recording (the script's own default) unless --every thinned them
         fit_class_weights.fit(args.ctl, args.lovo, files if args.every > 1 else files[::2], args.out, jobs=args.jobs,
-                              weights=fit_class_weights.TRAINING_WEIGHTS, holds=fit_class_weights.TRAINING_HOLDS)
+                              weights=fit_class_weights.TRAINING_WEIGHTS, holds=fit_class_weights.TRAINING_HOLDS,
+                              chains=fit_class_weights.CHAINS)
         print(f"train_classifier: pursuit weights and holds fitted at {time.time() - start:.0f} s", flush=True)
     if args.nested:
         nested_lovo(args, data, names, files, videos, settings2, start)
