@@ -534,11 +534,15 @@ EyeMeasurement EyeDetector::detect(const cv::Mat& image, std::vector<CandidateFi
     const Ellipse winner{found.ellipse.centre + cv::Point2d(kToPublic, kToPublic), found.ellipse.major,
                          found.ellipse.minor, found.ellipse.angle_deg};
     Doubts doubts = found.ok ? doubts_about(std::span(fitted).subspan(first), winner) : Doubts{};
-    // A followed pupil was not weighed against rivals (none were fitted): it keeps the doubt of the
-    // search it follows, else one doubted answer, followed, would become a confident one.
-    if (found.followed) doubts.rival = std::max(doubts.rival, last_rival_);
+    // A followed pupil was weighed against no rival around the iris (none was fitted): it keeps the
+    // doubt of the search its following began with, else one doubted answer, followed, would become
+    // a confident one.
+    if (found.followed) {
+      doubts.rival = std::max(doubts.rival, last_rival_);
+    } else {
+      last_rival_ = doubts.rival;
+    }
     result.followed = found.followed;
-    last_rival_ = doubts.rival;
     report_pupil(found, doubts, settings_.blink_aspect, open_aspect_, result);
     if (found.ok) doubt_size_jumps(result);
 

@@ -130,7 +130,7 @@ class EyeDetector {
   DetectorSettings settings_;
   std::optional<Ellipse> last_pupil_;
   std::optional<Ellipse> last_outer_;  // the candidate last_pupil_ was found inside (search_inside), if it was
-  double last_rival_ = 0;  // the last answer's rival confidence (step 6c), which a followed answer keeps
+  double last_rival_ = 0;  // the last searched answer's rival confidence (step 6c), which followed ones keep
   double last_glint_scale_ = 0;
   // Image of the LED layout's centroid in the last frame with paired glints: with one glint left,
   // the LED it belongs to is the one that keeps the reference where it was.
