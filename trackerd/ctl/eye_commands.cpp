@@ -406,8 +406,9 @@ Command add_detect_pupil_command(CLI::App& app) {
       ->check(CLI::IsMember({1, 2, 4}))
       ->capture_default_str();
   detect_pupil->add_flag("--track", o->track,
-                         "treat the images as consecutive video frames: search near the last pupil first "
-                         "(default: every image on its own)");
+                         "treat the images as consecutive video frames: search near the last pupil first, and "
+                         "for a pupil found inside a dark iris inside such an iris around it (default: every "
+                         "image on its own)");
   return {detect_pupil, [o] { return cmd_detect_pupil(o->images, o->out, o->force, o->leds, o->downscale, o->track); }};
 }
 
