@@ -574,6 +574,35 @@ TEST(Classify, GbtsHoldTurnsOnlyFixationsBeforeAPursuitIntoItsStart) {
   EXPECT_GT(changed, 0u) << "no onset moved: the test shows nothing";
 }
 
+// Where a tracker's clock starts must not move a label: its timestamps are doubles in seconds, so
+// a neighbour exactly 8 ms (or 10, 32, 40 ms) away comes out a hair over or under it depending on
+// the clock's origin, and windows that took such a sample or not at random moved a saccade's edges
+// by a sample (pipeline.h kTimeSlackS, context.h kContextSlackS).
+TEST(Classify, LabelsDoNotDependOnWhereTheClockStarts) {
+  for (const double rate : {250.0, 1000.0}) {
+    const Labelled d = synthetic(rate, 10, 11);
+    for (const std::string& method : method_names()) {
+      for (const bool offline : {false, true}) {
+        if (offline && method != "gbt") continue;
+        ClassifierOptions o;
+        o.nominal_rate_hz = rate;
+        o.offline = offline;
+        const auto reference = classify_all(method, o, d.samples);
+        for (const double origin : {0.1, 1000.003, 86400.77}) {
+          std::vector<Sample> shifted = d.samples;
+          for (Sample& s : shifted) s.t_s += origin;
+          const auto labels = classify_all(method, o, shifted);
+          ASSERT_EQ(labels.size(), reference.size());
+          std::size_t moved = 0;
+          for (std::size_t i = 0; i < labels.size(); ++i) moved += labels[i] != reference[i];
+          EXPECT_EQ(moved, 0u) << method << (offline ? " offline" : "") << " at " << rate << " Hz, the clock from "
+                               << origin << " s";
+        }
+      }
+    }
+  }
+}
+
 TEST(Classify, ThePsosSlowSwingBackIsPsoToo) {
   // A pupil-based tracker's PSO overshoots and returns (Hooge et al. 2015): here the eye lands
   // 0.4 deg beyond the target and comes back within ~50 ms, slower than the landing itself, so the

@@ -26,13 +26,13 @@ std::size_t at(const std::string& name) {
   return static_cast<std::size_t>(it - names.begin());
 }
 
-// 250 Hz for `n` samples; p_fixation = i / 1000 (so a window's mean is its middle sample's), and
-// no gaze at the samples in `lost`.
-std::deque<ContextSample> stream(std::size_t n, const std::vector<std::size_t>& lost = {}) {
+// 250 Hz for `n` samples from `origin` s; p_fixation = i / 1000 (so a window's mean is its middle
+// sample's), and no gaze at the samples in `lost`.
+std::deque<ContextSample> stream(std::size_t n, const std::vector<std::size_t>& lost = {}, double origin = 10.0) {
   std::deque<ContextSample> buf;
   for (std::size_t i = 0; i < n; ++i) {
     ContextSample s;
-    s.t = 10.0 + static_cast<double>(i) * 0.004;
+    s.t = origin + static_cast<double>(i) * 0.004;
     s.gaze = std::find(lost.begin(), lost.end(), i) == lost.end();
     s.p[0] = static_cast<double>(i) / 1000.0;
     s.p[1] = 1 - s.p[0];
@@ -78,6 +78,36 @@ TEST(Context, OffsetsAndWindowsReadTheRightSamples) {
   EXPECT_NEAR(f[at("mean_saccade_p128ms")], 1 - 0.2165, 1e-6);  // 201..232
   EXPECT_FLOAT_EQ(f[at("gaze_m512ms")], 1.0f);
   EXPECT_FLOAT_EQ(f[at("speed_c_4ms")], 0.25f);  // the frame features ride along
+}
+
+// A sample exactly D or D/2 away, or at a window's edge, is the same sample whatever the clock's
+// origin (the times are doubles: 32 ms is 0.032000000000001 s from one origin, 0.031999999999998
+// from another).
+TEST(Context, TheEdgesDoNotDependOnWhereTheClockStarts) {
+  const auto reference = stream(400, {}, 0.0);
+  for (const double origin : {0.1, 10.0, 1000.003, 86400.77}) {
+    const auto buf = stream(400, {}, origin);
+    for (std::size_t i = 0; i < buf.size(); i += 7) {
+      const auto want = features_of(reference, i, kContextReachS), got = features_of(buf, i, kContextReachS);
+      for (std::size_t k = 0; k < want.size(); ++k) {
+        if (std::isnan(want[k])) {
+          ASSERT_TRUE(std::isnan(got[k])) << "sample " << i << " from " << origin << " s: " << k;
+        } else {
+          ASSERT_NEAR(got[k], want[k], 1e-6) << "sample " << i << " from " << origin << " s: " << k;
+        }
+      }
+    }
+  }
+  // Half of D away is not within (D/2, D]: with 4 ms between samples and the one 8 ms back missing
+  // from the stream, the one 4 ms back is no stand-in for it, from any origin.
+  for (const double origin : {0.0, 0.1, 10.0, 1000.003, 86400.77}) {
+    std::deque<ContextSample> gap = stream(30, {}, origin);
+    gap.erase(gap.begin() + 18);
+    std::deque<ContextSample> rebuilt;  // the running totals again, without it
+    for (ContextSample s : gap) push_context(rebuilt, s, kK);
+    EXPECT_TRUE(std::isnan(features_of(rebuilt, 19, kContextReachS)[at("p_fixation_m8ms")])) << origin;
+    EXPECT_FLOAT_EQ(features_of(rebuilt, 19, kContextReachS)[at("p_fixation_m16ms")], 0.016f) << origin;
+  }
 }
 
 TEST(Context, NothingLooksFurtherAheadThanTheLookAhead) {

@@ -19,8 +19,8 @@ std::size_t first_at_or_after(const std::deque<ContextSample>& buf, double t) {
       std::partition_point(buf.begin(), buf.end(), [t](const ContextSample& s) { return s.t < t; }) - buf.begin());
 }
 
-// The sample d from sample i (d < 0: before): the furthest from i that is at most |d| (and
-// kContextSlackS) away and over |d|/2 away, so never beyond the look-ahead whatever the rate; none
+// The sample d from sample i (d < 0: before): the furthest from i that is at most |d| away and over
+// |d|/2 away (each by more than kContextSlackS), so never beyond the look-ahead whatever the rate; none
 // (buf.size()) where there is no such sample (a pause in the stream, or a rate too low for d).
 // find(t): the first sample at or after t.
 template <class Find>
@@ -34,7 +34,7 @@ std::size_t at_offset(const std::deque<ContextSample>& buf, std::size_t i, doubl
     const std::size_t j = find(t + d - kContextSlackS);  // the first at or after t + d
     if (j < i) k = j;
   }
-  return k < buf.size() && std::abs(buf[k].t - t) > std::abs(d) / 2 ? k : buf.size();
+  return k < buf.size() && std::abs(buf[k].t - t) > std::abs(d) / 2 + kContextSlackS ? k : buf.size();
 }
 
 // The running totals just after sample k (before it plus its own).
@@ -141,9 +141,9 @@ void context_features(const std::deque<ContextSample>& buf, std::size_t i, std::
       if (sign > 0 && !visible(w)) {
         std::fill(o, o + classes + 1, kNaNf);
       } else if (sign < 0) {  // [t - w, t): from the first sample at or after t - w up to this one
-        window(before(buf[find(s.t - w)]), before(s), classes, o);
+        window(before(buf[find(s.t - w - kContextSlackS)]), before(s), classes, o);
       } else {  // (t, t + w]: from the one after this up to the last at or before t + w
-        const std::size_t last = find(std::nextafter(s.t + w, 1e300));
+        const std::size_t last = find(s.t + w + kContextSlackS);
         window(after(s, classes), last < buf.size() ? before(buf[last]) : after(buf.back(), classes), classes, o);
       }
       o += classes + 1;

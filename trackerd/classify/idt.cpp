@@ -50,7 +50,7 @@ class IdtCore final : public Core {
 
  private:
   void try_window(std::vector<Labeled>& out) {
-    while (!window_.empty() && window_.back().t - window_.front().t >= kMinDurationS) {
+    while (!window_.empty() && window_.back().t - window_.front().t >= kMinDurationS - kTimeSlackS) {
       double x0 = window_.front().x, x1 = x0, y0 = window_.front().y, y1 = y0;
       for (const Prepared& q : window_) {
         x0 = std::min(x0, q.x), x1 = std::max(x1, q.x), y0 = std::min(y0, q.y), y1 = std::max(y1, q.y);

@@ -33,7 +33,9 @@ constexpr double kMinFixationS = 0.060;     // Olsen 2012: minimum fixation dura
 
 class IvtCore final : public Core {
  public:
-  double latency_s() const override { return kHalfWindowS + kMinFixationS + kMergeMaxGapS + kMinFixationS; }
+  double latency_s() const override {
+    return kHalfWindowS + kMinFixationS + kMergeMaxGapS + kMinFixationS + 2 * kTimeSlackS;
+  }
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     if (!p.has_gaze()) {
@@ -42,7 +44,9 @@ class IvtCore final : public Core {
       return;
     }
     run_.push_back(p);
-    while (next_ < run_.size() && run_.back().t > run_[next_].t + kHalfWindowS) velocity_for(next_++, out);
+    while (next_ < run_.size() && run_.back().t > run_[next_].t + kHalfWindowS + kTimeSlackS) {
+      velocity_for(next_++, out);
+    }
     trim();
   }
 
@@ -72,9 +76,9 @@ class IvtCore final : public Core {
   void velocity_for(std::size_t i, std::vector<Labeled>& out) {
     const double t = run_[i].t;
     std::size_t a = i, b = i;
-    while (a > 0 && run_[a - 1].t >= t - kHalfWindowS) --a;
+    while (a > 0 && run_[a - 1].t >= t - kHalfWindowS - kTimeSlackS) --a;
     if (a == i && i > 0) a = i - 1;
-    while (b + 1 < run_.size() && run_[b + 1].t <= t + kHalfWindowS) ++b;
+    while (b + 1 < run_.size() && run_[b + 1].t <= t + kHalfWindowS + kTimeSlackS) ++b;
     if (b == i && i + 1 < run_.size()) b = i + 1;
     Label raw = Label::Unknown;
     if (a != b) {
@@ -87,7 +91,7 @@ class IvtCore final : public Core {
   void trim() {
     // Keep what the next window can reach: samples within 10 ms before it, and its left neighbour.
     const double ref = next_ < run_.size() ? run_[next_].t : run_.back().t;
-    while (next_ >= 2 && run_[1].t < ref - kHalfWindowS) {
+    while (next_ >= 2 && run_[1].t < ref - kHalfWindowS - kTimeSlackS) {
       run_.pop_front();
       --next_;
     }
@@ -144,11 +148,11 @@ class IvtCore final : public Core {
           } else {
             pending_.push_back({p.index, raw, Role::G, false});
             phase_ = Phase::InGap;
-            if (p.t - e_.t1 > kMergeMaxGapS) resolve_no_merge();
+            if (p.t - e_.t1 > kMergeMaxGapS + kTimeSlackS) resolve_no_merge();
           }
           break;
         case Phase::InGap:
-          if (!gaze || p.t - e_.t1 > kMergeMaxGapS) {
+          if (!gaze || p.t - e_.t1 > kMergeMaxGapS + kTimeSlackS) {
             resolve_no_merge();
             again = true;
           } else if (fix) {
@@ -156,7 +160,7 @@ class IvtCore final : public Core {
             f2_.add(p);
             pending_.push_back({p.index, Label::Fixation, Role::F2, false});
             phase_ = Phase::InF2;
-            if (f2_.duration() >= kMinFixationS) decide_merge();
+            if (f2_.duration() >= kMinFixationS - kTimeSlackS) decide_merge();
           } else {
             pending_.push_back({p.index, raw, Role::G, false});
           }
@@ -165,7 +169,7 @@ class IvtCore final : public Core {
           if (fix) {
             f2_.add(p);
             pending_.push_back({p.index, Label::Fixation, Role::F2, false});
-            if (f2_.duration() >= kMinFixationS) decide_merge();
+            if (f2_.duration() >= kMinFixationS - kTimeSlackS) decide_merge();
           } else {
             decide_merge();  // the next fixation ended early: decide on what it had
             again = true;
@@ -178,7 +182,7 @@ class IvtCore final : public Core {
 
   // Once the current fixation has lasted the minimum, its samples are final.
   void settle_fixation() {
-    if (e_.duration() >= kMinFixationS) confirmed_ = true;
+    if (e_.duration() >= kMinFixationS - kTimeSlackS) confirmed_ = true;
     if (!confirmed_) return;
     for (auto it = pending_.rbegin(); it != pending_.rend() && it->role == Role::E; ++it) {
       it->decided = true;
@@ -187,7 +191,8 @@ class IvtCore final : public Core {
   }
 
   void finalize_fixation() {
-    const Label l = e_.duration() >= kMinFixationS ? Label::Fixation : Label::Unknown;  // discard short ones
+    // Shorter ones are discarded.
+    const Label l = e_.duration() >= kMinFixationS - kTimeSlackS ? Label::Fixation : Label::Unknown;
     for (Pending& q : pending_) {
       if (q.role != Role::E) continue;
       if (!q.decided) q.label = l;
@@ -231,7 +236,7 @@ class IvtCore final : public Core {
   }
 
   void settle_fixation_all() {
-    if (e_.duration() >= kMinFixationS) confirmed_ = true;
+    if (e_.duration() >= kMinFixationS - kTimeSlackS) confirmed_ = true;
     if (!confirmed_) return;
     for (Pending& q : pending_) {
       if (q.role == Role::E) {

@@ -134,6 +134,12 @@ class Pipeline final : public OnlineClassifier {
 
 inline constexpr double kDegToRad = std::numbers::pi / 180.0;
 inline constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+// The cores' time windows include the samples at their edges, and any within this much past them,
+// and each wait for a window's last sample is as much longer. Times are doubles in seconds, so a
+// neighbour exactly 10 ms away at 1000 Hz (8 ms, 40 ms at 250 Hz) came out a hair inside or outside
+// a window depending on where the tracker's clock started, and labels with it (the windows of the
+// gbt method's own first-stage features have theirs, as it was trained: features.cpp).
+inline constexpr double kTimeSlackS = 1e-6;
 
 // Angle between two gaze directions given as per-axis angles from the screen centre (the same
 // convention as protocol::normalized_to_degrees: the screen point is (tan x, tan y) * distance).

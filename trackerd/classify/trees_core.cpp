@@ -184,14 +184,17 @@ class TreesCore final : public Core {
     }
     if (hold_params_.hold_s > 0) hold_.release(out, all);
     // Keep what the next label's window reaches back to.
-    while (labelled_ > 0 && (labelled_ == scored_.size() || scored_[labelled_].t - scored_.front().t > smooth_long_s_)) {
+    while (labelled_ > 0 &&
+           (labelled_ == scored_.size() || scored_[labelled_].t - scored_.front().t > smooth_long_s_ - kTimeSlackS)) {
       scored_.pop_front();
       --labelled_;
     }
   }
   // How far behind the newest sample a smoothed label is made (before any hold).
   double smoothed_latency_s() const {
-    return reach_ + (staged_ ? lookahead_s_ : 0.0) + (smooth_ ? smooth_long_s_ : 0.0);
+    // Each wait is as long as the sample furthest ahead that its step takes in: the context's up to
+    // its slack past the look-ahead, the smoothing's short of the window's half by its slack.
+    return reach_ + (staged_ ? lookahead_s_ + kContextSlackS : 0.0) + (smooth_ ? smooth_long_s_ - kTimeSlackS : 0.0);
   }
   // A fixation is doubtful where pursuit's weighted mean in the long window comes within
   // the hold's ratio of fixation's: the pursuit may be starting, before its evidence wins.
@@ -206,7 +209,8 @@ class TreesCore final : public Core {
     if (options.pursuit_hold) return *options.pursuit_hold;
     return model_ && context_ ? model_->hold(options.offline) : PursuitHold{};
   }
-  // The mean class probabilities over the samples of j's gaze run within +-half of it.
+  // The mean class probabilities over the samples of j's gaze run less than half away from it: the
+  // windows are open, so the labels wait for no sample beyond the window's half (kTimeSlackS).
   // The classes past `classes` stay 0.
   void window_mean(std::size_t j, double half, std::size_t classes, std::array<double, kMaxTreeClasses>& mean) const {
     const Scored& c = scored_[j];
@@ -216,8 +220,9 @@ class TreesCore final : public Core {
       n += 1;
     };
     add(c);
-    for (std::size_t k = j; k-- > 0 && scored_[k].run == c.run && c.t - scored_[k].t <= half;) add(scored_[k]);
-    for (std::size_t k = j + 1; k < scored_.size() && scored_[k].run == c.run && scored_[k].t - c.t <= half; ++k) {
+    const double reach = half - kTimeSlackS;
+    for (std::size_t k = j; k-- > 0 && scored_[k].run == c.run && c.t - scored_[k].t <= reach;) add(scored_[k]);
+    for (std::size_t k = j + 1; k < scored_.size() && scored_[k].run == c.run && scored_[k].t - c.t <= reach; ++k) {
       add(scored_[k]);
     }
     for (std::size_t k = 0; k < classes; ++k) mean[k] /= n;

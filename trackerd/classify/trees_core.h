@@ -25,7 +25,10 @@ inline constexpr double kNoiseNearLossS = 0.100;
 // fixation into many events. A saccade is called where the class probabilities averaged over
 // +-kSmoothShortS make it the most likely (saccades are short); any other class by the average over
 // +-kSmoothLongS. Measured on held-out GazeCom videos: event F1 0.65 / 0.87 / 0.08 -> 0.89 / 0.93 /
-// 0.38 (fixation / saccade / pursuit) at no cost in sample F1.
+// 0.38 (fixation / saccade / pursuit) at no cost in sample F1. The windows are open: a sample
+// exactly that far away is out (kTimeSlackS), so no label waits for a sample beyond them (at
+// 250 Hz: +-1 and +-3 samples online; closed windows, +-2 and +-4, made each label wait 4 ms more
+// for 0.001-0.002 less saccade F1 and 0.004-0.011 more saccade event F1, bench/RESULTS.md).
 inline constexpr double kSmoothShortS = 0.008;
 inline constexpr double kSmoothLongS = 0.048;
 // After a second stage (whose context already spans +-512 ms) the long window is shorter, so the
