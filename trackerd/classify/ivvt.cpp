@@ -79,7 +79,7 @@ struct Fit {
 
 class IvvtCore final : public Core {
  public:
-  double latency_s() const override { return kVelHalfS + kSmoothHalfS + kPursuitLookS + 3 * kTimeSlackS; }
+  double latency_s() const override { return kVelHalfS + kSmoothHalfS + kPursuitLookS - 3 * kTimeSlackS; }
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     Entry e;
@@ -95,7 +95,7 @@ class IvvtCore final : public Core {
       vel_next_ = count_;
       break_upto_ = count_;
     } else {
-      while (vel_next_ < count_ && at(vel_next_).p.t + kVelHalfS + kTimeSlackS < newest_t_) {
+      while (vel_next_ < count_ && at(vel_next_).p.t + kVelHalfS - kTimeSlackS < newest_t_) {
         compute_velocity(vel_next_++);
       }
     }
@@ -161,9 +161,9 @@ class IvvtCore final : public Core {
     if (!e.p.has_gaze()) return;
     const double t = e.p.t;
     std::uint64_t a = k, b = k;
-    while (a > base_ && gaze(a - 1) && at(a - 1).p.t >= t - kVelHalfS - kTimeSlackS) --a;
+    while (a > base_ && gaze(a - 1) && at(a - 1).p.t >= t - kVelHalfS + kTimeSlackS) --a;
     if (a == k && a > base_ && gaze(a - 1)) --a;
-    while (b + 1 < count_ && gaze(b + 1) && at(b + 1).p.t <= t + kVelHalfS + kTimeSlackS) ++b;
+    while (b + 1 < count_ && gaze(b + 1) && at(b + 1).p.t <= t + kVelHalfS - kTimeSlackS) ++b;
     if (b == k && b + 1 < count_ && gaze(b + 1)) ++b;
     add_noise_residual(k);
     e.sigma = sigma_;
@@ -189,7 +189,7 @@ class IvvtCore final : public Core {
     residuals_.push_back({p1.t, std::abs(off.x) / c});
     residuals_.push_back({p1.t, std::abs(off.y) / c});
     while (!residuals_.empty() &&
-           (residuals_.front().first < p1.t - kNoiseWindowS - kTimeSlackS || residuals_.size() > kNoiseMaxResiduals)) {
+           (residuals_.front().first < p1.t - kNoiseWindowS + kTimeSlackS || residuals_.size() > kNoiseMaxResiduals)) {
       residuals_.pop_front();
     }
     if (residuals_.size() >= 16 && ++since_update_ >= std::max<std::size_t>(1, residuals_.size() / 32)) {
@@ -230,7 +230,7 @@ class IvvtCore final : public Core {
     const double peak_thr = std::max(kPeakFloorDegS, kPeakK * e.sv);
     const double onset_thr = kOnsetRatio * peak_thr;
     if (state_ == State::Pso) {
-      if (e.p.t > pso_end_t_ + kTimeSlackS) {
+      if (e.p.t > pso_end_t_ - kTimeSlackS) {
         close_pso();  // window over: handled below as idle
       } else {
         // Fast oscillations count too (N&H 2010's "high-velocity PSO"): no saccade follows
@@ -293,8 +293,8 @@ class IvvtCore final : public Core {
     const double t = e.p.t;
     std::uint64_t a = f, b = f;
     const auto usable = [&](std::uint64_t j) { return gaze(j) && !at(j).marked; };
-    while (a > base_ && usable(a - 1) && at(a - 1).p.t >= t - kSmoothHalfS - kTimeSlackS) --a;
-    while (b + 1 < vel_next_ && usable(b + 1) && at(b + 1).p.t <= t + kSmoothHalfS + kTimeSlackS) ++b;
+    while (a > base_ && usable(a - 1) && at(a - 1).p.t >= t - kSmoothHalfS + kTimeSlackS) --a;
+    while (b + 1 < vel_next_ && usable(b + 1) && at(b + 1).p.t <= t + kSmoothHalfS - kTimeSlackS) ++b;
     if (b - a + 1 < 3) return;
     const Fit fw = fit(a, b);
     if (!(fw.stt > 0)) return;
@@ -303,7 +303,7 @@ class IvvtCore final : public Core {
     e.moving = std::hypot(w.x, w.y) > threshold;
     e.s_dir = direction(fw.mx + fw.vx * (t - fw.mt), fw.my + fw.vy * (t - fw.mt));  // per-axis angles, as the samples
     e.dx = w.x, e.dy = w.y;
-    e.cut_left = a > base_ && at(a - 1).marked && at(a).p.t > t - kSmoothHalfS + kTimeSlackS;
+    e.cut_left = a > base_ && at(a - 1).marked && at(a - 1).p.t > t - kSmoothHalfS + kTimeSlackS;  // within it
   }
 
   // Step 2, per sample in order: fixation or pursuit; nullopt while the look-ahead is incomplete.
@@ -339,7 +339,7 @@ class IvvtCore final : public Core {
     if (run_confirmed_) return Label::Pursuit;
     for (std::uint64_t j = f; j < count_; ++j) {
       const Entry& q = at(j);
-      if (q.p.t > e.p.t + kPursuitLookS + kTimeSlackS) return Label::Fixation;
+      if (q.p.t > e.p.t + kPursuitLookS - kTimeSlackS) return Label::Fixation;
       if (!q.smoothed) return flushing ? std::optional<Label>(Label::Fixation) : std::nullopt;
       if (!q.moving) return Label::Fixation;  // the run ended within a fixation's range
       if (q.s_dir.dot(run_start_) <= kCosPursuitRange) {  // the angle between them >= kPursuitRangeDeg
@@ -360,9 +360,9 @@ class IvvtCore final : public Core {
     while (smooth_next_ < vel_next_) {
       const Entry& e = at(smooth_next_);
       const bool ready =
-          flushing || smooth_next_ < break_upto_ || newest_t_ > e.p.t + kSmoothHalfS + kVelHalfS + 2 * kTimeSlackS;
+          flushing || smooth_next_ < break_upto_ || newest_t_ > e.p.t + kSmoothHalfS + kVelHalfS - 2 * kTimeSlackS;
       if (!ready) break;
-      if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS + 2 * kTimeSlackS) close_pso();
+      if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS - 2 * kTimeSlackS) close_pso();
       smooth(smooth_next_++);
     }
     while (fin_next_ < smooth_next_) {
@@ -389,7 +389,7 @@ class IvvtCore final : public Core {
   void trim() {
     // Keep the pursuit window's history before the next sample to finalize (and its velocity window).
     const double ref = fin_next_ < count_ ? at(fin_next_).p.t : newest_t_;
-    while (base_ + 1 < fin_next_ && buf_[1].p.t < ref - kSmoothHalfS - kVelHalfS - 2 * kTimeSlackS) {
+    while (base_ + 1 < fin_next_ && buf_[1].p.t < ref - kSmoothHalfS - kVelHalfS + 2 * kTimeSlackS) {
       buf_.pop_front();
       ++base_;
     }

@@ -134,11 +134,15 @@ class Pipeline final : public OnlineClassifier {
 
 inline constexpr double kDegToRad = std::numbers::pi / 180.0;
 inline constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-// The cores' time windows include the samples at their edges, and any within this much past them,
-// and each wait for a window's last sample is as much longer. Times are doubles in seconds, so a
-// neighbour exactly 10 ms away at 1000 Hz (8 ms, 40 ms at 250 Hz) came out a hair inside or outside
-// a window depending on where the tracker's clock started, and labels with it (the windows of the
-// gbt method's own first-stage features have theirs, as it was trained: features.cpp).
+// Times are doubles in seconds, so a neighbour exactly 10 ms away at 1000 Hz (8 ms, 40 ms at
+// 250 Hz) came out a hair nearer or further depending on where the tracker's clock started, and a
+// window took it or not, and labels moved with it. So times are compared with this slack. ivvt's
+// and gbt's smoothing windows (+-h around a sample, or the span h after one: ivvt's PSO and pursuit
+// look-ahead) are open, a sample h away out, and nothing waits for a sample beyond them (on the
+// EyeLink set ivvt's fixation+saccade kappa is 0.840 so, 0.830 with closed ones, 0.833 with edges
+// at random); ivt's 20 ms velocity window spans 20 ms (edges in, as Olsen 2012 counts it), and a
+// duration a run must reach or stay within (ivt's, idt's) passes at exactly D. (gbt's first-stage
+// features have their own, as the model was trained: features.cpp; its context's are closed.)
 inline constexpr double kTimeSlackS = 1e-6;
 
 // Angle between two gaze directions given as per-axis angles from the screen centre (the same
