@@ -189,6 +189,28 @@ TEST(Classify, FixationWithShortGapIsFilled) {
   EXPECT_EQ(share(l, index_at(s, 0.3), index_at(s, 0.35), Label::Lost), 1.0);
 }
 
+// A gap of exactly the fill-in's 75 ms is bridged whatever the clock's origin (pipeline.h
+// kTimeSlackS); 1 ms more is not.
+TEST(Classify, AGapOfExactlyTheFillInsLimitIsBridgedFromAnyClock) {
+  Script sc;
+  sc.rate = 1000;
+  const auto still = sample(sc, 0.6, [](double) { return std::pair{2.0, -1.0}; });
+  const std::size_t last = index_at(still, 0.3);
+  for (const double origin : {0.0, 0.1, 1000.003, 86400.77}) {
+    for (const std::size_t gap_ms : {75u, 76u}) {
+      auto s = still;
+      for (Sample& x : s) x.t_s += origin;
+      for (std::size_t i = last + 1; i < last + gap_ms; ++i) {
+        s[i].valid = false;
+        s[i].x_deg = s[i].y_deg = kNaN;
+      }
+      const auto l = classify_all("ivvt", 1000, s);
+      const Label want = gap_ms == 75 ? Label::Fixation : Label::Blink;
+      EXPECT_EQ(share(l, last + 1, last + gap_ms, want), 1.0) << gap_ms << " ms from " << origin << " s";
+    }
+  }
+}
+
 TEST(Classify, LongerLossIsBlinkThenLost) {
   Script sc;
   sc.rate = 250;

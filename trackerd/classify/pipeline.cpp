@@ -8,7 +8,7 @@ namespace fovea::trackerd::classify {
 Prepared::Kind Frontend::loss_kind(double t, bool aspect_blink, bool artifact) const {
   if (aspect_blink) return Prepared::Kind::Blink;  // direct evidence: the lid covers the pupil
   if (artifact) return Prepared::Kind::Lost;       // the tracker saw something, not an eye
-  if (o_.loss_blink_max_s > 0 && have_valid_ && t - last_valid_.t <= o_.loss_blink_max_s) return Prepared::Kind::Blink;
+  if (o_.loss_blink_max_s > 0 && have_valid_ && t - last_valid_.t <= o_.loss_blink_max_s + kTimeSlackS) return Prepared::Kind::Blink;
   return Prepared::Kind::Lost;
 }
 
@@ -43,7 +43,7 @@ void Frontend::push(std::uint64_t index, const Sample& s, const Emit& emit) {
     if (!held_.empty()) {
       // Held samples are only ever a run that may still be bridged (see below): bridge it if this
       // sample closes it in time, otherwise it is a loss.
-      if (t - last_valid_.t <= o_.gap_fill_max_s) {
+      if (t - last_valid_.t <= o_.gap_fill_max_s + kTimeSlackS) {  // a gap of exactly the most is bridged
         const double span = t - last_valid_.t;
         for (Held& h : held_) {
           const double f = (h.p.t - last_valid_.t) / span;  // Olsen 2012 §2.4: linear interpolation
@@ -63,7 +63,8 @@ void Frontend::push(std::uint64_t index, const Sample& s, const Emit& emit) {
     return;
   }
   Held h{Prepared{index, t, 0, 0, Prepared::Kind::Lost}, aspect_blink, direction};
-  const bool may_fill = have_valid_ && o_.gap_fill_max_s > 0 && !aspect_blink && t - last_valid_.t <= o_.gap_fill_max_s;
+  const bool may_fill = have_valid_ && o_.gap_fill_max_s > 0 && !aspect_blink &&
+                        t - last_valid_.t <= o_.gap_fill_max_s + kTimeSlackS;
   if (may_fill) {
     held_.push_back(h);
     return;

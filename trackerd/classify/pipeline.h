@@ -23,6 +23,18 @@
 
 namespace fovea::trackerd::classify {
 
+// Times are doubles in seconds, so a neighbour exactly 10 ms away at 1000 Hz (8 ms, 40 ms at
+// 250 Hz) came out a hair nearer or further depending on where the tracker's clock started, and a
+// window took it or not, and labels moved with it. So times are compared with this slack. ivvt's
+// and gbt's smoothing windows (+-h around a sample, or the span h after one: ivvt's PSO and pursuit
+// look-ahead) are open, a sample h away out, and nothing waits for a sample beyond them (on the
+// EyeLink set ivvt's fixation+saccade kappa is 0.840 so, 0.830 with closed ones, 0.833 with edges
+// at random); ivt's 20 ms velocity window spans 20 ms (edges in, as Olsen 2012 counts it), and a
+// duration a run must reach or stay within (ivt's, idt's; the fill-in's 75 ms gap, a blink's 0.5 s)
+// passes at exactly D. (gbt's first-stage features have their own, as the model was trained:
+// features.cpp; its context's windows are closed.)
+inline constexpr double kTimeSlackS = 1e-6;
+
 struct Prepared {
   enum class Kind : std::uint8_t { Gaze, Filled, Blink, Lost };
   std::uint64_t index = 0;
@@ -77,7 +89,7 @@ class Frontend {
   explicit Frontend(FrontendOptions o) : o_(o) {}
   void push(std::uint64_t index, const Sample& s, const Emit& emit);  // s.t_s already accepted
   void flush(const Emit& emit);
-  double latency_s() const { return o_.gap_fill_max_s; }
+  double latency_s() const { return o_.gap_fill_max_s + kTimeSlackS; }  // a gap of exactly the most is held
 
  private:
   Prepared::Kind loss_kind(double t, bool aspect_blink, bool artifact) const;
@@ -134,16 +146,6 @@ class Pipeline final : public OnlineClassifier {
 
 inline constexpr double kDegToRad = std::numbers::pi / 180.0;
 inline constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-// Times are doubles in seconds, so a neighbour exactly 10 ms away at 1000 Hz (8 ms, 40 ms at
-// 250 Hz) came out a hair nearer or further depending on where the tracker's clock started, and a
-// window took it or not, and labels moved with it. So times are compared with this slack. ivvt's
-// and gbt's smoothing windows (+-h around a sample, or the span h after one: ivvt's PSO and pursuit
-// look-ahead) are open, a sample h away out, and nothing waits for a sample beyond them (on the
-// EyeLink set ivvt's fixation+saccade kappa is 0.840 so, 0.830 with closed ones, 0.833 with edges
-// at random); ivt's 20 ms velocity window spans 20 ms (edges in, as Olsen 2012 counts it), and a
-// duration a run must reach or stay within (ivt's, idt's) passes at exactly D. (gbt's first-stage
-// features have their own, as the model was trained: features.cpp; its context's are closed.)
-inline constexpr double kTimeSlackS = 1e-6;
 
 // Angle between two gaze directions given as per-axis angles from the screen centre (the same
 // convention as protocol::normalized_to_degrees: the screen point is (tan x, tan y) * distance).
