@@ -35,10 +35,11 @@ namespace fovea::trackerd::classify {
 inline constexpr std::array<double, 7> kContextOffsetsS = {0.008, 0.016, 0.032, 0.064, 0.128, 0.256, 0.512};
 inline constexpr std::array<double, 3> kContextWindowsS = {0.032, 0.128, 0.512};
 inline constexpr double kContextReachS = 0.512;
-// Times within this of each other count as one: a sample 32 ms after another at 250 Hz is
-// 0.032000000000001 s after it, as the times are summed, and the online stage must take it as the
-// one 32 ms ahead, as the offline stage does (it waits this much longer for it to be scored).
-inline constexpr double kContextSlackS = 1e-6;
+// The classifiers' time slack (pipeline.h): a sample 32 ms after another at 250 Hz may be
+// 0.032000000000001 s after it, and the online stage must take it as the one 32 ms ahead, as the
+// offline stage does (it waits this much longer for it to be scored). The context's windows are
+// closed: a sample exactly a window's length away is in.
+inline constexpr double kContextSlackS = kTimeSlackS;
 inline constexpr std::size_t kMaxContextFeatures =
     kMaxTreeClasses * (1 + 2 * kContextOffsetsS.size() + 2 * kContextWindowsS.size()) + 2 * kContextWindowsS.size() +
     kFeatureCount;
