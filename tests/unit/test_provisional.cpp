@@ -123,6 +123,38 @@ TEST(Provisional, OnTheSyntheticViewerItIsFastAndRarelyWrong) {
   }
 }
 
+// Its windows (velocity, landing hold, walk-back, refractory, the longest saccade) compare times
+// with pipeline.h's slack, so a sample exactly a window away is in or out whatever the clock's
+// origin: the events move with the clock and nothing else. Before, at 250 Hz the landing's 4 ms
+// hold passed after one sample or two depending on the origin.
+TEST(Provisional, EventsDoNotDependOnWhereTheClockStarts) {
+  for (const double rate : {250.0, 500.0, 1000.0}) {
+    LabelledGaze l = synthetic_labelled(rate, 20, 7);
+    Degradation d;
+    d.extra_noise_deg = 0.05;
+    degrade(l.samples, d);
+    std::vector<Sample> from_zero = l.samples;
+    const double first = from_zero.front().t_s;
+    for (Sample& s : from_zero) s.t_s -= first;
+    const auto reference = provisional_events(from_zero);
+    ASSERT_GT(reference.size(), 20u);
+    for (const double origin : {0.1, 1000.003, 86400.77}) {
+      std::vector<Sample> shifted = from_zero;
+      for (Sample& s : shifted) s.t_s += origin;
+      const auto events = provisional_events(shifted);
+      ASSERT_EQ(events.size(), reference.size()) << rate << " Hz, the clock from " << origin << " s";
+      std::size_t moved = 0;
+      for (std::size_t i = 0; i < events.size(); ++i) {
+        const auto& a = events[i];
+        const auto& b = reference[i];
+        moved += a.kind != b.kind || a.phase != b.phase || std::abs(a.t_s - origin - b.t_s) > 1e-7 ||
+                 std::abs(a.emitted_s - origin - b.emitted_s) > 1e-7;
+      }
+      EXPECT_EQ(moved, 0u) << rate << " Hz, the clock from " << origin << " s";
+    }
+  }
+}
+
 // A fixation after a saccade's PSO (as the realistic generator's truth has them) is timed from the
 // landing, the saccade's end, as the human coder's are: not skipped.
 TEST(Provisional, AFixationAfterAPsoIsTimedFromTheLanding) {

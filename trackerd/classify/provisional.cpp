@@ -42,7 +42,9 @@ void ProvisionalDetector::push(const Sample& s, std::vector<ProvisionalEvent>& o
     if (jump > o_.min_artifact_jump_deg && jump / (s.t_s - prev.t) > o_.max_eye_speed_deg_s) return;
   }
   recent_.push_back(Point{s.t_s, s.x_deg, s.y_deg, 0});
-  while (recent_.size() > 3 && recent_.front().t < s.t_s - o_.walk_back_s - o_.window_s) recent_.pop_front();
+  while (recent_.size() > 3 && recent_.front().t < s.t_s - o_.walk_back_s - o_.window_s - kTimeSlackS) {
+    recent_.pop_front();
+  }
   if (recent_.size() < 2) return;
   Point& p = recent_.back();
   velocity(p);
@@ -55,7 +57,7 @@ void ProvisionalDetector::advance(const Point& p, double prev_v, std::vector<Pro
   const double t = threshold_;
   switch (state_) {
     case State::Quiet:
-      if (p.v > t && !(have_landing_ && p.t - last_landing_t_ < o_.refractory_s)) {
+      if (p.v > t && !(have_landing_ && p.t - last_landing_t_ < o_.refractory_s - kTimeSlackS)) {
         crossing_ = p;
         if (p.v > 2 * t) {
           start_saccade(crossing_, p.t, out);
@@ -74,7 +76,7 @@ void ProvisionalDetector::advance(const Point& p, double prev_v, std::vector<Pro
       break;
     case State::InSaccade:
     case State::Landing:
-      if (p.t - onset_.t > o_.max_saccade_s) {
+      if (p.t - onset_.t > o_.max_saccade_s + kTimeSlackS) {
         state_ = State::Blocked;
       } else if (state_ == State::InSaccade && p.v < t / 2) {
         landing_ = p;
@@ -86,7 +88,7 @@ void ProvisionalDetector::advance(const Point& p, double prev_v, std::vector<Pro
       } else if (p.v >= std::max(t, peak_ / 2)) {
         state_ = State::InSaccade;  // still moving (or the landing did not hold)
       }
-      if (state_ == State::Landing && p.t - landing_.t >= o_.hold_s) land(p.t, out);
+      if (state_ == State::Landing && p.t - landing_.t >= o_.hold_s - kTimeSlackS) land(p.t, out);
       peak_ = std::max(peak_, p.v);
       break;
     case State::Blocked:
@@ -98,7 +100,7 @@ void ProvisionalDetector::advance(const Point& p, double prev_v, std::vector<Pro
 void ProvisionalDetector::velocity(Point& newest) {
   // Least-squares slope over the trailing window (at least the last two points).
   std::size_t first = recent_.size() - 2;
-  while (first > 0 && recent_[first - 1].t >= newest.t - o_.window_s) --first;
+  while (first > 0 && recent_[first - 1].t >= newest.t - o_.window_s - kTimeSlackS) --first;
   double mt = 0, mx = 0, my = 0;
   const std::size_t n = recent_.size() - first;
   for (std::size_t j = first; j < recent_.size(); ++j) mt += recent_[j].t, mx += recent_[j].x, my += recent_[j].y;
@@ -123,7 +125,8 @@ void ProvisionalDetector::add_quiet_speed(const Point& p) {
   // taken from second differences then underestimates the slow part that a 10 ms slope keeps).
   speeds_.push_back(p.v);
   speed_t_.push_back(p.t);
-  while (!speed_t_.empty() && (speed_t_.front() < p.t - kNoiseWindowS || speeds_.size() > kNoiseMaxSpeeds)) {
+  while (!speed_t_.empty() &&
+         (speed_t_.front() < p.t - kNoiseWindowS - kTimeSlackS || speeds_.size() > kNoiseMaxSpeeds)) {
     speed_t_.pop_front();
     speeds_.pop_front();
   }
@@ -144,7 +147,7 @@ void ProvisionalDetector::start_saccade(const Point& crossing, double emitted_s,
   // earliest one kept.
   onset_ = crossing;
   for (auto it = recent_.rbegin(); it != recent_.rend(); ++it) {
-    if (it->t >= crossing.t || it->t < crossing.t - o_.walk_back_s) continue;
+    if (it->t >= crossing.t || it->t < crossing.t - o_.walk_back_s - kTimeSlackS) continue;
     onset_ = *it;
     if (it->v < threshold_ / 2) break;
   }
@@ -186,7 +189,7 @@ void ProvisionalDetector::land(double emitted_s, std::vector<ProvisionalEvent>& 
 
 void ProvisionalCheck::final_event(Label kind, Phase phase, double t_s) {
   for (auto it = pending_.begin(); it != pending_.end(); ++it) {
-    if (it->kind == kind && it->phase == phase && std::abs(it->t_s - t_s) <= tolerance_s_) {
+    if (it->kind == kind && it->phase == phase && std::abs(it->t_s - t_s) <= tolerance_s_ + kTimeSlackS) {
       pending_.erase(it);
       ++confirmed_;
       return;
@@ -196,7 +199,7 @@ void ProvisionalCheck::final_event(Label kind, Phase phase, double t_s) {
 
 void ProvisionalCheck::final_upto(double t_s, std::vector<ProvisionalEvent>& retracted) {
   for (auto it = pending_.begin(); it != pending_.end();) {
-    if (it->t_s + tolerance_s_ < t_s) {
+    if (it->t_s + tolerance_s_ + kTimeSlackS < t_s) {
       retracted.push_back(*it);
       ++retracted_;
       it = pending_.erase(it);
