@@ -18,7 +18,7 @@
 
   const state = {
     connected: false, samples: 0, gaze: null, label: 'unknown', valid: false, eye_frames: 0, pupil: null,
-    confidence: null, detect_ms: null, controls: false, events: 0, provisional_events: 0, last_event: null,
+    confidence: null, detect_ms: null, eye_t_ms: null, controls: false, events: 0, provisional_events: 0, last_event: null,
     status: {}, daemon: {}, latency: { p50_ms: null, p99_ms: null, count: 0 }, eye_latency: { p50_ms: null, p99_ms: null, count: 0 },
     measured_rate_hz: null, last_reply: null, errors: 0, labels_seen: {},
   };
@@ -109,6 +109,7 @@
       if (eye && eye.bitmap) eye.bitmap.close();
       eye = { bitmap, meta };
       state.eye_frames += 1;
+      if (state.eye_t_ms === null || meta.t_ms > state.eye_t_ms) state.eye_t_ms = meta.t_ms;
       state.pupil = meta.pupil ? { x: meta.pupil[0], y: meta.pupil[1] } : null;
       state.confidence = meta.confidence;
       state.detect_ms = meta.detect_ms;

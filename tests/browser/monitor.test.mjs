@@ -107,10 +107,13 @@ async function main() {
     const b = await state();
     const seconds = (b.at - a.at) / 1000;
     check(b.eye_frames > a.eye_frames, 'the eye image updates', `${a.eye_frames} -> ${b.eye_frames} frames`);
-    // At most 30 Hz from the daemon (a sanitizer build's daemon renders the synthetic eye slower).
-    const eyeRate = (b.eye_frames - a.eye_frames) / seconds;
-    check(eyeRate >= 5 && eyeRate <= 33, 'eye images arrive, at most 30 a second',
-      `${b.eye_frames - a.eye_frames} in ${seconds.toFixed(2)} s`);
+    // At most 30 Hz from the daemon (a sanitizer build's daemon renders the synthetic eye slower),
+    // counted over the frames' own capture times: by the page's clock a backlog that a loaded
+    // machine delivers at once after a stall reads as a burst (69 in 2.02 s once, in CI).
+    const eyeSeconds = (b.eye_t_ms - a.eye_t_ms) / 1000;
+    const eyeRate = (b.eye_frames - a.eye_frames) / eyeSeconds;
+    check(eyeSeconds > 0.5 && eyeRate >= 5 && eyeRate <= 33, 'eye images arrive, at most 30 a second',
+      `${b.eye_frames - a.eye_frames} frames captured over ${eyeSeconds.toFixed(2)} s (read ${seconds.toFixed(2)} s apart)`);
     check(b.pupil !== null && b.confidence > 0.5, 'the pupil is found and drawn', JSON.stringify(b.pupil));
     // 120 Hz from a release daemon; a sanitizer build's renders the synthetic eye at about 25 Hz
     // alone and 13 Hz beside the rest of its suite (ctest -j): at least 5 Hz, as the eye images.
