@@ -107,7 +107,7 @@ phase "asan+ubsan build and tests"
 
 if command -v clang++ >/dev/null 2>&1; then
   echo "=== libFuzzer: configure + build"
-  if cmake --preset fuzz >/dev/null && cmake --build build/fuzz -j "$JOBS" --target fuzz_decoder fuzz_recording fuzz_hid_descriptor fuzz_control_request fuzz_open_gaze fuzz_pupil_payload fuzz_gltf; then
+  if cmake --preset fuzz >/dev/null && cmake --build build/fuzz -j "$JOBS" --target fuzz_decoder fuzz_recording fuzz_hid_descriptor fuzz_control_request fuzz_open_gaze fuzz_pupil_payload fuzz_gltf fuzz_gbt_trees; then
     log=$(mktemp)
     ctest --test-dir build/fuzz -R libfuzzer -j "$JOBS" --output-on-failure 2>&1 | tee "$log"
     rc=${PIPESTATUS[0]}
