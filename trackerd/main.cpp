@@ -167,7 +167,7 @@ void add_processing_and_run_options(CLI::App& app, Flags& f) {
   f.o_classifier_pso = app.add_option("--classifier-pso", f.classifier_pso,
                                       "gbt: separate (default): post-saccadic oscillations labelled apart, by ivvt's "
                                       "rule beside the trees; none: no PSO class, the oscillation where GazeCom's "
-                                      "coders put it (within the saccade's end or the fixation), labels final sooner")
+                                      "coders put it (within the saccade's end or the fixation), cheaper")
                            ->check(CLI::IsMember({"separate", "none"}));
   f.o_classifier_pursuit_weight =
       app.add_option("--classifier-pursuit-weight", f.classifier_pursuit_weight,

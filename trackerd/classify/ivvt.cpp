@@ -79,7 +79,12 @@ struct Fit {
 
 class IvvtCore final : public Core {
  public:
-  double latency_s() const override { return kVelHalfS + kSmoothHalfS + kPursuitLookS - 3 * kTimeSlackS; }
+  explicit IvvtCore(bool pso_only = false) : pso_only_(pso_only) {}
+  // pso_only: a sample's PSO mark is final once its velocity is in and no open PSO window covers
+  // it (the window closes kVelHalfS after its 40 ms, below), long before its fixation/pursuit test.
+  double latency_s() const override {
+    return pso_only_ ? kVelHalfS + kPsoMaxS : kVelHalfS + kSmoothHalfS + kPursuitLookS - 3 * kTimeSlackS;
+  }
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     Entry e;
@@ -99,7 +104,13 @@ class IvvtCore final : public Core {
         compute_velocity(vel_next_++);
       }
     }
-    finalize(out, false);
+    // Every sample of a PSO window whose end is kVelHalfS past has its velocity: the window is
+    // over. finalize() and the next saccade_step() would close it (no sample in it is finalized
+    // before: its smoothing waits kSmoothHalfS > kPsoMaxS); closing it now changes nothing but when
+    // its marks are known.
+    if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS - 2 * kTimeSlackS) close_pso();
+    finalize(pso_only_ ? unused_ : out, false);
+    emit_pso_marks(out);
     trim();
   }
 
@@ -107,7 +118,8 @@ class IvvtCore final : public Core {
     while (vel_next_ < count_) compute_velocity(vel_next_++);
     close_pso();
     state_ = State::Idle;
-    finalize(out, true);
+    finalize(pso_only_ ? unused_ : out, true);
+    emit_pso_marks(out);
     trim();
   }
 
@@ -386,10 +398,24 @@ class IvvtCore final : public Core {
     }
   }
 
+  // pso_only: each sample's label as soon as its PSO mark is final: `pso`, or `unknown` for
+  // anything else (the caller asks only whether it is a PSO; the rest of the core runs as ever, so
+  // the marks are those of the full labels).
+  void emit_pso_marks(std::vector<Labeled>& out) {
+    if (!pso_only_) return;
+    unused_.clear();
+    while (marks_next_ < vel_next_ && !(state_ == State::Pso && pso_start_ <= marks_next_)) {
+      const Entry& e = at(marks_next_++);
+      const bool pso = e.p.has_gaze() && e.marked && e.mark == Label::Pso;
+      out.push_back({e.p.index, pso ? Label::Pso : Label::Unknown});
+    }
+  }
+
   void trim() {
     // Keep the pursuit window's history before the next sample to finalize (and its velocity window).
-    const double ref = fin_next_ < count_ ? at(fin_next_).p.t : newest_t_;
-    while (base_ + 1 < fin_next_ && buf_[1].p.t < ref - kSmoothHalfS - kVelHalfS + 2 * kTimeSlackS) {
+    const std::uint64_t next = pso_only_ ? std::min(fin_next_, marks_next_) : fin_next_;
+    const double ref = next < count_ ? at(next).p.t : newest_t_;
+    while (base_ + 1 < next && buf_[1].p.t < ref - kSmoothHalfS - kVelHalfS + 2 * kTimeSlackS) {
       buf_.pop_front();
       ++base_;
     }
@@ -402,6 +428,9 @@ class IvvtCore final : public Core {
   std::uint64_t smooth_next_ = 0; // next entry for the pursuit test
   std::uint64_t fin_next_ = 0;   // next entry to label
   std::uint64_t break_upto_ = 0; // entries before this precede a loss: nothing after them matters
+  bool pso_only_ = false;
+  std::uint64_t marks_next_ = 0;  // pso_only: the next entry whose PSO mark is to be sent
+  std::vector<Labeled> unused_;   // pso_only: the full labels, not sent
   double newest_t_ = 0;
   Label last_smooth_ = Label::Fixation;     // the last fixation/pursuit label given
   Label before_saccade_ = Label::Fixation;  // what the eye did before the last saccade
@@ -427,5 +456,6 @@ class IvvtCore final : public Core {
 }  // namespace
 
 std::unique_ptr<Core> make_ivvt_core() { return std::make_unique<IvvtCore>(); }
+std::unique_ptr<Core> make_ivvt_pso_core() { return std::make_unique<IvvtCore>(true); }
 
 }  // namespace fovea::trackerd::classify

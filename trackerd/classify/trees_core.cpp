@@ -284,7 +284,9 @@ class TreesCore final : public Core {
 // the saccade or the fixation); the EyeLink coder and Andersson et al. 2017's (the Lund set) label it
 // apart, and a saccade that swallows its PSO costs their saccade and fixation agreement (on the
 // EyeLink set, fixation+saccade kappa 0.78 -> 0.82 with this). Both cores label in input order, so
-// their outputs pair up index by index.
+// their outputs pair up index by index. ivvt's side is its marks alone (make_ivvt_pso_core): a
+// sample's PSO mark is final within 50 ms, where its full label waits up to 310 ms for the pursuit
+// test gbt does not use, so the pair waits for the trees only.
 class WithPsoCore final : public Core {
  public:
   WithPsoCore(std::unique_ptr<Core> trees, std::unique_ptr<Core> ivvt) : trees_(std::move(trees)), ivvt_(std::move(ivvt)) {}
@@ -313,8 +315,8 @@ class WithPsoCore final : public Core {
     drop_paired(from_trees_, t_at_);
     drop_paired(from_ivvt_, i_at_);
   }
-  // The cores' latencies differ, so one side always holds unpaired labels (ivvt's side about 200 ms
-  // of them): drop what was paired once it is half of the side, not at every sample (that moved the
+  // The cores' latencies differ, so one side always holds unpaired labels (the trees' side about
+  // 100-300 ms of them): drop what was paired once it is half of the side, not at every sample (that moved the
   // ~200 others to the front for every sample at 1000 Hz), nor only when a side is empty (the other
   // would grow without end).
   static void drop_paired(std::vector<Labeled>& v, std::size_t& at) {
@@ -581,7 +583,7 @@ std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const GbtM
   const bool with_pso = options.separate_pso && !options.trees_only;
   std::unique_ptr<Core> trees = std::make_unique<TreesCore>(std::move(model), display, std::move(options));
   return std::make_unique<Pipeline>(
-      "gbt", o, with_pso ? std::make_unique<WithPsoCore>(std::move(trees), make_ivvt_core()) : std::move(trees));
+      "gbt", o, with_pso ? std::make_unique<WithPsoCore>(std::move(trees), make_ivvt_pso_core()) : std::move(trees));
 }
 
 namespace {

@@ -549,7 +549,8 @@ void add_gbt_options(CLI::App& sub, ClassifyArgs& cls) {
                        "gbt: separate: the post-saccadic oscillation labelled pso apart from the saccade and "
                        "fixation, by ivvt's rule beside the trees (as the EyeLink and Lund coders label it); none: "
                        "no pso label, the oscillation goes into the saccade or fixation as GazeCom's coders, whom "
-                       "the trees learned from, put it (cheaper, and final as soon as the trees' labels)")
+                       "the trees learned from, put it (cheaper; final as soon as the trees' labels, as with "
+                       "separate)")
       ->check(CLI::IsMember({"separate", "none"}))
       ->capture_default_str();
   classify->add_option("--pursuit-weight", cls.pursuit_weight,
