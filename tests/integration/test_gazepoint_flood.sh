@@ -18,7 +18,10 @@ expect_flood_handled fake_gazepoint.py gazepoint 150 9 records --flood-rate 3000
 echo "== the clock not corrupted by the flood"
 # Until the flood ends STATUS shows the mapping as it was before the flood (the offset is host time
 # minus tracker time since the clock's anchor: it moves only with drift); after it the clock
-# anchors afresh. No drift shown is absurd.
+# anchors afresh. No drift shown is absurd. Compared from the last STATUS before the flood: the one
+# sent as the source connects may still hold a first anchor from a record the loaded machine
+# delayed (10.5 ms high once in CI, the next line and all during the flood within 0.04 ms), which
+# records of less delay then refine, as they should.
 /usr/bin/python3 - "$WORK" <<'PY' || fail "the clock mapping was corrupted by the flood"
 import re, sys
 work = sys.argv[1]
@@ -29,9 +32,11 @@ drift = m[-1][1]
 assert drift == "?" or abs(int(drift)) < 1000, f"the drift after the flood is {drift} ppm"
 lines = [line for line in open(f"{work}/notify.log") if "clock offset" in line]
 shown = [(float(o), d) for line in lines for o, d in re.findall(r"clock offset ([-0-9.]+) ms, drift (\S+) ppm", line)]
-last_flooding = max(i for i, line in enumerate(lines) if "FLOODING" in line)
-before = [o for o, _ in shown[:last_flooding + 1]]
-assert last_flooding >= 2 and len(shown) > last_flooding + 1, f"{len(shown)} STATUS lines, flooding until {last_flooding}"
+flooding = [i for i, line in enumerate(lines) if "FLOODING" in line]
+first_flooding, last_flooding = min(flooding), max(flooding)
+before = [o for o, _ in shown[max(0, first_flooding - 1):last_flooding + 1]]
+assert first_flooding >= 1 and last_flooding >= 2 and len(shown) > last_flooding + 1, \
+    f"{len(shown)} STATUS lines, flooding from {first_flooding} until {last_flooding}"
 spread = max(before) - min(before)
 assert spread < 5, (f"the offset STATUS showed moved by {spread:.3f} ms before the flood ended: "
                     f"{[round(o, 3) for o in before]} ms")
