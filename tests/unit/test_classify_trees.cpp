@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstring>
 #include <deque>
+#include <limits>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -131,6 +133,66 @@ TEST(Trees, NodesInAnyOrderAfterTheirParentWalkAsTheFileSays) {
   EXPECT_DOUBLE_EQ(leaf(-1, 1), 2);
   EXPECT_DOUBLE_EQ(leaf(1, 1), 3);
   EXPECT_DOUBLE_EQ(leaf(1, 6), 4);
+}
+
+// Trees of every depth from 0 to 5 splits, each split's NaN either way, over rows with NaN: the
+// scores are each tree's leaf added in the file's order, bit for bit.
+TEST(Trees, ManyTreesOfUnequalDepthsScoreAsEachWalkedAlone) {
+  struct Split {
+    long feature;
+    double threshold;
+    bool missing_left;
+  };
+  // Tree k: a chain of k % 6 splits down alternating sides, each on feature k % 3, leaves k + 0.25 * depth.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-2, 2);
+  std::vector<std::vector<Split>> chains;
+  std::string text = "fovea-trees 1\nfeatures 3 a b c\nclasses 3 fixation saccade pursuit\nbaseline 0.1 -0.2 0.3\ntrees 21\n";
+  for (int k = 0; k < 21; ++k) {
+    const int depth = k % 6;
+    std::vector<Split> chain;
+    text += "tree " + std::to_string(k % 3) + " " + std::to_string(2 * depth + 1) + "\n";
+    for (int d = 0; d < depth; ++d) {
+      chain.push_back({(k + d) % 3, u(rng), (k + d) % 2 == 0});
+      // Node 2d: the split; its leaf child 2d + 1 ... the chain goes on at 2d + 2 (left when d is even).
+      const int leaf = 2 * d + 1, next = 2 * d + 2;
+      const bool next_left = d % 2 == 0;
+      text += std::to_string(chain.back().feature) + " " + std::to_string(chain.back().threshold) + " " +
+              (chain.back().missing_left ? "1 " : "0 ") + std::to_string(next_left ? next : leaf) + " " +
+              std::to_string(next_left ? leaf : next) + " 0\n";
+      text += "-1 0 0 0 0 " + std::to_string(k + 0.25 * (d + 1)) + "\n";
+    }
+    text += "-1 0 0 0 0 " + std::to_string(-k) + "\n";
+    chains.push_back(chain);
+  }
+  const TreeEnsemble m = TreeEnsemble::parse(text, "many.trees", {"a", "b", "c"});
+  ASSERT_EQ(m.tree_count(), 21u);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int row = 0; row < 200; ++row) {
+    float f[3];
+    for (float& v : f) v = row % 7 == 0 ? nan : static_cast<float>(u(rng));
+    if (row % 5 == 0) f[row % 3] = nan;
+    double expected[3] = {0.1, -0.2, 0.3};
+    for (int k = 0; k < 21; ++k) {
+      // Walk the chain: it goes on while the split sends x its way, else ends in that split's leaf.
+      double leaf = -k;
+      const auto& chain = chains[static_cast<std::size_t>(k)];
+      for (std::size_t d = 0; d < chain.size(); ++d) {
+        const float x = f[chain[d].feature];
+        // The file's threshold was written with 6 decimals: compare with what was parsed.
+        const double threshold = std::stod(std::to_string(chain[d].threshold));
+        const bool left = std::isnan(x) ? chain[d].missing_left : static_cast<double>(x) <= threshold;
+        if (left != (d % 2 == 0)) {
+          leaf = k + 0.25 * static_cast<double>(d + 1);
+          break;
+        }
+      }
+      expected[k % 3] += std::stod(std::to_string(leaf));
+    }
+    double s[3];
+    m.predict(f, s);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(s[c], expected[c]) << "row " << row << " class " << c;
+  }
 }
 
 TEST(Trees, DamagedModelsAreRefusedNamingTheLineAndTheProblem) {
