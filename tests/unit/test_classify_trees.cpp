@@ -143,7 +143,10 @@ TEST(Trees, ManyTreesOfUnequalDepthsScoreAsEachWalkedAlone) {
     double threshold;
     bool missing_left;
   };
-  // Tree k: a chain of k % 6 splits down alternating sides, each on feature k % 3, leaves k + 0.25 * depth.
+  // Tree k (class k % 3): a chain of k % 6 splits, split d on feature (k + d) % 3, going on left
+  // when d is even and right when odd; split d's other child is the leaf k + 0.25 (d + 1), the
+  // chain's end the leaf -k. Thresholds are drawn as the file writes them (6 decimals), so the test
+  // compares with what is parsed; the leaves are exact in 6 decimals.
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-2, 2);
   std::vector<std::vector<Split>> chains;
@@ -153,8 +156,8 @@ TEST(Trees, ManyTreesOfUnequalDepthsScoreAsEachWalkedAlone) {
     std::vector<Split> chain;
     text += "tree " + std::to_string(k % 3) + " " + std::to_string(2 * depth + 1) + "\n";
     for (int d = 0; d < depth; ++d) {
-      chain.push_back({(k + d) % 3, u(rng), (k + d) % 2 == 0});
-      // Node 2d: the split; its leaf child 2d + 1 ... the chain goes on at 2d + 2 (left when d is even).
+      chain.push_back({(k + d) % 3, std::stod(std::to_string(u(rng))), (k + d) % 2 == 0});
+      // Node 2d: the split; 2d + 1 its leaf; 2d + 2 where the chain goes on.
       const int leaf = 2 * d + 1, next = 2 * d + 2;
       const bool next_left = d % 2 == 0;
       text += std::to_string(chain.back().feature) + " " + std::to_string(chain.back().threshold) + " " +
@@ -179,15 +182,13 @@ TEST(Trees, ManyTreesOfUnequalDepthsScoreAsEachWalkedAlone) {
       const auto& chain = chains[static_cast<std::size_t>(k)];
       for (std::size_t d = 0; d < chain.size(); ++d) {
         const float x = f[chain[d].feature];
-        // The file's threshold was written with 6 decimals: compare with what was parsed.
-        const double threshold = std::stod(std::to_string(chain[d].threshold));
-        const bool left = std::isnan(x) ? chain[d].missing_left : static_cast<double>(x) <= threshold;
+        const bool left = std::isnan(x) ? chain[d].missing_left : static_cast<double>(x) <= chain[d].threshold;
         if (left != (d % 2 == 0)) {
           leaf = k + 0.25 * static_cast<double>(d + 1);
           break;
         }
       }
-      expected[k % 3] += std::stod(std::to_string(leaf));
+      expected[k % 3] += leaf;
     }
     double s[3];
     m.predict(f, s);
