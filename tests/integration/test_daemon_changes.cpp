@@ -324,9 +324,14 @@ TEST(DaemonLoop, AViewerGetsEyeFramesAndTheDaemonsStatus) {
   daemon.join();
   EXPECT_EQ(status, 0);
   EXPECT_EQ(reader.rejected(), 0u) << reader.last_error();
-  // 120 Hz frames, at most 30 Hz to viewers: about 70 in 2.5 s (the first come once connected).
-  EXPECT_GE(frames.size(), 40u);
+  // 120 Hz frames, at most 30 Hz to viewers (by capture time): about 70 in 2.5 s. A loaded machine
+  // (a sanitizer build in CI gave 35) delivers fewer, as a busy sender skips frames by design, so
+  // the rate is checked where it is exact: no two frames closer than 1/30 s in capture time.
+  EXPECT_GE(frames.size(), 10u);
   EXPECT_LE(frames.size(), 80u);
+  for (std::size_t k = 1; k < frames.size(); ++k) {
+    EXPECT_GE(frames[k].info.time_ns - frames[k - 1].info.time_ns, static_cast<std::int64_t>(1e9 / 30)) << "frame " << k;
+  }
   std::size_t with_pupil = 0;
   for (const auto& f : frames) {
     EXPECT_EQ(f.width, 320);
