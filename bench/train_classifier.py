@@ -45,7 +45,8 @@ own; a model trained on it carries the data's terms (trackerd/classify/models/RE
 
 Usage: bench/train_classifier.py FOVEA_CTL [--out FILE] --lovo DIR [--data DIR_OR_TAR] [--every N]
        [--stride-ms MS] [--augment N] [--iterations N] [--leaves N] [--context-stride-ms MS]
-       [--context-iterations N] [--frame-only] [--nested VIDEOS] [--online-reach S] [--no-weights] [--jobs N]
+       [--offline-context-stride-ms MS] [--context-iterations N]
+       [--offline-context-iterations N] [--frame-only] [--nested VIDEOS] [--online-reach S] [--no-weights] [--jobs N]
 """
 import argparse
 import concurrent.futures
@@ -335,7 +336,8 @@ def context_unit(args, files, i, copy, model, offline):
     f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", model] + (["--offline"] if offline else []))
     _, _, final, rate = rec
     lab = np.array(final, dtype=np.int8)
-    rows = np.arange(0, len(lab), max(1, int(round(args.context_stride_ms * rate / 1000.0))))
+    stride_ms = (args.offline_context_stride_ms or args.context_stride_ms) if offline else args.context_stride_ms
+    rows = np.arange(0, len(lab), max(1, int(round(stride_ms * rate / 1000.0))))
     rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, names.index("offscreen_deg")])]
     return (i, f[rows], lab[rows]), names
 
@@ -387,7 +389,8 @@ def fit_context(args, rows_online, rows_offline, names, keep):
         return (np.concatenate([f for i, f, _ in rows if i in keep]),
                 np.concatenate([lab for i, _, lab in rows if i in keep]))
     x, y = xy(rows_offline)
-    offline = fit(x, y, args.context_iterations, args.context_leaves, args.learning_rate)
+    offline = fit(x, y, args.offline_context_iterations or args.context_iterations, args.context_leaves,
+                  args.learning_rate)
     if rows_online is not rows_offline:
         x, y = xy(rows_online)
     online = fit(online_columns(x, names), y, args.context_iterations, args.context_leaves, args.learning_rate)
@@ -429,7 +432,12 @@ def main():
     ap.add_argument("--leaves", type=int, default=127, help="leaves per tree at most")
     ap.add_argument("--learning-rate", type=float, default=0.2, help="both stages' boosting learning rate")
     ap.add_argument("--context-stride-ms", type=float, default=32, help="the second stage's sample spacing (default 32; 128 before 2026-12-03)")
+    ap.add_argument("--offline-context-stride-ms", type=float,
+                    help="the offline chain's second stage's sample spacing (default: --context-stride-ms)")
     ap.add_argument("--context-iterations", type=int, default=10, help="the second stage's boosting iterations")
+    ap.add_argument("--offline-context-iterations", type=int,
+                    help="the offline chain's second stage's boosting iterations (default: --context-iterations); "
+                    "the offline chain does not bind the daemon's cost per sample")
     ap.add_argument("--context-leaves", type=int, default=127, help="the second stage's leaves per tree at most")
     ap.add_argument("--frame-only", action="store_true", help="no second stage (the first stage's model alone)")
     ap.add_argument("--nested", help="comma-separated videos: also LOVO/nested/<video>.trees, second stages on "
@@ -443,6 +451,10 @@ def main():
     args = ap.parse_args()
     if not 0 < args.online_reach <= FULL_REACH_S:
         sys.exit(f"train_classifier: --online-reach must be in (0, {FULL_REACH_S:g}] s")
+    if args.offline_context_iterations is not None and args.offline_context_iterations < 1:
+        sys.exit("train_classifier: --offline-context-iterations must be at least 1")
+    if args.offline_context_stride_ms is not None and not args.offline_context_stride_ms > 0:
+        sys.exit("train_classifier: --offline-context-stride-ms must be a positive number of ms")
     if args.nested and args.online_reach < FULL_REACH_S:
         sys.exit("train_classifier: --nested is for the offline chain's rows only (drop --online-reach)")
     if args.nested and args.frame_only:
@@ -471,10 +483,14 @@ def main():
     rows_online = rows_offline = context_names = settings2 = None
     if not args.frame_only:
         rows_offline, context_names = context_rows(args, files, videos, start, True)
-        rows_online = context_rows(args, files, videos, start, False)[0] if data_online else rows_offline
+        # The chains share their rows only where they share the first stage and the spacing.
+        separate_rows = data_online is not None or args.offline_context_stride_ms
+        rows_online = context_rows(args, files, videos, start, False)[0] if separate_rows else rows_offline
         settings2 = (settings_online or settings) + (
-            f"; second stage: iterations {args.context_iterations}, leaves "
-            f"{args.context_leaves}, a sample every {args.context_stride_ms:g} ms")
+            f"; second stage: iterations {args.context_iterations}"
+            + (f" ({args.offline_context_iterations} offline)" if args.offline_context_iterations else "") + ", leaves "
+            f"{args.context_leaves}, a sample every {args.context_stride_ms:g} ms"
+            + (f" ({args.offline_context_stride_ms:g} offline)" if args.offline_context_stride_ms else ""))
     if args.out:
         write_full_model(args, (data, data_online), names, files, settings2 or settings_online or settings,
                          (rows_online, rows_offline), context_names, start)

@@ -7,6 +7,8 @@
 # must write one model per video. fovea-ctl must then label with the model, and refuse a damaged
 # one naming the file and line, writing nothing. --nested, on three videos, must write a video's
 # second stages fitted on rows from first stages that never saw it, and refuse a video not there.
+# --offline-context-iterations and --offline-context-stride-ms must fit the offline chain's second
+# stage alone larger and on denser rows, checked exact.
 # --online-reach must give the daemon's chain a first stage of its own over features that reach less
 # far ahead, each checked exact, reusing the first stages fitted before, and labels final sooner.
 # Each chain's pursuit-onset hold (or none) must be fitted into every bundle
@@ -91,6 +93,32 @@ cat "$WORK/train.txt"
 head -1 "$WORK/m.trees" | grep -q "iterations 6, leaves 7" || fail "the model does not say how it was fitted"
 grep -Eq "m.trees: online weight 1(, hold [0-9. a-z]*)?, offline weight 1(, hold [0-9. a-z]*)?$" "$WORK/train.txt" \
   || fail "the model's setting unfitted"
+
+echo "== the offline chain's second stage larger and on denser rows than the daemon's"
+/usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" --out "$WORK/moff.trees" \
+  --no-weights --offline-context-iterations 7 --offline-context-stride-ms 8 >"$WORK/off.txt" 2>&1 \
+  || fail "offline options: $(cat "$WORK/off.txt")"
+for bad in "--offline-context-iterations 0" "--offline-context-stride-ms -8"; do
+  # shellcheck disable=SC2086
+  if /usr/bin/python3 "$SRC/bench/train_classifier.py" "$CTL" "${opts[@]}" --lovo "$WORK/lovo" $bad >"$WORK/bad.txt" 2>&1; then
+    fail "$bad was taken"
+  fi
+  grep -q "must be" "$WORK/bad.txt" || fail "unclear: $(cat "$WORK/bad.txt")"
+done
+[ "$(grep -c "disagree on 0 of" "$WORK/off.txt")" = 4 ] || fail "not every stage checked exact: $(cat "$WORK/off.txt")"
+head -1 "$WORK/moff.trees" | grep -q "second stage: iterations 4 (7 offline), leaves 127, a sample every 16 ms (8 offline)" \
+  || fail "the model does not say how its second stages were fitted: $(head -1 "$WORK/moff.trees")"
+stage_trees() {  # FILE STAGE: "TREES CLASSES" of that stage's ensemble
+  awk -v s="$2" '$1 == "stage" { on = ($2 == s) } on && $1 == "classes" { c = $2 } on && $1 == "trees" { print $2, c; exit }' "$1"
+}
+read -r n c <<<"$(stage_trees "$WORK/moff.trees" offline)"
+[ "${n:-0}" = "$((7 * ${c:-0}))" ] || fail "the offline second stage has $n trees for $c classes, not 7 iterations"
+read -r n c <<<"$(stage_trees "$WORK/moff.trees" online)"
+[ "${n:-0}" = "$((4 * ${c:-0}))" ] || fail "the online second stage has $n trees for $c classes, not 4 iterations"
+# The offline stage learned from twice the rows: the note counts the online chain's.
+n_online=$(sed -n 's/.*(\([0-9]*\) in the second stage).*/\1/p' "$WORK/moff.trees" | head -1)
+n_plain=$(sed -n 's/.*(\([0-9]*\) in the second stage).*/\1/p' "$WORK/m.trees" | head -1)
+[ -n "$n_online" ] && [ "$n_online" = "$n_plain" ] || fail "the online chain's rows changed: $n_online, $n_plain"
 
 echo "== fovea-ctl labels with the model and refuses a damaged one"
 in="$WORK/in.csv"
