@@ -336,7 +336,7 @@ def context_unit(args, files, i, copy, model, offline):
     f, names = matrix_out(args.ctl, rec, "--context-out", ["--model", model] + (["--offline"] if offline else []))
     _, _, final, rate = rec
     lab = np.array(final, dtype=np.int8)
-    stride_ms = (args.offline_context_stride_ms or args.context_stride_ms) if offline else args.context_stride_ms
+    stride_ms = args.offline_context_stride_ms if offline else args.context_stride_ms
     rows = np.arange(0, len(lab), max(1, int(round(stride_ms * rate / 1000.0))))
     rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, names.index("offscreen_deg")])]
     return (i, f[rows], lab[rows]), names
@@ -389,8 +389,7 @@ def fit_context(args, rows_online, rows_offline, names, keep):
         return (np.concatenate([f for i, f, _ in rows if i in keep]),
                 np.concatenate([lab for i, _, lab in rows if i in keep]))
     x, y = xy(rows_offline)
-    offline = fit(x, y, args.offline_context_iterations or args.context_iterations, args.context_leaves,
-                  args.learning_rate)
+    offline = fit(x, y, args.offline_context_iterations, args.context_leaves, args.learning_rate)
     if rows_online is not rows_offline:
         x, y = xy(rows_online)
     online = fit(online_columns(x, names), y, args.context_iterations, args.context_leaves, args.learning_rate)
@@ -431,7 +430,8 @@ def main():
     ap.add_argument("--iterations", type=int, default=20, help="boosting iterations (trees per class)")
     ap.add_argument("--leaves", type=int, default=127, help="leaves per tree at most")
     ap.add_argument("--learning-rate", type=float, default=0.2, help="both stages' boosting learning rate")
-    ap.add_argument("--context-stride-ms", type=float, default=32, help="the second stage's sample spacing (default 32; 128 before 2026-12-03)")
+    ap.add_argument("--context-stride-ms", type=float, default=32,
+                    help="the second stage's sample spacing (default 32; 128 before 2026-12-03)")
     ap.add_argument("--offline-context-stride-ms", type=float,
                     help="the offline chain's second stage's sample spacing (default: --context-stride-ms)")
     ap.add_argument("--context-iterations", type=int, default=10, help="the second stage's boosting iterations")
@@ -455,6 +455,12 @@ def main():
         sys.exit("train_classifier: --offline-context-iterations must be at least 1")
     if args.offline_context_stride_ms is not None and not args.offline_context_stride_ms > 0:
         sys.exit("train_classifier: --offline-context-stride-ms must be a positive number of ms")
+    offline_own_iterations = args.offline_context_iterations not in (None, args.context_iterations)
+    offline_own_rows = args.offline_context_stride_ms not in (None, args.context_stride_ms)
+    if args.offline_context_iterations is None:
+        args.offline_context_iterations = args.context_iterations
+    if args.offline_context_stride_ms is None:
+        args.offline_context_stride_ms = args.context_stride_ms
     if args.nested and args.online_reach < FULL_REACH_S:
         sys.exit("train_classifier: --nested is for the offline chain's rows only (drop --online-reach)")
     if args.nested and args.frame_only:
@@ -484,13 +490,13 @@ def main():
     if not args.frame_only:
         rows_offline, context_names = context_rows(args, files, videos, start, True)
         # The chains share their rows only where they share the first stage and the spacing.
-        separate_rows = data_online is not None or args.offline_context_stride_ms
+        separate_rows = data_online is not None or offline_own_rows
         rows_online = context_rows(args, files, videos, start, False)[0] if separate_rows else rows_offline
         settings2 = (settings_online or settings) + (
             f"; second stage: iterations {args.context_iterations}"
-            + (f" ({args.offline_context_iterations} offline)" if args.offline_context_iterations else "") + ", leaves "
+            + (f" ({args.offline_context_iterations} offline)" if offline_own_iterations else "") + ", leaves "
             f"{args.context_leaves}, a sample every {args.context_stride_ms:g} ms"
-            + (f" ({args.offline_context_stride_ms:g} offline)" if args.offline_context_stride_ms else ""))
+            + (f" ({args.offline_context_stride_ms:g} offline)" if offline_own_rows else ""))
     if args.out:
         write_full_model(args, (data, data_online), names, files, settings2 or settings_online or settings,
                          (rows_online, rows_offline), context_names, start)
