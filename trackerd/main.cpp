@@ -162,7 +162,7 @@ void add_replay_display_and_subscriber_options(CLI::App& app, Flags& f) {
 void add_processing_and_run_options(CLI::App& app, Flags& f) {
   f.o_calibration = app.add_option("--calibration", f.calibration, "calibration file (JSON)");
   f.o_classifier = app.add_option("--classifier", f.classifier,
-                                  "online classifier: ivvt (default), gbt, ivt, idt, lee2009, or 'source' to pass "
+                                  "online classifier: gbt (default), ivvt, ivt, idt, lee2009, or 'source' to pass "
                                   "the source's own labels and events (trackerd/CLASSIFY.md)");
   f.o_classifier_pso = app.add_option("--classifier-pso", f.classifier_pso,
                                       "gbt: separate (default): post-saccadic oscillations labelled apart, by ivvt's "

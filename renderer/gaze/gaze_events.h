@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #pragma once
 // Fixation onsets and saccades in flight, from a live stream of final and provisional GAZE_EVENTs
-// (PROTOCOL.md §4.9). The final events trail the eye by the classifier's window (ivvt: ~110 ms of
-// look-ahead, up to 385 ms while the eye moves slowly); provisional ones come at once: a fixation onset is counted when
+// (PROTOCOL.md §4.9). The final events trail the eye by the classifier's window (the default gbt:
+// ~112 ms, up to 351 ms; ivvt up to 385 ms); provisional ones come at once: a fixation onset is counted when
 // its provisional Fixation Start arrives, and its final Fixation Start (within 50 ms of it) is not
 // counted again; a final onset nobody said provisionally (after a blink, out of pursuit) is counted
 // when it arrives. A saccade is in flight from a provisional Saccade Start to its End, its

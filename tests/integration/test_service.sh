@@ -84,7 +84,7 @@ grep -q 'unknown source "camera-typo"' <<<"$out" || fail "unknown source not nam
 # Issue 23 item 10: an unknown classifier passed the check and the daemon then exited 2.
 printf '[classifier]\nmethod = "magic"\n' >"$WORK/magic.toml"
 out=$("$TRACKERD" --check-config --config "$WORK/magic.toml" 2>&1) && fail "unknown classifier accepted"
-grep -q 'magic.toml:2: classifier.method: unknown method "magic"; allowed: ivvt' <<<"$out" \
+grep -q 'magic.toml:2: classifier.method: unknown method "magic"; allowed: gbt, ivvt' <<<"$out" \
   || fail "unknown classifier not named: $out"
 "$TRACKERD" --config "$WORK/magic.toml" >/dev/null 2>&1; rc=$?
 [ $rc -eq 78 ] || fail "daemon with an unknown classifier exited $rc, expected 78 (EX_CONFIG)"

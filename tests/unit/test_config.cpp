@@ -155,19 +155,22 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   expect_problem("[source]\nrate = 0\n", {"test.toml:2:", "source.rate", "[1, 10000] Hz"});
   // Issue 23 item 10: an unknown classifier passed --check-config, then the daemon exited 2.
   expect_problem("[classifier]\nmethod = \"magic\"\n",
-                 {"test.toml:2:", "classifier.method", "unknown method \"magic\"", "allowed: ivvt", "source"});
+                 {"test.toml:2:", "classifier.method", "unknown method \"magic\"", "allowed: gbt", "source"});
   // "source" (the source's own labels and events) is a method the daemon knows, as --help says.
   EXPECT_TRUE(check_classifier_method("source").empty());
   expect_problem("[classifier]\nmethod = \"a\\u001b[2J\"\n", {"unknown method \"a\\x1b[2J\""});
-  // Without a PSO class only gbt can label (the default method, ivvt, finds its PSO by its rule).
-  expect_problem("[classifier]\npso = \"none\"\n", {"test.toml:2:", "classifier.pso", "for method gbt only (ivvt"});
+  // Without a PSO class only gbt can label (ivvt finds its PSO by its rule); gbt is the default.
+  expect_problem("[classifier]\nmethod = \"ivvt\"\npso = \"none\"\n",
+                 {"test.toml:3:", "classifier.pso", "for method gbt only (ivvt"});
+  EXPECT_EQ(parse_config("[classifier]\npso = \"none\"\n", "t.toml").classifier.pso, "none");
   expect_problem("[classifier]\nmethod = \"source\"\npso = \"none\"\n", {"test.toml:3:", "classifier.pso", "(source"});
   expect_problem("[classifier]\nmethod = \"gbt\"\npso = \"saccade\"\n",
                  {"test.toml:3:", "classifier.pso", "\"saccade\" is no PSO convention; allowed: separate, none"});
   EXPECT_EQ(parse_config("[classifier]\nmethod = \"gbt\"\n", "t.toml").classifier.pso, "separate");
   // Only gbt weighs its classes; 0 is the model's own weight, else 0.01..100 (as fovea-ctl classify).
-  expect_problem("[classifier]\npursuit_weight = 2\n",
-                 {"test.toml:2:", "classifier.pursuit_weight", "for method gbt only (ivvt's pursuit is a rule's"});
+  expect_problem("[classifier]\nmethod = \"ivvt\"\npursuit_weight = 2\n",
+                 {"test.toml:3:", "classifier.pursuit_weight", "for method gbt only (ivvt's pursuit is a rule's"});
+  EXPECT_EQ(parse_config("[classifier]\npursuit_weight = 2\n", "t.toml").classifier.pursuit_weight, 2);
   expect_problem("[classifier]\nmethod = \"source\"\npursuit_weight = 2\n",
                  {"test.toml:3:", "classifier.pursuit_weight", "(source passes"});
   expect_problem("[classifier]\nmethod = \"gbt\"\npursuit_weight = -1\n",

@@ -25,16 +25,16 @@ const char* to_string(Label l) {
 
 const std::vector<ClassifierInfo>& classifiers() {
   static const std::vector<ClassifierInfo> all = {
-      {"ivvt",
-       "I-VVT (Komogortsev & Karpov 2013): saccades by a noise-adaptive velocity threshold with onset/offset "
-       "and PSO detection after Nystrom & Holmqvist 2010; pursuit vs fixation by low-pass velocity as in "
-       "REMoDNaV (Dar et al. 2021); gap fill-in 75 ms"},
       {"gbt",
        "gradient-boosted trees (issue 43) over multi-scale speed, direction-consistency and dispersion "
        "features (Larsson et al. 2015; Startsev et al. 2019) of 256 ms before and 64 ms after each sample "
        "(--offline: 256 ms after), then over the first trees' class probabilities around it, trained on "
        "GazeCom's expert labels and copies of them as other trackers would record them "
        "(bench/train_classifier.py), smoothed; PSO by ivvt's rule; gap fill-in 75 ms"},
+      {"ivvt",
+       "I-VVT (Komogortsev & Karpov 2013): saccades by a noise-adaptive velocity threshold with onset/offset "
+       "and PSO detection after Nystrom & Holmqvist 2010; pursuit vs fixation by low-pass velocity as in "
+       "REMoDNaV (Dar et al. 2021); gap fill-in 75 ms"},
       {"ivt",
        "I-VT after the Tobii I-VT filter (Olsen 2012): 20 ms velocity window, 30 deg/s, gap fill-in 75 ms, "
        "merge fixations within 75 ms and 0.5 deg, discard fixations under 60 ms"},

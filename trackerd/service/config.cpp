@@ -36,11 +36,9 @@ std::string check_classifier_method(const std::string& method) {
 std::string check_classifier_pso(const std::string& method, const std::string& pso) {
   if (pso == "separate") return {};
   if (pso != "none") return "\"" + protocol::escape_for_log(pso, 40) + "\" is no PSO convention; allowed: separate, none";
-  if (method == "source") return "pso = \"none\" is for method gbt only (source passes the source's own labels)";
-  if (method != "gbt") {
-    return "pso = \"none\" is for method gbt only (" + (method.empty() ? classify::classifiers().front().name : method) +
-           " finds its PSO by its own rule)";
-  }
+  const std::string name = method.empty() ? classify::classifiers().front().name : method;
+  if (name == "source") return "pso = \"none\" is for method gbt only (source passes the source's own labels)";
+  if (name != "gbt") return "pso = \"none\" is for method gbt only (" + name + " finds its PSO by its own rule)";
   return {};
 }
 
