@@ -165,9 +165,10 @@ void add_processing_and_run_options(CLI::App& app, Flags& f) {
                                   "online classifier: gbt (default), ivvt, ivt, idt, lee2009, or 'source' to pass "
                                   "the source's own labels and events (trackerd/CLASSIFY.md)");
   f.o_classifier_pso = app.add_option("--classifier-pso", f.classifier_pso,
-                                      "gbt: separate (default): post-saccadic oscillations labelled apart, by ivvt's "
-                                      "rule beside the trees; none: no PSO class, the oscillation where GazeCom's "
-                                      "coders put it (within the saccade's end or the fixation), cheaper")
+                                      "gbt: separate (default): post-saccadic oscillations labelled apart and the "
+                                      "small saccades the trees leave in fixations labelled saccade, by ivvt's rule "
+                                      "beside the trees; none: the trees alone, no PSO class, the oscillation and "
+                                      "small saccades where GazeCom's coders put them, cheaper")
                            ->check(CLI::IsMember({"separate", "none"}));
   f.o_classifier_pursuit_weight =
       app.add_option("--classifier-pursuit-weight", f.classifier_pursuit_weight,

@@ -30,7 +30,8 @@ const std::vector<ClassifierInfo>& classifiers() {
        "features (Larsson et al. 2015; Startsev et al. 2019) of 256 ms before and 64 ms after each sample "
        "(--offline: 256 ms after), then over the first trees' class probabilities around it, trained on "
        "GazeCom's expert labels and copies of them as other trackers would record them "
-       "(bench/train_classifier.py), smoothed; PSO by ivvt's rule; gap fill-in 75 ms"},
+       "(bench/train_classifier.py), smoothed; PSO, and saccades the trees leave in fixations, by ivvt's rule; "
+       "gap fill-in 75 ms"},
       {"ivvt",
        "I-VVT (Komogortsev & Karpov 2013): saccades by a noise-adaptive velocity threshold with onset/offset "
        "and PSO detection after Nystrom & Holmqvist 2010; pursuit vs fixation by low-pass velocity as in "

@@ -57,6 +57,7 @@ constexpr double kPeakFloorDegS = 30.0;    // lowest saccade peak threshold (the
 constexpr double kPeakK = 6.0;             // Engbert & Kliegl 2003 lambda; Nystrom & Holmqvist 2010: mean + 6 SD
 constexpr double kOnsetRatio = 0.5;        // Nystrom & Holmqvist 2010: onset at 3 SD vs peak at 6 SD
 constexpr double kPsoMaxS = 0.040;         // Nystrom & Holmqvist 2010; REMoDNaV max_pso_duration
+constexpr double kMarkHoldS = 0.030;       // marks only: a saccade's onset walk-back may still reach this far back
 constexpr double kPsoK = 3.0;              // a renewed rise of 3 sigma_v counts as an oscillation
 constexpr double kPsoMinRiseDegS = 5.0;    // ... and at least this much (ignores drift-sized wiggles)
 constexpr double kSmoothHalfS = 0.100;     // pursuit low-pass window (REMoDNaV: 4 Hz low-pass)
@@ -80,10 +81,12 @@ struct Fit {
 class IvvtCore final : public Core {
  public:
   explicit IvvtCore(bool pso_only = false) : pso_only_(pso_only) {}
-  // pso_only: a sample's PSO mark is final once its velocity is in and no open PSO window covers
-  // it (the window closes kVelHalfS after its 40 ms, below), long before its fixation/pursuit test.
+  // pso_only (marks only): a sample's saccade or PSO mark is final once its velocity is in, no open
+  // PSO window covers it (the window closes kVelHalfS after its 40 ms, below) and a saccade's onset
+  // walk-back can no longer reach it (kMarkHoldS), long before its fixation/pursuit test.
   double latency_s() const override {
-    return pso_only_ ? kVelHalfS + kPsoMaxS : kVelHalfS + kSmoothHalfS + kPursuitLookS - 3 * kTimeSlackS;
+    return pso_only_ ? kVelHalfS + kPsoMaxS + kMarkHoldS
+                     : kVelHalfS + kSmoothHalfS + kPursuitLookS - 3 * kTimeSlackS;
   }
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
@@ -110,7 +113,7 @@ class IvvtCore final : public Core {
     // its marks are known.
     if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS - 2 * kTimeSlackS) close_pso();
     finalize(pso_only_ ? unused_ : out, false);
-    emit_pso_marks(out);
+    emit_marks(out, false);
     trim();
   }
 
@@ -119,7 +122,7 @@ class IvvtCore final : public Core {
     close_pso();
     state_ = State::Idle;
     finalize(pso_only_ ? unused_ : out, true);
-    emit_pso_marks(out);
+    emit_marks(out, true);
     trim();
   }
 
@@ -278,9 +281,11 @@ class IvvtCore final : public Core {
     }
     if (e.v > peak_thr) {
       mark(k, Label::Saccade);
-      // Onset: walk back down the rising flank (still unlabelled samples only).
+      // Onset: walk back down the rising flank (still unlabelled samples only; with marks only,
+      // not over marks already sent).
       std::uint64_t onset = k;
-      for (std::uint64_t j = k; j > fin_next_ && j > base_;) {
+      const std::uint64_t floor = pso_only_ ? std::max(fin_next_, marks_next_) : fin_next_;
+      for (std::uint64_t j = k; j > floor && j > base_;) {
         --j;
         const Entry& q = at(j);
         const Entry& r = at(j + 1);
@@ -398,16 +403,20 @@ class IvvtCore final : public Core {
     }
   }
 
-  // pso_only: each sample's label as soon as its PSO mark is final: `pso`, or `unknown` for
-  // anything else (the caller asks only whether it is a PSO; the rest of the core runs as ever, so
-  // the marks are those of the full labels).
-  void emit_pso_marks(std::vector<Labeled>& out) {
+  // pso_only: each sample's label as soon as its mark is final: `saccade` or `pso`, or `unknown`
+  // for anything else (the caller asks only for the marks; the rest of the core runs as ever, so
+  // the marks are those of the full labels, but for an onset walk-back that would reach over
+  // kMarkHoldS to marks already sent).
+  void emit_marks(std::vector<Labeled>& out, bool flushing) {
     if (!pso_only_) return;
     unused_.clear();
+    const double settled_t = newest_t_ - kVelHalfS - kMarkHoldS;  // a walk-back starts after this
     while (marks_next_ < vel_next_ && !(state_ == State::Pso && pso_start_ <= marks_next_)) {
-      const Entry& e = at(marks_next_++);
-      const bool pso = e.p.has_gaze() && e.marked && e.mark == Label::Pso;
-      out.push_back({e.p.index, pso ? Label::Pso : Label::Unknown});
+      const Entry& e = at(marks_next_);
+      if (!flushing && marks_next_ >= break_upto_ && e.p.t > settled_t) break;
+      ++marks_next_;
+      const bool marked = e.p.has_gaze() && e.marked;
+      out.push_back({e.p.index, marked ? e.mark : Label::Unknown});
     }
   }
 
@@ -456,6 +465,6 @@ class IvvtCore final : public Core {
 }  // namespace
 
 std::unique_ptr<Core> make_ivvt_core() { return std::make_unique<IvvtCore>(); }
-std::unique_ptr<Core> make_ivvt_pso_core() { return std::make_unique<IvvtCore>(true); }
+std::unique_ptr<Core> make_ivvt_marks_core() { return std::make_unique<IvvtCore>(true); }
 
 }  // namespace fovea::trackerd::classify

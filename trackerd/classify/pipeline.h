@@ -187,8 +187,8 @@ std::unique_ptr<Core> make_ivt_core();      // ivt.cpp
 std::unique_ptr<Core> make_idt_core();      // idt.cpp
 std::unique_ptr<Core> make_lee_core(const protocol::DisplayGeometry& display);  // lee2009.cpp
 std::unique_ptr<Core> make_ivvt_core();     // ivvt.cpp
-// ivvt.cpp: ivvt's marks alone, each sample `pso` or `unknown` as soon as its PSO mark is final
-// (within 50 ms of the sample, not ivvt's 310): what gbt takes from ivvt (trees_core.cpp).
-std::unique_ptr<Core> make_ivvt_pso_core();
+// ivvt.cpp: ivvt's marks alone, each sample `saccade`, `pso` or `unknown` as soon as its mark is
+// final (within 80 ms of the sample, not ivvt's 310): what gbt takes from ivvt (trees_core.cpp).
+std::unique_ptr<Core> make_ivvt_marks_core();
 
 }  // namespace fovea::trackerd::classify

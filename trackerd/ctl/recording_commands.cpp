@@ -547,10 +547,11 @@ void add_gbt_options(CLI::App& sub, ClassifyArgs& cls) {
                      "label the same either way)");
   classify->add_option("--pso", cls.pso,
                        "gbt: separate: the post-saccadic oscillation labelled pso apart from the saccade and "
-                       "fixation, by ivvt's rule beside the trees (as the EyeLink and Lund coders label it); none: "
-                       "no pso label, the oscillation goes into the saccade or fixation as GazeCom's coders, whom "
-                       "the trees learned from, put it (cheaper; final as soon as the trees' labels, as with "
-                       "separate)")
+                       "fixation, and the small saccades the trees leave in fixations labelled saccade, both by "
+                       "ivvt's rule beside the trees (as the EyeLink and Lund coders label them); none: the trees "
+                       "alone, no pso label, the oscillation in the saccade or fixation and most saccades under 1 "
+                       "degree in the fixation, as GazeCom's coders, whom the trees learned from, put them "
+                       "(cheaper; final as soon as the trees' labels, as with separate)")
       ->check(CLI::IsMember({"separate", "none"}))
       ->capture_default_str();
   classify->add_option("--pursuit-weight", cls.pursuit_weight,
