@@ -112,7 +112,9 @@ class IvvtCore final : public Core {
     // before: its smoothing waits kSmoothHalfS > kPsoMaxS); closing it now changes nothing but when
     // its marks are known.
     if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS - 2 * kTimeSlackS) close_pso();
-    finalize(pso_only_ ? unused_ : out, false);
+    // Marks only: the pursuit test and the full labels are never asked for (most of the core's
+    // time), and nothing the marks need waits on them.
+    if (!pso_only_) finalize(out, false);
     emit_marks(out, false);
     trim();
   }
@@ -121,7 +123,7 @@ class IvvtCore final : public Core {
     while (vel_next_ < count_) compute_velocity(vel_next_++);
     close_pso();
     state_ = State::Idle;
-    finalize(pso_only_ ? unused_ : out, true);
+    if (!pso_only_) finalize(out, true);
     emit_marks(out, true);
     trim();
   }
@@ -404,12 +406,11 @@ class IvvtCore final : public Core {
   }
 
   // pso_only: each sample's label as soon as its mark is final: `saccade` or `pso`, or `unknown`
-  // for anything else (the caller asks only for the marks; the rest of the core runs as ever, so
-  // the marks are those of the full labels, but for an onset walk-back that would reach over
+  // for anything else (the caller asks only for the marks; the saccade and PSO steps run as ever,
+  // so the marks are those of the full labels, but for an onset walk-back that would reach over
   // kMarkHoldS to marks already sent).
   void emit_marks(std::vector<Labeled>& out, bool flushing) {
     if (!pso_only_) return;
-    unused_.clear();
     const double settled_t = newest_t_ - kVelHalfS - kMarkHoldS;  // a walk-back starts after this
     while (marks_next_ < vel_next_ && !(state_ == State::Pso && pso_start_ <= marks_next_)) {
       const Entry& e = at(marks_next_);
@@ -422,7 +423,7 @@ class IvvtCore final : public Core {
 
   void trim() {
     // Keep the pursuit window's history before the next sample to finalize (and its velocity window).
-    const std::uint64_t next = pso_only_ ? std::min(fin_next_, marks_next_) : fin_next_;
+    const std::uint64_t next = pso_only_ ? marks_next_ : fin_next_;
     const double ref = next < count_ ? at(next).p.t : newest_t_;
     while (base_ + 1 < next && buf_[1].p.t < ref - kSmoothHalfS - kVelHalfS + 2 * kTimeSlackS) {
       buf_.pop_front();
@@ -438,8 +439,7 @@ class IvvtCore final : public Core {
   std::uint64_t fin_next_ = 0;   // next entry to label
   std::uint64_t break_upto_ = 0; // entries before this precede a loss: nothing after them matters
   bool pso_only_ = false;
-  std::uint64_t marks_next_ = 0;  // pso_only: the next entry whose PSO mark is to be sent
-  std::vector<Labeled> unused_;   // pso_only: the full labels, not sent
+  std::uint64_t marks_next_ = 0;  // pso_only: the next entry whose mark is to be sent
   double newest_t_ = 0;
   Label last_smooth_ = Label::Fixation;     // the last fixation/pursuit label given
   Label before_saccade_ = Label::Fixation;  // what the eye did before the last saccade
