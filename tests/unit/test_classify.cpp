@@ -678,13 +678,13 @@ TEST(Classify, GbtTakesIvvtsSmallSaccadesWhereItsTreesSeeOnlyFixation) {
     ClassifierOptions o;
     o.nominal_rate_hz = 1000;
     o.separate_pso = false;
-    const auto trees = run_online("gbt", s, 1000);  // the default: the trees with ivvt's marks
+    const auto with = run_online("gbt", s, 1000);  // the default: the trees with ivvt's marks
     const auto alone = classify_all("gbt", o, s);
     ASSERT_EQ(share(alone, from - 20, to + 20, Label::Saccade), 0.0) << "the trees see this saccade themselves";
     std::size_t added = 0;
     for (std::size_t i = 0; i < s.size(); ++i) {
-      if (trees[i] == alone[i]) continue;
-      ASSERT_EQ(trees[i], Label::Saccade) << i;
+      if (with[i] == alone[i]) continue;
+      ASSERT_EQ(with[i], Label::Saccade) << i;
       ASSERT_EQ(ivvt[i], Label::Saccade) << i;
       ASSERT_EQ(alone[i], Label::Fixation) << i;
       ++added;

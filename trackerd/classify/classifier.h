@@ -91,7 +91,8 @@ struct ClassifierOptions {
   // leave in fixations, both by ivvt's rule beside the trees (the EyeLink and the Lund coders'
   // convention). false: the trees alone, no PSO class; the oscillation goes where the trees'
   // training coders put it (GazeCom's: the saccade's end runs into it), and small saccades too (most
-  // left in the fixation), at the trees' cost and latency alone. The other methods find their PSO as their rule does and reject false.
+  // left in the fixation), at the trees' cost and latency alone. The other methods find their PSO
+  // as their rule does and reject false.
   bool separate_pso = true;
   // Label for analysis, not live: the whole recording is at hand, so labels may wait for as much of
   // it as helps. gbt: its offline second stage (context.h, the whole reach) instead of the online

@@ -80,12 +80,12 @@ struct Fit {
 
 class IvvtCore final : public Core {
  public:
-  explicit IvvtCore(bool pso_only = false) : pso_only_(pso_only) {}
-  // pso_only (marks only): a sample's saccade or PSO mark is final once its velocity is in, no open
+  explicit IvvtCore(bool marks_only = false) : marks_only_(marks_only) {}
+  // marks_only: a sample's saccade or PSO mark is final once its velocity is in, no open
   // PSO window covers it (the window closes kVelHalfS after its 40 ms, below) and a saccade's onset
   // walk-back can no longer reach it (kMarkHoldS), long before its fixation/pursuit test.
   double latency_s() const override {
-    return pso_only_ ? kVelHalfS + kPsoMaxS + kMarkHoldS
+    return marks_only_ ? kVelHalfS + kPsoMaxS + kMarkHoldS
                      : kVelHalfS + kSmoothHalfS + kPursuitLookS - 3 * kTimeSlackS;
   }
 
@@ -114,7 +114,7 @@ class IvvtCore final : public Core {
     if (state_ == State::Pso && newest_t_ > pso_end_t_ + kVelHalfS - 2 * kTimeSlackS) close_pso();
     // Marks only: the pursuit test and the full labels are never asked for (most of the core's
     // time), and nothing the marks need waits on them.
-    if (!pso_only_) finalize(out, false);
+    if (!marks_only_) finalize(out, false);
     emit_marks(out, false);
     trim();
   }
@@ -123,7 +123,7 @@ class IvvtCore final : public Core {
     while (vel_next_ < count_) compute_velocity(vel_next_++);
     close_pso();
     state_ = State::Idle;
-    if (!pso_only_) finalize(out, true);
+    if (!marks_only_) finalize(out, true);
     emit_marks(out, true);
     trim();
   }
@@ -286,7 +286,7 @@ class IvvtCore final : public Core {
       // Onset: walk back down the rising flank (still unlabelled samples only; with marks only,
       // not over marks already sent).
       std::uint64_t onset = k;
-      const std::uint64_t floor = pso_only_ ? std::max(fin_next_, marks_next_) : fin_next_;
+      const std::uint64_t floor = marks_only_ ? marks_next_ : fin_next_;
       for (std::uint64_t j = k; j > floor && j > base_;) {
         --j;
         const Entry& q = at(j);
@@ -405,12 +405,12 @@ class IvvtCore final : public Core {
     }
   }
 
-  // pso_only: each sample's label as soon as its mark is final: `saccade` or `pso`, or `unknown`
+  // marks_only: each sample's label as soon as its mark is final: `saccade` or `pso`, or `unknown`
   // for anything else (the caller asks only for the marks; the saccade and PSO steps run as ever,
   // so the marks are those of the full labels, but for an onset walk-back that would reach over
   // kMarkHoldS to marks already sent).
   void emit_marks(std::vector<Labeled>& out, bool flushing) {
-    if (!pso_only_) return;
+    if (!marks_only_) return;
     const double settled_t = newest_t_ - kVelHalfS - kMarkHoldS;  // a walk-back starts after this
     while (marks_next_ < vel_next_ && !(state_ == State::Pso && pso_start_ <= marks_next_)) {
       const Entry& e = at(marks_next_);
@@ -423,7 +423,7 @@ class IvvtCore final : public Core {
 
   void trim() {
     // Keep the pursuit window's history before the next sample to finalize (and its velocity window).
-    const std::uint64_t next = pso_only_ ? marks_next_ : fin_next_;
+    const std::uint64_t next = marks_only_ ? marks_next_ : fin_next_;
     const double ref = next < count_ ? at(next).p.t : newest_t_;
     while (base_ + 1 < next && buf_[1].p.t < ref - kSmoothHalfS - kVelHalfS + 2 * kTimeSlackS) {
       buf_.pop_front();
@@ -438,8 +438,8 @@ class IvvtCore final : public Core {
   std::uint64_t smooth_next_ = 0; // next entry for the pursuit test
   std::uint64_t fin_next_ = 0;   // next entry to label
   std::uint64_t break_upto_ = 0; // entries before this precede a loss: nothing after them matters
-  bool pso_only_ = false;
-  std::uint64_t marks_next_ = 0;  // pso_only: the next entry whose mark is to be sent
+  bool marks_only_ = false;
+  std::uint64_t marks_next_ = 0;  // marks_only: the next entry whose mark is to be sent
   double newest_t_ = 0;
   Label last_smooth_ = Label::Fixation;     // the last fixation/pursuit label given
   Label before_saccade_ = Label::Fixation;  // what the eye did before the last saccade

@@ -3,7 +3,8 @@
 // gradient-boosted tree ensemble (trees.h) trained on human-coded recordings by
 // bench/train_classifier.py. A sample is scored once the stream has reached the features' reach past it
 // and labelled once its smoothing window (kSmoothLongS) is scored too; ivvt's marks beside it give
-// the PSO and the small saccades the trees leave in fixations. Samples without gaze keep the front end's blink/lost.
+// the PSO and the small saccades the trees leave in fixations. Samples without gaze keep the front
+// end's blink/lost.
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -289,14 +290,15 @@ class TreesCore final : public Core {
 //  - a saccade of ivvt's that lies wholly within the trees' fixation, saccade: GazeCom's expert,
 //    whom the trees learned from, leaves most saccades under 1 degree unmarked, which the EyeLink
 //    coder marks (of the 199 such saccades on the EyeLink set 171 are the coder's; kappa 0.83 ->
-//    0.86; on GazeCom 133 of 589, saccade F1 -0.005). Only saccades up to kAddedSaccadeMaxS are
+//    0.86; on GazeCom 133 of 589, saccade F1 -0.006). Only saccades up to kAddedSaccadeMaxS are
 //    taken: the pair waits for a saccade's end before it decides, within a bounded latency.
 // Both cores label in input order, so their outputs pair up index by index. ivvt's marks are final
 // within 80 ms, where its full labels wait up to 310 ms for the pursuit test gbt does not use, so
 // the pair waits for the trees only.
 class WithIvvtMarksCore final : public Core {
  public:
-  WithIvvtMarksCore(std::unique_ptr<Core> trees, std::unique_ptr<Core> ivvt) : trees_(std::move(trees)), ivvt_(std::move(ivvt)) {}
+  WithIvvtMarksCore(std::unique_ptr<Core> trees, std::unique_ptr<Core> ivvt)
+      : trees_(std::move(trees)), ivvt_(std::move(ivvt)) {}
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     times_.push_back(p.t);
     trees_->push(p, from_trees_);
@@ -328,14 +330,15 @@ class WithIvvtMarksCore final : public Core {
         l.label = Label::Pso;
       }
       out.push_back(l);
-      ++t_at_, ++i_at_, ++paired_;
+      ++t_at_, ++i_at_;
+      times_.pop_front();
     }
     drop_paired(from_trees_, t_at_);
     drop_paired(from_ivvt_, i_at_);
-    while (!times_.empty() && times_base_ < paired_) times_.pop_front(), ++times_base_;
   }
-  // At the first sample of one of ivvt's saccades: take it (added_left_ = its length) if the trees
-  // call every sample of it fixation. False while its end or the trees' labels are not in yet.
+  // At the first sample of one of ivvt's saccades: true once decided, with added_left_ = its length
+  // if the trees call every sample of it fixation; false while its end or the trees' labels of it
+  // are not in yet.
   bool decide_saccade(bool flushing) {
     std::size_t n = 0;  // the saccade's length, as far as ivvt's marks go
     while (i_at_ + n < from_ivvt_.size() && from_ivvt_[i_at_ + n].label == Label::Saccade) ++n;
@@ -343,12 +346,9 @@ class WithIvvtMarksCore final : public Core {
     for (std::size_t k = 0; k < n && t_at_ + k < from_trees_.size(); ++k) {
       if (from_trees_[t_at_ + k].label != Label::Fixation) return true;
     }
-    const double start_t = times_[paired_ - times_base_];
-    const double last_t = times_[paired_ + n - 1 - times_base_];
+    if (times_[n - 1] - times_[0] > kAddedSaccadeMaxS) return true;  // too long to be added
     const bool ended = i_at_ + n < from_ivvt_.size() || flushing;
-    if (!ended && last_t - start_t <= kAddedSaccadeMaxS) return false;  // it may still end in time
-    if (!ended || last_t - start_t > kAddedSaccadeMaxS) return true;    // too long to be added
-    if (t_at_ + n > from_trees_.size()) return false;                  // the trees are behind
+    if (!ended || t_at_ + n > from_trees_.size()) return false;  // it may yet end; the trees are behind
     added_left_ = n;
     return true;
   }
@@ -365,8 +365,6 @@ class WithIvvtMarksCore final : public Core {
   std::vector<Labeled> from_trees_, from_ivvt_;
   std::size_t t_at_ = 0, i_at_ = 0;  // the first of each not yet paired
   std::deque<double> times_;         // the pushed samples' times, from the first not yet paired
-  std::uint64_t times_base_ = 0;     // the position of times_[0] among the pushed samples
-  std::uint64_t paired_ = 0;         // samples paired so far
   bool in_ivvt_saccade_ = false;     // the last paired sample was one of ivvt's saccade
   std::size_t added_left_ = 0;       // samples of a taken saccade of ivvt's still to pair
 };
