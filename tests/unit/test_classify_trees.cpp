@@ -534,6 +534,74 @@ TEST(Trees, SmoothingCallsASaccadeByTheShortWindowAndTheRestByTheLongOneNoiseNea
   EXPECT_NEAR(p[0] / p[2], std::exp(2.0), 1e-9);  // tree 0 adds 2 to fixation (0.5 <= 1), pursuit has no tree
 }
 
+// The coders' noise is a blink within kNoiseNearLossS of a loss, as far ahead as the features see:
+// the daemon's features reach 64 ms ahead and cap the time to the next loss there, which once read
+// as a loss 64 ms ahead for every sample (every noise sample a blink, large saccades too).
+TEST(Trees, NoiseIsABlinkOnlyNearALossTheFeaturesSawOrOffTheDisplay) {
+  std::vector<float> f(kFeatureCount, 0.0f);
+  const auto set = [&](const char* name, double v) { f[feature_index(name)] = static_cast<float>(v); };
+  set("offscreen_deg", 0);
+  for (const double reach : {0.064, kFeatureReachS}) {
+    set("loss_before_s", kFeatureReachS);
+    set("loss_after_s", reach);  // the cap: no loss within the reach
+    EXPECT_FALSE(TreesModel::noise_is_blink(f.data(), reach)) << reach;
+    set("loss_after_s", 0.050);
+    EXPECT_TRUE(TreesModel::noise_is_blink(f.data(), reach)) << reach;
+    set("loss_after_s", reach);
+    set("loss_before_s", 0.099);
+    EXPECT_TRUE(TreesModel::noise_is_blink(f.data(), reach)) << reach;
+    set("loss_before_s", 0.101);
+    EXPECT_FALSE(TreesModel::noise_is_blink(f.data(), reach)) << reach;
+    set("offscreen_deg", 0.5);
+    EXPECT_TRUE(TreesModel::noise_is_blink(f.data(), reach)) << reach;
+    set("offscreen_deg", 0);
+  }
+  // With the whole reach a loss 64-100 ms ahead is near; 100 ms or more is not.
+  f[feature_index("loss_before_s")] = static_cast<float>(kFeatureReachS);
+  f[feature_index("loss_after_s")] = 0.080f;
+  EXPECT_TRUE(TreesModel::noise_is_blink(f.data(), kFeatureReachS));
+  f[feature_index("loss_after_s")] = 0.120f;
+  EXPECT_FALSE(TreesModel::noise_is_blink(f.data(), kFeatureReachS));
+}
+
+// The whole pipeline with trees that call every gaze sample noise: a blink within 100 ms of a loss
+// of data, a short one the front end filled in too (the features' times to a loss see no filled
+// gap; short blinks are such gaps), unknown further away. Before, the daemon's features, whose time
+// to the next loss stops at their 64 ms reach, made every noise sample a blink.
+TEST(Trees, NoiseNearAFilledOrUnfilledLossIsABlinkAndUnknownElsewhere) {
+  const std::string noise = "fovea-trees 1\nfeatures " + std::to_string(kFeatureCount);
+  std::string text = noise;
+  for (const auto& n : feature_names()) text += " " + n;
+  text += "\nclasses 2 noise fixation\nbaseline 0 0\ntrees 1\ntree 0 1\n-1 0 0 0 0 1\n";
+  const auto model = std::make_shared<const GbtModel>(text, "noise.trees");
+  GbtOptions o;
+  o.separate_pso = false;
+  auto pipeline = make_trees_pipeline(model, fovea::protocol::DisplayGeometry{}, o);
+  // 250 Hz, 3 s of still gaze; lost: 1.000-1.040 s (bridged by the 75 ms fill-in), 2.000-2.300 s.
+  std::vector<Labeled> out;
+  std::vector<double> t;
+  for (int i = 0; i < 750; ++i) {
+    Sample s;
+    s.t_s = i * 0.004;
+    s.valid = !(s.t_s >= 0.9999 && s.t_s < 1.0399) && !(s.t_s >= 1.9999 && s.t_s < 2.2999);
+    t.push_back(s.t_s);
+    pipeline->push(s, out);
+  }
+  pipeline->flush(out);
+  ASSERT_EQ(out.size(), t.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const double d = std::min({std::abs(t[i] - 0.998), std::abs(t[i] - 1.040), std::abs(t[i] - 1.998),
+                               std::abs(t[i] - 2.300)});
+    const bool lost = t[i] >= 1.9999 && t[i] < 2.2999;
+    if (lost) continue;  // the front end's label of an unbridged loss
+    if (d < 0.095) {
+      EXPECT_EQ(out[i].label, Label::Blink) << t[i];
+    } else if (d > 0.105) {
+      EXPECT_EQ(out[i].label, Label::Unknown) << t[i];
+    }
+  }
+}
+
 // --- the pursuit-onset hold (trees_core.h, OnsetHold) -------------------------------------------
 
 namespace {

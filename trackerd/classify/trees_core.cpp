@@ -72,6 +72,7 @@ class TreesCore final : public Core {
 
   void push(const Prepared& p, std::vector<Labeled>& out) override {
     newest_t_ = p.t;
+    if (p.kind != Prepared::Kind::Gaze) loss_times_.push_back(p.t);
     buf_.push_back(p);
     window_.push(p);
     while (next_ < buf_.size() && buf_[next_].t + reach_ <= p.t) score_next(out);
@@ -107,7 +108,7 @@ class TreesCore final : public Core {
     if (!s.gaze) ++run_;
     s.run = run_;
     ++next_;
-    if (s.gaze) s.noise_as_blink = TreesModel::noise_is_blink(c.frame.data());
+    if (s.gaze) s.noise_as_blink = TreesModel::noise_is_blink(c.frame.data(), reach_);
     if (s.gaze && !model_) s.out.label = Label::Unknown;
     if (s.gaze && model_) frame_->probabilities(c.frame.data(), c.p.data());
     if (staged_) {
@@ -173,7 +174,8 @@ class TreesCore final : public Core {
         std::array<double, kMaxTreeClasses> near{}, wide{};
         window_mean(labelled_, kSmoothShortS, last.class_count(), near);
         window_mean(labelled_, smooth_long_s_, last.class_count(), wide);
-        h.l.label = last.smoothed_label(near.data(), wide.data(), weights_.data(), s.noise_as_blink);
+        h.l.label = last.smoothed_label(near.data(), wide.data(), weights_.data(),
+                                        s.noise_as_blink || loss_near(s.t));
         h.doubtful = h.l.label == Label::Fixation && pursuit_doubt(last, wide);
       }
       if (hold_params_.hold_s > 0) {
@@ -184,12 +186,24 @@ class TreesCore final : public Core {
       ++labelled_;
     }
     if (hold_params_.hold_s > 0) hold_.release(out, all);
+    while (!loss_times_.empty() && labelled_ < scored_.size() &&
+           loss_times_.front() <= scored_[labelled_].t - kNoiseNearLossS) {
+      loss_times_.pop_front();
+    }
     // Keep what the next label's window reaches back to.
     while (labelled_ > 0 &&
            (labelled_ == scored_.size() || scored_[labelled_].t - scored_.front().t > smooth_long_s_ - kTimeSlackS)) {
       scored_.pop_front();
       --labelled_;
     }
+  }
+  // Whether a loss of data lies within kNoiseNearLossS of t, one the front end filled in too: the
+  // features' times to a loss see neither a filled gap (a short blink's) nor a loss beyond their
+  // reach (the daemon's: 64 ms ahead). A smoothed label is made once the stream is past that (112 ms
+  // online) or a loss has come, so the samples pushed since tell the whole 100 ms.
+  bool loss_near(double t) const {
+    const auto first = std::upper_bound(loss_times_.begin(), loss_times_.end(), t - kNoiseNearLossS);
+    return first != loss_times_.end() && *first < t + kNoiseNearLossS;
   }
   // How far behind the newest sample a smoothed label is made (before any hold).
   double smoothed_latency_s() const {
@@ -276,7 +290,8 @@ class TreesCore final : public Core {
   std::deque<Scored> scored_;
   std::size_t labelled_ = 0;  // the first of scored_ not yet labelled
   std::uint64_t run_ = 0;
-  double newest_t_ = 0;  // the newest pushed sample's time
+  double newest_t_ = 0;          // the newest pushed sample's time
+  std::deque<double> loss_times_;  // lost or filled samples' times, from kNoiseNearLossS before the first unlabelled
 };
 
 // The trees and ivvt side by side on the same prepared samples: the trees' labels, with two of
@@ -425,10 +440,13 @@ Label TreesModel::smoothed_label(const double* near, const double* wide, const d
   return named(static_cast<std::size_t>(std::max_element(rest, rest + k) - rest), noise_as_blink);
 }
 
-bool TreesModel::noise_is_blink(const float* frame_features) {
+bool TreesModel::noise_is_blink(const float* frame_features, double reach_s) {
   static const std::size_t before = feature_index("loss_before_s"), after = feature_index("loss_after_s"),
                            offscreen = feature_index("offscreen_deg");
-  return static_cast<double>(std::min(frame_features[before], frame_features[after])) < kNoiseNearLossS ||
+  // The time to the next loss is capped at the reach, exactly (features.cpp): a loss at the cap is
+  // no loss seen. Without this the daemon's 64 ms reach made every noise sample a blink.
+  const auto ahead = static_cast<float>(std::min(kNoiseNearLossS, reach_s));
+  return static_cast<double>(frame_features[before]) < kNoiseNearLossS || frame_features[after] < ahead ||
          frame_features[offscreen] > 0;
 }
 

@@ -18,8 +18,9 @@
 namespace fovea::trackerd::classify {
 
 // A tree ensemble whose classes are labels. The coders' noise is a blink where a loss of data is
-// within kNoiseNearLossS (the lid's artefacts around it) or the gaze is off the display; elsewhere it
-// is gaze that no movement class fits (GazeCom's odd stretches): unknown.
+// within kNoiseNearLossS (the lid's artefacts around it), a gap the front end filled in included
+// (TreesCore, trees_core.cpp), or the gaze is off the display; elsewhere it is gaze that no movement
+// class fits (GazeCom's odd stretches): unknown.
 inline constexpr double kNoiseNearLossS = 0.100;
 // Smoothing (issue 43): a single sample's trees flip between classes, splitting one pursuit or
 // fixation into many events. A saccade is called where the class probabilities averaged over
@@ -47,8 +48,10 @@ class TreesModel {
   // The label from probabilities averaged over the short and the long window (above); the long
   // window's choice weighs class k's mean by weights[k] (GbtModel::weights).
   Label smoothed_label(const double* near, const double* wide, const double* weights, bool noise_as_blink) const;
-  // Whether the coders' noise is a blink, from a sample's features.h features (above).
-  static bool noise_is_blink(const float* frame_features);
+  // Whether the coders' noise is a blink, from a sample's features.h features (above) computed with
+  // reach_s ahead: a loss further ahead than that reads as reach_s (features.h), so with a reach
+  // under kNoiseNearLossS only a loss within the reach counts ahead.
+  static bool noise_is_blink(const float* frame_features, double reach_s);
   const TreeEnsemble& trees() const { return trees_; }
   std::size_t class_count() const { return labels_.size(); }
   // The class labelled l, or class_count() where there is none.
