@@ -16,9 +16,10 @@
 //   bench_classify [--seconds S] [--seeds N] [--methods A,B] [--accuracy-only | --small-saccades]
 //     defaults: 120 s of gaze per seed, 3 seeds, every method, every table. --methods keeps the main
 //     table and the small saccades' to those methods (gbt+pso=none: gbt without a PSO class,
-//     gbt+pursuit-weight=W: with that weight instead of its model's, gbt+pursuit-hold=MS: with that
-//     pursuit-onset hold, 0 none, beside them); --accuracy-only prints the main table and the cost
-//     summary alone, --small-saccades the small saccades' table alone.
+//     gbt+pso=onset: with its PSO from the oscillation's onset, gbt+pursuit-weight=W: with that
+//     weight instead of its model's, gbt+pursuit-hold=MS: with that pursuit-onset hold, 0 none,
+//     beside them); --accuracy-only prints the main table and the cost summary alone,
+//     --small-saccades the small saccades' table alone.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -186,26 +187,27 @@ void print_provisional(const double* rates, const Condition& c, double seconds, 
   }
 }
 
-// A method of the main table: a registered one, gbt without a PSO class ("gbt+pso=none"), gbt
-// with another pursuit weight than its model's ("gbt+pursuit-weight=W") or another pursuit-onset
-// hold ("gbt+pursuit-hold=MS", ratio 0.3 and 20 ms as fovea-ctl's defaults; 0: none).
+// A method of the main table: a registered one, gbt without a PSO class ("gbt+pso=none") or with
+// its PSO from the onset ("gbt+pso=onset"), gbt with another pursuit weight than its model's
+// ("gbt+pursuit-weight=W") or another pursuit-onset hold ("gbt+pursuit-hold=MS", ratio 0.3 and
+// 20 ms as fovea-ctl's defaults; 0: none).
 struct Method {
   std::string name;     // as printed
   std::string method;   // the registry's name
-  bool separate_pso = true;
+  PsoConvention pso = PsoConvention::Separate;
   double pursuit_weight = 0;  // 0: the model's
   std::optional<PursuitHold> pursuit_hold{};  // unset: the model's
   ClassifierOptions options(double rate_hz) const {
     ClassifierOptions o;
     o.nominal_rate_hz = rate_hz;
-    o.separate_pso = separate_pso;
+    o.pso = pso;
     o.pursuit_weight = pursuit_weight;
     o.pursuit_hold = pursuit_hold;
     return o;
   }
 };
 
-// The methods named in a comma-separated list, in classifiers() order (gbt+pso=none,
+// The methods named in a comma-separated list, in classifiers() order (gbt+pso=onset, gbt+pso=none,
 // gbt+pursuit-weight=W and gbt+pursuit-hold=MS after gbt); every registered one for "".
 std::vector<Method> chosen_methods(const std::string& list) {
   std::vector<std::string> items;
@@ -220,7 +222,8 @@ std::vector<Method> chosen_methods(const std::string& list) {
   for (const ClassifierInfo& m : classifiers()) {
     if (list.empty() || named(m.name)) out.push_back({m.name, m.name});
     if (m.name != "gbt") continue;
-    if (named("gbt+pso=none")) out.push_back({"gbt+pso=none", "gbt", false});
+    if (named("gbt+pso=onset")) out.push_back({"gbt+pso=onset", "gbt", PsoConvention::Onset});
+    if (named("gbt+pso=none")) out.push_back({"gbt+pso=none", "gbt", PsoConvention::None});
     for (const std::string& item : items) {
       const bool is_weight = item.rfind(weighed, 0) == 0;
       if (!is_weight && item.rfind(held, 0) != 0) continue;
@@ -232,9 +235,9 @@ std::vector<Method> chosen_methods(const std::string& list) {
         std::exit(2);
       }
       if (is_weight) {
-        out.push_back({item, "gbt", true, v});
+        out.push_back({item, "gbt", PsoConvention::Separate, v});
       } else {
-        out.push_back({item, "gbt", true, 0, PursuitHold{v / 1000, 0.3, 0.02}});
+        out.push_back({item, "gbt", PsoConvention::Separate, 0, PursuitHold{v / 1000, 0.3, 0.02}});
       }
     }
   }

@@ -38,16 +38,17 @@ double angle_deg(double ax, double ay, double bx, double by) {
 }  // namespace
 
 ClassifyStage::ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display,
-                             bool separate_pso, double pursuit_weight)
+                             classify::PsoConvention pso, double pursuit_weight)
     : method_(method.empty() ? classify::classifiers().front().name : method), display_(display) {
   if (method_ != "source") {
     classify::ClassifierOptions o;
     o.nominal_rate_hz = nominal_rate_hz > 0 ? nominal_rate_hz : 250;
     o.display = display;  // gbt measures how far the gaze lies off it; lee2009's thresholds are in its units
-    o.separate_pso = separate_pso;
+    o.pso = pso;
     o.pursuit_weight = pursuit_weight;
     classifier_ = classify::make_classifier(method_, o);
-    if (!separate_pso) method_ += " without a PSO class";
+    if (pso == classify::PsoConvention::None) method_ += " without a PSO class";
+    if (pso == classify::PsoConvention::Onset) method_ += " with the PSO from its onset";
     if (pursuit_weight > 0) method_ += fmt::format(" with pursuit weighed {}", pursuit_weight);
   }
 }

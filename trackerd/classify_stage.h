@@ -22,11 +22,11 @@ namespace fovea::trackerd {
 
 class ClassifyStage {
  public:
-  // Throws std::invalid_argument for an unknown method (listing the known ones), one that cannot
-  // label without a PSO class (classify::ClassifierOptions::separate_pso) or weigh pursuit
+  // Throws std::invalid_argument for an unknown method (listing the known ones), one that takes no
+  // PSO convention but the default (classify::PsoConvention) or cannot weigh pursuit
   // (pursuit_weight > 0; 0 keeps the model's own weight).
   ClassifyStage(const std::string& method, double nominal_rate_hz, const protocol::DisplayGeometry& display,
-                bool separate_pso = true, double pursuit_weight = 0);
+                classify::PsoConvention pso = classify::PsoConvention::Separate, double pursuit_weight = 0);
   std::string description() const;
   bool passthrough() const { return classifier_ == nullptr; }
   // Provisional events sent, confirmed by the final labels, and retracted so far.

@@ -165,11 +165,13 @@ void add_processing_and_run_options(CLI::App& app, Flags& f) {
                                   "online classifier: gbt (default), ivvt, ivt, idt, lee2009, or 'source' to pass "
                                   "the source's own labels and events (trackerd/CLASSIFY.md)");
   f.o_classifier_pso = app.add_option("--classifier-pso", f.classifier_pso,
-                                      "gbt: separate (default): post-saccadic oscillations labelled apart and the "
-                                      "small saccades the trees leave in fixations labelled saccade, by ivvt's rule "
-                                      "beside the trees; none: the trees alone, no PSO class, the oscillation and "
-                                      "small saccades where GazeCom's coders put them, cheaper")
-                           ->check(CLI::IsMember({"separate", "none"}));
+                                      "gbt: separate (default): the saccade ends as the trees end it (GazeCom's "
+                                      "coders), the post-saccadic oscillation after it labelled pso and the small "
+                                      "saccades the trees leave in fixations labelled saccade, by ivvt's rule beside "
+                                      "the trees; onset: the pso from the oscillation's onset, cutting the saccade "
+                                      "there (the EyeLink and Lund coders); none: the trees alone, no PSO class, as "
+                                      "GazeCom's coders label, cheaper")
+                           ->check(CLI::IsMember({"separate", "onset", "none"}));
   f.o_classifier_pursuit_weight =
       app.add_option("--classifier-pursuit-weight", f.classifier_pursuit_weight,
                      "gbt: the weight of pursuit in the smoothing's choice, 0.01 to 100 (above 1 pursuit sooner "

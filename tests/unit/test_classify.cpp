@@ -490,52 +490,70 @@ TEST(Classify, PostSaccadicOscillation) {
   EXPECT_EQ(share(classify_all("ivvt", 1000, clean), 0, clean.size(), Label::Pso), 0.0);
 }
 
-TEST(Classify, GbtTakesIvvtsPsoWhereItsTreesSaySaccadeOrFixationOrNoneWithoutAPsoClass) {
+// gbt's three PSO conventions (classifier.h, PsoConvention) on one saccade with a PSO: onset (the
+// EyeLink and Lund coders'): ivvt's PSO wherever it finds one; none (GazeCom's coders'): no PSO
+// class, the trees' labels alone; separate (the default): the trees' saccade as it is (GazeCom's
+// end), ivvt's PSO after it where the trees say fixation.
+TEST(Classify, GbtsPsoFromTheOnsetAfterTheTreesSaccadeOrNotAtAll) {
   const auto [s, off] = wobbling_saccade();
   ClassifierOptions o;
   o.nominal_rate_hz = 1000;
-  const auto with = classify_all("gbt", o, s);
+  const auto separate = classify_all("gbt", o, s);
+  o.pso = PsoConvention::Onset;
+  const auto onset = classify_all("gbt", o, s);
   o.trees_only = true;
   const auto trees = classify_all("gbt", o, s);
+  o.trees_only = false;
+  o.pso = PsoConvention::None;
+  const auto none = classify_all("gbt", o, s);
   const auto ivvt = classify_all("ivvt", 1000, s);
   EXPECT_EQ(share(trees, 0, s.size(), Label::Pso), 0.0);  // GazeCom's coders have no PSO class
-  EXPECT_GT(share(with, index_at(s, off + 0.008), index_at(s, off + 0.02), Label::Pso), 0.9);
-  for (std::size_t i = 0; i < s.size(); ++i) {  // (`with` is smoothed: its trees' labels are not `trees`)
-    if (with[i] == Label::Pso) {
-      ASSERT_EQ(ivvt[i], Label::Pso) << i;
-    }
-    if (ivvt[i] == Label::Pso) {
-      ASSERT_TRUE(with[i] != Label::Saccade && with[i] != Label::Fixation) << i;
-    }
-  }
-  // Without a PSO class (GazeCom's coders' convention): its smoothed trees' labels, those of the PSO
-  // run wherever ivvt's PSO did not replace them, the oscillation where the trees put it, no ivvt
-  // core beside them (final as soon as the trees' labels); the other methods refuse it.
-  o.trees_only = false;
-  o.separate_pso = false;
-  const auto without = classify_all("gbt", o, s);
-  EXPECT_EQ(share(without, 0, s.size(), Label::Pso), 0.0);
-  std::size_t moved = 0;
+  EXPECT_EQ(share(none, 0, s.size(), Label::Pso), 0.0);
+  EXPECT_GT(share(onset, index_at(s, off + 0.008), index_at(s, off + 0.02), Label::Pso), 0.9);
+  std::size_t after_saccade = 0, cut_short = 0;
   for (std::size_t i = 0; i < s.size(); ++i) {
-    if (with[i] != Label::Pso) {
-      ASSERT_EQ(without[i], with[i]) << i;
+    // onset: ivvt's PSO wherever the trees say saccade or fixation; otherwise the trees' labels
+    if (ivvt[i] == Label::Pso) {
+      ASSERT_TRUE(onset[i] != Label::Saccade && onset[i] != Label::Fixation) << i;
+    }
+    if (onset[i] != Label::Pso) {
+      ASSERT_EQ(none[i], onset[i]) << i;
     } else {
-      ASSERT_TRUE(without[i] == Label::Saccade || without[i] == Label::Fixation) << i;
-      ++moved;
+      ASSERT_EQ(ivvt[i], Label::Pso) << i;
+      ASSERT_TRUE(none[i] == Label::Saccade || none[i] == Label::Fixation) << i;
+    }
+    // separate: the trees' saccade kept whole, ivvt's PSO where they say fixation
+    if (none[i] == Label::Saccade) {
+      ASSERT_EQ(separate[i], Label::Saccade) << i;
+      cut_short += onset[i] == Label::Pso;
+    } else if (separate[i] != none[i]) {
+      ASSERT_EQ(separate[i], Label::Pso) << i;
+      ASSERT_EQ(none[i], Label::Fixation) << i;
+      ASSERT_EQ(ivvt[i], Label::Pso) << i;
+      ++after_saccade;
     }
   }
-  EXPECT_GT(moved, 5u);
+  EXPECT_GT(after_saccade, 5u) << "the PSO after the trees' saccade";
+  EXPECT_GT(cut_short, 0u) << "where the trees' saccade runs into ivvt's PSO the conventions differ";
   // ivvt's PSO marks are final within 50 ms, so taking them costs no latency beyond the trees' own
   // (they waited for ivvt's whole label, 310 ms, before).
-  ClassifierOptions separate = o;
-  separate.separate_pso = true;
-  EXPECT_EQ(make_classifier("gbt", o)->latency_s(), make_classifier("gbt", separate)->latency_s());
-  try {
-    (void)make_classifier("ivvt", o);
-    ADD_FAILURE() << "ivvt without a PSO class";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_STREQ(e.what(), "classifier ivvt: only gbt can label without a PSO class (ivvt's PSO is part of its rule)");
+  ClassifierOptions with_marks = o;
+  with_marks.pso = PsoConvention::Separate;
+  EXPECT_EQ(make_classifier("gbt", o)->latency_s(), make_classifier("gbt", with_marks)->latency_s());
+  with_marks.pso = PsoConvention::Onset;
+  EXPECT_EQ(make_classifier("gbt", o)->latency_s(), make_classifier("gbt", with_marks)->latency_s());
+  for (const PsoConvention c : {PsoConvention::None, PsoConvention::Onset}) {
+    o.pso = c;
+    try {
+      (void)make_classifier("ivvt", o);
+      ADD_FAILURE() << "ivvt with pso " << to_string(c);
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), std::string("classifier ivvt: only gbt takes a PSO convention (pso ") +
+                                           to_string(c) + "; ivvt's PSO is part of its rule)");
+    }
   }
+  EXPECT_EQ(pso_convention("onset"), PsoConvention::Onset);
+  EXPECT_EQ(pso_convention("Separate"), std::nullopt);
 }
 
 // The smoothing's choice weighs pursuit by the model's chain weight (trees_core.h, GbtModel::weights)
@@ -677,7 +695,7 @@ TEST(Classify, GbtTakesIvvtsSmallSaccadesWhereItsTreesSeeOnlyFixation) {
     ASSERT_GT(share(ivvt, from, to, Label::Saccade), 0.5) << "ivvt misses the saccade: the test shows nothing";
     ClassifierOptions o;
     o.nominal_rate_hz = 1000;
-    o.separate_pso = false;
+    o.pso = PsoConvention::None;
     const auto with = run_online("gbt", s, 1000);  // the default: the trees with ivvt's marks
     const auto alone = classify_all("gbt", o, s);
     ASSERT_EQ(share(alone, from - 20, to + 20, Label::Saccade), 0.0) << "the trees see this saccade themselves";

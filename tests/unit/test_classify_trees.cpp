@@ -575,7 +575,7 @@ TEST(Trees, NoiseNearAFilledOrUnfilledLossIsABlinkAndUnknownElsewhere) {
   text += "\nclasses 2 noise fixation\nbaseline 0 0\ntrees 1\ntree 0 1\n-1 0 0 0 0 1\n";
   const auto model = std::make_shared<const GbtModel>(text, "noise.trees");
   GbtOptions o;
-  o.separate_pso = false;
+  o.pso = PsoConvention::None;
   auto pipeline = make_trees_pipeline(model, fovea::protocol::DisplayGeometry{}, o);
   // 250 Hz, 3 s of still gaze; lost: 1.000-1.040 s (bridged by the 75 ms fill-in), 2.000-2.300 s.
   std::vector<Labeled> out;

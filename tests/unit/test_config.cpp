@@ -165,7 +165,10 @@ TEST(Config, ErrorsNameFileLineKeyAndAllowedValues) {
   EXPECT_EQ(parse_config("[classifier]\npso = \"none\"\n", "t.toml").classifier.pso, "none");
   expect_problem("[classifier]\nmethod = \"source\"\npso = \"none\"\n", {"test.toml:3:", "classifier.pso", "(source"});
   expect_problem("[classifier]\nmethod = \"gbt\"\npso = \"saccade\"\n",
-                 {"test.toml:3:", "classifier.pso", "\"saccade\" is no PSO convention; allowed: separate, none"});
+                 {"test.toml:3:", "classifier.pso", "\"saccade\" is no PSO convention; allowed: separate, onset, none"});
+  expect_problem("[classifier]\nmethod = \"ivvt\"\npso = \"onset\"\n",
+                 {"test.toml:3:", "classifier.pso", "pso = \"onset\" is for method gbt only (ivvt"});
+  EXPECT_EQ(parse_config("[classifier]\npso = \"onset\"\n", "t.toml").classifier.pso, "onset");
   EXPECT_EQ(parse_config("[classifier]\nmethod = \"gbt\"\n", "t.toml").classifier.pso, "separate");
   // Only gbt weighs its classes; 0 is the model's own weight, else 0.01..100 (as fovea-ctl classify).
   expect_problem("[classifier]\nmethod = \"ivvt\"\npursuit_weight = 2\n",

@@ -335,27 +335,34 @@ TEST(ClassifyStage, LabelsOnTheConfiguredDisplay) {
   EXPECT_NE(got, expected_starts(protocol::DisplayGeometry{})) << "the display must matter here for the test to say anything";
 }
 
-// [classifier] pso = "none" reaches the stage: gbt says so (its bound is the trees' own, 112 ms and
-// the pursuit-onset hold's 164, with the front end's 75; with its PSO the same, as ivvt's PSO marks
+// [classifier] pso reaches the stage: gbt says which (its bound is the trees' own, 112 ms and the
+// pursuit-onset hold's 164, with the front end's 75; with ivvt's marks the same, as its PSO marks
 // are final within 50 ms, where ivvt's own labels wait 385); a method with a PSO rule of its own
-// refuses it.
-TEST(ClassifyStage, GbtWithoutAPsoClassSaysSoAndOtherMethodsRefuseIt) {
-  const ClassifyStage none("gbt", 250, protocol::DisplayGeometry{}, false);
+// refuses any but the default.
+TEST(ClassifyStage, GbtsPsoConventionShowsAndOtherMethodsRefuseOne) {
+  using classify::PsoConvention;
+  const ClassifyStage none("gbt", 250, protocol::DisplayGeometry{}, PsoConvention::None);
   EXPECT_NE(none.description().find("gbt without a PSO class (labels final at most 351 ms"), std::string::npos)
       << none.description();
+  const ClassifyStage onset("gbt", 250, protocol::DisplayGeometry{}, PsoConvention::Onset);
+  EXPECT_NE(onset.description().find("gbt with the PSO from its onset (labels final at most 351 ms"), std::string::npos)
+      << onset.description();
   EXPECT_NE(ClassifyStage("gbt", 250, protocol::DisplayGeometry{}).description().find("at most 351 ms"), std::string::npos)
       << ClassifyStage("gbt", 250, protocol::DisplayGeometry{}).description();
   EXPECT_NE(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}).description().find("at most 385 ms"), std::string::npos);
-  EXPECT_THROW(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}, false), std::invalid_argument);
+  EXPECT_THROW(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}, PsoConvention::None), std::invalid_argument);
+  EXPECT_THROW(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}, PsoConvention::Onset), std::invalid_argument);
 }
 
 // [classifier] pursuit_weight reaches the stage: gbt says so; ivvt, whose pursuit is a rule's, refuses it.
 TEST(ClassifyStage, APursuitWeightReachesGbtAndOtherMethodsRefuseIt) {
-  const ClassifyStage weighed("gbt", 250, protocol::DisplayGeometry{}, true, 2.5);
+  using classify::PsoConvention;
+  const ClassifyStage weighed("gbt", 250, protocol::DisplayGeometry{}, PsoConvention::Separate, 2.5);
   EXPECT_NE(weighed.description().find("gbt with pursuit weighed 2.5 (labels final"), std::string::npos)
       << weighed.description();
   EXPECT_EQ(ClassifyStage("gbt", 250, protocol::DisplayGeometry{}).description().find("weighed"), std::string::npos);
-  EXPECT_THROW(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}, true, 2.5), std::invalid_argument);
+  EXPECT_THROW(ClassifyStage("ivvt", 250, protocol::DisplayGeometry{}, PsoConvention::Separate, 2.5),
+               std::invalid_argument);
 }
 
 // The tracker's heuristic filter of the realistic generator (evaluate.h, Stampe 1993 stage 1):

@@ -10,6 +10,22 @@
 
 namespace fovea::trackerd::classify {
 
+const char* to_string(PsoConvention c) {
+  switch (c) {
+    case PsoConvention::Separate: return "separate";
+    case PsoConvention::Onset: return "onset";
+    case PsoConvention::None: return "none";
+  }
+  return "separate";
+}
+
+std::optional<PsoConvention> pso_convention(const std::string& name) {
+  for (const PsoConvention c : {PsoConvention::Separate, PsoConvention::Onset, PsoConvention::None}) {
+    if (name == to_string(c)) return c;
+  }
+  return std::nullopt;
+}
+
 const char* to_string(Label l) {
   switch (l) {
     case Label::Fixation: return "fixation";
@@ -74,9 +90,9 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
   if (const std::string err = protocol::validate(options.display); !err.empty()) {
     throw std::invalid_argument("classifier " + name + ": display geometry: " + err);
   }
-  if (!options.separate_pso && name != "gbt") {
-    throw std::invalid_argument("classifier " + name + ": only gbt can label without a PSO class (" + name +
-                                "'s PSO is part of its rule)");
+  if (options.pso != PsoConvention::Separate && name != "gbt") {
+    throw std::invalid_argument("classifier " + name + ": only gbt takes a PSO convention (pso " +
+                                to_string(options.pso) + "; " + name + "'s PSO is part of its rule)");
   }
   if (!(options.pursuit_weight >= 0 && std::isfinite(options.pursuit_weight))) {
     throw std::invalid_argument("classifier " + name + ": pursuit weight " + std::to_string(options.pursuit_weight) +
@@ -100,7 +116,7 @@ std::unique_ptr<OnlineClassifier> make_classifier(const std::string& name, const
     GbtOptions o;
     o.offline = options.offline;
     o.trees_only = options.trees_only;
-    o.separate_pso = options.separate_pso;
+    o.pso = options.pso;
     o.pursuit_weight = options.pursuit_weight;
     o.pursuit_hold = options.pursuit_hold;
     return make_trees_pipeline(options.model_path.empty() ? builtin_gbt_model() : load_gbt_model(options.model_path),

@@ -68,6 +68,21 @@ const std::vector<ClassifierInfo>& classifiers();
 // doubtful where pursuit's weighted mean comes within `ratio` of fixation's; it waits up to
 // `hold_s` for a pursuit of at least `min_s` to follow through doubtful fixations alone, and is
 // then that pursuit's start. hold_s 0: none.
+// gbt: where the post-saccadic oscillation (PSO) goes. Human coders differ: GazeCom's expert has no
+// PSO class and runs the saccade into the oscillation's first part; the EyeLink coder and the Lund
+// coders (Andersson et al. 2017) label it pso from where it starts. The trees learned GazeCom's;
+// ivvt's rule beside them (Nystrom & Holmqvist 2010) marks the PSO and the small saccades the trees
+// leave in fixations (trees_core.cpp, WithIvvtMarksCore).
+enum class PsoConvention : std::uint8_t {
+  Separate,  // "separate": the saccade ends as the trees end it, ivvt's PSO after it is pso, and
+             // ivvt's small saccades are taken (the default: meets GazeCom's and the EyeLink set's targets)
+  Onset,     // "onset": ivvt's PSO from its onset, cutting the trees' saccade short there, as the
+             // EyeLink and Lund coders end saccades; small saccades taken
+  None,      // "none": the trees alone, no pso label, GazeCom's coders' convention, at the trees' cost
+};
+const char* to_string(PsoConvention c);                       // "separate", "onset", "none"
+std::optional<PsoConvention> pso_convention(const std::string& name);  // nullopt: none of those
+
 struct PursuitHold {
   double hold_s = 0;
   double ratio = 0.3;
@@ -87,13 +102,9 @@ struct ClassifierOptions {
   // gbt: each sample's label from the model's last stage alone, neither smoothed nor with ivvt's
   // PSO (what bench/train_classifier.py checks against scikit-learn).
   bool trees_only = false;
-  // gbt: a PSO class apart from the saccade and the fixation, and the small saccades the trees
-  // leave in fixations, both by ivvt's rule beside the trees (the EyeLink and the Lund coders'
-  // convention). false: the trees alone, no PSO class; the oscillation goes where the trees'
-  // training coders put it (GazeCom's: the saccade's end runs into it), and small saccades too (most
-  // left in the fixation), at the trees' cost and latency alone. The other methods find their PSO
-  // as their rule does and reject false.
-  bool separate_pso = true;
+  // gbt: how the post-saccadic oscillation is labelled (PsoConvention). The other methods find
+  // their PSO as their rule does and accept only the default.
+  PsoConvention pso = PsoConvention::Separate;
   // Label for analysis, not live: the whole recording is at hand, so labels may wait for as much of
   // it as helps. gbt: its offline second stage (context.h, the whole reach) instead of the online
   // one; the other methods label the same either way.

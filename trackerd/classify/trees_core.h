@@ -125,9 +125,8 @@ struct GbtOptions {
   bool offline = false;     // the offline second stage (the whole reach) instead of the online one
   bool trees_only = false;  // the last stage's own label per sample: neither smoothed nor with PSO
                             // (what scikit-learn predicts)
-  bool separate_pso = true;  // ivvt's marks beside the trees for its PSO and the saccades the trees
-                             // leave in fixations (WithIvvtMarksCore); false: the trees alone, no PSO
-                             // class, labelled as the trees' coders did (GazeCom's)
+  PsoConvention pso = PsoConvention::Separate;  // classifier.h; Separate and Onset: ivvt's marks beside
+                                               // the trees (WithIvvtMarksCore), None: the trees alone
   FeatureSink frame_sink;   // each sample's kFeatureCount features.h features
   FeatureSink context_sink;  // each sample's context features (context.h) from the chain's first
                              // stage, with its second stage's look-ahead (the whole reach where it
@@ -167,8 +166,9 @@ class OnsetHold {
   std::deque<Item> held_;
 };
 // The `gbt` pipeline: the standard front end (without the lid rule), the trees core with its
-// smoothing, and (separate_pso) ivvt's PSO where the trees say saccade or fixation and ivvt's
-// saccades that lie wholly in the trees' fixations (trees_core.cpp, WithIvvtMarksCore).
+// smoothing, and (options.pso Separate or Onset) ivvt's PSO after the trees' saccade (Onset: from
+// its onset, into the trees' saccade) and ivvt's saccades that lie wholly in the trees' fixations
+// (trees_core.cpp, WithIvvtMarksCore).
 // model null: every gaze sample is labelled unknown (frame features only).
 std::unique_ptr<OnlineClassifier> make_trees_pipeline(std::shared_ptr<const GbtModel> model,
                                                       const protocol::DisplayGeometry& display, GbtOptions options);

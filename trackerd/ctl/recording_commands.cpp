@@ -494,7 +494,7 @@ int cmd_classify(const ClassifyArgs& a) {
     options.model_path = a.model_path;
     options.trees_only = a.trees_only;
     options.offline = a.offline;
-    options.separate_pso = a.pso != "none";
+    options.pso = cl::pso_convention(a.pso).value_or(cl::PsoConvention::Separate);  // CLI checked the name
     options.pursuit_weight = a.pursuit_weight;
     if (a.pursuit_hold_ms) {
       options.pursuit_hold = cl::PursuitHold{*a.pursuit_hold_ms / 1000, a.pursuit_hold_ratio, a.pursuit_hold_min_ms / 1000};
@@ -546,13 +546,14 @@ void add_gbt_options(CLI::App& sub, ClassifyArgs& cls) {
                      "stage 512 ms ahead of each sample instead of the daemon's 64 and 32 ms (other methods "
                      "label the same either way)");
   classify->add_option("--pso", cls.pso,
-                       "gbt: separate: the post-saccadic oscillation labelled pso apart from the saccade and "
-                       "fixation, and the small saccades the trees leave in fixations labelled saccade, both by "
-                       "ivvt's rule beside the trees (as the EyeLink and Lund coders label them); none: the trees "
-                       "alone, no pso label, the oscillation in the saccade or fixation and most saccades under 1 "
-                       "degree in the fixation, as GazeCom's coders, whom the trees learned from, put them "
-                       "(cheaper; final as soon as the trees' labels, as with separate)")
-      ->check(CLI::IsMember({"separate", "none"}))
+                       "gbt: separate: the saccade ends where the trees end it (as GazeCom's coders, whom they "
+                       "learned from), the post-saccadic oscillation after it is labelled pso, and the small "
+                       "saccades the trees leave in fixations are labelled saccade, both by ivvt's rule beside the "
+                       "trees; onset: the pso from the oscillation's onset, cutting the saccade short there (as the "
+                       "EyeLink and Lund coders end saccades); none: the trees alone, no pso label, the oscillation "
+                       "in the saccade or fixation and most saccades under 1 degree in the fixation, as GazeCom's "
+                       "coders put them (cheaper; final as soon as the trees' labels, as with the others)")
+      ->check(CLI::IsMember({"separate", "onset", "none"}))
       ->capture_default_str();
   classify->add_option("--pursuit-weight", cls.pursuit_weight,
                        "W: gbt: weigh pursuit's smoothed probability by W when choosing among the classes but "

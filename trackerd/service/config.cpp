@@ -34,11 +34,13 @@ std::string check_classifier_method(const std::string& method) {
 }
 
 std::string check_classifier_pso(const std::string& method, const std::string& pso) {
-  if (pso == "separate") return {};
-  if (pso != "none") return "\"" + protocol::escape_for_log(pso, 40) + "\" is no PSO convention; allowed: separate, none";
+  const auto c = classify::pso_convention(pso);
+  if (!c) return "\"" + protocol::escape_for_log(pso, 40) + "\" is no PSO convention; allowed: separate, onset, none";
+  if (*c == classify::PsoConvention::Separate) return {};
   const std::string name = method.empty() ? classify::classifiers().front().name : method;
-  if (name == "source") return "pso = \"none\" is for method gbt only (source passes the source's own labels)";
-  if (name != "gbt") return "pso = \"none\" is for method gbt only (" + name + " finds its PSO by its own rule)";
+  const std::string what = "pso = \"" + pso + "\" is for method gbt only (";
+  if (name == "source") return what + "source passes the source's own labels)";
+  if (name != "gbt") return what + name + " finds its PSO by its own rule)";
   return {};
 }
 
@@ -380,7 +382,7 @@ void parse_classifier(Checker& c, const toml::table& t, ClassifierConfig& classi
   c.only(t, "classifier.", {"method", "pso", "pursuit_weight"});
   c.string(t, "classifier.", "method", classifier.method,
            "a classifier name or \"source\" (fovea-ctl classify --help describes them)");
-  c.string(t, "classifier.", "pso", classifier.pso, "separate, none");
+  c.string(t, "classifier.", "pso", classifier.pso, "separate, onset, none");
   // Checked here, so --check-config refuses it and the daemon exits 78 (issue 23 item 10: it passed
   // the check, and the daemon then exited 2, which the unit restarts on).
   if (const auto* node = t.get("method"); node != nullptr && node->is_string()) {

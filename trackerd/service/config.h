@@ -71,9 +71,8 @@ struct CalibrationConfig {
 
 struct ClassifierConfig {
   std::string method;  // empty: the classify module's default; validated by that module
-  std::string pso = "separate";  // separate | none (gbt only): whether PSO is a class of its own
+  std::string pso = "separate";  // separate | onset | none (the latter two gbt only): classify::PsoConvention
   double pursuit_weight = 0;     // gbt only: pursuit's weight in the smoothing's choice; 0 = the model's
-  bool separate_pso() const { return pso != "none"; }
   friend bool operator==(const ClassifierConfig&, const ClassifierConfig&) = default;
 };
 
