@@ -62,6 +62,20 @@ Labelled synthetic(double rate_hz, double seconds, std::uint64_t seed, const Con
   return synthetic_labelled(o, seconds);
 }
 
+// The condition's seeds of synthetic gaze, degraded as it says (seed s: generator s + 1, degradation
+// 100 + s), the same data for every method that is scored on it.
+std::vector<Labelled> degraded(double rate_hz, const Condition& c, double seconds, int seeds) {
+  std::vector<Labelled> data;
+  for (int s = 0; s < seeds; ++s) {
+    Labelled l = synthetic(rate_hz, seconds, static_cast<std::uint64_t>(s + 1), c);
+    Degradation d = c.d;
+    d.seed = static_cast<std::uint64_t>(100 + s);
+    degrade(l.samples, d);
+    data.push_back(std::move(l));
+  }
+  return data;
+}
+
 std::string fmt(double k) {
   if (std::isnan(k)) return "  -  ";
   char b[16];
@@ -314,14 +328,7 @@ void print_small_saccades(const std::vector<Method>& methods, const Condition& c
   std::printf("| rate Hz | method | catch-up found | of | %% | microsaccades found | of | %% |\n");
   std::printf("|---:|---|---:|---:|---:|---:|---:|---:|\n");
   for (const double rate : {60.0, 250.0, 500.0, 1000.0}) {
-    std::vector<Labelled> data;
-    for (int s = 0; s < seeds; ++s) {
-      Labelled l = synthetic(rate, seconds, static_cast<std::uint64_t>(s + 1), c);
-      Degradation d = c.d;
-      d.seed = static_cast<std::uint64_t>(100 + s);
-      degrade(l.samples, d);
-      data.push_back(std::move(l));
-    }
+    const std::vector<Labelled> data = degraded(rate, c, seconds, seeds);
     for (const Method& m : methods) {
       int cu = 0, cu_n = 0, mi = 0, mi_n = 0;
       for (const Labelled& l : data) {
@@ -404,15 +411,7 @@ int main(int argc, char** argv) {
   for (const Method& m : methods) make_classifier(m.method, m.options(rates[0]));
   for (const double rate : rates) {
     for (const Condition& c : conditions) {
-      // The same degraded data for every method.
-      std::vector<Labelled> data;
-      for (int s = 0; s < seeds; ++s) {
-        Labelled l = synthetic(rate, seconds, static_cast<std::uint64_t>(s + 1), c);
-        Degradation d = c.d;
-        d.seed = static_cast<std::uint64_t>(100 + s);
-        degrade(l.samples, d);
-        data.push_back(std::move(l));
-      }
+      const std::vector<Labelled> data = degraded(rate, c, seconds, seeds);  // the same for every method
       for (std::size_t mi = 0; mi < methods.size(); ++mi) {
         const Method& m = methods[mi];
         std::vector<Label> truth, predicted;
