@@ -43,17 +43,7 @@ mkdir -p "$WORK/gc/ground_truth/clip"
     i=$((i + 1))
   done
 } >"$WORK/gc/ground_truth/clip/AAA_clip.arff"
-cat >"$WORK/fake-ctl" <<'PY'
-#!/usr/bin/python3
-import sys
-rows = open(sys.argv[2]).read().splitlines()[1:]
-with open(sys.argv[3], "w") as f:
-    f.write("t_ms,label,final_ms\n")
-    for r in rows:
-        t, x, y = r.split(",")
-        f.write(f"{t},{'lost' if x == 'nan' else 'fixation'},{float(t) + 100}\n")
-PY
-chmod +x "$WORK/fake-ctl"
+cp "$SRC/tests/fakes/fake_classify_ctl.py" "$WORK/fake-ctl"  # every sample fixation, lost ones lost
 /usr/bin/python3 "$SRC/bench/eval_classify_gazecom.py" "$WORK/fake-ctl" --data "$WORK/gc" --methods fake --diagnose \
   --json "$WORK/fake.json" >"$WORK/fake.txt" 2>&1 || fail "harness: $(cat "$WORK/fake.txt")"
 /usr/bin/python3 - "$WORK/fake.json" <<'PY' || fail "harness figures: $(cat "$WORK/fake.txt")"

@@ -33,17 +33,7 @@ write("dots", "rec1_labelled_RA.mat", [1, 1, 1, 2, 2, 2, 3, 3, 1, 6], lost=[9])
 write("video", "rec2_labelled_MN.mat", [4, 4, 4, 4, 4, 2, 2, 2])
 open(os.path.join(root, "read me.txt"), "w").write("not a recording\n")
 PY
-cat >"$WORK/fake-ctl" <<'PY'
-#!/usr/bin/python3
-import sys
-rows = open(sys.argv[2]).read().splitlines()[1:]
-with open(sys.argv[3], "w") as f:
-    f.write("t_ms,label\n")
-    for r in rows:
-        t, x, y = r.split(",")
-        f.write(f"{t},{'lost' if x == 'nan' else 'fixation'}\n")
-PY
-chmod +x "$WORK/fake-ctl"
+cp "$SRC/tests/fakes/fake_classify_ctl.py" "$WORK/fake-ctl"  # every sample fixation, lost ones lost
 /usr/bin/python3 "$H" "$WORK/fake-ctl" "$WORK/lund" --methods fake --json "$WORK/fake.json" >"$WORK/fake.txt" 2>&1 ||
   fail "harness: $(cat "$WORK/fake.txt")"
 /usr/bin/python3 - "$WORK/fake.json" <<'PY' || fail "harness figures: $(cat "$WORK/fake.txt")"
