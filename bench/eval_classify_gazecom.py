@@ -227,7 +227,7 @@ def main():
     ap.add_argument("--limit", type=int, default=0, help="at most N recordings (0: all)")
     ap.add_argument("--methods", default="ivvt", help="comma-separated fovea-ctl classify methods; METHOD+FLAG "
                     "adds --FLAG, METHOD+FLAG=V --FLAG V (gbt+offline: the offline second stage beside the "
-                    "online one; gbt+pso=none: without a PSO class)")
+                    "online one; gbt+pso=none: without a PSO class; gbt+pso=onset: the PSO from its onset)")
     ap.add_argument("--extra-args", default="", help="more fovea-ctl classify arguments, e.g. --offline")
     ap.add_argument("--lovo", help="DIR of bench/train_classifier.py --lovo: method gbt labels each recording "
                     "with DIR/<its video>.trees, fitted on the other videos")

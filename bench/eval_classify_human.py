@@ -49,7 +49,7 @@ from classify_scoring import event_f1, events_of, kappa, method_args
 CODER = {1: "fixation", 2: "saccade", 3: "pso", 4: "pursuit", 5: "blink"}
 CLASSES = ("fixation", "saccade", "pso", "blink")  # the classes this data set holds
 # METHOD+FLAG: fovea-ctl classify --FLAG; METHOD+FLAG=V: --FLAG V
-METHODS = ("ivvt", "gbt", "gbt+offline", "gbt+pso=none", "ivt", "idt", "lee2009")
+METHODS = ("ivvt", "gbt", "gbt+offline", "gbt+pso=onset", "gbt+pso=none", "ivt", "idt", "lee2009")
 
 
 def load_geometry(data_dir):
