@@ -162,11 +162,9 @@ bool Daemon::start(std::int64_t start_ns) {
     return false;
   }
   try {
-    // The configuration's pso was checked as it was read (service/config.cpp).
-    const auto pso = classify::pso_convention(config_.classifier.pso).value_or(classify::PsoConvention::Separate);
     classify_ = std::make_unique<ClassifyStage>(config_.classifier.method, source_->nominal_rate_hz(),
-                                                config_.display.value_or(source_->display()), pso,
-                                                config_.classifier.pursuit_weight);
+                                                config_.display.value_or(source_->display()),
+                                                config_.classifier.pso_convention(), config_.classifier.pursuit_weight);
   } catch (const std::exception& e) {
     spdlog::error("classifier: {}", e.what());
     return false;

@@ -137,9 +137,9 @@ void reload_recording(const RunningView& view, PreparedReload& p) {
 void reload_classifier(const RunningView& view, PreparedReload& p) {
   if (p.next.classifier == view.config.classifier && p.display == view.display) return;
   try {
-    const auto pso = classify::pso_convention(p.next.classifier.pso).value_or(classify::PsoConvention::Separate);
-    p.classifier = std::make_unique<ClassifyStage>(p.next.classifier.method, view.nominal_rate_hz, p.display, pso,
-                                                   p.next.classifier.pursuit_weight);
+    const service::ClassifierConfig& next = p.next.classifier;
+    p.classifier = std::make_unique<ClassifyStage>(next.method, view.nominal_rate_hz, p.display, next.pso_convention(),
+                                                   next.pursuit_weight);
   } catch (const std::exception& e) {
     spdlog::error("classifier {}: {}; keeping the running one", p.next.classifier.method, e.what());
     p.next.classifier = view.config.classifier;

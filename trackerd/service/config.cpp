@@ -33,6 +33,10 @@ std::string check_classifier_method(const std::string& method) {
          ", source (fovea-ctl classify --help describes the methods)";
 }
 
+classify::PsoConvention ClassifierConfig::pso_convention() const {
+  return classify::pso_convention(pso).value_or(classify::PsoConvention::Separate);
+}
+
 std::string check_classifier_pso(const std::string& method, const std::string& pso) {
   const auto c = classify::pso_convention(pso);
   if (!c) return "\"" + protocol::escape_for_log(pso, 40) + "\" is no PSO convention; allowed: separate, onset, none";

@@ -13,6 +13,10 @@
 #include "fovea/protocol/display_geometry.h"
 #include "fovea/protocol/server.h"
 
+namespace fovea::trackerd::classify {
+enum class PsoConvention : std::uint8_t;  // classify/classifier.h
+}  // namespace fovea::trackerd::classify
+
 namespace fovea::trackerd::service {
 
 // The file the service unit passes with --config, and the one --check-config checks by default.
@@ -73,6 +77,7 @@ struct ClassifierConfig {
   std::string method;  // empty: the classify module's default; validated by that module
   std::string pso = "separate";  // separate | onset | none (the latter two gbt only): classify::PsoConvention
   double pursuit_weight = 0;     // gbt only: pursuit's weight in the smoothing's choice; 0 = the model's
+  classify::PsoConvention pso_convention() const;  // pso as checked when read (the default if not one)
   friend bool operator==(const ClassifierConfig&, const ClassifierConfig&) = default;
 };
 
