@@ -22,7 +22,8 @@ al. score (their callKappa6.m):
 - event-level F1 per class (intersection over union >= 0.5, Startsev et al. 2019), pooled;
 - the two coders against each other, on the recordings both labelled: the ceiling (Andersson et
   al.'s figures: kappa fixation / saccade dots 0.72 / 0.82, videos 0.65 / 0.87, images 0.81 /
-  0.90; a loader that reads the files as they did reproduces them).
+  0.90; a loader that reads the files as they did should reproduce them: not checked here, where
+  the files are not).
 
 fovea's `pso` is its own class here (the Lund coders label PSO); its lost and unknown labels and
 the coders' undefined and unlabelled samples are "other", a class neither side is scored on.
@@ -128,24 +129,32 @@ def load(path):
     return rate, geometry, x, y, labels
 
 
-def classify(ctl, rec, method, model, tmp):
-    """fovea's labels of one recording (class names; lost and unknown as "other")."""
-    rate, (w_px, h_px, w_mm, h_mm, dist_mm), x, y, _ = rec["data"]
-    base = os.path.join(tmp, f"{rec['id']}-{method.replace('+', '_').replace('=', '-')}")
-    with open(base + ".in.csv", "w") as f:
+def write_input(rec, tmp):
+    """The recording as fovea-ctl classify's input (t_ms,x_px,y_px; nan where lost), once for every
+    method: its path."""
+    rate, _, x, y, _ = rec["data"]
+    path = os.path.join(tmp, f"{rec['id']}.in.csv")
+    with open(path, "w") as f:
         f.write("t_ms,x_px,y_px\n")
         for i, (a, b) in enumerate(zip(x, y)):
             t = i * 1000.0 / rate
             f.write(f"{t:.3f},nan,nan\n" if math.isnan(a) else f"{t:.3f},{a:.3f},{b:.3f}\n")
+    return path
+
+
+def classify(ctl, rec, in_path, method, model, tmp):
+    """fovea's labels of one recording (class names; lost and unknown as "other")."""
+    rate, (w_px, h_px, w_mm, h_mm, dist_mm), x, _, _ = rec["data"]
+    out_path = os.path.join(tmp, f"{rec['id']}-{method.replace('+', '_').replace('=', '-')}.out.csv")
     name, flags = method_args(method)
-    cmd = [ctl, "classify", base + ".in.csv", base + ".out.csv", "%g" % rate, str(w_px), str(h_px),
+    cmd = [ctl, "classify", in_path, out_path, "%g" % rate, str(w_px), str(h_px),
            "%g" % w_mm, "%g" % h_mm, "%g" % dist_mm, "--method", name, "--force"] + flags
     if name == "gbt" and model:
         cmd += ["--model", model]
     run = subprocess.run(cmd, capture_output=True, text=True)
     if run.returncode != 0:
         raise LundError(f"{rec['path']}: fovea-ctl classify --method {method} failed: {run.stderr.strip()}")
-    with open(base + ".out.csv") as f:
+    with open(out_path) as f:
         next(f)
         labels = [line.rstrip("\n").split(",", 2)[1] for line in f]
     if len(labels) != len(x):
@@ -226,7 +235,9 @@ def main():
     coders = sorted({r["coder"] for r in recs})
     pools = {(m, c): {} for m in methods for c in coders + ["all"]}
     with tempfile.TemporaryDirectory() as tmp, concurrent.futures.ThreadPoolExecutor(args.jobs) as ex:
-        jobs = {(r["id"], m): ex.submit(classify, args.ctl, r, m, args.model, tmp) for r in recs for m in methods}
+        inputs = {r["id"]: write_input(r, tmp) for r in recs}
+        jobs = {(r["id"], m): ex.submit(classify, args.ctl, r, inputs[r["id"]], m, args.model, tmp)
+                for r in recs for m in methods}
         try:
             for r in recs:
                 truth = r["data"][4]
