@@ -60,6 +60,52 @@ TEST(RoundTripClock, FollowsADriftingClockAndMeasuresItsDrift) {
   EXPECT_NEAR(*c.drift_ppm(), -30.0, 2.0);
 }
 
+// Buckets are cut at every 10 s of host time, so the 16 exchanges at the start can fall into two of
+// them 30 ms apart, or the start's and the next second's into two 1 s apart. A least-squares line
+// through two such points, each off by up to half its round trip, is no measure of drift (0.4 ms
+// over 30 ms: 13,000 ppm), and extrapolated it mapped the next seconds' gaze milliseconds off (CI,
+// test_pupil.sh under ASan: 77 samples 1.0-1.1 ms off with the stated uncertainty 0.3 ms).
+TEST(RoundTripClock, NoDriftFromExchangesCloseTogether) {
+  for (const std::int64_t gap : {30 * kMs, 1000 * kMs, 3000 * kMs}) {
+    SCOPED_TRACE(testing::Message() << "buckets " << gap / kMs << " ms apart");
+    const Remote remote{5000, 0, 0};
+    RoundTripClock c;
+    // Lopsided the other way on each side of the bucket boundary at 10 s: the remote read early, then late.
+    std::int64_t t = 10'000 * kMs - gap / 2;
+    exchange(c, remote, t, 0, 300'000);
+    exchange(c, remote, t + gap, 500'000, 0);
+    t += gap;
+    for (int i = 0; i < 5; ++i) exchange(c, remote, t += 1000 * kMs, 400'000, 400'000);
+    ASSERT_TRUE(c.ready());
+    EXPECT_FALSE(c.drift_ppm()) << "a drift from exchanges " << gap / kMs << " ms apart";
+    const std::int64_t host = t + 5000 * kMs;
+    EXPECT_LE(std::llabs(c.to_host_ns(remote.at(host)) - host), c.uncertainty_ns() + 1000)
+        << "further off than the fastest exchange's uncertainty";
+  }
+}
+
+// Before the exchanges pin the drift, the clock follows the least drift they show: never further off
+// than the same exchanges' fastest alone (no drift), and pinned within a few ppm after a minute.
+TEST(RoundTripClock, FollowsTheDriftTheExchangesShowBeforeItIsPinned) {
+  const Remote remote{5000, 100, 0};  // 100 ppm fast: 1 ms in 10 s
+  RoundTripClock c, fastest_alone;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<std::int64_t> lag(0, 300'000);
+  std::int64_t t = 0;
+  for (int i = 0; i < 90; ++i, t += 1000 * kMs) {
+    const std::int64_t up = 20'000 + lag(rng), down = 20'000 + lag(rng);
+    exchange(c, remote, t, up, down);
+    if (i == 0) exchange(fastest_alone, remote, t, up, down);
+    const std::int64_t host = t + 900 * kMs;
+    const std::int64_t err = std::llabs(c.to_host_ns(remote.at(host)) - host);
+    const std::int64_t err_alone = std::llabs(fastest_alone.to_host_ns(remote.at(host)) - host);
+    ASSERT_LE(err, std::max(err_alone, c.uncertainty_ns()) + 1000) << "at " << i << " s";
+  }
+  ASSERT_TRUE(c.drift_ppm());
+  EXPECT_NEAR(*c.drift_ppm(), -100.0, 5.0);
+  EXPECT_LE(std::llabs(c.to_host_ns(remote.at(t)) - t), 200'000);
+}
+
 TEST(RoundTripClock, ARestartedRemoteStartsAfresh) {
   RoundTripClock c;
   Remote remote{5000, 0, 0};

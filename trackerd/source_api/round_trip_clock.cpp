@@ -11,6 +11,9 @@ namespace fovea::trackerd {
 namespace {
 constexpr std::int64_t kBucketNs = 10'000'000'000;   // one kept exchange per 10 s
 constexpr std::int64_t kHistoryNs = 120'000'000'000; // the fit looks back 2 minutes
+// The least-squares slope is trusted once every slope the used exchanges allow lies within this
+// much of every other (20 ppm: at most 0.2 ms off ten seconds past the last bucket).
+constexpr double kPinnedSlope = 20e-6;
 constexpr std::int64_t kJumpNs = 100'000'000;        // a remote clock off by more has restarted
 constexpr double kMaxRemoteS = 1e12;                 // ~31,700 years: beyond it a remote time is junk
 }  // namespace
@@ -39,9 +42,39 @@ void RoundTripClock::add(std::int64_t host_send_ns, std::int64_t host_receive_ns
   fit();
 }
 
-// Least squares through the kept exchanges' offsets, of the buckets whose fastest exchange is
-// nearly as fast as the fastest of all (a bucket that saw only slow, lopsided exchanges would tilt
-// the line); with fewer than two such buckets, the fastest exchange's offset alone.
+namespace {
+
+// The slopes b for which some line offset = a + b t passes within every used exchange's +-rtt/2:
+// b (t_j - t_i) <= (o_j + u_j) - (o_i - u_i) for every pair t_i < t_j, and the mirror bound.
+// lo > hi when no line fits them all (the remote clock's rate changed within the window).
+template <class Exchanges>
+RoundTripClock::SlopeRange allowed_slopes(const Exchanges& used) {
+  RoundTripClock::SlopeRange r;
+  for (std::size_t i = 0; i < used.size(); ++i) {
+    for (std::size_t j = i + 1; j < used.size(); ++j) {
+      const double dt = static_cast<double>(used[j]->host_mid_ns - used[i]->host_mid_ns);
+      if (dt <= 0) continue;
+      const double d_offset = static_cast<double>(used[j]->offset_ns() - used[i]->offset_ns());
+      const double slack = static_cast<double>(used[i]->rtt_ns + used[j]->rtt_ns) / 2;
+      r.hi = std::min(r.hi, (d_offset + slack) / dt);
+      r.lo = std::max(r.lo, (d_offset - slack) / dt);
+    }
+  }
+  return r;
+}
+
+}  // namespace
+
+// The slopes every kept exchange allows (a slow one allows many, so all of them count) decide:
+//  - while they span more than kPinnedSlope (buckets are cut at fixed host times, so two can be
+//    milliseconds apart, and a slope through them is mostly their errors), or fewer than two
+//    buckets' fastest exchanges are nearly as fast as the fastest of all: the allowed slope nearest
+//    zero, through the fastest exchange. It is off by at most the true drift, so the mapping is never
+//    worse than ignoring the drift, and it follows as much drift as the exchanges already show;
+//  - else least squares through those nearly as fast (a bucket that saw only slow, lopsided
+//    exchanges would tilt it), its slope kept within the allowed ones; drift_ppm() reports it.
+// Exchanges no line passes through (the remote's rate changed within the window): least squares
+// unbounded, or the fastest alone.
 void RoundTripClock::fit() {
   const auto best = std::min_element(exchanges_.begin(), exchanges_.end(),
                                      [](const Exchange& p, const Exchange& q) { return p.rtt_ns < q.rtt_ns; });
@@ -52,12 +85,26 @@ void RoundTripClock::fit() {
   }
   origin_ns_ = best->host_mid_ns;
   const std::int64_t base = best->offset_ns();
-  if (used.size() < 2) {
-    a_ns_ = static_cast<double>(base);
-    b_ = 0;
-    have_line_ = false;
+  a_ns_ = static_cast<double>(base);
+  b_ = 0;
+  have_line_ = false;
+  std::vector<const Exchange*> all;
+  for (const Exchange& x : exchanges_) all.push_back(&x);
+  const SlopeRange allowed = allowed_slopes(all);
+  const bool consistent = allowed.lo <= allowed.hi;
+  if (consistent && (used.size() < 2 || allowed.hi - allowed.lo > kPinnedSlope)) {
+    b_ = std::clamp(0.0, allowed.lo, allowed.hi);
     return;
   }
+  if (used.size() < 2) return;
+  fit_least_squares(used, base, consistent ? allowed : SlopeRange{});
+  have_line_ = true;
+}
+
+// offset(host_mid) = a + b (host_mid - origin) through `used` (relative to `base` for precision), the
+// slope kept within `allowed` and the line through the exchanges' mean point.
+void RoundTripClock::fit_least_squares(const std::vector<const Exchange*>& used, std::int64_t base,
+                                       const SlopeRange& allowed) {
   double st = 0, so = 0;
   for (const Exchange* x : used) {
     st += static_cast<double>(x->host_mid_ns - origin_ns_);
@@ -71,9 +118,8 @@ void RoundTripClock::fit() {
     stt += dt * dt;
     sto += dt * (static_cast<double>(x->offset_ns() - base) - mo);
   }
-  b_ = stt > 0 ? sto / stt : 0;
+  b_ = std::clamp(stt > 0 ? sto / stt : 0.0, allowed.lo, allowed.hi);
   a_ns_ = static_cast<double>(base) + mo - b_ * mt;
-  have_line_ = true;
 }
 
 std::int64_t RoundTripClock::to_host_ns(double remote_s) const {

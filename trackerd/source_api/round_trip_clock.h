@@ -7,11 +7,17 @@
 // clock keeps, for each 10 s bucket of the last 2 minutes, the fastest exchange, and fits a line
 // (offset and drift) through those nearly as fast as the fastest (round trip at most twice its,
 // plus 50 us), so that a remote clock running at a slightly different rate stays mapped within the
-// best exchanges' uncertainty. Until two such buckets exist it uses the fastest exchange alone. A remote clock that jumps (the remote restarted, or its time was set) by more
-// than 100 ms against the prediction starts the history afresh, counted in resets().
+// best exchanges' uncertainty. A slope through exchanges close together is mostly their errors
+// (buckets are cut at fixed host times: two can be milliseconds apart), so until the slopes the
+// exchanges allow lie within 20 ppm of each other the clock takes the allowed slope nearest zero,
+// through the fastest exchange: never worse than ignoring the drift. A remote clock that jumps (the
+// remote restarted, or its time was set) by more than 100 ms against the prediction starts the
+// history afresh, counted in resets().
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <optional>
+#include <vector>
 
 namespace fovea::trackerd {
 
@@ -24,11 +30,16 @@ class RoundTripClock {
   std::int64_t to_host_ns(double remote_s) const;
 
   std::int64_t offset_ns() const;                // host - remote, now
-  std::optional<double> drift_ppm() const;       // the fitted line's slope, once two buckets exist
+  std::optional<double> drift_ppm() const;       // the fitted line's slope, once the exchanges pin it
   std::int64_t uncertainty_ns() const;           // half the fastest kept exchange's round trip
   std::int64_t last_round_trip_ns() const { return last_rtt_ns_; }
   std::uint64_t exchanges() const { return count_; }
   std::uint64_t resets() const { return resets_; }
+
+  // Slopes (drift, ns per ns) a set of exchanges allows; lo > hi when none fits them all.
+  struct SlopeRange {
+    double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+  };
 
  private:
   struct Exchange {
@@ -38,6 +49,7 @@ class RoundTripClock {
     std::int64_t offset_ns() const;
   };
   void fit();
+  void fit_least_squares(const std::vector<const Exchange*>& used, std::int64_t base, const SlopeRange& allowed);
   std::deque<Exchange> exchanges_;  // the fastest of each bucket, oldest first
   // The fit: offset(host_mid) = a + b * (host_mid - origin).
   std::int64_t origin_ns_ = 0;
