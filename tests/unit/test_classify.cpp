@@ -712,6 +712,24 @@ TEST(Classify, GbtTakesIvvtsSmallSaccadesWhereItsTreesSeeOnlyFixation) {
   }
 }
 
+// ...but not one the noise before it could make: where the 100 ms before the saccade jitter from
+// sample to sample by more than a third of its amplitude, the trees' fixation stays. The jitter
+// alternates sample by sample, which ivvt's smoothed speed does not see, so ivvt still marks it.
+TEST(Classify, GbtLeavesIvvtsSmallSaccadeThatTheNoiseBeforeItCouldMake) {
+  auto [s, off] = saccade_then(0.5, [](double) { return 0.0; });
+  for (std::size_t i = index_at(s, 0.3); i < index_at(s, 0.4); ++i) s[i].x_deg += i % 2 ? 0.1 : -0.1;
+  const std::size_t from = index_at(s, 0.4), to = index_at(s, off);
+  const auto ivvt = classify_all("ivvt", 1000, s);
+  ASSERT_GT(share(ivvt, from, to, Label::Saccade), 0.5) << "ivvt misses the saccade: the test shows nothing";
+  ClassifierOptions o;
+  o.nominal_rate_hz = 1000;
+  o.pso = PsoConvention::None;
+  const auto alone = classify_all("gbt", o, s);
+  ASSERT_EQ(share(alone, from - 20, to + 20, Label::Saccade), 0.0) << "the trees see this saccade themselves";
+  const auto with = run_online("gbt", s, 1000);
+  EXPECT_EQ(share(with, from - 20, to + 20, Label::Saccade), 0.0) << "a saccade no larger than 3x the noise taken";
+}
+
 TEST(Classify, ThePsosSlowSwingBackIsPsoToo) {
   // A pupil-based tracker's PSO overshoots and returns (Hooge et al. 2015): here the eye lands
   // 0.4 deg beyond the target and comes back within ~50 ms, slower than the landing itself, so the
