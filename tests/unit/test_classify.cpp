@@ -682,6 +682,16 @@ TEST(Classify, IvvtsMarksAreTheFullLabelsSaccadesAndPsoAndComeWithin80ms) {
   }
 }
 
+namespace {
+// gbt's trees without ivvt's marks beside them (`--pso none`), on a 1000 Hz stream.
+std::vector<Label> gbt_trees_alone(const std::vector<Sample>& s) {
+  ClassifierOptions o;
+  o.nominal_rate_hz = 1000;
+  o.pso = PsoConvention::None;
+  return classify_all("gbt", o, s);
+}
+}  // namespace
+
 // GazeCom's expert, whom gbt's trees learned from, leaves most saccades under 1 degree unmarked;
 // the EyeLink and Lund coders mark them. With its PSO class (the default) gbt takes a saccade of
 // ivvt's that lies wholly in the trees' fixation (trees_core.cpp, WithIvvtMarksCore); the trees
@@ -693,11 +703,8 @@ TEST(Classify, GbtTakesIvvtsSmallSaccadesWhereItsTreesSeeOnlyFixation) {
     const std::size_t from = index_at(s, 0.4), to = index_at(s, off);
     const auto ivvt = classify_all("ivvt", 1000, s);
     ASSERT_GT(share(ivvt, from, to, Label::Saccade), 0.5) << "ivvt misses the saccade: the test shows nothing";
-    ClassifierOptions o;
-    o.nominal_rate_hz = 1000;
-    o.pso = PsoConvention::None;
     const auto with = run_online("gbt", s, 1000);  // the default: the trees with ivvt's marks
-    const auto alone = classify_all("gbt", o, s);
+    const auto alone = gbt_trees_alone(s);
     ASSERT_EQ(share(alone, from - 20, to + 20, Label::Saccade), 0.0) << "the trees see this saccade themselves";
     std::size_t added = 0;
     for (std::size_t i = 0; i < s.size(); ++i) {
@@ -721,10 +728,7 @@ TEST(Classify, GbtLeavesIvvtsSmallSaccadeThatTheNoiseBeforeItCouldMake) {
   const std::size_t from = index_at(s, 0.4), to = index_at(s, off);
   const auto ivvt = classify_all("ivvt", 1000, s);
   ASSERT_GT(share(ivvt, from, to, Label::Saccade), 0.5) << "ivvt misses the saccade: the test shows nothing";
-  ClassifierOptions o;
-  o.nominal_rate_hz = 1000;
-  o.pso = PsoConvention::None;
-  const auto alone = classify_all("gbt", o, s);
+  const auto alone = gbt_trees_alone(s);
   ASSERT_EQ(share(alone, from - 20, to + 20, Label::Saccade), 0.0) << "the trees see this saccade themselves";
   const auto with = run_online("gbt", s, 1000);
   EXPECT_EQ(share(with, from - 20, to + 20, Label::Saccade), 0.0) << "a saccade no larger than 3x the noise taken";
