@@ -309,12 +309,9 @@ class TreesCore final : public Core {
 //    coder marks (of the 199 such saccades on the EyeLink set 171 are the coder's; kappa 0.83 ->
 //    0.86; on GazeCom 133 of 589, saccade F1 -0.006). Only saccades up to kAddedSaccadeMaxS are
 //    taken: the pair waits for a saccade's end before it decides, within a bounded latency. Nor one
-//    whose amplitude is under kMinAmplitudeOverNoise times the RMS sample-to-sample noise of the
-//    100 ms before it: a movement the noise could make alone. On GazeCom (every 4th recording) that
-//    rule leaves out 93 of the 450 the expert does not mark (in noisy stretches, some the expert
-//    calls noise) and 7 of the 122 the expert does; on the EyeLink set 2 of the 27 its coder does not
-//    mark and none of the 171 the coder does (at 4x: 107 and 7, 5 and 0, but the EyeLink set with
-//    added noise lost more of the coder's).
+//    the noise before it could make (clears_the_noise): on GazeCom (every 4th recording) that leaves
+//    out 126 of the 450 the expert does not mark and 9 of the 122 it does; on the EyeLink set 3 of 27
+//    and none of the coder's 171 (bench/RESULTS.md, "Small saccades the noise could make").
 // Both cores label in input order, so their outputs pair up index by index. ivvt's marks are final
 // within 80 ms, where its full labels wait up to 310 ms for the pursuit test gbt does not use, so
 // the pair waits for the trees only.
@@ -340,7 +337,8 @@ class WithIvvtMarksCore final : public Core {
  private:
   static constexpr double kAddedSaccadeMaxS = 0.050;  // a 2-degree saccade lasts about 30 ms
   static constexpr double kNoiseWindowS = 0.100;
-  static constexpr double kMinAmplitudeOverNoise = 3.0;
+  static constexpr double kSpeedHalfS = 0.010;  // ivvt's velocity window (ivvt.cpp, kVelHalfS)
+  static constexpr double kMinAmplitudeOverNoise = 2.0;
   struct Sample {
     double t, x, y;
     bool gaze;  // measured (not filled in, not lost)
@@ -381,21 +379,49 @@ class WithIvvtMarksCore final : public Core {
     if (clears_the_noise(n)) added_left_ = n;
     return true;
   }
-  // Whether the saccade of the first n pending samples moves the gaze at least kMinAmplitudeOverNoise
-  // times the RMS sample-to-sample distance of the measured samples in the kNoiseWindowS before it
-  // (true where either is unknown).
+  // Whether the saccade of the first n pending samples moves the gaze kMinAmplitudeOverNoise times as
+  // far as the noise of the kNoiseWindowS before it would in its duration: the RMS of ivvt's speed
+  // (slope over +-kSpeedHalfS) there. A speed, not a sample-to-sample distance: noise a higher rate
+  // averages away does not count (1000 Hz + 0.05 deg on the EyeLink set: 9 of the coder's 181 cut).
+  // True where the amplitude or the noise is unknown.
   bool clears_the_noise(std::size_t n) const {
     const Sample &first = pending_[0], &last = pending_[n - 1];
-    if (!first.gaze || !last.gaze) return true;
-    double sum = 0;
-    int pairs = 0;
-    for (std::size_t k = 1; k < before_.size(); ++k) {
-      if (!before_[k - 1].gaze || !before_[k].gaze) continue;
-      sum += std::pow(before_[k].x - before_[k - 1].x, 2) + std::pow(before_[k].y - before_[k - 1].y, 2);
-      ++pairs;
+    if (!first.gaze || !last.gaze || before_.empty()) return true;
+    std::vector<Sample> around(before_.begin(), before_.end());
+    for (std::size_t k = 0; k < pending_.size() && pending_[k].t <= first.t + kSpeedHalfS; ++k) {
+      around.push_back(pending_[k]);
     }
-    if (pairs < 2) return true;
-    return std::hypot(last.x - first.x, last.y - first.y) >= kMinAmplitudeOverNoise * std::sqrt(sum / pairs);
+    double sum = 0;
+    int speeds = 0;
+    for (const Sample& at : before_) {
+      if (!at.gaze || at.t < first.t - (kNoiseWindowS - kSpeedHalfS)) continue;
+      const double v = least_squares_speed(around, at.t);
+      if (!std::isfinite(v)) continue;
+      sum += v * v;
+      ++speeds;
+    }
+    if (speeds < 2) return true;
+    const double interval = n > 1 ? (last.t - first.t) / static_cast<double>(n - 1) : first.t - before_.back().t;
+    const double duration = interval * static_cast<double>(n);
+    return std::hypot(last.x - first.x, last.y - first.y) >= kMinAmplitudeOverNoise * std::sqrt(sum / speeds) * duration;
+  }
+  // |slope| of the measured positions within +-kSpeedHalfS of time t (NaN with fewer than 3).
+  static double least_squares_speed(const std::vector<Sample>& around, double t) {
+    double st = 0, sx = 0, sy = 0;
+    int count = 0;
+    for (const Sample& p : around) {
+      if (!p.gaze || std::abs(p.t - t) > kSpeedHalfS) continue;
+      st += p.t, sx += p.x, sy += p.y;
+      ++count;
+    }
+    if (count < 3) return std::numeric_limits<double>::quiet_NaN();
+    const double mt = st / count, mx = sx / count, my = sy / count;
+    double stt = 0, stx = 0, sty = 0;
+    for (const Sample& p : around) {
+      if (!p.gaze || std::abs(p.t - t) > kSpeedHalfS) continue;
+      stt += (p.t - mt) * (p.t - mt), stx += (p.t - mt) * (p.x - mx), sty += (p.t - mt) * (p.y - my);
+    }
+    return stt > 0 ? std::hypot(stx / stt, sty / stt) : std::numeric_limits<double>::quiet_NaN();
   }
   // The paired sample moves from pending_ to before_, which keeps kNoiseWindowS of them.
   void remember_paired() {
