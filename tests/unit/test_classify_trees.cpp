@@ -11,6 +11,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "classify/classifier.h"
@@ -196,10 +197,26 @@ TEST(Trees, ManyTreesOfUnequalDepthsScoreAsEachWalkedAlone) {
   }
 }
 
+// A model reads its features by name: one trained before the build computed more (or in another
+// order) scores exactly as it did.
+TEST(Trees, AModelReadsItsFeaturesByName) {
+  const TreeEnsemble same = TreeEnsemble::parse(kModel, "m.trees", kTwo);
+  const TreeEnsemble more = TreeEnsemble::parse(kModel, "m.trees", {"z", "b", "y", "a"});
+  double s1[2], s2[2];
+  for (const auto& [a, b] : std::vector<std::pair<float, float>>{{1.0f, 0.5f}, {2.0f, 0.7f}, {std::nanf(""), 0.2f}}) {
+    const float two[2] = {a, b};
+    const float four[4] = {-100.0f, b, 100.0f, a};
+    EXPECT_EQ(same.predict(two, s1), more.predict(four, s2));
+    EXPECT_EQ(s1[0], s2[0]);
+    EXPECT_EQ(s1[1], s2[1]);
+  }
+}
+
 TEST(Trees, DamagedModelsAreRefusedNamingTheLineAndTheProblem) {
   EXPECT_EQ(parse_error(kModel), "");
   EXPECT_EQ(parse_error(replaced(kModel, "fovea-trees 1", "fovea-trees 2")), "m.trees:2: format version is not 1");
-  EXPECT_NE(parse_error(kModel, {"a", "c"}).find("m.trees:3: the model was trained on other features"), std::string::npos);
+  EXPECT_EQ(parse_error(kModel, {"a", "c"}), "m.trees:3: the model reads feature 'b', which this build does not compute: retrain it");
+  EXPECT_EQ(parse_error(replaced(kModel, "features 2 a b", "features 2 a a")), "m.trees:3: the model names feature 'a' twice");
   EXPECT_EQ(parse_error(replaced(kModel, "tree 1 3", "tree 2 3")), "m.trees:11: tree class '2' is not an integer in [0, 1]");
   EXPECT_EQ(parse_error(replaced(kModel, "0 1 0 1 2 0", "0 1 0 0 2 0")),
             "m.trees:8: a split node's children must follow it");
@@ -272,7 +289,8 @@ TEST(Features, AnEvenMovementHasItsSpeedAtEveryScaleAndAnyRate) {
     const std::deque<Prepared> buf = line(rate, 1.0, 10.0);
     float f[kFeatureCount];
     sample_features(buf, buf.size() / 2, fovea::protocol::DisplayGeometry{}, f);
-    for (const char* n : {"speed_c_4ms", "speed_b_16ms", "speed_f_64ms", "speed_c_256ms"}) {
+    for (const char* n : {"speed_c_4ms", "speed_b_16ms", "speed_f_64ms", "speed_c_256ms", "speed_b_4ms_lag4ms",
+                          "speed_b_4ms_lag20ms", "speed_f_4ms_lead4ms", "speed_f_4ms_lead12ms"}) {
       EXPECT_NEAR(f[at(n)], 10.0, 0.02) << n << " at " << rate << " Hz";
     }
     EXPECT_NEAR(f[at("cos_32ms")], 1.0, 1e-5);
@@ -316,8 +334,16 @@ TEST(Features, ALossCutsTheScalesThatReachItAndSaysHowFarItIs) {
   EXPECT_TRUE(std::isnan(f[at("disp_256ms")]));
   EXPECT_NEAR(f[at("loss_after_s")], 0.020, 1e-6);
   EXPECT_FLOAT_EQ(f[at("loss_before_s")], static_cast<float>(kFeatureReachS));
+  // The 4 ms steps: the last one ahead of the sample, 12-16 ms, reaches 556 ms, into the loss.
+  sample_features(buf, 126, fovea::protocol::DisplayGeometry{}, f);  // 504 ms
+  EXPECT_NEAR(f[at("speed_f_4ms_lead8ms")], 2.0, 1e-3);
+  EXPECT_TRUE(std::isnan(f[at("speed_f_4ms_lead12ms")]));
+  sample_features(buf, 144, fovea::protocol::DisplayGeometry{}, f);  // 576 ms: 20 ms after the loss
+  EXPECT_NEAR(f[at("speed_b_4ms_lag12ms")], 2.0, 1e-3);
+  EXPECT_TRUE(std::isnan(f[at("speed_b_4ms_lag16ms")]));
   sample_features(buf, 135, fovea::protocol::DisplayGeometry{}, f);  // in the loss: no gaze
   EXPECT_TRUE(std::isnan(f[at("speed_c_4ms")]));
+  EXPECT_TRUE(std::isnan(f[at("speed_b_4ms_lag4ms")]));
   EXPECT_TRUE(std::isnan(f[at("noise_deg")]));
   EXPECT_NEAR(f[at("loss_before_s")], 0.004, 1e-6);
 }
@@ -438,9 +464,15 @@ TEST(Features, AShorterReachKeepsThePastAndEndsTheLongWindowsAtTheReach) {
   float full[kFeatureCount], near[kFeatureCount];
   sample_features(buf, i, fovea::protocol::DisplayGeometry{}, full);
   sample_features(buf, i, fovea::protocol::DisplayGeometry{}, near, kReach);
-  for (const char* n : {"speed_c_64ms", "disp_64ms", "straight_32ms", "speed_b_256ms", "cos_4ms", "loss_before_s"}) {
+  for (const char* n : {"speed_c_64ms", "disp_64ms", "straight_32ms", "speed_b_256ms", "cos_4ms", "loss_before_s",
+                        "speed_b_4ms_lag20ms", "speed_f_4ms_lead12ms"}) {
     EXPECT_EQ(near[at(n)], full[at(n)]) << n;
   }
+  // A reach shorter than a step ahead ends it.
+  float short_reach[kFeatureCount];
+  sample_features(buf, i, fovea::protocol::DisplayGeometry{}, short_reach, 0.012);
+  EXPECT_EQ(short_reach[at("speed_f_4ms_lead8ms")], full[at("speed_f_4ms_lead8ms")]);
+  EXPECT_TRUE(std::isnan(short_reach[at("speed_f_4ms_lead12ms")]));
   for (const char* n : {"speed_c_256ms", "speed_f_256ms", "speed_c_128ms"}) EXPECT_NEAR(near[at(n)], 10.0, 0.02) << n;
   EXPECT_NEAR(near[at("cos_256ms")], 1.0, 1e-5);
   EXPECT_NEAR(near[at("straight_256ms")], 1.0, 1e-5);
@@ -830,7 +862,7 @@ TEST(GbtModel, ADamagedBundleIsRefusedWithFileAndLine) {
   // A second stage must read the context of the first's classes: here it names other features.
   const std::string other = replaced(bundle(), "stage frame\n" + ensemble(feature_names(), "fixation saccade"),
                                      "stage frame\n" + ensemble(feature_names(), "fixation pursuit"));
-  EXPECT_NE(model_error(other).find("m.gbt:13: the model was trained on other features"), std::string::npos);
+  EXPECT_NE(model_error(other).find("m.gbt:13: the model reads feature '"), std::string::npos);
   // The ensembles' own errors carry the file's line numbers.
   EXPECT_EQ(model_error(replaced(bundle(), "tree 0 1\n-1 0 0 0 0 1\nstage online", "tree 0 1\n-1 0 0 0 0 nan\nstage online")),
             "m.gbt:10: node value 'nan' is not a finite number");

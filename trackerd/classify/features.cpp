@@ -39,6 +39,8 @@ const std::vector<std::string>& feature_names() {
       for (const char* f : {"speed_c_", "speed_b_", "speed_f_", "cos_", "disp_", "straight_"}) n.push_back(f + ms);
     }
     for (const char* f : {"loss_before_s", "loss_after_s", "filled", "noise_deg", "offscreen_deg"}) n.emplace_back(f);
+    for (double lag : kStepLagsS) n.push_back("speed_b_4ms_lag" + std::to_string(std::lround(lag * 1000)) + "ms");
+    for (double lead : kStepLeadsS) n.push_back("speed_f_4ms_lead" + std::to_string(std::lround(lead * 1000)) + "ms");
     return n;
   }();
   return names;
@@ -151,18 +153,20 @@ float FeatureWindow::noise(std::int64_t a, std::int64_t b) const {
   return static_cast<float>(*mid);
 }
 
+// The point at time offset u from row c, between rows r0 and r1 (offsets u0 <= u <= u1), in c's
+// tangent frame.
+TangentVector FeatureWindow::point_at(const Row& c, const Row& r0, const Row& r1, double u, const TangentMap& tm) {
+  const double u0 = r0.t - c.t, u1 = r1.t - c.t;
+  const double v = std::abs(u - u0) <= kSameTimeS ? 0.0 : std::abs(u1 - u) <= kSameTimeS ? 1.0 : (u - u0) / (u1 - u0);
+  return tm(r0.x + v * (r1.x - r0.x) - c.x, r0.y + v * (r1.y - r0.y) - c.y);
+}
+
 // One scale's features of row ci over [t - d, t + a] (a = d but where the reach is shorter), whose
 // run reaches rows bj (the last d or more before it) and f (the first a or more after it).
 void FeatureWindow::scale_features(std::int64_t ci, std::int64_t bj, std::int64_t f, const TangentMap& tm, double d,
                                    double a, float* o) const {
   const Row& c = at(ci);
-  // The point at time offset u (from the centre) between rows r0 and r1 (offsets u0 <= u <= u1).
-  const auto between = [&](const Row& r0, const Row& r1, double u) {
-    const double u0 = r0.t - c.t, u1 = r1.t - c.t;
-    const double v = std::abs(u - u0) <= kSameTimeS ? 0.0 : std::abs(u1 - u) <= kSameTimeS ? 1.0 : (u - u0) / (u1 - u0);
-    return tm(r0.x + v * (r1.x - r0.x) - c.x, r0.y + v * (r1.y - r0.y) - c.y);
-  };
-  const TangentVector pb = between(at(bj), at(bj + 1), -d), pf = between(at(f - 1), at(f), a);
+  const TangentVector pb = point_at(c, at(bj), at(bj + 1), -d, tm), pf = point_at(c, at(f - 1), at(f), a, tm);
   // The window's samples: -d <= t - t_c <= a.
   const std::int64_t first = c.t - at(bj).t <= d + kSameTimeS ? bj : bj + 1;
   const std::int64_t last = at(f).t - c.t <= a + kSameTimeS ? f : f - 1;
@@ -199,9 +203,11 @@ void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& dis
   tail[0] = loss_time(c.prev_loss, kFeatureReachS);
   tail[1] = loss_time(c.next_loss, reach_s);
   tail[2] = c.filled ? 1.0f : 0.0f;
+  float* steps = tail + kTailFeatures;
   if (!c.gaze) {
     std::fill(out, tail, kNaNf);
     tail[2] = tail[3] = tail[4] = kNaNf;
+    std::fill(steps, steps + kStepLagsS.size() + kStepLeadsS.size(), kNaNf);
     return;
   }
   // The centre's run among the rows held: [lo, hi].
@@ -237,6 +243,28 @@ void FeatureWindow::features(std::size_t i, const protocol::DisplayGeometry& dis
       row_it(ci), row_it(hi + 1), [&](const Row& r) { return r.t - c.t <= std::min(kNoiseHalfS, reach_s) + kSameTimeS; }));
   tail[3] = noise(na, nb - 1);
   tail[4] = offscreen_deg(display, c.x, c.y);
+  // The 4 ms steps that end kStepLagsS before the sample and start kStepLeadsS after it: where the
+  // gaze has just landed they show the movement that brought it there.
+  const auto point = [&](double u, TangentVector& p) {  // at offset u from the centre, if the run has it
+    if (u < 0) {
+      const std::int64_t w = within_before(-u);  // rows w-1 and w bracket t + u
+      if (w == lo) return false;
+      p = point_at(c, at(w - 1), at(w), u, tm);
+    } else {
+      if (u > reach_s + kSameTimeS) return false;
+      const std::int64_t f = ahead(u);  // rows f-1 and f bracket t + u
+      if (f > hi) return false;
+      p = point_at(c, at(f - 1), at(f), u, tm);
+    }
+    return true;
+  };
+  constexpr double kStep = kFeatureScalesS[0];
+  const auto step_speed = [&](double from, double to) {
+    TangentVector a, b;
+    return point(from, a) && point(to, b) ? static_cast<float>(length(b.x - a.x, b.y - a.y) / kStep) : kNaNf;
+  };
+  for (double lag : kStepLagsS) *steps++ = step_speed(-lag - kStep, -lag);
+  for (double lead : kStepLeadsS) *steps++ = step_speed(lead, lead + kStep);
 }
 
 void sample_features(const std::deque<Prepared>& buf, std::size_t i, const protocol::DisplayGeometry& display,

@@ -112,14 +112,23 @@ std::string tree_fault(const std::vector<TreeEnsemble::FileNode>& tree) {
 }  // namespace
 
 TreeEnsemble TreeEnsemble::parse(const std::string& text, const std::string& origin,
-                                 const std::vector<std::string>& expected_features, int first_line) {
+                                 const std::vector<std::string>& available_features, int first_line) {
   Tokens in(text, origin, first_line);
   in.expect("fovea-trees");
   if (in.integer("format version", 0, kMaxCount) != 1) in.fail("format version is not 1");
+  // The model names the features its nodes read, in its own order; each must be one this build
+  // computes (a model trained before a feature was added still reads the ones it knew).
   const std::vector<std::string> features = names(in, "features", 4096);
-  if (features != expected_features) {
-    in.fail("the model was trained on other features than this build computes (" + std::to_string(features.size()) +
-            " named, " + std::to_string(expected_features.size()) + " expected): retrain it");
+  std::vector<long> index_of;
+  for (const std::string& f : features) {
+    const auto it = std::find(available_features.begin(), available_features.end(), f);
+    if (it == available_features.end()) {
+      in.fail("the model reads feature '" + f + "', which this build does not compute: retrain it");
+    }
+    if (std::find(features.begin(), features.end(), f) != features.begin() + static_cast<std::ptrdiff_t>(index_of.size())) {
+      in.fail("the model names feature '" + f + "' twice");
+    }
+    index_of.push_back(it - available_features.begin());
   }
   TreeEnsemble m;
   m.classes_ = names(in, "classes", 64);
@@ -136,6 +145,7 @@ TreeEnsemble TreeEnsemble::parse(const std::string& text, const std::string& ori
     for (long k = 0; k < count; ++k) {
       FileNode n;
       n.feature = in.integer("node feature", -1, static_cast<long>(features.size()) - 1);
+      if (n.feature >= 0) n.feature = index_of[static_cast<std::size_t>(n.feature)];
       n.threshold = in.number("node threshold", true);
       n.missing_left = in.integer("node missing_left", 0, 1) == 1;
       n.left = in.integer("node left", 0, count - 1), n.right = in.integer("node right", 0, count - 1);

@@ -33,10 +33,12 @@ inline constexpr std::size_t kMaxTreeClasses = 8;  // what fovea's models may ha
 
 class TreeEnsemble {
  public:
-  // Throws std::invalid_argument naming `origin`, the line and what is wrong; `expected_features`
-  // must equal the model's list. first_line: the text's first line's number in its file.
+  // Throws std::invalid_argument naming `origin`, the line and what is wrong. The model's nodes read
+  // features by the names its `features` line gives; predict() reads them at those names' places in
+  // `available_features` (what the caller computes), each of which the model's list must name at
+  // most once. first_line: the text's first line's number in its file.
   static TreeEnsemble parse(const std::string& text, const std::string& origin,
-                            const std::vector<std::string>& expected_features, int first_line = 1);
+                            const std::vector<std::string>& available_features, int first_line = 1);
   const std::vector<std::string>& class_names() const { return classes_; }
   std::size_t tree_count() const { return root_.size(); }
   std::size_t node_count() const { return nodes_.size(); }
