@@ -26,8 +26,8 @@
 // speed_f_4ms_leadL, over the 4 ms that start L after it (kStepLeadsS; NaN where the run or the
 // reach does not get there). Coders end a saccade at a landed sample (GazeCom's expert at the first
 // one: the step into it is slow, the steps before it fast), which the windows' sums blur; with the
-// steps a first stage on 9 GazeCom videos, scored on the other 9, finds saccade samples at F1 0.892
-// against 0.876 without them (bench/RESULTS.md, "The speed profile in 4 ms steps").
+// steps a first stage on 9 GazeCom videos, scored on the other 9, finds saccade samples at F1 0.891
+// against 0.875 without them (bench/RESULTS.md, "The speed profile in 4 ms steps").
 //
 // Cost (issue 43: within the order of ivvt's): FeatureWindow keeps running sums of the samples it
 // holds, so a sample's features take binary searches and O(1) arithmetic per scale, whatever the
