@@ -195,15 +195,17 @@ def fit(x, y, iterations, leaves, learning_rate):
     return clf
 
 
-def training_rows(data, keep, stride_ms):
-    """A labelled sample with gaze features every stride_ms of the recordings (and copies) whose
-    recording index is in keep."""
+def training_rows(data, names, keep, stride_ms):
+    """A labelled sample with gaze every stride_ms of the recordings (and copies) whose recording
+    index is in keep. offscreen_deg is NaN exactly where a sample has no gaze (other features are
+    NaN too where their windows leave the gaze's run: those rows are kept)."""
     xs, ys = [], []
+    gaze_column = names.index("offscreen_deg")
     for i, f, lab, rate in data:
         if i not in keep:
             continue
         rows = np.arange(0, len(lab), max(1, int(round(stride_ms * rate / 1000.0))))
-        rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, -1])]
+        rows = rows[(lab[rows] > 0) & ~np.isnan(f[rows, gaze_column])]
         xs.append(f[rows])
         ys.append(lab[rows])
     return np.concatenate(xs), np.concatenate(ys)
@@ -301,7 +303,7 @@ def frame_lovo(args, data, names, files, videos, settings, start, reach=None):
             if reach:
                 write_chain(args, v, reach)
             continue
-        x, y = training_rows(data, {i for i, w in enumerate(videos) if w != v}, args.stride_ms)
+        x, y = training_rows(data, names, {i for i, w in enumerate(videos) if w != v}, args.stride_ms)
         clf = fit(x, y, args.iterations, args.leaves, args.learning_rate)
         write_model(clf, names, path, f"GazeCom without {v}: {len(x)} samples; {settings}")
         held = [i for i, w in enumerate(videos) if w == v][:1]
@@ -365,7 +367,7 @@ def nested_lovo(args, data, names, files, videos, settings2, start):
     for v in args.nested.split(","):
         rows, context_names = [], None
         for u in sorted(set(videos) - {v}):
-            x, y = training_rows(data, {i for i, w in enumerate(videos) if w not in (u, v)}, args.stride_ms)
+            x, y = training_rows(data, names, {i for i, w in enumerate(videos) if w not in (u, v)}, args.stride_ms)
             model = os.path.join(out_dir, f"{v}.without.{u}.frame.trees")
             write_model(fit(x, y, args.iterations, args.leaves, args.learning_rate), names, model,
                         f"GazeCom without {v} and {u}")
@@ -528,7 +530,7 @@ def write_full_model(args, data, names, files, settings, rows, context_names, st
     """--out: the first stage (and with --online-reach the online chain's own) on every recording
     and, unless --frame-only, both second stages on every recording's out-of-fold rows (rows: the
     online and the offline chain's); checked against scikit-learn."""
-    x, y = training_rows(data[0], set(range(len(files))), args.stride_ms)
+    x, y = training_rows(data[0], names, set(range(len(files))), args.stride_ms)
     clf = fit(x, y, args.iterations, args.leaves, args.learning_rate)
     note = f"{len(files)} GazeCom recordings, {len(x)} samples; {settings}"
     check_at = range(0, len(files), max(1, len(files) // 4))
@@ -536,7 +538,7 @@ def write_full_model(args, data, names, files, settings, rows, context_names, st
     write_model(clf, names, frame_path, note)
     frame_online = None
     if data[1] is not None:
-        xo, yo = training_rows(data[1], set(range(len(files))), args.stride_ms)
+        xo, yo = training_rows(data[1], names, set(range(len(files))), args.stride_ms)
         clf_online = fit(xo, yo, args.iterations, args.leaves, args.learning_rate)
         write_model(clf_online, names, online_path, note)
         frame_online = (online_path, args.online_reach)
