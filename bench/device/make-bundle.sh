@@ -38,8 +38,10 @@ done
 # opens nothing, and any other function aborts with a message.
 standin_gdal() {
   local gdal imgcodecs
-  gdal=$(ldconfig -p | awk '$1 == "libgdal.so.32" {print $NF; exit}')
-  imgcodecs=$(ldconfig -p | awk '$1 == "libopencv_imgcodecs.so.406" {print $NF; exit}')
+  # awk reads all of ldconfig's list (no exit at the first match): ldconfig's SIGPIPE failed the
+  # assignment under pipefail whenever awk quit before ldconfig had written everything.
+  gdal=$(ldconfig -p | awk '$1 == "libgdal.so.32" && !n++ {print $NF}')
+  imgcodecs=$(ldconfig -p | awk '$1 == "libopencv_imgcodecs.so.406" && !n++ {print $NF}')
   [ -n "$gdal" ] && [ -n "$imgcodecs" ] || return 0
   mkdir -p "$stage/standin"
   nm -D --defined-only "$gdal" | awk '{print $3}' | sort -u >"$stage/standin/defined"
